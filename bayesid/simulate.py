@@ -1,0 +1,229 @@
+"""Batched simulation: a vehicle, a manoeuvre and B coefficient vectors in, B tracks out.
+
+The expensive part is one call of the compiled kernel :func:`bayesid.dynamics.simulate_batch`;
+everything that does not change between calls (active terms, scales, inputs) is prepared once in
+:class:`Simulator`, so an optimiser or a sampler pays only for the integration.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import dynamics, terms
+from .track import INPUT_NAMES, STATE_NAMES, Track
+
+MODES = ("6dof", "horizontal")
+_PLANE = [0, 1, 5]  # u, v, r rows/columns of the mass matrix
+
+
+@dataclass(frozen=True)
+class Manoeuvre:
+    """Input time history on the integration grid.
+
+    Attributes
+    ----------
+    name : short id, e.g. ``"spiral"``.
+    dt : integration step (s); input k is held over [k*dt, (k+1)*dt).
+    inputs : (n_steps, 4) ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm).
+    initial_state : (12,) state at t = 0.
+    description : the exact sequence in words (for reports).
+    parameters : the generator's parameters (JSON-serialisable).
+    """
+
+    name: str
+    dt: float
+    inputs: np.ndarray
+    initial_state: np.ndarray
+    description: str = ""
+    parameters: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        inp = np.asarray(self.inputs, dtype=float)
+        if inp.ndim != 2 or inp.shape[1] != 4:
+            raise ValueError(f"manoeuvre {self.name}: inputs must be (n_steps, 4), got {inp.shape}")
+        for j, ch in enumerate(INPUT_NAMES):
+            bad = np.flatnonzero(~np.isfinite(inp[:, j]))
+            if bad.size:
+                raise ValueError(f"manoeuvre {self.name}: input {ch} is not finite at step {bad[0]} "
+                                 f"(t = {bad[0] * self.dt:g} s)")
+        s0 = np.asarray(self.initial_state, dtype=float)
+        if s0.shape != (12,) or not np.all(np.isfinite(s0)):
+            raise ValueError(f"manoeuvre {self.name}: initial_state must be 12 finite numbers")
+        if not (self.dt > 0):
+            raise ValueError(f"manoeuvre {self.name}: dt must be positive")
+        object.__setattr__(self, "inputs", np.ascontiguousarray(inp))
+        object.__setattr__(self, "initial_state", s0)
+
+    @property
+    def n_steps(self) -> int:
+        return self.inputs.shape[0]
+
+    @property
+    def t(self) -> np.ndarray:
+        """(n_steps + 1,) times of the states, s."""
+        return np.arange(self.n_steps + 1) * self.dt
+
+    @property
+    def duration(self) -> float:
+        return self.n_steps * self.dt
+
+
+@dataclass
+class SimResult:
+    """Output of one batched simulation.
+
+    Attributes
+    ----------
+    t : (n_samples,) s.   states : (B, n_samples, 12), NaN after a divergence.
+    inputs : (n_samples, 4) the input applied from each sample time on.
+    status : (B,) 0 ok, 1 non-finite, 2 out of physical bounds.   fail_step : (B,) or -1.
+    """
+
+    t: np.ndarray
+    states: np.ndarray
+    inputs: np.ndarray
+    status: np.ndarray
+    fail_step: np.ndarray
+    name: str = ""
+
+    @property
+    def diverged(self) -> np.ndarray:
+        """(B,) bool."""
+        return self.status != dynamics.OK
+
+    def track(self, b: int = 0, name: str | None = None) -> Track:
+        """Track b as a :class:`~bayesid.track.Track` (all 12 states and the 4 inputs)."""
+        data = {n: self.states[b, :, i].copy() for i, n in enumerate(STATE_NAMES)}
+        data.update({n: self.inputs[:, j].copy() for j, n in enumerate(INPUT_NAMES)})
+        return Track(self.t.copy(), data, name=name if name is not None else self.name)
+
+
+class Simulator:
+    """Prepared simulation of one manoeuvre for a vehicle with some coefficients free.
+
+    Parameters
+    ----------
+    vehicle : :class:`~bayesid.vehicle.Vehicle` (its coefficients are the fixed values).
+    manoeuvre : :class:`Manoeuvre`.
+    free : names of the coefficients that :meth:`run` sets per track (SNAME names).
+    mode : ``"6dof"`` or ``"horizontal"`` (paper Sec. 4: only surge, sway, yaw evolve).
+    sample_every : store every k-th integration step.
+
+    Raises
+    ------
+    UnknownCoefficientError : a free name not in the term library.
+    ValueError : bad mode; horizontal mode with non-zero w, p, q, phi or theta initially.
+
+    Attributes ``n_tracks`` and ``sim_seconds`` count the work done (for the SQP monitor).
+    """
+
+    def __init__(self, vehicle, manoeuvre: Manoeuvre, free=(), mode: str = "6dof",
+                 sample_every: int = 1):
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        free = list(free)
+        terms.check_names(free, "free coefficients")
+        if len(set(free)) != len(free):
+            raise ValueError(f"duplicate free coefficient names in {free}")
+        s0 = manoeuvre.initial_state.copy()
+        if mode == "horizontal":
+            bad = [STATE_NAMES[i] for i in (3, 4, 8, 9, 10) if s0[i] != 0.0]
+            if bad:
+                raise ValueError(f"horizontal mode needs {', '.join(bad)} = 0 initially")
+            for name in free:
+                if not terms.term(name).horizontal:
+                    raise ValueError(f"coefficient {name} does not act in the horizontal plane")
+        self.vehicle, self.manoeuvre, self.mode = vehicle, manoeuvre, mode
+        self.free = free
+        self.sample_every = int(sample_every)
+        if self.sample_every < 1 or manoeuvre.n_steps % self.sample_every:
+            raise ValueError(f"sample_every={sample_every} must divide n_steps={manoeuvre.n_steps}")
+        self.s0 = s0
+        self.base = vehicle.coefficient_vector()  # (n_terms,) prime
+        free_set = set(free)
+        self.force_names = [t.name for t in terms.TERMS if t.kind == "force"
+                            and (self.base[terms.INDEX[t.name]] != 0.0 or t.name in free_set)
+                            and (mode == "6dof" or t.horizontal)]
+        self.tfac, self.tdof = terms.factor_table(self.force_names)
+        self.tscale = terms.prime_scale(self.force_names, vehicle.rho, vehicle.L)
+        self._force_idx = np.array([terms.INDEX[n] for n in self.force_names], dtype=np.int64)
+        self._free_idx = np.array([terms.INDEX[n] for n in free], dtype=np.int64)
+        self._am = [(terms.INDEX[n], terms.term(n)) for n in terms.names_where(kind="added_mass")]
+        self._M0 = vehicle.mass_matrix({})  # rigid body only
+        self._am_scale = np.array([0.5 * vehicle.rho * vehicle.L ** t.L_power for _, t in self._am])
+        self.vp = dynamics.vehicle_params(vehicle)
+        self.xs, self.ws = dynamics.crossflow_strips(vehicle)
+        self.n_samples = manoeuvre.n_steps // self.sample_every + 1
+        self.t = manoeuvre.t[::self.sample_every]
+        self.inputs_sampled = np.vstack([manoeuvre.inputs, manoeuvre.inputs[-1:]])[::self.sample_every]
+        self.n_tracks = 0
+        self.sim_seconds = 0.0
+
+    def coefficient_matrix(self, theta_free=None) -> np.ndarray:
+        """Full prime coefficient vectors (B, n_terms): the vehicle's values with the free ones
+        replaced by ``theta_free`` (B, P) or (P,)."""
+        if theta_free is None or len(self.free) == 0:
+            return self.base[None, :].copy()
+        th = np.atleast_2d(np.asarray(theta_free, dtype=float))
+        if th.shape[1] != len(self.free):
+            raise ValueError(f"theta_free has {th.shape[1]} columns for {len(self.free)} free coefficients")
+        C = np.repeat(self.base[None, :], th.shape[0], axis=0)
+        C[:, self._free_idx] = th
+        return C
+
+    def inverse_mass_matrices(self, C: np.ndarray) -> np.ndarray:
+        """(B, 6, 6) inverse mass matrices (restricted to u, v, r in horizontal mode).
+
+        A singular mass matrix gives NaN entries, which the kernel flags as a divergence."""
+        B = C.shape[0]
+        M = np.repeat(self._M0[None], B, axis=0)
+        for (idx, t), sc in zip(self._am, self._am_scale):
+            M[:, t.dof, t.accel] -= sc * C[:, idx]
+        Minv = np.zeros((B, 6, 6))
+        if self.mode == "horizontal":
+            sub = M[:, _PLANE][:, :, _PLANE]
+            inv = _safe_inv(sub)
+            for a, i in enumerate(_PLANE):
+                for c, j in enumerate(_PLANE):
+                    Minv[:, i, j] = inv[:, a, c]
+        else:
+            Minv[:] = _safe_inv(M)
+        return Minv
+
+    def run(self, theta_free=None, initial_states=None) -> SimResult:
+        """Simulate one track per row of ``theta_free`` (B, P) -- or the vehicle as is.
+
+        Never raises on divergence: diverged tracks are flagged in ``status`` and NaN-filled.
+        """
+        C = self.coefficient_matrix(theta_free)
+        B = C.shape[0]
+        tcoef = np.ascontiguousarray(C[:, self._force_idx] * self.tscale)
+        Minv = self.inverse_mass_matrices(C)
+        s0 = np.repeat(self.s0[None], B, axis=0) if initial_states is None else \
+            np.ascontiguousarray(np.broadcast_to(initial_states, (B, 12)), dtype=float)
+        out = np.empty((B, self.n_samples, 12))
+        status = np.empty(B, dtype=np.int64)
+        fail = np.empty(B, dtype=np.int64)
+        tic = time.perf_counter()
+        dynamics.simulate_batch(s0, self.manoeuvre.inputs, self.manoeuvre.dt, self.sample_every,
+                                self.vp, self.tfac, self.tdof, tcoef, Minv, self.xs, self.ws,
+                                out, status, fail)
+        self.sim_seconds += time.perf_counter() - tic
+        self.n_tracks += B
+        return SimResult(self.t, out, self.inputs_sampled, status, fail, name=self.manoeuvre.name)
+
+
+def _safe_inv(M: np.ndarray) -> np.ndarray:
+    out = np.full(M.shape, np.nan)
+    ok = np.isfinite(M).all(axis=(1, 2))
+    ok[ok] = np.abs(np.linalg.det(M[ok])) > 1e-300
+    if ok.any():
+        out[ok] = np.linalg.inv(M[ok])
+    return out
+
+
+def simulate(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof", sample_every: int = 1) -> SimResult:
+    """Simulate the vehicle as it is (B = 1). See :class:`Simulator`."""
+    return Simulator(vehicle, manoeuvre, (), mode, sample_every).run()

@@ -1,0 +1,291 @@
+"""The one term library: every hydrodynamic coefficient as a named term.
+
+A force term contributes ``0.5*rho*L**k * C' * (product of factors)`` to one degree of freedom
+(X, Y, Z, K, M or N); an acceleration term (``Xudot``, ``Yvdot``, ...) contributes the same way
+through an acceleration and is moved into the constant mass matrix. Everything that needs to know
+about coefficients derives from this table: the simulator's force evaluation, the regressor matrix,
+sensitivities, the X/Y/N grouping for plots and the towing-tank (static) versus rotary/added-mass
+split of the paper's Case 2.
+
+Conventions (Gertler & Hagen 1967; Feldman 1979; the prime system of ``shared/research/equations.md``):
+
+* Names are SNAME: the force letter, then the motion variables of the product (``Yv`` multiplies
+  u*v with the implicit u, ``Ydr`` multiplies u**2*delta_r, ``Yvabsv`` multiplies v*|v|,
+  ``Nabsvr`` multiplies |v|*r, ``_eps`` terms also multiply the propulsion function eps(eta)).
+* The power of L is not typed in: it follows from the factors (prime rule). A force term has
+  ``k = 2 + (number of rate factors p, q, r)``, a moment term one more; an acceleration term has
+  ``k = 3`` for a linear and ``k = 4`` for an angular acceleration, a moment one more.
+* ``db`` terms are per bow plane; a single ``delta_b`` input drives both planes together, so
+  these terms carry a multiplicity of 2 (documented choice, equations.md "Pitfalls met").
+* ``Cd0`` is the Healey & Lienard propulsion-minus-resistance coefficient,
+  ``X = 0.5*rho*L**2 * Cd0 * (u_c|u_c| - u|u|)``, i.e. ``u**2 * X'prop(eta)`` with
+  ``X'prop = Cd0*(eta|eta| - 1)`` for u > 0, extended to u <= 0 as drag opposing the motion.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+DOFS = ("X", "Y", "Z", "K", "M", "N")
+#: Body velocity names in state order (state vector indices 6..11).
+VELOCITIES = ("u", "v", "w", "p", "q", "r")
+
+# Feature vector evaluated once per right-hand-side call; a term is a product of features.
+# The order is shared with the compiled kernel (bayesid.dynamics); change both together.
+FEATURES = ("1", "u", "v", "w", "p", "q", "r", "dr", "ds", "db", "eps",
+            "|v|", "|r|", "prop", "|w|", "|q|")
+F_INDEX = {name: i for i, name in enumerate(FEATURES)}
+N_FEATURES = len(FEATURES)
+MAX_FACTORS = 5
+
+_RATES = {"p", "q", "r", "|r|", "|q|"}
+_LINEAR = {"u", "v", "w", "|v|", "|w|"}
+
+TERM_KINDS = ("force", "added_mass")
+CATEGORIES = ("static", "rotary", "added_mass")
+
+
+@dataclass(frozen=True)
+class Term:
+    """One hydrodynamic coefficient.
+
+    Attributes
+    ----------
+    name : SNAME name, e.g. ``"Yvabsv"``.
+    dof : index into ``DOFS`` of the force/moment it acts in.
+    factors : feature names whose product the coefficient multiplies (force terms),
+        empty for acceleration terms.
+    accel : index into ``VELOCITIES`` of the acceleration (added-mass terms), else -1.
+    multiplicity : 2 for per-bow-plane terms driven by one ``delta_b`` input, else 1.
+    """
+
+    name: str
+    dof: int
+    factors: tuple[str, ...]
+    accel: int = -1
+    multiplicity: int = 1
+
+    @property
+    def kind(self) -> str:
+        return "added_mass" if self.accel >= 0 else "force"
+
+    @property
+    def group(self) -> str:
+        """Force/moment letter: ``"X"``, ``"Y"``, ... (the paper's Figs. 3-5 grouping)."""
+        return DOFS[self.dof]
+
+    @property
+    def L_power(self) -> int:
+        """Power k of L in the prime factor 0.5*rho*L**k (Gertler & Hagen prime rule)."""
+        moment = 1 if self.dof >= 3 else 0
+        if self.accel >= 0:
+            return (3 if self.accel < 3 else 4) + moment
+        if self.factors == ("prop",):
+            return 2 + moment
+        return 2 + sum(f in _RATES for f in self.factors) + moment
+
+    @property
+    def category(self) -> str:
+        """``"static"`` (towing tank without a planar motion mechanism: u, v, w, control angles,
+        propulsion), ``"rotary"`` (needs p, q, r: rotating arm/PMM) or ``"added_mass"``."""
+        if self.accel >= 0:
+            return "added_mass"
+        return "rotary" if any(f in _RATES for f in self.factors) else "static"
+
+    @property
+    def horizontal(self) -> bool:
+        """True if the term acts in the horizontal-plane model (surge, sway, yaw with
+        w = p = q = 0 and no stern or bow plane deflection)."""
+        if self.group not in ("X", "Y", "N"):
+            return False
+        if self.accel >= 0:
+            return VELOCITIES[self.accel] in ("u", "v", "r")
+        return not any(f in ("w", "p", "q", "ds", "db", "eps", "|w|", "|q|") for f in self.factors)
+
+
+def _T(name: str, factors: str, mult: int = 1, dof: str | None = None) -> Term:
+    """Build a force term from its name and a space-separated factor list; the degree of
+    freedom is the name's first letter unless given."""
+    fs = tuple(factors.split())
+    for f in fs:
+        if f not in F_INDEX:
+            raise ValueError(f"term {name}: unknown factor {f!r}")
+    if len(fs) > MAX_FACTORS:
+        raise ValueError(f"term {name}: more than {MAX_FACTORS} factors")
+    return Term(name, DOFS.index(dof or name[0]), fs, -1, mult)
+
+
+def _A(name: str) -> Term:
+    """Build an acceleration (added-mass) term, e.g. ``Yrdot`` (Y due to r-dot)."""
+    return Term(name, DOFS.index(name[0]), (), VELOCITIES.index(name[1]), 1)
+
+
+# The table. Feldman/Healey form as implemented for NPS AUV II (equations.md, [V] terms), plus
+# the Gertler-Hagen polynomial cross-flow terms that stand in for the cross-flow integral.
+TERMS: tuple[Term, ...] = (
+    # ---- X (surge) ----
+    _T("Xpp", "p p"), _T("Xqq", "q q"), _T("Xrr", "r r"), _T("Xpr", "p r"),
+    _A("Xudot"),
+    _T("Xwq", "w q"), _T("Xvp", "v p"), _T("Xvr", "v r"),
+    _T("Xqds", "u q ds"), _T("Xqdb", "u q db", 2), _T("Xrdr", "u r dr"),
+    _T("Xvv", "v v"), _T("Xww", "w w"), _T("Xvdr", "u v dr"), _T("Xwds", "u w ds"),
+    _T("Xwdb", "u w db", 2),
+    _T("Xdsds", "u u ds ds"), _T("Xdbdb", "u u db db"), _T("Xdrdr", "u u dr dr"),
+    _T("Xqds_eps", "u q ds eps"), _T("Xwds_eps", "u w ds eps"), _T("Xdsds_eps", "u u ds ds eps"),
+    _T("Cd0", "prop", dof="X"),
+    # ---- Y (sway) ----
+    _A("Ypdot"), _A("Yrdot"), _T("Ypq", "p q"), _T("Yqr", "q r"),
+    _A("Yvdot"),
+    _T("Yp", "u p"), _T("Yr", "u r"), _T("Yvq", "v q"), _T("Ywp", "w p"), _T("Ywr", "w r"),
+    _T("Yv", "u v"), _T("Yvw", "v w"), _T("Ydr", "u u dr"),
+    _T("Yvabsv", "v |v|"), _T("Yvabsr", "v |r|"), _T("Yrabsr", "r |r|"),
+    # ---- Z (heave) ----
+    _A("Zqdot"), _T("Zpp", "p p"), _T("Zpr", "p r"), _T("Zrr", "r r"),
+    _A("Zwdot"),
+    _T("Zq", "u q"), _T("Zvp", "v p"), _T("Zvr", "v r"),
+    _T("Zw", "u w"), _T("Zvv", "v v"), _T("Zds", "u u ds"), _T("Zdb", "u u db", 2),
+    _T("Zq_eps", "u q eps"), _T("Zw_eps", "u w eps"), _T("Zds_eps", "u u ds eps"),
+    _T("Zwabsw", "w |w|"), _T("Zwabsq", "w |q|"), _T("Zqabsq", "q |q|"),
+    # ---- K (roll) ----
+    _A("Kpdot"), _A("Krdot"), _T("Kpq", "p q"), _T("Kqr", "q r"),
+    _A("Kvdot"),
+    _T("Kp", "u p"), _T("Kr", "u r"), _T("Kvq", "v q"), _T("Kwp", "w p"), _T("Kwr", "w r"),
+    _T("Kv", "u v"), _T("Kvw", "v w"), _T("Kdb", "u u db", 2),
+    _T("Kp_eps", "u p eps"), _T("Kprop", "u u"),
+    # ---- M (pitch) ----
+    _A("Mqdot"), _T("Mpp", "p p"), _T("Mpr", "p r"), _T("Mrr", "r r"),
+    _A("Mwdot"),
+    _T("Mq", "u q"), _T("Mvp", "v p"), _T("Mvr", "v r"),
+    _T("Mw", "u w"), _T("Mvv", "v v"), _T("Mds", "u u ds"), _T("Mdb", "u u db", 2),
+    _T("Mq_eps", "u q eps"), _T("Mw_eps", "u w eps"), _T("Mds_eps", "u u ds eps"),
+    _T("Mwabsw", "w |w|"), _T("Mabswq", "|w| q"), _T("Mqabsq", "q |q|"),
+    # ---- N (yaw) ----
+    _A("Npdot"), _A("Nrdot"), _T("Npq", "p q"), _T("Nqr", "q r"),
+    _A("Nvdot"),
+    _T("Np", "u p"), _T("Nr", "u r"), _T("Nvq", "v q"), _T("Nwp", "w p"), _T("Nwr", "w r"),
+    _T("Nv", "u v"), _T("Nvw", "v w"), _T("Ndr", "u u dr"), _T("Nprop", "u u"),
+    _T("Nvabsv", "v |v|"), _T("Nabsvr", "|v| r"), _T("Nrabsr", "r |r|"),
+)
+
+NAMES: tuple[str, ...] = tuple(t.name for t in TERMS)
+INDEX: dict[str, int] = {n: i for i, n in enumerate(NAMES)}
+
+#: The polynomial terms that replace the cross-flow drag integral (Gertler & Hagen form).
+CROSSFLOW_POLYNOMIAL = ("Yvabsv", "Yvabsr", "Yrabsr", "Nvabsv", "Nabsvr", "Nrabsr",
+                        "Zwabsw", "Zwabsq", "Zqabsq", "Mwabsw", "Mabswq", "Mqabsq")
+
+
+class UnknownCoefficientError(KeyError):
+    """A coefficient name that is not in the term library."""
+
+    def __str__(self) -> str:  # KeyError quotes its argument; we want a readable message
+        return str(self.args[0])
+
+
+def term(name: str) -> Term:
+    """Look up a term by SNAME name.
+
+    Raises
+    ------
+    UnknownCoefficientError
+        if ``name`` is not in the table; the message suggests close matches.
+    """
+    try:
+        return TERMS[INDEX[name]]
+    except KeyError:
+        import difflib
+
+        close = difflib.get_close_matches(name, NAMES, n=3)
+        hint = f" (did you mean {', '.join(close)}?)" if close else ""
+        raise UnknownCoefficientError(f"unknown coefficient {name!r}{hint}") from None
+
+
+def check_names(names, where: str = "") -> None:
+    """Raise :class:`UnknownCoefficientError` naming the first name not in the table."""
+    for n in names:
+        if n not in INDEX:
+            try:
+                term(n)
+            except UnknownCoefficientError as e:
+                raise UnknownCoefficientError(f"{e}{' in ' + where if where else ''}") from None
+
+
+def prime_scale(names, rho: float, L: float) -> np.ndarray:
+    """Dimensional factor of each term: ``multiplicity * 0.5 * rho * L**k``.
+
+    Parameters
+    ----------
+    names : sequence of str, length P.
+    rho : water density, kg/m^3.   L : reference length, m.
+
+    Returns
+    -------
+    ndarray (P,)
+    """
+    return np.array([TERMS[INDEX[n]].multiplicity * 0.5 * rho * L ** TERMS[INDEX[n]].L_power
+                     for n in names])
+
+
+def factor_table(names) -> tuple[np.ndarray, np.ndarray]:
+    """Compiled-kernel encoding of force terms.
+
+    Returns
+    -------
+    factors : int64 (P, MAX_FACTORS), feature indices padded with the index of ``"1"``.
+    dof : int64 (P,)
+
+    Raises
+    ------
+    ValueError if a name is an acceleration term (those belong in the mass matrix).
+    """
+    P = len(names)
+    fac = np.zeros((P, MAX_FACTORS), dtype=np.int64)
+    dof = np.zeros(P, dtype=np.int64)
+    for j, n in enumerate(names):
+        t = term(n)
+        if t.kind != "force":
+            raise ValueError(f"{n} is an acceleration term, not a force term")
+        for i, f in enumerate(t.factors):
+            fac[j, i] = F_INDEX[f]
+        dof[j] = t.dof
+    return fac, dof
+
+
+def names_where(*, group: str | None = None, category: str | None = None,
+                kind: str | None = None, horizontal: bool | None = None) -> list[str]:
+    """Term names (table order) matching all given filters.
+
+    Example: ``names_where(group="Y", category="rotary", horizontal=True)``.
+    """
+    out = []
+    for t in TERMS:
+        if group is not None and t.group != group:
+            continue
+        if category is not None and t.category != category:
+            continue
+        if kind is not None and t.kind != kind:
+            continue
+        if horizontal is not None and t.horizontal != horizontal:
+            continue
+        out.append(t.name)
+    return out
+
+
+def regressors(features: np.ndarray, names, rho: float, L: float) -> np.ndarray:
+    """Regressor columns of force terms: ``Phi[:, j] = scale_j * prod(features of term j)``.
+
+    ``tau_dof = sum_j [dof_j == dof] * Phi[:, j] * C'_j`` (hydrodynamic part only).
+
+    Parameters
+    ----------
+    features : (n, N_FEATURES) from :func:`bayesid.dynamics.features`.
+    names : sequence of P force-term names.
+
+    Returns
+    -------
+    ndarray (n, P), newtons or newton-metres per unit coefficient.
+    """
+    fac, _ = factor_table(names)
+    scale = prime_scale(names, rho, L)
+    return np.prod(features[:, fac], axis=2) * scale

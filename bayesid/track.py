@@ -1,0 +1,514 @@
+"""Measured manoeuvring tracks and their CSV file format.
+
+A *track file* is a CSV file with one row per sample and a header row, in SI
+units with angles in radians:
+
+* ``t`` (s), strictly increasing;
+* states, any subset that was measured: ``x, y, z`` (earth-fixed NED position,
+  m), ``phi, theta, psi`` (zyx Euler angles, rad), ``u, v, w`` (body-fixed
+  velocities, m/s), ``p, q, r`` (body-fixed rates, rad/s);
+* inputs: ``delta_r, delta_s, delta_b`` (rudder, stern and bow plane angles,
+  rad) and ``n`` (propeller shaft speed, rpm);
+* any other column is an exogenous signal kept by name; measured wind is
+  ``wind_speed`` (true wind speed, m/s) and ``wind_dir`` (direction the true
+  wind comes *from*, rad, earth frame, measured like ``psi``).
+
+Missing values are empty fields (NaN in memory).  A header may carry a unit
+annotation, ``psi [rad]`` or ``x (m)``; for the columns above it must be the
+unit listed in :data:`UNITS`, for other columns any unit is kept in
+``Track.units``.  Lines starting with ``#`` before the header are comments,
+kept in ``Track.meta["comments"]``.  Floats are written with ``repr`` so that
+:func:`write_csv` followed by :func:`read_csv` reproduces every value
+bit-for-bit.
+"""
+from __future__ import annotations
+
+import copy
+import csv
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "STATE_NAMES", "INPUT_NAMES", "UNITS", "TrackFormatError", "Track",
+    "read_csv", "write_csv",
+]
+
+STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r")
+"""State column names; index order is the simulator state order."""
+
+INPUT_NAMES = ("delta_r", "delta_s", "delta_b", "n")
+"""Input column names, in the order of :meth:`Track.inputs`."""
+
+UNITS: dict[str, str] = {
+    "t": "s",
+    "x": "m", "y": "m", "z": "m",
+    "phi": "rad", "theta": "rad", "psi": "rad",
+    "u": "m/s", "v": "m/s", "w": "m/s",
+    "p": "rad/s", "q": "rad/s", "r": "rad/s",
+    "delta_r": "rad", "delta_s": "rad", "delta_b": "rad",
+    "n": "rpm",
+    "wind_speed": "m/s", "wind_dir": "rad",
+}
+"""Contract unit of every named column; a header annotation must match it."""
+
+_ROLE_NAMES = frozenset(STATE_NAMES) | frozenset(INPUT_NAMES)
+# Plain decimal literal (ASCII digits only): no inf/nan, no "1_000", no hex.
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+# "name", "name [unit]" or "name (unit)".
+_HEADER = re.compile(r"(?P<name>[^\[\]()]*?)\s*(?:\[(?P<u1>[^\[\]]*)\]|\((?P<u2>[^()]*)\))?")
+
+
+class TrackFormatError(ValueError):
+    """A track file breaks the format.
+
+    The message names the file, and where applicable the row (1-based line
+    number in the file) and the column; these are also available as the
+    attributes ``path``, ``row`` and ``column`` (None when not applicable).
+    """
+
+    def __init__(self, message, path=None, row=None, column=None):
+        super().__init__(message)
+        self.path, self.row, self.column = path, row, column
+
+
+def _fail(path, message, row=None, column=None):
+    where = str(path)
+    if row is not None:
+        where += f": row {row}"
+    if column is not None:
+        where += f", column '{column}'"
+    return TrackFormatError(f"{where}: {message}", path=str(path), row=row, column=column)
+
+
+@dataclass(eq=False, repr=False)
+class Track:
+    """One measured (or simulated) track: time base plus named columns.
+
+    Parameters
+    ----------
+    t : array_like, shape (n_samples,)
+        Sample times, s; finite and strictly increasing.
+    data : dict of str to array_like, each shape (n_samples,)
+        Column name -> values in the contract units of :data:`UNITS`
+        (NaN = missing, infinities are rejected).  Never contains ``"t"``.
+        Column roles follow from the names: :data:`STATE_NAMES`,
+        :data:`INPUT_NAMES`, anything else is exogenous.
+    name : str
+        Track name (the file stem when read from a file).
+    units : dict of str to str
+        Units of exogenous columns without a contract unit (e.g. from a
+        header ``"rpm_aux [Hz]"``).
+    meta : dict
+        Free-form metadata; ``meta["comments"]`` (list of str) is written to
+        and read from ``#`` lines in the file.
+
+    Arrays are copied to float64 on construction.
+
+    Raises
+    ------
+    ValueError
+        Naming the offending column: ``t`` not 1-D, not finite or not
+        strictly increasing; a data column not 1-D, of the wrong length,
+        containing infinities or named ``"t"``; a unit given for a column
+        that is absent or has a contract unit.
+    """
+
+    t: np.ndarray
+    data: dict[str, np.ndarray]
+    name: str = ""
+    units: dict[str, str] = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        label = f"track {self.name!r}"
+        try:
+            t = np.array(self.t, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{label}: column 't' is not numeric: {exc}") from None
+        if t.ndim != 1:
+            raise ValueError(f"{label}: column 't' must be 1-D, got shape {t.shape}")
+        if not np.all(np.isfinite(t)):
+            i = int(np.flatnonzero(~np.isfinite(t))[0])
+            raise ValueError(f"{label}: column 't' has non-finite value {t[i]} at index {i}")
+        bad = np.flatnonzero(np.diff(t) <= 0)
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise ValueError(f"{label}: column 't' is not strictly increasing at index {i} "
+                             f"({t[i - 1]!r} -> {t[i]!r})")
+        data = {}
+        for key, values in dict(self.data).items():
+            if not isinstance(key, str) or not key:
+                raise ValueError(f"{label}: column name must be a non-empty str, got {key!r}")
+            if key == "t":
+                raise ValueError(f"{label}: column 't' must be passed as `t`, not in `data`")
+            try:
+                col = np.array(values, dtype=np.float64)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{label}: column '{key}' is not numeric: {exc}") from None
+            if col.shape != t.shape:
+                raise ValueError(f"{label}: column '{key}' has shape {col.shape}, "
+                                 f"expected {t.shape} like 't'")
+            if np.any(np.isinf(col)):
+                raise ValueError(f"{label}: column '{key}' contains infinite values "
+                                 "(use NaN for missing)")
+            data[key] = col
+        units = dict(self.units)
+        for key, unit in units.items():
+            if key not in data:
+                raise ValueError(f"{label}: unit given for column '{key}' "
+                                 "which is not in the track")
+            if key in UNITS:
+                raise ValueError(f"{label}: column '{key}' has the contract unit "
+                                 f"{UNITS[key]!r}; do not list it in `units`")
+            if not isinstance(unit, str) or not unit:
+                raise ValueError(f"{label}: unit of column '{key}' must be a non-empty str")
+        self.t, self.data, self.units = t, data, units
+
+    def __repr__(self):
+        span = f"t=[{self.t[0]:g}, {self.t[-1]:g}] s" if self.n_samples else "empty"
+        return (f"Track(name={self.name!r}, n_samples={self.n_samples}, {span}, "
+                f"states={self.state_columns}, inputs={self.input_columns}, "
+                f"exogenous={self.exogenous_columns})")
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples (rows)."""
+        return int(self.t.shape[0])
+
+    @property
+    def state_columns(self) -> list[str]:
+        """Measured states present, in :data:`STATE_NAMES` order."""
+        return [k for k in STATE_NAMES if k in self.data]
+
+    @property
+    def input_columns(self) -> list[str]:
+        """Inputs present, in :data:`INPUT_NAMES` order."""
+        return [k for k in INPUT_NAMES if k in self.data]
+
+    @property
+    def exogenous_columns(self) -> list[str]:
+        """All other columns (wind, extra signals), in insertion order."""
+        return [k for k in self.data if k not in _ROLE_NAMES]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """Column ``name`` (or ``"t"``), shape (n_samples,); KeyError if absent."""
+        if name == "t":
+            return self.t
+        try:
+            return self.data[name]
+        except KeyError:
+            raise KeyError(f"track {self.name!r} has no column {name!r}; "
+                           f"available: {['t', *self.data]}") from None
+
+    def __contains__(self, name) -> bool:
+        return name == "t" or name in self.data
+
+    def states(self, names=None) -> np.ndarray:
+        """Stacked state columns.
+
+        Parameters
+        ----------
+        names : sequence of str, optional
+            Columns to stack; default :attr:`state_columns`.
+
+        Returns
+        -------
+        ndarray, shape (n_samples, len(names))
+
+        Raises
+        ------
+        KeyError
+            If a requested column is absent.
+        """
+        names = self.state_columns if names is None else list(names)
+        if not names:
+            return np.empty((self.n_samples, 0))
+        return np.column_stack([self[k] for k in names])
+
+    def inputs(self, fill=None) -> np.ndarray:
+        """Inputs in :data:`INPUT_NAMES` order (rad, rad, rad, rpm).
+
+        Parameters
+        ----------
+        fill : float, optional
+            Value for absent input columns (e.g. ``0.0``).  If None, an
+            absent input raises.
+
+        Returns
+        -------
+        ndarray, shape (n_samples, 4)
+
+        Raises
+        ------
+        KeyError
+            If ``fill`` is None and an input column is absent; names the
+            track and the missing inputs.
+        """
+        missing = [k for k in INPUT_NAMES if k not in self.data]
+        if missing and fill is None:
+            raise KeyError(f"track {self.name!r} has no input column(s) {missing}; "
+                           "pass fill=<value> to fill them")
+        out = np.empty((self.n_samples, len(INPUT_NAMES)))
+        for j, k in enumerate(INPUT_NAMES):
+            out[:, j] = self.data[k] if k in self.data else fill
+        return out
+
+    def with_columns(self, **cols) -> "Track":
+        """Copy with columns added or replaced (units of replaced columns kept).
+
+        Parameters
+        ----------
+        **cols : array_like, each shape (n_samples,)
+
+        Raises
+        ------
+        ValueError
+            As in construction (wrong length, infinities, ``t`` given).
+        """
+        return Track(self.t, {**self.data, **cols}, name=self.name,
+                     units=self.units, meta=copy.deepcopy(self.meta))
+
+    def slice_time(self, t0: float, t1: float) -> "Track":
+        """Copy with the samples where ``t0 <= t <= t1`` (s); may be empty.
+
+        Raises
+        ------
+        ValueError
+            If ``t0 > t1``.
+        """
+        if t0 > t1:
+            raise ValueError(f"slice_time: t0={t0!r} > t1={t1!r}")
+        keep = (self.t >= t0) & (self.t <= t1)
+        return Track(self.t[keep], {k: v[keep] for k, v in self.data.items()},
+                     name=self.name, units=self.units, meta=copy.deepcopy(self.meta))
+
+    @classmethod
+    def from_arrays(cls, t, states=None, inputs=None, name="", **exogenous) -> "Track":
+        """Build a track from arrays.
+
+        Parameters
+        ----------
+        t : array_like, shape (n,)
+            Times, s.
+        states : dict of str to array_like, or array_like of shape (n, 12), optional
+            A dict keyed by (a subset of) :data:`STATE_NAMES`, or all twelve
+            states as columns in :data:`STATE_NAMES` order.
+        inputs : dict of str to array_like, or array_like of shape (n, 4), optional
+            A dict keyed by (a subset of) :data:`INPUT_NAMES`, or all four
+            inputs as columns in :data:`INPUT_NAMES` order.
+        name : str
+        **exogenous : array_like, each shape (n,)
+            Other columns, e.g. ``wind_speed=..., wind_dir=...``.
+
+        Raises
+        ------
+        ValueError
+            Wrong array shape, a dict key that is not a state/input name, an
+            exogenous keyword that is a state/input name, or any
+            construction error.
+        """
+        data = {}
+        for arg, names in (("states", STATE_NAMES), ("inputs", INPUT_NAMES)):
+            given = states if arg == "states" else inputs
+            if given is None:
+                continue
+            if isinstance(given, dict):
+                unknown = [k for k in given if k not in names]
+                if unknown:
+                    raise ValueError(f"from_arrays: {arg} has unknown name(s) {unknown}; "
+                                     f"allowed: {list(names)}")
+                data.update({k: given[k] for k in names if k in given})
+            else:
+                arr = np.asarray(given, dtype=np.float64)
+                if arr.ndim != 2 or arr.shape[1] != len(names):
+                    raise ValueError(f"from_arrays: {arg} array must have shape "
+                                     f"(n, {len(names)}), got {arr.shape}")
+                data.update({k: arr[:, j] for j, k in enumerate(names)})
+        clash = [k for k in exogenous if k in _ROLE_NAMES]
+        if clash:
+            raise ValueError(f"from_arrays: {clash} are state/input names; "
+                             "pass them via states=/inputs=")
+        data.update(exogenous)
+        return cls(t, data, name=name)
+
+
+def _parse_header(path, cells, row):
+    """Header cells -> (names, units of non-contract columns)."""
+    names, units = [], {}
+    for cell in cells:
+        m = _HEADER.fullmatch(cell.strip())
+        if m is None or not m["name"]:
+            raise _fail(path, f"malformed column header {cell.strip()!r} "
+                        "(expected 'name', 'name [unit]' or 'name (unit)')", row=row)
+        name = m["name"]
+        unit = m["u1"] if m["u1"] is not None else m["u2"]
+        if name in names:
+            raise _fail(path, "duplicate column name", row=row, column=name)
+        if unit is not None:
+            unit = unit.strip()
+            if name in UNITS:
+                if unit != UNITS[name]:
+                    raise _fail(path, f"unknown unit {unit!r}; this column must be in "
+                                f"{UNITS[name]!r}", row=row, column=name)
+            elif not unit:
+                raise _fail(path, "empty unit annotation", row=row, column=name)
+            else:
+                units[name] = unit
+        names.append(name)
+    if "t" not in names:
+        raise _fail(path, f"no 't' column (columns: {names})", row=row, column="t")
+    if not any(k in STATE_NAMES for k in names):
+        raise _fail(path, f"no state column; need at least one of {list(STATE_NAMES)} "
+                    f"(columns: {names})", row=row)
+    return names, units
+
+
+def _parse_value(path, text, row, column):
+    text = text.strip()
+    if not text:
+        return math.nan
+    if not _NUMBER.fullmatch(text):
+        raise _fail(path, f"non-numeric value {text!r} (leave the field empty if missing)",
+                    row=row, column=column)
+    value = float(text)
+    if not math.isfinite(value):
+        raise _fail(path, f"value {text!r} overflows float64", row=row, column=column)
+    return value
+
+
+def read_csv(path) -> Track:
+    """Read and check a track file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        UTF-8 CSV file in the format described in this module.
+
+    Returns
+    -------
+    Track
+        ``name`` is the file stem; ``units`` holds annotations of
+        non-contract columns; ``meta["comments"]`` the ``#`` lines before
+        the header (text after ``#`` and one optional space).
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file does not exist.
+    TrackFormatError
+        Naming the file, row (1-based line number) and column where
+        applicable: empty file or no data rows; malformed or duplicate
+        header; unit other than the contract unit; no ``t`` column; no state
+        column; row with the wrong number of fields; missing ``t`` value;
+        non-increasing (incl. repeated) time; non-numeric value (incl.
+        ``inf``/``nan`` strings).
+    """
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            lines = list(f)
+    except UnicodeDecodeError as exc:
+        raise _fail(path, f"not UTF-8 text ({exc})") from None
+
+    comments, first = [], 0
+    while first < len(lines):
+        stripped = lines[first].strip()
+        if stripped.startswith("#"):
+            text = lines[first].lstrip()[1:].rstrip("\r\n")
+            comments.append(text[1:] if text.startswith(" ") else text)
+        elif stripped:
+            break
+        first += 1
+    if first == len(lines):
+        raise _fail(path, "empty file (no header row)")
+
+    reader = csv.reader(lines[first:])
+    names = units = None
+    times, rows_t, columns = [], [], None
+    try:
+        for cells in reader:
+            row = first + reader.line_num
+            if len(cells) <= 1 and not "".join(cells).strip():
+                continue  # blank line
+            if names is None:
+                names, units = _parse_header(path, cells, row)
+                it = names.index("t")
+                columns = {k: [] for k in names if k != "t"}
+                continue
+            if len(cells) != len(names):
+                raise _fail(path, f"has {len(cells)} fields, header has {len(names)}", row=row)
+            t = _parse_value(path, cells[it], row, "t")
+            if math.isnan(t):
+                raise _fail(path, "missing time value", row=row, column="t")
+            if times and t <= times[-1]:
+                what = "duplicate" if t == times[-1] else "decreasing"
+                raise _fail(path, f"time not strictly increasing ({what}: {t!r} after "
+                            f"{times[-1]!r} at row {rows_t[-1]})", row=row, column="t")
+            times.append(t)
+            rows_t.append(row)
+            for k, cell in zip(names, cells):
+                if k != "t":
+                    columns[k].append(_parse_value(path, cell, row, k))
+    except csv.Error as exc:
+        raise _fail(path, f"CSV syntax error: {exc}", row=first + reader.line_num) from None
+
+    if names is None:
+        raise _fail(path, "empty file (no header row)")
+    if not times:
+        raise _fail(path, "no data rows after the header", row=first + 1)
+    return Track(np.array(times), {k: np.array(v) for k, v in columns.items()},
+                 name=Path(path).stem, units=units, meta={"comments": comments})
+
+
+def _format(value: float) -> str:
+    return "" if math.isnan(value) else repr(value)
+
+
+def write_csv(track: Track, path) -> None:
+    """Write a track file that :func:`read_csv` reads back bit-for-bit.
+
+    Column order: ``t``, states (:data:`STATE_NAMES` order), inputs
+    (:data:`INPUT_NAMES` order), exogenous (insertion order).  Headers are
+    plain names, except non-contract columns with a unit, written
+    ``name [unit]``.  ``track.meta["comments"]`` is written as ``# `` lines
+    before the header; other ``meta`` entries are not written.
+
+    Parameters
+    ----------
+    track : Track
+    path : str or os.PathLike
+        Overwritten if it exists.
+
+    Raises
+    ------
+    ValueError
+        If the track could not be read back: no samples, no state column,
+        a column name that does not survive the header syntax (e.g. with
+        brackets, commas are fine), or invalid contents (re-validated).
+    """
+    track = Track(track.t, track.data, name=track.name, units=track.units, meta=track.meta)
+    if track.n_samples == 0:
+        raise ValueError(f"track {track.name!r} has no samples; cannot write {path}")
+    if not track.state_columns:
+        raise ValueError(f"track {track.name!r} has no state column; cannot write {path}")
+    names = ["t", *track.state_columns, *track.input_columns, *track.exogenous_columns]
+    header = [f"{k} [{track.units[k]}]" if k in track.units else k for k in names]
+    for k, cell in zip(names, header):
+        m = _HEADER.fullmatch(cell)
+        ok = m is not None and m["name"] == k and (m["u1"] or "").strip() == track.units.get(k, "")
+        if not ok or k != k.strip():
+            raise ValueError(f"track {track.name!r}: column {k!r} (unit "
+                             f"{track.units.get(k)!r}) cannot be written as a header")
+    comments = [line for c in track.meta.get("comments", [])
+                for line in re.split(r"\r\n|\r|\n", str(c))]
+    table = np.column_stack([track[k] for k in names]).tolist()
+    with open(os.fspath(path), "w", newline="", encoding="utf-8") as f:
+        for c in comments:
+            f.write(f"# {c}\n")
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(header)
+        writer.writerows([_format(v) for v in row] for row in table)
