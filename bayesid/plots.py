@@ -101,7 +101,7 @@ def coefficient_ratios(names, start, converged, known, path, title: str = "", lo
     ax.plot([], [], "x", color="k", label="known (not identified)")
     if lower:
         ax.plot([], [], color="0.8", lw=3, label="bounds")
-    ax.legend(fontsize=8, loc="lower left", ncol=4)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(title, pad=16)
     return _save(fig, path)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from . import dynamics, terms
@@ -135,6 +136,10 @@ class Simulator:
             for name in free:
                 if not terms.term(name).horizontal:
                     raise ValueError(f"coefficient {name} does not act in the horizontal plane")
+            planes = np.flatnonzero(np.any(manoeuvre.inputs[:, 1:3] != 0.0, axis=0))
+            if planes.size:
+                raise ValueError(f"manoeuvre {manoeuvre.name}: horizontal mode ignores stern and bow "
+                                 f"planes, but {INPUT_NAMES[1 + planes[0]]} is non-zero; use mode='6dof'")
         self.vehicle, self.manoeuvre, self.mode = vehicle, manoeuvre, mode
         self.free = free
         self.sample_every = int(sample_every)
@@ -207,9 +212,15 @@ class Simulator:
         status = np.empty(B, dtype=np.int64)
         fail = np.empty(B, dtype=np.int64)
         tic = time.perf_counter()
-        dynamics.simulate_batch(s0, self.manoeuvre.inputs, self.manoeuvre.dt, self.sample_every,
-                                self.vp, self.tfac, self.tdof, tcoef, Minv, self.xs, self.ws,
-                                out, status, fail)
+        # An idle OpenMP worker busy-waits and steals CPU from a single track: use <= B threads.
+        n_threads = numba.get_num_threads()
+        numba.set_num_threads(max(1, min(B, numba.config.NUMBA_NUM_THREADS)))
+        try:
+            dynamics.simulate_batch(s0, self.manoeuvre.inputs, self.manoeuvre.dt, self.sample_every,
+                                    self.vp, self.tfac, self.tdof, tcoef, Minv, self.xs, self.ws,
+                                    out, status, fail)
+        finally:
+            numba.set_num_threads(n_threads)
         self.sim_seconds += time.perf_counter() - tic
         self.n_tracks += B
         return SimResult(self.t, out, self.inputs_sampled, status, fail, name=self.manoeuvre.name)

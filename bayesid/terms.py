@@ -131,7 +131,9 @@ TERMS: tuple[Term, ...] = (
     _T("Xqds", "u q ds"), _T("Xqdb", "u q db", 2), _T("Xrdr", "u r dr"),
     _T("Xvv", "v v"), _T("Xww", "w w"), _T("Xvdr", "u v dr"), _T("Xwds", "u w ds"),
     _T("Xwdb", "u w db", 2),
-    _T("Xdsds", "u u ds ds"), _T("Xdbdb", "u u db db"), _T("Xdrdr", "u u dr dr"),
+    _T("Xdsds", "u u ds ds"),
+    _T("Xdbdb", "u u db db"),  # multiplicity 1: from the 2018 MSS file, where it is for the pair
+    _T("Xdrdr", "u u dr dr"),
     _T("Xqds_eps", "u q ds eps"), _T("Xwds_eps", "u w ds eps"), _T("Xdsds_eps", "u u ds ds eps"),
     _T("Cd0", "prop", dof="X"),
     # ---- Y (sway) ----

@@ -121,7 +121,7 @@ def main():
               f" / LSQ {res['least_squares']['fit'].final_cost:.3g}", flush=True)
 
     # 3. Figures like the paper's Figs. 2-5, plus convergence and Jacobian spectra.
-    plots.position_error(target.t, {k: runs[k][1]["slsqp"]["error"] for k in runs},
+    plots.position_error(target.t, {k.replace("case", "Case "): runs[k][1]["slsqp"]["error"] for k in runs},
                          figs / "fig2_position_error.png", "Positional error of the converged tracks (SLSQP)")
     all_names = cases.horizontal_coefficients(vehicle)
     for i, (k, (case, res)) in enumerate(runs.items()):

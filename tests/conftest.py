@@ -1,0 +1,9 @@
+import pytest
+
+from bayesid.vehicle import load_vehicle
+
+
+@pytest.fixture(scope="session")
+def nps():
+    """NPS AUV II as packaged (polynomial cross-flow terms)."""
+    return load_vehicle("nps_auv2")
