@@ -124,7 +124,10 @@ def generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau):
     for j in range(tcoef.shape[0]):
         prod = tcoef[j]
         for k in range(tfac.shape[1]):
-            prod *= f[tfac[j, k]]
+            idx = tfac[j, k]
+            if idx == 0:  # padding ("1"): the term has no more factors
+                break
+            prod *= f[idx]
         tau[tdof[j]] += prod
     phi, th = s[3], s[4]
     u, v, w, p, q, r = s[6], s[7], s[8], s[9], s[10], s[11]

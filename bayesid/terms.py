@@ -108,6 +108,8 @@ def _T(name: str, factors: str, mult: int = 1, dof: str | None = None) -> Term:
     """Build a force term from its name and a space-separated factor list; the degree of
     freedom is the name's first letter unless given."""
     fs = tuple(factors.split())
+    if "1" in fs:  # index 0 is the kernel's padding marker
+        raise ValueError(f"term {name}: '1' is not a factor")
     for f in fs:
         if f not in F_INDEX:
             raise ValueError(f"term {name}: unknown factor {f!r}")
@@ -234,7 +236,8 @@ def factor_table(names) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    factors : int64 (P, MAX_FACTORS), feature indices padded with the index of ``"1"``.
+    factors : int64 (P, MAX_FACTORS), feature indices padded at the end with 0, the index of
+        ``"1"`` (never a real factor; the kernel stops at the first 0).
     dof : int64 (P,)
 
     Raises

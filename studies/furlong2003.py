@@ -286,9 +286,10 @@ def render_report(R, S, runs) -> str:
         f"({fmt(lsq3['max_position_error_m'] * 1e3)} mm), against the paper's 2.3e2 and 0.5 m. The free rotary "
         "terms absorb the errors in the static ones because on the spiral the sway velocity and yaw rate move "
         f"together: their correlation over the turning samples is {S['corr_v_r_turning']:.3f}, so a u*v term and a "
-        "u*r term are nearly interchangeable (the paper's point 4). The paper's submarine and its spiral "
-        "evidently excited v and r more independently; we cannot check that, because neither its coefficients "
-        "nor its input sequence are published.",
+        "u*r term are nearly interchangeable (the paper's point 4). Why the paper's Case 3 fit stalled at 0.5 m "
+        "we cannot check, because neither its coefficients nor its input sequence are published; a manoeuvre "
+        "that excited v and r more independently, more free-running time per coefficient, or an optimiser "
+        "stopped early would each explain it.",
         "",
         f"**Cost magnitudes differ (expected).** Our start costs ({fmt(c1['start_cost'])}, {fmt(c2['start_cost'])}, "
         f"{fmt(c3['start_cost'])}) are 2-4 orders of magnitude below the paper's (3.3e8, 1.1e8, 1.3e8). V sums "
