@@ -218,6 +218,7 @@ class _Monitor:
 
 def _result(method, pb, mon, p, iterates, lo, hi, success, message, nit):
     wall = time.perf_counter() - mon.t0
+    sim_s = pb.sim.sim_seconds - mon.sim0  # before the bookkeeping simulations below
     iter_set = {tuple(x) for x in iterates}
     n_cost = sum(1 for x, _ in mon.evals if tuple(x) in iter_set)
     hist = []
@@ -231,7 +232,7 @@ def _result(method, pb, mon, p, iterates, lo, hi, success, message, nit):
     final = pb.cost(p)
     return FitResult(method, pb.names, pb.theta(p), p, float(hist[0]["cost"]) if hist else float("nan"), final,
                      nit, len(mon.evals) + mon.n_grad_tracks, n_cost, mon.n_grad_tracks,
-                     len(mon.evals) - n_cost, wall, pb.sim.sim_seconds - mon.sim0, bool(success),
+                     len(mon.evals) - n_cost, wall, sim_s, bool(success),
                      str(message), [pb.names[i] for i in _active(p, lo, hi)], hist)
 
 

@@ -143,7 +143,6 @@ def main():
     st = truth_sim.run().states[0]
     turning = np.abs(st[:, 11]) > 1e-4
     corr_vr = float(np.corrcoef(st[turning, 7], st[turning, 11])[0, 1])
-    results["case3"]["true_coefficients_cost"] = results["case3"]["true_coefficients_cost"]
     summary = dict(
         vehicle=vehicle.id, manoeuvre=spiral.description, sample_interval_s=SAMPLE_S,
         n_samples=int(target.n_samples), seed=args.seed, quick=args.quick,
