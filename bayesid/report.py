@@ -50,12 +50,15 @@ def write_json(path: str | Path, obj) -> None:
 
 
 def git_commit() -> str:
-    """Current commit hash (with ``+dirty`` if the tree has changes), or ``"unknown"``."""
+    """Current commit hash (``+dirty`` if code outside ``reports/`` has uncommitted changes), or
+    ``"unknown"``."""
     root = Path(__file__).resolve().parent.parent
     try:
         h = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
                            timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+        # the run's own outputs under reports/ do not make the code dirty
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
+                                ":!reports"], cwd=root,
                                capture_output=True, text=True, timeout=10).stdout.strip()
         return (h + ("+dirty" if dirty else "")) if h else "unknown"
     except (OSError, subprocess.SubprocessError):
