@@ -113,9 +113,10 @@ class Problem:
     def cost(self, p) -> float:
         return float(self.cost_batch(np.asarray(p)[None])[0])
 
-    def jacobian(self, p, r0=None) -> tuple[np.ndarray, np.ndarray]:
-        """Residuals at p and their forward-difference Jacobian d r / d p, from ONE batched
-        simulation of P + 1 tracks (P if ``r0``, the residuals at p, is given).
+    def jacobian(self, p, r0=None, central: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals at p and their finite-difference Jacobian d r / d p, from ONE batched
+        simulation of P + 1 tracks (P if ``r0``, the residuals at p, is given; 2P + 1 for
+        ``central`` differences, whose O(h^2) error suits identifiability analysis).
 
         Returns
         -------
@@ -124,6 +125,12 @@ class Problem:
         p = np.asarray(p, dtype=float)
         P_ = p.size
         h = self.fd_step * np.maximum(1.0, np.abs(p))
+        if central:
+            h = 1e-5 * np.maximum(1.0, np.abs(p))  # truncation O(h^2) ~ 1e-10, round-off ~ 1e-11
+            batch = np.vstack([p[None], np.repeat(p[None], P_, axis=0) + np.diag(h),
+                               np.repeat(p[None], P_, axis=0) - np.diag(h)])
+            R, _ = self.residuals_batch(batch)
+            return R[0], ((R[1:P_ + 1] - R[P_ + 1:]) / (2 * h)[:, None]).T
         batch = np.repeat(p[None], P_, axis=0) + np.diag(h)
         if r0 is None:
             R, _ = self.residuals_batch(np.vstack([p[None], batch]))

@@ -1,0 +1,236 @@
+"""Identifiability dossier: which coefficient combinations a track determines, and which it does not.
+
+All quantities use *relative* coefficient changes, ``d theta_j / theta_j``, so that coefficients of
+very different size are comparable: a sensitivity column is the change of the residual vector per
+unit relative change (per 100 %) of one coefficient, and a direction such as
+``0.71*Xvr - 0.70*Xrr`` means "raise Xvr by 0.71 % while lowering Xrr by 0.70 %".
+
+Sources: Fisher information for output-error models (Ljung 1999, Sec. 9.2); sloppiness
+(Gutenkunst et al. 2007, PLoS Comput. Biol. 3:e189); collinearity index and sensitivity measures
+(Brun, Reichert & Kuensch 2001, Water Resour. Res. 37(4):1015-1030, Eqs. 4-7).
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import terms
+
+
+def relative_sensitivity(problem, theta) -> np.ndarray:
+    """Sensitivity of the simulated channels to relative coefficient changes, (n_residuals, P).
+
+    ``S[:, j] = d y_sim / d ln(theta_j)`` from central differences in ONE batched simulation
+    (2P + 1 tracks). Units: metres or radians per unit relative change.
+
+    Parameters
+    ----------
+    problem : :class:`~bayesid.identify.Problem`.   theta : (P,) prime coefficients (non-zero).
+    """
+    p = problem.scaled(theta)
+    _, J = problem.jacobian(p, central=True)   # d r / d p, r = target - sim
+    return -J * p[None, :]                      # d sim / d ln theta = -(d r/d p) * p
+
+
+def noise_vector(problem, sigmas: dict) -> np.ndarray:
+    """Per-residual noise standard deviation (n_residuals,) from per-channel values.
+
+    Raises
+    ------
+    KeyError naming a channel of the problem without a standard deviation.
+    """
+    missing = [c for c in problem.channels if c not in sigmas]
+    if missing:
+        raise KeyError(f"no noise standard deviation for channel(s) {missing}")
+    per = np.array([float(sigmas[c]) for c in problem.channels])
+    return np.tile(per, problem.y.shape[0])
+
+
+def fisher_information(S: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """Fisher information of Gaussian output error, ``F = S^T diag(1/sigma^2) S`` (P, P).
+
+    S : (n, P) sensitivities; sigma : (n,) standard deviations; mask : (n,) bool, False for
+    missing samples (excluded).
+    """
+    w = 1.0 / sigma ** 2
+    if mask is not None:
+        w = np.where(mask, w, 0.0)
+    return S.T @ (S * w[:, None])
+
+
+@dataclass
+class Direction:
+    """One eigen-direction of the Fisher information (relative coordinates)."""
+
+    eigenvalue: float
+    vector: np.ndarray   # (P,), unit length, sign fixed so the largest component is positive
+    names: list
+
+    def __post_init__(self):
+        v = np.asarray(self.vector, dtype=float)
+        self.vector = v * np.sign(v[np.argmax(np.abs(v))])
+
+    @property
+    def sd_relative(self) -> float:
+        """Cramer-Rao standard deviation along the direction (relative units, 1 = 100 %)."""
+        return float(1.0 / np.sqrt(self.eigenvalue)) if self.eigenvalue > 0 else float("inf")
+
+    def weights(self, threshold: float = 0.1) -> dict:
+        """name -> weight for components with |weight| >= threshold, largest first."""
+        order = np.argsort(-np.abs(self.vector))
+        return {self.names[i]: float(self.vector[i]) for i in order if abs(self.vector[i]) >= threshold}
+
+    def label(self, threshold: float = 0.2, digits: int = 2) -> str:
+        """E.g. ``"0.71*Xvr - 0.70*Xrr"``."""
+        parts = []
+        for n, w in self.weights(threshold).items():
+            sign = "-" if w < 0 else ("+" if parts else "")
+            parts.append(f"{sign} {abs(w):.{digits}f}*{n}".strip())
+        return " ".join(parts)
+
+
+def eigen_directions(F: np.ndarray, names) -> list[Direction]:
+    """Eigen-decomposition of the Fisher information, sloppiest (smallest eigenvalue) first."""
+    lam, V = np.linalg.eigh(0.5 * (F + F.T))
+    out = []
+    for k in range(lam.size):
+        out.append(Direction(float(lam[k]), V[:, k], list(names)))
+    return out
+
+
+def condition_number(F: np.ndarray) -> float:
+    """Ratio of the largest to the smallest eigenvalue of F (inf if singular)."""
+    lam = np.linalg.eigvalsh(0.5 * (F + F.T))
+    return float(lam[-1] / lam[0]) if lam[0] > 0 else float("inf")
+
+
+def collinearity_index(S: np.ndarray, subset) -> float:
+    """Brun-Reichert-Kuensch collinearity index of a coefficient subset (Brun et al. 2001, Eq. 7).
+
+    ``gamma_K = 1 / sqrt(min eig(S_K~^T S_K~))`` with the columns of S normalised to unit length.
+    gamma = 1: orthogonal sensitivities; gamma -> inf: exactly linearly dependent. Brun et al. take
+    gamma > 10-15 as practically non-identifiable.
+    """
+    Sk = S[:, list(subset)]
+    norms = np.linalg.norm(Sk, axis=0)
+    if np.any(norms == 0):
+        return float("inf")
+    Sn = Sk / norms
+    lam = np.linalg.eigvalsh(Sn.T @ Sn)[0]
+    return float(1.0 / np.sqrt(lam)) if lam > 0 else float("inf")
+
+
+def collinearity_table(S: np.ndarray, names, sizes=(2, 3), top: int = 10) -> list[dict]:
+    """The ``top`` most collinear subsets of each size: list of {subset, gamma}, largest first."""
+    rows = []
+    for k in sizes:
+        for sub in itertools.combinations(range(S.shape[1]), k):
+            rows.append(dict(subset=[names[i] for i in sub], gamma=collinearity_index(S, sub)))
+    rows.sort(key=lambda r: -r["gamma"] if np.isfinite(r["gamma"]) else -np.inf)
+    out, per = [], {k: 0 for k in sizes}
+    for r in rows:
+        k = len(r["subset"])
+        if per[k] < top:
+            out.append(r)
+            per[k] += 1
+    return out
+
+
+def relative_influence(S: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
+    """Brun's sensitivity measure ``delta_msqr_j = sqrt(mean_i (S_ij / sigma_i)^2)`` (P,): the RMS
+    change of the (noise-scaled) track per unit relative change of coefficient j -- the paper's
+    point (3), "some coefficients have a very small effect"."""
+    Z = S if sigma is None else S / sigma[:, None]
+    return np.sqrt(np.mean(Z ** 2, axis=0))
+
+
+#: Rigid-body parts of each horizontal-plane equation row, keyed like terms: (factors, accel).
+#: Mass-matrix entries (accel >= 0) and right-hand-side velocity products (accel = -1); a row
+#: transformation moves them into the target row's free coefficients of the same key.
+def _rigid_body_row(vehicle, row: str) -> dict:
+    m, xg = vehicle.mass, vehicle.rG[0]
+    if row == "X":   # (m - X'udot) u_dot = m (v r + xG r^2) + ...
+        return {((), 0): m, (("v", "r"), -1): m, (("r", "r"), -1): m * xg}
+    if row == "Y":   # (m - Y'vdot) v_dot + (m xG - Y'rdot) r_dot = -m u r + ...
+        return {((), 1): m, ((), 5): m * xg, (("u", "r"), -1): -m}
+    if row == "N":   # (m xG - N'vdot) v_dot + (Iz - N'rdot) r_dot = -m xG u r + ...
+        return {((), 1): m * xg, ((), 5): vehicle.inertia[2, 2], (("u", "r"), -1): -m * xg}
+    raise ValueError(f"row must be X, Y or N, not {row!r}")
+
+
+def row_transform_direction(names, vehicle, target: str, source: str) -> np.ndarray | None:
+    """Coefficient direction (relative units, unit length, (P,)) generated by adding a small
+    multiple of equation row ``source`` to row ``target`` of the horizontal-plane model
+    ``M nu_dot = tau`` (``source == target``: scaling that row).
+
+    Multiplying an equation system by an invertible matrix leaves its solution unchanged, so if the
+    transformed row can be written with the same terms -- every term and rigid-body part of the
+    source row has a same-factor twin among the *free* coefficients of the target row -- moving
+    along this direction changes no track at all: an exact (structural) null direction of any
+    output-error fit, whatever the manoeuvre. Returns None when the free set cannot represent the
+    transformation.
+
+    Derivative of the target coefficients with respect to the mixing factor, prime units:
+    ``d C'_twin = C'_source_term * L**(k_source - k_twin)`` for hydrodynamic terms, and
+    ``-/+ value / (0.5 rho L**k_twin)`` for mass-matrix / right-hand-side rigid-body parts.
+    """
+    names = list(names)
+    theta = vehicle.coefficients
+    d = dict.fromkeys(names, 0.0)
+    twins = {(t.factors, t.accel): t for t in terms.TERMS if t.group == target and t.horizontal}
+    half = 0.5 * vehicle.rho
+    for t in terms.TERMS:
+        if t.group != source or not t.horizontal or theta.get(t.name, 0.0) == 0.0:
+            continue
+        twin = twins.get((t.factors, t.accel))
+        if twin is None or twin.name not in d:
+            return None
+        d[twin.name] += theta[t.name] * vehicle.L ** (t.L_power - twin.L_power)
+    for key, val in _rigid_body_row(vehicle, source).items():
+        if val == 0.0:
+            continue
+        twin = twins.get(key)
+        if twin is None or twin.name not in d:
+            return None
+        sign = -1.0 if twin.kind == "added_mass" else 1.0   # M = M_RB - 0.5 rho L^k C'
+        d[twin.name] += sign * val / (half * vehicle.L ** twin.L_power)
+    v = np.array([d[n] / theta[n] for n in names])
+    nrm = np.linalg.norm(v)
+    return v / nrm if nrm > 0 else None
+
+
+def structural_null_space(names, vehicle) -> tuple[np.ndarray, list[str]]:
+    """Orthonormal basis (P, k) of the exact null directions that row transformations of the
+    horizontal-plane equations generate for this free set, and their causes in words.
+
+    Raises nothing; returns a (P, 0) array when no transformation is representable.
+    """
+    vecs, causes = [], []
+    for tgt in ("X", "Y", "N"):
+        for src in ("X", "Y", "N"):
+            v = row_transform_direction(names, vehicle, tgt, src)
+            if v is not None:
+                vecs.append(v)
+                causes.append(f"scale the {tgt} equation" if tgt == src else f"add the {src} equation to the {tgt} equation")
+    if not vecs:
+        return np.zeros((len(names), 0)), []
+    Q, R = np.linalg.qr(np.array(vecs).T)
+    keep = np.abs(np.diag(R)) > 1e-8
+    return Q[:, keep], causes
+
+
+def principal_angles_deg(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Principal angles (deg) between the column spaces of A and B (orthonormalised here)."""
+    if A.shape[1] == 0 or B.shape[1] == 0:
+        return np.zeros(0)
+    Qa, _ = np.linalg.qr(A)
+    Qb, _ = np.linalg.qr(B)
+    s = np.clip(np.linalg.svd(Qa.T @ Qb, compute_uv=False), -1.0, 1.0)
+    return np.degrees(np.arccos(s))
+
+
+__all__ = ["relative_sensitivity", "noise_vector", "fisher_information", "Direction", "eigen_directions",
+           "condition_number", "collinearity_index", "collinearity_table", "relative_influence",
+           "row_transform_direction", "structural_null_space", "principal_angles_deg"]
