@@ -143,3 +143,34 @@ def add_noise(track: Track, sigmas: dict, rng: np.random.Generator) -> Track:
     noisy = {c: track[c] + rng.normal(0.0, float(s), track.n_samples) for c, s in sigmas.items()
              if c in STATE_NAMES}
     return track.with_columns(**noisy)
+
+
+def laplace_start(theta_hat, cov, prior: CoefficientPrior, margin: float = 0.05,
+                  max_sd_fraction: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and covariance of a walkers' starting ball that respects the prior.
+
+    The Laplace (Gauss-Newton) covariance of a sloppy problem can be far wider than a uniform
+    prior (measured: marginal sd of 19x |truth| for Xrr in Case 2 with 0.2 m noise), and the
+    optimum often sits on a bound, so a ball around it falls outside the support. This moves the
+    centre ``margin`` of the prior width inside each uniform support and scales each coordinate of
+    the covariance down, keeping its correlation structure, so that no marginal sd exceeds
+    ``max_sd_fraction`` of the prior width (uniform) or of the prior sd (normal).
+
+    Returns
+    -------
+    centre (P,), covariance (P, P).
+    """
+    theta_hat = np.asarray(theta_hat, dtype=float)
+    cov = 0.5 * (np.asarray(cov, dtype=float) + np.asarray(cov, dtype=float).T)
+    centre = theta_hat.copy()
+    limit = np.empty(theta_hat.size)
+    for j, k in enumerate(prior.kind):
+        if k == "uniform":
+            w = prior.b[j] - prior.a[j]
+            centre[j] = np.clip(centre[j], prior.a[j] + margin * w, prior.b[j] - margin * w)
+            limit[j] = max_sd_fraction * w
+        else:
+            limit[j] = max_sd_fraction * prior.b[j] * 10.0
+    sd = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    D = np.minimum(1.0, limit / sd)
+    return centre, cov * np.outer(D, D)
