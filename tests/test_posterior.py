@@ -66,11 +66,11 @@ def test_laplace_start_fits_inside_the_prior():
 
     pr = CoefficientPrior.build(uniform={"Yr": (0.0225, 0.0375), "Nr": (-0.02, -0.012)})
     theta_hat = np.array([0.0375, -0.016])            # optimum on Yr's upper bound
-    cov = np.array([[1.0, 0.9e-3], [0.9e-3, 1e-6]])   # Yr marginal sd 1.0 >> prior width
+    cov = np.array([[1.0, 0.9e-4], [0.9e-4, 1e-8]])   # Yr sd 1.0 >> prior width; Nr sd 1e-4 < 2 % of it
     c, C = laplace_start(theta_hat, cov, pr)
     assert pr.a[0] < c[0] < pr.b[0] and c[1] == theta_hat[1]
     assert np.sqrt(C[0, 0]) <= 0.02 * (pr.b[0] - pr.a[0]) + 1e-15
-    assert C[1, 1] == pytest.approx(1e-6)            # already narrow: unchanged
+    assert C[1, 1] == pytest.approx(1e-8)            # already narrow: unchanged
     corr = lambda M: M[0, 1] / np.sqrt(M[0, 0] * M[1, 1])
     assert corr(C) == pytest.approx(corr(cov))        # the Laplace shape is kept
     draws = np.random.default_rng(0).multivariate_normal(c, C, 2000)
