@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import terms
+from .dynamics import features_array
 
 #: Basis per force/moment: (term name, state index a, state index b) -> regressor a*|b| style.
 HORIZONTAL_BASIS = {"Y": ("Yvabsv", "Yvabsr", "Yrabsr"), "N": ("Nvabsv", "Nabsvr", "Nrabsr")}
@@ -50,19 +51,6 @@ def crossflow_forces(states: np.ndarray, vehicle) -> np.ndarray:
     return out
 
 
-def polynomial_forces(states: np.ndarray, vehicle, coefficients: dict) -> np.ndarray:
-    """Force of the polynomial cross-flow terms, (n, 6), SI (term library regressors)."""
-    from .dynamics import features_array
-
-    f = features_array(states, np.zeros((states.shape[0], 4)), vehicle)
-    names = list(terms.CROSSFLOW_POLYNOMIAL)
-    Phi = terms.regressors(f, names, vehicle.rho, vehicle.L)
-    out = np.zeros((states.shape[0], 6))
-    for j, n in enumerate(names):
-        out[:, terms.term(n).dof] += Phi[:, j] * coefficients.get(n, 0.0)
-    return out
-
-
 def fit_polynomial_equivalent(vehicle, manoeuvres, mode: str = "horizontal") -> dict:
     """Least-squares polynomial equivalent of the cross-flow integral over an envelope.
 
@@ -93,8 +81,6 @@ def fit_polynomial_equivalent(vehicle, manoeuvres, mode: str = "horizontal") -> 
     Sv[:, 7], Sv[:, 11] = 0.0, 0.0
     F_h = crossflow_forces(S, vi)
     F_v = crossflow_forces(Sv, vi)
-    from .dynamics import features_array
-
     coeffs, resid = {}, {}
     for basis, Ssel, F in ((HORIZONTAL_BASIS, S, F_h), (VERTICAL_BASIS, Sv, F_v)):
         feats = features_array(Ssel, np.zeros((Ssel.shape[0], 4)), vi)

@@ -20,7 +20,6 @@ import math
 import numba as nb
 import numpy as np
 
-from . import terms
 from .terms import F_INDEX, N_FEATURES
 
 # Layout of the vehicle parameter vector ``vp`` passed to the kernels.
@@ -339,4 +338,4 @@ def features_array(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.ndarra
 
 
 __all__ = ["vehicle_params", "crossflow_strips", "features", "generalized_force", "rhs", "rk4_step",
-           "simulate_batch", "simulate_zigzag", "features_array", "terms"]
+           "simulate_batch", "simulate_zigzag", "features_array"]

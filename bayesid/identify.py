@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 
-from . import terms
 from .simulate import Simulator
 from .track import STATE_NAMES, Track
 
@@ -228,15 +227,19 @@ def _result(method, pb, mon, p, iterates, lo, hi, success, message, nit):
     sim_s = pb.sim.sim_seconds - mon.sim0  # before the bookkeeping simulations below
     iter_set = {tuple(x) for x in iterates}
     n_cost = sum(1 for x, _ in mon.evals if tuple(x) in iter_set)
+    known = {tuple(x): c for x, c in mon.evals}   # every cost the fit already simulated
+
+    def cost(x):
+        return known[tuple(x)] if tuple(x) in known else pb.cost(x)
+
     hist = []
     prev = None
     for k, x in enumerate(iterates):
-        c = pb.cost(x) if not any(np.array_equal(x, e[0]) for e in mon.evals) else \
-            next(c for e, c in reversed(mon.evals) if np.array_equal(x, e))
+        c = cost(x)
         hist.append(dict(iteration=k, cost=c, step=float(np.linalg.norm(x - prev)) if prev is not None else 0.0,
                          active_bounds=[pb.names[i] for i in _active(x, lo, hi)]))
         prev = x
-    final = pb.cost(p)
+    final = cost(p)
     return FitResult(method, pb.names, pb.theta(p), p, float(hist[0]["cost"]) if hist else float("nan"), final,
                      nit, len(mon.evals) + mon.n_grad_tracks, n_cost, mon.n_grad_tracks,
                      len(mon.evals) - n_cost, wall, sim_s, bool(success),
@@ -305,4 +308,4 @@ def max_position_error(a: Track, b: Track) -> float:
 
 
 __all__ = ["Problem", "FitResult", "fit_slsqp", "fit_least_squares", "max_position_error",
-           "PAPER_CHANNELS", "terms"]
+           "PAPER_CHANNELS"]

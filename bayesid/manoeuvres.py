@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from . import dynamics, terms
+from . import dynamics
 from .simulate import Manoeuvre, Simulator
 
 
@@ -100,9 +100,7 @@ def zigzag(vehicle, rudder_deg: float = 10.0, heading_deg: float | None = None, 
     heading_deg = rudder_deg if heading_deg is None else heading_deg
     n = _grid(duration, dt)
     sim = Simulator(vehicle, Manoeuvre("zigzag-probe", dt, np.zeros((1, 4)), steady_state(vehicle, rpm)))
-    C = sim.coefficient_matrix()
-    tcoef = np.ascontiguousarray(C[:, sim._force_idx] * sim.tscale)[0]
-    Minv = sim.inverse_mass_matrices(C)[0]
+    tcoef, Minv = (a[0] for a in sim.kernel_arrays())
     out = np.empty((n + 1, 12))
     inputs = np.empty((n, 4))
     turn_sign = math.copysign(1.0, vehicle.coefficients.get("Ndr", -1.0))
@@ -136,4 +134,4 @@ def straight(vehicle, dt: float = 0.1, duration: float = 60.0, rpm: float | None
                    dict(dt=dt, duration=duration, rpm=rpm))
 
 
-__all__ = ["steady_state", "spiral", "turning_circle", "zigzag", "straight", "terms"]
+__all__ = ["steady_state", "spiral", "turning_circle", "zigzag", "straight"]

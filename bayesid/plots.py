@@ -2,7 +2,6 @@
 results already computed and writes one PNG."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import matplotlib
@@ -136,4 +135,4 @@ def singular_values(svals: dict, path, title: str = ""):
 
 
 __all__ = ["track_xy", "inputs_time", "position_error", "coefficient_ratios", "convergence",
-           "singular_values", "math"]
+           "singular_values"]

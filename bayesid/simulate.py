@@ -197,15 +197,19 @@ class Simulator:
             Minv[:] = _safe_inv(M)
         return Minv
 
+    def kernel_arrays(self, theta_free=None) -> tuple[np.ndarray, np.ndarray]:
+        """What the compiled kernels take per track: dimensional force-term coefficients
+        (B, n_force_terms) and inverse mass matrices (B, 6, 6)."""
+        C = self.coefficient_matrix(theta_free)
+        return np.ascontiguousarray(C[:, self._force_idx] * self.tscale), self.inverse_mass_matrices(C)
+
     def run(self, theta_free=None, initial_states=None) -> SimResult:
         """Simulate one track per row of ``theta_free`` (B, P) -- or the vehicle as is.
 
         Never raises on divergence: diverged tracks are flagged in ``status`` and NaN-filled.
         """
-        C = self.coefficient_matrix(theta_free)
-        B = C.shape[0]
-        tcoef = np.ascontiguousarray(C[:, self._force_idx] * self.tscale)
-        Minv = self.inverse_mass_matrices(C)
+        tcoef, Minv = self.kernel_arrays(theta_free)
+        B = tcoef.shape[0]
         s0 = np.repeat(self.s0[None], B, axis=0) if initial_states is None else \
             np.ascontiguousarray(np.broadcast_to(initial_states, (B, 12)), dtype=float)
         out = np.empty((B, self.n_samples, 12))

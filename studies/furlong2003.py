@@ -42,14 +42,6 @@ def parse_args():
     return ap.parse_args()
 
 
-def sloppiest_direction(J: np.ndarray, names) -> tuple[np.ndarray, str]:
-    """Singular values of the scaled residual Jacobian and its weakest direction in words."""
-    _, s, Vt = np.linalg.svd(J, full_matrices=False)
-    v = Vt[-1] * np.sign(Vt[-1][np.argmax(np.abs(Vt[-1]))])
-    top = np.argsort(-np.abs(v))[:3]
-    return s, " ".join(f"{v[i]:+.2f}*{names[i]}" for i in top)
-
-
 def run_case(number, vehicle, spiral, target, rng, quick):
     case = cases.make_case(number, vehicle, rng)
     sim = Simulator(case.vehicle(vehicle), spiral, free=case.free, mode="horizontal",
@@ -66,7 +58,8 @@ def run_case(number, vehicle, spiral, target, rng, quick):
         est = sim.run(fit.theta[None]).track(0)
         err = np.hypot(est["x"] - target["x"], est["y"] - target["y"])
         r, J = problem.jacobian(fit.p)
-        s, weak = sloppiest_direction(J, case.free)
+        _, s, Vt = np.linalg.svd(J, full_matrices=False)
+        weak = identifiability.Direction(float(s[-1] ** 2), Vt[-1], case.free).label()
         out[key] = dict(fit=fit, error=err, track=est, svals=s, weakest=weak)
     true_p = problem.scaled(np.array([case.true[n] for n in case.free]))
     return case, problem, out, problem.cost(true_p), structural_nulls(case, vehicle, sim)

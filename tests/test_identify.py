@@ -61,14 +61,10 @@ def test_case_setup_is_seeded_and_follows_the_paper(nps):
         cases.make_case(4, nps, np.random.default_rng(1))
 
 
-def test_problem_rejects_zero_reference_and_off_grid_target(nps, short_problem):
+def test_problem_rejects_zero_reference(short_problem):
     case, pb = short_problem
     with pytest.raises(ValueError, match="Xrr"):
-        Problem(pb.sim, pb_target(pb, nps), np.zeros(len(case.free)))
-
-
-def pb_target(pb, nps):
-    return pb.sim.run().track(0)
+        Problem(pb.sim, pb.sim.run().track(0), np.zeros(len(case.free)))
 
 
 def test_unknown_free_coefficient_is_named(nps):

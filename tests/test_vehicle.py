@@ -40,22 +40,15 @@ def test_misspelt_name_suggests_the_right_one():
         terms.term("Yvabvs")
 
 
-def test_missing_mass_property(tmp_path):
-    p = _edited(tmp_path, "Izz = 13587.0\n", "")
-    with pytest.raises(VehicleFileError, match=r"edited\.toml.*\[inertia\] Izz"):
-        load_vehicle(p)
-    p = _edited(tmp_path, "mass_kg = 5454.54", "# no mass")
-    with pytest.raises(VehicleFileError, match=r"mass_kg"):
-        load_vehicle(p)
-
-
-def test_non_finite_value(tmp_path):
-    p = _edited(tmp_path, "Nr = -1.6e-2", "Nr = nan")
-    with pytest.raises(VehicleFileError, match=r"edited\.toml.*\[coefficients\] Nr"):
-        load_vehicle(p)
-    p = _edited(tmp_path, "length_m = 5.3", "length_m = inf")
-    with pytest.raises(VehicleFileError, match=r"length_m"):
-        load_vehicle(p)
+@pytest.mark.parametrize("old,new,match", [
+    ("Izz = 13587.0\n", "", r"edited\.toml.*\[inertia\] Izz"),                  # missing mass property
+    ("mass_kg = 5454.54", "# no mass", r"mass_kg"),
+    ("Nr = -1.6e-2", "Nr = nan", r"edited\.toml.*\[coefficients\] Nr"),         # non-finite value
+    ("length_m = 5.3", "length_m = inf", r"length_m"),
+])
+def test_bad_vehicle_file_names_the_key(tmp_path, old, new, match):
+    with pytest.raises(VehicleFileError, match=match):
+        load_vehicle(_edited(tmp_path, old, new))
 
 
 def test_with_coefficients_rejects_bad_input(nps):
