@@ -267,18 +267,23 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs
 
 
 @nb.njit(cache=True)
-def simulate_zigzag(s0, n_steps, dt, rpm, delta, psi_trigger, first_sign, turn_sign, t_execute,
-                    rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws, out, inputs):
-    """Closed-loop zigzag: the rudder is reversed when the heading change from the execute
-    heading reaches ``psi_trigger`` in the direction the current rudder turns the vehicle
-    (ITTC 7.5-04-02-01, Z-manoeuvre test). Same RK4 step as :func:`simulate_batch`.
+def simulate_triggered_zigzag(s0, n_steps, dt, rpm, i_input, i_state, delta, trigger, first_sign,
+                              response_sign, t_execute, rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws,
+                              out, inputs):
+    """Closed-loop zigzag on any (input, state) pair: input ``i_input`` is reversed when state
+    ``i_state`` has changed from its value at execute by ``trigger`` in the direction the present
+    command drives it (ITTC 7.5-04-02-01, Z-manoeuvre test). Heading zigzag: ``i_input = 0``
+    (delta_r), ``i_state = 5`` (psi); vertical zigzag: ``i_input = 1`` (delta_s), ``i_state = 4``
+    (theta). Same RK4 step as :func:`simulate_batch`.
 
     Parameters
     ----------
-    delta, psi_trigger : rad.   first_sign : +1/-1 sign of the first rudder command.
-    turn_sign : sign of the heading change a positive rudder produces (sign of N'dr).
-    t_execute : time of the first rudder command (s); straight approach before.
-    rate_max : rudder rate limit (rad/s); <= 0 means instantaneous.
+    rpm : propeller speed, held.   i_input : 0..2 actuated input.   i_state : 0..11 trigger state.
+    delta, trigger : rad.   first_sign : +1/-1 sign of the first command.
+    response_sign : sign of the change of state ``i_state`` that a positive input produces (sign of
+        N'dr for the rudder and heading, of M'ds for the stern planes and pitch).
+    t_execute : time of the first command (s); straight approach with all inputs zero before.
+    rate_max : actuator rate limit (rad/s); <= 0 means instantaneous.
     out : (n_steps + 1, 12) states.   inputs : (n_steps, 4) applied inputs (written).
 
     Returns
@@ -293,27 +298,109 @@ def simulate_zigzag(s0, n_steps, dt, rpm, delta, psi_trigger, first_sign, turn_s
     uin[3] = rpm
     out[0] = s
     cmd = 0.0
-    psi0 = s[5]
+    x0 = s[i_state]
     started = False
     for k in range(n_steps):
         t = k * dt
         if not started and t >= t_execute - 1e-9:
             started = True
-            psi0 = s[5]
+            x0 = s[i_state]
             cmd = first_sign * delta
         if started:
-            dpsi = s[5] - psi0
-            # heading change in the direction the present rudder command drives the vehicle
-            if cmd * turn_sign > 0.0 and dpsi >= psi_trigger:
+            dx = s[i_state] - x0
+            # state change in the direction the present command drives the vehicle
+            if cmd * response_sign > 0.0 and dx >= trigger:
                 cmd = -cmd
-            elif cmd * turn_sign < 0.0 and dpsi <= -psi_trigger:
+            elif cmd * response_sign < 0.0 and dx <= -trigger:
                 cmd = -cmd
         if rate_max > 0.0:
             step = rate_max * dt
-            d = cmd - uin[0]
-            uin[0] += min(max(d, -step), step)
+            d = cmd - uin[i_input]
+            uin[i_input] += min(max(d, -step), step)
         else:
-            uin[0] = cmd
+            uin[i_input] = cmd
+        for i in range(4):
+            inputs[k, i] = uin[i]
+        rk4_step(s, uin, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp)
+        flag = check_state(s, vp)
+        out[k + 1] = s
+        if flag != OK:
+            return flag
+    return OK
+
+
+@nb.njit(cache=True)
+def simulate_zigzag(s0, n_steps, dt, rpm, delta, psi_trigger, first_sign, turn_sign, t_execute,
+                    rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws, out, inputs):
+    """Closed-loop heading zigzag: :func:`simulate_triggered_zigzag` with the rudder (input 0)
+    triggered on the heading psi (state 5); ``turn_sign`` is the sign of N'dr."""
+    return simulate_triggered_zigzag(s0, n_steps, dt, rpm, 0, 5, delta, psi_trigger, first_sign,
+                                     turn_sign, t_execute, rate_max, vp, tfac, tdof, tcoef, Minv,
+                                     xs, ws, out, inputs)
+
+
+@nb.njit(cache=True)
+def simulate_pi_hold(s0, n_steps, dt, rpm, i_input, i_state, reference, kp, ki, plant_sign, u_max,
+                     rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws, out, inputs):
+    """Closed loop with a discrete PI controller on one state, driving one input (e.g. the rudder
+    holding a yaw rate: Bech's reverse spiral). Same RK4 step as :func:`simulate_batch`.
+
+    At the start of step k the controller reads ``y = s[i_state]`` and, with the error
+    ``e = plant_sign * (reference[k] - y)``, commands ``c = kp*e + ki*I`` with ``I`` the running
+    sum of ``e*dt`` (including step k), saturated at +-``u_max``. Anti-windup by conditional
+    integration: while the command is saturated, ``I`` is only updated when the error drives the
+    command back from the limit. The applied input follows ``c`` at most ``rate_max`` per second
+    (<= 0: instantaneous) and is held over the step (zero-order hold). ``reference[k]`` NaN
+    switches the controller off for that step: command 0, integrator reset. Other inputs: zero,
+    propeller ``rpm``.
+
+    Parameters
+    ----------
+    reference : (n_steps,) target of state ``i_state`` per step (its units) or NaN.
+    kp : input per unit of error (e.g. rad rudder per rad/s of yaw rate = s).
+    ki : input per unit of integrated error (e.g. rad rudder per rad of heading).
+    plant_sign : sign of the steady change of the state that a positive input produces.
+    u_max : saturation of the command (rad).   rate_max : rate limit (rad/s).
+    out : (n_steps + 1, 12) states.   inputs : (n_steps, 4) applied inputs (written).
+
+    Returns
+    -------
+    int : divergence flag (OK when the run completed).
+    """
+    s = s0.copy()
+    f = np.empty(N_FEATURES)
+    tau = np.empty(6)
+    k1, k2, k3, k4, tmp = np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12)
+    uin = np.zeros(4)
+    uin[3] = rpm
+    out[0] = s
+    integ = 0.0
+    for k in range(n_steps):
+        ref = reference[k]
+        if math.isnan(ref):
+            cmd = 0.0
+            integ = 0.0
+        else:
+            e = plant_sign * (ref - s[i_state])
+            trial = integ + e * dt
+            c = kp * e + ki * trial
+            if c > u_max:
+                cmd = u_max
+                if e < 0.0:
+                    integ = trial
+            elif c < -u_max:
+                cmd = -u_max
+                if e > 0.0:
+                    integ = trial
+            else:
+                cmd = c
+                integ = trial
+        if rate_max > 0.0:
+            step = rate_max * dt
+            d = cmd - uin[i_input]
+            uin[i_input] += min(max(d, -step), step)
+        else:
+            uin[i_input] = cmd
         for i in range(4):
             inputs[k, i] = uin[i]
         rk4_step(s, uin, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp)
@@ -338,4 +425,5 @@ def features_array(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.ndarra
 
 
 __all__ = ["vehicle_params", "crossflow_strips", "features", "generalized_force", "rhs", "rk4_step",
-           "simulate_batch", "simulate_zigzag", "features_array"]
+           "simulate_batch", "simulate_triggered_zigzag", "simulate_zigzag", "simulate_pi_hold",
+           "features_array"]
