@@ -1,14 +1,19 @@
 """The ``bayesid`` command.
 
     bayesid simulate --vehicle nps_auv2 --manoeuvre zigzag --angle 20 --mode horizontal --out track.csv
+    bayesid convert --format esso-osaka ../shared/data/real/esso-osaka-frt --out tracks/esso
 
-Later issues add ``fit``, ``predict``, ``diagnose`` and ``convert`` (DESIGN.md "Command line").
+Later issues add ``fit``, ``predict`` and ``diagnose`` (DESIGN.md "Command line").
 """
 from __future__ import annotations
 
 import argparse
+import json
+import re
 import sys
+from pathlib import Path
 
+from . import datasets
 from . import manoeuvres as mv
 from .simulate import MODES, Simulator
 from .track import write_csv
@@ -39,6 +44,69 @@ def _simulate(args) -> int:
     return 0
 
 
+def _convert(args) -> int:
+    """``bayesid convert``: third-party run files -> one Track CSV each + convert.json/.md."""
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a folder")
+    sources, skipped, seen = [], [], set()
+    for item in args.inputs:
+        kept, skip = datasets._scan_runs(item, args.format)
+        if not kept:
+            raise ValueError(f"{item}: no {args.format} run files found")
+        for p in kept:
+            if p.resolve() not in seen:
+                seen.add(p.resolve())
+                sources.append(p)
+        skipped += skip
+    skipped = [(p, why) for p, why in skipped if p.resolve() not in seen]
+    # Read and check every file before writing anything.
+    tracks = [datasets.read_run(p, args.format) for p in sources]
+    runs, used = [], set()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for src, tr in zip(sources, tracks):
+            stem = re.sub(r"[^A-Za-z0-9._-]+", "_", src.stem).strip("._-") or "run"
+            name, k = stem, 1
+            while name.lower() in used:
+                k += 1
+                name = f"{stem}_{k}"
+            used.add(name.lower())
+            dest = out / f"{name}.csv"
+            write_csv(tr, dest)
+            duration = float(tr.t[-1] - tr.t[0])
+            rate = tr.meta.get("sample_rate_hz")
+            runs.append({
+                "source": str(src), "output": str(dest), "n_samples": tr.n_samples,
+                "duration_s": duration, "t_start_s": float(tr.t[0]),
+                "columns": ["t", *tr.state_columns, *tr.input_columns, *tr.exogenous_columns],
+                "sample_rate_hz": rate, "vessel": tr.meta.get("vessel"),
+                "conversions": tr.meta.get("conversions", []), "notes": tr.meta.get("notes", []),
+            })
+            print(f"{src} -> {dest}: {tr.n_samples} samples, {duration:.1f} s"
+                  + (f" at {rate:g} Hz" if rate else ""))
+        for p, why in skipped:
+            print(f"skipped {p}: {why}")
+        summary = {"command": "convert", "format": args.format, "out": str(out),
+                   "n_runs": len(runs), "runs": runs,
+                   "skipped": [{"source": str(p), "reason": why} for p, why in skipped]}
+        (out / "convert.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        lines = [f"# bayesid convert --format {args.format}", "",
+                 f"{len(runs)} run(s) converted to Track CSVs (SI, rad, rpm; rudder + = to port).", "",
+                 "| output | samples | duration (s) | rate (Hz) | notes |", "|---|---|---|---|---|"]
+        lines += [f"| {Path(r['output']).name} | {r['n_samples']} | {r['duration_s']:.1f} | "
+                  f"{r['sample_rate_hz']} | {'; '.join(r['notes']) or '-'} |" for r in runs]
+        if skipped:
+            lines += ["", "Skipped:", *[f"- {p}: {why}" for p, why in skipped]]
+        (out / "convert.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    except FileNotFoundError:
+        raise
+    except OSError as exc:
+        raise ValueError(f"cannot write to {out}: {exc}") from None
+    print(f"wrote {out / 'convert.json'}: {len(runs)} run(s)")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="bayesid", description="hydrodynamic coefficient identification")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -52,9 +120,15 @@ def main(argv=None) -> int:
     s.add_argument("--mode", choices=MODES, default="6dof")
     s.add_argument("--crossflow", choices=["polynomial", "integral"], default=None)
     s.add_argument("--out", required=True)
+    c = sub.add_parser("convert", help="third-party data files -> Track CSVs (one per run)")
+    c.add_argument("--format", required=True, choices=datasets.FORMATS,
+                   help="data set format (see bayesid.datasets)")
+    c.add_argument("inputs", nargs="+", metavar="IN",
+                   help="run file or data set folder (searched recursively; duplicates skipped)")
+    c.add_argument("--out", required=True, help="output folder (created if absent)")
     args = ap.parse_args(argv)
     try:
-        return _simulate(args)
+        return _convert(args) if args.command == "convert" else _simulate(args)
     except (ValueError, KeyError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
