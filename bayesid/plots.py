@@ -134,5 +134,148 @@ def singular_values(svals: dict, path, title: str = ""):
     return _save(fig, path)
 
 
+def walker_traces(chains: np.ndarray, names, show, path, burn: int = 0, truth: dict | None = None,
+                  title: str = ""):
+    """Trace of every walker for the coefficients ``show``; colour = ensemble.
+
+    chains : (n_ensembles, n_steps, n_walkers, P) prime values.   burn : steps shaded as burn-in.
+    """
+    E, N, W, _ = chains.shape
+    colors = plt.cm.tab10(np.arange(E) % 10)
+    fig, axes = plt.subplots(len(show), 1, figsize=(8, 1.5 * len(show) + 0.6), sharex=True, squeeze=False)
+    step = np.arange(N)
+    stride = max(1, N // 1500)
+    for a, n in zip(axes[:, 0], show):
+        j = list(names).index(n)
+        for e in range(E):
+            a.plot(step[::stride], chains[e, ::stride, :, j], color=colors[e], lw=0.3, alpha=0.25)
+        if truth and n in truth:
+            a.axhline(truth[n], color="k", lw=1.0, ls="--")
+        if burn:
+            a.axvspan(0, burn, color="0.85", zorder=0)
+        a.set_ylabel(n, fontsize=8)
+        a.tick_params(labelsize=7)
+    axes[-1, 0].set_xlabel("step (grey: burn-in; dashed: truth; colour: ensemble)")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def rank_histograms(draws: dict, path, title: str = ""):
+    """Rank plots (Vehtari et al. 2021, Sec. 4.1) with each ensemble's pooled draws as one chain.
+
+    draws : name -> (n_ensembles, n_draws) array. Uniform bars in every row = the ensembles
+    sample the same distribution.
+    """
+    from scipy.stats import rankdata
+
+    names = list(draws)
+    fig, axes = plt.subplots(len(names), 1, figsize=(6, 1.2 * len(names) + 0.6), squeeze=False)
+    for a, n in zip(axes[:, 0], names):
+        x = np.asarray(draws[n])
+        E, D = x.shape
+        r = rankdata(x.ravel()).reshape(E, D)
+        bins = np.linspace(0, E * D, 21)
+        for e in range(E):
+            h, _ = np.histogram(r[e], bins=bins)
+            a.bar(np.arange(20) + e / (E + 1), h, width=1 / (E + 1), align="edge", alpha=0.8)
+        a.axhline(D / 20, color="k", lw=0.8)
+        a.set_ylabel(n, fontsize=8)
+        a.set_yticks([])
+        a.set_xticks([])
+    axes[-1, 0].set_xlabel("rank bin (20 bins; line: uniform expectation; colours: ensembles)")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def pair_scatter(samples: np.ndarray, names, pairs, path, truth: dict | None = None,
+                 bounds: dict | None = None, title: str = ""):
+    """2-D posterior scatter for each (a, b) of ``pairs``; truth as a star, prior box dashed.
+
+    samples (N, P) prime values; bounds name -> (lo, hi) for uniform priors.
+    """
+    k = len(pairs)
+    fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.4), squeeze=False)
+    idx = {n: i for i, n in enumerate(names)}
+    sub = samples[:: max(1, samples.shape[0] // 20000)]
+    for a, (p, q) in zip(axes[0], pairs):
+        x, y = sub[:, idx[p]], sub[:, idx[q]]
+        a.hexbin(x, y, gridsize=40, cmap="Blues", mincnt=1)
+        if bounds and p in bounds and q in bounds:
+            (x0, x1), (y0, y1) = bounds[p], bounds[q]
+            a.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], "k--", lw=0.7)
+        if truth:
+            a.plot(truth[p], truth[q], "*", color="tab:red", ms=11, mec="k")
+        r = np.corrcoef(x, y)[0, 1]
+        a.set_title(f"{p}–{q}: r = {r:+.3f}", fontsize=9)
+        a.set_xlabel(p, fontsize=8)
+        a.set_ylabel(q, fontsize=8)
+        a.tick_params(labelsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def correlation_heatmap(C: np.ndarray, names, path, title: str = ""):
+    """Posterior correlation matrix, -1 (blue) to +1 (red)."""
+    P = len(names)
+    fig, ax = plt.subplots(figsize=(0.32 * P + 2.5, 0.32 * P + 1.8))
+    im = ax.imshow(C, cmap="RdBu_r", vmin=-1, vmax=1)
+    ax.set_xticks(range(P), names, rotation=90, fontsize=7)
+    ax.set_yticks(range(P), names, fontsize=7)
+    fig.colorbar(im, ax=ax, shrink=0.8, label="correlation")
+    ax.set_title(title, fontsize=10)
+    return _save(fig, path)
+
+
+def fim_spectra(spectra: dict, path, prior_level: dict | None = None, title: str = ""):
+    """Cramér–Rao relative sd ``1/sqrt(lambda)`` of each Fisher-information eigen-direction,
+    per case (label -> eigenvalues), stiffest first; round-off eigenvalues (<= 0) at the top edge.
+    ``prior_level`` label -> relative prior sd drawn as a dashed line of the same colour."""
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for i, (label, lam) in enumerate(spectra.items()):
+        lam = np.sort(np.asarray(lam, dtype=float))[::-1]
+        sd = np.where(lam > 0, 1.0 / np.sqrt(np.clip(lam, 1e-300, None)), np.nan)
+        line, = ax.semilogy(np.arange(1, lam.size + 1), sd, "o-", ms=4, label=label)
+        if prior_level and label in prior_level:
+            ax.axhline(prior_level[label], color=line.get_color(), ls="--", lw=0.8)
+    ax.set_xlabel("eigen-direction (stiffest first)")
+    ax.set_ylabel("Cramér–Rao sd along it (relative, 1 = 100 %)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=10)
+    return _save(fig, path)
+
+
+def marginals_vs_truth(rows: list, path, title: str = ""):
+    """Posterior mean and central interval as ratios to truth, per coefficient (grouped X | Y | N),
+    with the prior's range (uniform: bounds; normal: +-2 sd) in grey.
+
+    rows : from :func:`bayesid.posterior.marginal_table` with truth, plus ``prior_lo``/``prior_hi``.
+    """
+    order = sorted(rows, key=lambda r: "XYN".index(terms.term(r["name"]).group))
+    fig, ax = plt.subplots(figsize=(max(7, 0.4 * len(order)), 4))
+    for i, r in enumerate(order):
+        t = r["truth"]
+        lo, hi = sorted((r["prior_lo"] / t, r["prior_hi"] / t))
+        ax.plot([i, i], [lo, hi], color="0.85", lw=6, zorder=0)
+        a, b = sorted((r["lower"] / t, r["upper"] / t))
+        ax.plot([i, i], [a, b], color="tab:blue" if r["covers"] else "tab:red", lw=2)
+        ax.plot(i, r["mean"] / t, "o", color="k", ms=4)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_xticks(range(len(order)), [r["name"] for r in order], rotation=70, fontsize=8)
+    ax.set_ylabel("posterior / true")
+    ax.plot([], [], color="0.85", lw=6, label="prior range")
+    ax.plot([], [], color="tab:blue", lw=2, label="90 % interval holds truth")
+    ax.plot([], [], color="tab:red", lw=2, label="90 % interval misses truth")
+    ax.plot([], [], "ko", ms=4, label="posterior mean")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.grid(alpha=0.3, axis="y")
+    ax.set_title(title, fontsize=10)
+    return _save(fig, path)
+
+
 __all__ = ["track_xy", "inputs_time", "position_error", "coefficient_ratios", "convergence",
-           "singular_values"]
+           "singular_values", "walker_traces", "rank_histograms", "pair_scatter", "correlation_heatmap",
+           "fim_spectra", "marginals_vs_truth"]

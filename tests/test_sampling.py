@@ -276,3 +276,19 @@ def test_wall_time_limit_stops_gracefully():
     cfg = SamplerConfig(n_ensembles=2, min_steps=100, max_steps=10_000, check_every=50, max_wall_s=0.0)
     res = run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0))
     assert res.n_steps == 50 and res.stop_reason == "max_wall_s" and not res.reached_tau_rule
+
+
+def test_arrival_burn_waits_for_a_stranded_walker():
+    from bayesid.sampling import SamplerResult, arrival_burn
+    rng = np.random.default_rng(0)
+    E, N, W = 2, 1000, 8
+    lp = rng.normal(0.0, 1.0, (E, N, W))
+    lp[1, :300, 5] -= 50.0          # one walker far down the tail for 300 steps
+    res = SamplerResult(chains=np.zeros((E, N, W, 1)), log_prob=lp, acceptance=np.zeros((E, W)),
+                        tau=np.array([10.0]), n_steps=N, n_evaluations=0, wall_s=0.0,
+                        reached_tau_rule=True, names=["a"])
+    assert 300 <= arrival_burn(res) <= 305
+    lp[1, :300, 5] += 50.0
+    assert arrival_burn(res) < 100   # without it only noise-level dips remain
+    lp[0, :, 2] -= 50.0              # stranded throughout: capped at half the run
+    assert arrival_burn(res) == N // 2

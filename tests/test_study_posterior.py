@@ -1,0 +1,36 @@
+"""studies/posterior.py --quick runs every case and writes issue 9's keys."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+KEYS = ("rhat_max", "ess_bulk_min", "ess_tail_min", "tau_max", "n_steps", "acceptance_mean", "correlation",
+        "sloppiest_direction", "fim_condition_number", "coverage_90", "converged", "wall_s")
+
+
+def test_posterior_quick(tmp_path):
+    out = tmp_path / "posterior"
+    subprocess.run([sys.executable, str(ROOT / "studies" / "posterior.py"), "--quick", "--out", str(out)],
+                   check=True, cwd=ROOT, timeout=900)
+    res = json.loads((out / "results.json").read_text())
+    for case in ("case1", "case2", "case3", "case3b"):
+        for key in KEYS:
+            assert key in res[case], (case, key)
+            assert key in res["cases"][case], (case, key)
+        c = res[case]
+        assert len(c["correlation"]) == 10
+        assert all(-1.0 <= r <= 1.0 for r in c["correlation"].values())
+        assert 0.0 <= c["coverage_90"] <= 1.0
+        assert isinstance(c["converged"], bool)
+        assert abs(sum(w * w for w in c["sloppiest_direction"].values()) - 1.0) < 0.05
+        assert (out / f"posterior_{case}.nc").exists()
+    # the Bayesian Case 3 samples the towing-tank coefficients too
+    assert res["cases"]["case3b"]["n_params"] > res["cases"]["case3"]["n_params"]
+    # Case 1's exact nulls are found and leave the track unchanged
+    nulls = res["cases"]["case1"]["dossier"]["structural_nulls"]
+    assert len(nulls) == 3 and max(n["track_change_m"] for n in nulls) < 1e-6
+    man = json.loads((out / "manifest.json").read_text())
+    assert man["quick"] is True and "log_prob_evals_per_s" in man
+    assert "## The paper's points (2)-(4), in numbers" in (out / "report.md").read_text()
+    assert len(list((out / "figures").glob("*.png"))) >= 4 * 5 + 1
