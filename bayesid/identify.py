@@ -145,6 +145,68 @@ class Problem:
         return float(r @ r), 2.0 * (J.T @ r)
 
 
+class _SimGroup:
+    """Work counters summed over the simulators of a :class:`JointProblem`."""
+
+    def __init__(self, sims):
+        self.sims = list(sims)
+
+    @property
+    def sim_seconds(self) -> float:
+        return sum(s.sim_seconds for s in self.sims)
+
+    @property
+    def n_tracks(self) -> int:
+        return sum(s.n_tracks for s in self.sims)
+
+
+class JointProblem(Problem):
+    """Several manoeuvres identified together: one coefficient vector, residuals stacked.
+
+    The cost is the sum of the members' costs (paper Eq. 6 summed over manoeuvres), so
+    combining manoeuvres is identification on all their samples at once. Every method of
+    :class:`Problem` (cost, batched Jacobian, gradient) works unchanged; one batched evaluation
+    runs one batched simulation per member.
+
+    Parameters
+    ----------
+    problems : list of :class:`Problem` with the same free names, reference and channels.
+
+    Raises
+    ------
+    ValueError : empty list, or members differing in free names, reference or channels (named).
+    """
+
+    def __init__(self, problems):
+        problems = list(problems)
+        if not problems:
+            raise ValueError("JointProblem needs at least one problem")
+        first = problems[0]
+        for k, p in enumerate(problems[1:], 1):
+            for what in ("names", "channels"):
+                if list(getattr(p, what)) != list(getattr(first, what)):
+                    raise ValueError(f"problem {k} ({p.sim.manoeuvre.name}): {what} {getattr(p, what)} "
+                                     f"differ from {getattr(first, what)}")
+            if not np.array_equal(p.reference, first.reference):
+                raise ValueError(f"problem {k} ({p.sim.manoeuvre.name}): reference values differ")
+        self.problems = problems
+        self.names, self.reference, self.channels = first.names, first.reference, first.channels
+        self.y = np.vstack([p.y for p in problems])
+        self.mask = np.vstack([p.mask for p in problems])
+        self.y0 = np.where(self.mask, self.y, 0.0)
+        self.fd_step = first.fd_step
+        self.n_residuals = self.y.size
+        self.sim = _SimGroup(p.sim for p in problems)
+
+    def residuals_batch(self, P) -> tuple[np.ndarray, np.ndarray]:
+        """Stacked residuals (B, sum of members' n_residuals) and (B,) divergence flags."""
+        parts = [p.residuals_batch(P) for p in self.problems]
+        R = np.hstack([r for r, _ in parts])
+        div = np.any(np.vstack([d for _, d in parts]), axis=0)
+        R[div] = DIVERGED_RESIDUAL
+        return R, div
+
+
 @dataclass
 class FitResult:
     """Outcome of one fit, in the spirit of ``scipy.optimize.OptimizeResult`` plus the SQP
@@ -307,5 +369,5 @@ def max_position_error(a: Track, b: Track) -> float:
     return float(np.nanmax(np.hypot(a["x"] - b["x"], a["y"] - b["y"])))
 
 
-__all__ = ["Problem", "FitResult", "fit_slsqp", "fit_least_squares", "max_position_error",
+__all__ = ["Problem", "JointProblem", "FitResult", "fit_slsqp", "fit_least_squares", "max_position_error",
            "PAPER_CHANNELS"]

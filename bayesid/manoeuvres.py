@@ -309,11 +309,13 @@ def schroeder_phases(n: int) -> np.ndarray:
 def multisine(vehicle, amplitude_deg: float = 10.0,
               frequencies_hz=(0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2), phases_rad=None,
               duration: float = 300.0, dt: float = 0.1, rpm: float | None = None,
-              t_execute: float = 10.0) -> Manoeuvre:
-    """Multisine rudder: equal-amplitude sum of sines with (default) Schroeder phases.
+              t_execute: float = 10.0, weights=None, name: str = "multisine") -> Manoeuvre:
+    """Multisine rudder: sum of sines, equal amplitudes (or relative ``weights``, as a
+    manoeuvre design chooses them) with (default) Schroeder phases.
 
     Sequence: constant ``rpm``; rudder 0 for ``t_execute`` s; then, with ``tau = t - t_execute``,
-    ``delta_r(t) = c * sum_k sin(2 pi f_k tau + phi_k)`` to ``duration`` s, sampled on the grid and
+    ``delta_r(t) = c * sum_k w_k sin(2 pi f_k tau + phi_k)`` to ``duration`` s (``w_k`` = ``weights``,
+    default 1, non-negative, not all zero), sampled on the grid and
     held over each step. ``phi_k`` = ``phases_rad`` or Schroeder phases
     (:func:`schroeder_phases`, low peak factor). Scaling, not clipping: ``c`` is chosen so the peak
     |delta_r| over the run equals ``amplitude_deg`` exactly; an ``amplitude_deg`` above the rudder
@@ -329,23 +331,28 @@ def multisine(vehicle, amplitude_deg: float = 10.0,
     ph = schroeder_phases(f.size) if phases_rad is None else np.asarray(phases_rad, dtype=float).ravel()
     if ph.shape != f.shape or np.any(~np.isfinite(ph)):
         raise ValueError(f"multisine: need {f.size} finite phases, got {np.size(phases_rad)}")
+    w = np.ones(f.size) if weights is None else np.asarray(weights, dtype=float).ravel()
+    if w.shape != f.shape or np.any(~np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
+        raise ValueError(f"multisine: need {f.size} non-negative weights, not all zero, got {w.tolist()}")
     n = _grid(duration, dt)
     (k0,) = _steps((t_execute,), dt)
     if not 0 <= k0 < n:
         raise ValueError(f"multisine: t_execute {t_execute} s outside the run")
     tau = (np.arange(n - k0) * dt)[:, None]
-    raw = np.sin(2.0 * math.pi * f[None, :] * tau + ph[None, :]).sum(axis=1)
+    raw = (w[None, :] * np.sin(2.0 * math.pi * f[None, :] * tau + ph[None, :])).sum(axis=1)
     peak = float(np.max(np.abs(raw)))
     scale = math.radians(amplitude_deg) / peak
     inputs = np.zeros((n, 4))
     inputs[:, 3] = rpm
     inputs[k0:, 0] = scale * raw
-    desc = (f"Multisine: {rpm:g} rpm; rudder 0 for {t_execute:g} s, then the sum of {f.size} equal sines at "
+    kind = "equal" if weights is None else "weighted"
+    desc = (f"Multisine: {rpm:g} rpm; rudder 0 for {t_execute:g} s, then the sum of {f.size} {kind} sines at "
             f"{', '.join(f'{x:g}' for x in f)} Hz ({'Schroeder' if phases_rad is None else 'given'} phases), "
             f"scaled to a peak of {amplitude_deg:g} deg ({math.degrees(scale):.3g} deg each); "
             f"{duration:g} s, dt {dt:g} s.")
-    return _finish(vehicle, "multisine", dt, inputs, rpm, desc,
+    return _finish(vehicle, name, dt, inputs, rpm, desc,
                    dict(amplitude_deg=amplitude_deg, frequencies_hz=f.tolist(), phases_rad=ph.tolist(),
+                        weights=w.tolist(),
                         schroeder=phases_rad is None, component_amplitude_deg=math.degrees(scale),
                         duration=duration, dt=dt, rpm=rpm, t_execute=t_execute))
 

@@ -276,6 +276,77 @@ def marginals_vs_truth(rows: list, path, title: str = ""):
     return _save(fig, path)
 
 
-__all__ = ["track_xy", "inputs_time", "position_error", "coefficient_ratios", "convergence",
+def inclusion_heatmap(inclusion: dict, path, vehicle=None, title: str = ""):
+    """Terms x manoeuvres heatmap of SINDy inclusion probabilities (manoeuvre -> {term: p}).
+    Terms the vehicle model has (non-zero coefficient) are marked with a * in the label."""
+    mans = list(inclusion)
+    if not mans:
+        fig, ax = plt.subplots(figsize=(4, 2))
+        ax.text(0.5, 0.5, "no horizontal manoeuvre", ha="center")
+        return _save(fig, path)
+    names = list(dict.fromkeys(t for m in mans for t in inclusion[m]))
+    A = np.array([[inclusion[m].get(t, np.nan) for m in mans] for t in names])
+    fig, ax = plt.subplots(figsize=(0.7 * len(mans) + 3, 0.22 * len(names) + 1.5))
+    im = ax.imshow(A, cmap="viridis", vmin=0, vmax=1, aspect="auto")
+    labels = [t + (" *" if vehicle is not None and vehicle.coefficients.get(t, 0.0) != 0.0 else "") for t in names]
+    ax.set_yticks(range(len(names)), labels, fontsize=6)
+    ax.set_xticks(range(len(mans)), mans, rotation=60, fontsize=7, ha="right")
+    fig.colorbar(im, ax=ax, shrink=0.6, label="inclusion probability")
+    ax.set_title(title + ("\n(* = term in the model)" if vehicle is not None else ""), fontsize=9)
+    return _save(fig, path)
+
+
+def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), predict B (columns)"):
+    """Heatmap of RMS position errors (m), log colour scale, values printed."""
+    rows = list(matrix)
+    cols = list(next(iter(matrix.values())))
+    A = np.array([[matrix[a][b] for b in cols] for a in rows], dtype=float)
+    fig, ax = plt.subplots(figsize=(0.8 * len(cols) + 3, 0.45 * len(rows) + 1.8))
+    from matplotlib.colors import LogNorm
+    pos = A[np.isfinite(A) & (A > 0)]
+    im = ax.imshow(np.where(A > 0, A, np.nan), cmap="magma_r", aspect="auto",
+                   norm=LogNorm(vmin=max(pos.min(), 1e-3), vmax=pos.max()) if pos.size else None)
+    for i in range(len(rows)):
+        for j in range(len(cols)):
+            ax.text(j, i, f"{A[i, j]:.2g}", ha="center", va="center", fontsize=6,
+                    color="w" if pos.size and A[i, j] > np.sqrt(pos.min() * pos.max()) else "k")
+    ax.set_xticks(range(len(cols)), cols, rotation=60, fontsize=7, ha="right")
+    ax.set_yticks(range(len(rows)), rows, fontsize=7)
+    fig.colorbar(im, ax=ax, shrink=0.8, label="RMS position error, m")
+    ax.set_title(title, fontsize=9)
+    return _save(fig, path)
+
+
+def design_inputs(manoeuvres: dict, path, title: str = "Rudder inputs: spiral and designed manoeuvres"):
+    """Rudder angle (deg) against time for each manoeuvre (label -> Manoeuvre)."""
+    fig, axes = plt.subplots(len(manoeuvres), 1, figsize=(8, 1.7 * len(manoeuvres) + 0.6), sharex=True,
+                             squeeze=False)
+    for a, (label, m) in zip(axes[:, 0], manoeuvres.items()):
+        a.step(np.arange(m.n_steps) * m.dt, np.degrees(m.inputs[:, 0]), where="post", lw=0.8)
+        a.set_ylabel("rudder, deg", fontsize=8)
+        a.set_title(label, fontsize=8)
+        a.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time, s")
+    fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def predicted_vs_measured(design: dict, path, title: str = "Designed / spiral: predicted vs measured sd ratio"):
+    """Bars of predicted and measured sd ratios per design criterion (criterion -> dict)."""
+    keys = list(design)
+    x = np.arange(len(keys))
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.bar(x - 0.18, [design[k]["predicted_sd_ratio"] for k in keys], 0.36, label="predicted (Fisher)")
+    ax.bar(x + 0.18, [design[k]["measured_sd_ratio"] for k in keys], 0.36, label="measured (repeated fits)")
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_xticks(x, keys)
+    ax.set_ylabel("sd ratio, designed / spiral")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    ax.set_title(title, fontsize=9)
+    return _save(fig, path)
+
+
+__all__ = ["inclusion_heatmap", "cross_prediction", "design_inputs", "predicted_vs_measured", "track_xy", "inputs_time", "position_error", "coefficient_ratios", "convergence",
            "singular_values", "walker_traces", "rank_histograms", "pair_scatter", "correlation_heatmap",
            "fim_spectra", "marginals_vs_truth"]
