@@ -231,7 +231,8 @@ def correlation_heatmap(C: np.ndarray, names, path, title: str = ""):
 
 def fim_spectra(spectra: dict, path, prior_level: dict | None = None, title: str = ""):
     """Cramér–Rao relative sd ``1/sqrt(lambda)`` of each Fisher-information eigen-direction,
-    per case (label -> eigenvalues), stiffest first; round-off eigenvalues (<= 0) at the top edge.
+    per case (label -> eigenvalues), stiffest first; non-positive eigenvalues (exact nulls, at
+    round-off) have no finite sd and are not drawn -- the report gives their count.
     ``prior_level`` label -> relative prior sd drawn as a dashed line of the same colour."""
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for i, (label, lam) in enumerate(spectra.items()):

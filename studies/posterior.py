@@ -23,6 +23,7 @@ Method
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
 from dataclasses import dataclass
@@ -45,6 +46,7 @@ DT_TRUTH, DT_MODEL, SAMPLE_S = 0.1, 1.0, 1.0
 START_MARGIN = 0.05      # walkers' centre at least this fraction of the prior width inside the bounds
 KNOWN_SD = 0.01          # Bayesian Case 3: relative sd of the towing-tank values
 LEVEL = 0.9              # credible interval shown: central (equal-tailed) 90 %
+ROUND_OFF = 1e-15        # Fisher eigenvalues below this x the largest: numerically zero (eigh precision ~1e-16)
 DETERMINED = 0.5         # a direction is "determined" when its Cramer-Rao sd < this x prior sd along it
 CASE_KEYS = ("case2", "case1", "case3", "case3b")
 #: Sampling budget per case, minutes (Case 2 carries issue 9's 15-minute target).
@@ -61,6 +63,8 @@ def parse_args():
     ap.add_argument("--seed", type=int, default=2003)
     ap.add_argument("--cases", default=",".join(k.removeprefix("case") for k in CASE_KEYS),
                     help="comma-separated subset of 1,2,3,3b")
+    ap.add_argument("--extend", action="store_true",
+                    help="sample further from finished checkpoints (default: re-report their chains)")
     ap.add_argument("--tau-factor", type=float, default=120.0,
                     help="run to this many autocorrelation times (50 is emcee's rule; the per-walker "
                          "R-hat <= 1.01 needs about 120)")
@@ -153,23 +157,21 @@ def dossier(setup, problem, theta_hat, vehicle, samples, sim):
                          posterior_sd=float(post_along[k]), prior_sd=float(prior_along[k]),
                          determined=bool(cr[k] < DETERMINED * prior_along[k]),
                          weights=d.weights(0.1)))
-    # structural (exact) nulls, each checked by moving 2 % along it
-    N, causes = identifiability.structural_null_space(setup.case.free, vehicle)
+    # structural (exact) nulls of the sampled set, each checked by moving 2 % along it
+    full, causes = identifiability.structural_null_space(names, vehicle)
+    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1]))      # eigenvalues at round-off level
     nulls = []
-    if N.shape[1]:
+    if full.shape[1]:
         base = np.array([setup.truth[n] for n in names])
-        full = np.zeros((len(names), N.shape[1]))
-        full[[names.index(n) for n in setup.case.free]] = N
-        st = sim.run(np.vstack([base] + [base * (1 + 0.02 * full[:, k]) for k in range(N.shape[1])])).states
-        ang = identifiability.principal_angles_deg(full, W[:, :N.shape[1]])
-        for k in range(N.shape[1]):
+        st = sim.run(np.vstack([base] + [base * (1 + 0.02 * full[:, k]) for k in range(full.shape[1])])).states
+        null_angles = identifiability.principal_angles_deg(full, W[:, :max(k_round, full.shape[1])]).tolist()
+        for k in range(full.shape[1]):
             dd = identifiability.Direction(0.0, full[:, k], names)
             pa = float(direction_draws(samples, full[:, k:k + 1], theta_hat).std(ddof=1))
             pr = float(np.sqrt((full[:, k] ** 2) @ psd_rel ** 2))
             nulls.append(dict(direction=dd.label(threshold=0.15), cause=causes[k] if k < len(causes) else "",
                               track_change_m=float(np.nanmax(np.abs(st[0, :, :2] - st[k + 1, :, :2]))),
                               posterior_sd=pa, prior_sd=pr))
-        null_angles = ang.tolist()
     else:
         null_angles = []
     # posterior principal axes vs Fisher directions (relative coordinates)
@@ -184,7 +186,7 @@ def dossier(setup, problem, theta_hat, vehicle, samples, sim):
         lam_ratio_min=float(lam[0] / lam[-1]),
         collinearity=identifiability.collinearity_table(S, names, sizes=(2, 3), top=5),
         relative_influence=dict(zip(names, infl.tolist())),
-        structural_nulls=nulls, structural_null_fim_angles_deg=null_angles,
+        structural_nulls=nulls, structural_null_fim_angles_deg=null_angles, n_round_off_eigenvalues=k_round,
         angle_sloppiest_vs_widest_posterior_axis_deg=angle_sloppy,
         angle_stiffest_vs_narrowest_posterior_axis_deg=angle_stiff,
         posterior_axis_widest=identifiability.Direction(float(ev[-1]), EV[:, -1], names).label(),
@@ -226,20 +228,32 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
         max_steps=100 if args.quick else 40000, max_wall_s=60.0 * (args.max_minutes or BUDGET_MIN[setup.key]))
     ck = out / "checkpoints"
     ck.mkdir(exist_ok=True)
+    ckfile = ck / f"{setup.key}{'_quick' if args.quick else ''}.h5"
+    done = ckfile.with_suffix(".done.json")
+    stored = json.loads(done.read_text()) if done.exists() and not args.extend else None
+    if stored:   # a finished run: report its chains again, do not sample more
+        cfg.max_steps = int(stored["n_steps"])
+        cfg.min_steps = min(cfg.min_steps, cfg.max_steps)
     n_eval0 = logpost.n_evaluations
     t_s = time.perf_counter()
-    result = sampling.run_ensembles(logpost, centre, cov0, setup.names, cfg, rng,
-                                    checkpoint=ck / f"{setup.key}{'_quick' if args.quick else ''}.h5")
-    sample_s = time.perf_counter() - t_s
+    result = sampling.run_ensembles(logpost, centre, cov0, setup.names, cfg, rng, checkpoint=ckfile)
+    sample_s = sampled_s = time.perf_counter() - t_s
     n_new = logpost.n_evaluations - n_eval0
-    evals_per_s = n_new / sample_s if n_new else None      # None: everything came from the checkpoint
+    evals_per_s = n_new / sample_s if n_new else None
+    if stored:   # timing and stop reason of the run that drew the chains
+        sample_s, evals_per_s = stored["sampling_wall_s"], stored["log_prob_evals_per_s"]
+        result.stop_reason, result.n_evaluations = stored["stop_reason"], stored["n_evaluations"]
+    elif n_new:
+        done.write_text(json.dumps(dict(n_steps=result.n_steps, sampling_wall_s=sample_s,
+                                        log_prob_evals_per_s=evals_per_s, stop_reason=result.stop_reason,
+                                        n_evaluations=result.n_evaluations)))
     # burn-in: 2 tau, or longer until the last stranded walker has reached the typical set
     burn = max(sampling.default_burn(result), sampling.arrival_burn(result))
     idata = sampling.to_inference_data(result, burn=burn, truth=setup.truth)
     diag = sampling.diagnostics(idata, result)
     samples = result.chains[:, burn:].reshape(-1, len(setup.names))
-    # thinned copy for the netCDF file (the diagnostics above use every draw)
-    thin = max(1, int(result.n_steps - burn) // 200)
+    # thinned copy for the netCDF file, 25 draws per walker (the diagnostics above use every draw)
+    thin = max(1, int(result.n_steps - burn) // 25)
     sampling.to_inference_data(result, burn=burn, thin=thin, truth=setup.truth).to_netcdf(
         out / f"posterior_{setup.key}.nc")
 
@@ -284,7 +298,7 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
         tau_max=diag["tau_max"], n_steps=diag["n_steps"], acceptance_mean=diag["acceptance_mean"],
         correlation=corr, sloppiest_direction=sl.weights(0.05), sloppiest_label=sl.label(),
         fim_condition_number=dos["fim_condition_number"], coverage_90=coverage,
-        converged=diag["converged"], wall_s=time.perf_counter() - t0,
+        converged=diag["converged"], wall_s=time.perf_counter() - t0 - sampled_s + sample_s,
         verdict=diag["verdict"], rhat_ensembles_max=diag["rhat_ensembles_max"],
         convergence_by_direction=conv_dirs, stop_reason=result.stop_reason,
         n_walkers=Wk, n_ensembles=E, burn=burn, n_draws=diag["n_draws"],
@@ -326,7 +340,9 @@ def write_report(out, res, args, target_info):
           f"run to {args.tau_factor:g} autocorrelation times or the case's budget ("
           + ", ".join(f"{k} {args.max_minutes or BUDGET_MIN[k]:g} min" for k in res) + "); burn-in "
           "2 tau, or longer until every walker's log-probability has reached the 0.1 % quantile of the "
-          "second half (stranded walkers), at most half the run. Checkpoints in `checkpoints/` (not committed); re-running resumes.",
+          "second half (stranded walkers), at most half the run. Checkpoints in `checkpoints/` (not committed): an interrupted run resumes; a finished case is "
+          "re-reported from its chains (with the sampling time of the run that drew them) unless `--extend`. "
+          "`posterior_<case>.nc`: ArviZ InferenceData after burn-in, thinned to 25 draws per walker.",
           f"- Interval shown: central (equal-tailed) {100 * LEVEL:.0f} % credible interval. R-hat: "
           "rank-normalised split R-hat with every walker as a chain (the verdict); also with each "
           "ensemble's pooled draws as one chain.", ""]
@@ -377,8 +393,11 @@ def write_report(out, res, args, target_info):
             rows = [[f"`{s['direction']}`", s["cause"], fmt(s["track_change_m"]), fmt(s["posterior_sd"]),
                      fmt(s["prior_sd"])] for s in d["structural_nulls"]]
             L += [md_table(hdr, rows), "",
-                  f"Principal angles between these nulls and the same number of sloppiest Fisher directions: "
-                  f"{', '.join(fmt(a) for a in d['structural_null_fim_angles_deg'])} deg.", ""]
+                  f"{d['n_round_off_eigenvalues']} Fisher eigenvalues are at round-off level (below {ROUND_OFF:g} x the "
+                  f"largest). Principal angles between these nulls and the span of those eigenvectors: "
+                  f"{', '.join(fmt(a) for a in d['structural_null_fim_angles_deg'])} deg (near 0: the nulls lie in "
+                  f"the numerically null space; more round-off eigenvalues than structural nulls = further exact "
+                  f"dependences on this data, e.g. Y<->N mixing where v*r <= 0 throughout the spiral).", ""]
         else:
             L += ["No structural null direction for this free set (no equation-row transformation is "
                   "representable by the free coefficients).", ""]
