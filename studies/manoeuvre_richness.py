@@ -289,6 +289,20 @@ def write_report(out, args, results, cross, design, compare, label, free):
     (out / "report.md").write_text("\n".join(L) + "\n")
 
 
+def worst_sentence(single) -> str:
+    """Which coefficient each informative manoeuvre determines worst, in words."""
+    worst = {k: max(r["cramer_rao_sd"], key=r["cramer_rao_sd"].get) for k, r in single.items()
+             if np.isfinite(r["logdet_fim"])}
+    if not worst:
+        return ""
+    names, counts = np.unique(list(worst.values()), return_counts=True)
+    top = names[np.argmax(counts)]
+    sds = [single[k]["cramer_rao_sd"][top] for k, n in worst.items() if n == top]
+    return (f"The worst-determined coefficient is {top} on {int(counts.max())} of {len(worst)} informative "
+            f"manoeuvres (Cramér–Rao sd {fmt(min(sds))} to {fmt(max(sds))}, i.e. {fmt(100 * min(sds))} % or more): "
+            "no single manoeuvre at one speed and 20 deg of rudder pins it down.")
+
+
 def conclusions(results, cross, design, compare, label) -> list:
     """The findings in words, every number from this run."""
     single = {k: r for k, r in results.items() if k not in COMBINATIONS}
@@ -298,8 +312,7 @@ def conclusions(results, cross, design, compare, label) -> list:
     L = ["## Conclusions", ""]
     L += [f"1. **Richness.** By log det F the single manoeuvres rank {', '.join(ranked)}"
           + (f"; {', '.join(blind)} leave some free coefficients without any information (log det F = -inf)"
-             if blind else "") + ". Every manoeuvre leaves Yrabsr (or Xrr/Xrdr) with a Cramér–Rao sd far above "
-          "100 %: the r|r| and rudder-rate terms are the hardest to excite with a 20 deg rudder at one speed."]
+             if blind else "") + ". " + worst_sentence(single)]
     if "spiral" in cross:
         sp = cross["spiral"]
         others = [b for b in sp if b != "spiral"]
