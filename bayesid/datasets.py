@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from .track import Track, TrackFormatError
+from .track import _fail as _track_fail
 
 __all__ = [
     "FORMATS", "DatasetFormatError", "read_esso_osaka", "read_simman_hsva",
@@ -78,12 +79,23 @@ class DatasetFormatError(TrackFormatError):
 
 
 def _fail(path, message, row=None, column=None) -> DatasetFormatError:
-    where = str(path)
-    if row is not None:
-        where += f": row {row}"
-    if column is not None:
-        where += f", column '{column}'"
-    return DatasetFormatError(f"{where}: {message}", path=str(path), row=row, column=column)
+    return _track_fail(path, message, row, column, error=DatasetFormatError)
+
+
+def _collect_rows(path, numbered_cells, n_fields: int, expected: str):
+    """Data rows from ``(line number, cells)`` pairs: empty rows dropped (their line numbers
+    returned), a row with a field count other than ``n_fields`` an error naming its line
+    (``expected`` completes the message). Returns rows, their line numbers, dropped lines."""
+    rows, row_of, dropped = [], [], []
+    for k, cells in numbered_cells:
+        if not any(c.strip() for c in cells):
+            dropped.append(k)
+            continue
+        if len(cells) != n_fields:
+            raise _fail(path, f"has {len(cells)} fields, {expected} {n_fields}", row=k)
+        rows.append(cells)
+        row_of.append(k)
+    return rows, row_of, dropped
 
 
 def _read_lines(path, encoding):
@@ -317,15 +329,8 @@ def read_esso_osaka(path) -> Track:
     header = next(csv.reader([lines[first]]))
     index = _esso_header(path, header, first + 1)
     names = [c.strip() for c in header]
-    rows, row_of, dropped = [], [], []
-    for k, cells in enumerate(csv.reader(lines[first + 1:]), start=first + 2):
-        if not any(c.strip() for c in cells):
-            dropped.append(k)
-            continue
-        if len(cells) != len(names):
-            raise _fail(path, f"has {len(cells)} fields, header has {len(names)}", row=k)
-        rows.append(cells)
-        row_of.append(k)
+    rows, row_of, dropped = _collect_rows(path, enumerate(csv.reader(lines[first + 1:]), start=first + 2),
+                                          len(names), "header has")
     if not rows:
         raise _fail(path, "no data rows after the header", row=first + 2)
     a = _parse_rows(path, rows, names, row_of)
@@ -444,16 +449,9 @@ def read_simman_hsva(path) -> Track:
         raise _fail(path, f"too short: expected {_HSVA_HEADER_LINES} header lines and data "
                     f"rows, found {len(lines)} line(s)")
     title = lines[2].strip() if len(lines) > 2 else ""
-    rows, row_of, dropped = [], [], []
-    for k, line in enumerate(lines[_HSVA_HEADER_LINES:], start=_HSVA_HEADER_LINES + 1):
-        cells = line.split()
-        if not cells:
-            dropped.append(k)
-            continue
-        if len(cells) != len(_HSVA_FIELDS):
-            raise _fail(path, f"has {len(cells)} fields, expected {len(_HSVA_FIELDS)}", row=k)
-        rows.append(cells)
-        row_of.append(k)
+    rows, row_of, dropped = _collect_rows(
+        path, ((k, line.split()) for k, line in enumerate(lines[_HSVA_HEADER_LINES:], start=_HSVA_HEADER_LINES + 1)),
+        len(_HSVA_FIELDS), "expected")
     if not rows:
         raise _fail(path, "no data rows after the header", row=_HSVA_HEADER_LINES + 1)
     a = _parse_rows(path, rows, _HSVA_FIELDS, row_of)

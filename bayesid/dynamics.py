@@ -228,6 +228,13 @@ def check_state(s, vp):
     return OK
 
 
+@nb.njit(cache=True)
+def _workspace():
+    """Scratch arrays of one integration: features, generalised force, RK4 stages."""
+    return (np.empty(N_FEATURES), np.empty(6), np.empty(12), np.empty(12), np.empty(12), np.empty(12),
+            np.empty(12))
+
+
 @nb.njit(cache=True, parallel=True)
 def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs, ws,
                    out, status, fail_step):
@@ -245,9 +252,7 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs
     n_steps = inputs.shape[0]
     for b in nb.prange(B):
         s = s0[b].copy()
-        f = np.empty(N_FEATURES)
-        tau = np.empty(6)
-        k1, k2, k3, k4, tmp = np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12)
+        f, tau, k1, k2, k3, k4, tmp = _workspace()
         out[b, 0] = s
         status[b] = OK
         fail_step[b] = -1
@@ -291,9 +296,7 @@ def simulate_triggered_zigzag(s0, n_steps, dt, rpm, i_input, i_state, delta, tri
     int : divergence flag (OK when the run completed).
     """
     s = s0.copy()
-    f = np.empty(N_FEATURES)
-    tau = np.empty(6)
-    k1, k2, k3, k4, tmp = np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12)
+    f, tau, k1, k2, k3, k4, tmp = _workspace()
     uin = np.zeros(4)
     uin[3] = rpm
     out[0] = s
@@ -368,9 +371,7 @@ def simulate_pi_hold(s0, n_steps, dt, rpm, i_input, i_state, reference, kp, ki, 
     int : divergence flag (OK when the run completed).
     """
     s = s0.copy()
-    f = np.empty(N_FEATURES)
-    tau = np.empty(6)
-    k1, k2, k3, k4, tmp = np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12)
+    f, tau, k1, k2, k3, k4, tmp = _workspace()
     uin = np.zeros(4)
     uin[3] = rpm
     out[0] = s

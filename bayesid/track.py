@@ -76,13 +76,14 @@ class TrackFormatError(ValueError):
         self.path, self.row, self.column = path, row, column
 
 
-def _fail(path, message, row=None, column=None):
+def _fail(path, message, row=None, column=None, error=None):
+    """The error (``error`` class, default :class:`TrackFormatError`) naming file, row, column."""
     where = str(path)
     if row is not None:
         where += f": row {row}"
     if column is not None:
         where += f", column '{column}'"
-    return TrackFormatError(f"{where}: {message}", path=str(path), row=row, column=column)
+    return (error or TrackFormatError)(f"{where}: {message}", path=str(path), row=row, column=column)
 
 
 @dataclass(eq=False, repr=False)

@@ -101,12 +101,10 @@ def monte_carlo_sd(vehicle, m, case, theta_true, n, rng, quick, w):
     """Spread of least-squares estimates over ``n`` noise realisations (relative units):
     (per-coefficient sd (P,), sd along unit direction w)."""
     clean = problem_for(vehicle, m, case.free, theta_true)
+    truth = clean.sim.run(theta_true[None]).track(0)
     est = []
     for _ in range(n):
-        noisy = add_noise(Simulator(vehicle, m, free=case.free, mode="horizontal",
-                                    sample_every=int(round(SAMPLE_S / m.dt))).run(theta_true[None]).track(0),
-                          NOISE, rng)
-        pb = Problem(clean.sim, noisy, theta_true, channels=CHANNELS)
+        pb = Problem(clean.sim, add_noise(truth, NOISE, rng), theta_true, channels=CHANNELS)
         p0 = 1.0 + rng.uniform(-0.1, 0.1, theta_true.size)
         lo, hi = np.full(theta_true.size, 1 - BOUND), np.full(theta_true.size, 1 + BOUND)
         est.append(fit_least_squares(pb, p0, (lo, hi), max_nfev=30 if quick else 150).p - 1.0)
