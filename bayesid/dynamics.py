@@ -171,9 +171,15 @@ def generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau):
 
 
 @nb.njit(cache=True)
-def rhs(s, uin, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, ds):
-    """State derivative ``ds`` (12,) = d s / dt, in place (paper Eqs. 3-5)."""
+def rhs(s, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, ds):
+    """State derivative ``ds`` (12,) = d s / dt, in place (paper Eqs. 3-5).
+
+    ``ext`` (6,) is an external generalised force (N, N m) added to the right-hand side of
+    ``M nu_dot = tau``: zero for the vehicle alone, the exogenous forces of
+    :mod:`bayesid.effects` (wave forcing, thrust deficit) otherwise."""
     generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau)
+    for i in range(6):
+        tau[i] += ext[i]
     for i in range(6):
         acc = 0.0
         for j in range(6):
@@ -194,18 +200,19 @@ def rhs(s, uin, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, ds):
 
 
 @nb.njit(cache=True)
-def rk4_step(s, uin, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp):
-    """Advance ``s`` (12,) in place by one classical RK4 step of length dt (s)."""
-    rhs(s, uin, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1)
+def rk4_step(s, uin, ext, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp):
+    """Advance ``s`` (12,) in place by one classical RK4 step of length dt (s); the input
+    ``uin`` and the external force ``ext`` (6,) are held over the step."""
+    rhs(s, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1)
     for i in range(12):
         tmp[i] = s[i] + 0.5 * dt * k1[i]
-    rhs(tmp, uin, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k2)
+    rhs(tmp, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k2)
     for i in range(12):
         tmp[i] = s[i] + 0.5 * dt * k2[i]
-    rhs(tmp, uin, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k3)
+    rhs(tmp, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k3)
     for i in range(12):
         tmp[i] = s[i] + dt * k3[i]
-    rhs(tmp, uin, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k4)
+    rhs(tmp, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k4)
     for i in range(12):
         s[i] += dt * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) / 6.0
 
@@ -230,9 +237,10 @@ def check_state(s, vp):
 
 @nb.njit(cache=True)
 def _workspace():
-    """Scratch arrays of one integration: features, generalised force, RK4 stages."""
+    """Scratch arrays of one integration: features, generalised force, RK4 stages, and the
+    external force (zeroed)."""
     return (np.empty(N_FEATURES), np.empty(6), np.empty(12), np.empty(12), np.empty(12), np.empty(12),
-            np.empty(12))
+            np.empty(12), np.zeros(6))
 
 
 @nb.njit(cache=True, parallel=True)
@@ -252,12 +260,12 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs
     n_steps = inputs.shape[0]
     for b in nb.prange(B):
         s = s0[b].copy()
-        f, tau, k1, k2, k3, k4, tmp = _workspace()
+        f, tau, k1, k2, k3, k4, tmp, ext = _workspace()
         out[b, 0] = s
         status[b] = OK
         fail_step[b] = -1
         for k in range(n_steps):
-            rk4_step(s, inputs[k], dt, vp, tfac, tdof, tcoef[b], Minv[b], xs, ws,
+            rk4_step(s, inputs[k], ext, dt, vp, tfac, tdof, tcoef[b], Minv[b], xs, ws,
                      f, tau, k1, k2, k3, k4, tmp)
             flag = check_state(s, vp)
             if flag != OK:
@@ -269,6 +277,55 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs
                 break
             if (k + 1) % sample_every == 0:
                 out[b, (k + 1) // sample_every] = s
+
+
+@nb.njit(cache=True, parallel=True)
+def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, tfac, tdof, tcoef, Minv, xs, ws,
+                     out, status):
+    """Integrate B parameter vectors over W consecutive windows of one input record, each window
+    restarting from its own state (the window protocol and multiple shooting; parallel over all
+    B * W windows).
+
+    Parameters
+    ----------
+    s0 : (B, W, 12) state at each window start.
+    starts : (W + 1,) int64 step index of each window start; ``starts[W]`` = n_steps.
+    inputs : (B, n_steps, 4) inputs per parameter vector (held over a step).
+    exo : (B, n_steps, K) exogenous signals, ecoef : (B, K, 6): the external generalised force
+        over step k is ``sum_j exo[b, k, j] * ecoef[b, j, :]`` (N, N m; held over the step).
+    vp : (B, N_VP) vehicle parameters.   tcoef : (B, P).   Minv : (B, 6, 6).
+    out : (B, n_steps + W, 12): window w occupies rows ``starts[w] + w .. starts[w + 1] + w``
+        (its start and end state both kept); NaN after a divergence.
+    status : (B, W) int64 OK / NONFINITE / OUT_OF_BOUNDS per window.
+    """
+    B = s0.shape[0]
+    W = starts.shape[0] - 1
+    K = exo.shape[2]
+    for job in nb.prange(B * W):
+        b = job // W
+        w = job % W
+        s = s0[b, w].copy()
+        f, tau, k1, k2, k3, k4, tmp, ext = _workspace()
+        row = starts[w] + w
+        out[b, row] = s
+        status[b, w] = OK
+        for k in range(starts[w], starts[w + 1]):
+            for i in range(6):
+                acc = 0.0
+                for j in range(K):
+                    acc += exo[b, k, j] * ecoef[b, j, i]
+                ext[i] = acc
+            rk4_step(s, inputs[b, k], ext, dt, vp[b], tfac, tdof, tcoef[b], Minv[b], xs, ws,
+                     f, tau, k1, k2, k3, k4, tmp)
+            row += 1
+            flag = check_state(s, vp[b])
+            if flag != OK:
+                status[b, w] = flag
+                for j in range(row, starts[w + 1] + w + 1):
+                    for i in range(12):
+                        out[b, j, i] = np.nan
+                break
+            out[b, row] = s
 
 
 @nb.njit(cache=True)
@@ -296,7 +353,7 @@ def simulate_triggered_zigzag(s0, n_steps, dt, rpm, i_input, i_state, delta, tri
     int : divergence flag (OK when the run completed).
     """
     s = s0.copy()
-    f, tau, k1, k2, k3, k4, tmp = _workspace()
+    f, tau, k1, k2, k3, k4, tmp, ext = _workspace()
     uin = np.zeros(4)
     uin[3] = rpm
     out[0] = s
@@ -324,7 +381,7 @@ def simulate_triggered_zigzag(s0, n_steps, dt, rpm, i_input, i_state, delta, tri
             uin[i_input] = cmd
         for i in range(4):
             inputs[k, i] = uin[i]
-        rk4_step(s, uin, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp)
+        rk4_step(s, uin, ext, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp)
         flag = check_state(s, vp)
         out[k + 1] = s
         if flag != OK:
@@ -371,7 +428,7 @@ def simulate_pi_hold(s0, n_steps, dt, rpm, i_input, i_state, reference, kp, ki, 
     int : divergence flag (OK when the run completed).
     """
     s = s0.copy()
-    f, tau, k1, k2, k3, k4, tmp = _workspace()
+    f, tau, k1, k2, k3, k4, tmp, ext = _workspace()
     uin = np.zeros(4)
     uin[3] = rpm
     out[0] = s
@@ -404,7 +461,7 @@ def simulate_pi_hold(s0, n_steps, dt, rpm, i_input, i_state, reference, kp, ki, 
             uin[i_input] = cmd
         for i in range(4):
             inputs[k, i] = uin[i]
-        rk4_step(s, uin, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp)
+        rk4_step(s, uin, ext, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp)
         flag = check_state(s, vp)
         out[k + 1] = s
         if flag != OK:
@@ -426,5 +483,5 @@ def features_array(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.ndarra
 
 
 __all__ = ["vehicle_params", "crossflow_strips", "features", "generalized_force", "rhs", "rk4_step",
-           "simulate_batch", "simulate_triggered_zigzag", "simulate_zigzag", "simulate_pi_hold",
+           "simulate_batch", "simulate_windows", "simulate_triggered_zigzag", "simulate_zigzag", "simulate_pi_hold",
            "features_array"]

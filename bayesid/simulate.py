@@ -178,14 +178,21 @@ class Simulator:
         C[:, self._free_idx] = th
         return C
 
-    def inverse_mass_matrices(self, C: np.ndarray) -> np.ndarray:
-        """(B, 6, 6) inverse mass matrices (restricted to u, v, r in horizontal mode).
-
-        A singular mass matrix gives NaN entries, which the kernel flags as a divergence."""
-        B = C.shape[0]
-        M = np.repeat(self._M0[None], B, axis=0)
+    def mass_matrices(self, C: np.ndarray) -> np.ndarray:
+        """(B, 6, 6) mass matrices ``M_RB - M_A`` for the prime coefficient vectors C (B, n_terms)."""
+        M = np.repeat(self._M0[None], C.shape[0], axis=0)
         for (idx, t), sc in zip(self._am, self._am_scale):
             M[:, t.dof, t.accel] -= sc * C[:, idx]
+        return M
+
+    def inverse_mass_matrices(self, C: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
+        """(B, 6, 6) inverse mass matrices (restricted to u, v, r in horizontal mode), of
+        :meth:`mass_matrices` of C unless the matrices ``M`` (B, 6, 6) are given.
+
+        A singular mass matrix gives NaN entries, which the kernel flags as a divergence."""
+        if M is None:
+            M = self.mass_matrices(C)
+        B = M.shape[0]
         Minv = np.zeros((B, 6, 6))
         if self.mode == "horizontal":
             sub = M[:, _PLANE][:, :, _PLANE]

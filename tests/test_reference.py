@@ -81,7 +81,7 @@ def kernel_force_and_rhs(sim, theta, s, uin):
     Minv = sim.inverse_mass_matrices(C)[0]
     f, tau, ds = np.empty(terms.N_FEATURES), np.empty(6), np.empty(12)
     s, uin = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(uin, dtype=float)
-    dynamics.rhs(s, uin, sim.vp, sim.tfac, sim.tdof, tcoef, Minv, sim.xs, sim.ws, f, tau, ds)
+    dynamics.rhs(s, uin, np.zeros(6), sim.vp, sim.tfac, sim.tdof, tcoef, Minv, sim.xs, sim.ws, f, tau, ds)
     return tau, ds
 
 

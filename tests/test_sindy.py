@@ -57,7 +57,7 @@ def test_inverse_dynamics_and_library_reproduce_the_simulator(nps):
     acc = np.zeros((S.shape[0], 12))
     f, tau = np.empty(terms.N_FEATURES), np.empty(6)
     for i in range(S.shape[0]):
-        dynamics.rhs(S[i].copy(), U[i].copy(), sim.vp, sim.tfac, sim.tdof, tcoef[0], Minv[0],
+        dynamics.rhs(S[i].copy(), U[i].copy(), np.zeros(6), sim.vp, sim.tfac, sim.tdof, tcoef[0], Minv[0],
                      sim.xs, sim.ws, f, tau, acc[i])
     motion = dict(u=S[:, 6], v=S[:, 7], r=S[:, 11], u_dot=acc[:, 6], v_dot=acc[:, 7],
                   r_dot=acc[:, 11], dr_dot=np.zeros(S.shape[0]), input_hold="sample")
