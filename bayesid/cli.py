@@ -3,7 +3,10 @@
     bayesid simulate --vehicle nps_auv2 --manoeuvre zigzag --angle 20 --mode horizontal --out track.csv
     bayesid convert --format esso-osaka ../shared/data/real/esso-osaka-frt --out tracks/esso
 
-Later issues add ``fit``, ``predict`` and ``diagnose`` (DESIGN.md "Command line").
+    bayesid diagnose --vehicle nps_auv2 --free Yv,Yr,Nv,Nr,Ydr,Ndr --train A.csv B.csv \
+        --heldout C.csv --window 60 --out diag
+
+Later issues add ``fit`` and ``predict`` (DESIGN.md "Command line").
 """
 from __future__ import annotations
 
@@ -107,6 +110,34 @@ def _convert(args) -> int:
     return 0
 
 
+def _diagnose(args) -> int:
+    """``bayesid diagnose``: base fit, where / which / how far (bayesid.gap)."""
+    import numpy as np
+
+    from . import effects, gap
+    from .track import read_csv
+
+    vehicle = load_vehicle(args.vehicle)
+    free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else []
+    from . import terms
+    terms.check_names(free, "--free")
+    train = [read_csv(p) for p in args.train]
+    held = [read_csv(p) for p in args.heldout]
+    cands = list(effects.CATALOGUE) if not args.candidates else [c.strip() for c in args.candidates.split(",")]
+    for c in (args.exclude.split(",") if args.exclude else []):
+        if c.strip() not in cands:
+            raise ValueError(f"--exclude {c.strip()}: not among the candidates {cands}")
+        cands.remove(c.strip())
+    window = None if args.window <= 0 else args.window
+    res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=args.dt,
+                       mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
+                       max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True))
+    gap.write_report(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
+    print(f"verdict: {res['verdict']}; held-out RMS {res['gap_before']['heldout_rms_m']:.3f} m -> "
+          f"{res['gap_after']['heldout_rms_m']:.3f} m; wrote {Path(args.out) / 'diagnosis.json'}")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="bayesid", description="hydrodynamic coefficient identification")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -126,9 +157,24 @@ def main(argv=None) -> int:
     c.add_argument("inputs", nargs="+", metavar="IN",
                    help="run file or data set folder (searched recursively; duplicates skipped)")
     c.add_argument("--out", required=True, help="output folder (created if absent)")
+    d = sub.add_parser("diagnose", help="sim-to-real gap: where / which effect / how far")
+    d.add_argument("--vehicle", required=True, help="packaged id or TOML path (nominal coefficients)")
+    d.add_argument("--free", default="Yv,Yr,Nv,Nr,Ydr,Ndr", help="comma-separated free coefficients")
+    d.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
+    d.add_argument("--heldout", nargs="+", required=True, metavar="CSV", help="held-out Track CSVs")
+    d.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
+    d.add_argument("--dt", type=float, default=0.5, help="model integration step, s")
+    d.add_argument("--mode", choices=MODES, default="horizontal")
+    d.add_argument("--candidates", default="", help="comma-separated effects (default: whole catalogue)")
+    d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
+    d.add_argument("--max-effects", type=int, default=1, help="greedy rounds of effect addition")
+    d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
+    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--out", required=True, help="output folder")
     args = ap.parse_args(argv)
     try:
-        return _convert(args) if args.command == "convert" else _simulate(args)
+        run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose}[args.command]
+        return run(args)
     except (ValueError, KeyError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

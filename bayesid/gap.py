@@ -133,7 +133,8 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     xhi = np.concatenate(([hi] if free_p else []) + [nhi] * T)
     xsc = np.concatenate(([sc] if free_p else []) + [np.ones(nn)] * T)
     fin = np.isfinite(xlo) & np.isfinite(xhi)
-    x0 = np.where(fin, np.clip(x0, np.where(fin, xlo + 1e-9 * (xhi - xlo), 0), np.where(fin, xhi - 1e-9 * (xhi - xlo), 0)), x0)
+    span = np.where(fin, xhi - xlo, 0.0)
+    x0 = np.where(fin, np.clip(x0, np.where(fin, xlo, 0.0) + 1e-9 * span, np.where(fin, xhi, 0.0) - 1e-9 * span), x0)
     nfev = [0]
 
     def fun_batch(X):
@@ -463,6 +464,17 @@ def _wave_seed(F_list, motions, model, fitres) -> tuple[float, list]:
     return omega, phases, amp
 
 
+def _current_seed(model, fitres, ctxs) -> np.ndarray:
+    """Earth-frame drift (m/s) that best explains the base model's position errors in the
+    windows: measured - predicted ~ V_c t_rel (least squares through the window starts)."""
+    num, den = np.zeros(2), 0.0
+    for ctx in ctxs:
+        e = ef.errors(ctx, model.simulate(ctx, fitres.p[None]))
+        num -= np.array([np.nansum(e["x"][0] * ctx.t_rel), np.nansum(e["y"][0] * ctx.t_rel)])
+        den += float(np.sum(ctx.t_rel ** 2))
+    return num / den if den > 0 else np.zeros(2)
+
+
 def _candidate_starts(name, model, base_theta, seeds):
     """Start vectors (list of (p0, nuisance0)) for a candidate fit: from the base fit's
     coefficients and from the nominal ones (the base fit may have bent the coefficients to
@@ -481,6 +493,10 @@ def _effect_starts(name, model, base_theta, seeds):
         i = model.n_theta
         p[i:i + 4] = [omega, amp[0], amp[1], amp[2]]
         return [(p, [np.array([ph]) for ph in phases])]
+    if name == "current" and "current" in seeds:
+        p = p.copy()
+        p[model.n_theta:model.n_theta + 2] = np.clip(seeds["current"], -1.4, 1.4)
+        return [(p, None)]
     if name == "actuator":
         alt = p.copy()
         alt[model.n_theta:model.n_theta + 2] = [1.0, 5.0]
@@ -545,7 +561,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                 key=lambda d: d["rms_position_m"])
     w = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])
     F_list, motions = w.pop("_force_arrays", (None, None))
-    seeds = {}
+    seeds = {"current": _current_seed(base, bfit, ctr)}
     if F_list:
         try:
             seeds["waves"] = _wave_seed(F_list, motions, base, bfit)
@@ -553,10 +569,10 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
             pass
     ranking, fits = [], {}
     chosen = []
-    current_best = (bfit, b_train, b_held, base)
+    current_best = (bfit, b_train, b_held, base, None)
     rounds = []
     for rnd in range(max(1, int(max_effects))):
-        ref_fit, ref_train, ref_held, ref_model = current_best
+        ref_fit, ref_train, ref_held, ref_model, _ = current_best
         results = []
         for name in cands:
             if name in chosen:
@@ -596,7 +612,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                             "parameters": best.effect_parameters()[name],
                             "heading_rms_deg": s_h["rms_heading_deg"], "nfev": best.nfev,
                             "fit_seconds": best.seconds})
-            fits[name] = (best, s_tr, s_h, m)
+            fits[name] = (best, s_tr, s_h, m, nu_h)
         results.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
         rounds.append(results)
         if rnd == 0:
@@ -616,7 +632,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         verdict = "unexplained"
     else:
         verdict = "none"
-    after = current_best if chosen else (bfit, b_train, b_held, base)
+    after = current_best if chosen else (bfit, b_train, b_held, base, None)
     # SINDy support on the missing forces
     support = {}
     if F_list:
@@ -651,8 +667,99 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                        "bic_threshold": bic_threshold},
         "seconds": time.perf_counter() - t_start,
     }
-    res["_curves"] = {"base": (base, bfit), "after": (after[3], after[0])}
+    res["_curves"] = {"base": (base, bfit, None), "after": (after[3], after[0], after[4])}
     return res
+
+
+def _window_xy(model, fitres, track, window_s, nu=None):
+    ctx = model.context(track, window_s)
+    S = model.simulate(ctx, fitres.p[None], None if nu is None else nu[None])[0]
+    xy = S[:, :2].copy()
+    cut = np.flatnonzero(np.diff(ctx.win) != 0) + 1
+    xy = np.insert(xy, cut, np.nan, axis=0)
+    meas = np.column_stack([ctx.meas["x"], ctx.meas["y"]])
+    return meas, xy
+
+
+def write_report(res: dict, out, heldout: list, command: str = "") -> None:
+    """Write ``diagnosis.json``, ``report.md`` and ``figures/*.png`` of a :func:`diagnose`
+    result into the folder ``out`` (created)."""
+    from pathlib import Path
+
+    from . import plots
+    from .report import fmt, md_table, write_json
+
+    out = Path(out)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    curves = res.get("_curves")
+    doc = {k: v for k, v in res.items() if not k.startswith("_")}
+    write_json(out / "diagnosis.json", doc)
+    figs = []
+    if res["ranking"]:
+        figs.append(plots.gap_ranking(res["ranking"], res["gap_before"]["heldout_rms_m"],
+                                      res["noise_floor"]["heldout_rms_m"], out / "figures" / "ranking.png"))
+    figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
+    figs.append(plots.gap_regions(res["where"], out / "figures" / "regions.png"))
+    if curves is not None and heldout:
+        w = res["settings"]["window_s"]
+        bm, bf, _ = curves["base"]
+        am, af, anu = curves["after"]
+        meas, before = _window_xy(bm, bf, heldout[0], w)
+        after = None
+        if res["effects_added"]:
+            _, after = _window_xy(am, af, heldout[0], w, None if anu is None else anu[0])
+        figs.append(plots.window_tracks(None, meas, before, after, out / "figures" / "heldout_track.png",
+                                        title=f"{heldout[0].name}: {w} s windows"))
+    gb, ga = res["gap_before"], res["gap_after"]
+    lines = [f"# Gap diagnosis", "", f"`{command}`" if command else "", "",
+             f"**Verdict: {res['verdict']}**"
+             + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""), "",
+             f"Training tracks: {', '.join(res['train_tracks'])}; held-out: {', '.join(res['heldout_tracks'])}. "
+             f"Free coefficients: {', '.join(res['settings']['free']) or 'none'}. Protocol windows: "
+             f"{res['settings']['window_s']} s; model step {res['settings']['dt']} s.", "",
+             "## How far", "",
+             md_table(["", "train RMS (m)", "held-out RMS (m)", "held-out max (m)", "heading RMS (deg)"],
+                      [["base model", fmt(gb["train_rms_m"]), fmt(gb["heldout_rms_m"]), fmt(gb["heldout_max_m"]),
+                        fmt(gb["heading_rms_deg"])],
+                       ["with " + ("+".join(res["effects_added"]) or "nothing"), fmt(ga["train_rms_m"]),
+                        fmt(ga["heldout_rms_m"]), fmt(ga["heldout_max_m"]), fmt(ga["heading_rms_deg"])]]),
+             "", f"Held-out shrinkage {fmt(res['heldout_shrinkage'])}; noise floor (perfect model at the "
+             f"estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
+             f"{fmt(res['gap_ratio'])} (significant above {res['thresholds']['none_ratio']}).", "",
+             "## Which", "",
+             md_table(["effect", "held-out RMS (m)", "excess removed", "ΔBIC (train)", "parameters"],
+                      [[r["effect"], fmt(r["heldout_rms_m"]), fmt(r["excess_removed"]), fmt(r["delta_bic"], 4),
+                        ", ".join(f"{k} {fmt(v)}" for k, v in r["parameters"].items() if k != "per_track_nuisance")]
+                       for r in res["ranking"]]),
+             "", f"Rules: an effect explains the gap if it removes >= {res['thresholds']['explain_fraction']} "
+             f"of the held-out excess over the floor and its ΔBIC <= {res['thresholds']['bic_threshold']}; "
+             "otherwise the verdict is `none` (gap not significant) or `unexplained`.", "",
+             "Sparse-regression support (ensemble STLSQ inclusion probability of each effect's force "
+             "signature in the missing forces; sensor bias leaves none): "
+             + ", ".join(f"{k} {fmt(v)}" for k, v in res["sindy_support"].items() if not isinstance(v, str)),
+             "", "## Where", "",
+             md_table(["channel", "RMS", "noise sd", "floor RMS", "ratio"],
+                      [[c, fmt(d.get("rms")), fmt(d.get("noise_sd")), fmt(d.get("floor_rms")), fmt(d.get("excess_ratio"))]
+                       for c, d in res["where"]["channels"].items()]),
+             "", f"Dominant channel: {res['where']['dominant_channel']}; dominant region: "
+             f"{res['where']['dominant_region']['region']} (error growth {fmt(res['where']['dominant_region']['growth_ratio'])}"
+             " x the mean).", ""]
+    ph = res["where"]["phases"]
+    lines += ["Phases: " + "; ".join(f"{k}: {fmt(v['fraction_of_time'])} of the time, growth "
+                                      f"{fmt(v['mean_error_growth_mps'])} m/s" for k, v in ph.items()), ""]
+    if res["where"].get("forces"):
+        lines += ["Missing forces (RMS, inverse dynamics of the first held-out track's smoothed motion minus "
+                  "the fitted model): " + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["forces"].items()
+                                                     if not isinstance(v, str)), ""]
+    for k, v in res["where"].get("spectrum", {}).items():
+        wb = res["where"]["whiteness"].get(k, {})
+        ic = res["where"]["input_correlation"].get(k, {})
+        lines.append(f"- {k}: spectral peak at {fmt(v['peak_period_s'])} s ({fmt(v['peak_to_median'])} x median); "
+                     f"Ljung-Box p = {fmt(wb.get('p_value'))}; "
+                     + ", ".join(f"corr with {n} {fmt(c['max_abs_corr'])} at lag {fmt(c['lag_s'])} s"
+                                 for n, c in ic.items()))
+    lines += ["", *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
+    (out / "report.md").write_text("\n".join(lines))
 
 
 __all__ = ["Fit", "fit", "scores", "where", "diagnose", "ljung_box", "signature_columns",

@@ -351,3 +351,80 @@ def predicted_vs_measured(design: dict, path, title: str = "Designed / spiral: p
 __all__ = ["inclusion_heatmap", "cross_prediction", "design_inputs", "predicted_vs_measured", "track_xy", "inputs_time", "position_error", "coefficient_ratios", "convergence",
            "singular_values", "walker_traces", "rank_histograms", "pair_scatter", "correlation_heatmap",
            "fim_spectra", "marginals_vs_truth"]
+
+
+def gap_ranking(ranking: list, before: float, floor: float, path, title: str = "Candidates: held-out RMS position error"):
+    """Horizontal bars of each candidate's held-out RMS (m) with the base model and noise floor."""
+    names = [r["effect"] for r in ranking]
+    vals = [r["heldout_rms_m"] for r in ranking]
+    fig, ax = plt.subplots(figsize=(6, 0.4 * len(names) + 1.5))
+    ax.barh(names[::-1], vals[::-1], color="tab:blue")
+    ax.axvline(before, color="tab:red", ls="--", label=f"base model {before:.2f} m")
+    ax.axvline(floor, color="k", ls=":", label=f"noise floor {floor:.2f} m")
+    ax.set_xlabel("held-out RMS position error, m")
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def gap_channels(where: dict, path, title: str = "Where: residual RMS / noise-floor RMS per channel"):
+    """Bar chart of each channel's excess ratio (base model, held-out tracks)."""
+    ch = {k: v["excess_ratio"] for k, v in where["channels"].items() if v.get("excess_ratio")}
+    fig, ax = plt.subplots(figsize=(5, 3))
+    ax.bar(list(ch), list(ch.values()), color="tab:orange")
+    ax.axhline(1.0, color="k", ls=":")
+    ax.set_ylabel("RMS / floor RMS")
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def gap_regions(where: dict, path, title: str = "Where: error growth by operating region"):
+    """Mean position-error growth rate (m/s) per bin of each operating-region variable."""
+    regs = where["regions"]
+    fig, axes = plt.subplots(1, len(regs), figsize=(3.2 * len(regs), 3))
+    for ax, (name, rows) in zip(np.atleast_1d(axes), regs.items()):
+        labels = [f"{r['bin'][0]:g}..{r['bin'][1]:g}" for r in rows]
+        vals = [r["mean_error_growth_mps"] or 0.0 for r in rows]
+        ax.bar(range(len(rows)), vals, color="tab:green")
+        ax.set_xticks(range(len(rows)))
+        ax.set_xticklabels(labels, rotation=45, fontsize=7)
+        ax.set_title(name, fontsize=9)
+    np.atleast_1d(axes)[0].set_ylabel("mean |d error/dt|, m/s")
+    fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def window_tracks(t, measured, before, after, path, title: str = ""):
+    """Measured track and the protocol's windowed predictions before and after the top effect:
+    arrays (n, 2) of x, y (NaN separates windows)."""
+    fig, ax = plt.subplots(figsize=(6, 6))
+    ax.plot(measured[:, 1], measured[:, 0], "k.", ms=1.5, label="measured")
+    ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label="base model")
+    if after is not None:
+        ax.plot(after[:, 1], after[:, 0], "tab:blue", lw=1.0, label="with top effect")
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x verdict (columns)"):
+    """Heat map of counts {true: {verdict: n}}."""
+    rows = list(confusion)
+    cols = sorted({v for d in confusion.values() for v in d}, key=lambda c: (c in ("none", "unexplained"), c))
+    M = np.array([[confusion[r].get(c, 0) for c in cols] for r in rows])
+    fig, ax = plt.subplots(figsize=(0.6 * len(cols) + 3, 0.45 * len(rows) + 2))
+    ax.imshow(M, cmap="Blues")
+    for i in range(len(rows)):
+        for j in range(len(cols)):
+            if M[i, j]:
+                ax.text(j, i, str(M[i, j]), ha="center", va="center", fontsize=8)
+    ax.set_xticks(range(len(cols)))
+    ax.set_xticklabels(cols, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(len(rows)))
+    ax.set_yticklabels(rows, fontsize=8)
+    ax.set_title(title, fontsize=10)
+    return _save(fig, path)
