@@ -578,7 +578,7 @@ def draw_parameters(name: str, level: int, rng: np.random.Generator) -> dict:
 
 
 def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Generator,
-                noise: dict | None = None, sample_every: int = 5, dt: float | None = None,
+                noise: dict | None = None, sample_every: int = 1, dt: float | None = None,
                 nuisance=None, name: str | None = None) -> Track:
     """A "measured" track of the vehicle flying ``manoeuvre`` with ``effects`` switched on.
 
@@ -590,8 +590,10 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
         see :func:`draw_parameters` for the benchmark levels).
     rng : all randomness (noise; wave phase and current direction if not given).
     noise : {channel: sd} (default :data:`WORLD_NOISE`); every state is recorded.
-    sample_every : record every k-th integration step.   dt : integration step (default the
-        manoeuvre's).   nuisance : per-track parameters (default: drawn, e.g. a random phase).
+    sample_every : record every k-th integration step (default 1: a 10 Hz log at the
+        manoeuvre's 0.1 s step; the inputs are logged at the same rate, and a coarser log
+        misplaces every rudder step by up to one sample interval).   dt : integration step
+        (default the manoeuvre's).   nuisance : per-track parameters (default: drawn, e.g. a random phase).
 
     Returns
     -------

@@ -1,0 +1,268 @@
+"""Gap diagnosis (issue 5): effect catalogue, window protocol, diagnose(), bayesid diagnose,
+studies/sim_to_real.py --quick."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesid import cli, effects as ef, gap, protocol
+from bayesid import manoeuvres as mv
+from bayesid.track import Track, read_csv, write_csv
+from bayesid.vehicle import load_vehicle
+
+ROOT = Path(__file__).resolve().parents[1]
+FREE = ["Yv", "Nr", "Ndr"]
+
+
+@pytest.fixture(scope="module")
+def veh():
+    return load_vehicle("nps_auv2")
+
+
+@pytest.fixture(scope="module")
+def scenario(veh):
+    """Short training and held-out manoeuvres (inputs only; the world adds the effect)."""
+    train = [mv.zigzag(veh, 20.0, dt=0.1, duration=150.0),
+             mv.prbs(veh, 15.0, duration=150.0, rng=np.random.default_rng(1))]
+    held = [mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1)]
+    return train, held
+
+
+def world(veh, scenario, effects, seed):
+    rng = np.random.default_rng(seed)
+    tm, hm = scenario
+    train = [ef.world_track(veh, m, effects, rng, name=f"train_{m.name}") for m in tm]
+    held = [ef.world_track(veh, m, effects, rng, name=f"heldout_{m.name}") for m in hm]
+    return train, held
+
+
+# --- protocol -----------------------------------------------------------------------------
+def test_windows_do_not_overlap_and_cover_the_run():
+    t = np.arange(0, 125.01, 0.1)
+    s = protocol.window_starts(t, 30.0)
+    assert np.allclose(s, [0, 30, 60, 90, 120])
+    assert np.all(np.diff(s) == 30.0)
+    assert np.allclose(protocol.window_starts(t, None), [0.0])
+    with pytest.raises(ValueError):
+        protocol.window_starts(t, 0.0)
+
+
+def test_window_start_state_uses_no_future_data(veh):
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
+    tr = ef.world_track(veh, m, {}, np.random.default_rng(0))
+    t0 = 30.0
+    s1 = protocol.state_at(tr, t0)
+    late = tr.t > t0
+    garbled = tr.with_columns(**{k: np.where(late, tr[k] + 100.0, tr[k]) for k in ("x", "y", "psi", "u", "v", "r")})
+    assert np.array_equal(protocol.state_at(garbled, t0), s1)
+    # but the past does count
+    early = (tr.t <= t0) & (tr.t > t0 - 1.0)
+    moved = tr.with_columns(x=np.where(early, tr["x"] + 5.0, tr["x"]))
+    assert protocol.state_at(moved, t0)[0] != s1[0]
+
+
+def test_noise_estimate_recovers_the_sd(veh):
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=120.0)
+    tr = ef.world_track(veh, m, {}, np.random.default_rng(3))
+    sd = protocol.estimate_noise(tr, ["x", "psi", "u", "r"])
+    for k in sd:
+        assert sd[k] == pytest.approx(ef.WORLD_NOISE[k], rel=0.25), k  # r: rudder steps are not smooth at 10 Hz
+
+
+def test_protocol_on_the_models_own_track_is_at_the_noise_level(veh):
+    """The window protocol with the true model on its own noisy track: the pooled error is the
+    noise floor (well under a metre), and the nominal model reproduces a noise-free track."""
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=180.0)
+    clean = ef.world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    model = ef.EffectModel(veh, (), (), dt=0.1)
+    ctx = model.context(clean, None)
+    e = ef.errors(ctx, model.simulate(ctx, model.start()[None]))
+    assert np.max(np.abs(e["x"])) < 1e-6 and np.max(np.abs(e["psi"])) < 1e-8
+    noisy = ef.world_track(veh, m, {}, np.random.default_rng(1))
+    model = ef.EffectModel(veh, (), (), dt=0.5)
+    ctx = model.context(noisy, 60.0)
+    sc = protocol.pooled_scores([{k: v[0] for k, v in ef.errors(ctx, model.simulate(ctx, model.start()[None])).items()}])
+    assert 0.15 < sc["rms_position_m"] < 1.0
+    assert ctx.W == 3 and list(ctx.starts) == [0, 120, 240, 360]
+
+
+# --- effects ------------------------------------------------------------------------------
+def test_catalogue_has_the_issues_effects_with_sources():
+    assert set(ef.CATALOGUE) >= {"current", "actuator", "delay", "sensor_bias", "crossflow", "thrust",
+                                 "roll", "waves"}
+    for e in ef.CATALOGUE.values():
+        assert len(e.magnitudes) == 3 and e.source and e.description
+        assert len(e.params) == len(e.lo) == len(e.hi) == len(e.start) == len(e.scale)
+        for mag in e.magnitudes:
+            for k, v in ef.draw_parameters(e.name, e.magnitudes.index(mag), np.random.default_rng(0)).items():
+                i = e.params.index(k)
+                assert e.lo[i] <= v <= e.hi[i], (e.name, k)
+    with pytest.raises(ValueError, match="unknown effect 'tide'"):
+        ef.get("tide")
+
+
+@pytest.mark.parametrize("name", ["thrust", "actuator", "delay", "current", "sensor_bias", "waves"])
+def test_an_effect_at_its_neutral_value_changes_nothing(veh, name):
+    """Thrust scale 1, no lag and no delay, zero current, zero bias, zero wave amplitude: the
+    effect model reproduces the base model (the hooks add nothing by themselves)."""
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
+    tr = ef.world_track(veh, m, {}, np.random.default_rng(0))
+    base = ef.EffectModel(veh, (), (), dt=0.5)
+    cb = base.context(tr, 30.0)
+    Sb = base.simulate(cb, base.start()[None])
+    e = ef.get(name)
+    neutral = {"thrust": [1.0], "actuator": [0.0, 1e6], "delay": [0.0], "current": [0.0, 0.0],
+               "sensor_bias": [0.0, 0.0, 0.0], "waves": [0.5, 0.0, 0.0, 0.0]}[name]
+    em = ef.EffectModel(veh, (), (name,), dt=0.5)
+    ce = em.context(tr, 30.0)
+    Se = em.simulate(ce, np.array(neutral)[None], np.zeros((1, max(e.n_nuisance, 1))))
+    assert np.max(np.abs(Se - Sb)) < 1e-9
+
+
+def test_current_acts_through_the_relative_velocity(veh):
+    """Noise-free world with a current = the model with the same current, to round-off; and the
+    track drifts by V_c t against the same vehicle without current."""
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
+    par = {"current_north_mps": 0.2, "current_east_mps": -0.1}
+    tr = ef.world_track(veh, m, {"current": par}, np.random.default_rng(0), noise={})
+    still = ef.world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    assert tr["x"][-1] - still["x"][-1] == pytest.approx(0.2 * 60.0, abs=1e-9)
+    assert tr["y"][-1] - still["y"][-1] == pytest.approx(-0.1 * 60.0, abs=1e-9)
+    model = ef.EffectModel(veh, (), ("current",), dt=0.1)
+    ctx = model.context(tr, 20.0)
+    e = ef.errors(ctx, model.simulate(ctx, np.array([[0.2, -0.1]])))
+    assert max(np.max(np.abs(v)) for v in e.values()) < 0.05  # window starts from a 2 s causal fit
+
+
+# --- diagnosis: each effect named ---------------------------------------------------------
+CASES = {  # effect -> (level, distractor candidates)
+    "current": (2, ["thrust", "sensor_bias"]),
+    "actuator": (2, ["delay", "waves"]),
+    "delay": (2, ["current", "thrust"]),
+    "sensor_bias": (0, ["current", "delay"]),
+    "crossflow": (2, ["thrust", "delay"]),
+    "thrust": (2, ["current", "crossflow"]),
+    "roll": (2, ["crossflow", "current"]),
+    "waves": (2, ["actuator", "current"]),
+}
+
+
+@pytest.mark.parametrize("effect", list(CASES))
+def test_diagnosis_names_the_withheld_effect(veh, scenario, effect):
+    level, distractors = CASES[effect]
+    truth = {effect: ef.draw_parameters(effect, level, np.random.default_rng(4))}
+    train, held = world(veh, scenario, truth, seed=11)
+    res = gap.diagnose(veh, FREE, train, held, candidates=[effect] + distractors, window_s=60.0,
+                       rng=np.random.default_rng(0), max_nfev=40)
+    assert res["verdict"] == effect, (res["verdict"], [(r["effect"], r["heldout_rms_m"], r["excess_removed"],
+                                                        r["delta_bic"]) for r in res["ranking"]])
+    assert res["gap_after"]["heldout_rms_m"] < res["gap_before"]["heldout_rms_m"]
+
+
+def test_no_effect_gives_none_and_a_missing_candidate_gives_unexplained(veh, scenario):
+    train, held = world(veh, scenario, {}, seed=21)
+    res = gap.diagnose(veh, FREE, train, held, candidates=["current", "thrust", "delay"],
+                       rng=np.random.default_rng(0), max_nfev=40)
+    assert res["verdict"] == "none", res["gap_ratio"]
+    assert res["gap_ratio"] < res["thresholds"]["none_ratio"]
+    truth = {"current": ef.draw_parameters("current", 2, np.random.default_rng(4))}
+    train, held = world(veh, scenario, truth, seed=22)
+    res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0),
+                       max_nfev=40)
+    assert res["verdict"] == "unexplained"
+    assert res["significant_gap"]
+    assert res["where"]["dominant_channel"] in ("x", "y", "u", "v")
+
+
+def test_shrinkage_is_scored_on_held_out_tracks_disjoint_from_training(veh, scenario):
+    truth = {"thrust": {"thrust_scale": 0.7}}
+    train, held = world(veh, scenario, truth, seed=31)
+    with pytest.raises(ValueError, match="overlap"):
+        gap.diagnose(veh, FREE, train, [train[0]], candidates=["thrust"])
+    res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0),
+                       max_nfev=40)
+    assert set(res["train_tracks"]).isdisjoint(res["heldout_tracks"])
+    assert res["heldout_tracks"] == [t.name for t in held]
+    expect = 1 - res["gap_after"]["heldout_rms_m"] / res["gap_before"]["heldout_rms_m"]
+    assert res["heldout_shrinkage"] == pytest.approx(expect)
+    # the held-out score is the protocol on the held-out track, not on a training one
+    model = ef.EffectModel(veh, FREE, ("thrust",), dt=0.5)
+    f = gap.Fit(model, np.r_[list(res["after_fit"]["coefficients"].values()),
+                             res["after_fit"]["effects"]["thrust"]["thrust_scale"]], [np.zeros(0)], 0, 0, 0, True, "", 0)
+    held_score = gap.scores(model, f, [model.context(t, 60.0) for t in held])["rms_position_m"]
+    assert held_score == pytest.approx(res["gap_after"]["heldout_rms_m"], rel=1e-9)
+
+
+# --- command line -------------------------------------------------------------------------
+def test_bayesid_diagnose_writes_the_contract(veh, scenario, tmp_path):
+    truth = {"actuator": ef.draw_parameters("actuator", 2, np.random.default_rng(0))}
+    train, held = world(veh, scenario, truth, seed=41)
+    paths = []
+    for tr in train + held:
+        p = tmp_path / f"{tr.name}.csv"
+        write_csv(tr, p)
+        paths.append(str(p))
+    out = tmp_path / "diag"
+    rc = cli.main(["diagnose", "--vehicle", "nps_auv2", "--free", ",".join(FREE), "--train", *paths[:2],
+                   "--heldout", paths[2], "--window", "60", "--candidates", "actuator,current",
+                   "--max-nfev", "30", "--out", str(out)])
+    assert rc == 0
+    d = json.loads((out / "diagnosis.json").read_text())
+    for k in ("verdict", "ranking", "gap_before", "gap_after", "where"):
+        assert k in d
+    for k in ("train_rms_m", "heldout_rms_m", "heldout_max_m", "heading_rms_deg"):
+        assert k in d["gap_before"] and k in d["gap_after"]
+    for r in d["ranking"]:
+        assert {"effect", "heldout_rms_m", "delta_bic", "parameters"} <= set(r)
+    assert d["verdict"] == "actuator"
+    assert (out / "report.md").exists() and (out / "figures" / "ranking.png").exists()
+
+
+def test_bayesid_diagnose_names_bad_file_row_and_coefficient(veh, scenario, tmp_path, capsys):
+    train, held = world(veh, scenario, {}, seed=51)
+    good = tmp_path / "good.csv"
+    write_csv(train[0], good)
+    lines = good.read_text().splitlines()
+    header_rows = sum(1 for ln in lines if ln.startswith("#")) + 1
+    bad_row = header_rows + 5
+    cells = lines[bad_row - 1].split(",")
+    cells[2] = "oops"
+    lines[bad_row - 1] = ",".join(cells)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines) + "\n")
+    rc = cli.main(["diagnose", "--vehicle", "nps_auv2", "--train", str(bad), "--heldout", str(good),
+                   "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "bad.csv" in err and f"row {bad_row}" in err
+    toml = (ROOT / "bayesid" / "vehicles" / "nps_auv2.toml").read_text().replace("Yv = -1.0e-1", "Yvv_typo = -1.0e-1")
+    vfile = tmp_path / "typo.toml"
+    vfile.write_text(toml)
+    rc = cli.main(["diagnose", "--vehicle", str(vfile), "--train", str(good), "--heldout", str(good),
+                   "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "Yvv_typo" in err
+    rc = cli.main(["diagnose", "--vehicle", "nps_auv2", "--free", "Yv,Nfoo", "--train", str(good),
+                   "--heldout", str(good), "--out", str(tmp_path / "o")])
+    assert rc == 2 and "Nfoo" in capsys.readouterr().err
+
+
+# --- study --------------------------------------------------------------------------------
+def test_sim_to_real_quick_writes_results(tmp_path):
+    out = tmp_path / "s2r"
+    r = subprocess.run([sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out)],
+                       capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = json.loads((out / "results.json").read_text())
+    for k in ("confusion", "top1_accuracy", "median_heldout_shrinkage", "false_alarm_rate",
+              "open_set_detection_rate", "cases"):
+        assert k in res
+    assert len(res["cases"]) == 4
+    for c in res["cases"]:
+        assert {"truth", "verdict", "gap_before", "gap_after"} <= set(c)
+    assert (out / "report.md").exists() and (out / "manifest.json").exists()
