@@ -470,7 +470,7 @@ class EffectModel:
         th = np.maximum(np.abs(self.theta0), 1e-3)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
-    def context(self, track: Track, window_s=None, span_s: float = 2.0, s0=None) -> _TrackContext:
+    def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None) -> _TrackContext:
         """Prepare a track (inputs, windows, window-start states). ``s0`` (12,) replaces the
         measured start state (world generation); otherwise it is estimated causally."""
         return _TrackContext(self, track, window_s, span_s, s0=s0)
