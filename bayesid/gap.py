@@ -562,11 +562,12 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     w = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])
     F_list, motions = w.pop("_force_arrays", (None, None))
     seeds = {"current": _current_seed(base, bfit, ctr)}
-    if F_list:
-        try:
-            seeds["waves"] = _wave_seed(F_list, motions, base, bfit)
-        except Exception:  # noqa: BLE001
-            pass
+    try:  # wave frequency and per-track phases from the TRAINING tracks' missing forces
+        tr_forces = [_missing_forces(base, bfit, t) for t in train]
+        seeds["waves"] = _wave_seed([f[1] for f in tr_forces], [(f[0], f[2], t) for f, t in zip(tr_forces, train)],
+                                    base, bfit)
+    except Exception:  # noqa: BLE001 - no seed: the candidate starts from its catalogue values
+        pass
     ranking, fits = [], {}
     chosen = []
     current_best = (bfit, b_train, b_held, base, None)
