@@ -140,17 +140,10 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     def fun_batch(X):
         X = np.atleast_2d(X)
         nfev[0] += X.shape[0]
-        blocks = []
-        for i, (ctx, w) in enumerate(zip(ctxs, wts)):
-            P = X[:, :model.n_params] if free_p else np.repeat(p0[None], X.shape[0], 0)
-            off = (model.n_params if free_p else 0) + i * nn
-            nu = X[:, off:off + nn] if nn else None
-            S = model.simulate(ctx, P, nu)
-            for c, e in ef.errors(ctx, S).items():
-                r = e * w[c]
-                r[~np.isfinite(r)] = PENALTY
-                blocks.append(r)
-        return np.concatenate(blocks, axis=1)
+        P = X[:, :model.n_params] if free_p else np.repeat(p0[None], X.shape[0], 0)
+        off = model.n_params if free_p else 0
+        nus = [X[:, off + i * nn:off + (i + 1) * nn] if nn else None for i in range(T)]
+        return _residuals(model, ctxs, wts, P, nus)
 
     def fun(x):
         return fun_batch(x)[0]
