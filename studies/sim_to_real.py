@@ -17,8 +17,7 @@ Method
   is "unexplained"), and two simultaneous effects (greedy rounds: up to two effects added).
 - The diagnosis sees only the tracks, the nominal vehicle and the free-coefficient names.
 - Wave starting values (frequency, per-track phase) come from the training tracks' missing
-  forces. (The committed full run predates that fix: it took the phases from the held-out
-  tracks' forces, as starting values only; re-run to refresh.)
+  forces (inverse dynamics minus the fitted base model); held-out tracks never seed a fit.
 - Cases run in parallel (``concurrent.futures``, one process per core); each finished case is
   saved in ``cases/`` and a re-run skips it (``--fresh`` starts over).
 
