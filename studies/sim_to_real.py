@@ -190,7 +190,8 @@ def main():
                       "heldout_shrinkage": r["diagnosis"]["heldout_shrinkage"],
                       "gap_ratio": r["diagnosis"]["gap_ratio"], "noise_floor": r["diagnosis"]["noise_floor"],
                       "ranking": r["diagnosis"]["ranking"], "where": r["diagnosis"]["where"],
-                      "sindy_support": r["diagnosis"]["sindy_support"], "seconds": r["seconds"]}
+                      "sindy_support": r["diagnosis"]["sindy_support"], "seconds": r["seconds"],
+                      "ranking_thresholds": r["diagnosis"]["thresholds"]}
                      for r in results]
     summ["settings"] = {"free": FREE, "dt": DT, "window_s": WINDOW, "duration_s": 180.0 if args.quick else DURATION,
                         "quick": args.quick}
@@ -223,6 +224,28 @@ def write_report(out: Path, s: dict, args) -> None:
                  "; ".join(", ".join(f"{k} {v:g}" for k, v in m.items()) for m in e.magnitudes), e.source]
                 for e in ef.CATALOGUE.values()]
     pe = [[e, f"{d['correct']}/{d['n']}", fmt(float(np.median(d["shrinkage"])))] for e, d in s["per_effect"].items()]
+    # Attributions of gaps below the significance ratio: computed from this run's cases.
+    weak = [c for c in s["cases"] if c["verdict"] not in ("none", "unexplained")
+            and c["gap_ratio"] < c["ranking_thresholds"]["none_ratio"]]
+    gated = [dict(c, verdict="none") if c in weak else c for c in s["cases"]]
+    single = [c for c in gated if len(c["truth"]) == 1 and not c["excluded"]]
+    controls = [c for c in gated if not c["truth"]]
+    g_top1 = np.mean([c["verdict"] in c["truth"] for c in single]) if single else float("nan")
+    g_fa = np.mean([c["verdict"] != "none" for c in controls]) if controls else float("nan")
+    findings = [
+        "## What the run shows", "",
+        f"- {len(weak)} case(s) were attributed to an effect although their held-out error was below "
+        f"the significance ratio (gap / floor < {weak[0]['ranking_thresholds']['none_ratio'] if weak else '-'}): "
+        + ", ".join(f"{c['id']} -> {c['verdict']} (ratio {fmt(c['gap_ratio'])})" for c in weak) + ". "
+        "The verdict rule tests 'an effect explains the excess' before 'the gap is significant', and on a "
+        "gap barely above the floor a flexible candidate removes half of a small excess by fitting noise. "
+        f"Gating attribution on significance (computed here from the same cases, not a re-run, post hoc) "
+        f"would give top-1 {fmt(g_top1)} and false alarms {fmt(g_fa)}; it is the next change to the rule.",
+        "- Weak magnitudes are the misses: the smallest delay (0.5 s), the lever arm alone, and roll with "
+        "BG >= 2 cm leave gaps within 1.5 x the floor. Cross-flow is always named, but the base model is "
+        "already near the floor, hence its low shrinkage.",
+        "- Two simultaneous effects: greedy addition finds current then actuator; thrust + waves stays "
+        "'unexplained' because neither effect alone removes half of the excess of the other.", ""]
     text = [
         "# Sim-to-real gap diagnosis: withheld-effect benchmark", "",
         ("**Quick run** (small subset; the committed report is the full run)." if args.quick else
@@ -235,6 +258,7 @@ def write_report(out: Path, s: dict, args) -> None:
         "Two simultaneous effects: " + "; ".join(
             f"{'+'.join(d['truth'])} -> verdict {d['verdict']}, added {d['effects_added']}" for d in s["two_effects"]), "",
         "![confusion](figures/confusion.png)", "",
+        *findings,
         "## Cases", "",
         "Held-out RMS position error under the protocol (60 s windows restarting from the measured state), "
         "before and after the top effect; floor = the same protocol's error for a perfect model at the "
