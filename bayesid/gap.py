@@ -27,8 +27,10 @@ Verdict rules (fixed before the benchmark was run, stated in the report):
 * an effect *explains* the gap when it removes at least ``explain_fraction`` (0.5) of the
   held-out excess over the floor, ``(rms_base - rms_effect) / (rms_base - floor)``, and its
   ΔBIC on the training tracks is below ``-10`` (strong evidence, Kass & Raftery 1995);
-* verdict: the best explaining effect; else ``"none"`` when the gap is not significant; else
-  ``"unexplained"`` -- never a forced attribution.
+* verdict: ``"none"`` when the gap is not significant (the candidates are still fitted and
+  ranked, for the report, but none is attributed: on a gap barely above the floor a flexible
+  candidate removes half of a small excess by fitting noise); else the best explaining effect;
+  else ``"unexplained"`` -- never a forced attribution.
 """
 from __future__ import annotations
 
@@ -561,6 +563,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                                     base, bfit)
     except Exception:  # noqa: BLE001 - no seed: the candidate starts from its catalogue values
         pass
+    significant = b_held["rms_position_m"] > none_ratio * floor["rms_position_m"]
     ranking, fits = [], {}
     chosen = []
     current_best = (bfit, b_train, b_held, base, None)
@@ -611,7 +614,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         rounds.append(results)
         if rnd == 0:
             ranking = results
-        top = next((r for r in results if r["excess_removed"] >= explain_fraction
+        top = next((r for r in results if significant and r["excess_removed"] >= explain_fraction
                     and r["delta_bic"] <= bic_threshold), None)
         if top is None:
             break
@@ -619,7 +622,6 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         current_best = fits[top["effect"]]
         if current_best[2]["rms_position_m"] <= none_ratio * floor["rms_position_m"]:
             break
-    significant = b_held["rms_position_m"] > none_ratio * floor["rms_position_m"]
     if chosen:
         verdict = chosen[0]
     elif significant:
@@ -727,7 +729,8 @@ def write_report(res: dict, out, heldout: list, command: str = "") -> None:
                        for r in res["ranking"]]),
              "", f"Rules: an effect explains the gap if it removes >= {res['thresholds']['explain_fraction']} "
              f"of the held-out excess over the floor and its ΔBIC <= {res['thresholds']['bic_threshold']}; "
-             "otherwise the verdict is `none` (gap not significant) or `unexplained`.", "",
+             "an effect is attributed only when the gap is significant; otherwise the verdict is `none` "
+             "(gap not significant) or `unexplained`.", "",
              "Sparse-regression support (ensemble STLSQ inclusion probability of each effect's force "
              "signature in the missing forces; sensor bias leaves none): "
              + ", ".join(f"{k} {fmt(v)}" for k, v in res["sindy_support"].items() if not isinstance(v, str)),
