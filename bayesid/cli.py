@@ -6,7 +6,8 @@
     bayesid diagnose --vehicle nps_auv2 --free Yv,Yr,Nv,Nr,Ydr,Ndr --train A.csv B.csv \
         --heldout C.csv --window 60 --out diag
 
-Later issues add ``fit`` and ``predict`` (DESIGN.md "Command line").
+    bayesid fit --vehicle esso_osaka_3m --train A.csv B.csv --effects wind --window 30 --out fitdir
+    bayesid predict --model fitdir/model.json --track C.csv --window 60 --out pred
 """
 from __future__ import annotations
 
@@ -110,28 +111,124 @@ def _convert(args) -> int:
     return 0
 
 
+def _split_names(text):
+    return [n.strip() for n in text.split(",") if n.strip()] if text else []
+
+
+def _free_list(vehicle, text):
+    """The free coefficients of a command: ``--free`` or the vehicle's default (ships: the
+    file's ``[fit] free``; submarines: the horizontal-plane six). Unknown names raise."""
+    from . import ship, terms
+
+    if isinstance(vehicle, ship.Ship):
+        free = _split_names(text) or list(vehicle.free)
+        for k in free:
+            if k not in ship.COEFFICIENTS:
+                raise KeyError(f"--free: unknown ship coefficient {k!r}; known: {', '.join(ship.COEFFICIENTS)}")
+        return free
+    free = _split_names(text) or ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
+    terms.check_names(free, "--free")
+    return free
+
+
+def _vehicle_ref(arg: str) -> str:
+    p = Path(arg)
+    return str(p.resolve()) if p.suffix or p.exists() else arg
+
+
+def _fit(args) -> int:
+    """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
+    from . import msfit
+    from .track import read_csv
+
+    vehicle = msfit.load_any_vehicle(args.vehicle)
+    free = _free_list(vehicle, args.free)
+    train = [read_csv(p) for p in args.train]
+    res = msfit.identify(vehicle, train, free, _split_names(args.effects), window_s=args.window, dt=args.dt,
+                         max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True))
+    out = Path(args.out)
+    doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json")
+    msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
+    print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {args.window:g} s windows; "
+          f"wrote {out / 'model.json'}")
+    return 0
+
+
+def _predict(args) -> int:
+    """``bayesid predict``: the window protocol (and whole run) on tracks -> DIR/predict.json."""
+    import numpy as np
+
+    from . import msfit, plots
+    from .report import fmt, md_table, write_json
+    from .track import read_csv
+
+    model, p, cov, doc = msfit.load_model(args.model)
+    tracks = [read_csv(t) for t in args.track]
+    window = None if args.window <= 0 else args.window
+    pr = msfit.predict(model, p, tracks, window)
+    whole = msfit.predict(model, p, tracks, None)
+    out = Path(args.out)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(args.seed)
+    indices = {}
+    for tr in tracks:
+        ctx, S = pr["_sim"][tr.name]
+        meas, xy = msfit.windowed_xy(ctx, S)
+        plots.window_tracks(None, meas, xy, None, out / "figures" / f"{tr.name}.png",
+                            title=f"{tr.name}: {window or 'whole-run'} s windows")
+        tb = msfit.turning_band(model, p, cov, tr, args.draws, rng)
+        indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
+    res = {"model": str(args.model), "window_s": window, "pooled": pr["pooled"], "per_track": pr["per_track"],
+           "windows": pr["windows"], "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
+           "indices": indices}
+    write_json(out / "predict.json", res)
+    rows = [[n, fmt(d["rms_position_m"]), fmt(d["max_position_m"]), fmt(d["rms_heading_deg"]),
+             fmt(whole["per_track"][n]["rms_position_m"])] for n, d in pr["per_track"].items()]
+    lines = ["# Prediction under the window protocol", "", f"`bayesid {' '.join(sys.argv[1:])}`", "",
+             f"Windows of {window} s restart from the measured (causal) state; whole run = one open-loop "
+             "simulation from the first state.", "",
+             md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows), "",
+             f"Pooled: {fmt(pr['pooled']['rms_position_m'])} m, heading {fmt(pr['pooled']['rms_heading_deg'])} deg; "
+             f"whole run {fmt(whole['pooled']['rms_position_m'])} m.", ""]
+    for n, d in indices.items():
+        if d["measured"].get("kind") in ("turning", "zigzag"):
+            lines.append(f"- {n} ({d['measured']['kind']}): " + "; ".join(
+                f"{k} measured {fmt(d['measured'].get(k))}, predicted {fmt(d['predicted'].get(k))}"
+                + (f" [{fmt(d['band_5_95'][k][0])}, {fmt(d['band_5_95'][k][1])}]" if d["band_5_95"].get(k) else "")
+                for k in d["band_5_95"]))
+    lines += ["", *[f"![{t.name}](figures/{t.name}.png)" for t in tracks], ""]
+    (out / "report.md").write_text("\n".join(lines))
+    print(f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows); wrote {out / 'predict.json'}")
+    return 0
+
+
 def _diagnose(args) -> int:
     """``bayesid diagnose``: base fit, where / which / how far (bayesid.gap)."""
     import numpy as np
 
-    from . import effects, gap
+    from . import effects, gap, msfit, ship
     from .track import read_csv
 
-    vehicle = load_vehicle(args.vehicle)
-    free = [n.strip() for n in args.free.split(",") if n.strip()] if args.free else []
-    from . import terms
-    terms.check_names(free, "--free")
+    vehicle = msfit.load_any_vehicle(args.vehicle)
+    is_ship = isinstance(vehicle, ship.Ship)
+    free = _free_list(vehicle, args.free)
     train = [read_csv(p) for p in args.train]
     held = [read_csv(p) for p in args.heldout]
-    cands = list(effects.CATALOGUE) if not args.candidates else [c.strip() for c in args.candidates.split(",")]
+    catalogue = ship.SHIP_CATALOGUE if is_ship else effects.CATALOGUE
+    cands = list(catalogue) if not args.candidates else _split_names(args.candidates)
+    if is_ship and not args.candidates and not all("wind_speed" in t for t in train + held):
+        cands.remove("wind")
+        print("  no wind columns in every track: the wind candidate is left out")
     for c in (args.exclude.split(",") if args.exclude else []):
         if c.strip() not in cands:
             raise ValueError(f"--exclude {c.strip()}: not among the candidates {cands}")
         cands.remove(c.strip())
     window = None if args.window <= 0 else args.window
-    res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=args.dt,
+    dt = args.dt if args.dt else (0.2 if is_ship else 0.5)
+    res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
-                       max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True))
+                       max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
+                       fit_window_s=args.fit_window if args.fit_window else None)
     gap.write_report(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"verdict: {res['verdict']}; held-out RMS {res['gap_before']['heldout_rms_m']:.3f} m -> "
           f"{res['gap_after']['heldout_rms_m']:.3f} m; wrote {Path(args.out) / 'diagnosis.json'}")
@@ -159,11 +256,13 @@ def main(argv=None) -> int:
     c.add_argument("--out", required=True, help="output folder (created if absent)")
     d = sub.add_parser("diagnose", help="sim-to-real gap: where / which effect / how far")
     d.add_argument("--vehicle", required=True, help="packaged id or TOML path (nominal coefficients)")
-    d.add_argument("--free", default="Yv,Yr,Nv,Nr,Ydr,Ndr", help="comma-separated free coefficients")
+    d.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's; "
+                   "submarines Yv,Yr,Nv,Nr,Ydr,Ndr)")
     d.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
     d.add_argument("--heldout", nargs="+", required=True, metavar="CSV", help="held-out Track CSVs")
     d.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
-    d.add_argument("--dt", type=float, default=0.5, help="model integration step, s")
+    d.add_argument("--dt", type=float, default=0.0, help="model integration step, s (default 0.5; ships 0.2)")
+    d.add_argument("--fit-window", type=float, default=0.0, help="window of the training fits, s (default --window)")
     d.add_argument("--mode", choices=MODES, default="horizontal")
     d.add_argument("--candidates", default="", help="comma-separated effects (default: whole catalogue)")
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
@@ -171,9 +270,26 @@ def main(argv=None) -> int:
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
     d.add_argument("--seed", type=int, default=0)
     d.add_argument("--out", required=True, help="output folder")
+    f = sub.add_parser("fit", help="identify a model on training tracks (multiple shooting)")
+    f.add_argument("--vehicle", required=True, help="packaged id or TOML path (ship or submarine)")
+    f.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
+    f.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's)")
+    f.add_argument("--effects", default="", help="comma-separated effects in the model (ships: wind, current, delay)")
+    f.add_argument("--window", type=float, default=30.0, help="multiple-shooting window, s")
+    f.add_argument("--dt", type=float, default=None, help="model step, s (default 0.2 ships, 0.5 submarines)")
+    f.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations")
+    f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
+    pp = sub.add_parser("predict", help="score a fitted model on tracks with the window protocol")
+    pp.add_argument("--model", required=True, help="model.json written by bayesid fit")
+    pp.add_argument("--track", nargs="+", required=True, metavar="CSV", help="Track CSVs")
+    pp.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
+    pp.add_argument("--draws", type=int, default=30, help="posterior draws for the index bands")
+    pp.add_argument("--seed", type=int, default=0)
+    pp.add_argument("--out", required=True, help="output folder")
     args = ap.parse_args(argv)
     try:
-        run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose}[args.command]
+        run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose, "fit": _fit,
+               "predict": _predict}[args.command]
         return run(args)
     except (ValueError, KeyError, FileNotFoundError) as e:
         print(f"error: {e}", file=sys.stderr)

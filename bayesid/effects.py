@@ -331,14 +331,18 @@ class _TrackContext:
         self.t_mid = self.t_grid[:-1] + 0.5 * dt
         if window_s is not None and abs(window_s / dt - round(window_s / dt)) > 1e-6:
             raise ValueError(f"window {window_s} s is not a multiple of the model step {dt} s")
-        ws = window_starts(t[t <= t_end + 1e-9], window_s)
+        # With a velocity not measured, the causal start-state estimate needs 2*span_s of history
+        # (slopes of the positions): the first window starts after it.
+        derived = s0 is None and any(k not in track for k in ("u", "v", "r"))
+        t_first = self.t0 + (2.0 * span_s if derived else 0.0)
+        ws = window_starts(t[(t <= t_end + 1e-9) & (t >= t_first - 1e-9)], window_s)
         steps = np.unique(np.round((ws - self.t0) / dt).astype(np.int64))
         steps = steps[steps < self.n_steps]
         self.starts = np.append(steps, self.n_steps).astype(np.int64)
         self.W = len(steps)
         self.t_start = self.t_grid[steps]
         # samples scored: within the grid
-        keep = t <= t_end + 1e-9
+        keep = (t <= t_end + 1e-9) & (t >= self.t_start[0] - 1e-9)
         self.ts = t[keep]
         self.idx = np.flatnonzero(keep)
         self.win = np.searchsorted(self.t_start, self.ts + 1e-9, side="right") - 1

@@ -51,8 +51,8 @@ PENALTY = 1e3  # residual (in noise sds) of a sample in a diverged window
 class Fit:
     """A fitted :class:`~bayesid.effects.EffectModel`: parameters, per-track nuisances, cost."""
 
-    def __init__(self, model, p, nuisance, ssr, n_res, nfev, success, message, seconds):
-        self.model, self.p, self.nuisance = model, p, nuisance
+    def __init__(self, model, p, nuisance, ssr, n_res, nfev, success, message, seconds, jac=None):
+        self.model, self.p, self.nuisance, self.jac = model, p, nuisance, jac
         self.ssr, self.n_res, self.nfev = ssr, n_res, nfev
         self.success, self.message, self.seconds = success, message, seconds
 
@@ -169,7 +169,7 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     p, nus = unpack(res.x)
     r = fun(res.x)
     return Fit(model, np.array(p), [np.array(v) for v in nus], float(r @ r), r.size, nfev[0],
-               bool(res.success), str(res.message), time.perf_counter() - tic)
+               bool(res.success), str(res.message), time.perf_counter() - tic, jac=res.jac)
 
 
 def scores(model, fitres: Fit, ctxs, nuisance=None) -> dict:
@@ -214,6 +214,8 @@ def _missing_forces(model, fitres, track: Track):
     :func:`bayesid.sindy.estimate_motion`). Returns (motion dict, F (n, 3))."""
     from . import sindy
 
+    if hasattr(model, "missing_forces"):  # a model with its own inverse dynamics (bayesid.ship)
+        return model.missing_forces(fitres, track)
     veh = model.vehicle.with_coefficients(fitres.coefficients()) if model.free else model.vehicle
     motion = sindy.estimate_motion(track)
     inputs = sindy._track_inputs(track)
@@ -320,10 +322,13 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None) -> dict:
         # growth rate of the position error: what goes wrong locally, not what accumulated
         growth = np.gradient(pos, ctx.ts)
         growth[np.r_[True, np.diff(ctx.win) != 0]] = np.nan
-        per_sample.append(dict(drift_angle_deg=np.degrees(np.arctan2(-v, u)), yaw_rate_deg_s=np.degrees(r),
-                               rudder_deg=np.degrees(dr), speed_mps=np.hypot(u, v), pos=pos,
-                               growth=growth, psi=np.degrees(e["psi"]), rudder_moving=np.abs(drate) > np.radians(0.5),
-                               turning=np.abs(r) > np.radians(1.0)))
+        row = dict(drift_angle_deg=np.degrees(np.arctan2(-v, u)), yaw_rate_deg_s=np.degrees(r),
+                   rudder_deg=np.degrees(dr), speed_mps=np.hypot(u, v), pos=pos,
+                   growth=growth, psi=np.degrees(e["psi"]), rudder_moving=np.abs(drate) > np.radians(0.5),
+                   turning=np.abs(r) > np.radians(1.0))
+        if hasattr(model, "where_samples"):
+            row.update(model.where_samples(tr, ctx, S))
+        per_sample.append(row)
     pooled = pooled_scores(errs)
     for c, val in pooled["rms"].items():
         fl = None if floor_by_channel is None else floor_by_channel.get(c)
@@ -332,9 +337,13 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None) -> dict:
     out["channels"]["position"] = {"rms": pooled["rms_position_m"]}
     ex = {c: d["excess_ratio"] for c, d in out["channels"].items() if d.get("excess_ratio")}
     out["dominant_channel"] = max(ex, key=ex.get) if ex else None
-    cat = {k: np.concatenate([p[k] for p in per_sample]) for k in per_sample[0]}
+    common = set.intersection(*(set(p) for p in per_sample))
+    cat = {k: np.concatenate([p[k] for p in per_sample]) for k in per_sample[0] if k in common}
     best = (None, 0.0)
-    for reg, edges in REGIONS.items():
+    regions = model.regions() if hasattr(model, "regions") else REGIONS
+    for reg, edges in regions.items():
+        if reg not in cat:
+            continue
         rows = []
         for a, b in zip(edges[:-1], edges[1:]):
             sel = (cat[reg] >= a) & (cat[reg] < b)
@@ -398,6 +407,14 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None) -> dict:
                     kk = np.argmax(np.abs(cc[m]))
                     corr[name] = {"max_abs_corr": float(abs(cc[m][kk])), "lag_s": float(lags[m][kk])}
             out["input_correlation"][k] = corr
+        if hasattr(model, "signature_columns"):  # dependence of the missing forces on the apparent wind
+            sig = [model.signature_columns(mo, inp, tr) for (mo, inp, tr) in motions]
+            if all("wind" in c for c in sig):
+                out["wind_correlation"] = {}
+                for j, k in enumerate("XYN"):
+                    a = np.concatenate([c["wind"][min(j, 2)][:, j] for c in sig])
+                    b = Fcat[:, j]
+                    out["wind_correlation"][k] = float(np.corrcoef(a, b)[0, 1]) if a.std() > 0 else None
         out["_force_arrays"] = (Fs, motions)
     return out
 
@@ -506,7 +523,7 @@ def _effect_starts(name, model, base_theta, seeds):
 def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_s: float | None = 60.0,
              dt: float = 0.5, mode: str = "horizontal", rng=None, max_nfev: int = 60,
              none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
-             max_effects: int = 1, progress=None) -> dict:
+             max_effects: int = 1, progress=None, fit_window_s: float | None = None) -> dict:
     """Diagnose the sim-to-real gap of a base model (see the module docstring).
 
     Parameters
@@ -514,7 +531,12 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     vehicle : nominal vehicle.   free : coefficient names the fits change.
     train, heldout : lists of Tracks (disjoint; ValueError if a track object or name repeats).
     candidates : effect names (default: the whole :data:`~bayesid.effects.CATALOGUE`).
-    window_s : protocol window (s), None = whole run.   dt : model step (s).
+    window_s : protocol window (s) of the held-out scores, None = whole run.   dt : model step (s).
+    fit_window_s : window of the multiple-shooting fits on the training tracks (default
+        ``window_s``).
+    vehicle : a submarine :class:`~bayesid.vehicle.Vehicle` (candidates from
+        :data:`bayesid.effects.CATALOGUE`) or a :class:`bayesid.ship.Ship` (candidates from
+        :data:`bayesid.ship.SHIP_CATALOGUE`).
     rng : numpy Generator (noise-floor simulation, bootstrap of the signature regression).
     max_effects : greedy rounds (2: after the top effect, try the others on top of it).
 
@@ -535,15 +557,21 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     overlap = set(names_t) & set(names_h)
     if overlap or any(a is b for a in train for b in heldout):
         raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
-    cands = list(ef.CATALOGUE) if candidates is None else list(candidates)
+    from . import ship as sh
+
+    is_ship = isinstance(vehicle, sh.Ship)
+    catalogue, getter = (sh.SHIP_CATALOGUE, sh.get_effect) if is_ship else (ef.CATALOGUE, ef.get)
+    cands = list(catalogue) if candidates is None else list(candidates)
     for c in cands:
-        ef.get(c)
+        getter(c)
     say = progress or (lambda msg: None)
     sd = _pooled_sd(train + heldout)
 
     def build(effects):
-        m = ef.EffectModel(vehicle, free, effects, mode=mode, dt=dt)
-        return m, [m.context(t, window_s) for t in train], [m.context(t, window_s) for t in heldout]
+        m = sh.ShipModel(vehicle, free, effects, dt=dt) if is_ship else ef.EffectModel(vehicle, free, effects,
+                                                                                         mode=mode, dt=dt)
+        fw = window_s if fit_window_s is None else fit_window_s
+        return m, [m.context(t, fw) for t in train], [m.context(t, window_s) for t in heldout]
 
     base, ctr, cho = build(())
     say("base fit")
@@ -634,7 +662,9 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     if F_list:
         try:
             omega = seeds.get("waves", (None,))[0]
-            cols = [signature_columns(mo, inp, tr, vehicle, omega) for (mo, inp, tr) in motions]
+            cols = [base.signature_columns(mo, inp, tr) if is_ship else signature_columns(mo, inp, tr, vehicle, omega)
+                    for (mo, inp, tr) in motions]
+            cols = [{k: v for k, v in c.items() if k in cands} for c in cols]
             support = signature_regression(F_list, cols, rng)
         except Exception as exc:  # noqa: BLE001
             support = {"error": f"{type(exc).__name__}: {exc}"}
@@ -657,7 +687,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                      "bic": bfit.bic, "n_residuals": bfit.n_res, "success": bfit.success, "nfev": bfit.nfev},
         "after_fit": {"coefficients": after[0].coefficients(), "effects": after[0].effect_parameters()},
         "train_tracks": names_t, "heldout_tracks": names_h,
-        "settings": {"free": list(free), "candidates": cands, "window_s": window_s, "dt": dt, "mode": mode,
+        "settings": {"free": list(free), "candidates": cands, "window_s": window_s,
+                     "fit_window_s": window_s if fit_window_s is None else fit_window_s, "dt": dt, "mode": mode,
                      "max_nfev": max_nfev, "max_effects": max_effects},
         "thresholds": {"none_ratio": none_ratio, "explain_fraction": explain_fraction,
                        "bic_threshold": bic_threshold},
@@ -748,6 +779,10 @@ def write_report(res: dict, out, heldout: list, command: str = "") -> None:
         lines += ["Missing forces (RMS, inverse dynamics of the first held-out track's smoothed motion minus "
                   "the fitted model): " + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["forces"].items()
                                                      if not isinstance(v, str)), ""]
+    if res["where"].get("wind_correlation"):
+        lines += ["Apparent-wind dependence: correlation of the missing X, Y, N with the wind-load signatures "
+                  "(0.5 rho_a VA^2 A cos g, sin g) over the held-out tracks: "
+                  + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["wind_correlation"].items()), ""]
     for k, v in res["where"].get("spectrum", {}).items():
         wb = res["where"]["whiteness"].get(k, {})
         ic = res["where"]["input_correlation"].get(k, {})

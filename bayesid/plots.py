@@ -428,3 +428,20 @@ def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x v
     ax.set_yticklabels(rows, fontsize=8)
     ax.set_title(title, fontsize=10)
     return _save(fig, path)
+
+
+def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circles (posterior draws)"):
+    """Turning-circle tracks {label: (n_draws + 1, n, 12) states}: the identified model (first
+    row, solid) and posterior draws (thin)."""
+    fig, ax = plt.subplots(figsize=(6, 6))
+    for (label, S), col in zip(sims.items(), ("tab:red", "tab:blue", "tab:green")):
+        for s in S[1:]:
+            ax.plot(s[:, 1], s[:, 0], color=col, lw=0.4, alpha=0.3)
+        ax.plot(S[0, :, 1], S[0, :, 0], color=col, lw=1.5, label=label)
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return _save(fig, path)

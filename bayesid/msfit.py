@@ -1,0 +1,323 @@
+"""Identification on long, noisy runs: multiple shooting, seeded by equation error, with a
+Laplace posterior; prediction under the fixed window protocol; standard manoeuvre indices.
+
+The objective (:func:`bayesid.gap.fit`) is the simulation error over non-overlapping windows
+that restart from the measured state (causal estimate, :func:`bayesid.protocol.state_at`), so a
+long run that an open-loop simulation would leave within a minute still gives a well-posed fit.
+Each channel is weighted by its noise sd, estimated from the data (differences, Gasser et al.
+1986; :func:`bayesid.protocol.estimate_noise`); heading errors are wrapped; tracks may have
+different sampling rates (the model steps at ``dt``, predictions are interpolated to the
+samples); unmeasured velocities are derived from the positions for the start states and are
+simply not scored.
+
+It works for both model families: a :class:`bayesid.ship.Ship` (the MMG 3-DOF model, seeded by
+:func:`bayesid.ship.equation_error_seed`) and a submarine :class:`bayesid.vehicle.Vehicle`
+(horizontal-plane :class:`bayesid.effects.EffectModel`, started at the nominal coefficients).
+
+Posterior: the Laplace approximation at the optimum, ``cov = s^2 (J^T J)^-1 * n/n_eff`` with
+``s^2 = SSR / (n - k)`` and ``n/n_eff = (1 + rho1) / (1 - rho1)`` from the lag-1
+autocorrelation ``rho1`` of the residuals within windows (an AR(1) correction: simulation-error
+residuals are strongly correlated, and ignoring that would make the bands far too narrow),
+capped at the mean number of samples per window (each window then counts as one independent
+residual per channel).
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import effects as ef
+from . import gap
+from . import ship as sh
+from .protocol import pooled_scores, wrap
+from .vehicle import load_vehicle
+
+
+def load_any_vehicle(path_or_id):
+    """A ship (``kind = "ship3dof"``) or a submarine vehicle file, by path or packaged id."""
+    return sh.load_ship(path_or_id) if sh.is_ship_file(path_or_id) else load_vehicle(path_or_id)
+
+
+def build_model(vehicle, free=None, effects=(), dt: float | None = None):
+    """The simulation model of a vehicle: :class:`~bayesid.ship.ShipModel` for a ship (default
+    step 0.2 s), else a horizontal :class:`~bayesid.effects.EffectModel` (default 0.5 s)."""
+    if isinstance(vehicle, sh.Ship):
+        return sh.ShipModel(vehicle, free, effects, dt=0.2 if dt is None else dt)
+    return ef.EffectModel(vehicle, free or (), effects, mode="horizontal", dt=0.5 if dt is None else dt)
+
+
+def _ar1_inflation(fitres: gap.Fit, ctxs) -> float:
+    r = []
+    for ctx in ctxs:
+        S = fitres.model.simulate(ctx, fitres.p[None])
+        for c, e in ef.errors(ctx, S).items():
+            e = e[0]
+            same = ctx.win[1:] == ctx.win[:-1]
+            a, b = e[:-1][same], e[1:][same]
+            ok = np.isfinite(a) & np.isfinite(b)
+            if ok.sum() > 10 and np.std(a[ok]) > 0:
+                r.append(np.corrcoef(a[ok], b[ok])[0, 1])
+    rho = float(np.clip(np.median(r), 0.0, 0.999)) if r else 0.0
+    # at most the samples per window: every window counts as one independent residual per channel
+    per_window = max(1.0, np.mean([ctx.ts.size / ctx.W for ctx in ctxs]))
+    return float(min((1 + rho) / (1 - rho), per_window))
+
+
+def laplace_covariance(fitres: gap.Fit, ctxs) -> tuple[np.ndarray, dict]:
+    """(n_params, n_params) Laplace covariance of the fitted parameters (module docstring)."""
+    J = fitres.jac[:, :fitres.model.n_params]
+    J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    k = J.shape[1]
+    s2 = fitres.ssr / max(fitres.n_res - k, 1)
+    infl = _ar1_inflation(fitres, ctxs)
+    JtJ = J.T @ J
+    cov = np.linalg.pinv(JtJ, rcond=1e-12) * s2 * infl
+    sv = np.linalg.svd(J, compute_uv=False)
+    return cov, {"residual_variance": s2, "ar1_inflation": infl,
+                 "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")}
+
+
+def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: float | None = None,
+             max_nfev: int = 60, seed: bool = True, progress=None) -> dict:
+    """Identify the free coefficients (and effect parameters) on training tracks.
+
+    Parameters
+    ----------
+    vehicle : :class:`~bayesid.ship.Ship` or :class:`~bayesid.vehicle.Vehicle`.
+    train : list of Tracks (``t, x, y, psi, delta_r, n``; ``u, v, r`` when measured; ``wind_*``
+        for the wind effect).   free : coefficient names (default: the ship file's ``[fit] free``).
+    effects : effect names (ship: :data:`~bayesid.ship.SHIP_CATALOGUE`).
+    window_s : multiple-shooting window (s).   dt : model step (s).
+    seed : start from the equation-error estimate (ships) when it simulates better than the
+        nominal coefficients.
+
+    Returns
+    -------
+    dict: ``model`` (the simulation model), ``fit`` (:class:`~bayesid.gap.Fit`), ``cov``,
+    ``posterior`` (Laplace summary), ``seed`` (summary), ``noise_sd``, ``train_scores``.
+
+    Raises
+    ------
+    ValueError : no training track; a track without the needed columns (named).
+    KeyError : an unknown coefficient name.
+    """
+    if not train:
+        raise ValueError("identify needs at least one training track")
+    say = progress or (lambda m: None)
+    model = build_model(vehicle, free, effects, dt)
+    ctxs = [model.context(t, window_s) for t in train]
+    sd = gap._pooled_sd(train)
+    p0 = model.start()
+    seed_info = {"used": False}
+    if seed and isinstance(model, sh.ShipModel):
+        say("equation-error seed")
+        try:
+            ps, info = sh.equation_error_seed(model, train)
+        except Exception as exc:  # noqa: BLE001 - reported; the fit starts from nominal
+            info, ps = {"error": f"{type(exc).__name__}: {exc}"}, None
+        if ps is not None:
+            c_nom = gap._residuals(model, ctxs, [gap._weights(c, sd) for c in ctxs], p0[None],
+                                   [None] * len(ctxs))[0]
+            c_seed = gap._residuals(model, ctxs, [gap._weights(c, sd) for c in ctxs], ps[None],
+                                    [None] * len(ctxs))[0]
+            info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
+            if info["cost_seed"] < info["cost_nominal"]:
+                p0, seed_info = ps, dict(info, used=True)
+            else:
+                seed_info = dict(info, used=False)
+        else:
+            seed_info = info
+    say("multiple-shooting fit")
+    f = gap.fit(model, ctxs, sd, p0, max_nfev=max_nfev)
+    cov, post = laplace_covariance(f, ctxs)
+    return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
+            "train_scores": gap.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
+
+
+def save_model(res: dict, vehicle_ref: str, train_names, path) -> dict:
+    """Write the identified model as JSON (``model.json``); returns the document."""
+    m, f = res["model"], res["fit"]
+    sdv = np.sqrt(np.clip(np.diag(res["cov"]), 0, None))
+    doc = {"format": "bayesid-model-1", "vehicle": vehicle_ref, "vehicle_id": m.vehicle.id,
+           "free": list(m.free), "effects": [e.name for e in m.effects], "dt": m.dt,
+           "fit_window_s": res["window_s"], "param_names": m.param_names, "p": f.p.tolist(),
+           "cov": res["cov"].tolist(), "sd": sdv.tolist(), "start": res["p0"].tolist(),
+           "posterior": res["posterior"], "seed": res["seed"], "noise_sd": res["noise_sd"],
+           "train_runs": list(train_names), "train_scores": res["train_scores"],
+           "fit": {"ssr": f.ssr, "n_residuals": f.n_res, "nfev": f.nfev, "success": f.success,
+                   "message": f.message, "seconds": f.seconds, "bic": f.bic}}
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    from .report import write_json
+    write_json(path, doc)
+    return doc
+
+
+def load_model(path):
+    """(model, p, cov, doc) from a ``model.json`` written by :func:`save_model`.
+
+    Raises ValueError naming the file when it is not such a document."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise ValueError(f"{path}: not a model file ({e})") from None
+    if doc.get("format") != "bayesid-model-1":
+        raise ValueError(f"{path}: not a bayesid model file (format {doc.get('format')!r})")
+    ref = doc["vehicle"]
+    if not Path(ref).is_absolute() and (path.parent / ref).is_file():
+        ref = str(path.parent / ref)
+    vehicle = load_any_vehicle(ref)
+    model = build_model(vehicle, doc["free"], doc["effects"], doc["dt"])
+    return model, np.array(doc["p"]), np.array(doc["cov"]), doc
+
+
+def predict(model, p, tracks, window_s: float | None) -> dict:
+    """The protocol on tracks: per window and pooled RMS position / heading errors.
+
+    Returns dict ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track``
+    {name: pooled scores}, ``windows`` (list of {track, t_start, rms_position_m,
+    max_position_m, rms_heading_deg}) and ``_sim`` (per track (ctx, S) for plots)."""
+    errs, per_track, windows, sims = [], {}, [], {}
+    for tr in tracks:
+        ctx = model.context(tr, window_s)
+        S = model.simulate(ctx, np.asarray(p)[None])
+        e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
+        errs.append(e)
+        per_track[tr.name] = pooled_scores([e])
+        pos = np.hypot(e["x"], e["y"])
+        for w in range(ctx.W):
+            sel = ctx.win == w
+            if sel.any():
+                windows.append({"track": tr.name, "t_start": float(ctx.t_start[w]),
+                                "rms_position_m": float(np.sqrt(np.nanmean(pos[sel] ** 2))),
+                                "max_position_m": float(np.nanmax(pos[sel])),
+                                "rms_heading_deg": float(np.degrees(np.sqrt(np.nanmean(e["psi"][sel] ** 2))))
+                                if "psi" in e else None})
+        sims[tr.name] = (ctx, S[0])
+    return {"pooled": pooled_scores(errs), "per_track": per_track, "windows": windows, "_sim": sims}
+
+
+def posterior_samples(model, p, cov, n: int, rng) -> np.ndarray:
+    """(n, n_params) draws from the Laplace posterior, kept inside the parameter bounds."""
+    lo, hi = model.bounds()
+    L = np.linalg.cholesky(cov + 1e-15 * np.eye(cov.shape[0]) * max(np.trace(cov), 1e-30))
+    X = p[None] + rng.standard_normal((n, p.size)) @ L.T
+    return np.clip(X, lo, hi)
+
+
+# ---------------------------------------------------------------------------------------------
+# Standard manoeuvre indices
+# ---------------------------------------------------------------------------------------------
+def manoeuvre_indices(t, x, y, psi, delta) -> dict:
+    """Standard indices of a turning circle or a zigzag from a track (ITTC 2002, "Full scale
+    manoeuvring trials procedure" 7.5-04-02-01, definitions).
+
+    Turning (the rudder held at one nonzero angle after its execute): ``advance_m`` (distance
+    along the approach heading when the heading has changed by 90 deg), ``transfer_m`` (normal
+    to it, at 90 deg) and ``tactical_diameter_m`` (normal distance at 180 deg); NaN when the run
+    does not get there. Zigzag (the rudder reverses at least twice): ``first_overshoot_deg`` and
+    ``second_overshoot_deg`` (heading beyond the switching heading after the 1st and 2nd
+    reversal). ``kind`` is ``"turning"``, ``"zigzag"`` or ``"other"``.
+
+    Arrays (n,): t (s), x, y (m), psi (rad, any wrap), delta (rad).
+    """
+    t, x, y, delta = (np.asarray(a, float) for a in (t, x, y, delta))
+    psi = np.unwrap(np.asarray(psi, float))
+    big = np.abs(delta) > np.radians(3.0)
+    if not big.any():
+        return {"kind": "other"}
+    i0 = int(np.argmax(big))
+    sgn = np.sign(delta[big])
+    switches = np.flatnonzero(np.diff(sgn) != 0)
+    out = {"execute_t_s": float(t[i0])}
+    d0 = psi[i0]
+    h = psi - d0
+    if switches.size == 0:
+        out["kind"] = "turning"
+        c, s = math.cos(d0), math.sin(d0)
+        along = c * (x - x[i0]) + s * (y - y[i0])
+        normal = -s * (x - x[i0]) + c * (y - y[i0])
+        for name, ang in (("90", math.pi / 2), ("180", math.pi)):
+            k = np.flatnonzero(np.abs(h[i0:]) >= ang)
+            if k.size:
+                j = i0 + k[0]
+                if name == "90":
+                    out["advance_m"] = float(along[j])
+                    out["transfer_m"] = float(abs(normal[j]))
+                else:
+                    out["tactical_diameter_m"] = float(abs(normal[j]))
+        for key in ("advance_m", "transfer_m", "tactical_diameter_m"):
+            out.setdefault(key, float("nan"))
+        return out
+    out["kind"] = "zigzag"
+    idx = np.flatnonzero(big)
+    sw = [idx[s + 1] for s in switches]   # first sample after each reversal
+    for name, k in (("first_overshoot_deg", 0), ("second_overshoot_deg", 1)):
+        if k < len(sw):
+            j = sw[k]
+            end = sw[k + 1] if k + 1 < len(sw) else h.size
+            going = np.sign(h[j] - h[max(j - 5, 0)]) or 1.0   # the heading keeps turning this way
+            seg = h[j:end]
+            ext = seg.max() - h[j] if going > 0 else h[j] - seg.min()
+            out[name] = float(np.degrees(max(ext, 0.0)))
+        else:
+            out[name] = float("nan")
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Reports of the fit and predict commands
+# ---------------------------------------------------------------------------------------------
+def windowed_xy(ctx, S):
+    """(measured (n, 2), predicted (n + cuts, 2)) x, y with NaN between windows (for plots)."""
+    xy = S[:, :2].copy()
+    cut = np.flatnonzero(np.diff(ctx.win) != 0) + 1
+    xy = np.insert(xy, cut, np.nan, axis=0)
+    return np.column_stack([ctx.meas["x"], ctx.meas["y"]]), xy
+
+
+def write_fit_report(doc: dict, out, command: str = "") -> None:
+    """``report.md`` of ``bayesid fit``: the identified coefficients with Laplace sds."""
+    from .report import fmt, md_table
+
+    out = Path(out)
+    rows = [[n, fmt(s0, 4), fmt(p, 4), fmt(sd, 3)] for n, s0, p, sd in
+            zip(doc["param_names"], doc["start"], doc["p"], doc["sd"])]
+    ts = doc["train_scores"]
+    lines = ["# Identified model", "", f"`{command}`" if command else "", "",
+             f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
+             f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s; "
+             f"{len(doc['train_runs'])} training run(s).", "",
+             f"Equation-error seed: {'used' if doc['seed'].get('used') else 'not used'} "
+             f"(R^2 X/Y/N: {', '.join(fmt(v) for v in doc['seed'].get('r2', {}).values()) or '-'}).", "",
+             f"Training RMS position error {fmt(ts['rms_position_m'])} m, heading {fmt(ts['rms_heading_deg'])} deg "
+             f"({doc['fit_window_s']} s windows). Fit: {doc['fit']['nfev']} evaluations, {doc['fit']['message']}", "",
+             "Posterior: Laplace approximation, residual variance x AR(1) inflation "
+             f"{fmt(doc['posterior']['ar1_inflation'])}; Jacobian condition number "
+             f"{fmt(doc['posterior']['condition_number'])}.", "",
+             md_table(["parameter", "start", "identified", "sd (Laplace)"], rows), ""]
+    (out / "report.md").write_text("\n".join(lines))
+
+
+def turning_band(model, p, cov, track, n_draws: int, rng) -> dict:
+    """Whole-run open-loop prediction of a track from its first (causal) state, with the
+    manoeuvre indices of the measured run, the identified model, and a posterior predictive
+    band (5-95 % of ``n_draws`` Laplace draws)."""
+    ctx = model.context(track, None)
+    P = np.vstack([p[None], posterior_samples(model, p, cov, n_draws, rng)]) if n_draws else p[None]
+    S = model.simulate(ctx, P)
+    dr = np.asarray(track["delta_r"], float)[ctx.idx]
+    meas = manoeuvre_indices(ctx.ts, ctx.meas["x"], ctx.meas["y"], ctx.meas["psi"], dr)
+    pred = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]
+    keys = [k for k in pred[0] if k not in ("kind", "execute_t_s")]
+    band = {}
+    for k in keys:
+        vals = np.array([d.get(k, np.nan) for d in pred[1:]], float)
+        vals = vals[np.isfinite(vals)]
+        band[k] = [float(np.percentile(vals, 5)), float(np.percentile(vals, 95))] if vals.size >= 3 else None
+    return {"measured": meas, "predicted": pred[0], "band_5_95": band, "n_draws": int(n_draws),
+            "_S": S, "_ctx": ctx}

@@ -1,0 +1,308 @@
+"""Real free-running ship data: identify MMG-form models, diagnose the sim-to-real gap with the
+wind withheld, and predict under the fixed window protocol.
+
+Method
+------
+- Data (read from ``shared/data/real``, never copied): Esso Osaka 3 m model, pond, 10 Hz, with
+  measured wind; KVLCC2 7 m model, HSVA tank zigzags, 20 Hz (``bayesid.datasets``).
+- Model: ``bayesid.ship`` (MMG 3-DOF; hull linear + coupling terms + cross-flow integral,
+  propeller KT(J) with wake and astern thrust, MMG rudder inflow; added mass from Clarke et al.
+  1983 / Soeding 1982). Free coefficients: the vehicle file's ``[fit] free``.
+- Fit: multiple shooting over 30 s windows restarting from the causal measured state, seeded by
+  an equation-error regression (``bayesid.msfit``); Laplace posterior with an AR(1) inflation.
+- Diagnosis (``bayesid.gap.diagnose``): the base model is fitted without the wind; candidates
+  from ``bayesid.ship.SHIP_CATALOGUE`` (wind -- Fujiwara-form, 6 coefficients, driven by the
+  measured wind --, current, delay) are each added with all coefficients re-identified; ranked by
+  the held-out error at 60 s windows.
+- Protocol (issue 8): held-out runs cut into non-overlapping 30 s and 60 s windows from their
+  start, each simulated open loop from the measured state with the recorded rudder, propeller
+  (and wind when the model has it); pooled RMS horizontal position error; also the whole run.
+  Shrinkage = 1 - after / base.
+- Splits: Esso validation split of issue 8 (hold out random_06-Aug-2020_16_24_25_6,
+  turn_14-Oct-2020_15_06_53, zigzag_31-Jul-2020_13_57_45, berthing_12-Nov-2020_11_38_50; train on
+  the other runs, the trimmed ``turn_cut_*`` copies left out); KVLCC2: hold out Z_10_10_P,
+  Z_20_10_S, Z_35_05, Z_15_01, train on the other nine zigzags.
+- KVLCC2 turning circles (35 deg both ways, from U0 = 1.179 m/s at 10.23 rps) are predicted from
+  the zigzag-trained model with a posterior predictive band (Laplace draws).
+
+    python studies/real_ships.py [--quick] [--out DIR] [--data DIR] [--draws N]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+BASELINE = {  # issue 8's independent baseline (its table), for the report only
+    "esso_osaka": {"w30": (0.364, 0.249), "w60": (1.141, 0.714)},
+    "kvlcc2_hsva": {"w30": (0.19, None), "w60": (0.88, None)},
+}
+TARGET = {"esso_osaka": {"w30": 0.24, "w60": 0.70}, "kvlcc2_hsva": {"w30": 0.18, "w60": 0.80}}
+ESSO_HOLD = ["random_06-Aug-2020_16_24_25_6", "turn_14-Oct-2020_15_06_53", "zigzag_31-Jul-2020_13_57_45",
+             "berthing_12-Nov-2020_11_38_50"]
+KVLCC2_HOLD = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
+
+
+def parse_args():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="few runs, few iterations (a smoke test)")
+    ap.add_argument("--out", default="reports/real_ships")
+    ap.add_argument("--data", default=str(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
+    ap.add_argument("--draws", type=int, default=40, help="posterior draws for the predictive bands")
+    ap.add_argument("--max-nfev", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=2026)
+    return ap.parse_args()
+
+
+def _scores(model, fitres, tracks, window):
+    from bayesid import msfit
+
+    pr = msfit.predict(model, fitres.p, tracks, window)
+    return pr["pooled"]
+
+
+def evaluate(name, ship, train, held, candidates, args, out, log):
+    """Diagnose, then score base and after models at 30 s, 60 s and whole run."""
+    from bayesid import gap, msfit
+
+    t0 = time.perf_counter()
+    res = gap.diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=30.0,
+                       dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
+                       progress=lambda m: log(f"{name}: {m}"))
+    gap.write_report(res, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
+    bm, bf, _ = res["_curves"]["base"]
+    am, af, _ = res["_curves"]["after"]
+    doc = {"train_runs": [t.name for t in train], "heldout_runs": [t.name for t in held], "window_s": 60.0,
+           "fit_window_s": 30.0, "verdict": res["verdict"], "ranking": res["ranking"],
+           "effects_added": res["effects_added"], "noise_floor_60s_m": res["noise_floor"]["heldout_rms_m"],
+           "where": {k: res["where"][k] for k in ("dominant_channel", "dominant_region", "channels")
+                     if k in res["where"]},
+           "wind_correlation": res["where"].get("wind_correlation")}
+    # The scores use the best-ranked candidate even when the rules did not attribute it, so the
+    # protocol table always shows what adding the top effect does (verdict says if it counts).
+    top = res["ranking"][0]["effect"] if res["ranking"] else None
+    if not res["effects_added"] and top is not None:
+        am, ctr = msfit.build_model(ship, ship.free, [top], 0.2), None
+        ctr = [am.context(t, 30.0) for t in train]
+        af = gap.fit(am, ctr, gap._pooled_sd(train), am.start(bf.p[:bm.n_theta]), max_nfev=args.max_nfev)
+    doc["after_effects"] = [e.name for e in am.effects]
+    for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
+        b, a = _scores(bm, bf, held, w), _scores(am, af, held, w)
+        doc[key] = {"window_s": w, "train_runs": doc["train_runs"], "heldout_runs": doc["heldout_runs"],
+                    "heldout_rms_position_m_base": b["rms_position_m"], "heldout_rms_position_m_after": a["rms_position_m"],
+                    "heading_rms_deg_base": b["rms_heading_deg"], "heading_rms_deg_after": a["rms_heading_deg"],
+                    "shrinkage": 1 - a["rms_position_m"] / b["rms_position_m"], "verdict": res["verdict"],
+                    "ranking": res["ranking"]}
+    for k in ("heldout_rms_position_m_base", "heldout_rms_position_m_after", "shrinkage"):
+        doc[k] = doc["w60"][k]
+    # posterior of the final model (Laplace on the training windows)
+    ctr = [am.context(t, 30.0) for t in train]
+    cov, post = msfit.laplace_covariance(af, ctr)
+    doc["posterior"] = {"laplace": post, "parameters": {
+        n: {"mean": float(v), "sd": float(math.sqrt(max(c, 0.0)))} for n, v, c in zip(am.param_names, af.p, np.diag(cov))}}
+    sv = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    corr = cov / np.outer(sv, sv)
+    pairs = sorted(((abs(corr[i, j]), am.param_names[i], am.param_names[j]) for i in range(len(sv))
+                    for j in range(i + 1, len(sv))), reverse=True)[:6]
+    doc["posterior"]["strongest_correlations"] = [[a, b, float(c)] for c, a, b in pairs]
+    doc["seconds"] = time.perf_counter() - t0
+    return doc, res, (bm, bf), (am, af, cov)
+
+
+def track_figure(models, track, window, path, title):
+    from bayesid import msfit, plots
+
+    (bm, bf), (am, af) = models
+    pr_b = msfit.predict(bm, bf.p, [track], window)["_sim"][track.name]
+    pr_a = msfit.predict(am, af.p, [track], window)["_sim"][track.name]
+    meas, xb = msfit.windowed_xy(*pr_b)
+    _, xa = msfit.windowed_xy(*pr_a)
+    return plots.window_tracks(None, meas, xb, xa, path, title=title)
+
+
+def turning_circles(am, af, cov, draws, rng, U0=1.179, rps=10.23, rudder_deg=35.0, duration=300.0):
+    """Predicted 35 deg turning circles (both sides) with Laplace-posterior bands."""
+    from bayesid import msfit
+    from bayesid.track import Track
+
+    out = {}
+    t = np.arange(0.0, duration + 1e-9, 0.1)
+    for side, sgn in (("starboard", -1.0), ("port", 1.0)):  # package rudder: + = to port
+        dr = np.where(t >= 1.0, sgn * math.radians(rudder_deg), 0.0)
+        tr = Track(t, {"x": np.zeros_like(t), "y": np.zeros_like(t), "psi": np.zeros_like(t), "u": np.full_like(t, U0),
+                       "v": np.zeros_like(t), "r": np.zeros_like(t), "delta_r": dr, "n": np.full_like(t, rps * 60)},
+                   name=f"turn35_{side}")
+        s0 = np.zeros(12)
+        s0[6] = U0
+        ctx = am.context(tr, None, s0=s0)
+        P = np.vstack([af.p[None], msfit.posterior_samples(am, af.p, cov, draws, rng)])
+        S = am.simulate(ctx, P, measured_start=False)
+        ind = [msfit.manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr[ctx.idx]) for s in S]
+        res = {"predicted": {k: ind[0][k] for k in ("advance_m", "transfer_m", "tactical_diameter_m")}}
+        for k in res["predicted"]:
+            vals = np.array([d[k] for d in ind[1:]], float)
+            vals = vals[np.isfinite(vals)]
+            res.setdefault("band_5_95", {})[k] = ([float(np.percentile(vals, 5)), float(np.percentile(vals, 95))]
+                                                  if vals.size >= 3 else None)
+            res.setdefault("n_finite_draws", {})[k] = int(vals.size)
+        res["_S"] = S
+        out[side] = res
+    return out
+
+
+def main() -> int:
+    args = parse_args()
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from bayesid import datasets, msfit, plots, ship
+    from bayesid.report import fmt, md_table, write_json, write_manifest
+
+    data = Path(args.data)
+    esso_dir, kv_dir = data / "esso-osaka-frt", data / "kvlcc2-simman-hsva"
+    if not esso_dir.is_dir() or not kv_dir.is_dir():
+        print(f"real data not found under {data}: nothing to do (the study needs shared/data/real)")
+        return 0
+    out = Path(args.out)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    rng = np.random.default_rng(args.seed)
+    log = lambda m: print(m, flush=True)  # noqa: E731
+    if args.quick:
+        args.max_nfev = min(args.max_nfev, 6)
+        args.draws = min(args.draws, 8)
+
+    # ---- Esso Osaka ----
+    runs = [p for p in datasets.list_runs(esso_dir, "esso-osaka") if "turn_cut" not in p.name]
+    tracks = [datasets.read_run(p, "esso-osaka") for p in runs]
+    held = [t for t in tracks if t.name in ESSO_HOLD]
+    train = [t for t in tracks if t.name not in ESSO_HOLD]
+    if args.quick:
+        train = [t for t in train if t.name.startswith(("zigzag", "turn"))][:3]
+        held = [t for t in held if t.name.startswith("zigzag")][:1]
+    esso = ship.load_ship("esso_osaka_3m")
+    e_doc, e_res, e_base, e_after = evaluate("esso_osaka", esso, train, held, ["wind", "current", "delay"], args, out, log)
+    figs = [track_figure((e_base, e_after[:2]), h, 60.0, out / "figures" / f"esso_heldout_{h.name}.png",
+                         f"Esso held-out {h.name}: 60 s windows") for h in held]
+    figs.append(track_figure((e_base, e_after[:2]), train[0], 60.0, out / "figures" / f"esso_train_{train[0].name}.png",
+                             f"Esso training {train[0].name}: 60 s windows"))
+
+    # ---- KVLCC2 ----
+    kruns = datasets.list_runs(kv_dir, "simman-hsva")
+    ktracks = [datasets.read_run(p, "simman-hsva") for p in kruns]
+    kheld = [t for t in ktracks if any(t.name.endswith(h) for h in KVLCC2_HOLD)]
+    ktrain = [t for t in ktracks if t not in kheld]
+    if args.quick:
+        ktrain, kheld = ktrain[:3], kheld[:1]
+    kv = ship.load_ship("kvlcc2_7m")
+    k_doc, k_res, k_base, k_after = evaluate("kvlcc2_hsva", kv, ktrain, kheld, ["current", "delay"], args, out, log)
+    am, af, cov = k_after
+    circles = turning_circles(am, af, cov, args.draws, rng)
+    k_doc["turning_circles_35deg"] = {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")}
+                                      for k, v in circles.items()}
+    k_doc["turning_circles_35deg"]["measured"] = None
+    k_doc["turning_circles_35deg"]["note"] = ("no measured turning circle of this hull is in shared/data/real; "
+                                              "the comparison runs on the withheld basin data")
+    zz = {}
+    for h in kheld:
+        tb = msfit.turning_band(am, af.p, cov, h, args.draws, rng)
+        zz[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
+    k_doc["zigzag_indices_heldout"] = zz
+    kfigs = [track_figure((k_base, k_after[:2]), h, 60.0, out / "figures" / f"kvlcc2_heldout_{h.name}.png",
+                          f"KVLCC2 held-out {h.name}: 60 s windows") for h in kheld]
+    kfigs.append(track_figure((k_base, k_after[:2]), ktrain[0], 60.0, out / "figures" / f"kvlcc2_train_{ktrain[0].name}.png",
+                              f"KVLCC2 training {ktrain[0].name}: 60 s windows"))
+    kfigs.append(plots.turning_band({k: v["_S"] for k, v in circles.items()}, out / "figures" / "kvlcc2_turning35.png"))
+
+    results = {"esso_osaka": e_doc, "kvlcc2_hsva": k_doc, "quick": bool(args.quick),
+               "baseline": BASELINE, "targets": TARGET}
+    write_json(out / "results.json", results)
+    write_report(out, results, figs, kfigs, args)
+    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t_start)
+    for n in ("esso_osaka", "kvlcc2_hsva"):
+        d = results[n]
+        print(f"{n}: verdict {d['verdict']}; 30 s {d['w30']['heldout_rms_position_m_base']:.3f} -> "
+              f"{d['w30']['heldout_rms_position_m_after']:.3f} m; 60 s {d['w60']['heldout_rms_position_m_base']:.3f} -> "
+              f"{d['w60']['heldout_rms_position_m_after']:.3f} m (shrinkage {d['shrinkage']:.2f})")
+    return 0
+
+
+def write_report(out, R, figs, kfigs, args):
+    from bayesid.report import fmt, md_table
+
+    rows = []
+    for n, label in (("esso_osaka", "Esso, validation split"), ("kvlcc2_hsva", "KVLCC2, validation split")):
+        d = R[n]
+        for w in ("w30", "w60", "whole_run"):
+            b = BASELINE[n].get(w, (None, None))
+            rows.append([label, w, fmt(d[w]["heldout_rms_position_m_base"]), fmt(d[w]["heldout_rms_position_m_after"]),
+                         fmt(d[w]["shrinkage"]), fmt(b[0]), fmt(b[1]), fmt(TARGET[n].get(w))])
+    def post_rows(d):
+        return [[k, fmt(v["mean"], 4), fmt(v["sd"], 3)] for k, v in d["posterior"]["parameters"].items()]
+
+    def rank_rows(d):
+        return [[r["effect"], fmt(r["heldout_rms_m"]), fmt(r["excess_removed"]), fmt(r["delta_bic"], 4)]
+                for r in d["ranking"]]
+
+    E, K = R["esso_osaka"], R["kvlcc2_hsva"]
+    tc = K["turning_circles_35deg"]
+    tc_rows = [[side, k, fmt(tc[side]["predicted"][k]), (f"[{fmt(tc[side]['band_5_95'][k][0])}, "
+               f"{fmt(tc[side]['band_5_95'][k][1])}]" if tc[side]["band_5_95"][k] else "-")]
+               for side in ("starboard", "port") for k in tc[side]["predicted"]]
+    zz_rows = []
+    for n, z in K["zigzag_indices_heldout"].items():
+        for k, band in z["band_5_95"].items():
+            zz_rows.append([n, k, fmt(z["measured"].get(k)), fmt(z["predicted"].get(k)),
+                            f"[{fmt(band[0])}, {fmt(band[1])}]" if band else "-"])
+    miss = []
+    for n, d in (("Esso", E), ("KVLCC2", K)):
+        w = d["where"]
+        miss.append(f"- {n}: dominant channel {w.get('dominant_channel')}, dominant region "
+                    f"{w.get('dominant_region', {}).get('region')} (error growth "
+                    f"{fmt(w.get('dominant_region', {}).get('growth_ratio'))} x the mean); verdict "
+                    f"**{d['verdict']}**; top-ranked candidate {d['ranking'][0]['effect'] if d['ranking'] else '-'}.")
+    met = []
+    for n in ("esso_osaka", "kvlcc2_hsva"):
+        for w in ("w30", "w60"):
+            v = R[n][w]["heldout_rms_position_m_after"]
+            met.append(f"{n} {w}: {fmt(v)} m vs target {TARGET[n][w]} m -> {'met' if v <= TARGET[n][w] else 'NOT met'}")
+    text = ["# Real ship data: identification, gap diagnosis (wind withheld) and protocol scores", "",
+            "**Quick run** (smoke test; the committed report is the full run)." if R["quick"] else "Full run.", "",
+            __doc__.split("Method\n------\n")[1].split("\n    python")[0], "",
+            "## Protocol table (held-out runs)", "",
+            "base = fitted without the effect; after = the top-ranked effect added and all coefficients "
+            "re-identified; baseline = the issue's independent implementation.", "",
+            md_table(["data and split", "window", "base (m)", "after (m)", "shrinkage", "baseline base (m)",
+                      "baseline with wind (m)", "target after (m)"], rows), "",
+            "Targets: " + "; ".join(met) + ".", "",
+            "## Esso Osaka: diagnosis (wind withheld from the base model)", "",
+            f"Verdict: **{E['verdict']}** (effects added by the rules: {', '.join(E['effects_added']) or 'none'}; "
+            f"the protocol table's 'after' uses {', '.join(E['after_effects'])}). Noise floor at 60 s: "
+            f"{fmt(E['noise_floor_60s_m'])} m.", "",
+            md_table(["candidate", "held-out RMS 60 s (m)", "excess removed", "ΔBIC (train)"], rank_rows(E)), "",
+            "Apparent-wind dependence of the missing forces (correlation with the wind-load signatures): "
+            + (", ".join(f"{k} {fmt(v)}" for k, v in E["wind_correlation"].items()) if E.get("wind_correlation") else "-"),
+            "", "Full diagnosis: [esso_osaka_diagnosis/report.md](esso_osaka_diagnosis/report.md).", "",
+            *[f"![{p.stem}](figures/{p.name})" for p in figs], "",
+            "## KVLCC2 (HSVA zigzags)", "",
+            f"Verdict: **{K['verdict']}**; candidates current, delay (no wind in the tank).", "",
+            md_table(["candidate", "held-out RMS 60 s (m)", "excess removed", "ΔBIC (train)"], rank_rows(K)), "",
+            "Held-out zigzag indices (whole run from the first state; band: 5-95 % of Laplace draws):", "",
+            md_table(["run", "index", "measured", "predicted", "band"], zz_rows), "",
+            "Predicted 35 deg turning circles (extrapolation from zigzag-only training):", "",
+            md_table(["side", "index", "predicted (m)", "band 5-95 % (m)"], tc_rows), "",
+            tc["note"] + ".", "",
+            *[f"![{p.stem}](figures/{p.name})" for p in kfigs], "",
+            "## Where the models miss", "", *miss, "",
+            "## Posterior summaries (Laplace, final models)", "",
+            "Esso (strongest correlations: " + "; ".join(f"{a}-{b} {fmt(c)}" for a, b, c in E["posterior"]["strongest_correlations"]) + ")", "",
+            md_table(["parameter", "mean", "sd"], post_rows(E)), "",
+            "KVLCC2 (strongest correlations: " + "; ".join(f"{a}-{b} {fmt(c)}" for a, b, c in K["posterior"]["strongest_correlations"]) + ")", "",
+            md_table(["parameter", "mean", "sd"], post_rows(K)), ""]
+    (out / "report.md").write_text("\n".join(text))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
