@@ -394,6 +394,17 @@ def gap_regions(where: dict, path, title: str = "Where: error growth by operatin
     return _save(fig, path)
 
 
+def _plan_view(fig, ax, title, path):
+    """Finish a plan-view (x north up, y east right) track plot and save it."""
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return _save(fig, path)
+
+
 def window_tracks(t, measured, before, after, path, title: str = ""):
     """Measured track and the protocol's windowed predictions before and after the top effect:
     arrays (n, 2) of x, y (NaN separates windows)."""
@@ -402,13 +413,7 @@ def window_tracks(t, measured, before, after, path, title: str = ""):
     ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label="base model")
     if after is not None:
         ax.plot(after[:, 1], after[:, 0], "tab:blue", lw=1.0, label="with top effect")
-    ax.set_xlabel("y (east), m")
-    ax.set_ylabel("x (north), m")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title(title)
-    return _save(fig, path)
+    return _plan_view(fig, ax, title, path)
 
 
 def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x verdict (columns)"):
@@ -438,10 +443,4 @@ def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circle
         for s in S[1:]:
             ax.plot(s[:, 1], s[:, 0], color=col, lw=0.4, alpha=0.3)
         ax.plot(S[0, :, 1], S[0, :, 0], color=col, lw=1.5, label=label)
-    ax.set_xlabel("y (east), m")
-    ax.set_ylabel("x (north), m")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title(title)
-    return _save(fig, path)
+    return _plan_view(fig, ax, title, path)

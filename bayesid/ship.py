@@ -72,6 +72,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
+from .effects import EffectModel
 from .protocol import wrap
 from .track import STATE_NAMES, Track
 from .vehicle import VehicleFileError
@@ -591,14 +592,8 @@ class ShipModel:
         ctx.wind = np.ascontiguousarray(w)
         return ctx
 
-    def _split(self, P):
-        P = np.atleast_2d(np.asarray(P, float))
-        th = P[:, :self.n_theta]
-        qs, i = [], self.n_theta
-        for n in self.n_q:
-            qs.append(P[:, i:i + n])
-            i += n
-        return th, qs
+    # [theta_free, q_1, ...] -> (theta (B, P), [q_e (B, n_e)]): the same layout as EffectModel
+    _split = EffectModel._split
 
     def kernel_params(self, P) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(B, NP) parameter vectors, (B, 2) currents and (B,) delays (None) of parameter rows."""
