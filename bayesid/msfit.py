@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +32,7 @@ import numpy as np
 from . import effects as ef
 from . import gap
 from . import ship as sh
-from .protocol import pooled_scores, wrap
+from .protocol import pooled_scores
 from .vehicle import load_vehicle
 
 

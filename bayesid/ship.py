@@ -72,9 +72,9 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from .effects import EffectModel
+from .effects import Effect, EffectModel
 from .protocol import wrap
-from .track import STATE_NAMES, Track
+from .track import Track
 from .vehicle import VehicleFileError
 
 #: Particulars in the kernel's parameter vector (order fixed; SI units, ratios as noted).
@@ -476,41 +476,25 @@ def apparent_wind(track: Track, u, v, psi, t=None) -> tuple[np.ndarray, np.ndarr
 # ---------------------------------------------------------------------------------------------
 # Effects and the model the fit and the gap diagnosis use
 # ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ShipEffect:
-    """A candidate unmodelled effect of the surface-ship catalogue (as
-    :class:`bayesid.effects.Effect`: parameters with bounds, start values and scales)."""
-
-    name: str
-    params: tuple
-    lo: tuple
-    hi: tuple
-    start: tuple
-    scale: tuple
-    description: str
-    source: str
-    n_nuisance: int = 0
-    nuisance_lo: float = 0.0
-    nuisance_hi: float = 0.0
-
-
+#: Candidate effects of a surface ship (:class:`bayesid.effects.Effect` records; their hooks are
+#: not used: :class:`ShipModel` applies these three itself).
 SHIP_CATALOGUE = {
-    "wind": ShipEffect(
+    "wind": Effect(
         "wind", WIND, (-2.0,) * 6, (2.0,) * 6, (-0.7, 0.0, -0.8, 0.0, -0.1, -0.05), (0.3,) * 6,
-        "wind loads from the measured true wind (Fourier form, 6 coefficients)",
-        "Fujiwara, Ueno & Nimura (1998), J. Soc. Naval Arch. Japan 183; windage areas from the "
+        description="wind loads from the measured true wind (Fourier form, 6 coefficients)",
+        source="Fujiwara, Ueno & Nimura (1998), J. Soc. Naval Arch. Japan 183; windage areas from the "
         "particulars; start values typical of tankers (Isherwood 1972)"),
-    "current": ShipEffect(
+    "current": Effect(
         "current", ("current_x_mps", "current_y_mps"), (-0.5, -0.5), (0.5, 0.5), (0.0, 0.0), (0.05, 0.05),
-        "uniform current: the hull moves through the water, the track over ground",
-        "kinematic relative-velocity model (Fossen 2011, Sec. 10.3); pond drift of a few cm/s"),
-    "delay": ShipEffect(
+        description="uniform current: the hull moves through the water, the track over ground",
+        source="kinematic relative-velocity model (Fossen 2011, Sec. 10.3); pond drift of a few cm/s"),
+    "delay": Effect(
         "delay", ("delay_s",), (0.0,), (3.0,), (0.2,), (0.3,),
-        "pure time delay of the logged rudder and propeller", "logging / actuator latency"),
+        description="pure time delay of the logged rudder and propeller", source="logging / actuator latency"),
 }
 
 
-def get_effect(name: str) -> ShipEffect:
+def get_effect(name: str) -> Effect:
     try:
         return SHIP_CATALOGUE[name]
     except KeyError:

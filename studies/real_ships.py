@@ -86,7 +86,7 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     # protocol table always shows what adding the top effect does (verdict says if it counts).
     top = res["ranking"][0]["effect"] if res["ranking"] else None
     if not res["effects_added"] and top is not None:
-        am, ctr = msfit.build_model(ship, ship.free, [top], 0.2), None
+        am = msfit.build_model(ship, ship.free, [top], 0.2)
         ctr = [am.context(t, 30.0) for t in train]
         af = gap.fit(am, ctr, gap._pooled_sd(train), am.start(bf.p[:bm.n_theta]), max_nfev=args.max_nfev)
     doc["after_effects"] = [e.name for e in am.effects]
