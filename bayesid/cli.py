@@ -145,7 +145,8 @@ def _fit(args) -> int:
     free = _free_list(vehicle, args.free)
     train = [read_csv(p) for p in args.train]
     res = msfit.identify(vehicle, train, free, _split_names(args.effects), window_s=args.window, dt=args.dt,
-                         max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True))
+                         max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
+                         weighting=args.weighting or None)
     out = Path(args.out)
     doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json")
     msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
@@ -228,11 +229,16 @@ def _diagnose(args) -> int:
     res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
-                       fit_window_s=args.fit_window if args.fit_window else None)
+                       fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None)
     gap.write_report(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"verdict: {res['verdict']}; held-out RMS {res['gap_before']['heldout_rms_m']:.3f} m -> "
           f"{res['gap_after']['heldout_rms_m']:.3f} m; wrote {Path(args.out) / 'diagnosis.json'}")
     return 0
+
+
+WEIGHTINGS = ("", "noise", "residual")
+WEIGHTING_HELP = ("channel weights of the fits: noise sds, or the residual RMS of a first fit (two-step "
+                  "feasible GLS); default residual for ships, noise for submarines")
 
 
 def main(argv=None) -> int:
@@ -269,6 +275,7 @@ def main(argv=None) -> int:
     d.add_argument("--max-effects", type=int, default=1, help="greedy rounds of effect addition")
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
     d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
     d.add_argument("--out", required=True, help="output folder")
     f = sub.add_parser("fit", help="identify a model on training tracks (multiple shooting)")
     f.add_argument("--vehicle", required=True, help="packaged id or TOML path (ship or submarine)")
@@ -278,6 +285,7 @@ def main(argv=None) -> int:
     f.add_argument("--window", type=float, default=30.0, help="multiple-shooting window, s")
     f.add_argument("--dt", type=float, default=None, help="model step, s (default 0.2 ships, 0.5 submarines)")
     f.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations")
+    f.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
     f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
     pp = sub.add_parser("predict", help="score a fitted model on tracks with the window protocol")
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")

@@ -81,7 +81,7 @@ def laplace_covariance(fitres: gap.Fit, ctxs) -> tuple[np.ndarray, dict]:
 
 
 def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: float | None = None,
-             max_nfev: int = 60, seed: bool = True, progress=None) -> dict:
+             max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None) -> dict:
     """Identify the free coefficients (and effect parameters) on training tracks.
 
     Parameters
@@ -93,11 +93,14 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
     window_s : multiple-shooting window (s).   dt : model step (s).
     seed : start from the equation-error estimate (ships) when it simulates better than the
         nominal coefficients.
+    weighting : ``"noise"`` or ``"residual"`` channel weights (:func:`bayesid.gap.fit_weighted`);
+        default ``"residual"`` for a ship, ``"noise"`` for a submarine.
 
     Returns
     -------
     dict: ``model`` (the simulation model), ``fit`` (:class:`~bayesid.gap.Fit`), ``cov``,
-    ``posterior`` (Laplace summary), ``seed`` (summary), ``noise_sd``, ``train_scores``.
+    ``posterior`` (Laplace summary), ``seed`` (summary), ``noise_sd``, ``fit_sd`` (the sds of
+    the final weights), ``train_scores``.
 
     Raises
     ------
@@ -131,9 +134,11 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
         else:
             seed_info = info
     say("multiple-shooting fit")
-    f = gap.fit(model, ctxs, sd, p0, max_nfev=max_nfev)
+    weighting = weighting or ("residual" if isinstance(model, sh.ShipModel) else "noise")
+    f, sd_fit = gap.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting)
     cov, post = laplace_covariance(f, ctxs)
     return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
+            "fit_sd": sd_fit, "weighting": weighting,
             "train_scores": gap.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
 
 
@@ -146,6 +151,7 @@ def save_model(res: dict, vehicle_ref: str, train_names, path) -> dict:
            "fit_window_s": res["window_s"], "param_names": m.param_names, "p": f.p.tolist(),
            "cov": res["cov"].tolist(), "sd": sdv.tolist(), "start": res["p0"].tolist(),
            "posterior": res["posterior"], "seed": res["seed"], "noise_sd": res["noise_sd"],
+           "weighting": res.get("weighting", "noise"), "fit_sd": res.get("fit_sd", res["noise_sd"]),
            "train_runs": list(train_names), "train_scores": res["train_scores"],
            "fit": {"ssr": f.ssr, "n_residuals": f.n_res, "nfev": f.nfev, "success": f.success,
                    "message": f.message, "seconds": f.seconds, "bic": f.bic}}

@@ -126,6 +126,46 @@ def test_multiple_shooting_fit_recovers_coefficients_from_the_equation_error_see
     assert res["seed"]["used"] or res["seed"].get("cost_seed") is not None
 
 
+def test_residual_weighting_follows_the_structural_error():
+    """Two-step feasible GLS: the second fit's channel sds are the first fit's residual RMS, at
+    least the noise sd; on the model's own noisy track they stay near the noise; with a model
+    that cannot fit (wrong free set) they grow above it."""
+    from bayesid import gap
+
+    kv = ship.load_ship("kvlcc2_7m")
+    truth = kv.with_coefficients({"Nr": -0.07, "Yv": -0.25})
+    mt = ship.ShipModel(truth, dt=0.1)
+    rng = np.random.default_rng(11)
+    t = np.arange(0, 120.0, 0.1)
+    noise = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "u": 0.002, "v": 0.002, "r": math.radians(0.02)}
+    tr = synthetic(mt, mt.start(), t, zigzag_inputs(t), 10.23, 1.179, rng, noise)
+    sd = {k: noise[k] for k in ("x", "y", "psi", "u", "v", "r")}
+    right = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
+    ctx = [right.context(tr, 30.0)]
+    f, sd2 = gap.fit_weighted(right, ctx, sd, max_nfev=20, weighting="residual")
+    assert set(sd2) == set(sd) and all(sd2[k] >= sd[k] for k in sd)
+    # the model is right: residuals ~ noise (x, y, psi ~3x: the start-state noise propagates)
+    assert all(sd2[k] < 5 * sd[k] for k in sd)
+    assert dict(zip(right.param_names, f.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
+    wrong = ship.ShipModel(kv, ["Xuu"], dt=0.1)   # cannot change the turning: structural error
+    cw = [wrong.context(tr, 30.0)]
+    fw, sdw = gap.fit_weighted(wrong, cw, sd, max_nfev=10, weighting="residual")
+    assert sdw["psi"] > 5 * sd2["psi"] and sdw["x"] > 5 * sd2["x"]
+    assert sdw == pytest.approx(gap.residual_sd(wrong, gap.fit(wrong, cw, sd, max_nfev=10), cw, sd), rel=0.2)
+    with pytest.raises(ValueError, match="weighting"):
+        gap.fit_weighted(right, ctx, sd, weighting="robust")
+
+
+def test_paired_window_test_detects_a_consistent_improvement():
+    from bayesid import gap
+
+    rng = np.random.default_rng(0)
+    before = rng.uniform(0.5, 1.5, 40)
+    assert gap.paired_window_test(before, before * 0.8) < 1e-6
+    assert gap.paired_window_test(before, before * 1.2) > 0.99
+    assert gap.paired_window_test(before[:4], before[:4] * 0.5) == 1.0  # too few windows
+
+
 def test_manoeuvre_indices_of_a_circle_and_a_zigzag():
     t = np.linspace(0, 100, 2001)
     R = 20.0
@@ -165,6 +205,8 @@ def test_fit_predict_diagnose_commands_on_two_converted_runs(tmp_path):
                          "--out", str(tmp_path / "diag")], check=True)
     dg = json.loads((tmp_path / "diag" / "diagnosis.json").read_text())
     assert dg["settings"]["window_s"] == 30 and dg["ranking"][0]["effect"] == "delay"
+    assert dg["settings"]["weighting"] == "residual" and "partial_attribution" in dg
+    assert 0.0 <= dg["ranking"][0]["window_p_value"] <= 1.0
 
 
 @pytest.mark.skipif(not REAL.is_dir(), reason="shared/data/real absent")
