@@ -23,7 +23,8 @@ Verdict rules (fixed before the benchmark was run, stated in the report):
   times the **noise floor**: the error a perfect model would show at the measured noise level,
   estimated by simulating a model (the fitted base model and the nominal one; the smaller
   result counts) on the held-out inputs, adding noise of the sd estimated from the data
-  (:func:`bayesid.protocol.estimate_noise`), and scoring that with the same model;
+  (:func:`bayesid.protocol.estimate_noise`, without the lower bound that the fit weights use),
+  and scoring that with the same model;
 * an effect *explains* the gap when it removes at least ``explain_fraction`` (0.5) of the
   held-out excess over the floor, ``(rms_base - rms_effect) / (rms_base - floor)``, and its
   ΔBIC on the training tracks is below ``-10`` (strong evidence, Kass & Raftery 1995);
@@ -517,10 +518,10 @@ def ctx_window(ctx):
     return None if ctx.W == 1 else float(ctx.t_start[1] - ctx.t_start[0])
 
 
-def _pooled_sd(tracks) -> dict:
+def _pooled_sd(tracks, floor: bool = True) -> dict:
     sds = {}
     for tr in tracks:
-        for k, v in estimate_noise(tr, [c for c in CHANNELS if c in tr]).items():
+        for k, v in estimate_noise(tr, [c for c in CHANNELS if c in tr], floor=floor).items():
             sds.setdefault(k, []).append(v)
     return {k: float(np.median(v)) for k, v in sds.items()}
 
@@ -656,7 +657,9 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
     # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
     nominal = Fit(base, base.start(), [np.zeros(0)] * len(train), 0.0, 0, 0, True, "nominal", 0.0)
-    floor = min((_noise_floor(base, f, cho, heldout, sd, rng) for f in (bfit, nominal)),
+    # the noise itself, not the weights' lower bound (a 1 mm carriage track is not 1 cm noise)
+    sd_raw = _pooled_sd(train + heldout, floor=False)
+    floor = min((_noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)),
                 key=lambda d: d["rms_position_m"])
     w = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])
     F_list, motions = w.pop("_force_arrays", (None, None))

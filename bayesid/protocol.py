@@ -35,14 +35,15 @@ def wrap(a):
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def estimate_noise(track: Track, channels=None) -> dict:
+def estimate_noise(track: Track, channels=None, floor: bool = True) -> dict:
     """Measurement-noise standard deviation of each state channel, from the data alone.
 
     Difference-based estimator (Gasser, Sroka & Jennen-Steinmetz 1986, Biometrika 73(3),
     pseudo-residuals ``(y[i-1] - 2 y[i] + y[i+1]) / sqrt(6)``), made robust with the median
     absolute deviation (``1.4826 * MAD``) so that manoeuvre transients do not count as noise.
     Assumes samples that are roughly uniform in time and a signal smooth on the sampling
-    scale; headings are unwrapped first. The result is floored at :data:`NOISE_FLOOR`.
+    scale; headings are unwrapped first. The result is floored at :data:`NOISE_FLOOR` (the
+    weights of a fit) unless ``floor`` is False (the noise level itself, e.g. to simulate it).
 
     Parameters
     ----------
@@ -68,13 +69,13 @@ def estimate_noise(track: Track, channels=None) -> dict:
         ok = np.isfinite(y)
         y = y[ok]
         if y.size < 3:
-            out[k] = NOISE_FLOOR.get(k, 0.0)
+            out[k] = NOISE_FLOOR.get(k, 0.0) if floor else 0.0
             continue
         if k in ANGLES:
             y = np.unwrap(y)
         d2 = (y[:-2] - 2.0 * y[1:-1] + y[2:]) / np.sqrt(6.0)
         sd = 1.4826 * float(np.median(np.abs(d2 - np.median(d2))))
-        out[k] = max(sd, NOISE_FLOOR.get(k, 0.0))
+        out[k] = max(sd, NOISE_FLOOR.get(k, 0.0)) if floor else sd
     return out
 
 
