@@ -31,7 +31,7 @@ Propeller (Yasukawa & Yoshimura 2015, eqs. 9-12)::
     KT = k0 + k1 J + k2 J^2 (J clipped to [-0.5, 1.2]),   w = wP exp(-4 beta_P^2),
     beta_P = -(v + xP L r) / |U_P| ;   n < 0 (astern): T = -Ka rho n^2 D^4.
 
-Rudder (MMG, eqs. 13-23; delta_MMG = -delta_r: the package's rudder is positive to port)::
+Rudder (MMG, eqs. 13-23; delta_MMG = dR0 - delta_r: the package's rudder is positive to port)::
 
     FN = 0.5 rho AR f_alpha UR (uR sin(delta) - vR cos(delta))     (= 0.5 rho AR f UR^2 sin(alpha_R))
     uR = eps sqrt(eta (uP (1 - kappa) + kappa sqrt(uP^2 + 8 KT n^2 D^2 / pi))^2 + (1 - eta) uP^2)
@@ -41,6 +41,11 @@ Rudder (MMG, eqs. 13-23; delta_MMG = -delta_r: the package's rudder is positive 
 with ``f_alpha = 6.13 lambda / (lambda + 2.25)`` (Fujii's formula, MMG eq. 22). The inflow is
 written in velocities (not ``J``), so it stays finite at ``u -> 0``; going astern (``uP < 0``)
 the rudder sees the reverse free stream and, with the propeller ahead, its slipstream.
+``dR0`` (rad, package convention; 0 unless a file or a fit sets it) is the neutral rudder angle:
+the rudder angle at which the rudder gives no normal force going straight ahead. It absorbs the
+port/starboard asymmetry of a single propeller's slipstream (its swirl at the rudder) and a
+rudder zero offset with one parameter -- our simplification; the MMG standard instead uses
+different ``gamma_R`` for ``beta_R < 0`` and ``> 0``, which did not improve the KVLCC2 zigzags.
 
 Wind (Fujiwara, Ueno & Nimura 1998 -- the Fourier form, truncated to six coefficients)::
 
@@ -84,7 +89,7 @@ PARTICULARS = ("L", "B", "d", "mass_kg", "xG", "rho", "kzz", "Cb", "D_prop", "A_
 COEFFICIENTS = ("mx", "my", "Jz", "Xuu", "Xvv", "Xvr", "Xrr", "Yv", "Yr", "Nv", "Nr", "Ycf", "Ncf",
                 "Yvvr", "Yvrr", "Nvvr", "Nvrr",
                 "wP", "tP", "k0", "k1", "k2", "Ka", "xP", "tR", "aH", "xH", "eps", "kappa", "lR", "gR",
-                "Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2")
+                "Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "dR0")
 WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2")
 NP = len(PARTICULARS) + len(COEFFICIENTS)
 _IP = {n: i for i, n in enumerate(PARTICULARS)}
@@ -93,7 +98,8 @@ _IC = {n: len(PARTICULARS) + i for i, n in enumerate(COEFFICIENTS)}
 #: Physical bounds of the coefficients when fitted (None: unbounded).
 BOUNDS = {"mx": (0.0, 0.5), "my": (0.0, 1.5), "Jz": (0.0, 0.2), "Xuu": (-0.2, 0.0), "Ycf": (0.0, 5.0),
           "Ncf": (0.0, 5.0), "wP": (0.0, 0.9), "tP": (0.0, 0.6), "Ka": (0.0, 1.0), "tR": (0.0, 0.9),
-          "aH": (0.0, 1.0), "eps": (0.3, 2.5), "kappa": (0.0, 1.0), "lR": (-2.0, 0.5), "gR": (0.0, 2.0)}
+          "aH": (0.0, 1.0), "eps": (0.3, 2.5), "kappa": (0.0, 1.0), "lR": (-2.0, 0.5), "gR": (0.0, 2.0),
+          "dR0": (-0.1, 0.1)}
 #: Coefficients that enter the forces linearly (the equation-error seed regresses these).
 LINEAR = ("Xuu", "Xvv", "Xvr", "Xrr", "Yv", "Yr", "Nv", "Nr", "Ycf", "Ncf", "Yvvr", "Yvrr", "Nvvr", "Nvrr") + WIND
 
@@ -315,7 +321,7 @@ def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
     vR = -gR * (v + lR * L * r)
     UR = math.sqrt(uR * uR + vR * vR)
     fa = 6.13 * lam / (lam + 2.25)
-    dm = -dlt
+    dm = p[o + 33] - dlt
     FN = 0.5 * rho * AR * fa * UR * (uR * math.sin(dm) - vR * math.cos(dm))
     X -= (1.0 - tR) * FN * math.sin(dm)
     Y -= (1.0 + aH) * FN * math.cos(dm)

@@ -73,6 +73,23 @@ def test_starboard_rudder_turns_to_starboard_and_speed_settles():
     assert du < 1e-4 and 0.7 < straight["u"][-1] < 1.6  # settles at a plausible self-propulsion speed
 
 
+
+def test_neutral_rudder_angle_shifts_the_rudder_zero():
+    """With dR0 = a, the rudder at a gives the forces of the rudder at 0 with dR0 = 0, and the
+    rudder at 0 gives a yaw moment of the sign of a rudder at -a."""
+    kv = ship.load_ship("kvlcc2_7m")
+    a = math.radians(2.0)
+    s = np.array([[0, 0, 0, 1.1, 0.0, 0.0]], float)
+
+    def F(delta, dR0):
+        out = np.empty((1, 3))
+        ship.forces(s, np.array([[delta, 10.0]]), np.zeros((1, 2)), np.zeros(2), kv.params({"dR0": dR0}), out)
+        return out[0]
+
+    np.testing.assert_allclose(F(a, a), F(0.0, 0.0), rtol=1e-12, atol=1e-12)
+    assert abs(F(0.0, 0.0)[2]) < 1e-12
+    assert np.sign(F(0.0, a)[2]) == np.sign(F(-a, 0.0)[2]) != 0
+
 @pytest.mark.parametrize("state,n", [((0, 0, 0, 0.0, 0.0, 0.0), 0.0), ((0, 0, 0, 0.0, 0.0, 0.2), 5.0),
                                      ((0, 0, 0, -0.3, 0.1, 0.05), -8.0), ((0, 0, 0, 0.0, 0.4, 0.0), 10.0),
                                      ((0, 0, 0, 1e-9, 0.0, 0.3), 0.0)])
