@@ -113,6 +113,9 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     pairs = sorted(((abs(corr[i, j]), am.param_names[i], am.param_names[j]) for i in range(len(sv))
                     for j in range(i + 1, len(sv))), reverse=True)[:6]
     doc["posterior"]["strongest_correlations"] = [[a, b, float(c)] for c, a, b in pairs]
+    lo, hi = am.bounds()
+    doc["posterior"]["at_bound"] = [n for n, v, a, b in zip(am.param_names, af.p, lo, hi)
+                                    if np.isclose(v, a, atol=1e-9) or np.isclose(v, b, atol=1e-9)]
     doc["seconds"] = time.perf_counter() - t0
     return doc, res, (bm, bf), (am, af, cov)
 
@@ -303,6 +306,11 @@ def write_report(out, R, figs, kfigs, args):
                      rank_rows(K)), "", partial(K), "",
             "Held-out zigzag indices (whole run from the first state; band: 5-95 % of Laplace draws):", "",
             md_table(["run", "index", "measured", "predicted", "band"], zz_rows), "",
+            "'predicted' is the fitted (MAP) model; the draws are clipped to the physical bounds. "
+            + (f"Coefficients fitted on a bound ({', '.join(K['posterior']['at_bound'])}) are drawn only to "
+               "their feasible side, so the band can lie to one side of the prediction (the Laplace "
+               "approximation does not hold at a bound)." if K["posterior"].get("at_bound")
+               else "No coefficient is fitted on a bound."), "",
             "Predicted 35 deg turning circles (extrapolation from zigzag-only training):", "",
             md_table(["side", "index", "predicted (m)", "band 5-95 % (m)"], tc_rows), "",
             tc["note"] + ".", "",
