@@ -73,7 +73,6 @@ def test_starboard_rudder_turns_to_starboard_and_speed_settles():
     assert du < 1e-4 and 0.7 < straight["u"][-1] < 1.6  # settles at a plausible self-propulsion speed
 
 
-
 def test_neutral_rudder_angle_shifts_the_rudder_zero():
     """With dR0 = a, the rudder at a gives the forces of the rudder at 0 with dR0 = 0, and the
     rudder at 0 gives a yaw moment of the sign of a rudder at -a."""
