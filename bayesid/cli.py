@@ -65,7 +65,12 @@ def _convert(args) -> int:
         skipped += skip
     skipped = [(p, why) for p, why in skipped if p.resolve() not in seen]
     # Read and check every file before writing anything.
-    tracks = [datasets.read_run(p, args.format) for p in sources]
+    options = {}
+    if args.scale is not None:
+        if args.format != "simman-marin":
+            raise ValueError(f"--scale applies to --format simman-marin only (the {args.format} files are at model scale)")
+        options["scale"] = args.scale
+    tracks = [datasets.read_run(p, args.format, **options) for p in sources]
     runs, used = [], set()
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -260,6 +265,9 @@ def main(argv=None) -> int:
     c.add_argument("inputs", nargs="+", metavar="IN",
                    help="run file or data set folder (searched recursively; duplicates skipped)")
     c.add_argument("--out", required=True, help="output folder (created if absent)")
+    c.add_argument("--scale", type=float, default=None,
+                   help="simman-marin only: Froude scale lambda from the full-scale files to the model "
+                   f"(default {datasets.KVLCC2_SCALE:.5g}, the 7 m KVLCC2 model of kvlcc2_7m; 1 keeps full scale)")
     d = sub.add_parser("diagnose", help="sim-to-real gap: where / which effect / how far")
     d.add_argument("--vehicle", required=True, help="packaged id or TOML path (nominal coefficients)")
     d.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's; "

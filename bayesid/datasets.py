@@ -1,6 +1,6 @@
 """Loaders for third-party measured manoeuvring data -> :class:`~bayesid.track.Track`.
 
-Two formats are read (:data:`FORMATS`); each loader returns a Track in the
+Three formats are read (:data:`FORMATS`); each loader returns a Track in the
 package contract (``track.py``, README "Track files"): SI units, radians,
 earth-fixed positions ``x, y`` with ``psi`` measured clockwise (seen from
 above) from the ``x`` axis, body-frame ``u, v, r`` only where the file
@@ -19,8 +19,13 @@ propeller speed ``n`` in rpm.
     SIMMAN 2008 proceedings; files as redistributed by Alexandersson et al.
     2022, doi:10.1016/j.oceaneng.2022.112940).  Described in
     ``shared/data/real/kvlcc2-simman-hsva/README.md``.
+``"simman-marin"``
+    KVLCC2 free-running turning circles and zigzags, MARIN for SIMMAN 2008
+    (same repository as the HSVA files); the files are at full scale and
+    are Froude-scaled to the 7 m model (``scale``).  Described in
+    ``shared/research/real-data-sources.md`` section 2.3.
 
-Conventions that hold for both loaders:
+Conventions that hold for every loader:
 
 * ``t`` is the file's own time (s), not shifted: a run may start at t != 0.
   Rows whose fields are all empty are dropped; a row that repeats the
@@ -52,11 +57,11 @@ from .track import Track, TrackFormatError
 from .track import _fail as _track_fail
 
 __all__ = [
-    "FORMATS", "DatasetFormatError", "read_esso_osaka", "read_simman_hsva",
+    "FORMATS", "DatasetFormatError", "read_esso_osaka", "read_simman_hsva", "read_simman_marin",
     "read_run", "list_runs",
 ]
 
-FORMATS = ("esso-osaka", "simman-hsva")
+FORMATS = ("esso-osaka", "simman-hsva", "simman-marin")
 """Names of the supported third-party formats (``--format`` of ``bayesid convert``)."""
 
 _TWO_PI = 2.0 * math.pi
@@ -449,6 +454,9 @@ def read_simman_hsva(path) -> Track:
         raise _fail(path, f"too short: expected {_HSVA_HEADER_LINES} header lines and data "
                     f"rows, found {len(lines)} line(s)")
     title = lines[2].strip() if len(lines) > 2 else ""
+    if lines[0].strip().upper().startswith("MARIN"):
+        raise _fail(path, "is a MARIN file (first line names MARIN), not HSVA: read it with format "
+                    "'simman-marin' (read_simman_marin)", row=1)
     rows, row_of, dropped = _collect_rows(
         path, ((k, line.split()) for k, line in enumerate(lines[_HSVA_HEADER_LINES:], start=_HSVA_HEADER_LINES + 1)),
         len(_HSVA_FIELDS), "expected")
@@ -485,9 +493,152 @@ def read_simman_hsva(path) -> Track:
     return track
 
 
+# --------------------------------------------------------------------------- SIMMAN MARIN
+
+KVLCC2_SCALE = 320.0 / 7.0
+"""Scale of the SIMMAN 2008 KVLCC2 models (full-scale Lpp 320 m over the 7.00 m models: 1:45.714)."""
+
+_MARIN_VESSEL = ("KVLCC2 (SIMMAN 2008, MARIN free-running model tests; the files are at full scale, "
+                 "Lpp 320 m; the model 1:45.7)")
+_MARIN_REFERENCE = ("shared/research/real-data-sources.md sec. 2.3; SIMMAN 2008 (Stern & Agdrup, eds.), "
+                    "MARIN free-running tests; files MARIN_FREE_KVLCC2_*_m.dat from GitHub "
+                    "martinlarsalbert/System-identification-of-Vessel-Manoeuvring-Models (data/01_raw/kvlcc2); "
+                    "Alexandersson et al. (2022) Ocean Eng. 266:112940")
+_MARIN_FIELDS = ("col 0 (time, s)", "col 1 (x0, m)", "col 2 (y0, m)", "col 3 (phi, deg)",
+                 "col 4 (psi, deg)", "col 5 (dx0/dt, m/s)", "col 6 (dy0/dt, m/s)", "col 7 (p, deg/s)",
+                 "col 8 (r, deg/s)", "col 9 (delta, deg)", "col 10 (n, rpm)")
+_MARIN_MAX_HEADER = 5
+
+
+def _marin_time(path, stamps, row_of):
+    """A uniform time base from 3-significant-digit stamps: ``t0 + k dt`` with ``dt`` the
+    least-squares slope of stamp on row index. Raises naming the first row whose stamp is
+    missing, decreases, or lies off that grid by more than its rounding (half a unit of the
+    third significant digit) plus one step."""
+    missing = np.flatnonzero(np.isnan(stamps))
+    if missing.size:
+        raise _fail(path, "missing time value", row=row_of[missing[0]], column=_MARIN_FIELDS[0])
+    dec = np.flatnonzero(np.diff(stamps) < 0)
+    if dec.size:
+        i = int(dec[0]) + 1
+        raise _fail(path, f"time decreases ({stamps[i]!r} after {stamps[i - 1]!r})", row=row_of[i],
+                    column=_MARIN_FIELDS[0])
+    k = np.arange(stamps.size, dtype=float)
+    if stamps.size < 2:
+        return stamps.copy(), None
+    dt, t0 = np.polyfit(k, stamps, 1)
+    if not dt > 0:
+        raise _fail(path, "time does not advance", row=row_of[-1], column=_MARIN_FIELDS[0])
+    t = t0 + dt * k
+    tol = 0.0051 * np.abs(stamps) + 1.01 * dt
+    off = np.flatnonzero(np.abs(stamps - t) > tol)
+    if off.size:
+        i = int(off[0])
+        raise _fail(path, f"time stamp {stamps[i]:g} s is off the uniform grid ({t[i]:.4g} s at "
+                    f"step {dt:.5g} s): a gap or a time jump", row=row_of[i], column=_MARIN_FIELDS[0])
+    return t, dt
+
+
+def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
+    """Read one KVLCC2 MARIN free-running file (SIMMAN 2008, ``MARIN_FREE_KVLCC2_*_m.dat``),
+    Froude-scaled to model scale.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Text: up to 5 title lines (e.g. ``Turning / Pull-out manoeuvring for KVLCC2 : 35 (deg)``),
+        then 11 tab- or space-separated numbers per line (3 significant digits), at **full
+        scale**: t (s), x0, y0 (m, earth-fixed, y to starboard), phi, psi (deg), dx0/dt,
+        dy0/dt (m/s, earth-fixed), p, r (deg/s), delta (deg, + to port: gives r < 0), n (rpm).
+    scale : float
+        Froude scale ``lambda`` applied to reach the model (default :data:`KVLCC2_SCALE`, the
+        1:45.714 of the 7 m SIMMAN models, so the track matches ``kvlcc2_7m``); 1 keeps full
+        scale. Lengths / lambda, times and velocities / sqrt(lambda), rates and rpm *
+        sqrt(lambda), angles unchanged (Froude similarity; ITTC 7.5-02-06-01).
+
+    Returns
+    -------
+    Track
+        ``t`` (s; rebuilt on a uniform grid, see Notes), ``x``, ``y`` (m), ``phi``, ``psi`` (rad,
+        psi unwrapped), ``u``, ``v`` (m/s, body frame: the earth-frame velocities rotated by
+        psi; over ground, a tank has no current), ``p``, ``r`` (rad/s), ``delta_r`` (rad, sign
+        unchanged), ``n`` (rpm); exogenous ``x_dot``, ``y_dot`` (m/s, as in the file, scaled).
+        ``meta["scale"]`` holds ``scale``, ``meta["manoeuvre"]`` the title.
+
+    Raises
+    ------
+    FileNotFoundError : ``path`` does not exist.
+    ValueError : ``scale`` not a positive finite number.
+    DatasetFormatError : naming file, row (line number) and column (``col k (...)``): no data
+        rows; a row without 11 fields; a non-numeric or overflowing value; a time stamp that is
+        missing, decreases or is off the uniform grid.
+
+    Notes
+    -----
+    The stamps carry 3 significant digits, so after 100 s several rows share a stamp; the time
+    base is ``t0 + k dt`` with ``dt`` fitted to all stamps (0.1352 s full scale, i.e. 50 Hz at
+    model scale), checked against every stamp. Positions also carry 3 significant digits
+    (about 10 m full scale, 0.2 m model scale, once |x| > 1000 m), and so does the unwrapped
+    heading in degrees (1 deg steps past 100 deg, which puts up to U sin(0.5 deg) into ``v``):
+    both kept as measured, not smoothed.
+    Format: ``shared/research/real-data-sources.md`` section 2.3.
+    """
+    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
+        raise ValueError(f"scale must be a positive number (Froude scale lambda), got {scale!r}")
+    lines = _read_lines(path, "cp1252")
+    head = 0
+    while head < min(len(lines), _MARIN_MAX_HEADER):
+        first = lines[head].split()
+        if first and _NUMBER.fullmatch(first[0]):
+            break
+        head += 1
+    title = next((ln.strip() for ln in lines[1:head] if ln.strip()), lines[0].strip() if head else "")
+    rows, row_of, dropped = _collect_rows(
+        path, ((k, line.split()) for k, line in enumerate(lines[head:], start=head + 1)),
+        len(_MARIN_FIELDS), "expected")
+    if not rows:
+        raise _fail(path, "no data rows after the title lines", row=head + 1)
+    a = _parse_rows(path, rows, _MARIN_FIELDS, row_of)
+    notes = []
+    _empty_rows_note(dropped, notes)
+    t_full, dt = _marin_time(path, a[:, 0], row_of)
+    sq = math.sqrt(scale)
+    psi = _unwrap(np.radians(a[:, 4]))
+    xd, yd = a[:, 5] / sq, a[:, 6] / sq
+    c, s = np.cos(psi), np.sin(psi)
+    data = {
+        "x": a[:, 1] / scale, "y": a[:, 2] / scale, "phi": np.radians(a[:, 3]), "psi": psi,
+        "u": c * xd + s * yd, "v": -s * xd + c * yd,
+        "p": np.radians(a[:, 7]) * sq, "r": np.radians(a[:, 8]) * sq,
+        "delta_r": np.radians(a[:, 9]), "n": a[:, 10] * sq,
+        "x_dot": xd, "y_dot": yd,
+    }
+    units = {"x_dot": "m/s", "y_dot": "m/s"}
+    conversions = [
+        f"Froude scale lambda = {scale:g}: x, y / lambda; t, velocities / sqrt(lambda); p, r, n * sqrt(lambda)",
+        "t rebuilt as t0 + k dt (dt fitted to the 3-digit stamps"
+        + (f": {dt:.6g} s full scale)" if dt else ")"),
+        "phi, psi [rad] = radians(cols 3, 4 [deg]) (psi unwrapped)",
+        "u, v = earth-frame (col 5, col 6) rotated into the body frame by psi",
+        "p, r [rad/s] = radians(cols 7, 8 [deg/s])",
+        "delta_r [rad] = radians(col 9 [deg]) (sign unchanged: + = to port, gives r < 0)",
+        "n [rpm] = col 10 [rpm]",
+    ]
+    notes.append("positions, heading and stamps carry 3 significant digits (positions quantised to "
+                 f"{10.0 / scale:.3g} m once |x| > 1000 m full scale; heading to 1 deg past 100 deg)")
+    track = _build(path, "simman-marin", t_full / sq, data, units, _MARIN_VESSEL, _MARIN_REFERENCE,
+                   conversions, notes)
+    track.meta["scale"] = float(scale)
+    track.meta["manoeuvre"] = title
+    if title:
+        track.meta["comments"].insert(2, f"manoeuvre: {title}")
+    return track
+
+
 # --------------------------------------------------------------------------- dispatch, listing
 
-_READERS = {"esso-osaka": read_esso_osaka, "simman-hsva": read_simman_hsva}
+_READERS = {"esso-osaka": read_esso_osaka, "simman-hsva": read_simman_hsva,
+            "simman-marin": read_simman_marin}
 
 
 def _check_format(format):
@@ -495,16 +646,18 @@ def _check_format(format):
         raise ValueError(f"unknown format {format!r}; choose one of {list(FORMATS)}")
 
 
-def read_run(path, format: str) -> Track:
+def read_run(path, format: str, **options) -> Track:
     """Read one run file of a third-party data set.
 
     Parameters
     ----------
     path : str or os.PathLike
         The run file.
-    format : {"esso-osaka", "simman-hsva"}
-        See :data:`FORMATS`; dispatches to :func:`read_esso_osaka` or
-        :func:`read_simman_hsva`.
+    format : {"esso-osaka", "simman-hsva", "simman-marin"}
+        See :data:`FORMATS`; dispatches to :func:`read_esso_osaka`,
+        :func:`read_simman_hsva` or :func:`read_simman_marin`.
+    **options
+        Passed to the reader (``scale`` for ``"simman-marin"``).
 
     Returns
     -------
@@ -521,7 +674,7 @@ def read_run(path, format: str) -> Track:
         As raised by the reader (names file, row, column).
     """
     _check_format(format)
-    return _READERS[format](path)
+    return _READERS[format](path, **options)
 
 
 def _is_run_file(path: Path, format: str) -> bool:
@@ -537,7 +690,18 @@ def _is_run_file(path: Path, format: str) -> bool:
         except OSError:
             return False
         return False
-    return path.suffix.lower() == ".dat"
+    if path.suffix.lower() != ".dat":
+        return False
+    # both basins write .dat files: MARIN's first line names MARIN, HSVA's names HSVA
+    return _is_marin(path) == (format == "simman-marin")
+
+
+def _is_marin(path: Path) -> bool:
+    try:
+        with open(path, encoding="cp1252", errors="replace") as f:
+            return f.readline().strip().upper().startswith("MARIN")
+    except OSError:
+        return False
 
 
 def _data_text(path: Path, format: str) -> str:
@@ -549,6 +713,11 @@ def _data_text(path: Path, format: str) -> str:
         first = next((i for i, ln in enumerate(lines) if ln.strip()), len(lines))
         body = lines[first + 1:]
         blank = ", \t"
+    elif format == "simman-marin":
+        first = next((i for i, ln in enumerate(lines) if ln.split() and _NUMBER.fullmatch(ln.split()[0])),
+                     len(lines))
+        body = lines[first:]
+        blank = " \t"
     else:
         body = lines[_HSVA_HEADER_LINES:]
         blank = " \t"
@@ -604,10 +773,11 @@ def list_runs(root, format) -> list[Path]:
     root : str or os.PathLike
         A data set folder (e.g. ``shared/data/real/esso-osaka-frt``), or a
         single run file (returned as is).
-    format : {"esso-osaka", "simman-hsva"}
+    format : {"esso-osaka", "simman-hsva", "simman-marin"}
         ``"esso-osaka"``: ``*.csv`` files whose header row has
         ``x_position_mid`` (so ``mmg_params/*.csv`` and READMEs are
-        skipped).  ``"simman-hsva"``: ``*.dat`` files.  Folders named
+        skipped).  ``"simman-hsva"`` / ``"simman-marin"``: ``*.dat`` files
+        whose first line does not / does name MARIN.  Folders named
         ``aux`` or ``mmg_params`` and hidden folders are not searched.
 
     Returns

@@ -194,7 +194,7 @@ def test_hsva_malformed_names_row_and_column(tmp_path, mutate, row, column, word
 
 def test_read_run_dispatch_and_unknown_format(tmp_path):
     path = write(tmp_path / "a.csv", [ESSO_HEADER, esso_row(0.0), esso_row(0.1)])
-    assert FORMATS == ("esso-osaka", "simman-hsva")
+    assert FORMATS == ("esso-osaka", "simman-hsva", "simman-marin")
     assert read_run(path, "esso-osaka").n_samples == 2
     with pytest.raises(ValueError, match="unknown format 'nope'"):
         read_run(path, "nope")
