@@ -184,6 +184,19 @@ def _empty_rows_note(dropped, notes):
         notes.append(f"dropped {len(dropped)} empty row(s) ({span})")
 
 
+def _whitespace_table(path, lines, head: int, fields, header_name: str):
+    """Whitespace-separated numeric rows after ``head`` header lines -> (array (n, len(fields)),
+    line numbers, notes). Empty rows dropped (noted); errors name file, row and column."""
+    rows, row_of, dropped = _collect_rows(
+        path, ((k, line.split()) for k, line in enumerate(lines[head:], start=head + 1)), len(fields), "expected")
+    if not rows:
+        raise _fail(path, f"no data rows after the {header_name}", row=head + 1)
+    a = _parse_rows(path, rows, fields, row_of)
+    notes = []
+    _empty_rows_note(dropped, notes)
+    return a, row_of, notes
+
+
 def _build(path, fmt, t, data, units, vessel, reference, conversions, notes):
     name = Path(path).stem
     rate = _sample_rate(t)
@@ -457,14 +470,7 @@ def read_simman_hsva(path) -> Track:
     if lines[0].strip().upper().startswith("MARIN"):
         raise _fail(path, "is a MARIN file (first line names MARIN), not HSVA: read it with format "
                     "'simman-marin' (read_simman_marin)", row=1)
-    rows, row_of, dropped = _collect_rows(
-        path, ((k, line.split()) for k, line in enumerate(lines[_HSVA_HEADER_LINES:], start=_HSVA_HEADER_LINES + 1)),
-        len(_HSVA_FIELDS), "expected")
-    if not rows:
-        raise _fail(path, "no data rows after the header", row=_HSVA_HEADER_LINES + 1)
-    a = _parse_rows(path, rows, _HSVA_FIELDS, row_of)
-    notes = []
-    _empty_rows_note(dropped, notes)
+    a, row_of, notes = _whitespace_table(path, lines, _HSVA_HEADER_LINES, _HSVA_FIELDS, "header")
     keep = _clean_time(path, a[:, 0], row_of, _HSVA_FIELDS[0], notes)
     a = a[keep]
     data = {
@@ -593,14 +599,7 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
             break
         head += 1
     title = next((ln.strip() for ln in lines[1:head] if ln.strip()), lines[0].strip() if head else "")
-    rows, row_of, dropped = _collect_rows(
-        path, ((k, line.split()) for k, line in enumerate(lines[head:], start=head + 1)),
-        len(_MARIN_FIELDS), "expected")
-    if not rows:
-        raise _fail(path, "no data rows after the title lines", row=head + 1)
-    a = _parse_rows(path, rows, _MARIN_FIELDS, row_of)
-    notes = []
-    _empty_rows_note(dropped, notes)
+    a, row_of, notes = _whitespace_table(path, lines, head, _MARIN_FIELDS, "title lines")
     t_full, dt = _marin_time(path, a[:, 0], row_of)
     sq = math.sqrt(scale)
     psi = _unwrap(np.radians(a[:, 4]))
