@@ -197,7 +197,7 @@ def _whitespace_table(path, lines, head: int, fields, header_name: str):
     return a, row_of, notes
 
 
-def _build(path, fmt, t, data, units, vessel, reference, conversions, notes):
+def _build(path, fmt, t, data, units, vessel, reference, conversions, notes, manoeuvre=None):
     name = Path(path).stem
     rate = _sample_rate(t)
     if t.size and t[0] != 0:
@@ -218,6 +218,10 @@ def _build(path, fmt, t, data, units, vessel, reference, conversions, notes):
          f"sample rate: {rate:g} Hz" if rate else "sample rate: n/a (one sample)"]
         + [f"conversion: {c}" for c in conversions]
         + [f"note: {n}" for n in notes])
+    if manoeuvre is not None:  # the file's title line, where its format has one
+        meta["manoeuvre"] = manoeuvre
+        if manoeuvre:
+            meta["comments"].insert(2, f"manoeuvre: {manoeuvre}")
     try:
         return Track(t, data, name=name, units=units, meta=meta)
     except ValueError as exc:  # should not happen after the checks above
@@ -491,12 +495,8 @@ def read_simman_hsva(path) -> Track:
         "hsva_col5, hsva_col7 = cols 5, 7 raw (meaning unverified)",
     ]
     notes.append("no u, v: only one earth-frame velocity component (dx0/dt) is in the file")
-    track = _build(path, "simman-hsva", a[:, 0], data, units, _HSVA_VESSEL, _HSVA_REFERENCE,
-                   conversions, notes)
-    track.meta["manoeuvre"] = title
-    if title:
-        track.meta["comments"].insert(2, f"manoeuvre: {title}")
-    return track
+    return _build(path, "simman-hsva", a[:, 0], data, units, _HSVA_VESSEL, _HSVA_REFERENCE,
+                  conversions, notes, manoeuvre=title)
 
 
 # --------------------------------------------------------------------------- SIMMAN MARIN
@@ -626,11 +626,8 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
     notes.append("positions, heading and stamps carry 3 significant digits (positions quantised to "
                  f"{10.0 / scale:.3g} m once |x| > 1000 m full scale; heading to 1 deg past 100 deg)")
     track = _build(path, "simman-marin", t_full / sq, data, units, _MARIN_VESSEL, _MARIN_REFERENCE,
-                   conversions, notes)
+                   conversions, notes, manoeuvre=title)
     track.meta["scale"] = float(scale)
-    track.meta["manoeuvre"] = title
-    if title:
-        track.meta["comments"].insert(2, f"manoeuvre: {title}")
     return track
 
 
