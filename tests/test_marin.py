@@ -125,3 +125,37 @@ def test_list_runs_tells_the_basins_apart_and_convert_round_trips(tmp_path, caps
     assert main(["convert", "--format", "simman-hsva", str(tmp_path / "HSVA_Z.dat"), "--scale", "2",
                  "--out", str(tmp_path / "o2")]) == 2
     assert "--scale applies to --format simman-marin only" in capsys.readouterr().err
+
+
+def test_real_ships_study_compares_marin_turns_when_present(tmp_path):
+    """studies/real_ships.py picks MARIN files up anywhere under --data (here a synthetic port
+    turn beside an HSVA-like folder) and scores the tactical diameter against the measured one."""
+    import importlib.util
+    from pathlib import Path
+
+    from bayesid import ship
+
+    spec = importlib.util.spec_from_file_location(
+        "real_ships", Path(__file__).resolve().parents[1] / "studies" / "real_ships.py")
+    study = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study)
+    data = tmp_path / "data"
+    (data / "kvlcc2-other-basin").mkdir(parents=True)
+    R = 520.0
+    marin_file(data / "kvlcc2-other-basin" / "MARIN_FREE_KVLCC2_tc_35_m.dat", port_turn_full_scale(R=R))
+    am = msfit.build_model(ship.load_ship("kvlcc2_7m"))
+    af = type("Fit", (), {"p": am.start()})()
+    cov = np.diag((0.01 * np.maximum(np.abs(am.start()), 1e-3)) ** 2)
+    (tmp_path / "fig").mkdir()
+    M, figs = study.marin_runs(am, af, cov, data, 4, np.random.default_rng(0), tmp_path / "fig")
+    assert M["n_runs"] == 1 and M["n_turning_with_td"] == 1 and len(figs) == 1 and figs[0].exists()
+    e = M["runs"]["MARIN_FREE_KVLCC2_tc_35_m"]
+    td_m = e["measured"]["tactical_diameter_m"]
+    assert td_m == pytest.approx(2 * R / KVLCC2_SCALE, rel=0.01)
+    assert e["tactical_diameter_rel_error"] == pytest.approx(e["predicted"]["tactical_diameter_m"] / td_m - 1)
+    assert M["tactical_diameter_within_5pct"] == int(abs(e["tactical_diameter_rel_error"]) <= 0.05)
+    assert e["w60"]["rms_position_m"] >= 0 and set(M["pooled_rms_position_m"]) == {"w30", "w60"}
+    text = "\n".join(study.marin_section(M, figs))
+    assert "MARIN_FREE_KVLCC2_tc_35_m" in text and "within 5 %" in text
+    assert "No MARIN file" in "\n".join(study.marin_section(None, []))
+    assert study.marin_runs(am, af, cov, tmp_path / "fig", 4, np.random.default_rng(0), tmp_path / "fig") == (None, [])
