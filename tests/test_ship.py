@@ -238,3 +238,25 @@ def test_real_ships_quick_writes_results(tmp_path):
         for w in ("w30", "w60"):
             assert set(d[w]) >= {"heldout_rms_position_m_base", "heldout_rms_position_m_after", "shrinkage"}
         assert not set(d["train_runs"]) & set(d["heldout_runs"])
+
+
+@pytest.mark.parametrize("g_deg", [30.0, 90.0, 125.0, -60.0])
+def test_wind_loads_follow_the_fourier_form(g_deg):
+    """Ship at rest heading north, true wind from g off the bow: the loads are Fujiwara's
+    truncated series, each harmonic with its own coefficient (Cn3 sin 3g included)."""
+    es = ship.load_ship("esso_osaka_3m")
+    c = {"Cx1": -0.7, "Cx3": 0.1, "Cy1": -0.8, "Cy3": 0.05, "Cn1": 0.02, "Cn2": -0.05, "Cn3": 0.03}
+    g, VA = math.radians(g_deg), 3.0
+    wind = np.array([[-VA * math.cos(g), -VA * math.sin(g)]])  # velocity it blows with (north, east)
+    s = np.zeros((1, 6))
+    F = {}
+    for key, coef in (("on", c), ("off", {k: 0.0 for k in c})):
+        out = np.empty((1, 3))
+        ship.forces(s, np.array([[0.0, 0.0]]), wind, np.zeros(2), es.params(coef), out)
+        F[key] = out[0]
+    pr, qa = es.particulars, 0.5 * es.particulars["rho_air"] * VA ** 2
+    want = [qa * pr["A_front"] * (c["Cx1"] * math.cos(g) + c["Cx3"] * math.cos(3 * g)),
+            qa * pr["A_lateral"] * (c["Cy1"] * math.sin(g) + c["Cy3"] * math.sin(3 * g)),
+            qa * pr["A_lateral"] * pr["L"] * (c["Cn1"] * math.sin(g) + c["Cn2"] * math.sin(2 * g)
+                                              + c["Cn3"] * math.sin(3 * g))]
+    np.testing.assert_allclose(F["on"] - F["off"], want, rtol=1e-10, atol=1e-12)
