@@ -545,7 +545,19 @@ def _marin_time(path, stamps, row_of):
     return t, dt
 
 
-def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
+def _fuse_heading(psi, r, t, tau):
+    """Causal complementary filter of a coarsely rounded heading with the integral of the yaw
+    rate (see :func:`read_simman_marin`): psi, r (rad, rad/s), t (s), all (n,); tau (s)."""
+    out = np.empty_like(psi)
+    out[0] = psi[0]
+    for k in range(1, psi.size):
+        dt = t[k] - t[k - 1]
+        q = out[k - 1] + 0.5 * dt * (r[k - 1] + r[k])
+        out[k] = q + dt / (tau + dt) * (psi[k] - q)
+    return out
+
+
+def read_simman_marin(path, scale: float = KVLCC2_SCALE, heading_tau_s: float | None = 20.0) -> Track:
     """Read one KVLCC2 MARIN free-running file (SIMMAN 2008, ``MARIN_FREE_KVLCC2_*_m.dat``),
     Froude-scaled to model scale.
 
@@ -561,6 +573,14 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
         1:45.714 of the 7 m SIMMAN models, so the track matches ``kvlcc2_7m``); 1 keeps full
         scale. Lengths / lambda, times and velocities / sqrt(lambda), rates and rpm *
         sqrt(lambda), angles unchanged (Froude similarity; ITTC 7.5-02-06-01).
+    heading_tau_s : float or None
+        Time constant (s, full scale) of the causal complementary filter that fuses the
+        file's heading (3 significant digits: 1 deg steps past 100 deg) with the integral of its
+        yaw rate (0.1-1 % resolution): ``psi_f[k] = q + a (psi[k] - q)`` with
+        ``q = psi_f[k-1] + dt (r[k-1] + r[k]) / 2`` and ``a = dt / (tau + dt)``. The heading's
+        rounding (up to 0.5 deg, a sawtooth during a turn) drops to about 0.05 deg; a rate
+        rounding of ``e`` deg/s leaves an offset of at most ``e tau``. The filter uses no future
+        sample, so a window's start state stays causal. None keeps the heading as in the file.
 
     Returns
     -------
@@ -569,12 +589,14 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
         psi unwrapped), ``u``, ``v`` (m/s, body frame: the earth-frame velocities rotated by
         psi; over ground, a tank has no current), ``p``, ``r`` (rad/s), ``delta_r`` (rad, sign
         unchanged), ``n`` (rpm); exogenous ``x_dot``, ``y_dot`` (m/s, as in the file, scaled).
+        ``psi_file`` (rad, the file's heading unwrapped, when ``heading_tau_s`` fuses ``psi``).
         ``meta["scale"]`` holds ``scale``, ``meta["manoeuvre"]`` the title.
 
     Raises
     ------
     FileNotFoundError : ``path`` does not exist.
-    ValueError : ``scale`` not a positive finite number.
+    ValueError : ``scale`` not a positive finite number; ``heading_tau_s`` neither None nor a
+        positive finite number.
     DatasetFormatError : naming file, row (line number) and column (``col k (...)``): no data
         rows; a row without 11 fields; a non-numeric or overflowing value; a time stamp that is
         missing, decreases or is off the uniform grid.
@@ -584,13 +606,17 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
     The stamps carry 3 significant digits, so after 100 s several rows share a stamp; the time
     base is ``t0 + k dt`` with ``dt`` fitted to all stamps (0.1352 s full scale, i.e. 50 Hz at
     model scale), checked against every stamp. Positions also carry 3 significant digits
-    (about 10 m full scale, 0.2 m model scale, once |x| > 1000 m), and so does the unwrapped
-    heading in degrees (1 deg steps past 100 deg, which puts up to U sin(0.5 deg) into ``v``):
-    both kept as measured, not smoothed.
+    (about 10 m full scale, 0.2 m model scale, once |x| > 1000 m): kept as measured. So does the
+    unwrapped heading in degrees (1 deg steps past 100 deg); rotating the earth-frame velocities
+    by that heading would put up to ``U sin(0.5 deg)`` (0.01 m/s at model scale) into ``v``, so
+    ``psi`` (and hence ``u``, ``v``) uses the fused heading unless ``heading_tau_s`` is None.
     Format: ``shared/research/real-data-sources.md`` section 2.3.
     """
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
         raise ValueError(f"scale must be a positive number (Froude scale lambda), got {scale!r}")
+    if heading_tau_s is not None and not (isinstance(heading_tau_s, (int, float))
+                                          and math.isfinite(heading_tau_s) and heading_tau_s > 0):
+        raise ValueError(f"heading_tau_s must be None or a positive number of seconds, got {heading_tau_s!r}")
     lines = _read_lines(path, "cp1252")
     head = 0
     while head < min(len(lines), _MARIN_MAX_HEADER):
@@ -602,7 +628,9 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
     a, row_of, notes = _whitespace_table(path, lines, head, _MARIN_FIELDS, "title lines")
     t_full, dt = _marin_time(path, a[:, 0], row_of)
     sq = math.sqrt(scale)
-    psi = _unwrap(np.radians(a[:, 4]))
+    psi_file = _unwrap(np.radians(a[:, 4]))
+    psi = psi_file if heading_tau_s is None else _fuse_heading(psi_file, np.radians(a[:, 8]), t_full,
+                                                                 float(heading_tau_s))
     xd, yd = a[:, 5] / sq, a[:, 6] / sq
     c, s = np.cos(psi), np.sin(psi)
     data = {
@@ -613,11 +641,16 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE) -> Track:
         "x_dot": xd, "y_dot": yd,
     }
     units = {"x_dot": "m/s", "y_dot": "m/s"}
+    if heading_tau_s is not None:
+        data["psi_file"], units["psi_file"] = psi_file, "rad"
     conversions = [
         f"Froude scale lambda = {scale:g}: x, y / lambda; t, velocities / sqrt(lambda); p, r, n * sqrt(lambda)",
         "t rebuilt as t0 + k dt (dt fitted to the 3-digit stamps"
         + (f": {dt:.6g} s full scale)" if dt else ")"),
-        "phi, psi [rad] = radians(cols 3, 4 [deg]) (psi unwrapped)",
+        "phi, psi [rad] = radians(cols 3, 4 [deg]) (psi unwrapped)"
+        + ("" if heading_tau_s is None else
+           f"; psi fused with the integral of r (causal complementary filter, tau {heading_tau_s:g} s full "
+           "scale; the file's heading kept as psi_file)"),
         "u, v = earth-frame (col 5, col 6) rotated into the body frame by psi",
         "p, r [rad/s] = radians(cols 7, 8 [deg/s])",
         "delta_r [rad] = radians(col 9 [deg]) (sign unchanged: + = to port, gives r < 0)",

@@ -51,9 +51,15 @@ def test_froude_scaling_signs_and_tactical_diameter(tmp_path):
     assert tr.meta["sample_rate_hz"] == pytest.approx(50.0, rel=2e-3)
     # model scale: 7.98 m/s -> 1.18 m/s, 91.7 rpm -> 620 rpm; rudder + to port gives r < 0
     np.testing.assert_allclose(tr["u"][:50], 7.98 / sq, rtol=6e-3)
-    # v = 0 but for the heading's rounding: 3 digits of psi in deg are 1 deg steps past 100 deg,
-    # so v picks up U sin(0.5 deg) = 0.010 m/s at most
-    np.testing.assert_allclose(tr["v"], 0.0, atol=0.012)
+    # v = 0: the file's heading has 1 deg steps past 100 deg (3 digits), which would put up to
+    # U sin(0.5 deg) = 0.010 m/s into v; the heading fused with the integral of r removes it
+    psi_true = np.radians(a[:, 4].astype(float))
+    assert np.abs(tr["psi_file"] - psi_true).max() > np.radians(0.3)   # the file is rounded
+    assert np.abs(tr["psi"] - psi_true).max() < np.radians(0.1)
+    np.testing.assert_allclose(tr["v"], 0.0, atol=0.002)
+    raw = read_simman_marin(tmp_path / "MARIN_FREE_KVLCC2_tc_35_m.dat", heading_tau_s=None)
+    assert np.abs(raw["v"]).max() > 0.006 and "psi_file" not in raw
+    np.testing.assert_array_equal(raw["psi"], tr["psi_file"])
     np.testing.assert_allclose(tr["n"], 91.7 * sq, rtol=1e-3)
     turning = tr["delta_r"] > 0.5
     assert (tr["r"][turning] < 0).all()
