@@ -176,9 +176,13 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
     paths = datasets.list_runs(data, "simman-marin")
     if not paths:
         return None, []
-    runs, figs, tracks = {}, [], []
+    runs, figs, tracks, unread = {}, [], [], {}
     for p in paths:
-        tr = datasets.read_run(p, "simman-marin")
+        try:
+            tr = datasets.read_run(p, "simman-marin")
+        except ValueError as exc:  # DatasetFormatError names file, row, column: reported, not fatal
+            unread[str(p)] = str(exc)
+            continue
         tracks.append(tr)
         tb = msfit.turning_band(am, af.p, cov, tr, draws, rng)
         meas, pred = tb["measured"], tb["predicted"]
@@ -199,8 +203,9 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
                                        f"MARIN {tr.name}: whole run, open loop"))
         runs[tr.name] = e
     errs = [e["tactical_diameter_rel_error"] for e in runs.values() if e.get("tactical_diameter_rel_error") is not None]
-    pooled = {key: msfit.predict(am, af.p, tracks, w)["pooled"]["rms_position_m"] for key, w in (("w30", 30.0), ("w60", 60.0))}
-    summary = {"n_runs": len(runs), "n_turning_with_td": len(errs),
+    pooled = {key: msfit.predict(am, af.p, tracks, w)["pooled"]["rms_position_m"] if tracks else None
+              for key, w in (("w30", 30.0), ("w60", 60.0))}
+    summary = {"n_runs": len(runs), "unread": unread, "n_turning_with_td": len(errs),
                "tactical_diameter_rel_errors": errs,
                "tactical_diameter_within_5pct": int(sum(abs(x) <= 0.05 for x in errs)),
                "max_abs_tactical_diameter_rel_error": max((abs(x) for x in errs), default=None),
@@ -312,6 +317,7 @@ def marin_section(M, figs) -> list[str]:
         f"30 s {fmt(M['pooled_rms_position_m']['w30'])} m, 60 s {fmt(M['pooled_rms_position_m']['w60'])} m.", "",
         md_table(["run", "kind", "TD rel. error", "measured TD in band", "30 s RMS (m)", "60 s RMS (m)"], wrows), "",
         md_table(["run", "index", "measured", "predicted", "band 5-95 %"], rows), "",
+        *[f"Not read: {k}: {v}" for k, v in M["unread"].items()], "",
         *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
 
 

@@ -153,7 +153,12 @@ def test_real_ships_study_compares_marin_turns_when_present(tmp_path):
     af = type("Fit", (), {"p": am.start()})()
     cov = np.diag((0.01 * np.maximum(np.abs(am.start()), 1e-3)) ** 2)
     (tmp_path / "fig").mkdir()
+    bad = port_turn_full_scale(duration=30.0).tolist()
+    bad[40] = "1.0\t2.0"
+    marin_file(data / "kvlcc2-other-basin" / "MARIN_FREE_KVLCC2_zz_bad_m.dat", bad)
     M, figs = study.marin_runs(am, af, cov, data, 4, np.random.default_rng(0), tmp_path / "fig")
+    assert list(M["unread"]) == [str(data / "kvlcc2-other-basin" / "MARIN_FREE_KVLCC2_zz_bad_m.dat")]
+    assert "row 44" in next(iter(M["unread"].values()))
     assert M["n_runs"] == 1 and M["n_turning_with_td"] == 1 and len(figs) == 1 and figs[0].exists()
     e = M["runs"]["MARIN_FREE_KVLCC2_tc_35_m"]
     td_m = e["measured"]["tactical_diameter_m"]
