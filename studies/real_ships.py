@@ -193,8 +193,6 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
             e["tactical_diameter_rel_error"] = (td_p - td_m) / td_m if math.isfinite(td_p) else None
             band = tb["band_5_95"].get("tactical_diameter_m")
             e["measured_in_band"] = bool(band and band[0] <= td_m <= band[1])
-        for key, w in (("w30", 30.0), ("w60", 60.0)):
-            e[key] = msfit.predict(am, af.p, [tr], w)["pooled"]
         ctx, S = tb["_ctx"], tb["_S"]
         Sm = np.zeros((1,) + S.shape[1:])
         Sm[0, :, 0], Sm[0, :, 1] = ctx.meas["x"], ctx.meas["y"]
@@ -202,9 +200,14 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
                                        figdir / f"marin_{tr.name}.png",
                                        f"MARIN {tr.name}: whole run, open loop"))
         runs[tr.name] = e
+    pooled = {"w30": None, "w60": None}
+    for key, w in (("w30", 30.0), ("w60", 60.0)):
+        if tracks:  # one protocol pass per window length: pooled over the runs and per run
+            pr = msfit.predict(am, af.p, tracks, w)
+            pooled[key] = pr["pooled"]["rms_position_m"]
+            for name, sc in pr["per_track"].items():
+                runs[name][key] = sc
     errs = [e["tactical_diameter_rel_error"] for e in runs.values() if e.get("tactical_diameter_rel_error") is not None]
-    pooled = {key: msfit.predict(am, af.p, tracks, w)["pooled"]["rms_position_m"] if tracks else None
-              for key, w in (("w30", 30.0), ("w60", 60.0))}
     summary = {"n_runs": len(runs), "unread": unread, "n_turning_with_td": len(errs),
                "tactical_diameter_rel_errors": errs,
                "tactical_diameter_within_5pct": int(sum(abs(x) <= 0.05 for x in errs)),
