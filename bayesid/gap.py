@@ -590,6 +590,21 @@ def _effect_starts(name, model, base_theta, seeds):
     return [(p, None)]
 
 
+def _nested_start(model, ref_model, ref_fit, name):
+    """(p0, nuisance0) of ``model`` (= ``ref_model`` plus effect ``name`` appended last) at the
+    reference fit's optimum with the new effect at its catalogue ``neutral`` value, where the
+    model reproduces the reference model; None when the effect does not nest it."""
+    e = next(e for e in model.effects if e.name == name)
+    if e.neutral is None:
+        return None
+    p0 = np.concatenate([ref_fit.p, np.asarray(e.neutral, float)])
+    nu0 = None
+    if model.n_nuisance:
+        nu0 = [np.concatenate([np.asarray(v, float), np.zeros(model.n_nuisance - ref_model.n_nuisance)])
+               for v in ref_fit.nuisance]
+    return p0, nu0
+
+
 def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_s: float | None = 60.0,
              dt: float = 0.5, mode: str = "horizontal", rng=None, max_nfev: int = 60,
              none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
@@ -702,6 +717,16 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                     continue
                 if best is None or f.ssr < best.ssr:
                     best = f
+            nested = _nested_start(m, ref_model, ref_fit, name)
+            if nested is not None and (best is None or best.ssr > ref_fit.ssr):
+                # a candidate that nests the model it extends cannot fit worse than it: start
+                # once more at that model's optimum with the new effect at its neutral value
+                try:
+                    f = fit(m, ct, sd_fit, *nested, max_nfev=max_nfev)
+                    if best is None or f.ssr < best.ssr:
+                        best = f
+                except Exception as exc:  # noqa: BLE001
+                    say(f"{name} (nested start) failed: {exc}")
             if best is None:
                 continue
             nu_h = None

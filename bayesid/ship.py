@@ -490,15 +490,16 @@ def apparent_wind(track: Track, u, v, psi, t=None) -> tuple[np.ndarray, np.ndarr
 SHIP_CATALOGUE = {
     "wind": Effect(
         "wind", WIND, (-2.0,) * 7, (2.0,) * 7, (-0.7, 0.0, -0.8, 0.0, -0.1, -0.05, 0.0), (0.3,) * 7,
+        neutral=(0.0,) * 7,
         description="wind loads from the measured true wind (Fourier form, 7 coefficients)",
         source="Fujiwara, Ueno & Nimura (1998), J. Soc. Naval Arch. Japan 183; windage areas from the "
         "particulars; start values typical of tankers (Isherwood 1972)"),
     "current": Effect(
         "current", ("current_x_mps", "current_y_mps"), (-0.5, -0.5), (0.5, 0.5), (0.0, 0.0), (0.05, 0.05),
-        description="uniform current: the hull moves through the water, the track over ground",
+        neutral=(0.0, 0.0), description="uniform current: the hull moves through the water, the track over ground",
         source="kinematic relative-velocity model (Fossen 2011, Sec. 10.3); pond drift of a few cm/s"),
     "delay": Effect(
-        "delay", ("delay_s",), (0.0,), (3.0,), (0.2,), (0.3,),
+        "delay", ("delay_s",), (0.0,), (3.0,), (0.2,), (0.3,), neutral=(0.0,),
         description="pure time delay of the logged rudder and propeller", source="logging / actuator latency"),
 }
 

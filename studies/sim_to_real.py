@@ -109,11 +109,38 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
                        max_effects=case.get("max_effects", 1))
     res.pop("_curves", None)
     res["where"].pop("regions", None)  # keep results.json small; the summary stays
-    return {"case": case, "truth": truth, "diagnosis": res, "seconds": time.perf_counter() - tic}
+    oracle = true_model_scores(veh, held)
+    return {"case": case, "truth": truth, "diagnosis": res, "oracle": oracle, "seconds": time.perf_counter() - tic}
+
+
+def true_model_scores(veh, held: list) -> dict:
+    """Held-out protocol scores of the TRUE model: the nominal coefficients (the truth here)
+    and every effect at the parameters the world used, wave phases included (read from the
+    tracks' ``meta["truth"]``, which the benchmark writes and the diagnosis never reads).
+    Its shrinkage against the fitted base model is what a perfect attribution could reach on
+    these noisy held-out tracks: the ceiling of the benchmark's held-out shrinkage."""
+    from bayesid import effects as ef
+    from bayesid import gap
+
+    truth = held[0].meta["truth"]
+    m = ef.EffectModel(veh, FREE, [k for k in truth if k != "nuisance"], dt=DT)
+    p = np.concatenate([m.theta0] + [[truth[e.name][k] for k in e.params] for e in m.effects])
+    nu = [np.asarray(t.meta["truth"].get("nuisance", [])[:m.n_nuisance], float) for t in held]
+    f = gap.Fit(m, p, nu, 0.0, 0, 0, True, "true model", 0.0)
+    sc = gap.scores(m, f, [m.context(t, WINDOW) for t in held], nu if m.n_nuisance else None)
+    return {"heldout_rms_m": sc["rms_position_m"], "heading_rms_deg": sc["rms_heading_deg"]}
+
+
+def true_model_shrinkage(r: dict):
+    """1 - (true model's held-out RMS) / (fitted base model's); None for a case saved without it."""
+    o = r.get("oracle")
+    return None if o is None else 1.0 - o["heldout_rms_m"] / r["diagnosis"]["gap_before"]["heldout_rms_m"]
 
 
 def summarise(results: list[dict]) -> dict:
-    """Confusion matrix and the issue's metrics from finished cases."""
+    """Confusion matrix and the issue's metrics from finished cases, with two references that
+    say where the misses come from: the true model's held-out shrinkage (the ceiling) and the
+    top-1 accuracy over the cases whose gap passed the significance gate."""
     confusion, single, controls, openset, two = {}, [], [], [], []
     for r in results:
         c, v = r["case"], r["diagnosis"]["verdict"]
@@ -140,12 +167,19 @@ def summarise(results: list[dict]) -> dict:
         d["n"] += 1
         d["correct"] += int(r["diagnosis"]["verdict"] == e)
         d["shrinkage"].append(r["diagnosis"]["heldout_shrinkage"])
+    ceiling = [x for x in map(true_model_shrinkage, single) if x is not None]
+    sig = [r for r in single if r["diagnosis"]["significant_gap"]]
     where_ok = [r["diagnosis"]["where"]["dominant_channel"] in EXPECTED_CHANNEL[r["case"]["truth"][0]]
                 for r in openset]
     return {
         "confusion": confusion,
         "top1_accuracy": float(np.mean(correct)) if correct else None,
         "median_heldout_shrinkage": float(np.median(shrink)) if shrink else None,
+        "true_model_median_heldout_shrinkage": float(np.median(ceiling)) if ceiling else None,
+        "top1_accuracy_significant_gap": float(np.mean([r["diagnosis"]["verdict"] == r["case"]["truth"][0]
+                                                        for r in sig])) if sig else None,
+        "n_significant_gap": len(sig),
+        "n_catalogue_cases": len(single),
         "false_alarm_rate": float(np.mean([r["diagnosis"]["verdict"] != "none" for r in controls])) if controls else None,
         "open_set_detection_rate": float(np.mean([r["diagnosis"]["verdict"] == "unexplained" for r in openset]))
         if openset else None,
@@ -191,6 +225,7 @@ def main():
                       "verdict": r["diagnosis"]["verdict"], "effects_added": r["diagnosis"]["effects_added"],
                       "gap_before": r["diagnosis"]["gap_before"], "gap_after": r["diagnosis"]["gap_after"],
                       "heldout_shrinkage": r["diagnosis"]["heldout_shrinkage"],
+                      "true_model": r.get("oracle"), "true_model_shrinkage": true_model_shrinkage(r),
                       "gap_ratio": r["diagnosis"]["gap_ratio"], "noise_floor": r["diagnosis"]["noise_floor"],
                       "ranking": r["diagnosis"]["ranking"], "where": r["diagnosis"]["where"],
                       "sindy_support": r["diagnosis"]["sindy_support"], "seconds": r["seconds"],
@@ -213,6 +248,10 @@ def write_report(out: Path, s: dict, args) -> None:
 
     targets = [("top-1 accuracy (catalogue cases)", s["top1_accuracy"], ">= 0.9"),
                ("median held-out shrinkage", s["median_heldout_shrinkage"], ">= 0.8"),
+               ("  same, of the true model (ceiling; see below)", s["true_model_median_heldout_shrinkage"],
+                "(reference)"),
+               (f"  top-1 over the {s['n_significant_gap']} of {s['n_catalogue_cases']} catalogue cases with a "
+                "significant gap", s["top1_accuracy_significant_gap"], "(reference)"),
                ("false-alarm rate (controls)", s["false_alarm_rate"], "<= 0.1"),
                ("open-set detection rate", s["open_set_detection_rate"], ">= 0.8"),
                ("open-set 'where' channel right", s["open_set_where_channel_rate"], "(no target)")]
@@ -221,6 +260,7 @@ def write_report(out: Path, s: dict, args) -> None:
         top = c["ranking"][0] if c["ranking"] else {}
         rows.append([c["id"], c["verdict"], fmt(c["gap_before"]["heldout_rms_m"]), fmt(c["gap_after"]["heldout_rms_m"]),
                      fmt(c["noise_floor"]["heldout_rms_m"]), fmt(c["gap_ratio"]), fmt(c["heldout_shrinkage"]),
+                     fmt((c.get("true_model") or {}).get("heldout_rms_m")), fmt(c.get("true_model_shrinkage")),
                      f"{top.get('effect', '-')} ({fmt(top.get('excess_removed'))})",
                      c["where"]["dominant_channel"], fmt(c["seconds"], 2)])
     eff_rows = [[e.name, e.description, ", ".join(e.params),
@@ -239,7 +279,15 @@ def write_report(out: Path, s: dict, args) -> None:
         + (", ".join(f"{c['id']} (ratio {fmt(c['gap_ratio'])}; {c['ranking'][0]['effect'] if c['ranking'] else '-'}, "
                      f"{fmt(c['ranking'][0]['excess_removed']) if c['ranking'] else '-'})" for c in weak) or "none") + ".",
         f"- Misses among the catalogue cases ({len(misses)}): "
-        + (", ".join(f"{c['id']} -> {c['verdict']} (ratio {fmt(c['gap_ratio'])})" for c in misses) or "none") + ".",
+        + (", ".join(f"{c['id']} -> {c['verdict']} (ratio {fmt(c['gap_ratio'])}; true model's held-out shrinkage "
+                     f"{fmt(c.get('true_model_shrinkage'))})" for c in misses) or "none") + ".",
+        "- The true model (nominal coefficients and the effect at the parameters the world used; the benchmark "
+        "knows them, the diagnosis does not) scored by the same protocol on the same held-out tracks: its "
+        "shrinkage against the fitted base model is the most any attribution could show. Median over the "
+        f"catalogue cases {fmt(s['true_model_median_heldout_shrinkage'])} against the diagnosis' "
+        f"{fmt(s['median_heldout_shrinkage'])}: the held-out RMS includes 0.2 m position noise and the drift "
+        "from a noisy start state, which no model removes. Where the true model's shrinkage is near zero or "
+        "negative, the effect is below what these held-out tracks can show and 'none' is the honest verdict.",
         ""]
     text = [
         "# Sim-to-real gap diagnosis: withheld-effect benchmark", "",
@@ -257,9 +305,11 @@ def write_report(out: Path, s: dict, args) -> None:
         "## Cases", "",
         "Held-out RMS position error under the protocol (60 s windows restarting from the measured state), "
         "before and after the top effect; floor = the same protocol's error for a perfect model at the "
-        "estimated noise; ratio = before / floor; top candidate with the fraction of the excess it removed; "
-        "dominant channel of the *where* analysis.", "",
+        "estimated noise; ratio = before / floor; true model = held-out error of the world's own model "
+        "and its shrinkage against the fitted base model; top candidate with the fraction of the excess it "
+        "removed; dominant channel of the *where* analysis.", "",
         md_table(["case", "verdict", "before (m)", "after (m)", "floor (m)", "ratio", "shrinkage",
+                  "true model (m)", "true-model shrinkage",
                   "top candidate (excess removed)", "where", "s"], rows), "",
         "## Effect catalogue", "",
         md_table(["effect", "what", "parameters", "benchmark magnitudes", "why these magnitudes"], eff_rows), "",
