@@ -13,7 +13,9 @@ free coefficients. It
 3. **which**: refits the model with each catalogue effect in turn (the effect's parameters and
    all free coefficients) and ranks the candidates by held-out RMS position error, with the
    BIC difference on the training tracks and a sparse regression (pysindy STLSQ ensemble) of
-   the missing forces on effect signatures as independent support;
+   the missing forces on effect signatures as independent support. A candidate whose effect has
+   a catalogue ``neutral`` value contains the model it extends; if its fits end worse than that
+   model, it is refitted from that model's optimum with the effect neutral (so ΔBIC <= k ln n);
 4. **how far**: the protocol's scores before and after the top effect, on the training and the
    held-out tracks.
 
