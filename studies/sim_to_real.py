@@ -19,6 +19,9 @@ Method
 - Verdict: "none" when the held-out gap is below 1.5 x the noise floor (candidates are ranked but
   not attributed), else the best effect that removes >= half of the excess with dBIC <= -10,
   else "unexplained".
+- Reference (not seen by the diagnosis): the true model -- nominal coefficients and the effect at
+  the parameters the world used -- scored by the same protocol on the held-out tracks. Its
+  shrinkage against the fitted base model is the ceiling the held-out noise leaves.
 - Wave starting values (frequency, per-track phase) come from the training tracks' missing
   forces (inverse dynamics minus the fitted base model); held-out tracks never seed a fit.
 - Cases run in parallel (``concurrent.futures``, one process per core); each finished case is
@@ -283,7 +286,8 @@ def write_report(out: Path, s: dict, args) -> None:
                      f"{fmt(c.get('true_model_shrinkage'))})" for c in misses) or "none") + ".",
         "- The true model (nominal coefficients and the effect at the parameters the world used; the benchmark "
         "knows them, the diagnosis does not) scored by the same protocol on the same held-out tracks: its "
-        "shrinkage against the fitted base model is the most any attribution could show. Median over the "
+        "shrinkage against the fitted base model is what a perfect attribution would show (a fitted candidate "
+        "can land a little above it by fitting noise). Median over the "
         f"catalogue cases {fmt(s['true_model_median_heldout_shrinkage'])} against the diagnosis' "
         f"{fmt(s['median_heldout_shrinkage'])}: the held-out RMS includes 0.2 m position noise and the drift "
         "from a noisy start state, which no model removes. Where the true model's shrinkage is near zero or "
