@@ -34,6 +34,10 @@ Verdict rules (fixed before the benchmark was run, stated in the report):
   ranked, for the report, but none is attributed: on a gap barely above the floor a flexible
   candidate removes half of a small excess by fitting noise); else the best explaining effect;
   else ``"unexplained"`` -- never a forced attribution;
+* with ``max_effects`` > 1 (greedy rounds), an effect that passes the partial-attribution test
+  below may be added before the last round even if it removes less than half of the excess
+  (two effects can each explain less than half); the set added must remove at least
+  ``explain_fraction`` of the base model's excess, else nothing is attributed;
 * with an ``"unexplained"`` verdict, ``partial_attribution`` names the best-ranked effect that
   still makes the held-out windows better with significance: one-sided Wilcoxon signed-rank test
   of the paired per-window RMS position errors, ``p < partial_p`` (0.01), and ΔBIC below -10.
@@ -569,25 +573,32 @@ def _candidate_starts(name, model, base_theta, seeds):
     return out
 
 
+def _effect_offset(model, name) -> int:
+    """Index of effect ``name``'s first parameter in the model's parameter vector."""
+    k = [e.name for e in model.effects].index(name)
+    return model.n_theta + sum(model.n_q[:k])
+
+
 def _effect_starts(name, model, base_theta, seeds):
     p = model.start(base_theta)
+    i = _effect_offset(model, name)  # the effect need not be the model's first (greedy rounds)
     if name == "waves" and seeds.get("waves"):
         omega, phases, amp = seeds["waves"]
         p = p.copy()
-        i = model.n_theta
         p[i:i + 4] = [omega, amp[0], amp[1], amp[2]]
-        return [(p, [np.array([ph]) for ph in phases])]
+        nn = model.n_nuisance  # the phase is the last nuisance (waves is the only effect with one)
+        return [(p, [np.r_[np.zeros(nn - 1), ph] for ph in phases])]
     if name == "current" and "current" in seeds:
         p = p.copy()
-        p[model.n_theta:model.n_theta + 2] = np.clip(seeds["current"], -1.4, 1.4)
+        p[i:i + 2] = np.clip(seeds["current"], -1.4, 1.4)
         return [(p, None)]
     if name == "actuator":
         alt = p.copy()
-        alt[model.n_theta:model.n_theta + 2] = [1.0, 5.0]
+        alt[i:i + 2] = [1.0, 5.0]
         return [(p, None), (alt, None)]
     if name == "delay":
         alt = p.copy()
-        alt[model.n_theta] = 1.5
+        alt[i] = 1.5
         return [(p, None), (alt, None)]
     return [(p, None)]
 
@@ -626,7 +637,10 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         :data:`bayesid.effects.CATALOGUE`) or a :class:`bayesid.ship.Ship` (candidates from
         :data:`bayesid.ship.SHIP_CATALOGUE`).
     rng : numpy Generator (noise-floor simulation, bootstrap of the signature regression).
-    max_effects : greedy rounds (2: after the top effect, try the others on top of it).
+    max_effects : greedy rounds (2: after the top effect, try the others on top of it). Before
+        a last round, an effect that improves the held-out windows significantly (the partial-
+        attribution test) is added even if it removes less than half of the excess; the set
+        added must remove at least half of the base model's excess, else nothing is attributed.
     weighting : channel weights of the fits (:func:`fit_weighted`): ``"noise"`` or
         ``"residual"``; default ``"residual"`` for a ship (real data, where the structural error
         dominates) and ``"noise"`` for a submarine. The base fit sets the weights; every
@@ -755,6 +769,11 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
             ranking = results
         top = next((r for r in results if significant and r["excess_removed"] >= explain_fraction
                     and r["delta_bic"] <= bic_threshold), None)
+        if top is None and rnd + 1 < max_effects:
+            # two effects can each remove less than half: with another round to come, a
+            # significant partial improvement is a stepping stone; the whole set is judged below
+            top = next((r for r in results if significant and r["window_p_value"] < partial_p
+                        and r["delta_bic"] <= bic_threshold and r["heldout_shrinkage"] > 0), None)
         if top is None:
             break
         chosen.append(top["effect"])
@@ -762,6 +781,9 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         ref_windows = win_of[top["effect"]]
         if current_best[2]["rms_position_m"] <= none_ratio * floor["rms_position_m"]:
             break
+    excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
+    if chosen and b_held["rms_position_m"] - current_best[2]["rms_position_m"] < explain_fraction * excess0:
+        chosen, current_best = [], (bfit, b_train, b_held, base, None)  # the stepping stones did not add up
     if chosen:
         verdict = chosen[0]
     elif significant:
