@@ -188,7 +188,9 @@ def summarise(results: list[dict]) -> dict:
         if openset else None,
         "open_set_where_channel_rate": float(np.mean(where_ok)) if where_ok else None,
         "two_effects": [{"truth": r["case"]["truth"], "verdict": r["diagnosis"]["verdict"],
-                         "effects_added": r["diagnosis"]["effects_added"]} for r in two],
+                         "effects_added": r["diagnosis"]["effects_added"],
+                         "heldout_shrinkage": r["diagnosis"]["heldout_shrinkage"],
+                         "true_model_shrinkage": true_model_shrinkage(r)} for r in two],
         "per_effect": per_effect,
         "n_cases": len(results),
     }
@@ -303,7 +305,11 @@ def write_report(out: Path, s: dict, args) -> None:
         "Per effect (catalogue cases, 3 magnitudes each):", "",
         md_table(["effect", "correct", "median shrinkage"], pe), "",
         "Two simultaneous effects: " + "; ".join(
-            f"{'+'.join(d['truth'])} -> verdict {d['verdict']}, added {d['effects_added']}" for d in s["two_effects"]), "",
+            f"{'+'.join(d['truth'])} -> verdict {d['verdict']}, added {d['effects_added']}, held-out shrinkage "
+            f"{fmt(d['heldout_shrinkage'])} (true model {fmt(d.get('true_model_shrinkage'))})"
+            for d in s["two_effects"]) + ". An effect that removes less than half of the excess but improves the "
+        "held-out windows significantly is a stepping stone before the last greedy round; the set must remove half.",
+        "",
         "![confusion](figures/confusion.png)", "",
         *findings,
         "## Cases", "",
