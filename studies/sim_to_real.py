@@ -120,8 +120,8 @@ def true_model_scores(veh, held: list) -> dict:
     """Held-out protocol scores of the TRUE model: the nominal coefficients (the truth here)
     and every effect at the parameters the world used, wave phases included (read from the
     tracks' ``meta["truth"]``, which the benchmark writes and the diagnosis never reads).
-    Its shrinkage against the fitted base model is what a perfect attribution could reach on
-    these noisy held-out tracks: the ceiling of the benchmark's held-out shrinkage."""
+    Its shrinkage against the fitted base model is what a perfect attribution would reach on
+    these noisy held-out tracks (a fitted candidate can land a little above it by fitting noise)."""
     from bayesid import effects as ef
     from bayesid import gap
 
