@@ -610,12 +610,16 @@ def _nested_start(model, ref_model, ref_fit, name):
     e = next(e for e in model.effects if e.name == name)
     if e.neutral is None:
         return None
-    p0 = np.concatenate([ref_fit.p, np.asarray(e.neutral, float)])
-    nu0 = None
-    if model.n_nuisance:
-        nu0 = [np.concatenate([np.asarray(v, float), np.zeros(model.n_nuisance - ref_model.n_nuisance)])
-               for v in ref_fit.nuisance]
-    return p0, nu0
+    return np.concatenate([ref_fit.p, np.asarray(e.neutral, float)]), _extended_nuisance(model, ref_model, ref_fit)
+
+
+def _extended_nuisance(model, ref_model, ref_fit):
+    """The reference fit's per-track nuisances padded with zeros for ``model``'s extra ones
+    (None when ``model`` has none)."""
+    if not model.n_nuisance:
+        return None
+    return [np.concatenate([np.asarray(v, float), np.zeros(model.n_nuisance - ref_model.n_nuisance)])
+            for v in ref_fit.nuisance]
 
 
 def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_s: float | None = 60.0,
@@ -724,8 +728,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                     p0 = p0.copy()
                     p0[:ref_model.n_params] = ref_fit.p
                     if nu0 is None and ref_model.n_nuisance:
-                        nu0 = [np.concatenate([v, np.zeros(m.n_nuisance - ref_model.n_nuisance)])
-                               for v in ref_fit.nuisance]
+                        nu0 = _extended_nuisance(m, ref_model, ref_fit)
                 try:
                     f = fit(m, ct, sd_fit, p0, nu0, max_nfev=max_nfev)
                 except Exception as exc:  # noqa: BLE001 - a failed candidate is reported
