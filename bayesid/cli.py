@@ -151,7 +151,7 @@ def _fit(args) -> int:
     train = [read_csv(p) for p in args.train]
     res = msfit.identify(vehicle, train, free, _split_names(args.effects), window_s=args.window, dt=args.dt,
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
-                         weighting=args.weighting or None)
+                         weighting=args.weighting or None, channels=_split_names(args.fit_channels) or None)
     out = Path(args.out)
     doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json")
     msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
@@ -294,6 +294,8 @@ def main(argv=None) -> int:
     f.add_argument("--dt", type=float, default=None, help="model step, s (default 0.2 ships, 0.5 submarines)")
     f.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations")
     f.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
+    f.add_argument("--fit-channels", default="", help="comma-separated scored channels in the objective, e.g. "
+                   "x,y,psi when the logged u, v, r are derived from positions and heading (default: all measured)")
     f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
     pp = sub.add_parser("predict", help="score a fitted model on tracks with the window protocol")
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")

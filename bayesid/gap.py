@@ -63,8 +63,11 @@ PENALTY = 1e3  # residual (in noise sds) of a sample in a diverged window
 class Fit:
     """A fitted :class:`~bayesid.effects.EffectModel`: parameters, per-track nuisances, cost."""
 
-    def __init__(self, model, p, nuisance, ssr, n_res, nfev, success, message, seconds, jac=None):
+    def __init__(self, model, p, nuisance, ssr, n_res, nfev, success, message, seconds, jac=None,
+                 channels=None):
         self.model, self.p, self.nuisance, self.jac = model, p, nuisance, jac
+        #: channels in the objective (None: every scored channel the tracks measure)
+        self.channels = None if channels is None else tuple(channels)
         self.ssr, self.n_res, self.nfev = ssr, n_res, nfev
         self.success, self.message, self.seconds = success, message, seconds
 
@@ -92,8 +95,27 @@ class Fit:
         return {n: float(v) for n, v in zip(self.model.free, self.p[:self.model.n_theta])}
 
 
-def _weights(ctx, sd):
-    return {c: 1.0 / sd[c] for c in ctx.channels}
+def _weights(ctx, sd, channels=None):
+    """{channel: 1/sd} over the channels of ``ctx`` in the objective (all when ``channels`` is
+    None). Raises ValueError when the track measures none of ``channels``."""
+    cs = [c for c in ctx.channels if channels is None or c in channels]
+    if not cs:
+        raise ValueError(f"track {ctx.name!r} measures none of the fitted channels {', '.join(channels)} "
+                         f"(it has {', '.join(ctx.channels)})")
+    return {c: 1.0 / sd[c] for c in cs}
+
+
+def check_channels(channels):
+    """``channels`` as a tuple (None stays None); ValueError naming a channel the protocol does not
+    score (:data:`bayesid.protocol.CHANNELS`)."""
+    if channels is None:
+        return None
+    channels = tuple(channels)
+    bad = [c for c in channels if c not in CHANNELS]
+    if bad or not channels:
+        raise ValueError(f"unknown fit channel(s) {', '.join(bad) or '(none given)'}; "
+                         f"choose from {', '.join(CHANNELS)}")
+    return channels
 
 
 def _residuals(model, ctxs, wts, P, nus):
@@ -102,6 +124,8 @@ def _residuals(model, ctxs, wts, P, nus):
     for ctx, w, nu in zip(ctxs, wts, nus):
         S = model.simulate(ctx, P, nu)
         for c, e in ef.errors(ctx, S).items():
+            if c not in w:
+                continue
             r = e * w[c]
             r[~np.isfinite(r)] = PENALTY
             out.append(r)
@@ -109,7 +133,7 @@ def _residuals(model, ctxs, wts, P, nus):
 
 
 def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60,
-        fit_nuisance_only: bool = False) -> Fit:
+        fit_nuisance_only: bool = False, channels=None) -> Fit:
     """Least-squares fit of the model's parameters (and per-track nuisances) to tracks.
 
     Objective: sum over tracks, protocol windows, samples and scored channels of
@@ -124,6 +148,10 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     sd : {channel: noise sd} used as weights.
     p0 : start (default :meth:`EffectModel.start`).   nuisance0 : per track (n_nuisance,).
     fit_nuisance_only : keep ``p0`` fixed and fit only the nuisances (held-out tracks).
+    channels : the scored channels in the objective (default: all the tracks measure); the
+        others still give the window start states.
+
+    Raises ValueError for an unknown channel or a track that measures none of ``channels``.
     """
     tic = time.perf_counter()
     p0 = model.start() if p0 is None else np.asarray(p0, float)
@@ -135,7 +163,8 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     nlo = np.concatenate([np.full(e.n_nuisance, e.nuisance_lo) for e in model.effects] or [np.zeros(0)])
     nhi = np.concatenate([np.full(e.n_nuisance, e.nuisance_hi) for e in model.effects] or [np.zeros(0)])
     free_p = not fit_nuisance_only
-    wts = [_weights(c, sd) for c in ctxs]
+    channels = check_channels(channels)
+    wts = [_weights(c, sd, channels) for c in ctxs]
 
     def unpack(x):
         p = x[:model.n_params] if free_p else p0
@@ -173,7 +202,7 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     if x0.size == 0:
         r = fun(x0)
         return Fit(model, p0, [np.zeros(0)] * T, float(r @ r), r.size, 1, True, "nothing to fit",
-                   time.perf_counter() - tic)
+                   time.perf_counter() - tic, channels=channels)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = optimize.least_squares(fun, x0, jac=jac, bounds=(xlo, xhi), x_scale=xsc, method="trf",
@@ -181,7 +210,7 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     p, nus = unpack(res.x)
     r = fun(res.x)
     return Fit(model, np.array(p), [np.array(v) for v in nus], float(r @ r), r.size, nfev[0],
-               bool(res.success), str(res.message), time.perf_counter() - tic, jac=res.jac)
+               bool(res.success), str(res.message), time.perf_counter() - tic, jac=res.jac, channels=channels)
 
 
 def residual_sd(model, fitres: Fit, ctxs, floor: dict) -> dict:
@@ -201,7 +230,7 @@ def residual_sd(model, fitres: Fit, ctxs, floor: dict) -> dict:
 
 
 def fit_weighted(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60,
-                 weighting: str = "noise") -> tuple[Fit, dict]:
+                 weighting: str = "noise", channels=None) -> tuple[Fit, dict]:
     """:func:`fit` with the channel weights chosen by ``weighting``.
 
     ``"noise"``: weights ``1/sd`` from the measurement noise (right when the model structure is
@@ -214,15 +243,18 @@ def fit_weighted(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int =
     The maximum-likelihood estimate with an unknown error variance per channel has these
     weights at its optimum (e.g. Ljung 1999, "System Identification", Sec. 7.3 and 15.2).
 
+    ``channels`` restricts the objective to those scored channels (:func:`fit`).
+
     Returns (fit, the sd dict of its weights). Raises ValueError on an unknown ``weighting``.
     """
     if weighting not in ("noise", "residual"):
         raise ValueError(f"weighting must be 'noise' or 'residual', not {weighting!r}")
-    f = fit(model, ctxs, sd, p0, nuisance0, max_nfev=max_nfev)
+    f = fit(model, ctxs, sd, p0, nuisance0, max_nfev=max_nfev, channels=channels)
     if weighting == "noise":
         return f, dict(sd)
     sd2 = residual_sd(model, f, ctxs, sd)
-    return fit(model, ctxs, sd2, f.p, f.nuisance if model.n_nuisance else None, max_nfev=max_nfev), sd2
+    return fit(model, ctxs, sd2, f.p, f.nuisance if model.n_nuisance else None, max_nfev=max_nfev,
+               channels=channels), sd2
 
 
 def scores(model, fitres: Fit, ctxs, nuisance=None) -> dict:

@@ -54,6 +54,8 @@ def _ar1_inflation(fitres: gap.Fit, ctxs) -> float:
     for ctx in ctxs:
         S = fitres.model.simulate(ctx, fitres.p[None])
         for c, e in ef.errors(ctx, S).items():
+            if fitres.channels is not None and c not in fitres.channels:
+                continue
             e = e[0]
             same = ctx.win[1:] == ctx.win[:-1]
             a, b = e[:-1][same], e[1:][same]
@@ -81,7 +83,8 @@ def laplace_covariance(fitres: gap.Fit, ctxs) -> tuple[np.ndarray, dict]:
 
 
 def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: float | None = None,
-             max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None) -> dict:
+             max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None,
+             channels=None) -> dict:
     """Identify the free coefficients (and effect parameters) on training tracks.
 
     Parameters
@@ -95,6 +98,9 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
         nominal coefficients.
     weighting : ``"noise"`` or ``"residual"`` channel weights (:func:`bayesid.gap.fit_weighted`);
         default ``"residual"`` for a ship, ``"noise"`` for a submarine.
+    channels : the scored channels in the objective (default: every one the tracks measure;
+        e.g. ``("x", "y", "psi")`` when the logged velocities are derived from the same
+        positions and heading and add no independent information).
 
     Returns
     -------
@@ -104,12 +110,14 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
 
     Raises
     ------
-    ValueError : no training track; a track without the needed columns (named).
+    ValueError : no training track; a track without the needed columns (named); an unknown
+        channel or a track that measures none of ``channels``.
     KeyError : an unknown coefficient name.
     """
     if not train:
         raise ValueError("identify needs at least one training track")
     say = progress or (lambda m: None)
+    channels = gap.check_channels(channels)
     model = build_model(vehicle, free, effects, dt)
     ctxs = [model.context(t, window_s) for t in train]
     sd = gap._pooled_sd(train)
@@ -122,9 +130,9 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
         except Exception as exc:  # noqa: BLE001 - reported; the fit starts from nominal
             info, ps = {"error": f"{type(exc).__name__}: {exc}"}, None
         if ps is not None:
-            c_nom = gap._residuals(model, ctxs, [gap._weights(c, sd) for c in ctxs], p0[None],
+            c_nom = gap._residuals(model, ctxs, [gap._weights(c, sd, channels) for c in ctxs], p0[None],
                                    [None] * len(ctxs))[0]
-            c_seed = gap._residuals(model, ctxs, [gap._weights(c, sd) for c in ctxs], ps[None],
+            c_seed = gap._residuals(model, ctxs, [gap._weights(c, sd, channels) for c in ctxs], ps[None],
                                     [None] * len(ctxs))[0]
             info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
             if info["cost_seed"] < info["cost_nominal"]:
@@ -135,10 +143,10 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
             seed_info = info
     say("multiple-shooting fit")
     weighting = weighting or ("residual" if isinstance(model, sh.ShipModel) else "noise")
-    f, sd_fit = gap.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting)
+    f, sd_fit = gap.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels)
     cov, post = laplace_covariance(f, ctxs)
     return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
-            "fit_sd": sd_fit, "weighting": weighting,
+            "fit_sd": sd_fit, "weighting": weighting, "channels": channels,
             "train_scores": gap.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
 
 
@@ -152,6 +160,7 @@ def save_model(res: dict, vehicle_ref: str, train_names, path) -> dict:
            "cov": res["cov"].tolist(), "sd": sdv.tolist(), "start": res["p0"].tolist(),
            "posterior": res["posterior"], "seed": res["seed"], "noise_sd": res["noise_sd"],
            "weighting": res.get("weighting", "noise"), "fit_sd": res.get("fit_sd", res["noise_sd"]),
+           "fit_channels": None if res.get("channels") is None else list(res["channels"]),
            "train_runs": list(train_names), "train_scores": res["train_scores"],
            "fit": {"ssr": f.ssr, "n_residuals": f.n_res, "nfev": f.nfev, "success": f.success,
                    "message": f.message, "seconds": f.seconds, "bic": f.bic}}

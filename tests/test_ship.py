@@ -172,6 +172,43 @@ def test_residual_weighting_follows_the_structural_error():
         gap.fit_weighted(right, ctx, sd, weighting="robust")
 
 
+def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tmp_path, capsys):
+    """A logged yaw rate with a slow calibration error (1 deg/s, zero at the window starts, so
+    the start states hardly see it) pulls Yv off by > 8 % when every channel is fitted; fitting
+    x, y, psi only recovers it within 2 %. Unknown channels and a track measuring none of the
+    fitted channels are errors that name them."""
+    from bayesid import cli, gap
+
+    kv = ship.load_ship("kvlcc2_7m")
+    truth = kv.with_coefficients({"Nr": -0.07, "Yv": -0.25})
+    mt = ship.ShipModel(truth, dt=0.1)
+    rng = np.random.default_rng(11)
+    t = np.arange(0, 120.0, 0.1)
+    noise = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "u": 0.002, "v": 0.002, "r": math.radians(0.02)}
+    tr = synthetic(mt, mt.start(), t, zigzag_inputs(t), 10.23, 1.179, rng, noise)
+    bad = tr.with_columns(r=tr["r"] + math.radians(1.0) * np.sin(2 * np.pi * tr.t / 30.0))
+    m = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
+    ctx = [m.context(bad, 30.0)]
+    every = gap.fit(m, ctx, noise, max_nfev=20)
+    pos = gap.fit(m, ctx, noise, max_nfev=20, channels=("x", "y", "psi"))
+    assert pos.channels == ("x", "y", "psi") and pos.n_res == every.n_res // 2
+    assert dict(zip(m.param_names, pos.p))["Yv"] == pytest.approx(-0.25, rel=0.02)
+    assert dict(zip(m.param_names, pos.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
+    assert abs(dict(zip(m.param_names, every.p))["Yv"] / -0.25 - 1) > 0.08
+    res = msfit.identify(kv, [bad], ["Nr", "Yv"], window_s=30.0, dt=0.1, max_nfev=20, channels=["x", "y", "psi"])
+    assert res["fit"].channels == ("x", "y", "psi") and np.all(np.isfinite(res["cov"]))
+    with pytest.raises(ValueError, match="'q'|q;"):
+        gap.fit(m, ctx, noise, channels=("x", "q"))
+    no_u = Track(tr.t, {k: tr[k] for k in ("x", "y", "psi", "delta_r", "n")}, name="no_velocities")
+    with pytest.raises(ValueError, match="no_velocities"):
+        gap.fit(m, [m.context(no_u, 30.0)], noise, channels=("u",))
+    from bayesid.track import write_csv
+    write_csv(bad, tmp_path / "bad.csv")
+    rc = cli.main(["fit", "--vehicle", "kvlcc2_7m", "--train", str(tmp_path / "bad.csv"), "--free", "Yv",
+                   "--fit-channels", "x,y,heading", "--out", str(tmp_path / "fit")])
+    assert rc != 0 and "heading" in capsys.readouterr().err
+
+
 def test_paired_window_test_detects_a_consistent_improvement():
     from bayesid import gap
 
