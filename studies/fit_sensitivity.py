@@ -1,0 +1,267 @@
+"""How much do the real-data protocol scores depend on reasonable fit settings, and does any
+setting win when it is chosen on training runs only?
+
+Method
+------
+- Data and models as in ``studies/real_ships.py``: Esso Osaka 3 m model with the wind effect
+  (the protocol table's "after" model), KVLCC2 7 m model at HSVA without effects; the vehicle
+  files' free coefficients; 40 least-squares evaluations; residual (two-step GLS) weighting.
+- Settings: the multiple-shooting window of the fit (15, 30, 60 s; 30 s is what real_ships uses)
+  and the channels in the objective (every logged channel, or x, y, psi only: on both data sets
+  the logged velocities are estimates derived from the same positions and heading, see the data
+  READMEs).
+- Splits: the issue's validation split (the numbers real_ships reports) and two splits of the
+  *training* runs only (the validation held-out runs left out altogether), each holding out
+  different runs of every kind. A setting that is better only on the validation split was
+  chosen by the validation data; one that is better on the training-only splits too is a
+  candidate for a default.
+- Every fit starts from the equation-error seed (``bayesid.msfit.identify``) and is scored by the
+  fixed window protocol (30 s and 60 s windows) on its split's held-out runs.
+- Each finished fit is saved in ``fits/`` and a re-run skips it (``--fresh`` starts over); fits
+  run in parallel (``concurrent.futures``).
+
+    python studies/fit_sensitivity.py [--quick] [--out DIR] [--data DIR] [--fresh] [--workers N]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+ESSO_VALIDATION = ["random_06-Aug-2020_16_24_25_6", "turn_14-Oct-2020_15_06_53", "zigzag_31-Jul-2020_13_57_45",
+                   "berthing_12-Nov-2020_11_38_50"]
+KVLCC2_VALIDATION = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
+#: held-out runs of each split; the training-only splits never see the validation held-out runs
+SPLITS = {
+    "esso_osaka": {
+        "validation": ESSO_VALIDATION,
+        "train_cv_a": ["random_31-Jul-2020_12_29_58", "turn_14-Sep-2020_13_39_32", "zigzag_31-Jul-2020_13_22_52",
+                       "berthing_12-Nov-2020_11_14_47"],
+        "train_cv_b": ["random_03-Aug-2020_11_04_37", "turn_14-Oct-2020_14_29_49", "zigzag_31-Jul-2020_14_03_39",
+                       "berthing_12-Nov-2020_13_09_11"],
+    },
+    "kvlcc2_hsva": {
+        "validation": KVLCC2_VALIDATION,
+        "train_cv_a": ["Z_10_05", "Z_20_10_P", "Z_30_05"],
+        "train_cv_b": ["Z_10_10_S", "Z_15_05", "Z_25_05"],
+    },
+}
+SETTINGS = {  # name -> (fit window s, channels in the objective)
+    "w30_all": (30.0, None),
+    "w15_all": (15.0, None),
+    "w60_all": (60.0, None),
+    "w30_xypsi": (30.0, ("x", "y", "psi")),
+}
+REFERENCE = "w30_all"
+EFFECTS = {"esso_osaka": ["wind"], "kvlcc2_hsva": []}
+
+
+def parse_args():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="two runs, 3 evaluations, two settings (a smoke test)")
+    ap.add_argument("--out", default="reports/fit_sensitivity")
+    ap.add_argument("--data", default=str(ROOT / ".." / "shared" / "data" / "real"))
+    ap.add_argument("--seed", type=int, default=2026, help="unused: the fits are deterministic (kept for the contract)")
+    ap.add_argument("--fresh", action="store_true", help="ignore saved fits")
+    ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--max-nfev", type=int, default=40)
+    return ap.parse_args()
+
+
+def load_runs(data: Path, dataset: str):
+    """All runs of a data set as Tracks (Esso: the trimmed ``turn_cut_*`` copies left out)."""
+    from bayesid import datasets
+
+    if dataset == "esso_osaka":
+        paths = [p for p in datasets.list_runs(data / "esso-osaka-frt", "esso-osaka") if "turn_cut" not in p.name]
+        return [datasets.read_run(p, "esso-osaka") for p in paths]
+    return [datasets.read_run(p, "simman-hsva") for p in datasets.list_runs(data / "kvlcc2-simman-hsva", "simman-hsva")]
+
+
+def split_runs(tracks, dataset: str, split: str):
+    """(train, held) of a split. Training-only splits drop the validation held-out runs first.
+    Raises ValueError when a named held-out run is missing (named)."""
+    def named(t, names):
+        return any(t.name == n or t.name.endswith("_" + n) for n in names)
+
+    pool = [t for t in tracks if split == "validation" or not named(t, SPLITS[dataset]["validation"])]
+    names = SPLITS[dataset][split]
+    held = [t for t in pool if named(t, names)]
+    missing = [n for n in names if not any(named(t, [n]) for t in held)]
+    if missing:
+        raise ValueError(f"{dataset} split {split}: held-out run(s) not found: {', '.join(missing)}")
+    return [t for t in pool if not named(t, names)], held
+
+
+def run_fit(job: dict) -> dict:
+    """One (data set, split, setting) fit and its protocol scores (runs in a worker)."""
+    sys.path.insert(0, str(ROOT))
+    from bayesid import msfit, ship
+
+    t0 = time.perf_counter()
+    tracks = load_runs(Path(job["data"]), job["dataset"])
+    train, held = split_runs(tracks, job["dataset"], job["split"])
+    if job["quick"]:
+        train, held = train[:2], held[:1]
+    vessel = ship.load_ship("esso_osaka_3m" if job["dataset"] == "esso_osaka" else "kvlcc2_7m")
+    window, channels = SETTINGS[job["setting"]]
+    res = msfit.identify(vessel, train, vessel.free, EFFECTS[job["dataset"]], window_s=window, dt=0.2,
+                         max_nfev=job["max_nfev"], weighting="residual", channels=channels)
+    out = {k: job[k] for k in ("dataset", "split", "setting")}
+    out.update(train_runs=[t.name for t in train], heldout_runs=[t.name for t in held], fit_window_s=window,
+               channels=list(channels) if channels else "all", nfev=res["fit"].nfev)
+    for key, w in (("w30", 30.0), ("w60", 60.0)):
+        pr = msfit.predict(res["model"], res["fit"].p, held, w)
+        out[key] = pr["pooled"]["rms_position_m"]
+        out[key + "_heading_deg"] = pr["pooled"]["rms_heading_deg"]
+        out[key + "_per_run"] = {n: v["rms_position_m"] for n, v in pr["per_track"].items()}
+    out["parameters"] = dict(zip(res["model"].param_names, map(float, res["fit"].p)))
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def summarise(fits: list[dict]) -> dict:
+    """Per data set: the score table (split x setting), each setting's ratio to the reference
+    per split, and whether it beats the reference on every training-only split."""
+    S = {}
+    for ds in SPLITS:
+        rows = [f for f in fits if f["dataset"] == ds]
+        if not rows:
+            continue
+        tab = {}
+        for f in rows:
+            tab.setdefault(f["split"], {})[f["setting"]] = {"w30": f["w30"], "w60": f["w60"]}
+        ratio, verdict = {}, {}
+        for st in [s for s in SETTINGS if any(s in v for v in tab.values())]:
+            r = {sp: {k: tab[sp][st][k] / tab[sp][REFERENCE][k] for k in ("w30", "w60")}
+                 for sp in tab if st in tab[sp] and REFERENCE in tab[sp]}
+            ratio[st] = r
+            cv = [v for sp, v in r.items() if sp != "validation"]
+            verdict[st] = {k: bool(cv) and all(v[k] < 1.0 for v in cv) for k in ("w30", "w60")}
+        spread = {sp: {k: [min(v[k] for v in tab[sp].values()), max(v[k] for v in tab[sp].values())]
+                       for k in ("w30", "w60")} for sp in tab}
+        S[ds] = {"scores": tab, "ratio_to_reference": ratio, "beats_reference_on_every_cv_split": verdict,
+                 "spread": spread}
+    return S
+
+
+def figure(S, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, axes = plt.subplots(1, len(S), figsize=(6 * len(S), 4.2), squeeze=False)
+    for ax, (ds, d) in zip(axes[0], S.items()):
+        splits = list(d["scores"])
+        sets = [s for s in SETTINGS if all(s in d["scores"][sp] for sp in splits)]
+        x = np.arange(len(splits))
+        wdt = 0.8 / max(len(sets), 1)
+        for i, st in enumerate(sets):
+            ax.bar(x + (i - (len(sets) - 1) / 2) * wdt, [d["scores"][sp][st]["w60"] for sp in splits], wdt, label=st)
+        ax.set_xticks(x, splits)
+        ax.set_ylabel("held-out RMS position error, 60 s windows (m)")
+        ax.set_title(ds)
+        ax.legend(fontsize=8)
+        ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | None):
+    from bayesid.report import fmt, md_table
+
+    L = ["# Sensitivity of the real-data protocol scores to the fit settings", "",
+         "Quick run (smoke test: two runs, few evaluations)." if quick else "Full run.", "",
+         (__doc__ or "").split("Method\n------\n", 1)[1].split("\n    python", 1)[0].strip(), ""]
+    for ds, d in S.items():
+        L += [f"## {ds}", "", "Held-out RMS position error (m) at 30 s / 60 s windows; in brackets the ratio to "
+              f"the reference setting {REFERENCE} on the same split.", ""]
+        splits = list(d["scores"])
+        rows = []
+        for st in [s for s in SETTINGS if any(s in d["scores"][sp] for sp in splits)]:
+            cells = []
+            for sp in splits:
+                v = d["scores"][sp].get(st)
+                rr = d["ratio_to_reference"][st].get(sp)
+                cells.append("-" if v is None else f"{fmt(v['w30'])} / {fmt(v['w60'])}"
+                             + ("" if rr is None else f" ({rr['w30']:.3f} / {rr['w60']:.3f})"))
+            b = d["beats_reference_on_every_cv_split"][st]
+            rows.append([st, *cells, "-" if st == REFERENCE else f"{'yes' if b['w30'] else 'no'} / "
+                                                                  f"{'yes' if b['w60'] else 'no'}"])
+        L += [md_table(["setting", *splits, "better on every training-only split (30 s / 60 s)"], rows), ""]
+        L += ["Spread over the settings (min - max, m): " + "; ".join(
+            f"{sp}: 30 s {fmt(v['w30'][0])}-{fmt(v['w30'][1])}, 60 s {fmt(v['w60'][0])}-{fmt(v['w60'][1])}"
+            for sp, v in d["spread"].items()), ""]
+        winners = [st for st, b in d["beats_reference_on_every_cv_split"].items() if st != REFERENCE and b["w60"]]
+        L += ["Settings better than the reference at 60 s on every training-only split: "
+              + (", ".join(winners) if winners else "none") + ".", ""]
+    if fig is not None:
+        L += [f"![60 s scores]({fig.relative_to(out).as_posix()})", ""]
+    L += ["## Reading", "",
+          "- The validation split is what real_ships reports against the issue's targets; a setting that "
+          "helps there but not on the training-only splits was selected by the validation data and is not "
+          "adopted. The spread across settings on one split is the size of difference a fit setting alone "
+          "makes; compare it with the distance to a target before reading a shortfall as a modelling failure.",
+          "- Per-run scores and fitted parameters of every fit are in results.json (`fits`)."]
+    (out / "report.md").write_text("\n".join(L) + "\n")
+
+
+def main() -> int:
+    args = parse_args()
+    sys.path.insert(0, str(ROOT))
+    from bayesid.report import write_json, write_manifest
+
+    data = Path(args.data)
+    if not (data / "esso-osaka-frt").is_dir() or not (data / "kvlcc2-simman-hsva").is_dir():
+        print(f"real data not found under {data}: nothing to do (the study needs shared/data/real)")
+        return 0
+    out = Path(args.out)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    fdir = out / "fits"
+    fdir.mkdir(exist_ok=True)
+    t_start = time.perf_counter()
+    settings = [REFERENCE, "w30_xypsi"] if args.quick else list(SETTINGS)
+    splits = {ds: (["validation"] if args.quick else list(sp)) for ds, sp in SPLITS.items()}
+    nfev = min(args.max_nfev, 3) if args.quick else args.max_nfev
+    jobs = [{"dataset": ds, "split": sp, "setting": st, "data": str(data), "quick": args.quick, "max_nfev": nfev}
+            for ds in SPLITS for sp in splits[ds] for st in settings]
+    fits, todo = [], []
+    for j in jobs:
+        f = fdir / f"{j['dataset']}__{j['split']}__{j['setting']}{'__quick' if args.quick else ''}.json"
+        if f.exists() and not args.fresh:
+            fits.append(json.loads(f.read_text()))
+        else:
+            todo.append((j, f))
+    print(f"{len(jobs)} fits, {len(todo)} to run, {args.workers} workers", flush=True)
+    if todo:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            futs = {pool.submit(run_fit, j): (j, f) for j, f in todo}
+            for fu in as_completed(futs):
+                j, f = futs[fu]
+                r = fu.result()
+                write_json(f, r)
+                fits.append(r)
+                print(f"  {j['dataset']} {j['split']} {j['setting']}: 30 s {r['w30']:.3f} m, 60 s {r['w60']:.3f} m "
+                      f"({r['seconds']:.0f} s)", flush=True)
+    S = summarise(fits)
+    fig = figure(S, out / "figures" / "scores_60s.png") if S else None
+    write_json(out / "results.json", {"summary": S, "settings": {k: {"fit_window_s": w, "channels": list(c) if c else "all"}
+                                                                for k, (w, c) in SETTINGS.items()},
+                                      "reference": REFERENCE, "splits": SPLITS, "quick": bool(args.quick),
+                                      "max_nfev": nfev, "fits": sorted(fits, key=lambda f: (f["dataset"], f["split"], f["setting"]))})
+    write_report(out, S, fits, args.quick, fig)
+    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t_start)
+    print(f"wrote {out / 'report.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,58 @@
+"""studies/fit_sensitivity.py: its splits keep training and held-out runs apart (the
+training-only splits never see the validation held-out runs), and --quick writes results.json
+(skipped without shared/data/real)."""
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesid.track import Track
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL = ROOT / ".." / "shared" / "data" / "real"
+
+
+def _study():
+    spec = importlib.util.spec_from_file_location("fit_sensitivity", ROOT / "studies" / "fit_sensitivity.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _tracks(names):
+    t = np.arange(0.0, 5.0, 0.5)
+    return [Track(t, {"x": t, "y": 0 * t, "psi": 0 * t}, name=n) for n in names]
+
+
+def test_training_only_splits_never_hold_out_or_train_on_the_validation_runs():
+    fs = _study()
+    for ds, splits in fs.SPLITS.items():
+        names = sorted({n for sp in splits.values() for n in sp} | {"other_1", "other_2"})
+        tracks = _tracks(["HSVA_CPMC_KVLCC2_" + n if ds == "kvlcc2_hsva" else n for n in names])
+        for sp in splits:
+            train, held = fs.split_runs(tracks, ds, sp)
+            assert held and train and not {t.name for t in train} & {t.name for t in held}
+            if sp != "validation":
+                used = [t.name for t in train + held]
+                assert not [n for n in used for v in splits["validation"] if n.endswith(v)], (ds, sp)
+    with pytest.raises(ValueError, match="random_03-Aug-2020_11_04_37"):
+        fs.split_runs(_tracks(["zigzag_31-Jul-2020_14_03_39"]), "esso_osaka", "train_cv_b")
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason="shared/data/real absent")
+def test_fit_sensitivity_quick_writes_results(tmp_path):
+    subprocess.run([sys.executable, str(ROOT / "studies" / "fit_sensitivity.py"), "--quick", "--out", str(tmp_path)],
+                   check=True, cwd=ROOT)
+    R = json.loads((tmp_path / "results.json").read_text())
+    assert R["quick"] and R["reference"] == "w30_all"
+    for ds in ("esso_osaka", "kvlcc2_hsva"):
+        tab = R["summary"][ds]["scores"]["validation"]
+        assert set(tab) == {"w30_all", "w30_xypsi"} and all(v["w60"] > 0 for v in tab.values())
+    assert all(not set(f["train_runs"]) & set(f["heldout_runs"]) for f in R["fits"])
+    assert (tmp_path / "report.md").exists() and (tmp_path / "manifest.json").exists()
