@@ -275,6 +275,10 @@ def test_real_ships_quick_writes_results(tmp_path):
         for w in ("w30", "w60"):
             assert set(d[w]) >= {"heldout_rms_position_m_base", "heldout_rms_position_m_after", "shrinkage"}
         assert not set(d["train_runs"]) & set(d["heldout_runs"])
+    lit = R["kvlcc2_hsva"]["literature_baseline"]
+    assert all(lit[w] > 0 for w in ("w30", "w60", "whole_run"))
+    assert set(lit["turning_circles_35deg"]) == {"starboard", "port"}
+    assert lit["coefficients"]["Yv"] == pytest.approx(ship.load_ship("kvlcc2_7m").coefficients["Yv"])
 
 
 @pytest.mark.parametrize("g_deg", [30.0, 90.0, 125.0, -60.0])
