@@ -667,8 +667,9 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     train, heldout : lists of Tracks (disjoint; ValueError if a track object or name repeats).
     candidates : effect names (default: the whole :data:`~bayesid.effects.CATALOGUE`).
     window_s : protocol window (s) of the held-out scores, None = whole run.   dt : model step (s).
-    fit_window_s : window of the multiple-shooting fits on the training tracks (default
-        ``window_s``).
+    fit_window_s : window of the multiple-shooting fits on the training tracks (default: for a
+        ship :data:`bayesid.ship.FIT_WINDOW_S` = 30 s, whatever the scoring window; for a
+        submarine ``window_s``).
     vehicle : a submarine :class:`~bayesid.vehicle.Vehicle` (candidates from
         :data:`bayesid.effects.CATALOGUE`) or a :class:`bayesid.ship.Ship` (candidates from
         :data:`bayesid.ship.SHIP_CATALOGUE`).
@@ -710,10 +711,11 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     say = progress or (lambda msg: None)
     sd = _pooled_sd(train + heldout)
 
+    fw = fit_window_s if fit_window_s is not None else (sh.FIT_WINDOW_S if is_ship else window_s)
+
     def build(effects):
         m = sh.ShipModel(vehicle, free, effects, dt=dt) if is_ship else ef.EffectModel(vehicle, free, effects,
                                                                                          mode=mode, dt=dt)
-        fw = window_s if fit_window_s is None else fit_window_s
         return m, [m.context(t, fw) for t in train], [m.context(t, window_s) for t in heldout]
 
     weighting = weighting or ("residual" if is_ship else "noise")
@@ -867,7 +869,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         "after_fit": {"coefficients": after[0].coefficients(), "effects": after[0].effect_parameters()},
         "train_tracks": names_t, "heldout_tracks": names_h,
         "settings": {"free": list(free), "candidates": cands, "window_s": window_s,
-                     "fit_window_s": window_s if fit_window_s is None else fit_window_s, "dt": dt, "mode": mode,
+                     "fit_window_s": fw, "dt": dt, "mode": mode,
                      "max_nfev": max_nfev, "max_effects": max_effects, "weighting": weighting},
         "thresholds": {"none_ratio": none_ratio, "explain_fraction": explain_fraction,
                        "bic_threshold": bic_threshold, "partial_p": partial_p},

@@ -98,6 +98,12 @@ NP = len(PARTICULARS) + len(COEFFICIENTS)
 _IP = {n: i for i, n in enumerate(PARTICULARS)}
 _IC = {n: len(PARTICULARS) + i for i, n in enumerate(COEFFICIENTS)}
 
+#: Default multiple-shooting window (s) of ship fits (``bayesid fit``, and ``bayesid diagnose``
+#: whatever its scoring window): the issue-8 baseline's 30 s. Longer fit windows let the 9-18
+#: free coefficients chase the few long windows of a zigzag set: on the KVLCC2 validation split a
+#: 60 s fit scores 1.22 m on held-out 60 s windows against 0.84 m for a 30 s fit
+#: (studies/fit_sensitivity.py compares them on training-only splits too).
+FIT_WINDOW_S = 30.0
 #: Physical bounds of the coefficients when fitted (None: unbounded).
 BOUNDS = {"mx": (0.0, 0.5), "my": (0.0, 1.5), "Jz": (0.0, 0.2), "Xuu": (-0.2, 0.0), "Ycf": (0.0, 5.0),
           "Ncf": (0.0, 5.0), "wP": (0.0, 0.9), "tP": (0.0, 0.6), "Ka": (0.0, 1.0), "tR": (0.0, 0.9),
