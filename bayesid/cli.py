@@ -276,7 +276,8 @@ def main(argv=None) -> int:
     d.add_argument("--heldout", nargs="+", required=True, metavar="CSV", help="held-out Track CSVs")
     d.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
     d.add_argument("--dt", type=float, default=0.0, help="model integration step, s (default 0.5; ships 0.2)")
-    d.add_argument("--fit-window", type=float, default=0.0, help="window of the training fits, s (default: 30 for a ship, --window for a submarine)")
+    d.add_argument("--fit-window", type=float, default=0.0,
+                   help="window of the training fits, s (default: 30 for a ship, --window for a submarine)")
     d.add_argument("--mode", choices=MODES, default="horizontal")
     d.add_argument("--candidates", default="", help="comma-separated effects (default: whole catalogue)")
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
