@@ -39,6 +39,17 @@ def zigzag_inputs(t, amp_deg=20.0, period=30.0):
     return np.where(np.sin(2 * np.pi * t / period) >= 0, -1.0, 1.0) * math.radians(amp_deg) * (t > 2)
 
 
+NOISE = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "u": 0.002, "v": 0.002, "r": math.radians(0.02)}
+
+
+def _noisy_zigzag():
+    """(nominal KVLCC2, a 120 s noisy zigzag of the truth Nr -0.07 / Yv -0.25, the noise sds)."""
+    kv = ship.load_ship("kvlcc2_7m")
+    mt = ship.ShipModel(kv.with_coefficients({"Nr": -0.07, "Yv": -0.25}), dt=0.1)
+    t = np.arange(0, 120.0, 0.1)
+    return kv, synthetic(mt, mt.start(), t, zigzag_inputs(t), 10.23, 1.179, np.random.default_rng(11), NOISE), NOISE
+
+
 def test_packaged_ship_files_load_with_empirical_added_mass():
     kv = ship.load_ship("kvlcc2_7m")
     es = ship.load_ship("esso_osaka_3m")
@@ -148,13 +159,7 @@ def test_residual_weighting_follows_the_structural_error():
     that cannot fit (wrong free set) they grow above it."""
     from bayesid import gap
 
-    kv = ship.load_ship("kvlcc2_7m")
-    truth = kv.with_coefficients({"Nr": -0.07, "Yv": -0.25})
-    mt = ship.ShipModel(truth, dt=0.1)
-    rng = np.random.default_rng(11)
-    t = np.arange(0, 120.0, 0.1)
-    noise = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "u": 0.002, "v": 0.002, "r": math.radians(0.02)}
-    tr = synthetic(mt, mt.start(), t, zigzag_inputs(t), 10.23, 1.179, rng, noise)
+    kv, tr, noise = _noisy_zigzag()
     sd = {k: noise[k] for k in ("x", "y", "psi", "u", "v", "r")}
     right = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [right.context(tr, 30.0)]
@@ -179,13 +184,7 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     fitted channels are errors that name them."""
     from bayesid import cli, gap
 
-    kv = ship.load_ship("kvlcc2_7m")
-    truth = kv.with_coefficients({"Nr": -0.07, "Yv": -0.25})
-    mt = ship.ShipModel(truth, dt=0.1)
-    rng = np.random.default_rng(11)
-    t = np.arange(0, 120.0, 0.1)
-    noise = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "u": 0.002, "v": 0.002, "r": math.radians(0.02)}
-    tr = synthetic(mt, mt.start(), t, zigzag_inputs(t), 10.23, 1.179, rng, noise)
+    kv, tr, noise = _noisy_zigzag()
     bad = tr.with_columns(r=tr["r"] + math.radians(1.0) * np.sin(2 * np.pi * tr.t / 30.0))
     m = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [m.context(bad, 30.0)]
