@@ -6,7 +6,7 @@
     bayesid diagnose --vehicle nps_auv2 --free Yv,Yr,Nv,Nr,Ydr,Ndr --train A.csv B.csv \
         --heldout C.csv --window 60 --out diag
 
-    bayesid fit --vehicle esso_osaka_3m --train A.csv B.csv --effects wind --window 30 --out fitdir
+    bayesid fit --vehicle esso_osaka_3m --train A.csv B.csv --effects wind --out fitdir
     bayesid predict --model fitdir/model.json --track C.csv --window 60 --out pred
 """
 from __future__ import annotations
@@ -155,7 +155,7 @@ def _fit(args) -> int:
     out = Path(args.out)
     doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json")
     msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
-    print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {args.window:g} s windows; "
+    print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
           f"wrote {out / 'model.json'}")
     return 0
 
@@ -277,7 +277,7 @@ def main(argv=None) -> int:
     d.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
     d.add_argument("--dt", type=float, default=0.0, help="model integration step, s (default 0.5; ships 0.2)")
     d.add_argument("--fit-window", type=float, default=0.0,
-                   help="window of the training fits, s (default: 30 for a ship, --window for a submarine)")
+                   help="window of the training fits, s (default: 15 for a ship, --window for a submarine)")
     d.add_argument("--mode", choices=MODES, default="horizontal")
     d.add_argument("--candidates", default="", help="comma-separated effects (default: whole catalogue)")
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
@@ -291,7 +291,8 @@ def main(argv=None) -> int:
     f.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
     f.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's)")
     f.add_argument("--effects", default="", help="comma-separated effects in the model (ships: wind, current, delay)")
-    f.add_argument("--window", type=float, default=30.0, help="multiple-shooting window, s")
+    f.add_argument("--window", type=float, default=None,
+                   help="multiple-shooting window, s (default: 15 for a ship, bayesid.ship.FIT_WINDOW_S; 30 for a submarine)")
     f.add_argument("--dt", type=float, default=None, help="model step, s (default 0.2 ships, 0.5 submarines)")
     f.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations")
     f.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)

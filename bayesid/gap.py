@@ -668,8 +668,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     candidates : effect names (default: the whole :data:`~bayesid.effects.CATALOGUE`).
     window_s : protocol window (s) of the held-out scores, None = whole run.   dt : model step (s).
     fit_window_s : window of the multiple-shooting fits on the training tracks (default: for a
-        ship :data:`bayesid.ship.FIT_WINDOW_S` = 30 s, whatever the scoring window; for a
-        submarine ``window_s``).
+        ship :data:`bayesid.ship.FIT_WINDOW_S`, whatever the scoring window; for a submarine
+        ``window_s``).
     vehicle : a submarine :class:`~bayesid.vehicle.Vehicle` (candidates from
         :data:`bayesid.effects.CATALOGUE`) or a :class:`bayesid.ship.Ship` (candidates from
         :data:`bayesid.ship.SHIP_CATALOGUE`).

@@ -82,7 +82,7 @@ def laplace_covariance(fitres: gap.Fit, ctxs) -> tuple[np.ndarray, dict]:
                  "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")}
 
 
-def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: float | None = None,
+def identify(vehicle, train, free=None, effects=(), window_s: float | None = None, dt: float | None = None,
              max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None,
              channels=None) -> dict:
     """Identify the free coefficients (and effect parameters) on training tracks.
@@ -93,7 +93,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
     train : list of Tracks (``t, x, y, psi, delta_r, n``; ``u, v, r`` when measured; ``wind_*``
         for the wind effect).   free : coefficient names (default: the ship file's ``[fit] free``).
     effects : effect names (ship: :data:`~bayesid.ship.SHIP_CATALOGUE`).
-    window_s : multiple-shooting window (s).   dt : model step (s).
+    window_s : multiple-shooting window (s); default :data:`bayesid.ship.FIT_WINDOW_S` for a ship,
+        30 s for a submarine.   dt : model step (s).
     seed : start from the equation-error estimate (ships) when it simulates better than the
         nominal coefficients.
     weighting : ``"noise"`` or ``"residual"`` channel weights (:func:`bayesid.gap.fit_weighted`);
@@ -118,6 +119,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float = 30.0, dt: 
         raise ValueError("identify needs at least one training track")
     say = progress or (lambda m: None)
     channels = gap.check_channels(channels)
+    if window_s is None:
+        window_s = sh.FIT_WINDOW_S if isinstance(vehicle, sh.Ship) else 30.0
     model = build_model(vehicle, free, effects, dt)
     ctxs = [model.context(t, window_s) for t in train]
     sd = gap._pooled_sd(train)

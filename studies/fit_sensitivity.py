@@ -6,7 +6,8 @@ Method
 - Data and models as in ``studies/real_ships.py``: Esso Osaka 3 m model with the wind effect
   (the protocol table's "after" model), KVLCC2 7 m model at HSVA without effects; the vehicle
   files' free coefficients; 40 least-squares evaluations; residual (two-step GLS) weighting.
-- Settings: the multiple-shooting window of the fit (15, 30, 60 s; 30 s is what real_ships uses)
+- Settings: the multiple-shooting window of the fit (15, 30, 60 s; the reference is 30 s, the
+  issue-8 baseline's window and the package's first default)
   and the channels in the objective (every logged channel, or x, y, psi only: on both data sets
   the logged velocities are estimates derived from the same positions and heading, see the data
   READMEs).
@@ -31,6 +32,8 @@ import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 ESSO_VALIDATION = ["random_06-Aug-2020_16_24_25_6", "turn_14-Oct-2020_15_06_53", "zigzag_31-Jul-2020_13_57_45",
@@ -127,7 +130,8 @@ def run_fit(job: dict) -> dict:
 
 def summarise(fits: list[dict]) -> dict:
     """Per data set: the score table (split x setting), each setting's ratio to the reference
-    per split, and whether it beats the reference on every training-only split."""
+    per split, whether it beats the reference on every training-only split, and its geometric
+    mean ratio over the training-only splits."""
     S = {}
     for ds in SPLITS:
         rows = [f for f in fits if f["dataset"] == ds]
@@ -136,25 +140,35 @@ def summarise(fits: list[dict]) -> dict:
         tab = {}
         for f in rows:
             tab.setdefault(f["split"], {})[f["setting"]] = {"w30": f["w30"], "w60": f["w60"]}
-        ratio, verdict = {}, {}
+        ratio, verdict, mean_cv = {}, {}, {}
         for st in [s for s in SETTINGS if any(s in v for v in tab.values())]:
             r = {sp: {k: tab[sp][st][k] / tab[sp][REFERENCE][k] for k in ("w30", "w60")}
                  for sp in tab if st in tab[sp] and REFERENCE in tab[sp]}
             ratio[st] = r
             cv = [v for sp, v in r.items() if sp != "validation"]
             verdict[st] = {k: bool(cv) and all(v[k] < 1.0 for v in cv) for k in ("w30", "w60")}
+            mean_cv[st] = {k: float(np.exp(np.mean([np.log(v[k]) for v in cv]))) if cv else None
+                           for k in ("w30", "w60")}
         spread = {sp: {k: [min(v[k] for v in tab[sp].values()), max(v[k] for v in tab[sp].values())]
                        for k in ("w30", "w60")} for sp in tab}
         S[ds] = {"scores": tab, "ratio_to_reference": ratio, "beats_reference_on_every_cv_split": verdict,
-                 "spread": spread}
+                 "geometric_mean_ratio_cv": mean_cv, "spread": spread}
     return S
+
+
+def overall(S: dict) -> dict:
+    """{setting: {w30, w60}}: the product over data sets of the geometric mean ratio to the
+    reference on the training-only splits (settings run on every data set only)."""
+    sets = [st for st in SETTINGS if all(d["geometric_mean_ratio_cv"].get(st, {}).get("w30") is not None
+                                         for d in S.values())]
+    return {st: {k: float(np.prod([d["geometric_mean_ratio_cv"][st][k] for d in S.values()])) for k in ("w30", "w60")}
+            for st in sets} if S else {}
 
 
 def figure(S, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     fig, axes = plt.subplots(1, len(S), figsize=(6 * len(S), 4.2), squeeze=False)
     for ax, (ds, d) in zip(axes[0], S.items()):
@@ -194,9 +208,12 @@ def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | 
                 cells.append("-" if v is None else f"{fmt(v['w30'])} / {fmt(v['w60'])}"
                              + ("" if rr is None else f" ({rr['w30']:.3f} / {rr['w60']:.3f})"))
             b = d["beats_reference_on_every_cv_split"][st]
+            g = d["geometric_mean_ratio_cv"][st]
             rows.append([st, *cells, "-" if st == REFERENCE else f"{'yes' if b['w30'] else 'no'} / "
-                                                                  f"{'yes' if b['w60'] else 'no'}"])
-        L += [md_table(["setting", *splits, "better on every training-only split (30 s / 60 s)"], rows), ""]
+                                                                  f"{'yes' if b['w60'] else 'no'}",
+                         "-" if g["w30"] is None else f"{g['w30']:.3f} / {g['w60']:.3f}"])
+        L += [md_table(["setting", *splits, "better on every training-only split (30 s / 60 s)",
+                        "mean ratio, training-only splits (30 s / 60 s)"], rows), ""]
         L += ["Spread over the settings (min - max, m): " + "; ".join(
             f"{sp}: 30 s {fmt(v['w30'][0])}-{fmt(v['w30'][1])}, 60 s {fmt(v['w60'][0])}-{fmt(v['w60'][1])}"
             for sp, v in d["spread"].items()), ""]
@@ -205,7 +222,21 @@ def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | 
               + (", ".join(winners) if winners else "none") + ".", ""]
     if fig is not None:
         L += [f"![60 s scores]({fig.relative_to(out).as_posix()})", ""]
+    from bayesid.ship import FIT_WINDOW_S
+
+    both = overall(S)
+    L += ["## Both ships", "",
+          "Product over the two ships of each setting's geometric mean ratio to the reference on the "
+          "training-only splits (below 1: better than the reference):", "",
+          md_table(["setting", "30 s", "60 s"], [[st, f"{v['w30']:.3f}", f"{v['w60']:.3f}"] for st, v in both.items()]),
+          "", "Lowest at 30 s: " + min(both, key=lambda k: both[k]["w30"]) + "; lowest at 60 s: "
+          + min(both, key=lambda k: both[k]["w60"]) + "." if both else "-", ""]
     L += ["## Reading", "",
+          f"- The package's ship fit window is {FIT_WINDOW_S:g} s (`bayesid.ship.FIT_WINDOW_S`). A per-ship "
+          "choice would be read off the same training-only rows; one default for every ship is what a user "
+          "gets on a hull nobody has tuned. Provenance: 15 s and x/y/psi were first tried on the validation "
+          "split, where both looked better; the training-only splits were added to check them, and only the "
+          "window passed.",
           "- The validation split is what real_ships reports against the issue's targets; a setting that "
           "helps there but not on the training-only splits was selected by the validation data and is not "
           "adopted. The spread across settings on one split is the size of difference a fit setting alone "
@@ -253,7 +284,7 @@ def main() -> int:
                       f"({r['seconds']:.0f} s)", flush=True)
     S = summarise(fits)
     fig = figure(S, out / "figures" / "scores_60s.png") if S else None
-    write_json(out / "results.json", {"summary": S, "settings": {k: {"fit_window_s": w, "channels": list(c) if c else "all"}
+    write_json(out / "results.json", {"summary": S, "both_ships": overall(S), "settings": {k: {"fit_window_s": w, "channels": list(c) if c else "all"}
                                                                 for k, (w, c) in SETTINGS.items()},
                                       "reference": REFERENCE, "splits": SPLITS, "quick": bool(args.quick),
                                       "max_nfev": nfev, "fits": sorted(fits, key=lambda f: (f["dataset"], f["split"], f["setting"]))})

@@ -8,7 +8,9 @@ Method
 - Model: ``bayesid.ship`` (MMG 3-DOF; hull linear + coupling terms + cross-flow integral,
   propeller KT(J) with wake and astern thrust, MMG rudder inflow; added mass from Clarke et al.
   1983 / Soeding 1982). Free coefficients: the vehicle file's ``[fit] free``.
-- Fit: multiple shooting over 30 s windows restarting from the causal measured state, seeded by
+- Fit: multiple shooting over the package's ship fit window (``bayesid.ship.FIT_WINDOW_S``, 15 s,
+  chosen on training-only splits in ``studies/fit_sensitivity.py``; the issue's baseline used
+  30 s) restarting from the causal measured state, seeded by
   an equation-error regression (``bayesid.msfit``); channel weights by two-step feasible GLS (the
   residual RMS of a first, noise-weighted fit: on these runs the structural error over a window
   is 10-100x the sensor noise); Laplace posterior with an AR(1) inflation.
@@ -72,14 +74,15 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     from bayesid import gap, msfit
 
     t0 = time.perf_counter()
-    res = gap.diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=30.0,
+    fw = shipmod.FIT_WINDOW_S
+    res = gap.diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
                        dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        progress=lambda m: log(f"{name}: {m}"))
     gap.write_report(res, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
     bm, bf, _ = res["_curves"]["base"]
     am, af, _ = res["_curves"]["after"]
     doc = {"train_runs": [t.name for t in train], "heldout_runs": [t.name for t in held], "window_s": 60.0,
-           "fit_window_s": 30.0, "verdict": res["verdict"], "ranking": res["ranking"],
+           "fit_window_s": fw, "verdict": res["verdict"], "ranking": res["ranking"],
            "effects_added": res["effects_added"], "partial_attribution": res["partial_attribution"],
            "weighting": res["settings"]["weighting"], "fit_sd": res["fit_sd"],
            "noise_floor_60s_m": res["noise_floor"]["heldout_rms_m"],
@@ -91,7 +94,7 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     top = res["ranking"][0]["effect"] if res["ranking"] else None
     if not res["effects_added"] and top is not None:
         am = msfit.build_model(ship, ship.free, [top], 0.2)
-        ctr = [am.context(t, 30.0) for t in train]
+        ctr = [am.context(t, fw) for t in train]
         af = gap.fit(am, ctr, res["fit_sd"], am.start(bf.p[:bm.n_theta]), max_nfev=args.max_nfev)
     doc["after_effects"] = [e.name for e in am.effects]
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
@@ -104,7 +107,7 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     for k in ("heldout_rms_position_m_base", "heldout_rms_position_m_after", "shrinkage"):
         doc[k] = doc["w60"][k]
     # posterior of the final model (Laplace on the training windows)
-    ctr = [am.context(t, 30.0) for t in train]
+    ctr = [am.context(t, fw) for t in train]
     cov, post = msfit.laplace_covariance(af, ctr)
     doc["posterior"] = {"laplace": post, "parameters": {
         n: {"mean": float(v), "sd": float(math.sqrt(max(c, 0.0)))} for n, v, c in zip(am.param_names, af.p, np.diag(cov))}}

@@ -208,9 +208,10 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     assert rc != 0 and "heading" in capsys.readouterr().err
 
 
-def test_ship_diagnosis_fits_over_30_s_windows_whatever_its_scoring_window():
-    """``bayesid diagnose --window 60`` on a ship scores 60 s windows but fits 30 s ones (the
-    default a user gets); an explicit fit window wins."""
+def test_ship_fits_use_the_ship_fit_window_whatever_the_scoring_window():
+    """``bayesid diagnose --window 60`` on a ship scores 60 s windows but fits over
+    ``ship.FIT_WINDOW_S`` (15 s) ones, and so does ``msfit.identify`` without a window; an
+    explicit fit window wins."""
     from bayesid import gap
 
     kv = ship.load_ship("kvlcc2_7m")
@@ -220,8 +221,9 @@ def test_ship_diagnosis_fits_over_30_s_windows_whatever_its_scoring_window():
               for a, p in ((20, 30), (10, 24))]
     kw = dict(candidates=["delay"], window_s=60.0, dt=0.2, max_nfev=1)
     res = gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], **kw)
-    assert res["settings"]["fit_window_s"] == ship.FIT_WINDOW_S == 30.0 and res["settings"]["window_s"] == 60.0
+    assert res["settings"]["fit_window_s"] == ship.FIT_WINDOW_S == 15.0 and res["settings"]["window_s"] == 60.0
     assert gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], fit_window_s=45.0, **kw)["settings"]["fit_window_s"] == 45.0
+    assert msfit.identify(kv, tracks[:1], ["Nr"], dt=0.2, max_nfev=1)["window_s"] == 15.0
 
 
 def test_paired_window_test_detects_a_consistent_improvement():
