@@ -72,9 +72,9 @@ def _scores(model, fitres, tracks, window):
 def evaluate(name, ship, train, held, candidates, args, out, log):
     """Diagnose, then score base and after models at 30 s, 60 s and whole run."""
     from bayesid import gap, msfit
+    from bayesid.ship import FIT_WINDOW_S as fw
 
     t0 = time.perf_counter()
-    fw = shipmod.FIT_WINDOW_S
     res = gap.diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
                        dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        progress=lambda m: log(f"{name}: {m}"))
