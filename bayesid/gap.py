@@ -17,7 +17,8 @@ free coefficients. It
    a catalogue ``neutral`` value contains the model it extends; if its fits end worse than that
    model, it is refitted from that model's optimum with the effect neutral (so ΔBIC <= k ln n);
 4. **how far**: the protocol's scores before and after the top effect, on the training and the
-   held-out tracks.
+   held-out tracks: RMS and maximum position error, heading RMS, and the Gaussian log-likelihood
+   of all scored channels at the fits' channel sds (:func:`scores`).
 
 Verdict rules (fixed before the benchmark was run, stated in the report):
 
@@ -257,17 +258,30 @@ def fit_weighted(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int =
                channels=channels), sd2
 
 
-def scores(model, fitres: Fit, ctxs, nuisance=None) -> dict:
-    """Protocol scores of a fitted model on tracks (pooled over windows and tracks)."""
+def scores(model, fitres: Fit, ctxs, nuisance=None, sd: dict | None = None) -> dict:
+    """Protocol scores of a fitted model on tracks (pooled over windows and tracks).
+
+    With ``sd`` ({channel: sd}, SI) also ``log_likelihood`` (nats): the Gaussian log-density
+    of every finite error of every scored channel, ``sum(-e^2 / (2 sd^2) - ln(sd sqrt(2 pi)))``,
+    treating the samples as independent -- a relative measure (before vs after an effect, same
+    sds and samples), not a calibrated one: simulation errors are correlated in time.
+    Raises KeyError when ``sd`` lacks a scored channel."""
     errs, per_track = [], {}
+    ll = 0.0
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
         S = model.simulate(ctx, fitres.p[None], nu)
         e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
         errs.append(e)
         per_track[ctx.name] = pooled_scores([e])["rms_position_m"]
+        if sd is not None:
+            for c, v in e.items():
+                v = v[np.isfinite(v)]
+                ll += float(-0.5 * np.sum((v / sd[c]) ** 2) - v.size * math.log(sd[c] * math.sqrt(2 * math.pi)))
     out = pooled_scores(errs)
     out["per_track_rms_position_m"] = per_track
+    if sd is not None:
+        out["log_likelihood"] = ll
     return out
 
 
@@ -298,6 +312,7 @@ def _gap_summary(train: dict, held: dict) -> dict:
     return {"train_rms_m": train["rms_position_m"], "heldout_rms_m": held["rms_position_m"],
             "heldout_max_m": held["max_position_m"], "heading_rms_deg": held["rms_heading_deg"],
             "train_heading_rms_deg": train["rms_heading_deg"],
+            "train_log_likelihood": train.get("log_likelihood"), "heldout_log_likelihood": held.get("log_likelihood"),
             "heldout_rms_by_channel": held["rms"]}
 
 
@@ -722,7 +737,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     base, ctr, cho = build(())
     say("base fit")
     bfit, sd_fit = fit_weighted(base, ctr, sd, max_nfev=max_nfev, weighting=weighting)
-    b_train, b_held = scores(base, bfit, ctr), scores(base, bfit, cho)
+    b_train, b_held = scores(base, bfit, ctr, sd=sd_fit), scores(base, bfit, cho, sd=sd_fit)
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
     # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
     nominal = Fit(base, base.start(), [np.zeros(0)] * len(train), 0.0, 0, 0, True, "nominal", 0.0)
@@ -786,7 +801,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
             if m.n_nuisance:
                 nh = fit(m, ch, sd_fit, best.p, None, max_nfev=30, fit_nuisance_only=True)
                 nu_h = nh.nuisance
-            s_tr, s_h = scores(m, best, ct), scores(m, best, ch, nu_h)
+            s_tr, s_h = scores(m, best, ct, sd=sd_fit), scores(m, best, ch, nu_h, sd=sd_fit)
             win_of[name] = window_rms(m, best, ch, nu_h)
             p_win = paired_window_test(ref_windows, win_of[name])
             excess = ref_held["rms_position_m"] - floor["rms_position_m"]
@@ -937,11 +952,15 @@ def write_report(res: dict, out, heldout: list, command: str = "") -> None:
              f"{res['settings']['window_s']} s; model step {res['settings']['dt']} s; channel weights of the fits: "
              f"{res['settings'].get('weighting', 'noise')} sds ({', '.join(f'{k} {fmt(v)}' for k, v in res.get('fit_sd', {}).items())}).", "",
              "## How far", "",
-             md_table(["", "train RMS (m)", "held-out RMS (m)", "held-out max (m)", "heading RMS (deg)"],
-                      [["base model", fmt(gb["train_rms_m"]), fmt(gb["heldout_rms_m"]), fmt(gb["heldout_max_m"]),
-                        fmt(gb["heading_rms_deg"])],
-                       ["with " + ("+".join(res["effects_added"]) or "nothing"), fmt(ga["train_rms_m"]),
-                        fmt(ga["heldout_rms_m"]), fmt(ga["heldout_max_m"]), fmt(ga["heading_rms_deg"])]]),
+             md_table(["", "train RMS (m)", "held-out RMS (m)", "held-out max (m)", "heading RMS (deg)",
+                       "train log-lik. (nats)", "held-out log-lik. (nats)"],
+                      [[label, fmt(g["train_rms_m"]), fmt(g["heldout_rms_m"]), fmt(g["heldout_max_m"]),
+                        fmt(g["heading_rms_deg"]), fmt(g.get("train_log_likelihood"), 5),
+                        fmt(g.get("heldout_log_likelihood"), 5)]
+                       for label, g in (("base model", gb),
+                                        ("with " + ("+".join(res["effects_added"]) or "nothing"), ga))]),
+             "Log-likelihood: Gaussian at the fits' channel sds, samples treated as independent (a "
+             "before/after comparison on the same samples, not a calibrated likelihood).",
              "", f"Held-out shrinkage {fmt(res['heldout_shrinkage'])}; noise floor (perfect model at the "
              f"estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
              f"{fmt(res['gap_ratio'])} (significant above {res['thresholds']['none_ratio']}).", "",

@@ -180,6 +180,22 @@ def test_diagnosis_names_the_withheld_effect(veh, scenario, effect):
     assert res["verdict"] == effect, (res["verdict"], [(r["effect"], r["heldout_rms_m"], r["excess_removed"],
                                                         r["delta_bic"]) for r in res["ranking"]])
     assert res["gap_after"]["heldout_rms_m"] < res["gap_before"]["heldout_rms_m"]
+    assert res["gap_after"]["heldout_log_likelihood"] > res["gap_before"]["heldout_log_likelihood"]
+
+
+def test_scores_log_likelihood_is_the_gaussian_density_of_the_errors(veh):
+    """``scores(..., sd=)``: sum over channels and finite samples of -e^2/(2 sd^2) - ln(sd sqrt(2 pi))."""
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
+    tr = ef.world_track(veh, m, {"thrust": {"thrust_scale": 0.8}}, np.random.default_rng(3))
+    model = ef.EffectModel(veh, ("Nr",), (), dt=0.5)
+    ctx = [model.context(tr, 30.0)]
+    f = gap.Fit(model, model.start(), [np.zeros(0)], 0.0, 0, 0, True, "", 0.0)
+    sd = {c: 0.5 + i for i, c in enumerate(protocol.CHANNELS)}
+    e = ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))
+    want = sum(float(np.sum(-0.5 * (v[0][np.isfinite(v[0])] / sd[c]) ** 2 - np.log(sd[c] * np.sqrt(2 * np.pi))))
+               for c, v in e.items())
+    assert gap.scores(model, f, ctx, sd=sd)["log_likelihood"] == pytest.approx(want, rel=1e-12)
+    assert "log_likelihood" not in gap.scores(model, f, ctx)
 
 
 def test_no_effect_gives_none_and_a_missing_candidate_gives_unexplained(veh, scenario):
