@@ -133,10 +133,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
         except Exception as exc:  # noqa: BLE001 - reported; the fit starts from nominal
             info, ps = {"error": f"{type(exc).__name__}: {exc}"}, None
         if ps is not None:
-            c_nom = gap._residuals(model, ctxs, [gap._weights(c, sd, channels) for c in ctxs], p0[None],
-                                   [None] * len(ctxs))[0]
-            c_seed = gap._residuals(model, ctxs, [gap._weights(c, sd, channels) for c in ctxs], ps[None],
-                                    [None] * len(ctxs))[0]
+            c_nom, c_seed = gap._residuals(model, ctxs, [gap._weights(c, sd, channels) for c in ctxs],
+                                           np.vstack([p0, ps]), [None] * len(ctxs))
             info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
             if info["cost_seed"] < info["cost_nominal"]:
                 p0, seed_info = ps, dict(info, used=True)

@@ -134,9 +134,9 @@ def track_figure(models, track, window, path, title):
     return plots.window_tracks(None, meas, xb, xa, path, title=title)
 
 
-def turning_circles(am, af, cov, draws, rng, U0=1.179, rps=10.23, rudder_deg=35.0, duration=300.0):
-    """Predicted 35 deg turning circles (both sides) with Laplace-posterior bands (no band when
-    ``draws`` is 0)."""
+def turning_circles(am, p, cov, draws, rng, U0=1.179, rps=10.23, rudder_deg=35.0, duration=300.0):
+    """Predicted 35 deg turning circles (both sides) of the model at parameters ``p`` with
+    Laplace-posterior bands (no band when ``draws`` is 0)."""
     from bayesid import msfit
     from bayesid.track import Track
 
@@ -150,7 +150,7 @@ def turning_circles(am, af, cov, draws, rng, U0=1.179, rps=10.23, rudder_deg=35.
         s0 = np.zeros(12)
         s0[6] = U0
         ctx = am.context(tr, None, s0=s0)
-        P = np.vstack([af.p[None], msfit.posterior_samples(am, af.p, cov, draws, rng)]) if draws else af.p[None]
+        P = np.vstack([p[None], msfit.posterior_samples(am, p, cov, draws, rng)]) if draws else p[None]
         S = am.simulate(ctx, P, measured_start=False)
         ind = [msfit.manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr[ctx.idx]) for s in S]
         res = {"predicted": {k: ind[0][k] for k in ("advance_m", "transfer_m", "tactical_diameter_m")}}
@@ -168,8 +168,6 @@ def turning_circles(am, af, cov, draws, rng, U0=1.179, rps=10.23, rudder_deg=35.
 def literature_baseline(vessel, held, rng):
     """The vehicle file's published coefficients, not fitted, in this model: protocol scores on the
     held-out runs (30 s, 60 s, whole run) and the predicted 35 deg turning circles."""
-    from types import SimpleNamespace
-
     from bayesid import msfit
 
     m = msfit.build_model(vessel, vessel.free, [], 0.2)
@@ -177,7 +175,7 @@ def literature_baseline(vessel, held, rng):
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
         out[key] = msfit.predict(m, p, held, w)["pooled"]["rms_position_m"]
-    tc = turning_circles(m, SimpleNamespace(p=p), None, 0, rng)
+    tc = turning_circles(m, p, None, 0, rng)
     out["turning_circles_35deg"] = {side: v["predicted"] for side, v in tc.items()}
     return out
 
@@ -282,7 +280,7 @@ def main() -> int:
     kv = ship.load_ship("kvlcc2_7m")
     k_doc, k_res, k_base, k_after = evaluate("kvlcc2_hsva", kv, ktrain, kheld, ["current", "delay"], args, out, log)
     am, af, cov = k_after
-    circles = turning_circles(am, af, cov, args.draws, rng)
+    circles = turning_circles(am, af.p, cov, args.draws, rng)
     k_doc["turning_circles_35deg"] = {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")}
                                       for k, v in circles.items()}
     k_doc["literature_baseline"] = dict(
