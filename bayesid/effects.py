@@ -23,7 +23,7 @@ import numba as nb
 import numpy as np
 
 from . import dynamics, terms
-from .protocol import CHANNELS, state_at, window_starts, wrap
+from .protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
 from .simulate import Manoeuvre, Simulator
 from .track import INPUT_NAMES, STATE_NAMES, Track
 
@@ -330,12 +330,28 @@ def _servo(x, dt, lag, rate):
 
 
 class _TrackContext:
-    """What the model needs of one track: time grid, inputs, windows and samples."""
+    """What the model needs of one track: time grid, inputs, windows and samples.
 
-    def __init__(self, model, track: Track, window_s, span_s, s0=None, substeps=10):
+    Window ``w`` is simulated over one *segment* of the model's step grid, from step
+    ``seg_step[w]`` (``lead_steps`` before the window start under the fitted start rule with a
+    lead-in, else the window start) to the next window's start. Segments may overlap (a lead-in
+    lies in the previous window); the kernels see them laid end to end on a virtual step axis
+    (``vmap`` maps a virtual step to the real one; None when the layout is the real grid).
+    Samples scored: ``ts`` (window ``win``, output row ``row``, interpolation ``frac``, time since
+    the segment start ``t_rel``, measurements ``meas``); under the fitted rule the samples that
+    estimate the start are ``lead`` (same keys; the lead-in before each window start, or the
+    window itself for a training fit without lead-in).
+    """
+
+    def __init__(self, model, track: Track, window_s, span_s, s0=None, substeps=10, start="measured",
+                 leadin_s: float = 0.0):
         dt = model.dt
         t = np.asarray(track.t, float)
         self.model, self.track, self.name = model, track, track.name
+        if start not in ("measured", "fitted"):
+            raise ValueError(f"start rule must be 'measured' or 'fitted' here, not {start!r}")
+        self.start = "measured" if s0 is not None else start
+        self.window_s = window_s
         self.t0 = float(t[0])
         self.n_steps = int(math.floor((t[-1] - t[0]) / dt + 1e-9))
         if self.n_steps < 1:
@@ -345,37 +361,63 @@ class _TrackContext:
         self.t_mid = self.t_grid[:-1] + 0.5 * dt
         if window_s is not None and abs(window_s / dt - round(window_s / dt)) > 1e-6:
             raise ValueError(f"window {window_s} s is not a multiple of the model step {dt} s")
+        leadin_s = float(leadin_s) if self.start == "fitted" else 0.0
+        if leadin_s < 0 or abs(leadin_s / dt - round(leadin_s / dt)) > 1e-6:
+            raise ValueError(f"lead-in {leadin_s} s is not a non-negative multiple of the model step {dt} s")
+        if window_s is not None and leadin_s > window_s + 1e-9:
+            raise ValueError(f"lead-in {leadin_s} s is longer than the window {window_s} s")
+        self.leadin_s = leadin_s
+        self.lead_steps = int(round(leadin_s / dt))
         # With a velocity not measured, the causal start-state estimate needs 2*span_s of history
-        # (slopes of the positions): the first window starts after it.
-        derived = s0 is None and any(k not in track for k in ("u", "v", "r"))
-        t_first = self.t0 + (2.0 * span_s if derived else 0.0)
+        # (slopes of the positions): the first window starts after it. The fitted rule starts
+        # the first window after its lead-in.
+        if self.start == "fitted":
+            t_first = self.t0 + leadin_s
+        else:
+            derived = s0 is None and any(k not in track for k in ("u", "v", "r"))
+            t_first = self.t0 + (2.0 * span_s if derived else 0.0)
         ws = window_starts(t[(t <= t_end + 1e-9) & (t >= t_first - 1e-9)], window_s)
         steps = np.unique(np.round((ws - self.t0) / dt).astype(np.int64))
         steps = steps[steps < self.n_steps]
-        self.starts = np.append(steps, self.n_steps).astype(np.int64)
+        if steps.size == 0:
+            raise ValueError(f"track {track.name!r} ({t[-1] - t[0]:g} s) is too short for a window after "
+                             f"{t_first - self.t0:g} s of lead-in")
         self.W = len(steps)
         self.t_start = self.t_grid[steps]
-        # samples scored: within the grid
+        ends = np.append(steps[1:], self.n_steps)
+        self.seg_step = np.maximum(steps - self.lead_steps, 0)
+        lens = ends - self.seg_step
+        self.starts = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+        self.vmap = None if self.lead_steps == 0 and steps[0] == 0 else np.concatenate(
+            [np.arange(a, b) for a, b in zip(self.seg_step, ends)]).astype(np.int64)
+        if self.vmap is not None and self.lead_steps == 0:
+            # contiguous windows from a later first step: keep the real grid (the first steps are
+            # simulated by no window)
+            self.vmap = None
+            self.starts = np.append(steps, self.n_steps).astype(np.int64)
+            self.seg_step = steps
+        self.t_seg = self.t_grid[self.seg_step]
+        # samples scored: within the grid, from the first window start
         keep = (t <= t_end + 1e-9) & (t >= self.t_start[0] - 1e-9)
         self.ts = t[keep]
         self.idx = np.flatnonzero(keep)
         self.win = np.searchsorted(self.t_start, self.ts + 1e-9, side="right") - 1
-        g = (self.ts - self.t0) / dt
-        k = np.minimum(np.floor(g + 1e-9).astype(np.int64), self.n_steps - 1)
-        k = np.maximum(k, self.starts[self.win])
-        self.frac = np.clip(g - k, 0.0, 1.0)
-        self.row = k + self.win
-        self.t_rel = self.ts - self.t_start[self.win]
+        self.row, self.frac = self._rows(self.ts, self.win)
+        self.t_rel = self.ts - self.t_seg[self.win]
         # measured channels
         self.channels = [c for c in CHANNELS if c in track and np.isfinite(track[c][keep]).any()]
         self.meas = {c: np.asarray(track[c], float)[keep] for c in self.channels}
-        # window start states (measured) or the given true initial state
+        # window start states: the given true initial state, the causal estimate (measured
+        # rule) or the first guess at each segment start (fitted rule)
         if s0 is not None:
             self.s_meas = np.asarray(s0, float)[None, :].repeat(self.W, 0)
+        elif self.start == "fitted":
+            self.s_meas = np.array([state_guess(track, ta) for ta in self.t_seg])
         else:
             self.s_meas = np.array([state_at(track, ts, span_s) for ts in self.t_start])
         if model.mode == "horizontal":
             self.s_meas[:, [2, 3, 4, 8, 9, 10]] = 0.0
+        self.lead = self._lead_samples(track, t) if self.start == "fitted" else None
         # inputs: cumulative integral of the zero-order-held record (exact averages)
         missing = [k for k in ("delta_r", "n") if k not in track]
         if missing:
@@ -399,6 +441,48 @@ class _TrackContext:
         self._ck = np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad])
         self.substeps = int(substeps)
         self._step_inputs = self.average_inputs(np.zeros(1))[0]
+
+    @property
+    def n_virtual(self) -> int:
+        """Steps the kernels integrate (segments end to end)."""
+        return int(self.starts[-1])
+
+    def _rows(self, ts, win):
+        """(output row of the step at or before each time, fraction of the step) for samples at
+        times ``ts`` simulated by windows ``win``."""
+        dt = self.model.dt
+        g = (ts - self.t0) / dt
+        ends = self.seg_step + np.diff(self.starts)
+        k = np.minimum(np.floor(g + 1e-9).astype(np.int64), ends[win] - 1)
+        k = np.maximum(k, self.seg_step[win])
+        frac = np.clip(g - k, 0.0, 1.0)
+        return self.starts[win] + (k - self.seg_step[win]) + win, frac
+
+    def _lead_samples(self, track, t):
+        """Samples that estimate each window's start state under the fitted rule: the lead-in
+        ``[t_seg, t_start)`` (strictly before the first scored sample), or with no lead-in the
+        window's own samples (a training fit: multiple shooting proper)."""
+        if self.lead_steps == 0:
+            sel_t, win = self.ts, self.win
+            meas = self.meas
+        else:
+            idx, win = [], []
+            for w in range(self.W):
+                i = np.flatnonzero((t >= self.t_seg[w] - 1e-9) & (t < self.t_start[w] - 1e-9))
+                idx.append(i)
+                win.append(np.full(i.size, w))
+            idx, win = np.concatenate(idx), np.concatenate(win).astype(np.int64)
+            sel_t = t[idx]
+            meas = {c: np.asarray(track[c], float)[idx] for c in self.channels}
+        row, frac = self._rows(sel_t, win)
+        # weights of the start fit: the noise sd of each channel, from the track itself
+        sd = estimate_noise(track, self.channels)
+        return {"ts": sel_t, "win": win, "row": row, "frac": frac, "t_rel": sel_t - self.t_seg[win],
+                "meas": meas, "sd": sd}
+
+    def gather(self, a):
+        """Per-step array ``a`` (B, n_steps, ...) laid out on the kernels' virtual step axis."""
+        return a if self.vmap is None else np.ascontiguousarray(a[:, self.vmap])
 
     def average_inputs(self, delay, fine=False):
         """Inputs averaged over each step (or substep if ``fine``), delayed by ``delay`` (B,) s:
@@ -488,10 +572,13 @@ class EffectModel:
         th = np.maximum(np.abs(self.theta0), 1e-3)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
-    def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None) -> _TrackContext:
+    def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
+                leadin_s: float = 0.0) -> _TrackContext:
         """Prepare a track (inputs, windows, window-start states). ``s0`` (12,) replaces the
-        measured start state (world generation); otherwise it is estimated causally."""
-        return _TrackContext(self, track, window_s, span_s, s0=s0)
+        measured start state (world generation); otherwise the start rule ``start``
+        (:data:`bayesid.protocol.START_RULES`, resolved: ``"measured"`` or ``"fitted"``, with a
+        lead-in of ``leadin_s`` seconds) gives it."""
+        return _TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
 
     def _split(self, P):
         P = np.atleast_2d(np.asarray(P, float))
@@ -502,7 +589,8 @@ class EffectModel:
             i += n
         return th, qs
 
-    def simulate(self, ctx: _TrackContext, P, nuisance=None, measured_start: bool = True) -> np.ndarray:
+    def simulate(self, ctx: _TrackContext, P, nuisance=None, measured_start: bool = True, starts=None,
+                 samples: str = "scored") -> np.ndarray:
         """Predicted measurements at the track's scored samples.
 
         Parameters
@@ -511,6 +599,11 @@ class EffectModel:
         nuisance : (B, n_nuisance) per-track parameters of this track (default zeros).
         measured_start : map the window-start states through the effects' sensor models
             (False: ``ctx.s_meas`` are already model states, e.g. the true initial state).
+        starts : (B, W, 6) offsets added to the start state of every window (segment) in the
+            measured frame, components :data:`START_INDEX` (x, y, psi, u, v, r); the fitted
+            start rule (:mod:`bayesid.shooting`). Default none.
+        samples : ``"scored"`` (the window samples) or ``"lead"`` (the samples that estimate the
+            start states, ``ctx.lead``).
 
         Returns
         -------
@@ -542,35 +635,67 @@ class EffectModel:
                 ecoef[:, j:j + k] = coef
                 j += k
             jn += e.n_nuisance
-        s0 = np.repeat(ctx.s_meas[None], B, axis=0)
+        s0 = start_states(ctx, B, starts)
         if measured_start:
             for e, q in reversed(list(zip(self.effects, qs))):
                 e.to_model(s0, q)
         if self.mode == "horizontal":
             s0[:, :, [2, 3, 4, 8, 9, 10]] = 0.0
-        out = np.empty((B, ctx.n_steps + ctx.W, 12))
+        out = np.empty((B, ctx.n_virtual + ctx.W, 12))
         status = np.empty((B, ctx.W), dtype=np.int64)
-        dynamics.simulate_windows(np.ascontiguousarray(s0), ctx.starts, inputs, exo, ecoef, self.dt,
-                                  np.ascontiguousarray(vp), sim.tfac, sim.tdof, tcoef, Minv, sim.xs,
+        dynamics.simulate_windows(np.ascontiguousarray(s0), ctx.starts, ctx.gather(inputs), ctx.gather(exo), ecoef,
+                                  self.dt, np.ascontiguousarray(vp), sim.tfac, sim.tdof, tcoef, Minv, sim.xs,
                                   sim.ws, out, status)
-        a = out[:, ctx.row]
-        b = out[:, np.minimum(ctx.row + 1, out.shape[1] - 1)]
-        f = ctx.frac[None, :, None]
-        S = (1.0 - f) * a + f * b
-        # angles: interpolate the increment, not across a wrap
-        S[..., 3:6] = a[..., 3:6] + f[..., 0:1] * wrap(b[..., 3:6] - a[..., 3:6])
+        S, t_rel = sample_rows(ctx, out, samples, slice(3, 6))
         for e, q in zip(self.effects, qs):
-            e.to_measured(S, ctx.t_rel, q)
+            e.to_measured(S, t_rel, q)
         S[..., 5] = wrap(S[..., 5])
         return S
 
 
-def errors(ctx: _TrackContext, S: np.ndarray) -> dict:
-    """Prediction minus measurement per scored channel, (B, n) arrays (psi wrapped)."""
+#: State components (STATE_NAMES indices x, y, psi, u, v, r) of a window start that the fitted
+#: start rule estimates.
+START_INDEX = np.array([0, 1, 5, 6, 7, 11])
+
+
+def start_states(ctx: _TrackContext, B: int, starts=None) -> np.ndarray:
+    """(B, W, 12) window-start states of ``ctx`` (measured frame) plus the offsets ``starts``
+    (B, W, 6) in the :data:`START_INDEX` components, headings wrapped."""
+    s0 = np.repeat(ctx.s_meas[None], B, axis=0)
+    if starts is not None:
+        s0[..., START_INDEX] += starts
+        s0[..., 5] = wrap(s0[..., 5])
+    return s0
+
+
+def sample_rows(ctx: _TrackContext, out: np.ndarray, samples: str, angles: slice):
+    """States at a context's samples, linearly interpolated between the kernel's output rows
+    ``out`` (B, n_virtual + W, n_state) (angles by their wrapped increment). ``samples``:
+    ``"scored"`` or ``"lead"``. Returns (S (B, n, n_state), t_rel (n,) since the segment start)."""
+    if samples == "lead":
+        if ctx.lead is None:
+            raise ValueError(f"track {ctx.name!r}: no lead-in samples (start rule {ctx.start!r})")
+        row, frac, t_rel = ctx.lead["row"], ctx.lead["frac"], ctx.lead["t_rel"]
+    elif samples == "scored":
+        row, frac, t_rel = ctx.row, ctx.frac, ctx.t_rel
+    else:
+        raise ValueError(f"samples must be 'scored' or 'lead', not {samples!r}")
+    a = out[:, row]
+    b = out[:, np.minimum(row + 1, out.shape[1] - 1)]
+    f = frac[None, :, None]
+    S = (1.0 - f) * a + f * b
+    S[..., angles] = a[..., angles] + f * wrap(b[..., angles] - a[..., angles])
+    return S, t_rel
+
+
+def errors(ctx: _TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
+    """Prediction minus measurement per scored channel, (B, n) arrays (psi wrapped), at the
+    scored samples or (``samples="lead"``) at the samples that estimate the start states."""
     out = {}
+    meas = ctx.lead["meas"] if samples == "lead" else ctx.meas
     for c in ctx.channels:
         i = STATE_NAMES.index(c)
-        e = S[..., i] - ctx.meas[c][None, :]
+        e = S[..., i] - meas[c][None, :]
         out[c] = wrap(e) if c == "psi" else e
     return out
 
@@ -597,7 +722,7 @@ def draw_parameters(name: str, level: int, rng: np.random.Generator) -> dict:
 
 def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Generator,
                 noise: dict | None = None, sample_every: int = 1, dt: float | None = None,
-                nuisance=None, name: str | None = None) -> Track:
+                nuisance=None, name: str | None = None, hold_inputs: bool = False) -> Track:
     """A "measured" track of the vehicle flying ``manoeuvre`` with ``effects`` switched on.
 
     Parameters
@@ -612,6 +737,10 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
         manoeuvre's 0.1 s step; the inputs are logged at the same rate, and a coarser log
         misplaces every rudder step by up to one sample interval).   dt : integration step
         (default the manoeuvre's).   nuisance : per-track parameters (default: drawn, e.g. a random phase).
+    hold_inputs : the vehicle is driven by the logged inputs: each command is held over its log
+        interval (an autopilot that runs at the log rate), so a coarse log records the inputs
+        exactly. Without it a 5 Hz log of a 10 Hz zigzag misplaces each rudder reversal by up to
+        0.1 s, which alone costs the true model 0.4-1 m over 60 s windows.
 
     Returns
     -------
@@ -632,6 +761,10 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
     model = EffectModel(vehicle, (), eff, mode="horizontal", dt=dt)
     n = manoeuvre.n_steps
     t = manoeuvre.t
+    if hold_inputs and sample_every > 1:
+        U = manoeuvre.inputs[(np.arange(n) // sample_every) * sample_every]
+        manoeuvre = Manoeuvre(manoeuvre.name, manoeuvre.dt, U, manoeuvre.initial_state, manoeuvre.description,
+                              manoeuvre.parameters)
     log = Track(t, {k: np.append(manoeuvre.inputs[:, j], manoeuvre.inputs[-1, j])
                     for j, k in enumerate(INPUT_NAMES)}, name=manoeuvre.name)
     ctx = model.context(log, None, s0=manoeuvre.initial_state)
@@ -653,5 +786,5 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
     return Track(t[keep], data, name=name or manoeuvre.name, meta={"truth": truth})
 
 
-__all__ = ["Effect", "CATALOGUE", "get", "EffectModel", "errors", "world_track", "draw_parameters", "WORLD_NOISE",
+__all__ = ["Effect", "CATALOGUE", "get", "EffectModel", "errors", "START_INDEX", "start_states", "sample_rows", "world_track", "draw_parameters", "WORLD_NOISE",
            "POLY_CROSSFLOW"]

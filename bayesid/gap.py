@@ -55,7 +55,8 @@ import numpy as np
 from scipy import optimize, signal, stats
 
 from . import effects as ef
-from .protocol import CHANNELS, estimate_noise, pooled_scores, wrap
+from . import shooting
+from .protocol import CHANNELS, LEADIN_S, estimate_noise, pooled_scores, resolve_start, wrap
 from .track import STATE_NAMES, Track
 
 PENALTY = 1e3  # residual (in noise sds) of a sample in a diverged window
@@ -65,8 +66,10 @@ class Fit:
     """A fitted :class:`~bayesid.effects.EffectModel`: parameters, per-track nuisances, cost."""
 
     def __init__(self, model, p, nuisance, ssr, n_res, nfev, success, message, seconds, jac=None,
-                 channels=None):
+                 channels=None, n_starts=0):
         self.model, self.p, self.nuisance, self.jac = model, p, nuisance, jac
+        #: window start states fitted with the parameters (fitted start rule; 6 per window)
+        self.n_starts = int(n_starts)
         #: channels in the objective (None: every scored channel the tracks measure)
         self.channels = None if channels is None else tuple(channels)
         self.ssr, self.n_res, self.nfev = ssr, n_res, nfev
@@ -74,8 +77,9 @@ class Fit:
 
     @property
     def k(self) -> int:
-        """Number of fitted parameters (coefficients, effect parameters, nuisances)."""
-        return self.model.n_params + sum(len(v) for v in self.nuisance)
+        """Number of fitted parameters (coefficients, effect parameters, nuisances, window
+        start states)."""
+        return self.model.n_params + sum(len(v) for v in self.nuisance) + self.n_starts
 
     @property
     def bic(self) -> float:
@@ -119,11 +123,12 @@ def check_channels(channels):
     return channels
 
 
-def _residuals(model, ctxs, wts, P, nus):
-    """(B, n_res) noise-scaled residuals over all tracks."""
+def _residuals(model, ctxs, wts, P, nus, starts=None):
+    """(B, n_res) noise-scaled residuals over all tracks; ``starts``: per track the (B, W, 6)
+    start offsets of the fitted start rule (None: the measured rule)."""
     out = []
-    for ctx, w, nu in zip(ctxs, wts, nus):
-        S = model.simulate(ctx, P, nu)
+    for i, (ctx, w, nu) in enumerate(zip(ctxs, wts, nus)):
+        S = model.simulate(ctx, P, nu, starts=None if starts is None else starts[i])
         for c, e in ef.errors(ctx, S).items():
             if c not in w:
                 continue
@@ -152,6 +157,10 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     channels : the scored channels in the objective (default: all the tracks measure); the
         others still give the window start states.
 
+    Contexts with the fitted start rule (:mod:`bayesid.shooting`) have their window start states
+    estimated with the parameters (6 per window, counted in :attr:`Fit.k`), eliminated by
+    variable projection; with the measured rule the windows restart from the measured state.
+
     Raises ValueError for an unknown channel or a track that measures none of ``channels``.
     """
     tic = time.perf_counter()
@@ -167,11 +176,6 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     channels = check_channels(channels)
     wts = [_weights(c, sd, channels) for c in ctxs]
 
-    def unpack(x):
-        p = x[:model.n_params] if free_p else p0
-        rest = x[model.n_params:] if free_p else x
-        return p, [rest[i * nn:(i + 1) * nn] for i in range(T)]
-
     x0 = np.concatenate(([p0] if free_p else []) + nu0) if (free_p or nn) else p0
     xlo = np.concatenate(([lo] if free_p else []) + [nlo] * T)
     xhi = np.concatenate(([hi] if free_p else []) + [nhi] * T)
@@ -180,25 +184,76 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     span = np.where(fin, xhi - xlo, 0.0)
     x0 = np.where(fin, np.clip(x0, np.where(fin, xlo, 0.0) + 1e-9 * span, np.where(fin, xhi, 0.0) - 1e-9 * span), x0)
     nfev = [0]
+    # Fitted start rule: the window start states are eliminated by variable projection
+    # (bayesid.shooting): every evaluation fits them for its parameters (warm-started at the
+    # last optimum); the Jacobian holds them at that optimum and projects their directions out
+    # window by window (Kaufman), or, where they come from a lead-in rather than the fitted
+    # samples themselves, re-fits them for every perturbed vector.
+    vp = any(c.start == "fitted" for c in ctxs)
+    last = {"x": None, "starts": [None] * T, "jd": [None] * T}
 
-    def fun_batch(X):
-        X = np.atleast_2d(X)
-        nfev[0] += X.shape[0]
+    def split_rows(X):
         P = X[:, :model.n_params] if free_p else np.repeat(p0[None], X.shape[0], 0)
         off = model.n_params if free_p else 0
-        nus = [X[:, off + i * nn:off + (i + 1) * nn] if nn else None for i in range(T)]
-        return _residuals(model, ctxs, wts, P, nus)
+        return P, [X[:, off + i * nn:off + (i + 1) * nn] if nn else None for i in range(T)]
+
+    def fit_all_starts(P, nus, want_jac=False):
+        out = []
+        for i, ctx in enumerate(ctxs):
+            if ctx.start != "fitted":
+                out.append(None)
+                continue
+            s0 = last["starts"][i]
+            s0 = None if s0 is None else np.repeat(s0[:1], P.shape[0], axis=0)
+            res = shooting.fit_starts(model, ctx, P, nus[i], wts[i], starts0=s0, return_jacobian=want_jac)
+            if want_jac:
+                d, J, rwin = res
+                last["jd"][i] = (J[:, 0].T, rwin)
+                out.append(d)
+            else:
+                out.append(res)
+        return out
+
+    def fun_batch(X, starts=None):
+        X = np.atleast_2d(X)
+        nfev[0] += X.shape[0]
+        P, nus = split_rows(X)
+        if vp and starts is None:
+            starts = fit_all_starts(P, nus)
+        return _residuals(model, ctxs, wts, P, nus, starts)
 
     def fun(x):
-        return fun_batch(x)[0]
+        if not vp:
+            return fun_batch(x)[0]
+        P, nus = split_rows(x[None])
+        st = fit_all_starts(P, nus, want_jac=True)
+        last["x"], last["starts"] = x.copy(), st
+        return _residuals(model, ctxs, wts, P, nus, st)[0]
 
     def jac(x):
         h = 1e-6 * np.maximum(xsc, 1e-8)
         sign = np.where(x + h > xhi, -1.0, 1.0)
         X = np.repeat(x[None], x.size + 1, axis=0)
         X[1:] += np.diag(sign * h)
-        R = fun_batch(X)
-        return ((R[1:] - R[0]) / (sign * h)[:, None]).T
+        if not vp:
+            R = fun_batch(X)
+            return ((R[1:] - R[0]) / (sign * h)[:, None]).T
+        if last["x"] is None or not np.array_equal(last["x"], x):
+            fun(x)
+        lead_in = any(c.start == "fitted" and c.lead_steps > 0 for c in ctxs)
+        held = None if lead_in else [None if d is None else np.repeat(d, X.shape[0], axis=0) for d in last["starts"]]
+        R = fun_batch(X, held)
+        J = ((R[1:] - R[0]) / (sign * h)[:, None]).T
+        if lead_in:
+            return J
+        r0 = 0
+        for i, ctx in enumerate(ctxs):
+            n_i = sum(ctx.meas[c].size for c in ctx.channels if c in wts[i])
+            if ctx.start == "fitted":
+                Jd, rwin = last["jd"][i]
+                J[r0:r0 + n_i] = shooting.project_out(J[r0:r0 + n_i], Jd, rwin, ctx.W)
+            r0 += n_i
+        return J
 
     if x0.size == 0:
         r = fun(x0)
@@ -208,10 +263,12 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
         warnings.simplefilter("ignore")
         res = optimize.least_squares(fun, x0, jac=jac, bounds=(xlo, xhi), x_scale=xsc, method="trf",
                                      max_nfev=max_nfev, xtol=1e-8, ftol=1e-8)
-    p, nus = unpack(res.x)
+    P, nus = split_rows(res.x[None])
     r = fun(res.x)
-    return Fit(model, np.array(p), [np.array(v) for v in nus], float(r @ r), r.size, nfev[0],
-               bool(res.success), str(res.message), time.perf_counter() - tic, jac=res.jac, channels=channels)
+    n_starts = sum(6 * c.W for c in ctxs if c.start == "fitted")
+    return Fit(model, np.array(P[0]), [np.array(v[0]) if v is not None else np.zeros(0) for v in nus], float(r @ r),
+               r.size, nfev[0], bool(res.success), str(res.message), time.perf_counter() - tic, jac=res.jac,
+               channels=channels, n_starts=n_starts)
 
 
 def residual_sd(model, fitres: Fit, ctxs, floor: dict) -> dict:
@@ -223,7 +280,7 @@ def residual_sd(model, fitres: Fit, ctxs, floor: dict) -> dict:
     acc = {}
     for i, ctx in enumerate(ctxs):
         nu = fitres.nuisance[i][None] if fitres.nuisance and len(fitres.nuisance[i]) else None
-        S = model.simulate(ctx, fitres.p[None], nu)
+        S = shooting.simulate(model, ctx, fitres.p[None], nu)
         for c, e in ef.errors(ctx, S).items():
             acc.setdefault(c, []).append(e[0][np.isfinite(e[0])])
     return {c: max(float(np.sqrt(np.mean(np.concatenate(v) ** 2))) if sum(x.size for x in v) else 0.0, floor[c])
@@ -270,7 +327,7 @@ def scores(model, fitres: Fit, ctxs, nuisance=None, sd: dict | None = None) -> d
     ll = 0.0
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
-        S = model.simulate(ctx, fitres.p[None], nu)
+        S = shooting.simulate(model, ctx, fitres.p[None], nu)
         e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
         errs.append(e)
         per_track[ctx.name] = pooled_scores([e])["rms_position_m"]
@@ -291,7 +348,7 @@ def window_rms(model, fitres: Fit, ctxs, nuisance=None) -> np.ndarray:
     out = []
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
-        e = ef.errors(ctx, model.simulate(ctx, fitres.p[None], nu))
+        e = ef.errors(ctx, shooting.simulate(model, ctx, fitres.p[None], nu))
         pos2 = e["x"][0] ** 2 + e["y"][0] ** 2
         for w in range(ctx.W):
             v = pos2[(ctx.win == w) & np.isfinite(pos2)]
@@ -425,15 +482,18 @@ REGIONS = {
 }
 
 
-def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None) -> dict:
-    """Where the fitted base model misses (see module docstring). Returns a JSON-able dict."""
+def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None) -> dict:
+    """Where the fitted base model misses (see module docstring) on the tracks of ``ctxs``
+    (usually the held-out ones). ``nuisance``: per-track nuisances of *these* tracks (None: the
+    model has none; a fit's own nuisances belong to its training tracks and are never used
+    here). Returns a JSON-able dict."""
     out = {"channels": {}, "regions": {}, "phases": {}, "spectrum": {}, "forces": {}, "whiteness": {},
            "input_correlation": {}}
     errs = []
     per_sample = []
     for i, ctx in enumerate(ctxs):
-        nu = fitres.nuisance[i][None] if fitres.nuisance and len(fitres.nuisance[i]) else None
-        S = model.simulate(ctx, fitres.p[None], nu)
+        nu = None if nuisance is None else nuisance[i][None]
+        S = shooting.simulate(model, ctx, fitres.p[None], nu)
         e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
         errs.append(e)
         tr = tracks[i]
@@ -551,7 +611,10 @@ def _noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
     to every channel, re-run the protocol with the same model."""
     errs = []
     for ctx, tr in zip(ctxs, tracks):
-        whole = model.context(tr, None, s0=ctx.s_meas[0])
+        s_first = ctx.s_meas[0].copy()
+        if ctx.start == "fitted":  # the first segment's start as the rule estimates it
+            s_first[ef.START_INDEX] += shooting.fit_starts(model, ctx, fitres.p[None])[0, 0]
+        whole = model.context(tr, None, s0=s_first)
         S = model.simulate(whole, fitres.p[None], measured_start=False)[0]
         for _ in range(n_rep):
             data = {k: np.asarray(tr[k], float).copy() for k in tr.data}
@@ -561,14 +624,10 @@ def _noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
                     vals[whole.idx] = S[:, i] + rng.normal(0, sd.get(k, 0.0), whole.idx.size)
                     data[k] = wrap(vals) if k == "psi" else vals
             syn = Track(tr.t, data, name=tr.name)
-            c2 = model.context(syn, ctx_window(ctx))
-            S2 = model.simulate(c2, fitres.p[None])
+            c2 = model.context(syn, ctx.window_s, start=ctx.start, leadin_s=ctx.leadin_s)
+            S2 = shooting.simulate(model, c2, fitres.p[None])
             errs.append({k: v[0] for k, v in ef.errors(c2, S2).items()})
     return pooled_scores(errs)
-
-
-def ctx_window(ctx):
-    return None if ctx.W == 1 else float(ctx.t_start[1] - ctx.t_start[0])
 
 
 def _pooled_sd(tracks, floor: bool = True) -> dict:
@@ -604,7 +663,7 @@ def _current_seed(model, fitres, ctxs) -> np.ndarray:
     windows: measured - predicted ~ V_c t_rel (least squares through the window starts)."""
     num, den = np.zeros(2), 0.0
     for ctx in ctxs:
-        e = ef.errors(ctx, model.simulate(ctx, fitres.p[None]))
+        e = ef.errors(ctx, shooting.simulate(model, ctx, fitres.p[None]))
         num -= np.array([np.nansum(e["x"][0] * ctx.t_rel), np.nansum(e["y"][0] * ctx.t_rel)])
         den += float(np.sum(ctx.t_rel ** 2))
     return num / den if den > 0 else np.zeros(2)
@@ -673,7 +732,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
              dt: float = 0.5, mode: str = "horizontal", rng=None, max_nfev: int = 60,
              none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
              max_effects: int = 1, progress=None, fit_window_s: float | None = None,
-             weighting: str | None = None, partial_p: float = 0.01) -> dict:
+             weighting: str | None = None, partial_p: float = 0.01, start: str = "auto",
+             leadin_s: float | None = None) -> dict:
     """Diagnose the sim-to-real gap of a base model (see the module docstring).
 
     Parameters
@@ -698,6 +758,11 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         dominates) and ``"noise"`` for a submarine. The base fit sets the weights; every
         candidate is fitted with the same weights, so their costs and BICs compare.
     partial_p : level of the paired per-window test of a partial attribution (module docstring).
+    start : window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"``: fitted when
+        a track lacks a logged u, v or r). The same rule serves every model compared, the
+        training fits (fitted: start states estimated with the parameters) and the noise floor.
+    leadin_s : lead-in of the fitted rule on the held-out tracks (s; default
+        :data:`bayesid.protocol.LEADIN_S`, at most the window).
 
     Returns
     -------
@@ -727,11 +792,18 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     sd = _pooled_sd(train + heldout)
 
     fw = fit_window_s if fit_window_s is not None else (sh.FIT_WINDOW_S if is_ship else window_s)
+    rule = resolve_start(start, train + heldout)
+    lead = 0.0
+    if rule == "fitted":
+        lead = LEADIN_S if leadin_s is None else float(leadin_s)
+        if window_s is not None:
+            lead = min(lead, window_s)
 
     def build(effects):
         m = sh.ShipModel(vehicle, free, effects, dt=dt) if is_ship else ef.EffectModel(vehicle, free, effects,
                                                                                          mode=mode, dt=dt)
-        return m, [m.context(t, fw) for t in train], [m.context(t, window_s) for t in heldout]
+        return (m, [m.context(t, fw, start=rule) for t in train],
+                [m.context(t, window_s, start=rule, leadin_s=lead) for t in heldout])
 
     weighting = weighting or ("residual" if is_ship else "noise")
     base, ctr, cho = build(())
@@ -884,7 +956,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         "after_fit": {"coefficients": after[0].coefficients(), "effects": after[0].effect_parameters()},
         "train_tracks": names_t, "heldout_tracks": names_h,
         "settings": {"free": list(free), "candidates": cands, "window_s": window_s,
-                     "fit_window_s": fw, "dt": dt, "mode": mode,
+                     "fit_window_s": fw, "dt": dt, "mode": mode, "start_rule": rule, "leadin_s": lead,
                      "max_nfev": max_nfev, "max_effects": max_effects, "weighting": weighting},
         "thresholds": {"none_ratio": none_ratio, "explain_fraction": explain_fraction,
                        "bic_threshold": bic_threshold, "partial_p": partial_p},
@@ -894,9 +966,9 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     return res
 
 
-def _window_xy(model, fitres, track, window_s, nu=None):
-    ctx = model.context(track, window_s)
-    S = model.simulate(ctx, fitres.p[None], None if nu is None else nu[None])[0]
+def _window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin_s=0.0):
+    ctx = model.context(track, window_s, start=start, leadin_s=leadin_s)
+    S = shooting.simulate(model, ctx, fitres.p[None], None if nu is None else nu[None])[0]
     xy = S[:, :2].copy()
     cut = np.flatnonzero(np.diff(ctx.win) != 0) + 1
     xy = np.insert(xy, cut, np.nan, axis=0)
@@ -937,10 +1009,12 @@ def write_report(res: dict, out, heldout: list, command: str = "") -> None:
         w = res["settings"]["window_s"]
         bm, bf, _ = curves["base"]
         am, af, anu = curves["after"]
-        meas, before = _window_xy(bm, bf, heldout[0], w)
+        rule, lead = res["settings"]["start_rule"], res["settings"]["leadin_s"]
+        meas, before = _window_xy(bm, bf, heldout[0], w, start=rule, leadin_s=lead)
         after = None
         if res["effects_added"]:
-            _, after = _window_xy(am, af, heldout[0], w, None if anu is None else anu[0])
+            _, after = _window_xy(am, af, heldout[0], w, None if anu is None else anu[0], start=rule,
+                                  leadin_s=lead)
         figs.append(plots.window_tracks(None, meas, before, after, out / "figures" / "heldout_track.png",
                                         title=f"{heldout[0].name}: {w} s windows"))
     gb, ga = res["gap_before"], res["gap_after"]

@@ -581,12 +581,14 @@ class ShipModel:
         th = np.maximum(np.abs(self.theta0), 0.01)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
-    def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None):
+    def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
+                leadin_s: float = 0.0):
         """Windows, start states and step inputs of a track (see
-        :class:`bayesid.effects._TrackContext`), plus the wind averaged over each step."""
+        :class:`bayesid.effects._TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
+        wind averaged over each step."""
         from .effects import _TrackContext
 
-        ctx = _TrackContext(self, track, window_s, span_s, s0=s0)
+        ctx = _TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
         # wind held over a step: the mean of the interpolated wind at 5 points in the step
         tt = ctx.t_grid[:-1, None] + self.dt * (np.arange(5)[None, :] + 0.5) / 5
         w = wind_components(track, tt.ravel()).reshape(ctx.n_steps, 5, 2).mean(axis=1)
@@ -614,30 +616,30 @@ class ShipModel:
                 delay = q[:, 0]
         return prm, cur, delay
 
-    def simulate(self, ctx, P, nuisance=None, measured_start: bool = True) -> np.ndarray:
+    def simulate(self, ctx, P, nuisance=None, measured_start: bool = True, starts=None,
+                 samples: str = "scored") -> np.ndarray:
         """Predicted measurements at the track's scored samples: (B, n_samples, 12) in
-        :data:`~bayesid.track.STATE_NAMES` order (u, v over ground; NaN in a diverged window)."""
+        :data:`~bayesid.track.STATE_NAMES` order (u, v over ground; NaN in a diverged window).
+        ``starts`` (B, W, 6) offsets of the window-start states and ``samples`` as in
+        :meth:`bayesid.effects.EffectModel.simulate`."""
+        from .effects import sample_rows, start_states
+
         prm, cur, delay = self.kernel_params(P)
         B = prm.shape[0]
         U = ctx._step_inputs[None] if delay is None else ctx.average_inputs(np.asarray(delay, float))
         inp = np.empty((B, ctx.n_steps, 2))
         inp[:, :, 0] = U[:, :, 0]
         inp[:, :, 1] = U[:, :, 3] / 60.0
-        s12 = ctx.s_meas
-        s0 = np.repeat(s12[None][:, :, [0, 1, 5, 6, 7, 11]], B, axis=0)
+        s0 = start_states(ctx, B, starts)[:, :, [0, 1, 5, 6, 7, 11]]
         if measured_start:  # measured velocities are over ground: remove the current
             c, s = np.cos(s0[..., 2]), np.sin(s0[..., 2])
             s0[..., 3] -= c * cur[:, None, 0] + s * cur[:, None, 1]
             s0[..., 4] -= -s * cur[:, None, 0] + c * cur[:, None, 1]
-        out = np.empty((B, ctx.n_steps + ctx.W, 6))
+        out = np.empty((B, ctx.n_virtual + ctx.W, 6))
         status = np.empty((B, ctx.W), dtype=np.int64)
-        simulate_windows(np.ascontiguousarray(s0), ctx.starts, np.ascontiguousarray(inp), ctx.wind,
+        simulate_windows(np.ascontiguousarray(s0), ctx.starts, ctx.gather(inp), ctx.gather(ctx.wind[None])[0],
                          np.ascontiguousarray(cur), np.ascontiguousarray(prm), self.dt, out, status)
-        a = out[:, ctx.row]
-        b = out[:, np.minimum(ctx.row + 1, out.shape[1] - 1)]
-        f = ctx.frac[None, :, None]
-        S6 = (1.0 - f) * a + f * b
-        S6[..., 2] = a[..., 2] + f[..., 0] * wrap(b[..., 2] - a[..., 2])
+        S6, _ = sample_rows(ctx, out, samples, slice(2, 3))
         c, s = np.cos(S6[..., 2]), np.sin(S6[..., 2])
         S6[..., 3] += c * cur[:, None, 0] + s * cur[:, None, 1]
         S6[..., 4] += -s * cur[:, None, 0] + c * cur[:, None, 1]
