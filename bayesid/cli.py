@@ -19,6 +19,7 @@ from pathlib import Path
 
 from . import datasets
 from . import manoeuvres as mv
+from . import protocol
 from .simulate import MODES, Simulator
 from .track import write_csv
 from .vehicle import load_vehicle
@@ -234,10 +235,12 @@ def _diagnose(args) -> int:
     res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
-                       fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None)
+                       fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None,
+                       start=args.start, leadin_s=args.leadin if args.leadin > 0 else None)
     gap.write_report(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"verdict: {res['verdict']}; held-out RMS {res['gap_before']['heldout_rms_m']:.3f} m -> "
-          f"{res['gap_after']['heldout_rms_m']:.3f} m; wrote {Path(args.out) / 'diagnosis.json'}")
+          f"{res['gap_after']['heldout_rms_m']:.3f} m (noise floor {res['noise_floor']['heldout_rms_m']:.3f} m, "
+          f"window starts {res['settings']['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}")
     return 0
 
 
@@ -281,7 +284,13 @@ def main(argv=None) -> int:
     d.add_argument("--mode", choices=MODES, default="horizontal")
     d.add_argument("--candidates", default="", help="comma-separated effects (default: whole catalogue)")
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
-    d.add_argument("--max-effects", type=int, default=1, help="greedy rounds of effect addition")
+    d.add_argument("--max-effects", type=int, default=2,
+                   help="greedy rounds of effect addition (a contributor is added and the others tried on top)")
+    d.add_argument("--start", choices=protocol.START_RULES, default="auto",
+                   help="window start states: measured (causal 1 s estimate), fitted (with the model, over a "
+                   "lead-in), auto (fitted when a track does not log u, v and r)")
+    d.add_argument("--leadin", type=float, default=0.0,
+                   help=f"lead-in of the fitted start rule, s (default {protocol.LEADIN_S:g}, at most --window)")
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
     d.add_argument("--seed", type=int, default=0)
     d.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)

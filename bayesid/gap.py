@@ -20,36 +20,47 @@ free coefficients. It
    held-out tracks: RMS and maximum position error, heading RMS, and the Gaussian log-likelihood
    of all scored channels at the fits' channel sds (:func:`scores`).
 
-Verdict rules (fixed before the benchmark was run, stated in the report):
+Window start states follow the protocol's start rule (:data:`bayesid.protocol.START_RULES`):
+restarted from the measured state when u, v, r are logged, else fitted with the model being
+scored (:mod:`bayesid.shooting`: a 10 s lead-in before each held-out window; the window starts
+of the training fits as nuisance parameters). One rule serves every model compared and the floor.
+
+Verdict rules (stated in the report):
 
 * the gap is *significant* when the held-out RMS position error exceeds ``none_ratio`` (1.5)
   times the **noise floor**: the error a perfect model would show at the measured noise level,
   estimated by simulating a model (the fitted base model and the nominal one; the smaller
   result counts) on the held-out inputs, adding noise of the sd estimated from the data
   (:func:`bayesid.protocol.estimate_noise`, without the lower bound that the fit weights use),
-  and scoring that with the same model;
-* an effect *explains* the gap when it removes at least ``explain_fraction`` (0.5) of the
-  held-out excess over the floor, ``(rms_base - rms_effect) / (rms_base - floor)``, and its
-  ΔBIC on the training tracks is below ``-10`` (strong evidence, Kass & Raftery 1995);
-* verdict: ``"none"`` when the gap is not significant (the candidates are still fitted and
-  ranked, for the report, but none is attributed: on a gap barely above the floor a flexible
-  candidate removes half of a small excess by fitting noise); else the best explaining effect;
-  else ``"unexplained"`` -- never a forced attribution;
-* with ``max_effects`` > 1 (greedy rounds), an effect that passes the partial-attribution test
-  below may be added before the last round even if it removes less than half of the excess
-  (two effects can each explain less than half); the set added must remove at least
-  ``explain_fraction`` of the base model's excess, else nothing is attributed;
-* with an ``"unexplained"`` verdict, ``partial_attribution`` names the best-ranked effect that
-  still makes the held-out windows better with significance: one-sided Wilcoxon signed-rank test
-  of the paired per-window RMS position errors, ``p < partial_p`` (0.01), and ΔBIC below -10.
-  On real data, where much of the gap is structural, this says "this effect is real and removes
-  this fraction" without claiming it is the whole story.
+  and scoring that with the same model and start rule;
+* an effect is *the cause* when, added with all coefficients re-identified, the held-out error
+  falls into the floor band (at most ``none_ratio`` x the floor), it removes at least
+  ``explain_fraction`` (0.5) of the excess over the floor, ``(rms_ref - rms_effect) /
+  (rms_ref - floor)``, and its ΔBIC on the training tracks is at most ``-10`` (strong evidence,
+  Kass & Raftery 1995);
+* an effect is a *contributor* when it improves the held-out windows without closing the gap:
+  one-sided Wilcoxon signed-rank test of the paired per-window RMS position errors,
+  ``p < partial_p`` (0.01; or at least ``explain_fraction`` of the excess removed, where too
+  few windows leave the test without power), ΔBIC at most -10 and positive shrinkage. Its
+  *share* is the part of the base model's excess it removes;
+* greedy rounds (``max_effects``, default 2): the best-ranked cause is added and ends the
+  search; else the best-ranked contributor is added and the next round refits every other
+  candidate on top of it;
+* verdict: ``"none"`` when the gap is not significant (candidates are still fitted and ranked,
+  for the report, but none is attributed: on a gap barely above the floor a flexible candidate
+  removes half of a small excess by fitting noise); else the effects added joined by ``+``,
+  with ``+unexplained`` appended when the remainder is still significant (above the band), or
+  ``"unexplained"`` alone when nothing helps -- a contributor is named as one, never as the
+  cause. ``gap_after`` is the model with every effect added; ``remainder`` is what is left
+  (fraction of the base excess, significant or not); ``contributors`` lists every effect that
+  passed the contributor test (added or not) with its share, p-value, ΔBIC and parameters.
 """
 from __future__ import annotations
 
 import math
 import time
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize, signal, stats
@@ -728,10 +739,43 @@ def _extended_nuisance(model, ref_model, ref_fit):
             for v in ref_fit.nuisance]
 
 
+@dataclass
+class _Stage:
+    """A model of the greedy rounds: the model, its fit on the training tracks, its training and
+    held-out scores (:func:`scores`) and its held-out nuisances."""
+
+    model: object
+    fit: Fit
+    train: dict
+    held: dict
+    nuisance: list | None
+
+
+def _is_cause(r, significant, band, explain_fraction, bic_threshold) -> bool:
+    """The effect closes the gap: held-out error inside the noise-floor band, at least
+    ``explain_fraction`` of the excess removed, ΔBIC at most ``bic_threshold``."""
+    return bool(significant and r["heldout_rms_m"] <= band and r["excess_removed"] >= explain_fraction
+                and r["delta_bic"] <= bic_threshold)
+
+
+def _is_contributor(r, significant, explain_fraction, bic_threshold, partial_p) -> bool:
+    """The effect improves the held-out windows without closing the gap: paired window test
+    p < ``partial_p`` (or at least ``explain_fraction`` of the excess removed, where too few
+    windows make the test powerless), ΔBIC at most ``bic_threshold``, positive shrinkage."""
+    return bool(significant and r["delta_bic"] <= bic_threshold and r["heldout_shrinkage"] > 0
+                and (r["window_p_value"] < partial_p or r["excess_removed"] >= explain_fraction))
+
+
+def _contribution(r, added: bool) -> dict:
+    return {"effect": r["effect"], "added": added, "share_of_excess": r["share_of_excess"],
+            "heldout_rms_m": r["heldout_rms_m"], "window_p_value": r["window_p_value"],
+            "delta_bic": r["delta_bic"], "parameters": r["parameters"]}
+
+
 def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_s: float | None = 60.0,
              dt: float = 0.5, mode: str = "horizontal", rng=None, max_nfev: int = 60,
              none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
-             max_effects: int = 1, progress=None, fit_window_s: float | None = None,
+             max_effects: int = 2, progress=None, fit_window_s: float | None = None,
              weighting: str | None = None, partial_p: float = 0.01, start: str = "auto",
              leadin_s: float | None = None) -> dict:
     """Diagnose the sim-to-real gap of a base model (see the module docstring).
@@ -749,15 +793,13 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         :data:`bayesid.effects.CATALOGUE`) or a :class:`bayesid.ship.Ship` (candidates from
         :data:`bayesid.ship.SHIP_CATALOGUE`).
     rng : numpy Generator (noise-floor simulation, bootstrap of the signature regression).
-    max_effects : greedy rounds (2: after the top effect, try the others on top of it). Before
-        a last round, an effect that improves the held-out windows significantly (the partial-
-        attribution test) is added even if it removes less than half of the excess; the set
-        added must remove at least half of the base model's excess, else nothing is attributed.
+    max_effects : greedy rounds (default 2: after a contributor, try the others on top of it;
+        a cause ends the search; module docstring).
     weighting : channel weights of the fits (:func:`fit_weighted`): ``"noise"`` or
         ``"residual"``; default ``"residual"`` for a ship (real data, where the structural error
         dominates) and ``"noise"`` for a submarine. The base fit sets the weights; every
         candidate is fitted with the same weights, so their costs and BICs compare.
-    partial_p : level of the paired per-window test of a partial attribution (module docstring).
+    partial_p : level of the paired per-window test of a contributor (module docstring).
     start : window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"``: fitted when
         a track lacks a logged u, v or r). The same rule serves every model compared, the
         training fits (fitted: start states estimated with the parameters) and the noise floor.
@@ -766,8 +808,9 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
 
     Returns
     -------
-    dict with ``verdict``, ``ranking``, ``gap_before``, ``gap_after``, ``where``,
-    ``noise_floor``, ``base_fit``, ``thresholds`` ... (JSON-able).
+    dict with ``verdict``, ``cause``, ``contributors``, ``remainder``, ``effects_added``,
+    ``ranking``, ``gap_before``, ``gap_after``, ``where``, ``noise_floor``, ``base_fit``,
+    ``thresholds`` ... (JSON-able).
 
     Raises
     ------
@@ -827,29 +870,28 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     except Exception:  # noqa: BLE001 - no seed: the candidate starts from its catalogue values
         pass
     significant = b_held["rms_position_m"] > none_ratio * floor["rms_position_m"]
+    band = none_ratio * floor["rms_position_m"]
+    excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
     ref_windows = window_rms(base, bfit, cho)  # per held-out window, of the model being extended
-    win_of = {}
-    ranking, fits = [], {}
-    chosen = []
-    current_best = (bfit, b_train, b_held, base, None)
-    rounds = []
+    ranking, rounds, chosen, roles = [], [], [], {}
+    current = _Stage(base, bfit, b_train, b_held, None)
     for rnd in range(max(1, int(max_effects))):
-        ref_fit, ref_train, ref_held, ref_model, _ = current_best
-        results = []
+        ref = current
+        results, fits, win_of = [], {}, {}
         for name in cands:
             if name in chosen:
                 continue
             say(f"round {rnd + 1}: {name}")
             m, ct, ch = build(chosen + [name])
-            base_theta = ref_fit.p[:ref_model.n_theta]
+            base_theta = ref.fit.p[:ref.model.n_theta]
             best = None
             for p0, nu0 in _candidate_starts(name, m, base_theta, seeds):
                 # effects already chosen keep their fitted values as the start
                 if chosen:
                     p0 = p0.copy()
-                    p0[:ref_model.n_params] = ref_fit.p
-                    if nu0 is None and ref_model.n_nuisance:
-                        nu0 = _extended_nuisance(m, ref_model, ref_fit)
+                    p0[:ref.model.n_params] = ref.fit.p
+                    if nu0 is None and ref.model.n_nuisance:
+                        nu0 = _extended_nuisance(m, ref.model, ref.fit)
                 try:
                     f = fit(m, ct, sd_fit, p0, nu0, max_nfev=max_nfev)
                 except Exception as exc:  # noqa: BLE001 - a failed candidate is reported
@@ -857,8 +899,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                     continue
                 if best is None or f.ssr < best.ssr:
                     best = f
-            nested = _nested_start(m, ref_model, ref_fit, name)
-            if nested is not None and (best is None or best.ssr > ref_fit.ssr):
+            nested = _nested_start(m, ref.model, ref.fit, name)
+            if nested is not None and (best is None or best.ssr > ref.fit.ssr):
                 # a candidate that nests the model it extends cannot fit worse than it: start
                 # once more at that model's optimum with the new effect at its neutral value
                 try:
@@ -876,53 +918,51 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
             s_tr, s_h = scores(m, best, ct, sd=sd_fit), scores(m, best, ch, nu_h, sd=sd_fit)
             win_of[name] = window_rms(m, best, ch, nu_h)
             p_win = paired_window_test(ref_windows, win_of[name])
-            excess = ref_held["rms_position_m"] - floor["rms_position_m"]
-            removed = (ref_held["rms_position_m"] - s_h["rms_position_m"]) / excess if excess > 0 else 0.0
+            excess = ref.held["rms_position_m"] - floor["rms_position_m"]
+            gain = ref.held["rms_position_m"] - s_h["rms_position_m"]
             results.append({"effect": name, "heldout_rms_m": s_h["rms_position_m"],
                             "train_rms_m": s_tr["rms_position_m"],
-                            "delta_bic": best.bic - ref_fit.bic, "excess_removed": removed,
-                            "heldout_shrinkage": 1 - s_h["rms_position_m"] / ref_held["rms_position_m"],
+                            "delta_bic": best.bic - ref.fit.bic, "excess_removed": gain / excess if excess > 0 else 0.0,
+                            "share_of_excess": gain / excess0 if excess0 > 0 else 0.0,
+                            "heldout_shrinkage": 1 - s_h["rms_position_m"] / ref.held["rms_position_m"],
                             "parameters": best.effect_parameters()[name],
                             "heading_rms_deg": s_h["rms_heading_deg"], "window_p_value": p_win,
-                            "nfev": best.nfev,
-                            "fit_seconds": best.seconds})
-            fits[name] = (best, s_tr, s_h, m, nu_h)
+                            "nfev": best.nfev, "fit_seconds": best.seconds})
+            fits[name] = _Stage(m, best, s_tr, s_h, nu_h)
         results.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
+        for r in results:
+            r["role"] = ("cause" if _is_cause(r, significant, band, explain_fraction, bic_threshold) else
+                         "contributor" if _is_contributor(r, significant, explain_fraction, bic_threshold, partial_p)
+                         else None)
         rounds.append(results)
         if rnd == 0:
             ranking = results
-        top = next((r for r in results if significant and r["excess_removed"] >= explain_fraction
-                    and r["delta_bic"] <= bic_threshold), None)
-        if top is None and rnd + 1 < max_effects:
-            # two effects can each remove less than half: with another round to come, a
-            # significant partial improvement is a stepping stone; the whole set is judged below
-            top = next((r for r in results if significant and r["window_p_value"] < partial_p
-                        and r["delta_bic"] <= bic_threshold and r["heldout_shrinkage"] > 0), None)
+        # the best-ranked cause closes the gap; else the best-ranked contributor is added and the
+        # next round looks for what explains the rest
+        top = next((r for r in results if r["role"] == "cause"), None) or next(
+            (r for r in results if r["role"] == "contributor"), None)
         if top is None:
             break
         chosen.append(top["effect"])
-        current_best = fits[top["effect"]]
+        roles[top["effect"]] = dict(top)
+        current = fits[top["effect"]]
         ref_windows = win_of[top["effect"]]
-        if current_best[2]["rms_position_m"] <= none_ratio * floor["rms_position_m"]:
+        if current.held["rms_position_m"] <= band:
             break
-    excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
-    if chosen and b_held["rms_position_m"] - current_best[2]["rms_position_m"] < explain_fraction * excess0:
-        chosen, current_best = [], (bfit, b_train, b_held, base, None)  # the stepping stones did not add up
-    if chosen:
-        verdict = chosen[0]
-    elif significant:
-        verdict = "unexplained"
-    else:
+    after = current
+    remainder_sig = bool(significant and after.held["rms_position_m"] > band)
+    if not significant:
         verdict = "none"
-    # An effect that makes the held-out windows significantly better without removing enough of
-    # the excess is named as a partial explanation; the verdict stays "unexplained".
-    partial = None
-    if verdict == "unexplained":
-        partial = next(({k: r[k] for k in ("effect", "excess_removed", "heldout_shrinkage", "window_p_value",
-                                           "delta_bic")}
-                        for r in ranking if r["window_p_value"] < partial_p and r["delta_bic"] <= bic_threshold
-                        and r["heldout_shrinkage"] > 0), None)
-    after = current_best if chosen else (bfit, b_train, b_held, base, None)
+    else:
+        verdict = "+".join(chosen + (["unexplained"] if remainder_sig else [])) or "unexplained"
+    # every effect that improves the held-out windows significantly without closing the gap,
+    # added or not (round 1 alone, or as added in its round)
+    contributors = [_contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
+    contributors += [_contribution(r, added=False) for r in ranking
+                     if r["role"] == "contributor" and r["effect"] not in chosen]
+    remainder = {"heldout_rms_m": after.held["rms_position_m"],
+                 "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
+                 if excess0 > 0 else 0.0, "significant": remainder_sig}
     # SINDy support on the missing forces
     support = {}
     if F_list:
@@ -937,12 +977,14 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     res = {
         "verdict": verdict,
         "effects_added": chosen,
-        "partial_attribution": partial,
+        "cause": next((e for e in chosen if roles[e]["role"] == "cause"), None),
+        "contributors": contributors,
+        "remainder": remainder,
         "ranking": ranking,
         "rounds": rounds,
         "gap_before": _gap_summary(b_train, b_held),
-        "gap_after": _gap_summary(after[1], after[2]),
-        "heldout_shrinkage": 1 - after[2]["rms_position_m"] / b_held["rms_position_m"],
+        "gap_after": _gap_summary(after.train, after.held),
+        "heldout_shrinkage": 1 - after.held["rms_position_m"] / b_held["rms_position_m"],
         "noise_floor": {"heldout_rms_m": floor["rms_position_m"], "heading_rms_deg": floor["rms_heading_deg"],
                         "by_channel": floor["rms"]},
         "gap_ratio": b_held["rms_position_m"] / floor["rms_position_m"],
@@ -953,7 +995,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         "fit_sd": sd_fit,
         "base_fit": {"coefficients": bfit.coefficients(), "nominal": dict(zip(base.free, base.theta0.tolist())),
                      "bic": bfit.bic, "n_residuals": bfit.n_res, "success": bfit.success, "nfev": bfit.nfev},
-        "after_fit": {"coefficients": after[0].coefficients(), "effects": after[0].effect_parameters()},
+        "after_fit": {"coefficients": after.fit.coefficients(), "effects": after.fit.effect_parameters()},
         "train_tracks": names_t, "heldout_tracks": names_h,
         "settings": {"free": list(free), "candidates": cands, "window_s": window_s,
                      "fit_window_s": fw, "dt": dt, "mode": mode, "start_rule": rule, "leadin_s": lead,
@@ -962,7 +1004,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                        "bic_threshold": bic_threshold, "partial_p": partial_p},
         "seconds": time.perf_counter() - t_start,
     }
-    res["_curves"] = {"base": (base, bfit, None), "after": (after[3], after[0], after[4])}
+    res["_curves"] = {"base": (base, bfit, None), "after": (after.model, after.fit, after.nuisance)}
     return res
 
 
@@ -976,14 +1018,23 @@ def _window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin
     return meas, xy
 
 
-def _partial_line(res: dict) -> str:
-    pa = res.get("partial_attribution")
-    if not pa:
-        return ""
-    return (f"Partial attribution: **{pa['effect']}** makes the held-out windows better (paired Wilcoxon "
-            f"p = {pa['window_p_value']:.2g}, ΔBIC {pa['delta_bic']:.4g}) but removes only {pa['excess_removed']:.2f} of "
-            f"the excess over the floor (held-out shrinkage {pa['heldout_shrinkage']:.2f}); the rest of the gap is "
-            "not explained by any candidate.")
+def _attribution_lines(res: dict) -> list[str]:
+    """The verdict in words: cause, contributors (with their shares) and the remainder."""
+    from .report import fmt
+
+    out = []
+    if res.get("cause"):
+        out.append(f"Cause: **{res['cause']}** (with it the held-out error is inside the noise-floor band).")
+    for c in res.get("contributors", []):
+        out.append(f"- Contributor **{c['effect']}** ({'added' if c['added'] else 'not added'}): removes "
+                   f"{fmt(c['share_of_excess'])} of the base model's excess (held-out {fmt(c['heldout_rms_m'])} m; "
+                   f"paired window test p = {fmt(c['window_p_value'])}, ΔBIC {fmt(c['delta_bic'], 4)}).")
+    rem = res.get("remainder")
+    if rem and res["significant_gap"]:
+        out.append(f"Remainder: {fmt(rem['fraction_of_excess'])} of the excess over the floor "
+                   f"(held-out {fmt(rem['heldout_rms_m'])} m), "
+                   + ("still significant: no candidate explains it." if rem["significant"] else "inside the band."))
+    return out
 
 
 def write_report(res: dict, out, heldout: list, command: str = "") -> None:
@@ -1039,16 +1090,22 @@ def write_report(res: dict, out, heldout: list, command: str = "") -> None:
              f"estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
              f"{fmt(res['gap_ratio'])} (significant above {res['thresholds']['none_ratio']}).", "",
              "## Which", "",
-             md_table(["effect", "held-out RMS (m)", "excess removed", "window test p", "ΔBIC (train)", "parameters"],
+             md_table(["effect", "held-out RMS (m)", "excess removed", "window test p", "ΔBIC (train)", "role",
+                       "parameters"],
                       [[r["effect"], fmt(r["heldout_rms_m"]), fmt(r["excess_removed"]), fmt(r.get("window_p_value")),
-                        fmt(r["delta_bic"], 4),
+                        fmt(r["delta_bic"], 4), r.get("role") or "-",
                         ", ".join(f"{k} {fmt(v)}" for k, v in r["parameters"].items() if k != "per_track_nuisance")]
                        for r in res["ranking"]]),
-             "", _partial_line(res),
-             "", f"Rules: an effect explains the gap if it removes >= {res['thresholds']['explain_fraction']} "
-             f"of the held-out excess over the floor and its ΔBIC <= {res['thresholds']['bic_threshold']}; "
-             "an effect is attributed only when the gap is significant; otherwise the verdict is `none` "
-             "(gap not significant) or `unexplained`.", "",
+             "", *_attribution_lines(res),
+             "", f"Rules: an effect is the cause if, added, the held-out error falls within "
+             f"{res['thresholds']['none_ratio']} x the floor, it removes >= {res['thresholds']['explain_fraction']} "
+             f"of the excess and its ΔBIC <= {res['thresholds']['bic_threshold']}; a contributor improves the "
+             f"held-out windows (paired Wilcoxon p < {res['thresholds']['partial_p']}, ΔBIC <= "
+             f"{res['thresholds']['bic_threshold']}) without closing the gap and is added, the next round trying the "
+             "others on top of it; `+unexplained` marks a remainder still above the band; `none`: the gap is not "
+             f"significant. Window starts: {res['settings'].get('start_rule', 'measured')} rule"
+             + (f" (lead-in {fmt(res['settings'].get('leadin_s'))} s)" if res["settings"].get("start_rule") == "fitted"
+                else "") + ".", "",
              "Sparse-regression support (ensemble STLSQ inclusion probability of each effect's force "
              "signature in the missing forces; sensor bias leaves none): "
              + ", ".join(f"{k} {fmt(v)}" for k, v in res["sindy_support"].items() if not isinstance(v, str)),

@@ -83,7 +83,8 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     am, af, _ = res["_curves"]["after"]
     doc = {"train_runs": [t.name for t in train], "heldout_runs": [t.name for t in held], "window_s": 60.0,
            "fit_window_s": fw, "verdict": res["verdict"], "ranking": res["ranking"],
-           "effects_added": res["effects_added"], "partial_attribution": res["partial_attribution"],
+           "effects_added": res["effects_added"], "cause": res["cause"], "contributors": res["contributors"],
+           "remainder": res["remainder"],
            "weighting": res["settings"]["weighting"], "fit_sd": res["fit_sd"],
            "noise_floor_60s_m": res["noise_floor"]["heldout_rms_m"],
            "where": {k: res["where"][k] for k in ("dominant_channel", "dominant_region", "channels")
@@ -365,10 +366,15 @@ def write_report(out, R, figs, kfigs, args, mfigs=()):
                  fmt(r["delta_bic"], 4)] for r in d["ranking"]]
 
     def partial(d):
-        pa = d.get("partial_attribution")
-        return (f"Partial attribution: **{pa['effect']}** makes the held-out 60 s windows better (paired Wilcoxon "
-                f"p = {pa['window_p_value']:.2g}) and removes {fmt(pa['excess_removed'])} of the excess over the noise "
-                "floor; the rest of the gap is structural (no candidate explains it)." if pa else "No partial attribution.")
+        cs = d.get("contributors") or []
+        rem = d.get("remainder") or {}
+        text = "; ".join(f"**{c['effect']}** ({'added' if c['added'] else 'not added'}) removes "
+                         f"{fmt(c['share_of_excess'])} of the excess over the noise floor (paired Wilcoxon "
+                         f"p = {c['window_p_value']:.2g}, ΔBIC {fmt(c['delta_bic'], 4)})" for c in cs)
+        return ((f"Contributors: {text}. " if cs else "No contributor. ")
+                + (f"Remainder: {fmt(rem.get('fraction_of_excess'))} of the excess"
+                   + (", still significant (structural: no candidate explains it)." if rem.get("significant") else ".")
+                   if rem else ""))
 
     E, K = R["esso_osaka"], R["kvlcc2_hsva"]
     tc = K["turning_circles_35deg"]

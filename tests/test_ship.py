@@ -275,7 +275,7 @@ def test_fit_predict_diagnose_commands_on_two_converted_runs(tmp_path):
                          "--out", str(tmp_path / "diag")], check=True)
     dg = json.loads((tmp_path / "diag" / "diagnosis.json").read_text())
     assert dg["settings"]["window_s"] == 30 and dg["ranking"][0]["effect"] == "delay"
-    assert dg["settings"]["weighting"] == "residual" and "partial_attribution" in dg
+    assert dg["settings"]["weighting"] == "residual" and {"cause", "contributors", "remainder"} <= set(dg)
     assert 0.0 <= dg["ranking"][0]["window_p_value"] <= 1.0
 
 
