@@ -82,6 +82,10 @@ class Effect:
         """Exogenous signals (B, n_steps, K) and coefficients (B, K, 6) or None."""
         return None
 
+    def input_map(self, x, q):
+        """What acts on the vehicle, from the logged inputs after delay and servo: change x
+        (B, n, 4) (``delta_r, delta_s, delta_b`` rad, ``n`` rpm, per step) in place."""
+
     def modify(self, model, C, M, vp, tcoef, q):
         """Change prime coefficients C, mass matrices M, vehicle parameters vp or dimensional
         term coefficients tcoef (all (B, ...)) in place."""
@@ -140,6 +144,25 @@ class SensorBias(Effect):
         S[..., IX] += c * ax - sn * ay
         S[..., IY] += sn * ax + c * ay
         S[..., IPSI] += np.radians(q[:, 0])[:, None]
+
+
+class SensorLag(Effect):
+    """Dynamics of the logged motion channels: the logged body velocities and yaw rate follow the
+    vehicle's through a first-order lag ``lag_s`` (velocities differentiated from positions and
+    smoothed by a causal filter, e.g. GNSS speed through a Kalman filter, lag about 1 s), and the
+    position fix is stamped ``skew_s`` late against the attitude (``x_logged(t) = x(t - skew)``,
+    first order: ``x - skew * x_dot``). Sensor dynamics act on the measurements, not the forces:
+    no force signature. Lag: the exact discrete first-order filter of the samples, restarted at
+    each window start (Astrom & Wittenmark 1997, Computer-Controlled Systems, Sec. 2.3)."""
+
+    def to_measured(self, S, t_rel, q):
+        skew = q[:, 1][:, None]
+        c, sn = np.cos(S[..., IPSI]), np.sin(S[..., IPSI])
+        u, v = S[..., IU].copy(), S[..., IV].copy()
+        S[..., IX] -= skew * (c * u - sn * v)
+        S[..., IY] -= skew * (sn * u + c * v)
+        _first_order_lag(S, np.asarray(t_rel, float), np.ascontiguousarray(q[:, 0], dtype=float),
+                         np.array([IU, IV, IR], dtype=np.int64))
 
 
 class Actuator(Effect):
@@ -261,6 +284,12 @@ def _catalogue():
             source="Magnetic compass deviation after calibration 0.5-3 deg; a GPS antenna or USBL "
                    "transponder mounted 0.3-1.5 m from the body origin of a 5.3 m hull.",
             description="sensor bias: heading offset and position-sensor lever arm"),
+        "sensor_lag": SensorLag(
+            "sensor_lag", ("lag_s", "skew_s"), (0.0, -3.0), (5.0, 3.0), (0.5, 0.0), (0.3, 0.3), neutral=(0.0, 0.0),
+            magnitudes=({"lag_s": 0.5}, {"lag_s": 1.0, "skew_s": 0.3}, {"lag_s": 1.0, "skew_s": 1.0}),
+            source="Velocities from differentiated GNSS/USBL fixes through causal filters lag 0.3-1.5 s; "
+                   "navigation and attitude logged by separate clocks skew by up to 1 s.",
+            description="sensor dynamics: first-order lag of logged u, v, r and a position time skew"),
         "crossflow": Crossflow(
             "crossflow", ("cd_scale",), (0.0,), (4.0,), (1.0,), (0.2,),
             magnitudes=({"cd_scale": 1.4}, {"cd_scale": 1.8}, {"cd_scale": 2.2}),
@@ -327,6 +356,28 @@ def _servo(x, dt, lag, rate):
                 d = min(max(d, -step), step)
             y += d
             x[b, k] = y
+
+
+@nb.njit(cache=True)
+def _first_order_lag(S, t_rel, tau, cols):
+    """In place on S (B, n, k): columns ``cols`` pass a first-order lag of time constant tau (B,)
+    s over the samples at times t_rel (n,); the filter restarts where t_rel decreases (a new
+    window) at the unfiltered value."""
+    B, n = S.shape[0], S.shape[1]
+    for b in range(B):
+        if not tau[b] > 1e-9:
+            continue
+        for c in cols:
+            y = S[b, 0, c]
+            for k in range(1, n):
+                h = t_rel[k] - t_rel[k - 1]
+                x = S[b, k, c]
+                if h <= 0.0:
+                    y = x
+                    continue
+                a = math.exp(-h / tau[b])
+                y = a * y + (1.0 - a) * x
+                S[b, k, c] = y
 
 
 class _TrackContext:
@@ -504,18 +555,22 @@ class _TrackContext:
             delay = e.delay(q) if e.delay(q) is not None else delay
             servo = e.actuator(q) if e.actuator(q) is not None else servo
         if delay is None and servo is None:
-            return np.repeat(self._step_inputs[None], B, axis=0)
-        d = np.zeros(B) if delay is None else np.asarray(delay, float)
-        if servo is None:
-            return self.average_inputs(d)
-        x = self.average_inputs(d, fine=True)
-        m = self.substeps
-        lag, rate = servo
-        for j in range(3):
-            col = np.ascontiguousarray(x[:, :, j])
-            _servo(col, self.model.dt / m, np.asarray(lag, float), np.asarray(rate, float))
-            x[:, :, j] = col
-        return x.reshape(B, self.n_steps, m, 4).mean(axis=2)
+            x = np.repeat(self._step_inputs[None], B, axis=0)
+        elif servo is None:
+            x = self.average_inputs(np.zeros(B) if delay is None else np.asarray(delay, float))
+        else:
+            x = self.average_inputs(np.zeros(B) if delay is None else np.asarray(delay, float), fine=True)
+            m = self.substeps
+            lag, rate = servo
+            for j in range(3):
+                col = np.ascontiguousarray(x[:, :, j])
+                _servo(col, self.model.dt / m, np.asarray(lag, float), np.asarray(rate, float))
+                x[:, :, j] = col
+            x = x.reshape(B, self.n_steps, m, 4).mean(axis=2)
+        for e, q in zip(effects, qs):
+            if type(e).input_map is not Effect.input_map:
+                e.input_map(x, q)
+        return x
 
 
 class EffectModel:
@@ -729,8 +784,9 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
     ----------
     vehicle : the true vehicle (its coefficients are the truth).
     manoeuvre : inputs on its grid (the logged commands) and the true initial state.
-    effects : {effect name: {param: value}} (missing parameters take their ``start`` value;
-        see :func:`draw_parameters` for the benchmark levels).
+    effects : {effect name or :class:`Effect`: {param: value}} (missing parameters take their
+        ``start`` value; see :func:`draw_parameters` for the benchmark levels; an Effect object
+        outside the catalogue makes a world that no candidate models).
     rng : all randomness (noise; wave phase and current direction if not given).
     noise : {channel: sd} (default :data:`WORLD_NOISE`); every state is recorded.
     sample_every : record every k-th integration step (default 1: a 10 Hz log at the
@@ -749,15 +805,15 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
     dt = manoeuvre.dt if dt is None else dt
     eff, qrow, truth = [], [], {}
     for en, pv in effects.items():
-        e = get(en)
+        e = en if isinstance(en, Effect) else get(en)
         pv = dict(pv)
         unknown = set(pv) - set(e.params)
         if unknown:
-            raise ValueError(f"effect {en}: unknown parameter(s) {sorted(unknown)}; it has {e.params}")
+            raise ValueError(f"effect {e.name}: unknown parameter(s) {sorted(unknown)}; it has {e.params}")
         q = [float(pv.get(p, s)) for p, s in zip(e.params, e.start)]
         eff.append(e)
         qrow += q
-        truth[en] = dict(zip(e.params, q))
+        truth[e.name] = dict(zip(e.params, q))
     model = EffectModel(vehicle, (), eff, mode="horizontal", dt=dt)
     n = manoeuvre.n_steps
     t = manoeuvre.t

@@ -282,6 +282,25 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
                channels=channels, n_starts=n_starts)
 
 
+def heldout_nuisance(model, fitres: Fit, ctxs, sd: dict, n_grid: int = 8, max_nfev: int = 30) -> list:
+    """Per-track nuisances (e.g. a wave phase) of tracks the fit did not see, with the fitted
+    parameters held: each track starts from the best of ``n_grid`` values spread over the
+    nuisance bounds (a phase has a local minimum every period), then :func:`fit` refines them.
+    Returns a list (one (n_nuisance,) array per track)."""
+    nn = model.n_nuisance
+    lo = np.concatenate([np.full(e.n_nuisance, e.nuisance_lo) for e in model.effects])
+    hi = np.concatenate([np.full(e.n_nuisance, e.nuisance_hi) for e in model.effects])
+    grid = lo[None] + (np.arange(n_grid)[:, None] + 0.5) / n_grid * (hi - lo)[None]
+    P = np.repeat(fitres.p[None], n_grid, axis=0)
+    starts = []
+    for ctx in ctxs:
+        w = _weights(ctx, sd)
+        st = [shooting.fit_starts(model, ctx, P, grid, w)] if ctx.start == "fitted" else None
+        r = _residuals(model, [ctx], [w], P, [grid], st)
+        starts.append(grid[int(np.argmin(np.sum(r * r, axis=1)))].copy())
+    return fit(model, ctxs, sd, fitres.p, starts, max_nfev=max_nfev, fit_nuisance_only=True).nuisance
+
+
 def residual_sd(model, fitres: Fit, ctxs, floor: dict) -> dict:
     """Per-channel RMS of a fit's simulation residuals over the protocol windows of ``ctxs``
     (heading wrapped; diverged samples ignored), each at least ``floor[channel]``.
@@ -911,10 +930,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                     say(f"{name} (nested start) failed: {exc}")
             if best is None:
                 continue
-            nu_h = None
-            if m.n_nuisance:
-                nh = fit(m, ch, sd_fit, best.p, None, max_nfev=30, fit_nuisance_only=True)
-                nu_h = nh.nuisance
+            nu_h = heldout_nuisance(m, best, ch, sd_fit) if m.n_nuisance else None
             s_tr, s_h = scores(m, best, ct, sd=sd_fit), scores(m, best, ch, nu_h, sd=sd_fit)
             win_of[name] = window_rms(m, best, ch, nu_h)
             p_win = paired_window_test(ref_windows, win_of[name])

@@ -80,7 +80,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from .effects import Effect, EffectModel
+from .effects import Effect, EffectModel, SensorLag
 from .protocol import wrap
 from .track import Track
 from .vehicle import VehicleFileError
@@ -508,6 +508,11 @@ SHIP_CATALOGUE = {
     "delay": Effect(
         "delay", ("delay_s",), (0.0,), (3.0,), (0.2,), (0.3,), neutral=(0.0,),
         description="pure time delay of the logged rudder and propeller", source="logging / actuator latency"),
+    "sensor_lag": SensorLag(
+        "sensor_lag", ("lag_s", "skew_s"), (0.0, -3.0), (5.0, 3.0), (0.5, 0.0), (0.3, 0.3), neutral=(0.0, 0.0),
+        description="sensor dynamics: first-order lag of logged u, v, r and a position time skew",
+        source="velocities from GNSS position differences through a causal Kalman filter (Esso Osaka: about "
+        "1 s); navigation and attitude on separate clocks"),
 }
 
 
@@ -639,12 +644,15 @@ class ShipModel:
         status = np.empty((B, ctx.W), dtype=np.int64)
         simulate_windows(np.ascontiguousarray(s0), ctx.starts, ctx.gather(inp), ctx.gather(ctx.wind[None])[0],
                          np.ascontiguousarray(cur), np.ascontiguousarray(prm), self.dt, out, status)
-        S6, _ = sample_rows(ctx, out, samples, slice(2, 3))
+        S6, t_rel = sample_rows(ctx, out, samples, slice(2, 3))
         c, s = np.cos(S6[..., 2]), np.sin(S6[..., 2])
         S6[..., 3] += c * cur[:, None, 0] + s * cur[:, None, 1]
         S6[..., 4] += -s * cur[:, None, 0] + c * cur[:, None, 1]
         S = np.zeros(S6.shape[:2] + (12,))
         S[..., [0, 1, 5, 6, 7, 11]] = S6
+        _, qs = self._split(P)
+        for e, q in zip(self.effects, qs):  # sensor models (the other ship effects act in the kernel)
+            e.to_measured(S, t_rel, q)
         S[..., 5] = wrap(S[..., 5])
         return S
 
