@@ -33,7 +33,7 @@ POLY_CROSSFLOW = ("Yvabsv", "Yvabsr", "Yrabsr", "Nvabsv", "Nabsvr", "Nrabsr",
 IX, IY, IPSI, IU, IV, IR = 0, 1, 5, 6, 7, 11
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Effect:
     """One unmodelled effect: its parameters, bounds and magnitudes. Subclasses implement
     the hooks they need; the defaults do nothing.

@@ -305,13 +305,19 @@ def test_sim_to_real_quick_writes_results(tmp_path):
                        capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
     res = json.loads((out / "results.json").read_text())
-    for k in ("confusion", "top1_accuracy", "median_heldout_shrinkage", "false_alarm_rate",
-              "open_set_detection_rate", "cases"):
+    for k in ("confusion", "overall", "with_velocity_log", "without_velocity_log", "false_alarm_rate",
+              "open_set_no_bare_name_rate", "cases"):
         assert k in res
     assert len(res["cases"]) == 4
     for c in res["cases"]:
-        assert {"truth", "verdict", "gap_before", "gap_after"} <= set(c)
+        assert {"truth", "verdict", "gap_before", "gap_after", "logging", "true_model"} <= set(c)
+        assert c["logging"]["clock_start_s"] > 0 and c["start_rule"] == ("measured" if c["logging"]["velocity_log"]
+                                                                          else "fitted")
     assert (out / "report.md").exists() and (out / "manifest.json").exists()
+    # a re-run resumes the saved cases; another seed does not reuse them
+    r = subprocess.run([sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out)],
+                       capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0 and "4 case(s) resumed, 0 to run" in r.stdout, r.stdout + r.stderr[-2000:]
 
 
 def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scenario):
@@ -326,7 +332,8 @@ def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scena
              "thrust": ef.draw_parameters("thrust", 2, np.random.default_rng(0))}
     rng = np.random.default_rng(5)
     held = [ef.world_track(veh, m, truth, rng, noise={}, name=f"heldout_{m.name}") for m in scenario[1]]
-    true = s2r.true_model_scores(veh, held)["heldout_rms_m"]
+    true = s2r.true_model_scores(veh, held, truth, s2r.WINDOW, {"start_rule": "measured", "leadin_s": 0.0})[
+        "heldout_rms_m"]
     base = ef.EffectModel(veh, s2r.FREE, (), dt=s2r.DT)
     fb = gap.Fit(base, base.start(), [np.zeros(0)], 0.0, 0, 0, True, "", 0.0)
     missed = gap.scores(base, fb, [base.context(t, s2r.WINDOW) for t in held])["rms_position_m"]
