@@ -110,13 +110,13 @@ def test_catalogue_has_the_issues_effects_with_sources():
 
 def test_the_nesting_effects_declare_a_neutral_value_inside_their_bounds():
     nesting = {n for n, e in ef.CATALOGUE.items() if e.neutral is not None}
-    assert nesting == {"thrust", "actuator", "delay", "current", "sensor_bias", "waves"}
+    assert nesting == {"thrust", "actuator", "delay", "current", "sensor_bias", "waves", "sensor_lag"}
     for n in nesting:
         e = ef.CATALOGUE[n]
         assert all(lo <= v <= hi for lo, v, hi in zip(e.lo, e.neutral, e.hi)), n
 
 
-@pytest.mark.parametrize("name", ["thrust", "actuator", "delay", "current", "sensor_bias", "waves"])
+@pytest.mark.parametrize("name", ["thrust", "actuator", "delay", "current", "sensor_bias", "waves", "sensor_lag"])
 def test_an_effect_at_its_neutral_value_changes_nothing(veh, name):
     """Thrust scale 1, no lag and an unlimited rate, no delay, zero current, zero bias, zero
     wave amplitude (the catalogue's ``neutral``): the effect model reproduces the base model."""
@@ -131,6 +131,26 @@ def test_an_effect_at_its_neutral_value_changes_nothing(veh, name):
     ce = em.context(tr, 30.0)
     Se = em.simulate(ce, np.array(neutral)[None], np.zeros((1, max(e.n_nuisance, 1))))
     assert np.max(np.abs(Se - Sb)) < 1e-9
+
+
+def test_sensor_lag_filters_the_logged_velocities_and_skews_the_positions(veh):
+    """Logged u, v, r = the true ones through the discrete first-order lag (scipy.signal.lfilter
+    as the oracle); logged x, y = the true position skew_s earlier (first order in skew)."""
+    from scipy import signal
+
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=90.0)
+    true = ef.world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    lag = ef.world_track(veh, m, {"sensor_lag": {"lag_s": 1.0, "skew_s": 0.0}}, np.random.default_rng(0), noise={})
+    a = np.exp(-0.1 / 1.0)
+    for k in ("u", "v", "r"):
+        want, _ = signal.lfilter([1 - a], [1, -a], true[k], zi=[a * true[k][0]])
+        assert np.allclose(lag[k], want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max())), k
+    assert np.allclose(lag["x"], true["x"]) and np.allclose(lag["psi"], true["psi"])
+    skew = ef.world_track(veh, m, {"sensor_lag": {"lag_s": 0.0, "skew_s": 0.5}}, np.random.default_rng(0), noise={})
+    late = np.interp(true.t - 0.5, true.t, true["x"])
+    sel = true.t > 1.0
+    assert np.max(np.abs(skew["x"][sel] - late[sel])) < 0.01
+    assert np.allclose(skew["u"], true["u"])
 
 
 def test_current_acts_through_the_relative_velocity(veh):
