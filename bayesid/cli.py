@@ -152,7 +152,8 @@ def _fit(args) -> int:
     train = [read_csv(p) for p in args.train]
     res = msfit.identify(vehicle, train, free, _split_names(args.effects), window_s=args.window, dt=args.dt,
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
-                         weighting=args.weighting or None, channels=_split_names(args.fit_channels) or None)
+                         weighting=args.weighting or None, channels=_split_names(args.fit_channels) or None,
+                         start=args.start)
     out = Path(args.out)
     doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json")
     msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
@@ -172,8 +173,9 @@ def _predict(args) -> int:
     model, p, cov, doc = msfit.load_model(args.model)
     tracks = [read_csv(t) for t in args.track]
     window = None if args.window <= 0 else args.window
-    pr = msfit.predict(model, p, tracks, window)
-    whole = msfit.predict(model, p, tracks, None)
+    lead = args.leadin if args.leadin > 0 else None
+    pr = msfit.predict(model, p, tracks, window, start=args.start, leadin_s=lead)
+    whole = msfit.predict(model, p, tracks, None, start=args.start, leadin_s=lead)
     out = Path(args.out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)
@@ -183,17 +185,21 @@ def _predict(args) -> int:
         meas, xy = msfit.windowed_xy(ctx, S)
         plots.window_tracks(None, meas, xy, None, out / "figures" / f"{tr.name}.png",
                             title=f"{tr.name}: {window or 'whole-run'} s windows")
-        tb = msfit.turning_band(model, p, cov, tr, args.draws, rng)
+        tb = msfit.turning_band(model, p, cov, tr, args.draws, rng, start=whole["start_rule"],
+                                leadin_s=whole["leadin_s"])
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    res = {"model": str(args.model), "window_s": window, "pooled": pr["pooled"], "per_track": pr["per_track"],
+    res = {"model": str(args.model), "window_s": window, "start_rule": pr["start_rule"], "leadin_s": pr["leadin_s"],
+           "pooled": pr["pooled"], "per_track": pr["per_track"],
            "windows": pr["windows"], "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
            "indices": indices}
     write_json(out / "predict.json", res)
     rows = [[n, fmt(d["rms_position_m"]), fmt(d["max_position_m"]), fmt(d["rms_heading_deg"]),
              fmt(whole["per_track"][n]["rms_position_m"])] for n, d in pr["per_track"].items()]
     lines = ["# Prediction under the window protocol", "", f"`bayesid {' '.join(sys.argv[1:])}`", "",
-             f"Windows of {window} s restart from the measured (causal) state; whole run = one open-loop "
-             "simulation from the first state.", "",
+             f"Windows of {window} s restart from "
+             + ("the measured (causal) state" if pr["start_rule"] == "measured" else
+                f"a state fitted with the model over the {pr['leadin_s']:g} s before each window (no velocity log)")
+             + "; whole run = one open-loop simulation from the first state.", "",
              md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows), "",
              f"Pooled: {fmt(pr['pooled']['rms_position_m'])} m, heading {fmt(pr['pooled']['rms_heading_deg'])} deg; "
              f"whole run {fmt(whole['pooled']['rms_position_m'])} m.", ""]
@@ -244,6 +250,8 @@ def _diagnose(args) -> int:
     return 0
 
 
+START_HELP = ("window start states: measured (causal 1 s estimate), fitted (with the model, over a lead-in), "
+              "auto (fitted when a track does not log u, v and r)")
 WEIGHTINGS = ("", "noise", "residual")
 WEIGHTING_HELP = ("channel weights of the fits: noise sds, or the residual RMS of a first fit (two-step "
                   "feasible GLS); default residual for ships, noise for submarines")
@@ -286,9 +294,7 @@ def main(argv=None) -> int:
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
     d.add_argument("--max-effects", type=int, default=2,
                    help="greedy rounds of effect addition (a contributor is added and the others tried on top)")
-    d.add_argument("--start", choices=protocol.START_RULES, default="auto",
-                   help="window start states: measured (causal 1 s estimate), fitted (with the model, over a "
-                   "lead-in), auto (fitted when a track does not log u, v and r)")
+    d.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     d.add_argument("--leadin", type=float, default=0.0,
                    help=f"lead-in of the fitted start rule, s (default {protocol.LEADIN_S:g}, at most --window)")
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
@@ -307,6 +313,7 @@ def main(argv=None) -> int:
     f.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
     f.add_argument("--fit-channels", default="", help="comma-separated scored channels in the objective, e.g. "
                    "x,y,psi when the logged u, v, r are derived from positions and heading (default: all measured)")
+    f.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
     pp = sub.add_parser("predict", help="score a fitted model on tracks with the window protocol")
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")
@@ -314,6 +321,9 @@ def main(argv=None) -> int:
     pp.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
     pp.add_argument("--draws", type=int, default=30, help="posterior draws for the index bands")
     pp.add_argument("--seed", type=int, default=0)
+    pp.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
+    pp.add_argument("--leadin", type=float, default=0.0,
+                    help=f"lead-in of the fitted start rule, s (default {protocol.LEADIN_S:g}, at most --window)")
     pp.add_argument("--out", required=True, help="output folder")
     args = ap.parse_args(argv)
     try:

@@ -30,9 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from . import effects as ef
-from . import gap
+from . import gap, shooting
 from . import ship as sh
-from .protocol import pooled_scores
+from .protocol import LEADIN_S, pooled_scores, resolve_start
 from .vehicle import load_vehicle
 
 
@@ -52,7 +52,7 @@ def build_model(vehicle, free=None, effects=(), dt: float | None = None):
 def _ar1_inflation(fitres: gap.Fit, ctxs) -> float:
     r = []
     for ctx in ctxs:
-        S = fitres.model.simulate(ctx, fitres.p[None])
+        S = shooting.simulate(fitres.model, ctx, fitres.p[None])
         for c, e in ef.errors(ctx, S).items():
             if fitres.channels is not None and c not in fitres.channels:
                 continue
@@ -84,7 +84,7 @@ def laplace_covariance(fitres: gap.Fit, ctxs) -> tuple[np.ndarray, dict]:
 
 def identify(vehicle, train, free=None, effects=(), window_s: float | None = None, dt: float | None = None,
              max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None,
-             channels=None) -> dict:
+             channels=None, start: str = "auto") -> dict:
     """Identify the free coefficients (and effect parameters) on training tracks.
 
     Parameters
@@ -102,6 +102,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     channels : the scored channels in the objective (default: every one the tracks measure;
         e.g. ``("x", "y", "psi")`` when the logged velocities are derived from the same
         positions and heading and add no independent information).
+    start : window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"``: the start
+        states of the windows are fitted with the coefficients when a track does not log u, v, r).
 
     Returns
     -------
@@ -122,7 +124,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     if window_s is None:
         window_s = sh.FIT_WINDOW_S if isinstance(vehicle, sh.Ship) else 30.0
     model = build_model(vehicle, free, effects, dt)
-    ctxs = [model.context(t, window_s) for t in train]
+    rule = resolve_start(start, train)
+    ctxs = [model.context(t, window_s, start=rule) for t in train]
     sd = gap._pooled_sd(train)
     p0 = model.start()
     seed_info = {"used": False}
@@ -147,7 +150,7 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     f, sd_fit = gap.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels)
     cov, post = laplace_covariance(f, ctxs)
     return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
-            "fit_sd": sd_fit, "weighting": weighting, "channels": channels,
+            "fit_sd": sd_fit, "weighting": weighting, "channels": channels, "start_rule": rule,
             "train_scores": gap.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
 
 
@@ -162,6 +165,7 @@ def save_model(res: dict, vehicle_ref: str, train_names, path) -> dict:
            "posterior": res["posterior"], "seed": res["seed"], "noise_sd": res["noise_sd"],
            "weighting": res.get("weighting", "noise"), "fit_sd": res.get("fit_sd", res["noise_sd"]),
            "fit_channels": None if res.get("channels") is None else list(res["channels"]),
+           "start_rule": res.get("start_rule", "measured"),
            "train_runs": list(train_names), "train_scores": res["train_scores"],
            "fit": {"ssr": f.ssr, "n_residuals": f.n_res, "nfev": f.nfev, "success": f.success,
                    "message": f.message, "seconds": f.seconds, "bic": f.bic}}
@@ -190,16 +194,22 @@ def load_model(path):
     return model, np.array(doc["p"]), np.array(doc["cov"]), doc
 
 
-def predict(model, p, tracks, window_s: float | None) -> dict:
+def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadin_s: float | None = None) -> dict:
     """The protocol on tracks: per window and pooled RMS position / heading errors.
+
+    ``start``: window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"`` decides
+    on these tracks); ``leadin_s``: lead-in of the fitted rule (default
+    :data:`bayesid.protocol.LEADIN_S`, at most the window). The result's ``start_rule`` and
+    ``leadin_s`` say what was used.
 
     Returns dict ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track``
     {name: pooled scores}, ``windows`` (list of {track, t_start, rms_position_m,
     max_position_m, rms_heading_deg}) and ``_sim`` (per track (ctx, S) for plots)."""
     errs, per_track, windows, sims = [], {}, [], {}
+    rule, lead = start_settings(start, tracks, window_s, leadin_s)
     for tr in tracks:
-        ctx = model.context(tr, window_s)
-        S = model.simulate(ctx, np.asarray(p)[None])
+        ctx = model.context(tr, window_s, start=rule, leadin_s=lead)
+        S = shooting.simulate(model, ctx, np.asarray(p)[None])
         e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
         errs.append(e)
         per_track[tr.name] = pooled_scores([e])
@@ -213,7 +223,19 @@ def predict(model, p, tracks, window_s: float | None) -> dict:
                                 "rms_heading_deg": float(np.degrees(np.sqrt(np.nanmean(e["psi"][sel] ** 2))))
                                 if "psi" in e else None})
         sims[tr.name] = (ctx, S[0])
-    return {"pooled": pooled_scores(errs), "per_track": per_track, "windows": windows, "_sim": sims}
+    return {"pooled": pooled_scores(errs), "per_track": per_track, "windows": windows, "_sim": sims,
+            "start_rule": rule, "leadin_s": lead}
+
+
+def start_settings(start: str, tracks, window_s: float | None, leadin_s: float | None = None) -> tuple[str, float]:
+    """(rule, lead-in s) of the window start states for ``tracks``: ``start`` resolved
+    (:func:`bayesid.protocol.resolve_start`); the fitted rule's lead-in ``leadin_s`` (default
+    :data:`~bayesid.protocol.LEADIN_S`) at most the window, 0 for the measured rule."""
+    rule = resolve_start(start, tracks)
+    if rule != "fitted":
+        return rule, 0.0
+    lead = LEADIN_S if leadin_s is None else float(leadin_s)
+    return rule, lead if window_s is None else min(lead, float(window_s))
 
 
 def posterior_samples(model, p, cov, n: int, rng) -> np.ndarray:
@@ -318,13 +340,14 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
     (out / "report.md").write_text("\n".join(lines))
 
 
-def turning_band(model, p, cov, track, n_draws: int, rng) -> dict:
-    """Whole-run open-loop prediction of a track from its first (causal) state, with the
-    manoeuvre indices of the measured run, the identified model, and a posterior predictive
+def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured", leadin_s: float = 0.0) -> dict:
+    """Whole-run open-loop prediction of a track from its first state (``start`` rule, resolved:
+    the causal measured state, or the state fitted over the first ``leadin_s`` seconds), with
+    the manoeuvre indices of the measured run, the identified model, and a posterior predictive
     band (5-95 % of ``n_draws`` Laplace draws)."""
-    ctx = model.context(track, None)
+    ctx = model.context(track, None, start=start, leadin_s=leadin_s)
     P = np.vstack([p[None], posterior_samples(model, p, cov, n_draws, rng)]) if n_draws else p[None]
-    S = model.simulate(ctx, P)
+    S = shooting.simulate(model, ctx, P)
     dr = np.asarray(track["delta_r"], float)[ctx.idx]
     meas = manoeuvre_indices(ctx.ts, ctx.meas["x"], ctx.meas["y"], ctx.meas["psi"], dr)
     pred = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]

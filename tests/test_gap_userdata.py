@@ -3,6 +3,7 @@ heading, no velocity log, a clock that does not start at 0, more held-out than t
 the fitted window-start rule; cause / contributors / remainder; an effect no candidate models."""
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -189,3 +190,25 @@ def test_an_effect_no_candidate_models_is_never_given_a_bare_name(veh):
     assert res["remainder"]["significant"]
     for c in res["contributors"]:
         assert c["effect"] in ("crossflow", "actuator", "thrust") and 0 < c["share_of_excess"] < 1
+
+
+def test_fit_and_predict_commands_fit_the_window_starts_without_a_velocity_log(veh, tmp_path):
+    from bayesid import cli
+    from bayesid.track import write_csv
+
+    train, held = user_world(veh, {}, 12, 2, 2, 120.0)
+    paths = []
+    for tr in train + held:
+        paths.append(str(tmp_path / f"{tr.name}.csv"))
+        write_csv(tr, paths[-1])
+    assert cli.main(["fit", "--vehicle", "nps_auv2", "--free", "Yv,Nr,Ndr", "--train", *paths[:2], "--window", "30",
+                     "--max-nfev", "15", "--out", str(tmp_path / "fit")]) == 0
+    doc = json.loads((tmp_path / "fit" / "model.json").read_text())
+    assert doc["start_rule"] == "fitted"
+    runs = {}
+    for rule in ("auto", "measured"):
+        assert cli.main(["predict", "--model", str(tmp_path / "fit" / "model.json"), "--track", *paths[2:],
+                         "--window", "30", "--draws", "0", "--start", rule, "--out", str(tmp_path / rule)]) == 0
+        runs[rule] = json.loads((tmp_path / rule / "predict.json").read_text())
+    assert runs["auto"]["start_rule"] == "fitted" and runs["auto"]["leadin_s"] == 10.0
+    assert runs["auto"]["pooled"]["rms_position_m"] < 0.6 < 3 * 0.6 < runs["measured"]["pooled"]["rms_position_m"]
