@@ -380,6 +380,31 @@ def _first_order_lag(S, t_rel, tau, cols):
                 S[b, k, c] = y
 
 
+def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float, float]]:
+    """(first, last) sample times of the continuous pieces of a track: runs of samples with
+    finite x, y and psi, split where consecutive such samples are more than
+    ``max(5 x the median sample interval, min_gap_s)`` apart (a logging gap, or a stretch of
+    empty cells). Raises ValueError naming the track and column when x, y or psi is absent or
+    entirely empty."""
+    t = np.asarray(track.t, float)
+    ok = np.ones(t.size, bool)
+    for k in ("x", "y", "psi"):
+        if k not in track:
+            raise ValueError(f"track {track.name!r} has no column {k!r}; the protocol needs x, y, psi")
+        fin = np.isfinite(np.asarray(track[k], float))
+        if not fin.any():
+            raise ValueError(f"track {track.name!r}: column {k!r} is empty (no value in any row)")
+        ok &= fin
+    tt = t[ok]
+    if tt.size == 0:
+        raise ValueError(f"track {track.name!r}: no row has x, y and psi all measured")
+    gap = max(5.0 * float(np.median(np.diff(t))) if t.size > 1 else 0.0, min_gap_s)
+    cut = np.flatnonzero(np.diff(tt) > gap + 1e-9)
+    lo = np.r_[0, cut + 1]
+    hi = np.r_[cut, tt.size - 1]
+    return [(float(tt[a]), float(tt[b])) for a, b in zip(lo, hi)]
+
+
 class _TrackContext:
     """What the model needs of one track: time grid, inputs, windows and samples.
 
@@ -421,38 +446,52 @@ class _TrackContext:
         self.lead_steps = int(round(leadin_s / dt))
         # With a velocity not measured, the causal start-state estimate needs 2*span_s of history
         # (slopes of the positions): the first window starts after it. The fitted rule starts
-        # the first window after its lead-in.
-        if self.start == "fitted":
-            t_first = self.t0 + leadin_s
-        else:
-            derived = s0 is None and any(k not in track for k in ("u", "v", "r"))
-            t_first = self.t0 + (2.0 * span_s if derived else 0.0)
-        ws = window_starts(t[(t <= t_end + 1e-9) & (t >= t_first - 1e-9)], window_s)
-        steps = np.unique(np.round((ws - self.t0) / dt).astype(np.int64))
-        steps = steps[steps < self.n_steps]
-        if steps.size == 0:
+        # the first window after its lead-in. Windows never cross a gap in the record (a stretch
+        # without x, y, psi or without samples): each continuous piece gets its own windows.
+        derived = s0 is None and any(k not in track for k in ("u", "v", "r"))
+        first = leadin_s if self.start == "fitted" else (2.0 * span_s if derived else 0.0)
+        pieces = [(t[0], t[-1])] if s0 is not None else continuous_pieces(track, 2.0 * dt)
+        steps, ends, self.skipped_pieces = [], [], 0
+        for ta, tb in pieces:
+            sel = (t >= ta + first - 1e-9) & (t <= min(tb, t_end) + 1e-9)
+            e_piece = min(int(math.floor((tb - self.t0) / dt + 1e-9)), self.n_steps)
+            st = (np.unique(np.round((window_starts(t[sel], window_s) - self.t0) / dt).astype(np.int64))
+                  if sel.any() else np.zeros(0, np.int64))
+            st = st[st < e_piece]
+            if st.size == 0:
+                self.skipped_pieces += 1
+                continue
+            steps.append(st)
+            ends.append(np.append(st[1:], e_piece))
+        if not steps:
             raise ValueError(f"track {track.name!r} ({t[-1] - t[0]:g} s) is too short for a window after "
-                             f"{t_first - self.t0:g} s of lead-in")
+                             f"{first:g} s of lead-in" + (" in any of its pieces between gaps" if len(pieces) > 1 else ""))
+        steps, ends = np.concatenate(steps), np.concatenate(ends)
+        self.n_pieces = len(pieces)
         self.W = len(steps)
         self.t_start = self.t_grid[steps]
-        ends = np.append(steps[1:], self.n_steps)
+        self.t_end = self.t_grid[ends]
         self.seg_step = np.maximum(steps - self.lead_steps, 0)
-        lens = ends - self.seg_step
-        self.starts = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
-        self.vmap = None if self.lead_steps == 0 and steps[0] == 0 else np.concatenate(
-            [np.arange(a, b) for a, b in zip(self.seg_step, ends)]).astype(np.int64)
-        if self.vmap is not None and self.lead_steps == 0:
-            # contiguous windows from a later first step: keep the real grid (the first steps are
-            # simulated by no window)
+        contiguous = self.lead_steps == 0 and np.array_equal(steps[1:], ends[:-1]) and ends[-1] == self.n_steps
+        if contiguous:
+            # the real grid (steps before the first window are simulated by no window)
             self.vmap = None
             self.starts = np.append(steps, self.n_steps).astype(np.int64)
-            self.seg_step = steps
+        else:
+            self.vmap = np.concatenate([np.arange(a, b) for a, b in zip(self.seg_step, ends)]).astype(np.int64)
+            self.starts = np.concatenate([[0], np.cumsum(ends - self.seg_step)]).astype(np.int64)
+        self._ends = ends
         self.t_seg = self.t_grid[self.seg_step]
-        # samples scored: within the grid, from the first window start
-        keep = (t <= t_end + 1e-9) & (t >= self.t_start[0] - 1e-9)
-        self.ts = t[keep]
-        self.idx = np.flatnonzero(keep)
-        self.win = np.searchsorted(self.t_start, self.ts + 1e-9, side="right") - 1
+        # samples scored: inside a window (from its start to its end, the next window's start
+        # excluded)
+        cand = np.flatnonzero(t >= self.t_start[0] - 1e-9)
+        win = np.searchsorted(self.t_start, t[cand] + 1e-9, side="right") - 1
+        inside = t[cand] <= self.t_end[win] + 1e-9
+        self.idx = cand[inside]
+        self.ts = t[self.idx]
+        self.win = win[inside]
+        keep = np.zeros(t.size, bool)
+        keep[self.idx] = True
         self.row, self.frac = self._rows(self.ts, self.win)
         self.t_rel = self.ts - self.t_seg[self.win]
         # measured channels
@@ -503,7 +542,7 @@ class _TrackContext:
         times ``ts`` simulated by windows ``win``."""
         dt = self.model.dt
         g = (ts - self.t0) / dt
-        ends = self.seg_step + np.diff(self.starts)
+        ends = self._ends
         k = np.minimum(np.floor(g + 1e-9).astype(np.int64), ends[win] - 1)
         k = np.maximum(k, self.seg_step[win])
         frac = np.clip(g - k, 0.0, 1.0)

@@ -318,6 +318,9 @@ def summarise(results: list[dict]) -> dict:
     log = [r for r in single if r["logging"]["velocity_log"]]
     nolog = [r for r in single if not r["logging"]["velocity_log"]]
     more_held = [r for r in single if r["logging"]["n_heldout"] > r["logging"]["n_train"]]
+    one_train = [r for r in single if r["logging"]["n_train"] == 1]
+    many_train = [r for r in single if r["logging"]["n_train"] >= 3]
+    slow_log = [r for r in single if r["logging"]["rate_hz"] <= 2]
     per_effect = {}
     for r in single:
         e = r["case"]["truth"][0]
@@ -341,6 +344,9 @@ def summarise(results: list[dict]) -> dict:
         "with_velocity_log": group_scores(log),
         "without_velocity_log": group_scores(nolog),
         "more_heldout_than_training": group_scores(more_held),
+        "one_training_track": group_scores(one_train),
+        "three_or_more_training_tracks": group_scores(many_train),
+        "log_rate_2hz_or_less": group_scores(slow_log),
         "false_alarm_rate": fa, "n_controls": n_ctrl,
         "open_set_no_bare_name_rate": ok_open, "n_open_set_visible": n_open,
         "open_set_verdicts": [{"id": r["case"]["id"], "verdict": r["diagnosis"]["verdict"], "visible": visible(r)}
@@ -493,7 +499,10 @@ def write_report(out: Path, s: dict, args) -> None:
                   "ratio"],
                  [grow("all", s["overall"]), grow("velocity log", s["with_velocity_log"]),
                   grow("no velocity log", s["without_velocity_log"]),
-                  grow("more held-out than training tracks", s["more_heldout_than_training"])]), "",
+                  grow("more held-out than training tracks", s["more_heldout_than_training"]),
+                  grow("one training track", s["one_training_track"]),
+                  grow("three or more training tracks", s["three_or_more_training_tracks"]),
+                  grow("log rate 1-2 Hz", s["log_rate_2hz_or_less"])]), "",
         "Per effect (visible cases):", "",
         md_table(["effect", "correct / visible (of cases)", "median shrinkage", "true model's"], pe), "",
         "![confusion](figures/confusion.png)", "",
