@@ -296,7 +296,8 @@ def main(argv=None) -> int:
                    help="greedy rounds of effect addition (a contributor is added and the others tried on top)")
     d.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     d.add_argument("--leadin", type=float, default=0.0,
-                   help=f"lead-in of the fitted start rule, s (default {protocol.LEADIN_S:g}, at most --window)")
+                   help=f"lead-in of the fitted start rule, s (default: {protocol.LEADIN_S:g} s or "
+                   f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)")
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
     d.add_argument("--seed", type=int, default=0)
     d.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
@@ -323,7 +324,8 @@ def main(argv=None) -> int:
     pp.add_argument("--seed", type=int, default=0)
     pp.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     pp.add_argument("--leadin", type=float, default=0.0,
-                    help=f"lead-in of the fitted start rule, s (default {protocol.LEADIN_S:g}, at most --window)")
+                    help=f"lead-in of the fitted start rule, s (default: {protocol.LEADIN_S:g} s or "
+                   f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)")
     pp.add_argument("--out", required=True, help="output folder")
     args = ap.parse_args(argv)
     try:

@@ -502,7 +502,10 @@ class _TrackContext:
         if s0 is not None:
             self.s_meas = np.asarray(s0, float)[None, :].repeat(self.W, 0)
         elif self.start == "fitted":
-            self.s_meas = np.array([state_guess(track, ta) for ta in self.t_seg])
+            # first guess from a local fit over at least 8 samples (2 s at most 4 Hz) of the lead-in
+            h = float(np.median(np.diff(t))) if t.size > 1 else dt
+            span = min(max(2.0, 8.0 * h), max(leadin_s, 2.0))
+            self.s_meas = np.array([state_guess(track, ta, span) for ta in self.t_seg])
         else:
             self.s_meas = np.array([state_at(track, ts, span_s) for ts in self.t_start])
         if model.mode == "horizontal":

@@ -67,7 +67,7 @@ from scipy import optimize, signal, stats
 
 from . import effects as ef
 from . import shooting
-from .protocol import CHANNELS, LEADIN_S, estimate_noise, pooled_scores, resolve_start, wrap
+from .protocol import CHANNELS, estimate_noise, pooled_scores, start_settings, wrap
 from .track import STATE_NAMES, Track
 
 PENALTY = 1e3  # residual (in noise sds) of a sample in a diverged window
@@ -823,7 +823,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         a track lacks a logged u, v or r). The same rule serves every model compared, the
         training fits (fitted: start states estimated with the parameters) and the noise floor.
     leadin_s : lead-in of the fitted rule on the held-out tracks (s; default
-        :data:`bayesid.protocol.LEADIN_S`, at most the window).
+        :func:`bayesid.protocol.start_settings`: 10 s or 25 samples of the slowest log, at most
+        the window).
 
     Returns
     -------
@@ -854,12 +855,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     sd = _pooled_sd(train + heldout)
 
     fw = fit_window_s if fit_window_s is not None else (sh.FIT_WINDOW_S if is_ship else window_s)
-    rule = resolve_start(start, train + heldout)
-    lead = 0.0
-    if rule == "fitted":
-        lead = LEADIN_S if leadin_s is None else float(leadin_s)
-        if window_s is not None:
-            lead = min(lead, window_s)
+    rule, lead = start_settings(start, train + heldout, window_s, dt, leadin_s)
 
     def build(effects):
         m = sh.ShipModel(vehicle, free, effects, dt=dt) if is_ship else ef.EffectModel(vehicle, free, effects,

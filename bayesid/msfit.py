@@ -32,7 +32,7 @@ import numpy as np
 from . import effects as ef
 from . import gap, shooting
 from . import ship as sh
-from .protocol import LEADIN_S, pooled_scores, resolve_start
+from .protocol import pooled_scores, resolve_start, start_settings
 from .vehicle import load_vehicle
 
 
@@ -199,14 +199,14 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
 
     ``start``: window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"`` decides
     on these tracks); ``leadin_s``: lead-in of the fitted rule (default
-    :data:`bayesid.protocol.LEADIN_S`, at most the window). The result's ``start_rule`` and
+    :func:`bayesid.protocol.start_settings`). The result's ``start_rule`` and
     ``leadin_s`` say what was used.
 
     Returns dict ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track``
     {name: pooled scores}, ``windows`` (list of {track, t_start, rms_position_m,
     max_position_m, rms_heading_deg}) and ``_sim`` (per track (ctx, S) for plots)."""
     errs, per_track, windows, sims = [], {}, [], {}
-    rule, lead = start_settings(start, tracks, window_s, leadin_s)
+    rule, lead = start_settings(start, tracks, window_s, model.dt, leadin_s)
     for tr in tracks:
         ctx = model.context(tr, window_s, start=rule, leadin_s=lead)
         S = shooting.simulate(model, ctx, np.asarray(p)[None])
@@ -226,16 +226,6 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
     return {"pooled": pooled_scores(errs), "per_track": per_track, "windows": windows, "_sim": sims,
             "start_rule": rule, "leadin_s": lead}
 
-
-def start_settings(start: str, tracks, window_s: float | None, leadin_s: float | None = None) -> tuple[str, float]:
-    """(rule, lead-in s) of the window start states for ``tracks``: ``start`` resolved
-    (:func:`bayesid.protocol.resolve_start`); the fitted rule's lead-in ``leadin_s`` (default
-    :data:`~bayesid.protocol.LEADIN_S`) at most the window, 0 for the measured rule."""
-    rule = resolve_start(start, tracks)
-    if rule != "fitted":
-        return rule, 0.0
-    lead = LEADIN_S if leadin_s is None else float(leadin_s)
-    return rule, lead if window_s is None else min(lead, float(window_s))
 
 
 def posterior_samples(model, p, cov, n: int, rng) -> np.ndarray:

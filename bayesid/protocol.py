@@ -33,6 +33,8 @@ model compared on a track set and for its noise floor:
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .track import STATE_NAMES, Track
@@ -49,6 +51,9 @@ START_RULES = ("auto", "measured", "fitted")
 #: Default lead-in (s) of the fitted start rule: long enough that the model, not the position
 #: noise, sets the start velocity (0.2 m at 5 Hz over 10 s: about 0.01 m/s), short against a window.
 LEADIN_S = 10.0
+#: ... and at least this many sample intervals of the slowest log (0.4 m at 1 Hz over 10 samples
+#: leaves about 0.05 m/s, 3 m over a 60 s window; over 25 samples about 0.012 m/s).
+LEADIN_SAMPLES = 25
 
 
 def resolve_start(start: str, tracks) -> str:
@@ -188,6 +193,26 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
     return np.where(np.isfinite(s), s, 0.0)
 
 
+def start_settings(start: str, tracks, window_s: float | None, dt: float,
+                   leadin_s: float | None = None) -> tuple[str, float]:
+    """(rule, lead-in s) of the window start states for a set of tracks: ``start`` resolved
+    (:func:`resolve_start`); for the fitted rule the lead-in ``leadin_s``, by default the larger
+    of :data:`LEADIN_S` and :data:`LEADIN_SAMPLES` median sample intervals of the slowest
+    track, rounded up to a multiple of the model step ``dt`` and at most the window; 0 for the
+    measured rule. Raises ValueError for an unknown rule or a negative lead-in."""
+    rule = resolve_start(start, tracks)
+    if rule != "fitted":
+        return rule, 0.0
+    if leadin_s is None:
+        h = max((float(np.median(np.diff(t.t))) for t in tracks if t.n_samples > 1), default=0.0)
+        lead = math.ceil(max(LEADIN_S, LEADIN_SAMPLES * h) / dt - 1e-9) * dt
+    else:
+        lead = float(leadin_s)
+        if not lead >= 0:
+            raise ValueError(f"lead-in must be >= 0 s, not {leadin_s}")
+    return rule, lead if window_s is None else min(lead, float(window_s))
+
+
 def state_guess(track: Track, t_a: float, span_s: float = 2.0) -> np.ndarray:
     """First guess of the 12-state at ``t_a`` from the samples in ``[t_a, t_a + span_s]`` (the
     start of a lead-in or of a training window; the fitted start rule refines it).
@@ -268,4 +293,4 @@ def pooled_scores(errors: list[dict]) -> dict:
 
 
 __all__ = ["CHANNELS", "NOISE_FLOOR", "START_RULES", "LEADIN_S", "wrap", "estimate_noise", "window_starts",
-           "state_at", "state_guess", "resolve_start", "pooled_scores"]
+           "state_at", "state_guess", "resolve_start", "start_settings", "LEADIN_SAMPLES", "pooled_scores"]
