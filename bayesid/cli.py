@@ -26,6 +26,9 @@ from .vehicle import load_vehicle
 
 
 def _simulate(args) -> int:
+    _check_out(args.out, "simulate", args.overwrite)
+    if not args.dt > 0 or not args.sample > 0:
+        raise ValueError(f"--dt and --sample must be positive (s), got {args.dt} and {args.sample}")
     vehicle = load_vehicle(args.vehicle)
     if args.crossflow:
         vehicle = vehicle.with_crossflow(args.crossflow)
@@ -51,9 +54,7 @@ def _simulate(args) -> int:
 
 def _convert(args) -> int:
     """``bayesid convert``: third-party run files -> one Track CSV each + convert.json/.md."""
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: exists and is not a folder")
+    out = _check_out(args.out, "convert", args.overwrite)
     sources, skipped, seen = [], [], set()
     for item in args.inputs:
         kept, skip = datasets._scan_runs(item, args.format)
@@ -121,6 +122,98 @@ def _split_names(text):
     return [n.strip() for n in text.split(",") if n.strip()] if text else []
 
 
+#: What each command writes into its --out folder (removed first by --overwrite).
+WRITES = {"diagnose": ("diagnosis.json", "report.md", "figures"), "fit": ("model.json", "report.md"),
+          "predict": ("predict.json", "report.md", "figures"), "convert": ("convert.json", "convert.md")}
+
+
+def _check_out(path, command: str, overwrite: bool) -> Path:
+    """``--out`` checked before any computation: a folder (or for ``simulate`` a file) that can
+    be created and written. An existing non-empty folder is refused unless ``overwrite``; then
+    what ``command`` writes there (and, for ``convert``, the CSVs its ``convert.json`` lists) is
+    removed first, so nothing stale survives. Raises ValueError naming the option and path."""
+    import os
+    import shutil
+
+    out = Path(path)
+    if command == "simulate":
+        if out.is_dir():
+            raise ValueError(f"--out {out}: is a folder; give a file name for the track CSV")
+        if out.exists() and not overwrite:
+            raise ValueError(f"--out {out}: exists; pass --overwrite to replace it")
+        parent = out.parent
+    else:
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"--out {out}: exists and is not a folder")
+        if out.is_dir() and any(out.iterdir()):
+            if not overwrite:
+                raise ValueError(f"--out {out}: folder is not empty; pass --overwrite to replace what "
+                                 f"'bayesid {command}' writes there")
+            old = out / "convert.json"
+            if command == "convert" and old.is_file():
+                try:
+                    listed = [Path(r["output"]) for r in json.loads(old.read_text()).get("runs", [])]
+                except (ValueError, KeyError, TypeError):
+                    listed = []
+                for f in listed:
+                    if f.is_file() and f.resolve().parent == out.resolve():
+                        f.unlink()
+            for name in WRITES.get(command, ()):
+                q = out / name
+                if q.is_dir():
+                    shutil.rmtree(q)
+                elif q.exists():
+                    q.unlink()
+        parent = out
+    probe = parent
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise ValueError(f"--out {out}: {probe} is a file, not a folder")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise ValueError(f"--out {out}: cannot write into {probe} (permission denied)")
+    return out
+
+
+def _file_sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _read_tracks(groups) -> dict:
+    """Read the track files of each option (``[(option, [paths])]``) once: a file given twice, a
+    file whose content equals another one (a renamed copy), a folder, and two tracks with the
+    same name are errors naming both. Returns {option: [Track]} and the files' SHA-256 under
+    ``"_sha256"``."""
+    from .track import read_csv
+
+    seen, names, out, hashes = {}, {}, {}, {}
+    for option, paths in groups:
+        out[option] = []
+        for p in paths:
+            p = Path(p)
+            if p.is_dir():
+                raise ValueError(f"{option} {p}: is a folder, not a track CSV")
+            if not p.is_file():
+                raise FileNotFoundError(f"{option} {p}: no such file")
+            h = _file_sha256(p)
+            if h in seen:
+                o, q = seen[h]
+                raise ValueError(f"{option} {p} has the same content as {o} {q}: a track may be given once"
+                                 + (" (training and held-out tracks must differ)" if o != option else ""))
+            seen[h] = (option, p)
+            tr = read_csv(p)
+            if tr.name in names:
+                raise ValueError(f"{option} {p} and {names[tr.name]} are both named {tr.name!r}; rename one "
+                                 "(results are reported by track name)")
+            names[tr.name] = p
+            hashes[str(p)] = h
+            out[option].append(tr)
+    out["_sha256"] = hashes
+    return out
+
+
 def _free_list(vehicle, text):
     """The free coefficients of a command: ``--free`` or the vehicle's default (ships: the
     file's ``[fit] free``; submarines: the horizontal-plane six). Unknown names raise."""
@@ -142,20 +235,49 @@ def _vehicle_ref(arg: str) -> str:
     return str(p.resolve()) if p.suffix or p.exists() else arg
 
 
+def _provenance(vehicle, input_sha256: dict) -> dict:
+    """What produced a model: package version, the vehicle file (path, SHA-256, values) and the
+    SHA-256 of every input file."""
+    from . import __version__, msfit
+
+    vf = msfit.vehicle_file(vehicle)
+    return {"bayesid_version": __version__, "vehicle_file": str(vf) if vf else None,
+            "vehicle_sha256": _file_sha256(vf) if vf and vf.is_file() else None,
+            "vehicle_coefficients": dict(vehicle.coefficients), "input_sha256": dict(input_sha256)}
+
+
+def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> None:
+    """Refuse (ValueError) to predict with a model whose vehicle file changed after the fit; with
+    ``allow`` print a warning instead."""
+    from . import msfit
+
+    want = (doc.get("provenance") or {}).get("vehicle_sha256")
+    vf = msfit.vehicle_file(vehicle)
+    if want is None or vf is None or not vf.is_file():
+        return
+    if _file_sha256(vf) != want:
+        msg = (f"--model {model_path}: the vehicle file {vf} changed after the fit (SHA-256 differs); the "
+               "non-free coefficients and particulars the model was fitted with may differ")
+        if not allow:
+            raise ValueError(msg + "; pass --allow-changed-vehicle to predict anyway")
+        print(f"WARNING: {msg}", file=sys.stderr)
+
+
 def _fit(args) -> int:
     """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
     from . import msfit
-    from .track import read_csv
 
+    out = _check_out(args.out, "fit", args.overwrite)
     vehicle = msfit.load_any_vehicle(args.vehicle)
     free = _free_list(vehicle, args.free)
-    train = [read_csv(p) for p in args.train]
+    got = _read_tracks([("--train", args.train)])
+    train = got["--train"]
     res = msfit.identify(vehicle, train, free, _split_names(args.effects), window_s=args.window, dt=args.dt,
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
                          weighting=args.weighting or None, channels=_split_names(args.fit_channels) or None,
                          start=args.start)
-    out = Path(args.out)
-    doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json")
+    doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json",
+                           provenance=_provenance(vehicle, got["_sha256"]))
     msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
           f"wrote {out / 'model.json'}")
@@ -168,15 +290,15 @@ def _predict(args) -> int:
 
     from . import msfit, plots
     from .report import fmt, md_table, write_json
-    from .track import read_csv
 
+    out = _check_out(args.out, "predict", args.overwrite)
     model, p, cov, doc = msfit.load_model(args.model)
-    tracks = [read_csv(t) for t in args.track]
+    _check_vehicle_unchanged(doc, model.vehicle, args.model, args.allow_changed_vehicle)
+    tracks = _read_tracks([("--track", args.track)])["--track"]
     window = None if args.window <= 0 else args.window
     lead = args.leadin if args.leadin > 0 else None
     pr = msfit.predict(model, p, tracks, window, start=args.start, leadin_s=lead)
     whole = msfit.predict(model, p, tracks, None, start=args.start, leadin_s=lead)
-    out = Path(args.out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)
     indices = {}
@@ -220,13 +342,13 @@ def _diagnose(args) -> int:
     import numpy as np
 
     from . import effects, gap, msfit, ship
-    from .track import read_csv
 
+    _check_out(args.out, "diagnose", args.overwrite)
     vehicle = msfit.load_any_vehicle(args.vehicle)
     is_ship = isinstance(vehicle, ship.Ship)
     free = _free_list(vehicle, args.free)
-    train = [read_csv(p) for p in args.train]
-    held = [read_csv(p) for p in args.heldout]
+    got = _read_tracks([("--train", args.train), ("--heldout", args.heldout)])
+    train, held = got["--train"], got["--heldout"]
     catalogue = ship.SHIP_CATALOGUE if is_ship else effects.CATALOGUE
     cands = list(catalogue) if not args.candidates else _split_names(args.candidates)
     if is_ship and not args.candidates and not all("wind_speed" in t for t in train + held):
@@ -258,9 +380,14 @@ WEIGHTING_HELP = ("channel weights of the fits: noise sds, or the residual RMS o
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="bayesid", description="hydrodynamic coefficient identification")
+    from . import __version__
+
+    fmt = argparse.ArgumentDefaultsHelpFormatter
+    ap = argparse.ArgumentParser(prog="bayesid", description="hydrodynamic coefficient identification",
+                                 formatter_class=fmt)
+    ap.add_argument("--version", action="version", version=f"bayesid {__version__}")
     sub = ap.add_subparsers(dest="command", required=True)
-    s = sub.add_parser("simulate", help="simulate a manoeuvre and write a Track CSV")
+    s = sub.add_parser("simulate", formatter_class=fmt, help="simulate a manoeuvre and write a Track CSV")
     s.add_argument("--vehicle", default="nps_auv2", help="packaged id or TOML path")
     s.add_argument("--manoeuvre", choices=["spiral", "turn", "zigzag", "straight"], default="spiral")
     s.add_argument("--angle", type=float, default=20.0, help="rudder angle, deg (turn, zigzag)")
@@ -270,7 +397,7 @@ def main(argv=None) -> int:
     s.add_argument("--mode", choices=MODES, default="6dof")
     s.add_argument("--crossflow", choices=["polynomial", "integral"], default=None)
     s.add_argument("--out", required=True)
-    c = sub.add_parser("convert", help="third-party data files -> Track CSVs (one per run)")
+    c = sub.add_parser("convert", formatter_class=fmt, help="third-party data files -> Track CSVs (one per run)")
     c.add_argument("--format", required=True, choices=datasets.FORMATS,
                    help="data set format (see bayesid.datasets)")
     c.add_argument("inputs", nargs="+", metavar="IN",
@@ -279,7 +406,7 @@ def main(argv=None) -> int:
     c.add_argument("--scale", type=float, default=None,
                    help="simman-marin only: Froude scale lambda from the full-scale files to the model "
                    f"(default {datasets.KVLCC2_SCALE:.5g}, the 7 m KVLCC2 model of kvlcc2_7m; 1 keeps full scale)")
-    d = sub.add_parser("diagnose", help="sim-to-real gap: where / which effect / how far")
+    d = sub.add_parser("diagnose", formatter_class=fmt, help="sim-to-real gap: where / which effect / how far")
     d.add_argument("--vehicle", required=True, help="packaged id or TOML path (nominal coefficients)")
     d.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's; "
                    "submarines Yv,Yr,Nv,Nr,Ydr,Ndr)")
@@ -302,7 +429,7 @@ def main(argv=None) -> int:
     d.add_argument("--seed", type=int, default=0)
     d.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
     d.add_argument("--out", required=True, help="output folder")
-    f = sub.add_parser("fit", help="identify a model on training tracks (multiple shooting)")
+    f = sub.add_parser("fit", formatter_class=fmt, help="identify a model on training tracks (multiple shooting)")
     f.add_argument("--vehicle", required=True, help="packaged id or TOML path (ship or submarine)")
     f.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
     f.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's)")
@@ -316,7 +443,7 @@ def main(argv=None) -> int:
                    "x,y,psi when the logged u, v, r are derived from positions and heading (default: all measured)")
     f.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
-    pp = sub.add_parser("predict", help="score a fitted model on tracks with the window protocol")
+    pp = sub.add_parser("predict", formatter_class=fmt, help="score a fitted model on tracks with the window protocol")
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")
     pp.add_argument("--track", nargs="+", required=True, metavar="CSV", help="Track CSVs")
     pp.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
@@ -327,6 +454,11 @@ def main(argv=None) -> int:
                     help=f"lead-in of the fitted start rule, s (default: {protocol.LEADIN_S:g} s or "
                    f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)")
     pp.add_argument("--out", required=True, help="output folder")
+    for p in (s, c, d, f, pp):
+        p.add_argument("--overwrite", action="store_true",
+                       help="replace what this command wrote before in --out (a non-empty --out is refused otherwise)")
+    pp.add_argument("--allow-changed-vehicle", action="store_true",
+                    help="predict even if the vehicle file changed after the fit (a warning is printed)")
     args = ap.parse_args(argv)
     try:
         run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose, "fit": _fit,

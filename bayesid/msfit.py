@@ -154,8 +154,16 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
             "train_scores": gap.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
 
 
-def save_model(res: dict, vehicle_ref: str, train_names, path) -> dict:
-    """Write the identified model as JSON (``model.json``); returns the document."""
+def vehicle_file(vehicle) -> Path | None:
+    """The TOML file a loaded vehicle came from (a submarine's ``path``, a ship's ``source``), or
+    None."""
+    ref = getattr(vehicle, "path", None) if not isinstance(vehicle, sh.Ship) else vehicle.source
+    return Path(ref) if ref else None
+
+
+def save_model(res: dict, vehicle_ref: str, train_names, path, provenance: dict | None = None) -> dict:
+    """Write the identified model as JSON (``model.json``); returns the document. ``provenance``
+    (package version, vehicle file hash and values, input hashes) is stored as given."""
     m, f = res["model"], res["fit"]
     sdv = np.sqrt(np.clip(np.diag(res["cov"]), 0, None))
     doc = {"format": "bayesid-model-1", "vehicle": vehicle_ref, "vehicle_id": m.vehicle.id,
@@ -166,7 +174,7 @@ def save_model(res: dict, vehicle_ref: str, train_names, path) -> dict:
            "weighting": res.get("weighting", "noise"), "fit_sd": res.get("fit_sd", res["noise_sd"]),
            "fit_channels": None if res.get("channels") is None else list(res["channels"]),
            "start_rule": res.get("start_rule", "measured"),
-           "train_runs": list(train_names), "train_scores": res["train_scores"],
+           "train_runs": list(train_names), "train_scores": res["train_scores"], "provenance": provenance or {},
            "fit": {"ssr": f.ssr, "n_residuals": f.n_res, "nfev": f.nfev, "success": f.success,
                    "message": f.message, "seconds": f.seconds, "bic": f.bic}}
     Path(path).parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,129 @@
+"""Bad and unusual inputs to the bayesid command (issue 21, the outputs / duplicates / provenance
+part): each is refused with exit code 2 and a message naming the culprit, before any
+computation, or handled correctly."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesid import cli
+from bayesid import effects as ef
+from bayesid import manoeuvres as mv
+from bayesid.track import write_csv
+from bayesid.vehicle import load_vehicle
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def csvs(tmp_path_factory):
+    veh = load_vehicle("nps_auv2")
+    d = tmp_path_factory.mktemp("tracks")
+    out = []
+    for i, m in enumerate([mv.zigzag(veh, 20.0, dt=0.1, duration=60.0),
+                           mv.zigzag(veh, 10.0, dt=0.1, duration=60.0, first_sign=-1)]):
+        tr = ef.world_track(veh, m, {}, np.random.default_rng(i), sample_every=2, name=f"run{i}")
+        write_csv(tr, d / f"run{i}.csv")
+        out.append(d / f"run{i}.csv")
+    return out
+
+
+def _run(args, capsys):
+    rc = cli.main([str(a) for a in args])
+    cap = capsys.readouterr()
+    return rc, cap.out + cap.err
+
+
+def _diag(train, held, out, *extra):
+    return ["diagnose", "--vehicle", "nps_auv2", "--free", "Nr", "--train", *train, "--heldout", *held,
+            "--window", "30", "--candidates", "thrust", "--max-nfev", "3", "--max-effects", "1", "--out", out, *extra]
+
+
+BAD = {  # name: (args builder, text the message must contain)
+    "out is a file": (lambda c, t: _diag([c[0]], [c[1]], c[0]), "--out"),
+    "same file twice in --train": (lambda c, t: _diag([c[0], c[0]], [c[1]], t / "o"), "same content"),
+    "held-out equals a training file": (lambda c, t: _diag([c[0]], [c[1], t / "copy.csv"], t / "o"), "same content"),
+    "two files with one name": (lambda c, t: _diag([c[0]], [t / "sub" / "run0.csv"], t / "o"), "both named"),
+    "a folder as a track": (lambda c, t: _diag([c[0]], [t], t / "o"), "is a folder"),
+    "simulate --dt 0": (lambda c, t: ["simulate", "--dt", "0", "--out", t / "s.csv"], "--dt"),
+    "simulate over an existing file": (lambda c, t: ["simulate", "--out", c[0]], "--overwrite"),
+    "unknown start rule": (lambda c, t: _diag([c[0]], [c[1]], t / "o", "--start", "smooth"), None),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_input_is_refused_naming_the_culprit(csvs, tmp_path, capsys, case):
+    shutil.copy(csvs[0], tmp_path / "copy.csv")
+    (tmp_path / "sub").mkdir()
+    data = csvs[1].read_text().replace("0.0", "0.00", 1)  # other content, same stem as run0
+    (tmp_path / "sub" / "run0.csv").write_text(data)
+    build, text = BAD[case]
+    if text is None:  # argparse refuses the choice itself
+        with pytest.raises(SystemExit) as e:
+            cli.main([str(a) for a in build(csvs, tmp_path)])
+        assert e.value.code == 2
+        return
+    rc, msg = _run(build(csvs, tmp_path), capsys)
+    assert rc == 2 and text in msg and "Traceback" not in msg, msg
+    assert not (tmp_path / "o" / "diagnosis.json").exists()
+
+
+def test_a_non_empty_out_is_refused_and_overwrite_clears_what_the_command_wrote(csvs, tmp_path, capsys):
+    out = tmp_path / "diag"
+    (out / "figures").mkdir(parents=True)
+    (out / "figures" / "stale.png").write_bytes(b"old")
+    (out / "notes.txt").write_text("mine")
+    rc, msg = _run(_diag([csvs[0]], [csvs[1]], out), capsys)
+    assert rc == 2 and "--overwrite" in msg and (out / "figures" / "stale.png").exists()
+    rc, msg = _run(_diag([csvs[0]], [csvs[1]], out, "--overwrite"), capsys)
+    assert rc == 0, msg
+    assert not (out / "figures" / "stale.png").exists() and (out / "notes.txt").read_text() == "mine"
+    assert (out / "diagnosis.json").exists()
+
+
+def test_fit_records_provenance_and_predict_refuses_a_changed_vehicle(csvs, tmp_path, capsys):
+    veh_file = tmp_path / "auv.toml"
+    shutil.copy(ROOT / "bayesid" / "vehicles" / "nps_auv2.toml", veh_file)
+    rc, msg = _run(["fit", "--vehicle", veh_file, "--free", "Nr", "--train", csvs[0], "--window", "30",
+                    "--max-nfev", "3", "--out", tmp_path / "fit"], capsys)
+    assert rc == 0, msg
+    prov = json.loads((tmp_path / "fit" / "model.json").read_text())["provenance"]
+    assert prov["bayesid_version"] and len(prov["vehicle_sha256"]) == 64 and "Yv" in prov["vehicle_coefficients"]
+    assert list(prov["input_sha256"]) == [str(csvs[0])]
+    pred = ["predict", "--model", tmp_path / "fit" / "model.json", "--track", csvs[1], "--window", "30",
+            "--draws", "0"]
+    assert _run(pred + ["--out", tmp_path / "p0"], capsys)[0] == 0
+    veh_file.write_text(veh_file.read_text().replace("Yv = -1.0e-1", "Yv = -1.2e-1"))
+    rc, msg = _run(pred + ["--out", tmp_path / "p1"], capsys)
+    assert rc == 2 and "changed after the fit" in msg
+    rc, msg = _run(pred + ["--out", tmp_path / "p2", "--allow-changed-vehicle"], capsys)
+    assert rc == 0 and "WARNING" in msg
+
+
+def test_convert_overwrite_leaves_no_stale_run(tmp_path, capsys):
+    src = ROOT.parent / "shared" / "data" / "real" / "kvlcc2-simman-hsva"
+    if not src.is_dir():
+        pytest.skip("real data not present")
+    out = tmp_path / "conv"
+    out.mkdir()
+    (out / "old_run.csv").write_text("t,x\n0,0\n")
+    (out / "convert.json").write_text(json.dumps({"runs": [{"output": str(out / "old_run.csv")}]}))
+    rc, msg = _run(["convert", "--format", "simman-hsva", src, "--out", out], capsys)
+    assert rc == 2 and "--overwrite" in msg
+    rc, msg = _run(["convert", "--format", "simman-hsva", src, "--out", out, "--overwrite"], capsys)
+    assert rc == 0 and not (out / "old_run.csv").exists()
+    listed = {Path(r["output"]).name for r in json.loads((out / "convert.json").read_text())["runs"]}
+    assert listed == {p.name for p in out.glob("*.csv")}
+
+
+def test_version_and_defaults_in_help(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["--version"])
+    assert "bayesid 0." in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        cli.main(["diagnose", "--help"])
+    assert "(default: 60.0)" in capsys.readouterr().out.replace("\n", " ").replace("  ", " ")
