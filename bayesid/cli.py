@@ -181,14 +181,16 @@ def _file_sha256(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _read_tracks(groups) -> dict:
+def _read_tracks(groups, vehicle=None) -> dict:
     """Read the track files of each option (``[(option, [paths])]``) once: a file given twice, a
     file whose content equals another one (a renamed copy), a folder, and two tracks with the
-    same name are errors naming both. Returns {option: [Track]} and the files' SHA-256 under
-    ``"_sha256"``."""
+    same name are errors naming both; every track passes :func:`bayesid.validate.check_track`
+    (units; plausibility for ``vehicle``), whose warnings are printed. Returns {option: [Track]},
+    the files' SHA-256 under ``"_sha256"`` and the warnings under ``"_warnings"``."""
     from .track import read_csv
+    from .validate import check_track
 
-    seen, names, out, hashes = {}, {}, {}, {}
+    seen, names, out, hashes, warnings = {}, {}, {}, {}, []
     for option, paths in groups:
         out[option] = []
         for p in paths:
@@ -209,8 +211,11 @@ def _read_tracks(groups) -> dict:
                                  "(results are reported by track name)")
             names[tr.name] = p
             hashes[str(p)] = h
+            warnings += check_track(tr, vehicle, str(p))
             out[option].append(tr)
-    out["_sha256"] = hashes
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    out["_sha256"], out["_warnings"] = hashes, warnings
     return out
 
 
@@ -270,14 +275,14 @@ def _fit(args) -> int:
     out = _check_out(args.out, "fit", args.overwrite)
     vehicle = msfit.load_any_vehicle(args.vehicle)
     free = _free_list(vehicle, args.free)
-    got = _read_tracks([("--train", args.train)])
+    got = _read_tracks([("--train", args.train)], vehicle)
     train = got["--train"]
     res = msfit.identify(vehicle, train, free, _split_names(args.effects), window_s=args.window, dt=args.dt,
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
                          weighting=args.weighting or None, channels=_split_names(args.fit_channels) or None,
                          start=args.start)
     doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json",
-                           provenance=_provenance(vehicle, got["_sha256"]))
+                           provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
     msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
           f"wrote {out / 'model.json'}")
@@ -294,7 +299,8 @@ def _predict(args) -> int:
     out = _check_out(args.out, "predict", args.overwrite)
     model, p, cov, doc = msfit.load_model(args.model)
     _check_vehicle_unchanged(doc, model.vehicle, args.model, args.allow_changed_vehicle)
-    tracks = _read_tracks([("--track", args.track)])["--track"]
+    got = _read_tracks([("--track", args.track)], model.vehicle)
+    tracks = got["--track"]
     window = None if args.window <= 0 else args.window
     lead = args.leadin if args.leadin > 0 else None
     pr = msfit.predict(model, p, tracks, window, start=args.start, leadin_s=lead)
@@ -311,6 +317,7 @@ def _predict(args) -> int:
                                 leadin_s=whole["leadin_s"])
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     res = {"model": str(args.model), "window_s": window, "start_rule": pr["start_rule"], "leadin_s": pr["leadin_s"],
+           "warnings": got["_warnings"], "input_sha256": got["_sha256"],
            "pooled": pr["pooled"], "per_track": pr["per_track"],
            "windows": pr["windows"], "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
            "indices": indices}
@@ -347,7 +354,7 @@ def _diagnose(args) -> int:
     vehicle = msfit.load_any_vehicle(args.vehicle)
     is_ship = isinstance(vehicle, ship.Ship)
     free = _free_list(vehicle, args.free)
-    got = _read_tracks([("--train", args.train), ("--heldout", args.heldout)])
+    got = _read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     train, held = got["--train"], got["--heldout"]
     catalogue = ship.SHIP_CATALOGUE if is_ship else effects.CATALOGUE
     cands = list(catalogue) if not args.candidates else _split_names(args.candidates)
@@ -365,6 +372,8 @@ def _diagnose(args) -> int:
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
                        fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None,
                        start=args.start, leadin_s=args.leadin if args.leadin > 0 else None)
+    res["warnings"] = got["_warnings"]
+    res["input_sha256"] = got["_sha256"]
     gap.write_report(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"verdict: {res['verdict']}; held-out RMS {res['gap_before']['heldout_rms_m']:.3f} m -> "
           f"{res['gap_after']['heldout_rms_m']:.3f} m (noise floor {res['noise_floor']['heldout_rms_m']:.3f} m, "

@@ -1082,6 +1082,7 @@ def write_report(res: dict, out, heldout: list, command: str = "") -> None:
                                         title=f"{heldout[0].name}: {w} s windows"))
     gb, ga = res["gap_before"], res["gap_after"]
     lines = [f"# Gap diagnosis", "", f"`{command}`" if command else "", "",
+             *(["**Input warnings:** " + "; ".join(res["warnings"]), ""] if res.get("warnings") else []),
              f"**Verdict: {res['verdict']}**"
              + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""), "",
              f"Training tracks: {', '.join(res['train_tracks'])}; held-out: {', '.join(res['heldout_tracks'])}. "

@@ -124,6 +124,11 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     if window_s is None:
         window_s = sh.FIT_WINDOW_S if isinstance(vehicle, sh.Ship) else 30.0
     model = build_model(vehicle, free, effects, dt)
+    if any(e.name == "wind" for e in model.effects):
+        bare = [t.name for t in train if not ("wind_speed" in t and "wind_dir" in t)]
+        if bare:
+            raise ValueError(f"the wind effect needs columns wind_speed and wind_dir; track(s) {', '.join(bare)} "
+                             "have none (leave --effects wind out, or add the measured wind)")
     rule = resolve_start(start, train)
     ctxs = [model.context(t, window_s, start=rule) for t in train]
     sd = gap._pooled_sd(train)

@@ -127,3 +127,62 @@ def test_version_and_defaults_in_help(capsys):
     with pytest.raises(SystemExit):
         cli.main(["diagnose", "--help"])
     assert "(default: 60.0)" in capsys.readouterr().out.replace("\n", " ").replace("  ", " ")
+
+
+# --- units and plausibility (bayesid.validate) ------------------------------------------------
+def _variant(path, tmp_path, name, change):
+    from bayesid.track import read_csv
+
+    tr = read_csv(path)
+    data = {k: np.array(v) for k, v in tr.data.items()}
+    t = change(tr.t.copy(), data)
+    from bayesid.track import Track
+    p = tmp_path / f"{name}.csv"
+    write_csv(Track(t, data, name=name), p)
+    return p
+
+
+UNITS = {  # name: (change (t, data) -> t, column, text)
+    "heading in degrees": (lambda t, d: (d.__setitem__("psi", np.degrees(d["psi"]) + 40.0), t)[1], "psi", "degrees"),
+    "rudder in degrees": (lambda t, d: (d.__setitem__("delta_r", np.degrees(d["delta_r"])), t)[1], "delta_r",
+                          "degrees"),
+    "time in milliseconds": (lambda t, d: t * 1000.0, "'t'", "milliseconds"),
+    "speeds in knots": (lambda t, d: (d.__setitem__("u", d["u"] / 0.514444), d.__setitem__("v", d["v"] / 0.514444),
+                                      t)[2], "'u'", "knots"),
+    "yaw rate in deg/s": (lambda t, d: (d.__setitem__("r", np.degrees(d["r"])), t)[1], "'r'", "deg/s"),
+    "rpm given as rps": (lambda t, d: (d.__setitem__("n", d["n"] / 60.0), t)[1], "'n'", "rev/s"),
+}
+
+
+@pytest.mark.parametrize("case", list(UNITS))
+def test_a_column_in_the_wrong_unit_is_refused_naming_it(csvs, tmp_path, capsys, case):
+    change, col, unit = UNITS[case]
+    bad = _variant(csvs[0], tmp_path, "bad", change)
+    rc, msg = _run(_diag([bad], [csvs[1]], tmp_path / "o"), capsys)
+    assert rc == 2 and "bad.csv" in msg and col.strip("'") in msg and unit in msg, msg
+
+
+def test_the_correct_units_pass_without_warning(csvs):
+    from bayesid import validate
+    from bayesid.track import read_csv
+
+    for p in csvs:
+        assert validate.check_track(read_csv(p), load_vehicle("nps_auv2")) == []
+
+
+def test_odd_but_possible_inputs_are_warned_about_in_the_outputs(csvs, tmp_path, capsys):
+    stopped = _variant(csvs[0], tmp_path, "stopped", lambda t, d: (d.__setitem__("n", 0.0 * d["n"]), t)[1])
+    fast = _variant(csvs[1], tmp_path, "fast", lambda t, d: (d.__setitem__("x", 10 * d["x"]),
+                                                             d.__setitem__("y", 10 * d["y"]), t)[2])
+    rc, msg = _run(_diag([stopped], [fast], tmp_path / "o"), capsys)
+    assert rc == 0, msg
+    doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert any("propeller speed is 0" in w for w in doc["warnings"])
+    assert any("another vessel" in w for w in doc["warnings"])
+    assert "Input warnings" in (tmp_path / "o" / "report.md").read_text()
+
+
+def test_the_wind_effect_without_wind_columns_is_refused(csvs, tmp_path, capsys):
+    rc, msg = _run(["fit", "--vehicle", "esso_osaka_3m", "--train", csvs[0], "--effects", "wind",
+                    "--out", tmp_path / "f"], capsys)
+    assert rc == 2 and "wind_speed" in msg and "run0" in msg, msg

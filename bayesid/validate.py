@@ -1,0 +1,133 @@
+"""Semantic checks of a track before anything is fitted to it: units, consistency between
+channels, plausibility for the vehicle.
+
+:func:`bayesid.track.read_csv` checks the syntax (numbers, increasing time, known units in the
+header). A log can pass it and still be in the wrong units: heading or rudder in degrees, time in
+milliseconds, speeds in knots, yaw rate in deg/s, propeller speed in rev/s. These are detected
+from ranges and from consistency (yaw rate against the heading's rate, body speed against the
+position increments, sample interval against speed) and refused with a message naming the file,
+the column and the unit it looks like. Things that may be real but deserve a look (propeller
+stopped throughout, a speed far outside the vehicle's range) come back as warnings, which the
+commands print and record in their outputs.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .track import Track
+
+#: (factor, unit) pairs a speed column is recognised in when its ratio to the ground speed from
+#: the positions is within 15 % of the factor.
+SPEED_UNITS = ((3.6, "km/h"), (1.0 / 0.514444, "knots"), (100.0, "cm/s"))
+
+
+def _ratio(a, b):
+    """Median of |a| / |b| over the samples where both are finite and |b| is well above zero."""
+    a, b = np.abs(np.asarray(a, float)), np.abs(np.asarray(b, float))
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 10:
+        return None
+    thr = np.percentile(b[ok], 50)
+    sel = ok & (b > max(thr, 1e-12))
+    return float(np.median(a[sel] / b[sel])) if sel.sum() >= 5 else None
+
+
+def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
+    """Units and plausibility of a track (module docstring).
+
+    Parameters
+    ----------
+    track : a Track.   vehicle : the vehicle it will be fitted to (nominal speed and rpm of a
+    submarine file; None skips those checks).   where : the file named in messages.
+
+    Returns
+    -------
+    list of warning strings (empty when nothing looks odd).
+
+    Raises
+    ------
+    ValueError : a column in the wrong unit, naming file, column and the unit it looks like.
+    """
+    name = where or track.name
+    warn = []
+    t = track.t
+    if t.size < 3:
+        return warn
+    h = float(np.median(np.diff(t)))
+
+    def refuse(col, msg):
+        raise ValueError(f"{name}: column '{col}': {msg}; the track contract is SI with angles in rad, rpm for n "
+                         "(README, Track files)")
+
+    for col in ("delta_r", "delta_s", "delta_b"):
+        if col in track:
+            m = float(np.nanmax(np.abs(track[col]))) if np.isfinite(track[col]).any() else 0.0
+            if m > math.pi / 2 + 1e-6:
+                refuse(col, f"values up to {m:.4g} cannot be a control-surface angle in rad; it looks like degrees")
+    ground = None
+    if "x" in track and "y" in track:
+        # over a 5 s baseline, so that position noise does not pass for speed
+        k = max(1, min(int(round(5.0 / h)), t.size // 4)) if h > 0 else 1
+        dx, dy = track["x"][k:] - track["x"][:-k], track["y"][k:] - track["y"][:-k]
+        sp = np.hypot(dx, dy) / (t[k:] - t[:-k])
+        sp = sp[np.isfinite(sp)]
+        if sp.size:
+            ground = float(np.median(sp))
+            if h >= 10.0 and 0.1 <= 1000.0 * ground <= 30.0 and ground < 0.05:
+                refuse("t", f"median sample interval {h:.4g} with positions moving {ground:.3g} units per "
+                       "interval-unit: it looks like milliseconds")
+    if "psi" in track and np.isfinite(track["psi"]).sum() > 10:
+        psi = np.asarray(track["psi"], float)
+        fin = psi[np.isfinite(psi)]
+        jumps = np.abs(np.diff(fin))
+        if "r" in track:
+            dpsi = np.gradient(np.unwrap(np.where(np.isfinite(psi), psi, 0.0)), t)
+            k = _ratio(dpsi, track["r"])
+            if k is not None and 20.0 < k < 150.0:
+                refuse("psi", f"its rate is {k:.3g} x the yaw rate r: heading looks like degrees")
+            if k is not None and 1 / 150.0 < k < 1 / 20.0:
+                refuse("r", f"the heading's rate is {k:.3g} x r: yaw rate looks like deg/s")
+        if np.max(np.abs(fin)) > 2 * math.pi + 0.1 and np.max(np.abs(fin)) <= 361.0 and (
+                jumps > 300.0).any():
+            refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} wrapping by 360: heading looks like degrees")
+        if np.median(jumps) > 0.5:
+            refuse("psi", f"it changes by {np.median(jumps):.3g} per sample (median): heading looks like degrees")
+        if np.max(np.abs(fin)) > 2 * math.pi + 0.1:
+            ok = np.isfinite(psi)
+            rate = np.abs(np.diff(psi[ok]) / np.diff(t[ok]))
+            if rate.size and np.percentile(rate, 95) > 1.0:
+                refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} turning at {np.percentile(rate, 95):.3g} "
+                              "units/s (95th percentile; no vessel turns at 1 rad/s): heading looks like degrees")
+    if ground is not None and ground > 0.05 and "u" in track:
+        body = np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])
+        k = float(np.nanmedian(body)) / ground if np.isfinite(body).any() else None
+        for f, unit in SPEED_UNITS:
+            if k is not None and abs(k / f - 1.0) < 0.15:
+                refuse("u", f"body speed is {k:.3g} x the speed from the positions: u, v look like {unit}")
+    nominal_rpm = getattr(vehicle, "nominal_rpm", 0.0) or 0.0
+    if "n" in track:
+        n = np.asarray(track["n"], float)
+        n = n[np.isfinite(n)]
+        if n.size and not np.any(n):
+            warn.append(f"{name}: column 'n': propeller speed is 0 in every row (drifting or not logged?)")
+        elif n.size and nominal_rpm > 0 and np.max(np.abs(n)) < nominal_rpm / 20.0:
+            refuse("n", f"values up to {np.max(np.abs(n)):.4g} against the vehicle's nominal {nominal_rpm:g} rpm: "
+                        "it looks like rev/s")
+    nominal_speed = getattr(vehicle, "nominal_speed", None) if nominal_rpm > 0 else None
+    if nominal_speed and ground is not None and ground > 4.0 * nominal_speed:
+        warn.append(f"{name}: median speed over ground {ground:.3g} m/s is more than 4 x the vehicle's nominal "
+                    f"{nominal_speed:.3g} m/s: a track of another vessel, or positions not in metres?")
+    return warn
+
+
+def check_tracks(tracks, vehicle=None, paths=None) -> list[str]:
+    """:func:`check_track` on each track (``paths`` name the files); returns all warnings."""
+    out = []
+    for i, tr in enumerate(tracks):
+        out += check_track(tr, vehicle, None if paths is None else str(paths[i]))
+    return out
+
+
+__all__ = ["check_track", "check_tracks", "SPEED_UNITS"]
