@@ -118,6 +118,20 @@ def _convert(args) -> int:
     return 0
 
 
+def _check_numbers(args) -> None:
+    """Numeric options that must be positive (or non-negative): ValueError naming the option."""
+    positive = ("dt", "sample", "max_nfev", "max_effects", "scale")
+    non_negative = ("draws", "leadin", "fit_window", "duration")
+    for k in positive:
+        v = getattr(args, k, None)
+        if v is not None and not v > 0:
+            raise ValueError(f"--{k.replace('_', '-')} must be positive, not {v}")
+    for k in non_negative:
+        v = getattr(args, k, None)
+        if v is not None and not v >= 0:
+            raise ValueError(f"--{k.replace('_', '-')} must be >= 0, not {v}")
+
+
 def _split_names(text):
     return [n.strip() for n in text.split(",") if n.strip()] if text else []
 
@@ -366,7 +380,7 @@ def _diagnose(args) -> int:
             raise ValueError(f"--exclude {c.strip()}: not among the candidates {cands}")
         cands.remove(c.strip())
     window = None if args.window <= 0 else args.window
-    dt = args.dt if args.dt else (0.2 if is_ship else 0.5)
+    dt = args.dt if args.dt is not None else (0.2 if is_ship else 0.5)
     res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
@@ -422,7 +436,7 @@ def main(argv=None) -> int:
     d.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
     d.add_argument("--heldout", nargs="+", required=True, metavar="CSV", help="held-out Track CSVs")
     d.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
-    d.add_argument("--dt", type=float, default=0.0, help="model integration step, s (default 0.5; ships 0.2)")
+    d.add_argument("--dt", type=float, default=None, help="model integration step, s (default 0.5; ships 0.2)")
     d.add_argument("--fit-window", type=float, default=0.0,
                    help="window of the training fits, s (default: 15 for a ship, --window for a submarine)")
     d.add_argument("--mode", choices=MODES, default="horizontal")
@@ -470,6 +484,7 @@ def main(argv=None) -> int:
                     help="predict even if the vehicle file changed after the fit (a warning is printed)")
     args = ap.parse_args(argv)
     try:
+        _check_numbers(args)
         run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose, "fit": _fit,
                "predict": _predict}[args.command]
         return run(args)

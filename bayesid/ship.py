@@ -241,6 +241,8 @@ def load_ship(path_or_id) -> Ship:
         if k not in doc["particulars"]:
             raise ShipFileError(f"{p}: missing [particulars] {k}")
         part[k] = num("particulars", k, doc["particulars"][k])
+        if k in ("L", "B", "d", "mass_kg", "rho", "Cb", "D_prop", "A_rudder", "kzz") and not part[k] > 0:
+            raise ShipFileError(f"{p}: [particulars] {k} = {part[k]!r} must be positive")
     unknown = set(doc["particulars"]) - set(PARTICULARS)
     if unknown:
         raise ShipFileError(f"{p}: [particulars] unknown key(s) {sorted(unknown)}; known: {', '.join(PARTICULARS)}")

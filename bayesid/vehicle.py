@@ -229,6 +229,9 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
     except tomllib.TOMLDecodeError as e:
         raise VehicleFileError(f"{p}: not valid TOML: {e}") from None
 
+    if doc.get("vehicle", {}).get("kind") == "ship3dof":
+        raise VehicleFileError(f"{p}: a ship file ([vehicle] kind = \"ship3dof\"); load it with "
+                               "bayesid.ship.load_ship, or bayesid.msfit.load_any_vehicle for either kind")
     for section, keys in _REQUIRED.items():
         if section not in doc:
             raise VehicleFileError(f"{p}: missing section [{section}]")
@@ -238,6 +241,9 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
             if k != "id":
                 _finite(p, section, k, doc[section][k])
     v = doc["vehicle"]
+    for k in ("length_m", "mass_kg", "weight_N", "buoyancy_N", "rho"):
+        if k in v and not float(v[k]) > 0:
+            raise VehicleFileError(f"{p}: [vehicle] {k} = {v[k]!r} must be positive")
     form = v.get("coefficient_form", "prime")
     if form != "prime":
         raise VehicleFileError(f"{p}: [vehicle] coefficient_form = {form!r}; only 'prime' coefficients "

@@ -186,3 +186,36 @@ def test_the_wind_effect_without_wind_columns_is_refused(csvs, tmp_path, capsys)
     rc, msg = _run(["fit", "--vehicle", "esso_osaka_3m", "--train", csvs[0], "--effects", "wind",
                     "--out", tmp_path / "f"], capsys)
     assert rc == 2 and "wind_speed" in msg and "run0" in msg, msg
+
+
+@pytest.mark.parametrize("args,text", [
+    (["--dt", "0"], "--dt"), (["--max-nfev", "-5"], "--max-nfev"), (["--max-effects", "0"], "--max-effects"),
+    (["--leadin", "-1"], "--leadin")])
+def test_a_bad_number_is_refused_naming_the_option(csvs, tmp_path, capsys, args, text):
+    rc, msg = _run(_diag([csvs[0]], [csvs[1]], tmp_path / "o", *args), capsys)
+    assert rc == 2 and text in msg and "Traceback" not in msg, msg
+
+
+def test_predict_refuses_negative_draws(csvs, tmp_path, capsys):
+    rc, msg = _run(["predict", "--model", tmp_path / "none.json", "--track", csvs[0], "--draws", "-5",
+                    "--out", tmp_path / "p"], capsys)
+    assert rc == 2 and "--draws" in msg
+
+
+@pytest.mark.parametrize("key,value", [("mass_kg", "-5.0"), ("length_m", "0.0")])
+def test_a_vehicle_file_with_an_impossible_value_names_it(tmp_path, capsys, csvs, key, value):
+    import re
+
+    text = (ROOT / "bayesid" / "vehicles" / "nps_auv2.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(re.sub(rf"(?m)^{key}\s*=.*$", f"{key} = {value}", text, count=1))
+    rc, msg = _run(["diagnose", "--vehicle", bad, "--train", csvs[0], "--heldout", csvs[1], "--out", tmp_path / "o"],
+                   capsys)
+    assert rc == 2 and key in msg and "bad.toml" in msg, msg
+
+
+def test_load_vehicle_on_a_ship_file_names_the_right_loader():
+    from bayesid.vehicle import VehicleFileError
+
+    with pytest.raises(VehicleFileError, match="load_ship"):
+        load_vehicle("kvlcc2_7m")
