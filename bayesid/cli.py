@@ -347,6 +347,8 @@ def _predict(args) -> int:
              f"Pooled: {fmt(pr['pooled']['rms_position_m'])} m, heading {fmt(pr['pooled']['rms_heading_deg'])} deg; "
              f"whole run {fmt(whole['pooled']['rms_position_m'])} m.", ""]
     for n, d in indices.items():
+        if d["measured"].get("kind") == "other":
+            lines.append(f"- {n}: no turning or zigzag indices ({d['measured'].get('reason')})")
         if d["measured"].get("kind") in ("turning", "zigzag"):
             lines.append(f"- {n} ({d['measured']['kind']}): " + "; ".join(
                 f"{k} measured {fmt(d['measured'].get(k))}, predicted {fmt(d['predicted'].get(k))}"

@@ -252,39 +252,74 @@ def posterior_samples(model, p, cov, n: int, rng) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # Standard manoeuvre indices
 # ---------------------------------------------------------------------------------------------
+def _rudder_holds(t, delta, threshold: float, min_hold_s: float):
+    """Runs of the rudder beyond ``threshold`` (rad) on one side, each (side, i_start, i_end, peak
+    |delta|), with runs shorter than ``min_hold_s`` dropped (a blip of counter-rudder is not a
+    reversal) and neighbouring runs on the same side merged."""
+    side = np.where(delta > threshold, 1, np.where(delta < -threshold, -1, 0))
+    runs, i = [], 0
+    n = side.size
+    while i < n:
+        if side[i] == 0:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and side[j + 1] == side[i]:
+            j += 1
+        if t[j] - t[i] >= min_hold_s or (j == n - 1 and runs == []):
+            peak = float(np.max(np.abs(delta[i:j + 1])))
+            if runs and runs[-1][0] == side[i]:
+                s0, a0, _, p0 = runs[-1]
+                runs[-1] = (s0, a0, j, max(p0, peak))
+            else:
+                runs.append((int(side[i]), i, j, peak))
+        i = j + 1
+    return runs
+
+
 def manoeuvre_indices(t, x, y, psi, delta) -> dict:
-    """Standard indices of a turning circle or a zigzag from a track (ITTC 2002, "Full scale
-    manoeuvring trials procedure" 7.5-04-02-01, definitions).
+    """Standard indices of a turning circle or a zigzag from a track (ITTC 7.5-04-02-01, 2002,
+    "Full scale manoeuvring trials procedure", Sec. 2.2: definitions of the turning circle and
+    zigzag tests), after deciding which manoeuvre the run is.
 
-    Turning (the rudder held at one nonzero angle after its execute): ``advance_m`` (distance
-    along the approach heading when the heading has changed by 90 deg), ``transfer_m`` (normal
-    to it, at 90 deg) and ``tactical_diameter_m`` (normal distance at 180 deg); NaN when the run
-    does not get there. Zigzag (the rudder reverses at least twice): ``first_overshoot_deg`` and
-    ``second_overshoot_deg`` (heading beyond the switching heading after the 1st and 2nd
-    reversal). ``kind`` is ``"turning"``, ``"zigzag"`` or ``"other"``.
+    The rudder is read as holds: runs beyond 3 deg on one side lasting at least 2 s (shorter
+    counter-rudder blips are not reversals). Execute: the first hold's start.
 
-    Arrays (n,): t (s), x, y (m), psi (rad, any wrap), delta (rad).
+    * **turning**: one hold (the rudder never reversed) during which the heading changes by at
+      least 90 deg: ``advance_m`` (distance along the approach heading at 90 deg of heading
+      change), ``transfer_m`` (normal to it, at 90 deg) and ``tactical_diameter_m`` (normal
+      distance at 180 deg; NaN when the heading does not get there before the rudder returns);
+    * **zigzag**: at least two reversals between holds of similar size (each within a factor of
+      two of the first), the heading oscillating about the approach heading (never 90 deg away):
+      ``first_overshoot_deg`` and ``second_overshoot_deg`` (heading beyond the switching heading
+      after the 1st and 2nd reversal);
+    * otherwise ``"other"`` with the ``reason``, and no index.
+
+    Arrays (n,): t (s), x, y (m), psi (rad, any wrap), delta (rad). Returns a dict with ``kind``
+    (``"turning"``, ``"zigzag"``, ``"other"``), ``execute_t_s`` and the indices or ``reason``.
     """
     t, x, y, delta = (np.asarray(a, float) for a in (t, x, y, delta))
     psi = np.unwrap(np.asarray(psi, float))
-    big = np.abs(delta) > np.radians(3.0)
-    if not big.any():
-        return {"kind": "other"}
-    i0 = int(np.argmax(big))
-    sgn = np.sign(delta[big])
-    switches = np.flatnonzero(np.diff(sgn) != 0)
+    holds = _rudder_holds(t, delta, math.radians(3.0), 2.0)
+    if not holds:
+        return {"kind": "other", "reason": "the rudder is never held beyond 3 deg for 2 s"}
+    i0 = holds[0][1]
     out = {"execute_t_s": float(t[i0])}
-    d0 = psi[i0]
-    h = psi - d0
-    if switches.size == 0:
+    h = psi - psi[i0]
+    if len(holds) == 1:
+        _, a, b, _ = holds[0]
+        turned = float(np.degrees(np.max(np.abs(h[a:b + 1]))))
+        if turned < 90.0:
+            return dict(out, kind="other", reason=f"one rudder hold, but the heading changed only {turned:.0f} deg "
+                                                   "while it was held (a turning circle needs 90)")
         out["kind"] = "turning"
-        c, s = math.cos(d0), math.sin(d0)
+        c, s = math.cos(psi[i0]), math.sin(psi[i0])
         along = c * (x - x[i0]) + s * (y - y[i0])
         normal = -s * (x - x[i0]) + c * (y - y[i0])
         for name, ang in (("90", math.pi / 2), ("180", math.pi)):
-            k = np.flatnonzero(np.abs(h[i0:]) >= ang)
+            k = np.flatnonzero(np.abs(h[a:b + 1]) >= ang)
             if k.size:
-                j = i0 + k[0]
+                j = a + k[0]
                 if name == "90":
                     out["advance_m"] = float(along[j])
                     out["transfer_m"] = float(abs(normal[j]))
@@ -293,9 +328,17 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
         for key in ("advance_m", "transfer_m", "tactical_diameter_m"):
             out.setdefault(key, float("nan"))
         return out
+    first = holds[0][3]
+    similar = all(0.5 * first <= p <= 2.0 * first for _, _, _, p in holds)
+    span = float(np.degrees(np.max(np.abs(h[i0:]))))
+    if len(holds) < 3 or not similar or span >= 90.0:
+        why = (f"the rudder reversed {len(holds) - 1} time(s)" + (", between holds of different sizes" if not similar
+                                                                  else "")
+               + f", and the heading moved up to {span:.0f} deg from the approach heading")
+        return dict(out, kind="other", reason=why + " (a zigzag needs 2 reversals of one rudder angle with the "
+                                                   "heading within 90 deg; a turning circle one hold)")
     out["kind"] = "zigzag"
-    idx = np.flatnonzero(big)
-    sw = [idx[s + 1] for s in switches]   # first sample after each reversal
+    sw = [hd[1] for hd in holds[1:]]  # first sample of each hold after a reversal
     for name, k in (("first_overshoot_deg", 0), ("second_overshoot_deg", 1)):
         if k < len(sw):
             j = sw[k]
@@ -354,7 +397,8 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
     dr = np.asarray(track["delta_r"], float)[ctx.idx]
     meas = manoeuvre_indices(ctx.ts, ctx.meas["x"], ctx.meas["y"], ctx.meas["psi"], dr)
     pred = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]
-    keys = [k for k in pred[0] if k not in ("kind", "execute_t_s")]
+    # the indices of what the measured run is (none, with the reason, for anything else)
+    keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
     band = {}
     for k in keys:
         vals = np.array([d.get(k, np.nan) for d in pred[1:]], float)
