@@ -33,6 +33,7 @@ from . import effects as ef
 from . import gap, shooting
 from . import ship as sh
 from .protocol import pooled_scores, resolve_start, start_settings
+from .track import Track
 from .vehicle import load_vehicle
 
 
@@ -387,13 +388,22 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
 
 
 def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured", leadin_s: float = 0.0) -> dict:
-    """Whole-run open-loop prediction of a track from its first state (``start`` rule, resolved:
-    the causal measured state, or the state fitted over the first ``leadin_s`` seconds), with
+    """Whole-run open-loop prediction of a track from its first sample (``start`` rule, resolved:
+    the measured state, or the state fitted to the first ``leadin_s`` seconds), with
     the manoeuvre indices of the measured run, the identified model, and a posterior predictive
     band (5-95 % of ``n_draws`` Laplace draws)."""
-    ctx = model.context(track, None, start=start, leadin_s=leadin_s)
     P = np.vstack([p[None], posterior_samples(model, p, cov, n_draws, rng)]) if n_draws else p[None]
-    S = shooting.simulate(model, ctx, P)
+    if start == "fitted":
+        # the whole run from its first sample: the start state fitted to the first lead-in
+        # seconds only (indices need the execute, which a lead-in before the window would cut)
+        sel = track.t <= track.t[0] + max(leadin_s, 2.0) + 1e-9
+        head = Track(track.t[sel], {k: np.asarray(v)[sel] for k, v in track.data.items()}, name=track.name)
+        ctx = model.context(track, None, start="fitted", leadin_s=0.0)
+        starts = shooting.fit_starts(model, model.context(head, None, start="fitted", leadin_s=0.0), P)
+        S = model.simulate(ctx, P, starts=starts)
+    else:
+        ctx = model.context(track, None)
+        S = model.simulate(ctx, P)
     dr = np.asarray(track["delta_r"], float)[ctx.idx]
     meas = manoeuvre_indices(ctx.ts, ctx.meas["x"], ctx.meas["y"], ctx.meas["psi"], dr)
     pred = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]

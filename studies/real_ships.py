@@ -21,7 +21,9 @@ Method
   windows; the verdict names the cause or the contributors added (two greedy rounds) and
   ``+unexplained`` for a significant remainder.
 - Protocol (issue 8): held-out runs cut into non-overlapping 30 s and 60 s windows from their
-  start, each simulated open loop from the measured state with the recorded rudder, propeller
+  start, each simulated open loop from the measured state (the ``measured`` start rule, also in
+  the diagnosis, whatever ``auto`` would pick: the HSVA files log no u, v, which come from the
+  positions) with the recorded rudder, propeller
   (and wind when the model has it); pooled RMS horizontal position error; also the whole run.
   Shrinkage = 1 - after / base.
 - Splits: Esso validation split of issue 8 (hold out random_06-Aug-2020_16_24_25_6,
@@ -78,7 +80,7 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
 
     t0 = time.perf_counter()
     res = gap.diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
-                       dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
+                       dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev, start="measured",
                        progress=lambda m: log(f"{name}: {m}"))
     gap.write_report(res, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
     bm, bf, _ = res["_curves"]["base"]
