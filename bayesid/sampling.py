@@ -282,11 +282,14 @@ class _BlockHDFBackend(emcee.backends.HDFBackend):
         self._buffer = []
 
 
-def _checkpoint_backends(path, names, n_walkers, config) -> list:
-    """One HDFBackend per ensemble in ``path``; creates the file or checks it is this problem's."""
+def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
+    """One HDFBackend per ensemble in ``path``; creates the file or checks it is this problem's
+    (and, with ``run_key``, this run's: seed, data, settings)."""
     path = Path(path)
     meta = {"tag": _CHECKPOINT_TAG, "names": json.dumps(list(names)), "ndim": len(names),
             "n_walkers": n_walkers, "n_ensembles": config.n_ensembles, "moves": config.moves}
+    if run_key is not None:
+        meta["run_key"] = json.dumps(run_key, sort_keys=True)
     # Checked on resume: what must agree for the stored chains to belong to this problem. The
     # stopping settings (min/max_steps, tau_factor, ...) may change between runs.
     if path.exists():
@@ -317,7 +320,8 @@ def _checkpoint_backends(path, names, n_walkers, config) -> list:
 
 
 def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = None,
-                  rng: np.random.Generator | None = None, checkpoint: str | Path | None = None) -> SamplerResult:
+                  rng: np.random.Generator | None = None, checkpoint: str | Path | None = None,
+                  run_key: dict | None = None) -> SamplerResult:
     """Sample the posterior with ``config.n_ensembles`` independent emcee ensembles.
 
     Each ensemble is an ``emcee.EnsembleSampler(vectorize=True)`` started from its own
@@ -343,6 +347,9 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
     names : P coefficient names.   config : :class:`SamplerConfig` (default settings if None).
     rng : numpy Generator; the only source of randomness (``default_rng(0)`` if None).
     checkpoint : HDF5 path, or None to keep the chains in memory.
+    run_key : JSON-able description of the run (seed, a hash of the data, settings) stored in a
+        new checkpoint; resuming a checkpoint written under another key raises ValueError, so
+        chains of another seed or other data are never reported as this run's.
 
     Returns
     -------
@@ -372,7 +379,7 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
     # Drawn whether or not the run resumes, so the caller's rng advances the same way.
     children = rng.spawn(E)
     seeds = [int(c.integers(2**32)) for c in children]
-    backends = (_checkpoint_backends(checkpoint, names, W, config) if checkpoint is not None
+    backends = (_checkpoint_backends(checkpoint, names, W, config, run_key) if checkpoint is not None
                 else [emcee.backends.Backend() for _ in range(E)])
     samplers, states = [], []      # states[i]: where ensemble i goes on from
     for i in range(E):

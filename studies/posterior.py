@@ -23,8 +23,10 @@ Method
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,6 +65,8 @@ def parse_args():
     ap.add_argument("--seed", type=int, default=2003)
     ap.add_argument("--cases", default=",".join(k.removeprefix("case") for k in CASE_KEYS),
                     help="comma-separated subset of 1,2,3,3b")
+    ap.add_argument("--fresh", action="store_true",
+                    help="delete the checkpoints of the cases run and sample anew (default: resume or re-report)")
     ap.add_argument("--extend", action="store_true",
                     help="sample further from finished checkpoints (default: re-report their chains)")
     ap.add_argument("--tau-factor", type=float, default=120.0,
@@ -230,13 +234,23 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
     ck.mkdir(exist_ok=True)
     ckfile = ck / f"{setup.key}{'_quick' if args.quick else ''}.h5"
     done = ckfile.with_suffix(".done.json")
+    if args.fresh:
+        for f in (ckfile, done):
+            f.unlink(missing_ok=True)
     stored = json.loads(done.read_text()) if done.exists() and not args.extend else None
     if stored:   # a finished run: report its chains again, do not sample more
         cfg.max_steps = int(stored["n_steps"])
         cfg.min_steps = min(cfg.min_steps, cfg.max_steps)
     n_eval0 = logpost.n_evaluations
     t_s = time.perf_counter()
-    result = sampling.run_ensembles(logpost, centre, cov0, setup.names, cfg, rng, checkpoint=ckfile)
+    run_key = {"seed": args.seed, "quick": bool(args.quick), "case": setup.key,
+               "target_sha256": hashlib.sha256(np.ascontiguousarray(
+                   np.column_stack([target.t] + [target[k] for k in target.state_columns])).tobytes()).hexdigest()}
+    stored_key = stored.get("run_key") if stored else None
+    if stored and stored_key is not None and stored_key != run_key:
+        raise ValueError(f"{done}: finished under {stored_key}, not {run_key}; pass --fresh or another --out")
+    result = sampling.run_ensembles(logpost, centre, cov0, setup.names, cfg, rng, checkpoint=ckfile,
+                                    run_key=run_key)
     sample_s = sampled_s = time.perf_counter() - t_s
     n_new = logpost.n_evaluations - n_eval0
     evals_per_s = n_new / sample_s if n_new else None
@@ -246,7 +260,7 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
     elif n_new:
         done.write_text(json.dumps(dict(n_steps=result.n_steps, sampling_wall_s=sample_s,
                                         log_prob_evals_per_s=evals_per_s, stop_reason=result.stop_reason,
-                                        n_evaluations=result.n_evaluations)))
+                                        n_evaluations=result.n_evaluations, run_key=run_key)))
     # burn-in: 2 tau, or longer until the last stranded walker has reached the typical set
     burn = max(sampling.default_burn(result), sampling.arrival_burn(result))
     idata = sampling.to_inference_data(result, burn=burn, truth=setup.truth)
@@ -324,7 +338,10 @@ def vr_coupling(track) -> float:
 def write_report(out, res, args, target_info):
     L = ["# Posterior over the coefficients and the identifiability dossier", ""]
     L += [f"Run: {'quick' if args.quick else 'full'}, seed {args.seed}. Everything below comes from this run "
-          f"(`results.json`, `manifest.json`).", ""]
+          f"(`results.json`, `manifest.json`); chains resumed from a checkpoint were drawn under the same seed "
+          "and data (the checkpoint records them and refuses another run's)."
+          + (f" Cases of the previous report not re-run now, dropped: {', '.join(target_info['dropped_cases'])}."
+             if target_info.get("dropped_cases") else ""), ""]
     L += ["## Setup", "",
           f"- Data: the paper's spiral ({target_info['description']}) simulated with the true NPS AUV II "
           f"coefficients at dt {DT_TRUTH} s, sampled every {SAMPLE_S:g} s ({target_info['n_samples']} samples), "
@@ -481,6 +498,16 @@ def main():
         print(f"  R-hat {r['rhat_max']:.4f}, ESS {r['ess_bulk_min']:.0f}, tau {r['tau_max']:.1f}, "
               f"{r['n_steps']} steps, {fmt(r['log_prob_evals_per_s'])} evals/s, {r['wall_s']:.0f} s", flush=True)
 
+    dropped = []
+    if (out / "results.json").exists():
+        try:
+            dropped = [k for k in json.loads((out / "results.json").read_text()).get("cases", {}) if k not in results]
+        except ValueError:
+            dropped = []
+    if dropped:
+        print(f"[posterior] cases {', '.join(dropped)} of the previous report in {out} are not in this run and are "
+              "dropped from its report (their checkpoints remain)", flush=True)
+    info["dropped_cases"] = dropped
     spectra = {k: v["fim_eigenvalues"] for k, v in results.items()}
     plots.fim_spectra(spectra, out / "figures" / "fim_spectra.png",
                       prior_level={k: v["relative_prior_sd"] for k, v in results.items()},
@@ -497,4 +524,8 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ValueError as e:  # a checkpoint of another run, a bad option: a message, not a traceback
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(2)

@@ -292,3 +292,17 @@ def test_arrival_burn_waits_for_a_stranded_walker():
     assert arrival_burn(res) < 100   # without it only noise-level dips remain
     lp[0, :, 2] -= 50.0              # stranded throughout: capped at half the run
     assert arrival_burn(res) == N // 2
+
+
+def test_a_checkpoint_of_another_run_is_refused(tmp_path):
+    """A checkpoint records the run's key (seed, data, settings); another run's key is refused,
+    so its chains are never reported as this run's."""
+    path = tmp_path / "ck.h5"
+    cfg = SamplerConfig(n_ensembles=2, min_steps=20, max_steps=20, check_every=20)
+    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path,
+                  run_key={"seed": 2003})
+    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path,
+                  run_key={"seed": 2003})  # the same run resumes
+    with pytest.raises(ValueError, match=r"ck\.h5.*run_key"):
+        run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path,
+                      run_key={"seed": 7})

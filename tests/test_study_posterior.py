@@ -34,3 +34,17 @@ def test_posterior_quick(tmp_path):
     assert man["quick"] is True and "log_prob_evals_per_s" in man
     assert "## The paper's points (2)-(4), in numbers" in (out / "report.md").read_text()
     assert len(list((out / "figures").glob("*.png"))) >= 4 * 5 + 1
+
+
+def test_a_checkpoint_reused_with_another_seed_is_not_reported_as_that_seed(tmp_path):
+    out = tmp_path / "post"
+    cmd = [sys.executable, str(ROOT / "studies" / "posterior.py"), "--quick", "--cases", "1", "--out", str(out)]
+    subprocess.run(cmd, check=True, cwd=ROOT, timeout=600)
+    r = subprocess.run(cmd + ["--seed", "7"], cwd=ROOT, timeout=600, capture_output=True, text=True)
+    assert r.returncode == 2 and "seed" in r.stderr and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert "seed 2003" in (out / "report.md").read_text()  # the old report is untouched
+    subprocess.run(cmd + ["--seed", "7", "--fresh"], check=True, cwd=ROOT, timeout=600)
+    assert "seed 7" in (out / "report.md").read_text()
+    r = subprocess.run(cmd[:-4] + ["--cases", "3", "--seed", "7", "--out", str(out)], cwd=ROOT, timeout=600,
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "dropped" in (out / "report.md").read_text() and "case1" in r.stdout
