@@ -387,7 +387,7 @@ def _diagnose(args) -> int:
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
                        fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None,
-                       start=args.start, leadin_s=args.leadin if args.leadin > 0 else None)
+                       start=args.start, leadin_s=args.leadin if args.leadin > 0 else None, progress_bars=True)
     res["warnings"] = got["_warnings"]
     res["input_sha256"] = got["_sha256"]
     gap.write_report(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))

@@ -150,7 +150,7 @@ def _residuals(model, ctxs, wts, P, nus, starts=None):
 
 
 def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60,
-        fit_nuisance_only: bool = False, channels=None) -> Fit:
+        fit_nuisance_only: bool = False, channels=None, progress: str | None = None) -> Fit:
     """Least-squares fit of the model's parameters (and per-track nuisances) to tracks.
 
     Objective: sum over tracks, protocol windows, samples and scored channels of
@@ -167,6 +167,7 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     fit_nuisance_only : keep ``p0`` fixed and fit only the nuisances (held-out tracks).
     channels : the scored channels in the objective (default: all the tracks measure); the
         others still give the window start states.
+    progress : a label to show a progress bar (tqdm, on stderr) of the evaluations with it.
 
     Contexts with the fitted start rule (:mod:`bayesid.shooting`) have their window start states
     estimated with the parameters (6 per window, counted in :attr:`Fit.k`), eliminated by
@@ -270,10 +271,24 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
         r = fun(x0)
         return Fit(model, p0, [np.zeros(0)] * T, float(r @ r), r.size, 1, True, "nothing to fit",
                    time.perf_counter() - tic, channels=channels)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = optimize.least_squares(fun, x0, jac=jac, bounds=(xlo, xhi), x_scale=xsc, method="trf",
-                                     max_nfev=max_nfev, xtol=1e-8, ftol=1e-8)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=max_nfev, desc=progress, unit=" evaluations", leave=True)
+        plain_fun = fun
+
+        def fun(x):  # noqa: F811 - the same objective, counted on the bar
+            bar.update(1)
+            return plain_fun(x)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = optimize.least_squares(fun, x0, jac=jac, bounds=(xlo, xhi), x_scale=xsc, method="trf",
+                                         max_nfev=max_nfev, xtol=1e-8, ftol=1e-8)
+    finally:
+        if bar is not None:
+            bar.close()
     P, nus = split_rows(res.x[None])
     r = fun(res.x)
     n_starts = sum(6 * c.W for c in ctxs if c.start == "fitted")
@@ -318,7 +333,7 @@ def residual_sd(model, fitres: Fit, ctxs, floor: dict) -> dict:
 
 
 def fit_weighted(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60,
-                 weighting: str = "noise", channels=None) -> tuple[Fit, dict]:
+                 weighting: str = "noise", channels=None, progress: str | None = None) -> tuple[Fit, dict]:
     """:func:`fit` with the channel weights chosen by ``weighting``.
 
     ``"noise"``: weights ``1/sd`` from the measurement noise (right when the model structure is
@@ -331,18 +346,20 @@ def fit_weighted(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int =
     The maximum-likelihood estimate with an unknown error variance per channel has these
     weights at its optimum (e.g. Ljung 1999, "System Identification", Sec. 7.3 and 15.2).
 
-    ``channels`` restricts the objective to those scored channels (:func:`fit`).
+    ``channels`` restricts the objective to those scored channels (:func:`fit`); ``progress``
+    labels a progress bar of each stage.
 
     Returns (fit, the sd dict of its weights). Raises ValueError on an unknown ``weighting``.
     """
     if weighting not in ("noise", "residual"):
         raise ValueError(f"weighting must be 'noise' or 'residual', not {weighting!r}")
-    f = fit(model, ctxs, sd, p0, nuisance0, max_nfev=max_nfev, channels=channels)
+    lab = (lambda k: None) if not progress else (lambda k: f"{progress} ({k})")
+    f = fit(model, ctxs, sd, p0, nuisance0, max_nfev=max_nfev, channels=channels, progress=lab("noise weights"))
     if weighting == "noise":
         return f, dict(sd)
     sd2 = residual_sd(model, f, ctxs, sd)
     return fit(model, ctxs, sd2, f.p, f.nuisance if model.n_nuisance else None, max_nfev=max_nfev,
-               channels=channels), sd2
+               channels=channels, progress=lab("residual weights")), sd2
 
 
 def scores(model, fitres: Fit, ctxs, nuisance=None, sd: dict | None = None) -> dict:
@@ -796,7 +813,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
              none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
              max_effects: int = 2, progress=None, fit_window_s: float | None = None,
              weighting: str | None = None, partial_p: float = 0.01, start: str = "auto",
-             leadin_s: float | None = None) -> dict:
+             leadin_s: float | None = None, progress_bars: bool = False) -> dict:
     """Diagnose the sim-to-real gap of a base model (see the module docstring).
 
     Parameters
@@ -822,6 +839,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     start : window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"``: fitted when
         a track lacks a logged u, v or r). The same rule serves every model compared, the
         training fits (fitted: start states estimated with the parameters) and the noise floor.
+    progress_bars : show a progress bar (tqdm) of the evaluations of every fit.
     leadin_s : lead-in of the fitted rule on the held-out tracks (s; default
         :func:`bayesid.protocol.start_settings`: 10 s or 25 samples of the slowest log, at most
         the window).
@@ -866,7 +884,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     weighting = weighting or ("residual" if is_ship else "noise")
     base, ctr, cho = build(())
     say("base fit")
-    bfit, sd_fit = fit_weighted(base, ctr, sd, max_nfev=max_nfev, weighting=weighting)
+    bar = (lambda label: label) if progress_bars else (lambda label: None)
+    bfit, sd_fit = fit_weighted(base, ctr, sd, max_nfev=max_nfev, weighting=weighting, progress=bar("base fit"))
     b_train, b_held = scores(base, bfit, ctr, sd=sd_fit), scores(base, bfit, cho, sd=sd_fit)
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
     # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
@@ -908,7 +927,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
                     if nu0 is None and ref.model.n_nuisance:
                         nu0 = _extended_nuisance(m, ref.model, ref.fit)
                 try:
-                    f = fit(m, ct, sd_fit, p0, nu0, max_nfev=max_nfev)
+                    f = fit(m, ct, sd_fit, p0, nu0, max_nfev=max_nfev, progress=bar(f"round {rnd + 1}: {name}"))
                 except Exception as exc:  # noqa: BLE001 - a failed candidate is reported
                     say(f"{name} failed: {exc}")
                     continue

@@ -153,7 +153,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
             seed_info = info
     say("multiple-shooting fit")
     weighting = weighting or ("residual" if isinstance(model, sh.ShipModel) else "noise")
-    f, sd_fit = gap.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels)
+    f, sd_fit = gap.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels,
+                                 progress="fit" if progress is not None else None)
     cov, post = laplace_covariance(f, ctxs)
     return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
             "fit_sd": sd_fit, "weighting": weighting, "channels": channels, "start_rule": rule,
