@@ -325,8 +325,10 @@ def _predict(args) -> int:
     for tr in tracks:
         ctx, S = pr["_sim"][tr.name]
         meas, xy = msfit.windowed_xy(ctx, S)
-        plots.window_tracks(None, meas, xy, None, out / "figures" / f"{tr.name}.png",
+        k = max(1, len(xy) // 100000)  # a figure needs no more than 1e5 points a line
+        plots.window_tracks(None, meas[::k], xy[::k], None, out / "figures" / f"{tr.name}.png",
                             title=f"{tr.name}: {window or 'whole-run'} s windows")
+        del pr["_sim"][tr.name]
         tb = msfit.turning_band(model, p, cov, tr, args.draws, rng, start=whole["start_rule"],
                                 leadin_s=whole["leadin_s"])
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}

@@ -229,9 +229,10 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
         errs.append(e)
         per_track[tr.name] = pooled_scores([e])
         pos = np.hypot(e["x"], e["y"])
+        bounds = np.searchsorted(ctx.win, np.arange(ctx.W + 1))  # samples are in window order
         for w in range(ctx.W):
-            sel = ctx.win == w
-            if sel.any():
+            sel = slice(bounds[w], bounds[w + 1])
+            if bounds[w + 1] > bounds[w]:
                 windows.append({"track": tr.name, "t_start": float(ctx.t_start[w]),
                                 "rms_position_m": float(np.sqrt(np.nanmean(pos[sel] ** 2))),
                                 "max_position_m": float(np.nanmax(pos[sel])),
@@ -259,23 +260,19 @@ def _rudder_holds(t, delta, threshold: float, min_hold_s: float):
     |delta|), with runs shorter than ``min_hold_s`` dropped (a blip of counter-rudder is not a
     reversal) and neighbouring runs on the same side merged."""
     side = np.where(delta > threshold, 1, np.where(delta < -threshold, -1, 0))
-    runs, i = [], 0
-    n = side.size
-    while i < n:
-        if side[i] == 0:
-            i += 1
+    edge = np.flatnonzero(np.diff(side) != 0) + 1
+    starts = np.r_[0, edge]
+    ends = np.r_[edge - 1, side.size - 1]
+    runs = []
+    for i, j in zip(starts, ends):
+        if side[i] == 0 or not (t[j] - t[i] >= min_hold_s or (j == side.size - 1 and not runs)):
             continue
-        j = i
-        while j + 1 < n and side[j + 1] == side[i]:
-            j += 1
-        if t[j] - t[i] >= min_hold_s or (j == n - 1 and runs == []):
-            peak = float(np.max(np.abs(delta[i:j + 1])))
-            if runs and runs[-1][0] == side[i]:
-                s0, a0, _, p0 = runs[-1]
-                runs[-1] = (s0, a0, j, max(p0, peak))
-            else:
-                runs.append((int(side[i]), i, j, peak))
-        i = j + 1
+        peak = float(np.max(np.abs(delta[i:j + 1])))
+        if runs and runs[-1][0] == side[i]:
+            s0, a0, _, p0 = runs[-1]
+            runs[-1] = (s0, a0, int(j), max(p0, peak))
+        else:
+            runs.append((int(side[i]), int(i), int(j), peak))
     return runs
 
 
@@ -388,11 +385,15 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
     (out / "report.md").write_text("\n".join(lines))
 
 
-def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured", leadin_s: float = 0.0) -> dict:
+def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured", leadin_s: float = 0.0,
+                 keep_draws: bool = False, chunk: int | None = None) -> dict:
     """Whole-run open-loop prediction of a track from its first sample (``start`` rule, resolved:
     the measured state, or the state fitted to the first ``leadin_s`` seconds), with
     the manoeuvre indices of the measured run, the identified model, and a posterior predictive
-    band (5-95 % of ``n_draws`` Laplace draws)."""
+    band (5-95 % of ``n_draws`` Laplace draws). The draws are simulated ``chunk`` at a time and
+    reduced to their indices, so memory does not grow with ``n_draws`` x the track length;
+    ``_S`` holds the identified model's prediction (1, n, 12), or every draw's with
+    ``keep_draws``; the default ``chunk`` keeps each batch of predictions near 200 MB."""
     P = np.vstack([p[None], posterior_samples(model, p, cov, n_draws, rng)]) if n_draws else p[None]
     if start == "fitted":
         # the whole run from its first sample: the start state fitted to the first lead-in
@@ -400,14 +401,20 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
         sel = track.t <= track.t[0] + max(leadin_s, 2.0) + 1e-9
         head = Track(track.t[sel], {k: np.asarray(v)[sel] for k, v in track.data.items()}, name=track.name)
         ctx = model.context(track, None, start="fitted", leadin_s=0.0)
-        starts = shooting.fit_starts(model, model.context(head, None, start="fitted", leadin_s=0.0), P)
-        S = model.simulate(ctx, P, starts=starts)
+        ctx_head = model.context(head, None, start="fitted", leadin_s=0.0)
     else:
         ctx = model.context(track, None)
-        S = model.simulate(ctx, P)
     dr = np.asarray(track["delta_r"], float)[ctx.idx]
     meas = manoeuvre_indices(ctx.ts, ctx.meas["x"], ctx.meas["y"], ctx.meas["psi"], dr)
-    pred = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]
+    pred, kept = [], []
+    chunk = chunk or int(max(1, min(8, 2e8 // (8 * 12 * 3 * max(ctx.ts.size, 1)))))
+    for i in range(0, P.shape[0], chunk):
+        Pc = P[i:i + chunk]
+        S = (model.simulate(ctx, Pc, starts=shooting.fit_starts(model, ctx_head, Pc)) if start == "fitted"
+             else model.simulate(ctx, Pc))
+        pred += [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]
+        kept.append(S if keep_draws else S[:1] if i == 0 else S[:0])
+    S = np.concatenate(kept, axis=0)
     # the indices of what the measured run is (none, with the reason, for anything else)
     keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
     band = {}

@@ -167,9 +167,14 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
         if k not in track:
             raise ValueError(f"track {track.name!r} has no column {k!r}; the protocol needs x, y, psi")
     s = np.zeros(12)
+    # only the samples this estimate can use (unwrapping the whole channel for every window made
+    # the protocol quadratic in the track length)
+    lo, hi = np.searchsorted(t, [t0 - 2 * span_s - 1e-9, t0 + 1e-9], side="left")[0], \
+        np.searchsorted(t, t0 + 1e-9, side="right")
+    t = t[lo:hi]
     for i, k in enumerate(STATE_NAMES):
         if k in track:
-            y = np.asarray(track[k], float)
+            y = np.asarray(track[k], float)[lo:hi]
             if k in ANGLES:
                 y = _unwrap_finite(y)
             val = _causal_fit(t, y, t0, span_s)
@@ -181,7 +186,7 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
         ts = t[sel] - t0
         slope = {}
         for k in ("x", "y", "psi"):
-            y = np.asarray(track[k], float)[sel]
+            y = np.asarray(track[k], float)[lo:hi][sel]
             if k == "psi":
                 y = _unwrap_finite(y)
             ok = np.isfinite(y)
