@@ -114,12 +114,12 @@ def run_fit(job: dict) -> dict:
     vessel = ship.load_ship("esso_osaka_3m" if job["dataset"] == "esso_osaka" else "kvlcc2_7m")
     window, channels = SETTINGS[job["setting"]]
     res = msfit.identify(vessel, train, vessel.free, EFFECTS[job["dataset"]], window_s=window, dt=0.2,
-                         max_nfev=job["max_nfev"], weighting="residual", channels=channels)
+                         max_nfev=job["max_nfev"], weighting="residual", channels=channels, start="measured")
     out = {k: job[k] for k in ("dataset", "split", "setting")}
     out.update(train_runs=[t.name for t in train], heldout_runs=[t.name for t in held], fit_window_s=window,
                channels=list(channels) if channels else "all", nfev=res["fit"].nfev)
     for key, w in (("w30", 30.0), ("w60", 60.0)):
-        pr = msfit.predict(res["model"], res["fit"].p, held, w)
+        pr = msfit.predict(res["model"], res["fit"].p, held, w, start="measured")
         out[key] = pr["pooled"]["rms_position_m"]
         out[key + "_heading_deg"] = pr["pooled"]["rms_heading_deg"]
         out[key + "_per_run"] = {n: v["rms_position_m"] for n, v in pr["per_track"].items()}

@@ -69,7 +69,7 @@ def parse_args():
 def _scores(model, fitres, tracks, window):
     from bayesid import msfit
 
-    pr = msfit.predict(model, fitres.p, tracks, window)
+    pr = msfit.predict(model, fitres.p, tracks, window, start="measured")
     return pr["pooled"]
 
 
@@ -132,8 +132,8 @@ def track_figure(models, track, window, path, title):
     from bayesid import msfit, plots
 
     (bm, bf), (am, af) = models
-    pr_b = msfit.predict(bm, bf.p, [track], window)["_sim"][track.name]
-    pr_a = msfit.predict(am, af.p, [track], window)["_sim"][track.name]
+    pr_b = msfit.predict(bm, bf.p, [track], window, start="measured")["_sim"][track.name]
+    pr_a = msfit.predict(am, af.p, [track], window, start="measured")["_sim"][track.name]
     meas, xb = msfit.windowed_xy(*pr_b)
     _, xa = msfit.windowed_xy(*pr_a)
     return plots.window_tracks(None, meas, xb, xa, path, title=title)
@@ -179,7 +179,7 @@ def literature_baseline(vessel, held, rng):
     p = m.start()
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
-        out[key] = msfit.predict(m, p, held, w)["pooled"]["rms_position_m"]
+        out[key] = msfit.predict(m, p, held, w, start="measured")["pooled"]["rms_position_m"]
     tc = turning_circles(m, p, None, 0, rng)
     out["turning_circles_35deg"] = {side: v["predicted"] for side, v in tc.items()}
     return out
@@ -208,7 +208,7 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
             unread[str(p)] = str(exc)
             continue
         tracks.append(tr)
-        tb = msfit.turning_band(am, af.p, cov, tr, draws, rng)
+        tb = msfit.turning_band(am, af.p, cov, tr, draws, rng, keep_draws=True)
         meas, pred = tb["measured"], tb["predicted"]
         e = {"file": str(p), "kind": meas.get("kind"), "measured": meas, "predicted": pred,
              "band_5_95": tb["band_5_95"], "n_draws": tb["n_draws"]}
@@ -227,7 +227,7 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
     pooled = {"w30": None, "w60": None}
     for key, w in (("w30", 30.0), ("w60", 60.0)):
         if tracks:  # one protocol pass per window length: pooled over the runs and per run
-            pr = msfit.predict(am, af.p, tracks, w)
+            pr = msfit.predict(am, af.p, tracks, w, start="measured")
             pooled[key] = pr["pooled"]["rms_position_m"]
             for name, sc in pr["per_track"].items():
                 runs[name][key] = sc
@@ -303,7 +303,7 @@ def main() -> int:
         "the other basin's measured runs are compared below, each from its own measured start")
     zz = {}
     for h in kheld:
-        tb = msfit.turning_band(am, af.p, cov, h, args.draws, rng)
+        tb = msfit.turning_band(am, af.p, cov, h, args.draws, rng, keep_draws=True)
         zz[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     k_doc["zigzag_indices_heldout"] = zz
     kfigs = [track_figure((k_base, k_after[:2]), h, 60.0, out / "figures" / f"kvlcc2_heldout_{h.name}.png",
