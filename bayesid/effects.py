@@ -502,9 +502,11 @@ class _TrackContext:
         if s0 is not None:
             self.s_meas = np.asarray(s0, float)[None, :].repeat(self.W, 0)
         elif self.start == "fitted":
-            # first guess from a local fit over at least 8 samples (2 s at most 4 Hz) of the lead-in
+            # first guess from a local fit over at least 8 samples (2 s at 4 Hz and faster): of the
+            # lead-in, or of the window itself for a training fit (at 1 Hz a 2 s span held 3
+            # samples, and a fit from so bad a guess stalled at the nominal coefficients)
             h = float(np.median(np.diff(t))) if t.size > 1 else dt
-            span = min(max(2.0, 8.0 * h), max(leadin_s, 2.0))
+            span = max(2.0, 8.0 * h) if leadin_s == 0 else min(max(2.0, 8.0 * h), max(leadin_s, 2.0))
             self.s_meas = np.array([state_guess(track, ta, span) for ta in self.t_seg])
         else:
             self.s_meas = np.array([state_at(track, ts, span_s) for ts in self.t_start])
