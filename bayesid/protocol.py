@@ -191,8 +191,7 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
                 y = _unwrap_finite(y)
             ok = np.isfinite(y)
             slope[k] = float(np.polyfit(ts[ok], y[ok], min(2, ok.sum() - 1))[-2]) if ok.sum() >= 2 else 0.0
-        c, sn = np.cos(psi), np.sin(psi)
-        est = {"u": c * slope["x"] + sn * slope["y"], "v": -sn * slope["x"] + c * slope["y"], "r": slope["psi"]}
+        est = _body_rates(slope, psi)
         for k in need:
             s[STATE_NAMES.index(k)] = est[k]
     return np.where(np.isfinite(s), s, 0.0)
@@ -250,14 +249,20 @@ def state_guess(track: Track, t_a: float, span_s: float = 2.0) -> np.ndarray:
         if k in ("x", "y", "psi"):
             slope[k] = float(c[-2]) if deg > 0 else 0.0
     s[5] = wrap(s[5]) if np.isfinite(s[5]) else 0.0
-    c, sn = np.cos(s[5]), np.sin(s[5])
-    est = {"u": c * slope.get("x", 0.0) + sn * slope.get("y", 0.0),
-           "v": -sn * slope.get("x", 0.0) + c * slope.get("y", 0.0), "r": slope.get("psi", 0.0)}
+    est = _body_rates(slope, s[5])
     for k, v in est.items():
         i = STATE_NAMES.index(k)
         if not np.isfinite(s[i]):
             s[i] = v
     return np.where(np.isfinite(s), s, 0.0)
+
+
+def _body_rates(slope: dict, psi: float) -> dict:
+    """u, v, r from the earth-frame slopes of x, y (m/s) and psi (rad/s) at heading psi (missing
+    slopes count as 0; horizontal kinematics, Fossen 2011, Ch. 2)."""
+    dx, dy = slope.get("x", 0.0), slope.get("y", 0.0)
+    c, sn = np.cos(psi), np.sin(psi)
+    return {"u": c * dx + sn * dy, "v": -sn * dx + c * dy, "r": slope.get("psi", 0.0)}
 
 
 def _unwrap_finite(y):
