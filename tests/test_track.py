@@ -5,6 +5,7 @@ import re
 import numpy as np
 import pytest
 
+import bayesid.track as track_module
 from bayesid.track import (
     INPUT_NAMES, STATE_NAMES, UNITS, Track, TrackFormatError, read_csv, write_csv,
 )
@@ -156,6 +157,10 @@ def test_missing_file_raises_file_not_found(tmp_path):
     ("t,x,psi\n0,1,nan\n", 2, "psi", "non-numeric"),
     ("t,x,psi\n0,1_000,0\n", 2, "x", "non-numeric"),
     ("t,x\n0,1e999\n", 2, "x", "overflow"),
+    ("t,x,psi\n0,1,0\n1,2,1e\n", 3, "psi", "non-numeric"),
+    ("t,x,psi\n0,1,0\n1,2,1.2.3\n", 3, "psi", "non-numeric"),
+    ("t,x,psi\n0,1,0\n1,2,\u0661\n", 3, "psi", "non-numeric"),
+    ("t,x,psi\n0,1,0\n1,2,- 1\n", 3, "psi", "non-numeric"),
     # unknown units in a header
     ("t,x,psi [deg]\n0,1,0\n", 1, "psi", "unit 'deg'"),
     ("t,x [ft]\n0,1\n", 1, "x", "unit 'ft'"),
@@ -176,8 +181,24 @@ def test_missing_file_raises_file_not_found(tmp_path):
     ("t,x,a[b]c\n0,1,2\n", 1, None, "malformed"),
     ("t,x,\n0,1,2\n", 1, None, "malformed"),
 ])
-def test_format_errors_name_file_row_and_column(tmp_path, text, row, column, match):
+@pytest.mark.parametrize("block_rows", [1, 2, 65536])
+def test_format_errors_name_file_row_and_column(tmp_path, monkeypatch, text, row, column,
+                                               match, block_rows):
+    """The streamed reader converts blocks of rows; an error names the same row
+    and column whichever block it falls in (including time order across blocks)."""
+    monkeypatch.setattr(track_module, "_CHUNK_ROWS", block_rows)
     assert_format_error(write_text(tmp_path, text), row=row, column=column, match=match)
+
+
+@pytest.mark.parametrize("block_rows", [1, 7])
+def test_round_trip_across_blocks(tmp_path, monkeypatch, block_rows):
+    monkeypatch.setattr(track_module, "_CHUNK_ROWS", block_rows)
+    tr = random_track(np.random.default_rng(3), n=30)
+    write_csv(tr, tmp_path / "blocks.csv")
+    back = read_csv(tmp_path / "blocks.csv")
+    assert bits(back.t).tolist() == bits(tr.t).tolist()
+    for k in tr.data:
+        assert bits(back[k]).tolist() == bits(tr[k]).tolist(), k
 
 
 @pytest.mark.parametrize("text", ["", "\n\n", "# only a comment\n"])
