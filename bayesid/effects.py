@@ -782,9 +782,14 @@ def sample_rows(ctx: _TrackContext, out: np.ndarray, samples: str, angles: slice
     a = out[:, row]
     b = out[:, np.minimum(row + 1, out.shape[1] - 1)]
     f = frac[None, :, None]
-    S = (1.0 - f) * a + f * b
-    S[..., angles] = a[..., angles] + f * wrap(b[..., angles] - a[..., angles])
-    return S, t_rel
+    ang = a[..., angles] + f * wrap(b[..., angles] - a[..., angles])
+    # S = (1 - f) a + f b, in place (a and b are copies): two arrays of the output's size
+    a *= 1.0 - f
+    b *= f
+    a += b
+    del b
+    a[..., angles] = ang
+    return a, t_rel
 
 
 def errors(ctx: _TrackContext, S: np.ndarray, samples: str = "scored") -> dict:

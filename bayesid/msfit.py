@@ -413,7 +413,9 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
         S = (model.simulate(ctx, Pc, starts=shooting.fit_starts(model, ctx_head, Pc)) if start == "fitted"
              else model.simulate(ctx, Pc))
         pred += [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]
-        kept.append(S if keep_draws else S[:1] if i == 0 else S[:0])
+        if keep_draws or i == 0:  # a copy: a view (even S[:0]) would keep the whole chunk alive
+            kept.append(S if keep_draws else S[:1].copy())
+        del S
     S = np.concatenate(kept, axis=0)
     # the indices of what the measured run is (none, with the reason, for anything else)
     keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
