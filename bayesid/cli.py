@@ -46,7 +46,8 @@ def _simulate(args) -> int:
         print(f"error: simulation diverged at step {res.fail_step[0]}", file=sys.stderr)
         return 1
     track = res.track(0, name=m.name)
-    track.meta["comments"] = [f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {args.mode}"]
+    track.meta["comments"] = [f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {args.mode}",
+                              f"vessel: {vehicle.id}"]
     write_csv(track, args.out)
     print(f"wrote {args.out}: {track.n_samples} samples")
     return 0
@@ -432,42 +433,42 @@ def main(argv=None) -> int:
     c.add_argument("--out", required=True, help="output folder (created if absent)")
     c.add_argument("--scale", type=float, default=None,
                    help="simman-marin only: Froude scale lambda from the full-scale files to the model "
-                   f"(default {datasets.KVLCC2_SCALE:.5g}, the 7 m KVLCC2 model of kvlcc2_7m; 1 keeps full scale)")
+                   f"(none: {datasets.KVLCC2_SCALE:.5g}, the 7 m KVLCC2 model of kvlcc2_7m; 1 keeps full scale)")
     d = sub.add_parser("diagnose", formatter_class=fmt, help="sim-to-real gap: where / which effect / how far")
     d.add_argument("--vehicle", required=True, help="packaged id or TOML path (nominal coefficients)")
-    d.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's; "
+    d.add_argument("--free", default="", help="comma-separated free coefficients (empty: the vehicle's; "
                    "submarines Yv,Yr,Nv,Nr,Ydr,Ndr)")
     d.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
     d.add_argument("--heldout", nargs="+", required=True, metavar="CSV", help="held-out Track CSVs")
     d.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
-    d.add_argument("--dt", type=float, default=None, help="model integration step, s (default 0.5; ships 0.2)")
+    d.add_argument("--dt", type=float, default=None, help="model integration step, s (none: 0.5; ships 0.2)")
     d.add_argument("--fit-window", type=float, default=0.0,
-                   help="window of the training fits, s (default: 15 for a ship, --window for a submarine)")
+                   help="window of the training fits, s (0: 15 for a ship, --window for a submarine)")
     d.add_argument("--mode", choices=MODES, default="horizontal")
-    d.add_argument("--candidates", default="", help="comma-separated effects (default: whole catalogue)")
+    d.add_argument("--candidates", default="", help="comma-separated effects (empty: the whole catalogue)")
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
     d.add_argument("--max-effects", type=int, default=2,
                    help="greedy rounds of effect addition (a contributor is added and the others tried on top)")
     d.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     d.add_argument("--leadin", type=float, default=0.0,
-                   help=f"lead-in of the fitted start rule, s (default: {protocol.LEADIN_S:g} s or "
+                   help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
                    f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)")
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
-    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--seed", type=int, default=0, help="random seed (noise-floor simulation, ensemble of the force-signature regression)")
     d.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
     d.add_argument("--out", required=True, help="output folder")
     f = sub.add_parser("fit", formatter_class=fmt, help="identify a model on training tracks (multiple shooting)")
     f.add_argument("--vehicle", required=True, help="packaged id or TOML path (ship or submarine)")
     f.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
-    f.add_argument("--free", default="", help="comma-separated free coefficients (default: the vehicle's)")
+    f.add_argument("--free", default="", help="comma-separated free coefficients (empty: the vehicle's)")
     f.add_argument("--effects", default="", help="comma-separated effects in the model (ships: wind, current, delay)")
     f.add_argument("--window", type=float, default=None,
-                   help="multiple-shooting window, s (default: 15 for a ship, bayesid.ship.FIT_WINDOW_S; 30 for a submarine)")
-    f.add_argument("--dt", type=float, default=None, help="model step, s (default 0.2 ships, 0.5 submarines)")
+                   help="multiple-shooting window, s (none: 15 for a ship, bayesid.ship.FIT_WINDOW_S; 30 for a submarine)")
+    f.add_argument("--dt", type=float, default=None, help="model step, s (none: 0.2 ships, 0.5 submarines)")
     f.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations")
     f.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
     f.add_argument("--fit-channels", default="", help="comma-separated scored channels in the objective, e.g. "
-                   "x,y,psi when the logged u, v, r are derived from positions and heading (default: all measured)")
+                   "x,y,psi when the logged u, v, r are derived from positions and heading (empty: all measured)")
     f.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
     pp = sub.add_parser("predict", formatter_class=fmt, help="score a fitted model on tracks with the window protocol")
@@ -475,10 +476,10 @@ def main(argv=None) -> int:
     pp.add_argument("--track", nargs="+", required=True, metavar="CSV", help="Track CSVs")
     pp.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
     pp.add_argument("--draws", type=int, default=30, help="posterior draws for the index bands")
-    pp.add_argument("--seed", type=int, default=0)
+    pp.add_argument("--seed", type=int, default=0, help="random seed of the posterior draws")
     pp.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     pp.add_argument("--leadin", type=float, default=0.0,
-                    help=f"lead-in of the fitted start rule, s (default: {protocol.LEADIN_S:g} s or "
+                    help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
                    f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)")
     pp.add_argument("--out", required=True, help="output folder")
     for p in (s, c, d, f, pp):

@@ -13,6 +13,7 @@ commands print and record in their outputs.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -34,6 +35,60 @@ def _ratio(a, b):
     return float(np.median(a[sel] / b[sel])) if sel.sum() >= 5 else None
 
 
+#: The packaged vehicles and the words by which a track's ``# vessel:`` line names them.
+PACKAGED_VESSELS = {"nps_auv2": ("nps", "auv2", "sdv"), "esso_osaka_3m": ("esso",),
+                    "kvlcc2_7m": ("kvlcc2",)}
+
+
+_GENERIC = frozenset("model vehicle ship boat vessel hull scale full the and with from coefficients of "
+                     "form test tests data pond tank free running".split())
+
+
+def _words(text: str) -> set[str]:
+    """Lower-case alphanumeric words of ``text`` ("NPS AUV II" -> {"nps", "auv", "ii"})."""
+    return set(re.findall(r"[a-z0-9]+", str(text).lower()))
+
+
+def track_vessel(track: Track) -> str | None:
+    """The vessel a track says it is of: ``meta["vessel"]`` (dataset readers) or the first
+    ``vessel: ...`` comment line of its file, else None."""
+    if track.meta.get("vessel"):
+        return str(track.meta["vessel"])
+    for c in track.meta.get("comments", []):
+        m = re.match(r"\s*vessel\s*[:=]\s*(.+)", str(c), re.IGNORECASE)
+        if m and m.group(1).strip():
+            return m.group(1).strip()
+    return None
+
+
+def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
+    """Compare a track's declared vessel (:func:`track_vessel`) with the vehicle it is fitted to.
+
+    A vessel line that names another packaged vehicle (:data:`PACKAGED_VESSELS`) and not this
+    one is an error; a vessel line that shares no word of three or more characters with the
+    vehicle's id or name (generic words such as "model" aside) is a warning (it may be the same hull under another name).
+
+    Returns the warnings; raises ValueError naming the file and both vessels.
+    """
+    declared = track_vessel(track)
+    if declared is None or vehicle is None:
+        return []
+    name = where or track.name
+    vid = str(getattr(vehicle, "id", ""))
+    own = {w for w in _words(" ".join([vid.replace("_", " "), vid, str(getattr(vehicle, "name", ""))]))
+           if len(w) >= 3 and not w.isdigit() and w not in _GENERIC} | set(PACKAGED_VESSELS.get(vid, ()))
+    said = _words(declared)
+    others = [k for k, keys in PACKAGED_VESSELS.items() if k != vid and said & set(keys)]
+    if others and not said & own:
+        raise ValueError(f"{name}: the track's vessel line says {declared!r}, which is the packaged vehicle "
+                         f"{others[0]!r}, but the vehicle is {vid!r}: use --vehicle {others[0]}, or edit the "
+                         "'# vessel:' line if this is intended")
+    if not said & own:
+        return [f"{name}: the track's vessel line says {declared!r}; the vehicle is {vid!r} (no word in common: "
+                "a track of another vessel?)"]
+    return []
+
+
 def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
     """Units and plausibility of a track (module docstring).
 
@@ -51,7 +106,7 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     ValueError : a column in the wrong unit, naming file, column and the unit it looks like.
     """
     name = where or track.name
-    warn = []
+    warn = check_vessel(track, vehicle, where)
     t = track.t
     if t.size < 3:
         return warn
@@ -130,4 +185,5 @@ def check_tracks(tracks, vehicle=None, paths=None) -> list[str]:
     return out
 
 
-__all__ = ["check_track", "check_tracks", "SPEED_UNITS"]
+__all__ = ["check_track", "check_tracks", "check_vessel", "track_vessel", "SPEED_UNITS",
+           "PACKAGED_VESSELS"]

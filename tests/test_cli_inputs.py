@@ -52,6 +52,7 @@ BAD = {  # name: (args builder, text the message must contain)
     "simulate --dt 0": (lambda c, t: ["simulate", "--dt", "0", "--out", t / "s.csv"], "--dt"),
     "simulate over an existing file": (lambda c, t: ["simulate", "--out", c[0]], "--overwrite"),
     "unknown start rule": (lambda c, t: _diag([c[0]], [c[1]], t / "o", "--start", "smooth"), None),
+    "a track of another packaged vessel": (lambda c, t: _diag([c[0]], [t / "esso.csv"], t / "o"), "esso.csv"),
 }
 
 
@@ -61,6 +62,7 @@ def test_bad_input_is_refused_naming_the_culprit(csvs, tmp_path, capsys, case):
     (tmp_path / "sub").mkdir()
     data = csvs[1].read_text().replace("0.0", "0.00", 1)  # other content, same stem as run0
     (tmp_path / "sub" / "run0.csv").write_text(data)
+    (tmp_path / "esso.csv").write_text("# vessel: Esso Osaka 3 m model\n" + csvs[1].read_text())
     build, text = BAD[case]
     if text is None:  # argparse refuses the choice itself
         with pytest.raises(SystemExit) as e:
@@ -219,3 +221,20 @@ def test_load_vehicle_on_a_ship_file_names_the_right_loader():
 
     with pytest.raises(VehicleFileError, match="load_ship"):
         load_vehicle("kvlcc2_7m")
+
+
+def test_vessel_line_of_a_track_is_checked_against_the_vehicle():
+    from bayesid.msfit import load_any_vehicle
+    from bayesid.track import Track
+    from bayesid.validate import check_track
+
+    def track(vessel):
+        return Track([0.0, 1.0], {"x": [0.0, 1.0]}, meta={"comments": [f"vessel: {vessel}"]})
+
+    auv, esso = load_vehicle("nps_auv2"), load_any_vehicle("esso_osaka_3m")
+    assert check_track(track("NPS AUV II, trial 3"), auv) == []
+    assert check_track(track("Esso Osaka 3 m model (VLCC)"), esso) == []
+    warn = check_track(track("REMUS 100"), auv, "a.csv")
+    assert len(warn) == 1 and "REMUS 100" in warn[0] and "a.csv" in warn[0]
+    with pytest.raises(ValueError, match="kvlcc2_7m"):
+        check_track(track("KVLCC2 7 m model"), esso, "b.csv")
