@@ -18,8 +18,9 @@ Method
   candidate for a default.
 - Every fit starts from the equation-error seed (``bayesid.msfit.identify``) and is scored by the
   fixed window protocol (30 s and 60 s windows) on its split's held-out runs.
-- Each finished fit is saved in ``fits/`` and a re-run skips it (``--fresh`` starts over); fits
-  run in parallel (``concurrent.futures``).
+- Each finished fit is saved in ``fits/`` with the key it depends on (data digest, split,
+  setting, evaluation budget) and a re-run reuses it only when the key matches (``--fresh``
+  starts over); fits run in parallel (``concurrent.futures``).
 
     python studies/fit_sensitivity.py [--quick] [--out DIR] [--data DIR] [--fresh] [--workers N]
 """
@@ -86,6 +87,39 @@ def load_runs(data: Path, dataset: str):
     return [datasets.read_run(p, "simman-hsva") for p in datasets.list_runs(data / "kvlcc2-simman-hsva", "simman-hsva")]
 
 
+DATA_FOLDERS = {"esso_osaka": "esso-osaka-frt", "kvlcc2_hsva": "kvlcc2-simman-hsva"}
+
+
+def data_digest(data: Path, dataset: str) -> str:
+    """SHA-256 over the relative paths and contents of a data set's files: a saved fit is reused
+    only for the data it was made from."""
+    import hashlib
+
+    h = hashlib.sha256()
+    root = data / DATA_FOLDERS[dataset]
+    for p in sorted(q for q in root.rglob("*") if q.is_file()):
+        h.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def fit_key(job: dict, digest: str) -> dict:
+    """What a saved fit depends on: data set, split and its held-out runs, the setting's fit
+    window and channels, the evaluation budget, quick mode and the data's digest."""
+    window, channels = SETTINGS[job["setting"]]
+    return {"dataset": job["dataset"], "split": job["split"], "heldout": list(SPLITS[job["dataset"]][job["split"]]),
+            "fit_window_s": window, "channels": list(channels) if channels else "all",
+            "max_nfev": job["max_nfev"], "quick": bool(job["quick"]), "data_sha256": digest}
+
+
+def load_saved(path: Path) -> dict | None:
+    """A saved fit (None if absent or unreadable: then it is refitted). The caller reuses it
+    only if its ``key`` equals the job's :func:`fit_key`."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
 def split_runs(tracks, dataset: str, split: str):
     """(train, held) of a split. Training-only splits drop the validation held-out runs first.
     Raises ValueError when a named held-out run is missing (named)."""
@@ -115,7 +149,7 @@ def run_fit(job: dict) -> dict:
     window, channels = SETTINGS[job["setting"]]
     res = msfit.identify(vessel, train, vessel.free, EFFECTS[job["dataset"]], window_s=window, dt=0.2,
                          max_nfev=job["max_nfev"], weighting="residual", channels=channels, start="measured")
-    out = {k: job[k] for k in ("dataset", "split", "setting")}
+    out = {k: job[k] for k in ("dataset", "split", "setting", "key")}
     out.update(train_runs=[t.name for t in train], heldout_runs=[t.name for t in held], fit_window_s=window,
                channels=list(channels) if channels else "all", nfev=res["fit"].nfev)
     for key, w in (("w30", 30.0), ("w60", 60.0)):
@@ -264,14 +298,19 @@ def main() -> int:
     nfev = min(args.max_nfev, 3) if args.quick else args.max_nfev
     jobs = [{"dataset": ds, "split": sp, "setting": st, "data": str(data), "quick": args.quick, "max_nfev": nfev}
             for ds in SPLITS for sp in splits[ds] for st in settings]
-    fits, todo = [], []
+    digests = {ds: data_digest(data, ds) for ds in SPLITS}
+    fits, todo, stale = [], [], 0
     for j in jobs:
+        j["key"] = fit_key(j, digests[j["dataset"]])
         f = fdir / f"{j['dataset']}__{j['split']}__{j['setting']}{'__quick' if args.quick else ''}.json"
-        if f.exists() and not args.fresh:
-            fits.append(json.loads(f.read_text()))
+        saved = None if args.fresh else load_saved(f)
+        if saved is not None and saved.get("key") == j["key"]:
+            fits.append(saved)
         else:
+            stale += saved is not None
             todo.append((j, f))
-    print(f"{len(jobs)} fits, {len(todo)} to run, {args.workers} workers", flush=True)
+    print(f"{len(jobs)} fits, {len(todo)} to run ({stale} saved with other data or settings, refitted), "
+          f"{args.workers} workers", flush=True)
     if todo:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
             futs = {pool.submit(run_fit, j): (j, f) for j, f in todo}

@@ -45,6 +45,23 @@ def test_training_only_splits_never_hold_out_or_train_on_the_validation_runs():
         fs.split_runs(_tracks(["zigzag_31-Jul-2020_14_03_39"]), "esso_osaka", "train_cv_b")
 
 
+def test_a_saved_fit_is_keyed_by_data_and_settings(tmp_path):
+    fs = _study()
+    for ds, folder in fs.DATA_FOLDERS.items():
+        (tmp_path / folder / "sub").mkdir(parents=True)
+        (tmp_path / folder / "sub" / "run1.csv").write_text("t,x\n0,0\n")
+    job = {"dataset": "esso_osaka", "split": "validation", "setting": "w30_all", "max_nfev": 40, "quick": False}
+    key = fs.fit_key(job, fs.data_digest(tmp_path, "esso_osaka"))
+    (tmp_path / "esso-osaka-frt" / "sub" / "run1.csv").write_text("t,x\n0,1\n")   # the data changed
+    assert fs.fit_key(job, fs.data_digest(tmp_path, "esso_osaka")) != key
+    (tmp_path / "esso-osaka-frt" / "sub" / "run1.csv").write_text("t,x\n0,0\n")
+    assert fs.fit_key(job, fs.data_digest(tmp_path, "esso_osaka")) == key
+    assert fs.fit_key(dict(job, max_nfev=3), fs.data_digest(tmp_path, "esso_osaka")) != key
+    assert fs.fit_key(dict(job, setting="w30_xypsi"), fs.data_digest(tmp_path, "esso_osaka")) != key
+    (tmp_path / "broken.json").write_text("{")
+    assert fs.load_saved(tmp_path / "broken.json") is None and fs.load_saved(tmp_path / "none.json") is None
+
+
 @pytest.mark.skipif(not REAL.is_dir(), reason="shared/data/real absent")
 def test_fit_sensitivity_quick_writes_results(tmp_path):
     subprocess.run([sys.executable, str(ROOT / "studies" / "fit_sensitivity.py"), "--quick", "--out", str(tmp_path)],
@@ -56,3 +73,4 @@ def test_fit_sensitivity_quick_writes_results(tmp_path):
         assert set(tab) == {"w30_all", "w30_xypsi"} and all(v["w60"] > 0 for v in tab.values())
     assert all(not set(f["train_runs"]) & set(f["heldout_runs"]) for f in R["fits"])
     assert (tmp_path / "report.md").exists() and (tmp_path / "manifest.json").exists()
+    assert all(f["key"]["data_sha256"] and f["key"]["quick"] for f in R["fits"])
