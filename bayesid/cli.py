@@ -25,10 +25,17 @@ from .track import write_csv
 from .vehicle import load_vehicle
 
 
+#: Longest simulation ``bayesid simulate`` runs (model steps): 1e6 s at 0.1 s.
+MAX_SIMULATE_STEPS = 10_000_000
+
+
 def _simulate(args) -> int:
     _check_out(args.out, "simulate", args.overwrite)
     if not args.dt > 0 or not args.sample > 0:
         raise ValueError(f"--dt and --sample must be positive (s), got {args.dt} and {args.sample}")
+    if args.duration is not None and args.duration / args.dt > MAX_SIMULATE_STEPS:
+        raise ValueError(f"--duration {args.duration:g} s at --dt {args.dt:g} s is {args.duration / args.dt:.3g} steps "
+                         f"(at most {MAX_SIMULATE_STEPS:.0e}); shorten --duration or lengthen --dt")
     vehicle = load_vehicle(args.vehicle)
     if args.crossflow:
         vehicle = vehicle.with_crossflow(args.crossflow)
@@ -40,11 +47,13 @@ def _simulate(args) -> int:
         m = mv.zigzag(vehicle, args.angle, dt=args.dt, duration=args.duration or 120.0)
     else:
         m = mv.straight(vehicle, dt=args.dt, duration=args.duration or 60.0)
-    every = max(1, int(round(args.sample / args.dt)))
+    every = int(round(args.sample / args.dt))
+    if every < 1 or abs(args.sample / args.dt - every) > 1e-6:
+        raise ValueError(f"--sample {args.sample:g} s is not a whole multiple of --dt {args.dt:g} s")
     res = Simulator(vehicle, m, mode=args.mode, sample_every=every).run()
     if res.diverged[0]:
-        print(f"error: simulation diverged at step {res.fail_step[0]}", file=sys.stderr)
-        return 1
+        raise ValueError(f"the simulation diverged at step {res.fail_step[0]} (t = {res.fail_step[0] * args.dt:g} s): "
+                         f"--angle {args.angle:g} deg or --dt {args.dt:g} s too large for {vehicle.id}?")
     track = res.track(0, name=m.name)
     track.meta["comments"] = [f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {args.mode}",
                               f"vessel: {vehicle.id}"]
@@ -133,8 +142,13 @@ def _check_numbers(args) -> None:
             raise ValueError(f"--{k.replace('_', '-')} must be >= 0, not {v}")
 
 
-def _split_names(text):
-    return [n.strip() for n in text.split(",") if n.strip()] if text else []
+def _split_names(text, option: str = ""):
+    """Comma-separated names of an option; a name given twice is a ValueError naming the option."""
+    names = [n.strip() for n in text.split(",") if n.strip()] if text else []
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"{option or 'option'}: {', '.join(twice)} given twice")
+    return names
 
 
 #: What each command writes into its --out folder (removed first by --overwrite).
@@ -142,11 +156,18 @@ WRITES = {"diagnose": ("diagnosis.json", "report.md", "figures"), "fit": ("model
           "predict": ("predict.json", "report.md", "figures"), "convert": ("convert.json", "convert.md")}
 
 
+#: The file that marks a folder as a command's output.
+MAIN_OUTPUT = {"diagnose": "diagnosis.json", "fit": "model.json", "predict": "predict.json",
+               "convert": "convert.json"}
+
+
 def _check_out(path, command: str, overwrite: bool) -> Path:
     """``--out`` checked before any computation: a folder (or for ``simulate`` a file) that can
     be created and written. An existing non-empty folder is refused unless ``overwrite``; then
     what ``command`` writes there (and, for ``convert``, the CSVs its ``convert.json`` lists) is
-    removed first, so nothing stale survives. Raises ValueError naming the option and path."""
+    removed first, so nothing stale survives. Even with ``overwrite``, a folder holding another
+    command's output (:data:`MAIN_OUTPUT`), or files named like this command's output without
+    its main file (the user's), is refused. Raises ValueError naming the option and path."""
     import os
     import shutil
 
@@ -164,6 +185,15 @@ def _check_out(path, command: str, overwrite: bool) -> Path:
             if not overwrite:
                 raise ValueError(f"--out {out}: folder is not empty; pass --overwrite to replace what "
                                  f"'bayesid {command}' writes there")
+            # --overwrite replaces this command's earlier output only, never another's or the user's
+            for other, main in MAIN_OUTPUT.items():
+                if other != command and (out / main).exists():
+                    raise ValueError(f"--out {out}: holds the output of 'bayesid {other}' ({main}); give "
+                                     f"'bayesid {command}' a folder of its own")
+            own = [n for n in WRITES.get(command, ()) if (out / n).exists()]
+            if own and not (out / MAIN_OUTPUT[command]).is_file():
+                raise ValueError(f"--out {out}: {', '.join(own)} exist(s) but no {MAIN_OUTPUT[command]}, so "
+                                 f"'bayesid {command}' did not write them; move them or choose another folder")
             old = out / "convert.json"
             if command == "convert" and old.is_file():
                 try:
@@ -196,16 +226,38 @@ def _file_sha256(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def same_values(a, b, rtol: float = 1e-5) -> bool:
+    """True when two tracks hold the same samples up to the precision of an export: the same
+    number of rows, and ``t``, ``x``, ``y``, ``psi`` (those both have) equal within ``rtol`` of
+    each column's largest magnitude (a 6-significant-digit copy of a full-precision file is the
+    same log; two logs of one manoeuvre differ by their noise)."""
+    import numpy as np
+
+    if a.n_samples != b.n_samples:
+        return False
+    for k in ("t", "x", "y", "psi"):
+        if k != "t" and (k not in a or k not in b):
+            continue
+        u, v = np.asarray(a[k], float), np.asarray(b[k], float)
+        if not np.array_equal(np.isnan(u), np.isnan(v)):
+            return False
+        ok = np.isfinite(u)
+        scale = float(np.max(np.abs(u[ok]), initial=0.0))
+        if ok.any() and np.max(np.abs(u[ok] - v[ok])) > rtol * scale + 1e-12:
+            return False
+    return True
+
+
 def _read_tracks(groups, vehicle=None) -> dict:
     """Read the track files of each option (``[(option, [paths])]``) once: a file given twice, a
-    file whose content equals another one (a renamed copy), a folder, and two tracks with the
-    same name are errors naming both; every track passes :func:`bayesid.validate.check_track`
+    file whose content equals another one (a renamed copy) or whose samples do (:func:`same_values`:
+    another export of one log), a folder, and two tracks with the same name are errors naming both; every track passes :func:`bayesid.validate.check_track`
     (units; plausibility for ``vehicle``), whose warnings are printed. Returns {option: [Track]},
     the files' SHA-256 under ``"_sha256"`` and the warnings under ``"_warnings"``."""
     from .track import read_csv
     from .validate import check_track
 
-    seen, names, out, hashes, warnings = {}, {}, {}, {}, []
+    seen, names, out, hashes, warnings, read = {}, {}, {}, {}, [], []
     for option, paths in groups:
         out[option] = []
         for p in paths:
@@ -227,6 +279,12 @@ def _read_tracks(groups, vehicle=None) -> dict:
             names[tr.name] = p
             hashes[str(p)] = h
             warnings += check_track(tr, vehicle, str(p))
+            for o, q, other in read:
+                if same_values(tr, other):
+                    raise ValueError(f"{option} {p} holds the same samples as {o} {q} (another export of one log?): "
+                                     "a track may be given once"
+                                     + (" (training and held-out tracks must differ)" if o != option else ""))
+            read.append((option, p, tr))
             out[option].append(tr)
     for w in warnings:
         print(f"warning: {w}", file=sys.stderr)
@@ -240,12 +298,12 @@ def _free_list(vehicle, text):
     from . import ship, terms
 
     if isinstance(vehicle, ship.Ship):
-        free = _split_names(text) or list(vehicle.free)
+        free = _split_names(text, "--free") or list(vehicle.free)
         for k in free:
             if k not in ship.COEFFICIENTS:
                 raise KeyError(f"--free: unknown ship coefficient {k!r}; known: {', '.join(ship.COEFFICIENTS)}")
         return free
-    free = _split_names(text) or ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
+    free = _split_names(text, "--free") or ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
     terms.check_names(free, "--free")
     return free
 
@@ -292,9 +350,9 @@ def _fit(args) -> int:
     free = _free_list(vehicle, args.free)
     got = _read_tracks([("--train", args.train)], vehicle)
     train = got["--train"]
-    res = msfit.identify(vehicle, train, free, _split_names(args.effects), window_s=args.window, dt=args.dt,
+    res = msfit.identify(vehicle, train, free, _split_names(args.effects, "--effects"), window_s=args.window, dt=args.dt,
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
-                         weighting=args.weighting or None, channels=_split_names(args.fit_channels) or None,
+                         weighting=args.weighting or None, channels=_split_names(args.fit_channels, "--fit-channels") or None,
                          start=args.start)
     doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json",
                            provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
@@ -316,7 +374,20 @@ def _predict(args) -> int:
     _check_vehicle_unchanged(doc, model.vehicle, args.model, args.allow_changed_vehicle)
     got = _read_tracks([("--track", args.track)], model.vehicle)
     tracks = got["--track"]
+    trained = {h: f for f, h in ((doc.get("provenance") or {}).get("input_sha256") or {}).items()}
+    for f, h in got["_sha256"].items():
+        if h in trained:
+            w = (f"{f}: the model was fitted on this file ({trained[h]}): its scores are training scores, "
+                 "not a prediction of unseen data")
+            print(f"warning: {w}", file=sys.stderr)
+            got["_warnings"].append(w)
     window = None if args.window <= 0 else args.window
+    for tr in tracks:
+        if window is not None and tr.t[-1] - tr.t[0] < window:
+            w = (f"{tr.name}: lasts {tr.t[-1] - tr.t[0]:.3g} s, less than one {window:g} s window: its score is "
+                 "over that shorter span, not comparable with full windows")
+            print(f"warning: {w}", file=sys.stderr)
+            got["_warnings"].append(w)
     lead = args.leadin if args.leadin > 0 else None
     pr = msfit.predict(model, p, tracks, window, start=args.start, leadin_s=lead)
     whole = msfit.predict(model, p, tracks, None, start=args.start, leadin_s=lead)
@@ -349,6 +420,7 @@ def _predict(args) -> int:
              md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows), "",
              f"Pooled: {fmt(pr['pooled']['rms_position_m'])} m, heading {fmt(pr['pooled']['rms_heading_deg'])} deg; "
              f"whole run {fmt(whole['pooled']['rms_position_m'])} m.", ""]
+    lines += [f"- **Warning**: {w}" for w in got["_warnings"]] + ([""] if got["_warnings"] else [])
     for n, d in indices.items():
         if d["measured"].get("kind") == "other":
             lines.append(f"- {n}: no turning or zigzag indices ({d['measured'].get('reason')})")
@@ -376,14 +448,14 @@ def _diagnose(args) -> int:
     got = _read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     train, held = got["--train"], got["--heldout"]
     catalogue = ship.SHIP_CATALOGUE if is_ship else effects.CATALOGUE
-    cands = list(catalogue) if not args.candidates else _split_names(args.candidates)
+    cands = list(catalogue) if not args.candidates else _split_names(args.candidates, "--candidates")
     if is_ship and not args.candidates and not all("wind_speed" in t for t in train + held):
         cands.remove("wind")
         print("  no wind columns in every track: the wind candidate is left out")
-    for c in (args.exclude.split(",") if args.exclude else []):
-        if c.strip() not in cands:
-            raise ValueError(f"--exclude {c.strip()}: not among the candidates {cands}")
-        cands.remove(c.strip())
+    for c in _split_names(args.exclude, "--exclude"):
+        if c not in cands:
+            raise ValueError(f"--exclude {c}: not among the candidates {cands}")
+        cands.remove(c)
     window = None if args.window <= 0 else args.window
     dt = args.dt if args.dt is not None else (0.2 if is_ship else 0.5)
     res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,

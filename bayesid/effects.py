@@ -384,7 +384,9 @@ def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float,
     """(first, last) sample times of the continuous pieces of a track: runs of samples with
     finite x, y and psi, split where consecutive such samples are more than
     ``max(5 x the median sample interval, min_gap_s)`` apart (a logging gap, or a stretch of
-    empty cells). Raises ValueError naming the track and column when x, y or psi is absent or
+    empty cells). A logged input (``delta_r``, ``delta_s``, ``delta_b``, ``n``) with no value
+    for longer than that and five of its own median intervals removes the samples in between
+    (a piece never runs on a guessed input; shorter holes are held, zero-order). Raises ValueError naming the track and column when x, y or psi is absent or
     entirely empty."""
     t = np.asarray(track.t, float)
     ok = np.ones(t.size, bool)
@@ -395,14 +397,32 @@ def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float,
         if not fin.any():
             raise ValueError(f"track {track.name!r}: column {k!r} is empty (no value in any row)")
         ok &= fin
+    gap = max(5.0 * float(np.median(np.diff(t))) if t.size > 1 else 0.0, min_gap_s)
+    # a logged input (rudder, propeller) missing for longer than five of its own sample intervals
+    # is a hole too: the model would fly on a guessed input there (shorter stretches are held)
+    for k in ("delta_r", "delta_s", "delta_b", "n"):
+        if k not in track:
+            continue
+        fin = np.flatnonzero(np.isfinite(np.asarray(track[k], float)))
+        if fin.size < 2:
+            continue
+        tk = t[fin]
+        hole = np.flatnonzero(np.diff(tk) > max(gap, 5.0 * float(np.median(np.diff(tk)))) + 1e-9)
+        for h in hole:
+            ok[fin[h] + 1:fin[h + 1]] = False
     tt = t[ok]
     if tt.size == 0:
         raise ValueError(f"track {track.name!r}: no row has x, y and psi all measured")
-    gap = max(5.0 * float(np.median(np.diff(t))) if t.size > 1 else 0.0, min_gap_s)
     cut = np.flatnonzero(np.diff(tt) > gap + 1e-9)
     lo = np.r_[0, cut + 1]
     hi = np.r_[cut, tt.size - 1]
     return [(float(tt[a]), float(tt[b])) for a, b in zip(lo, hi)]
+
+
+#: Longest model step grid a track context builds (a track's span over the model step): about
+#: 6 days at 0.5 s. The grid covers the gaps between a track's pieces too, so a clock jump of
+#: 1e9 s would otherwise allocate gigabytes; such a track is refused with the gap named.
+MAX_GRID_STEPS = 1_000_000
 
 
 class _TrackContext:
@@ -432,6 +452,13 @@ class _TrackContext:
         self.n_steps = int(math.floor((t[-1] - t[0]) / dt + 1e-9))
         if self.n_steps < 1:
             raise ValueError(f"track {track.name!r} is shorter than one step of {dt} s")
+        if self.n_steps > MAX_GRID_STEPS:
+            gaps = np.diff(t)
+            i = int(np.argmax(gaps))
+            raise ValueError(
+                f"track {track.name!r} spans {t[-1] - t[0]:.4g} s, {self.n_steps} model steps of {dt} s "
+                f"(at most {MAX_GRID_STEPS}); its longest time gap is {gaps[i]:.4g} s, from t = {t[i]:.10g} to "
+                f"{t[i + 1]:.10g} s (a clock jump?): split the file at the gap, one track file per piece")
         t_end = self.t0 + self.n_steps * dt
         self.t_grid = self.t0 + dt * np.arange(self.n_steps + 1)
         self.t_mid = self.t_grid[:-1] + 0.5 * dt

@@ -808,6 +808,26 @@ def _contribution(r, added: bool) -> dict:
             "delta_bic": r["delta_bic"], "parameters": r["parameters"]}
 
 
+#: Least scored samples per estimated parameter a fit accepts (each sample has 3-6 channels).
+MIN_SAMPLES_PER_PARAMETER = 10
+
+
+def check_enough_data(model, ctxs, window_s: float) -> None:
+    """Refuse (ValueError, naming the tracks) a fit whose training tracks are too short to say
+    anything: fewer scored samples than :data:`MIN_SAMPLES_PER_PARAMETER` per parameter, or
+    tracks that together last less than one fit window."""
+    n = sum(int(c.ts.size) for c in ctxs)
+    span = sum(float(c.ts[-1] - c.t_start[0]) if c.ts.size else 0.0 for c in ctxs)
+    k = model.n_params
+    names = ", ".join(c.name for c in ctxs)
+    if n < MIN_SAMPLES_PER_PARAMETER * k:
+        raise ValueError(f"training track(s) {names}: {n} scored samples for {k} parameters (need at least "
+                         f"{MIN_SAMPLES_PER_PARAMETER * k}); give longer or more tracks, or fewer --free")
+    if span < window_s:
+        raise ValueError(f"training track(s) {names} last {span:.3g} s in all, less than one {window_s:g} s fit "
+                         "window; give longer tracks or a shorter --window")
+
+
 def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_s: float | None = 60.0,
              dt: float = 0.5, mode: str = "horizontal", rng=None, max_nfev: int = 60,
              none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
@@ -883,6 +903,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
 
     weighting = weighting or ("residual" if is_ship else "noise")
     base, ctr, cho = build(())
+    check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
     say("base fit")
     bar = (lambda label: label) if progress_bars else (lambda label: None)
     bfit, sd_fit = fit_weighted(base, ctr, sd, max_nfev=max_nfev, weighting=weighting, progress=bar("base fit"))

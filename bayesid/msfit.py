@@ -115,7 +115,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     Raises
     ------
     ValueError : no training track; a track without the needed columns (named); an unknown
-        channel or a track that measures none of ``channels``.
+        channel or a track that measures none of ``channels``; too little data
+        (:func:`bayesid.gap.check_enough_data`).
     KeyError : an unknown coefficient name.
     """
     if not train:
@@ -132,6 +133,7 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
                              "have none (leave --effects wind out, or add the measured wind)")
     rule = resolve_start(start, train)
     ctxs = [model.context(t, window_s, start=rule) for t in train]
+    gap.check_enough_data(model, ctxs, window_s)
     sd = gap._pooled_sd(train)
     p0 = model.start()
     seed_info = {"used": False}
@@ -201,12 +203,33 @@ def load_model(path):
         raise ValueError(f"{path}: not a model file ({e})") from None
     if doc.get("format") != "bayesid-model-1":
         raise ValueError(f"{path}: not a bayesid model file (format {doc.get('format')!r})")
+    missing = [k for k in ("vehicle", "free", "effects", "dt", "p", "cov") if k not in doc]
+    if missing:
+        raise ValueError(f"{path}: model file without {', '.join(repr(k) for k in missing)} (edited or truncated?)")
     ref = doc["vehicle"]
+    if not isinstance(ref, str) or not isinstance(doc["free"], list) or not isinstance(doc["effects"], list):
+        raise ValueError(f"{path}: 'vehicle' must be a string, 'free' and 'effects' lists")
     if not Path(ref).is_absolute() and (path.parent / ref).is_file():
         ref = str(path.parent / ref)
     vehicle = load_any_vehicle(ref)
+    if not isinstance(doc["dt"], (int, float)) or not doc["dt"] > 0:
+        raise ValueError(f"{path}: 'dt' must be a positive number of seconds, not {doc['dt']!r}")
     model = build_model(vehicle, doc["free"], doc["effects"], doc["dt"])
-    return model, np.array(doc["p"]), np.array(doc["cov"]), doc
+    n = len(model.param_names)
+    try:
+        p, cov = np.array(doc["p"], dtype=float), np.array(doc["cov"], dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{path}: 'p' and 'cov' must be numbers") from None
+    if p.shape != (n,) or not np.all(np.isfinite(p)):
+        raise ValueError(f"{path}: 'p' must be {n} finite numbers ({', '.join(model.param_names)}), "
+                         f"got shape {p.shape}")
+    if cov.shape != (n, n) or not np.all(np.isfinite(cov)):
+        raise ValueError(f"{path}: 'cov' must be a finite {n} x {n} matrix, got shape {cov.shape}"
+                         + ("" if cov.shape != (n, n) else " with non-finite entries"))
+    if not np.allclose(cov, cov.T, rtol=1e-8, atol=0.0) or np.linalg.eigvalsh(0.5 * (cov + cov.T)).min() < \
+            -1e-8 * max(float(np.abs(np.diag(cov)).max()), 1e-300):
+        raise ValueError(f"{path}: 'cov' is not a symmetric positive semi-definite matrix (edited?)")
+    return model, p, cov, doc
 
 
 def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadin_s: float | None = None) -> dict:
@@ -370,7 +393,9 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
     rows = [[n, fmt(s0, 4), fmt(p, 4), fmt(sd, 3)] for n, s0, p, sd in
             zip(doc["param_names"], doc["start"], doc["p"], doc["sd"])]
     ts = doc["train_scores"]
+    warn = (doc.get("provenance") or {}).get("warnings") or []
     lines = ["# Identified model", "", f"`{command}`" if command else "", "",
+             *(["**Input warnings:** " + "; ".join(warn), ""] if warn else []),
              f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
              f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s; "
              f"{len(doc['train_runs'])} training run(s).", "",

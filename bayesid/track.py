@@ -582,10 +582,12 @@ def write_csv(track: Track, path) -> None:
                              f"{track.units.get(k)!r}) cannot be written as a header")
     comments = [line for c in track.meta.get("comments", [])
                 for line in re.split(r"\r\n|\r|\n", str(c))]
-    table = np.column_stack([track[k] for k in names]).tolist()
+    columns = [track[k] for k in names]
     with open(os.fspath(path), "w", newline="", encoding="utf-8") as f:
         for c in comments:
             f.write(f"# {c}\n")
         writer = csv.writer(f, lineterminator="\n")
         writer.writerow(header)
-        writer.writerows([_format(v) for v in row] for row in table)
+        for a in range(0, track.n_samples, _CHUNK_ROWS):  # in blocks: memory stays near the arrays'
+            table = np.column_stack([c[a:a + _CHUNK_ROWS] for c in columns]).tolist()
+            writer.writerows([_format(v) for v in row] for row in table)

@@ -22,6 +22,9 @@ from .track import Track
 #: (factor, unit) pairs a speed column is recognised in when its ratio to the ground speed from
 #: the positions is within 15 % of the factor.
 SPEED_UNITS = ((3.6, "km/h"), (1.0 / 0.514444, "knots"), (100.0, "cm/s"))
+#: (factor, unit) pairs positions are recognised in when the body speed (m/s) is within 15 % of
+#: the factor x the speed from the positions.
+POSITION_UNITS = ((1000.0, "km"), (1852.0, "nautical miles"), (0.3048, "feet"))
 
 
 def _ratio(a, b):
@@ -155,12 +158,42 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             if rate.size and np.percentile(rate, 95) > 1.0:
                 refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} turning at {np.percentile(rate, 95):.3g} "
                               "units/s (95th percentile; no vessel turns at 1 rad/s): heading looks like degrees")
-    if ground is not None and ground > 0.05 and "u" in track:
-        body = np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])
-        k = float(np.nanmedian(body)) / ground if np.isfinite(body).any() else None
+    body = None
+    if "u" in track and np.isfinite(track["u"]).any():
+        body = float(np.nanmedian(np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])))
+    if ground is not None and ground > 0.05 and body is not None:
+        k = body / ground
         for f, unit in SPEED_UNITS:
-            if k is not None and abs(k / f - 1.0) < 0.15:
+            if abs(k / f - 1.0) < 0.15:
                 refuse("u", f"body speed is {k:.3g} x the speed from the positions: u, v look like {unit}")
+    if ground is not None and ground > 0 and body is not None and body > 0.05:
+        k = body / ground
+        for f, unit in POSITION_UNITS:
+            if abs(k / f - 1.0) < 0.15:
+                refuse("x", f"the positions move {1 / k:.3g} x as fast as the body speed u, v: x, y look like {unit}")
+    if "wind_dir" in track and np.isfinite(track["wind_dir"]).any():
+        m = float(np.nanmax(np.abs(track["wind_dir"])))
+        if m > 2 * math.pi + 0.1:
+            refuse("wind_dir", f"values up to {m:.4g} cannot be a direction in rad; it looks like degrees")
+    if "n" in track and np.isfinite(track["n"]).any():
+        n_med = float(np.nanmedian(track["n"]))
+        ahead = body if body is not None else ground
+        if n_med < 0 and ahead is not None and ahead > 0.05:
+            warn.append(f"{name}: column 'n': propeller speed is negative (median {n_med:.4g} rpm, astern) while "
+                        f"the vessel moves at {ahead:.3g} m/s: sign convention (n > 0 ahead)?")
+    if vehicle is not None and getattr(vehicle, "nominal_rpm", None) is None:
+        # a surface ship: a track with planes or depth is a submarine's; speed as a Froude number
+        planes = [k for k in ("delta_s", "delta_b", "z", "w", "q", "theta")
+                  if k in track and np.nanmax(np.abs(track[k]), initial=0.0) > 1e-6]
+        if planes:
+            warn.append(f"{name}: columns {', '.join(planes)} vary (stern/bow planes, depth or pitch), but "
+                        f"{getattr(vehicle, 'id', 'the vehicle')} is a 3-DOF surface ship: a submarine's track?")
+        L = float(getattr(vehicle, "particulars", {}).get("L", 0.0) or 0.0)
+        speed = body if body is not None else ground
+        if L > 0 and speed is not None and speed / math.sqrt(9.81 * L) > 0.45:
+            warn.append(f"{name}: speed {speed:.3g} m/s is a Froude number of {speed / math.sqrt(9.81 * L):.2f} for "
+                        f"the {L:g} m {getattr(vehicle, 'id', 'ship')} (displacement ships run below 0.3): a track "
+                        "of another vessel, or positions not in metres?")
     nominal_rpm = getattr(vehicle, "nominal_rpm", 0.0) or 0.0
     if "n" in track:
         n = np.asarray(track["n"], float)
@@ -185,5 +218,5 @@ def check_tracks(tracks, vehicle=None, paths=None) -> list[str]:
     return out
 
 
-__all__ = ["check_track", "check_tracks", "check_vessel", "track_vessel", "SPEED_UNITS",
+__all__ = ["check_track", "check_tracks", "check_vessel", "track_vessel", "SPEED_UNITS", "POSITION_UNITS",
            "PACKAGED_VESSELS"]

@@ -81,10 +81,18 @@ def test_a_non_empty_out_is_refused_and_overwrite_clears_what_the_command_wrote(
     (out / "notes.txt").write_text("mine")
     rc, msg = _run(_diag([csvs[0]], [csvs[1]], out), capsys)
     assert rc == 2 and "--overwrite" in msg and (out / "figures" / "stale.png").exists()
+    # figures/ without diagnosis.json: not this command's output, kept even with --overwrite
+    rc, msg = _run(_diag([csvs[0]], [csvs[1]], out, "--overwrite"), capsys)
+    assert rc == 2 and "did not write" in msg and (out / "figures" / "stale.png").exists()
+    (out / "diagnosis.json").write_text("{}")  # an earlier diagnosis
     rc, msg = _run(_diag([csvs[0]], [csvs[1]], out, "--overwrite"), capsys)
     assert rc == 0, msg
     assert not (out / "figures" / "stale.png").exists() and (out / "notes.txt").read_text() == "mine"
-    assert (out / "diagnosis.json").exists()
+    assert json.loads((out / "diagnosis.json").read_text())
+    # another command's folder is never overwritten
+    rc, msg = _run(["predict", "--model", out / "model.json", "--track", csvs[1], "--out", out, "--overwrite"],
+                   capsys)
+    assert rc == 2 and "'bayesid diagnose'" in msg and json.loads((out / "diagnosis.json").read_text())
 
 
 def test_fit_records_provenance_and_predict_refuses_a_changed_vehicle(csvs, tmp_path, capsys):

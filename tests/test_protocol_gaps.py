@@ -79,3 +79,19 @@ def test_a_piece_too_short_for_a_window_is_skipped_and_counted(setup):
         data[k][(tr.t > 61.0) & (tr.t < 80.0)] = np.nan  # leaves a 1 s piece
     ctx = model.context(Track(tr.t, data, name="bits"), 30.0, start="fitted", leadin_s=10.0)
     assert ctx.n_pieces == 3 and ctx.skipped_pieces == 1
+
+
+def test_a_hole_in_a_logged_input_splits_the_track_but_a_slower_input_log_does_not(setup):
+    tr, model, fit = setup
+    data = {k: np.array(v) for k, v in tr.data.items()}
+    data["delta_r"][(tr.t > 80.0) & (tr.t < 100.0)] = np.nan  # rudder not logged for 20 s
+    holed = Track(tr.t, data, name="holed")
+    ctx = model.context(holed, 30.0)
+    assert ctx.n_pieces == 2
+    assert not np.any((ctx.ts > 80.0) & (ctx.ts < 100.0))  # no sample scored on a guessed rudder
+    data = {k: np.array(v) for k, v in tr.data.items()}
+    data["n"][np.arange(tr.t.size) % 10 != 0] = np.nan  # propeller logged at a tenth of the rate
+    assert model.context(Track(tr.t, data, name="slow_n"), 30.0).n_pieces == 1
+    with pytest.raises(ValueError, match="clock jump"):  # a 1e9 s gap is refused, not allocated
+        a, b = _rows(tr, tr.t <= 90.0, "a"), _rows(tr, tr.t >= 110.0, "b", shift=1e9)
+        model.context(Track(np.r_[a.t, b.t], {k: np.r_[a[k], b[k]] for k in tr.data}, name="jump"), 30.0)
