@@ -345,6 +345,8 @@ def _fit(args) -> int:
     """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
     from . import msfit
 
+    if args.window is not None and not args.window > 0:
+        raise ValueError(f"--window must be a positive number of seconds, not {args.window:g}")
     out = _check_out(args.out, "fit", args.overwrite)
     vehicle = msfit.load_any_vehicle(args.vehicle)
     free = _free_list(vehicle, args.free)

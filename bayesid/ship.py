@@ -200,6 +200,8 @@ def is_ship_file(path_or_id) -> bool:
 
 
 def _resolve(path_or_id) -> Path:
+    if not str(path_or_id).strip():
+        raise FileNotFoundError("empty vehicle name; give a packaged id or a TOML path")
     p = Path(path_or_id)
     if not p.suffix and not p.exists():
         res = resources.files("bayesid") / "vehicles" / f"{path_or_id}.toml"

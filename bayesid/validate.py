@@ -22,6 +22,9 @@ from .track import Track
 #: (factor, unit) pairs a speed column is recognised in when its ratio to the ground speed from
 #: the positions is within 15 % of the factor.
 SPEED_UNITS = ((3.6, "km/h"), (1.0 / 0.514444, "knots"), (100.0, "cm/s"))
+#: (factor, unit) pairs the time column is recognised in when the positions (or heading) change
+#: the factor x faster per time unit than the body speeds (yaw rate) say.
+TIME_UNITS = ((60.0, "minutes"), (3600.0, "hours"), (0.001, "milliseconds"))
 #: (factor, unit) pairs positions are recognised in when the body speed (m/s) is within 15 % of
 #: the factor x the speed from the positions.
 POSITION_UNITS = ((1000.0, "km"), (1852.0, "nautical miles"), (0.3048, "feet"))
@@ -136,6 +139,26 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             if h >= 10.0 and 0.1 <= 1000.0 * ground <= 30.0 and ground < 0.05:
                 refuse("t", f"median sample interval {h:.4g} with positions moving {ground:.3g} units per "
                        "interval-unit: it looks like milliseconds")
+    body0 = (float(np.nanmedian(np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])))
+             if "u" in track and np.isfinite(track["u"]).any() else None)
+    if ground is not None and body0 is not None and body0 > 0.05 and ground > 0:
+        # positions moving f x faster per time unit than u says (milliseconds aside: a ratio of
+        # 1/1000 is positions in km as well; the heading rate below, or the sample interval
+        # above, tells those apart)
+        for f, unit in TIME_UNITS[:2]:
+            if abs(ground / body0 / f - 1.0) < 0.15:
+                refuse("t", f"the positions move {ground / body0:.3g} x as fast per time unit as the body speed "
+                            f"u, v: time looks like {unit}")
+    if "psi" in track and "r" in track and np.isfinite(track["psi"]).sum() > 10:
+        fin = track["psi"][np.isfinite(track["psi"])]
+        if np.max(np.abs(fin)) <= 2 * math.pi + 0.1:  # heading in rad: a rate ratio is the clock's
+            psi = np.asarray(track["psi"], float)
+            dpsi = np.gradient(np.unwrap(np.where(np.isfinite(psi), psi, 0.0)), t)
+            k = _ratio(dpsi, track["r"])
+            for f, unit in TIME_UNITS:
+                if k is not None and abs(k / f - 1.0) < 0.15:
+                    refuse("t", f"the heading turns {k:.3g} x as fast per time unit as the yaw rate r says: time "
+                                f"looks like {unit}")
     if "psi" in track and np.isfinite(track["psi"]).sum() > 10:
         psi = np.asarray(track["psi"], float)
         fin = psi[np.isfinite(psi)]
@@ -188,11 +211,16 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         if planes:
             warn.append(f"{name}: columns {', '.join(planes)} vary (stern/bow planes, depth or pitch), but "
                         f"{getattr(vehicle, 'id', 'the vehicle')} is a 3-DOF surface ship: a submarine's track?")
-        L = float(getattr(vehicle, "particulars", {}).get("L", 0.0) or 0.0)
+        part = getattr(vehicle, "particulars", {})
+        L, cb = float(part.get("L", 0.0) or 0.0), float(part.get("Cb", 0.0) or 0.0)
+        # full forms (tankers, bulk carriers) meet a wall of wave resistance near Fn 0.2; finer
+        # displacement hulls near 0.4
+        limit = 0.25 if cb >= 0.7 else 0.45
         speed = body if body is not None else ground
-        if L > 0 and speed is not None and speed / math.sqrt(9.81 * L) > 0.45:
-            warn.append(f"{name}: speed {speed:.3g} m/s is a Froude number of {speed / math.sqrt(9.81 * L):.2f} for "
-                        f"the {L:g} m {getattr(vehicle, 'id', 'ship')} (displacement ships run below 0.3): a track "
+        if L > 0 and speed is not None and speed / math.sqrt(9.81 * L) > limit:
+            warn.append(f"{name}: median speed {speed:.3g} m/s is a Froude number of "
+                        f"{speed / math.sqrt(9.81 * L):.2f} for the {L:g} m {getattr(vehicle, 'id', 'ship')} "
+                        f"(block coefficient {cb:g}: displacement hulls of this form run below {limit:g}): a track "
                         "of another vessel, or positions not in metres?")
     nominal_rpm = getattr(vehicle, "nominal_rpm", 0.0) or 0.0
     if "n" in track:
@@ -218,5 +246,5 @@ def check_tracks(tracks, vehicle=None, paths=None) -> list[str]:
     return out
 
 
-__all__ = ["check_track", "check_tracks", "check_vessel", "track_vessel", "SPEED_UNITS", "POSITION_UNITS",
+__all__ = ["check_track", "check_tracks", "check_vessel", "track_vessel", "SPEED_UNITS", "POSITION_UNITS", "TIME_UNITS",
            "PACKAGED_VESSELS"]

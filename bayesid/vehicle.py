@@ -215,6 +215,8 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
         the message names the file, section and key.
     UnknownCoefficientError : a coefficient name not in the term library (names file and key).
     """
+    if not str(path_or_id).strip():
+        raise FileNotFoundError(f"empty vehicle name; give a packaged id ({packaged_vehicles()}) or a TOML path")
     p = Path(path_or_id)
     if not p.suffix and not p.exists():
         res = resources.files("bayesid") / "vehicles" / f"{path_or_id}.toml"

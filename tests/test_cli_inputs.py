@@ -161,6 +161,11 @@ UNITS = {  # name: (change (t, data) -> t, column, text)
                                       t)[2], "'u'", "knots"),
     "yaw rate in deg/s": (lambda t, d: (d.__setitem__("r", np.degrees(d["r"])), t)[1], "'r'", "deg/s"),
     "rpm given as rps": (lambda t, d: (d.__setitem__("n", d["n"] / 60.0), t)[1], "'n'", "rev/s"),
+    "time in minutes": (lambda t, d: t / 60.0, "'t'", "minutes"),
+    "positions in km": (lambda t, d: (d.__setitem__("x", d["x"] / 1e3), d.__setitem__("y", d["y"] / 1e3), t)[2],
+                        "'x'", "km"),
+    "positions in feet": (lambda t, d: (d.__setitem__("x", d["x"] / 0.3048), d.__setitem__("y", d["y"] / 0.3048),
+                                        t)[2], "'x'", "feet"),
 }
 
 
@@ -246,3 +251,71 @@ def test_vessel_line_of_a_track_is_checked_against_the_vehicle():
     assert len(warn) == 1 and "REMUS 100" in warn[0] and "a.csv" in warn[0]
     with pytest.raises(ValueError, match="kvlcc2_7m"):
         check_track(track("KVLCC2 7 m model"), esso, "b.csv")
+
+
+def test_implausible_tracks_for_the_vehicle_are_warned_about(csvs, tmp_path):
+    """A propeller astern while moving ahead; a submarine's track (1.9 m/s) given to the 3 m
+    full-form Esso Osaka model; pitch-plane columns on a surface ship."""
+    from bayesid.msfit import load_any_vehicle
+    from bayesid.track import read_csv
+    from bayesid.validate import check_track
+
+    auv, esso = load_vehicle("nps_auv2"), load_any_vehicle("esso_osaka_3m")
+    astern = read_csv(_variant(csvs[0], tmp_path, "astern", lambda t, d: (d.__setitem__("n", -d["n"]), t)[1]))
+    assert any("astern" in w and "astern.csv" in w for w in check_track(astern, auv, str(tmp_path / "astern.csv")))
+    sub = read_csv(csvs[0])
+    assert any("Froude" in w for w in check_track(sub, esso))
+    planes = read_csv(_variant(csvs[0], tmp_path, "planes", lambda t, d: (d.__setitem__("delta_s", 0 * t + 0.1), t)[1]))
+    assert any("delta_s" in w and "surface ship" in w for w in check_track(planes, esso))
+    assert check_track(sub, auv) == []
+
+
+def test_too_little_training_data_is_refused(csvs, tmp_path, capsys):
+    short = _variant(csvs[0], tmp_path, "short", lambda t, d: t)
+    text = short.read_text().splitlines()
+    short.write_text("\n".join(text[:5]) + "\n")  # header + 4 samples
+    rc, msg = _run(["fit", "--vehicle", "nps_auv2", "--train", short, "--max-nfev", "3", "--out", tmp_path / "f"],
+                   capsys)
+    assert rc == 2 and "short" in msg and "scored samples" in msg, msg
+
+
+def test_another_export_of_one_log_is_refused_and_a_training_file_is_flagged(csvs, tmp_path, capsys):
+    from bayesid.track import read_csv
+
+    tr = read_csv(csvs[0])
+    lines = ["t,x,y,psi,u,v,r,delta_r,n"] + [
+        ",".join(f"{tr[k][i]:.7g}" for k in ("t", "x", "y", "psi", "u", "v", "r", "delta_r", "n"))
+        for i in range(tr.n_samples)]
+    (tmp_path / "export7.csv").write_text("\n".join(lines) + "\n")  # 7 significant digits
+    rc, msg = _run(_diag([csvs[0]], [tmp_path / "export7.csv"], tmp_path / "o"), capsys)
+    assert rc == 2 and "same samples" in msg and "export7.csv" in msg, msg
+    # predict on the model's own training file: scored, with a warning in predict.json
+    rc, msg = _run(["fit", "--vehicle", "nps_auv2", "--free", "Nr", "--train", csvs[0], "--window", "30",
+                    "--max-nfev", "2", "--out", tmp_path / "f"], capsys)
+    assert rc == 0, msg
+    model = json.loads((tmp_path / "f" / "model.json").read_text())
+    rc, msg = _run(["predict", "--model", tmp_path / "f" / "model.json", "--track", csvs[0], "--draws", "0",
+                    "--window", "30", "--out", tmp_path / "p"], capsys)
+    assert rc == 0 and "training scores" in msg
+    assert any("training scores" in w for w in json.loads((tmp_path / "p" / "predict.json").read_text())["warnings"])
+    # a hand-edited model file is refused naming the file and the key
+    for key, value in (("p", ["a"]), ("cov", [[float("nan")]]), ("dt", -1)):
+        bad = dict(model, **{key: value})
+        (tmp_path / "f" / "bad.json").write_text(json.dumps(bad))
+        rc, msg = _run(["predict", "--model", tmp_path / "f" / "bad.json", "--track", csvs[1], "--out",
+                        tmp_path / f"q{key}"], capsys)
+        assert rc == 2 and "bad.json" in msg and f"'{key}'" in msg and "Traceback" not in msg, (key, msg)
+
+
+@pytest.mark.parametrize("args,text", [
+    (["--dt", "0.1", "--sample", "0.25"], "--sample"), (["--duration", "1e9"], "--duration")])
+def test_simulate_refuses_impossible_sampling_and_durations(tmp_path, capsys, args, text):
+    rc, msg = _run(["simulate", "--manoeuvre", "straight", *args, "--out", tmp_path / "s.csv"], capsys)
+    assert rc == 2 and text in msg and not (tmp_path / "s.csv").exists(), msg
+
+
+def test_duplicate_names_in_an_option_and_an_empty_vehicle_name_are_refused(csvs, tmp_path, capsys):
+    rc, msg = _run(_diag([csvs[0]], [csvs[1]], tmp_path / "o", "--candidates", "thrust,thrust"), capsys)
+    assert rc == 2 and "--candidates" in msg and "twice" in msg, msg
+    with pytest.raises(FileNotFoundError, match="empty vehicle name"):
+        load_vehicle("")
