@@ -129,7 +129,13 @@ def _convert(args) -> int:
 
 
 def _check_numbers(args) -> None:
-    """Numeric options that must be positive (or non-negative): ValueError naming the option."""
+    """Numeric options: finite, and positive (or non-negative) where they must be; ValueError
+    naming the option."""
+    import math
+
+    for k, v in vars(args).items():
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ValueError(f"--{k.replace('_', '-')} must be a finite number, not {v}")
     positive = ("dt", "sample", "max_nfev", "max_effects", "scale")
     non_negative = ("draws", "leadin", "fit_window", "duration")
     for k in positive:

@@ -205,7 +205,7 @@ def test_the_wind_effect_without_wind_columns_is_refused(csvs, tmp_path, capsys)
 
 @pytest.mark.parametrize("args,text", [
     (["--dt", "0"], "--dt"), (["--max-nfev", "-5"], "--max-nfev"), (["--max-effects", "0"], "--max-effects"),
-    (["--leadin", "-1"], "--leadin")])
+    (["--leadin", "-1"], "--leadin"), (["--window", "nan"], "--window"), (["--fit-window", "inf"], "--fit-window")])
 def test_a_bad_number_is_refused_naming_the_option(csvs, tmp_path, capsys, args, text):
     rc, msg = _run(_diag([csvs[0]], [csvs[1]], tmp_path / "o", *args), capsys)
     assert rc == 2 and text in msg and "Traceback" not in msg, msg
