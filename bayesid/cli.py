@@ -36,6 +36,11 @@ def _simulate(args) -> int:
     if args.duration is not None and args.duration / args.dt > MAX_SIMULATE_STEPS:
         raise ValueError(f"--duration {args.duration:g} s at --dt {args.dt:g} s is {args.duration / args.dt:.3g} steps "
                          f"(at most {MAX_SIMULATE_STEPS:.0e}); shorten --duration or lengthen --dt")
+    from . import ship
+
+    if ship.is_ship_file(args.vehicle):
+        raise ValueError(f"--vehicle {args.vehicle}: a surface ship; 'bayesid simulate' runs submarine vehicle "
+                         f"files (nps_auv2 or your own TOML)")
     vehicle = load_vehicle(args.vehicle)
     if args.crossflow:
         vehicle = vehicle.with_crossflow(args.crossflow)
@@ -137,7 +142,7 @@ def _check_numbers(args) -> None:
         if isinstance(v, float) and not math.isfinite(v):
             raise ValueError(f"--{k.replace('_', '-')} must be a finite number, not {v}")
     positive = ("dt", "sample", "max_nfev", "max_effects", "scale")
-    non_negative = ("draws", "leadin", "fit_window", "duration")
+    non_negative = ("draws", "leadin", "fit_window", "duration", "seed")
     for k in positive:
         v = getattr(args, k, None)
         if v is not None and not v > 0:
@@ -146,6 +151,13 @@ def _check_numbers(args) -> None:
         v = getattr(args, k, None)
         if v is not None and not v >= 0:
             raise ValueError(f"--{k.replace('_', '-')} must be >= 0, not {v}")
+
+
+def _check_window(window, dt: float) -> None:
+    """``--window`` must be a whole number of model steps (ValueError naming both)."""
+    if window is not None and abs(window / dt - round(window / dt)) > 1e-6 or (window is not None and window < dt):
+        raise ValueError(f"--window {window:g} s must be a whole multiple of the model step {dt:g} s "
+                         "(--dt, or the model's)")
 
 
 def _split_names(text, option: str = ""):
@@ -390,6 +402,7 @@ def _predict(args) -> int:
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
     window = None if args.window <= 0 else args.window
+    _check_window(window, model.dt)
     for tr in tracks:
         if window is not None and tr.t[-1] - tr.t[0] < window:
             w = (f"{tr.name}: lasts {tr.t[-1] - tr.t[0]:.3g} s, less than one {window:g} s window: its score is "
@@ -466,6 +479,7 @@ def _diagnose(args) -> int:
         cands.remove(c)
     window = None if args.window <= 0 else args.window
     dt = args.dt if args.dt is not None else (0.2 if is_ship else 0.5)
+    _check_window(window, dt)
     res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),

@@ -451,7 +451,8 @@ class _TrackContext:
         self.t0 = float(t[0])
         self.n_steps = int(math.floor((t[-1] - t[0]) / dt + 1e-9))
         if self.n_steps < 1:
-            raise ValueError(f"track {track.name!r} is shorter than one step of {dt} s")
+            raise ValueError(f"track {track.name!r} ({t[-1] - t[0]:g} s) is shorter than one model step of {dt} s "
+                             "(--dt)")
         if self.n_steps > MAX_GRID_STEPS:
             gaps = np.diff(t)
             i = int(np.argmax(gaps))

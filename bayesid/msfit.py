@@ -214,7 +214,11 @@ def load_model(path):
     vehicle = load_any_vehicle(ref)
     if not isinstance(doc["dt"], (int, float)) or not doc["dt"] > 0:
         raise ValueError(f"{path}: 'dt' must be a positive number of seconds, not {doc['dt']!r}")
-    model = build_model(vehicle, doc["free"], doc["effects"], doc["dt"])
+    try:
+        model = build_model(vehicle, doc["free"], doc["effects"], doc["dt"])
+    except (KeyError, ValueError) as e:
+        raise ValueError(f"{path}: its free coefficients or effects do not fit the vehicle {ref!r}: "
+                         f"{e.args[0] if e.args else e}") from None
     n = len(model.param_names)
     try:
         p, cov = np.array(doc["p"], dtype=float), np.array(doc["cov"], dtype=float)
