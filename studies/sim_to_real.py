@@ -59,6 +59,7 @@ EXPECTED_CHANNEL = {"current": ("x", "y", "u", "v"), "actuator": ("psi", "r", "v
                     "yaw_bias": ("psi", "r", "x", "y")}
 SETTINGS_KEYS = ("seed", "quick", "version")
 VERSION = 2  # of the case design; saved cases of another version are re-run
+QUICK_VERSION = 2  # of the --quick design (shorter tracks, 15 evaluations), part of a quick run's key
 
 
 def parse_args():
@@ -139,7 +140,7 @@ def logging_config(case: dict, rng: np.random.Generator, quick: bool) -> dict:
     """The case's log: rate, noise, track counts and lengths, clock offset (module docstring)."""
     n_train = int(rng.integers(1, 5))
     n_held = int(rng.integers(1, 6))
-    lo, hi = (120.0, 200.0) if quick else (120.0, 600.0)
+    lo, hi = (100.0, 140.0) if quick else (120.0, 600.0)
     if quick:
         n_train, n_held = 2, 3
     durations = [float(10 * round(rng.uniform(lo, hi) / 10)) for _ in range(n_train + n_held)]
@@ -228,7 +229,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     cands = [c for c in ef.CATALOGUE if c not in case["exclude"]]
     window = window_for(cfg)
     res = gap.diagnose(veh, FREE, train, held, candidates=cands, window_s=window, dt=DT,
-                       rng=np.random.default_rng(seed), max_nfev=25 if quick else 40)
+                       rng=np.random.default_rng(seed), max_nfev=15 if quick else 40)
     res.pop("_curves", None)
     res["where"].pop("regions", None)  # keep results.json small; the summary stays
     oracle = true_model_scores(world_veh, held, objs, window, res["settings"])
@@ -375,6 +376,8 @@ def main():
     cdir = out / "cases"
     cdir.mkdir(exist_ok=True)
     settings = {"seed": args.seed, "quick": args.quick, "version": VERSION}
+    if args.quick:
+        settings["quick_version"] = QUICK_VERSION
     todo, results, stale = [], [], []
     for case in case_list(args.quick):
         f = cdir / f"{case['id']}.json"
