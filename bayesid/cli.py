@@ -266,6 +266,17 @@ def same_values(a, b, rtol: float = 1e-5) -> bool:
     return True
 
 
+#: Track name -> the file it was read from (this command's tracks), to name files in messages.
+_TRACK_FILES: dict[str, str] = {}
+
+
+def _with_files(message: str) -> str:
+    """A message that names a track (``track 'run3'``) also names its file."""
+    for name, path in _TRACK_FILES.items():
+        message = message.replace(f"track {name!r}", f"track {name!r} ({path})")
+    return message
+
+
 def _read_tracks(groups, vehicle=None) -> dict:
     """Read the track files of each option (``[(option, [paths])]``) once: a file given twice, a
     file whose content equals another one (a renamed copy) or whose samples do (:func:`same_values`:
@@ -295,6 +306,7 @@ def _read_tracks(groups, vehicle=None) -> dict:
                 raise ValueError(f"{option} {p} and {names[tr.name]} are both named {tr.name!r}; rename one "
                                  "(results are reported by track name)")
             names[tr.name] = p
+            _TRACK_FILES[tr.name] = str(p)
             hashes[str(p)] = h
             warnings += check_track(tr, vehicle, str(p))
             for o, q, other in read:
@@ -588,7 +600,7 @@ def main(argv=None) -> int:
                "predict": _predict}[args.command]
         return run(args)
     except (ValueError, KeyError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        print(f"error: {_with_files(str(e))}", file=sys.stderr)
         return 2
 
 

@@ -819,12 +819,12 @@ def check_enough_data(model, ctxs, window_s: float) -> None:
     n = sum(int(c.ts.size) for c in ctxs)
     span = sum(float(c.ts[-1] - c.t_start[0]) if c.ts.size else 0.0 for c in ctxs)
     k = model.n_params
-    names = ", ".join(c.name for c in ctxs)
+    names = ", ".join(f"track {c.name!r}" for c in ctxs)
     if n < MIN_SAMPLES_PER_PARAMETER * k:
-        raise ValueError(f"training track(s) {names}: {n} scored samples for {k} parameters (need at least "
+        raise ValueError(f"training {names}: {n} scored samples for {k} parameters (need at least "
                          f"{MIN_SAMPLES_PER_PARAMETER * k}); give longer or more tracks, or fewer --free")
     if span < window_s:
-        raise ValueError(f"training track(s) {names} last {span:.3g} s in all, less than one {window_s:g} s fit "
+        raise ValueError(f"training {names} last {span:.3g} s in all, less than one {window_s:g} s fit "
                          "window; give longer tracks or a shorter --window")
 
 

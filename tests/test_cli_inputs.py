@@ -276,7 +276,7 @@ def test_too_little_training_data_is_refused(csvs, tmp_path, capsys):
     short.write_text("\n".join(text[:5]) + "\n")  # header + 4 samples
     rc, msg = _run(["fit", "--vehicle", "nps_auv2", "--train", short, "--max-nfev", "3", "--out", tmp_path / "f"],
                    capsys)
-    assert rc == 2 and "short" in msg and "scored samples" in msg, msg
+    assert rc == 2 and "short.csv" in msg and "scored samples" in msg, msg
 
 
 def test_another_export_of_one_log_is_refused_and_a_training_file_is_flagged(csvs, tmp_path, capsys):
