@@ -432,7 +432,8 @@ def _predict(args) -> int:
         meas, xy = msfit.windowed_xy(ctx, S)
         k = max(1, len(xy) // 100000)  # a figure needs no more than 1e5 points a line
         plots.window_tracks(None, meas[::k], xy[::k], None, out / "figures" / f"{tr.name}.png",
-                            title=f"{tr.name}: {window or 'whole-run'} s windows")
+                            title=f"{tr.name}: {window or 'whole-run'} s windows",
+                            labels=("identified model (window protocol)", ""))
         del pr["_sim"][tr.name]
         tb = msfit.turning_band(model, p, cov, tr, args.draws, rng, start=whole["start_rule"],
                                 leadin_s=whole["leadin_s"])

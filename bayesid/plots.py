@@ -405,14 +405,14 @@ def _plan_view(fig, ax, title, path):
     return _save(fig, path)
 
 
-def window_tracks(t, measured, before, after, path, title: str = ""):
+def window_tracks(t, measured, before, after, path, title: str = "", labels=("base model", "with top effect")):
     """Measured track and the protocol's windowed predictions before and after the top effect:
-    arrays (n, 2) of x, y (NaN separates windows)."""
+    arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions."""
     fig, ax = plt.subplots(figsize=(6, 6))
     ax.plot(measured[:, 1], measured[:, 0], "k.", ms=1.5, label="measured")
-    ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label="base model")
+    ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label=labels[0])
     if after is not None:
-        ax.plot(after[:, 1], after[:, 0], "tab:blue", lw=1.0, label="with top effect")
+        ax.plot(after[:, 1], after[:, 0], "tab:blue", lw=1.0, label=labels[1])
     return _plan_view(fig, ax, title, path)
 
 
