@@ -285,7 +285,7 @@ def _bounds(vehicle) -> tuple[float, float, float]:
 
 def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
                        coefficients: dict | None = None, sample_every: int = 1,
-                       rtol: float = 1e-10, atol: float = 1e-10) -> SimResult:
+                       rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853") -> SimResult:
     """Simulate one track with ``solve_ivp`` (DOP853): the anchor for the compiled simulator.
 
     The inputs are a zero-order hold on the manoeuvre grid (input k over [k dt, (k+1) dt)). The
@@ -299,6 +299,8 @@ def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
     coefficients : dict name -> prime value overriding some vehicle coefficients.
     sample_every : store every k-th grid point; must divide ``manoeuvre.n_steps``.
     rtol, atol : solve_ivp tolerances (state units: m, rad, m/s, rad/s).
+    method : solve_ivp method (``"DOP853"``, the anchor; ``"RK45"`` at rtol 1e-8 is the fair speed
+        reference of ``benchmarks/simulate.py``).
 
     Returns
     -------
@@ -352,7 +354,7 @@ def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
 
         in_segment = (sample_steps > a) & (sample_steps <= b)
         eval_steps = np.union1d(sample_steps[in_segment], [b])  # always end at the segment end
-        sol = solve_ivp(f, (a * dt, b * dt), s, method="DOP853", t_eval=eval_steps * dt,
+        sol = solve_ivp(f, (a * dt, b * dt), s, method=method, t_eval=eval_steps * dt,
                         rtol=rtol, atol=atol, events=out_of_bounds)
         n_ok = sol.y.shape[1]
         finite = np.all(np.isfinite(sol.y), axis=0)
