@@ -508,7 +508,8 @@ def _diagnose(args) -> int:
 
 
 START_HELP = ("window start states: measured (causal 1 s estimate), fitted (with the model, over a lead-in), "
-              "auto (fitted when a track does not log u, v and r)")
+              "auto (fitted when a track does not log u, v and r and its positions are too noisy for a 1 s "
+              "slope estimate of the velocity)")
 WEIGHTINGS = ("", "noise", "residual")
 WEIGHTING_HELP = ("channel weights of the fits: noise sds, or the residual RMS of a first fit (two-step "
                   "feasible GLS); default residual for ships, noise for submarines")

@@ -29,7 +29,8 @@ model compared on a track set and for its noise floor:
   start, i.e. after every sample its start used. Training fits estimate the start states of
   their windows jointly with the parameters (variable projection).
 
-``"auto"`` picks ``"fitted"`` when a track does not log all of u, v, r, else ``"measured"``.
+``"auto"`` picks ``"fitted"`` when a track does not log all of u, v, r and its positions are too
+noisy for a 1 s slope estimate of the velocity (:func:`resolve_start`), else ``"measured"``.
 """
 from __future__ import annotations
 
@@ -56,15 +57,41 @@ LEADIN_S = 10.0
 LEADIN_SAMPLES = 25
 
 
+#: Largest standard error (m/s) of the measured rule's 1 s causal slope estimate of the velocity
+#: from the positions for which ``"auto"`` keeps the measured rule on a track without a velocity
+#: log: 0.01 m/s is 0.3 m of drift over a 30 s window. Tank carriage positions (KVLCC2 HSVA, 3e-5 m
+#: at 20 Hz) are far below it, GPS-grade logs (0.05 m at 20 Hz: 0.04 m/s) above it.
+AUTO_MAX_SLOPE_SD = 0.01
+
+
+def slope_sd(track: Track, span_s: float = 1.0) -> float:
+    """Standard error (m/s) of a least-squares slope of ``x``, ``y`` over ``span_s`` seconds of
+    the track's samples: ``sd * sqrt(12 h / span_s**3)`` for position noise ``sd``
+    (:func:`estimate_noise`, unfloored) and sample interval ``h`` (the variance of a regression
+    slope over N = span_s / h equally spaced samples, ``12 sd^2 / (N span_s^2)``). Infinite with
+    fewer than 3 samples in the span or without ``x``, ``y``."""
+    if "x" not in track or "y" not in track or track.n_samples < 3:
+        return math.inf
+    h = float(np.median(np.diff(track.t)))
+    if not h > 0 or span_s / h < 2.0:
+        return math.inf
+    sd = estimate_noise(track, ["x", "y"], floor=False)
+    return max(sd["x"], sd["y"]) * math.sqrt(12.0 * h / span_s ** 3)
+
+
 def resolve_start(start: str, tracks) -> str:
-    """The start rule for a set of tracks: ``"measured"`` or ``"fitted"`` (``"auto"``: fitted when
-    any track lacks a finite u, v or r). Raises ValueError naming an unknown rule."""
+    """The start rule for a set of tracks: ``"measured"`` or ``"fitted"``. ``"auto"``: measured
+    when every track logs u, v and r, or when every track's positions are precise enough for the
+    measured rule's slope estimate (:func:`slope_sd` at most :data:`AUTO_MAX_SLOPE_SD`); else
+    fitted. Raises ValueError naming an unknown rule."""
     if start not in START_RULES:
         raise ValueError(f"start rule must be one of {', '.join(START_RULES)}, not {start!r}")
     if start != "auto":
         return start
     logged = all(k in tr and np.isfinite(np.asarray(tr[k], float)).any() for tr in tracks for k in ("u", "v", "r"))
-    return "measured" if logged else "fitted"
+    if logged or all(slope_sd(tr) <= AUTO_MAX_SLOPE_SD for tr in tracks):
+        return "measured"
+    return "fitted"
 
 
 def wrap(a):

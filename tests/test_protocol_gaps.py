@@ -95,3 +95,32 @@ def test_a_hole_in_a_logged_input_splits_the_track_but_a_slower_input_log_does_n
     with pytest.raises(ValueError, match="clock jump"):  # a 1e9 s gap is refused, not allocated
         a, b = _rows(tr, tr.t <= 90.0, "a"), _rows(tr, tr.t >= 110.0, "b", shift=1e9)
         model.context(Track(np.r_[a.t, b.t], {k: np.r_[a[k], b[k]] for k in tr.data}, name="jump"), 30.0)
+
+
+def _line(sd, rate_hz, rng, velocity_log=False):
+    t = np.arange(0.0, 60.0, 1.0 / rate_hz)
+    data = {"x": t + rng.normal(0, sd, t.size), "y": rng.normal(0, sd, t.size), "psi": 0 * t,
+            "delta_r": 0 * t, "n": 0 * t + 1500.0}
+    if velocity_log:
+        data.update(u=0 * t + 1.0, v=0 * t, r=0 * t)
+    return Track(t, data, name=f"line_{sd}_{rate_hz}")
+
+
+def test_auto_start_rule_keeps_the_measured_rule_for_precise_positions():
+    """'auto' takes the fitted rule only when the positions are too noisy for the measured rule's
+    1 s slope estimate (KVLCC2 tank runs: mm positions, no u, v logged, measured rule better)."""
+    from bayesid.protocol import AUTO_MAX_SLOPE_SD, resolve_start, slope_sd
+
+    rng = np.random.default_rng(5)
+    tank, gps = _line(1e-4, 20, rng), _line(0.2, 5, rng)
+    assert resolve_start("auto", [tank]) == "measured"
+    assert resolve_start("auto", [gps]) == "fitted" and resolve_start("auto", [tank, gps]) == "fitted"
+    assert resolve_start("auto", [_line(0.2, 5, rng, velocity_log=True)]) == "measured"
+    assert slope_sd(tank) < AUTO_MAX_SLOPE_SD < slope_sd(gps)
+    # slope_sd is the spread of 1 s least-squares slopes of x
+    slopes = []
+    for _ in range(200):
+        tr = _line(0.05, 10, rng)
+        sel = tr.t < 1.0 - 1e-9
+        slopes.append(np.polyfit(tr.t[sel], tr["x"][sel], 1)[0])
+    assert slope_sd(_line(0.05, 10, rng)) == pytest.approx(np.std(slopes), rel=0.25)
