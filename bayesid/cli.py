@@ -72,7 +72,7 @@ def _convert(args) -> int:
     out = _check_out(args.out, "convert", args.overwrite)
     sources, skipped, seen = [], [], set()
     for item in args.inputs:
-        kept, skip = datasets._scan_runs(item, args.format)
+        kept, skip = datasets.scan_runs(item, args.format)
         if not kept:
             raise ValueError(f"{item}: no {args.format} run files found")
         for p in kept:

@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from .track import Track, TrackFormatError
-from .track import _fail as _track_fail
+from .track import format_error as _track_fail
 
 __all__ = [
     "FORMATS", "DatasetFormatError", "read_esso_osaka", "read_simman_hsva", "read_simman_marin",
@@ -753,7 +753,7 @@ def _data_text(path: Path, format: str) -> str:
     return "".join(ln + "\n" for ln in body if ln.strip(blank))
 
 
-def _scan_runs(root, format):
+def scan_runs(root, format):
     """(kept paths, [(skipped path, reason)]) for :func:`list_runs` and the CLI."""
     _check_format(format)
     root = Path(root)
@@ -828,4 +828,4 @@ def list_runs(root, format) -> list[Path]:
     FileNotFoundError
         If ``root`` does not exist.
     """
-    return _scan_runs(root, format)[0]
+    return scan_runs(root, format)[0]

@@ -425,7 +425,7 @@ def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float,
 MAX_GRID_STEPS = 1_000_000
 
 
-class _TrackContext:
+class TrackContext:
     """What the model needs of one track: time grid, inputs, windows and samples.
 
     Window ``w`` is simulated over one *segment* of the model's step grid, from step
@@ -563,7 +563,7 @@ class _TrackContext:
         self._tk = np.concatenate([[t[0] - pad], t, [t[-1] + pad]])
         self._ck = np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad])
         self.substeps = int(substeps)
-        self._step_inputs = self.average_inputs(np.zeros(1))[0]
+        self.step_inputs = self.average_inputs(np.zeros(1))[0]
 
     @property
     def n_virtual(self) -> int:
@@ -627,7 +627,7 @@ class _TrackContext:
             delay = e.delay(q) if e.delay(q) is not None else delay
             servo = e.actuator(q) if e.actuator(q) is not None else servo
         if delay is None and servo is None:
-            x = np.repeat(self._step_inputs[None], B, axis=0)
+            x = np.repeat(self.step_inputs[None], B, axis=0)
         elif servo is None:
             x = self.average_inputs(np.zeros(B) if delay is None else np.asarray(delay, float))
         else:
@@ -700,14 +700,16 @@ class EffectModel:
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
     def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
-                leadin_s: float = 0.0) -> _TrackContext:
+                leadin_s: float = 0.0) -> TrackContext:
         """Prepare a track (inputs, windows, window-start states). ``s0`` (12,) replaces the
         measured start state (world generation); otherwise the start rule ``start``
         (:data:`bayesid.protocol.START_RULES`, resolved: ``"measured"`` or ``"fitted"``, with a
         lead-in of ``leadin_s`` seconds) gives it."""
-        return _TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
+        return TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
 
-    def _split(self, P):
+    def split_params(self, P):
+        """(B, n_params) parameter vectors -> (theta (B, n_theta) free coefficients, [q_e (B,
+        n_q_e) per effect, in the model's effect order])."""
         P = np.atleast_2d(np.asarray(P, float))
         th = P[:, :self.n_theta]
         qs, i = [], self.n_theta
@@ -716,7 +718,7 @@ class EffectModel:
             i += n
         return th, qs
 
-    def simulate(self, ctx: _TrackContext, P, nuisance=None, measured_start: bool = True, starts=None,
+    def simulate(self, ctx: TrackContext, P, nuisance=None, measured_start: bool = True, starts=None,
                  samples: str = "scored") -> np.ndarray:
         """Predicted measurements at the track's scored samples.
 
@@ -736,14 +738,14 @@ class EffectModel:
         -------
         (B, n_samples, 12) states as the sensors would report them (NaN in a diverged window).
         """
-        th, qs = self._split(P)
+        th, qs = self.split_params(P)
         B = th.shape[0]
         nu = np.zeros((B, max(self.n_nuisance, 1))) if nuisance is None else np.atleast_2d(nuisance)
         sim = self.sim
         C = sim.coefficient_matrix(th if self.n_theta else None)
         if C.shape[0] != B:
             C = np.repeat(C, B, axis=0)
-        tcoef = np.ascontiguousarray(C[:, sim._force_idx] * sim.tscale)
+        tcoef = np.ascontiguousarray(C[:, sim.force_idx] * sim.tscale)
         M = sim.mass_matrices(C)
         vp = np.repeat(sim.vp[None], B, axis=0)
         for e, q in zip(self.effects, qs):
@@ -785,7 +787,7 @@ class EffectModel:
 START_INDEX = np.array([0, 1, 5, 6, 7, 11])
 
 
-def start_states(ctx: _TrackContext, B: int, starts=None) -> np.ndarray:
+def start_states(ctx: TrackContext, B: int, starts=None) -> np.ndarray:
     """(B, W, 12) window-start states of ``ctx`` (measured frame) plus the offsets ``starts``
     (B, W, 6) in the :data:`START_INDEX` components, headings wrapped."""
     s0 = np.repeat(ctx.s_meas[None], B, axis=0)
@@ -795,7 +797,7 @@ def start_states(ctx: _TrackContext, B: int, starts=None) -> np.ndarray:
     return s0
 
 
-def sample_rows(ctx: _TrackContext, out: np.ndarray, samples: str, angles: slice):
+def sample_rows(ctx: TrackContext, out: np.ndarray, samples: str, angles: slice):
     """States at a context's samples, linearly interpolated between the kernel's output rows
     ``out`` (B, n_virtual + W, n_state) (angles by their wrapped increment). ``samples``:
     ``"scored"`` or ``"lead"``. Returns (S (B, n, n_state), t_rel (n,) since the segment start)."""
@@ -820,7 +822,7 @@ def sample_rows(ctx: _TrackContext, out: np.ndarray, samples: str, angles: slice
     return a, t_rel
 
 
-def errors(ctx: _TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
+def errors(ctx: TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
     """Prediction minus measurement per scored channel, (B, n) arrays (psi wrapped), at the
     scored samples or (``samples="lead"``) at the samples that estimate the start states."""
     out = {}

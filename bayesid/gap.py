@@ -99,7 +99,7 @@ class Fit:
         return float(self.ssr + self.k * math.log(max(self.n_res, 1)))
 
     def effect_parameters(self) -> dict:
-        th, qs = self.model._split(self.p[None])
+        th, qs = self.model.split_params(self.p[None])
         out = {}
         for e, q in zip(self.model.effects, qs):
             out[e.name] = {p: float(v) for p, v in zip(e.params, q[0])}
@@ -111,7 +111,7 @@ class Fit:
         return {n: float(v) for n, v in zip(self.model.free, self.p[:self.model.n_theta])}
 
 
-def _weights(ctx, sd, channels=None):
+def channel_weights(ctx, sd, channels=None):
     """{channel: 1/sd} over the channels of ``ctx`` in the objective (all when ``channels`` is
     None). Raises ValueError when the track measures none of ``channels``."""
     cs = [c for c in ctx.channels if channels is None or c in channels]
@@ -134,7 +134,7 @@ def check_channels(channels):
     return channels
 
 
-def _residuals(model, ctxs, wts, P, nus, starts=None):
+def window_residuals(model, ctxs, wts, P, nus, starts=None):
     """(B, n_res) noise-scaled residuals over all tracks; ``starts``: per track the (B, W, 6)
     start offsets of the fitted start rule (None: the measured rule)."""
     out = []
@@ -186,7 +186,7 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
     nhi = np.concatenate([np.full(e.n_nuisance, e.nuisance_hi) for e in model.effects] or [np.zeros(0)])
     free_p = not fit_nuisance_only
     channels = check_channels(channels)
-    wts = [_weights(c, sd, channels) for c in ctxs]
+    wts = [channel_weights(c, sd, channels) for c in ctxs]
 
     x0 = np.concatenate(([p0] if free_p else []) + nu0) if (free_p or nn) else p0
     xlo = np.concatenate(([lo] if free_p else []) + [nlo] * T)
@@ -232,7 +232,7 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
         P, nus = split_rows(X)
         if vp and starts is None:
             starts = fit_all_starts(P, nus)
-        return _residuals(model, ctxs, wts, P, nus, starts)
+        return window_residuals(model, ctxs, wts, P, nus, starts)
 
     def fun(x):
         if not vp:
@@ -240,7 +240,7 @@ def fit(model: ef.EffectModel, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev
         P, nus = split_rows(x[None])
         st = fit_all_starts(P, nus, want_jac=True)
         last["x"], last["starts"] = x.copy(), st
-        return _residuals(model, ctxs, wts, P, nus, st)[0]
+        return window_residuals(model, ctxs, wts, P, nus, st)[0]
 
     def jac(x):
         h = 1e-6 * np.maximum(xsc, 1e-8)
@@ -309,9 +309,9 @@ def heldout_nuisance(model, fitres: Fit, ctxs, sd: dict, n_grid: int = 8, max_nf
     P = np.repeat(fitres.p[None], n_grid, axis=0)
     starts = []
     for ctx in ctxs:
-        w = _weights(ctx, sd)
+        w = channel_weights(ctx, sd)
         st = [shooting.fit_starts(model, ctx, P, grid, w)] if ctx.start == "fitted" else None
-        r = _residuals(model, [ctx], [w], P, [grid], st)
+        r = window_residuals(model, [ctx], [w], P, [grid], st)
         starts.append(grid[int(np.argmin(np.sum(r * r, axis=1)))].copy())
     return fit(model, ctxs, sd, fitres.p, starts, max_nfev=max_nfev, fit_nuisance_only=True).nuisance
 
@@ -445,7 +445,7 @@ def _missing_forces(model, fitres, track: Track):
         return model.missing_forces(fitres, track)
     veh = model.vehicle.with_coefficients(fitres.coefficients()) if model.free else model.vehicle
     motion = sindy.estimate_motion(track)
-    inputs = sindy._track_inputs(track)
+    inputs = sindy.track_inputs(track)
     known = [t for t in sindy.horizontal_terms("X") + sindy.horizontal_terms("Y") + sindy.horizontal_terms("N")
              if veh.coefficients.get(t, 0.0) != 0.0]
     known = sorted(set(known) | set(sindy.ADDED_MASS))
@@ -490,7 +490,7 @@ def signature_regression(F_list, cols_list, rng, n_models: int = 50, threshold: 
     import pysindy as ps
     from threadpoolctl import threadpool_limits
 
-    from .sindy import _legacy_seed
+    from .sindy import legacy_seed
 
     effects = list(cols_list[0])
     prob = {e: 0.0 for e in effects}
@@ -510,7 +510,7 @@ def signature_regression(F_list, cols_list, rng, n_models: int = 50, threshold: 
         Xn = X[:, live] / rx[live]
         stl = ps.STLSQ(threshold=threshold, alpha=0.0, normalize_columns=False, unbias=True, max_iter=20)
         ens = ps.EnsembleOptimizer(stl, bagging=True, n_models=n_models, replace=True)
-        with _legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
+        with legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
             warnings.simplefilter("ignore")
             ens.fit(Xn, y / ry)
         xi = np.array(ens.coef_list)[:, 0, :]
@@ -677,7 +677,10 @@ def _noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
     return pooled_scores(errs)
 
 
-def _pooled_sd(tracks, floor: bool = True) -> dict:
+def pooled_noise_sd(tracks, floor: bool = True) -> dict:
+    """{channel: noise sd} pooled over tracks: the median over the tracks of
+    :func:`bayesid.protocol.estimate_noise` of each scored channel (SI units; floored at
+    :data:`bayesid.protocol.NOISE_FLOOR` unless ``floor`` is False)."""
     sds = {}
     for tr in tracks:
         for k, v in estimate_noise(tr, [c for c in CHANNELS if c in tr], floor=floor).items():
@@ -890,7 +893,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     for c in cands:
         getter(c)
     say = progress or (lambda msg: None)
-    sd = _pooled_sd(train + heldout)
+    sd = pooled_noise_sd(train + heldout)
 
     fw = fit_window_s if fit_window_s is not None else (sh.FIT_WINDOW_S if is_ship else window_s)
     rule, lead = start_settings(start, train + heldout, window_s, dt, leadin_s)
@@ -912,7 +915,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
     nominal = Fit(base, base.start(), [np.zeros(0)] * len(train), 0.0, 0, 0, True, "nominal", 0.0)
     # the noise itself, not the weights' lower bound (a 1 mm carriage track is not 1 cm noise)
-    sd_raw = _pooled_sd(train + heldout, floor=False)
+    sd_raw = pooled_noise_sd(train + heldout, floor=False)
     floor = min((_noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)),
                 key=lambda d: d["rms_position_m"])
     w = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])

@@ -134,7 +134,7 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     rule = resolve_start(start, train)
     ctxs = [model.context(t, window_s, start=rule) for t in train]
     gap.check_enough_data(model, ctxs, window_s)
-    sd = gap._pooled_sd(train)
+    sd = gap.pooled_noise_sd(train)
     p0 = model.start()
     seed_info = {"used": False}
     if seed and isinstance(model, sh.ShipModel):
@@ -144,7 +144,7 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
         except Exception as exc:  # noqa: BLE001 - reported; the fit starts from nominal
             info, ps = {"error": f"{type(exc).__name__}: {exc}"}, None
         if ps is not None:
-            c_nom, c_seed = gap._residuals(model, ctxs, [gap._weights(c, sd, channels) for c in ctxs],
+            c_nom, c_seed = gap.window_residuals(model, ctxs, [gap.channel_weights(c, sd, channels) for c in ctxs],
                                            np.vstack([p0, ps]), [None] * len(ctxs))
             info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
             if info["cost_seed"] < info["cost_nominal"]:

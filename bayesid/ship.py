@@ -593,11 +593,11 @@ class ShipModel:
     def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
                 leadin_s: float = 0.0):
         """Windows, start states and step inputs of a track (see
-        :class:`bayesid.effects._TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
+        :class:`bayesid.effects.TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
         wind averaged over each step."""
-        from .effects import _TrackContext
+        from .effects import TrackContext
 
-        ctx = _TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
+        ctx = TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
         # wind held over a step: the mean of the interpolated wind at 5 points in the step
         tt = ctx.t_grid[:-1, None] + self.dt * (np.arange(5)[None, :] + 0.5) / 5
         w = wind_components(track, tt.ravel()).reshape(ctx.n_steps, 5, 2).mean(axis=1)
@@ -605,11 +605,11 @@ class ShipModel:
         return ctx
 
     # [theta_free, q_1, ...] -> (theta (B, P), [q_e (B, n_e)]): the same layout as EffectModel
-    _split = EffectModel._split
+    split_params = EffectModel.split_params
 
     def kernel_params(self, P) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(B, NP) parameter vectors, (B, 2) currents and (B,) delays (None) of parameter rows."""
-        th, qs = self._split(P)
+        th, qs = self.split_params(P)
         B = th.shape[0]
         prm = np.repeat(self.prm0[None], B, axis=0)
         if self.n_theta:
@@ -635,7 +635,7 @@ class ShipModel:
 
         prm, cur, delay = self.kernel_params(P)
         B = prm.shape[0]
-        U = ctx._step_inputs[None] if delay is None else ctx.average_inputs(np.asarray(delay, float))
+        U = ctx.step_inputs[None] if delay is None else ctx.average_inputs(np.asarray(delay, float))
         inp = np.empty((B, ctx.n_steps, 2))
         inp[:, :, 0] = U[:, :, 0]
         inp[:, :, 1] = U[:, :, 3] / 60.0
@@ -654,7 +654,7 @@ class ShipModel:
         S6[..., 4] += -s * cur[:, None, 0] + c * cur[:, None, 1]
         S = np.zeros(S6.shape[:2] + (12,))
         S[..., [0, 1, 5, 6, 7, 11]] = S6
-        _, qs = self._split(P)
+        _, qs = self.split_params(P)
         for e, q in zip(self.effects, qs):  # sensor models (the other ship effects act in the kernel)
             e.to_measured(S, t_rel, q)
         S[..., 5] = wrap(S[..., 5])

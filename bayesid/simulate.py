@@ -153,7 +153,7 @@ class Simulator:
                             and (mode == "6dof" or t.horizontal)]
         self.tfac, self.tdof = terms.factor_table(self.force_names)
         self.tscale = terms.prime_scale(self.force_names, vehicle.rho, vehicle.L)
-        self._force_idx = np.array([terms.INDEX[n] for n in self.force_names], dtype=np.int64)
+        self.force_idx = np.array([terms.INDEX[n] for n in self.force_names], dtype=np.int64)
         self._free_idx = np.array([terms.INDEX[n] for n in free], dtype=np.int64)
         self._am = [(terms.INDEX[n], terms.term(n)) for n in terms.names_where(kind="added_mass")]
         self._M0 = vehicle.mass_matrix({})  # rigid body only
@@ -208,7 +208,7 @@ class Simulator:
         """What the compiled kernels take per track: dimensional force-term coefficients
         (B, n_force_terms) and inverse mass matrices (B, 6, 6)."""
         C = self.coefficient_matrix(theta_free)
-        return np.ascontiguousarray(C[:, self._force_idx] * self.tscale), self.inverse_mass_matrices(C)
+        return np.ascontiguousarray(C[:, self.force_idx] * self.tscale), self.inverse_mass_matrices(C)
 
     def run(self, theta_free=None, initial_states=None) -> SimResult:
         """Simulate one track per row of ``theta_free`` (B, P) -- or the vehicle as is.

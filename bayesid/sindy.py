@@ -515,7 +515,7 @@ def candidate_library(motion: dict, inputs, vehicle, extras: bool = True,
 # ---------------------------------------------------------------------------------------------
 
 @contextlib.contextmanager
-def _legacy_seed(rng: np.random.Generator):
+def legacy_seed(rng: np.random.Generator):
     """pysindy's EnsembleOptimizer draws its bootstrap indices from the legacy global
     ``np.random`` state; seed it from ``rng`` for the duration and restore it afterwards, so the
     result depends on ``rng`` only and the caller's global state is untouched."""
@@ -527,7 +527,9 @@ def _legacy_seed(rng: np.random.Generator):
         np.random.set_state(saved)
 
 
-def _track_inputs(track: Track) -> np.ndarray:
+def track_inputs(track: Track) -> np.ndarray:
+    """(n_samples, 4) inputs ``delta_r, delta_s, delta_b, n`` of a track (rad, rpm), absent
+    columns 0. Raises ValueError naming the track when ``delta_r`` or ``n`` is missing."""
     for c, why in (("delta_r", "rudder terms"), ("n", "propulsion term Cd0 (rpm)")):
         _column(track, c, why)
     return track.inputs(fill=0.0)
@@ -635,7 +637,7 @@ def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshol
     if not ridge >= 0:
         raise ValueError(f"ridge must be >= 0, got {ridge}")
     motion = estimate_motion(track, window_s=window_s, polyorder=polyorder)
-    inputs = _track_inputs(track)
+    inputs = track_inputs(track)
     kv = _known_values(known, vehicle)
     missing = [k for k in ADDED_MASS if k not in kv]
     if missing:
@@ -680,7 +682,7 @@ def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshol
         stl = ps.STLSQ(threshold=float(threshold), alpha=float(ridge) * n, normalize_columns=False,
                        unbias=True, max_iter=20)
         ens = ps.EnsembleOptimizer(stl, bagging=True, n_models=int(n_models), replace=True)
-        with _legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
+        with legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
             warnings.simplefilter("ignore")  # STLSQ "eliminated all coefficients", convergence
             ens.fit(Xn, yn)
             cond, vif_live = _collinearity(Xn)

@@ -77,7 +77,7 @@ class TrackFormatError(ValueError):
         self.path, self.row, self.column = path, row, column
 
 
-def _fail(path, message, row=None, column=None, error=None):
+def format_error(path, message, row=None, column=None, error=None):
     """The error (``error`` class, default :class:`TrackFormatError`) naming file, row, column."""
     where = str(path)
     if row is not None:
@@ -345,27 +345,27 @@ def _parse_header(path, cells, row):
     for cell in cells:
         m = _HEADER.fullmatch(cell.strip())
         if m is None or not m["name"]:
-            raise _fail(path, f"malformed column header {cell.strip()!r} "
+            raise format_error(path, f"malformed column header {cell.strip()!r} "
                         "(expected 'name', 'name [unit]' or 'name (unit)')", row=row)
         name = m["name"]
         unit = m["u1"] if m["u1"] is not None else m["u2"]
         if name in names:
-            raise _fail(path, "duplicate column name", row=row, column=name)
+            raise format_error(path, "duplicate column name", row=row, column=name)
         if unit is not None:
             unit = unit.strip()
             if name in UNITS:
                 if unit != UNITS[name]:
-                    raise _fail(path, f"unknown unit {unit!r}; this column must be in "
+                    raise format_error(path, f"unknown unit {unit!r}; this column must be in "
                                 f"{UNITS[name]!r}", row=row, column=name)
             elif not unit:
-                raise _fail(path, "empty unit annotation", row=row, column=name)
+                raise format_error(path, "empty unit annotation", row=row, column=name)
             else:
                 units[name] = unit
         names.append(name)
     if "t" not in names:
-        raise _fail(path, f"no 't' column (columns: {names})", row=row, column="t")
+        raise format_error(path, f"no 't' column (columns: {names})", row=row, column="t")
     if not any(k in STATE_NAMES for k in names):
-        raise _fail(path, f"no state column; need at least one of {list(STATE_NAMES)} "
+        raise format_error(path, f"no state column; need at least one of {list(STATE_NAMES)} "
                     f"(columns: {names})", row=row)
     return names, units
 
@@ -375,11 +375,11 @@ def _parse_value(path, text, row, column):
     if not text:
         return math.nan
     if not _NUMBER.fullmatch(text):
-        raise _fail(path, f"non-numeric value {text!r} (leave the field empty if missing)",
+        raise format_error(path, f"non-numeric value {text!r} (leave the field empty if missing)",
                     row=row, column=column)
     value = float(text)
     if not math.isfinite(value):
-        raise _fail(path, f"value {text!r} overflows float64", row=row, column=column)
+        raise format_error(path, f"value {text!r} overflows float64", row=row, column=column)
     return value
 
 
@@ -420,13 +420,13 @@ def _check_rows(path, names, it, block, rows, last):
     """
     for cells, row in zip(block, rows):
         if len(cells) != len(names):
-            raise _fail(path, f"has {len(cells)} fields, header has {len(names)}", row=row)
+            raise format_error(path, f"has {len(cells)} fields, header has {len(names)}", row=row)
         t = _parse_value(path, cells[it], row, "t")
         if math.isnan(t):
-            raise _fail(path, "missing time value", row=row, column="t")
+            raise format_error(path, "missing time value", row=row, column="t")
         if last is not None and t <= last[0]:
             what = "duplicate" if t == last[0] else "decreasing"
-            raise _fail(path, f"time not strictly increasing ({what}: {t!r} after "
+            raise format_error(path, f"time not strictly increasing ({what}: {t!r} after "
                         f"{last[0]!r} at row {last[1]})", row=row, column="t")
         last = (t, row)
         for k, cell in zip(names, cells):
@@ -483,7 +483,7 @@ def read_csv(path) -> Track:
         try:
             return _read_stream(path, f)
         except UnicodeDecodeError as exc:
-            raise _fail(path, f"not UTF-8 text ({exc})") from None
+            raise format_error(path, f"not UTF-8 text ({exc})") from None
 
 
 def _read_stream(path, f) -> Track:
@@ -499,7 +499,7 @@ def _read_stream(path, f) -> Track:
             break
         n_before += 1
     if header_line is None:
-        raise _fail(path, "empty file (no header row)")
+        raise format_error(path, "empty file (no header row)")
 
     reader = csv.reader(itertools.chain([header_line], f))
     names = it = None
@@ -529,12 +529,12 @@ def _read_stream(path, f) -> Track:
         if block:
             flush()
     except csv.Error as exc:
-        raise _fail(path, f"CSV syntax error: {exc}", row=n_before + reader.line_num) from None
+        raise format_error(path, f"CSV syntax error: {exc}", row=n_before + reader.line_num) from None
 
     if names is None:
-        raise _fail(path, "empty file (no header row)")
+        raise format_error(path, "empty file (no header row)")
     if not blocks:
-        raise _fail(path, "no data rows after the header", row=n_before + 1)
+        raise format_error(path, "no data rows after the header", row=n_before + 1)
     columns = [np.concatenate(parts) for parts in zip(*blocks)]
     del blocks
     return Track(columns[it], {k: c for k, c in zip(names, columns) if k != "t"},

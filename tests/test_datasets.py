@@ -214,7 +214,7 @@ def test_list_runs_skips_aux_and_trimmed_copies(tmp_path):
     write(tmp_path / "README.md", ["# x"])
     runs = list_runs(tmp_path, "esso-osaka")
     assert [p.name for p in runs] == ["turn_a.csv", "turn_b.csv"]
-    kept, skipped = ds._scan_runs(tmp_path, "esso-osaka")
+    kept, skipped = ds.scan_runs(tmp_path, "esso-osaka")
     assert [(p.name, "trimmed copy of turn_a.csv" in why) for p, why in skipped] == \
         [("turn_cut_a.csv", True)]
     hs = tmp_path / "h"

@@ -77,7 +77,7 @@ def kernel_force_and_rhs(sim, theta, s, uin):
     """dynamics.generalized_force's tau (6,) and dynamics.rhs's ds (12,), arrays built as in
     Simulator.run."""
     C = sim.coefficient_matrix(theta)
-    tcoef = np.ascontiguousarray(C[:, sim._force_idx] * sim.tscale)[0]
+    tcoef = np.ascontiguousarray(C[:, sim.force_idx] * sim.tscale)[0]
     Minv = sim.inverse_mass_matrices(C)[0]
     f, tau, ds = np.empty(terms.N_FEATURES), np.empty(6), np.empty(12)
     s, uin = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(uin, dtype=float)
