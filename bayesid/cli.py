@@ -279,9 +279,10 @@ def _with_files(message: str) -> str:
 
 def _read_tracks(groups, vehicle=None) -> dict:
     """Read the track files of each option (``[(option, [paths])]``) once: a file given twice, a
-    file whose content equals another one (a renamed copy) or whose samples do (:func:`same_values`:
-    another export of one log), a folder, and two tracks with the same name are errors naming both; every track passes :func:`bayesid.validate.check_track`
-    (units; plausibility for ``vehicle``), whose warnings are printed. Returns {option: [Track]},
+    file whose content equals another one (a renamed copy) or whose samples do
+    (:func:`same_values`: another export of one log), a folder, and two tracks with the same name
+    are errors naming both; every track passes :func:`bayesid.validate.check_track` (units;
+    plausibility for ``vehicle``), whose warnings are printed. Returns {option: [Track]},
     the files' SHA-256 under ``"_sha256"`` and the warnings under ``"_warnings"``."""
     from .track import read_csv
     from .validate import check_track

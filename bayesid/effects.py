@@ -386,7 +386,8 @@ def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float,
     ``max(5 x the median sample interval, min_gap_s)`` apart (a logging gap, or a stretch of
     empty cells). A logged input (``delta_r``, ``delta_s``, ``delta_b``, ``n``) with no value
     for longer than that and five of its own median intervals removes the samples in between
-    (a piece never runs on a guessed input; shorter holes are held, zero-order). Raises ValueError naming the track and column when x, y or psi is absent or
+    (a piece never runs on a guessed input; shorter holes are held, zero-order). Raises
+    ValueError naming the track and column when x, y or psi is absent or
     entirely empty."""
     t = np.asarray(track.t, float)
     ok = np.ones(t.size, bool)
