@@ -32,6 +32,7 @@ import numpy as np
 from . import effects as ef
 from . import gap, shooting
 from . import ship as sh
+from .estimation.laplace import gauss_newton_covariance
 from .protocol import pooled_scores, resolve_start, start_settings
 from .track import Track
 from .vehicle import load_vehicle
@@ -76,8 +77,7 @@ def laplace_covariance(fitres: gap.Fit, ctxs) -> tuple[np.ndarray, dict]:
     k = J.shape[1]
     s2 = fitres.ssr / max(fitres.n_res - k, 1)
     infl = _ar1_inflation(fitres, ctxs)
-    JtJ = J.T @ J
-    cov = np.linalg.pinv(JtJ, rcond=1e-12) * s2 * infl
+    cov = gauss_newton_covariance(J, residual_variance=s2, inflation=infl)
     sv = np.linalg.svd(J, compute_uv=False)
     return cov, {"residual_variance": s2, "ar1_inflation": infl,
                  "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")}

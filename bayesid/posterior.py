@@ -195,14 +195,14 @@ def laplace_covariance(problem, theta_hat, sigmas: dict, prior: CoefficientPrior
     ------
     KeyError naming a channel without a sigma (:func:`bayesid.identifiability.noise_vector`).
     """
+    from .estimation.laplace import gauss_newton_covariance
     from .identifiability import noise_vector
 
     p = problem.scaled(theta_hat)
     _, J = problem.jacobian(p, central=True)                  # d r / d p
     Jw = (J / problem.reference[None, :]) / noise_vector(problem, sigmas)[:, None]   # d r / d theta
     Jw = np.where(problem.mask.reshape(-1)[:, None], Jw, 0.0)
-    H = Jw.T @ Jw + np.diag(1.0 / prior_sd(prior) ** 2)
-    return np.linalg.inv(0.5 * (H + H.T))
+    return gauss_newton_covariance(Jw, prior_precision=1.0 / prior_sd(prior) ** 2)
 
 
 def marginal_table(samples: np.ndarray, names, prior: CoefficientPrior, truth: dict | None = None,
