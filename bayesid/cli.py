@@ -375,6 +375,7 @@ def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> Non
 def _fit(args) -> int:
     """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
     from . import msfit
+    from .report import write_fit_report
 
     if args.window is not None and not args.window > 0:
         raise ValueError(f"--window must be a positive number of seconds, not {args.window:g}")
@@ -389,7 +390,7 @@ def _fit(args) -> int:
                          start=args.start)
     doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json",
                            provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
-    msfit.write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
+    write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
           f"wrote {out / 'model.json'}")
     return 0
@@ -475,6 +476,7 @@ def _diagnose(args) -> int:
     import numpy as np
 
     from . import effects, gap, msfit, ship
+    from .report import write_diagnosis
 
     _check_out(args.out, "diagnose", args.overwrite)
     vehicle = msfit.load_any_vehicle(args.vehicle)
@@ -501,7 +503,7 @@ def _diagnose(args) -> int:
                        start=args.start, leadin_s=args.leadin if args.leadin > 0 else None, progress_bars=True)
     res["warnings"] = got["_warnings"]
     res["input_sha256"] = got["_sha256"]
-    gap.write_report(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
+    write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"verdict: {res['verdict']}; held-out RMS {res['gap_before']['heldout_rms_m']:.3f} m -> "
           f"{res['gap_after']['heldout_rms_m']:.3f} m (noise floor {res['noise_floor']['heldout_rms_m']:.3f} m, "
           f"window starts {res['settings']['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}")

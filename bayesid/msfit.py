@@ -389,31 +389,6 @@ def windowed_xy(ctx, S):
     return np.column_stack([ctx.meas["x"], ctx.meas["y"]]), xy
 
 
-def write_fit_report(doc: dict, out, command: str = "") -> None:
-    """``report.md`` of ``bayesid fit``: the identified coefficients with Laplace sds."""
-    from .report import fmt, md_table
-
-    out = Path(out)
-    rows = [[n, fmt(s0, 4), fmt(p, 4), fmt(sd, 3)] for n, s0, p, sd in
-            zip(doc["param_names"], doc["start"], doc["p"], doc["sd"])]
-    ts = doc["train_scores"]
-    warn = (doc.get("provenance") or {}).get("warnings") or []
-    lines = ["# Identified model", "", f"`{command}`" if command else "", "",
-             *(["**Input warnings:** " + "; ".join(warn), ""] if warn else []),
-             f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
-             f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s; "
-             f"{len(doc['train_runs'])} training run(s).", "",
-             f"Equation-error seed: {'used' if doc['seed'].get('used') else 'not used'} "
-             f"(R^2 X/Y/N: {', '.join(fmt(v) for v in doc['seed'].get('r2', {}).values()) or '-'}).", "",
-             f"Training RMS position error {fmt(ts['rms_position_m'])} m, heading {fmt(ts['rms_heading_deg'])} deg "
-             f"({doc['fit_window_s']} s windows). Fit: {doc['fit']['nfev']} evaluations, {doc['fit']['message']}", "",
-             "Posterior: Laplace approximation, residual variance x AR(1) inflation "
-             f"{fmt(doc['posterior']['ar1_inflation'])}; Jacobian condition number "
-             f"{fmt(doc['posterior']['condition_number'])}.", "",
-             md_table(["parameter", "start", "identified", "sd (Laplace)"], rows), ""]
-    (out / "report.md").write_text("\n".join(lines))
-
-
 def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured", leadin_s: float = 0.0,
                  keep_draws: bool = False, chunk: int | None = None) -> dict:
     """Whole-run open-loop prediction of a track from its first sample (``start`` rule, resolved:

@@ -1,4 +1,6 @@
-"""Report layer shared by the study scripts: output folder, manifest, JSON and markdown tables.
+"""Report layer: output folder, manifest, JSON and markdown tables shared by the study scripts,
+and the report writers of the commands (:func:`write_diagnosis` of a gap diagnosis,
+:func:`write_fit_report` of ``bayesid fit``); algorithm modules write no files of their own.
 
 The study contract (DESIGN.md): each run writes ``report.md``, ``figures/*.png``,
 ``results.json`` and ``manifest.json`` (command line, seed, git commit, package versions, wall
@@ -103,3 +105,147 @@ def fmt(x, digits: int = 3) -> str:
     if 1e-3 <= abs(x) < 1e4:
         return f"{x:.{digits}g}"
     return f"{x:.{max(digits - 1, 1)}e}"
+
+
+# --- the gap diagnosis (bayesid diagnose, studies/real_ships.py) -------------------------------
+
+def attribution_lines(res: dict) -> list[str]:
+    """The verdict of a :func:`bayesid.gap.diagnose` result in words: cause, contributors (with
+    their shares) and the remainder."""
+    out = []
+    if res.get("cause"):
+        out.append(f"Cause: **{res['cause']}** (with it the held-out error is inside the noise-floor band).")
+    for c in res.get("contributors", []):
+        out.append(f"- Contributor **{c['effect']}** ({'added' if c['added'] else 'not added'}): removes "
+                   f"{fmt(c['share_of_excess'])} of the base model's excess (held-out {fmt(c['heldout_rms_m'])} m; "
+                   f"paired window test p = {fmt(c['window_p_value'])}, ΔBIC {fmt(c['delta_bic'], 4)}).")
+    rem = res.get("remainder")
+    if rem and res["significant_gap"]:
+        out.append(f"Remainder: {fmt(rem['fraction_of_excess'])} of the excess over the floor "
+                   f"(held-out {fmt(rem['heldout_rms_m'])} m), "
+                   + ("still significant: no candidate explains it." if rem["significant"] else "inside the band."))
+    return out
+
+
+def write_diagnosis(res: dict, out, heldout: list, command: str = "") -> None:
+    """Write ``diagnosis.json``, ``report.md`` and ``figures/*.png`` of a
+    :func:`bayesid.gap.diagnose` result into the folder ``out`` (created)."""
+    from . import gap, plots
+
+    out = Path(out)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    curves = res.get("_curves")
+    doc = {k: v for k, v in res.items() if not k.startswith("_")}
+    write_json(out / "diagnosis.json", doc)
+    figs = []
+    if res["ranking"]:
+        figs.append(plots.gap_ranking(res["ranking"], res["gap_before"]["heldout_rms_m"],
+                                      res["noise_floor"]["heldout_rms_m"], out / "figures" / "ranking.png"))
+    figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
+    figs.append(plots.gap_regions(res["where"], out / "figures" / "regions.png"))
+    if curves is not None and heldout:
+        w = res["settings"]["window_s"]
+        bm, bf, _ = curves["base"]
+        am, af, anu = curves["after"]
+        rule, lead = res["settings"]["start_rule"], res["settings"]["leadin_s"]
+        meas, before = gap.window_xy(bm, bf, heldout[0], w, start=rule, leadin_s=lead)
+        after = None
+        if res["effects_added"]:
+            _, after = gap.window_xy(am, af, heldout[0], w, None if anu is None else anu[0], start=rule,
+                                  leadin_s=lead)
+        figs.append(plots.window_tracks(None, meas, before, after, out / "figures" / "heldout_track.png",
+                                        title=f"{heldout[0].name}: {w} s windows"))
+    gb, ga = res["gap_before"], res["gap_after"]
+    lines = [f"# Gap diagnosis", "", f"`{command}`" if command else "", "",
+             *(["**Input warnings:** " + "; ".join(res["warnings"]), ""] if res.get("warnings") else []),
+             f"**Verdict: {res['verdict']}**"
+             + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""), "",
+             f"Training tracks: {', '.join(res['train_tracks'])}; held-out: {', '.join(res['heldout_tracks'])}. "
+             f"Free coefficients: {', '.join(res['settings']['free']) or 'none'}. Protocol windows: "
+             f"{res['settings']['window_s']} s; model step {res['settings']['dt']} s; channel weights of the fits: "
+             f"{res['settings'].get('weighting', 'noise')} sds ({', '.join(f'{k} {fmt(v)}' for k, v in res.get('fit_sd', {}).items())}).", "",
+             "## How far", "",
+             md_table(["", "train RMS (m)", "held-out RMS (m)", "held-out max (m)", "heading RMS (deg)",
+                       "train log-lik. (nats)", "held-out log-lik. (nats)"],
+                      [[label, fmt(g["train_rms_m"]), fmt(g["heldout_rms_m"]), fmt(g["heldout_max_m"]),
+                        fmt(g["heading_rms_deg"]), fmt(g.get("train_log_likelihood"), 5),
+                        fmt(g.get("heldout_log_likelihood"), 5)]
+                       for label, g in (("base model", gb),
+                                        ("with " + ("+".join(res["effects_added"]) or "nothing"), ga))]),
+             "Log-likelihood: Gaussian at the fits' channel sds, samples treated as independent (a "
+             "before/after comparison on the same samples, not a calibrated likelihood).",
+             "", f"Held-out shrinkage {fmt(res['heldout_shrinkage'])}; noise floor (perfect model at the "
+             f"estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
+             f"{fmt(res['gap_ratio'])} (significant above {res['thresholds']['none_ratio']}).", "",
+             "## Which", "",
+             md_table(["effect", "held-out RMS (m)", "excess removed", "window test p", "ΔBIC (train)", "role",
+                       "parameters"],
+                      [[r["effect"], fmt(r["heldout_rms_m"]), fmt(r["excess_removed"]), fmt(r.get("window_p_value")),
+                        fmt(r["delta_bic"], 4), r.get("role") or "-",
+                        ", ".join(f"{k} {fmt(v)}" for k, v in r["parameters"].items() if k != "per_track_nuisance")]
+                       for r in res["ranking"]]),
+             "", *attribution_lines(res),
+             "", f"Rules: an effect is the cause if, added, the held-out error falls within "
+             f"{res['thresholds']['none_ratio']} x the floor, it removes >= {res['thresholds']['explain_fraction']} "
+             f"of the excess and its ΔBIC <= {res['thresholds']['bic_threshold']}; a contributor improves the "
+             f"held-out windows (paired Wilcoxon p < {res['thresholds']['partial_p']}, ΔBIC <= "
+             f"{res['thresholds']['bic_threshold']}) without closing the gap and is added, the next round trying the "
+             "others on top of it; `+unexplained` marks a remainder still above the band; `none`: the gap is not "
+             f"significant. Window starts: {res['settings'].get('start_rule', 'measured')} rule"
+             + (f" (lead-in {fmt(res['settings'].get('leadin_s'))} s)" if res["settings"].get("start_rule") == "fitted"
+                else "") + ".", "",
+             "Sparse-regression support (ensemble STLSQ inclusion probability of each effect's force "
+             "signature in the missing forces; sensor bias leaves none): "
+             + ", ".join(f"{k} {fmt(v)}" for k, v in res["sindy_support"].items() if not isinstance(v, str)),
+             "", "## Where", "",
+             md_table(["channel", "RMS", "noise sd", "floor RMS", "ratio"],
+                      [[c, fmt(d.get("rms")), fmt(d.get("noise_sd")), fmt(d.get("floor_rms")), fmt(d.get("excess_ratio"))]
+                       for c, d in res["where"]["channels"].items()]),
+             "", f"Dominant channel: {res['where']['dominant_channel']}; dominant region: "
+             f"{res['where']['dominant_region']['region']} (error growth {fmt(res['where']['dominant_region']['growth_ratio'])}"
+             " x the mean).", ""]
+    ph = res["where"]["phases"]
+    lines += ["Phases: " + "; ".join(f"{k}: {fmt(v['fraction_of_time'])} of the time, growth "
+                                      f"{fmt(v['mean_error_growth_mps'])} m/s" for k, v in ph.items()), ""]
+    if res["where"].get("forces"):
+        lines += ["Missing forces (RMS, inverse dynamics of the first held-out track's smoothed motion minus "
+                  "the fitted model): " + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["forces"].items()
+                                                     if not isinstance(v, str)), ""]
+    if res["where"].get("wind_correlation"):
+        lines += ["Apparent-wind dependence: correlation of the missing X, Y, N with the wind-load signatures "
+                  "(0.5 rho_a VA^2 A cos g, sin g) over the held-out tracks: "
+                  + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["wind_correlation"].items()), ""]
+    for k, v in res["where"].get("spectrum", {}).items():
+        wb = res["where"]["whiteness"].get(k, {})
+        ic = res["where"]["input_correlation"].get(k, {})
+        lines.append(f"- {k}: spectral peak at {fmt(v['peak_period_s'])} s ({fmt(v['peak_to_median'])} x median); "
+                     f"Ljung-Box p = {fmt(wb.get('p_value'))}; "
+                     + ", ".join(f"corr with {n} {fmt(c['max_abs_corr'])} at lag {fmt(c['lag_s'])} s"
+                                 for n, c in ic.items()))
+    lines += ["", *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
+    (out / "report.md").write_text("\n".join(lines))
+
+
+# --- bayesid fit ----------------------------------------------------------------------------
+
+def write_fit_report(doc: dict, out, command: str = "") -> None:
+    """``report.md`` of ``bayesid fit``: the identified coefficients with Laplace sds."""
+    out = Path(out)
+    rows = [[n, fmt(s0, 4), fmt(p, 4), fmt(sd, 3)] for n, s0, p, sd in
+            zip(doc["param_names"], doc["start"], doc["p"], doc["sd"])]
+    ts = doc["train_scores"]
+    warn = (doc.get("provenance") or {}).get("warnings") or []
+    lines = ["# Identified model", "", f"`{command}`" if command else "", "",
+             *(["**Input warnings:** " + "; ".join(warn), ""] if warn else []),
+             f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
+             f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s; "
+             f"{len(doc['train_runs'])} training run(s).", "",
+             f"Equation-error seed: {'used' if doc['seed'].get('used') else 'not used'} "
+             f"(R^2 X/Y/N: {', '.join(fmt(v) for v in doc['seed'].get('r2', {}).values()) or '-'}).", "",
+             f"Training RMS position error {fmt(ts['rms_position_m'])} m, heading {fmt(ts['rms_heading_deg'])} deg "
+             f"({doc['fit_window_s']} s windows). Fit: {doc['fit']['nfev']} evaluations, {doc['fit']['message']}", "",
+             "Posterior: Laplace approximation, residual variance x AR(1) inflation "
+             f"{fmt(doc['posterior']['ar1_inflation'])}; Jacobian condition number "
+             f"{fmt(doc['posterior']['condition_number'])}.", "",
+             md_table(["parameter", "start", "identified", "sd (Laplace)"], rows), ""]
+    (out / "report.md").write_text("\n".join(lines))

@@ -76,13 +76,14 @@ def _scores(model, fitres, tracks, window):
 def evaluate(name, ship, train, held, candidates, args, out, log):
     """Diagnose, then score base and after models at 30 s, 60 s and whole run."""
     from bayesid import gap, msfit
+    from bayesid.report import write_diagnosis
     from bayesid.ship import FIT_WINDOW_S as fw
 
     t0 = time.perf_counter()
     res = gap.diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
                        dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev, start="measured",
                        progress=lambda m: log(f"{name}: {m}"))
-    gap.write_report(res, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
+    write_diagnosis(res, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
     bm, bf, _ = res["_curves"]["base"]
     am, af, _ = res["_curves"]["after"]
     doc = {"train_runs": [t.name for t in train], "heldout_runs": [t.name for t in held], "window_s": 60.0,
