@@ -139,37 +139,36 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             if h >= 10.0 and 0.1 <= 1000.0 * ground <= 30.0 and ground < 0.05:
                 refuse("t", f"median sample interval {h:.4g} with positions moving {ground:.3g} units per "
                        "interval-unit: it looks like milliseconds")
-    body0 = (float(np.nanmedian(np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])))
-             if "u" in track and np.isfinite(track["u"]).any() else None)
-    if ground is not None and body0 is not None and body0 > 0.05 and ground > 0:
+    body = None
+    if "u" in track and np.isfinite(track["u"]).any():
+        body = float(np.nanmedian(np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])))
+    if ground is not None and body is not None and body > 0.05 and ground > 0:
         # positions moving f x faster per time unit than u says (milliseconds aside: a ratio of
         # 1/1000 is positions in km as well; the heading rate below, or the sample interval
         # above, tells those apart)
         for f, unit in TIME_UNITS[:2]:
-            if abs(ground / body0 / f - 1.0) < 0.15:
-                refuse("t", f"the positions move {ground / body0:.3g} x as fast per time unit as the body speed "
+            if abs(ground / body / f - 1.0) < 0.15:
+                refuse("t", f"the positions move {ground / body:.3g} x as fast per time unit as the body speed "
                             f"u, v: time looks like {unit}")
-    if "psi" in track and "r" in track and np.isfinite(track["psi"]).sum() > 10:
-        fin = track["psi"][np.isfinite(track["psi"])]
-        if np.max(np.abs(fin)) <= 2 * math.pi + 0.1:  # heading in rad: a rate ratio is the clock's
-            psi = np.asarray(track["psi"], float)
-            dpsi = np.gradient(np.unwrap(np.where(np.isfinite(psi), psi, 0.0)), t)
-            k = _ratio(dpsi, track["r"])
-            for f, unit in TIME_UNITS:
-                if k is not None and abs(k / f - 1.0) < 0.15:
-                    refuse("t", f"the heading turns {k:.3g} x as fast per time unit as the yaw rate r says: time "
-                                f"looks like {unit}")
     if "psi" in track and np.isfinite(track["psi"]).sum() > 10:
         psi = np.asarray(track["psi"], float)
         fin = psi[np.isfinite(psi)]
         jumps = np.abs(np.diff(fin))
+        # the heading's rate over the yaw rate r: the clock's unit when the heading is in rad,
+        # the heading's or r's unit otherwise
+        k = None
         if "r" in track:
             dpsi = np.gradient(np.unwrap(np.where(np.isfinite(psi), psi, 0.0)), t)
             k = _ratio(dpsi, track["r"])
-            if k is not None and 20.0 < k < 150.0:
-                refuse("psi", f"its rate is {k:.3g} x the yaw rate r: heading looks like degrees")
-            if k is not None and 1 / 150.0 < k < 1 / 20.0:
-                refuse("r", f"the heading's rate is {k:.3g} x r: yaw rate looks like deg/s")
+        if k is not None and np.max(np.abs(fin)) <= 2 * math.pi + 0.1:
+            for f, unit in TIME_UNITS:
+                if abs(k / f - 1.0) < 0.15:
+                    refuse("t", f"the heading turns {k:.3g} x as fast per time unit as the yaw rate r says: time "
+                                f"looks like {unit}")
+        if k is not None and 20.0 < k < 150.0:
+            refuse("psi", f"its rate is {k:.3g} x the yaw rate r: heading looks like degrees")
+        if k is not None and 1 / 150.0 < k < 1 / 20.0:
+            refuse("r", f"the heading's rate is {k:.3g} x r: yaw rate looks like deg/s")
         if np.max(np.abs(fin)) > 2 * math.pi + 0.1 and np.max(np.abs(fin)) <= 361.0 and (
                 jumps > 300.0).any():
             refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} wrapping by 360: heading looks like degrees")
@@ -181,9 +180,6 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             if rate.size and np.percentile(rate, 95) > 1.0:
                 refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} turning at {np.percentile(rate, 95):.3g} "
                               "units/s (95th percentile; no vessel turns at 1 rad/s): heading looks like degrees")
-    body = None
-    if "u" in track and np.isfinite(track["u"]).any():
-        body = float(np.nanmedian(np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])))
     if ground is not None and ground > 0.05 and body is not None:
         k = body / ground
         for f, unit in SPEED_UNITS:
