@@ -153,13 +153,6 @@ def _check_numbers(args) -> None:
             raise ValueError(f"--{k.replace('_', '-')} must be >= 0, not {v}")
 
 
-def _check_window(window, dt: float) -> None:
-    """``--window`` must be a whole number of model steps (ValueError naming both)."""
-    if window is not None and abs(window / dt - round(window / dt)) > 1e-6 or (window is not None and window < dt):
-        raise ValueError(f"--window {window:g} s must be a whole multiple of the model step {dt:g} s "
-                         "(--dt, or the model's)")
-
-
 def _split_names(text, option: str = ""):
     """Comma-separated names of an option; a name given twice is a ValueError naming the option."""
     names = [n.strip() for n in text.split(",") if n.strip()] if text else []
@@ -416,7 +409,6 @@ def _predict(args) -> int:
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
     window = None if args.window <= 0 else args.window
-    _check_window(window, model.dt)
     for tr in tracks:
         if window is not None and tr.t[-1] - tr.t[0] < window:
             w = (f"{tr.name}: lasts {tr.t[-1] - tr.t[0]:.3g} s, less than one {window:g} s window: its score is "
@@ -495,7 +487,6 @@ def _diagnose(args) -> int:
         cands.remove(c)
     window = None if args.window <= 0 else args.window
     dt = args.dt if args.dt is not None else (0.2 if is_ship else 0.5)
-    _check_window(window, dt)
     res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),

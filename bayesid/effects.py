@@ -465,7 +465,7 @@ class TrackContext:
         self.t_grid = self.t0 + dt * np.arange(self.n_steps + 1)
         self.t_mid = self.t_grid[:-1] + 0.5 * dt
         if window_s is not None and abs(window_s / dt - round(window_s / dt)) > 1e-6:
-            raise ValueError(f"window {window_s} s is not a multiple of the model step {dt} s")
+            raise ValueError(f"window {window_s:g} s (--window) is not a whole multiple of the model step {dt:g} s (--dt)")
         leadin_s = float(leadin_s) if self.start == "fitted" else 0.0
         if leadin_s < 0 or abs(leadin_s / dt - round(leadin_s / dt)) > 1e-6:
             raise ValueError(f"lead-in {leadin_s} s is not a non-negative multiple of the model step {dt} s")
