@@ -234,7 +234,8 @@ def _check_out(path, command: str, overwrite: bool) -> Path:
 def _file_sha256(path) -> str:
     import hashlib
 
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    with open(path, "rb") as f:  # streamed: a 300 MB log is not held in memory to hash it
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def same_values(a, b, rtol: float = 1e-5) -> bool:
