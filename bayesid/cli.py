@@ -320,16 +320,11 @@ def _read_tracks(groups, vehicle=None) -> dict:
 def _free_list(vehicle, text):
     """The free coefficients of a command: ``--free`` or the vehicle's default (ships: the
     file's ``[fit] free``; submarines: the horizontal-plane six). Unknown names raise."""
-    from . import ship, terms
+    from .models import model_class
 
-    if isinstance(vehicle, ship.Ship):
-        free = _split_names(text, "--free") or list(vehicle.free)
-        for k in free:
-            if k not in ship.COEFFICIENTS:
-                raise KeyError(f"--free: unknown ship coefficient {k!r}; known: {', '.join(ship.COEFFICIENTS)}")
-        return free
-    free = _split_names(text, "--free") or ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
-    terms.check_names(free, "--free")
+    family = model_class(vehicle)
+    free = _split_names(text, "--free") or family.default_free(vehicle)
+    family.check_free(vehicle, free, "--free")
     return free
 
 
@@ -343,7 +338,7 @@ def _provenance(vehicle, input_sha256: dict) -> dict:
     SHA-256 of every input file."""
     from . import __version__, msfit
 
-    vf = msfit.vehicle_file(vehicle)
+    vf = Path(vehicle.file_path) if vehicle.file_path else None
     return {"bayesid_version": __version__, "vehicle_file": str(vf) if vf else None,
             "vehicle_sha256": _file_sha256(vf) if vf and vf.is_file() else None,
             "vehicle_coefficients": dict(vehicle.coefficients), "input_sha256": dict(input_sha256)}
@@ -355,7 +350,7 @@ def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> Non
     from . import msfit
 
     want = (doc.get("provenance") or {}).get("vehicle_sha256")
-    vf = msfit.vehicle_file(vehicle)
+    vf = Path(vehicle.file_path) if vehicle.file_path else None
     if want is None or vf is None or not vf.is_file():
         return
     if _file_sha256(vf) != want:
@@ -369,12 +364,13 @@ def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> Non
 def _fit(args) -> int:
     """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
     from . import msfit
-    from .report import write_fit_report
+    from .models import load_any_vehicle
+    from .report import write_fit_report, write_json
 
     if args.window is not None and not args.window > 0:
         raise ValueError(f"--window must be a positive number of seconds, not {args.window:g}")
     out = _check_out(args.out, "fit", args.overwrite)
-    vehicle = msfit.load_any_vehicle(args.vehicle)
+    vehicle = load_any_vehicle(args.vehicle)
     free = _free_list(vehicle, args.free)
     got = _read_tracks([("--train", args.train)], vehicle)
     train = got["--train"]
@@ -382,8 +378,9 @@ def _fit(args) -> int:
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
                          weighting=args.weighting or None, channels=_split_names(args.fit_channels, "--fit-channels") or None,
                          start=args.start)
-    doc = msfit.save_model(res, _vehicle_ref(args.vehicle), [t.name for t in train], out / "model.json",
-                           provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
+    doc = msfit.model_document(res, _vehicle_ref(args.vehicle), [t.name for t in train],
+                               provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
+    write_json(out / "model.json", doc)
     write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
     print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
           f"wrote {out / 'model.json'}")
@@ -468,37 +465,40 @@ def _diagnose(args) -> int:
     """``bayesid diagnose``: base fit, where / which / how far (bayesid.gap)."""
     import numpy as np
 
-    from . import effects, gap, msfit, ship
+    from .analysis.gap import diagnose
+    from .models import load_any_vehicle, model_class
     from .report import write_diagnosis
 
     _check_out(args.out, "diagnose", args.overwrite)
-    vehicle = msfit.load_any_vehicle(args.vehicle)
-    is_ship = isinstance(vehicle, ship.Ship)
+    vehicle = load_any_vehicle(args.vehicle)
+    family = model_class(vehicle)
     free = _free_list(vehicle, args.free)
     got = _read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     train, held = got["--train"], got["--heldout"]
-    catalogue = ship.SHIP_CATALOGUE if is_ship else effects.CATALOGUE
-    cands = list(catalogue) if not args.candidates else _split_names(args.candidates, "--candidates")
-    if is_ship and not args.candidates and not all("wind_speed" in t for t in train + held):
-        cands.remove("wind")
-        print("  no wind columns in every track: the wind candidate is left out")
+    cands = list(family.CATALOGUE) if not args.candidates else _split_names(args.candidates, "--candidates")
+    if not args.candidates:
+        for name in list(cands):
+            need = family.CATALOGUE[name].needs_columns
+            if not all(c in t for t in train + held for c in need):
+                cands.remove(name)
+                print(f"  no {', '.join(need)} columns in every track: the {name} candidate is left out")
     for c in _split_names(args.exclude, "--exclude"):
         if c not in cands:
             raise ValueError(f"--exclude {c}: not among the candidates {cands}")
         cands.remove(c)
     window = None if args.window <= 0 else args.window
-    dt = args.dt if args.dt is not None else (0.2 if is_ship else 0.5)
-    res = gap.diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
+    dt = args.dt if args.dt is not None else family.DEFAULT_DT
+    res = diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
                        fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None,
                        start=args.start, leadin_s=args.leadin if args.leadin > 0 else None, progress_bars=True)
-    res["warnings"] = got["_warnings"]
-    res["input_sha256"] = got["_sha256"]
+    res.warnings = got["_warnings"]
+    res.input_sha256 = got["_sha256"]
     write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
-    print(f"verdict: {res['verdict']}; held-out RMS {res['gap_before']['heldout_rms_m']:.3f} m -> "
-          f"{res['gap_after']['heldout_rms_m']:.3f} m (noise floor {res['noise_floor']['heldout_rms_m']:.3f} m, "
-          f"window starts {res['settings']['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}")
+    print(f"verdict: {res.verdict}; held-out RMS {res.gap_before['heldout_rms_m']:.3f} m -> "
+          f"{res.gap_after['heldout_rms_m']:.3f} m (noise floor {res.noise_floor['heldout_rms_m']:.3f} m, "
+          f"window starts {res.settings['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}")
     return 0
 
 

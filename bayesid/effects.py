@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
+from scipy import signal
 
 from . import dynamics, terms
 from .protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
@@ -49,6 +50,14 @@ class Effect:
     neutral : parameter values (inside the bounds) at which the effect changes nothing, so the
         candidate model nests the base model there; ``None`` when it does not nest it (roll:
         6-DOF against the horizontal plane; crossflow: integral form in place of the polynomial).
+    needs_columns : track columns the effect needs (e.g. the measured wind).
+
+    Everything about an effect is here: the simulation hooks (:meth:`delay`, :meth:`actuator`,
+    :meth:`exo`, :meth:`input_map`, :meth:`modify`, :meth:`to_model`, :meth:`to_measured`, and
+    :meth:`kernel` for models whose compiled kernel takes the effect as parameters), its start
+    values (:meth:`start_values`), the diagnosis' seeds and extra starts (:meth:`diagnosis_seed`,
+    :meth:`fit_starts`) and its force signature (:meth:`force_signature`). A new effect is one
+    subclass; pass an instance wherever an effect name is accepted.
     """
 
     name: str
@@ -68,6 +77,7 @@ class Effect:
     exo_columns: int = 0
     signature: tuple = ()
     neutral: tuple | None = None
+    needs_columns: tuple = ()
 
     # --- hooks ------------------------------------------------------------------------------
     def delay(self, q):
@@ -97,6 +107,35 @@ class Effect:
         """Model states S (B, n, 12) at times t_rel (n,) since their window start -> what the
         sensors report, in place."""
 
+    def kernel(self, kp: dict, q):
+        """Parameters of a compiled kernel that takes the effect as parameters (the ship's MMG
+        kernel): change the arrays of ``kp`` (``prm`` (B, NP), ``cur`` (B, 2), ``delay`` (B,) or
+        None) in place or replace them."""
+
+    # --- fitting and diagnosis -----------------------------------------------------------------
+    def start_values(self, vehicle) -> np.ndarray:
+        """Start of the effect's parameters in a fit of ``vehicle`` (default ``start``)."""
+        return np.asarray(self.start, float)
+
+    def diagnosis_seed(self, evidence: dict):
+        """A start hint from the base model's misfit on the training tracks, or None.
+        ``evidence``: ``ctxs`` (training contexts), ``errors`` (their protocol errors,
+        :func:`errors` of the base fit, B = 1), ``forces`` ((F list, motions) of the training
+        tracks' missing forces, or None when inverse dynamics failed)."""
+        return None
+
+    def fit_starts(self, p, i: int, model, seed) -> list:
+        """Start vectors [(p0, nuisance0 or None)] of a candidate fit from ``p`` (the model's
+        start, the effect's parameters at ``p[i:]``) and the effect's ``seed``."""
+        return [(p, None)]
+
+    def force_signature(self, m: dict):
+        """[(n, 3) columns of X, Y, N]: the shape of the force the effect leaves in the missing
+        forces (inverse dynamics), from the motion signals ``m`` (``t``, ``u``, ``v``, ``r``,
+        ``psi``, ``rudder_rate``, ...; see the model's ``signature_columns``); None when it leaves
+        none (it acts on the measurements, or a signal it needs is absent)."""
+        return None
+
 
 class Current(Effect):
     """Uniform, steady ocean current (earth frame). The hydrodynamics act on the velocity
@@ -115,6 +154,16 @@ class Current(Effect):
         uc, vc = self._body(s[..., IPSI], q)
         s[..., IU] -= uc
         s[..., IV] -= vc
+
+    def diagnosis_seed(self, evidence):
+        return drift_seed(evidence)
+
+    def fit_starts(self, p, i, model, seed):
+        return drift_starts(p, i, seed)
+
+    def force_signature(self, m):
+        u, c, s = m["u"], np.cos(m["psi"]), np.sin(m["psi"])
+        return [np.column_stack([u * c, u * c, u * c]), np.column_stack([u * s, u * s, u * s])]
 
     def to_measured(self, S, t_rel, q):
         uc, vc = self._body(S[..., IPSI], q)
@@ -173,6 +222,14 @@ class Actuator(Effect):
     def actuator(self, q):
         return q[:, 0], np.radians(q[:, 1])
 
+    def fit_starts(self, p, i, model, seed):
+        alt = p.copy()
+        alt[i:i + 2] = [1.0, 5.0]  # a slow servo: the other basin of the lag / rate trade-off
+        return [(p, None), (alt, None)]
+
+    def force_signature(self, m):
+        return [np.column_stack([m["u"] * m["u"] * m["rudder_rate"]] * 3)]
+
 
 class Delay(Effect):
     """Pure time delay between the logged inputs (rudder, planes, propeller) and their action
@@ -180,6 +237,9 @@ class Delay(Effect):
 
     def delay(self, q):
         return q[:, 0]
+
+    def fit_starts(self, p, i, model, seed):
+        return delay_starts(p, i)
 
 
 class Crossflow(Effect):
@@ -196,6 +256,10 @@ class Crossflow(Effect):
         vp[:, dynamics.VP_CDZB] = cf.Cdz * cf.breadth_m * q[:, 0]
         vp[:, dynamics.VP_XFLOW] = 1.0
 
+    def force_signature(self, m):
+        z, v, r = np.zeros(m["t"].size), m["v"], m["r"]
+        return [np.column_stack([z, v * np.abs(v), v * np.abs(v)]), np.column_stack([z, r * np.abs(r), r * np.abs(r)])]
+
 
 class Thrust(Effect):
     """Propeller thrust deficit: thrust times ``thrust_scale`` (fouling, wear, a wake fraction
@@ -211,6 +275,10 @@ class Thrust(Effect):
         coef = np.zeros((q.shape[0], 1, 6))
         coef[:, 0, 0] = q[:, 0] - 1.0
         return col, coef
+
+    def force_signature(self, m):
+        uc, z = m["propeller_inflow"], np.zeros(m["t"].size)
+        return [np.column_stack([m["q_dyn"] * uc * np.abs(uc), z, z])]
 
 
 class Roll(Effect):
@@ -229,6 +297,13 @@ class Roll(Effect):
         M[:, 1, 3] -= m * dz
         M[:, 3, 1] -= m * dz
 
+    def force_signature(self, m):
+        phi = m.get("phi")
+        if phi is None:
+            return None
+        u, r = m["u"], m["r"]
+        return [np.column_stack([phi * u * r, phi * u * u, phi * u * u])]
+
 
 class Waves(Effect):
     """Periodic disturbance force (waves, at the encounter frequency): body-frame
@@ -243,6 +318,83 @@ class Waves(Effect):
         coef = np.zeros((B, 1, 6))
         coef[:, 0, 0], coef[:, 0, 1], coef[:, 0, 5] = q[:, 1], q[:, 2], q[:, 3]
         return col, coef
+
+    def diagnosis_seed(self, evidence):
+        """omega, per-track phases and amplitudes from the training tracks' missing sway force
+        (periodogram peak between 0.25 and 2.4 rad/s, then a sine/cosine fit per track)."""
+        if evidence.get("forces") is None:
+            return None
+        F_list, motions = evidence["forces"]
+        F = F_list[0][:, 1]
+        t = motions[0][0]["t"]
+        fs = 1.0 / np.median(np.diff(t))
+        f, pxx = signal.periodogram(F - F.mean(), fs=fs)
+        sel = (2 * np.pi * f >= 0.25) & (2 * np.pi * f <= 2.4)
+        omega = float(2 * np.pi * f[sel][np.argmax(pxx[sel])])
+        phases, amps = [], []
+        for Fi, (mo, _, _) in zip(F_list, motions):
+            tt = mo["t"] - mo["t"][0]
+            A = np.column_stack([np.sin(omega * tt), np.cos(omega * tt)])
+            sol = np.linalg.lstsq(A, Fi[:, [0, 1, 2]], rcond=None)[0]
+            a, b = sol[:, 1]
+            phases.append(math.atan2(b, a))
+            amps.append(sol[0] * np.cos(phases[-1]) + sol[1] * np.sin(phases[-1]))
+        amp = np.median(np.array(amps), axis=0)
+        return omega, phases, amp
+
+    def fit_starts(self, p, i, model, seed):
+        if not seed:
+            return [(p, None)]
+        omega, phases, amp = seed
+        p = p.copy()
+        p[i:i + 4] = [omega, amp[0], amp[1], amp[2]]
+        nn = model.n_nuisance  # the phase is the model's last nuisance (the effect is added last)
+        return [(p, [np.r_[np.zeros(nn - 1), ph] for ph in phases])]
+
+    def force_signature(self, m):
+        omega = m.get("omega")
+        if not omega:
+            return None
+        t = m["t"]
+        return [np.column_stack([np.sin(omega * (t - t[0]))] * 3), np.column_stack([np.cos(omega * (t - t[0]))] * 3)]
+
+
+def signature_dict(effects, m: dict) -> dict:
+    """{effect name: columns} of the effects whose :meth:`Effect.force_signature` on the motion
+    signals ``m`` is not None, in the order given."""
+    cols = {}
+    for e in effects:
+        c = e.force_signature(m)
+        if c is not None:
+            cols[e.name] = c
+    return cols
+
+
+def drift_seed(evidence) -> np.ndarray:
+    """Earth-frame drift (m/s) that best explains the base model's position errors in the
+    training windows: measured - predicted ~ V_c t_rel (least squares through the window
+    starts). The seed of a current."""
+    num, den = np.zeros(2), 0.0
+    for ctx, e in zip(evidence["ctxs"], evidence["errors"]):
+        num -= np.array([np.nansum(e["x"][0] * ctx.t_rel), np.nansum(e["y"][0] * ctx.t_rel)])
+        den += float(np.sum(ctx.t_rel ** 2))
+    return num / den if den > 0 else np.zeros(2)
+
+
+def drift_starts(p, i, seed) -> list:
+    """The start of a current's fit at its drift seed (two parameters at ``p[i:]``)."""
+    if seed is None:
+        return [(p, None)]
+    p = p.copy()
+    p[i:i + 2] = np.clip(seed, -1.4, 1.4)
+    return [(p, None)]
+
+
+def delay_starts(p, i) -> list:
+    """A delay's fit from its catalogue start and from 1.5 s (a second basin of attraction)."""
+    alt = p.copy()
+    alt[i] = 1.5
+    return [(p, None), (alt, None)]
 
 
 #: Upper bound of the servo rate (deg/s): at it the limit never acts (100 deg per 0.05 s
@@ -660,11 +812,42 @@ class EffectModel:
     The parameter vector of one model is ``[theta_free (P), q_1, ..., q_E]`` with ``q_e`` the
     effect parameters in the units of their names; per-track nuisance parameters
     (``n_nuisance``) are passed separately.
+
+    Implements :class:`bayesid.models.interface.SimulationModel` (the submarine family).
     """
+
+    DEFAULT_DT = 0.5
+    DEFAULT_WEIGHTING = "noise"
+    #: the horizontal-plane coefficients freed when the user names none
+    DEFAULT_FREE = ("Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr")
+
+    @classmethod
+    def for_vehicle(cls, vehicle, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal"):
+        """The model of :func:`bayesid.models.build_model` (``free`` None: none)."""
+        return cls(vehicle, free or (), effects, mode=mode, dt=dt)
+
+    @staticmethod
+    def default_fit_window(scoring_window_s):
+        """A submarine's training fits use the scoring window (None: the whole run)."""
+        return scoring_window_s
+
+    @classmethod
+    def default_free(cls, vehicle) -> list:
+        return list(cls.DEFAULT_FREE)
+
+    @staticmethod
+    def check_free(vehicle, names, option: str = "free") -> None:
+        """KeyError naming ``option`` and an unknown coefficient name."""
+        terms.check_names(names, option)
+
+    @staticmethod
+    def get_effect(name):
+        """A catalogue effect by name (:func:`get`); an :class:`Effect` passes through."""
+        return name if isinstance(name, Effect) else get(name)
 
     def __init__(self, vehicle, free=(), effects=(), mode: str = "horizontal", dt: float = 0.5):
         self.vehicle, self.dt = vehicle, float(dt)
-        self.effects = [get(e) if isinstance(e, str) else e for e in effects]
+        self.effects = [self.get_effect(e) for e in effects]
         names = [e.name for e in self.effects]
         if len(set(names)) != len(names):
             raise ValueError(f"effect listed twice in {names}")
@@ -688,7 +871,7 @@ class EffectModel:
 
     def start(self, theta=None) -> np.ndarray:
         th = self.theta0 if theta is None else np.asarray(theta, float)
-        return np.concatenate([th] + [np.asarray(e.start, float) for e in self.effects])
+        return np.concatenate([th] + [e.start_values(self.vehicle) for e in self.effects])
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of the parameter vector: coefficients unbounded, effects as catalogued."""
@@ -781,6 +964,62 @@ class EffectModel:
             e.to_measured(S, t_rel, q)
         S[..., 5] = wrap(S[..., 5])
         return S
+
+    # -- what the analysis layer asks of a model ----------------------------------------------
+    def seed(self, tracks):
+        """No equation-error seed: a submarine fit starts at the nominal coefficients."""
+        return None
+
+    def missing_forces(self, fitres, track: Track):
+        """Missing X, Y, N (N, N m) over time: rigid-body inverse dynamics of the smoothed
+        measured motion minus the fitted model's hydrodynamic forces (pysindy smoothed
+        differentiation, :func:`bayesid.sindy.estimate_motion`). Returns (motion dict, F (n, 3),
+        inputs (n, 4))."""
+        from . import sindy
+
+        veh = self.vehicle.with_coefficients(fitres.coefficients()) if self.free else self.vehicle
+        motion = sindy.estimate_motion(track)
+        inputs = sindy.track_inputs(track)
+        known = [t for t in sindy.horizontal_terms("X") + sindy.horizontal_terms("Y") + sindy.horizontal_terms("N")
+                 if veh.coefficients.get(t, 0.0) != 0.0]
+        known = sorted(set(known) | set(sindy.ADDED_MASS))
+        F = sindy.force_targets(motion, veh, inputs, known=known)
+        return motion, F, inputs
+
+    def signature_columns(self, motion, inputs, track: Track, seeds=None, effects=None) -> dict:
+        """Force-space signatures {effect: [(n, 3) columns of X, Y, N]} of ``effects`` (default
+        the catalogue) that leave one (:meth:`Effect.force_signature`), from the smoothed motion
+        and the logged inputs (n, 4); ``seeds`` of the diagnosis (the waves' frequency)."""
+        t = motion["t"]
+        dr = np.interp(t, track.t, inputs[:, 0])
+        rpm = np.interp(t, track.t, inputs[:, 3])
+        veh = self.vehicle
+        m = {"t": t, "u": motion["u"], "v": motion["v"], "r": motion["r"],
+             "psi": np.interp(t, track.t, np.unwrap(track["psi"])), "rudder_rate": np.gradient(dr, t),
+             "propeller_inflow": veh.propulsion.uc_per_omega * rpm * 2 * math.pi / 60,
+             "q_dyn": 0.5 * veh.rho * veh.L ** 2,
+             "omega": waves[0] if (waves := (seeds or {}).get("waves")) else None}
+        if "phi" in track and np.isfinite(track["phi"]).all():
+            m["phi"] = np.interp(t, track.t, track["phi"])
+        return signature_dict(self.CATALOGUE.values() if effects is None else effects, m)
+
+    def where_samples(self, track: Track, ctx, S) -> dict:
+        """No extra region variables for a submarine."""
+        return {}
+
+    def regions(self) -> dict:
+        """Operating-region bins of the *where* analysis (:data:`REGIONS`)."""
+        return REGIONS
+
+
+#: Operating-region bins of a submarine's *where* analysis (NPS AUV II speeds and rates).
+REGIONS = {
+    "drift_angle_deg": [-90, -6, -2, 2, 6, 90],
+    "yaw_rate_deg_s": [-30, -3, -1, 1, 3, 30],
+    "rudder_deg": [-40, -15, -5, 5, 15, 40],
+    "speed_mps": [0, 1.0, 1.5, 1.8, 10],
+}
+EffectModel.CATALOGUE = CATALOGUE
 
 
 #: State components (STATE_NAMES indices x, y, psi, u, v, r) of a window start that the fitted

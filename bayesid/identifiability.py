@@ -27,7 +27,7 @@ def relative_sensitivity(problem, theta) -> np.ndarray:
 
     Parameters
     ----------
-    problem : :class:`~bayesid.identify.Problem`.   theta : (P,) prime coefficients (non-zero).
+    problem : :class:`~bayesid.estimation.objective.Problem`.   theta : (P,) prime coefficients (non-zero).
     """
     p = problem.scaled(theta)
     _, J = problem.jacobian(p, central=True)   # d r / d p, r = target - sim

@@ -1,7 +1,7 @@
 """Identification on long, noisy runs: multiple shooting, seeded by equation error, with a
 Laplace posterior; prediction under the fixed window protocol; standard manoeuvre indices.
 
-The objective (:func:`bayesid.gap.fit`) is the simulation error over non-overlapping windows
+The objective (:class:`bayesid.estimation.windows.WindowObjective`) is the simulation error over non-overlapping windows
 that restart from the measured state (causal estimate, :func:`bayesid.protocol.state_at`), so a
 long run that an open-loop simulation would leave within a minute still gives a well-posed fit.
 Each channel is weighted by its noise sd, estimated from the data (differences, Gasser et al.
@@ -30,28 +30,22 @@ from pathlib import Path
 import numpy as np
 
 from . import effects as ef
-from . import gap, shooting
+from . import shooting
+from .estimation import windows as wf
+from .estimation.fit import FitResult
 from . import ship as sh
 from .estimation.laplace import gauss_newton_covariance
 from .protocol import pooled_scores, resolve_start, start_settings
 from .track import Track
-from .vehicle import load_vehicle
+from .models import build_model, load_any_vehicle
 
 
-def load_any_vehicle(path_or_id):
-    """A ship (``kind = "ship3dof"``) or a submarine vehicle file, by path or packaged id."""
-    return sh.load_ship(path_or_id) if sh.is_ship_file(path_or_id) else load_vehicle(path_or_id)
+#: Protocol window (s) of a fit whose user gives none, for a family that scores over the
+#: protocol window (submarines; :meth:`~bayesid.effects.EffectModel.default_fit_window`).
+DEFAULT_WINDOW_S = 30.0
 
 
-def build_model(vehicle, free=None, effects=(), dt: float | None = None):
-    """The simulation model of a vehicle: :class:`~bayesid.ship.ShipModel` for a ship (default
-    step 0.2 s), else a horizontal :class:`~bayesid.effects.EffectModel` (default 0.5 s)."""
-    if isinstance(vehicle, sh.Ship):
-        return sh.ShipModel(vehicle, free, effects, dt=0.2 if dt is None else dt)
-    return ef.EffectModel(vehicle, free or (), effects, mode="horizontal", dt=0.5 if dt is None else dt)
-
-
-def _ar1_inflation(fitres: gap.Fit, ctxs) -> float:
+def _ar1_inflation(fitres: FitResult, ctxs) -> float:
     r = []
     for ctx in ctxs:
         S = shooting.simulate(fitres.model, ctx, fitres.p[None])
@@ -70,12 +64,12 @@ def _ar1_inflation(fitres: gap.Fit, ctxs) -> float:
     return float(min((1 + rho) / (1 - rho), per_window))
 
 
-def laplace_covariance(fitres: gap.Fit, ctxs) -> tuple[np.ndarray, dict]:
+def laplace_covariance(fitres: FitResult, ctxs) -> tuple[np.ndarray, dict]:
     """(n_params, n_params) Laplace covariance of the fitted parameters (module docstring)."""
     J = fitres.jac[:, :fitres.model.n_params]
     J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
     k = J.shape[1]
-    s2 = fitres.ssr / max(fitres.n_res - k, 1)
+    s2 = fitres.cost / max(fitres.n_residuals - k, 1)
     infl = _ar1_inflation(fitres, ctxs)
     cov = gauss_newton_covariance(J, residual_variance=s2, inflation=infl)
     sv = np.linalg.svd(J, compute_uv=False)
@@ -94,12 +88,14 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     train : list of Tracks (``t, x, y, psi, delta_r, n``; ``u, v, r`` when measured; ``wind_*``
         for the wind effect).   free : coefficient names (default: the ship file's ``[fit] free``).
     effects : effect names (ship: :data:`~bayesid.ship.SHIP_CATALOGUE`).
-    window_s : multiple-shooting window (s); default :data:`bayesid.ship.FIT_WINDOW_S` for a ship,
-        30 s for a submarine.   dt : model step (s).
-    seed : start from the equation-error estimate (ships) when it simulates better than the
-        nominal coefficients.
-    weighting : ``"noise"`` or ``"residual"`` channel weights (:func:`bayesid.gap.fit_weighted`);
-        default ``"residual"`` for a ship, ``"noise"`` for a submarine.
+    window_s : multiple-shooting window (s); default the family's ``default_fit_window``
+        (:data:`bayesid.ship.FIT_WINDOW_S` for a ship, :data:`DEFAULT_WINDOW_S` for a submarine).
+    dt : model step (s; default the family's ``DEFAULT_DT``).
+    seed : start from the model's equation-error estimate (``model.seed``; ships) when it
+        simulates better than the nominal coefficients.
+    weighting : ``"noise"`` or ``"residual"`` channel weights
+        (:func:`bayesid.estimation.windows.fit_weighted`); default the family's
+        (``"residual"`` for a ship, ``"noise"`` for a submarine).
     channels : the scored channels in the objective (default: every one the tracks measure;
         e.g. ``("x", "y", "psi")`` when the logged velocities are derived from the same
         positions and heading and add no independent information).
@@ -108,7 +104,7 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
 
     Returns
     -------
-    dict: ``model`` (the simulation model), ``fit`` (:class:`~bayesid.gap.Fit`), ``cov``,
+    dict: ``model`` (the simulation model), ``fit`` (:class:`~bayesid.estimation.fit.FitResult`), ``cov``,
     ``posterior`` (Laplace summary), ``seed`` (summary), ``noise_sd``, ``fit_sd`` (the sds of
     the final weights), ``train_scores``.
 
@@ -116,63 +112,60 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     ------
     ValueError : no training track; a track without the needed columns (named); an unknown
         channel or a track that measures none of ``channels``; too little data
-        (:func:`bayesid.gap.check_enough_data`).
+        (:func:`bayesid.estimation.windows.check_enough_data`).
     KeyError : an unknown coefficient name.
     """
     if not train:
         raise ValueError("identify needs at least one training track")
     say = progress or (lambda m: None)
-    channels = gap.check_channels(channels)
-    if window_s is None:
-        window_s = sh.FIT_WINDOW_S if isinstance(vehicle, sh.Ship) else 30.0
+    channels = wf.check_channels(channels)
     model = build_model(vehicle, free, effects, dt)
-    if any(e.name == "wind" for e in model.effects):
-        bare = [t.name for t in train if not ("wind_speed" in t and "wind_dir" in t)]
+    if window_s is None:
+        window_s = model.default_fit_window(DEFAULT_WINDOW_S)
+    for e in model.effects:
+        bare = [t.name for t in train if not all(c in t for c in e.needs_columns)]
         if bare:
-            raise ValueError(f"the wind effect needs columns wind_speed and wind_dir; track(s) {', '.join(bare)} "
-                             "have none (leave --effects wind out, or add the measured wind)")
+            raise ValueError(f"the {e.name} effect needs columns {' and '.join(e.needs_columns)}; track(s) "
+                             f"{', '.join(bare)} have none (leave --effects {e.name} out, or add the measured "
+                             f"{e.name})")
     rule = resolve_start(start, train)
     ctxs = [model.context(t, window_s, start=rule) for t in train]
-    gap.check_enough_data(model, ctxs, window_s)
-    sd = gap.pooled_noise_sd(train)
+    wf.check_enough_data(model, ctxs, window_s)
+    sd = wf.pooled_noise_sd(train)
     p0 = model.start()
     seed_info = {"used": False}
-    if seed and isinstance(model, sh.ShipModel):
-        say("equation-error seed")
+    if seed:
         try:
-            ps, info = sh.equation_error_seed(model, train)
+            seeded = model.seed(train)  # None: the model family has no equation-error seed
         except Exception as exc:  # noqa: BLE001 - reported; the fit starts from nominal
-            info, ps = {"error": f"{type(exc).__name__}: {exc}"}, None
-        if ps is not None:
-            c_nom, c_seed = gap.window_residuals(model, ctxs, [gap.channel_weights(c, sd, channels) for c in ctxs],
-                                           np.vstack([p0, ps]), [None] * len(ctxs))
-            info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
-            if info["cost_seed"] < info["cost_nominal"]:
-                p0, seed_info = ps, dict(info, used=True)
-            else:
-                seed_info = dict(info, used=False)
-        else:
+            seeded = (None, {"error": f"{type(exc).__name__}: {exc}"})
+        if seeded is not None:
+            ps, info = seeded
             seed_info = info
+            if ps is not None:
+                c_nom, c_seed = wf.window_residuals(model, ctxs, [wf.channel_weights(c, sd, channels) for c in ctxs],
+                                                    np.vstack([p0, ps]), [None] * len(ctxs))
+                info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
+                if info["cost_seed"] < info["cost_nominal"]:
+                    p0, seed_info = ps, dict(info, used=True)
+                else:
+                    seed_info = dict(info, used=False)
+            say(f"equation-error seed: {'used' if seed_info.get('used') else 'not used'}")
     say("multiple-shooting fit")
-    weighting = weighting or ("residual" if isinstance(model, sh.ShipModel) else "noise")
-    f, sd_fit = gap.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels,
+    weighting = weighting or model.DEFAULT_WEIGHTING
+    f, sd_fit = wf.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels,
                                  progress="fit" if progress is not None else None)
     cov, post = laplace_covariance(f, ctxs)
     return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
             "fit_sd": sd_fit, "weighting": weighting, "channels": channels, "start_rule": rule,
-            "train_scores": gap.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
+            "train_scores": wf.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
 
 
-def vehicle_file(vehicle) -> Path | None:
-    """The TOML file a loaded vehicle came from (a submarine's ``path``, a ship's ``source``), or
-    None."""
-    ref = getattr(vehicle, "path", None) if not isinstance(vehicle, sh.Ship) else vehicle.source
-    return Path(ref) if ref else None
-
-
-def save_model(res: dict, vehicle_ref: str, train_names, path, provenance: dict | None = None) -> dict:
-    """Write the identified model as JSON (``model.json``); returns the document. ``provenance``
-    (package version, vehicle file hash and values, input hashes) is stored as given."""
+def model_document(res: dict, vehicle_ref: str, train_names, provenance: dict | None = None) -> dict:
+    """The ``model.json`` document (format ``bayesid-model-1``) of an :func:`identify` result:
+    vehicle reference, free coefficients, effects, step, fit window, parameters with their
+    Laplace covariance and sds, weights, scores and ``provenance`` (package version, vehicle
+    file hash and values, input hashes; stored as given). :func:`load_model` reads it back."""
     m, f = res["model"], res["fit"]
     sdv = np.sqrt(np.clip(np.diag(res["cov"]), 0, None))
     doc = {"format": "bayesid-model-1", "vehicle": vehicle_ref, "vehicle_id": m.vehicle.id,
@@ -184,16 +177,13 @@ def save_model(res: dict, vehicle_ref: str, train_names, path, provenance: dict 
            "fit_channels": None if res.get("channels") is None else list(res["channels"]),
            "start_rule": res.get("start_rule", "measured"),
            "train_runs": list(train_names), "train_scores": res["train_scores"], "provenance": provenance or {},
-           "fit": {"ssr": f.ssr, "n_residuals": f.n_res, "nfev": f.nfev, "success": f.success,
-                   "message": f.message, "seconds": f.seconds, "bic": f.bic}}
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    from .report import write_json
-    write_json(path, doc)
+           "fit": {"ssr": f.cost, "n_residuals": f.n_residuals, "nfev": f.n_simulations, "success": f.success,
+                   "message": f.message, "seconds": f.wall_s, "bic": f.bic}}
     return doc
 
 
 def load_model(path):
-    """(model, p, cov, doc) from a ``model.json`` written by :func:`save_model`.
+    """(model, p, cov, doc) from a ``model.json`` (:func:`model_document`).
 
     Raises ValueError naming the file when it is not such a document."""
     path = Path(path)

@@ -89,7 +89,7 @@ class LogPosterior:
 
     Parameters
     ----------
-    problem : :class:`~bayesid.identify.Problem`; its free names must equal ``prior.names``.
+    problem : :class:`~bayesid.estimation.objective.Problem`; its free names must equal ``prior.names``.
     sigmas : channel -> noise standard deviation (m or rad) for every channel of the problem.
     prior : :class:`CoefficientPrior`.
 

@@ -47,7 +47,9 @@ def _jsonable(x):
 
 
 def write_json(path: str | Path, obj) -> None:
-    """Write ``obj`` as indented JSON; numpy types converted, non-finite floats as strings."""
+    """Write ``obj`` as indented JSON (the folder created); numpy types converted, non-finite
+    floats as strings."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     Path(path).write_text(json.dumps(_jsonable(obj), indent=2) + "\n")
 
 
@@ -110,8 +112,8 @@ def fmt(x, digits: int = 3) -> str:
 # --- the gap diagnosis (bayesid diagnose, studies/real_ships.py) -------------------------------
 
 def attribution_lines(res: dict) -> list[str]:
-    """The verdict of a :func:`bayesid.gap.diagnose` result in words: cause, contributors (with
-    their shares) and the remainder."""
+    """The verdict of a diagnosis (:meth:`bayesid.analysis.gap.Diagnosis.to_dict`) in words:
+    cause, contributors (with their shares) and the remainder."""
     out = []
     if res.get("cause"):
         out.append(f"Cause: **{res['cause']}** (with it the held-out error is inside the noise-floor band).")
@@ -127,32 +129,32 @@ def attribution_lines(res: dict) -> list[str]:
     return out
 
 
-def write_diagnosis(res: dict, out, heldout: list, command: str = "") -> None:
+def write_diagnosis(diag, out, heldout: list, command: str = "") -> None:
     """Write ``diagnosis.json``, ``report.md`` and ``figures/*.png`` of a
-    :func:`bayesid.gap.diagnose` result into the folder ``out`` (created)."""
-    from . import gap, plots
+    :class:`bayesid.analysis.gap.Diagnosis` into the folder ``out`` (created); ``heldout``: the
+    held-out Tracks (the first one's windows are plotted)."""
+    from . import plots
+    from .analysis.gap import window_xy
 
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    curves = res.get("_curves")
-    doc = {k: v for k, v in res.items() if not k.startswith("_")}
-    write_json(out / "diagnosis.json", doc)
+    res = diag.to_dict()
+    write_json(out / "diagnosis.json", res)
     figs = []
     if res["ranking"]:
         figs.append(plots.gap_ranking(res["ranking"], res["gap_before"]["heldout_rms_m"],
                                       res["noise_floor"]["heldout_rms_m"], out / "figures" / "ranking.png"))
     figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
     figs.append(plots.gap_regions(res["where"], out / "figures" / "regions.png"))
-    if curves is not None and heldout:
+    if diag.base is not None and heldout:
         w = res["settings"]["window_s"]
-        bm, bf, _ = curves["base"]
-        am, af, anu = curves["after"]
         rule, lead = res["settings"]["start_rule"], res["settings"]["leadin_s"]
-        meas, before = gap.window_xy(bm, bf, heldout[0], w, start=rule, leadin_s=lead)
+        meas, before = window_xy(diag.base.model, diag.base.fit, heldout[0], w, start=rule, leadin_s=lead)
         after = None
         if res["effects_added"]:
-            _, after = gap.window_xy(am, af, heldout[0], w, None if anu is None else anu[0], start=rule,
-                                  leadin_s=lead)
+            anu = diag.after.nuisance
+            _, after = window_xy(diag.after.model, diag.after.fit, heldout[0], w, None if anu is None else anu[0],
+                                 start=rule, leadin_s=lead)
         figs.append(plots.window_tracks(None, meas, before, after, out / "figures" / "heldout_track.png",
                                         title=f"{heldout[0].name}: {w} s windows"))
     gb, ga = res["gap_before"], res["gap_after"]

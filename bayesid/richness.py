@@ -35,7 +35,7 @@ def fisher_metrics(problem, theta, sigmas: dict) -> dict:
 
     Parameters
     ----------
-    problem : :class:`~bayesid.identify.Problem` or ``JointProblem`` (a combination of manoeuvres).
+    problem : :class:`~bayesid.estimation.objective.Problem` or ``JointProblem`` (a combination of manoeuvres).
     theta : (P,) prime coefficients (the truth in a synthetic study).
     sigmas : channel -> noise sd (m, rad).
 

@@ -80,7 +80,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from .effects import Effect, EffectModel, SensorLag
+from .effects import Effect, EffectModel, SensorLag, delay_starts, drift_seed, drift_starts, signature_dict
 from .protocol import wrap
 from .track import Track
 from .vehicle import VehicleFileError
@@ -137,6 +137,41 @@ class Ship:
     description: str = ""
     source: str = ""
     kind: str = "ship3dof"
+
+    @property
+    def file_path(self) -> str:
+        """The TOML file the ship was loaded from ("" when built in code)."""
+        return self.source
+
+    @property
+    def display_name(self) -> str:
+        """No name beyond the id (for the vessel check of a track)."""
+        return ""
+
+    #: ship files give no nominal propeller speed (so no rev/s check on n)
+    nominal_rpm = 0.0
+
+    def track_warnings(self, track, name: str, body_speed, ground_speed) -> list[str]:
+        """Plausibility warnings of a track for this ship (:func:`bayesid.validate.check_track`):
+        stern/bow planes, depth or pitch that vary (a submarine's track), and a median speed
+        (m/s, ``body_speed`` else ``ground_speed``) above Froude number 0.25 for a full form
+        (Cb >= 0.7: tankers and bulk carriers meet a wall of wave resistance near Fn 0.2) or 0.45
+        for finer displacement hulls."""
+        warn = []
+        planes = [k for k in ("delta_s", "delta_b", "z", "w", "q", "theta")
+                  if k in track and np.nanmax(np.abs(track[k]), initial=0.0) > 1e-6]
+        if planes:
+            warn.append(f"{name}: columns {', '.join(planes)} vary (stern/bow planes, depth or pitch), but "
+                        f"{self.id} is a 3-DOF surface ship: a submarine's track?")
+        L, cb = float(self.particulars.get("L", 0.0) or 0.0), float(self.particulars.get("Cb", 0.0) or 0.0)
+        limit = 0.25 if cb >= 0.7 else 0.45
+        speed = body_speed if body_speed is not None else ground_speed
+        if L > 0 and speed is not None and speed / math.sqrt(9.81 * L) > limit:
+            warn.append(f"{name}: median speed {speed:.3g} m/s is a Froude number of "
+                        f"{speed / math.sqrt(9.81 * L):.2f} for the {L:g} m {self.id} "
+                        f"(block coefficient {cb:g}: displacement hulls of this form run below {limit:g}): a track "
+                        "of another vessel, or positions not in metres?")
+        return warn
 
     @property
     def L(self) -> float:
@@ -496,20 +531,82 @@ def apparent_wind(track: Track, u, v, psi, t=None) -> tuple[np.ndarray, np.ndarr
 # ---------------------------------------------------------------------------------------------
 # Effects and the model the fit and the gap diagnosis use
 # ---------------------------------------------------------------------------------------------
-#: Candidate effects of a surface ship (:class:`bayesid.effects.Effect` records; their hooks are
-#: not used: :class:`ShipModel` applies these three itself).
+class ShipWind(Effect):
+    """Wind loads from the measured true wind: the seven wind coefficients of the Fourier form
+    are the effect's parameters (kernel parameters of the MMG model)."""
+
+    def kernel(self, kp, q):
+        kp["prm"][:, [_IC[k] for k in WIND]] = q
+
+    def start_values(self, vehicle):
+        if vehicle.wind_start:
+            return np.array([vehicle.wind_start[k] for k in WIND])
+        return np.asarray(self.start, float)
+
+    def force_signature(self, m):
+        track, pr = m["track"], m["particulars"]
+        if "wind_speed" not in track or not pr["A_front"] + pr["A_lateral"] > 0:
+            return None
+        t = m["t"]
+        va, g = apparent_wind(track, m["u"], m["v"], m["psi"], t)
+        qa = 0.5 * pr["rho_air"] * va ** 2
+        z = np.zeros(t.size)
+        return [np.column_stack([qa * pr["A_front"] * np.cos(g), z, z]),
+                np.column_stack([z, qa * pr["A_lateral"] * np.sin(g), z]),
+                np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(g)]),
+                np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(2 * g)]),
+                np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(3 * g)])]
+
+
+class ShipCurrent(Effect):
+    """Uniform current (earth frame) in the MMG kernel: the hull moves through the water, the
+    track over ground."""
+
+    def kernel(self, kp, q):
+        kp["cur"] = np.ascontiguousarray(q)
+
+    def diagnosis_seed(self, evidence):
+        return drift_seed(evidence)
+
+    def fit_starts(self, p, i, model, seed):
+        return drift_starts(p, i, seed)
+
+    def force_signature(self, m):
+        # a current leaves the Coriolis term of the current velocity seen in the body frame
+        mass, r, t = m["particulars"]["mass_kg"], m["r"], m["t"]
+        c, s = np.cos(m["psi"]), np.sin(m["psi"])
+        return [np.column_stack([mass * r * s, mass * r * c, np.zeros(t.size)]),
+                np.column_stack([-mass * r * c, mass * r * s, np.zeros(t.size)])]
+
+
+class ShipDelay(Effect):
+    """Pure time delay of the logged rudder and propeller (the MMG kernel's inputs averaged over
+    the delayed step)."""
+
+    def kernel(self, kp, q):
+        kp["delay"] = q[:, 0]
+
+    def fit_starts(self, p, i, model, seed):
+        return delay_starts(p, i)
+
+    def force_signature(self, m):
+        u = m["u"]
+        return [np.column_stack([u * u * m["rudder_rate"]] * 3)]
+
+
+#: Candidate effects of a surface ship.
 SHIP_CATALOGUE = {
-    "wind": Effect(
+    "wind": ShipWind(
         "wind", WIND, (-2.0,) * 7, (2.0,) * 7, (-0.7, 0.0, -0.8, 0.0, -0.1, -0.05, 0.0), (0.3,) * 7,
-        neutral=(0.0,) * 7,
+        neutral=(0.0,) * 7, needs_columns=("wind_speed", "wind_dir"),
         description="wind loads from the measured true wind (Fourier form, 7 coefficients)",
         source="Fujiwara, Ueno & Nimura (1998), J. Soc. Naval Arch. Japan 183; windage areas from the "
         "particulars; start values typical of tankers (Isherwood 1972)"),
-    "current": Effect(
+    "current": ShipCurrent(
         "current", ("current_x_mps", "current_y_mps"), (-0.5, -0.5), (0.5, 0.5), (0.0, 0.0), (0.05, 0.05),
         neutral=(0.0, 0.0), description="uniform current: the hull moves through the water, the track over ground",
         source="kinematic relative-velocity model (Fossen 2011, Sec. 10.3); pond drift of a few cm/s"),
-    "delay": Effect(
+    "delay": ShipDelay(
         "delay", ("delay_s",), (0.0,), (3.0,), (0.2,), (0.3,), neutral=(0.0,),
         description="pure time delay of the logged rudder and propeller", source="logging / actuator latency"),
     "sensor_lag": SensorLag(
@@ -520,7 +617,11 @@ SHIP_CATALOGUE = {
 }
 
 
-def get_effect(name: str) -> Effect:
+def get_effect(name) -> Effect:
+    """A ship catalogue effect by name; an :class:`~bayesid.effects.Effect` passes through.
+    ValueError naming an unknown one."""
+    if isinstance(name, Effect):
+        return name
     try:
         return SHIP_CATALOGUE[name]
     except KeyError:
@@ -528,9 +629,10 @@ def get_effect(name: str) -> Effect:
 
 
 class ShipModel:
-    """The ship model plus effects, simulated over a track's protocol windows. Same interface as
-    :class:`bayesid.effects.EffectModel`, so :func:`bayesid.gap.fit`, :func:`~bayesid.gap.scores`
-    and :func:`~bayesid.gap.diagnose` work on it unchanged.
+    """The ship model plus effects, simulated over a track's protocol windows: the surface-ship
+    implementation of :class:`bayesid.models.interface.SimulationModel`, so the window fits
+    (:mod:`bayesid.estimation.windows`), :mod:`bayesid.msfit` and the gap diagnosis
+    (:func:`bayesid.analysis.gap.diagnose`) work on it unchanged.
 
     Parameters
     ----------
@@ -547,6 +649,33 @@ class ShipModel:
 
     mode = "horizontal"
     n_nuisance = 0
+    CATALOGUE = SHIP_CATALOGUE
+    DEFAULT_DT = 0.2
+    #: real data: the structural error dominates the sensor noise (bayesid.estimation.windows.fit_weighted)
+    DEFAULT_WEIGHTING = "residual"
+    get_effect = staticmethod(get_effect)
+
+    @classmethod
+    def for_vehicle(cls, ship, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal"):
+        """The model of :func:`bayesid.models.build_model` (3-DOF: ``mode`` is the horizontal plane)."""
+        return cls(ship, free, effects, dt=dt)
+
+    @staticmethod
+    def default_fit_window(scoring_window_s):
+        """A ship's training fits use :data:`FIT_WINDOW_S` whatever the scoring window."""
+        return FIT_WINDOW_S
+
+    @staticmethod
+    def default_free(ship) -> list:
+        """The ship file's ``[fit] free``."""
+        return list(ship.free)
+
+    @staticmethod
+    def check_free(ship, names, option: str = "free") -> None:
+        """KeyError naming ``option`` and a name that is not a ship coefficient."""
+        for k in names:
+            if k not in COEFFICIENTS:
+                raise KeyError(f"{option}: unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
 
     def __init__(self, ship: Ship, free=None, effects=(), dt: float = 0.2):
         self.vehicle = ship
@@ -555,7 +684,7 @@ class ShipModel:
         for k in self.free:
             if k not in COEFFICIENTS:
                 raise KeyError(f"unknown ship coefficient {k!r} in the free list; known: {', '.join(COEFFICIENTS)}")
-        self.effects = [get_effect(e) if isinstance(e, str) else e for e in effects]
+        self.effects = [get_effect(e) for e in effects]
         if any(e.name == "wind" for e in self.effects) and any(k in WIND for k in self.free):
             raise ValueError("wind coefficients are the wind effect's parameters; do not list them as free")
         self.n_theta = len(self.free)
@@ -569,14 +698,9 @@ class ShipModel:
     def n_params(self) -> int:
         return self.n_theta + sum(self.n_q)
 
-    def _effect_start(self, e):
-        if e.name == "wind" and self.vehicle.wind_start:
-            return np.array([self.vehicle.wind_start[k] for k in WIND])
-        return np.asarray(e.start, float)
-
     def start(self, theta=None) -> np.ndarray:
         th = self.theta0 if theta is None else np.asarray(theta, float)
-        return np.concatenate([th] + [self._effect_start(e) for e in self.effects])
+        return np.concatenate([th] + [e.start_values(self.vehicle) for e in self.effects])
 
     def bounds(self):
         lo = [BOUNDS.get(k, (-np.inf, np.inf))[0] for k in self.free]
@@ -614,16 +738,10 @@ class ShipModel:
         prm = np.repeat(self.prm0[None], B, axis=0)
         if self.n_theta:
             prm[:, self._ifree] = th
-        cur = np.zeros((B, 2))
-        delay = None
+        kp = {"prm": prm, "cur": np.zeros((B, 2)), "delay": None}
         for e, q in zip(self.effects, qs):
-            if e.name == "wind":
-                prm[:, [_IC[k] for k in WIND]] = q
-            elif e.name == "current":
-                cur = np.ascontiguousarray(q)
-            elif e.name == "delay":
-                delay = q[:, 0]
-        return prm, cur, delay
+            e.kernel(kp, q)
+        return kp["prm"], kp["cur"], kp["delay"]
 
     def simulate(self, ctx, P, nuisance=None, measured_start: bool = True, starts=None,
                  samples: str = "scored") -> np.ndarray:
@@ -685,30 +803,17 @@ class ShipModel:
         M = mass_matrix(prm[0])
         return motion, (acc - a_model) @ M.T, inp
 
-    def signature_columns(self, motion, inputs, track: Track, omega=None) -> dict:
-        """Force-space signatures of the ship catalogue's effects {effect: [(n, 3) columns]}."""
+    def seed(self, tracks):
+        """The equation-error seed (:func:`equation_error_seed`): (p, summary)."""
+        return equation_error_seed(self, tracks)
+
+    def signature_columns(self, motion, inputs, track: Track, seeds=None, effects=None) -> dict:
+        """Force-space signatures {effect: [(n, 3) columns]} of ``effects`` (default the ship
+        catalogue) that leave one (:meth:`~bayesid.effects.Effect.force_signature`)."""
         t = motion["t"]
-        u, v, psi = motion["u"], motion["v"], motion["psi"]
-        cols = {}
-        pr = self.vehicle.particulars
-        if "wind_speed" in track and pr["A_front"] + pr["A_lateral"] > 0:
-            va, g = apparent_wind(track, u, v, psi, t)
-            qa = 0.5 * pr["rho_air"] * va ** 2
-            z = np.zeros(t.size)
-            cols["wind"] = [np.column_stack([qa * pr["A_front"] * np.cos(g), z, z]),
-                            np.column_stack([z, qa * pr["A_lateral"] * np.sin(g), z]),
-                            np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(g)]),
-                            np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(2 * g)]),
-                            np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(3 * g)])]
-        m = self.vehicle.particulars["mass_kg"]
-        r = motion["r"]
-        c, s = np.cos(psi), np.sin(psi)
-        # a current leaves the Coriolis term of the current velocity seen in the body frame
-        cols["current"] = [np.column_stack([m * r * s, m * r * c, np.zeros(t.size)]),
-                           np.column_stack([-m * r * c, m * r * s, np.zeros(t.size)])]
-        drd = np.gradient(inputs[:, 0], t)
-        cols["delay"] = [np.column_stack([u * u * drd] * 3)]
-        return cols
+        m = {"t": t, "u": motion["u"], "v": motion["v"], "r": motion["r"], "psi": motion["psi"],
+             "rudder_rate": np.gradient(inputs[:, 0], t), "track": track, "particulars": self.vehicle.particulars}
+        return signature_dict(SHIP_CATALOGUE.values() if effects is None else effects, m)
 
     def where_samples(self, track: Track, ctx, S):
         """Extra per-sample region variables of the *where* analysis: the apparent wind."""

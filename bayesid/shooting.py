@@ -11,7 +11,7 @@ model's prediction over the samples that belong to the start (``ctx.lead``):
   (Rao, Rawlings & Mayne 2003, IEEE TAC 48(2), with the horizon ending at the window start);
 * on a training track, the window itself (multiple shooting proper: Bock & Plitt 1984, IFAC
   World Congress; the start states are nuisance parameters of the fit, eliminated by variable
-  projection in :func:`bayesid.gap.fit`, Golub & Pereyra 2003, Inverse Problems 19(2), with
+  projection in :class:`bayesid.estimation.windows.WindowObjective`, Golub & Pereyra 2003, Inverse Problems 19(2), with
   Kaufman's 1975 Jacobian).
 
 Windows are independent given the parameters, so the start states of all windows are fitted at

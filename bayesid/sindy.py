@@ -527,6 +527,24 @@ def legacy_seed(rng: np.random.Generator):
         np.random.set_state(saved)
 
 
+def ensemble_stlsq(Xn: np.ndarray, yn: np.ndarray, rng: np.random.Generator, threshold: float,
+                   alpha: float = 0.0, n_models: int = 100) -> np.ndarray:
+    """Ensemble sequentially thresholded least squares: pysindy ``STLSQ`` (Brunton, Proctor &
+    Kutz 2016, PNAS 113(15); ``unbias``, 20 iterations, ridge ``alpha``) inside pysindy's
+    ``EnsembleOptimizer`` with bagging (Fasel, Kutz, Brunton & Brunton 2022, Proc. R. Soc. A
+    478), on already normalised columns ``Xn`` (n, K) and target ``yn`` (n,); the bootstrap is
+    seeded from ``rng`` (:func:`legacy_seed`), BLAS on one thread.
+
+    Returns (n_models, K) coefficients; the inclusion probability of a column is the share of
+    non-zero rows."""
+    stl = ps.STLSQ(threshold=float(threshold), alpha=float(alpha), normalize_columns=False, unbias=True, max_iter=20)
+    ens = ps.EnsembleOptimizer(stl, bagging=True, n_models=int(n_models), replace=True)
+    with legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # STLSQ "eliminated all coefficients", convergence
+        ens.fit(Xn, yn)
+    return np.array(ens.coef_list)[:, 0, :]
+
+
 def track_inputs(track: Track) -> np.ndarray:
     """(n_samples, 4) inputs ``delta_r, delta_s, delta_b, n`` of a track (rad, rpm), absent
     columns 0. Raises ValueError naming the track when ``delta_r`` or ``n`` is missing."""
@@ -679,14 +697,9 @@ def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshol
             continue
         Xn = X[:, live] / rms_x[live]
         yn = y / rms_y
-        stl = ps.STLSQ(threshold=float(threshold), alpha=float(ridge) * n, normalize_columns=False,
-                       unbias=True, max_iter=20)
-        ens = ps.EnsembleOptimizer(stl, bagging=True, n_models=int(n_models), replace=True)
-        with legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # STLSQ "eliminated all coefficients", convergence
-            ens.fit(Xn, yn)
+        xi = ensemble_stlsq(Xn, yn, rng, threshold, float(ridge) * n, n_models)  # (n_models, K_live)
+        with threadpool_limits(1):
             cond, vif_live = _collinearity(Xn)
-        xi = np.array(ens.coef_list)[:, 0, :]  # (n_models, K_live) normalised coefficients
         prob[live] = np.mean(xi != 0.0, axis=0)
         coef[live] = np.median(xi, axis=0) * rms_y / rms_x[live]
         vif[live] = vif_live

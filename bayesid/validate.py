@@ -80,8 +80,8 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
     if declared is None or vehicle is None:
         return []
     name = where or track.name
-    vid = str(getattr(vehicle, "id", ""))
-    own = {w for w in _words(" ".join([vid.replace("_", " "), vid, str(getattr(vehicle, "name", ""))]))
+    vid = str(vehicle.id)
+    own = {w for w in _words(" ".join([vid.replace("_", " "), vid, vehicle.display_name]))
            if len(w) >= 3 and not w.isdigit() and w not in _GENERIC} | set(PACKAGED_VESSELS.get(vid, ()))
     said = _words(declared)
     others = [k for k, keys in PACKAGED_VESSELS.items() if k != vid and said & set(keys)]
@@ -200,25 +200,9 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         if n_med < 0 and ahead is not None and ahead > 0.05:
             warn.append(f"{name}: column 'n': propeller speed is negative (median {n_med:.4g} rpm, astern) while "
                         f"the vessel moves at {ahead:.3g} m/s: sign convention (n > 0 ahead)?")
-    if vehicle is not None and getattr(vehicle, "nominal_rpm", None) is None:
-        # a surface ship: a track with planes or depth is a submarine's; speed as a Froude number
-        planes = [k for k in ("delta_s", "delta_b", "z", "w", "q", "theta")
-                  if k in track and np.nanmax(np.abs(track[k]), initial=0.0) > 1e-6]
-        if planes:
-            warn.append(f"{name}: columns {', '.join(planes)} vary (stern/bow planes, depth or pitch), but "
-                        f"{getattr(vehicle, 'id', 'the vehicle')} is a 3-DOF surface ship: a submarine's track?")
-        part = getattr(vehicle, "particulars", {})
-        L, cb = float(part.get("L", 0.0) or 0.0), float(part.get("Cb", 0.0) or 0.0)
-        # full forms (tankers, bulk carriers) meet a wall of wave resistance near Fn 0.2; finer
-        # displacement hulls near 0.4
-        limit = 0.25 if cb >= 0.7 else 0.45
-        speed = body if body is not None else ground
-        if L > 0 and speed is not None and speed / math.sqrt(9.81 * L) > limit:
-            warn.append(f"{name}: median speed {speed:.3g} m/s is a Froude number of "
-                        f"{speed / math.sqrt(9.81 * L):.2f} for the {L:g} m {getattr(vehicle, 'id', 'ship')} "
-                        f"(block coefficient {cb:g}: displacement hulls of this form run below {limit:g}): a track "
-                        "of another vessel, or positions not in metres?")
-    nominal_rpm = getattr(vehicle, "nominal_rpm", 0.0) or 0.0
+    if vehicle is not None:  # what the vessel itself makes implausible (planes on a ship, speed)
+        warn += vehicle.track_warnings(track, name, body, ground)
+    nominal_rpm = (vehicle.nominal_rpm or 0.0) if vehicle is not None else 0.0
     if "n" in track:
         n = np.asarray(track["n"], float)
         n = n[np.isfinite(n)]
@@ -227,10 +211,6 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         elif n.size and nominal_rpm > 0 and np.max(np.abs(n)) < nominal_rpm / 20.0:
             refuse("n", f"values up to {np.max(np.abs(n)):.4g} against the vehicle's nominal {nominal_rpm:g} rpm: "
                         "it looks like rev/s")
-    nominal_speed = getattr(vehicle, "nominal_speed", None) if nominal_rpm > 0 else None
-    if nominal_speed and ground is not None and ground > 4.0 * nominal_speed:
-        warn.append(f"{name}: median speed over ground {ground:.3g} m/s is more than 4 x the vehicle's nominal "
-                    f"{nominal_speed:.3g} m/s: a track of another vessel, or positions not in metres?")
     return warn
 
 

@@ -106,6 +106,24 @@ class Vehicle:
     source: dict = field(default_factory=dict)
     path: str = ""
 
+    @property
+    def file_path(self) -> str:
+        """The TOML file the vehicle was loaded from ("" when built in code)."""
+        return self.path
+
+    @property
+    def display_name(self) -> str:
+        """The vehicle's name (for the vessel check of a track)."""
+        return self.name
+
+    def track_warnings(self, track, name: str, body_speed, ground_speed) -> list[str]:
+        """Plausibility warnings of a track for this vehicle (:func:`bayesid.validate.check_track`):
+        a median speed over ground above 4 x the nominal speed (m/s; ``body_speed`` unused)."""
+        if self.nominal_rpm > 0 and ground_speed is not None and ground_speed > 4.0 * self.nominal_speed:
+            return [f"{name}: median speed over ground {ground_speed:.3g} m/s is more than 4 x the vehicle's "
+                    f"nominal {self.nominal_speed:.3g} m/s: a track of another vessel, or positions not in metres?"]
+        return []
+
     def coefficient_vector(self, names=None) -> np.ndarray:
         """Prime coefficients as an array (P,), in ``names`` order (default: the whole table)."""
         names = terms.NAMES if names is None else names
@@ -233,7 +251,7 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
 
     if doc.get("vehicle", {}).get("kind") == "ship3dof":
         raise VehicleFileError(f"{p}: a ship file ([vehicle] kind = \"ship3dof\"); load it with "
-                               "bayesid.ship.load_ship, or bayesid.msfit.load_any_vehicle for either kind")
+                               "bayesid.ship.load_ship, or bayesid.models.load_any_vehicle for either kind")
     for section, keys in _REQUIRED.items():
         if section not in doc:
             raise VehicleFileError(f"{p}: missing section [{section}]")

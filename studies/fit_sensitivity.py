@@ -151,7 +151,7 @@ def run_fit(job: dict) -> dict:
                          max_nfev=job["max_nfev"], weighting="residual", channels=channels, start="measured")
     out = {k: job[k] for k in ("dataset", "split", "setting", "key")}
     out.update(train_runs=[t.name for t in train], heldout_runs=[t.name for t in held], fit_window_s=window,
-               channels=list(channels) if channels else "all", nfev=res["fit"].nfev)
+               channels=list(channels) if channels else "all", nfev=res["fit"].n_simulations)
     for key, w in (("w30", 30.0), ("w60", 60.0)):
         pr = msfit.predict(res["model"], res["fit"].p, held, w, start="measured")
         out[key] = pr["pooled"]["rms_position_m"]

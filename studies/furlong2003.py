@@ -19,7 +19,8 @@ import numpy as np
 
 from bayesid import cases, identifiability, plots, terms
 from bayesid import manoeuvres as mv
-from bayesid.identify import Problem, fit_least_squares, fit_slsqp
+from bayesid.estimation.fit import fit as fit_problem
+from bayesid.estimation.objective import Problem
 from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifest
 from bayesid.simulate import Simulator
 from bayesid.vehicle import load_vehicle
@@ -50,8 +51,8 @@ def run_case(number, vehicle, spiral, target, rng, quick):
     bounds = case.scaled_bounds()
     p0 = np.ones(len(case.free))
     fits = {
-        "slsqp": fit_slsqp(problem, p0, bounds, maxiter=100 if quick else 400),
-        "least_squares": fit_least_squares(problem, p0, bounds, max_nfev=60 if quick else 600),
+        "slsqp": fit_problem(problem, p0, bounds, method="slsqp", maxiter=100 if quick else 400),
+        "least_squares": fit_problem(problem, p0, bounds, max_nfev=60 if quick else 600),
     }
     out = {}
     for key, fit in fits.items():
@@ -85,7 +86,7 @@ def case_json(case, res, true_cost):
     ratio = {n: fit.theta[i] / case.true[n] for i, n in enumerate(case.free)}
     return dict(
         n_free=len(case.free), free=case.free, known=case.known,
-        start_cost=fit.start_cost, final_cost=fit.final_cost,
+        start_cost=fit.start_cost, final_cost=fit.cost,
         max_position_error_m=float(np.max(res["error"])),
         coefficient_ratio=ratio,
         start_ratio={n: case.start[n] / case.true[n] for n in case.free},
@@ -126,8 +127,8 @@ def main():
         results[case.name] = case_json(case, res["slsqp"], true_cost)
         results[case.name]["least_squares"] = case_json(case, res["least_squares"], true_cost)
         results[case.name]["structural_nulls"] = nulls
-        print(f"{case.name}: V {res['slsqp']['fit'].start_cost:.3g} -> SLSQP {res['slsqp']['fit'].final_cost:.3g}"
-              f" / LSQ {res['least_squares']['fit'].final_cost:.3g}", flush=True)
+        print(f"{case.name}: V {res['slsqp']['fit'].start_cost:.3g} -> SLSQP {res['slsqp']['fit'].cost:.3g}"
+              f" / LSQ {res['least_squares']['fit'].cost:.3g}", flush=True)
 
     # 3. Figures like the paper's Figs. 2-5, plus convergence and Jacobian spectra.
     plots.position_error(target.t, {k.replace("case", "Case "): runs[k][1]["slsqp"]["error"] for k in runs},

@@ -31,7 +31,8 @@ import numpy as np
 
 from bayesid import cases, plots, richness, sindy
 from bayesid import manoeuvres as mv
-from bayesid.identify import JointProblem, Problem, fit_least_squares
+from bayesid.estimation.fit import fit as fit_problem
+from bayesid.estimation.objective import JointProblem, Problem
 from bayesid.posterior import add_noise
 from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifest
 from bayesid.simulate import Simulator
@@ -86,7 +87,7 @@ def sindy_check(vehicle, m, rng, n_models):
 
 def fit_on(case, vehicle_k, problems, quick):
     pb = problems[0] if len(problems) == 1 else JointProblem(problems)
-    fit = fit_least_squares(pb, np.array([case.start[n] for n in case.free]) / pb.reference,
+    fit = fit_problem(pb, np.array([case.start[n] for n in case.free]) / pb.reference,
                             case.scaled_bounds(), max_nfev=30 if quick else 200)
     return fit.theta
 
@@ -107,7 +108,7 @@ def monte_carlo_sd(vehicle, m, case, theta_true, n, rng, quick, w):
         pb = Problem(clean.sim, add_noise(truth, NOISE, rng), theta_true, channels=CHANNELS)
         p0 = 1.0 + rng.uniform(-0.1, 0.1, theta_true.size)
         lo, hi = np.full(theta_true.size, 1 - BOUND), np.full(theta_true.size, 1 + BOUND)
-        est.append(fit_least_squares(pb, p0, (lo, hi), max_nfev=30 if quick else 150).p - 1.0)
+        est.append(fit_problem(pb, p0, (lo, hi), max_nfev=30 if quick else 150).p - 1.0)
     E = np.array(est)
     return E.std(axis=0, ddof=1), float((E @ w).std(ddof=1))
 

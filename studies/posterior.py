@@ -35,7 +35,8 @@ import numpy as np
 
 from bayesid import cases, identifiability, plots, sampling
 from bayesid import manoeuvres as mv
-from bayesid.identify import Problem, fit_least_squares
+from bayesid.estimation.fit import fit as fit_problem
+from bayesid.estimation.objective import Problem
 from bayesid.posterior import (CoefficientPrior, LogPosterior, add_noise, direction_draws, laplace_covariance,
                                laplace_start, marginal_table, prior_sd, top_correlations)
 from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifest
@@ -115,9 +116,9 @@ def optimum(setup, vehicle, spiral, target, quick):
                     sample_every=int(round(SAMPLE_S / spiral.dt)))
     pb = Problem(sim, target, c.reference(), channels=CHANNELS)
     lo, hi = c.scaled_bounds()
-    fit = fit_least_squares(pb, np.ones(len(c.free)), (lo, hi), max_nfev=40 if quick else 300)
+    fit = fit_problem(pb, np.ones(len(c.free)), (lo, hi), max_nfev=40 if quick else 300)
     m = START_MARGIN * (hi - lo)
-    inner = fit_least_squares(pb, np.clip(fit.p, lo + m, hi - m), (lo + m, hi - m),
+    inner = fit_problem(pb, np.clip(fit.p, lo + m, hi - m), (lo + m, hi - m),
                               max_nfev=20 if quick else 100)
 
     def full(theta_free):
@@ -318,7 +319,7 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
         n_walkers=Wk, n_ensembles=E, burn=burn, n_draws=diag["n_draws"],
         sampling_wall_s=sample_s, log_prob_evals_per_s=evals_per_s, n_evaluations=result.n_evaluations,
         step_size_error_m=dt_err,
-        optimum=dict(zip(setup.names, theta_hat.tolist())), optimum_cost=fit.final_cost,
+        optimum=dict(zip(setup.names, theta_hat.tolist())), optimum_cost=fit.cost,
         optimum_at_bound=fit.at_bound,
         marginals=marg, rhat=diag["rhat"], ess_bulk=diag["ess_bulk"], ess_tail=diag["ess_tail"],
         mcse_mean=diag["mcse_mean"],

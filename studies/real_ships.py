@@ -14,7 +14,7 @@ Method
   an equation-error regression (``bayesid.msfit``); channel weights by two-step feasible GLS (the
   residual RMS of a first, noise-weighted fit: on these runs the structural error over a window
   is 10-100x the sensor noise); Laplace posterior with an AR(1) inflation.
-- Diagnosis (``bayesid.gap.diagnose``): the base model is fitted without the wind; candidates
+- Diagnosis (``bayesid.analysis.gap.diagnose``): the base model is fitted without the wind; candidates
   from ``bayesid.ship.SHIP_CATALOGUE`` (wind -- Fujiwara-form, 7 coefficients, driven by the
   measured wind --, current, delay, sensor lag of the logged velocities and a position time skew)
   are each added with all coefficients re-identified; ranked by the held-out error at 60 s
@@ -75,17 +75,21 @@ def _scores(model, fitres, tracks, window):
 
 def evaluate(name, ship, train, held, candidates, args, out, log):
     """Diagnose, then score base and after models at 30 s, 60 s and whole run."""
-    from bayesid import gap, msfit
+    from bayesid import msfit
+    from bayesid.analysis.gap import diagnose
+    from bayesid.estimation import windows as wf
+    from bayesid.models import build_model
     from bayesid.report import write_diagnosis
     from bayesid.ship import FIT_WINDOW_S as fw
 
     t0 = time.perf_counter()
-    res = gap.diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
+    diag = diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
                        dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev, start="measured",
                        progress=lambda m: log(f"{name}: {m}"))
-    write_diagnosis(res, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
-    bm, bf, _ = res["_curves"]["base"]
-    am, af, _ = res["_curves"]["after"]
+    write_diagnosis(diag, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
+    res = diag.to_dict()
+    bm, bf = diag.base.model, diag.base.fit
+    am, af = diag.after.model, diag.after.fit
     doc = {"train_runs": [t.name for t in train], "heldout_runs": [t.name for t in held], "window_s": 60.0,
            "fit_window_s": fw, "verdict": res["verdict"], "ranking": res["ranking"], "candidates": list(candidates),
            "effects_added": res["effects_added"], "cause": res["cause"], "contributors": res["contributors"],
@@ -99,9 +103,9 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     # protocol table always shows what adding the top effect does (verdict says if it counts).
     top = res["ranking"][0]["effect"] if res["ranking"] else None
     if not res["effects_added"] and top is not None:
-        am = msfit.build_model(ship, ship.free, [top], 0.2)
+        am = build_model(ship, ship.free, [top], 0.2)
         ctr = [am.context(t, fw) for t in train]
-        af = gap.fit(am, ctr, res["fit_sd"], am.start(bf.p[:bm.n_theta]), max_nfev=args.max_nfev)
+        af = wf.fit_model(am, ctr, res["fit_sd"], am.start(bf.p[:bm.n_theta]), max_nfev=args.max_nfev)
     doc["after_effects"] = [e.name for e in am.effects]
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
         b, a = _scores(bm, bf, held, w), _scores(am, af, held, w)
@@ -175,8 +179,9 @@ def literature_baseline(vessel, held, rng):
     """The vehicle file's published coefficients, not fitted, in this model: protocol scores on the
     held-out runs (30 s, 60 s, whole run) and the predicted 35 deg turning circles."""
     from bayesid import msfit
+    from bayesid.models import build_model
 
-    m = msfit.build_model(vessel, vessel.free, [], 0.2)
+    m = build_model(vessel, vessel.free, [], 0.2)
     p = m.start()
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):

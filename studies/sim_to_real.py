@@ -208,7 +208,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
 
     numba.set_num_threads(1)
     from bayesid import effects as ef
-    from bayesid import gap
+    from bayesid.analysis.gap import diagnose
     from bayesid.vehicle import load_vehicle
 
     tic = time.perf_counter()
@@ -228,9 +228,8 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     train, held = world_tracks(veh, world_veh, objs, cfg, rng, seed)
     cands = [c for c in ef.CATALOGUE if c not in case["exclude"]]
     window = window_for(cfg)
-    res = gap.diagnose(veh, FREE, train, held, candidates=cands, window_s=window, dt=DT,
-                       rng=np.random.default_rng(seed), max_nfev=15 if quick else 40)
-    res.pop("_curves", None)
+    res = diagnose(veh, FREE, train, held, candidates=cands, window_s=window, dt=DT,
+                   rng=np.random.default_rng(seed), max_nfev=15 if quick else 40).to_dict()
     res["where"].pop("regions", None)  # keep results.json small; the summary stays
     oracle = true_model_scores(world_veh, held, objs, window, res["settings"])
     return {"case": case, "truth": truth, "logging": cfg, "window_s": window, "diagnosis": res, "oracle": oracle,
@@ -244,14 +243,15 @@ def true_model_scores(world_veh, held: list, effects: dict, window: float, setti
     base model is what a perfect attribution reaches on these noisy held-out tracks (a fitted
     candidate can land a little above it by fitting noise)."""
     from bayesid import effects as ef
-    from bayesid import gap
+    from bayesid.estimation import windows as wf
+    from bayesid.estimation.fit import FitResult
 
     m = ef.EffectModel(world_veh, FREE, list(effects), dt=DT)
     p = np.concatenate([m.theta0] + [[held[0].meta["truth"][e.name][k] for k in e.params] for e in m.effects])
     nu = [np.asarray(t.meta["truth"].get("nuisance", [])[:m.n_nuisance], float) for t in held]
-    f = gap.Fit(m, p, nu, 0.0, 0, 0, True, "true model", 0.0)
+    f = FitResult.fixed(m, p, len(nu), "true model", nu)
     ctxs = [m.context(t, window, start=settings["start_rule"], leadin_s=settings["leadin_s"]) for t in held]
-    sc = gap.scores(m, f, ctxs, nu if m.n_nuisance else None)
+    sc = wf.scores(m, f, ctxs, nu if m.n_nuisance else None)
     return {"heldout_rms_m": sc["rms_position_m"], "heading_rms_deg": sc["rms_heading_deg"]}
 
 

@@ -237,7 +237,7 @@ def test_load_vehicle_on_a_ship_file_names_the_right_loader():
 
 
 def test_vessel_line_of_a_track_is_checked_against_the_vehicle():
-    from bayesid.msfit import load_any_vehicle
+    from bayesid.models import load_any_vehicle
     from bayesid.track import Track
     from bayesid.validate import check_track
 
@@ -256,7 +256,7 @@ def test_vessel_line_of_a_track_is_checked_against_the_vehicle():
 def test_implausible_tracks_for_the_vehicle_are_warned_about(csvs, tmp_path):
     """A propeller astern while moving ahead; a submarine's track (1.9 m/s) given to the 3 m
     full-form Esso Osaka model; pitch-plane columns on a surface ship."""
-    from bayesid.msfit import load_any_vehicle
+    from bayesid.models import load_any_vehicle
     from bayesid.track import read_csv
     from bayesid.validate import check_track
 

@@ -12,8 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid import cli, effects as ef, gap, protocol
+from bayesid import cli, effects as ef, protocol
+from bayesid.analysis import gap
 from bayesid import manoeuvres as mv
+from bayesid.estimation import windows as wf
+from bayesid.estimation.fit import FitResult
 from bayesid.track import Track, read_csv, write_csv
 from bayesid.vehicle import load_vehicle
 
@@ -196,7 +199,7 @@ def test_diagnosis_names_the_withheld_effect(veh, scenario, effect):
     truth = {effect: ef.draw_parameters(effect, level, np.random.default_rng(4))}
     train, held = world(veh, scenario, truth, seed=11)
     res = gap.diagnose(veh, FREE, train, held, candidates=[effect] + distractors, window_s=60.0,
-                       rng=np.random.default_rng(0), max_nfev=40)
+                       rng=np.random.default_rng(0), max_nfev=40).to_dict()
     assert res["verdict"] == effect, (res["verdict"], [(r["effect"], r["heldout_rms_m"], r["excess_removed"],
                                                         r["delta_bic"]) for r in res["ranking"]])
     assert res["gap_after"]["heldout_rms_m"] < res["gap_before"]["heldout_rms_m"]
@@ -209,25 +212,25 @@ def test_scores_log_likelihood_is_the_gaussian_density_of_the_errors(veh):
     tr = ef.world_track(veh, m, {"thrust": {"thrust_scale": 0.8}}, np.random.default_rng(3))
     model = ef.EffectModel(veh, ("Nr",), (), dt=0.5)
     ctx = [model.context(tr, 30.0)]
-    f = gap.Fit(model, model.start(), [np.zeros(0)], 0.0, 0, 0, True, "", 0.0)
+    f = FitResult.fixed(model, model.start(), 1)
     sd = {c: 0.5 + i for i, c in enumerate(protocol.CHANNELS)}
     e = ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))
     want = sum(float(np.sum(-0.5 * (v[0][np.isfinite(v[0])] / sd[c]) ** 2 - np.log(sd[c] * np.sqrt(2 * np.pi))))
                for c, v in e.items())
-    assert gap.scores(model, f, ctx, sd=sd)["log_likelihood"] == pytest.approx(want, rel=1e-12)
-    assert "log_likelihood" not in gap.scores(model, f, ctx)
+    assert wf.scores(model, f, ctx, sd=sd)["log_likelihood"] == pytest.approx(want, rel=1e-12)
+    assert "log_likelihood" not in wf.scores(model, f, ctx)
 
 
 def test_no_effect_gives_none_and_a_missing_candidate_gives_unexplained(veh, scenario):
     train, held = world(veh, scenario, {}, seed=21)
     res = gap.diagnose(veh, FREE, train, held, candidates=["current", "thrust", "delay"],
-                       rng=np.random.default_rng(0), max_nfev=40)
+                       rng=np.random.default_rng(0), max_nfev=40).to_dict()
     assert res["verdict"] == "none", res["gap_ratio"]
     assert res["gap_ratio"] < res["thresholds"]["none_ratio"]
     truth = {"current": ef.draw_parameters("current", 2, np.random.default_rng(4))}
     train, held = world(veh, scenario, truth, seed=22)
     res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0),
-                       max_nfev=40)
+                       max_nfev=40).to_dict()
     assert res["verdict"] == "unexplained"
     assert res["significant_gap"]
     assert res["where"]["dominant_channel"] in ("x", "y", "u", "v")
@@ -240,7 +243,7 @@ def test_a_nesting_candidate_never_fits_the_training_tracks_worse_than_the_base_
     covered the logged rudder steps, no-effect benchmark cases showed actuator dBIC of +2e4.)"""
     train, held = world(veh, scenario, {}, seed=21)
     res = gap.diagnose(veh, FREE, train, held, candidates=["actuator", "delay", "thrust"],
-                       rng=np.random.default_rng(0), max_nfev=4)
+                       rng=np.random.default_rng(0), max_nfev=4).to_dict()
     ln_n = np.log(res["base_fit"]["n_residuals"])
     for r in res["ranking"]:
         assert r["delta_bic"] <= len(r["parameters"]) * ln_n + 1e-6, (r["effect"], r["delta_bic"], r["parameters"])
@@ -250,18 +253,18 @@ def test_shrinkage_is_scored_on_held_out_tracks_disjoint_from_training(veh, scen
     truth = {"thrust": {"thrust_scale": 0.7}}
     train, held = world(veh, scenario, truth, seed=31)
     with pytest.raises(ValueError, match="overlap"):
-        gap.diagnose(veh, FREE, train, [train[0]], candidates=["thrust"])
+        gap.diagnose(veh, FREE, train, [train[0]], candidates=["thrust"]).to_dict()
     res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0),
-                       max_nfev=40)
+                       max_nfev=40).to_dict()
     assert set(res["train_tracks"]).isdisjoint(res["heldout_tracks"])
     assert res["heldout_tracks"] == [t.name for t in held]
     expect = 1 - res["gap_after"]["heldout_rms_m"] / res["gap_before"]["heldout_rms_m"]
     assert res["heldout_shrinkage"] == pytest.approx(expect)
     # the held-out score is the protocol on the held-out track, not on a training one
     model = ef.EffectModel(veh, FREE, ("thrust",), dt=0.5)
-    f = gap.Fit(model, np.r_[list(res["after_fit"]["coefficients"].values()),
-                             res["after_fit"]["effects"]["thrust"]["thrust_scale"]], [np.zeros(0)], 0, 0, 0, True, "", 0)
-    held_score = gap.scores(model, f, [model.context(t, 60.0) for t in held])["rms_position_m"]
+    f = FitResult.fixed(model, np.r_[list(res["after_fit"]["coefficients"].values()),
+                                     res["after_fit"]["effects"]["thrust"]["thrust_scale"]], 1)
+    held_score = wf.scores(model, f, [model.context(t, 60.0) for t in held])["rms_position_m"]
     assert held_score == pytest.approx(res["gap_after"]["heldout_rms_m"], rel=1e-9)
 
 
@@ -355,8 +358,8 @@ def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scena
     true = s2r.true_model_scores(veh, held, truth, s2r.WINDOW, {"start_rule": "measured", "leadin_s": 0.0})[
         "heldout_rms_m"]
     base = ef.EffectModel(veh, s2r.FREE, (), dt=s2r.DT)
-    fb = gap.Fit(base, base.start(), [np.zeros(0)], 0.0, 0, 0, True, "", 0.0)
-    missed = gap.scores(base, fb, [base.context(t, s2r.WINDOW) for t in held])["rms_position_m"]
+    fb = FitResult.fixed(base, base.start(), 1)
+    missed = wf.scores(base, fb, [base.context(t, s2r.WINDOW) for t in held])["rms_position_m"]
     assert true < 0.35 and missed > 10 * true, (true, missed)
 
 
@@ -373,7 +376,7 @@ def test_two_simultaneous_effects_are_both_added_when_neither_explains_half_alon
              "waves": ef.draw_parameters("waves", 1, np.random.default_rng(0))}
     train, held = world(veh, (tm, hm), truth, seed=41)
     res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "waves", "delay"], window_s=30.0,
-                       rng=np.random.default_rng(0), max_nfev=40, max_effects=2)
+                       rng=np.random.default_rng(0), max_nfev=40, max_effects=2).to_dict()
     first = res["rounds"][0]
     assert all(r["excess_removed"] < res["thresholds"]["explain_fraction"] for r in first), \
         [(r["effect"], r["excess_removed"]) for r in first]

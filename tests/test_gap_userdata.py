@@ -10,8 +10,11 @@ import numpy as np
 import pytest
 
 from bayesid import effects as ef
-from bayesid import gap, protocol, shooting
+from bayesid import protocol, shooting
+from bayesid.analysis import gap
 from bayesid import manoeuvres as mv
+from bayesid.estimation import windows as wf
+from bayesid.estimation.fit import FitResult
 from bayesid.track import Track
 from bayesid.vehicle import load_vehicle
 
@@ -57,16 +60,16 @@ def true_model_heldout(veh, effects: dict, held, window_s=30.0):
     m = ef.EffectModel(veh, FREE, names, dt=0.5)
     p = np.concatenate([m.theta0] + [[held[0].meta["truth"][e.name][k] for k in e.params] for e in m.effects])
     nu = [np.asarray(t.meta["truth"].get("nuisance", [])[:m.n_nuisance], float) for t in held]
-    f = gap.Fit(m, p, nu, 0.0, 0, 0, True, "true model", 0.0)
+    f = FitResult.fixed(m, p, len(nu), "true model", nu)
     rule = protocol.resolve_start("auto", held)
     ctxs = [m.context(t, window_s, start=rule, leadin_s=protocol.LEADIN_S if rule == "fitted" else 0.0)
             for t in held]
-    return gap.scores(m, f, ctxs, nu if m.n_nuisance else None)["rms_position_m"]
+    return wf.scores(m, f, ctxs, nu if m.n_nuisance else None)["rms_position_m"]
 
 
 def _diagnose(veh, train, held, cands, **kw):
     kw = {"window_s": 30.0, "rng": np.random.default_rng(0), "max_nfev": 25, **kw}
-    return gap.diagnose(veh, FREE, train, held, candidates=cands, **kw)
+    return gap.diagnose(veh, FREE, train, held, candidates=cands, **kw).to_dict()
 
 
 # --- the fitted start rule --------------------------------------------------------------------
@@ -109,9 +112,9 @@ def test_fitted_start_brings_the_true_models_error_to_the_noise_level(veh):
     predicts the true model's held-out windows within a few tenths of a metre."""
     _, held = user_world(veh, {}, 3, 1, 3, 150.0)
     m = ef.EffectModel(veh, FREE, (), dt=0.5)
-    f = gap.Fit(m, m.start(), [np.zeros(0)], 0.0, 0, 0, True, "nominal", 0.0)
-    measured = gap.scores(m, f, [m.context(t, 60.0) for t in held])["rms_position_m"]
-    fitted = gap.scores(m, f, [m.context(t, 60.0, start="fitted", leadin_s=10.0) for t in held])["rms_position_m"]
+    f = FitResult.fixed(m, m.start(), 1, "nominal")
+    measured = wf.scores(m, f, [m.context(t, 60.0) for t in held])["rms_position_m"]
+    fitted = wf.scores(m, f, [m.context(t, 60.0, start="fitted", leadin_s=10.0) for t in held])["rms_position_m"]
     assert fitted < 0.5 < 2.0 < measured, (fitted, measured)
 
 
@@ -120,7 +123,7 @@ def test_fitted_start_brings_the_true_models_error_to_the_noise_level(veh):
 def test_diagnose_runs_for_any_number_of_training_and_held_out_tracks(veh, n_train, n_held):
     train, held = user_world(veh, {"thrust": {"thrust_scale": 0.8}}, 5, n_train, n_held, 60.0)
     res = gap.diagnose(veh, ["Nr"], train, held, candidates=["thrust"], window_s=30.0,
-                       rng=np.random.default_rng(0), max_nfev=6, max_effects=1)
+                       rng=np.random.default_rng(0), max_nfev=6, max_effects=1).to_dict()
     assert res["heldout_tracks"] == [t.name for t in held] and len(res["train_tracks"]) == n_train
     assert np.isfinite(res["gap_before"]["heldout_rms_m"])
 
@@ -156,10 +159,10 @@ def test_without_a_velocity_log_the_withheld_effect_is_named(veh, effect):
     m = ef.EffectModel(veh, FREE, [effect], dt=0.5)
     p = np.r_[[res["after_fit"]["coefficients"][k] for k in FREE],
               [res["after_fit"]["effects"][effect][k] for k in m.effects[0].params]]
-    f = gap.Fit(m, p, [np.zeros(m.n_nuisance)] * len(train), 0.0, 0, 0, True, "", 0.0)
+    f = FitResult.fixed(m, p, len(train))
     ctxs = [m.context(t, 30.0, start="fitted", leadin_s=10.0) for t in held]
-    nu = gap.heldout_nuisance(m, f, ctxs, res["fit_sd"]) if m.n_nuisance else None
-    again = gap.scores(m, f, ctxs, nu)
+    nu = wf.heldout_nuisance(m, f, ctxs, res["fit_sd"]) if m.n_nuisance else None
+    again = wf.scores(m, f, ctxs, nu)
     assert again["rms_position_m"] == pytest.approx(res["gap_after"]["heldout_rms_m"], rel=1e-6)
 
 

@@ -4,7 +4,7 @@ import pytest
 
 from bayesid import cases, identifiability as ida
 from bayesid import manoeuvres as mv
-from bayesid.identify import Problem
+from bayesid.estimation.objective import Problem
 from bayesid.simulate import Simulator
 
 SIG = dict(x=0.2, y=0.2, z=0.2, phi=np.radians(0.2), theta=np.radians(0.2), psi=np.radians(0.2))

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from bayesid import cases, manoeuvres as mv
-from bayesid.identify import Problem, fit_least_squares, fit_slsqp
+from bayesid.estimation.fit import fit as fit_problem
+from bayesid.estimation.objective import Problem
 from bayesid.simulate import Simulator
 
 
@@ -33,17 +34,17 @@ def test_jacobian_is_one_batched_call(short_problem):
     assert pb.sim.n_tracks - n0 == len(case.free) + 1
 
 
-@pytest.mark.parametrize("fit", [fit_least_squares, fit_slsqp])
-def test_case2_recovers_true_coefficients(short_problem, fit):
+@pytest.mark.parametrize("method", ["least_squares", "slsqp"])
+def test_case2_recovers_true_coefficients(short_problem, method):
     case, pb = short_problem
-    res = fit(pb, np.ones(len(case.free)), case.scaled_bounds())
+    res = fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), method=method)
     ratio = res.theta / np.array([case.true[n] for n in case.free])
     # noise-free 60 s zigzag 20/20, 14 rotary + added-mass coefficients free:
     # least squares recovers every one to 1e-4; SLSQP stops earlier on this short, sloppy problem
     # (measured: worst coefficient 4.6 % off, Nrdot) -- the least-squares row is the recovery test.
-    tol = 1e-4 if fit is fit_least_squares else 0.1
+    tol = 1e-4 if method == "least_squares" else 0.1
     assert np.max(np.abs(ratio - 1)) < tol, dict(zip(case.free, ratio))
-    assert res.final_cost < 1e-6 * res.start_cost
+    assert res.cost < 1e-6 * res.start_cost
     assert res.n_simulations == res.n_sim_cost + res.n_sim_gradient + res.n_sim_linesearch
 
 

@@ -9,6 +9,7 @@ import pytest
 
 from bayesid import datasets as ds
 from bayesid import msfit
+from bayesid.models import build_model
 from bayesid.cli import main
 from bayesid.datasets import KVLCC2_SCALE, DatasetFormatError, read_run, read_simman_hsva, read_simman_marin
 from bayesid.track import read_csv
@@ -149,7 +150,7 @@ def test_real_ships_study_compares_marin_turns_when_present(tmp_path):
     (data / "kvlcc2-other-basin").mkdir(parents=True)
     R = 520.0
     marin_file(data / "kvlcc2-other-basin" / "MARIN_FREE_KVLCC2_tc_35_m.dat", port_turn_full_scale(R=R))
-    am = msfit.build_model(ship.load_ship("kvlcc2_7m"))
+    am = build_model(ship.load_ship("kvlcc2_7m"))
     af = type("Fit", (), {"p": am.start()})()
     cov = np.diag((0.01 * np.maximum(np.abs(am.start()), 1e-3)) ** 2)
     (tmp_path / "fig").mkdir()

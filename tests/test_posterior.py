@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from bayesid import cases, manoeuvres as mv
-from bayesid.identify import Problem
+from bayesid.estimation.objective import Problem
 from bayesid.posterior import CoefficientPrior, LogPosterior, add_noise
 from bayesid.simulate import Simulator
 

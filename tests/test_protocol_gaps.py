@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from bayesid import effects as ef
-from bayesid import gap
+from bayesid.analysis import gap
 from bayesid import manoeuvres as mv
+from bayesid.estimation import windows as wf
+from bayesid.estimation.fit import FitResult
 from bayesid.track import Track
 from bayesid.vehicle import load_vehicle
 
@@ -19,7 +21,7 @@ def setup():
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=200.0)
     tr = ef.world_track(veh, m, {"thrust": {"thrust_scale": 0.8}}, np.random.default_rng(0))
     model = ef.EffectModel(veh, ["Yv", "Nr"], (), dt=0.5)
-    fit = gap.Fit(model, model.start(), [np.zeros(0)], 0.0, 0, 0, True, "", 0.0)
+    fit = FitResult.fixed(model, model.start(), 1)
     return tr, model, fit
 
 
@@ -30,7 +32,7 @@ def _rows(tr, sel, name, shift=0.0):
 def _score(model, fit, tracks, start="measured"):
     lead = 10.0 if start == "fitted" else 0.0
     ctxs = [model.context(t, 30.0, start=start, leadin_s=lead) for t in tracks]
-    return gap.scores(model, fit, ctxs), ctxs
+    return wf.scores(model, fit, ctxs), ctxs
 
 
 @pytest.mark.parametrize("start", ["measured", "fitted"])

@@ -10,7 +10,7 @@ import pytest
 
 from bayesid import cases, richness
 from bayesid import manoeuvres as mv
-from bayesid.identify import JointProblem, Problem
+from bayesid.estimation.objective import JointProblem, Problem
 from bayesid.simulate import Simulator
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from bayesid import msfit, ship
+from bayesid.estimation import windows as wf
 from bayesid.track import Track
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
@@ -157,24 +158,24 @@ def test_residual_weighting_follows_the_structural_error():
     """Two-step feasible GLS: the second fit's channel sds are the first fit's residual RMS, at
     least the noise sd; on the model's own noisy track they stay near the noise; with a model
     that cannot fit (wrong free set) they grow above it."""
-    from bayesid import gap
+    from bayesid.analysis import gap
 
     kv, tr, noise = _noisy_zigzag()
     sd = {k: noise[k] for k in ("x", "y", "psi", "u", "v", "r")}
     right = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [right.context(tr, 30.0)]
-    f, sd2 = gap.fit_weighted(right, ctx, sd, max_nfev=20, weighting="residual")
+    f, sd2 = wf.fit_weighted(right, ctx, sd, max_nfev=20, weighting="residual")
     assert set(sd2) == set(sd) and all(sd2[k] >= sd[k] for k in sd)
     # the model is right: residuals ~ noise (x, y, psi ~3x: the start-state noise propagates)
     assert all(sd2[k] < 5 * sd[k] for k in sd)
     assert dict(zip(right.param_names, f.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
     wrong = ship.ShipModel(kv, ["Xuu"], dt=0.1)   # cannot change the turning: structural error
     cw = [wrong.context(tr, 30.0)]
-    fw, sdw = gap.fit_weighted(wrong, cw, sd, max_nfev=10, weighting="residual")
+    fw, sdw = wf.fit_weighted(wrong, cw, sd, max_nfev=10, weighting="residual")
     assert sdw["psi"] > 5 * sd2["psi"] and sdw["x"] > 5 * sd2["x"]
-    assert sdw == pytest.approx(gap.residual_sd(wrong, gap.fit(wrong, cw, sd, max_nfev=10), cw, sd), rel=0.2)
+    assert sdw == pytest.approx(wf.residual_sd(wrong, wf.fit_model(wrong, cw, sd, max_nfev=10), cw, sd), rel=0.2)
     with pytest.raises(ValueError, match="weighting"):
-        gap.fit_weighted(right, ctx, sd, weighting="robust")
+        wf.fit_weighted(right, ctx, sd, weighting="robust")
 
 
 def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tmp_path, capsys):
@@ -182,25 +183,26 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     the start states hardly see it) pulls Yv off by > 8 % when every channel is fitted; fitting
     x, y, psi only recovers it within 2 %. Unknown channels and a track measuring none of the
     fitted channels are errors that name them."""
-    from bayesid import cli, gap
+    from bayesid import cli
+    from bayesid.analysis import gap
 
     kv, tr, noise = _noisy_zigzag()
     bad = tr.with_columns(r=tr["r"] + math.radians(1.0) * np.sin(2 * np.pi * tr.t / 30.0))
     m = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [m.context(bad, 30.0)]
-    every = gap.fit(m, ctx, noise, max_nfev=20)
-    pos = gap.fit(m, ctx, noise, max_nfev=20, channels=("x", "y", "psi"))
-    assert pos.channels == ("x", "y", "psi") and pos.n_res == every.n_res // 2
+    every = wf.fit_model(m, ctx, noise, max_nfev=20)
+    pos = wf.fit_model(m, ctx, noise, max_nfev=20, channels=("x", "y", "psi"))
+    assert pos.channels == ("x", "y", "psi") and pos.n_residuals == every.n_residuals // 2
     assert dict(zip(m.param_names, pos.p))["Yv"] == pytest.approx(-0.25, rel=0.02)
     assert dict(zip(m.param_names, pos.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
     assert abs(dict(zip(m.param_names, every.p))["Yv"] / -0.25 - 1) > 0.08
     res = msfit.identify(kv, [bad], ["Nr", "Yv"], window_s=30.0, dt=0.1, max_nfev=20, channels=["x", "y", "psi"])
     assert res["fit"].channels == ("x", "y", "psi") and np.all(np.isfinite(res["cov"]))
     with pytest.raises(ValueError, match="'q'|q;"):
-        gap.fit(m, ctx, noise, channels=("x", "q"))
+        wf.fit_model(m, ctx, noise, channels=("x", "q"))
     no_u = Track(tr.t, {k: tr[k] for k in ("x", "y", "psi", "delta_r", "n")}, name="no_velocities")
     with pytest.raises(ValueError, match="no_velocities"):
-        gap.fit(m, [m.context(no_u, 30.0)], noise, channels=("u",))
+        wf.fit_model(m, [m.context(no_u, 30.0)], noise, channels=("u",))
     from bayesid.track import write_csv
     write_csv(bad, tmp_path / "bad.csv")
     rc = cli.main(["fit", "--vehicle", "kvlcc2_7m", "--train", str(tmp_path / "bad.csv"), "--free", "Yv",
@@ -212,7 +214,7 @@ def test_ship_fits_use_the_ship_fit_window_whatever_the_scoring_window():
     """``bayesid diagnose --window 60`` on a ship scores 60 s windows but fits over
     ``ship.FIT_WINDOW_S`` (15 s) ones, and so does ``msfit.identify`` without a window; an
     explicit fit window wins."""
-    from bayesid import gap
+    from bayesid.analysis import gap
 
     kv = ship.load_ship("kvlcc2_7m")
     mt = ship.ShipModel(kv, dt=0.2)
@@ -220,14 +222,14 @@ def test_ship_fits_use_the_ship_fit_window_whatever_the_scoring_window():
     tracks = [synthetic(mt, mt.start(), t, zigzag_inputs(t, a, p), 10.23, 1.179, name=f"z{a}")
               for a, p in ((20, 30), (10, 24))]
     kw = dict(candidates=["delay"], window_s=60.0, dt=0.2, max_nfev=1)
-    res = gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], **kw)
+    res = gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], **kw).to_dict()
     assert res["settings"]["fit_window_s"] == ship.FIT_WINDOW_S == 15.0 and res["settings"]["window_s"] == 60.0
-    assert gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], fit_window_s=45.0, **kw)["settings"]["fit_window_s"] == 45.0
+    assert gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], fit_window_s=45.0, **kw).to_dict()["settings"]["fit_window_s"] == 45.0
     assert msfit.identify(kv, tracks[:1], ["Nr"], dt=0.2, max_nfev=1)["window_s"] == 15.0
 
 
 def test_paired_window_test_detects_a_consistent_improvement():
-    from bayesid import gap
+    from bayesid.analysis import gap
 
     rng = np.random.default_rng(0)
     before = rng.uniform(0.5, 1.5, 40)

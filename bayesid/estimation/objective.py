@@ -1,27 +1,25 @@
-"""Output-error identification: fit coefficients so the simulated track matches a target track.
+"""Whole-track output-error objective: the simulated track against a target track.
 
 The paper's Section 3 (Furlong et al. 2003): cost
 
     V(p) = sum_i sum_{c in x, y, z, phi, theta, psi} (c_target(t_i) - c_sim(t_i; p))**2    (paper Eq. 6)
 
-minimised by SQP (SLSQP) over bounded parameters scaled as ratios to a reference value,
-``p_j = theta_j / theta_ref_j``. Also trust-region reflective least squares on the residual
-vector, the method suited to a sum of squares. Both use a finite-difference Jacobian computed as
-*one* batched simulation of P + 1 tracks.
+over bounded parameters scaled as ratios to a reference value, ``p_j = theta_j / theta_ref_j``,
+minimised by :func:`bayesid.estimation.fit.fit` (SLSQP, the paper's SQP, or trust-region
+reflective least squares on the residual vector). The finite-difference Jacobian is *one*
+batched simulation of P + 1 tracks. The whole track is simulated from the known start state with
+the manoeuvre's own inputs (closed-loop zigzags included); the windowed objective of real runs is
+:class:`bayesid.estimation.windows.WindowObjective`.
 
 Units: position residuals in metres and angle residuals in radians are summed as they are,
 exactly as the paper's V(p) does.
 """
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
-
 import numpy as np
-from scipy import optimize
 
-from .simulate import Simulator
-from .track import STATE_NAMES, Track
+from ..simulate import Simulator
+from ..track import STATE_NAMES, Track
 
 PAPER_CHANNELS = ("x", "y", "z", "phi", "theta", "psi")
 #: Residual assigned to every sample of a diverged track, so optimisers see a large finite value
@@ -72,6 +70,29 @@ class Problem:
         self.y0 = np.where(self.mask, self.y, 0.0)
         self.fd_step = fd_step
         self.n_residuals = self.y.size
+
+    # -- the objective protocol of bayesid.estimation.fit ----------------------------------------
+    #: residuals are a pure function of p (the fit may reuse them)
+    cache_residuals = True
+
+    @property
+    def n_simulations(self) -> int:
+        """Tracks simulated so far."""
+        return self.sim.n_tracks
+
+    @property
+    def sim_seconds(self) -> float:
+        """Wall time inside the batched simulator so far (s)."""
+        return self.sim.sim_seconds
+
+    def residuals(self, p) -> tuple[np.ndarray, bool]:
+        """(n_residuals,) residuals at one scaled vector ``p`` and whether it diverged."""
+        R, div = self.residuals_batch(np.asarray(p, dtype=float)[None])
+        return R[0], bool(div[0])
+
+    def result_fields(self, p) -> dict:
+        """The fit result's ``p`` (scaled) and ``theta`` (prime) at ``p``."""
+        return {"p": np.asarray(p, dtype=float), "theta": self.theta(p)}
 
     # -- scaled <-> prime ----------------------------------------------------------------------
     def theta(self, p) -> np.ndarray:
@@ -207,167 +228,9 @@ class JointProblem(Problem):
         return R, div
 
 
-@dataclass
-class FitResult:
-    """Outcome of one fit, in the spirit of ``scipy.optimize.OptimizeResult`` plus the SQP
-    activity monitor of the paper (Sec. 3, point 2)."""
-
-    method: str
-    names: list
-    theta: np.ndarray           # (P,) identified prime coefficients
-    p: np.ndarray               # (P,) scaled
-    start_cost: float
-    final_cost: float
-    n_iterations: int
-    n_simulations: int
-    n_sim_cost: int             # tracks simulated for cost values at accepted iterates
-    n_sim_gradient: int         # tracks simulated for finite-difference Jacobians/gradients
-    n_sim_linesearch: int       # tracks simulated at rejected trial points
-    wall_s: float
-    sim_s: float                # wall time inside the batched simulator
-    success: bool
-    message: str
-    at_bound: list
-    history: list = field(default_factory=list)   # per iteration: cost, step, active bounds
-
-    @property
-    def sim_share(self) -> float:
-        return self.sim_s / self.wall_s if self.wall_s > 0 else float("nan")
-
-    def summary(self) -> dict:
-        """JSON-ready summary (no per-iteration history)."""
-        return dict(method=self.method, start_cost=self.start_cost, final_cost=self.final_cost,
-                    n_iterations=self.n_iterations, n_simulations=self.n_simulations,
-                    n_sim_cost=self.n_sim_cost, n_sim_gradient=self.n_sim_gradient,
-                    n_sim_linesearch=self.n_sim_linesearch, wall_s=self.wall_s,
-                    sim_share=self.sim_share, success=bool(self.success), message=self.message,
-                    at_bound=list(self.at_bound))
-
-
-def _active(p, lo, hi, tol=1e-6):
-    return [i for i in range(p.size) if p[i] - lo[i] <= tol * max(1.0, abs(lo[i]))
-            or hi[i] - p[i] <= tol * max(1.0, abs(hi[i]))]
-
-
-class _Monitor:
-    """Counts simulations by purpose and caches the last residual vector."""
-
-    def __init__(self, problem: Problem):
-        self.pb = problem
-        self.evals = []             # (p, cost) of every single-track cost evaluation
-        self.n_grad_tracks = 0
-        self._last = None           # (p, r)
-        self.t0 = time.perf_counter()
-        self.sim0 = problem.sim.sim_seconds
-
-    def residuals(self, p):
-        p = np.array(p, dtype=float)
-        if self._last is not None and np.array_equal(self._last[0], p):
-            return self._last[1]
-        R, div = self.pb.residuals_batch(p[None])
-        r = R[0]
-        self._last = (p, r)
-        self.evals.append((p, np.inf if div[0] else float(r @ r)))
-        return r
-
-    def cost(self, p):
-        r = self.residuals(p)
-        return float(r @ r)
-
-    def jac(self, p):
-        p = np.array(p, dtype=float)
-        cached = self._last is not None and np.array_equal(self._last[0], p)
-        r0 = self._last[1] if cached else None
-        r, J = self.pb.jacobian(p, r0)
-        self.n_grad_tracks += p.size + (0 if cached else 1)
-        self._last = (p, r)
-        return r, J
-
-
-def _result(method, pb, mon, p, iterates, lo, hi, success, message, nit):
-    wall = time.perf_counter() - mon.t0
-    sim_s = pb.sim.sim_seconds - mon.sim0  # before the bookkeeping simulations below
-    iter_set = {tuple(x) for x in iterates}
-    n_cost = sum(1 for x, _ in mon.evals if tuple(x) in iter_set)
-    known = {tuple(x): c for x, c in mon.evals}   # every cost the fit already simulated
-
-    def cost(x):
-        return known[tuple(x)] if tuple(x) in known else pb.cost(x)
-
-    hist = []
-    prev = None
-    for k, x in enumerate(iterates):
-        c = cost(x)
-        hist.append(dict(iteration=k, cost=c, step=float(np.linalg.norm(x - prev)) if prev is not None else 0.0,
-                         active_bounds=[pb.names[i] for i in _active(x, lo, hi)]))
-        prev = x
-    final = cost(p)
-    return FitResult(method, pb.names, pb.theta(p), p, float(hist[0]["cost"]) if hist else float("nan"), final,
-                     nit, len(mon.evals) + mon.n_grad_tracks, n_cost, mon.n_grad_tracks,
-                     len(mon.evals) - n_cost, wall, sim_s, bool(success),
-                     str(message), [pb.names[i] for i in _active(p, lo, hi)], hist)
-
-
-def fit_slsqp(problem: Problem, p0, bounds, maxiter: int = 300, ftol: float = 1e-16) -> FitResult:
-    """Minimise V(p) with SLSQP (``scipy.optimize.minimize``), bounds, batched FD gradient.
-
-    SLSQP is given ``V(p) / V(p0)``: on the raw cost (gradients of order 1e6 in scaled units)
-    scipy's SLSQP stops after its first QP subproblem without moving (seen with scipy 1.17 on
-    the paper's Case 3). Normalising the objective is the usual remedy and changes no minimiser;
-    all reported costs are V itself.
-
-    Parameters
-    ----------
-    p0 : (P,) scaled start.   bounds : (lo (P,), hi (P,)) scaled.
-    ftol : SLSQP's precision goal on the normalised cost V/V(p0).
-
-    Returns
-    -------
-    FitResult (iterates, simulations by purpose, wall-time share in simulation).
-    """
-    lo, hi = (np.asarray(b, dtype=float) for b in bounds)
-    p0 = np.clip(np.asarray(p0, dtype=float), lo, hi)
-    mon = _Monitor(problem)
-    iterates = [p0.copy()]
-    V0 = mon.cost(p0)
-    norm = V0 if np.isfinite(V0) and V0 > 0 else 1.0
-
-    def jac(p):
-        r, J = mon.jac(p)
-        return 2.0 * (J.T @ r) / norm
-
-    res = optimize.minimize(lambda p: mon.cost(p) / norm, p0, jac=jac, method="SLSQP",
-                            bounds=list(zip(lo, hi)),
-                            callback=lambda xk: iterates.append(np.array(xk, dtype=float)),
-                            options=dict(maxiter=maxiter, ftol=ftol))
-    p = np.clip(res.x, lo, hi)
-    return _result("SLSQP", problem, mon, p, iterates, lo, hi, res.success, res.message, res.nit)
-
-
-def fit_least_squares(problem: Problem, p0, bounds, max_nfev: int = 300, tol: float = 1e-15) -> FitResult:
-    """Trust-region reflective least squares (``scipy.optimize.least_squares``, method "trf")
-    on the residual vector, bounds, batched FD Jacobian. Same counters as :func:`fit_slsqp`."""
-    lo, hi = (np.asarray(b, dtype=float) for b in bounds)
-    p0 = np.clip(np.asarray(p0, dtype=float), lo, hi)
-    mon = _Monitor(problem)
-    iterates = [p0.copy()]
-
-    def cb(intermediate_result):
-        iterates.append(np.array(intermediate_result.x, dtype=float))
-
-    res = optimize.least_squares(mon.residuals, p0, jac=lambda p: mon.jac(p)[1], bounds=(lo, hi),
-                                 method="trf", x_scale=1.0, ftol=tol, xtol=tol, gtol=tol,
-                                 max_nfev=max_nfev, callback=cb)
-    if not np.array_equal(iterates[-1], res.x):
-        iterates.append(np.array(res.x, dtype=float))
-    return _result("least_squares (trf)", problem, mon, res.x, iterates, lo, hi, res.status > 0,
-                   res.message, len(iterates) - 1)
-
-
 def max_position_error(a: Track, b: Track) -> float:
     """Maximum horizontal distance between two tracks sampled at the same times, m."""
     return float(np.nanmax(np.hypot(a["x"] - b["x"], a["y"] - b["y"])))
 
 
-__all__ = ["Problem", "JointProblem", "FitResult", "fit_slsqp", "fit_least_squares", "max_position_error",
-           "PAPER_CHANNELS"]
+__all__ = ["Problem", "JointProblem", "max_position_error", "PAPER_CHANNELS", "DIVERGED_RESIDUAL"]

@@ -1,0 +1,129 @@
+"""*Candidates* of the gap diagnosis: each catalogue effect added to the model being extended,
+fitted with all free coefficients from several starts, and scored on the held-out tracks.
+
+Starts of a candidate fit (:func:`candidate_starts`): from the reference fit's coefficients and
+from the nominal ones (the reference fit may have bent the coefficients to absorb the effect, a
+local minimum for the candidate), each with the effect's own starts and seed
+(:meth:`~bayesid.effects.Effect.fit_starts`, :meth:`~bayesid.effects.Effect.diagnosis_seed`). A
+candidate whose effect has a ``neutral`` value nests the model it extends; when its fits end
+worse than that model it is refitted once more from that model's optimum with the effect neutral
+(:func:`nested_start`), so its ΔBIC is at most k ln n.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...estimation.fit import FitResult
+from ...estimation.windows import fit_model, heldout_nuisance, scores, window_rms
+from .verdict import paired_window_test
+
+__all__ = ["Stage", "candidate_starts", "effect_offset", "nested_start", "extended_nuisance", "fit_candidate",
+           "candidate_row"]
+
+
+@dataclass
+class Stage:
+    """A model of the greedy rounds: the model, its fit on the training tracks, its training and
+    held-out scores (:func:`~bayesid.estimation.windows.scores`), its held-out nuisances and its
+    per-window held-out RMS position errors (:func:`~bayesid.estimation.windows.window_rms`)."""
+
+    model: object
+    fit: FitResult
+    train: dict
+    held: dict
+    nuisance: list | None
+    windows: np.ndarray
+
+
+def effect_offset(model, effect) -> int:
+    """Index of ``effect``'s first parameter in the model's parameter vector."""
+    k = [e.name for e in model.effects].index(effect.name)
+    return model.n_theta + sum(model.n_q[:k])
+
+
+def candidate_starts(effect, model, base_theta, seeds: dict) -> list:
+    """Start vectors [(p0, nuisance0 or None)] of a candidate fit of ``model`` (which contains
+    ``effect``): from ``base_theta`` and from the nominal coefficients, each with the effect's
+    own starts and its seed ``seeds.get(effect.name)``."""
+    out = []
+    for th in (base_theta, None):
+        p = model.start(th)
+        # the effect need not be the model's first (greedy rounds)
+        out += effect.fit_starts(p, effect_offset(model, effect), model, seeds.get(effect.name))
+    return out
+
+
+def extended_nuisance(model, ref_model, ref_fit):
+    """The reference fit's per-track nuisances padded with zeros for ``model``'s extra ones
+    (None when ``model`` has none)."""
+    if not model.n_nuisance:
+        return None
+    return [np.concatenate([np.asarray(v, float), np.zeros(model.n_nuisance - ref_model.n_nuisance)])
+            for v in ref_fit.nuisance]
+
+
+def nested_start(effect, model, ref_model, ref_fit):
+    """(p0, nuisance0) of ``model`` (= ``ref_model`` plus ``effect`` appended last) at the
+    reference fit's optimum with the effect at its ``neutral`` value, where the model reproduces
+    the reference model; None when the effect does not nest it."""
+    if effect.neutral is None:
+        return None
+    return np.concatenate([ref_fit.p, np.asarray(effect.neutral, float)]), extended_nuisance(model, ref_model, ref_fit)
+
+
+def fit_candidate(effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, seeds: dict, max_nfev: int,
+                  say=None, bar=None) -> Stage | None:
+    """Fit ``model`` (``ref.model`` plus ``effect``) on the training contexts from every start
+    (:func:`candidate_starts`; effects already chosen keep their fitted values), keep the best,
+    try the nested start when that is worse than the reference, and score it on the training
+    and held-out contexts (held-out nuisances fitted with the parameters held). Returns its
+    :class:`Stage`, or None when every fit failed (reported through ``say``)."""
+    say = say or (lambda msg: None)
+    bar = bar or (lambda label: None)
+    best = None
+    for p0, nu0 in candidate_starts(effect, model, ref.fit.p[:ref.model.n_theta], seeds):
+        if ref.model.effects:  # effects already chosen keep their fitted values as the start
+            p0 = p0.copy()
+            p0[:ref.model.n_params] = ref.fit.p
+            if nu0 is None and ref.model.n_nuisance:
+                nu0 = extended_nuisance(model, ref.model, ref.fit)
+        try:
+            f = fit_model(model, ctx_train, sd_fit, p0, nu0, max_nfev=max_nfev, progress=bar(effect.name))
+        except Exception as exc:  # noqa: BLE001 - a failed candidate is reported
+            say(f"{effect.name} failed: {exc}")
+            continue
+        if best is None or f.cost < best.cost:
+            best = f
+    nested = nested_start(effect, model, ref.model, ref.fit)
+    if nested is not None and (best is None or best.cost > ref.fit.cost):
+        # a candidate that nests the model it extends cannot fit worse than it
+        try:
+            f = fit_model(model, ctx_train, sd_fit, *nested, max_nfev=max_nfev)
+            if best is None or f.cost < best.cost:
+                best = f
+        except Exception as exc:  # noqa: BLE001
+            say(f"{effect.name} (nested start) failed: {exc}")
+    if best is None:
+        return None
+    nu_h = heldout_nuisance(model, best, ctx_held, sd_fit) if model.n_nuisance else None
+    return Stage(model, best, scores(model, best, ctx_train, sd=sd_fit), scores(model, best, ctx_held, nu_h, sd=sd_fit),
+                 nu_h, window_rms(model, best, ctx_held, nu_h))
+
+
+def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> dict:
+    """The ranking's record of a fitted candidate against the model it extends: held-out and
+    training RMS position error (m), training ΔBIC, share of the reference's excess over the
+    floor it removes (``excess_removed``) and of the base model's (``share_of_excess``), held-out
+    shrinkage, its parameters, heading RMS (deg), the paired window test's p-value, cost."""
+    excess = ref.held["rms_position_m"] - floor_rms
+    gain = ref.held["rms_position_m"] - st.held["rms_position_m"]
+    return {"effect": effect.name, "heldout_rms_m": st.held["rms_position_m"],
+            "train_rms_m": st.train["rms_position_m"],
+            "delta_bic": st.fit.bic - ref.fit.bic, "excess_removed": gain / excess if excess > 0 else 0.0,
+            "share_of_excess": gain / excess0 if excess0 > 0 else 0.0,
+            "heldout_shrinkage": 1 - st.held["rms_position_m"] / ref.held["rms_position_m"],
+            "parameters": st.fit.effect_parameters()[effect.name],
+            "heading_rms_deg": st.held["rms_heading_deg"], "window_p_value": paired_window_test(ref.windows, st.windows),
+            "nfev": st.fit.n_simulations, "fit_seconds": st.fit.wall_s}

@@ -1,0 +1,268 @@
+"""The orchestration of the gap diagnosis: base fit, noise floor, *where*, greedy rounds of
+candidates, verdict, support (the rules: :mod:`bayesid.analysis.gap`)."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from ... import effects as ef
+from ... import shooting
+from ...estimation.fit import FitResult
+from ...estimation.windows import check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
+from ...models import build_model, model_class
+from ...protocol import start_settings
+from .candidates import Stage, candidate_row, fit_candidate
+from .support import signature_regression
+from .verdict import Thresholds, assign_roles, contribution, gap_summary, noise_floor, verdict_of
+from .where import where
+
+__all__ = ["Diagnosis", "diagnose"]
+
+
+@dataclass
+class Diagnosis:
+    """The result of :func:`diagnose`. Every field but ``base`` and ``after`` is JSON-able
+    (:meth:`to_dict`, the ``diagnosis.json`` document).
+
+    Attributes
+    ----------
+    verdict : ``"none"``, ``"unexplained"`` or the effects added joined by ``+`` (with
+        ``+unexplained`` when a significant remainder is left).
+    cause : the effect that closes the gap, or None.   effects_added : in the order added.
+    contributors : every effect that passed the contributor test (added or not), with its share,
+        p-value, ΔBIC and parameters.   remainder : what is left (RMS m, fraction, significant).
+    ranking : round 1's candidates, best first.   rounds : every round's.
+    gap_before, gap_after : scores of the base model and of the model with every effect added.
+    heldout_shrinkage : 1 - after / before held-out RMS position error.
+    noise_floor : the perfect model's scores.   gap_ratio : before / floor.
+    significant_gap : bool.   where : :func:`~bayesid.analysis.gap.where.where`'s dict.
+    sindy_support : {effect: inclusion probability} (or ``error``).
+    noise_sd, fit_sd : {channel: sd} of the data and of the fits' weights (SI).
+    base_fit, after_fit : coefficients (and effect parameters) of the two models.
+    train_tracks, heldout_tracks : names.   settings, thresholds : what was run.
+    seconds : wall time.   warnings, input_sha256 : input checks and hashes (set by the CLI).
+    base, after : the two models as :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
+        scores, nuisances) for plots; not in :meth:`to_dict`.
+    """
+
+    verdict: str
+    effects_added: list
+    cause: str | None
+    contributors: list
+    remainder: dict
+    ranking: list
+    rounds: list
+    gap_before: dict
+    gap_after: dict
+    heldout_shrinkage: float
+    noise_floor: dict
+    gap_ratio: float
+    significant_gap: bool
+    where: dict
+    sindy_support: dict
+    noise_sd: dict
+    fit_sd: dict
+    base_fit: dict
+    after_fit: dict
+    train_tracks: list
+    heldout_tracks: list
+    settings: dict
+    thresholds: dict
+    seconds: float
+    base: Stage = field(repr=False, default=None)
+    after: Stage = field(repr=False, default=None)
+    warnings: list | None = None
+    input_sha256: dict | None = None
+
+    def to_dict(self) -> dict:
+        """The JSON-able fields, in order (the models are left out)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("base", "after")}
+        for k in ("warnings", "input_sha256"):  # set by the command line only
+            if out[k] is None:
+                out.pop(k)
+        return out
+
+
+def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_s: float | None = 60.0,
+             dt: float | None = None, mode: str = "horizontal", rng=None, max_nfev: int = 60,
+             none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
+             max_effects: int = 2, progress=None, fit_window_s: float | None = None,
+             weighting: str | None = None, partial_p: float = 0.01, start: str = "auto",
+             leadin_s: float | None = None, progress_bars: bool = False) -> Diagnosis:
+    """Diagnose the sim-to-real gap of a base model (see :mod:`bayesid.analysis.gap`).
+
+    Parameters
+    ----------
+    vehicle : the nominal vehicle (a submarine :class:`~bayesid.vehicle.Vehicle` or a
+        :class:`~bayesid.ship.Ship`; its model family comes from :func:`bayesid.models.build_model`).
+    free : coefficient names the fits change.
+    train, heldout : lists of Tracks (disjoint; ValueError if a track object or name repeats).
+    candidates : effects, as names of the model family's ``CATALOGUE`` or
+        :class:`~bayesid.effects.Effect` objects (default: the whole catalogue).
+    window_s : protocol window (s) of the held-out scores, None = whole run.
+    dt : model step (s; default the family's ``DEFAULT_DT``).   mode : submarine equations.
+    fit_window_s : window of the multiple-shooting fits on the training tracks (default: the
+        family's ``default_fit_window(window_s)``: ship :data:`bayesid.ship.FIT_WINDOW_S`,
+        submarine ``window_s``).
+    rng : numpy Generator (noise-floor simulation, bootstrap of the signature regression).
+    max_effects : greedy rounds (default 2: after a contributor, try the others on top of it;
+        a cause ends the search).
+    weighting : channel weights of the fits (:func:`~bayesid.estimation.windows.fit_weighted`);
+        default the family's (``"residual"`` for a ship, ``"noise"`` for a submarine). The base
+        fit sets the weights; every candidate is fitted with the same weights, so their costs
+        and BICs compare.
+    none_ratio, explain_fraction, bic_threshold, partial_p : the verdict's thresholds
+        (:class:`~bayesid.analysis.gap.verdict.Thresholds`).
+    start : window start-state rule (:data:`bayesid.protocol.START_RULES`). The same rule serves
+        every model compared, the training fits and the noise floor.
+    leadin_s : lead-in of the fitted rule on the held-out tracks (s; default
+        :func:`bayesid.protocol.start_settings`).
+    progress : callable taking a message.   progress_bars : a progress bar (tqdm) of every fit.
+
+    Returns
+    -------
+    :class:`Diagnosis`.
+
+    Raises
+    ------
+    ValueError : empty or overlapping track sets; unknown effect (named); too little data.
+    KeyError : unknown coefficient (named).
+    """
+    t_start = time.perf_counter()
+    rng = np.random.default_rng(0) if rng is None else rng
+    if not train or not heldout:
+        raise ValueError("diagnose needs at least one training and one held-out track")
+    names_t, names_h = [t.name for t in train], [t.name for t in heldout]
+    overlap = set(names_t) & set(names_h)
+    if overlap or any(a is b for a in train for b in heldout):
+        raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
+    family = model_class(vehicle)
+    dt = family.DEFAULT_DT if dt is None else dt
+    cand_effects = [family.get_effect(c) for c in (list(family.CATALOGUE) if candidates is None else candidates)]
+    cands = [e.name for e in cand_effects]
+    th = Thresholds(none_ratio, explain_fraction, bic_threshold, partial_p)
+    say = progress or (lambda msg: None)
+    sd = pooled_noise_sd(train + heldout)
+    fw = fit_window_s if fit_window_s is not None else family.default_fit_window(window_s)
+    rule, lead = start_settings(start, train + heldout, window_s, dt, leadin_s)
+
+    def build(effects):
+        m = build_model(vehicle, free, effects, dt=dt, mode=mode)
+        return (m, [m.context(t, fw, start=rule) for t in train],
+                [m.context(t, window_s, start=rule, leadin_s=lead) for t in heldout])
+
+    weighting = weighting or family.DEFAULT_WEIGHTING
+    base, ctr, cho = build(())
+    check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
+    say("base fit")
+    bar = (lambda label: label) if progress_bars else (lambda label: None)
+    bfit, sd_fit = fit_weighted(base, ctr, sd, max_nfev=max_nfev, weighting=weighting, progress=bar("base fit"))
+    b_train, b_held = scores(base, bfit, ctr, sd=sd_fit), scores(base, bfit, cho, sd=sd_fit)
+    # A base fit bent by the missing effect can be more sensitive to start-state errors than
+    # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
+    nominal = FitResult.fixed(base, base.start(), len(train), "nominal")
+    # the noise itself, not the weights' lower bound (a 1 mm carriage track is not 1 cm noise)
+    sd_raw = pooled_noise_sd(train + heldout, floor=False)
+    floor = min((noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)),
+                key=lambda d: d["rms_position_m"])
+    w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])
+    seeds = _seeds(cand_effects, base, bfit, ctr, train)
+    significant = b_held["rms_position_m"] > none_ratio * floor["rms_position_m"]
+    band = none_ratio * floor["rms_position_m"]
+    excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
+    ranking, rounds, chosen, roles = [], [], [], {}
+    base_stage = current = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
+    for rnd in range(max(1, int(max_effects))):
+        ref = current
+        results, stages = [], {}
+        for e in cand_effects:
+            if e.name in chosen:
+                continue
+            say(f"round {rnd + 1}: {e.name}")
+            m, ct, ch = build([c for c in cand_effects if c.name in chosen] + [e])
+            st = fit_candidate(e, ref, m, ct, ch, sd_fit, seeds, max_nfev, say,
+                               lambda label, r=rnd: bar(f"round {r + 1}: {label}"))
+            if st is None:
+                continue
+            results.append(candidate_row(e, st, ref, floor["rms_position_m"], excess0))
+            stages[e.name] = st
+        results.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
+        assign_roles(results, significant, band, th)
+        rounds.append(results)
+        if rnd == 0:
+            ranking = results
+        # the best-ranked cause closes the gap; else the best-ranked contributor is added and the
+        # next round looks for what explains the rest
+        top = next((r for r in results if r["role"] == "cause"), None) or next(
+            (r for r in results if r["role"] == "contributor"), None)
+        if top is None:
+            break
+        chosen.append(top["effect"])
+        roles[top["effect"]] = dict(top)
+        current = stages[top["effect"]]
+        if current.held["rms_position_m"] <= band:
+            break
+    after = current
+    remainder_sig = bool(significant and after.held["rms_position_m"] > band)
+    # every effect that improves the held-out windows significantly without closing the gap,
+    # added or not (round 1 alone, or as added in its round)
+    contributors = [contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
+    contributors += [contribution(r, added=False) for r in ranking
+                     if r["role"] == "contributor" and r["effect"] not in chosen]
+    remainder = {"heldout_rms_m": after.held["rms_position_m"],
+                 "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
+                 if excess0 > 0 else 0.0, "significant": remainder_sig}
+    support = {}
+    if forces:
+        try:
+            F_list, motions = forces
+            order = list(family.CATALOGUE)  # catalogue effects first, in catalogue order
+            ranked = sorted(cand_effects, key=lambda e: order.index(e.name) if e.name in order else len(order))
+            cols = [base.signature_columns(mo, inp, tr, seeds, ranked) for (mo, inp, tr) in motions]
+            support = signature_regression(F_list, cols, rng)
+        except Exception as exc:  # noqa: BLE001
+            support = {"error": f"{type(exc).__name__}: {exc}"}
+    return Diagnosis(
+        verdict=verdict_of(bool(significant), chosen, remainder_sig),
+        effects_added=chosen,
+        cause=next((e for e in chosen if roles[e]["role"] == "cause"), None),
+        contributors=contributors, remainder=remainder, ranking=ranking, rounds=rounds,
+        gap_before=gap_summary(b_train, b_held), gap_after=gap_summary(after.train, after.held),
+        heldout_shrinkage=1 - after.held["rms_position_m"] / b_held["rms_position_m"],
+        noise_floor={"heldout_rms_m": floor["rms_position_m"], "heading_rms_deg": floor["rms_heading_deg"],
+                     "by_channel": floor["rms"]},
+        gap_ratio=b_held["rms_position_m"] / floor["rms_position_m"],
+        significant_gap=bool(significant), where=w, sindy_support=support, noise_sd=sd, fit_sd=sd_fit,
+        base_fit={"coefficients": bfit.coefficients(), "nominal": dict(zip(base.free, base.theta0.tolist())),
+                  "bic": bfit.bic, "n_residuals": bfit.n_residuals, "success": bfit.success,
+                  "nfev": bfit.n_simulations},
+        after_fit={"coefficients": after.fit.coefficients(), "effects": after.fit.effect_parameters()},
+        train_tracks=names_t, heldout_tracks=names_h,
+        settings={"free": list(free), "candidates": cands, "window_s": window_s, "fit_window_s": fw, "dt": dt,
+                  "mode": mode, "start_rule": rule, "leadin_s": lead, "max_nfev": max_nfev,
+                  "max_effects": max_effects, "weighting": weighting},
+        thresholds=th.as_dict(), seconds=time.perf_counter() - t_start, base=base_stage, after=after)
+
+
+def _seeds(effects, base, bfit, ctxs, train) -> dict:
+    """{effect name: seed} of the candidates that have one
+    (:meth:`~bayesid.effects.Effect.diagnosis_seed`), from the base fit's errors on the training
+    windows and the training tracks' missing forces (None when inverse dynamics fails)."""
+    errors = [ef.errors(ctx, shooting.simulate(base, ctx, bfit.p[None])) for ctx in ctxs]
+    try:  # wave frequency and per-track phases from the TRAINING tracks' missing forces
+        tr_forces = [base.missing_forces(bfit, t) for t in train]
+        forces = ([f[1] for f in tr_forces], [(f[0], f[2], t) for f, t in zip(tr_forces, train)])
+    except Exception:  # noqa: BLE001 - no force seed: candidates start from their catalogue values
+        forces = None
+    evidence = {"ctxs": ctxs, "errors": errors, "forces": forces}
+    seeds = {}
+    for e in effects:
+        try:
+            s = e.diagnosis_seed(evidence)
+        except Exception:  # noqa: BLE001 - a seed is a hint; without it the catalogue start serves
+            s = None
+        if s is not None:
+            seeds[e.name] = s
+    return seeds

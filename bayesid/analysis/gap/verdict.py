@@ -1,0 +1,123 @@
+"""The *verdict* of the gap diagnosis: is the gap significant, which effect is the cause, which
+ones contribute, what remains (the rules are stated in :mod:`bayesid.analysis.gap`).
+
+Noise floor: the error a perfect model shows at the measured noise level under the same
+protocol. Cause and contributor tests: held-out error against the floor band, share of the excess
+removed, a one-sided Wilcoxon signed-rank test of the paired per-window errors (Wilcoxon 1945,
+Biometrics Bulletin 1(6)), and the training BIC difference (<= -10: strong evidence, Kass &
+Raftery 1995, JASA 90(430)).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from ... import effects as ef
+from ... import shooting
+from ...protocol import pooled_scores, wrap
+from ...track import STATE_NAMES, Track
+
+__all__ = ["Thresholds", "noise_floor", "paired_window_test", "gap_summary", "assign_roles", "contribution",
+           "verdict_of"]
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """The verdict's thresholds: ``none_ratio`` (significant gap: held-out error above this
+    multiple of the floor; the floor band), ``explain_fraction`` (share of the excess a cause
+    removes), ``bic_threshold`` (largest training ΔBIC of an accepted effect) and ``partial_p``
+    (level of the paired window test of a contributor)."""
+
+    none_ratio: float = 1.5
+    explain_fraction: float = 0.5
+    bic_threshold: float = -10.0
+    partial_p: float = 0.01
+
+    def as_dict(self) -> dict:
+        return {"none_ratio": self.none_ratio, "explain_fraction": self.explain_fraction,
+                "bic_threshold": self.bic_threshold, "partial_p": self.partial_p}
+
+
+def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
+    """The protocol's error for a perfect model at the measured noise level: simulate the fitted
+    model on each held-out track's inputs from its first measured state (as the start rule
+    estimates it), add Gaussian noise of sd ``sd`` ({channel: sd}, SI) to every channel,
+    ``n_rep`` times, and re-run the protocol with the same model.
+
+    Returns the pooled scores (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks."""
+    errs = []
+    for ctx, tr in zip(ctxs, tracks):
+        s_first = ctx.s_meas[0].copy()
+        if ctx.start == "fitted":  # the first segment's start as the rule estimates it
+            s_first[ef.START_INDEX] += shooting.fit_starts(model, ctx, fitres.p[None])[0, 0]
+        whole = model.context(tr, None, s0=s_first)
+        S = model.simulate(whole, fitres.p[None], measured_start=False)[0]
+        for _ in range(n_rep):
+            data = {k: np.asarray(tr[k], float).copy() for k in tr.data}
+            for i, k in enumerate(STATE_NAMES):
+                if k in tr:
+                    vals = np.full(tr.n_samples, np.nan)
+                    vals[whole.idx] = S[:, i] + rng.normal(0, sd.get(k, 0.0), whole.idx.size)
+                    data[k] = wrap(vals) if k == "psi" else vals
+            syn = Track(tr.t, data, name=tr.name)
+            c2 = model.context(syn, ctx.window_s, start=ctx.start, leadin_s=ctx.leadin_s)
+            S2 = shooting.simulate(model, c2, fitres.p[None])
+            errs.append({k: v[0] for k, v in ef.errors(c2, S2).items()})
+    return pooled_scores(errs)
+
+
+def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
+    """One-sided p-value that the per-window errors ``after`` are smaller than ``before``
+    (Wilcoxon signed-rank test on the paired windows; 1.0 with fewer than 6 pairs)."""
+    ok = np.isfinite(before) & np.isfinite(after) & (before != after)
+    if ok.sum() < 6:
+        return 1.0
+    return float(stats.wilcoxon(before[ok], after[ok], alternative="greater").pvalue)
+
+
+def gap_summary(train: dict, held: dict) -> dict:
+    """The JSON summary of a model's training and held-out scores (:func:`~bayesid.estimation.windows.scores`)."""
+    return {"train_rms_m": train["rms_position_m"], "heldout_rms_m": held["rms_position_m"],
+            "heldout_max_m": held["max_position_m"], "heading_rms_deg": held["rms_heading_deg"],
+            "train_heading_rms_deg": train["rms_heading_deg"],
+            "train_log_likelihood": train.get("log_likelihood"), "heldout_log_likelihood": held.get("log_likelihood"),
+            "heldout_rms_by_channel": held["rms"]}
+
+
+def is_cause(r: dict, significant: bool, band: float, th: Thresholds) -> bool:
+    """The effect closes the gap: held-out error inside the noise-floor band, at least
+    ``explain_fraction`` of the excess removed, ΔBIC at most ``bic_threshold``."""
+    return bool(significant and r["heldout_rms_m"] <= band and r["excess_removed"] >= th.explain_fraction
+                and r["delta_bic"] <= th.bic_threshold)
+
+
+def is_contributor(r: dict, significant: bool, th: Thresholds) -> bool:
+    """The effect improves the held-out windows without closing the gap: paired window test
+    p < ``partial_p`` (or at least ``explain_fraction`` of the excess removed, where too few
+    windows make the test powerless), ΔBIC at most ``bic_threshold``, positive shrinkage."""
+    return bool(significant and r["delta_bic"] <= th.bic_threshold and r["heldout_shrinkage"] > 0
+                and (r["window_p_value"] < th.partial_p or r["excess_removed"] >= th.explain_fraction))
+
+
+def assign_roles(results: list, significant: bool, band: float, th: Thresholds) -> None:
+    """Set every ranked candidate's ``role`` (``"cause"``, ``"contributor"`` or None) in place."""
+    for r in results:
+        r["role"] = ("cause" if is_cause(r, significant, band, th) else
+                     "contributor" if is_contributor(r, significant, th) else None)
+
+
+def contribution(r: dict, added: bool) -> dict:
+    """The report's record of a contributor (added to the model or not)."""
+    return {"effect": r["effect"], "added": added, "share_of_excess": r["share_of_excess"],
+            "heldout_rms_m": r["heldout_rms_m"], "window_p_value": r["window_p_value"],
+            "delta_bic": r["delta_bic"], "parameters": r["parameters"]}
+
+
+def verdict_of(significant: bool, chosen: list, remainder_significant: bool) -> str:
+    """``"none"`` (no significant gap), else the effects added joined by ``+`` with
+    ``+unexplained`` when the remainder is still significant, or ``"unexplained"``."""
+    if not significant:
+        return "none"
+    return "+".join(chosen + (["unexplained"] if remainder_significant else [])) or "unexplained"

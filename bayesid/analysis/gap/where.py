@@ -1,0 +1,168 @@
+"""*Where* a fitted model misses: residuals by channel, operating region and manoeuvre phase,
+and the missing forces of inverse dynamics (spectrum, whiteness, correlation with the inputs).
+
+Ljung & Box (1978), Biometrika 65(2) for the whiteness test; Welch periodogram (scipy.signal).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal, stats
+
+from ... import effects as ef
+from ... import shooting
+from ...protocol import pooled_scores
+
+__all__ = ["where", "ljung_box", "window_xy"]
+
+
+def ljung_box(x, lags: int = 10) -> tuple[float, float]:
+    """Ljung-Box Q statistic and p-value of a series (Ljung & Box 1978, Biometrika 65(2))."""
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)] - np.nanmean(x)
+    n = x.size
+    if n <= lags + 1 or not np.any(x):
+        return float("nan"), float("nan")
+    ac = np.array([np.sum(x[k:] * x[:n - k]) for k in range(lags + 1)]) / np.sum(x * x)
+    q = n * (n + 2) * np.sum(ac[1:] ** 2 / (n - np.arange(1, lags + 1)))
+    return float(q), float(stats.chi2.sf(q, lags))
+
+
+
+
+def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None) -> tuple[dict, tuple | None]:
+    """Where the fitted base model misses on the tracks of ``ctxs`` (usually the held-out
+    ones): residuals per channel (with the excess over the noise floor ``floor_by_channel``),
+    per operating region (``model.regions()``, plus ``model.where_samples``), per manoeuvre
+    phase (straight, turning, rudder moving), and, from the missing forces X, Y, N of inverse
+    dynamics (``model.missing_forces``), their RMS, spectrum peak (Welch), Ljung-Box whiteness,
+    cross-correlation with the rudder and its rate, and (ships with a measured wind) the
+    correlation with the apparent-wind signature.
+
+    ``nuisance``: per-track nuisances of *these* tracks (None: the model has none; a fit's own
+    nuisances belong to its training tracks and are never used here).
+
+    Returns (JSON-able dict, (F list (n, 3) per track, [(motion, inputs, track)]) or None when
+    inverse dynamics failed -- the error is then in the dict under ``forces``)."""
+    out = {"channels": {}, "regions": {}, "phases": {}, "spectrum": {}, "forces": {}, "whiteness": {},
+           "input_correlation": {}}
+    errs = []
+    per_sample = []
+    for i, ctx in enumerate(ctxs):
+        nu = None if nuisance is None else nuisance[i][None]
+        S = shooting.simulate(model, ctx, fitres.p[None], nu)
+        e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
+        errs.append(e)
+        tr = tracks[i]
+        u, v, r = (np.asarray(tr[c], float)[ctx.idx] for c in ("u", "v", "r")) if all(
+            c in tr for c in ("u", "v", "r")) else (S[0, :, 6], S[0, :, 7], S[0, :, 11])
+        dr = np.asarray(tr["delta_r"], float)[ctx.idx]
+        drate = np.gradient(dr, ctx.ts)
+        pos = np.hypot(e["x"], e["y"])
+        # growth rate of the position error: what goes wrong locally, not what accumulated
+        growth = np.gradient(pos, ctx.ts)
+        growth[np.r_[True, np.diff(ctx.win) != 0]] = np.nan
+        row = dict(drift_angle_deg=np.degrees(np.arctan2(-v, u)), yaw_rate_deg_s=np.degrees(r),
+                   rudder_deg=np.degrees(dr), speed_mps=np.hypot(u, v), pos=pos,
+                   growth=growth, psi=np.degrees(e["psi"]), rudder_moving=np.abs(drate) > np.radians(0.5),
+                   turning=np.abs(r) > np.radians(1.0))
+        row.update(model.where_samples(tr, ctx, S))
+        per_sample.append(row)
+    pooled = pooled_scores(errs)
+    for c, val in pooled["rms"].items():
+        fl = None if floor_by_channel is None else floor_by_channel.get(c)
+        out["channels"][c] = {"rms": val, "noise_sd": sd.get(c), "floor_rms": fl,
+                              "excess_ratio": (val / fl) if fl else None}
+    out["channels"]["position"] = {"rms": pooled["rms_position_m"]}
+    ex = {c: d["excess_ratio"] for c, d in out["channels"].items() if d.get("excess_ratio")}
+    out["dominant_channel"] = max(ex, key=ex.get) if ex else None
+    common = set.intersection(*(set(p) for p in per_sample))
+    cat = {k: np.concatenate([p[k] for p in per_sample]) for k in per_sample[0] if k in common}
+    best = (None, 0.0)
+    regions = model.regions()
+    for reg, edges in regions.items():
+        if reg not in cat:
+            continue
+        rows = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            sel = (cat[reg] >= a) & (cat[reg] < b)
+            g = cat["growth"][sel]
+            g = g[np.isfinite(g)]
+            rows.append({"bin": [a, b], "n": int(sel.sum()),
+                         "rms_position_m": float(np.sqrt(np.mean(cat["pos"][sel] ** 2))) if sel.any() else None,
+                         "mean_error_growth_mps": float(np.mean(np.abs(g))) if g.size else None,
+                         "rms_heading_deg": float(np.sqrt(np.mean(cat["psi"][sel] ** 2))) if sel.any() else None})
+        out["regions"][reg] = rows
+        g_all = np.nanmean(np.abs(cat["growth"]))
+        for row in rows:
+            if row["mean_error_growth_mps"] and row["n"] >= 0.05 * cat["pos"].size:
+                ratio = row["mean_error_growth_mps"] / g_all
+                if ratio > best[1]:
+                    best = (f"{reg} in [{row['bin'][0]}, {row['bin'][1]})", ratio)
+    out["dominant_region"] = {"region": best[0], "growth_ratio": best[1]}
+    phases = {"straight, rudder steady": (~cat["turning"]) & (~cat["rudder_moving"]),
+              "turning, rudder steady": cat["turning"] & (~cat["rudder_moving"]),
+              "rudder moving": cat["rudder_moving"]}
+    for k, sel in phases.items():
+        g = cat["growth"][sel]
+        g = g[np.isfinite(g)]
+        out["phases"][k] = {"fraction_of_time": float(sel.mean()),
+                            "mean_error_growth_mps": float(np.mean(np.abs(g))) if g.size else None}
+    # missing forces, spectrum, whiteness, input correlation (first track with velocities)
+    Fs, cols, motions = [], [], []
+    for i, tr in enumerate(tracks):
+        try:
+            motion, F, inputs = model.missing_forces(fitres, tr)
+        except Exception as exc:  # noqa: BLE001 - reported, not hidden
+            out["forces"]["error"] = f"{type(exc).__name__}: {exc}"
+            break
+        Fs.append(F)
+        motions.append((motion, inputs, tr))
+    if Fs:
+        Fcat = np.vstack(Fs)
+        out["forces"] = {k: float(np.sqrt(np.mean(Fcat[:, j] ** 2))) for j, k in enumerate("XYN")}
+        motion, inputs, tr = motions[0]
+        t = motion["t"]
+        fs = 1.0 / np.median(np.diff(t))
+        for j, k in ((1, "Y"), (2, "N")):
+            f, pxx = signal.welch(Fs[0][:, j] - Fs[0][:, j].mean(), fs=fs, nperseg=min(len(t), int(256 * fs / 2)))
+            sel = f > 0.02
+            kk = np.argmax(pxx[sel])
+            out["spectrum"][k] = {"peak_period_s": float(1.0 / f[sel][kk]), "peak_frequency_hz": float(f[sel][kk]),
+                                  "peak_to_median": float(pxx[sel][kk] / np.median(pxx[sel]))}
+            dec = max(1, int(round(motion["window_s"] * fs)))
+            qv, pv = ljung_box(Fs[0][::dec, j])
+            out["whiteness"][k] = {"ljung_box_q": qv, "p_value": pv, "decimation": dec}
+            corr = {}
+            dr = np.interp(t, tr.t, inputs[:, 0])
+            for name, sig in (("delta_r", dr), ("delta_r_rate", np.gradient(dr, t))):
+                a = (sig - sig.mean())
+                b = Fs[0][:, j] - Fs[0][:, j].mean()
+                den = np.sqrt(np.sum(a * a) * np.sum(b * b))
+                if den > 0:
+                    cc = signal.correlate(b, a, mode="full") / den
+                    lags = signal.correlation_lags(b.size, a.size) / fs
+                    m = np.abs(lags) <= 10
+                    kk = np.argmax(np.abs(cc[m]))
+                    corr[name] = {"max_abs_corr": float(abs(cc[m][kk])), "lag_s": float(lags[m][kk])}
+            out["input_correlation"][k] = corr
+        sig = [model.signature_columns(mo, inp, tr) for (mo, inp, tr) in motions]
+        if all("wind" in c for c in sig):  # dependence of the missing forces on the apparent wind
+            out["wind_correlation"] = {}
+            for j, k in enumerate("XYN"):
+                a = np.concatenate([c["wind"][min(j, 2)][:, j] for c in sig])
+                b = Fcat[:, j]
+                out["wind_correlation"][k] = float(np.corrcoef(a, b)[0, 1]) if a.std() > 0 else None
+        return out, (Fs, motions)
+    return out, None
+
+
+def window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin_s=0.0):
+    """(measured (n, 2), predicted (n + W - 1, 2)) x, y of a track's protocol windows under a
+    fitted model (``nu``: its per-track nuisance), NaN rows separating the windows (for plots)."""
+    ctx = model.context(track, window_s, start=start, leadin_s=leadin_s)
+    S = shooting.simulate(model, ctx, fitres.p[None], None if nu is None else nu[None])[0]
+    xy = S[:, :2].copy()
+    cut = np.flatnonzero(np.diff(ctx.win) != 0) + 1
+    xy = np.insert(xy, cut, np.nan, axis=0)
+    meas = np.column_stack([ctx.meas["x"], ctx.meas["y"]])
+    return meas, xy
