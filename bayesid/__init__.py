@@ -1,8 +1,30 @@
 """bayesid: identify the hydrodynamic coefficients of manoeuvring vessels from their tracks,
 with honest uncertainty.
 
-Data flow (``ls bayesid/`` follows it): vehicle (``vehicle``, ``terms``) -> manoeuvre
-(``manoeuvres``) -> simulate (``dynamics``, ``simulate``; ``reference`` is the slow anchor) ->
-``track`` -> ``identify`` (SLSQP / least squares, the paper's Cases in ``cases``).
+The layout follows the data flow; each layer imports only the ones before it:
+
+* :mod:`bayesid.data` -- what comes in: :mod:`~bayesid.data.terms` (the term library),
+  :mod:`~bayesid.data.vehicle` (vehicle files), :mod:`~bayesid.data.track` (the Track CSV
+  contract), :mod:`~bayesid.data.validate` (unit and plausibility checks),
+  :mod:`~bayesid.data.datasets` (readers of real free-running data).
+* :mod:`bayesid.models` -- what simulates a vessel: :mod:`~bayesid.models.interface` (the
+  SimulationModel contract), :mod:`~bayesid.models.dynamics` (compiled kernels),
+  :mod:`~bayesid.models.simulate` (Manoeuvre, Simulator), :mod:`~bayesid.models.reference`
+  (solve_ivp anchor), :mod:`~bayesid.models.crossflow`, :mod:`~bayesid.models.manoeuvres`,
+  :mod:`~bayesid.models.inverse` (smoothed motion, inverse dynamics),
+  :mod:`~bayesid.models.effects` (effects and the submarine model),
+  :mod:`~bayesid.models.ship` (the MMG surface ship).
+* :mod:`bayesid.protocol` -- the window protocol (windows, start rules, noise, pooled scores).
+* :mod:`bayesid.estimation` -- fitting: :mod:`~bayesid.estimation.fit` (the one fit function
+  and result), :mod:`~bayesid.estimation.objective` (the paper's whole-track objective),
+  :mod:`~bayesid.estimation.windows` (multiple shooting), :mod:`~bayesid.estimation.shooting`
+  (fitted window starts), :mod:`~bayesid.estimation.laplace`,
+  :mod:`~bayesid.estimation.posterior`, :mod:`~bayesid.estimation.sampling` (emcee, ArviZ),
+  :mod:`~bayesid.estimation.msfit` (long runs, prediction, indices).
+* :mod:`bayesid.analysis` -- what the data say: :mod:`~bayesid.analysis.identifiability`,
+  :mod:`~bayesid.analysis.dossier`, :mod:`~bayesid.analysis.richness`,
+  :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis).
+* :mod:`bayesid.report` -- study folders, manifests, report writers; :mod:`bayesid.report.plots`.
+* :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
 """
 __version__ = "0.1.0"

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import terms
+from .data import terms
 
 
 @dataclass

@@ -17,12 +17,12 @@ import re
 import sys
 from pathlib import Path
 
-from . import datasets
-from . import manoeuvres as mv
+from .data import datasets
+from .models import manoeuvres as mv
 from . import protocol
-from .simulate import MODES, Simulator
-from .track import write_csv
-from .vehicle import load_vehicle
+from .models.simulate import MODES, Simulator
+from .data.track import write_csv
+from .data.vehicle import load_vehicle
 
 
 #: Longest simulation ``bayesid simulate`` runs (model steps): 1e6 s at 0.1 s.
@@ -36,7 +36,7 @@ def _simulate(args) -> int:
     if args.duration is not None and args.duration / args.dt > MAX_SIMULATE_STEPS:
         raise ValueError(f"--duration {args.duration:g} s at --dt {args.dt:g} s is {args.duration / args.dt:.3g} steps "
                          f"(at most {MAX_SIMULATE_STEPS:.0e}); shorten --duration or lengthen --dt")
-    from . import ship
+    from .models import ship
 
     if ship.is_ship_file(args.vehicle):
         raise ValueError(f"--vehicle {args.vehicle}: a surface ship; 'bayesid simulate' runs submarine vehicle "
@@ -275,11 +275,11 @@ def _read_tracks(groups, vehicle=None) -> dict:
     """Read the track files of each option (``[(option, [paths])]``) once: a file given twice, a
     file whose content equals another one (a renamed copy) or whose samples do
     (:func:`same_values`: another export of one log), a folder, and two tracks with the same name
-    are errors naming both; every track passes :func:`bayesid.validate.check_track` (units;
+    are errors naming both; every track passes :func:`bayesid.data.validate.check_track` (units;
     plausibility for ``vehicle``), whose warnings are printed. Returns {option: [Track]},
     the files' SHA-256 under ``"_sha256"`` and the warnings under ``"_warnings"``."""
-    from .track import read_csv
-    from .validate import check_track
+    from .data.track import read_csv
+    from .data.validate import check_track
 
     seen, names, out, hashes, warnings, read = {}, {}, {}, {}, [], []
     for option, paths in groups:
@@ -336,7 +336,8 @@ def _vehicle_ref(arg: str) -> str:
 def _provenance(vehicle, input_sha256: dict) -> dict:
     """What produced a model: package version, the vehicle file (path, SHA-256, values) and the
     SHA-256 of every input file."""
-    from . import __version__, msfit
+    from . import __version__
+    from .estimation import msfit
 
     vf = Path(vehicle.file_path) if vehicle.file_path else None
     return {"bayesid_version": __version__, "vehicle_file": str(vf) if vf else None,
@@ -347,7 +348,7 @@ def _provenance(vehicle, input_sha256: dict) -> dict:
 def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> None:
     """Refuse (ValueError) to predict with a model whose vehicle file changed after the fit; with
     ``allow`` print a warning instead."""
-    from . import msfit
+    from .estimation import msfit
 
     want = (doc.get("provenance") or {}).get("vehicle_sha256")
     vf = Path(vehicle.file_path) if vehicle.file_path else None
@@ -363,7 +364,7 @@ def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> Non
 
 def _fit(args) -> int:
     """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
-    from . import msfit
+    from .estimation import msfit
     from .models import load_any_vehicle
     from .report import write_fit_report, write_json
 
@@ -391,7 +392,8 @@ def _predict(args) -> int:
     """``bayesid predict``: the window protocol (and whole run) on tracks -> DIR/predict.json."""
     import numpy as np
 
-    from . import msfit, plots
+    from .estimation import msfit
+    from .report import plots
     from .report import fmt, md_table, write_json
 
     out = _check_out(args.out, "predict", args.overwrite)
@@ -462,7 +464,7 @@ def _predict(args) -> int:
 
 
 def _diagnose(args) -> int:
-    """``bayesid diagnose``: base fit, where / which / how far (bayesid.gap)."""
+    """``bayesid diagnose``: base fit, where / which / how far (bayesid.analysis.gap)."""
     import numpy as np
 
     from .analysis.gap import diagnose
@@ -530,7 +532,7 @@ def main(argv=None) -> int:
     s.add_argument("--out", required=True)
     c = sub.add_parser("convert", formatter_class=fmt, help="third-party data files -> Track CSVs (one per run)")
     c.add_argument("--format", required=True, choices=datasets.FORMATS,
-                   help="data set format (see bayesid.datasets)")
+                   help="data set format (see bayesid.data.datasets)")
     c.add_argument("inputs", nargs="+", metavar="IN",
                    help="run file or data set folder (searched recursively; duplicates skipped)")
     c.add_argument("--out", required=True, help="output folder (created if absent)")
@@ -566,7 +568,7 @@ def main(argv=None) -> int:
     f.add_argument("--free", default="", help="comma-separated free coefficients (empty: the vehicle's)")
     f.add_argument("--effects", default="", help="comma-separated effects in the model (ships: wind, current, delay)")
     f.add_argument("--window", type=float, default=None,
-                   help="multiple-shooting window, s (none: 15 for a ship, bayesid.ship.FIT_WINDOW_S; 30 for a submarine)")
+                   help="multiple-shooting window, s (none: 15 for a ship, bayesid.models.ship.FIT_WINDOW_S; 30 for a submarine)")
     f.add_argument("--dt", type=float, default=None, help="model step, s (none: 0.2 ships, 0.5 submarines)")
     f.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations")
     f.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)

@@ -1,6 +1,6 @@
 """The window protocol: cut a track into windows that restart from the measured state.
 
-Every held-out score of :mod:`bayesid.gap` (and of ``bayesid predict``) uses it:
+Every held-out score of :mod:`bayesid.analysis.gap` (and of ``bayesid predict``) uses it:
 
 1. cut the track into non-overlapping windows of ``window_s`` seconds from its first sample
    (the last window may be shorter; ``window_s=None`` is one window over the whole run);
@@ -21,7 +21,7 @@ model compared on a track set and for its noise floor:
 * ``"measured"``: step 2 above. Right when u, v, r are logged by independent sensors (DVL, rate
   gyro); from positions alone the 1 s slope of 0.2 m noise at 5 Hz is off by ~0.1 m/s, metres of
   drift over a 60 s window.
-* ``"fitted"`` (moving-horizon estimate, :mod:`bayesid.shooting`): the window is simulated from
+* ``"fitted"`` (moving-horizon estimate, :mod:`bayesid.estimation.shooting`): the window is simulated from
   ``lead-in`` seconds before its start, from a state fitted by least squares to the measured
   channels of that lead-in with the model being scored (the start of multiple shooting proper;
   Bock & Plitt 1984; the moving-horizon estimator of Rao, Rawlings & Mayne 2003 with the
@@ -38,7 +38,7 @@ import math
 
 import numpy as np
 
-from .track import STATE_NAMES, Track
+from .data.track import STATE_NAMES, Track
 
 #: Channels scored by the protocol, in this order, when the track measures them.
 CHANNELS = ("x", "y", "psi", "u", "v", "r")
@@ -181,7 +181,7 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
 
     Returns
     -------
-    (12,) state in :data:`~bayesid.track.STATE_NAMES` order (SI).
+    (12,) state in :data:`~bayesid.data.track.STATE_NAMES` order (SI).
 
     Raises
     ------

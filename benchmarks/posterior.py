@@ -23,11 +23,12 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "studies"))
 import posterior as study  # noqa: E402  (the study's setup, so both measure the same problem)
 
-from bayesid import manoeuvres as mv, sampling  # noqa: E402
+from bayesid.models import manoeuvres as mv
+from bayesid.estimation import sampling  # noqa: E402
 from bayesid.estimation.objective import Problem  # noqa: E402
-from bayesid.posterior import LogPosterior, add_noise, laplace_covariance, laplace_start  # noqa: E402
-from bayesid.simulate import Simulator  # noqa: E402
-from bayesid.vehicle import load_vehicle  # noqa: E402
+from bayesid.estimation.posterior import LogPosterior, add_noise, laplace_covariance, laplace_start  # noqa: E402
+from bayesid.models.simulate import Simulator  # noqa: E402
+from bayesid.data.vehicle import load_vehicle  # noqa: E402
 
 
 def main():

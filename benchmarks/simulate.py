@@ -23,10 +23,10 @@ import time
 import numba
 import numpy as np
 
-from bayesid import manoeuvres as mv
-from bayesid.reference import simulate_reference
-from bayesid.simulate import Simulator
-from bayesid.vehicle import load_vehicle
+from bayesid.models import manoeuvres as mv
+from bayesid.models.reference import simulate_reference
+from bayesid.models.simulate import Simulator
+from bayesid.data.vehicle import load_vehicle
 
 FREE = ["Xvv", "Yv", "Yr", "Ydr", "Yvdot", "Nv", "Nr", "Ndr", "Nrdot", "Yvabsv", "Nrabsr"]
 

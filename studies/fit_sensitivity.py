@@ -16,7 +16,7 @@ Method
   different runs of every kind. A setting that is better only on the validation split was
   chosen by the validation data; one that is better on the training-only splits too is a
   candidate for a default.
-- Every fit starts from the equation-error seed (``bayesid.msfit.identify``) and is scored by the
+- Every fit starts from the equation-error seed (``bayesid.estimation.msfit.identify``) and is scored by the
   fixed window protocol (30 s and 60 s windows) on its split's held-out runs.
 - Each finished fit is saved in ``fits/`` with the key it depends on (data digest, split,
   setting, evaluation budget) and a re-run reuses it only when the key matches (``--fresh``
@@ -79,7 +79,7 @@ def parse_args():
 
 def load_runs(data: Path, dataset: str):
     """All runs of a data set as Tracks (Esso: the trimmed ``turn_cut_*`` copies left out)."""
-    from bayesid import datasets
+    from bayesid.data import datasets
 
     if dataset == "esso_osaka":
         paths = [p for p in datasets.list_runs(data / "esso-osaka-frt", "esso-osaka") if "turn_cut" not in p.name]
@@ -138,7 +138,8 @@ def split_runs(tracks, dataset: str, split: str):
 def run_fit(job: dict) -> dict:
     """One (data set, split, setting) fit and its protocol scores (runs in a worker)."""
     sys.path.insert(0, str(ROOT))
-    from bayesid import msfit, ship
+    from bayesid.estimation import msfit
+    from bayesid.models import ship
 
     t0 = time.perf_counter()
     tracks = load_runs(Path(job["data"]), job["dataset"])
@@ -256,7 +257,7 @@ def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | 
               + (", ".join(winners) if winners else "none") + ".", ""]
     if fig is not None:
         L += [f"![60 s scores]({fig.relative_to(out).as_posix()})", ""]
-    from bayesid.ship import FIT_WINDOW_S
+    from bayesid.models.ship import FIT_WINDOW_S
 
     both = overall(S)
     L += ["## Both ships", "",
@@ -266,7 +267,7 @@ def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | 
           "", "Lowest at 30 s: " + min(both, key=lambda k: both[k]["w30"]) + "; lowest at 60 s: "
           + min(both, key=lambda k: both[k]["w60"]) + "." if both else "-", ""]
     L += ["## Reading", "",
-          f"- The package's ship fit window is {FIT_WINDOW_S:g} s (`bayesid.ship.FIT_WINDOW_S`). A per-ship "
+          f"- The package's ship fit window is {FIT_WINDOW_S:g} s (`bayesid.models.ship.FIT_WINDOW_S`). A per-ship "
           "choice would be read off the same training-only rows; one default for every ship is what a user "
           "gets on a hull nobody has tuned. Provenance: 15 s and x/y/psi were first tried on the validation "
           "split, where both looked better; the training-only splits were added to check them, and only the "

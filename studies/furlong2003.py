@@ -17,13 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesid import cases, identifiability, plots, terms
-from bayesid import manoeuvres as mv
+from bayesid import cases
+from bayesid.analysis import identifiability
+from bayesid.report import plots
+from bayesid.data import terms
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import Problem
 from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifest
-from bayesid.simulate import Simulator
-from bayesid.vehicle import load_vehicle
+from bayesid.models.simulate import Simulator
+from bayesid.data.vehicle import load_vehicle
 
 #: The paper's Table 1 and Section 4.1 (quoted for comparison; Furlong et al. 2003).
 PAPER = {

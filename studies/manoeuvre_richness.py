@@ -5,10 +5,10 @@ Method
 ------
 - Coefficients: the paper's Case 2 free set of NPS AUV II (rotary and added-mass X, Y, N
   coefficients; static ones known). Noise: x, y 0.2 m, psi 0.2 deg at 1 s samples.
-- Richness per manoeuvre of :func:`bayesid.manoeuvres.library` and per combination: Fisher
+- Richness per manoeuvre of :func:`bayesid.models.manoeuvres.library` and per combination: Fisher
   information at the true coefficients (D, E, condition number, collinearity index of the whole
   set, Cramér–Rao relative sd per coefficient) and SINDy inclusion probabilities from a noisy
-  navigation log (x, y, psi as above; u, v 0.01 m/s, r 0.05 deg/s; :mod:`bayesid.sindy`).
+  navigation log (x, y, psi as above; u, v 0.01 m/s, r 0.05 deg/s; :mod:`bayesid.analysis.sindy`).
 - Cross-prediction (paper point 1): the Case 3 setting (known coefficients off by up to 1 %),
   identify on manoeuvre A by least squares from the case's start within +-25 % bounds on a noisy
   track, then simulate manoeuvre B with the identified set and report the RMS position error
@@ -29,15 +29,17 @@ import time
 
 import numpy as np
 
-from bayesid import cases, plots, richness, sindy
-from bayesid import manoeuvres as mv
+from bayesid import cases
+from bayesid.report import plots
+from bayesid.analysis import richness, sindy
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import JointProblem, Problem
-from bayesid.posterior import add_noise
+from bayesid.estimation.posterior import add_noise
 from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifest
-from bayesid.simulate import Simulator
-from bayesid.track import Track
-from bayesid.vehicle import load_vehicle
+from bayesid.models.simulate import Simulator
+from bayesid.data.track import Track
+from bayesid.data.vehicle import load_vehicle
 
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}
 CHANNELS = ("x", "y", "psi")

@@ -33,15 +33,17 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesid import cases, identifiability, plots, sampling
-from bayesid import manoeuvres as mv
+from bayesid import cases
+from bayesid.report import plots
+from bayesid.estimation import sampling
+from bayesid.analysis.dossier import direction_convergence, dossier
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import Problem
-from bayesid.posterior import (CoefficientPrior, LogPosterior, add_noise, direction_draws, laplace_covariance,
-                               laplace_start, marginal_table, prior_sd, top_correlations)
+from bayesid.estimation.posterior import CoefficientPrior, LogPosterior, add_noise, laplace_covariance, laplace_start, marginal_table, prior_sd, top_correlations
 from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifest
-from bayesid.simulate import Simulator
-from bayesid.vehicle import load_vehicle
+from bayesid.models.simulate import Simulator
+from bayesid.data.vehicle import load_vehicle
 
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}   # realistic navigation noise (m, m, rad)
 CHANNELS = ("x", "y", "psi")
@@ -141,82 +143,6 @@ def step_size_error(vehicle, setup, draws, fine_dt=0.05):
     return float(np.nanmax(np.hypot(*(err[0] - err[1]).transpose(2, 0, 1))))
 
 
-def dossier(setup, problem, theta_hat, vehicle, samples, sim):
-    """Fisher information, directions, collinearity, influence, structural nulls; posterior spread
-    along each Fisher eigen-direction against the Cramer-Rao prediction (relative units)."""
-    names = setup.names
-    S = identifiability.relative_sensitivity(problem, theta_hat)
-    sig = identifiability.noise_vector(problem, NOISE)
-    F = identifiability.fisher_information(S, sig, problem.mask.reshape(-1))
-    dirs = identifiability.eigen_directions(F, names)               # sloppiest first
-    lam = np.array([d.eigenvalue for d in dirs])
-    W = np.column_stack([d.vector for d in dirs])                   # (P, P) unit columns
-    # prior sd along each direction, in relative units (independent priors)
-    psd_rel = prior_sd(setup.prior) / np.abs(theta_hat)
-    prior_along = np.sqrt((W ** 2).T @ psd_rel ** 2)
-    post_along = direction_draws(samples, W, theta_hat).std(axis=0, ddof=1)
-    cr = np.where(lam > 0, 1.0 / np.sqrt(np.clip(lam, 1e-300, None)), np.inf)
-    rows = []
-    for k, d in enumerate(dirs):
-        rows.append(dict(direction=d.label(), eigenvalue=float(lam[k]), cramer_rao_sd=float(cr[k]),
-                         posterior_sd=float(post_along[k]), prior_sd=float(prior_along[k]),
-                         determined=bool(cr[k] < DETERMINED * prior_along[k]),
-                         weights=d.weights(0.1)))
-    # structural (exact) nulls of the sampled set, each checked by moving 2 % along it
-    full, causes = identifiability.structural_null_space(names, vehicle)
-    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1]))      # eigenvalues at round-off level
-    nulls = []
-    if full.shape[1]:
-        base = np.array([setup.truth[n] for n in names])
-        st = sim.run(np.vstack([base] + [base * (1 + 0.02 * full[:, k]) for k in range(full.shape[1])])).states
-        null_angles = identifiability.principal_angles_deg(full, W[:, :max(k_round, full.shape[1])]).tolist()
-        for k in range(full.shape[1]):
-            dd = identifiability.Direction(0.0, full[:, k], names)
-            pa = float(direction_draws(samples, full[:, k:k + 1], theta_hat).std(ddof=1))
-            pr = float(np.sqrt((full[:, k] ** 2) @ psd_rel ** 2))
-            nulls.append(dict(direction=dd.label(threshold=0.15), cause=causes[k] if k < len(causes) else "",
-                              track_change_m=float(np.nanmax(np.abs(st[0, :, :2] - st[k + 1, :, :2]))),
-                              posterior_sd=pa, prior_sd=pr))
-    else:
-        null_angles = []
-    # posterior principal axes vs Fisher directions (relative coordinates)
-    C = np.cov(direction_draws(samples, np.eye(len(names)), theta_hat), rowvar=False)
-    ev, EV = np.linalg.eigh(C)
-    angle_sloppy = float(identifiability.principal_angles_deg(W[:, :1], EV[:, -1:])[0])
-    angle_stiff = float(identifiability.principal_angles_deg(W[:, -1:], EV[:, :1])[0])
-    infl = identifiability.relative_influence(S, sig)
-    return dict(
-        F=F, lam=lam, W=W, directions=rows, sloppiest=dirs[0],
-        fim_condition_number=identifiability.condition_number(F),
-        lam_ratio_min=float(lam[0] / lam[-1]),
-        collinearity=identifiability.collinearity_table(S, names, sizes=(2, 3), top=5),
-        relative_influence=dict(zip(names, infl.tolist())),
-        structural_nulls=nulls, structural_null_fim_angles_deg=null_angles, n_round_off_eigenvalues=k_round,
-        angle_sloppiest_vs_widest_posterior_axis_deg=angle_sloppy,
-        angle_stiffest_vs_narrowest_posterior_axis_deg=angle_stiff,
-        posterior_axis_widest=identifiability.Direction(float(ev[-1]), EV[:, -1], names).label(),
-        posterior_axis_narrowest=identifiability.Direction(float(ev[0]), EV[:, 0], names).label(),
-    )
-
-
-def direction_convergence(result, burn, W, theta_hat, determined):
-    """R-hat (walkers as chains) and bulk ESS of the projections on the determined and on the
-    undetermined Fisher directions, reported separately (issue 9: "R-hat, precisely")."""
-    import arviz as az
-
-    E, N, Wk, P = result.chains.shape
-    x = direction_draws(result.chains[:, burn:], W, theta_hat)          # (E, D, Wk, K)
-    x = x.transpose(0, 2, 1, 3).reshape(E * Wk, -1, W.shape[1])         # (chains, draws, K)
-    rh = np.array([float(az.rhat(x[:, :, k])) for k in range(x.shape[2])])
-    ess = np.array([float(az.ess(x[:, :, k], method="bulk")) for k in range(x.shape[2])])
-    out = {}
-    for label, sel in (("determined", determined), ("undetermined", ~determined)):
-        out[label] = dict(n=int(sel.sum()),
-                          rhat_max=float(rh[sel].max()) if sel.any() else None,
-                          ess_bulk_min=float(ess[sel].min()) if sel.any() else None)
-    return out
-
-
 def run_case(setup, vehicle, spiral_model, target, args, out, rng):
     t0 = time.perf_counter()
     c = setup.case
@@ -275,7 +201,8 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
     marg = marginal_table(samples, setup.names, setup.prior, setup.truth, level=LEVEL)
     for r, k, a, b in zip(marg, setup.prior.kind, setup.prior.a, setup.prior.b):
         r["prior_lo"], r["prior_hi"] = (a, b) if k == "uniform" else (a - 2 * b, a + 2 * b)
-    dos = dossier(setup, problem, theta_hat, vehicle, samples, sim)
+    dos = dossier(problem, theta_hat, prior_sd(setup.prior), [setup.truth[n] for n in setup.names], vehicle, samples,
+                  sim, NOISE, determined=DETERMINED, round_off=ROUND_OFF)
     determined = np.array([d["determined"] for d in dos["directions"]])
     conv_dirs = direction_convergence(result, burn, dos["W"], theta_hat, determined)
     idx = np.random.default_rng(0).choice(samples.shape[0], size=min(64, samples.shape[0]), replace=False)

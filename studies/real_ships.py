@@ -4,18 +4,18 @@ wind withheld, and predict under the fixed window protocol.
 Method
 ------
 - Data (read from ``shared/data/real``, never copied): Esso Osaka 3 m model, pond, 10 Hz, with
-  measured wind; KVLCC2 7 m model, HSVA tank zigzags, 20 Hz (``bayesid.datasets``).
-- Model: ``bayesid.ship`` (MMG 3-DOF; hull linear + coupling terms + cross-flow integral,
+  measured wind; KVLCC2 7 m model, HSVA tank zigzags, 20 Hz (``bayesid.data.datasets``).
+- Model: ``bayesid.models.ship`` (MMG 3-DOF; hull linear + coupling terms + cross-flow integral,
   propeller KT(J) with wake and astern thrust, MMG rudder inflow; added mass from Clarke et al.
   1983 / Soeding 1982). Free coefficients: the vehicle file's ``[fit] free``.
-- Fit: multiple shooting over the package's ship fit window (``bayesid.ship.FIT_WINDOW_S``, 15 s,
+- Fit: multiple shooting over the package's ship fit window (``bayesid.models.ship.FIT_WINDOW_S``, 15 s,
   chosen on training-only splits in ``studies/fit_sensitivity.py``; the issue's baseline used
   30 s) restarting from the causal measured state, seeded by
-  an equation-error regression (``bayesid.msfit``); channel weights by two-step feasible GLS (the
+  an equation-error regression (``bayesid.estimation.msfit``); channel weights by two-step feasible GLS (the
   residual RMS of a first, noise-weighted fit: on these runs the structural error over a window
   is 10-100x the sensor noise); Laplace posterior with an AR(1) inflation.
 - Diagnosis (``bayesid.analysis.gap.diagnose``): the base model is fitted without the wind; candidates
-  from ``bayesid.ship.SHIP_CATALOGUE`` (wind -- Fujiwara-form, 7 coefficients, driven by the
+  from ``bayesid.models.ship.SHIP_CATALOGUE`` (wind -- Fujiwara-form, 7 coefficients, driven by the
   measured wind --, current, delay, sensor lag of the logged velocities and a position time skew)
   are each added with all coefficients re-identified; ranked by the held-out error at 60 s
   windows; the verdict names the cause or the contributors added (two greedy rounds) and
@@ -53,6 +53,8 @@ TARGET = {"esso_osaka": {"w30": 0.24, "w60": 0.70}, "kvlcc2_hsva": {"w30": 0.18,
 ESSO_HOLD = ["random_06-Aug-2020_16_24_25_6", "turn_14-Oct-2020_15_06_53", "zigzag_31-Jul-2020_13_57_45",
              "berthing_12-Nov-2020_11_38_50"]
 KVLCC2_HOLD = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
+#: KVLCC2 7 m model's approach speed (m/s) and propeller speed (rev/s) of the predicted turning circles
+U0, RPS = 1.179, 10.23
 
 
 def parse_args():
@@ -67,7 +69,7 @@ def parse_args():
 
 
 def _scores(model, fitres, tracks, window):
-    from bayesid import msfit
+    from bayesid.estimation import msfit
 
     pr = msfit.predict(model, fitres.p, tracks, window, start="measured")
     return pr["pooled"]
@@ -75,12 +77,12 @@ def _scores(model, fitres, tracks, window):
 
 def evaluate(name, ship, train, held, candidates, args, out, log):
     """Diagnose, then score base and after models at 30 s, 60 s and whole run."""
-    from bayesid import msfit
+    from bayesid.estimation import msfit
     from bayesid.analysis.gap import diagnose
     from bayesid.estimation import windows as wf
     from bayesid.models import build_model
     from bayesid.report import write_diagnosis
-    from bayesid.ship import FIT_WINDOW_S as fw
+    from bayesid.models.ship import FIT_WINDOW_S as fw
 
     t0 = time.perf_counter()
     diag = diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
@@ -134,7 +136,8 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
 
 
 def track_figure(models, track, window, path, title):
-    from bayesid import msfit, plots
+    from bayesid.estimation import msfit
+    from bayesid.report import plots
 
     (bm, bf), (am, af) = models
     pr_b = msfit.predict(bm, bf.p, [track], window, start="measured")["_sim"][track.name]
@@ -144,41 +147,10 @@ def track_figure(models, track, window, path, title):
     return plots.window_tracks(None, meas, xb, xa, path, title=title)
 
 
-def turning_circles(am, p, cov, draws, rng, U0=1.179, rps=10.23, rudder_deg=35.0, duration=300.0):
-    """Predicted 35 deg turning circles (both sides) of the model at parameters ``p`` with
-    Laplace-posterior bands (no band when ``draws`` is 0)."""
-    from bayesid import msfit
-    from bayesid.track import Track
-
-    out = {}
-    t = np.arange(0.0, duration + 1e-9, 0.1)
-    for side, sgn in (("starboard", -1.0), ("port", 1.0)):  # package rudder: + = to port
-        dr = np.where(t >= 1.0, sgn * math.radians(rudder_deg), 0.0)
-        tr = Track(t, {"x": np.zeros_like(t), "y": np.zeros_like(t), "psi": np.zeros_like(t), "u": np.full_like(t, U0),
-                       "v": np.zeros_like(t), "r": np.zeros_like(t), "delta_r": dr, "n": np.full_like(t, rps * 60)},
-                   name=f"turn35_{side}")
-        s0 = np.zeros(12)
-        s0[6] = U0
-        ctx = am.context(tr, None, s0=s0)
-        P = np.vstack([p[None], msfit.posterior_samples(am, p, cov, draws, rng)]) if draws else p[None]
-        S = am.simulate(ctx, P, measured_start=False)
-        ind = [msfit.manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr[ctx.idx]) for s in S]
-        res = {"predicted": {k: ind[0][k] for k in ("advance_m", "transfer_m", "tactical_diameter_m")}}
-        for k in res["predicted"]:
-            vals = np.array([d[k] for d in ind[1:]], float)
-            vals = vals[np.isfinite(vals)]
-            res.setdefault("band_5_95", {})[k] = ([float(np.percentile(vals, 5)), float(np.percentile(vals, 95))]
-                                                  if vals.size >= 3 else None)
-            res.setdefault("n_finite_draws", {})[k] = int(vals.size)
-        res["_S"] = S
-        out[side] = res
-    return out
-
-
 def literature_baseline(vessel, held, rng):
     """The vehicle file's published coefficients, not fitted, in this model: protocol scores on the
     held-out runs (30 s, 60 s, whole run) and the predicted 35 deg turning circles."""
-    from bayesid import msfit
+    from bayesid.estimation import msfit
     from bayesid.models import build_model
 
     m = build_model(vessel, vessel.free, [], 0.2)
@@ -186,7 +158,7 @@ def literature_baseline(vessel, held, rng):
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
         out[key] = msfit.predict(m, p, held, w, start="measured")["pooled"]["rms_position_m"]
-    tc = turning_circles(m, p, None, 0, rng)
+    tc = msfit.turning_circles(m, p, None, 0, rng, U0, RPS)
     out["turning_circles_35deg"] = {side: v["predicted"] for side, v in tc.items()}
     return out
 
@@ -197,11 +169,13 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
 
     Each run is simulated whole, open loop, from its first (causal) measured state with the
     recorded rudder and propeller, by the HSVA-zigzag model and its Laplace draws
-    (:func:`bayesid.msfit.turning_band`): standard indices measured vs predicted with the 5-95 %
+    (:func:`bayesid.estimation.msfit.turning_band`): standard indices measured vs predicted with the 5-95 %
     predictive band; the tactical diameter's relative error against the issue's 5 % target; and
     the protocol's pooled window errors (30 s, 60 s). Returns (None, []) when no MARIN file is
     there (they are withheld from this repository's data)."""
-    from bayesid import datasets, msfit, plots
+    from bayesid.data import datasets
+    from bayesid.estimation import msfit
+    from bayesid.report import plots
 
     paths = datasets.list_runs(data, "simman-marin")
     if not paths:
@@ -249,7 +223,10 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
 def main() -> int:
     args = parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from bayesid import datasets, msfit, plots, ship
+    from bayesid.data import datasets
+    from bayesid.estimation import msfit
+    from bayesid.report import plots
+    from bayesid.models import ship
     from bayesid.report import fmt, md_table, write_json, write_manifest
 
     data = Path(args.data)
@@ -293,7 +270,7 @@ def main() -> int:
     k_doc, k_res, k_base, k_after = evaluate("kvlcc2_hsva", kv, ktrain, kheld,
                                                 [c for c in ship.SHIP_CATALOGUE if c != "wind"], args, out, log)
     am, af, cov = k_after
-    circles = turning_circles(am, af.p, cov, args.draws, rng)
+    circles = msfit.turning_circles(am, af.p, cov, args.draws, rng, U0, RPS)
     k_doc["turning_circles_35deg"] = {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")}
                                       for k, v in circles.items()}
     k_doc["literature_baseline"] = dict(

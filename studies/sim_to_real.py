@@ -21,7 +21,7 @@ Method
   pairs of simultaneous effects. The diagnosis sees only the tracks, the nominal vehicle and
   the free-coefficient names; window starts follow its ``auto`` rule (fitted with the model when
   u, v, r are not logged).
-- Verdict rules: ``bayesid.gap`` (cause within 1.5 x the noise floor, contributors, remainder;
+- Verdict rules: ``bayesid.analysis.gap`` (cause within 1.5 x the noise floor, contributors, remainder;
   two greedy rounds).
 - Reference (not seen by the diagnosis): the true model -- the world's coefficients and its
   effects at the parameters used (wave phases included) -- scored by the same protocol and start
@@ -79,7 +79,7 @@ def parse_args():
 # Effects outside the catalogue (open set): no candidate models them
 # ---------------------------------------------------------------------------------------------
 def outside_effects():
-    from bayesid import effects as ef
+    from bayesid.models import effects as ef
 
     class RudderStall(ef.Effect):
         """Rudder lift saturating beyond the stall angle: the acting rudder angle is clipped."""
@@ -109,7 +109,7 @@ def outside_effects():
 # Cases and their logging configurations
 # ---------------------------------------------------------------------------------------------
 def case_list(quick: bool) -> list[dict]:
-    from bayesid import effects as ef
+    from bayesid.models import effects as ef
 
     if quick:
         return [{"id": "thrust_L1", "truth": ["thrust"], "levels": [1], "exclude": [], "velocity_log": False},
@@ -156,7 +156,7 @@ MANOEUVRES = ("zigzag20", "prbs", "zigzag10", "multisine", "turn", "spiral", "rp
 
 
 def manoeuvre(veh, kind: str, duration: float, dt: float, seed: int):
-    from bayesid import manoeuvres as mv
+    from bayesid.models import manoeuvres as mv
 
     if kind == "zigzag20":
         return mv.zigzag(veh, 20.0, dt=dt, duration=duration)
@@ -176,8 +176,8 @@ def manoeuvre(veh, kind: str, duration: float, dt: float, seed: int):
 
 def world_tracks(veh, world_veh, truth: dict, cfg: dict, rng, seed: int):
     """The case's training and held-out tracks under its logging configuration."""
-    from bayesid import effects as ef
-    from bayesid.track import Track
+    from bayesid.models import effects as ef
+    from bayesid.data.track import Track
 
     dt = 0.05 if cfg["rate_hz"] == 20 else 0.1
     every = max(1, int(round(1.0 / (cfg["rate_hz"] * dt))))
@@ -207,9 +207,9 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     import numba
 
     numba.set_num_threads(1)
-    from bayesid import effects as ef
+    from bayesid.models import effects as ef
     from bayesid.analysis.gap import diagnose
-    from bayesid.vehicle import load_vehicle
+    from bayesid.data.vehicle import load_vehicle
 
     tic = time.perf_counter()
     veh = load_vehicle("nps_auv2")
@@ -242,7 +242,7 @@ def true_model_scores(world_veh, held: list, effects: dict, window: float, setti
     never reads), under the diagnosis' start rule and lead-in. Its shrinkage against the fitted
     base model is what a perfect attribution reaches on these noisy held-out tracks (a fitted
     candidate can land a little above it by fitting noise)."""
-    from bayesid import effects as ef
+    from bayesid.models import effects as ef
     from bayesid.estimation import windows as wf
     from bayesid.estimation.fit import FitResult
 
@@ -275,7 +275,7 @@ def named(verdict: str) -> list[str]:
 
 def kind_of(r: dict) -> str:
     c = r["case"]
-    from bayesid import effects as ef
+    from bayesid.models import effects as ef
 
     if c["exclude"]:
         return "openset"
@@ -368,7 +368,7 @@ def summarise(results: list[dict]) -> dict:
 
 def main():
     args = parse_args()
-    from bayesid import plots
+    from bayesid.report import plots
     from bayesid.report import prepare_out, write_json, write_manifest
 
     t0 = time.perf_counter()
@@ -435,7 +435,7 @@ def main():
 
 
 def write_report(out: Path, s: dict, args) -> None:
-    from bayesid import effects as ef
+    from bayesid.models import effects as ef
     from bayesid.report import fmt, md_table
 
     def grow(label, g):

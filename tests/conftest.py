@@ -1,6 +1,6 @@
 import pytest
 
-from bayesid.vehicle import load_vehicle
+from bayesid.data.vehicle import load_vehicle
 
 
 @pytest.fixture(scope="session")

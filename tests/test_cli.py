@@ -2,7 +2,7 @@
 import numpy as np
 
 from bayesid.cli import main
-from bayesid.track import read_csv
+from bayesid.data.track import read_csv
 
 
 def test_simulate_writes_a_track(tmp_path, capsys):

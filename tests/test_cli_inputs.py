@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from bayesid import cli
-from bayesid import effects as ef
-from bayesid import manoeuvres as mv
-from bayesid.track import write_csv
-from bayesid.vehicle import load_vehicle
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
+from bayesid.data.track import write_csv
+from bayesid.data.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -139,14 +139,14 @@ def test_version_and_defaults_in_help(capsys):
     assert "(default: 60.0)" in capsys.readouterr().out.replace("\n", " ").replace("  ", " ")
 
 
-# --- units and plausibility (bayesid.validate) ------------------------------------------------
+# --- units and plausibility (bayesid.data.validate) ------------------------------------------------
 def _variant(path, tmp_path, name, change):
-    from bayesid.track import read_csv
+    from bayesid.data.track import read_csv
 
     tr = read_csv(path)
     data = {k: np.array(v) for k, v in tr.data.items()}
     t = change(tr.t.copy(), data)
-    from bayesid.track import Track
+    from bayesid.data.track import Track
     p = tmp_path / f"{name}.csv"
     write_csv(Track(t, data, name=name), p)
     return p
@@ -178,8 +178,8 @@ def test_a_column_in_the_wrong_unit_is_refused_naming_it(csvs, tmp_path, capsys,
 
 
 def test_the_correct_units_pass_without_warning(csvs):
-    from bayesid import validate
-    from bayesid.track import read_csv
+    from bayesid.data import validate
+    from bayesid.data.track import read_csv
 
     for p in csvs:
         assert validate.check_track(read_csv(p), load_vehicle("nps_auv2")) == []
@@ -230,7 +230,7 @@ def test_a_vehicle_file_with_an_impossible_value_names_it(tmp_path, capsys, csvs
 
 
 def test_load_vehicle_on_a_ship_file_names_the_right_loader():
-    from bayesid.vehicle import VehicleFileError
+    from bayesid.data.vehicle import VehicleFileError
 
     with pytest.raises(VehicleFileError, match="load_ship"):
         load_vehicle("kvlcc2_7m")
@@ -238,8 +238,8 @@ def test_load_vehicle_on_a_ship_file_names_the_right_loader():
 
 def test_vessel_line_of_a_track_is_checked_against_the_vehicle():
     from bayesid.models import load_any_vehicle
-    from bayesid.track import Track
-    from bayesid.validate import check_track
+    from bayesid.data.track import Track
+    from bayesid.data.validate import check_track
 
     def track(vessel):
         return Track([0.0, 1.0], {"x": [0.0, 1.0]}, meta={"comments": [f"vessel: {vessel}"]})
@@ -257,8 +257,8 @@ def test_implausible_tracks_for_the_vehicle_are_warned_about(csvs, tmp_path):
     """A propeller astern while moving ahead; a submarine's track (1.9 m/s) given to the 3 m
     full-form Esso Osaka model; pitch-plane columns on a surface ship."""
     from bayesid.models import load_any_vehicle
-    from bayesid.track import read_csv
-    from bayesid.validate import check_track
+    from bayesid.data.track import read_csv
+    from bayesid.data.validate import check_track
 
     auv, esso = load_vehicle("nps_auv2"), load_any_vehicle("esso_osaka_3m")
     astern = read_csv(_variant(csvs[0], tmp_path, "astern", lambda t, d: (d.__setitem__("n", -d["n"]), t)[1]))
@@ -280,7 +280,7 @@ def test_too_little_training_data_is_refused(csvs, tmp_path, capsys):
 
 
 def test_another_export_of_one_log_is_refused_and_a_training_file_is_flagged(csvs, tmp_path, capsys):
-    from bayesid.track import read_csv
+    from bayesid.data.track import read_csv
 
     tr = read_csv(csvs[0])
     lines = ["t,x,y,psi,u,v,r,delta_r,n"] + [

@@ -3,8 +3,8 @@ import math
 
 import pytest
 
-from bayesid import crossflow, manoeuvres as mv
-from bayesid.simulate import simulate
+from bayesid.models import crossflow, manoeuvres as mv
+from bayesid.models.simulate import simulate
 
 
 def test_packaged_polynomial_reproduces_from_its_derivation(nps):

@@ -1,4 +1,4 @@
-"""Loaders for third-party measured ship data (bayesid.datasets) and `bayesid convert`.
+"""Loaders for third-party measured ship data (bayesid.data.datasets) and `bayesid convert`.
 
 Real-data tests read ../shared/data/real (relative to the repository) and skip when it is
 absent; the data are never copied into the repository (licence).  The synthetic tests write
@@ -11,11 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid import datasets as ds
+from bayesid.data import datasets as ds
 from bayesid.cli import main
-from bayesid.datasets import (FORMATS, DatasetFormatError, list_runs, read_esso_osaka, read_run,
-                              read_simman_hsva)
-from bayesid.track import TrackFormatError, read_csv, write_csv
+from bayesid.data.datasets import FORMATS, DatasetFormatError, list_runs, read_esso_osaka, read_run, read_simman_hsva
+from bayesid.data.track import TrackFormatError, read_csv, write_csv
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 ESSO = REAL / "esso-osaka-frt"

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from bayesid import effects as ef
-from bayesid import manoeuvres as mv
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
 from bayesid.analysis.gap import Diagnosis, diagnose
-from bayesid.vehicle import load_vehicle
+from bayesid.data.vehicle import load_vehicle
 
 
 @dataclass(frozen=True, eq=False)

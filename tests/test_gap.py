@@ -12,13 +12,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid import cli, effects as ef, protocol
+from bayesid import cli, protocol
+from bayesid.models import effects as ef
 from bayesid.analysis import gap
-from bayesid import manoeuvres as mv
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
-from bayesid.track import Track, read_csv, write_csv
-from bayesid.vehicle import load_vehicle
+from bayesid.data.track import Track, read_csv, write_csv
+from bayesid.data.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 FREE = ["Yv", "Nr", "Ndr"]

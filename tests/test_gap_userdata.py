@@ -9,14 +9,15 @@ import math
 import numpy as np
 import pytest
 
-from bayesid import effects as ef
-from bayesid import protocol, shooting
+from bayesid.models import effects as ef
+from bayesid import protocol
+from bayesid.estimation import shooting
 from bayesid.analysis import gap
-from bayesid import manoeuvres as mv
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
-from bayesid.track import Track
-from bayesid.vehicle import load_vehicle
+from bayesid.data.track import Track
+from bayesid.data.vehicle import load_vehicle
 
 FREE = ["Yv", "Nr", "Ndr"]
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2), "u": 0.02, "v": 0.02, "r": math.radians(0.1)}
@@ -197,7 +198,7 @@ def test_an_effect_no_candidate_models_is_never_given_a_bare_name(veh):
 
 def test_fit_and_predict_commands_fit_the_window_starts_without_a_velocity_log(veh, tmp_path):
     from bayesid import cli
-    from bayesid.track import write_csv
+    from bayesid.data.track import write_csv
 
     train, held = user_world(veh, {}, 12, 2, 2, 120.0)
     paths = []

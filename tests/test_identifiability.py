@@ -2,10 +2,11 @@
 import numpy as np
 import pytest
 
-from bayesid import cases, identifiability as ida
-from bayesid import manoeuvres as mv
+from bayesid import cases
+from bayesid.analysis import identifiability as ida
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation.objective import Problem
-from bayesid.simulate import Simulator
+from bayesid.models.simulate import Simulator
 
 SIG = dict(x=0.2, y=0.2, z=0.2, phi=np.radians(0.2), theta=np.radians(0.2), psi=np.radians(0.2))
 
@@ -58,7 +59,7 @@ def test_structural_nulls_leave_the_track_unchanged(nps, case1_zigzag):
 def test_fisher_null_space_is_the_structural_one(nps, case1_zigzag):
     case, base, _, pb = case1_zigzag
     S = ida.relative_sensitivity(pb, base)
-    F = ida.fisher_information(S, ida.noise_vector(pb, SIG))
+    F = ida.fisher_information(S, pb.noise_vector(SIG))
     dirs = ida.eigen_directions(F, case.free)
     lam = np.array([d.eigenvalue for d in dirs])
     # structural: at the round-off floor (~1e-17 of the largest); the next, merely sloppy,
@@ -80,4 +81,4 @@ def test_case2_has_no_structural_null(nps):
 def test_noise_vector_names_missing_channel(case1_zigzag):
     _, _, _, pb = case1_zigzag
     with pytest.raises(KeyError, match="psi"):
-        ida.noise_vector(pb, dict(x=1, y=1, z=1, phi=1, theta=1))
+        pb.noise_vector(dict(x=1, y=1, z=1, phi=1, theta=1))

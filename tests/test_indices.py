@@ -6,11 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid import effects as ef
-from bayesid import manoeuvres as mv
-from bayesid import msfit
-from bayesid.simulate import Manoeuvre
-from bayesid.vehicle import load_vehicle
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
+from bayesid.estimation import msfit
+from bayesid.models.simulate import Manoeuvre
+from bayesid.data.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,7 +56,7 @@ def test_random_rudder_and_a_short_turn_get_no_index_and_a_reason(veh):
 def test_the_esso_turn_of_724_degrees_is_a_turn():
     """The README's Esso example (turn_14-Oct-2020_15_06_53, -724 deg of heading) was called a
     zigzag with a 696 deg 'overshoot' because one rudder sign change counted as a reversal."""
-    from bayesid import datasets
+    from bayesid.data import datasets
 
     src = ROOT.parent / "shared" / "data" / "real" / "esso-osaka-frt"
     runs = [p for p in datasets.list_runs(src, "esso-osaka")] if src.is_dir() else []

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from bayesid import manoeuvres as mv
-from bayesid.simulate import simulate
+from bayesid.models import manoeuvres as mv
+from bayesid.models.simulate import simulate
 
 
 def test_spiral_is_ten_minutes_within_limits(nps):
@@ -43,8 +43,8 @@ def test_zigzag_reverses_on_heading(nps, angle):
 
 import json
 
-from bayesid import dynamics
-from bayesid.simulate import Simulator
+from bayesid.models import dynamics
+from bayesid.models.simulate import Simulator
 
 DT = 0.1
 LIBRARY_KEYS = ["spiral", "turn+20", "turn-20", "zigzag10_10", "zigzag20_20", "pull_out", "reverse_spiral",

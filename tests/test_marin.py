@@ -1,4 +1,4 @@
-"""The MARIN KVLCC2 reader (bayesid.datasets.read_simman_marin): full-scale files in the SIMMAN
+"""The MARIN KVLCC2 reader (bayesid.data.datasets.read_simman_marin): full-scale files in the SIMMAN
 2008 layout, Froude-scaled to the 7 m model. Synthetic files only: the MARIN runs are withheld
 for independent evaluation, so none is read here."""
 import json
@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from bayesid import datasets as ds
-from bayesid import msfit
+from bayesid.data import datasets as ds
+from bayesid.estimation import msfit
 from bayesid.models import build_model
 from bayesid.cli import main
-from bayesid.datasets import KVLCC2_SCALE, DatasetFormatError, read_run, read_simman_hsva, read_simman_marin
-from bayesid.track import read_csv
+from bayesid.data.datasets import KVLCC2_SCALE, DatasetFormatError, read_run, read_simman_hsva, read_simman_marin
+from bayesid.data.track import read_csv
 
 TITLE = ["MARIN(Maritime Research Institute Netherlands)",
          "Turning / Pull-out manoeuvring for KVLCC2 : 35 (deg)", ""]
@@ -140,7 +140,7 @@ def test_real_ships_study_compares_marin_turns_when_present(tmp_path):
     import importlib.util
     from pathlib import Path
 
-    from bayesid import ship
+    from bayesid.models import ship
 
     spec = importlib.util.spec_from_file_location(
         "real_ships", Path(__file__).resolve().parents[1] / "studies" / "real_ships.py")

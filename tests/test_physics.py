@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from bayesid import manoeuvres as mv
-from bayesid.simulate import Manoeuvre, Simulator, simulate
+from bayesid.models import manoeuvres as mv
+from bayesid.models.simulate import Manoeuvre, Simulator, simulate
 
 
 def _turn(vehicle, deg, duration=200.0, mode="horizontal"):

@@ -2,10 +2,11 @@
 import numpy as np
 import pytest
 
-from bayesid import cases, manoeuvres as mv
+from bayesid import cases
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation.objective import Problem
-from bayesid.posterior import CoefficientPrior, LogPosterior, add_noise
-from bayesid.simulate import Simulator
+from bayesid.estimation.posterior import CoefficientPrior, LogPosterior, add_noise
+from bayesid.models.simulate import Simulator
 
 SIG = dict(x=0.2, y=0.2, z=0.2, phi=np.radians(0.2), theta=np.radians(0.2), psi=np.radians(0.2))
 
@@ -62,7 +63,7 @@ def test_prior_names_must_match(post):
 
 
 def test_laplace_start_fits_inside_the_prior():
-    from bayesid.posterior import laplace_start
+    from bayesid.estimation.posterior import laplace_start
 
     pr = CoefficientPrior.build(uniform={"Yr": (0.0225, 0.0375), "Nr": (-0.02, -0.012)})
     theta_hat = np.array([0.0375, -0.016])            # optimum on Yr's upper bound

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bayesid import effects as ef
+from bayesid.models import effects as ef
 from bayesid.analysis import gap
-from bayesid import manoeuvres as mv
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
-from bayesid.track import Track
-from bayesid.vehicle import load_vehicle
+from bayesid.data.track import Track
+from bayesid.data.vehicle import load_vehicle
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
-"""The compiled simulator (bayesid.dynamics / bayesid.simulate) against the independent reference
-implementation (bayesid.reference): features, generalized forces, state derivatives, trajectories.
+"""The compiled simulator (bayesid.models.dynamics / bayesid.models.simulate) against the independent reference
+implementation (bayesid.models.reference): features, generalized forces, state derivatives, trajectories.
 
 The reference writes the rigid-body Coriolis force in Fossen's matrix form, hydrostatics as rotated
 weight/buoyancy vectors and kinematics as R(Theta), T(Theta) products, so agreement to round-off
@@ -12,11 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from bayesid import dynamics, terms
-from bayesid import manoeuvres as mv
-from bayesid.reference import ReferenceModel, reference_features, simulate_reference
-from bayesid.simulate import Manoeuvre, Simulator, simulate
-from bayesid.vehicle import load_vehicle
+from bayesid.models import dynamics
+from bayesid.data import terms
+from bayesid.models import manoeuvres as mv
+from bayesid.models.reference import ReferenceModel, reference_features, simulate_reference
+from bayesid.models.simulate import Manoeuvre, Simulator, simulate
+from bayesid.data.vehicle import load_vehicle
 
 # Reference tolerances for the trajectory tests: tight enough that the reference's own error
 # (rtol 1e-12 vs 1e-13: <= 3e-8 m on these runs) is far below the RK4 error being bounded.

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid import cases, richness
-from bayesid import manoeuvres as mv
+from bayesid import cases
+from bayesid.analysis import richness
+from bayesid.models import manoeuvres as mv
 from bayesid.estimation.objective import JointProblem, Problem
-from bayesid.simulate import Simulator
+from bayesid.models.simulate import Simulator
 
 ROOT = Path(__file__).resolve().parents[1]
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}

@@ -1,4 +1,4 @@
-"""bayesid.sampling: posterior accuracy on a conjugate problem, resume after interruption,
+"""bayesid.estimation.sampling: posterior accuracy on a conjugate problem, resume after interruption,
 -inf regions, initial balls, checkpoint mismatch, InferenceData and the convergence verdict."""
 import signal
 import subprocess
@@ -10,8 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bayesid.sampling import (SamplerConfig, diagnostics, initial_ball, run_ensembles,
-                              to_inference_data)
+from bayesid.estimation.sampling import SamplerConfig, diagnostics, initial_ball, run_ensembles, to_inference_data
 
 # A correlated 2-D Gaussian for the bookkeeping tests (resume, mismatch, shapes).
 MU2 = np.array([0.3, -0.2])
@@ -139,7 +138,7 @@ def test_resume_after_sigkill(tmp_path):
     script = textwrap.dedent(f"""
         import os, signal
         import numpy as np
-        from bayesid.sampling import SamplerConfig, run_ensembles
+        from bayesid.estimation.sampling import SamplerConfig, run_ensembles
         MU2 = np.array({MU2.tolist()}); PREC2 = np.linalg.inv(np.array({COV2.tolist()}))
         calls = [0]
         def lp(theta):
@@ -279,7 +278,7 @@ def test_wall_time_limit_stops_gracefully():
 
 
 def test_arrival_burn_waits_for_a_stranded_walker():
-    from bayesid.sampling import SamplerResult, arrival_burn
+    from bayesid.estimation.sampling import SamplerResult, arrival_burn
     rng = np.random.default_rng(0)
     E, N, W = 2, 1000, 8
     lp = rng.normal(0.0, 1.0, (E, N, W))

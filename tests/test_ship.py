@@ -1,5 +1,5 @@
-"""The surface-ship model (bayesid.ship), the multiple-shooting fit and the window protocol on
-ships (bayesid.msfit), and the fit / predict / diagnose commands on real runs (skipped without
+"""The surface-ship model (bayesid.models.ship), the multiple-shooting fit and the window protocol on
+ships (bayesid.estimation.msfit), and the fit / predict / diagnose commands on real runs (skipped without
 shared/data/real)."""
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid import msfit, ship
+from bayesid.estimation import msfit
+from bayesid.models import ship
 from bayesid.estimation import windows as wf
-from bayesid.track import Track
+from bayesid.data.track import Track
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 KV = REAL / "kvlcc2-simman-hsva"
@@ -203,7 +204,7 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     no_u = Track(tr.t, {k: tr[k] for k in ("x", "y", "psi", "delta_r", "n")}, name="no_velocities")
     with pytest.raises(ValueError, match="no_velocities"):
         wf.fit_model(m, [m.context(no_u, 30.0)], noise, channels=("u",))
-    from bayesid.track import write_csv
+    from bayesid.data.track import write_csv
     write_csv(bad, tmp_path / "bad.csv")
     rc = cli.main(["fit", "--vehicle", "kvlcc2_7m", "--train", str(tmp_path / "bad.csv"), "--free", "Yv",
                    "--fit-channels", "x,y,heading", "--out", str(tmp_path / "fit")])

@@ -4,10 +4,12 @@ import math
 import numpy as np
 import pytest
 
-from bayesid import dynamics, manoeuvres, sindy, terms
-from bayesid.posterior import add_noise
-from bayesid.simulate import Simulator
-from bayesid.track import Track
+from bayesid.models import dynamics, manoeuvres
+from bayesid.analysis import sindy
+from bayesid.data import terms
+from bayesid.estimation.posterior import add_noise
+from bayesid.models.simulate import Simulator
+from bayesid.data.track import Track
 
 N_MODELS = 30
 

@@ -1,14 +1,12 @@
-"""Tests for bayesid.track: Track container and CSV track files."""
+"""Tests for bayesid.data.track: Track container and CSV track files."""
 import math
 import re
 
 import numpy as np
 import pytest
 
-import bayesid.track as track_module
-from bayesid.track import (
-    INPUT_NAMES, STATE_NAMES, UNITS, Track, TrackFormatError, read_csv, write_csv,
-)
+import bayesid.data.track as track_module
+from bayesid.data.track import INPUT_NAMES, STATE_NAMES, UNITS, Track, TrackFormatError, read_csv, write_csv
 
 
 def write_text(tmp_path, text, name="run42.csv"):

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid import terms
-from bayesid.vehicle import VehicleFileError, load_vehicle
+from bayesid.data import terms
+from bayesid.data.vehicle import VehicleFileError, load_vehicle
 
 PACKAGED = Path(__file__).resolve().parents[1] / "bayesid" / "vehicles" / "nps_auv2.toml"
 

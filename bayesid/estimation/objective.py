@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..simulate import Simulator
-from ..track import STATE_NAMES, Track
+from ..models.simulate import Simulator
+from ..data.track import STATE_NAMES, Track
 
 PAPER_CHANNELS = ("x", "y", "z", "phi", "theta", "psi")
 #: Residual assigned to every sample of a diverged track, so optimisers see a large finite value
@@ -32,8 +32,8 @@ class Problem:
 
     Parameters
     ----------
-    simulator : :class:`~bayesid.simulate.Simulator` whose ``free`` names are identified.
-    target : :class:`~bayesid.track.Track` whose times lie on the simulator's sample grid.
+    simulator : :class:`~bayesid.models.simulate.Simulator` whose ``free`` names are identified.
+    target : :class:`~bayesid.data.track.Track` whose times lie on the simulator's sample grid.
     reference : (P,) non-zero prime values; the optimiser works on ``p = theta / reference``.
     channels : state columns compared (default the paper's six; absent ones are skipped).
     fd_step : forward-difference step in scaled units.
@@ -93,6 +93,15 @@ class Problem:
     def result_fields(self, p) -> dict:
         """The fit result's ``p`` (scaled) and ``theta`` (prime) at ``p``."""
         return {"p": np.asarray(p, dtype=float), "theta": self.theta(p)}
+
+    def noise_vector(self, sigmas: dict) -> np.ndarray:
+        """Per-residual noise standard deviation (n_residuals,) from per-channel values
+        ``sigmas`` ({channel: sd}, SI). KeyError naming a channel without one."""
+        missing = [c for c in self.channels if c not in sigmas]
+        if missing:
+            raise KeyError(f"no noise standard deviation for channel(s) {missing}")
+        per = np.array([float(sigmas[c]) for c in self.channels])
+        return np.tile(per, self.y.shape[0])
 
     # -- scaled <-> prime ----------------------------------------------------------------------
     def theta(self, p) -> np.ndarray:

@@ -2,15 +2,15 @@
 
 The objective (:class:`WindowObjective`) is the simulation error over the protocol windows of
 every track (:mod:`bayesid.protocol`), each window restarting from its measured state or from a
-start state fitted with the parameters (:mod:`bayesid.shooting`), every scored channel divided
+start state fitted with the parameters (:mod:`bayesid.estimation.shooting`), every scored channel divided
 by its noise sd (heading difference wrapped):
 
     V(x) = sum_tracks sum_windows sum_samples sum_channels ((prediction - measurement) / sd)^2
 
 The model is anything that implements :class:`bayesid.models.interface.SimulationModel`
-(submarine :class:`~bayesid.effects.EffectModel`, ship :class:`~bayesid.ship.ShipModel`). The
-same objective serves the identification of long runs (:mod:`bayesid.msfit`), every model of the
-gap diagnosis (:mod:`bayesid.gap`) and the studies; :func:`fit_model` minimises it with the one
+(submarine :class:`~bayesid.models.effects.EffectModel`, ship :class:`~bayesid.models.ship.ShipModel`). The
+same objective serves the identification of long runs (:mod:`bayesid.estimation.msfit`), every model of the
+gap diagnosis (:mod:`bayesid.analysis.gap`) and the studies; :func:`fit_model` minimises it with the one
 fit function (:func:`bayesid.estimation.fit.fit`) and returns its :class:`FitResult`. Also here:
 the held-out nuisances, the two-step channel weighting (:func:`fit_weighted`), protocol scores of
 a fitted model (:func:`scores`, :func:`window_rms`), the pooled noise sds and the data check.
@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 
-from .. import effects as ef
-from .. import shooting
+from ..models import effects as ef
+from . import shooting
 from ..protocol import CHANNELS, estimate_noise, pooled_scores
 from .fit import FitResult, fit
 

@@ -6,9 +6,9 @@ the command line) works with the model it returns.
 """
 from __future__ import annotations
 
-from ..effects import EffectModel
-from ..ship import Ship, ShipModel, is_ship_file, load_ship
-from ..vehicle import Vehicle, load_vehicle
+from .effects import EffectModel
+from .ship import Ship, ShipModel, is_ship_file, load_ship
+from ..data.vehicle import Vehicle, load_vehicle
 from .interface import SimulationModel
 
 __all__ = ["FAMILIES", "SimulationModel", "build_model", "load_any_vehicle", "model_class"]
@@ -29,8 +29,8 @@ def model_class(vehicle):
 
 def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal"):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
-    :class:`~bayesid.ship.ShipModel` (``free`` default: the file's ``[fit] free``), for a
-    submarine :class:`~bayesid.effects.EffectModel` in ``mode`` (``free`` default: none).
+    :class:`~bayesid.models.ship.ShipModel` (``free`` default: the file's ``[fit] free``), for a
+    submarine :class:`~bayesid.models.effects.EffectModel` in ``mode`` (``free`` default: none).
     ``dt`` default: the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
 
     Raises KeyError for an unknown coefficient, ValueError for an unknown effect."""

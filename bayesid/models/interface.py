@@ -2,9 +2,9 @@
 analysis layers.
 
 Two implementations: the submarine's horizontal-plane or 6-DOF model with effects
-(:class:`bayesid.effects.EffectModel`) and the 3-DOF surface ship in MMG form
-(:class:`bayesid.ship.ShipModel`). The fits (:mod:`bayesid.estimation.windows`), the long-run
-identification and prediction (:mod:`bayesid.msfit`), the gap diagnosis (:mod:`bayesid.gap`) and
+(:class:`bayesid.models.effects.EffectModel`) and the 3-DOF surface ship in MMG form
+(:class:`bayesid.models.ship.ShipModel`). The fits (:mod:`bayesid.estimation.windows`), the long-run
+identification and prediction (:mod:`bayesid.estimation.msfit`), the gap diagnosis (:mod:`bayesid.analysis.gap`) and
 the command line take a model and never ask which kind of vessel it is; what differs between
 vessels is answered by the model (its defaults, its effect catalogue, its inverse dynamics).
 
@@ -17,7 +17,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["SimulationModel"]
+__all__ = ["SimulationModel", "ParameterLayout"]
 
 
 @runtime_checkable
@@ -29,7 +29,7 @@ class SimulationModel(Protocol):
     ---------------------
     ``vehicle`` : the vessel description it was built from (nominal coefficients).
     ``free`` : list of the coefficient names the fits change (SNAME or MMG names).
-    ``effects`` : list of :class:`bayesid.effects.Effect`, in parameter order.
+    ``effects`` : list of :class:`bayesid.models.effects.Effect`, in parameter order.
     ``param_names`` : ``free + ["effect.param", ...]``; the parameter vector is
     ``[theta_free (n_theta), q_1, ..., q_E]``; ``n_theta``, ``n_q`` (per effect), ``n_params``.
     ``theta0`` : (n_theta,) nominal values of the free coefficients.
@@ -77,7 +77,7 @@ class SimulationModel(Protocol):
 
     def context(self, track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
                 leadin_s: float = 0.0):
-        """A track prepared for simulation (:class:`bayesid.effects.TrackContext`): step inputs,
+        """A track prepared for simulation (:class:`bayesid.models.effects.TrackContext`): step inputs,
         protocol windows (``window_s``; None = whole run), window-start states by the start rule
         ``start`` (lead-in ``leadin_s``), or the state ``s0`` (12,) at the first sample."""
 
@@ -106,3 +106,31 @@ class SimulationModel(Protocol):
 
     def regions(self) -> dict:
         """{region variable: bin edges} of the *where* analysis."""
+
+
+class ParameterLayout:
+    """The parameter vector both families share: ``[theta_free (n_theta), q_1, ..., q_E]`` with
+    ``q_e`` the parameters of effect ``e`` (in the units of their names). A subclass sets
+    ``theta0``, ``n_theta``, ``n_q``, ``effects`` and ``vehicle``."""
+
+    @property
+    def n_params(self) -> int:
+        """Length of the parameter vector."""
+        return self.n_theta + sum(self.n_q)
+
+    def start(self, theta=None) -> np.ndarray:
+        """(n_params,) start of a fit: ``theta`` (default ``theta0``) and each effect's
+        :meth:`~bayesid.models.effects.Effect.start_values` for this vehicle."""
+        th = self.theta0 if theta is None else np.asarray(theta, float)
+        return np.concatenate([th] + [e.start_values(self.vehicle) for e in self.effects])
+
+    def split_params(self, P):
+        """(B, n_params) parameter vectors -> (theta (B, n_theta) free coefficients, [q_e (B,
+        n_q_e) per effect, in the model's effect order])."""
+        P = np.atleast_2d(np.asarray(P, float))
+        th = P[:, :self.n_theta]
+        qs, i = [], self.n_theta
+        for n in self.n_q:
+            qs.append(P[:, i:i + n])
+            i += n
+        return th, qs

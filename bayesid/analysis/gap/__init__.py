@@ -28,7 +28,7 @@ below), :mod:`.support`, and the orchestration :mod:`.diagnose`, which returns a
 
 Window start states follow the protocol's start rule (:data:`bayesid.protocol.START_RULES`):
 restarted from the measured state when u, v, r are logged, else fitted with the model being
-scored (:mod:`bayesid.shooting`: a 10 s lead-in before each held-out window; the window starts
+scored (:mod:`bayesid.estimation.shooting`: a 10 s lead-in before each held-out window; the window starts
 of the training fits as nuisance parameters). One rule serves every model compared and the floor.
 
 Verdict rules (stated in the report):

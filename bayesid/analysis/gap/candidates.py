@@ -4,7 +4,7 @@ fitted with all free coefficients from several starts, and scored on the held-ou
 Starts of a candidate fit (:func:`candidate_starts`): from the reference fit's coefficients and
 from the nominal ones (the reference fit may have bent the coefficients to absorb the effect, a
 local minimum for the candidate), each with the effect's own starts and seed
-(:meth:`~bayesid.effects.Effect.fit_starts`, :meth:`~bayesid.effects.Effect.diagnosis_seed`). A
+(:meth:`~bayesid.models.effects.Effect.fit_starts`, :meth:`~bayesid.models.effects.Effect.diagnosis_seed`). A
 candidate whose effect has a ``neutral`` value nests the model it extends; when its fits end
 worse than that model it is refitted once more from that model's optimum with the effect neutral
 (:func:`nested_start`), so its ΔBIC is at most k ln n.

@@ -7,8 +7,8 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from ... import effects as ef
-from ... import shooting
+from ...models import effects as ef
+from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.windows import check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
 from ...models import build_model, model_class
@@ -95,16 +95,16 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
 
     Parameters
     ----------
-    vehicle : the nominal vehicle (a submarine :class:`~bayesid.vehicle.Vehicle` or a
-        :class:`~bayesid.ship.Ship`; its model family comes from :func:`bayesid.models.build_model`).
+    vehicle : the nominal vehicle (a submarine :class:`~bayesid.data.vehicle.Vehicle` or a
+        :class:`~bayesid.models.ship.Ship`; its model family comes from :func:`bayesid.models.build_model`).
     free : coefficient names the fits change.
     train, heldout : lists of Tracks (disjoint; ValueError if a track object or name repeats).
     candidates : effects, as names of the model family's ``CATALOGUE`` or
-        :class:`~bayesid.effects.Effect` objects (default: the whole catalogue).
+        :class:`~bayesid.models.effects.Effect` objects (default: the whole catalogue).
     window_s : protocol window (s) of the held-out scores, None = whole run.
     dt : model step (s; default the family's ``DEFAULT_DT``).   mode : submarine equations.
     fit_window_s : window of the multiple-shooting fits on the training tracks (default: the
-        family's ``default_fit_window(window_s)``: ship :data:`bayesid.ship.FIT_WINDOW_S`,
+        family's ``default_fit_window(window_s)``: ship :data:`bayesid.models.ship.FIT_WINDOW_S`,
         submarine ``window_s``).
     rng : numpy Generator (noise-floor simulation, bootstrap of the signature regression).
     max_effects : greedy rounds (default 2: after a contributor, try the others on top of it;
@@ -248,7 +248,7 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
 
 def _seeds(effects, base, bfit, ctxs, train) -> dict:
     """{effect name: seed} of the candidates that have one
-    (:meth:`~bayesid.effects.Effect.diagnosis_seed`), from the base fit's errors on the training
+    (:meth:`~bayesid.models.effects.Effect.diagnosis_seed`), from the base fit's errors on the training
     windows and the training tracks' missing forces (None when inverse dynamics fails)."""
     errors = [ef.errors(ctx, shooting.simulate(base, ctx, bfit.p[None])) for ctx in ctxs]
     try:  # wave frequency and per-track phases from the TRAINING tracks' missing forces

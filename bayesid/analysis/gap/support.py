@@ -1,15 +1,15 @@
 """Independent *support* for a candidate effect: a sparse regression of the missing forces of
 inverse dynamics on the effects' force signatures (each effect's
-:meth:`~bayesid.effects.Effect.force_signature`, gathered by the model's ``signature_columns``).
+:meth:`~bayesid.models.effects.Effect.force_signature`, gathered by the model's ``signature_columns``).
 
 Fasel, Kutz, Brunton & Brunton (2022), Ensemble-SINDy, Proc. R. Soc. A 478 (ensemble STLSQ with
-bagging; :func:`bayesid.sindy.ensemble_stlsq`).
+bagging; :func:`bayesid.analysis.sindy.ensemble_stlsq`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ...sindy import ensemble_stlsq
+from ..sindy import ensemble_stlsq
 
 __all__ = ["signature_regression"]
 

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from ... import effects as ef
-from ... import shooting
+from ...models import effects as ef
+from ...estimation import shooting
 from ...protocol import pooled_scores, wrap
-from ...track import STATE_NAMES, Track
+from ...data.track import STATE_NAMES, Track
 
 __all__ = ["Thresholds", "noise_floor", "paired_window_test", "gap_summary", "assign_roles", "contribution",
            "verdict_of"]

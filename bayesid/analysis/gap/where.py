@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal, stats
 
-from ... import effects as ef
-from ... import shooting
+from ...models import effects as ef
+from ...estimation import shooting
 from ...protocol import pooled_scores
 
 __all__ = ["where", "ljung_box", "window_xy"]

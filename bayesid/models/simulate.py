@@ -1,6 +1,6 @@
 """Batched simulation: a vehicle, a manoeuvre and B coefficient vectors in, B tracks out.
 
-The expensive part is one call of the compiled kernel :func:`bayesid.dynamics.simulate_batch`;
+The expensive part is one call of the compiled kernel :func:`bayesid.models.dynamics.simulate_batch`;
 everything that does not change between calls (active terms, scales, inputs) is prepared once in
 :class:`Simulator`, so an optimiser or a sampler pays only for the integration.
 """
@@ -12,8 +12,9 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from . import dynamics, terms
-from .track import INPUT_NAMES, STATE_NAMES, Track
+from . import dynamics
+from ..data import terms
+from ..data.track import INPUT_NAMES, STATE_NAMES, Track
 
 MODES = ("6dof", "horizontal")
 _PLANE = [0, 1, 5]  # u, v, r rows/columns of the mass matrix
@@ -95,7 +96,7 @@ class SimResult:
         return self.status != dynamics.OK
 
     def track(self, b: int = 0, name: str | None = None) -> Track:
-        """Track b as a :class:`~bayesid.track.Track` (all 12 states and the 4 inputs)."""
+        """Track b as a :class:`~bayesid.data.track.Track` (all 12 states and the 4 inputs)."""
         data = {n: self.states[b, :, i].copy() for i, n in enumerate(STATE_NAMES)}
         data.update({n: self.inputs[:, j].copy() for j, n in enumerate(INPUT_NAMES)})
         return Track(self.t.copy(), data, name=name if name is not None else self.name)
@@ -106,7 +107,7 @@ class Simulator:
 
     Parameters
     ----------
-    vehicle : :class:`~bayesid.vehicle.Vehicle` (its coefficients are the fixed values).
+    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (its coefficients are the fixed values).
     manoeuvre : :class:`Manoeuvre`.
     free : names of the coefficients that :meth:`run` sets per track (SNAME names).
     mode : ``"6dof"`` or ``"horizontal"`` (paper Sec. 4: only surge, sway, yaw evolve).

@@ -1,10 +1,10 @@
 """Slow, obviously-correct reference implementation of the 6-DOF submarine equations.
 
-Same model as the compiled kernel (:mod:`bayesid.dynamics`), written independently and in a
+Same model as the compiled kernel (:mod:`bayesid.models.dynamics`), written independently and in a
 different form so that agreement between the two means something:
 
 * features in vectorised numpy (:func:`reference_features`), hydrodynamic forces through the term
-  library's regressor matrix (:func:`bayesid.terms.regressors`);
+  library's regressor matrix (:func:`bayesid.data.terms.regressors`);
 * hydrostatics as the weight and buoyancy vectors rotated into the body frame and their moments
   ``r_G x f_G + r_B x f_B`` (Fossen 1994, Sec. 2.5 / Eq. 2.162), not the expanded scalar list;
 * the rigid-body Coriolis/centripetal force in Fossen's matrix form ``C_RB(nu) nu`` built from
@@ -27,7 +27,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from . import terms
+from ..data import terms
 from .crossflow import crossflow_forces
 from .simulate import MODES, Manoeuvre, SimResult
 
@@ -38,7 +38,7 @@ PLANE = [0, 1, 5]
 #: State indices that the horizontal-plane model keeps at zero (phi, theta, w, p, q).
 _HORIZONTAL_ZERO = {3: "phi", 4: "theta", 8: "w", 9: "p", 10: "q"}
 
-# Status codes of SimResult (the same meaning as bayesid.dynamics.OK/NONFINITE/OUT_OF_BOUNDS).
+# Status codes of SimResult (the same meaning as bayesid.models.dynamics.OK/NONFINITE/OUT_OF_BOUNDS).
 _OK, _NONFINITE, _OUT_OF_BOUNDS = 0, 1, 2
 
 
@@ -124,7 +124,7 @@ def reference_features(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.nd
     ----------
     states : (n, 12) ``x, y, z, phi, theta, psi, u, v, w, p, q, r`` (m, rad, m/s, rad/s).
     inputs : (n, 4) ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm).
-    vehicle : :class:`~bayesid.vehicle.Vehicle` (propulsion constants and L).
+    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (propulsion constants and L).
 
     ``prop = u_c|u_c| - u|u|`` (m^2/s^2) with ``u_c = uc_per_omega * n * 2 pi/60``;
     ``eps`` from :func:`propulsion_eps`.
@@ -152,7 +152,7 @@ class ReferenceModel:
 
     Parameters
     ----------
-    vehicle : :class:`~bayesid.vehicle.Vehicle`.
+    vehicle : :class:`~bayesid.data.vehicle.Vehicle`.
     coefficients : dict name -> prime value overriding some of the vehicle's coefficients.
     mode : ``"6dof"`` or ``"horizontal"``. Horizontal: only the terms that act in the horizontal
         plane (``Term.horizontal``, as the compiled simulator) and only the (u, v, r) rows of
@@ -210,7 +210,7 @@ class ReferenceModel:
 
     def crossflow_force(self, states: np.ndarray) -> np.ndarray:
         """Strip-sum cross-flow drag (n, 6) when ``vehicle.crossflow_model == "integral"``, else 0
-        (:func:`bayesid.crossflow.crossflow_forces`)."""
+        (:func:`bayesid.models.crossflow.crossflow_forces`)."""
         if self.vehicle.crossflow_model == "integral":
             return crossflow_forces(states, self.vehicle)
         return np.zeros((states.shape[0], 6))
@@ -278,7 +278,7 @@ def reference_rhs(states, inputs, vehicle, mode: str = "6dof",
 
 def _bounds(vehicle) -> tuple[float, float, float]:
     """Physical bounds beyond which a track counts as diverged (the kernel's rule, see
-    :func:`bayesid.dynamics.vehicle_params`): speed (m/s), rate (rad/s), |theta| (rad)."""
+    :func:`bayesid.models.dynamics.vehicle_params`): speed (m/s), rate (rad/s), |theta| (rad)."""
     vmax = max(20.0 * vehicle.nominal_speed, 10.0)
     return vmax, vmax / (vehicle.L / 4.0), math.radians(85.0)
 
@@ -294,7 +294,7 @@ def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
 
     Parameters
     ----------
-    vehicle : :class:`~bayesid.vehicle.Vehicle`.   manoeuvre : :class:`~bayesid.simulate.Manoeuvre`.
+    vehicle : :class:`~bayesid.data.vehicle.Vehicle`.   manoeuvre : :class:`~bayesid.models.simulate.Manoeuvre`.
     mode : ``"6dof"`` or ``"horizontal"`` (see :class:`ReferenceModel`).
     coefficients : dict name -> prime value overriding some vehicle coefficients.
     sample_every : store every k-th grid point; must divide ``manoeuvre.n_steps``.
@@ -304,7 +304,7 @@ def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
 
     Returns
     -------
-    :class:`~bayesid.simulate.SimResult` with B = 1: ``states`` (1, n_samples, 12). ``status`` is 0,
+    :class:`~bayesid.models.simulate.SimResult` with B = 1: ``states`` (1, n_samples, 12). ``status`` is 0,
     or 1 if solve_ivp failed or the state went non-finite, or 2 if the state left the physical
     bounds (the kernel's: |u|,|v|,|w|, |p|,|q|,|r|, |theta| > 85 deg); ``fail_step`` is the grid
     step during which the bound was crossed (status 2) or the last grid step reached (status 1),

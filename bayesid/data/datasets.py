@@ -1,4 +1,4 @@
-"""Loaders for third-party measured manoeuvring data -> :class:`~bayesid.track.Track`.
+"""Loaders for third-party measured manoeuvring data -> :class:`~bayesid.data.track.Track`.
 
 Three formats are read (:data:`FORMATS`); each loader returns a Track in the
 package contract (``track.py``, README "Track files"): SI units, radians,
@@ -38,7 +38,7 @@ Conventions that hold for every loader:
   ``sample_rate_hz`` (1 / median time step, 6 significant digits),
   ``conversions`` and ``notes`` (lists of str), ``reference`` (README and
   citation) and ``comments`` (a summary of all of these; written as ``#``
-  lines by :func:`~bayesid.track.write_csv`).
+  lines by :func:`~bayesid.data.track.write_csv`).
 
 Malformed files raise :class:`DatasetFormatError` naming the file, the row
 (1-based line number in the file) and the column.
@@ -75,7 +75,7 @@ _HEADER = re.compile(r"(?P<name>[^\[\]()]*?)\s*(?:\[(?P<u1>[^\[\]]*)\]|\((?P<u2>
 class DatasetFormatError(TrackFormatError):
     """A third-party data file breaks its documented format.
 
-    A :class:`~bayesid.track.TrackFormatError` (hence a ``ValueError``); the
+    A :class:`~bayesid.data.track.TrackFormatError` (hence a ``ValueError``); the
     message names the file and, where applicable, the row (1-based line
     number in the file) and the column (the file's own column name, or
     ``col k (...)`` for files without a header); also available as the
@@ -212,7 +212,7 @@ def _build(path, fmt, t, data, units, vessel, reference, conversions, notes, man
         "reference": reference,
     }
     meta["comments"] = (
-        [f"source: {os.fspath(path)} (format {fmt}, read by bayesid.datasets)",
+        [f"source: {os.fspath(path)} (format {fmt}, read by bayesid.data.datasets)",
          f"vessel: {vessel}",
          f"reference: {reference}",
          f"sample rate: {rate:g} Hz" if rate else "sample rate: n/a (one sample)"]

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import terms  # noqa: E402
+from ..data import terms  # noqa: E402
 
 
 def _save(fig, path):
@@ -253,7 +253,7 @@ def marginals_vs_truth(rows: list, path, title: str = ""):
     """Posterior mean and central interval as ratios to truth, per coefficient (grouped X | Y | N),
     with the prior's range (uniform: bounds; normal: +-2 sd) in grey.
 
-    rows : from :func:`bayesid.posterior.marginal_table` with truth, plus ``prior_lo``/``prior_hi``.
+    rows : from :func:`bayesid.estimation.posterior.marginal_table` with truth, plus ``prior_lo``/``prior_hi``.
     """
     order = sorted(rows, key=lambda r: "XYN".index(terms.term(r["name"]).group))
     fig, ax = plt.subplots(figsize=(max(7, 0.4 * len(order)), 4))

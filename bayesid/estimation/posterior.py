@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import terms
-from .track import STATE_NAMES, Track
+from ..data import terms
+from ..data.track import STATE_NAMES, Track
 
 
 @dataclass(frozen=True)
@@ -193,14 +193,13 @@ def laplace_covariance(problem, theta_hat, sigmas: dict, prior: CoefficientPrior
 
     Raises
     ------
-    KeyError naming a channel without a sigma (:func:`bayesid.identifiability.noise_vector`).
+    KeyError naming a channel without a sigma (:meth:`bayesid.estimation.objective.Problem.noise_vector`).
     """
-    from .estimation.laplace import gauss_newton_covariance
-    from .identifiability import noise_vector
+    from .laplace import gauss_newton_covariance
 
     p = problem.scaled(theta_hat)
     _, J = problem.jacobian(p, central=True)                  # d r / d p
-    Jw = (J / problem.reference[None, :]) / noise_vector(problem, sigmas)[:, None]   # d r / d theta
+    Jw = (J / problem.reference[None, :]) / problem.noise_vector(sigmas)[:, None]   # d r / d theta
     Jw = np.where(problem.mask.reshape(-1)[:, None], Jw, 0.0)
     return gauss_newton_covariance(Jw, prior_precision=1.0 / prior_sd(prior) ** 2)
 

@@ -3,7 +3,7 @@ manoeuvre design.
 
 The paper's point (1) (Furlong et al. 2003, Sec. 4.2): the spiral was not "rich" enough. Here
 richness is measured on the Fisher information ``F`` of the free coefficients in relative units
-(:mod:`bayesid.identifiability`) for Gaussian output error with the given noise:
+(:mod:`bayesid.analysis.identifiability`) for Gaussian output error with the given noise:
 
 - D-criterion ``log det F`` (volume of the confidence ellipsoid, larger = richer);
 - E-criterion ``lambda_min(F)`` (the worst-determined direction);
@@ -27,7 +27,7 @@ import numpy as np
 from scipy import optimize
 
 from . import identifiability
-from . import manoeuvres as mv
+from ..models import manoeuvres as mv
 
 
 def fisher_metrics(problem, theta, sigmas: dict) -> dict:
@@ -50,7 +50,7 @@ def fisher_metrics(problem, theta, sigmas: dict) -> dict:
     KeyError naming a channel without a sigma.
     """
     S = identifiability.relative_sensitivity(problem, theta)
-    sig = identifiability.noise_vector(problem, sigmas)
+    sig = problem.noise_vector(sigmas)
     F = identifiability.fisher_information(S, sig, problem.mask.reshape(-1))
     F = 0.5 * (F + F.T)
     lam = np.linalg.eigvalsh(F)

@@ -2,7 +2,7 @@
 
 Each :class:`Effect` is a small parametrised extension of the standard equations. The same
 object generates "world" data with the effect switched on (:func:`world_track`) and serves as
-a candidate when the gap diagnosis (:mod:`bayesid.gap`) refits a model with it. An effect acts
+a candidate when the gap diagnosis (:mod:`bayesid.analysis.gap`) refits a model with it. An effect acts
 through one or more of five hooks, applied by :class:`EffectModel`:
 
 * the **inputs** the vehicle receives (delay, actuator dynamics),
@@ -23,10 +23,12 @@ import numba as nb
 import numpy as np
 from scipy import signal
 
-from . import dynamics, terms
-from .protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
+from . import dynamics, inverse
+from .interface import ParameterLayout
+from ..data import terms
+from ..protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
 from .simulate import Manoeuvre, Simulator
-from .track import INPUT_NAMES, STATE_NAMES, Track
+from ..data.track import INPUT_NAMES, STATE_NAMES, Track
 
 #: Polynomial cross-flow terms that the integral form replaces (crossflow.py bases).
 POLY_CROSSFLOW = ("Yvabsv", "Yvabsr", "Yrabsr", "Nvabsv", "Nabsvr", "Nrabsr",
@@ -798,12 +800,12 @@ class TrackContext:
         return x
 
 
-class EffectModel:
+class EffectModel(ParameterLayout):
     """The base model plus a list of effects, simulated over a track's protocol windows.
 
     Parameters
     ----------
-    vehicle : :class:`~bayesid.vehicle.Vehicle` (nominal coefficients, prime form).
+    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (nominal coefficients, prime form).
     free : names of the coefficients the fit changes (SNAME; unknown names raise).
     effects : effect names (see :data:`CATALOGUE`), applied in this order.
     mode : ``"horizontal"`` or ``"6dof"`` (an effect with ``mode="6dof"`` forces 6-DOF).
@@ -865,14 +867,6 @@ class EffectModel:
         self.n_nuisance = sum(e.n_nuisance for e in self.effects)
         self.K = max(1, sum(e.exo_columns for e in self.effects))
 
-    @property
-    def n_params(self) -> int:
-        return self.n_theta + sum(self.n_q)
-
-    def start(self, theta=None) -> np.ndarray:
-        th = self.theta0 if theta is None else np.asarray(theta, float)
-        return np.concatenate([th] + [e.start_values(self.vehicle) for e in self.effects])
-
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of the parameter vector: coefficients unbounded, effects as catalogued."""
         lo = [np.full(self.n_theta, -np.inf)] + [np.asarray(e.lo, float) for e in self.effects]
@@ -891,17 +885,6 @@ class EffectModel:
         lead-in of ``leadin_s`` seconds) gives it."""
         return TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
 
-    def split_params(self, P):
-        """(B, n_params) parameter vectors -> (theta (B, n_theta) free coefficients, [q_e (B,
-        n_q_e) per effect, in the model's effect order])."""
-        P = np.atleast_2d(np.asarray(P, float))
-        th = P[:, :self.n_theta]
-        qs, i = [], self.n_theta
-        for n in self.n_q:
-            qs.append(P[:, i:i + n])
-            i += n
-        return th, qs
-
     def simulate(self, ctx: TrackContext, P, nuisance=None, measured_start: bool = True, starts=None,
                  samples: str = "scored") -> np.ndarray:
         """Predicted measurements at the track's scored samples.
@@ -914,7 +897,7 @@ class EffectModel:
             (False: ``ctx.s_meas`` are already model states, e.g. the true initial state).
         starts : (B, W, 6) offsets added to the start state of every window (segment) in the
             measured frame, components :data:`START_INDEX` (x, y, psi, u, v, r); the fitted
-            start rule (:mod:`bayesid.shooting`). Default none.
+            start rule (:mod:`bayesid.estimation.shooting`). Default none.
         samples : ``"scored"`` (the window samples) or ``"lead"`` (the samples that estimate the
             start states, ``ctx.lead``).
 
@@ -972,18 +955,16 @@ class EffectModel:
 
     def missing_forces(self, fitres, track: Track):
         """Missing X, Y, N (N, N m) over time: rigid-body inverse dynamics of the smoothed
-        measured motion minus the fitted model's hydrodynamic forces (pysindy smoothed
-        differentiation, :func:`bayesid.sindy.estimate_motion`). Returns (motion dict, F (n, 3),
+        measured motion minus the fitted model's hydrodynamic forces (Savitzky-Golay smoothed
+        differentiation, :func:`bayesid.models.inverse.estimate_motion`). Returns (motion dict, F (n, 3),
         inputs (n, 4))."""
-        from . import sindy
-
         veh = self.vehicle.with_coefficients(fitres.coefficients()) if self.free else self.vehicle
-        motion = sindy.estimate_motion(track)
-        inputs = sindy.track_inputs(track)
-        known = [t for t in sindy.horizontal_terms("X") + sindy.horizontal_terms("Y") + sindy.horizontal_terms("N")
+        motion = inverse.estimate_motion(track)
+        inputs = inverse.track_inputs(track)
+        known = [t for t in inverse.horizontal_terms("X") + inverse.horizontal_terms("Y") + inverse.horizontal_terms("N")
                  if veh.coefficients.get(t, 0.0) != 0.0]
-        known = sorted(set(known) | set(sindy.ADDED_MASS))
-        F = sindy.force_targets(motion, veh, inputs, known=known)
+        known = sorted(set(known) | set(inverse.ADDED_MASS))
+        F = inverse.force_targets(motion, veh, inputs, known=known)
         return motion, F, inputs
 
     def signature_columns(self, motion, inputs, track: Track, seeds=None, effects=None) -> dict:

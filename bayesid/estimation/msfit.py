@@ -10,9 +10,9 @@ different sampling rates (the model steps at ``dt``, predictions are interpolate
 samples); unmeasured velocities are derived from the positions for the start states and are
 simply not scored.
 
-It works for both model families: a :class:`bayesid.ship.Ship` (the MMG 3-DOF model, seeded by
-:func:`bayesid.ship.equation_error_seed`) and a submarine :class:`bayesid.vehicle.Vehicle`
-(horizontal-plane :class:`bayesid.effects.EffectModel`, started at the nominal coefficients).
+It works for both model families: a :class:`bayesid.models.ship.Ship` (the MMG 3-DOF model, seeded by
+:func:`bayesid.models.ship.equation_error_seed`) and a submarine :class:`bayesid.data.vehicle.Vehicle`
+(horizontal-plane :class:`bayesid.models.effects.EffectModel`, started at the nominal coefficients).
 
 Posterior: the Laplace approximation at the optimum, ``cov = s^2 (J^T J)^-1 * n/n_eff`` with
 ``s^2 = SSR / (n - k)`` and ``n/n_eff = (1 + rho1) / (1 - rho1)`` from the lag-1
@@ -29,19 +29,19 @@ from pathlib import Path
 
 import numpy as np
 
-from . import effects as ef
+from ..models import effects as ef
 from . import shooting
-from .estimation import windows as wf
-from .estimation.fit import FitResult
-from . import ship as sh
-from .estimation.laplace import gauss_newton_covariance
-from .protocol import pooled_scores, resolve_start, start_settings
-from .track import Track
-from .models import build_model, load_any_vehicle
+from . import windows as wf
+from .fit import FitResult
+from ..models import ship as sh
+from .laplace import gauss_newton_covariance
+from ..protocol import pooled_scores, resolve_start, start_settings
+from ..data.track import Track
+from ..models import build_model, load_any_vehicle
 
 
 #: Protocol window (s) of a fit whose user gives none, for a family that scores over the
-#: protocol window (submarines; :meth:`~bayesid.effects.EffectModel.default_fit_window`).
+#: protocol window (submarines; :meth:`~bayesid.models.effects.EffectModel.default_fit_window`).
 DEFAULT_WINDOW_S = 30.0
 
 
@@ -84,12 +84,12 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
 
     Parameters
     ----------
-    vehicle : :class:`~bayesid.ship.Ship` or :class:`~bayesid.vehicle.Vehicle`.
+    vehicle : :class:`~bayesid.models.ship.Ship` or :class:`~bayesid.data.vehicle.Vehicle`.
     train : list of Tracks (``t, x, y, psi, delta_r, n``; ``u, v, r`` when measured; ``wind_*``
         for the wind effect).   free : coefficient names (default: the ship file's ``[fit] free``).
-    effects : effect names (ship: :data:`~bayesid.ship.SHIP_CATALOGUE`).
+    effects : effect names (ship: :data:`~bayesid.models.ship.SHIP_CATALOGUE`).
     window_s : multiple-shooting window (s); default the family's ``default_fit_window``
-        (:data:`bayesid.ship.FIT_WINDOW_S` for a ship, :data:`DEFAULT_WINDOW_S` for a submarine).
+        (:data:`bayesid.models.ship.FIT_WINDOW_S` for a ship, :data:`DEFAULT_WINDOW_S` for a submarine).
     dt : model step (s; default the family's ``DEFAULT_DT``).
     seed : start from the model's equation-error estimate (``model.seed``; ships) when it
         simulates better than the nominal coefficients.
@@ -413,10 +413,47 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
     S = np.concatenate(kept, axis=0)
     # the indices of what the measured run is (none, with the reason, for anything else)
     keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
-    band = {}
-    for k in keys:
-        vals = np.array([d.get(k, np.nan) for d in pred[1:]], float)
-        vals = vals[np.isfinite(vals)]
-        band[k] = [float(np.percentile(vals, 5)), float(np.percentile(vals, 95))] if vals.size >= 3 else None
+    band, _ = predictive_band(pred[1:], keys)
     return {"measured": meas, "predicted": pred[0], "band_5_95": band, "n_draws": int(n_draws),
             "_S": S, "_ctx": ctx}
+
+
+def predictive_band(draws: list, keys) -> tuple[dict, dict]:
+    """({key: [5 %, 95 %] percentiles over the draws' finite values, or None with fewer than 3},
+    {key: number of finite draws}) of a list of index dicts (one per posterior draw)."""
+    band, n = {}, {}
+    for k in keys:
+        vals = np.array([d.get(k, np.nan) for d in draws], float)
+        vals = vals[np.isfinite(vals)]
+        band[k] = [float(np.percentile(vals, 5)), float(np.percentile(vals, 95))] if vals.size >= 3 else None
+        n[k] = int(vals.size)
+    return band, n
+
+
+def turning_circles(model, p, cov, n_draws: int, rng, speed_mps: float, rps: float, rudder_deg: float = 35.0,
+                    duration_s: float = 300.0) -> dict:
+    """Predicted turning circles to starboard and port: from a straight run at ``speed_mps``
+    with the propeller at ``rps`` (rev/s), the rudder put over to ``rudder_deg`` at t = 1 s and
+    held for ``duration_s``; advance, transfer and tactical diameter (m, :func:`manoeuvre_indices`,
+    ITTC definitions) of the model at ``p``, with the 5-95 % band of ``n_draws`` Laplace
+    posterior draws (``cov``; no band when ``n_draws`` is 0).
+
+    Returns {side: {"predicted", "band_5_95", "n_finite_draws", "_S" (B, n, 12) predictions}}."""
+    out = {}
+    t = np.arange(0.0, duration_s + 1e-9, 0.1)
+    for side, sgn in (("starboard", -1.0), ("port", 1.0)):  # package rudder: + = to port
+        dr = np.where(t >= 1.0, sgn * math.radians(rudder_deg), 0.0)
+        tr = Track(t, {"x": np.zeros_like(t), "y": np.zeros_like(t), "psi": np.zeros_like(t),
+                       "u": np.full_like(t, speed_mps), "v": np.zeros_like(t), "r": np.zeros_like(t),
+                       "delta_r": dr, "n": np.full_like(t, rps * 60)}, name=f"turn{rudder_deg:g}_{side}")
+        s0 = np.zeros(12)
+        s0[6] = speed_mps
+        ctx = model.context(tr, None, s0=s0)
+        P = np.vstack([p[None], posterior_samples(model, p, cov, n_draws, rng)]) if n_draws else p[None]
+        S = model.simulate(ctx, P, measured_start=False)
+        ind = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr[ctx.idx]) for s in S]
+        res = {"predicted": {k: ind[0][k] for k in ("advance_m", "transfer_m", "tactical_diameter_m")}}
+        res["band_5_95"], res["n_finite_draws"] = predictive_band(ind[1:], list(res["predicted"]))
+        res["_S"] = S
+        out[side] = res
+    return out

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import terms
+from ..data import terms
 from .dynamics import features_array
 
 #: Basis per force/moment: (term name, state index a, state index b) -> regressor a*|b| style.
@@ -107,8 +107,8 @@ def envelope_manoeuvres(vehicle, dt: float = 0.1) -> list:
     return out
 
 
-if __name__ == "__main__":  # python -m bayesid.crossflow: print the TOML lines for the vehicle file
-    from .vehicle import load_vehicle
+if __name__ == "__main__":  # python -m bayesid.models.crossflow: print the TOML lines for the vehicle file
+    from ..data.vehicle import load_vehicle
 
     veh = load_vehicle("nps_auv2")
     fit = fit_polynomial_equivalent(veh, envelope_manoeuvres(veh))

@@ -32,7 +32,7 @@ DOFS = ("X", "Y", "Z", "K", "M", "N")
 VELOCITIES = ("u", "v", "w", "p", "q", "r")
 
 # Feature vector evaluated once per right-hand-side call; a term is a product of features.
-# The order is shared with the compiled kernel (bayesid.dynamics); change both together.
+# The order is shared with the compiled kernel (bayesid.models.dynamics); change both together.
 FEATURES = ("1", "u", "v", "w", "p", "q", "r", "dr", "ds", "db", "eps",
             "|v|", "|r|", "prop", "|w|", "|q|")
 F_INDEX = {name: i for i, name in enumerate(FEATURES)}
@@ -284,7 +284,7 @@ def regressors(features: np.ndarray, names, rho: float, L: float) -> np.ndarray:
 
     Parameters
     ----------
-    features : (n, N_FEATURES) from :func:`bayesid.dynamics.features`.
+    features : (n, N_FEATURES) from :func:`bayesid.models.dynamics.features`.
     names : sequence of P force-term names.
 
     Returns

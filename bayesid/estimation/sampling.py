@@ -49,7 +49,7 @@ MOVES = ("de", "stretch")
 #: Thresholds of the convergence verdict (Vehtari et al. 2021, Sec. 4).
 RHAT_MAX = 1.01
 ESS_BULK_MIN = 400.0
-_CHECKPOINT_TAG = "bayesid.sampling"
+_CHECKPOINT_TAG = "bayesid.estimation.sampling"
 
 
 @dataclass
@@ -299,7 +299,7 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
         except OSError as e:
             raise ValueError(f"checkpoint {path}: not a readable HDF5 file ({e})") from None
         if stored.get("tag") != _CHECKPOINT_TAG:
-            raise ValueError(f"checkpoint {path} was not written by bayesid.sampling; pass another path")
+            raise ValueError(f"checkpoint {path} was not written by bayesid.estimation.sampling; pass another path")
         diff = []
         for key, want in meta.items():
             have = stored.get(key)

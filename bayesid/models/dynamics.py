@@ -6,7 +6,7 @@ Sec. 2.2, Eqs. 3-5). Inputs ``uin`` (4,): ``delta_r, delta_s, delta_b`` (rad) an
 held constant over a step (zero-order hold).
 
 ``M nu_dot = tau_hydro + tau_hydrostatic + tau_crossflow - F_rb(nu)`` where ``M = M_RB - M_A``
-is constant (:meth:`bayesid.vehicle.Vehicle.mass_matrix`) and is inverted once per coefficient
+is constant (:meth:`bayesid.data.vehicle.Vehicle.mass_matrix`) and is inverted once per coefficient
 vector, outside the integration loop. The horizontal-plane mode (paper Sec. 4) is the same
 equations restricted to (u, v, r): its ``Minv`` is the inverse of the (u, v, r) block of ``M``,
 embedded in a 6x6 zero matrix, so w, p, q stay zero and z, phi, theta stay constant.
@@ -20,7 +20,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .terms import F_INDEX, N_FEATURES
+from ..data.terms import F_INDEX, N_FEATURES
 
 # Layout of the vehicle parameter vector ``vp`` passed to the kernels.
 VP_M, VP_W, VP_B = 0, 1, 2
@@ -41,7 +41,7 @@ assert F_INDEX["|q|"] == 15 and N_FEATURES == 16  # kernel below hard-codes this
 
 
 def vehicle_params(vehicle, crossflow_integral: bool | None = None) -> np.ndarray:
-    """Pack a :class:`~bayesid.vehicle.Vehicle` into the kernels' parameter vector (N_VP,).
+    """Pack a :class:`~bayesid.data.vehicle.Vehicle` into the kernels' parameter vector (N_VP,).
 
     Divergence bounds: |u|,|v|,|w| > max(20 * nominal speed, 10) m/s, |p|,|q|,|r| > that speed /
     (L/4) rad/s, or |theta| > 85 deg (near the zyx Euler singularity) flag a track as diverged.
@@ -176,7 +176,7 @@ def rhs(s, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, ds):
 
     ``ext`` (6,) is an external generalised force (N, N m) added to the right-hand side of
     ``M nu_dot = tau``: zero for the vehicle alone, the exogenous forces of
-    :mod:`bayesid.effects` (wave forcing, thrust deficit) otherwise."""
+    :mod:`bayesid.models.effects` (wave forcing, thrust deficit) otherwise."""
     generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau)
     for i in range(6):
         tau[i] += ext[i]

@@ -1,7 +1,7 @@
 """Semantic checks of a track before anything is fitted to it: units, consistency between
 channels, plausibility for the vehicle.
 
-:func:`bayesid.track.read_csv` checks the syntax (numbers, increasing time, known units in the
+:func:`bayesid.data.track.read_csv` checks the syntax (numbers, increasing time, known units in the
 header). A log can pass it and still be in the wrong units: heading or rudder in degrees, time in
 milliseconds, speeds in knots, yaw rate in deg/s, propeller speed in rev/s. These are detected
 from ranges and from consistency (yaw rate against the heading's rate, body speed against the

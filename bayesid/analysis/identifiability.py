@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import terms
+from ..data import terms
 
 
 def relative_sensitivity(problem, theta) -> np.ndarray:
@@ -32,20 +32,6 @@ def relative_sensitivity(problem, theta) -> np.ndarray:
     p = problem.scaled(theta)
     _, J = problem.jacobian(p, central=True)   # d r / d p, r = target - sim
     return -J * p[None, :]                      # d sim / d ln theta = -(d r/d p) * p
-
-
-def noise_vector(problem, sigmas: dict) -> np.ndarray:
-    """Per-residual noise standard deviation (n_residuals,) from per-channel values.
-
-    Raises
-    ------
-    KeyError naming a channel of the problem without a standard deviation.
-    """
-    missing = [c for c in problem.channels if c not in sigmas]
-    if missing:
-        raise KeyError(f"no noise standard deviation for channel(s) {missing}")
-    per = np.array([float(sigmas[c]) for c in problem.channels])
-    return np.tile(per, problem.y.shape[0])
 
 
 def fisher_information(S: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
@@ -231,6 +217,6 @@ def principal_angles_deg(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(s))
 
 
-__all__ = ["relative_sensitivity", "noise_vector", "fisher_information", "Direction", "eigen_directions",
+__all__ = ["relative_sensitivity", "fisher_information", "Direction", "eigen_directions",
            "condition_number", "collinearity_index", "collinearity_table", "relative_influence",
            "row_transform_direction", "structural_null_space", "principal_angles_deg"]

@@ -80,10 +80,12 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from .effects import Effect, EffectModel, SensorLag, delay_starts, drift_seed, drift_starts, signature_dict
-from .protocol import wrap
-from .track import Track
-from .vehicle import VehicleFileError
+from . import inverse
+from .interface import ParameterLayout
+from .effects import Effect, SensorLag, delay_starts, drift_seed, drift_starts, signature_dict
+from ..protocol import wrap
+from ..data.track import Track
+from ..data.vehicle import VehicleFileError
 
 #: Particulars in the kernel's parameter vector (order fixed; SI units, ratios as noted).
 PARTICULARS = ("L", "B", "d", "mass_kg", "xG", "rho", "kzz", "Cb", "D_prop", "A_rudder",
@@ -152,7 +154,7 @@ class Ship:
     nominal_rpm = 0.0
 
     def track_warnings(self, track, name: str, body_speed, ground_speed) -> list[str]:
-        """Plausibility warnings of a track for this ship (:func:`bayesid.validate.check_track`):
+        """Plausibility warnings of a track for this ship (:func:`bayesid.data.validate.check_track`):
         stern/bow planes, depth or pitch that vary (a submarine's track), and a median speed
         (m/s, ``body_speed`` else ``ground_speed``) above Froude number 0.25 for a full form
         (Cb >= 0.7: tankers and bulk carriers meet a wall of wave resistance near Fn 0.2) or 0.45
@@ -618,7 +620,7 @@ SHIP_CATALOGUE = {
 
 
 def get_effect(name) -> Effect:
-    """A ship catalogue effect by name; an :class:`~bayesid.effects.Effect` passes through.
+    """A ship catalogue effect by name; an :class:`~bayesid.models.effects.Effect` passes through.
     ValueError naming an unknown one."""
     if isinstance(name, Effect):
         return name
@@ -628,10 +630,10 @@ def get_effect(name) -> Effect:
         raise ValueError(f"unknown ship effect {name!r}; the ship catalogue has {sorted(SHIP_CATALOGUE)}") from None
 
 
-class ShipModel:
+class ShipModel(ParameterLayout):
     """The ship model plus effects, simulated over a track's protocol windows: the surface-ship
     implementation of :class:`bayesid.models.interface.SimulationModel`, so the window fits
-    (:mod:`bayesid.estimation.windows`), :mod:`bayesid.msfit` and the gap diagnosis
+    (:mod:`bayesid.estimation.windows`), :mod:`bayesid.estimation.msfit` and the gap diagnosis
     (:func:`bayesid.analysis.gap.diagnose`) work on it unchanged.
 
     Parameters
@@ -694,14 +696,6 @@ class ShipModel:
         self.prm0 = ship.params()
         self._ifree = np.array([_IC[k] for k in self.free], dtype=np.int64)
 
-    @property
-    def n_params(self) -> int:
-        return self.n_theta + sum(self.n_q)
-
-    def start(self, theta=None) -> np.ndarray:
-        th = self.theta0 if theta is None else np.asarray(theta, float)
-        return np.concatenate([th] + [e.start_values(self.vehicle) for e in self.effects])
-
     def bounds(self):
         lo = [BOUNDS.get(k, (-np.inf, np.inf))[0] for k in self.free]
         hi = [BOUNDS.get(k, (-np.inf, np.inf))[1] for k in self.free]
@@ -717,7 +711,7 @@ class ShipModel:
     def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
                 leadin_s: float = 0.0):
         """Windows, start states and step inputs of a track (see
-        :class:`bayesid.effects.TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
+        :class:`bayesid.models.effects.TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
         wind averaged over each step."""
         from .effects import TrackContext
 
@@ -727,9 +721,6 @@ class ShipModel:
         w = wind_components(track, tt.ravel()).reshape(ctx.n_steps, 5, 2).mean(axis=1)
         ctx.wind = np.ascontiguousarray(w)
         return ctx
-
-    # [theta_free, q_1, ...] -> (theta (B, P), [q_e (B, n_e)]): the same layout as EffectModel
-    split_params = EffectModel.split_params
 
     def kernel_params(self, P) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(B, NP) parameter vectors, (B, 2) currents and (B,) delays (None) of parameter rows."""
@@ -746,9 +737,9 @@ class ShipModel:
     def simulate(self, ctx, P, nuisance=None, measured_start: bool = True, starts=None,
                  samples: str = "scored") -> np.ndarray:
         """Predicted measurements at the track's scored samples: (B, n_samples, 12) in
-        :data:`~bayesid.track.STATE_NAMES` order (u, v over ground; NaN in a diverged window).
+        :data:`~bayesid.data.track.STATE_NAMES` order (u, v over ground; NaN in a diverged window).
         ``starts`` (B, W, 6) offsets of the window-start states and ``samples`` as in
-        :meth:`bayesid.effects.EffectModel.simulate`."""
+        :meth:`bayesid.models.effects.EffectModel.simulate`."""
         from .effects import sample_rows, start_states
 
         prm, cur, delay = self.kernel_params(P)
@@ -780,9 +771,7 @@ class ShipModel:
 
     # -- force space (inverse dynamics) ------------------------------------------------------
     def _motion(self, track: Track):
-        from . import sindy
-
-        motion = sindy.estimate_motion(track, window_s=None if all(c in track for c in ("u", "v", "r")) else 2.0)
+        motion = inverse.estimate_motion(track, window_s=None if all(c in track for c in ("u", "v", "r")) else 2.0)
         t = motion["t"]
         dr = motion.get("dr", np.interp(t, track.t, np.asarray(track["delta_r"], float)))
         nrps = np.interp(t, track.t, np.asarray(track["n"], float)) / 60.0
@@ -793,7 +782,7 @@ class ShipModel:
 
     def missing_forces(self, fitres, track: Track):
         """Missing X, Y, N (N, N m) over time: the generalised mass times the smoothed measured
-        accelerations minus the fitted model's (inverse dynamics; :func:`bayesid.sindy.estimate_motion`).
+        accelerations minus the fitted model's (inverse dynamics; :func:`bayesid.models.inverse.estimate_motion`).
         Returns (motion, F (n, 3), inputs (n, 2))."""
         motion, states, inp, wind, acc = self._motion(track)
         prm, cur, _ = self.kernel_params(fitres.p[None])
@@ -809,7 +798,7 @@ class ShipModel:
 
     def signature_columns(self, motion, inputs, track: Track, seeds=None, effects=None) -> dict:
         """Force-space signatures {effect: [(n, 3) columns]} of ``effects`` (default the ship
-        catalogue) that leave one (:meth:`~bayesid.effects.Effect.force_signature`)."""
+        catalogue) that leave one (:meth:`~bayesid.models.effects.Effect.force_signature`)."""
         t = motion["t"]
         m = {"t": t, "u": motion["u"], "v": motion["v"], "r": motion["r"], "psi": motion["psi"],
              "rudder_rate": np.gradient(inputs[:, 0], t), "track": track, "particulars": self.vehicle.particulars}
@@ -835,7 +824,7 @@ class ShipModel:
 def equation_error_seed(model: ShipModel, tracks, names=None) -> tuple[np.ndarray, dict]:
     """Equation-error estimate of the coefficients that enter the forces linearly: regression
     of the smoothed measured accelerations on the model's accelerations (Savitzky-Golay
-    smoothing and differentiation, :func:`bayesid.sindy.estimate_motion`; u, v from the track
+    smoothing and differentiation, :func:`bayesid.models.inverse.estimate_motion`; u, v from the track
     when measured, else from the positions).
 
     ``a_meas - a(theta0) = sum_i (theta_i - theta0_i) g_i`` with ``g_i = d a / d theta_i``

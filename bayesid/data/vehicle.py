@@ -117,7 +117,7 @@ class Vehicle:
         return self.name
 
     def track_warnings(self, track, name: str, body_speed, ground_speed) -> list[str]:
-        """Plausibility warnings of a track for this vehicle (:func:`bayesid.validate.check_track`):
+        """Plausibility warnings of a track for this vehicle (:func:`bayesid.data.validate.check_track`):
         a median speed over ground above 4 x the nominal speed (m/s; ``body_speed`` unused)."""
         if self.nominal_rpm > 0 and ground_speed is not None and ground_speed > 4.0 * self.nominal_speed:
             return [f"{name}: median speed over ground {ground_speed:.3g} m/s is more than 4 x the vehicle's "
@@ -251,7 +251,7 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
 
     if doc.get("vehicle", {}).get("kind") == "ship3dof":
         raise VehicleFileError(f"{p}: a ship file ([vehicle] kind = \"ship3dof\"); load it with "
-                               "bayesid.ship.load_ship, or bayesid.models.load_any_vehicle for either kind")
+                               "bayesid.models.ship.load_ship, or bayesid.models.load_any_vehicle for either kind")
     for section, keys in _REQUIRED.items():
         if section not in doc:
             raise VehicleFileError(f"{p}: missing section [{section}]")

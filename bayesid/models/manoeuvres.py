@@ -2,7 +2,7 @@
 wider library for manoeuvre-richness comparison (pull-out, reverse spiral, speed steps, multisine,
 PRBS, vertical zigzag; :func:`library` builds the standard set).
 
-Every generator returns a :class:`~bayesid.simulate.Manoeuvre` on the integration grid, starts
+Every generator returns a :class:`~bayesid.models.simulate.Manoeuvre` on the integration grid, starts
 from the steady straight-line state at the chosen propeller speed, and checks the vehicle's
 control limits. Sign convention: positive ``delta_r`` turns NPS AUV II to port (r < 0), because
 Y'dr > 0 and N'dr < 0; positive ``delta_s`` pitches it nose down (theta decreasing), because
@@ -50,7 +50,7 @@ def _closed_loop(vehicle, rpm, dt, n):
 
 def _triggered_zigzag(vehicle, rpm, dt, n, i_input, i_state, delta_deg, trigger_deg, first_sign,
                       response_sign, t_execute, rate_deg_s, what) -> np.ndarray:
-    """Run :func:`bayesid.dynamics.simulate_triggered_zigzag`; the applied inputs (n, 4)."""
+    """Run :func:`bayesid.models.dynamics.simulate_triggered_zigzag`; the applied inputs (n, 4)."""
     sim, tcoef, Minv, out, inputs = _closed_loop(vehicle, rpm, dt, n)
     flag = dynamics.simulate_triggered_zigzag(
         sim.s0, n, dt, float(rpm), i_input, i_state, math.radians(delta_deg), math.radians(trigger_deg),
@@ -208,7 +208,7 @@ def reverse_spiral(vehicle, yaw_rates_deg_s=(4.0, 3.0, 2.0, 1.0, 0.5, 0.0, -0.5,
     (r, delta_r) pairs trace the r-delta curve, including its unstable branch for a directionally
     unstable vehicle, where the direct spiral jumps.
 
-    Controller (:func:`bayesid.dynamics.simulate_pi_hold`, run 6-DOF on the given vehicle): PI
+    Controller (:func:`bayesid.models.dynamics.simulate_pi_hold`, run 6-DOF on the given vehicle): PI
     on the yaw-rate error, ``delta_r = sign(N'dr) * (kp*e + ki*integral(e dt))`` with
     ``e = r_target - r``, ``kp`` in rad rudder per rad/s (s), ``ki`` in rad rudder per rad;
     saturated at ``rudder_max_deg`` (default: the vehicle's limit), conditional-integration

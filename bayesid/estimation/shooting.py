@@ -3,7 +3,7 @@
 Under the fitted rule (:data:`bayesid.protocol.START_RULES`) the state at the start of each
 window segment is not read off the measurements: a first guess
 (:func:`bayesid.protocol.state_guess`) is corrected by offsets in x, y, psi, u, v, r
-(:data:`bayesid.effects.START_INDEX`) that minimise the noise-weighted squared error of the
+(:data:`bayesid.models.effects.START_INDEX`) that minimise the noise-weighted squared error of the
 model's prediction over the samples that belong to the start (``ctx.lead``):
 
 * on a held-out track, the lead-in before the window (the window is scored only after it):
@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-from .effects import START_INDEX, errors
+from ..models.effects import START_INDEX, errors
 
 #: Finite-difference steps of the start offsets x, y (m), psi (rad), u, v (m/s), r (rad/s).
 START_STEP = np.array([1e-3, 1e-3, 1e-5, 1e-4, 1e-4, 1e-5])

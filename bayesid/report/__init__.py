@@ -56,7 +56,7 @@ def write_json(path: str | Path, obj) -> None:
 def git_commit() -> str:
     """Current commit hash (``+dirty`` if code outside ``reports/`` has uncommitted changes), or
     ``"unknown"``."""
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]  # the repository (this file: bayesid/report/__init__.py)
     try:
         h = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
                            timeout=10).stdout.strip()
@@ -134,7 +134,7 @@ def write_diagnosis(diag, out, heldout: list, command: str = "") -> None:
     :class:`bayesid.analysis.gap.Diagnosis` into the folder ``out`` (created); ``heldout``: the
     held-out Tracks (the first one's windows are plotted)."""
     from . import plots
-    from .analysis.gap import window_xy
+    from ..analysis.gap import window_xy
 
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
