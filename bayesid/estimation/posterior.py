@@ -133,6 +133,64 @@ class LogPosterior:
         return out
 
 
+class LogitTransform:
+    """Bijection between the prior support and the real line, coordinate by coordinate: a
+    coefficient with a uniform prior on [lo, hi] is ``theta = lo + (hi - lo) sigmoid(z)``; one
+    with a Gaussian prior is unbounded and passes through (``theta = z``). The usual transform
+    of a bounded parameter for sampling in an unconstrained space (Stan Reference Manual,
+    "Constraint transforms: lower and upper bounded scalar").
+
+    ``to_theta`` / ``to_z`` map (B, P) arrays; ``log_jacobian(z)`` (B,) is
+    ``sum log |d theta / d z| = sum log(hi - lo) + log sigmoid(z) + log sigmoid(-z)`` over the
+    bounded coordinates (computed with ``logaddexp``, finite for any finite z)."""
+
+    def __init__(self, prior: CoefficientPrior):
+        self.bounded = np.array([k == "uniform" for k in prior.kind])
+        self.lo = np.where(self.bounded, prior.a, 0.0)
+        self.width = np.where(self.bounded, prior.b - prior.a, 1.0)
+
+    def to_theta(self, z) -> np.ndarray:
+        z = np.atleast_2d(np.asarray(z, dtype=float))
+        s = 0.5 * (1.0 + np.tanh(0.5 * z))  # sigmoid without overflow
+        return np.where(self.bounded, self.lo + self.width * s, z)
+
+    def to_z(self, theta) -> np.ndarray:
+        """Inverse of :meth:`to_theta`; ValueError when a bounded coordinate is not strictly
+        inside its bounds (it would map to +-inf)."""
+        theta = np.atleast_2d(np.asarray(theta, dtype=float))
+        u = (theta - self.lo) / self.width
+        if np.any(self.bounded & ~((u > 0) & (u < 1))):
+            raise ValueError("a coefficient with a uniform prior is on or outside its bounds: no finite logit")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.bounded, np.log(u) - np.log1p(-u), theta)
+
+    def log_jacobian(self, z) -> np.ndarray:
+        z = np.atleast_2d(np.asarray(z, dtype=float))
+        per = np.log(self.width) - np.logaddexp(0.0, -z) - np.logaddexp(0.0, z)
+        return np.sum(np.where(self.bounded, per, 0.0), axis=1)
+
+
+class TransformedLogPosterior:
+    """A log-posterior over coefficients seen in the unconstrained space of
+    :class:`LogitTransform`: ``log p_z(z) = log p(theta(z)) + log |d theta / d z|``. A
+    prior-dominated direction of a uniform box becomes a smooth (logistic) density instead of
+    a hard wall that rejects every proposal outside it.
+
+    Parameters
+    ----------
+    logpost : callable theta (B, P) -> (B,) log-density in coefficient space (e.g.
+        :class:`LogPosterior`).   prior : its :class:`CoefficientPrior` (the bounds).
+
+    Call with z (B, P); returns (B,). ``transform`` maps draws back (``to_theta``)."""
+
+    def __init__(self, logpost, prior: CoefficientPrior):
+        self.logpost, self.transform = logpost, LogitTransform(prior)
+
+    def __call__(self, z) -> np.ndarray:
+        z = np.atleast_2d(np.asarray(z, dtype=float))
+        return self.logpost(self.transform.to_theta(z)) + self.transform.log_jacobian(z)
+
+
 def add_noise(track: Track, sigmas: dict, rng: np.random.Generator) -> Track:
     """Copy of ``track`` with independent Gaussian noise (channel -> sd) added to state channels.
 
