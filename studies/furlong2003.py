@@ -11,9 +11,7 @@ coefficients and costs with the paper.
 from __future__ import annotations
 
 import argparse
-import math
 import time
-from pathlib import Path
 
 import numpy as np
 

@@ -33,7 +33,6 @@ from ..models import effects as ef
 from . import shooting
 from . import windows as wf
 from .fit import FitResult
-from ..models import ship as sh
 from .laplace import gauss_newton_covariance
 from ..protocol import pooled_scores, resolve_start, start_settings
 from ..data.track import Track

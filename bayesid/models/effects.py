@@ -17,7 +17,7 @@ three levels the withheld-effect benchmark uses and ``source`` the reasoning beh
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
