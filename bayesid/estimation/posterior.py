@@ -164,10 +164,13 @@ class LogitTransform:
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(self.bounded, np.log(u) - np.log1p(-u), theta)
 
-    def log_jacobian(self, z) -> np.ndarray:
+    def log_jacobian_terms(self, z) -> np.ndarray:
+        """(B, P) ``log |d theta_j / d z_j|`` per coordinate (0 for the unbounded ones)."""
         z = np.atleast_2d(np.asarray(z, dtype=float))
-        per = np.log(self.width) - np.logaddexp(0.0, -z) - np.logaddexp(0.0, z)
-        return np.sum(np.where(self.bounded, per, 0.0), axis=1)
+        return np.where(self.bounded, np.log(self.width) - np.logaddexp(0.0, -z) - np.logaddexp(0.0, z), 0.0)
+
+    def log_jacobian(self, z) -> np.ndarray:
+        return np.sum(self.log_jacobian_terms(z), axis=1)
 
 
 class TransformedLogPosterior:
