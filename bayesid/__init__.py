@@ -8,12 +8,14 @@ The layout follows the data flow; each layer imports only the ones before it:
   contract), :mod:`~bayesid.data.validate` (unit and plausibility checks),
   :mod:`~bayesid.data.datasets` (readers of real free-running data).
 * :mod:`bayesid.models` -- what simulates a vessel: :mod:`~bayesid.models.interface` (the
-  SimulationModel contract), :mod:`~bayesid.models.dynamics` (compiled kernels),
+  SimulationModel contract), :mod:`~bayesid.models.dynamics` (compiled kernels, interpreting the term table),
+  :mod:`~bayesid.models.codegen` (kernels generated from the term table),
   :mod:`~bayesid.models.simulate` (Manoeuvre, Simulator), :mod:`~bayesid.models.reference`
   (solve_ivp anchor), :mod:`~bayesid.models.crossflow`, :mod:`~bayesid.models.manoeuvres`,
   :mod:`~bayesid.models.inverse` (smoothed motion, inverse dynamics),
   :mod:`~bayesid.models.effects` (effects and the submarine model),
-  :mod:`~bayesid.models.ship` (the MMG surface ship).
+  :mod:`~bayesid.models.ship` (the MMG surface ship), :mod:`~bayesid.models.shipgen` (its
+  generated kernel).
 * :mod:`bayesid.protocol` -- the window protocol (windows, start rules, noise, pooled scores).
 * :mod:`bayesid.estimation` -- fitting: :mod:`~bayesid.estimation.fit` (the one fit function
   and result), :mod:`~bayesid.estimation.objective` (the paper's whole-track objective),

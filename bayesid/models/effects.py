@@ -810,6 +810,8 @@ class EffectModel(ParameterLayout):
     effects : effect names (see :data:`CATALOGUE`), applied in this order.
     mode : ``"horizontal"`` or ``"6dof"`` (an effect with ``mode="6dof"`` forces 6-DOF).
     dt : integration step (s).
+    kernel : ``"generated"`` (default) or ``"interpreted"``: the compiled kernel kind
+        (:class:`bayesid.models.simulate.Simulator`, :mod:`bayesid.models.codegen`).
 
     The parameter vector of one model is ``[theta_free (P), q_1, ..., q_E]`` with ``q_e`` the
     effect parameters in the units of their names; per-track nuisance parameters
@@ -847,7 +849,8 @@ class EffectModel(ParameterLayout):
         """A catalogue effect by name (:func:`get`); an :class:`Effect` passes through."""
         return name if isinstance(name, Effect) else get(name)
 
-    def __init__(self, vehicle, free=(), effects=(), mode: str = "horizontal", dt: float = 0.5):
+    def __init__(self, vehicle, free=(), effects=(), mode: str = "horizontal", dt: float = 0.5,
+                 kernel: str = "generated"):
         self.vehicle, self.dt = vehicle, float(dt)
         self.effects = [self.get_effect(e) for e in effects]
         names = [e.name for e in self.effects]
@@ -857,7 +860,7 @@ class EffectModel(ParameterLayout):
             raise ValueError(f"vehicle {vehicle.id} has no [crossflow] section for the crossflow effect")
         self.mode = "6dof" if any(e.mode == "6dof" for e in self.effects) else mode
         dummy = Manoeuvre("protocol", self.dt, np.zeros((1, 4)), np.zeros(12))
-        self.sim = Simulator(vehicle, dummy, free, self.mode)
+        self.sim = Simulator(vehicle, dummy, free, self.mode, kernel=kernel)
         self.free = list(self.sim.free)
         self.force_index = {n: i for i, n in enumerate(self.sim.force_names)}
         self.theta0 = vehicle.coefficient_vector(self.free) if self.free else np.zeros(0)
@@ -939,9 +942,9 @@ class EffectModel(ParameterLayout):
             s0[:, :, [2, 3, 4, 8, 9, 10]] = 0.0
         out = np.empty((B, ctx.n_virtual + ctx.W, 12))
         status = np.empty((B, ctx.W), dtype=np.int64)
-        dynamics.simulate_windows(np.ascontiguousarray(s0), ctx.starts, ctx.gather(inputs), ctx.gather(exo), ecoef,
-                                  self.dt, np.ascontiguousarray(vp), sim.tfac, sim.tdof, tcoef, Minv, sim.xs,
-                                  sim.ws, out, status)
+        sim.kernel.simulate_windows(np.ascontiguousarray(s0), ctx.starts, ctx.gather(inputs), ctx.gather(exo),
+                                    ecoef, self.dt, np.ascontiguousarray(vp), tcoef, Minv, sim.xs, sim.ws, out,
+                                    status)
         S, t_rel = sample_rows(ctx, out, samples, slice(3, 6))
         for e, q in zip(self.effects, qs):
             e.to_measured(S, t_rel, q)

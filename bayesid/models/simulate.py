@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from . import dynamics
+from . import codegen, dynamics
 from ..data import terms
 from ..data.track import INPUT_NAMES, STATE_NAMES, Track
 
@@ -112,19 +112,25 @@ class Simulator:
     free : names of the coefficients that :meth:`run` sets per track (SNAME names).
     mode : ``"6dof"`` or ``"horizontal"`` (paper Sec. 4: only surge, sway, yaw evolve).
     sample_every : store every k-th integration step.
+    kernel : ``"generated"`` (default: a right-hand side generated for this model's active terms,
+        :mod:`bayesid.models.codegen`) or ``"interpreted"`` (the term-table loop of
+        :mod:`bayesid.models.dynamics`, the baseline and test oracle). Same equations, results
+        equal to round-off.
 
     Raises
     ------
     UnknownCoefficientError : a free name not in the term library.
-    ValueError : bad mode; horizontal mode with non-zero w, p, q, phi or theta initially.
+    ValueError : bad mode or kernel; horizontal mode with non-zero w, p, q, phi or theta initially.
 
     Attributes ``n_tracks`` and ``sim_seconds`` count the work done (for the SQP monitor).
     """
 
     def __init__(self, vehicle, manoeuvre: Manoeuvre, free=(), mode: str = "6dof",
-                 sample_every: int = 1):
+                 sample_every: int = 1, kernel: str = "generated"):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        if kernel not in codegen.KINDS:
+            raise ValueError(f"kernel must be one of {codegen.KINDS}, got {kernel!r}")
         free = list(free)
         terms.check_names(free, "free coefficients")
         if len(set(free)) != len(free):
@@ -152,7 +158,10 @@ class Simulator:
         self.force_names = [t.name for t in terms.TERMS if t.kind == "force"
                             and (self.base[terms.INDEX[t.name]] != 0.0 or t.name in free_set)
                             and (mode == "6dof" or t.horizontal)]
+        # term encoding of the interpreted kernels (closed-loop manoeuvres use them directly)
         self.tfac, self.tdof = terms.factor_table(self.force_names)
+        self.kernel_kind = kernel
+        self._kernel = None
         self.tscale = terms.prime_scale(self.force_names, vehicle.rho, vehicle.L)
         self.force_idx = np.array([terms.INDEX[n] for n in self.force_names], dtype=np.int64)
         self._free_idx = np.array([terms.INDEX[n] for n in free], dtype=np.int64)
@@ -166,6 +175,21 @@ class Simulator:
         self.inputs_sampled = np.vstack([manoeuvre.inputs, manoeuvre.inputs[-1:]])[::self.sample_every]
         self.n_tracks = 0
         self.sim_seconds = 0.0
+
+    def __getstate__(self):
+        """Pickle (joblib, Dask, deepcopy) without the compiled kernel module; it is loaded again
+        from the cache on first use."""
+        state = dict(self.__dict__)
+        state["_kernel"] = None
+        return state
+
+    @property
+    def kernel(self):
+        """The compiled drivers for this model's active terms and mode
+        (:func:`bayesid.models.codegen.kernel`; generated on first use)."""
+        if self._kernel is None:
+            self._kernel = codegen.kernel(self.force_names, self.mode, self.kernel_kind)
+        return self._kernel
 
     def coefficient_matrix(self, theta_free=None) -> np.ndarray:
         """Full prime coefficient vectors (B, n_terms): the vehicle's values with the free ones
@@ -228,9 +252,8 @@ class Simulator:
         n_threads = numba.get_num_threads()
         numba.set_num_threads(max(1, min(B, numba.config.NUMBA_NUM_THREADS)))
         try:
-            dynamics.simulate_batch(s0, self.manoeuvre.inputs, self.manoeuvre.dt, self.sample_every,
-                                    self.vp, self.tfac, self.tdof, tcoef, Minv, self.xs, self.ws,
-                                    out, status, fail)
+            self.kernel.simulate_batch(s0, self.manoeuvre.inputs, self.manoeuvre.dt, self.sample_every,
+                                       self.vp, tcoef, Minv, self.xs, self.ws, out, status, fail)
         finally:
             numba.set_num_threads(n_threads)
         self.sim_seconds += time.perf_counter() - tic
