@@ -305,3 +305,24 @@ def test_a_checkpoint_of_another_run_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"ck\.h5.*run_key"):
         run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path,
                       run_key={"seed": 7})
+
+
+def test_until_converged_runs_past_the_tau_rule_to_a_converged_verdict():
+    """On the 2-D Gaussian the 50-tau rule stops before the strict per-walker R-hat holds; with
+    ``until_converged`` the run goes on and stops as soon as the verdict is 'converged', and a
+    budget too small for that stops on max_steps with the verdict saying what failed."""
+    base = dict(n_ensembles=4, moves="de", min_steps=200, max_steps=20000, check_every=100)
+    tau_only = run_ensembles(gauss2, MU2, COV2, ["a", "b"], SamplerConfig(**base), np.random.default_rng(5))
+    d0 = diagnostics(to_inference_data(tau_only), tau_only)
+    assert tau_only.stop_reason == "tau rule" and not d0["converged"]       # the point of the option
+    res = run_ensembles(gauss2, MU2, COV2, ["a", "b"], SamplerConfig(**base, until_converged=True),
+                        np.random.default_rng(5))
+    from bayesid.estimation.sampling import burn_in
+    d = diagnostics(to_inference_data(res, burn=burn_in(res)), res)
+    assert res.stop_reason == "converged" and d["converged"] and res.n_steps > tau_only.n_steps
+    assert d["rhat_max"] <= 1.01 and d["ess_tail_min"] >= 400
+    short = run_ensembles(gauss2, MU2, COV2, ["a", "b"],
+                          SamplerConfig(**{**base, "max_steps": tau_only.n_steps}, until_converged=True),
+                          np.random.default_rng(5))
+    assert short.stop_reason == "max_steps"
+    assert not diagnostics(to_inference_data(short, burn=burn_in(short)), short)["converged"]

@@ -49,6 +49,7 @@ MOVES = ("de", "stretch")
 #: Thresholds of the convergence verdict (Vehtari et al. 2021, Sec. 4).
 RHAT_MAX = 1.01
 ESS_BULK_MIN = 400.0
+ESS_TAIL_MIN = 400.0
 _CHECKPOINT_TAG = "bayesid.estimation.sampling"
 
 
@@ -63,11 +64,16 @@ class SamplerConfig:
     moves : ``"de"`` (DEMove 0.8 + DESnookerMove 0.2) or ``"stretch"`` (emcee's default).
     min_steps, max_steps : bounds on the number of steps per walker.
     tau_factor : stop once ``n_steps >= tau_factor * max tau``.
-    check_every : steps between autocorrelation checks (and lockstep blocks of the ensembles).
+    check_every : steps between autocorrelation checks (and lockstep blocks of the ensembles);
+        once the run is longer than ten blocks, a block is a tenth of the run, rounded up to a
+        multiple of ``check_every``.
     init_scale : walkers start at ``center + init_scale * N(0, cov)``.
     progress : tqdm progress bar over steps.
-    max_wall_s : stop after the first block that ends past this wall time (s); the result is
-        then marked as not having reached the tau rule.
+    max_wall_s : stop after the first block that ends past this wall time (s).
+    until_converged : once the tau rule holds, do not stop on it: go on until
+        :func:`diagnostics` (burn-in :func:`burn_in`) calls the chains converged, checked when the
+        tau rule first holds and then each time the run has grown by 15 % (each check reads
+        every draw; about a second per million draws), or until max_steps / max_wall_s.
     """
 
     n_ensembles: int = 4
@@ -80,6 +86,7 @@ class SamplerConfig:
     init_scale: float = 1.0
     progress: bool = False
     max_wall_s: float | None = None
+    until_converged: bool = False
 
     def walkers(self, n_params: int) -> int:
         """Walkers per ensemble for P = ``n_params``.
@@ -126,7 +133,8 @@ class SamplerResult:
     wall_s : wall time of this call (s).
     reached_tau_rule : ``n_steps >= max(min_steps, tau_factor * max(tau))`` at the end.
     names : coefficient names, length P.
-    stop_reason : ``"tau rule"``, ``"max_steps"`` or ``"max_wall_s"``.
+    stop_reason : ``"tau rule"``, ``"converged"`` (:attr:`SamplerConfig.until_converged`),
+        ``"max_steps"`` or ``"max_wall_s"``.
     """
 
     chains: np.ndarray
@@ -396,6 +404,7 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
         samplers.append(s)
 
     its = [int(s.iteration) for s in samplers]
+    next_check = 0          # steps at which the convergence verdict is computed next
     with tqdm(total=E * config.max_steps, initial=sum(its), unit="step", disable=not config.progress,
               desc=f"emcee {E} ensembles x {W} walkers") as bar:
         while True:
@@ -406,15 +415,25 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
             else:
                 tau = _tau([s.get_chain() for s in samplers]) if n else np.full(P, np.nan)
                 if _reached(n, tau, config):
-                    reason = "tau rule"
-                    break
+                    if not config.until_converged:
+                        reason = "tau rule"
+                        break
+                    if n >= next_check:
+                        part = _result(samplers, tau, lp_fn, t0, names, config, "")
+                        if diagnostics(to_inference_data(part, burn=burn_in(part)), part)["converged"]:
+                            reason = "converged"
+                            break
+                        next_check = int(np.ceil(1.15 * n))
                 if n >= config.max_steps:
                     reason = "max_steps"
                     break
                 if n and config.max_wall_s is not None and time.perf_counter() - t0 > config.max_wall_s:
                     reason = "max_wall_s"
                     break
-                target = min((n // config.check_every + 1) * config.check_every, config.max_steps)
+                # blocks grow with the run (at least a tenth of it): each check reads every
+                # stored step, so fixed blocks would make a long run's checks cost O(n^2)
+                grow = max(config.check_every, n // 10)
+                target = min(-(-(n + grow) // config.check_every) * config.check_every, config.max_steps)
                 bar.set_postfix_str(f"tau_max {np.max(tau):.1f}, steps needed "
                                     f"{max(config.min_steps, config.tau_factor * np.max(tau)):.0f}")
             for i, s in enumerate(samplers):
@@ -427,15 +446,19 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
                 finally:
                     if isinstance(s.backend, _BlockHDFBackend):
                         s.backend.flush()
+    return _result(samplers, tau, lp_fn, t0, names, config, reason)
 
+
+def _result(samplers, tau, lp_fn, t0, names, config, reason) -> SamplerResult:
+    """The :class:`SamplerResult` of the ensembles' chains so far."""
     chains = np.stack([s.get_chain() for s in samplers])
     return SamplerResult(
         chains=chains,
         log_prob=np.stack([s.get_log_prob() for s in samplers]),
         acceptance=np.stack([s.acceptance_fraction for s in samplers]),
         tau=tau, n_steps=int(chains.shape[1]), n_evaluations=lp_fn.rows,
-        wall_s=time.perf_counter() - t0, reached_tau_rule=reason == "tau rule", names=names,
-        stop_reason=reason)
+        wall_s=time.perf_counter() - t0, reached_tau_rule=_reached(int(chains.shape[1]), tau, config),
+        names=names, stop_reason=reason)
 
 
 def default_burn(result: SamplerResult) -> int:
@@ -443,6 +466,13 @@ def default_burn(result: SamplerResult) -> int:
     t = float(np.max(result.tau))
     half = result.n_steps // 2
     return min(half, int(2 * t)) if np.isfinite(t) else half
+
+
+def burn_in(result: SamplerResult) -> int:
+    """The burn-in the posterior study and :attr:`SamplerConfig.until_converged` use:
+    ``max(default_burn, arrival_burn)`` -- 2 tau, or longer until the last stranded walker has
+    reached the typical set."""
+    return max(default_burn(result), arrival_burn(result))
 
 
 def arrival_burn(result: SamplerResult, spread: float = 10.0) -> int:
@@ -537,7 +567,9 @@ def diagnostics(idata, result: SamplerResult, ensembles_as_chains: bool = False)
     walker as a chain (as in ``idata``). ``rhat_ensembles`` treats each ensemble's pooled draws as
     ONE chain (step-major, so its split halves are early vs late steps).
 
-    ``converged``: R-hat <= 1.01 and ``ess_bulk_min >= 400`` and ``result.reached_tau_rule``,
+    ``converged``: R-hat <= 1.01 and ``ess_bulk_min >= 400`` and ``ess_tail_min >= 400`` (the
+    5 % and 95 % quantiles' ESS, which a run can pass in bulk and fail in the tails) and
+    ``result.reached_tau_rule``,
     where R-hat is the per-walker ``rhat_max`` (default; the stricter of the two, which issue 9's
     protocol makes the verdict) or ``rhat_ensembles_max`` when ``ensembles_as_chains``. Both are
     always reported. Measured on an exact 3-D Gaussian with 4 x 16 walkers: per-walker R-hat is
@@ -597,6 +629,9 @@ def diagnostics(idata, result: SamplerResult, ensembles_as_chains: bool = False)
     ok = d["ess_bulk_min"] >= ESS_BULK_MIN
     judge(ok, f"bulk ESS min {d['ess_bulk_min']:.0f} ({_worst(ess_bulk, high=False)}) "
               f"{'>=' if ok else '<'} {ESS_BULK_MIN:.0f}")
+    ok = d["ess_tail_min"] >= ESS_TAIL_MIN
+    judge(ok, f"tail ESS min {d['ess_tail_min']:.0f} ({_worst(ess_tail, high=False)}) "
+              f"{'>=' if ok else '<'} {ESS_TAIL_MIN:.0f}")
     ratio = result.n_steps / d["tau_max"] if d["tau_max"] > 0 else float("nan")
     judge(result.reached_tau_rule,
           f"tau rule {'met' if result.reached_tau_rule else 'not met'}: {result.n_steps} steps = {ratio:.1f} x "
