@@ -79,9 +79,9 @@ def parse_args():
                     help="delete the checkpoints of the cases run and sample anew (default: resume or re-report)")
     ap.add_argument("--extend", action="store_true",
                     help="sample further from finished checkpoints (default: re-report their chains)")
-    ap.add_argument("--tau-factor", type=float, default=120.0,
-                    help="run to this many autocorrelation times (50 is emcee's rule; the per-walker "
-                         "R-hat <= 1.01 needs about 120)")
+    ap.add_argument("--tau-factor", type=float, default=50.0,
+                    help="run at least this many autocorrelation times (emcee's rule), then on until the "
+                         "convergence verdict holds")
     ap.add_argument("--max-minutes", type=float, default=None,
                     help=f"wall-time budget per case (default {BUDGET_MIN})")
     return ap.parse_args()
@@ -164,7 +164,7 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
         n_ensembles=N_ENSEMBLES, moves="de", tau_factor=args.tau_factor, progress=not args.quick,
         until_converged=not args.quick,
         check_every=50 if args.quick else 250, min_steps=100 if args.quick else 1000,
-        max_steps=100 if args.quick else 40000, max_wall_s=60.0 * (args.max_minutes or BUDGET_MIN[setup.key]))
+        max_steps=100 if args.quick else 400000, max_wall_s=60.0 * (args.max_minutes or BUDGET_MIN[setup.key]))
     ck = out / "checkpoints"
     ck.mkdir(exist_ok=True)
     ckfile = ck / f"{setup.key}{'_quick' if args.quick else ''}.h5"

@@ -304,31 +304,41 @@ def _drivers_source(mode: str, lanes: int) -> str:
 
     # -- batch over coefficient vectors --------------------------------------------------------
     load_b = "\n".join(f"{P12}{_STATES[i]}_{l} = s0[b_{l}, {i}]" for l in range(K) for i in idx)
-    lanes_b = "\n".join(f"{P12}b_{l} = min(g * {K} + {l}, B - 1)\n"
-                        f"{P12}live_{l} = g * {K} + {l} < B\n"
-                        f"{P12}c_{l} = tcoef[b_{l}]\n"
-                        f"{P12}M_{l} = Minv[b_{l}]\n"
-                        f"{P12}vp_{l} = vp\n"
-                        f"{P12}vmax_{l}, wmax_{l}, thmax_{l} = vp[VP_VMAX], vp[VP_WMAX], vp[VP_THMAX]\n"
-                        f"{P12}if live_{l}:\n"
-                        f"{P16}status[b_{l}] = OK\n"
-                        f"{P16}fail_step[b_{l}] = -1\n"
-                        f"{P16}for j in range(n_out):\n"
-                        f"{P16}    for i in range(12):\n"
-                        f"{P16}        out[b_{l}, j, i] = s0[b_{l}, i]" for l in range(K))
-    after_b = []
-    for l in range(K):
-        after_b.append(f"{P16}if live_{l}:\n" + _check_source(idx, l, P16 + "    ") + "\n"
-                       f"{P16}    if flag_{l} != OK:\n"
-                       f"{P16}        status[b_{l}] = flag_{l}\n"
-                       f"{P16}        fail_step[b_{l}] = k\n"
-                       f"{P16}        for j in range((k + 1 + sample_every - 1) // sample_every, n_out):\n"
-                       f"{P16}            for i in range(12):\n"
-                       f"{P16}                out[b_{l}, j, i] = np.nan\n"
-                       f"{P16}        live_{l} = False\n"
-                       + reset(l, "s0[b_{l}, {i}]", P16 + "        ") + "\n"
-                       f"{P16}    elif store:\n"
-                       + "\n".join(f"{P16}        out[b_{l}, row, {i}] = {_STATES[i]}_{l}" for i in idx))
+    def lane_setup(l, vp_row, extra, status_lines, rows, start):
+        """Per lane before the steps: its row ``b_l`` (the last row again for a padding lane),
+        coefficients, inverse mass matrix, parameters; a live lane's outputs start as ``start``."""
+        return (f"{P12}b_{l} = min(g * {K} + {l}, B - 1)\n"
+                f"{P12}live_{l} = g * {K} + {l} < B\n"
+                f"{P12}c_{l} = tcoef[b_{l}]\n"
+                f"{P12}M_{l} = Minv[b_{l}]\n"
+                f"{P12}vp_{l} = {vp_row.format(l=l)}\n"
+                + "".join(f"{P12}{line.format(l=l)}\n" for line in extra)
+                + f"{P12}vmax_{l}, wmax_{l}, thmax_{l} = vp_{l}[VP_VMAX], vp_{l}[VP_WMAX], vp_{l}[VP_THMAX]\n"
+                f"{P12}if live_{l}:\n"
+                + "".join(f"{P16}{line.format(l=l)}\n" for line in status_lines)
+                + f"{P16}for j in range({rows}):\n"
+                f"{P16}    for i in range(12):\n"
+                f"{P16}        out[b_{l}, j, i] = {start.format(l=l)}")
+
+    lanes_b = "\n".join(lane_setup(l, "vp", [], ["status[b_{l}] = OK", "fail_step[b_{l}] = -1"], "n_out",
+                                    "s0[b_{l}, i]") for l in range(K))
+    def after_step(l, flagged, nan_rows, start, store):
+        """Per lane after a step: check, on divergence record it, NaN-fill ``nan_rows`` and
+        restart the lane from ``start``; else store the state under ``store``."""
+        return (f"{P16}if live_{l}:\n" + _check_source(idx, l, P16 + "    ") + "\n"
+                f"{P16}    if flag_{l} != OK:\n"
+                + "".join(f"{P16}        {line.format(l=l)}\n" for line in flagged)
+                + f"{P16}        for j in range({nan_rows}):\n"
+                f"{P16}            for i in range(12):\n"
+                f"{P16}                out[b_{l}, j, i] = np.nan\n"
+                f"{P16}        live_{l} = False\n"
+                + reset(l, start, P16 + "        ") + "\n"
+                f"{P16}    {store}:\n"
+                + "\n".join(f"{P16}        out[b_{l}, row, {i}] = {_STATES[i]}_{l}" for i in idx))
+
+    after_b = [after_step(l, ["status[b_{l}] = flag_{l}", "fail_step[b_{l}] = k"],
+                          "(k + 1 + sample_every - 1) // sample_every, n_out", "s0[b_{l}, {i}]", "elif store")
+               for l in range(K)]
     any_live = " or ".join(f"live_{l}" for l in range(K))
     batch = f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
@@ -350,34 +360,14 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, s
 '''
     # -- windows of one record -----------------------------------------------------------------
     load_w = "\n".join(f"{P12}{_STATES[i]}_{l} = s0[b_{l}, w, {i}]" for l in range(K) for i in idx)
-    lanes_w = "\n".join(f"{P12}b_{l} = min(g * {K} + {l}, B - 1)\n"
-                        f"{P12}live_{l} = g * {K} + {l} < B\n"
-                        f"{P12}c_{l} = tcoef[b_{l}]\n"
-                        f"{P12}M_{l} = Minv[b_{l}]\n"
-                        f"{P12}vp_{l} = vp_all[b_{l}]\n"
-                        f"{P12}E_{l} = ecoef[b_{l}]\n"
-                        f"{P12}vmax_{l}, wmax_{l}, thmax_{l} = vp_{l}[VP_VMAX], vp_{l}[VP_WMAX], vp_{l}[VP_THMAX]\n"
-                        f"{P12}if live_{l}:\n"
-                        f"{P16}status[b_{l}, w] = OK\n"
-                        f"{P16}for j in range(row0, row1 + 1):\n"
-                        f"{P16}    for i in range(12):\n"
-                        f"{P16}        out[b_{l}, j, i] = s0[b_{l}, w, i]" for l in range(K))
+    lanes_w = "\n".join(lane_setup(l, "vp_all[b_{l}]", ["E_{l} = ecoef[b_{l}]"], ["status[b_{l}, w] = OK"],
+                                    "row0, row1 + 1", "s0[b_{l}, w, i]") for l in range(K))
     ext_w = "\n".join(f"{P16}x{i}_{l} = 0.0" for l in range(K) for i in range(6)) + "\n" + \
         f"{P16}for j in range(Kx):\n" + "\n".join(
             f"{P16}    g{l} = exo[b_{l}, k, j]\n" + "\n".join(f"{P16}    x{i}_{l} += g{l} * E_{l}[j, {i}]"
                                                         for i in range(6)) for l in range(K))
-    after_w = []
-    for l in range(K):
-        after_w.append(f"{P16}if live_{l}:\n" + _check_source(idx, l, P16 + "    ") + "\n"
-                       f"{P16}    if flag_{l} != OK:\n"
-                       f"{P16}        status[b_{l}, w] = flag_{l}\n"
-                       f"{P16}        for j in range(row, row1 + 1):\n"
-                       f"{P16}            for i in range(12):\n"
-                       f"{P16}                out[b_{l}, j, i] = np.nan\n"
-                       f"{P16}        live_{l} = False\n"
-                       + reset(l, "s0[b_{l}, w, {i}]", P16 + "        ") + "\n"
-                       f"{P16}    else:\n"
-                       + "\n".join(f"{P16}        out[b_{l}, row, {i}] = {_STATES[i]}_{l}" for i in idx))
+    after_w = [after_step(l, ["status[b_{l}, w] = flag_{l}"], "row, row1 + 1", "s0[b_{l}, w, {i}]", "else")
+               for l in range(K)]
     windows = f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
 def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp_all, tcoef, Minv, xs, ws, out, status):
