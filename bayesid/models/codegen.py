@@ -90,9 +90,11 @@ def _hydro_sums(force_names, mode) -> list[str]:
 
 
 def _rhs_statements(force_names, mode: str) -> list[str]:
-    """The right-hand side as statements on canonical names (see :data:`_INPUTS`); the last ones
-    assign ``D0, D1, ...``, the derivatives of the evolving states. A statement may span lines
-    (a block); it is inlined as a whole."""
+    """The right-hand side as statements on canonical names -- the states (:data:`_STATES`),
+    inputs ``d_r, d_s, d_b, n``, external force ``e0..e5``, the track's ``c`` (tcoef row), ``M``
+    (inverse mass matrix), ``vp`` and the :func:`_track_constants`; the last statements assign
+    ``D0, D1, ...``, the derivatives of the evolving states. A statement may span lines (a
+    block); it is inlined as a whole."""
     planar = mode == "horizontal"
     dof_terms = [terms.term(n) for n in force_names]
     used = {f for t in dof_terms if not planar or t.dof in _PLANE_DOF for f in t.factors}
