@@ -383,3 +383,18 @@ def test_two_simultaneous_effects_are_both_added_when_neither_explains_half_alon
         [(r["effect"], r["excess_removed"]) for r in first]
     assert sorted(res["effects_added"]) == ["thrust", "waves"], (res["verdict"], res["rounds"])
     assert res["gap_after"]["heldout_rms_m"] < 1.5 * res["noise_floor"]["heldout_rms_m"]
+
+
+def test_scores_log_likelihood_leaves_out_channels_the_fit_had_no_sd_for(veh):
+    """Training tracks without a yaw-rate log give fitted sds without ``r``; a held-out track
+    that logs ``r`` is scored over the fitted channels only (it raised KeyError: 'r' before)."""
+    m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
+    tr = ef.world_track(veh, m, {}, np.random.default_rng(0))
+    model = ef.EffectModel(veh, (), (), dt=0.5)
+    ctx = [model.context(tr, 30.0)]
+    f = FitResult.fixed(model, model.start(), 1)
+    sd = {c: 0.5 + i for i, c in enumerate(protocol.CHANNELS)}
+    assert "r" in ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))        # the track logs r
+    full = wf.scores(model, f, ctx, sd=sd)["log_likelihood"]
+    part = wf.scores(model, f, ctx, sd={c: v for c, v in sd.items() if c != "r"})["log_likelihood"]
+    assert np.isfinite(part) and part != full

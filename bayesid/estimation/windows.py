@@ -317,8 +317,10 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
     With ``sd`` ({channel: sd}, SI) also ``log_likelihood`` (nats): the Gaussian log-density
     of every finite error of every scored channel, ``sum(-e^2 / (2 sd^2) - ln(sd sqrt(2 pi)))``,
     treating the samples as independent -- a relative measure (before vs after an effect, same
-    sds and samples), not a calibrated one: simulation errors are correlated in time.
-    Raises KeyError when ``sd`` lacks a scored channel."""
+    sds and samples), not a calibrated one: simulation errors are correlated in time. Only the
+    channels ``sd`` has enter it: a held-out track may log a channel (say ``r``) that the
+    training tracks, whose fit gave ``sd``, did not; the log-likelihood stays over the fitted
+    channels, the same before and after an effect."""
     errs, per_track = [], {}
     ll = 0.0
     for i, ctx in enumerate(ctxs):
@@ -329,6 +331,8 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
         per_track[ctx.name] = pooled_scores([e])["rms_position_m"]
         if sd is not None:
             for c, v in e.items():
+                if c not in sd:
+                    continue
                 v = v[np.isfinite(v)]
                 ll += float(-0.5 * np.sum((v / sd[c]) ** 2) - v.size * math.log(sd[c] * math.sqrt(2 * math.pi)))
     out = pooled_scores(errs)
