@@ -291,6 +291,11 @@ def test_arrival_burn_waits_for_a_stranded_walker():
     assert arrival_burn(res) < 100   # without it only noise-level dips remain
     lp[0, :, 2] -= 50.0              # stranded throughout: capped at half the run
     assert arrival_burn(res) == N // 2
+    lp[0, :, 2] += 50.0
+    from bayesid.estimation.sampling import burn_in
+    assert burn_in(res) < 100
+    res.redraws = [(150, 0, 2), (700, 1, 4)]     # the chains are valid only after the last move
+    assert burn_in(res) == 700
 
 
 def test_a_checkpoint_of_another_run_is_refused(tmp_path):
@@ -326,3 +331,75 @@ def test_until_converged_runs_past_the_tau_rule_to_a_converged_verdict():
                           np.random.default_rng(5))
     assert short.stop_reason == "max_steps"
     assert not diagnostics(to_inference_data(short, burn=burn_in(short)), short)["converged"]
+
+
+# -- stranded walkers ------------------------------------------------------------------------------
+def trap(theta):
+    """A 2-D standard Gaussian cut at radius 6, and a flat trap (log p = -40) of radius 1 at
+    (20, 0): a walker that starts in the trap sees only -inf around it once the ensemble has
+    contracted, so DE moves leave it there."""
+    th = np.atleast_2d(theta)
+    lp = np.where(np.hypot(*th.T) < 6.0, -0.5 * np.sum(th**2, axis=1), -np.inf)
+    return np.where(np.hypot(th[:, 0] - 20.0, th[:, 1]) < 1.0, -40.0, lp)
+
+
+TRAP_START = (np.zeros(2), np.diag([100.0, 1.0]))     # the ball puts a walker in the trap (seed 7)
+CFG_TRAP = dict(n_ensembles=2, min_steps=600, max_steps=600, check_every=100)
+
+
+def test_stranded_walkers_are_those_far_below_the_typical_set_for_the_whole_window():
+    from bayesid.estimation.sampling import stranded_walkers
+    lp = np.random.default_rng(0).normal(0.0, 1.0, (2, 50, 16))
+    assert not stranded_walkers(lp).any()
+    lp[1, :, 3] -= 40.0                         # far down for the whole window
+    lp[0, :25, 7] -= 40.0                       # arrived half-way through: not stranded
+    s = stranded_walkers(lp)
+    assert s[1, 3] and s.sum() == 1
+    lp[1, :, :5] -= 40.0                        # 6 of 16 down: the ensemble is still burning in
+    assert not stranded_walkers(lp)[1].any()
+    with pytest.raises(ValueError, match=r"\(E, w, W\)"):
+        stranded_walkers(lp[0])
+
+
+def test_a_stranded_walker_is_moved_and_burn_in_ends_at_the_move():
+    from bayesid.estimation.sampling import arrival_burn, burn_in
+    plain = run_ensembles(trap, *TRAP_START, ["a", "b"], SamplerConfig(**CFG_TRAP), np.random.default_rng(7))
+    assert (plain.log_prob[:, 0] == -40.0).sum() == 1 and plain.redraws == []
+    assert arrival_burn(plain) > 200             # without moves it sits in the trap for hundreds of steps
+    res = run_ensembles(trap, *TRAP_START, ["a", "b"], SamplerConfig(**CFG_TRAP, redraw_stranded=True),
+                        np.random.default_rng(7))
+    assert res.redraws == [(100, 0, 2)]          # found at the first block's end
+    assert not (res.log_prob[:, 100:] == -40.0).any()
+    assert burn_in(res) == 100
+    np.testing.assert_array_equal(res.chains[:, :100], plain.chains[:, :100])    # nothing else changed
+    # the moved walker took another walker's place, log-probability included
+    assert res.log_prob[0, 100, 2] > -20.0
+
+
+@pytest.mark.parametrize("extra_calls", [1, 150])
+def test_resume_after_a_redraw_gives_the_uninterrupted_chain(tmp_path, extra_calls):
+    cfg = SamplerConfig(**{**CFG_TRAP, "min_steps": 300, "max_steps": 300}, redraw_stranded=True)
+    reference = run_ensembles(trap, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7))
+    calls = [0]
+
+    def counting(theta):
+        calls[0] += 1
+        return trap(theta)
+    run_ensembles(counting, *TRAP_START, ["a", "b"], SamplerConfig(**{**CFG_TRAP, "min_steps": 100, "max_steps": 100}),
+                  np.random.default_rng(7))
+    at_move, calls[0] = calls[0], 0
+
+    def failing(theta):
+        calls[0] += 1
+        if calls[0] > at_move + extra_calls - 1:    # right after the move, or in the next block
+            raise Interrupted
+        return trap(theta)
+    path = tmp_path / "trap.h5"
+    with pytest.raises(Interrupted):
+        run_ensembles(failing, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=path)
+    resumed = run_ensembles(trap, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=path)
+    np.testing.assert_array_equal(resumed.chains, reference.chains)
+    assert resumed.redraws == reference.redraws == [(100, 0, 2)]
+    with pytest.raises(ValueError, match="redraw_stranded"):     # a checkpoint of the other setting
+        run_ensembles(trap, *TRAP_START, ["a", "b"], SamplerConfig(**{**CFG_TRAP, "min_steps": 300, "max_steps": 300}),
+                      np.random.default_rng(7), checkpoint=path)

@@ -35,7 +35,7 @@ import json
 import os
 import time
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import emcee
@@ -76,6 +76,9 @@ class SamplerConfig:
         converged, checked when the tau rule first holds and then each time the run has grown by
         15 %, or until max_steps / max_wall_s. The caller's verdict on every draw can differ from
         the thinned one in the last digits of R-hat and ESS.
+    redraw_stranded : during the run, move walkers stranded in the tails onto other walkers of
+        their ensemble (:func:`stranded_walkers`); the draws before the last such move are then
+        burn-in (:func:`burn_in`).
     """
 
     n_ensembles: int = 4
@@ -89,6 +92,7 @@ class SamplerConfig:
     progress: bool = False
     max_wall_s: float | None = None
     until_converged: bool = False
+    redraw_stranded: bool = False
 
     def walkers(self, n_params: int) -> int:
         """Walkers per ensemble for P = ``n_params``.
@@ -137,6 +141,8 @@ class SamplerResult:
     names : coefficient names, length P.
     stop_reason : ``"tau rule"``, ``"converged"`` (:attr:`SamplerConfig.until_converged`),
         ``"max_steps"`` or ``"max_wall_s"``.
+    redraws : ``(step, ensemble, walker)`` of every stranded walker moved onto another walker
+        after ``step`` steps (:attr:`SamplerConfig.redraw_stranded`), in order.
     """
 
     chains: np.ndarray
@@ -149,6 +155,7 @@ class SamplerResult:
     reached_tau_rule: bool
     names: list[str]
     stop_reason: str = ""
+    redraws: list = field(default_factory=list)
 
 
 class _Vectorised:
@@ -274,6 +281,16 @@ class _BlockHDFBackend(emcee.backends.HDFBackend):
         self._buffer.append((np.array(state.coords, dtype=float), np.array(state.log_prob, dtype=float),
                              np.asarray(accepted, dtype=bool).copy(), state.random_state))
 
+    def redraws(self) -> list:
+        """[(step, walker), ...] stored by :meth:`record_redraws`."""
+        with self.open() as f:
+            return [tuple(r) for r in json.loads(f[self.name].attrs.get("redraws", "[]"))]
+
+    def record_redraws(self, redraws: list) -> None:
+        """Store this ensemble's [(step, walker), ...] (replacing what is stored)."""
+        with self.open("a") as f:
+            f[self.name].attrs["redraws"] = json.dumps([list(r) for r in redraws])
+
     def flush(self):
         """Append the buffered steps to the file (one open)."""
         if not self._buffer:
@@ -302,6 +319,8 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
             "n_walkers": n_walkers, "n_ensembles": config.n_ensembles, "moves": config.moves}
     if run_key is not None:
         meta["run_key"] = json.dumps(run_key, sort_keys=True)
+    if config.redraw_stranded:      # absent otherwise, so older checkpoints stay valid
+        meta["redraw_stranded"] = 1
     # Checked on resume: what must agree for the stored chains to belong to this problem. The
     # stopping settings (min/max_steps, tau_factor, ...) may change between runs.
     if path.exists():
@@ -313,8 +332,8 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
         if stored.get("tag") != _CHECKPOINT_TAG:
             raise ValueError(f"checkpoint {path} was not written by bayesid.estimation.sampling; pass another path")
         diff = []
-        for key, want in meta.items():
-            have = stored.get(key)
+        for key in sorted(set(meta) | ({"redraw_stranded"} & set(stored))):
+            want, have = meta.get(key), stored.get(key)
             have = have.item() if isinstance(have, np.generic) else have
             if have != want:
                 diff.append(f"{key} {have} in the file, {want} now")
@@ -407,6 +426,9 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
             states.append(s.get_last_sample())
         samplers.append(s)
 
+    # (step, ensemble, walker) of every stranded walker moved so far, the checkpoint's included
+    redraws = sorted((int(st), i, int(w)) for i, b in enumerate(backends) if isinstance(b, _BlockHDFBackend)
+                     and samplers[i].iteration for st, w in b.redraws())
     its = [int(s.iteration) for s in samplers]
     next_check = 0          # steps at which the convergence verdict is computed next
     with tqdm(total=E * config.max_steps, initial=sum(its), unit="step", disable=not config.progress,
@@ -423,7 +445,7 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
                         reason = "tau rule"
                         break
                     if n >= next_check:
-                        part = _result(samplers, tau, lp_fn, t0, names, config, "")
+                        part = _result(samplers, tau, lp_fn, t0, names, config, "", redraws)
                         # thinned by tau / 20: the same R-hat and ESS to a few per cent (ten draws
                         # per tau carry its information) at a twentieth of ArviZ's cost
                         thin = max(1, int(np.max(tau) / 20))
@@ -438,6 +460,8 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
                 if n and config.max_wall_s is not None and time.perf_counter() - t0 > config.max_wall_s:
                     reason = "max_wall_s"
                     break
+                if config.redraw_stranded and n:
+                    _redraw_stranded(samplers, states, seeds, n, redraws)
                 # blocks grow with the run (at least a tenth of it): each check reads every
                 # stored step, so fixed blocks would make a long run's checks cost O(n^2)
                 grow = max(config.check_every, n // 10)
@@ -454,10 +478,66 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
                 finally:
                     if isinstance(s.backend, _BlockHDFBackend):
                         s.backend.flush()
-    return _result(samplers, tau, lp_fn, t0, names, config, reason)
+    return _result(samplers, tau, lp_fn, t0, names, config, reason, redraws)
 
 
-def _result(samplers, tau, lp_fn, t0, names, config, reason) -> SamplerResult:
+def _redraw_stranded(samplers, states, seeds, n, redraws) -> None:
+    """Move the walkers :func:`stranded_walkers` finds over the last quarter of the steps since the
+    last move onto randomly chosen walkers of their own ensemble (positions and log_prob copied;
+    the next moves separate them). Updates ``states`` and ``redraws`` (and the checkpoint).
+
+    Deterministic given the chains: the donors come from a generator seeded by the ensemble's seed
+    and ``n``, so a run resumed at step ``n`` repeats the same moves.
+    """
+    floor = max((r[0] for r in redraws if r[0] < n), default=0)
+    w = max(1, (n - floor) // 4)
+    lp = np.stack([s.get_log_prob(discard=n - w) for s in samplers])         # (E, w, W)
+    stranded = stranded_walkers(lp)
+    for i, s in enumerate(samplers):
+        bad = np.flatnonzero(stranded[i])
+        if bad.size == 0:
+            continue
+        donors = np.random.default_rng([seeds[i], n]).choice(np.flatnonzero(~stranded[i]), size=bad.size)
+        st = states[i]
+        coords, lpi = np.array(st.coords, dtype=float), np.array(st.log_prob, dtype=float)
+        coords[bad], lpi[bad] = coords[donors], lpi[donors]
+        states[i] = State(coords, log_prob=lpi, random_state=st.random_state)
+        new = [(n, i, int(b)) for b in bad if (n, i, int(b)) not in redraws]
+        redraws.extend(new)
+        if new and isinstance(s.backend, _BlockHDFBackend):
+            s.backend.record_redraws([(r[0], r[2]) for r in redraws if r[1] == i])
+
+
+def stranded_walkers(log_prob, spread: float = 10.0, max_share: float = 0.25) -> np.ndarray:
+    """Walkers that stayed far below the typical set over a window of steps, (E, W) bool.
+
+    ``log_prob`` is (E, w, W): the last w steps of E ensembles of W walkers. With ``m`` the median
+    log-probability of the window (all walkers pooled) and ``s = m - q16`` its lower one-sigma
+    spread, a walker is stranded when its *highest* log-probability over the window is below
+    ``m - spread * s`` (the threshold of :func:`arrival_burn`): in a stationary ensemble a walker
+    does not stay that low for a single step. An ensemble with more than ``max_share`` of its
+    walkers below is left alone (it is still burning in as a whole, and copying walkers would
+    collapse it).
+
+    Moving stranded walkers onto others is a burn-in device (e.g. Hou, Goodman, Hogg, Goodman &
+    Lang 2012, ApJ 745, 198, Sec. 4: "resetting" stuck walkers): the chains are valid only after
+    the last move, which :func:`burn_in` respects.
+    """
+    lp = np.asarray(log_prob, dtype=float)
+    if lp.ndim != 3:
+        raise ValueError(f"log_prob must be (E, w, W), got shape {lp.shape}")
+    stranded = np.max(lp, axis=1) < _typical_floor(lp, spread)
+    stranded[stranded.sum(axis=1) > max_share * lp.shape[2]] = False
+    return stranded
+
+
+def _typical_floor(lp, spread) -> float:
+    """``m - spread * (m - q16)`` over all of ``lp``: the lowest log-probability of the typical set."""
+    q16, m = np.quantile(lp, [0.16, 0.5])
+    return float(m - spread * (m - q16))
+
+
+def _result(samplers, tau, lp_fn, t0, names, config, reason, redraws=()) -> SamplerResult:
     """The :class:`SamplerResult` of the ensembles' chains so far."""
     chains = np.stack([s.get_chain() for s in samplers])
     return SamplerResult(
@@ -466,7 +546,7 @@ def _result(samplers, tau, lp_fn, t0, names, config, reason) -> SamplerResult:
         acceptance=np.stack([s.acceptance_fraction for s in samplers]),
         tau=tau, n_steps=int(chains.shape[1]), n_evaluations=lp_fn.rows,
         wall_s=time.perf_counter() - t0, reached_tau_rule=_reached(int(chains.shape[1]), tau, config),
-        names=names, stop_reason=reason)
+        names=names, stop_reason=reason, redraws=list(redraws))
 
 
 def default_burn(result: SamplerResult) -> int:
@@ -478,9 +558,11 @@ def default_burn(result: SamplerResult) -> int:
 
 def burn_in(result: SamplerResult) -> int:
     """The burn-in the posterior study and :attr:`SamplerConfig.until_converged` use:
-    ``max(default_burn, arrival_burn)`` -- 2 tau, or longer until the last stranded walker has
-    reached the typical set."""
-    return max(default_burn(result), arrival_burn(result))
+    ``max(default_burn, arrival_burn, last redraw)`` -- 2 tau, or longer until the last stranded
+    walker has reached the typical set, and never less than the step at which the last stranded
+    walker was moved (:attr:`SamplerResult.redraws`)."""
+    last = max((r[0] for r in result.redraws), default=0)
+    return max(default_burn(result), arrival_burn(result), last)
 
 
 def arrival_burn(result: SamplerResult, spread: float = 10.0) -> int:
@@ -501,8 +583,7 @@ def arrival_burn(result: SamplerResult, spread: float = 10.0) -> int:
     N = lp.shape[1]
     if N < 4:
         return 0
-    q16, m = np.quantile(lp[:, N // 2:], [0.16, 0.5])
-    thr = m - spread * (m - q16)
+    thr = _typical_floor(lp[:, N // 2:], spread)
     low = np.flatnonzero(np.any(lp < thr, axis=(0, 2))[: N // 2])
     return min(int(low[-1]) + 1 if low.size else 0, N // 2)
 
