@@ -2,15 +2,18 @@
 space against the configuration the study uses, and the alternatives it was chosen from, in one
 run.
 
-A sampler configuration is ``moves[-logit]@E``: ``moves`` "stretch" (emcee's default) or "de"
-(DE 0.8 + snooker 0.2, :mod:`bayesid.estimation.sampling`), ``-logit`` to sample in the
-unconstrained space of :class:`bayesid.estimation.posterior.TransformedLogPosterior`, ``E``
-independent ensembles of 2P+2 = 30 walkers. All start from the same Laplace-shaped ball on the
+A sampler configuration is ``moves[+logit][+redraw]@E``: ``moves`` "stretch" (emcee's default),
+"de" (DE 0.8 + snooker 0.2) or "de-stretch" (:mod:`bayesid.estimation.sampling`), ``+logit`` to
+sample in the unconstrained space of :class:`bayesid.estimation.posterior.TransformedLogPosterior`,
+``+redraw`` to move stranded walkers onto others during burn-in
+(``SamplerConfig.redraw_stranded``), ``E`` independent ensembles of 2P+2 = 30 walkers. Every
+configuration checks its chains every 250 steps, as the study does. All start from the same Laplace-shaped ball on the
 same noisy spiral (studies/posterior.py's setup). Each run is extended in blocks through its HDF5
 checkpoint (resume); after each block the benchmark prints what was reached so far: steps,
 sampling minutes (the diagnostics between blocks are not timed), tau (max over coefficients),
 per-walker R-hat (the study's verdict), between-ensemble R-hat, minimum bulk and tail ESS,
-minimum bulk ESS per second, and log-probability evaluations per second. Chains sampled in logit
+minimum bulk ESS per second, log-probability evaluations per second, the burn-in
+(``sampling.burn_in``) and the number of stranded walkers moved so far. Chains sampled in logit
 space are mapped back to the coefficients before the diagnostics (R-hat and ESS are
 rank-normalised, so the map does not change them); tau is the sampler's, in the space it samples.
 
@@ -19,7 +22,7 @@ bulk and tail ESS >= 400 (the first block at which it did, or "not reached"), an
 ``ess_per_s_ratio_<config>_vs_stretch@4``: the minimum bulk ESS per second at the end of the
 budget against emcee's default (stretch, 4 ensembles: the study's setup before issue 23).
 
-    python benchmarks/posterior.py [--minutes 5] [--block 2500] [--sets stretch@4,de@4,de@2,de-logit@2]
+    python benchmarks/posterior.py [--minutes 5] [--block 2500] [--sets stretch@4,de@2,de+redraw@2,...]
                                    [--out reports/benchmark_posterior.txt]
 """
 from __future__ import annotations
@@ -52,8 +55,8 @@ def main():
     ap.add_argument("--block", type=int, default=2500, help="steps between reports")
     ap.add_argument("--seed", type=int, default=2003)
     ap.add_argument("--out", default=str(ROOT / "reports" / "benchmark_posterior.txt"))
-    ap.add_argument("--sets", default="stretch@4,de@4,de@2,de-logit@2",
-                    help="configurations moves[-logit]@ensembles (see the module docstring)")
+    ap.add_argument("--sets", default="stretch@4,de@2,de+redraw@2,de+logit+redraw@2",
+                    help="configurations moves[+logit][+redraw]@ensembles (see the module docstring)")
     args = ap.parse_args()
 
     vehicle = load_vehicle("nps_auv2")
@@ -75,13 +78,17 @@ def main():
              f"spiral 600 s at dt {study.DT_MODEL} s, noise x,y {study.NOISE['x']} m, psi 0.2 deg; "
              f"sampling budget {args.minutes:g} min per configuration.",
              f"{'config':15s} {'steps':>6s} {'min':>6s} {'tau_max':>8s} {'Rhat':>7s} {'Rhat_ens':>8s} "
-             f"{'ESSb_min':>8s} {'ESSt_min':>8s} {'ESSb/s':>7s} {'evals/s':>8s}"]
+             f"{'ESSb_min':>8s} {'ESSt_min':>8s} {'ESSb/s':>7s} {'evals/s':>8s} {'burn':>6s} {'moved':>5s}"]
     print("\n".join(lines), flush=True)
     final, reached = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         for label in args.sets.split(","):
             kind, _, n_ens = label.partition("@")
-            moves, logit = kind.removesuffix("-logit"), kind.endswith("-logit")
+            moves, *flags = kind.split("+")
+            unknown = set(flags) - {"logit", "redraw"}
+            if unknown or moves not in sampling.MOVES:
+                ap.error(f"--sets: {label!r} is not moves[+logit][+redraw]@E with moves in {sampling.MOVES}")
+            logit = "logit" in flags
             target_lp, c0, cov0, T = logpost, centre, cov, None
             if logit:  # the same starting ball, seen in z = logit of each bounded coefficient
                 target_lp = TransformedLogPosterior(logpost, setup.prior)
@@ -95,7 +102,8 @@ def main():
             while sampled < 60.0 * args.minutes:
                 steps += args.block
                 cfg = sampling.SamplerConfig(n_ensembles=int(n_ens or 4), moves=moves, min_steps=steps,
-                                             max_steps=steps, check_every=args.block, tau_factor=1e9)
+                                             max_steps=steps, check_every=250, tau_factor=1e9,
+                                             redraw_stranded="redraw" in flags)
                 tic = time.perf_counter()
                 res = sampling.run_ensembles(target_lp, c0, cov0, setup.names, cfg,
                                              np.random.default_rng([args.seed, 7]), checkpoint=ck)
@@ -103,11 +111,12 @@ def main():
                 if logit:
                     shape = res.chains.shape
                     res = dataclasses.replace(res, chains=T.to_theta(res.chains.reshape(-1, shape[-1])).reshape(shape))
-                d = sampling.diagnostics(sampling.to_inference_data(res, burn=sampling.burn_in(res)), res)
+                burn = sampling.burn_in(res)
+                d = sampling.diagnostics(sampling.to_inference_data(res, burn=burn), res)
                 rate = (logpost.n_evaluations - n0) / sampled
                 row = (f"{label:15s} {res.n_steps:6d} {sampled / 60:6.2f} {d['tau_max']:8.1f} {d['rhat_max']:7.4f} "
                        f"{d['rhat_ensembles_max']:8.4f} {d['ess_bulk_min']:8.0f} {d['ess_tail_min']:8.0f} "
-                       f"{d['ess_bulk_min'] / sampled:7.2f} {rate:8.0f}")
+                       f"{d['ess_bulk_min'] / sampled:7.2f} {rate:8.0f} {burn:6d} {len(res.redraws):5d}")
                 print(row, flush=True)
                 lines.append(row)
                 final[label] = (d, sampled)
