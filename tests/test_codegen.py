@@ -155,34 +155,6 @@ def test_a_simulator_pickles_without_its_kernel_and_reloads_it(veh):
     assert np.array_equal(a.states, b.states)
 
 
-def test_sincos_gives_the_bits_of_sin_and_cos():
-    """The generated kernels take an angle's sine and cosine with one call of the C library's
-    sincos where it matches numba's math.sin and math.cos bit for bit (glibc); elsewhere they
-    call those two."""
-    from bayesid.models import _libm
-    src = codegen.source(["Yv", "Nr"], "6dof")
-    if not _libm.HAVE_SINCOS:
-        assert "math.sin(" in src and "sincos(" not in src.split("import sincos")[1]
-        pytest.skip("no bit-identical sincos in this C library")
-    assert "sph, cph = sincos(ph)" in "\n".join(codegen._rhs_statements(["Yv", "Nr"], "6dof"))
-    import math
-
-    import numba as nb
-
-    @nb.njit(cache=False)
-    def both(x):
-        out = np.empty((x.size, 4))
-        for i in range(x.size):
-            s, c = _libm.sincos(x[i])
-            out[i] = s, c, math.sin(x[i]), math.cos(x[i])
-        return out
-
-    rng = np.random.default_rng(4)
-    x = np.concatenate([rng.normal(0.0, 1.0, 50_000), rng.uniform(-40.0, 40.0, 50_000), rng.normal(0.0, 1e4, 1000)])
-    r = both(x)
-    assert np.array_equal(r[:, 0], r[:, 2]) and np.array_equal(r[:, 1], r[:, 3])
-
-
 @pytest.mark.parametrize("mode", ["6dof", "horizontal"])
 def test_submarine_kernels_are_bit_identical(veh, mode):
     """The stronger claim the committed reports rely on: not only round-off, the same bits."""

@@ -14,9 +14,10 @@ right-hand side in which
   and the state is twelve scalars (six in the horizontal plane) that stay in registers through
   the stages: no arrays, no allocation, no calls in the step but the libm ones;
 * the sines and cosines of the Euler angles come first (a libm call spills every live
-  floating-point register, and few are live there), one ``sincos`` call per angle (bit-identical
-  to ``math.sin`` and ``math.cos``, :mod:`bayesid.models._libm`), and are shared between
-  kinematics and hydrostatics;
+  floating-point register, and few are live there) and are shared between kinematics and
+  hydrostatics; the sine and cosine of one angle sit side by side, and LLVM already merges them
+  into one ``sincos`` call (seen in numba's x86-64 assembly; an explicit ``sincos`` intrinsic
+  was tried and measured no faster);
 * ``M^-1 tau`` is unrolled; the horizontal plane (paper Sec. 4) is its own 3-DOF kernel (states
   x, y, psi, u, v, r; the (u, v, r) block of ``M^-1``; rigid-body terms with w = p = q = 0,
   hydrostatics left out as they vanish at phi = theta = 0), not the 6-DOF one with a zeroed
@@ -58,7 +59,6 @@ import tempfile
 from pathlib import Path
 
 from . import dynamics
-from ._libm import HAVE_SINCOS
 from ..data import terms
 
 KINDS = ("generated", "interpreted")
@@ -91,15 +91,6 @@ def _hydro_sums(force_names, mode) -> list[str]:
     return [f"F{i} = " + (" + ".join(per_dof[i]) if per_dof[i] else "0.0") for i in dofs]
 
 
-def _sin_cos(angle: str) -> str:
-    """``s<angle>, c<angle> = sincos(<angle>)`` (one libm call, bit-identical to two, see
-    :mod:`bayesid.models._libm`), or the two ``math`` calls where the C library has no such
-    ``sincos``."""
-    if HAVE_SINCOS:
-        return f"s{angle}, c{angle} = sincos({angle})"
-    return f"s{angle} = math.sin({angle})\nc{angle} = math.cos({angle})"
-
-
 def _rhs_statements(force_names, mode: str) -> list[str]:
     """The right-hand side as statements on canonical names -- the states (:data:`_STATES`),
     inputs ``d_r, d_s, d_b, n``, external force ``e0..e5``, the track's ``c`` (tcoef row), ``M``
@@ -113,14 +104,17 @@ def _rhs_statements(force_names, mode: str) -> list[str]:
     a = S.append
     # The sines and cosines first: a libm call spills every live floating-point register, and
     # few are live here.
-    a(_sin_cos("ps"))
+    a("sps = math.sin(ps)")
+    a("cps = math.cos(ps)")
     if planar:
         a("w = 0.0")
         a("p = 0.0")
         a("q = 0.0")
     else:
-        a(_sin_cos("ph"))
-        a(_sin_cos("th"))
+        a("sph = math.sin(ph)")
+        a("cph = math.cos(ph)")
+        a("sth = math.sin(th)")
+        a("cth = math.cos(th)")
     if "eps" in used or "prop" in used:
         a("n_rad = n * RPM_TO_RAD_S")
         a("uc = vp[VP_UC] * n_rad")
@@ -214,7 +208,7 @@ def _track_constants(force_names, mode: str) -> list[str]:
 
 
 # Names the inliner leaves alone: Python, the math module, the kernel constants, shared arrays.
-_KEEP = {"math", "sincos", "abs", "range", "if", "else", "for", "in", "not", "and", "or", "min", "max",
+_KEEP = {"math", "abs", "range", "if", "else", "for", "in", "not", "and", "or", "min", "max",
          "xs", "ws", "RPM_TO_RAD_S", "U_MIN_EPS", "OK", "NONFINITE", "OUT_OF_BOUNDS"}
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
 
@@ -414,7 +408,6 @@ import math
 import numba as nb
 import numpy as np
 
-from bayesid.models._libm import sincos
 from bayesid.models.dynamics import (OK, NONFINITE, OUT_OF_BOUNDS, RPM_TO_RAD_S, U_MIN_EPS, VP_B, VP_CDYH,
                                      VP_CDZB, VP_CT, VP_IX, VP_IXY, VP_IXZ, VP_IY, VP_IYZ, VP_IZ, VP_L, VP_M,
                                      VP_RHO, VP_THMAX, VP_UC, VP_VMAX, VP_W, VP_WMAX, VP_XB, VP_XFLOW, VP_XG,

@@ -14,8 +14,7 @@ stage with wind (``sin``/``cos`` of the heading, the wake ``exp``, the rudder an
   inverse mass matrix, ``q = 0.5 rho L d``, the leading products of the force terms) is computed
   once per window, and what is constant over a step (the rudder angle's ``sin``/``cos``,
   ``(1 - tP) rho n^2 D^4``, ``1 / (n D)``, the slipstream's ``8 n^2 D^2 / pi``) once per step;
-* libm is called for ``sin``/``cos`` of the heading once per step (one ``sincos`` call,
-  :mod:`bayesid.models._libm`) (stages 2-4 by the addition
+* libm is called for ``sin``/``cos`` of the heading once per step (stages 2-4 by the addition
   theorem with the Taylor series of the small heading increment; libm again if it exceeds
   0.1 rad) and for the wake ``exp``, first in the stage (a libm call spills every live
   floating-point register, and few are live there); the wind's harmonics are algebraic in the
@@ -59,7 +58,6 @@ from __future__ import annotations
 import re
 
 from . import ship
-from ._libm import HAVE_SINCOS
 from .codegen import load_module
 
 KINDS = ("generated", "interpreted")
@@ -156,14 +154,6 @@ M22 = mmy / det
 cn = cur[b, 0]
 ce = cur[b, 1]"""
 
-def _sin_cos(angle: str, pad: str = "") -> str:
-    """``s<angle>, c<angle> = sincos(<angle>)`` (one libm call, bit-identical to two:
-    :mod:`bayesid.models._libm`), or the two ``math`` calls without such a ``sincos``."""
-    if HAVE_SINCOS:
-        return f"s{angle}, c{angle} = sincos({angle})"
-    return f"s{angle} = math.sin({angle})\n{pad}c{angle} = math.cos({angle})"
-
-
 # Per-step constants of a lane (inputs held over the step; k is the step index): the rudder
 # angle dm in the MMG sign convention, the propeller's sign, thrust and slipstream factors, the
 # rudder force's direction factors.
@@ -171,7 +161,8 @@ _STEP = """\
 dl = inputs[b, k, 0]
 n = inputs[b, k, 1]
 dm = dR0 - dl
-{sincos_dm}
+sdm = math.sin(dm)
+cdm = math.cos(dm)
 npos = n > 1e-6
 nneg = n < -1e-6
 inD = 1.0 / (n * D)
@@ -180,9 +171,11 @@ XPa = -omtP * Ka * rho * n * n * Dp4
 c8 = 8.0 * n * n * D * D / math.pi
 cXR = omtR * sdm
 cYR = opaH * cdm
-cNRc = cNR * cdm""".replace("{sincos_dm}", _sin_cos("dm"))
+cNRc = cNR * cdm"""
 
-_RHS_HEADING = _sin_cos("ps")
+_RHS_HEADING = """\
+cps = math.cos(ps)
+sps = math.sin(ps)"""
 
 # Stages 2-4: cos and sin of the stage heading ps = ps1 + dps (dps = fac * r of the previous
 # stage) from those of the step's heading ps1 by the addition theorem; the Taylor series of
@@ -197,7 +190,8 @@ if abs(dps) < 0.1:
     cps = cps1 * cd - sps1 * sd
     sps = sps1 * cd + cps1 * sd
 else:
-    {sincos_ps}""".replace("{sincos_ps}", _sin_cos("ps", "    "))
+    cps = math.cos(ps)
+    sps = math.sin(ps)"""
 
 # The propeller's wake fraction wP0 exp(-4 beta_P^2).
 _RHS_HEAD = """\
@@ -291,18 +285,11 @@ D4 = M11 * b1 + M12 * b2
 D5 = M12 * b1 + M22 * b2"""
 
 _STATES = ("x", "y", "ps", "u", "v", "r")
-_LHS = re.compile(r"^(\w+(?:\s*,\s*\w+)*)\s*=(?!=)", re.M)
-
-
-def _assigned(block: str) -> set:
-    """Names a block of source assigns at the start of a line (tuple targets included)."""
-    return {n.strip() for m in _LHS.findall(block) for n in m.split(",")}
-
-
-_ROW_NAMES = _assigned(_ROW) | {"p", "b"}
-_STEP_NAMES = _assigned(_STEP)
+_LHS = re.compile(r"^(\w+)\s*=", re.M)
+_ROW_NAMES = set(_LHS.findall(_ROW)) | {"p", "b"}
+_STEP_NAMES = set(_LHS.findall(_STEP))
 # Names the inliner leaves alone: Python, the math module, the shared arrays and loop variables.
-_KEEP = {"math", "sincos", "abs", "min", "max", "if", "elif", "else", "and", "or", "not", "True", "False",
+_KEEP = {"math", "abs", "min", "max", "if", "elif", "else", "and", "or", "not", "True", "False",
          "inputs", "cur", "k", "wn", "we"}
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
 #: RK4: stage s is evaluated at the state plus _FAC[s] times the previous stage's derivative
@@ -453,8 +440,6 @@ import math
 
 import numba as nb
 import numpy as np
-
-from bayesid.models._libm import sincos
 
 '''
 
