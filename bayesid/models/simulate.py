@@ -248,7 +248,8 @@ class Simulator:
         status = np.empty(B, dtype=np.int64)
         fail = np.empty(B, dtype=np.int64)
         tic = time.perf_counter()
-        # An idle OpenMP worker busy-waits and steals CPU from a single track: use <= B threads.
+        # No more threads than tracks: an idle worker has nothing to do (with the OpenMP layer
+        # it even busy-waited and stole CPU from a single track; bayesid selects workqueue).
         n_threads = numba.get_num_threads()
         numba.set_num_threads(max(1, min(B, numba.config.NUMBA_NUM_THREADS)))
         try:
