@@ -51,6 +51,8 @@ RHAT_MAX = 1.01
 ESS_BULK_MIN = 400.0
 ESS_TAIL_MIN = 400.0
 _CHECKPOINT_TAG = "bayesid.estimation.sampling"
+#: Checkpoint settings added after files were written without them: the value such a file implies.
+_META_BEFORE = {"redraw_stranded": 0}
 
 
 @dataclass
@@ -319,8 +321,7 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
             "n_walkers": n_walkers, "n_ensembles": config.n_ensembles, "moves": config.moves}
     if run_key is not None:
         meta["run_key"] = json.dumps(run_key, sort_keys=True)
-    if config.redraw_stranded:      # absent otherwise, so older checkpoints stay valid
-        meta["redraw_stranded"] = 1
+    meta["redraw_stranded"] = int(config.redraw_stranded)
     # Checked on resume: what must agree for the stored chains to belong to this problem. The
     # stopping settings (min/max_steps, tau_factor, ...) may change between runs.
     if path.exists():
@@ -332,8 +333,8 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
         if stored.get("tag") != _CHECKPOINT_TAG:
             raise ValueError(f"checkpoint {path} was not written by bayesid.estimation.sampling; pass another path")
         diff = []
-        for key in sorted(set(meta) | ({"redraw_stranded"} & set(stored))):
-            want, have = meta.get(key), stored.get(key)
+        for key, want in meta.items():
+            have = stored.get(key, _META_BEFORE.get(key))
             have = have.item() if isinstance(have, np.generic) else have
             if have != want:
                 diff.append(f"{key} {have} in the file, {want} now")
