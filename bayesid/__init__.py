@@ -22,11 +22,14 @@ The layout follows the data flow; each layer imports only the ones before it:
   :mod:`~bayesid.estimation.windows` (multiple shooting), :mod:`~bayesid.estimation.shooting`
   (fitted window starts), :mod:`~bayesid.estimation.laplace`,
   :mod:`~bayesid.estimation.posterior`, :mod:`~bayesid.estimation.sampling` (emcee, ArviZ),
-  :mod:`~bayesid.estimation.msfit` (long runs, prediction, indices).
+  :mod:`~bayesid.estimation.msfit` (long runs, prediction, indices),
+  :mod:`~bayesid.estimation.multistart` (many starts of one fit).
 * :mod:`bayesid.analysis` -- what the data say: :mod:`~bayesid.analysis.identifiability`,
   :mod:`~bayesid.analysis.dossier`, :mod:`~bayesid.analysis.richness`,
   :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis).
 * :mod:`bayesid.report` -- study folders, manifests, report writers; :mod:`bayesid.report.plots`.
 * :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
+* :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
+  workers or on Dask, with a resumable journal.
 """
 __version__ = "0.1.0"

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .data import datasets
 from .models import manoeuvres as mv
-from . import protocol
+from . import protocol, tasks
 from .models.simulate import MODES, Simulator
 from .data.track import write_csv
 from .data.vehicle import load_vehicle
@@ -163,7 +163,8 @@ def _split_names(text, option: str = ""):
 
 
 #: What each command writes into its --out folder (removed first by --overwrite).
-WRITES = {"diagnose": ("diagnosis.json", "report.md", "figures"), "fit": ("model.json", "report.md"),
+WRITES = {"diagnose": ("diagnosis.json", "report.md", "figures"),
+          "fit": ("model.json", "report.md", "figures", "journal.jsonl"),
           "predict": ("predict.json", "report.md", "figures"), "convert": ("convert.json", "convert.md")}
 
 
@@ -172,13 +173,15 @@ MAIN_OUTPUT = {"diagnose": "diagnosis.json", "fit": "model.json", "predict": "pr
                "convert": "convert.json"}
 
 
-def _check_out(path, command: str, overwrite: bool) -> Path:
+def _check_out(path, command: str, overwrite: bool, resumable: bool = False) -> Path:
     """``--out`` checked before any computation: a folder (or for ``simulate`` a file) that can
     be created and written. An existing non-empty folder is refused unless ``overwrite``; then
     what ``command`` writes there (and, for ``convert``, the CSVs its ``convert.json`` lists) is
     removed first, so nothing stale survives. Even with ``overwrite``, a folder holding another
     command's output (:data:`MAIN_OUTPUT`), or files named like this command's output without
-    its main file (the user's), is refused. Raises ValueError naming the option and path."""
+    its main file (the user's), is refused. With ``resumable``, a folder holding only this
+    command's ``journal.jsonl`` and outputs but no main file (a killed run) is kept as it is, so
+    the same command resumes it. Raises ValueError naming the option and path."""
     import os
     import shutil
 
@@ -192,7 +195,12 @@ def _check_out(path, command: str, overwrite: bool) -> Path:
     else:
         if out.exists() and not out.is_dir():
             raise ValueError(f"--out {out}: exists and is not a folder")
-        if out.is_dir() and any(out.iterdir()):
+        interrupted = (resumable and not overwrite and out.is_dir() and (out / "journal.jsonl").is_file()
+                       and not (out / MAIN_OUTPUT[command]).exists()
+                       and all(q.name in WRITES.get(command, ()) for q in out.iterdir()))
+        if interrupted:
+            print(f"resuming the finished tasks of {out / 'journal.jsonl'}")
+        elif out.is_dir() and any(out.iterdir()):
             if not overwrite:
                 raise ValueError(f"--out {out}: folder is not empty; pass --overwrite to replace what "
                                  f"'bayesid {command}' writes there")
@@ -368,24 +376,79 @@ def _fit(args) -> int:
     from .models import load_any_vehicle
     from .report import write_fit_report, write_json
 
+    import numpy as np
+
     if args.window is not None and not args.window > 0:
         raise ValueError(f"--window must be a positive number of seconds, not {args.window:g}")
-    out = _check_out(args.out, "fit", args.overwrite)
+    if args.starts < 0:
+        raise ValueError(f"--starts must be >= 0, not {args.starts}")
+    tasks.check_jobs(args.jobs, args.scheduler)
+    out = _check_out(args.out, "fit", args.overwrite, resumable=bool(args.starts))
     vehicle = load_any_vehicle(args.vehicle)
     free = _free_list(vehicle, args.free)
     got = _read_tracks([("--train", args.train)], vehicle)
     train = got["--train"]
-    res = msfit.identify(vehicle, train, free, _split_names(args.effects, "--effects"), window_s=args.window, dt=args.dt,
+    effects = _split_names(args.effects, "--effects")
+    channels = _split_names(args.fit_channels, "--fit-channels") or None
+    journal = None
+    if args.starts:
+        # finished starts survive a killed run: the same command resumes them
+        journal = tasks.Journal(out / "journal.jsonl", {
+            "command": "fit", "inputs": sorted(got["_sha256"].values()),
+            "vehicle": _provenance(vehicle, {})["vehicle_sha256"] or args.vehicle, "free": free,
+            "effects": effects, "window": args.window, "dt": args.dt, "max_nfev": args.max_nfev,
+            "weighting": args.weighting, "channels": channels, "start": args.start, "starts": args.starts,
+            "seed": args.seed, "prior": args.prior})
+    res = msfit.identify(vehicle, train, free, effects, window_s=args.window, dt=args.dt,
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
-                         weighting=args.weighting or None, channels=_split_names(args.fit_channels, "--fit-channels") or None,
-                         start=args.start)
+                         weighting=args.weighting or None, channels=channels, start=args.start,
+                         starts=args.starts, rng=np.random.default_rng(args.seed), jobs=args.jobs,
+                         scheduler=args.scheduler, journal=journal, prior=args.prior == "file")
     doc = msfit.model_document(res, _vehicle_ref(args.vehicle), [t.name for t in train],
                                provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
+    circles = None
+    if res["multistart"] is not None:
+        circles = _multistart_circles(res, doc, train)
     write_json(out / "model.json", doc)
     write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
+    if res["multistart"] is not None:
+        from .report import plots
+
+        (out / "figures").mkdir(parents=True, exist_ok=True)
+        plots.multistart(doc["multistart"], circles, out / "figures" / "multistart.png")
     print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
           f"wrote {out / 'model.json'}")
     return 0
+
+
+def _multistart_circles(res, doc, train, rudder_deg: float = 35.0, most: int = 6):
+    """35 deg turning circles (starboard) of the distinct near-best optima of a multistart fit,
+    from the training runs' approach speed and propeller rate; their advance and tactical
+    diameter go into ``doc["multistart"]["distinct_optima"]``. Returns [(label, x, y)] for the
+    figure, or None when the model cannot simulate a turn from these tracks (said in the doc)."""
+    import numpy as np
+
+    from .estimation import msfit
+
+    ms = doc["multistart"]
+    try:
+        u0, rps = msfit.approach_condition(train)
+    except ValueError as exc:
+        ms["turning_circle"] = {"error": str(exc)}
+        return None
+    ms["turning_circle"] = {"rudder_deg": rudder_deg, "side": "starboard", "speed_mps": u0, "rps": rps}
+    out = []
+    for k, opt in enumerate(ms["distinct_optima"][:most]):
+        p = np.array([opt["coefficients"][n] for n in doc["param_names"]])
+        tc = msfit.turning_circles(res["model"], p, None, 0, np.random.default_rng(0), u0, rps, rudder_deg)["starboard"]
+        opt["turning_circle"] = tc["predicted"]
+        S = tc["_S"][0]
+        out.append((f"optimum {k + 1}: cost +{100 * opt['relative_cost']:.2f} %, tactical diameter "
+                    f"{tc['predicted']['tactical_diameter_m']:.3g} m", S[:, 0], S[:, 1]))
+    td = [o["turning_circle"]["tactical_diameter_m"] for o in ms["distinct_optima"][:most]]
+    td = [v for v in td if v is not None and np.isfinite(v)]
+    ms["tactical_diameter_range_m"] = [min(td), max(td)] if td else None
+    return out
 
 
 def _predict(args) -> int:
@@ -471,6 +534,7 @@ def _diagnose(args) -> int:
     from .models import load_any_vehicle, model_class
     from .report import write_diagnosis
 
+    tasks.check_jobs(args.jobs, args.scheduler)
     _check_out(args.out, "diagnose", args.overwrite)
     vehicle = load_any_vehicle(args.vehicle)
     family = model_class(vehicle)
@@ -494,7 +558,8 @@ def _diagnose(args) -> int:
                        mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
                        max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
                        fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None,
-                       start=args.start, leadin_s=args.leadin if args.leadin > 0 else None, progress_bars=True)
+                       start=args.start, leadin_s=args.leadin if args.leadin > 0 else None, progress_bars=True,
+                       jobs=args.jobs, scheduler=args.scheduler)
     res.warnings = got["_warnings"]
     res.input_sha256 = got["_sha256"]
     write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
@@ -561,6 +626,7 @@ def main(argv=None) -> int:
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
     d.add_argument("--seed", type=int, default=0, help="random seed (noise-floor simulation, ensemble of the force-signature regression)")
     d.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
+    tasks.add_arguments(d)
     d.add_argument("--out", required=True, help="output folder")
     f = sub.add_parser("fit", formatter_class=fmt, help="identify a model on training tracks (multiple shooting)")
     f.add_argument("--vehicle", required=True, help="packaged id or TOML path (ship or submarine)")
@@ -575,6 +641,14 @@ def main(argv=None) -> int:
     f.add_argument("--fit-channels", default="", help="comma-separated scored channels in the objective, e.g. "
                    "x,y,psi when the logged u, v, r are derived from positions and heading (empty: all measured)")
     f.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
+    f.add_argument("--starts", type=int, default=0,
+                   help="extra Latin-hypercube starts of a multistart fit (the lowest cost is kept; the report shows "
+                   "how many reach it and how far apart the near-best optima are)")
+    f.add_argument("--seed", type=int, default=0, help="random seed of the multistart starts")
+    f.add_argument("--prior", choices=("file", "none"), default="file",
+                   help="file: Gaussian priors of the vehicle file's [prior] section (captive-test values with their "
+                   "error), a MAP fit; none: the data alone")
+    tasks.add_arguments(f)
     f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
     pp = sub.add_parser("predict", formatter_class=fmt, help="score a fitted model on tracks with the window protocol")
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")

@@ -18,11 +18,12 @@ Method
   candidate for a default.
 - Every fit starts from the equation-error seed (``bayesid.estimation.msfit.identify``) and is scored by the
   fixed window protocol (30 s and 60 s windows) on its split's held-out runs.
-- Each finished fit is saved in ``fits/`` with the key it depends on (data digest, split,
-  setting, evaluation budget) and a re-run reuses it only when the key matches (``--fresh``
-  starts over); fits run in parallel (``concurrent.futures``).
+- Fits are tasks of :mod:`bayesid.tasks` (``--jobs N`` worker processes, or ``--scheduler`` on
+  Dask); each finished fit is appended to ``journal.jsonl`` with the key it depends on (split,
+  setting, evaluation budget) under the data's digest, and a re-run reuses it (``--fresh``
+  starts over; a journal of other data or settings is refused).
 
-    python studies/fit_sensitivity.py [--quick] [--out DIR] [--data DIR] [--fresh] [--workers N]
+    python studies/fit_sensitivity.py [--quick] [--out DIR] [--data DIR] [--fresh] [--jobs N] [--scheduler ADDRESS]
 """
 from __future__ import annotations
 
@@ -31,12 +32,13 @@ import json
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bayesid.tasks import Journal, Task, TaskError, add_arguments, check_jobs, run_tasks  # noqa: E402
 ESSO_VALIDATION = ["random_06-Aug-2020_16_24_25_6", "turn_14-Oct-2020_15_06_53", "zigzag_31-Jul-2020_13_57_45",
                    "berthing_12-Nov-2020_11_38_50"]
 KVLCC2_VALIDATION = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
@@ -71,10 +73,15 @@ def parse_args():
     ap.add_argument("--out", default="reports/fit_sensitivity")
     ap.add_argument("--data", default=str(ROOT / ".." / "shared" / "data" / "real"))
     ap.add_argument("--seed", type=int, default=2026, help="unused: the fits are deterministic (kept for the contract)")
-    ap.add_argument("--fresh", action="store_true", help="ignore saved fits")
-    ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--fresh", action="store_true", help="start over: remove the journal of finished fits")
+    add_arguments(ap, jobs_default=os.cpu_count() or 1)
     ap.add_argument("--max-nfev", type=int, default=40)
-    return ap.parse_args()
+    args = ap.parse_args()
+    try:
+        check_jobs(args.jobs, args.scheduler)
+    except ValueError as exc:
+        ap.error(str(exc))
+    return args
 
 
 def load_runs(data: Path, dataset: str):
@@ -109,15 +116,6 @@ def fit_key(job: dict, digest: str) -> dict:
     return {"dataset": job["dataset"], "split": job["split"], "heldout": list(SPLITS[job["dataset"]][job["split"]]),
             "fit_window_s": window, "channels": list(channels) if channels else "all",
             "max_nfev": job["max_nfev"], "quick": bool(job["quick"]), "data_sha256": digest}
-
-
-def load_saved(path: Path) -> dict | None:
-    """A saved fit (None if absent or unreadable: then it is refitted). The caller reuses it
-    only if its ``key`` equals the job's :func:`fit_key`."""
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
 
 
 def split_runs(tracks, dataset: str, split: str):
@@ -282,7 +280,7 @@ def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | 
 
 def main() -> int:
     args = parse_args()
-    sys.path.insert(0, str(ROOT))
+    t_start = time.perf_counter()
     from bayesid.report import write_json, write_manifest
 
     data = Path(args.data)
@@ -291,37 +289,37 @@ def main() -> int:
         return 0
     out = Path(args.out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
-    fdir = out / "fits"
-    fdir.mkdir(exist_ok=True)
-    t_start = time.perf_counter()
     settings = [REFERENCE, "w30_xypsi"] if args.quick else list(SETTINGS)
     splits = {ds: (["validation"] if args.quick else list(sp)) for ds, sp in SPLITS.items()}
     nfev = min(args.max_nfev, 3) if args.quick else args.max_nfev
     jobs = [{"dataset": ds, "split": sp, "setting": st, "data": str(data), "quick": args.quick, "max_nfev": nfev}
             for ds in SPLITS for sp in splits[ds] for st in settings]
     digests = {ds: data_digest(data, ds) for ds in SPLITS}
-    fits, todo, stale = [], [], 0
+    journal_path = out / ("journal_quick.jsonl" if args.quick else "journal.jsonl")
+    if args.fresh and journal_path.exists():
+        journal_path.unlink()
+        print(f"--fresh: removed {journal_path}")
+    journal = Journal(journal_path, {"data_sha256": digests, "quick": bool(args.quick), "max_nfev": nfev})
+    tasks = []
     for j in jobs:
         j["key"] = fit_key(j, digests[j["dataset"]])
-        f = fdir / f"{j['dataset']}__{j['split']}__{j['setting']}{'__quick' if args.quick else ''}.json"
-        saved = None if args.fresh else load_saved(f)
-        if saved is not None and saved.get("key") == j["key"]:
-            fits.append(saved)
+        tasks.append(Task(f"{j['dataset']}__{j['split']}__{j['setting']}", j["key"], (j,)))
+    n_done = sum(journal.get(t) is not None for t in tasks)
+    print(f"{len(jobs)} fits, {len(jobs) - n_done} to run ({n_done} in {journal_path}) on "
+          f"{args.scheduler or f'{args.jobs} worker(s)'}", flush=True)
+
+    def done(task, r, seconds):
+        if isinstance(r, TaskError):
+            print(f"  {r}", flush=True)
         else:
-            stale += saved is not None
-            todo.append((j, f))
-    print(f"{len(jobs)} fits, {len(todo)} to run ({stale} saved with other data or settings, refitted), "
-          f"{args.workers} workers", flush=True)
-    if todo:
-        with ProcessPoolExecutor(max_workers=args.workers) as pool:
-            futs = {pool.submit(run_fit, j): (j, f) for j, f in todo}
-            for fu in as_completed(futs):
-                j, f = futs[fu]
-                r = fu.result()
-                write_json(f, r)
-                fits.append(r)
-                print(f"  {j['dataset']} {j['split']} {j['setting']}: 30 s {r['w30']:.3f} m, 60 s {r['w60']:.3f} m "
-                      f"({r['seconds']:.0f} s)", flush=True)
+            print(f"  {task.key}: 30 s {r['w30']:.3f} m, 60 s {r['w60']:.3f} m ({r['seconds']:.0f} s)", flush=True)
+
+    outs = run_tasks(run_fit, tasks, jobs=args.jobs, scheduler=args.scheduler, journal=journal, on_done=done)
+    failed = [r for r in outs if isinstance(r, TaskError)]
+    fits = [r for r in outs if not isinstance(r, TaskError)]
+    if failed:  # the summary needs every fit of a setting; say which failed and stop
+        print(f"{len(failed)} fit(s) failed; re-run to retry them (the finished ones are journaled)", file=sys.stderr)
+        return 1
     S = summarise(fits)
     fig = figure(S, out / "figures" / "scores_60s.png") if S else None
     write_json(out / "results.json", {"summary": S, "both_ships": overall(S), "settings": {k: {"fit_window_s": w, "channels": list(c) if c else "all"}
@@ -329,10 +327,17 @@ def main() -> int:
                                       "reference": REFERENCE, "splits": SPLITS, "quick": bool(args.quick),
                                       "max_nfev": nfev, "fits": sorted(fits, key=lambda f: (f["dataset"], f["split"], f["setting"]))})
     write_report(out, S, fits, args.quick, fig)
-    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t_start)
+    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t_start,
+                   extra={"journal": journal_path.name, "tasks_resumed_from_journal": n_done,
+                          "tasks_run": len(tasks) - n_done,
+                          "task_seconds_total": sum(r["seconds"] for r in journal.records.values())})
     print(f"wrote {out / 'report.md'}")
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except ValueError as e:  # a journal of other data or settings: a message, not a traceback
+        print(f"error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -19,7 +19,10 @@ Method
   +-25 % box as a Gaussian prior precision) is checked against the measured one: the spread of
   least-squares estimates over independent noise realisations on each manoeuvre.
 
-    python studies/manoeuvre_richness.py [--quick] [--out DIR] [--seed N]
+    python studies/manoeuvre_richness.py [--quick] [--out DIR] [--seed N] [--jobs N] [--scheduler ADDRESS]
+
+The Monte-Carlo fits are tasks of :mod:`bayesid.tasks` (``--jobs``, ``--scheduler``); their noise
+and starts are drawn in order before they run, so the results do not depend on where they run.
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifes
 from bayesid.models.simulate import Simulator
 from bayesid.data.track import Track
 from bayesid.data.vehicle import load_vehicle
+from bayesid.tasks import Task, TaskError, add_arguments, check_jobs, run_tasks
 
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}
 CHANNELS = ("x", "y", "psi")
@@ -60,7 +64,13 @@ def parse_args():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default="reports/manoeuvre_richness")
     ap.add_argument("--seed", type=int, default=2003)
-    return ap.parse_args()
+    add_arguments(ap)
+    args = ap.parse_args()
+    try:
+        check_jobs(args.jobs, args.scheduler)
+    except ValueError as exc:
+        ap.error(str(exc))
+    return args
 
 
 def mode_of(m) -> str:
@@ -100,18 +110,29 @@ def rms_position_error(sim, theta, truth_track) -> float:
     return float(np.sqrt(np.mean(e ** 2))) if np.all(np.isfinite(e)) else math.inf
 
 
-def monte_carlo_sd(vehicle, m, case, theta_true, n, rng, quick, w):
+def mc_fit(problem, p0, max_nfev: int) -> list:
+    """One Monte-Carlo realisation (a task): the least-squares estimate - 1 (relative units)."""
+    lo, hi = np.full(p0.size, 1 - BOUND), np.full(p0.size, 1 + BOUND)
+    return (fit_problem(problem, p0, (lo, hi), max_nfev=max_nfev).p - 1.0).tolist()
+
+
+def monte_carlo_sd(vehicle, m, case, theta_true, n, rng, quick, w, jobs=1, scheduler=None):
     """Spread of least-squares estimates over ``n`` noise realisations (relative units):
-    (per-coefficient sd (P,), sd along unit direction w)."""
+    (per-coefficient sd (P,), sd along unit direction w). The realisations are drawn here, in
+    order, and fitted as tasks (:mod:`bayesid.tasks`), so the result does not depend on where
+    they run."""
     clean = problem_for(vehicle, m, case.free, theta_true)
     truth = clean.sim.run(theta_true[None]).track(0)
-    est = []
-    for _ in range(n):
+    tasks = []
+    for i in range(n):
         pb = Problem(clean.sim, add_noise(truth, NOISE, rng), theta_true, channels=CHANNELS)
         p0 = 1.0 + rng.uniform(-0.1, 0.1, theta_true.size)
-        lo, hi = np.full(theta_true.size, 1 - BOUND), np.full(theta_true.size, 1 + BOUND)
-        est.append(fit_problem(pb, p0, (lo, hi), max_nfev=30 if quick else 150).p - 1.0)
-    E = np.array(est)
+        tasks.append(Task(f"mc{i:04d}", {"realisation": i}, (pb, p0, 30 if quick else 150)))
+    outs = run_tasks(mc_fit, tasks, jobs=jobs, scheduler=scheduler)
+    failed = [o for o in outs if isinstance(o, TaskError)]
+    if failed:
+        raise RuntimeError(f"{len(failed)} Monte-Carlo fit(s) failed; first: {failed[0]}")
+    E = np.array(outs)
     return E.std(axis=0, ddof=1), float((E @ w).std(ddof=1))
 
 
@@ -187,7 +208,7 @@ def main():
     design = {}
     n_mc = 4 if args.quick else 16
     sd_sp, dir_sp = monte_carlo_sd(vehicle, spiral_d, case2, theta, n_mc, np.random.default_rng([args.seed, 11]),
-                                   args.quick, w)
+                                   args.quick, w, args.jobs, args.scheduler)
     designs = {}
     for crit in ("D", "direction"):
         d = richness.design_multisine(vehicle, make, theta, NOISE, criterion=crit, direction=w,
@@ -199,7 +220,7 @@ def main():
         cr_sp = np.sqrt(np.diag(np.linalg.inv(met_sp["F"] + np.diag(prior))))
         cr_d = np.sqrt(np.diag(np.linalg.inv(met_d["F"] + np.diag(prior))))
         sd_d, dir_d = monte_carlo_sd(vehicle, d.manoeuvre, case2, theta, n_mc,
-                                     np.random.default_rng([args.seed, 12]), args.quick, w)
+                                     np.random.default_rng([args.seed, 12]), args.quick, w, args.jobs, args.scheduler)
         if crit == "D":   # geometric mean of the per-coefficient sds
             pred = float(np.exp(np.mean(np.log(cr_d / cr_sp))))
             meas = float(np.exp(np.mean(np.log(sd_d / sd_sp))))

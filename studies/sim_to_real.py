@@ -28,24 +28,26 @@ Method
   rule on the held-out tracks. A case's gap is *significant for the true model* when the fitted
   base model's held-out error exceeds 1.5 x the true model's: only there can any diagnosis see
   the effect, and top-1 is scored over those cases.
-- Cases run in parallel (``concurrent.futures``, one process per core); each finished case is
-  saved in ``cases/`` with the seed and settings it was made with, and a re-run with the same
-  ones skips it (``--fresh`` starts over; a case saved under other settings is re-run).
+- Cases are tasks of :mod:`bayesid.tasks` (``--jobs N`` worker processes, one per core by
+  default, or ``--scheduler tcp://HOST:PORT`` / ``local:N`` on Dask); each finished case is
+  appended to ``journal.jsonl`` under the seed and settings it was made with, and a re-run skips
+  it (``--fresh`` starts over; a journal of other settings is refused).
 
-    python studies/sim_to_real.py [--quick] [--out DIR] [--seed N] [--fresh] [--workers N]
+    python studies/sim_to_real.py [--quick] [--out DIR] [--seed N] [--fresh] [--jobs N] [--scheduler ADDRESS]
 """
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
+import sys
 import time
 import zlib
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
+
+from bayesid.tasks import Journal, Task, TaskError, add_arguments, check_jobs, run_tasks
 
 FREE = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
 DT, WINDOW = 0.5, 60.0
@@ -67,11 +69,13 @@ def parse_args():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default="reports/sim_to_real")
     ap.add_argument("--seed", type=int, default=2026)
-    ap.add_argument("--fresh", action="store_true", help="ignore saved cases")
-    ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--fresh", action="store_true", help="start over: remove the journal of finished cases")
+    add_arguments(ap, jobs_default=os.cpu_count() or 1)
     args = ap.parse_args()
-    if args.workers < 1:
-        ap.error(f"--workers must be at least 1, not {args.workers}")
+    try:
+        check_jobs(args.jobs, args.scheduler)
+    except ValueError as exc:
+        ap.error(str(exc))
     return args
 
 
@@ -204,9 +208,6 @@ def window_for(cfg: dict) -> float:
 
 def run_case(case: dict, seed: int, quick: bool) -> dict:
     """Generate the case's world tracks, diagnose them, return truth + diagnosis (JSON-able)."""
-    import numba
-
-    numba.set_num_threads(1)
     from bayesid.models import effects as ef
     from bayesid.analysis.gap import diagnose
     from bayesid.data.vehicle import load_vehicle
@@ -373,39 +374,32 @@ def main():
 
     t0 = time.perf_counter()
     out = prepare_out(args.out)
-    cdir = out / "cases"
-    cdir.mkdir(exist_ok=True)
     settings = {"seed": args.seed, "quick": args.quick, "version": VERSION}
     if args.quick:
         settings["quick_version"] = QUICK_VERSION
-    todo, results, stale = [], [], []
-    for case in case_list(args.quick):
-        f = cdir / f"{case['id']}.json"
-        saved = json.loads(f.read_text()) if f.exists() and not args.fresh else None
-        if saved is not None and saved.get("settings") == settings:
-            results.append(saved)
-        else:
-            if saved is not None:
-                stale.append(case["id"])
-            todo.append(case)
-    # a saved case from another case list (e.g. the previous benchmark design) is not reported
-    listed = {c["id"] for c in case_list(args.quick)}
-    dropped = sorted(p.stem for p in cdir.glob("*.json") if p.stem not in listed)
-    print(f"{len(results)} case(s) resumed, {len(todo)} to run on {args.workers} worker(s)"
-          + (f"; re-running {len(stale)} saved under other settings" if stale else "")
-          + (f"; {len(dropped)} saved case(s) not in this case list are ignored" if dropped else ""), flush=True)
-    if todo:
-        with ProcessPoolExecutor(max_workers=args.workers) as pool:
-            futs = {pool.submit(run_case, c, args.seed, args.quick): c for c in todo}
-            for fut in as_completed(futs):
-                r = fut.result()
-                r["settings"] = settings
-                write_json(cdir / f"{r['case']['id']}.json", r)
-                results.append(json.loads((cdir / f"{r['case']['id']}.json").read_text()))
-                d = r["diagnosis"]
-                print(f"  {r['case']['id']:24s} -> {d['verdict']:22s} held-out {d['gap_before']['heldout_rms_m']:.2f}"
-                      f" -> {d['gap_after']['heldout_rms_m']:.2f} m (true {r['oracle']['heldout_rms_m']:.2f}, floor "
-                      f"{d['noise_floor']['heldout_rms_m']:.2f}; {r['seconds']:.0f} s)", flush=True)
+    journal_path = out / "journal.jsonl"
+    if args.fresh and journal_path.exists():
+        journal_path.unlink()
+        print(f"--fresh: removed {journal_path}")
+    journal = Journal(journal_path, settings)
+    cases = case_list(args.quick)
+    tasks = [Task(c["id"], c, (c, args.seed, args.quick)) for c in cases]
+    n_done = sum(journal.get(t) is not None for t in tasks)
+    print(f"{n_done} case(s) resumed from {journal_path}, {len(tasks) - n_done} to run on "
+          f"{args.scheduler or f'{args.jobs} worker(s)'}", flush=True)
+
+    def done(task, r, seconds):
+        if isinstance(r, TaskError):
+            print(f"  {r}", flush=True)
+            return
+        d = r["diagnosis"]
+        print(f"  {r['case']['id']:24s} -> {d['verdict']:22s} held-out {d['gap_before']['heldout_rms_m']:.2f}"
+              f" -> {d['gap_after']['heldout_rms_m']:.2f} m (true {r['oracle']['heldout_rms_m']:.2f}, floor "
+              f"{d['noise_floor']['heldout_rms_m']:.2f}; {r['seconds']:.0f} s)", flush=True)
+
+    outs = run_tasks(run_case, tasks, jobs=args.jobs, scheduler=args.scheduler, journal=journal, on_done=done)
+    failed = [r for r in outs if isinstance(r, TaskError)]
+    results = [r for r in outs if not isinstance(r, TaskError)]
     order = {c["id"]: i for i, c in enumerate(case_list(args.quick))}
     results.sort(key=lambda r: order.get(r["case"]["id"], 1e9))
     summ = summarise(results)
@@ -422,12 +416,16 @@ def main():
                       "sindy_support": r["diagnosis"]["sindy_support"], "seconds": r["seconds"],
                       "thresholds": r["diagnosis"]["thresholds"]}
                      for r in results]
+    summ["failed_cases"] = [{"id": f.key, "error": f.error} for f in failed]
     summ["settings"] = {"free": FREE, "dt": DT, "window_s": WINDOW, "quick": args.quick, "seed": args.seed,
                         "significant_for_true_model": SIGNIFICANT, "version": VERSION}
     write_json(out / "results.json", summ)
     plots.confusion_matrix(summ["confusion"], out / "figures" / "confusion.png")
     write_report(out, summ, args)
-    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t0)
+    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t0,
+                   extra={"journal": journal_path.name, "tasks_resumed_from_journal": n_done,
+                          "tasks_run": len(tasks) - n_done,
+                          "task_seconds_total": sum(r["seconds"] for r in journal.records.values())})
     o = summ["overall"]
     print(f"top-1 {o['top1_accuracy']} (log {summ['with_velocity_log']['top1_accuracy']}, no log "
           f"{summ['without_velocity_log']['top1_accuracy']}), shrinkage ratio {o['shrinkage_ratio_to_true_model']}, "
@@ -487,7 +485,9 @@ def write_report(out: Path, s: dict, args) -> None:
         + ", ".join(f"{d['id']} -> {d['verdict']}{'' if d['visible'] else ' (not visible)'}"
                     for d in s["open_set_verdicts"]) + ".",
         "- Pairs: " + "; ".join(f"{'+'.join(d['truth'])} -> {d['verdict']} (shrinkage {fmt(d['heldout_shrinkage'])}, "
-                                f"true model {fmt(d['true_model_shrinkage'])})" for d in s["pairs"]) + ".", ""]
+                                f"true model {fmt(d['true_model_shrinkage'])})" for d in s["pairs"]) + ".",
+        "- Cases that failed (not scored; re-run to retry them): "
+        + (", ".join(f"{f['id']} ({f['error']})" for f in s["failed_cases"]) or "none") + ".", ""]
     text = [
         "# Sim-to-real gap diagnosis: withheld-effect benchmark on user-shaped logs", "",
         ("**Quick run** (small subset; the committed report is the full run)." if args.quick else
@@ -526,4 +526,8 @@ def write_report(out: Path, s: dict, args) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ValueError as e:  # a journal of another run, a bad option: a message, not a traceback
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(2)

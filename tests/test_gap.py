@@ -338,10 +338,16 @@ def test_sim_to_real_quick_writes_results(tmp_path):
         assert c["logging"]["clock_start_s"] > 0 and c["start_rule"] == ("measured" if c["logging"]["velocity_log"]
                                                                           else "fitted")
     assert (out / "report.md").exists() and (out / "manifest.json").exists()
-    # a re-run resumes the saved cases; another seed does not reuse them
+    # a re-run resumes the journaled cases and reports the same; another seed is refused, naming it
+    before = (out / "results.json").read_text()
     r = subprocess.run([sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out)],
                        capture_output=True, text=True, timeout=900)
-    assert r.returncode == 0 and "4 case(s) resumed, 0 to run" in r.stdout, r.stdout + r.stderr[-2000:]
+    assert r.returncode == 0 and "4 case(s) resumed from" in r.stdout and ", 0 to run" in r.stdout, \
+        r.stdout + r.stderr[-2000:]
+    assert (out / "results.json").read_text() == before
+    r = subprocess.run([sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out),
+                        "--seed", "7"], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 2 and "seed: journal 2026, this run 7" in r.stderr and "Traceback" not in r.stderr
 
 
 def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scenario):

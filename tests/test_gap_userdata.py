@@ -216,3 +216,23 @@ def test_fit_and_predict_commands_fit_the_window_starts_without_a_velocity_log(v
         runs[rule] = json.loads((tmp_path / rule / "predict.json").read_text())
     assert runs["auto"]["start_rule"] == "fitted" and runs["auto"]["leadin_s"] == 10.0
     assert runs["auto"]["pooled"]["rms_position_m"] < 0.6 < 3 * 0.6 < runs["measured"]["pooled"]["rms_position_m"]
+
+
+def test_candidates_fitted_by_two_workers_give_the_serial_diagnosis(veh):
+    """Issue 32: diagnose(jobs=2) fits each round's candidates in worker processes; the verdict,
+    ranking and every number equal the serial run's (timings aside)."""
+    train, held = user_world(veh, {"current": {"current_north_mps": 0.1, "current_east_mps": 0.12}}, 3,
+                             n_train=2, n_held=2, duration=120.0)
+    runs = {}
+    for jobs in (1, 2):
+        d = gap.diagnose(veh, FREE, train, held, candidates=["current", "thrust", "delay", "sensor_bias"],
+                         window_s=30.0, max_nfev=15, rng=np.random.default_rng(0), jobs=jobs).to_dict()
+        d.pop("seconds")
+        for rows in [d["ranking"]] + d["rounds"]:
+            for r in rows:
+                r.pop("fit_seconds", None)
+        runs[jobs] = json.dumps(d, sort_keys=True, default=float)
+    assert json.loads(runs[1])["verdict"] == "current"
+    assert runs[1] == runs[2]
+    with pytest.raises(ValueError, match="jobs must be at least 1"):
+        gap.diagnose(veh, FREE, train, held, jobs=0)

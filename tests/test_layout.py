@@ -10,8 +10,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "bayesid"
-#: layers in data-flow order; a module may import its own layer and the ones before it
-LAYERS = ["data", "protocol", "models", "estimation", "analysis", "report", "cases", "cli"]
+#: layers in data-flow order (the task layer under all); a module may import its own layer and the ones before it
+LAYERS = ["tasks", "data", "protocol", "models", "estimation", "analysis", "report", "cases", "cli"]
 
 
 def _modules():

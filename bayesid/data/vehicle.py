@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import terms
+from .priors import parse_prior_section
 
 
 class VehicleFileError(ValueError):
@@ -105,6 +106,9 @@ class Vehicle:
     nominal_rpm: float = 0.0
     source: dict = field(default_factory=dict)
     path: str = ""
+    #: {name: (mean, sd)} Gaussian priors of the file's ``[prior]`` section, and their source
+    prior: dict = field(default_factory=dict)
+    prior_source: str = ""
 
     @property
     def file_path(self) -> str:
@@ -213,6 +217,17 @@ def _finite(path, section, key, value):
     return value
 
 
+class _KnownTerms:
+    """Membership test of the term library for a ``[prior]`` section (any product it can build)."""
+
+    def __contains__(self, name) -> bool:
+        try:
+            terms.term(name)
+        except (terms.UnknownCoefficientError, KeyError, ValueError):
+            return False
+        return True
+
+
 def packaged_vehicles() -> list[str]:
     """Ids of the vehicle files shipped with the package."""
     root = resources.files("bayesid") / "vehicles"
@@ -315,6 +330,7 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
         crossflow = Crossflow(cf["Cdy"], cf["Cdz"], cf["height_m"], cf["breadth_m"], xs,
                               np.full(xs.shape, float(cf["dx_m"])))
         model = cf.get("model", "polynomial")
+    prior, prior_source = parse_prior_section(doc.get("prior", {}), p, coeffs, _KnownTerms(), VehicleFileError)
     L = float(v["length_m"])
     propulsion = Propulsion(float(prop["uc_per_omega"]), float(prop["CT_coeff"]))
     rpm = float(v.get("max_rpm", lim["rpm_max"]))
@@ -327,6 +343,7 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
         crossflow_model="polynomial",
         nominal_speed=float(v.get("nominal_speed_mps", propulsion.uc_per_omega * rpm * math.pi / 30)),
         nominal_rpm=rpm, source=copy.deepcopy(doc.get("source", {})), path=str(p),
+        prior=prior, prior_source=prior_source,
     )
     if model == "integral":
         veh = veh.with_crossflow("integral")

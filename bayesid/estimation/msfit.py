@@ -34,6 +34,7 @@ from . import shooting
 from . import windows as wf
 from .fit import FitResult
 from .laplace import gauss_newton_covariance
+from .multistart import multistart
 from ..protocol import pooled_scores, resolve_start, start_settings
 from ..data.track import Track
 from ..models import build_model, load_any_vehicle
@@ -63,22 +64,57 @@ def _ar1_inflation(fitres: FitResult, ctxs) -> float:
     return float(min((1 + rho) / (1 - rho), per_window))
 
 
-def laplace_covariance(fitres: FitResult, ctxs) -> tuple[np.ndarray, dict]:
-    """(n_params, n_params) Laplace covariance of the fitted parameters (module docstring)."""
-    J = fitres.jac[:, :fitres.model.n_params]
+def laplace_covariance(fitres: FitResult, ctxs, prior: wf.GaussianPrior | None = None,
+                       data_scale: tuple | None = None) -> tuple[np.ndarray, dict]:
+    """(n_params, n_params) Laplace covariance of the fitted parameters (module docstring).
+
+    Without a prior: ``(J^T J)^+ * s2 * inflation`` with ``s2 = SSR / (n - k)`` and the AR(1)
+    inflation of the residuals. With a ``prior`` (whose residuals end the fit's residual vector,
+    weighted by ``sqrt(s2 * inflation)``; ``data_scale = (s2, inflation)`` of the fit without
+    it): ``(J_d^T J_d / (s2 * inflation) + diag(1 / sd^2))^-1``, the Gaussian posterior of a
+    likelihood whose samples count ``1 / inflation`` each."""
+    n = fitres.model.n_params
+    J = fitres.jac[:, :n]
     J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
-    k = J.shape[1]
-    s2 = fitres.cost / max(fitres.n_residuals - k, 1)
-    infl = _ar1_inflation(fitres, ctxs)
-    cov = gauss_newton_covariance(J, residual_variance=s2, inflation=infl)
+    if prior is not None:
+        J = J[:J.shape[0] - prior.idx.size]  # the data rows
+        s2, infl = data_scale
+        cov = psd_covariance(gauss_newton_covariance(J / math.sqrt(s2 * infl), prior_precision=prior.precision(n)))
+    else:
+        s2 = fitres.cost / max(fitres.n_residuals - J.shape[1], 1)
+        infl = _ar1_inflation(fitres, ctxs)
+        cov = psd_covariance(gauss_newton_covariance(J, residual_variance=s2, inflation=infl))
     sv = np.linalg.svd(J, compute_uv=False)
     return cov, {"residual_variance": s2, "ar1_inflation": infl,
-                 "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")}
+                 "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
+                 "weak_directions": weak_directions(J, fitres.model.scales())}
+
+
+def psd_covariance(cov) -> np.ndarray:
+    """The symmetric positive semi-definite form of a covariance: its symmetric part with the
+    eigenvalues below zero (round-off of an ill-conditioned Gauss-Newton inverse) set to zero.
+    What ``fit`` writes is what ``predict`` reads (:func:`load_model`)."""
+    C = 0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T)
+    lam, V = np.linalg.eigh(C)
+    C = (V * np.clip(lam, 0.0, None)) @ V.T
+    return 0.5 * (C + C.T)
+
+
+def weak_directions(J, scales, k: int = 3) -> list:
+    """The ``k`` directions of parameter space the residuals constrain least: eigenvectors of
+    ``(J D)^T (J D)`` with ``D = diag(scales)`` (parameters in units of their typical size), the
+    smallest eigenvalue first. Each: ``{"eigenvalue", "vector"}`` (unit vector over the
+    parameters, in scaled units), labelled by the report layer
+    (:class:`bayesid.analysis.identifiability.Direction`)."""
+    Js = np.asarray(J, float) * np.abs(np.asarray(scales, float))[None, :]
+    lam, V = np.linalg.eigh(Js.T @ Js)
+    return [{"eigenvalue": float(lam[i]), "vector": V[:, i].tolist()} for i in range(min(k, lam.size))]
 
 
 def identify(vehicle, train, free=None, effects=(), window_s: float | None = None, dt: float | None = None,
              max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None,
-             channels=None, start: str = "auto") -> dict:
+             channels=None, start: str = "auto", starts: int = 0, rng=None, jobs: int = 1,
+             scheduler: str | None = None, journal=None, prior: bool = True) -> dict:
     """Identify the free coefficients (and effect parameters) on training tracks.
 
     Parameters
@@ -100,12 +136,24 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
         positions and heading and add no independent information).
     start : window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"``: the start
         states of the windows are fitted with the coefficients when a track does not log u, v, r).
+    starts : extra Latin-hypercube starts of a multistart fit (0: the default start alone;
+        :func:`bayesid.estimation.multistart.multistart`, with the default fit's weights). The
+        lowest cost is kept. ``rng`` (Generator) draws the starts; ``jobs``, ``scheduler`` and
+        ``journal`` run them (:func:`bayesid.tasks.run_tasks`).
+    prior : use the vehicle file's ``[prior]`` section (Gaussian priors, e.g. captive-test values
+        with their error) when it has one: after the fit without it, a MAP fit
+        (:class:`~bayesid.estimation.windows.GaussianPrior`) whose data residuals count as
+        ``1 / inflation`` independent samples each (the AR(1) inflation of the first fit's
+        residuals, at most the samples per window), and the Laplace covariance of that posterior.
 
     Returns
     -------
     dict: ``model`` (the simulation model), ``fit`` (:class:`~bayesid.estimation.fit.FitResult`), ``cov``,
     ``posterior`` (Laplace summary), ``seed`` (summary), ``noise_sd``, ``fit_sd`` (the sds of
-    the final weights), ``train_scores``.
+    the final weights), ``train_scores``, ``multistart`` (a
+    :class:`~bayesid.estimation.multistart.MultistartResult` or None), ``prior`` (whether the
+    file's priors were used; per coefficient mean, sd, identified value, z-score with and without
+    the prior, posterior sd; the names the data ``moved`` beyond 1 prior sd and ``beyond_3sd``).
 
     Raises
     ------
@@ -154,10 +202,46 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     weighting = weighting or model.DEFAULT_WEIGHTING
     f, sd_fit = wf.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels,
                                  progress="fit" if progress is not None else None)
-    cov, post = laplace_covariance(f, ctxs)
+    ms = None
+    if starts:
+        say(f"multistart: {starts} more start(s) on {scheduler or f'{jobs} worker(s)'}")
+        dflt = {"p": f.p.tolist(), "cost": float(f.cost), "success": bool(f.success), "nfev": int(f.n_simulations),
+                "message": str(f.message)}
+        ms = multistart(model, ctxs, sd_fit, p0, starts, np.random.default_rng(0) if rng is None else rng,
+                        max_nfev=max_nfev, channels=channels, default_fit=dflt, jobs=jobs, scheduler=scheduler,
+                        journal=journal, progress="starts" if progress is not None else None)
+        if ms.best != 0:  # the best optimum again in this process, for its Jacobian (few evaluations)
+            f = wf.fit_model(model, ctxs, sd_fit, np.asarray(ms.fits[ms.best]["p"]), max_nfev=max_nfev,
+                             channels=channels)
+    gp, prior_info = wf.GaussianPrior.of_model(model) if prior else None, {"used": False}
+    if gp is not None and gp.idx.size:
+        # the prior weighs against the data as a likelihood whose samples count 1 / inflation each
+        # (serially correlated residuals), with the residual variance of the fit without it
+        s2 = f.cost / max(f.n_residuals - model.n_params, 1)
+        infl = _ar1_inflation(f, ctxs)
+        gp = wf.GaussianPrior(gp.names, gp.idx, gp.mean, gp.sd, math.sqrt(s2 * infl))
+        say(f"MAP fit with the vehicle file's priors on {len(gp.names)} coefficient(s)")
+        f0 = f
+        f = wf.fit_model(model, ctxs, sd_fit, f.p, f.nuisance, max_nfev=max_nfev, channels=channels, prior=gp,
+                         progress="fit with prior" if progress is not None else None)
+        cov, post = laplace_covariance(f, ctxs, gp, (s2, infl))
+        z = (f.p[gp.idx] - gp.mean) / gp.sd
+        z0 = (f0.p[gp.idx] - gp.mean) / gp.sd
+        prior_info = {"used": True, "source": getattr(model.vehicle, "prior_source", ""),
+                      "data_weight_sd": gp.weight, "residual_variance": s2, "ar1_inflation": infl,
+                      "coefficients": {n: {"mean": float(m), "sd": float(d), "identified": float(f.p[i]),
+                                           "z": float(zz), "z_without_prior": float(zz0),
+                                           "posterior_sd": float(math.sqrt(max(cov[i, i], 0.0)))}
+                                       for n, i, m, d, zz, zz0 in zip(gp.names, gp.idx, gp.mean, gp.sd, z, z0)},
+                      "moved": [n for n, zz in zip(gp.names, z) if abs(zz) > 1.0],
+                      "beyond_3sd": [n for n, zz in zip(gp.names, z) if abs(zz) > 3.0]}
+    else:
+        cov, post = laplace_covariance(f, ctxs)
+        gp = None
     return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
             "fit_sd": sd_fit, "weighting": weighting, "channels": channels, "start_rule": rule,
-            "train_scores": wf.scores(model, f, ctxs), "window_s": window_s, "p0": p0}
+            "train_scores": wf.scores(model, f, ctxs), "window_s": window_s, "p0": p0, "multistart": ms,
+            "prior": prior_info}
 
 
 def model_document(res: dict, vehicle_ref: str, train_names, provenance: dict | None = None) -> dict:
@@ -178,6 +262,9 @@ def model_document(res: dict, vehicle_ref: str, train_names, provenance: dict | 
            "train_runs": list(train_names), "train_scores": res["train_scores"], "provenance": provenance or {},
            "fit": {"ssr": f.cost, "n_residuals": f.n_residuals, "nfev": f.n_simulations, "success": f.success,
                    "message": f.message, "seconds": f.wall_s, "bic": f.bic}}
+    if res.get("multistart") is not None:
+        doc["multistart"] = res["multistart"].to_dict()
+    doc["prior"] = res.get("prior") or {"used": False}
     return doc
 
 
@@ -219,10 +306,15 @@ def load_model(path):
     if cov.shape != (n, n) or not np.all(np.isfinite(cov)):
         raise ValueError(f"{path}: 'cov' must be a finite {n} x {n} matrix, got shape {cov.shape}"
                          + ("" if cov.shape != (n, n) else " with non-finite entries"))
-    if not np.allclose(cov, cov.T, rtol=1e-8, atol=0.0) or np.linalg.eigvalsh(0.5 * (cov + cov.T)).min() < \
-            -1e-8 * max(float(np.abs(np.diag(cov)).max()), 1e-300):
-        raise ValueError(f"{path}: 'cov' is not a symmetric positive semi-definite matrix (edited?)")
-    return model, p, cov, doc
+    # round-off of an ill-conditioned inverse (relative asymmetry ~1e-7, eigenvalues ~-1e-9 of
+    # the largest) is not an edit; an asymmetry or a negative eigenvalue beyond 1e-6 is
+    big = max(float(np.abs(cov).max()), 1e-300)
+    lam = np.linalg.eigvalsh(0.5 * (cov + cov.T))
+    if np.abs(cov - cov.T).max() > 1e-6 * big or lam.min() < -1e-6 * max(float(lam.max()), 1e-300):
+        raise ValueError(f"{path}: 'cov' is not a symmetric positive semi-definite matrix (edited?): relative "
+                         f"asymmetry {np.abs(cov - cov.T).max() / big:.2g}, smallest/largest eigenvalue "
+                         f"{lam.min() / max(float(lam.max()), 1e-300):.2g}")
+    return model, p, psd_covariance(cov), doc
 
 
 def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadin_s: float | None = None) -> dict:
@@ -427,6 +519,27 @@ def predictive_band(draws: list, keys) -> tuple[dict, dict]:
         band[k] = [float(np.percentile(vals, 5)), float(np.percentile(vals, 95))] if vals.size >= 3 else None
         n[k] = int(vals.size)
     return band, n
+
+
+def approach_condition(tracks, first_s: float = 5.0) -> tuple[float, float]:
+    """(speed m/s, propeller rev/s) of the tracks' approach: medians over the first ``first_s``
+    seconds of every track of the speed (from ``u, v`` when logged, else the positions'
+    differences) and of ``n`` (rpm / 60). The condition a predicted turning circle starts from.
+    Raises ValueError when no track has ``n``."""
+    speeds, rps = [], []
+    for tr in tracks:
+        k = np.asarray(tr.t) <= tr.t[0] + first_s
+        if "u" in tr and np.isfinite(tr["u"][k]).any():
+            v = tr["v"][k] if "v" in tr else 0.0
+            speeds.append(np.hypot(tr["u"][k], v))
+        elif k.sum() >= 2:
+            speeds.append(np.hypot(np.diff(tr["x"][k]), np.diff(tr["y"][k])) / np.diff(tr.t[k]))
+        if "n" in tr:
+            rps.append(np.asarray(tr["n"][k], float) / 60.0)
+    if not rps:
+        raise ValueError("approach_condition: no track logs the propeller speed n")
+    sp = np.concatenate([np.atleast_1d(s) for s in speeds]) if speeds else np.array([np.nan])
+    return float(np.nanmedian(sp)), float(np.nanmedian(np.concatenate(rps)))
 
 
 def turning_circles(model, p, cov, n_draws: int, rng, speed_mps: float, rps: float, rudder_deg: float = 35.0,

@@ -18,6 +18,7 @@ a fitted model (:func:`scores`, :func:`window_rms`), the pooled noise sds and th
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,7 +27,7 @@ from . import shooting
 from ..protocol import CHANNELS, estimate_noise, pooled_scores
 from .fit import FitResult, fit
 
-__all__ = ["WindowObjective", "fit_model", "fit_weighted", "heldout_nuisance", "residual_sd", "scores",
+__all__ = ["WindowObjective", "GaussianPrior", "fit_model", "fit_weighted", "heldout_nuisance", "residual_sd", "scores",
            "window_rms", "window_residuals", "channel_weights", "check_channels", "pooled_noise_sd",
            "check_enough_data", "MIN_SAMPLES_PER_PARAMETER", "PENALTY"]
 
@@ -100,8 +101,9 @@ class WindowObjective:
     sim_seconds = float("nan")
 
     def __init__(self, model, ctxs, sd: dict, p0=None, nuisance0=None, fit_nuisance_only: bool = False,
-                 channels=None):
+                 channels=None, prior: GaussianPrior | None = None):
         self.model, self.ctxs = model, list(ctxs)
+        self.prior = prior if prior is not None and not fit_nuisance_only and prior.idx.size else None
         self.p0 = model.start() if p0 is None else np.asarray(p0, float)
         nn = self.nn = model.n_nuisance
         T = self.T = len(self.ctxs)
@@ -162,8 +164,12 @@ class WindowObjective:
         P, nus = self.split_rows(X)
         if self.vp and starts is None:
             starts = self._fit_starts(P, nus)
-        R = window_residuals(self.model, self.ctxs, self.wts, P, nus, starts)
+        R = self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, starts), P)
         return R, np.zeros(R.shape[0], dtype=bool)
+
+    def _with_prior(self, R, P):
+        """The data residuals followed by the prior's (:class:`GaussianPrior`), when there is one."""
+        return R if self.prior is None else np.hstack([R, self.prior.residuals(P)])
 
     def residuals(self, x):
         """(n_res,) residuals at ``x`` (fitted start states warm-started and remembered for the
@@ -173,7 +179,7 @@ class WindowObjective:
         P, nus = self.split_rows(x[None])
         st = self._fit_starts(P, nus, want_jac=True)
         self._last["x"], self._last["starts"] = x.copy(), st
-        return window_residuals(self.model, self.ctxs, self.wts, P, nus, st)[0], False
+        return self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, st), P)[0], False
 
     def jacobian(self, x, r0=None):
         """(residuals at ``x``, forward-difference Jacobian (n_res, n)) from one batched
@@ -214,8 +220,50 @@ class WindowObjective:
                 "k": self.model.n_params + sum(len(v) for v in nuisance) + self.n_starts}
 
 
+@dataclass(frozen=True)
+class GaussianPrior:
+    """Independent Gaussian priors on some parameters of a model, as least-squares residuals
+    ``weight * (p[idx] - mean) / sd`` appended to a fit's data residuals: the fit then minimises
+    ``SSR + weight^2 * sum(z^2)``, the negative log posterior times ``2 * weight^2`` when the data
+    residuals have variance ``weight^2`` (the residual variance times the serial-correlation
+    inflation of the fit, :func:`bayesid.estimation.msfit.identify`).
+
+    Attributes
+    ----------
+    names : (K,) parameter names.   idx : (K,) their indices in the model's parameter vector.
+    mean, sd : (K,) prior means and standard deviations.   weight : residual sd of the data.
+    """
+
+    names: tuple
+    idx: np.ndarray
+    mean: np.ndarray
+    sd: np.ndarray
+    weight: float = 1.0
+
+    @classmethod
+    def of_model(cls, model, weight: float = 1.0) -> "GaussianPrior":
+        """The priors of the model's vehicle file (``vehicle.prior``, the ``[prior]`` section) on
+        the model's free parameters (effect parameters have none)."""
+        pri = getattr(model.vehicle, "prior", {}) or {}
+        names = [n for n in model.param_names if n in pri]
+        idx = np.array([model.param_names.index(n) for n in names], dtype=int)
+        return cls(tuple(names), idx, np.array([pri[n][0] for n in names], float),
+                   np.array([pri[n][1] for n in names], float), float(weight))
+
+    def residuals(self, P) -> np.ndarray:
+        """(B, K) prior residuals of (B, n_params) parameter rows."""
+        return self.weight * (np.atleast_2d(P)[:, self.idx] - self.mean) / self.sd
+
+    def precision(self, n_params: int) -> np.ndarray:
+        """(n_params,) prior precision ``1 / sd^2`` (0 where a parameter has no Gaussian prior)."""
+        out = np.zeros(n_params)
+        out[self.idx] = 1.0 / self.sd ** 2
+        return out
+
+
 def fit_model(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60,
-              fit_nuisance_only: bool = False, channels=None, progress: str | None = None) -> FitResult:
+              fit_nuisance_only: bool = False, channels=None, progress: str | None = None,
+              prior: GaussianPrior | None = None) -> FitResult:
     """Least-squares fit of a model's parameters (and per-track nuisances) to tracks: the
     :class:`WindowObjective` minimised by :func:`bayesid.estimation.fit.fit` (trust-region
     reflective, ``xtol = ftol = gtol = 1e-8``, variables scaled by ``model.scales()``, a
@@ -228,13 +276,14 @@ def fit_model(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60
     fit_nuisance_only : keep ``p0`` fixed and fit only the nuisances (held-out tracks).
     channels : the scored channels in the objective (default: all the tracks measure).
     progress : a label to show a progress bar (tqdm, on stderr) of the evaluations with it.
+    prior : :class:`GaussianPrior` whose residuals are appended to the data's (a MAP fit).
 
     Returns a :class:`~bayesid.estimation.fit.FitResult` (``p``, ``nuisance``, ``cost`` the
     noise-scaled SSR, ``k``, ``bic``, ``n_simulations``, ``jac``).
 
     Raises ValueError for an unknown channel or a track that measures none of ``channels``.
     """
-    ob = WindowObjective(model, ctxs, sd, p0, nuisance0, fit_nuisance_only, channels)
+    ob = WindowObjective(model, ctxs, sd, p0, nuisance0, fit_nuisance_only, channels, prior)
     if ob.x0.size == 0:
         r = ob.residuals(ob.x0)[0]
         res = FitResult("none", [], ob.x0, float(r @ r), float(r @ r), True, "nothing to fit", n_simulations=1,

@@ -73,7 +73,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
@@ -84,6 +84,7 @@ from . import inverse, shipgen
 from .interface import ParameterLayout
 from .effects import Effect, SensorLag, delay_starts, drift_seed, drift_starts, signature_dict
 from ..protocol import wrap
+from ..data.priors import parse_prior_section
 from ..data.track import Track
 from ..data.vehicle import VehicleFileError
 
@@ -115,7 +116,10 @@ BOUNDS = {"mx": (0.0, 0.5), "my": (0.0, 1.5), "Jz": (0.0, 0.2), "Xuu": (-0.2, 0.
 #: Coefficients that enter the forces linearly (the equation-error seed regresses these).
 LINEAR = ("Xuu", "Xvv", "Xvr", "Xrr", "Yv", "Yr", "Nv", "Nr", "Ycf", "Ncf", "Yvvr", "Yvrr", "Nvvr", "Nvrr") + WIND
 
-_GX, _GW = np.polynomial.legendre.leggauss(16)
+#: Gauss-Legendre nodes (on [-1, 1]) and weights of the hull cross-flow integral, 16 points: the
+#: stations are ``x = h * GAUSS_X`` with ``h`` the half length (see ``_forces``). Shared by the
+#: interpreted kernels here and the generated one (:mod:`bayesid.models.shipgen`).
+GAUSS_X, GAUSS_W = np.polynomial.legendre.leggauss(16)
 
 
 class ShipFileError(VehicleFileError):
@@ -139,6 +143,9 @@ class Ship:
     description: str = ""
     source: str = ""
     kind: str = "ship3dof"
+    #: {name: (mean, sd)} Gaussian priors of the file's ``[prior]`` section, and their source
+    prior: dict = field(default_factory=dict)
+    prior_source: str = ""
 
     @property
     def file_path(self) -> str:
@@ -192,8 +199,8 @@ class Ship:
         for k in values:
             if k not in COEFFICIENTS:
                 raise KeyError(f"unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
-        return Ship(self.id, dict(self.particulars), dict(self.coefficients, **values), dict(self.wind_start),
-                    list(self.free), self.description, self.source)
+        return replace(self, particulars=dict(self.particulars), coefficients=dict(self.coefficients, **values),
+                       wind_start=dict(self.wind_start), free=list(self.free), prior=dict(self.prior))
 
 
 def empirical_added_mass(p: dict) -> dict:
@@ -303,7 +310,10 @@ def load_ship(path_or_id) -> Ship:
     v = doc["vehicle"]
     if v.get("kind") != "ship3dof":
         raise ShipFileError(f"{p}: [vehicle] kind = {v.get('kind')!r}; a ship file has kind = \"ship3dof\"")
-    return Ship(str(v.get("id", p.stem)), part, coef, wind, free, str(v.get("description", "")), str(p))
+    prior, prior_source = parse_prior_section(doc.get("prior", {}), p, coef,
+                                              [c for c in COEFFICIENTS if c not in WIND], ShipFileError)
+    return Ship(str(v.get("id", p.stem)), part, coef, wind, free, str(v.get("description", "")), str(p),
+                prior=prior, prior_source=prior_source)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -429,7 +439,7 @@ def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status):
     starts[w] + w ... starts[w+1] + w); status (B, W) 0 ok, 1 diverged (rest of window NaN).
     """
     B, W = s0.shape[0], s0.shape[1]
-    gx, gw = _GX, _GW
+    gx, gw = GAUSS_X, GAUSS_W
     for job in nb.prange(B * W):
         b = job // W
         w = job % W
@@ -479,7 +489,8 @@ def accelerations(states, inputs, wind, cur, prm, out):
     F = np.empty(3)
     ds = np.empty(6)
     for i in range(states.shape[0]):
-        _rhs(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, _GX, _GW, F, ds)
+        _rhs(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W,
+             F, ds)
         out[i, 0] = ds[3]
         out[i, 1] = ds[4]
         out[i, 2] = ds[5]
@@ -490,7 +501,8 @@ def forces(states, inputs, wind, cur, prm, out):
     """External forces (X, Y, N) at given states, as :func:`accelerations`: out (N, 3)."""
     F = np.empty(3)
     for i in range(states.shape[0]):
-        _forces(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, _GX, _GW, F)
+        _forces(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W,
+                F)
         out[i] = F
 
 

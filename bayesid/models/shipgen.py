@@ -302,7 +302,7 @@ def _rhs_statements(stage: int) -> list[str]:
     (a block)."""
     # cross-flow sums i0 = sum_k gw_k f(x_k), i1 = sum_k gw_k x_k f(x_k), f(x) = (v + x r)|v + x r|,
     # x_k = h gx_k: the nodes +-x_j (equal weights) in pairs
-    gx, gw = ship._GX, ship._GW
+    gx, gw = ship.GAUSS_X, ship.GAUSS_W
     quad = []
     for j in range(gx.size // 2):
         x, c = float(-gx[j]), float(gw[j])

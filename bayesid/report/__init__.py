@@ -19,7 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-PACKAGES = ("numpy", "scipy", "numba", "emcee", "h5py", "arviz", "pysindy", "matplotlib", "tqdm")
+from ..tasks import jsonable
+
+PACKAGES = ("numpy", "scipy", "numba", "emcee", "h5py", "arviz", "pysindy", "matplotlib", "tqdm", "joblib", "dask",
+            "distributed")
 
 
 def prepare_out(out: str | Path) -> Path:
@@ -29,28 +32,11 @@ def prepare_out(out: str | Path) -> Path:
     return out
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        x = float(x)
-        return x if math.isfinite(x) else ("inf" if x > 0 else "-inf" if x < 0 else "nan")
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
 def write_json(path: str | Path, obj) -> None:
     """Write ``obj`` as indented JSON (the folder created); numpy types converted, non-finite
     floats as strings."""
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_text(json.dumps(_jsonable(obj), indent=2) + "\n")
+    Path(path).write_text(json.dumps(jsonable(obj), indent=2) + "\n")
 
 
 def git_commit() -> str:
@@ -250,4 +236,64 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
              f"{fmt(doc['posterior']['ar1_inflation'])}; Jacobian condition number "
              f"{fmt(doc['posterior']['condition_number'])}.", "",
              md_table(["parameter", "start", "identified", "sd (Laplace)"], rows), ""]
+    pr = doc.get("prior") or {}
+    if pr.get("used"):
+        prow = [[n, fmt(c["mean"], 4), fmt(c["sd"], 3), fmt(c["identified"], 4), fmt(c["posterior_sd"], 3),
+                 fmt(c["z"], 2), fmt(c["z_without_prior"], 2)] for n, c in pr["coefficients"].items()]
+        lines += ["## Priors from the vehicle file", "",
+                  f"Source: {pr.get('source') or '(not given)'}. MAP fit: the data residuals weigh as a likelihood "
+                  f"of residual sd {fmt(pr['data_weight_sd'])} (residual variance {fmt(pr['residual_variance'])} x "
+                  f"serial-correlation inflation {fmt(pr['ar1_inflation'])}); z = (identified - prior mean) / prior sd.",
+                  "", md_table(["coefficient", "prior mean", "prior sd", "identified", "posterior sd (Laplace)", "z",
+                                "z without the prior"], prow), "",
+                  "The data moved (|z| > 1): " + (", ".join(pr["moved"]) or "none") + "; beyond 3 prior sd: "
+                  + (", ".join(pr["beyond_3sd"]) or "none") + ".", ""]
+    weak = doc["posterior"].get("weak_directions") or []
+    if weak:
+        from ..analysis.identifiability import Direction
+
+        lines += ["Directions the training runs determine least (eigenvectors of the scaled Gauss-Newton "
+                  "information; parameters in units of their typical size, smallest eigenvalue first): "
+                  + "; ".join(f"`{Direction(w['eigenvalue'], np.array(w['vector']), doc['param_names']).label()}` "
+                              f"(eigenvalue {fmt(w['eigenvalue'])})" for w in weak)
+                  + ". An ill-conditioned covariance means these combinations are set by the start and the "
+                  "bounds more than by the data.", ""]
+    ms = doc.get("multistart")
+    if ms:
+        lines += _multistart_lines(ms)
     (out / "report.md").write_text("\n".join(lines))
+
+
+def _multistart_lines(ms: dict) -> list:
+    """The multistart section of a fit report: counts, distances and the distinct optima."""
+    tc = ms.get("turning_circle") or {}
+    head = ["optimum", "starts", "cost / best - 1"]
+    if tc.get("speed_mps") is not None:
+        head += ["advance (m)", "tactical diameter (m)"]
+    rows = []
+    for k, o in enumerate(ms["distinct_optima"]):
+        r = [str(k + 1), str(len(o["starts"])), fmt(o["relative_cost"], 3)]
+        if tc.get("speed_mps") is not None:
+            c = o.get("turning_circle") or {}
+            r += [fmt(c.get("advance_m")), fmt(c.get("tactical_diameter_m"))]
+        rows.append(r)
+    worst = sorted(ms["spread_near_best_scales"].items(), key=lambda kv: -kv[1])[:5]
+    lines = ["## Multistart", "",
+             f"{ms['n_starts']} starts (the default and {ms['n_starts'] - 1} Latin-hypercube starts); the best came from "
+             f"the {ms['best_kind']} start. **{ms['n_near_best']} of {ms['n_starts']}** reach the best cost within "
+             f"{100 * ms['cost_tolerance']:g} %; they form **{ms['n_distinct_near_best']} distinct optimum/optima** "
+             f"(optima differing by more than {ms['distinct_tolerance_scales']:g} of a parameter's scale), at most "
+             f"{fmt(ms['max_scaled_distance_near_best'])} scales apart.", ""]
+    if worst:
+        lines += ["Largest spread of the near-best optima (in parameter scales): "
+                  + ", ".join(f"{n} {fmt(v)}" for n, v in worst) + ".", ""]
+    if tc.get("speed_mps") is not None:
+        rng = ms.get("tactical_diameter_range_m")
+        lines += [f"Turning circles: {tc['rudder_deg']:g} deg rudder to {tc['side']} from {fmt(tc['speed_mps'])} m/s, "
+                  f"{fmt(tc['rps'])} rev/s (the training runs' approach)"
+                  + (f"; tactical diameter {fmt(rng[0])}-{fmt(rng[1])} m across the distinct optima." if rng else "."),
+                  ""]
+    elif tc.get("error"):
+        lines += [f"No turning circles: {tc['error']}.", ""]
+    lines += [md_table(head, rows), "", "![multistart](figures/multistart.png)", ""]
+    return lines

@@ -444,3 +444,35 @@ def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circle
             ax.plot(s[:, 1], s[:, 0], color=col, lw=0.4, alpha=0.3)
         ax.plot(S[0, :, 1], S[0, :, 0], color=col, lw=1.5, label=label)
     return _plan_view(fig, ax, title, path)
+
+
+def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
+    """Left: the waterfall of a multistart fit, final costs sorted (relative to the best, log
+    scale; the dashed line is the near-best tolerance). Right, when ``circles`` is given: the
+    predicted turning circles [(label, x, y)] of the distinct near-best optima, plan view."""
+    costs = np.asarray(summary["sorted_costs"], float)
+    best = costs[0]
+    rel = np.where(np.isfinite(costs), costs / best - 1 if best > 0 else costs - best, np.nan)
+    fig, axes = plt.subplots(1, 2 if circles else 1, figsize=(11 if circles else 5.5, 4.8), squeeze=False)
+    ax = axes[0, 0]
+    floor = max(1e-8, summary["cost_tolerance"] * 1e-3)
+    ax.semilogy(np.arange(1, costs.size + 1), np.maximum(rel, floor), "o-", ms=4)
+    ax.axhline(summary["cost_tolerance"], ls="--", c="k", lw=0.8, label=f"{100 * summary['cost_tolerance']:g} % of the best")
+    ax.set_xlabel("start, sorted by final cost")
+    ax.set_ylabel("cost / best cost - 1")
+    ax.set_title(f"{summary['n_near_best']} of {summary['n_starts']} starts within tolerance, "
+                 f"{summary['n_distinct_near_best']} distinct", fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    if circles:
+        ax = axes[0, 1]
+        for label, x, y in circles:
+            ax.plot(y, x, lw=1.2, label=label)
+        ax.set_xlabel("y (east), m")
+        ax.set_ylabel("x (north), m")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+        ax.set_title("35 deg turning circles of the near-best optima", fontsize=9)
+    fig.suptitle(title)
+    return _save(fig, path)

@@ -74,14 +74,24 @@ def nested_start(effect, model, ref_model, ref_fit):
 
 
 def fit_candidate(effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, seeds: dict, max_nfev: int,
-                  say=None, bar=None) -> Stage | None:
+                  label: str | None = None) -> tuple[Stage | None, list]:
     """Fit ``model`` (``ref.model`` plus ``effect``) on the training contexts from every start
     (:func:`candidate_starts`; effects already chosen keep their fitted values), keep the best,
     try the nested start when that is worse than the reference, and score it on the training
-    and held-out contexts (held-out nuisances fitted with the parameters held). Returns its
-    :class:`Stage`, or None when every fit failed (reported through ``say``)."""
-    say = say or (lambda msg: None)
-    bar = bar or (lambda label: None)
+    and held-out contexts (held-out nuisances fitted with the parameters held).
+
+    A module-level function of picklable arguments: the diagnosis runs the candidates of a round
+    as tasks (:func:`bayesid.tasks.run_tasks`), in this process or in workers.
+
+    Parameters
+    ----------
+    label : progress-bar label of the fits (tqdm on stderr), None for no bar.
+
+    Returns
+    -------
+    (:class:`Stage` or None when every fit failed, [messages about failed starts]).
+    """
+    messages = []
     best = None
     for p0, nu0 in candidate_starts(effect, model, ref.fit.p[:ref.model.n_theta], seeds):
         if ref.model.effects:  # effects already chosen keep their fitted values as the start
@@ -90,9 +100,9 @@ def fit_candidate(effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, 
             if nu0 is None and ref.model.n_nuisance:
                 nu0 = extended_nuisance(model, ref.model, ref.fit)
         try:
-            f = fit_model(model, ctx_train, sd_fit, p0, nu0, max_nfev=max_nfev, progress=bar(effect.name))
+            f = fit_model(model, ctx_train, sd_fit, p0, nu0, max_nfev=max_nfev, progress=label)
         except Exception as exc:  # noqa: BLE001 - a failed candidate is reported
-            say(f"{effect.name} failed: {exc}")
+            messages.append(f"{effect.name} failed: {exc}")
             continue
         if best is None or f.cost < best.cost:
             best = f
@@ -104,12 +114,12 @@ def fit_candidate(effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, 
             if best is None or f.cost < best.cost:
                 best = f
         except Exception as exc:  # noqa: BLE001
-            say(f"{effect.name} (nested start) failed: {exc}")
+            messages.append(f"{effect.name} (nested start) failed: {exc}")
     if best is None:
-        return None
+        return None, messages
     nu_h = heldout_nuisance(model, best, ctx_held, sd_fit) if model.n_nuisance else None
     return Stage(model, best, scores(model, best, ctx_train, sd=sd_fit), scores(model, best, ctx_held, nu_h, sd=sd_fit),
-                 nu_h, window_rms(model, best, ctx_held, nu_h))
+                 nu_h, window_rms(model, best, ctx_held, nu_h)), messages
 
 
 def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> dict:

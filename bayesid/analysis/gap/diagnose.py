@@ -13,6 +13,7 @@ from ...estimation.fit import FitResult
 from ...estimation.windows import check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
 from ...models import build_model, model_class
 from ...protocol import start_settings
+from ...tasks import Task, TaskError, check_jobs, run_tasks
 from .candidates import Stage, candidate_row, fit_candidate
 from .support import signature_regression
 from .verdict import Thresholds, assign_roles, contribution, gap_summary, noise_floor, verdict_of
@@ -90,7 +91,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
              none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
              max_effects: int = 2, progress=None, fit_window_s: float | None = None,
              weighting: str | None = None, partial_p: float = 0.01, start: str = "auto",
-             leadin_s: float | None = None, progress_bars: bool = False) -> Diagnosis:
+             leadin_s: float | None = None, progress_bars: bool = False, jobs: int = 1,
+             scheduler: str | None = None) -> Diagnosis:
     """Diagnose the sim-to-real gap of a base model (see :mod:`bayesid.analysis.gap`).
 
     Parameters
@@ -119,7 +121,12 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         every model compared, the training fits and the noise floor.
     leadin_s : lead-in of the fitted rule on the held-out tracks (s; default
         :func:`bayesid.protocol.start_settings`).
-    progress : callable taking a message.   progress_bars : a progress bar (tqdm) of every fit.
+    progress : callable taking a message.   progress_bars : a progress bar (tqdm) of every fit
+        (in this process only: fits in workers run without one).
+    jobs, scheduler : where the candidates of a round are fitted (:func:`bayesid.tasks.run_tasks`:
+        ``jobs`` worker processes, or a Dask scheduler ``"local:N"`` / ``"tcp://HOST:PORT"``).
+        The candidates are independent and each fit is deterministic, so the verdict, ranking
+        and every number equal a serial run's (only the timings differ).
 
     Returns
     -------
@@ -127,10 +134,12 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
 
     Raises
     ------
-    ValueError : empty or overlapping track sets; unknown effect (named); too little data.
+    ValueError : empty or overlapping track sets; unknown effect (named); too little data;
+        ``jobs < 1`` or a malformed ``scheduler``.
     KeyError : unknown coefficient (named).
     """
     t_start = time.perf_counter()
+    check_jobs(jobs, scheduler, "jobs", "scheduler")
     rng = np.random.default_rng(0) if rng is None else rng
     if not train or not heldout:
         raise ValueError("diagnose needs at least one training and one held-out track")
@@ -174,20 +183,36 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
     ranking, rounds, chosen, roles = [], [], [], {}
     base_stage = current = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
+    parallel = scheduler is not None or int(jobs) > 1
     for rnd in range(max(1, int(max_effects))):
         ref = current
         results, stages = [], {}
-        for e in cand_effects:
-            if e.name in chosen:
-                continue
-            say(f"round {rnd + 1}: {e.name}")
+        todo = [e for e in cand_effects if e.name not in chosen]
+        say(f"round {rnd + 1}: {len(todo)} candidate(s)"
+            + (f" on {scheduler or f'{jobs} workers'}" if parallel else ""))
+        tasks = []
+        for e in todo:
             m, ct, ch = build([c for c in cand_effects if c.name in chosen] + [e])
-            st = fit_candidate(e, ref, m, ct, ch, sd_fit, seeds, max_nfev, say,
-                               lambda label, r=rnd: bar(f"round {r + 1}: {label}"))
-            if st is None:
+            # one progress bar per fit in this process; workers' bars would interleave
+            label = None if parallel else bar(f"round {rnd + 1}: {e.name}")
+            tasks.append(Task(e.name, {"round": rnd + 1, "effect": e.name},
+                              (e, ref, m, ct, ch, sd_fit, seeds, max_nfev, label)))
+
+        def done(task, out, seconds, r=rnd):
+            if isinstance(out, TaskError):
+                say(f"round {r + 1}: {out}")
+                return
+            for msg in out[1]:
+                say(msg)
+            if out[0] is not None:
+                say(f"round {r + 1}: {task.key} held-out RMS {out[0].held['rms_position_m']:.3f} m")
+
+        outs = run_tasks(fit_candidate, tasks, jobs=jobs, scheduler=scheduler, on_done=done)
+        for e, out in zip(todo, outs):
+            if isinstance(out, TaskError) or out[0] is None:
                 continue
-            results.append(candidate_row(e, st, ref, floor["rms_position_m"], excess0))
-            stages[e.name] = st
+            results.append(candidate_row(e, out[0], ref, floor["rms_position_m"], excess0))
+            stages[e.name] = out[0]
         results.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
         assign_roles(results, significant, band, th)
         rounds.append(results)
