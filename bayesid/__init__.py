@@ -4,7 +4,8 @@ with honest uncertainty.
 The layout follows the data flow; each layer imports only the ones before it:
 
 * :mod:`bayesid.data` -- what comes in: :mod:`~bayesid.data.terms` (the term library),
-  :mod:`~bayesid.data.vehicle` (vehicle files), :mod:`~bayesid.data.track` (the Track CSV
+  :mod:`~bayesid.data.vehicle` (vehicle files), :mod:`~bayesid.data.priors` (their ``[prior]``
+  section), :mod:`~bayesid.data.track` (the Track CSV
   contract), :mod:`~bayesid.data.validate` (unit and plausibility checks),
   :mod:`~bayesid.data.datasets` (readers of real free-running data).
 * :mod:`bayesid.models` -- what simulates a vessel: :mod:`~bayesid.models.interface` (the
@@ -23,7 +24,8 @@ The layout follows the data flow; each layer imports only the ones before it:
   (fitted window starts), :mod:`~bayesid.estimation.laplace`,
   :mod:`~bayesid.estimation.posterior`, :mod:`~bayesid.estimation.sampling` (emcee, ArviZ),
   :mod:`~bayesid.estimation.msfit` (long runs, prediction, indices),
-  :mod:`~bayesid.estimation.multistart` (many starts of one fit).
+  :mod:`~bayesid.estimation.multistart` (many starts of one fit),
+  :mod:`~bayesid.estimation.calibration` (predictive bands calibrated leave one run out).
 * :mod:`bayesid.analysis` -- what the data say: :mod:`~bayesid.analysis.identifiability`,
   :mod:`~bayesid.analysis.dossier`, :mod:`~bayesid.analysis.richness`,
   :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis).

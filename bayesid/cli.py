@@ -383,7 +383,10 @@ def _fit(args) -> int:
     if args.starts < 0:
         raise ValueError(f"--starts must be >= 0, not {args.starts}")
     tasks.check_jobs(args.jobs, args.scheduler)
-    out = _check_out(args.out, "fit", args.overwrite, resumable=bool(args.starts))
+    if not args.calibration_window > 0 or args.calibration_draws < 3:
+        raise ValueError(f"--calibration-window must be positive and --calibration-draws at least 3, not "
+                         f"{args.calibration_window:g} and {args.calibration_draws}")
+    out = _check_out(args.out, "fit", args.overwrite, resumable=bool(args.starts) or args.calibration == "loro")
     vehicle = load_any_vehicle(args.vehicle)
     free = _free_list(vehicle, args.free)
     got = _read_tracks([("--train", args.train)], vehicle)
@@ -391,19 +394,23 @@ def _fit(args) -> int:
     effects = _split_names(args.effects, "--effects")
     channels = _split_names(args.fit_channels, "--fit-channels") or None
     journal = None
-    if args.starts:
+    calibrate = args.calibration == "loro" and len(train) >= 3
+    if args.starts or calibrate:
         # finished starts survive a killed run: the same command resumes them
         journal = tasks.Journal(out / "journal.jsonl", {
             "command": "fit", "inputs": sorted(got["_sha256"].values()),
             "vehicle": _provenance(vehicle, {})["vehicle_sha256"] or args.vehicle, "free": free,
             "effects": effects, "window": args.window, "dt": args.dt, "max_nfev": args.max_nfev,
             "weighting": args.weighting, "channels": channels, "start": args.start, "starts": args.starts,
-            "seed": args.seed, "prior": args.prior})
+            "seed": args.seed, "prior": args.prior, "calibration": args.calibration if calibrate else "none",
+            "calibration_window": args.calibration_window, "calibration_draws": args.calibration_draws})
     res = msfit.identify(vehicle, train, free, effects, window_s=args.window, dt=args.dt,
                          max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
                          weighting=args.weighting or None, channels=channels, start=args.start,
                          starts=args.starts, rng=np.random.default_rng(args.seed), jobs=args.jobs,
-                         scheduler=args.scheduler, journal=journal, prior=args.prior == "file")
+                         scheduler=args.scheduler, journal=journal, prior=args.prior == "file",
+                         calibrate=calibrate, calibration_window_s=args.calibration_window,
+                         calibration_draws=args.calibration_draws, calibration_seed=args.seed)
     doc = msfit.model_document(res, _vehicle_ref(args.vehicle), [t.name for t in train],
                                provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
     circles = None
@@ -456,6 +463,7 @@ def _predict(args) -> int:
     import numpy as np
 
     from .estimation import msfit
+    from .estimation.calibration import calibrated_bands, window_band
     from .report import plots
     from .report import fmt, md_table, write_json
 
@@ -485,21 +493,29 @@ def _predict(args) -> int:
     rng = np.random.default_rng(args.seed)
     indices = {}
     for tr in tracks:
-        ctx, S = pr["_sim"][tr.name]
-        meas, xy = msfit.windowed_xy(ctx, S)
-        k = max(1, len(xy) // 100000)  # a figure needs no more than 1e5 points a line
-        plots.window_tracks(None, meas[::k], xy[::k], None, out / "figures" / f"{tr.name}.png",
-                            title=f"{tr.name}: {window or 'whole-run'} s windows",
-                            labels=("identified model (window protocol)", ""))
-        del pr["_sim"][tr.name]
         tb = msfit.turning_band(model, p, cov, tr, args.draws, rng, start=whole["start_rule"],
                                 leadin_s=whole["leadin_s"])
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
+    bands = calibrated_bands(doc.get("calibration"), window, pr["windows"], indices)
+    b90 = window_band(doc["calibration"], 0.9) if bands.get("windows") else {}
+    for tr in tracks:
+        ctx, S = pr["_sim"][tr.name]
+        k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
+        dr = np.asarray(tr["delta_r"], float)[ctx.idx]
+        plots.prediction_band(ctx.ts[::k], {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
+                              {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]}, ctx.win[::k], dr[::k],
+                              b90.get("max_position_m"), b90.get("max_heading_deg"), out / "figures" / f"{tr.name}.png",
+                              title=f"{tr.name}: {window or 'whole-run'} s windows, identified model")
+        del pr["_sim"][tr.name]
+    if bands.get("coverage"):
+        groups = {g: bands["coverage"][g] for g in ("windows", "indices") if any(
+            v["n"] for v in bands["coverage"][g].values())}
+        plots.reliability(groups, out / "figures" / "reliability.png", bands["parameter_only"])
     res = {"model": str(args.model), "window_s": window, "start_rule": pr["start_rule"], "leadin_s": pr["leadin_s"],
            "warnings": got["_warnings"], "input_sha256": got["_sha256"],
            "pooled": pr["pooled"], "per_track": pr["per_track"],
            "windows": pr["windows"], "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
-           "indices": indices}
+           "indices": indices, "n_draws": args.draws, "bands": bands}
     write_json(out / "predict.json", res)
     rows = [[n, fmt(d["rms_position_m"]), fmt(d["max_position_m"]), fmt(d["rms_heading_deg"]),
              fmt(whole["per_track"][n]["rms_position_m"])] for n, d in pr["per_track"].items()]
@@ -520,10 +536,53 @@ def _predict(args) -> int:
                 f"{k} measured {fmt(d['measured'].get(k))}, predicted {fmt(d['predicted'].get(k))}"
                 + (f" [{fmt(d['band_5_95'][k][0])}, {fmt(d['band_5_95'][k][1])}]" if d["band_5_95"].get(k) else "")
                 for k in d["band_5_95"]))
-    lines += ["", *[f"![{t.name}](figures/{t.name}.png)" for t in tracks], ""]
+    lines += ["", *_band_lines(bands, args.draws), *[f"![{t.name}](figures/{t.name}.png)" for t in tracks], ""]
     (out / "report.md").write_text("\n".join(lines))
     print(f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows); wrote {out / 'predict.json'}")
     return 0
+
+
+def _band_lines(bands: dict, n_draws: int) -> list:
+    """The calibrated-band section of predict's report.md."""
+    from .report import fmt, md_table
+
+    po = bands["parameter_only"]
+    lines = ["## Predictive bands and their coverage on these runs", "",
+             f"Posterior draws: {n_draws}. The draws' own 5-95 % index bands (parameter uncertainty only) hold "
+             f"{po['inside']} of {po['n']} measured indices"
+             + (f" ({fmt(100 * po['coverage'])} %)." if po["coverage"] is not None else "."), ""]
+    if not bands["calibrated"]:
+        return lines + [f"No calibrated bands: {bands['reason']}.", ""]
+    cov = bands["coverage"]
+    lines += ["Calibrated bands (split conformal, leave one training run out: they include the structural error "
+              "the model made on training runs it did not see). A window is inside when its largest position and "
+              "heading errors are within the band; an index when the measured value is.", "",
+              md_table(["nominal", "windows inside", "indices inside", "all"],
+                       [[f"{100 * float(a):g} %"] + [f"{c[a]['inside']}/{c[a]['n']} ({fmt(100 * c[a]['coverage'])} %)"
+                                                     if c[a]["n"] else "-" for c in (cov["windows"], cov["indices"],
+                                                                                     cov["all"])]
+                        for a in cov["all"]]), ""]
+    if bands.get("window_reason"):
+        lines += [f"No window bands: {bands['window_reason']}.", ""]
+    rows = [[r["track"], r["index"], fmt(r["measured"]), fmt(r["predicted"]),
+             f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
+             + (" (pooled scores)" if r["band"]["0.9"]["pooled"] else ""),
+             "yes" if r["inside"]["0.9"] else "**no**",
+             f"[{fmt(r['parameter_band_5_95'][0])}, {fmt(r['parameter_band_5_95'][1])}]"
+             if r["parameter_band_5_95"] else "-"] for r in bands["indices"]]
+    if rows:
+        lines += ["Indices, 90 % band:", "", md_table(["track", "index", "measured", "predicted", "90 % band", "inside",
+                                                       "draws' 5-95 %"], rows), ""]
+    wrows = [[w["track"], fmt(w["t_start"]), fmt(w["max_position_m"]), fmt(w["band"]["0.9"]["max_position_m"]),
+              fmt(w["max_heading_deg"]), fmt(w["band"]["0.9"]["max_heading_deg"]),
+              "yes" if w["inside"]["0.9"] else "**no**"] for w in bands["windows"]]
+    if wrows:
+        lines += ["Windows, 90 % band:", "", md_table(["track", "window start (s)", "max position error (m)",
+                                                       "band (m)", "max heading error (deg)", "band (deg)", "inside"],
+                                                      wrows), "", "![reliability](figures/reliability.png)", ""]
+    elif rows:
+        lines += ["![reliability](figures/reliability.png)", ""]
+    return lines
 
 
 def _diagnose(args) -> int:
@@ -644,7 +703,14 @@ def main(argv=None) -> int:
     f.add_argument("--starts", type=int, default=0,
                    help="extra Latin-hypercube starts of a multistart fit (the lowest cost is kept; the report shows "
                    "how many reach it and how far apart the near-best optima are)")
-    f.add_argument("--seed", type=int, default=0, help="random seed of the multistart starts")
+    f.add_argument("--seed", type=int, default=0, help="random seed of the multistart starts and calibration draws")
+    f.add_argument("--calibration", choices=("loro", "none"), default="loro",
+                   help="loro: with 3 or more training runs, calibrate the predictive bands leave one run out (refit "
+                   "without each run, score the prediction of it); predict then reports bands that include the "
+                   "model's structural error")
+    f.add_argument("--calibration-window", type=float, default=60.0,
+                   help="protocol window (s) of the calibrated window bands (predict --window must match)")
+    f.add_argument("--calibration-draws", type=int, default=40, help="posterior draws per calibration fold")
     f.add_argument("--prior", choices=("file", "none"), default="file",
                    help="file: Gaussian priors of the vehicle file's [prior] section (captive-test values with their "
                    "error), a MAP fit; none: the data alone")
@@ -654,7 +720,8 @@ def main(argv=None) -> int:
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")
     pp.add_argument("--track", nargs="+", required=True, metavar="CSV", help="Track CSVs")
     pp.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
-    pp.add_argument("--draws", type=int, default=30, help="posterior draws for the index bands")
+    pp.add_argument("--draws", type=int, default=100,
+                    help="posterior draws for the index bands (100 gives a 5 %% quantile to about 2 draws)")
     pp.add_argument("--seed", type=int, default=0, help="random seed of the posterior draws")
     pp.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
     pp.add_argument("--leadin", type=float, default=0.0,

@@ -34,6 +34,7 @@ from . import shooting
 from . import windows as wf
 from .fit import FitResult
 from .laplace import gauss_newton_covariance
+from .calibration import leave_one_run_out
 from .multistart import multistart
 from ..protocol import pooled_scores, resolve_start, start_settings
 from ..data.track import Track
@@ -114,7 +115,8 @@ def weak_directions(J, scales, k: int = 3) -> list:
 def identify(vehicle, train, free=None, effects=(), window_s: float | None = None, dt: float | None = None,
              max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None,
              channels=None, start: str = "auto", starts: int = 0, rng=None, jobs: int = 1,
-             scheduler: str | None = None, journal=None, prior: bool = True) -> dict:
+             scheduler: str | None = None, journal=None, prior: bool = True, calibrate: bool = True,
+             calibration_window_s: float = 60.0, calibration_draws: int = 40, calibration_seed: int = 0) -> dict:
     """Identify the free coefficients (and effect parameters) on training tracks.
 
     Parameters
@@ -145,6 +147,10 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
         (:class:`~bayesid.estimation.windows.GaussianPrior`) whose data residuals count as
         ``1 / inflation`` independent samples each (the AR(1) inflation of the first fit's
         residuals, at most the samples per window), and the Laplace covariance of that posterior.
+    calibrate : with 3 or more training runs, calibrate the predictive bands leave one run out
+        (:func:`bayesid.estimation.calibration.leave_one_run_out`: refits without each run,
+        scored on it over ``calibration_window_s`` windows and its manoeuvre indices with
+        ``calibration_draws`` posterior draws, seeded from ``calibration_seed``); the folds run as tasks.
 
     Returns
     -------
@@ -153,7 +159,8 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     the final weights), ``train_scores``, ``multistart`` (a
     :class:`~bayesid.estimation.multistart.MultistartResult` or None), ``prior`` (whether the
     file's priors were used; per coefficient mean, sd, identified value, z-score with and without
-    the prior, posterior sd; the names the data ``moved`` beyond 1 prior sd and ``beyond_3sd``).
+    the prior, posterior sd; the names the data ``moved`` beyond 1 prior sd and ``beyond_3sd``),
+    ``calibration`` (the leave-one-run-out scores, or None).
 
     Raises
     ------
@@ -238,10 +245,20 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     else:
         cov, post = laplace_covariance(f, ctxs)
         gp = None
+    calib = None
+    if calibrate and len(train) >= 3:
+        rule_p, lead_p = start_settings(start, train, calibration_window_s, model.dt, None)
+        say(f"calibration: leave one of {len(train)} runs out on {scheduler or f'{jobs} worker(s)'}")
+        calib = leave_one_run_out(model, train, ctxs, f, sd_fit, calibration_window_s, start=rule_p,
+                                  leadin_s=lead_p, channels=channels, max_nfev=max_nfev, prior=gp,
+                                  data_scale=(prior_info["residual_variance"], prior_info["ar1_inflation"])
+                                  if gp is not None else None, n_draws=calibration_draws, seed=calibration_seed, jobs=jobs,
+                                  scheduler=scheduler, journal=journal,
+                                  progress="calibration" if progress is not None else None)
     return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
             "fit_sd": sd_fit, "weighting": weighting, "channels": channels, "start_rule": rule,
             "train_scores": wf.scores(model, f, ctxs), "window_s": window_s, "p0": p0, "multistart": ms,
-            "prior": prior_info}
+            "prior": prior_info, "calibration": calib}
 
 
 def model_document(res: dict, vehicle_ref: str, train_names, provenance: dict | None = None) -> dict:
@@ -265,6 +282,7 @@ def model_document(res: dict, vehicle_ref: str, train_names, provenance: dict | 
     if res.get("multistart") is not None:
         doc["multistart"] = res["multistart"].to_dict()
     doc["prior"] = res.get("prior") or {"used": False}
+    doc["calibration"] = res.get("calibration")
     return doc
 
 
@@ -326,8 +344,8 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
     ``leadin_s`` say what was used.
 
     Returns dict ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track``
-    {name: pooled scores}, ``windows`` (list of {track, t_start, rms_position_m,
-    max_position_m, rms_heading_deg}) and ``_sim`` (per track (ctx, S) for plots)."""
+    {name: pooled scores}, ``windows`` (list of {track, t_start, duration_s (of its scored
+    samples), rms_position_m, max_position_m, rms_heading_deg, max_heading_deg}) and ``_sim`` (per track (ctx, S) for plots)."""
     errs, per_track, windows, sims = [], {}, [], {}
     rule, lead = start_settings(start, tracks, window_s, model.dt, leadin_s)
     for tr in tracks:
@@ -342,9 +360,12 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
             sel = slice(bounds[w], bounds[w + 1])
             if bounds[w + 1] > bounds[w]:
                 windows.append({"track": tr.name, "t_start": float(ctx.t_start[w]),
+                                "duration_s": float(ctx.ts[bounds[w + 1] - 1] - ctx.t_start[w]),
                                 "rms_position_m": float(np.sqrt(np.nanmean(pos[sel] ** 2))),
                                 "max_position_m": float(np.nanmax(pos[sel])),
                                 "rms_heading_deg": float(np.degrees(np.sqrt(np.nanmean(e["psi"][sel] ** 2))))
+                                if "psi" in e else None,
+                                "max_heading_deg": float(np.degrees(np.nanmax(np.abs(e["psi"][sel]))))
                                 if "psi" in e else None})
         sims[tr.name] = (ctx, S[0])
     return {"pooled": pooled_scores(errs), "per_track": per_track, "windows": windows, "_sim": sims,
@@ -478,7 +499,8 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
     band (5-95 % of ``n_draws`` Laplace draws). The draws are simulated ``chunk`` at a time and
     reduced to their indices, so memory does not grow with ``n_draws`` x the track length;
     ``_S`` holds the identified model's prediction (1, n, 12), or every draw's with
-    ``keep_draws``; the default ``chunk`` keeps each batch of predictions near 200 MB."""
+    ``keep_draws``; the default ``chunk`` keeps each batch of predictions near 200 MB. ``sd``:
+    {index: sd of the draws' values} (None with fewer than 3 finite draws)."""
     P = np.vstack([p[None], posterior_samples(model, p, cov, n_draws, rng)]) if n_draws else p[None]
     if start == "fitted":
         # the whole run from its first sample: the start state fitted to the first lead-in
@@ -505,7 +527,8 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
     # the indices of what the measured run is (none, with the reason, for anything else)
     keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
     band, _ = predictive_band(pred[1:], keys)
-    return {"measured": meas, "predicted": pred[0], "band_5_95": band, "n_draws": int(n_draws),
+    sd = predictive_sd(pred[1:], keys)  # the draws' spread: the scale of a calibrated band
+    return {"measured": meas, "predicted": pred[0], "band_5_95": band, "sd": sd, "n_draws": int(n_draws),
             "_S": S, "_ctx": ctx}
 
 
@@ -519,6 +542,17 @@ def predictive_band(draws: list, keys) -> tuple[dict, dict]:
         band[k] = [float(np.percentile(vals, 5)), float(np.percentile(vals, 95))] if vals.size >= 3 else None
         n[k] = int(vals.size)
     return band, n
+
+
+def predictive_sd(draws: list, keys) -> dict:
+    """{key: standard deviation of the draws' finite values, or None with fewer than 3} of a list
+    of index dicts (one per posterior draw)."""
+    out = {}
+    for k in keys:
+        v = np.array([d.get(k, np.nan) for d in draws], float)
+        v = v[np.isfinite(v)]
+        out[k] = float(np.std(v, ddof=1)) if v.size >= 3 else None
+    return out
 
 
 def approach_condition(tracks, first_s: float = 5.0) -> tuple[float, float]:
@@ -550,7 +584,8 @@ def turning_circles(model, p, cov, n_draws: int, rng, speed_mps: float, rps: flo
     ITTC definitions) of the model at ``p``, with the 5-95 % band of ``n_draws`` Laplace
     posterior draws (``cov``; no band when ``n_draws`` is 0).
 
-    Returns {side: {"predicted", "band_5_95", "n_finite_draws", "_S" (B, n, 12) predictions}}."""
+    Returns {side: {"predicted", "band_5_95", "sd" (of the draws), "n_finite_draws", "_S" (B, n, 12)
+    predictions}}."""
     out = {}
     t = np.arange(0.0, duration_s + 1e-9, 0.1)
     for side, sgn in (("starboard", -1.0), ("port", 1.0)):  # package rudder: + = to port
@@ -566,6 +601,7 @@ def turning_circles(model, p, cov, n_draws: int, rng, speed_mps: float, rps: flo
         ind = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr[ctx.idx]) for s in S]
         res = {"predicted": {k: ind[0][k] for k in ("advance_m", "transfer_m", "tactical_diameter_m")}}
         res["band_5_95"], res["n_finite_draws"] = predictive_band(ind[1:], list(res["predicted"]))
+        res["sd"] = predictive_sd(ind[1:], list(res["predicted"]))
         res["_S"] = S
         out[side] = res
     return out

@@ -258,6 +258,28 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
                               f"(eigenvalue {fmt(w['eigenvalue'])})" for w in weak)
                   + ". An ill-conditioned covariance means these combinations are set by the start and the "
                   "bounds more than by the data.", ""]
+    cal = doc.get("calibration")
+    if cal:
+        from ..estimation.calibration import LEVELS, conformal_quantile, window_band
+
+        failed = [f for f in cal["folds"] if "error" in f]
+        wb = {a: window_band(cal, a) for a in LEVELS}
+        keys = sorted(cal["index_scores"])
+        lines += ["## Calibration of the predictive bands", "",
+                  f"{cal['method']}: {cal['n_runs']} runs in {cal['n_folds']} folds"
+                  + (f" ({len(failed)} failed: " + "; ".join(f"{', '.join(f['runs'])}: {f['error']}" for f in failed)
+                     + ")"
+                     if failed else "")
+                  + f"; {len(cal['window_scores']['max_position_m'])} windows of {cal['window_s']:g} s and "
+                  f"{sum(len(v) for v in cal['index_scores'].values())} manoeuvre indices scored on the left-out runs "
+                  f"({cal['n_draws']} posterior draws per fold). `bayesid predict --window {cal['window_s']:g}` reports "
+                  "these bands and their coverage.", "",
+                  md_table(["nominal", "window position radius (m)", "window heading (deg)",
+                            *[f"{k} (x sd)" for k in keys]],
+                           [[f"{100 * a:g} %", fmt(wb[a]["max_position_m"]), fmt(wb[a]["max_heading_deg"]),
+                             *[fmt(conformal_quantile(cal["index_scores"][k], a)) for k in keys]] for a in LEVELS]),
+                  "", "Index columns: the factor q of the band predicted +- q x (posterior sd of the index); inf where "
+                  "too few scores for the level (predict then pools the scores of every index).", ""]
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)

@@ -439,7 +439,8 @@ def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circle
     """Turning-circle tracks {label: (n_draws + 1, n, 12) states}: the identified model (first
     row, solid) and posterior draws (thin)."""
     fig, ax = plt.subplots(figsize=(6, 6))
-    for (label, S), col in zip(sims.items(), ("tab:red", "tab:blue", "tab:green")):
+    for i, (label, S) in enumerate(sims.items()):
+        col = plt.cm.tab10(i % 10)
         for s in S[1:]:
             ax.plot(s[:, 1], s[:, 0], color=col, lw=0.4, alpha=0.3)
         ax.plot(S[0, :, 1], S[0, :, 0], color=col, lw=1.5, label=label)
@@ -475,4 +476,79 @@ def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
         ax.legend(fontsize=7)
         ax.set_title("35 deg turning circles of the near-best optima", fontsize=9)
     fig.suptitle(title)
+    return _save(fig, path)
+
+
+def reliability(coverage: dict, path, parameter_only: dict | None = None,
+                title: str = "Predictive bands: nominal vs empirical coverage"):
+    """Reliability diagram: for each group of claims (``coverage``: {group: {level: {"coverage",
+    "n"}}}), the fraction of measured values inside the band against the band's nominal level;
+    the diagonal is perfect calibration. ``parameter_only`` ({"nominal", "coverage", "n"}) adds
+    the posterior draws' own band as one point for comparison."""
+    fig, ax = plt.subplots(figsize=(5.5, 5))
+    ax.plot([0, 1], [0, 1], "k--", lw=0.8, label="perfectly calibrated")
+    for (group, cov), mk in zip(coverage.items(), "osd^"):
+        lv = sorted(float(a) for a, v in cov.items() if v.get("coverage") is not None)
+        if not lv:
+            continue
+        ys = [cov[str(a)]["coverage"] for a in lv]
+        ax.plot(lv, ys, marker=mk, label=f"{group} (n = {cov[str(lv[0])]['n']})")
+    if parameter_only and parameter_only.get("coverage") is not None:
+        ax.plot([parameter_only["nominal"]], [parameter_only["coverage"]], "rx", ms=10, mew=2,
+                label=f"posterior draws alone, 5-95 % (n = {parameter_only['n']})")
+    ax.set_xlim(0.4, 1.0)
+    ax.set_ylim(0.0, 1.02)
+    ax.set_xlabel("nominal coverage")
+    ax.set_ylabel("empirical coverage on these runs")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(title, fontsize=10)
+    return _save(fig, path)
+
+
+def prediction_band(t, measured: dict, predicted: dict, win, rudder, radius_m: float | None, heading_deg: float | None,
+                    path, level: float = 0.9, title: str = ""):
+    """Time histories of a windowed prediction with its calibrated band: plan view (measured
+    track, predicted windows, a circle of ``radius_m`` round each window's end: the band the
+    track must stay within), heading (prediction +- ``heading_deg``, shaded) and rudder angle.
+
+    Arrays (n,): ``t`` (s); ``measured``/``predicted`` {"x", "y" (m), "psi" (rad)}; ``win``
+    window index of each sample; ``rudder`` (rad)."""
+    fig = plt.figure(figsize=(11, 6.5))
+    ax = fig.add_subplot(1, 2, 1)
+    ax.plot(measured["y"], measured["x"], "k.", ms=1.2, label="measured")
+    cut = np.flatnonzero(np.diff(win) != 0) + 1
+    ends = np.append(cut - 1, t.size - 1)
+    for k, (a, b) in enumerate(zip(np.insert(cut, 0, 0), np.append(cut, t.size))):
+        ax.plot(predicted["y"][a:b], predicted["x"][a:b], "tab:blue", lw=1.0,
+                label="prediction (window protocol)" if k == 0 else None)
+    if radius_m is not None and np.isfinite(radius_m):
+        for k, e in enumerate(ends):
+            ax.add_patch(plt.Circle((predicted["y"][e], predicted["x"][e]), radius_m, fill=False, color="tab:blue",
+                                    alpha=0.5, lw=0.8, label=f"{100 * level:g} % band radius {radius_m:.3g} m"
+                                    if k == 0 else None))
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(title, fontsize=9)
+    ax2 = fig.add_subplot(2, 2, 2)
+    psi_m = np.degrees(np.unwrap(measured["psi"]))
+    psi_p = np.degrees(predicted["psi"])
+    psi_p = psi_m + ((psi_p - psi_m + 180.0) % 360.0 - 180.0)  # the prediction on the measured branch
+    ax2.plot(t, psi_m, "k", lw=0.8, label="measured")
+    for k, (a, b) in enumerate(zip(np.insert(cut, 0, 0), np.append(cut, t.size))):
+        ax2.plot(t[a:b], psi_p[a:b], "tab:blue", lw=1.0, label="prediction" if k == 0 else None)
+        if heading_deg is not None and np.isfinite(heading_deg):
+            ax2.fill_between(t[a:b], psi_p[a:b] - heading_deg, psi_p[a:b] + heading_deg, color="tab:blue", alpha=0.2,
+                             label=f"{100 * level:g} % band" if k == 0 else None)
+    ax2.set_ylabel("heading, deg")
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=7)
+    ax3 = fig.add_subplot(2, 2, 4, sharex=ax2)
+    ax3.plot(t, np.degrees(rudder), "tab:green", lw=0.8)
+    ax3.set_ylabel("rudder, deg")
+    ax3.set_xlabel("t, s")
+    ax3.grid(alpha=0.3)
     return _save(fig, path)
