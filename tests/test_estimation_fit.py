@@ -70,8 +70,8 @@ def test_problem_rejects_zero_reference(short_problem):
 
 
 def test_unknown_free_coefficient_is_named(nps):
-    with pytest.raises(KeyError, match="Nrr"):
-        Simulator(nps, mv.straight(nps, duration=10.0), free=["Nrr"])
+    with pytest.raises(KeyError, match="Nrrr"):  # cubic: no prime product (Nrr is r*r, a term)
+        Simulator(nps, mv.straight(nps, duration=10.0), free=["Nrrr"])
 
 
 def test_one_fit_function_serves_both_objectives(short_problem, nps):

@@ -32,8 +32,8 @@ def test_uniform_prior_support_and_density():
     assert lp[1] == -np.inf
     with pytest.raises(ValueError, match="Yr"):
         CoefficientPrior.build(uniform={"Yr": (0.03, 0.03)})
-    with pytest.raises(KeyError, match="Yq"):
-        CoefficientPrior.build(uniform={"Yq": (0.0, 1.0)})
+    with pytest.raises(KeyError, match="Yqx"):  # not a product of the features (Yq is u*q, a term)
+        CoefficientPrior.build(uniform={"Yqx": (0.0, 1.0)})
 
 
 def test_divergent_proposal_is_minus_inf_not_nan(nps, post):

@@ -52,8 +52,8 @@ def test_bad_vehicle_file_names_the_key(tmp_path, old, new, match):
 
 
 def test_with_coefficients_rejects_bad_input(nps):
-    with pytest.raises(terms.UnknownCoefficientError, match="Yq"):
-        nps.with_coefficients({"Yq": 1.0})
+    with pytest.raises(terms.UnknownCoefficientError, match="Yvvv"):  # cubic: no prime product
+        nps.with_coefficients({"Yvvv": 1.0})
     with pytest.raises(ValueError, match="Nr"):
         nps.with_coefficients({"Nr": float("nan")})
 

@@ -15,6 +15,12 @@ Conventions (Gertler & Hagen 1967; Feldman 1979; the prime system of ``shared/re
 * The power of L is not typed in: it follows from the factors (prime rule). A force term has
   ``k = 2 + (number of rate factors p, q, r)``, a moment term one more; an acceleration term has
   ``k = 3`` for a linear and ``k = 4`` for an angular acceleration, a moment one more.
+* Any product of the features below is a term, not only the names listed in :data:`LISTED`:
+  ``Nvabsr`` (N from v|r|), ``Yrabsv`` (Y from r|v|), ``Yq`` (Y from u*q) are read from their
+  names by :func:`parse` (the grammar is in its docstring) and added to the table the first time
+  they are named (by a vehicle file, a free list, a prior, ...). A product the table already
+  lists under another spelling (``Yabsvv`` for ``Yvabsv``) is refused with the listed name, so a
+  listed force cannot enter twice under two names.
 * ``db`` terms are per bow plane; a single ``delta_b`` input drives both planes together, so
   these terms carry a multiplicity of 2 (documented choice, equations.md "Pitfalls met").
 * ``Cd0`` is the Healey & Lienard propulsion-minus-resistance coefficient,
@@ -23,6 +29,9 @@ Conventions (Gertler & Hagen 1967; Feldman 1979; the prime system of ``shared/re
 """
 from __future__ import annotations
 
+import difflib
+import re
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,13 +43,15 @@ VELOCITIES = ("u", "v", "w", "p", "q", "r")
 # Feature vector evaluated once per right-hand-side call; a term is a product of features.
 # The order is shared with the compiled kernel (bayesid.models.dynamics); change both together.
 FEATURES = ("1", "u", "v", "w", "p", "q", "r", "dr", "ds", "db", "eps",
-            "|v|", "|r|", "prop", "|w|", "|q|")
+            "|v|", "|r|", "prop", "|w|", "|q|", "|p|")
 F_INDEX = {name: i for i, name in enumerate(FEATURES)}
 N_FEATURES = len(FEATURES)
 MAX_FACTORS = 5
 
-_RATES = {"p", "q", "r", "|r|", "|q|"}
+_RATES = {"p", "q", "r", "|p|", "|r|", "|q|"}
 _LINEAR = {"u", "v", "w", "|v|", "|w|"}
+# Factors of the horizontal-plane model (w = p = q = 0, no stern or bow planes, no eps(eta)).
+_PLANE_FACTORS = {"u", "v", "r", "dr", "|v|", "|r|", "prop"}
 
 TERM_KINDS = ("force", "added_mass")
 CATEGORIES = ("static", "rotary", "added_mass")
@@ -101,7 +112,7 @@ class Term:
             return False
         if self.accel >= 0:
             return VELOCITIES[self.accel] in ("u", "v", "r")
-        return not any(f in ("w", "p", "q", "ds", "db", "eps", "|w|", "|q|") for f in self.factors)
+        return all(f in _PLANE_FACTORS for f in self.factors)
 
 
 def _T(name: str, factors: str, mult: int = 1, dof: str | None = None) -> Term:
@@ -125,6 +136,7 @@ def _A(name: str) -> Term:
 
 # The table. Feldman/Healey form as implemented for NPS AUV II (equations.md, [V] terms), plus
 # the Gertler-Hagen polynomial cross-flow terms that stand in for the cross-flow integral.
+# New products are appended after these by term() (see parse()).
 TERMS: tuple[Term, ...] = (
     # ---- X (surge) ----
     _T("Xpp", "p p"), _T("Xqq", "q q"), _T("Xrr", "r r"), _T("Xpr", "p r"),
@@ -172,7 +184,10 @@ TERMS: tuple[Term, ...] = (
     _T("Nvabsv", "v |v|"), _T("Nabsvr", "|v| r"), _T("Nrabsr", "r |r|"),
 )
 
-NAMES: tuple[str, ...] = tuple(t.name for t in TERMS)
+#: The names written out in the table above, in table order. :data:`NAMES` is these followed by the
+#: products added since (:func:`term`); both keep their order, so an index never changes.
+LISTED: tuple[str, ...] = tuple(t.name for t in TERMS)
+NAMES: tuple[str, ...] = LISTED
 INDEX: dict[str, int] = {n: i for i, n in enumerate(NAMES)}
 
 #: The polynomial terms that replace the cross-flow drag integral (Gertler & Hagen form).
@@ -187,26 +202,133 @@ class UnknownCoefficientError(KeyError):
         return str(self.args[0])
 
 
-def term(name: str) -> Term:
-    """Look up a term by SNAME name.
+# Name grammar of parse(). Tokens of a product name after the force letter, longest first.
+_TOKENS = (("absu", "|u|"), ("absv", "|v|"), ("absw", "|w|"), ("absp", "|p|"), ("absq", "|q|"),
+           ("absr", "|r|"), ("dr", "dr"), ("ds", "ds"), ("db", "db"),
+           ("u", "u"), ("v", "v"), ("w", "w"), ("p", "p"), ("q", "q"), ("r", "r"))
+_VELOCITY_FACTORS = {"u", "v", "w", "p", "q", "r", "|u|", "|v|", "|w|", "|p|", "|q|", "|r|"}
+_ACCEL_NAME = re.compile(r"([XYZKMN])([uvwpqr])dot")
+_LOCK = threading.Lock()
+
+
+def _product_key(t: Term) -> tuple:
+    return t.dof, t.accel, tuple(sorted(t.factors))
+
+
+def _unknown(name: str, reason: str) -> UnknownCoefficientError:
+    close = difflib.get_close_matches(name, NAMES, n=3)
+    hint = f" (did you mean {', '.join(close)}?)" if close else ""
+    return UnknownCoefficientError(f"unknown coefficient {name!r}: {reason}{hint}")
+
+
+def _read(name: str) -> Term:
+    """The term of a name by the grammar of :func:`parse` alone (no table look-up)."""
+    if not isinstance(name, str) or not name or name[0] not in "XYZKMN":
+        raise _unknown(str(name), "a name starts with the force letter X, Y, Z, K, M or N")
+    if _ACCEL_NAME.fullmatch(name):
+        return _A(name)
+    body, eps = name[1:], False
+    if body.endswith("_eps"):
+        body, eps = body[:-4], True
+    factors, i = [], 0
+    while i < len(body):
+        for tok, feat in _TOKENS:
+            if body.startswith(tok, i):
+                break
+        else:
+            raise _unknown(name, f"cannot read {body[i:]!r} (factors are u v w p q r, absv absr absw absq absp, "
+                                 "dr ds db, then optionally _eps)")
+        if feat not in F_INDEX:
+            raise _unknown(name, f"{feat} is not a feature of the term library ({', '.join(FEATURES[1:])})")
+        factors.append(feat)
+        i += len(tok)
+    if not factors:
+        raise _unknown(name, "no factor after the force letter")
+    n_vel = sum(f in _VELOCITY_FACTORS for f in factors)
+    if n_vel > 2:
+        raise _unknown(name, f"{n_vel} velocity factors; a prime-form term has at most two "
+                             "(a cubic term needs 1/U, which no feature gives)")
+    factors = ["u"] * (2 - n_vel) + factors + (["eps"] if eps else [])
+    if len(factors) > MAX_FACTORS:
+        raise _unknown(name, f"{len(factors)} factors ({' '.join(factors)}); at most {MAX_FACTORS}")
+    return Term(name, DOFS.index(name[0]), tuple(factors), -1, 2 if "db" in factors else 1)
+
+
+def parse(name: str) -> Term:
+    """The term an SNAME name stands for, read from the name (not added to the table).
+
+    Grammar (Gertler & Hagen 1967; Feldman 1979), as the listed names are written:
+
+    * an acceleration term is the force letter, one velocity and ``dot``: ``Yrdot`` (Y from
+      r-dot), ``Xwdot``;
+    * a force term is the force letter (``X Y Z K M N``), then the factors in order -- ``u v w p q
+      r``, ``absv`` for ``|v|`` (likewise ``absr``, ``absw``, ``absq``, ``absp``), ``dr ds db`` for the
+      rudder, stern-plane and bow-plane angles -- and optionally ``_eps`` for the propulsion
+      function eps(eta);
+    * the prime form makes every force term quadratic in the velocities (a rate counts as one
+      velocity over L): the missing velocity factors are ``u``, put first. ``Yv`` is u*v, ``Ydr``
+      u*u*dr, ``Nvabsr`` v*|r|, ``Xqds_eps`` u*q*ds*eps. Three or more velocity factors have no
+      prime form the kernels can evaluate (it needs 1/U) and are refused;
+    * the power of L follows from the factors (:attr:`Term.L_power`); a term with ``db`` has
+      multiplicity 2 (one coefficient per bow plane, one ``delta_b`` input), except the listed
+      ``Xdbdb``;
+    * ``Cd0``, ``Kprop`` and ``Nprop`` are listed names outside this grammar.
+
+    A listed name returns its listed term. Two spellings of a product that is not listed
+    (``Nvabsr``, ``Nabsrv``) are two terms: give a vehicle one of them.
 
     Raises
     ------
     UnknownCoefficientError
-        if ``name`` is not in the table; the message suggests close matches.
+        The name is not a product of the features (:data:`FEATURES`; ``|u|`` is not a
+        feature), has more than :data:`MAX_FACTORS` factors or more than two velocity
+        factors, or is another spelling of a listed product (``Yabsvv`` for ``Yvabsv``); the
+        message says which, and suggests the closest names of the table.
     """
-    try:
-        return TERMS[INDEX[name]]
-    except KeyError:
-        import difflib
+    i = INDEX.get(name)
+    if i is not None and i < len(LISTED):
+        return TERMS[i]
+    t = _read(name)
+    key = _product_key(t)
+    for listed in TERMS[:len(LISTED)]:
+        if _product_key(listed) == key:
+            what = (f"the {VELOCITIES[t.accel]}-dot term" if t.accel >= 0
+                    else "the product " + "*".join(t.factors))
+            raise UnknownCoefficientError(f"coefficient {name!r} is {what} in {t.group}, listed as "
+                                          f"{listed.name!r}: use that name")
+    return t
 
-        close = difflib.get_close_matches(name, NAMES, n=3)
-        hint = f" (did you mean {', '.join(close)}?)" if close else ""
-        raise UnknownCoefficientError(f"unknown coefficient {name!r}{hint}") from None
+
+def term(name: str) -> Term:
+    """Look up a term by SNAME name; a product not in the table yet is read from its name
+    (:func:`parse`) and added at the end of the table (:data:`TERMS`, :data:`NAMES`,
+    :data:`INDEX`), where it stays for the rest of the process. Another process (a worker that
+    receives a pickled vehicle) starts from the listed table: :func:`check_names` of the
+    vehicle's coefficient names adds its products there.
+
+    Raises
+    ------
+    UnknownCoefficientError
+        if ``name`` is neither in the table nor a product of the features; the message says why
+        and suggests close matches.
+    """
+    global TERMS, NAMES
+    i = INDEX.get(name)
+    if i is not None:
+        return TERMS[i]
+    t = parse(name)
+    with _LOCK:
+        if name not in INDEX:
+            # TERMS and NAMES first: a reader that finds the index also finds the term
+            TERMS = TERMS + (t,)
+            NAMES = NAMES + (name,)
+            INDEX[name] = len(TERMS) - 1
+        return TERMS[INDEX[name]]
 
 
 def check_names(names, where: str = "") -> None:
-    """Raise :class:`UnknownCoefficientError` naming the first name not in the table."""
+    """Raise :class:`UnknownCoefficientError` naming the first name that is neither in the table
+    nor a product of the features; the products are added to the table (:func:`term`)."""
     for n in names:
         if n not in INDEX:
             try:
@@ -258,13 +380,15 @@ def factor_table(names) -> tuple[np.ndarray, np.ndarray]:
 
 
 def names_where(*, group: str | None = None, category: str | None = None,
-                kind: str | None = None, horizontal: bool | None = None) -> list[str]:
+                kind: str | None = None, horizontal: bool | None = None, listed: bool = False) -> list[str]:
     """Term names (table order) matching all given filters.
 
-    Example: ``names_where(group="Y", category="rotary", horizontal=True)``.
+    Example: ``names_where(group="Y", category="rotary", horizontal=True)``. With ``listed`` only
+    the names written out in the table (:data:`LISTED`), not the products this process added
+    since: a candidate library that must not depend on which vehicles were loaded before.
     """
     out = []
-    for t in TERMS:
+    for t in (TERMS[:len(LISTED)] if listed else TERMS):
         if group is not None and t.group != group:
             continue
         if category is not None and t.category != category:

@@ -110,6 +110,12 @@ class Vehicle:
     prior: dict = field(default_factory=dict)
     prior_source: str = ""
 
+    def __setstate__(self, state):
+        # A process that unpickles a vehicle (a joblib or Dask worker) starts from the listed term
+        # table: add this vehicle's products to it before anything reads terms.NAMES.
+        terms.check_names(state.get("coefficients", {}), f"vehicle {state.get('id', '')}")
+        self.__dict__.update(state)
+
     @property
     def file_path(self) -> str:
         """The TOML file the vehicle was loaded from ("" when built in code)."""

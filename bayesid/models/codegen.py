@@ -71,7 +71,7 @@ LANES = {"6dof": 1, "horizontal": 2}
 # Scalar name of each feature in the generated source (terms.FEATURES order).
 _FEATURE_VAR = {"u": "u", "v": "v", "w": "w", "p": "p", "q": "q", "r": "r", "dr": "d_r", "ds": "d_s",
                 "db": "d_b", "eps": "eps", "|v|": "abs(v)", "|r|": "abs(r)", "prop": "prop",
-                "|w|": "abs(w)", "|q|": "abs(q)"}
+                "|w|": "abs(w)", "|q|": "abs(q)", "|p|": "abs(p)"}
 _STATES = ("x", "y", "z", "ph", "th", "ps", "u", "v", "w", "p", "q", "r")
 _PLANE_STATES = (0, 1, 5, 6, 7, 11)  # x, y, psi, u, v, r
 _PLANE_DOF = (0, 1, 5)  # X, Y, N

@@ -37,7 +37,7 @@ OK, NONFINITE, OUT_OF_BOUNDS = 0, 1, 2
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 U_MIN_EPS = 1e-3  # |u| floor (m/s) in eta = u_c/u; eps(eta) is undefined at u = 0
 
-assert F_INDEX["|q|"] == 15 and N_FEATURES == 16  # kernel below hard-codes this order
+assert F_INDEX["|p|"] == 16 and N_FEATURES == 17  # kernel below hard-codes this order
 
 
 def vehicle_params(vehicle, crossflow_integral: bool | None = None) -> np.ndarray:
@@ -107,6 +107,7 @@ def features(s, uin, vp, f):
     f[13] = uc * abs(uc) - u * abs(u)
     f[14] = abs(w)
     f[15] = abs(q)
+    f[16] = abs(p)
 
 
 @nb.njit(cache=True)

@@ -37,10 +37,12 @@ _PLANE = [0, 1, 5]  # u, v, r rows/columns of the 6x6 mass matrix
 
 
 def horizontal_terms(equation: str) -> list[str]:
-    """Term-library names of one horizontal equation (``"X"``, ``"Y"`` or ``"N"``), table order."""
+    """Term-library names of one horizontal equation (``"X"``, ``"Y"`` or ``"N"``), table order:
+    the listed terms only, so a SINDy library does not grow with the products a process happened
+    to read before (:func:`bayesid.data.terms.names_where`)."""
     if equation not in EQUATIONS:
         raise ValueError(f"equation must be one of {EQUATIONS}, got {equation!r}")
-    return terms.names_where(group=equation, horizontal=True)
+    return terms.names_where(group=equation, horizontal=True, listed=True)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -138,7 +138,7 @@ def reference_features(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.nd
         "1": np.ones_like(u), "u": u, "v": v, "w": w, "p": p, "q": q, "r": r,
         "dr": dr, "ds": ds, "db": db, "eps": propulsion_eps(u, n_rpm, vehicle),
         "|v|": np.abs(v), "|r|": np.abs(r), "prop": uc * np.abs(uc) - u * np.abs(u),
-        "|w|": np.abs(w), "|q|": np.abs(q),
+        "|w|": np.abs(w), "|q|": np.abs(q), "|p|": np.abs(p),
     }
     return np.column_stack([columns[name] for name in terms.FEATURES])
 
