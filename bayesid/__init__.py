@@ -34,4 +34,5 @@ The layout follows the data flow; each layer imports only the ones before it:
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
   workers or on Dask, with a resumable journal.
 """
+
 __version__ = "0.1.0"

@@ -10,6 +10,7 @@
 Coefficients whose true value is zero cannot be scaled as a ratio and are never free (the paper's
 "crosses": zero or known). The categories come from the term library (:attr:`Term.category`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -73,8 +74,9 @@ def horizontal_coefficients(vehicle) -> list[str]:
     return [n for n in terms.names_where(horizontal=True) if vehicle.coefficients.get(n, 0.0) != 0.0]
 
 
-def make_case(number: int, vehicle, rng: np.random.Generator, start_spread: float = 0.10,
-              known_error: float = 0.01) -> Case:
+def make_case(
+    number: int, vehicle, rng: np.random.Generator, start_spread: float = 0.10, known_error: float = 0.01
+) -> Case:
     """Build Case 1, 2 or 3 for ``vehicle`` with random numbers from ``rng``.
 
     Raises
@@ -94,13 +96,17 @@ def make_case(number: int, vehicle, rng: np.random.Generator, start_spread: floa
     if number == 1:
         lower = {n: start[n] * 0.9 for n in free}
         upper = {n: start[n] * 1.1 for n in free}
-        desc = ("All horizontal-plane X, Y, N coefficients unknown; start within +-10 % of truth; "
-                "bounds +-10 % of the start.")
+        desc = (
+            "All horizontal-plane X, Y, N coefficients unknown; start within +-10 % of truth; "
+            "bounds +-10 % of the start."
+        )
     else:
         lower = {n: true[n] * 0.75 for n in free}
         upper = {n: true[n] * 1.25 for n in free}
-        desc = ("Static (towing-tank) coefficients known; rotary and added-mass coefficients identified; "
-                "start within +-10 % of truth; bounds +-25 % of truth.")
+        desc = (
+            "Static (towing-tank) coefficients known; rotary and added-mass coefficients identified; "
+            "start within +-10 % of truth; bounds +-25 % of truth."
+        )
     known_values = {n: true[n] for n in known}
     if number == 3:
         known_values = {n: true[n] * (1.0 + rng.uniform(-known_error, known_error)) for n in known}

@@ -9,6 +9,7 @@
     bayesid fit --vehicle esso_osaka_3m --train A.csv B.csv --effects wind --out fitdir
     bayesid predict --model fitdir/model.json --track C.csv --window 60 --out pred
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,13 +18,12 @@ import re
 import sys
 from pathlib import Path
 
-from .data import datasets
-from .models import manoeuvres as mv
 from . import protocol, tasks
-from .models.simulate import MODES, Simulator
+from .data import datasets
 from .data.track import write_csv
 from .data.vehicle import load_vehicle
-
+from .models import manoeuvres as mv
+from .models.simulate import MODES, Simulator
 
 #: Longest simulation ``bayesid simulate`` runs (model steps): 1e6 s at 0.1 s.
 MAX_SIMULATE_STEPS = 10_000_000
@@ -34,13 +34,17 @@ def _simulate(args) -> int:
     if not args.dt > 0 or not args.sample > 0:
         raise ValueError(f"--dt and --sample must be positive (s), got {args.dt} and {args.sample}")
     if args.duration is not None and args.duration / args.dt > MAX_SIMULATE_STEPS:
-        raise ValueError(f"--duration {args.duration:g} s at --dt {args.dt:g} s is {args.duration / args.dt:.3g} steps "
-                         f"(at most {MAX_SIMULATE_STEPS:.0e}); shorten --duration or lengthen --dt")
+        raise ValueError(
+            f"--duration {args.duration:g} s at --dt {args.dt:g} s is {args.duration / args.dt:.3g} steps "
+            f"(at most {MAX_SIMULATE_STEPS:.0e}); shorten --duration or lengthen --dt"
+        )
     from .models import ship
 
     if ship.is_ship_file(args.vehicle):
-        raise ValueError(f"--vehicle {args.vehicle}: a surface ship; 'bayesid simulate' runs submarine vehicle "
-                         f"files (nps_auv2 or your own TOML)")
+        raise ValueError(
+            f"--vehicle {args.vehicle}: a surface ship; 'bayesid simulate' runs submarine vehicle "
+            f"files (nps_auv2 or your own TOML)"
+        )
     vehicle = load_vehicle(args.vehicle)
     if args.crossflow:
         vehicle = vehicle.with_crossflow(args.crossflow)
@@ -57,11 +61,15 @@ def _simulate(args) -> int:
         raise ValueError(f"--sample {args.sample:g} s is not a whole multiple of --dt {args.dt:g} s")
     res = Simulator(vehicle, m, mode=args.mode, sample_every=every).run()
     if res.diverged[0]:
-        raise ValueError(f"the simulation diverged at step {res.fail_step[0]} (t = {res.fail_step[0] * args.dt:g} s): "
-                         f"--angle {args.angle:g} deg or --dt {args.dt:g} s too large for {vehicle.id}?")
+        raise ValueError(
+            f"the simulation diverged at step {res.fail_step[0]} (t = {res.fail_step[0] * args.dt:g} s): "
+            f"--angle {args.angle:g} deg or --dt {args.dt:g} s too large for {vehicle.id}?"
+        )
     track = res.track(0, name=m.name)
-    track.meta["comments"] = [f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {args.mode}",
-                              f"vessel: {vehicle.id}"]
+    track.meta["comments"] = [
+        f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {args.mode}",
+        f"vessel: {vehicle.id}",
+    ]
     write_csv(track, args.out)
     print(f"wrote {args.out}: {track.n_samples} samples")
     return 0
@@ -85,7 +93,9 @@ def _convert(args) -> int:
     options = {}
     if args.scale is not None:
         if args.format != "simman-marin":
-            raise ValueError(f"--scale applies to --format simman-marin only (the {args.format} files are at model scale)")
+            raise ValueError(
+                f"--scale applies to --format simman-marin only (the {args.format} files are at model scale)"
+            )
         options["scale"] = args.scale
     tracks = [datasets.read_run(p, args.format, **options) for p in sources]
     runs, used = [], set()
@@ -102,26 +112,45 @@ def _convert(args) -> int:
             write_csv(tr, dest)
             duration = float(tr.t[-1] - tr.t[0])
             rate = tr.meta.get("sample_rate_hz")
-            runs.append({
-                "source": str(src), "output": str(dest), "n_samples": tr.n_samples,
-                "duration_s": duration, "t_start_s": float(tr.t[0]),
-                "columns": ["t", *tr.state_columns, *tr.input_columns, *tr.exogenous_columns],
-                "sample_rate_hz": rate, "vessel": tr.meta.get("vessel"),
-                "conversions": tr.meta.get("conversions", []), "notes": tr.meta.get("notes", []),
-            })
-            print(f"{src} -> {dest}: {tr.n_samples} samples, {duration:.1f} s"
-                  + (f" at {rate:g} Hz" if rate else ""))
+            runs.append(
+                {
+                    "source": str(src),
+                    "output": str(dest),
+                    "n_samples": tr.n_samples,
+                    "duration_s": duration,
+                    "t_start_s": float(tr.t[0]),
+                    "columns": ["t", *tr.state_columns, *tr.input_columns, *tr.exogenous_columns],
+                    "sample_rate_hz": rate,
+                    "vessel": tr.meta.get("vessel"),
+                    "conversions": tr.meta.get("conversions", []),
+                    "notes": tr.meta.get("notes", []),
+                }
+            )
+            print(f"{src} -> {dest}: {tr.n_samples} samples, {duration:.1f} s" + (f" at {rate:g} Hz" if rate else ""))
         for p, why in skipped:
             print(f"skipped {p}: {why}")
-        summary = {"command": "convert", "format": args.format, "out": str(out),
-                   "n_runs": len(runs), "runs": runs,
-                   "skipped": [{"source": str(p), "reason": why} for p, why in skipped]}
+        summary = {
+            "command": "convert",
+            "format": args.format,
+            "out": str(out),
+            "n_runs": len(runs),
+            "runs": runs,
+            "skipped": [{"source": str(p), "reason": why} for p, why in skipped],
+        }
         (out / "convert.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-        lines = [f"# bayesid convert --format {args.format}", "",
-                 f"{len(runs)} run(s) converted to Track CSVs (SI, rad, rpm; rudder + = to port).", "",
-                 "| output | samples | duration (s) | rate (Hz) | notes |", "|---|---|---|---|---|"]
-        lines += [f"| {Path(r['output']).name} | {r['n_samples']} | {r['duration_s']:.1f} | "
-                  f"{r['sample_rate_hz']} | {'; '.join(r['notes']) or '-'} |" for r in runs]
+        lines = [
+            f"# bayesid convert --format {args.format}",
+            "",
+            f"{len(runs)} run(s) converted to Track CSVs (SI, rad, rpm; rudder + = to port).",
+            "",
+            "| output | samples | duration (s) | rate (Hz) | notes |",
+            "|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {Path(r['output']).name} | {r['n_samples']} | {r['duration_s']:.1f} | "
+            f"{r['sample_rate_hz']} | {'; '.join(r['notes']) or '-'} |"
+            for r in runs
+        ]
         if skipped:
             lines += ["", "Skipped:", *[f"- {p}: {why}" for p, why in skipped]]
         (out / "convert.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -163,14 +192,16 @@ def _split_names(text, option: str = ""):
 
 
 #: What each command writes into its --out folder (removed first by --overwrite).
-WRITES = {"diagnose": ("diagnosis.json", "report.md", "figures"),
-          "fit": ("model.json", "report.md", "figures", "journal.jsonl"),
-          "predict": ("predict.json", "report.md", "figures"), "convert": ("convert.json", "convert.md")}
+WRITES = {
+    "diagnose": ("diagnosis.json", "report.md", "figures"),
+    "fit": ("model.json", "report.md", "figures", "journal.jsonl"),
+    "predict": ("predict.json", "report.md", "figures"),
+    "convert": ("convert.json", "convert.md"),
+}
 
 
 #: The file that marks a folder as a command's output.
-MAIN_OUTPUT = {"diagnose": "diagnosis.json", "fit": "model.json", "predict": "predict.json",
-               "convert": "convert.json"}
+MAIN_OUTPUT = {"diagnose": "diagnosis.json", "fit": "model.json", "predict": "predict.json", "convert": "convert.json"}
 
 
 def _check_out(path, command: str, overwrite: bool, resumable: bool = False) -> Path:
@@ -195,24 +226,35 @@ def _check_out(path, command: str, overwrite: bool, resumable: bool = False) -> 
     else:
         if out.exists() and not out.is_dir():
             raise ValueError(f"--out {out}: exists and is not a folder")
-        interrupted = (resumable and not overwrite and out.is_dir() and (out / "journal.jsonl").is_file()
-                       and not (out / MAIN_OUTPUT[command]).exists()
-                       and all(q.name in WRITES.get(command, ()) for q in out.iterdir()))
+        interrupted = (
+            resumable
+            and not overwrite
+            and out.is_dir()
+            and (out / "journal.jsonl").is_file()
+            and not (out / MAIN_OUTPUT[command]).exists()
+            and all(q.name in WRITES.get(command, ()) for q in out.iterdir())
+        )
         if interrupted:
             print(f"resuming the finished tasks of {out / 'journal.jsonl'}")
         elif out.is_dir() and any(out.iterdir()):
             if not overwrite:
-                raise ValueError(f"--out {out}: folder is not empty; pass --overwrite to replace what "
-                                 f"'bayesid {command}' writes there")
+                raise ValueError(
+                    f"--out {out}: folder is not empty; pass --overwrite to replace what "
+                    f"'bayesid {command}' writes there"
+                )
             # --overwrite replaces this command's earlier output only, never another's or the user's
             for other, main in MAIN_OUTPUT.items():
                 if other != command and (out / main).exists():
-                    raise ValueError(f"--out {out}: holds the output of 'bayesid {other}' ({main}); give "
-                                     f"'bayesid {command}' a folder of its own")
+                    raise ValueError(
+                        f"--out {out}: holds the output of 'bayesid {other}' ({main}); give "
+                        f"'bayesid {command}' a folder of its own"
+                    )
             own = [n for n in WRITES.get(command, ()) if (out / n).exists()]
             if own and not (out / MAIN_OUTPUT[command]).is_file():
-                raise ValueError(f"--out {out}: {', '.join(own)} exist(s) but no {MAIN_OUTPUT[command]}, so "
-                                 f"'bayesid {command}' did not write them; move them or choose another folder")
+                raise ValueError(
+                    f"--out {out}: {', '.join(own)} exist(s) but no {MAIN_OUTPUT[command]}, so "
+                    f"'bayesid {command}' did not write them; move them or choose another folder"
+                )
             old = out / "convert.json"
             if command == "convert" and old.is_file():
                 try:
@@ -301,22 +343,28 @@ def _read_tracks(groups, vehicle=None) -> dict:
             h = _file_sha256(p)
             if h in seen:
                 o, q = seen[h]
-                raise ValueError(f"{option} {p} has the same content as {o} {q}: a track may be given once"
-                                 + (" (training and held-out tracks must differ)" if o != option else ""))
+                raise ValueError(
+                    f"{option} {p} has the same content as {o} {q}: a track may be given once"
+                    + (" (training and held-out tracks must differ)" if o != option else "")
+                )
             seen[h] = (option, p)
             tr = read_csv(p)
             if tr.name in names:
-                raise ValueError(f"{option} {p} and {names[tr.name]} are both named {tr.name!r}; rename one "
-                                 "(results are reported by track name)")
+                raise ValueError(
+                    f"{option} {p} and {names[tr.name]} are both named {tr.name!r}; rename one "
+                    "(results are reported by track name)"
+                )
             names[tr.name] = p
             _TRACK_FILES[tr.name] = str(p)
             hashes[str(p)] = h
             warnings += check_track(tr, vehicle, str(p))
             for o, q, other in read:
                 if same_values(tr, other):
-                    raise ValueError(f"{option} {p} holds the same samples as {o} {q} (another export of one log?): "
-                                     "a track may be given once"
-                                     + (" (training and held-out tracks must differ)" if o != option else ""))
+                    raise ValueError(
+                        f"{option} {p} holds the same samples as {o} {q} (another export of one log?): "
+                        "a track may be given once"
+                        + (" (training and held-out tracks must differ)" if o != option else "")
+                    )
             read.append((option, p, tr))
             out[option].append(tr)
     for w in warnings:
@@ -345,26 +393,30 @@ def _provenance(vehicle, input_sha256: dict) -> dict:
     """What produced a model: package version, the vehicle file (path, SHA-256, values) and the
     SHA-256 of every input file."""
     from . import __version__
-    from .estimation import msfit
 
     vf = Path(vehicle.file_path) if vehicle.file_path else None
-    return {"bayesid_version": __version__, "vehicle_file": str(vf) if vf else None,
-            "vehicle_sha256": _file_sha256(vf) if vf and vf.is_file() else None,
-            "vehicle_coefficients": dict(vehicle.coefficients), "input_sha256": dict(input_sha256)}
+    return {
+        "bayesid_version": __version__,
+        "vehicle_file": str(vf) if vf else None,
+        "vehicle_sha256": _file_sha256(vf) if vf and vf.is_file() else None,
+        "vehicle_coefficients": dict(vehicle.coefficients),
+        "input_sha256": dict(input_sha256),
+    }
 
 
 def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> None:
     """Refuse (ValueError) to predict with a model whose vehicle file changed after the fit; with
     ``allow`` print a warning instead."""
-    from .estimation import msfit
 
     want = (doc.get("provenance") or {}).get("vehicle_sha256")
     vf = Path(vehicle.file_path) if vehicle.file_path else None
     if want is None or vf is None or not vf.is_file():
         return
     if _file_sha256(vf) != want:
-        msg = (f"--model {model_path}: the vehicle file {vf} changed after the fit (SHA-256 differs); the "
-               "non-free coefficients and particulars the model was fitted with may differ")
+        msg = (
+            f"--model {model_path}: the vehicle file {vf} changed after the fit (SHA-256 differs); the "
+            "non-free coefficients and particulars the model was fitted with may differ"
+        )
         if not allow:
             raise ValueError(msg + "; pass --allow-changed-vehicle to predict anyway")
         print(f"WARNING: {msg}", file=sys.stderr)
@@ -372,11 +424,11 @@ def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> Non
 
 def _fit(args) -> int:
     """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
+    import numpy as np
+
     from .estimation import msfit
     from .models import load_any_vehicle
     from .report import write_fit_report, write_json
-
-    import numpy as np
 
     if args.window is not None and not args.window > 0:
         raise ValueError(f"--window must be a positive number of seconds, not {args.window:g}")
@@ -384,8 +436,10 @@ def _fit(args) -> int:
         raise ValueError(f"--starts must be >= 0, not {args.starts}")
     tasks.check_jobs(args.jobs, args.scheduler)
     if not args.calibration_window > 0 or args.calibration_draws < 3:
-        raise ValueError(f"--calibration-window must be positive and --calibration-draws at least 3, not "
-                         f"{args.calibration_window:g} and {args.calibration_draws}")
+        raise ValueError(
+            f"--calibration-window must be positive and --calibration-draws at least 3, not "
+            f"{args.calibration_window:g} and {args.calibration_draws}"
+        )
     out = _check_out(args.out, "fit", args.overwrite, resumable=bool(args.starts) or args.calibration == "loro")
     vehicle = load_any_vehicle(args.vehicle)
     free = _free_list(vehicle, args.free)
@@ -397,22 +451,57 @@ def _fit(args) -> int:
     calibrate = args.calibration == "loro" and len(train) >= 3
     if args.starts or calibrate:
         # finished starts survive a killed run: the same command resumes them
-        journal = tasks.Journal(out / "journal.jsonl", {
-            "command": "fit", "inputs": sorted(got["_sha256"].values()),
-            "vehicle": _provenance(vehicle, {})["vehicle_sha256"] or args.vehicle, "free": free,
-            "effects": effects, "window": args.window, "dt": args.dt, "max_nfev": args.max_nfev,
-            "weighting": args.weighting, "channels": channels, "start": args.start, "starts": args.starts,
-            "seed": args.seed, "prior": args.prior, "calibration": args.calibration if calibrate else "none",
-            "calibration_window": args.calibration_window, "calibration_draws": args.calibration_draws})
-    res = msfit.identify(vehicle, train, free, effects, window_s=args.window, dt=args.dt,
-                         max_nfev=args.max_nfev, progress=lambda m: print(f"  {m}", flush=True),
-                         weighting=args.weighting or None, channels=channels, start=args.start,
-                         starts=args.starts, rng=np.random.default_rng(args.seed), jobs=args.jobs,
-                         scheduler=args.scheduler, journal=journal, prior=args.prior == "file",
-                         calibrate=calibrate, calibration_window_s=args.calibration_window,
-                         calibration_draws=args.calibration_draws, calibration_seed=args.seed)
-    doc = msfit.model_document(res, _vehicle_ref(args.vehicle), [t.name for t in train],
-                               provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]))
+        journal = tasks.Journal(
+            out / "journal.jsonl",
+            {
+                "command": "fit",
+                "inputs": sorted(got["_sha256"].values()),
+                "vehicle": _provenance(vehicle, {})["vehicle_sha256"] or args.vehicle,
+                "free": free,
+                "effects": effects,
+                "window": args.window,
+                "dt": args.dt,
+                "max_nfev": args.max_nfev,
+                "weighting": args.weighting,
+                "channels": channels,
+                "start": args.start,
+                "starts": args.starts,
+                "seed": args.seed,
+                "prior": args.prior,
+                "calibration": args.calibration if calibrate else "none",
+                "calibration_window": args.calibration_window,
+                "calibration_draws": args.calibration_draws,
+            },
+        )
+    res = msfit.identify(
+        vehicle,
+        train,
+        free,
+        effects,
+        window_s=args.window,
+        dt=args.dt,
+        max_nfev=args.max_nfev,
+        progress=lambda m: print(f"  {m}", flush=True),
+        weighting=args.weighting or None,
+        channels=channels,
+        start=args.start,
+        starts=args.starts,
+        rng=np.random.default_rng(args.seed),
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        journal=journal,
+        prior=args.prior == "file",
+        calibrate=calibrate,
+        calibration_window_s=args.calibration_window,
+        calibration_draws=args.calibration_draws,
+        calibration_seed=args.seed,
+    )
+    doc = msfit.model_document(
+        res,
+        _vehicle_ref(args.vehicle),
+        [t.name for t in train],
+        provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]),
+    )
     circles = None
     if res["multistart"] is not None:
         circles = _multistart_circles(res, doc, train)
@@ -423,8 +512,10 @@ def _fit(args) -> int:
 
         (out / "figures").mkdir(parents=True, exist_ok=True)
         plots.multistart(doc["multistart"], circles, out / "figures" / "multistart.png")
-    print(f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
-          f"wrote {out / 'model.json'}")
+    print(
+        f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
+        f"wrote {out / 'model.json'}"
+    )
     return 0
 
 
@@ -450,8 +541,14 @@ def _multistart_circles(res, doc, train, rudder_deg: float = 35.0, most: int = 6
         tc = msfit.turning_circles(res["model"], p, None, 0, np.random.default_rng(0), u0, rps, rudder_deg)["starboard"]
         opt["turning_circle"] = tc["predicted"]
         S = tc["_S"][0]
-        out.append((f"optimum {k + 1}: cost +{100 * opt['relative_cost']:.2f} %, tactical diameter "
-                    f"{tc['predicted']['tactical_diameter_m']:.3g} m", S[:, 0], S[:, 1]))
+        out.append(
+            (
+                f"optimum {k + 1}: cost +{100 * opt['relative_cost']:.2f} %, tactical diameter "
+                f"{tc['predicted']['tactical_diameter_m']:.3g} m",
+                S[:, 0],
+                S[:, 1],
+            )
+        )
     td = [o["turning_circle"]["tactical_diameter_m"] for o in ms["distinct_optima"][:most]]
     td = [v for v in td if v is not None and np.isfinite(v)]
     ms["tactical_diameter_range_m"] = [min(td), max(td)] if td else None
@@ -464,8 +561,7 @@ def _predict(args) -> int:
 
     from .estimation import msfit
     from .estimation.calibration import calibrated_bands, window_band
-    from .report import plots
-    from .report import fmt, md_table, write_json
+    from .report import fmt, md_table, plots, write_json
 
     out = _check_out(args.out, "predict", args.overwrite)
     model, p, cov, doc = msfit.load_model(args.model)
@@ -475,15 +571,19 @@ def _predict(args) -> int:
     trained = {h: f for f, h in ((doc.get("provenance") or {}).get("input_sha256") or {}).items()}
     for f, h in got["_sha256"].items():
         if h in trained:
-            w = (f"{f}: the model was fitted on this file ({trained[h]}): its scores are training scores, "
-                 "not a prediction of unseen data")
+            w = (
+                f"{f}: the model was fitted on this file ({trained[h]}): its scores are training scores, "
+                "not a prediction of unseen data"
+            )
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
     window = None if args.window <= 0 else args.window
     for tr in tracks:
         if window is not None and tr.t[-1] - tr.t[0] < window:
-            w = (f"{tr.name}: lasts {tr.t[-1] - tr.t[0]:.3g} s, less than one {window:g} s window: its score is "
-                 "over that shorter span, not comparable with full windows")
+            w = (
+                f"{tr.name}: lasts {tr.t[-1] - tr.t[0]:.3g} s, less than one {window:g} s window: its score is "
+                "over that shorter span, not comparable with full windows"
+            )
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
     lead = args.leadin if args.leadin > 0 else None
@@ -493,8 +593,9 @@ def _predict(args) -> int:
     rng = np.random.default_rng(args.seed)
     indices = {}
     for tr in tracks:
-        tb = msfit.turning_band(model, p, cov, tr, args.draws, rng, start=whole["start_rule"],
-                                leadin_s=whole["leadin_s"])
+        tb = msfit.turning_band(
+            model, p, cov, tr, args.draws, rng, start=whole["start_rule"], leadin_s=whole["leadin_s"]
+        )
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     bands = calibrated_bands(doc.get("calibration"), window, pr["windows"], indices)
     b90 = window_band(doc["calibration"], 0.9) if bands.get("windows") else {}
@@ -502,43 +603,88 @@ def _predict(args) -> int:
         ctx, S = pr["_sim"][tr.name]
         k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
         dr = np.asarray(tr["delta_r"], float)[ctx.idx]
-        plots.prediction_band(ctx.ts[::k], {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
-                              {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]}, ctx.win[::k], dr[::k],
-                              b90.get("max_position_m"), b90.get("max_heading_deg"), out / "figures" / f"{tr.name}.png",
-                              title=f"{tr.name}: {window or 'whole-run'} s windows, identified model")
+        plots.prediction_band(
+            ctx.ts[::k],
+            {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
+            {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
+            ctx.win[::k],
+            dr[::k],
+            b90.get("max_position_m"),
+            b90.get("max_heading_deg"),
+            out / "figures" / f"{tr.name}.png",
+            title=f"{tr.name}: {window or 'whole-run'} s windows, identified model",
+        )
         del pr["_sim"][tr.name]
     if bands.get("coverage"):
-        groups = {g: bands["coverage"][g] for g in ("windows", "indices") if any(
-            v["n"] for v in bands["coverage"][g].values())}
+        groups = {
+            g: bands["coverage"][g]
+            for g in ("windows", "indices")
+            if any(v["n"] for v in bands["coverage"][g].values())
+        }
         plots.reliability(groups, out / "figures" / "reliability.png", bands["parameter_only"])
-    res = {"model": str(args.model), "window_s": window, "start_rule": pr["start_rule"], "leadin_s": pr["leadin_s"],
-           "warnings": got["_warnings"], "input_sha256": got["_sha256"],
-           "pooled": pr["pooled"], "per_track": pr["per_track"],
-           "windows": pr["windows"], "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
-           "indices": indices, "n_draws": args.draws, "bands": bands}
+    res = {
+        "model": str(args.model),
+        "window_s": window,
+        "start_rule": pr["start_rule"],
+        "leadin_s": pr["leadin_s"],
+        "warnings": got["_warnings"],
+        "input_sha256": got["_sha256"],
+        "pooled": pr["pooled"],
+        "per_track": pr["per_track"],
+        "windows": pr["windows"],
+        "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
+        "indices": indices,
+        "n_draws": args.draws,
+        "bands": bands,
+    }
     write_json(out / "predict.json", res)
-    rows = [[n, fmt(d["rms_position_m"]), fmt(d["max_position_m"]), fmt(d["rms_heading_deg"]),
-             fmt(whole["per_track"][n]["rms_position_m"])] for n, d in pr["per_track"].items()]
-    lines = ["# Prediction under the window protocol", "", f"`bayesid {' '.join(sys.argv[1:])}`", "",
-             f"Windows of {window} s restart from "
-             + ("the measured (causal) state" if pr["start_rule"] == "measured" else
-                f"a state fitted with the model over the {pr['leadin_s']:g} s before each window (no velocity log)")
-             + "; whole run = one open-loop simulation from the first state.", "",
-             md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows), "",
-             f"Pooled: {fmt(pr['pooled']['rms_position_m'])} m, heading {fmt(pr['pooled']['rms_heading_deg'])} deg; "
-             f"whole run {fmt(whole['pooled']['rms_position_m'])} m.", ""]
+    rows = [
+        [
+            n,
+            fmt(d["rms_position_m"]),
+            fmt(d["max_position_m"]),
+            fmt(d["rms_heading_deg"]),
+            fmt(whole["per_track"][n]["rms_position_m"]),
+        ]
+        for n, d in pr["per_track"].items()
+    ]
+    lines = [
+        "# Prediction under the window protocol",
+        "",
+        f"`bayesid {' '.join(sys.argv[1:])}`",
+        "",
+        f"Windows of {window} s restart from "
+        + (
+            "the measured (causal) state"
+            if pr["start_rule"] == "measured"
+            else f"a state fitted with the model over the {pr['leadin_s']:g} s before each window (no velocity log)"
+        )
+        + "; whole run = one open-loop simulation from the first state.",
+        "",
+        md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows),
+        "",
+        f"Pooled: {fmt(pr['pooled']['rms_position_m'])} m, heading {fmt(pr['pooled']['rms_heading_deg'])} deg; "
+        f"whole run {fmt(whole['pooled']['rms_position_m'])} m.",
+        "",
+    ]
     lines += [f"- **Warning**: {w}" for w in got["_warnings"]] + ([""] if got["_warnings"] else [])
     for n, d in indices.items():
         if d["measured"].get("kind") == "other":
             lines.append(f"- {n}: no turning or zigzag indices ({d['measured'].get('reason')})")
         if d["measured"].get("kind") in ("turning", "zigzag"):
-            lines.append(f"- {n} ({d['measured']['kind']}): " + "; ".join(
-                f"{k} measured {fmt(d['measured'].get(k))}, predicted {fmt(d['predicted'].get(k))}"
-                + (f" [{fmt(d['band_5_95'][k][0])}, {fmt(d['band_5_95'][k][1])}]" if d["band_5_95"].get(k) else "")
-                for k in d["band_5_95"]))
+            lines.append(
+                f"- {n} ({d['measured']['kind']}): "
+                + "; ".join(
+                    f"{k} measured {fmt(d['measured'].get(k))}, predicted {fmt(d['predicted'].get(k))}"
+                    + (f" [{fmt(d['band_5_95'][k][0])}, {fmt(d['band_5_95'][k][1])}]" if d["band_5_95"].get(k) else "")
+                    for k in d["band_5_95"]
+                )
+            )
     lines += ["", *_band_lines(bands, args.draws), *[f"![{t.name}](figures/{t.name}.png)" for t in tracks], ""]
     (out / "report.md").write_text("\n".join(lines))
-    print(f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows); wrote {out / 'predict.json'}")
+    print(
+        f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows); wrote {out / 'predict.json'}"
+    )
     return 0
 
 
@@ -547,39 +693,91 @@ def _band_lines(bands: dict, n_draws: int) -> list:
     from .report import fmt, md_table
 
     po = bands["parameter_only"]
-    lines = ["## Predictive bands and their coverage on these runs", "",
-             f"Posterior draws: {n_draws}. The draws' own 5-95 % index bands (parameter uncertainty only) hold "
-             f"{po['inside']} of {po['n']} measured indices"
-             + (f" ({fmt(100 * po['coverage'])} %)." if po["coverage"] is not None else "."), ""]
+    lines = [
+        "## Predictive bands and their coverage on these runs",
+        "",
+        f"Posterior draws: {n_draws}. The draws' own 5-95 % index bands (parameter uncertainty only) hold "
+        f"{po['inside']} of {po['n']} measured indices"
+        + (f" ({fmt(100 * po['coverage'])} %)." if po["coverage"] is not None else "."),
+        "",
+    ]
     if not bands["calibrated"]:
         return lines + [f"No calibrated bands: {bands['reason']}.", ""]
     cov = bands["coverage"]
-    lines += ["Calibrated bands (split conformal, leave one training run out: they include the structural error "
-              "the model made on training runs it did not see). A window is inside when its largest position and "
-              "heading errors are within the band; an index when the measured value is.", "",
-              md_table(["nominal", "windows inside", "indices inside", "all"],
-                       [[f"{100 * float(a):g} %"] + [f"{c[a]['inside']}/{c[a]['n']} ({fmt(100 * c[a]['coverage'])} %)"
-                                                     if c[a]["n"] else "-" for c in (cov["windows"], cov["indices"],
-                                                                                     cov["all"])]
-                        for a in cov["all"]]), ""]
+    lines += [
+        "Calibrated bands (split conformal, leave one training run out: they include the structural error "
+        "the model made on training runs it did not see). A window is inside when its largest position and "
+        "heading errors are within the band; an index when the measured value is.",
+        "",
+        md_table(
+            ["nominal", "windows inside", "indices inside", "all"],
+            [
+                [f"{100 * float(a):g} %"]
+                + [
+                    f"{c[a]['inside']}/{c[a]['n']} ({fmt(100 * c[a]['coverage'])} %)" if c[a]["n"] else "-"
+                    for c in (cov["windows"], cov["indices"], cov["all"])
+                ]
+                for a in cov["all"]
+            ],
+        ),
+        "",
+    ]
     if bands.get("window_reason"):
         lines += [f"No window bands: {bands['window_reason']}.", ""]
-    rows = [[r["track"], r["index"], fmt(r["measured"]), fmt(r["predicted"]),
-             f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
-             + (" (pooled scores)" if r["band"]["0.9"]["pooled"] else ""),
-             "yes" if r["inside"]["0.9"] else "**no**",
-             f"[{fmt(r['parameter_band_5_95'][0])}, {fmt(r['parameter_band_5_95'][1])}]"
-             if r["parameter_band_5_95"] else "-"] for r in bands["indices"]]
+    rows = [
+        [
+            r["track"],
+            r["index"],
+            fmt(r["measured"]),
+            fmt(r["predicted"]),
+            f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
+            + (" (pooled scores)" if r["band"]["0.9"]["pooled"] else ""),
+            "yes" if r["inside"]["0.9"] else "**no**",
+            f"[{fmt(r['parameter_band_5_95'][0])}, {fmt(r['parameter_band_5_95'][1])}]"
+            if r["parameter_band_5_95"]
+            else "-",
+        ]
+        for r in bands["indices"]
+    ]
     if rows:
-        lines += ["Indices, 90 % band:", "", md_table(["track", "index", "measured", "predicted", "90 % band", "inside",
-                                                       "draws' 5-95 %"], rows), ""]
-    wrows = [[w["track"], fmt(w["t_start"]), fmt(w["max_position_m"]), fmt(w["band"]["0.9"]["max_position_m"]),
-              fmt(w["max_heading_deg"]), fmt(w["band"]["0.9"]["max_heading_deg"]),
-              "yes" if w["inside"]["0.9"] else "**no**"] for w in bands["windows"]]
+        lines += [
+            "Indices, 90 % band:",
+            "",
+            md_table(["track", "index", "measured", "predicted", "90 % band", "inside", "draws' 5-95 %"], rows),
+            "",
+        ]
+    wrows = [
+        [
+            w["track"],
+            fmt(w["t_start"]),
+            fmt(w["max_position_m"]),
+            fmt(w["band"]["0.9"]["max_position_m"]),
+            fmt(w["max_heading_deg"]),
+            fmt(w["band"]["0.9"]["max_heading_deg"]),
+            "yes" if w["inside"]["0.9"] else "**no**",
+        ]
+        for w in bands["windows"]
+    ]
     if wrows:
-        lines += ["Windows, 90 % band:", "", md_table(["track", "window start (s)", "max position error (m)",
-                                                       "band (m)", "max heading error (deg)", "band (deg)", "inside"],
-                                                      wrows), "", "![reliability](figures/reliability.png)", ""]
+        lines += [
+            "Windows, 90 % band:",
+            "",
+            md_table(
+                [
+                    "track",
+                    "window start (s)",
+                    "max position error (m)",
+                    "band (m)",
+                    "max heading error (deg)",
+                    "band (deg)",
+                    "inside",
+                ],
+                wrows,
+            ),
+            "",
+            "![reliability](figures/reliability.png)",
+            "",
+        ]
     elif rows:
         lines += ["![reliability](figures/reliability.png)", ""]
     return lines
@@ -613,35 +811,57 @@ def _diagnose(args) -> int:
         cands.remove(c)
     window = None if args.window <= 0 else args.window
     dt = args.dt if args.dt is not None else family.DEFAULT_DT
-    res = diagnose(vehicle, free, train, held, candidates=cands, window_s=window, dt=dt,
-                       mode=args.mode, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev,
-                       max_effects=args.max_effects, progress=lambda m: print(f"  {m}", flush=True),
-                       fit_window_s=args.fit_window if args.fit_window else None, weighting=args.weighting or None,
-                       start=args.start, leadin_s=args.leadin if args.leadin > 0 else None, progress_bars=True,
-                       jobs=args.jobs, scheduler=args.scheduler)
+    res = diagnose(
+        vehicle,
+        free,
+        train,
+        held,
+        candidates=cands,
+        window_s=window,
+        dt=dt,
+        mode=args.mode,
+        rng=np.random.default_rng(args.seed),
+        max_nfev=args.max_nfev,
+        max_effects=args.max_effects,
+        progress=lambda m: print(f"  {m}", flush=True),
+        fit_window_s=args.fit_window if args.fit_window else None,
+        weighting=args.weighting or None,
+        start=args.start,
+        leadin_s=args.leadin if args.leadin > 0 else None,
+        progress_bars=True,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+    )
     res.warnings = got["_warnings"]
     res.input_sha256 = got["_sha256"]
     write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]))
-    print(f"verdict: {res.verdict}; held-out RMS {res.gap_before['heldout_rms_m']:.3f} m -> "
-          f"{res.gap_after['heldout_rms_m']:.3f} m (noise floor {res.noise_floor['heldout_rms_m']:.3f} m, "
-          f"window starts {res.settings['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}")
+    print(
+        f"verdict: {res.verdict}; held-out RMS {res.gap_before['heldout_rms_m']:.3f} m -> "
+        f"{res.gap_after['heldout_rms_m']:.3f} m (noise floor {res.noise_floor['heldout_rms_m']:.3f} m, "
+        f"window starts {res.settings['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}"
+    )
     return 0
 
 
-START_HELP = ("window start states: measured (causal 1 s estimate), fitted (with the model, over a lead-in), "
-              "auto (fitted when a track does not log u, v and r and its positions are too noisy for a 1 s "
-              "slope estimate of the velocity)")
+START_HELP = (
+    "window start states: measured (causal 1 s estimate), fitted (with the model, over a lead-in), "
+    "auto (fitted when a track does not log u, v and r and its positions are too noisy for a 1 s "
+    "slope estimate of the velocity)"
+)
 WEIGHTINGS = ("", "noise", "residual")
-WEIGHTING_HELP = ("channel weights of the fits: noise sds, or the residual RMS of a first fit (two-step "
-                  "feasible GLS); default residual for ships, noise for submarines")
+WEIGHTING_HELP = (
+    "channel weights of the fits: noise sds, or the residual RMS of a first fit (two-step "
+    "feasible GLS); default residual for ships, noise for submarines"
+)
 
 
 def main(argv=None) -> int:
     from . import __version__
 
     fmt = argparse.ArgumentDefaultsHelpFormatter
-    ap = argparse.ArgumentParser(prog="bayesid", description="hydrodynamic coefficient identification",
-                                 formatter_class=fmt)
+    ap = argparse.ArgumentParser(
+        prog="bayesid", description="hydrodynamic coefficient identification", formatter_class=fmt
+    )
     ap.add_argument("--version", action="version", version=f"bayesid {__version__}")
     sub = ap.add_subparsers(dest="command", required=True)
     s = sub.add_parser("simulate", formatter_class=fmt, help="simulate a manoeuvre and write a Track CSV")
@@ -655,35 +875,61 @@ def main(argv=None) -> int:
     s.add_argument("--crossflow", choices=["polynomial", "integral"], default=None)
     s.add_argument("--out", required=True)
     c = sub.add_parser("convert", formatter_class=fmt, help="third-party data files -> Track CSVs (one per run)")
-    c.add_argument("--format", required=True, choices=datasets.FORMATS,
-                   help="data set format (see bayesid.data.datasets)")
-    c.add_argument("inputs", nargs="+", metavar="IN",
-                   help="run file or data set folder (searched recursively; duplicates skipped)")
+    c.add_argument(
+        "--format", required=True, choices=datasets.FORMATS, help="data set format (see bayesid.data.datasets)"
+    )
+    c.add_argument(
+        "inputs", nargs="+", metavar="IN", help="run file or data set folder (searched recursively; duplicates skipped)"
+    )
     c.add_argument("--out", required=True, help="output folder (created if absent)")
-    c.add_argument("--scale", type=float, default=None,
-                   help="simman-marin only: Froude scale lambda from the full-scale files to the model "
-                   f"(none: {datasets.KVLCC2_SCALE:.5g}, the 7 m KVLCC2 model of kvlcc2_7m; 1 keeps full scale)")
+    c.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        help="simman-marin only: Froude scale lambda from the full-scale files to the model "
+        f"(none: {datasets.KVLCC2_SCALE:.5g}, the 7 m KVLCC2 model of kvlcc2_7m; 1 keeps full scale)",
+    )
     d = sub.add_parser("diagnose", formatter_class=fmt, help="sim-to-real gap: where / which effect / how far")
     d.add_argument("--vehicle", required=True, help="packaged id or TOML path (nominal coefficients)")
-    d.add_argument("--free", default="", help="comma-separated free coefficients (empty: the vehicle's; "
-                   "submarines Yv,Yr,Nv,Nr,Ydr,Ndr)")
+    d.add_argument(
+        "--free",
+        default="",
+        help="comma-separated free coefficients (empty: the vehicle's; submarines Yv,Yr,Nv,Nr,Ydr,Ndr)",
+    )
     d.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
     d.add_argument("--heldout", nargs="+", required=True, metavar="CSV", help="held-out Track CSVs")
     d.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
     d.add_argument("--dt", type=float, default=None, help="model integration step, s (none: 0.5; ships 0.2)")
-    d.add_argument("--fit-window", type=float, default=0.0,
-                   help="window of the training fits, s (0: 15 for a ship, --window for a submarine)")
+    d.add_argument(
+        "--fit-window",
+        type=float,
+        default=0.0,
+        help="window of the training fits, s (0: 15 for a ship, --window for a submarine)",
+    )
     d.add_argument("--mode", choices=MODES, default="horizontal")
     d.add_argument("--candidates", default="", help="comma-separated effects (empty: the whole catalogue)")
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
-    d.add_argument("--max-effects", type=int, default=2,
-                   help="greedy rounds of effect addition (a contributor is added and the others tried on top)")
+    d.add_argument(
+        "--max-effects",
+        type=int,
+        default=2,
+        help="greedy rounds of effect addition (a contributor is added and the others tried on top)",
+    )
     d.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
-    d.add_argument("--leadin", type=float, default=0.0,
-                   help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
-                   f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)")
+    d.add_argument(
+        "--leadin",
+        type=float,
+        default=0.0,
+        help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
+        f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)",
+    )
     d.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations per fit")
-    d.add_argument("--seed", type=int, default=0, help="random seed (noise-floor simulation, ensemble of the force-signature regression)")
+    d.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="random seed (noise-floor simulation, ensemble of the force-signature regression)",
+    )
     d.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
     tasks.add_arguments(d)
     d.add_argument("--out", required=True, help="output folder")
@@ -692,52 +938,91 @@ def main(argv=None) -> int:
     f.add_argument("--train", nargs="+", required=True, metavar="CSV", help="training Track CSVs")
     f.add_argument("--free", default="", help="comma-separated free coefficients (empty: the vehicle's)")
     f.add_argument("--effects", default="", help="comma-separated effects in the model (ships: wind, current, delay)")
-    f.add_argument("--window", type=float, default=None,
-                   help="multiple-shooting window, s (none: 15 for a ship, bayesid.models.ship.FIT_WINDOW_S; 30 for a submarine)")
+    f.add_argument(
+        "--window",
+        type=float,
+        default=None,
+        help="multiple-shooting window, s (none: 15 for a ship, bayesid.models.ship.FIT_WINDOW_S; 30 for a submarine)",
+    )
     f.add_argument("--dt", type=float, default=None, help="model step, s (none: 0.2 ships, 0.5 submarines)")
     f.add_argument("--max-nfev", type=int, default=60, help="least-squares iterations")
     f.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
-    f.add_argument("--fit-channels", default="", help="comma-separated scored channels in the objective, e.g. "
-                   "x,y,psi when the logged u, v, r are derived from positions and heading (empty: all measured)")
+    f.add_argument(
+        "--fit-channels",
+        default="",
+        help="comma-separated scored channels in the objective, e.g. "
+        "x,y,psi when the logged u, v, r are derived from positions and heading (empty: all measured)",
+    )
     f.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
-    f.add_argument("--starts", type=int, default=0,
-                   help="extra Latin-hypercube starts of a multistart fit (the lowest cost is kept; the report shows "
-                   "how many reach it and how far apart the near-best optima are)")
+    f.add_argument(
+        "--starts",
+        type=int,
+        default=0,
+        help="extra Latin-hypercube starts of a multistart fit (the lowest cost is kept; the report shows "
+        "how many reach it and how far apart the near-best optima are)",
+    )
     f.add_argument("--seed", type=int, default=0, help="random seed of the multistart starts and calibration draws")
-    f.add_argument("--calibration", choices=("loro", "none"), default="loro",
-                   help="loro: with 3 or more training runs, calibrate the predictive bands leave one run out (refit "
-                   "without each run, score the prediction of it); predict then reports bands that include the "
-                   "model's structural error")
-    f.add_argument("--calibration-window", type=float, default=60.0,
-                   help="protocol window (s) of the calibrated window bands (predict --window must match)")
+    f.add_argument(
+        "--calibration",
+        choices=("loro", "none"),
+        default="loro",
+        help="loro: with 3 or more training runs, calibrate the predictive bands leave one run out (refit "
+        "without each run, score the prediction of it); predict then reports bands that include the "
+        "model's structural error",
+    )
+    f.add_argument(
+        "--calibration-window",
+        type=float,
+        default=60.0,
+        help="protocol window (s) of the calibrated window bands (predict --window must match)",
+    )
     f.add_argument("--calibration-draws", type=int, default=40, help="posterior draws per calibration fold")
-    f.add_argument("--prior", choices=("file", "none"), default="file",
-                   help="file: Gaussian priors of the vehicle file's [prior] section (captive-test values with their "
-                   "error), a MAP fit; none: the data alone")
+    f.add_argument(
+        "--prior",
+        choices=("file", "none"),
+        default="file",
+        help="file: Gaussian priors of the vehicle file's [prior] section (captive-test values with their "
+        "error), a MAP fit; none: the data alone",
+    )
     tasks.add_arguments(f)
     f.add_argument("--out", required=True, help="output folder (model.json, report.md)")
     pp = sub.add_parser("predict", formatter_class=fmt, help="score a fitted model on tracks with the window protocol")
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")
     pp.add_argument("--track", nargs="+", required=True, metavar="CSV", help="Track CSVs")
     pp.add_argument("--window", type=float, default=60.0, help="protocol window, s (<= 0: whole run)")
-    pp.add_argument("--draws", type=int, default=100,
-                    help="posterior draws for the index bands (100 gives a 5 %% quantile to about 2 draws)")
+    pp.add_argument(
+        "--draws",
+        type=int,
+        default=100,
+        help="posterior draws for the index bands (100 gives a 5 %% quantile to about 2 draws)",
+    )
     pp.add_argument("--seed", type=int, default=0, help="random seed of the posterior draws")
     pp.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
-    pp.add_argument("--leadin", type=float, default=0.0,
-                    help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
-                   f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)")
+    pp.add_argument(
+        "--leadin",
+        type=float,
+        default=0.0,
+        help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
+        f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)",
+    )
     pp.add_argument("--out", required=True, help="output folder")
     for p in (s, c, d, f, pp):
-        p.add_argument("--overwrite", action="store_true",
-                       help="replace what this command wrote before in --out (a non-empty --out is refused otherwise)")
-    pp.add_argument("--allow-changed-vehicle", action="store_true",
-                    help="predict even if the vehicle file changed after the fit (a warning is printed)")
+        p.add_argument(
+            "--overwrite",
+            action="store_true",
+            help="replace what this command wrote before in --out (a non-empty --out is refused otherwise)",
+        )
+    pp.add_argument(
+        "--allow-changed-vehicle",
+        action="store_true",
+        help="predict even if the vehicle file changed after the fit (a warning is printed)",
+    )
     args = ap.parse_args(argv)
     try:
         _check_numbers(args)
-        run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose, "fit": _fit,
-               "predict": _predict}[args.command]
+        run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose, "fit": _fit, "predict": _predict}[
+            args.command
+        ]
         return run(args)
     except (ValueError, KeyError, FileNotFoundError) as e:
         print(f"error: {_with_files(str(e))}", file=sys.stderr)

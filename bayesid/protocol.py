@@ -32,6 +32,7 @@ model compared on a track set and for its noise floor:
 ``"auto"`` picks ``"fitted"`` when a track does not log all of u, v, r and its positions are too
 noisy for a 1 s slope estimate of the velocity (:func:`resolve_start`), else ``"measured"``.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,9 +44,20 @@ from .data.track import STATE_NAMES, Track
 #: Channels scored by the protocol, in this order, when the track measures them.
 CHANNELS = ("x", "y", "psi", "u", "v", "r")
 #: Smallest noise sd assumed per channel (SI), so that a noise-free channel cannot dominate a fit.
-NOISE_FLOOR = {"x": 0.01, "y": 0.01, "z": 0.01, "psi": np.radians(0.01), "phi": np.radians(0.01),
-               "theta": np.radians(0.01), "u": 1e-3, "v": 1e-3, "w": 1e-3,
-               "r": np.radians(0.005), "p": np.radians(0.005), "q": np.radians(0.005)}
+NOISE_FLOOR = {
+    "x": 0.01,
+    "y": 0.01,
+    "z": 0.01,
+    "psi": np.radians(0.01),
+    "phi": np.radians(0.01),
+    "theta": np.radians(0.01),
+    "u": 1e-3,
+    "v": 1e-3,
+    "w": 1e-3,
+    "r": np.radians(0.005),
+    "p": np.radians(0.005),
+    "q": np.radians(0.005),
+}
 ANGLES = ("phi", "theta", "psi")
 #: Window start-state rules (module docstring).
 START_RULES = ("auto", "measured", "fitted")
@@ -76,7 +88,7 @@ def slope_sd(track: Track, span_s: float = 1.0) -> float:
     if not h > 0 or span_s / h < 2.0:
         return math.inf
     sd = estimate_noise(track, ["x", "y"], floor=False)
-    return max(sd["x"], sd["y"]) * math.sqrt(12.0 * h / span_s ** 3)
+    return max(sd["x"], sd["y"]) * math.sqrt(12.0 * h / span_s**3)
 
 
 def resolve_start(start: str, tracks) -> str:
@@ -196,8 +208,10 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
     s = np.zeros(12)
     # only the samples this estimate can use (unwrapping the whole channel for every window made
     # the protocol quadratic in the track length)
-    lo, hi = np.searchsorted(t, [t0 - 2 * span_s - 1e-9, t0 + 1e-9], side="left")[0], \
-        np.searchsorted(t, t0 + 1e-9, side="right")
+    lo, hi = (
+        np.searchsorted(t, [t0 - 2 * span_s - 1e-9, t0 + 1e-9], side="left")[0],
+        np.searchsorted(t, t0 + 1e-9, side="right"),
+    )
     t = t[lo:hi]
     for i, k in enumerate(STATE_NAMES):
         if k in track:
@@ -224,8 +238,9 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
     return np.where(np.isfinite(s), s, 0.0)
 
 
-def start_settings(start: str, tracks, window_s: float | None, dt: float,
-                   leadin_s: float | None = None) -> tuple[str, float]:
+def start_settings(
+    start: str, tracks, window_s: float | None, dt: float, leadin_s: float | None = None
+) -> tuple[str, float]:
     """(rule, lead-in s) of the window start states for a set of tracks: ``start`` resolved
     (:func:`resolve_start`); for the fitted rule the lead-in ``leadin_s``, by default the larger
     of :data:`LEADIN_S` and :data:`LEADIN_SAMPLES` median sample intervals of the slowest
@@ -317,7 +332,7 @@ def pooled_scores(errors: list[dict]) -> dict:
         for k, v in e.items():
             cat.setdefault(k, []).append(np.asarray(v, float))
     cat = {k: np.concatenate(v) for k, v in cat.items()}
-    out = {"rms": {k: float(np.sqrt(np.nanmean(v ** 2))) if v.size else float("nan") for k, v in cat.items()}}
+    out = {"rms": {k: float(np.sqrt(np.nanmean(v**2))) if v.size else float("nan") for k, v in cat.items()}}
     if "x" in cat and "y" in cat and cat["x"].size:
         d2 = cat["x"] ** 2 + cat["y"] ** 2
         out["rms_position_m"] = float(np.sqrt(np.nanmean(d2)))
@@ -329,5 +344,18 @@ def pooled_scores(errors: list[dict]) -> dict:
     return out
 
 
-__all__ = ["CHANNELS", "NOISE_FLOOR", "START_RULES", "LEADIN_S", "wrap", "estimate_noise", "window_starts",
-           "state_at", "state_guess", "resolve_start", "start_settings", "LEADIN_SAMPLES", "pooled_scores"]
+__all__ = [
+    "CHANNELS",
+    "NOISE_FLOOR",
+    "START_RULES",
+    "LEADIN_S",
+    "wrap",
+    "estimate_noise",
+    "window_starts",
+    "state_at",
+    "state_guess",
+    "resolve_start",
+    "start_settings",
+    "LEADIN_SAMPLES",
+    "pooled_scores",
+]

@@ -35,6 +35,7 @@ Errors. A task that raises does not stop the others: it comes back as a :class:`
 holding its key, parameters and the worker's traceback; it is not journaled, so a re-run tries it
 again.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -44,23 +45,35 @@ import os
 import threading
 import time
 import traceback
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["Task", "TaskError", "Journal", "run_tasks", "parse_scheduler", "check_jobs", "digest", "jsonable",
-           "add_arguments", "JOURNAL_VERSION"]
+__all__ = [
+    "Task",
+    "TaskError",
+    "Journal",
+    "run_tasks",
+    "parse_scheduler",
+    "check_jobs",
+    "digest",
+    "jsonable",
+    "add_arguments",
+    "JOURNAL_VERSION",
+]
 
 #: Format version of a journal file's header.
 JOURNAL_VERSION = 1
 
 #: Help texts of the two options every command and study with many tasks takes.
 JOBS_HELP = "worker processes for independent tasks (joblib, loky backend); 1 runs them in this process"
-SCHEDULER_HELP = ("run the tasks on Dask instead: tcp://HOST:PORT for an existing cluster (workers started with "
-                  "--nthreads 1), local:N for a LocalCluster of N worker processes (needs pip install "
-                  "'bayesid[dask]')")
+SCHEDULER_HELP = (
+    "run the tasks on Dask instead: tcp://HOST:PORT for an existing cluster (workers started with "
+    "--nthreads 1), local:N for a LocalCluster of N worker processes (needs pip install "
+    "'bayesid[dask]')"
+)
 
 
 def add_arguments(parser, jobs_default: int = 1) -> None:
@@ -172,15 +185,21 @@ class Journal:
         except (ValueError, AssertionError, AttributeError):
             raise ValueError(f"{self.path}: not a bayesid task journal (line 1)") from None
         if head.get("version") != JOURNAL_VERSION:
-            raise ValueError(f"{self.path}: journal version {head.get('version')}, this bayesid writes "
-                             f"{JOURNAL_VERSION}; use another output folder")
+            raise ValueError(
+                f"{self.path}: journal version {head.get('version')}, this bayesid writes "
+                f"{JOURNAL_VERSION}; use another output folder"
+            )
         old = head.get("identity", {})
         if old != self.identity:
             keys = sorted(k for k in set(old) | set(self.identity) if old.get(k) != self.identity.get(k))
-            what = "; ".join(f"{k}: journal {json.dumps(old.get(k))[:80]}, this run "
-                             f"{json.dumps(self.identity.get(k))[:80]}" for k in keys)
-            raise ValueError(f"{self.path}: written by a run with other inputs ({what}); its results do not "
-                             "apply. Use another output folder, or start over (--fresh where offered)")
+            what = "; ".join(
+                f"{k}: journal {json.dumps(old.get(k))[:80]}, this run {json.dumps(self.identity.get(k))[:80]}"
+                for k in keys
+            )
+            raise ValueError(
+                f"{self.path}: written by a run with other inputs ({what}); its results do not "
+                "apply. Use another output folder, or start over (--fresh where offered)"
+            )
         body = lines[1:]
         if body and body[-1] == "":
             body = body[:-1]
@@ -195,7 +214,7 @@ class Journal:
                 raise ValueError(f"{self.path}: line {i + 2} is not JSON (edited?)") from None
             self.records[rec["key"]] = rec
         if torn or (text and not text.endswith("\n")):
-            keep = [lines[0]] + body[:len(body) - 1 if torn else len(body)]
+            keep = [lines[0]] + body[: len(body) - 1 if torn else len(body)]
             tmp = self.path.with_suffix(self.path.suffix + ".tmp")
             tmp.write_text("\n".join(keep) + "\n", encoding="utf-8")
             os.replace(tmp, self.path)
@@ -207,8 +226,10 @@ class Journal:
         if rec is None:
             return None
         if rec["params"] != json.loads(_dumps(task.params)):
-            raise ValueError(f"{self.path}: task {task.key} was journaled with other parameters "
-                             f"({json.dumps(rec['params'])[:200]}); use another output folder or start over")
+            raise ValueError(
+                f"{self.path}: task {task.key} was journaled with other parameters "
+                f"({json.dumps(rec['params'])[:200]}); use another output folder or start over"
+            )
         return rec
 
     def add(self, task: Task, result, seconds: float) -> dict:
@@ -306,8 +327,10 @@ def _dask_client(scheduler: str):
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
-        raise ValueError(f"--scheduler {scheduler}: Dask is not installed; pip install 'bayesid[dask]' "
-                         "(or -e '.[dask]' in a checkout)") from None
+        raise ValueError(
+            f"--scheduler {scheduler}: Dask is not installed; pip install 'bayesid[dask]' "
+            "(or -e '.[dask]' in a checkout)"
+        ) from None
     kind, val = parse_scheduler(scheduler)
     if kind == "local":
         cluster = LocalCluster(n_workers=val, threads_per_worker=1, processes=True, dashboard_address=None)
@@ -318,9 +341,18 @@ def _dask_client(scheduler: str):
         raise ValueError(f"--scheduler {val}: cannot connect ({exc})") from None
 
 
-def run_tasks(fn: Callable, tasks: Sequence[Task], *, jobs: int = 1, scheduler: str | None = None,
-              journal: Journal | None = None, threads: int | None = None, on_done: Callable | None = None,
-              retries: int = 2, progress: str | None = None) -> list:
+def run_tasks(
+    fn: Callable,
+    tasks: Sequence[Task],
+    *,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    journal: Journal | None = None,
+    threads: int | None = None,
+    on_done: Callable | None = None,
+    retries: int = 2,
+    progress: str | None = None,
+) -> list:
     """Run ``fn(*task.args)`` for every task; return the results in task order.
 
     Parameters
@@ -420,7 +452,8 @@ def _run_parallel(fn, tasks, todo, jobs, scheduler, threads, finish, retries) ->
             try:
                 with config:
                     gen = joblib.Parallel(n_jobs=n_jobs, return_as="generator_unordered", batch_size=1)(
-                        joblib.delayed(call)(i, tasks[i].args) for i in pending)
+                        joblib.delayed(call)(i, tasks[i].args) for i in pending
+                    )
                     for i, status, payload, extra in gen:
                         done.add(i)
                         finish(i, status, payload, extra)

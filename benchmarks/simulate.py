@@ -24,6 +24,7 @@ rtol 1e-8, the fair reference), ``batch_vs_single``, ``tracks_per_s_compiled``,
 ``tracks_per_s_reference`` and ``speedup`` (= their ratio; the reference is DOP853 at rtol
 1e-10, the accuracy anchor), and last ``speedup_generated_vs_interpreted`` (6-DOF).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -62,10 +63,18 @@ def _ship_workload(B: int, rng):
     dt, dur = 0.2, 600.0
     t = np.arange(0.0, dur + 1e-9, 1.0)
     u0 = 0.6
-    data = {"x": u0 * t, "y": np.zeros_like(t), "psi": np.zeros_like(t), "u": np.full_like(t, u0),
-            "v": np.zeros_like(t), "r": np.zeros_like(t),
-            "delta_r": np.radians(20.0) * np.sin(2 * np.pi * t / 60.0), "n": np.full_like(t, 600.0),
-            "wind_speed": 2.0 + 0.5 * np.sin(2 * np.pi * t / 97.0), "wind_dir": np.full_like(t, 40.0)}
+    data = {
+        "x": u0 * t,
+        "y": np.zeros_like(t),
+        "psi": np.zeros_like(t),
+        "u": np.full_like(t, u0),
+        "v": np.zeros_like(t),
+        "r": np.zeros_like(t),
+        "delta_r": np.radians(20.0) * np.sin(2 * np.pi * t / 60.0),
+        "n": np.full_like(t, 600.0),
+        "wind_speed": 2.0 + 0.5 * np.sin(2 * np.pi * t / 97.0),
+        "wind_dir": np.full_like(t, 40.0),
+    }
     track = Track(t, data, name="ship-bench")
     models = {k: ShipModel(ship, None, ("wind",), dt=dt, kernel=k) for k in KINDS}
     ctx = models["generated"].context(track, None)
@@ -74,9 +83,11 @@ def _ship_workload(B: int, rng):
     out = {k: models[k].simulate(ctx, P) for k in KINDS}
     diff = float(np.nanmax(np.abs(out["generated"] - out["interpreted"])))
     calls = {k: (lambda k=k: models[k].simulate(ctx, P)) for k in KINDS}
-    single = {k: (lambda k=k: [models[k].simulate(ctx, P[i:i + 1]) for i in range(B)]) for k in KINDS}
-    desc = (f"ship {ship.id}: {dur:g} s rudder sine +-20 deg with wind, dt {dt:g} s "
-            f"({ctx.n_steps} RK4 steps), {P0.size} parameters +-5 %")
+    single = {k: (lambda k=k: [models[k].simulate(ctx, P[i : i + 1]) for i in range(B)]) for k in KINDS}
+    desc = (
+        f"ship {ship.id}: {dur:g} s rudder sine +-20 deg with wind, dt {dt:g} s "
+        f"({ctx.n_steps} RK4 steps), {P0.size} parameters +-5 %"
+    )
     return calls, single, diff, desc
 
 
@@ -84,8 +95,9 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batch", type=int, default=64, help="coefficient vectors per batched call")
     ap.add_argument("--reference-tracks", type=int, default=2, help="tracks timed with solve_ivp")
-    ap.add_argument("--single-tracks", type=int, default=None,
-                    help="tracks timed one at a time (B = 1); default --batch")
+    ap.add_argument(
+        "--single-tracks", type=int, default=None, help="tracks timed one at a time (B = 1); default --batch"
+    )
     ap.add_argument("--repeats", type=int, default=5, help="alternating timed repeats of each batched call")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
@@ -103,10 +115,15 @@ def main(argv=None) -> None:
     results = {}
     for mode in ("6dof", "horizontal"):
         sims = {k: Simulator(vehicle, manoeuvre, free=FREE, mode=mode, kernel=k) for k in KINDS}
-        best = _alternate({k: (lambda k=k: sims[k].run(theta)) for k in KINDS}, args.repeats)
+        best = _alternate({k: (lambda k=k: sims[k].run(theta)) for k in KINDS}, args.repeats)  # noqa: B023 - called in this iteration
         results[mode] = {k: sims[k].run(theta) for k in KINDS}
-        single = _alternate({k: (lambda k=k: [sims[k].run(theta[i % B][None]) for i in range(n_single)])
-                             for k in KINDS}, 1)
+        single = _alternate(
+            {
+                k: (lambda k=k: [sims[k].run(theta[i % B][None]) for i in range(n_single)])  # noqa: B023
+                for k in KINDS
+            },
+            1,
+        )
         for k in KINDS:
             rows.append((mode, f"{k} batched (B={B})", B, best[k]))
             rows.append((mode, f"{k} one at a time", n_single, single[k]))
@@ -134,8 +151,9 @@ def main(argv=None) -> None:
     rk45_times, rk45_diffs = [], []
     for i in range(args.reference_tracks):
         tic = time.perf_counter()
-        ref = simulate_reference(vehicle, manoeuvre, mode="6dof", coefficients=dict(zip(FREE, theta[i])),
-                                 method="RK45", rtol=1e-8, atol=1e-8)
+        ref = simulate_reference(
+            vehicle, manoeuvre, mode="6dof", coefficients=dict(zip(FREE, theta[i])), method="RK45", rtol=1e-8, atol=1e-8
+        )
         rk45_times.append(time.perf_counter() - tic)
         rk45_diffs.append(float(np.max(np.linalg.norm(ref.states[0, :, :3] - batch6.states[i, :, :3], axis=1))))
     rows.append(("6dof", "reference solve_ivp DOP853 1e-10", args.reference_tracks, sum(ref_times)))
@@ -144,24 +162,35 @@ def main(argv=None) -> None:
     rate_ref = args.reference_tracks / sum(ref_times)
     rate_rk45 = args.reference_tracks / sum(rk45_times)
 
-    print(f"# submarine: spiral {manoeuvre.duration:g} s, dt {manoeuvre.dt:g} s ({manoeuvre.n_steps} RK4 steps), "
-          f"{vehicle.id}, {len(FREE)} free coefficients +-5 %")
+    print(
+        f"# submarine: spiral {manoeuvre.duration:g} s, dt {manoeuvre.dt:g} s ({manoeuvre.n_steps} RK4 steps), "
+        f"{vehicle.id}, {len(FREE)} free coefficients +-5 %"
+    )
     print(f"# {ship_desc}")
-    print(f"# numba threads {numba.get_num_threads()}, threading layer {numba.threading_layer()}; best of {args.repeats} alternating repeats "
-          f"(one at a time: one pass)")
+    print(
+        f"# numba threads {numba.get_num_threads()}, threading layer {numba.threading_layer()}; best of {args.repeats} alternating repeats "
+        f"(one at a time: one pass)"
+    )
     print(f"{'case':<12}{'path':<36}{'tracks':>8}{'seconds':>11}{'tracks/s':>12}{'ms/track':>10}")
     for case, path, n, t in rows:
         print(f"{case:<12}{path:<36}{n:>8d}{t:>11.4f}{n / t:>12.2f}{1e3 * t / n:>10.3f}")
     rhs_calls = B * manoeuvre.n_steps * 4
-    print(f"6-DOF generated batched: {1e9 * t_batch / rhs_calls:.0f} ns per right-hand-side evaluation "
-          f"(wall, all threads)")
-    print("max |generated - interpreted| over all states (6dof, horizontal, ship): "
-          + ", ".join(f"{diffs[k]:.3e}" for k in ("6dof", "horizontal", "ship")))
+    print(
+        f"6-DOF generated batched: {1e9 * t_batch / rhs_calls:.0f} ns per right-hand-side evaluation "
+        f"(wall, all threads)"
+    )
+    print(
+        "max |generated - interpreted| over all states (6dof, horizontal, ship): "
+        + ", ".join(f"{diffs[k]:.3e}" for k in ("6dof", "horizontal", "ship"))
+    )
     print(f"reference per track (s): {', '.join(f'{t:.2f}' for t in ref_times)}")
-    print(f"max position difference compiled (RK4 dt {manoeuvre.dt:g} s) vs DOP853 rtol 1e-10, same "
-          f"coefficients (m): {', '.join(f'{d:.3e}' for d in ref_diffs)}")
-    print(f"max position difference compiled vs solve_ivp RK45 rtol 1e-8 (m): "
-          f"{', '.join(f'{d:.3e}' for d in rk45_diffs)}")
+    print(
+        f"max position difference compiled (RK4 dt {manoeuvre.dt:g} s) vs DOP853 rtol 1e-10, same "
+        f"coefficients (m): {', '.join(f'{d:.3e}' for d in ref_diffs)}"
+    )
+    print(
+        f"max position difference compiled vs solve_ivp RK45 rtol 1e-8 (m): {', '.join(f'{d:.3e}' for d in rk45_diffs)}"
+    )
     for case in ("6dof", "horizontal", "ship"):
         print(f"batch_vs_single_{case} {batch_vs_single[case]:.4f}")
     for case in ("horizontal", "ship", "6dof"):

@@ -19,6 +19,7 @@ timing: that is what a user waits for. The last lines are machine-readable ``key
 ``tasks_per_s_<path>``, ``overhead_ms_per_task_<path>``, ``speedup_2_workers``,
 ``diagnose_speedup_jobs2`` and ``diagnose_same``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -61,16 +62,25 @@ def _diagnosis_data(seed: int = 11):
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng(seed)
     noise = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}
-    kinds = [lambda: mv.zigzag(veh, 20.0, dt=0.1, duration=200.0),
-             lambda: mv.prbs(veh, 15.0, duration=200.0, rng=np.random.default_rng(seed)),
-             lambda: mv.zigzag(veh, 10.0, dt=0.1, duration=200.0, first_sign=-1),
-             lambda: mv.turning_circle(veh, 15.0, dt=0.1, duration=200.0),
-             lambda: mv.multisine(veh, 15.0, duration=200.0)]
+    kinds = [
+        lambda: mv.zigzag(veh, 20.0, dt=0.1, duration=200.0),
+        lambda: mv.prbs(veh, 15.0, duration=200.0, rng=np.random.default_rng(seed)),
+        lambda: mv.zigzag(veh, 10.0, dt=0.1, duration=200.0, first_sign=-1),
+        lambda: mv.turning_circle(veh, 15.0, dt=0.1, duration=200.0),
+        lambda: mv.multisine(veh, 15.0, duration=200.0),
+    ]
     tracks = []
     for i in range(7):
         m = kinds[i % len(kinds)]()
-        tr = ef.world_track(veh, m, {"current": {"current_north_mps": 0.15, "current_east_mps": -0.1}}, rng,
-                            noise=noise, sample_every=2, hold_inputs=True)
+        tr = ef.world_track(
+            veh,
+            m,
+            {"current": {"current_north_mps": 0.15, "current_east_mps": -0.1}},
+            rng,
+            noise=noise,
+            sample_every=2,
+            hold_inputs=True,
+        )
         keep = {k: v for k, v in tr.data.items() if k in ("x", "y", "psi", "delta_r", "delta_s", "delta_b", "n")}
         tracks.append(Track(tr.t + 1000.0 * i, keep, name=f"run{i}_{m.name}", meta=tr.meta))
     return veh, tracks[:3], tracks[3:]
@@ -127,9 +137,11 @@ def main() -> None:
         rates[name] = args.tasks / wall
         e_wall, _ = _time(empty_task, empties, **kw)
         overhead[name] = 1e3 * e_wall / len(empties)
-        print(f"{name:14s} {args.tasks} simulation tasks in {wall:6.2f} s = {rates[name]:6.2f} tasks/s "
-              f"(results {'equal' if same else 'DIFFER'}); 200 empty tasks {e_wall:5.2f} s = "
-              f"{overhead[name]:.2f} ms/task (worker start-up included)")
+        print(
+            f"{name:14s} {args.tasks} simulation tasks in {wall:6.2f} s = {rates[name]:6.2f} tasks/s "
+            f"(results {'equal' if same else 'DIFFER'}); 200 empty tasks {e_wall:5.2f} s = "
+            f"{overhead[name]:.2f} ms/task (worker start-up included)"
+        )
     lines = {f"tasks_per_s_{k}": v for k, v in rates.items()}
     lines.update({f"overhead_ms_per_task_{k}": v for k, v in overhead.items()})
     lines["speedup_2_workers"] = rates["loky_2"] / rates["serial"]
@@ -144,8 +156,10 @@ def main() -> None:
             d = diagnose(veh, FREE, train, held, window_s=60.0, max_nfev=30, rng=np.random.default_rng(0), jobs=jobs)
             walls[jobs] = time.perf_counter() - tic
             docs[jobs] = _without_timings(d.to_dict())
-            print(f"diagnose --jobs {jobs}: {walls[jobs]:6.1f} s, verdict {d.verdict}, "
-                  f"ranking {[r['effect'] for r in d.ranking]}")
+            print(
+                f"diagnose --jobs {jobs}: {walls[jobs]:6.1f} s, verdict {d.verdict}, "
+                f"ranking {[r['effect'] for r in d.ranking]}"
+            )
         lines["diagnose_seconds_jobs1"] = walls[1]
         lines["diagnose_seconds_jobs2"] = walls[2]
         lines["diagnose_speedup_jobs2"] = walls[1] / walls[2]
@@ -169,14 +183,18 @@ def cluster_estimate(rates: dict, overhead: dict, n_cases: int = 1000, cores: in
         return {}
     secs = np.array([json.loads(line)["seconds"] for line in path.read_text().splitlines()[1:]])
     over = overhead.get("dask_local_2", overhead.get("loky_2", 0.0)) / 1e3
-    print(f"{path.name}: {secs.size} cases, worker time mean {secs.mean():.0f} s, median {np.median(secs):.0f} s, "
-          f"longest {secs.max():.0f} s")
+    print(
+        f"{path.name}: {secs.size} cases, worker time mean {secs.mean():.0f} s, median {np.median(secs):.0f} s, "
+        f"longest {secs.max():.0f} s"
+    )
     out = {}
     for n in (1, 10, 50):
         h = (n_cases * (secs.mean() + over) / (n * cores) + secs.max()) / 3600
         out[f"estimate_hours_{n}_machines"] = h
-        print(f"estimate: {n_cases} cases on {n} machine(s) x {cores} cores: {h:.1f} h "
-              f"(work {n_cases * secs.mean() / 3600:.0f} core-hours / {n * cores} cores + longest case)")
+        print(
+            f"estimate: {n_cases} cases on {n} machine(s) x {cores} cores: {h:.1f} h "
+            f"(work {n_cases * secs.mean() / 3600:.0f} core-hours / {n * cores} cores + longest case)"
+        )
     return out
 
 

@@ -4,6 +4,7 @@ Build (warnings are errors; the examples run during the build):
 
     python -m sphinx -W --keep-going -b html docs docs/_build/html
 """
+
 from __future__ import annotations
 
 import importlib
@@ -19,8 +20,9 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 DOCS = Path(__file__).resolve().parent
 sys.path.insert(0, str(DOCS.parent))
 
-import bayesid  # noqa: E402
 from sphinx.pycode import ModuleAnalyzer  # noqa: E402
+
+import bayesid  # noqa: E402
 
 project = "bayesid"
 author = "the bayesid developers"
@@ -90,8 +92,11 @@ def _documented_data(modname: str) -> set[str]:
 
 def _members(mod) -> tuple[list[str], list[str]]:
     """(names documented on the module's page, other public names it defines or lists)."""
-    listed = list(mod.__all__) if hasattr(mod, "__all__") else [
-        n for n, obj in vars(mod).items() if not n.startswith("_") and _is_code(obj)]
+    listed = (
+        list(mod.__all__)
+        if hasattr(mod, "__all__")
+        else [n for n, obj in vars(mod).items() if not n.startswith("_") and _is_code(obj)]
+    )
     docs = _documented_data(mod.__name__)
     members, others = [], []
     for n in listed:
@@ -118,8 +123,12 @@ def _write_api_pages(app) -> None:
         members, others = _members(mod)
         lines = [name, "=" * len(name), "", f".. automodule:: {name}", "   :no-members:", ""]
         if others:
-            lines += ["Other public names here: " + ", ".join(f"``{n}``" for n in others)
-                      + " (imported from the module that defines them, or constants without a doc comment).", ""]
+            lines += [
+                "Other public names here: "
+                + ", ".join(f"``{n}``" for n in others)
+                + " (imported from the module that defines them, or constants without a doc comment).",
+                "",
+            ]
         for m in members:
             lines += [_directive(mod, name, m), ""]
         pages[f"{name}.rst"] = "\n".join(lines)

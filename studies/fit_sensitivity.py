@@ -25,10 +25,10 @@ Method
 
     python studies/fit_sensitivity.py [--quick] [--out DIR] [--data DIR] [--fresh] [--jobs N] [--scheduler ADDRESS]
 """
+
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -39,17 +39,30 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bayesid.tasks import Journal, Task, TaskError, add_arguments, check_jobs, run_tasks  # noqa: E402
-ESSO_VALIDATION = ["random_06-Aug-2020_16_24_25_6", "turn_14-Oct-2020_15_06_53", "zigzag_31-Jul-2020_13_57_45",
-                   "berthing_12-Nov-2020_11_38_50"]
+
+ESSO_VALIDATION = [
+    "random_06-Aug-2020_16_24_25_6",
+    "turn_14-Oct-2020_15_06_53",
+    "zigzag_31-Jul-2020_13_57_45",
+    "berthing_12-Nov-2020_11_38_50",
+]
 KVLCC2_VALIDATION = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
 #: held-out runs of each split; the training-only splits never see the validation held-out runs
 SPLITS = {
     "esso_osaka": {
         "validation": ESSO_VALIDATION,
-        "train_cv_a": ["random_31-Jul-2020_12_29_58", "turn_14-Sep-2020_13_39_32", "zigzag_31-Jul-2020_13_22_52",
-                       "berthing_12-Nov-2020_11_14_47"],
-        "train_cv_b": ["random_03-Aug-2020_11_04_37", "turn_14-Oct-2020_14_29_49", "zigzag_31-Jul-2020_14_03_39",
-                       "berthing_12-Nov-2020_13_09_11"],
+        "train_cv_a": [
+            "random_31-Jul-2020_12_29_58",
+            "turn_14-Sep-2020_13_39_32",
+            "zigzag_31-Jul-2020_13_22_52",
+            "berthing_12-Nov-2020_11_14_47",
+        ],
+        "train_cv_b": [
+            "random_03-Aug-2020_11_04_37",
+            "turn_14-Oct-2020_14_29_49",
+            "zigzag_31-Jul-2020_14_03_39",
+            "berthing_12-Nov-2020_13_09_11",
+        ],
     },
     "kvlcc2_hsva": {
         "validation": KVLCC2_VALIDATION,
@@ -113,14 +126,22 @@ def fit_key(job: dict, digest: str) -> dict:
     """What a saved fit depends on: data set, split and its held-out runs, the setting's fit
     window and channels, the evaluation budget, quick mode and the data's digest."""
     window, channels = SETTINGS[job["setting"]]
-    return {"dataset": job["dataset"], "split": job["split"], "heldout": list(SPLITS[job["dataset"]][job["split"]]),
-            "fit_window_s": window, "channels": list(channels) if channels else "all",
-            "max_nfev": job["max_nfev"], "quick": bool(job["quick"]), "data_sha256": digest}
+    return {
+        "dataset": job["dataset"],
+        "split": job["split"],
+        "heldout": list(SPLITS[job["dataset"]][job["split"]]),
+        "fit_window_s": window,
+        "channels": list(channels) if channels else "all",
+        "max_nfev": job["max_nfev"],
+        "quick": bool(job["quick"]),
+        "data_sha256": digest,
+    }
 
 
 def split_runs(tracks, dataset: str, split: str):
     """(train, held) of a split. Training-only splits drop the validation held-out runs first.
     Raises ValueError when a named held-out run is missing (named)."""
+
     def named(t, names):
         return any(t.name == n or t.name.endswith("_" + n) for n in names)
 
@@ -146,11 +167,26 @@ def run_fit(job: dict) -> dict:
         train, held = train[:2], held[:1]
     vessel = ship.load_ship("esso_osaka_3m" if job["dataset"] == "esso_osaka" else "kvlcc2_7m")
     window, channels = SETTINGS[job["setting"]]
-    res = msfit.identify(vessel, train, vessel.free, EFFECTS[job["dataset"]], window_s=window, dt=0.2,
-                         max_nfev=job["max_nfev"], weighting="residual", channels=channels, start="measured")
+    res = msfit.identify(
+        vessel,
+        train,
+        vessel.free,
+        EFFECTS[job["dataset"]],
+        window_s=window,
+        dt=0.2,
+        max_nfev=job["max_nfev"],
+        weighting="residual",
+        channels=channels,
+        start="measured",
+    )
     out = {k: job[k] for k in ("dataset", "split", "setting", "key")}
-    out.update(train_runs=[t.name for t in train], heldout_runs=[t.name for t in held], fit_window_s=window,
-               channels=list(channels) if channels else "all", nfev=res["fit"].n_simulations)
+    out.update(
+        train_runs=[t.name for t in train],
+        heldout_runs=[t.name for t in held],
+        fit_window_s=window,
+        channels=list(channels) if channels else "all",
+        nfev=res["fit"].n_simulations,
+    )
     for key, w in (("w30", 30.0), ("w60", 60.0)):
         pr = msfit.predict(res["model"], res["fit"].p, held, w, start="measured")
         out[key] = pr["pooled"]["rms_position_m"]
@@ -175,31 +211,52 @@ def summarise(fits: list[dict]) -> dict:
             tab.setdefault(f["split"], {})[f["setting"]] = {"w30": f["w30"], "w60": f["w60"]}
         ratio, verdict, mean_cv = {}, {}, {}
         for st in [s for s in SETTINGS if any(s in v for v in tab.values())]:
-            r = {sp: {k: tab[sp][st][k] / tab[sp][REFERENCE][k] for k in ("w30", "w60")}
-                 for sp in tab if st in tab[sp] and REFERENCE in tab[sp]}
+            r = {
+                sp: {k: tab[sp][st][k] / tab[sp][REFERENCE][k] for k in ("w30", "w60")}
+                for sp in tab
+                if st in tab[sp] and REFERENCE in tab[sp]
+            }
             ratio[st] = r
             cv = [v for sp, v in r.items() if sp != "validation"]
             verdict[st] = {k: bool(cv) and all(v[k] < 1.0 for v in cv) for k in ("w30", "w60")}
-            mean_cv[st] = {k: float(np.exp(np.mean([np.log(v[k]) for v in cv]))) if cv else None
-                           for k in ("w30", "w60")}
-        spread = {sp: {k: [min(v[k] for v in tab[sp].values()), max(v[k] for v in tab[sp].values())]
-                       for k in ("w30", "w60")} for sp in tab}
-        S[ds] = {"scores": tab, "ratio_to_reference": ratio, "beats_reference_on_every_cv_split": verdict,
-                 "geometric_mean_ratio_cv": mean_cv, "spread": spread}
+            mean_cv[st] = {
+                k: float(np.exp(np.mean([np.log(v[k]) for v in cv]))) if cv else None for k in ("w30", "w60")
+            }
+        spread = {
+            sp: {k: [min(v[k] for v in tab[sp].values()), max(v[k] for v in tab[sp].values())] for k in ("w30", "w60")}
+            for sp in tab
+        }
+        S[ds] = {
+            "scores": tab,
+            "ratio_to_reference": ratio,
+            "beats_reference_on_every_cv_split": verdict,
+            "geometric_mean_ratio_cv": mean_cv,
+            "spread": spread,
+        }
     return S
 
 
 def overall(S: dict) -> dict:
     """{setting: {w30, w60}}: the product over data sets of the geometric mean ratio to the
     reference on the training-only splits (settings run on every data set only)."""
-    sets = [st for st in SETTINGS if all(d["geometric_mean_ratio_cv"].get(st, {}).get("w30") is not None
-                                         for d in S.values())]
-    return {st: {k: float(np.prod([d["geometric_mean_ratio_cv"][st][k] for d in S.values()])) for k in ("w30", "w60")}
-            for st in sets} if S else {}
+    sets = [
+        st
+        for st in SETTINGS
+        if all(d["geometric_mean_ratio_cv"].get(st, {}).get("w30") is not None for d in S.values())
+    ]
+    return (
+        {
+            st: {k: float(np.prod([d["geometric_mean_ratio_cv"][st][k] for d in S.values()])) for k in ("w30", "w60")}
+            for st in sets
+        }
+        if S
+        else {}
+    )
 
 
 def figure(S, path):
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -225,12 +282,22 @@ def figure(S, path):
 def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | None):
     from bayesid.report import fmt, md_table
 
-    L = ["# Sensitivity of the real-data protocol scores to the fit settings", "",
-         "Quick run (smoke test: two runs, few evaluations)." if quick else "Full run.", "",
-         (__doc__ or "").split("Method\n------\n", 1)[1].split("\n    python", 1)[0].strip(), ""]
+    L = [
+        "# Sensitivity of the real-data protocol scores to the fit settings",
+        "",
+        "Quick run (smoke test: two runs, few evaluations)." if quick else "Full run.",
+        "",
+        (__doc__ or "").split("Method\n------\n", 1)[1].split("\n    python", 1)[0].strip(),
+        "",
+    ]
     for ds, d in S.items():
-        L += [f"## {ds}", "", "Held-out RMS position error (m) at 30 s / 60 s windows; in brackets the ratio to "
-              f"the reference setting {REFERENCE} on the same split.", ""]
+        L += [
+            f"## {ds}",
+            "",
+            "Held-out RMS position error (m) at 30 s / 60 s windows; in brackets the ratio to "
+            f"the reference setting {REFERENCE} on the same split.",
+            "",
+        ]
         splits = list(d["scores"])
         rows = []
         for st in [s for s in SETTINGS if any(s in d["scores"][sp] for sp in splits)]:
@@ -238,43 +305,85 @@ def write_report(out: Path, S: dict, fits: list[dict], quick: bool, fig: Path | 
             for sp in splits:
                 v = d["scores"][sp].get(st)
                 rr = d["ratio_to_reference"][st].get(sp)
-                cells.append("-" if v is None else f"{fmt(v['w30'])} / {fmt(v['w60'])}"
-                             + ("" if rr is None else f" ({rr['w30']:.3f} / {rr['w60']:.3f})"))
+                cells.append(
+                    "-"
+                    if v is None
+                    else f"{fmt(v['w30'])} / {fmt(v['w60'])}"
+                    + ("" if rr is None else f" ({rr['w30']:.3f} / {rr['w60']:.3f})")
+                )
             b = d["beats_reference_on_every_cv_split"][st]
             g = d["geometric_mean_ratio_cv"][st]
-            rows.append([st, *cells, "-" if st == REFERENCE else f"{'yes' if b['w30'] else 'no'} / "
-                                                                  f"{'yes' if b['w60'] else 'no'}",
-                         "-" if g["w30"] is None else f"{g['w30']:.3f} / {g['w60']:.3f}"])
-        L += [md_table(["setting", *splits, "better on every training-only split (30 s / 60 s)",
-                        "mean ratio, training-only splits (30 s / 60 s)"], rows), ""]
-        L += ["Spread over the settings (min - max, m): " + "; ".join(
-            f"{sp}: 30 s {fmt(v['w30'][0])}-{fmt(v['w30'][1])}, 60 s {fmt(v['w60'][0])}-{fmt(v['w60'][1])}"
-            for sp, v in d["spread"].items()), ""]
+            rows.append(
+                [
+                    st,
+                    *cells,
+                    "-" if st == REFERENCE else f"{'yes' if b['w30'] else 'no'} / {'yes' if b['w60'] else 'no'}",
+                    "-" if g["w30"] is None else f"{g['w30']:.3f} / {g['w60']:.3f}",
+                ]
+            )
+        L += [
+            md_table(
+                [
+                    "setting",
+                    *splits,
+                    "better on every training-only split (30 s / 60 s)",
+                    "mean ratio, training-only splits (30 s / 60 s)",
+                ],
+                rows,
+            ),
+            "",
+        ]
+        L += [
+            "Spread over the settings (min - max, m): "
+            + "; ".join(
+                f"{sp}: 30 s {fmt(v['w30'][0])}-{fmt(v['w30'][1])}, 60 s {fmt(v['w60'][0])}-{fmt(v['w60'][1])}"
+                for sp, v in d["spread"].items()
+            ),
+            "",
+        ]
         winners = [st for st, b in d["beats_reference_on_every_cv_split"].items() if st != REFERENCE and b["w60"]]
-        L += ["Settings better than the reference at 60 s on every training-only split: "
-              + (", ".join(winners) if winners else "none") + ".", ""]
+        L += [
+            "Settings better than the reference at 60 s on every training-only split: "
+            + (", ".join(winners) if winners else "none")
+            + ".",
+            "",
+        ]
     if fig is not None:
         L += [f"![60 s scores]({fig.relative_to(out).as_posix()})", ""]
     from bayesid.models.ship import FIT_WINDOW_S
 
     both = overall(S)
-    L += ["## Both ships", "",
-          "Product over the two ships of each setting's geometric mean ratio to the reference on the "
-          "training-only splits (below 1: better than the reference):", "",
-          md_table(["setting", "30 s", "60 s"], [[st, f"{v['w30']:.3f}", f"{v['w60']:.3f}"] for st, v in both.items()]),
-          "", "Lowest at 30 s: " + min(both, key=lambda k: both[k]["w30"]) + "; lowest at 60 s: "
-          + min(both, key=lambda k: both[k]["w60"]) + "." if both else "-", ""]
-    L += ["## Reading", "",
-          f"- The package's ship fit window is {FIT_WINDOW_S:g} s (`bayesid.models.ship.FIT_WINDOW_S`). A per-ship "
-          "choice would be read off the same training-only rows; one default for every ship is what a user "
-          "gets on a hull nobody has tuned. Provenance: 15 s and x/y/psi were first tried on the validation "
-          "split, where both looked better; the training-only splits were added to check them, and only the "
-          "window passed.",
-          "- The validation split is what real_ships reports against the issue's targets; a setting that "
-          "helps there but not on the training-only splits was selected by the validation data and is not "
-          "adopted. The spread across settings on one split is the size of difference a fit setting alone "
-          "makes; compare it with the distance to a target before reading a shortfall as a modelling failure.",
-          "- Per-run scores and fitted parameters of every fit are in results.json (`fits`)."]
+    L += [
+        "## Both ships",
+        "",
+        "Product over the two ships of each setting's geometric mean ratio to the reference on the "
+        "training-only splits (below 1: better than the reference):",
+        "",
+        md_table(["setting", "30 s", "60 s"], [[st, f"{v['w30']:.3f}", f"{v['w60']:.3f}"] for st, v in both.items()]),
+        "",
+        "Lowest at 30 s: "
+        + min(both, key=lambda k: both[k]["w30"])
+        + "; lowest at 60 s: "
+        + min(both, key=lambda k: both[k]["w60"])
+        + "."
+        if both
+        else "-",
+        "",
+    ]
+    L += [
+        "## Reading",
+        "",
+        f"- The package's ship fit window is {FIT_WINDOW_S:g} s (`bayesid.models.ship.FIT_WINDOW_S`). A per-ship "
+        "choice would be read off the same training-only rows; one default for every ship is what a user "
+        "gets on a hull nobody has tuned. Provenance: 15 s and x/y/psi were first tried on the validation "
+        "split, where both looked better; the training-only splits were added to check them, and only the "
+        "window passed.",
+        "- The validation split is what real_ships reports against the issue's targets; a setting that "
+        "helps there but not on the training-only splits was selected by the validation data and is not "
+        "adopted. The spread across settings on one split is the size of difference a fit setting alone "
+        "makes; compare it with the distance to a target before reading a shortfall as a modelling failure.",
+        "- Per-run scores and fitted parameters of every fit are in results.json (`fits`).",
+    ]
     (out / "report.md").write_text("\n".join(L) + "\n")
 
 
@@ -292,8 +401,12 @@ def main() -> int:
     settings = [REFERENCE, "w30_xypsi"] if args.quick else list(SETTINGS)
     splits = {ds: (["validation"] if args.quick else list(sp)) for ds, sp in SPLITS.items()}
     nfev = min(args.max_nfev, 3) if args.quick else args.max_nfev
-    jobs = [{"dataset": ds, "split": sp, "setting": st, "data": str(data), "quick": args.quick, "max_nfev": nfev}
-            for ds in SPLITS for sp in splits[ds] for st in settings]
+    jobs = [
+        {"dataset": ds, "split": sp, "setting": st, "data": str(data), "quick": args.quick, "max_nfev": nfev}
+        for ds in SPLITS
+        for sp in splits[ds]
+        for st in settings
+    ]
     digests = {ds: data_digest(data, ds) for ds in SPLITS}
     journal_path = out / ("journal_quick.jsonl" if args.quick else "journal.jsonl")
     if args.fresh and journal_path.exists():
@@ -305,8 +418,11 @@ def main() -> int:
         j["key"] = fit_key(j, digests[j["dataset"]])
         tasks.append(Task(f"{j['dataset']}__{j['split']}__{j['setting']}", j["key"], (j,)))
     n_done = sum(journal.get(t) is not None for t in tasks)
-    print(f"{len(jobs)} fits, {len(jobs) - n_done} to run ({n_done} in {journal_path}) on "
-          f"{args.scheduler or f'{args.jobs} worker(s)'}", flush=True)
+    print(
+        f"{len(jobs)} fits, {len(jobs) - n_done} to run ({n_done} in {journal_path}) on "
+        f"{args.scheduler or f'{args.jobs} worker(s)'}",
+        flush=True,
+    )
 
     def done(task, r, seconds):
         if isinstance(r, TaskError):
@@ -322,15 +438,32 @@ def main() -> int:
         return 1
     S = summarise(fits)
     fig = figure(S, out / "figures" / "scores_60s.png") if S else None
-    write_json(out / "results.json", {"summary": S, "both_ships": overall(S), "settings": {k: {"fit_window_s": w, "channels": list(c) if c else "all"}
-                                                                for k, (w, c) in SETTINGS.items()},
-                                      "reference": REFERENCE, "splits": SPLITS, "quick": bool(args.quick),
-                                      "max_nfev": nfev, "fits": sorted(fits, key=lambda f: (f["dataset"], f["split"], f["setting"]))})
+    write_json(
+        out / "results.json",
+        {
+            "summary": S,
+            "both_ships": overall(S),
+            "settings": {k: {"fit_window_s": w, "channels": list(c) if c else "all"} for k, (w, c) in SETTINGS.items()},
+            "reference": REFERENCE,
+            "splits": SPLITS,
+            "quick": bool(args.quick),
+            "max_nfev": nfev,
+            "fits": sorted(fits, key=lambda f: (f["dataset"], f["split"], f["setting"])),
+        },
+    )
     write_report(out, S, fits, args.quick, fig)
-    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t_start,
-                   extra={"journal": journal_path.name, "tasks_resumed_from_journal": n_done,
-                          "tasks_run": len(tasks) - n_done,
-                          "task_seconds_total": sum(r["seconds"] for r in journal.records.values())})
+    write_manifest(
+        out,
+        seed=args.seed,
+        quick=args.quick,
+        t_start=t_start,
+        extra={
+            "journal": journal_path.name,
+            "tasks_resumed_from_journal": n_done,
+            "tasks_run": len(tasks) - n_done,
+            "task_seconds_total": sum(r["seconds"] for r in journal.records.values()),
+        },
+    )
     print(f"wrote {out / 'report.md'}")
     return 0
 

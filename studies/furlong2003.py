@@ -8,6 +8,7 @@ coefficients and costs with the paper.
 
     python studies/furlong2003.py [--quick] [--out DIR] [--seed N]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,14 +18,13 @@ import numpy as np
 
 from bayesid import cases
 from bayesid.analysis import identifiability
-from bayesid.report import plots
 from bayesid.data import terms
-from bayesid.models import manoeuvres as mv
+from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import Problem
-from bayesid.report import fmt, md_table, prepare_out, write_json, write_manifest
+from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
-from bayesid.data.vehicle import load_vehicle
+from bayesid.report import fmt, md_table, plots, prepare_out, write_json, write_manifest
 
 #: The paper's Table 1 and Section 4.1 (quoted for comparison; Furlong et al. 2003).
 PAPER = {
@@ -46,8 +46,9 @@ def parse_args():
 
 def run_case(number, vehicle, spiral, target, rng, quick):
     case = cases.make_case(number, vehicle, rng)
-    sim = Simulator(case.vehicle(vehicle), spiral, free=case.free, mode="horizontal",
-                    sample_every=int(round(SAMPLE_S / spiral.dt)))
+    sim = Simulator(
+        case.vehicle(vehicle), spiral, free=case.free, mode="horizontal", sample_every=int(round(SAMPLE_S / spiral.dt))
+    )
     problem = Problem(sim, target, case.reference())
     bounds = case.scaled_bounds()
     p0 = np.ones(len(case.free))
@@ -77,8 +78,13 @@ def structural_nulls(case, vehicle, sim):
         st = sim.run(np.vstack([base] + [base * (1 + 0.02 * N[:, k]) for k in range(N.shape[1])])).states
         for k in range(N.shape[1]):
             d = identifiability.Direction(0.0, N[:, k], case.free)
-            out.append(dict(direction=d.label(threshold=0.15), weights=d.weights(0.05),
-                            track_change_m=float(np.nanmax(np.abs(st[0, :, :2] - st[k + 1, :, :2])))))
+            out.append(
+                dict(
+                    direction=d.label(threshold=0.15),
+                    weights=d.weights(0.05),
+                    track_change_m=float(np.nanmax(np.abs(st[0, :, :2] - st[k + 1, :, :2]))),
+                )
+            )
     return dict(dimension=int(N.shape[1]), causes=causes, directions=out)
 
 
@@ -86,14 +92,20 @@ def case_json(case, res, true_cost):
     fit = res["fit"]
     ratio = {n: fit.theta[i] / case.true[n] for i, n in enumerate(case.free)}
     return dict(
-        n_free=len(case.free), free=case.free, known=case.known,
-        start_cost=fit.start_cost, final_cost=fit.cost,
+        n_free=len(case.free),
+        free=case.free,
+        known=case.known,
+        start_cost=fit.start_cost,
+        final_cost=fit.cost,
         max_position_error_m=float(np.max(res["error"])),
         coefficient_ratio=ratio,
         start_ratio={n: case.start[n] / case.true[n] for n in case.free},
         known_ratio={n: case.known_values[n] / case.true[n] for n in case.known},
-        at_bound=fit.at_bound, true_outside_bounds=case.true_outside_bounds(),
-        n_iterations=fit.n_iterations, n_simulations=fit.n_simulations, wall_s=fit.wall_s,
+        at_bound=fit.at_bound,
+        true_outside_bounds=case.true_outside_bounds(),
+        n_iterations=fit.n_iterations,
+        n_simulations=fit.n_simulations,
+        wall_s=fit.wall_s,
         true_coefficients_cost=true_cost,
         jacobian_condition_number=float(res["svals"][0] / res["svals"][-1]),
         weakest_direction=res["weakest"],
@@ -116,8 +128,11 @@ def main():
         spiral = mv.spiral(vehicle)
     truth_sim = Simulator(vehicle, spiral, mode="horizontal", sample_every=int(round(SAMPLE_S / spiral.dt)))
     target = truth_sim.run().track(0, name="target")
-    plots.track_xy({"spiral (target)": target}, figs / "fig1_spiral_track.png",
-                   f"Spiral manoeuvre, NPS AUV II ({spiral.duration:g} s)")
+    plots.track_xy(
+        {"spiral (target)": target},
+        figs / "fig1_spiral_track.png",
+        f"Spiral manoeuvre, NPS AUV II ({spiral.duration:g} s)",
+    )
     plots.inputs_time(target, figs / "fig1b_spiral_inputs.png", "Spiral inputs")
 
     # 2. The three cases, each fitted by SLSQP (the paper's method) and by least squares.
@@ -128,37 +143,62 @@ def main():
         results[case.name] = case_json(case, res["slsqp"], true_cost)
         results[case.name]["least_squares"] = case_json(case, res["least_squares"], true_cost)
         results[case.name]["structural_nulls"] = nulls
-        print(f"{case.name}: V {res['slsqp']['fit'].start_cost:.3g} -> SLSQP {res['slsqp']['fit'].cost:.3g}"
-              f" / LSQ {res['least_squares']['fit'].cost:.3g}", flush=True)
+        print(
+            f"{case.name}: V {res['slsqp']['fit'].start_cost:.3g} -> SLSQP {res['slsqp']['fit'].cost:.3g}"
+            f" / LSQ {res['least_squares']['fit'].cost:.3g}",
+            flush=True,
+        )
 
     # 3. Figures like the paper's Figs. 2-5, plus convergence and Jacobian spectra.
-    plots.position_error(target.t, {k.replace("case", "Case "): runs[k][1]["slsqp"]["error"] for k in runs},
-                         figs / "fig2_position_error.png", "Positional error of the converged tracks (SLSQP)")
+    plots.position_error(
+        target.t,
+        {k.replace("case", "Case "): runs[k][1]["slsqp"]["error"] for k in runs},
+        figs / "fig2_position_error.png",
+        "Positional error of the converged tracks (SLSQP)",
+    )
     all_names = cases.horizontal_coefficients(vehicle)
     for i, (k, (case, res)) in enumerate(runs.items()):
         r = results[k]
         plots.coefficient_ratios(
-            all_names, r["start_ratio"], r["coefficient_ratio"], r["known_ratio"],
+            all_names,
+            r["start_ratio"],
+            r["coefficient_ratio"],
+            r["known_ratio"],
             figs / f"fig{3 + i}_coefficients_{k}.png",
             f"{k.replace('case', 'Case ')}: estimated / true (SLSQP)",
             lower={n: case.lower[n] / case.true[n] for n in case.free},
-            upper={n: case.upper[n] / case.true[n] for n in case.free})
-    plots.convergence({f"{k} {m}": [h["cost"] for h in runs[k][1][m]["fit"].history]
-                       for k in runs for m in ("slsqp", "least_squares")},
-                      figs / "fig6_convergence.png", "Cost per iteration")
-    plots.singular_values({k: runs[k][1]["slsqp"]["svals"] for k in runs},
-                          figs / "fig7_jacobian_singular_values.png",
-                          "Residual Jacobian at the SLSQP optimum (scaled parameters)")
+            upper={n: case.upper[n] / case.true[n] for n in case.free},
+        )
+    plots.convergence(
+        {
+            f"{k} {m}": [h["cost"] for h in runs[k][1][m]["fit"].history]
+            for k in runs
+            for m in ("slsqp", "least_squares")
+        },
+        figs / "fig6_convergence.png",
+        "Cost per iteration",
+    )
+    plots.singular_values(
+        {k: runs[k][1]["slsqp"]["svals"] for k in runs},
+        figs / "fig7_jacobian_singular_values.png",
+        "Residual Jacobian at the SLSQP optimum (scaled parameters)",
+    )
 
     # 4. Evidence for the discussion, computed here.
     st = truth_sim.run().states[0]
     turning = np.abs(st[:, 11]) > 1e-4
     corr_vr = float(np.corrcoef(st[turning, 7], st[turning, 11])[0, 1])
     summary = dict(
-        vehicle=vehicle.id, manoeuvre=spiral.description, sample_interval_s=SAMPLE_S,
-        n_samples=int(target.n_samples), seed=args.seed, quick=args.quick,
+        vehicle=vehicle.id,
+        manoeuvre=spiral.description,
+        sample_interval_s=SAMPLE_S,
+        n_samples=int(target.n_samples),
+        seed=args.seed,
+        quick=args.quick,
         track_length_m=float(np.sum(np.hypot(np.diff(target["x"]), np.diff(target["y"])))),
-        corr_v_r_turning=corr_vr, paper=PAPER, paper_case3_true_cost=PAPER_CASE3_TRUE_COST,
+        corr_v_r_turning=corr_vr,
+        paper=PAPER,
+        paper_case3_true_cost=PAPER_CASE3_TRUE_COST,
     )
     write_json(out / "results.json", dict(study="furlong2003", summary=summary, cases=results))
     (out / "report.md").write_text(render_report(results, summary, runs))
@@ -187,12 +227,33 @@ def render_report(R, S, runs) -> str:
         "",
         "## Table 1: cost at start and convergence (SLSQP, the paper's method)",
         "",
-        md_table(["case", "free", "start V (ours)", "start V (paper)", "final V (ours)", "final V (paper)",
-                  "max position error (ours)", "max position error (paper)", "coefficients at a bound"],
-                 [[k.replace("case", "Case "), R[k]["n_free"], fmt(R[k]["start_cost"]), fmt(P[k]["start_cost"]),
-                   fmt(R[k]["final_cost"]), fmt(P[k]["final_cost"]),
-                   f"{fmt(R[k]['max_position_error_m'] * 1e3)} mm", f"< {fmt(P[k]['max_position_error_m'] * 1e3)} mm",
-                   ", ".join(R[k]["at_bound"]) or "none"] for k in ("case1", "case2", "case3")]),
+        md_table(
+            [
+                "case",
+                "free",
+                "start V (ours)",
+                "start V (paper)",
+                "final V (ours)",
+                "final V (paper)",
+                "max position error (ours)",
+                "max position error (paper)",
+                "coefficients at a bound",
+            ],
+            [
+                [
+                    k.replace("case", "Case "),
+                    R[k]["n_free"],
+                    fmt(R[k]["start_cost"]),
+                    fmt(P[k]["start_cost"]),
+                    fmt(R[k]["final_cost"]),
+                    fmt(P[k]["final_cost"]),
+                    f"{fmt(R[k]['max_position_error_m'] * 1e3)} mm",
+                    f"< {fmt(P[k]['max_position_error_m'] * 1e3)} mm",
+                    ", ".join(R[k]["at_bound"]) or "none",
+                ]
+                for k in ("case1", "case2", "case3")
+            ],
+        ),
         "",
         "![error](figures/fig2_position_error.png)",
         "",
@@ -209,14 +270,36 @@ def render_report(R, S, runs) -> str:
     rows = []
     names = list(dict.fromkeys(c1["free"]))
     for n in names:
-        rows.append([n, terms.term(n).group, terms.term(n).category,
-                     fmt(c1["start_ratio"][n], 4), fmt(c1["coefficient_ratio"][n], 4),
-                     fmt(c1["least_squares"]["coefficient_ratio"][n], 4),
-                     fmt(c2["coefficient_ratio"].get(n), 4) if n in c2["coefficient_ratio"] else "known",
-                     fmt(c3["coefficient_ratio"].get(n), 4) if n in c3["coefficient_ratio"]
-                     else f"known x{fmt(c3['known_ratio'][n], 4)}"])
-    lines += [md_table(["coefficient", "group", "category", "Case 1 start", "Case 1 SLSQP", "Case 1 LSQ",
-                        "Case 2 SLSQP", "Case 3 SLSQP"], rows), ""]
+        rows.append(
+            [
+                n,
+                terms.term(n).group,
+                terms.term(n).category,
+                fmt(c1["start_ratio"][n], 4),
+                fmt(c1["coefficient_ratio"][n], 4),
+                fmt(c1["least_squares"]["coefficient_ratio"][n], 4),
+                fmt(c2["coefficient_ratio"].get(n), 4) if n in c2["coefficient_ratio"] else "known",
+                fmt(c3["coefficient_ratio"].get(n), 4)
+                if n in c3["coefficient_ratio"]
+                else f"known x{fmt(c3['known_ratio'][n], 4)}",
+            ]
+        )
+    lines += [
+        md_table(
+            [
+                "coefficient",
+                "group",
+                "category",
+                "Case 1 start",
+                "Case 1 SLSQP",
+                "Case 1 LSQ",
+                "Case 2 SLSQP",
+                "Case 3 SLSQP",
+            ],
+            rows,
+        ),
+        "",
+    ]
 
     # SLSQP vs least squares
     cmp_rows = []
@@ -224,10 +307,22 @@ def render_report(R, S, runs) -> str:
         for key, label in (("slsqp", "SLSQP"), ("least_squares", "least squares (trf)")):
             r = R[k] if key == "slsqp" else R[k]["least_squares"]
             m = r["monitor"]
-            cmp_rows.append([k.replace("case", "Case "), label, m["n_iterations"], m["n_simulations"],
-                             m["n_sim_cost"], m["n_sim_gradient"], m["n_sim_linesearch"], fmt(m["final_cost"]),
-                             f"{fmt(r['max_position_error_m'] * 1e3)} mm", f"{m['wall_s']:.1f}",
-                             f"{100 * m['sim_share']:.0f} %", m["message"]])
+            cmp_rows.append(
+                [
+                    k.replace("case", "Case "),
+                    label,
+                    m["n_iterations"],
+                    m["n_simulations"],
+                    m["n_sim_cost"],
+                    m["n_sim_gradient"],
+                    m["n_sim_linesearch"],
+                    fmt(m["final_cost"]),
+                    f"{fmt(r['max_position_error_m'] * 1e3)} mm",
+                    f"{m['wall_s']:.1f}",
+                    f"{100 * m['sim_share']:.0f} %",
+                    m["message"],
+                ]
+            )
     lines += [
         "## SLSQP versus least squares, and the SQP activity monitor",
         "",
@@ -235,8 +330,23 @@ def render_report(R, S, runs) -> str:
         "(one batched call of P or P+1 tracks), and at rejected trial points (line search / rejected "
         "trust-region steps). Simulation share = wall time inside the batched simulator / total.",
         "",
-        md_table(["case", "method", "iterations", "simulations", "on cost", "on gradients", "on line search",
-                  "final V", "max error", "wall s", "in simulation", "stop"], cmp_rows),
+        md_table(
+            [
+                "case",
+                "method",
+                "iterations",
+                "simulations",
+                "on cost",
+                "on gradients",
+                "on line search",
+                "final V",
+                "max error",
+                "wall s",
+                "in simulation",
+                "stop",
+            ],
+            cmp_rows,
+        ),
         "",
         "![convergence](figures/fig6_convergence.png)",
         "",
@@ -246,9 +356,13 @@ def render_report(R, S, runs) -> str:
     ]
     hist = c1["monitor"]["history"]
     sel = hist if len(hist) <= 16 else hist[:8] + hist[-8:]
-    lines += [md_table(["iteration", "V", "step", "active bounds"],
-                       [[h["iteration"], fmt(h["cost"]), fmt(h["step"]), ", ".join(h["active_bounds"]) or "-"]
-                        for h in sel]), ""]
+    lines += [
+        md_table(
+            ["iteration", "V", "step", "active bounds"],
+            [[h["iteration"], fmt(h["cost"]), fmt(h["step"]), ", ".join(h["active_bounds"]) or "-"] for h in sel],
+        ),
+        "",
+    ]
 
     # Discussion
     ratio_dev = {n: abs(v - 1) for n, v in c1["coefficient_ratio"].items()}
@@ -276,12 +390,16 @@ def render_report(R, S, runs) -> str:
         "these directions changes the track by at most "
         f"{fmt(max(d['track_change_m'] for d in c1['structural_nulls']['directions']))} m (round-off). So no "
         "track, however long or rich, identifies the Case 1 set. This is the paper's point 2 (\"some of the Y "
-        "and N coefficients could be described as linear combinations of the remaining coefficients\") made "
+        'and N coefficients could be described as linear combinations of the remaining coefficients") made '
         "exact. The directions, in relative coefficient changes:",
         "",
-        md_table(["cause", "direction (relative changes)", "track change for a 2 % move"],
-                 [[c, d["direction"], f"{fmt(d['track_change_m'])} m"]
-                  for c, d in zip(c1["structural_nulls"]["causes"], c1["structural_nulls"]["directions"])]),
+        md_table(
+            ["cause", "direction (relative changes)", "track change for a 2 % move"],
+            [
+                [c, d["direction"], f"{fmt(d['track_change_m'])} m"]
+                for c, d in zip(c1["structural_nulls"]["causes"], c1["structural_nulls"]["directions"])
+            ],
+        ),
         "",
         f"Fixing the static coefficients (Cases 2 and 3) removes every such invariance: dimension "
         f"{c2['structural_nulls']['dimension']}. The residual Jacobian at the optimum (figure below) shows the "

@@ -35,6 +35,7 @@ Method
 
     python studies/real_ships.py [--quick] [--out DIR] [--data DIR] [--draws N]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -53,8 +54,12 @@ BASELINE = {  # issue 8's independent baseline (its table), for the report only
     "kvlcc2_hsva": {"w30": (0.19, None), "w60": (0.88, None)},
 }
 TARGET = {"esso_osaka": {"w30": 0.24, "w60": 0.70}, "kvlcc2_hsva": {"w30": 0.18, "w60": 0.80}}
-ESSO_HOLD = ["random_06-Aug-2020_16_24_25_6", "turn_14-Oct-2020_15_06_53", "zigzag_31-Jul-2020_13_57_45",
-             "berthing_12-Nov-2020_11_38_50"]
+ESSO_HOLD = [
+    "random_06-Aug-2020_16_24_25_6",
+    "turn_14-Oct-2020_15_06_53",
+    "zigzag_31-Jul-2020_13_57_45",
+    "berthing_12-Nov-2020_11_38_50",
+]
 KVLCC2_HOLD = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
 #: KVLCC2 7 m model's approach speed (m/s) and propeller speed (rev/s) of the predicted turning circles
 U0, RPS = 1.179, 10.23
@@ -86,60 +91,101 @@ def _scores(model, fitres, tracks, window):
 
 def evaluate(name, ship, train, held, candidates, args, out, log):
     """Diagnose, then score base and after models at 30 s, 60 s and whole run."""
-    from bayesid.estimation import msfit
     from bayesid.analysis.gap import diagnose
+    from bayesid.estimation import msfit
     from bayesid.estimation import windows as wf
     from bayesid.models import build_model
-    from bayesid.report import write_diagnosis
     from bayesid.models.ship import FIT_WINDOW_S as fw
+    from bayesid.report import write_diagnosis
 
     t0 = time.perf_counter()
-    diag = diagnose(ship, ship.free, train, held, candidates=candidates, window_s=60.0, fit_window_s=fw,
-                       dt=0.2, rng=np.random.default_rng(args.seed), max_nfev=args.max_nfev, start="measured",
-                       progress=lambda m: log(f"{name}: {m}"))
+    diag = diagnose(
+        ship,
+        ship.free,
+        train,
+        held,
+        candidates=candidates,
+        window_s=60.0,
+        fit_window_s=fw,
+        dt=0.2,
+        rng=np.random.default_rng(args.seed),
+        max_nfev=args.max_nfev,
+        start="measured",
+        progress=lambda m: log(f"{name}: {m}"),
+    )
     write_diagnosis(diag, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
     res = diag.to_dict()
     bm, bf = diag.base.model, diag.base.fit
     am, af = diag.after.model, diag.after.fit
-    doc = {"train_runs": [t.name for t in train], "heldout_runs": [t.name for t in held], "window_s": 60.0,
-           "fit_window_s": fw, "verdict": res["verdict"], "ranking": res["ranking"], "candidates": list(candidates),
-           "effects_added": res["effects_added"], "cause": res["cause"], "contributors": res["contributors"],
-           "remainder": res["remainder"],
-           "weighting": res["settings"]["weighting"], "fit_sd": res["fit_sd"],
-           "noise_floor_60s_m": res["noise_floor"]["heldout_rms_m"],
-           "where": {k: res["where"][k] for k in ("dominant_channel", "dominant_region", "channels")
-                     if k in res["where"]},
-           "wind_correlation": res["where"].get("wind_correlation")}
+    doc = {
+        "train_runs": [t.name for t in train],
+        "heldout_runs": [t.name for t in held],
+        "window_s": 60.0,
+        "fit_window_s": fw,
+        "verdict": res["verdict"],
+        "ranking": res["ranking"],
+        "candidates": list(candidates),
+        "effects_added": res["effects_added"],
+        "cause": res["cause"],
+        "contributors": res["contributors"],
+        "remainder": res["remainder"],
+        "weighting": res["settings"]["weighting"],
+        "fit_sd": res["fit_sd"],
+        "noise_floor_60s_m": res["noise_floor"]["heldout_rms_m"],
+        "where": {k: res["where"][k] for k in ("dominant_channel", "dominant_region", "channels") if k in res["where"]},
+        "wind_correlation": res["where"].get("wind_correlation"),
+    }
     # The scores use the best-ranked candidate even when the rules did not attribute it, so the
     # protocol table always shows what adding the top effect does (verdict says if it counts).
     top = res["ranking"][0]["effect"] if res["ranking"] else None
     if not res["effects_added"] and top is not None:
         am = build_model(ship, ship.free, [top], 0.2)
         ctr = [am.context(t, fw) for t in train]
-        af = wf.fit_model(am, ctr, res["fit_sd"], am.start(bf.p[:bm.n_theta]), max_nfev=args.max_nfev)
+        af = wf.fit_model(am, ctr, res["fit_sd"], am.start(bf.p[: bm.n_theta]), max_nfev=args.max_nfev)
     doc["after_effects"] = [e.name for e in am.effects]
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
         b, a = _scores(bm, bf, held, w), _scores(am, af, held, w)
-        doc[key] = {"window_s": w, "train_runs": doc["train_runs"], "heldout_runs": doc["heldout_runs"],
-                    "heldout_rms_position_m_base": b["rms_position_m"], "heldout_rms_position_m_after": a["rms_position_m"],
-                    "heading_rms_deg_base": b["rms_heading_deg"], "heading_rms_deg_after": a["rms_heading_deg"],
-                    "shrinkage": 1 - a["rms_position_m"] / b["rms_position_m"], "verdict": res["verdict"],
-                    "ranking": res["ranking"]}
+        doc[key] = {
+            "window_s": w,
+            "train_runs": doc["train_runs"],
+            "heldout_runs": doc["heldout_runs"],
+            "heldout_rms_position_m_base": b["rms_position_m"],
+            "heldout_rms_position_m_after": a["rms_position_m"],
+            "heading_rms_deg_base": b["rms_heading_deg"],
+            "heading_rms_deg_after": a["rms_heading_deg"],
+            "shrinkage": 1 - a["rms_position_m"] / b["rms_position_m"],
+            "verdict": res["verdict"],
+            "ranking": res["ranking"],
+        }
     for k in ("heldout_rms_position_m_base", "heldout_rms_position_m_after", "shrinkage"):
         doc[k] = doc["w60"][k]
     # posterior of the final model (Laplace on the training windows)
     ctr = [am.context(t, fw) for t in train]
     cov, post = msfit.laplace_covariance(af, ctr)
-    doc["posterior"] = {"laplace": post, "parameters": {
-        n: {"mean": float(v), "sd": float(math.sqrt(max(c, 0.0)))} for n, v, c in zip(am.param_names, af.p, np.diag(cov))}}
+    doc["posterior"] = {
+        "laplace": post,
+        "parameters": {
+            n: {"mean": float(v), "sd": float(math.sqrt(max(c, 0.0)))}
+            for n, v, c in zip(am.param_names, af.p, np.diag(cov))
+        },
+    }
     sv = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = cov / np.outer(sv, sv)
-    pairs = sorted(((abs(corr[i, j]), am.param_names[i], am.param_names[j]) for i in range(len(sv))
-                    for j in range(i + 1, len(sv))), reverse=True)[:6]
+    pairs = sorted(
+        (
+            (abs(corr[i, j]), am.param_names[i], am.param_names[j])
+            for i in range(len(sv))
+            for j in range(i + 1, len(sv))
+        ),
+        reverse=True,
+    )[:6]
     doc["posterior"]["strongest_correlations"] = [[a, b, float(c)] for c, a, b in pairs]
     lo, hi = am.bounds()
-    doc["posterior"]["at_bound"] = [n for n, v, a, b in zip(am.param_names, af.p, lo, hi)
-                                    if np.isclose(v, a, atol=1e-9) or np.isclose(v, b, atol=1e-9)]
+    doc["posterior"]["at_bound"] = [
+        n
+        for n, v, a, b in zip(am.param_names, af.p, lo, hi)
+        if np.isclose(v, a, atol=1e-9) or np.isclose(v, b, atol=1e-9)
+    ]
     doc["seconds"] = time.perf_counter() - t0
     return doc, res, (bm, bf), (am, af, cov)
 
@@ -199,8 +245,14 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
         tracks.append(tr)
         tb = msfit.turning_band(am, af.p, cov, tr, draws, rng, keep_draws=True)
         meas, pred = tb["measured"], tb["predicted"]
-        e = {"file": str(p), "kind": meas.get("kind"), "measured": meas, "predicted": pred,
-             "band_5_95": tb["band_5_95"], "n_draws": tb["n_draws"]}
+        e = {
+            "file": str(p),
+            "kind": meas.get("kind"),
+            "measured": meas,
+            "predicted": pred,
+            "band_5_95": tb["band_5_95"],
+            "n_draws": tb["n_draws"],
+        }
         td_m, td_p = meas.get("tactical_diameter_m", math.nan), pred.get("tactical_diameter_m", math.nan)
         if meas.get("kind") == "turning" and math.isfinite(td_m) and td_m > 0:
             e["tactical_diameter_rel_error"] = (td_p - td_m) / td_m if math.isfinite(td_p) else None
@@ -209,9 +261,13 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
         ctx, S = tb["_ctx"], tb["_S"]
         Sm = np.zeros((1,) + S.shape[1:])
         Sm[0, :, 0], Sm[0, :, 1] = ctx.meas["x"], ctx.meas["y"]
-        figs.append(plots.turning_band({"measured": Sm, "predicted (identified model, draws)": S},
-                                       figdir / f"marin_{tr.name}.png",
-                                       f"MARIN {tr.name}: whole run, open loop"))
+        figs.append(
+            plots.turning_band(
+                {"measured": Sm, "predicted (identified model, draws)": S},
+                figdir / f"marin_{tr.name}.png",
+                f"MARIN {tr.name}: whole run, open loop",
+            )
+        )
         runs[tr.name] = e
     pooled = {"w30": None, "w60": None}
     for key, w in (("w30", 30.0), ("w60", 60.0)):
@@ -221,11 +277,16 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
             for name, sc in pr["per_track"].items():
                 runs[name][key] = sc
     errs = [e["tactical_diameter_rel_error"] for e in runs.values() if e.get("tactical_diameter_rel_error") is not None]
-    summary = {"n_runs": len(runs), "unread": unread, "n_turning_with_td": len(errs),
-               "tactical_diameter_rel_errors": errs,
-               "tactical_diameter_within_5pct": int(sum(abs(x) <= 0.05 for x in errs)),
-               "max_abs_tactical_diameter_rel_error": max((abs(x) for x in errs), default=None),
-               "pooled_rms_position_m": pooled, "runs": runs}
+    summary = {
+        "n_runs": len(runs),
+        "unread": unread,
+        "n_turning_with_td": len(errs),
+        "tactical_diameter_rel_errors": errs,
+        "tactical_diameter_within_5pct": int(sum(abs(x) <= 0.05 for x in errs)),
+        "max_abs_tactical_diameter_rel_error": max((abs(x) for x in errs), default=None),
+        "pooled_rms_position_m": pooled,
+        "runs": runs,
+    }
     return summary, figs
 
 
@@ -246,10 +307,23 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
 
     t0 = time.perf_counter()
     free = list(vessel.free if free is None else free)
-    res = msfit.identify(vessel, train, free, effects, dt=0.2, max_nfev=args.max_nfev, start="measured",
-                         prior=prior, calibrate=True, calibration_window_s=60.0, calibration_draws=40,
-                         calibration_seed=args.seed, jobs=args.jobs, scheduler=args.scheduler,
-                         progress=lambda m: log(f"{name} {label}: {m}"))
+    res = msfit.identify(
+        vessel,
+        train,
+        free,
+        effects,
+        dt=0.2,
+        max_nfev=args.max_nfev,
+        start="measured",
+        prior=prior,
+        calibrate=True,
+        calibration_window_s=60.0,
+        calibration_draws=40,
+        calibration_seed=args.seed,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        progress=lambda m: log(f"{name} {label}: {m}"),
+    )
     m, p, cov = res["model"], res["fit"].p, res["cov"]
     pr = msfit.predict(m, p, held, 60.0, start="measured")
     rng = np.random.default_rng([args.seed, 31])
@@ -260,19 +334,36 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
     bands = calibrated_bands(res["calibration"], 60.0, pr["windows"], idx)
     fig = None
     if bands.get("coverage"):
-        fig = plots.reliability({g: bands["coverage"][g] for g in ("windows", "indices")
-                                 if any(v["n"] for v in bands["coverage"][g].values())},
-                                figdir / f"{name}{'_' + label if label else ''}_reliability.png", bands["parameter_only"],
-                                title=f"{name}{' (' + label + ')' if label else ''}: held-out runs")
+        fig = plots.reliability(
+            {
+                g: bands["coverage"][g]
+                for g in ("windows", "indices")
+                if any(v["n"] for v in bands["coverage"][g].values())
+            },
+            figdir / f"{name}{'_' + label if label else ''}_reliability.png",
+            bands["parameter_only"],
+            title=f"{name}{' (' + label + ')' if label else ''}: held-out runs",
+        )
     cal = res["calibration"]
-    doc = {"free": free, "effects": list(effects), "prior": res["prior"], "heldout_rms_position_m_60s":
-           pr["pooled"]["rms_position_m"], "parameter_only": bands["parameter_only"],
-           "coverage": bands.get("coverage"), "indices": bands["indices"],
-           "windows": [{k: w[k] for k in ("track", "t_start", "max_position_m", "max_heading_deg", "band", "inside")}
-                       for w in bands.get("windows", [])],
-           "calibration": None if cal is None else {k: cal[k] for k in ("method", "n_runs", "n_folds", "window_s",
-                                                                          "n_draws", "window_scores", "index_scores")},
-           "seconds": time.perf_counter() - t0}
+    doc = {
+        "free": free,
+        "effects": list(effects),
+        "prior": res["prior"],
+        "heldout_rms_position_m_60s": pr["pooled"]["rms_position_m"],
+        "parameter_only": bands["parameter_only"],
+        "coverage": bands.get("coverage"),
+        "indices": bands["indices"],
+        "windows": [
+            {k: w[k] for k in ("track", "t_start", "max_position_m", "max_heading_deg", "band", "inside")}
+            for w in bands.get("windows", [])
+        ],
+        "calibration": None
+        if cal is None
+        else {
+            k: cal[k] for k in ("method", "n_runs", "n_folds", "window_s", "n_draws", "window_scores", "index_scores")
+        },
+        "seconds": time.perf_counter() - t0,
+    }
     return doc, res, fig
 
 
@@ -283,19 +374,31 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
     from bayesid.estimation import msfit
     from bayesid.estimation.calibration import index_band
 
-    variants = {"none": dict(prior=False), "gaussian": dict(prior=True),
-                "static_fixed": dict(prior=False, free=[f for f in kv.free if f not in KVLCC2_STATIC])}
+    variants = {
+        "none": dict(prior=False),
+        "gaussian": dict(prior=True),
+        "static_fixed": dict(prior=False, free=[f for f in kv.free if f not in KVLCC2_STATIC]),
+    }
     out, figs, sims = {}, [], {}
     for label, kw in variants.items():
         doc, res, fig = uncertainty("kvlcc2_hsva", kv, ktrain, kheld, [], args, figdir, log, label=label, **kw)
         figs += [fig] if fig else []
-        circ = msfit.turning_circles(res["model"], res["fit"].p, res["cov"], args.draws,
-                                     np.random.default_rng([args.seed, 41]), U0, RPS)
+        circ = msfit.turning_circles(
+            res["model"], res["fit"].p, res["cov"], args.draws, np.random.default_rng([args.seed, 41]), U0, RPS
+        )
         tc = {}
         for side, c in circ.items():
-            tc[side] = {"predicted": c["predicted"], "band_5_95": c["band_5_95"], "sd": c["sd"], "band_90": {
-                k: index_band(res["calibration"], k, c["predicted"][k], c["sd"][k], 0.9)
-                if res["calibration"] is not None and c["sd"].get(k) else None for k in c["predicted"]}}
+            tc[side] = {
+                "predicted": c["predicted"],
+                "band_5_95": c["band_5_95"],
+                "sd": c["sd"],
+                "band_90": {
+                    k: index_band(res["calibration"], k, c["predicted"][k], c["sd"][k], 0.9)
+                    if res["calibration"] is not None and c["sd"].get(k)
+                    else None
+                    for k in c["predicted"]
+                },
+            }
             sims[f"{label} {side}"] = c["_S"][:1]
         doc["turning_circles_35deg"] = tc
         doc["marin"] = marin_coverage(res, args, rng=np.random.default_rng([args.seed, 43]))
@@ -324,12 +427,24 @@ def marin_coverage(res, args, rng):
         tb = msfit.turning_band(res["model"], res["fit"].p, res["cov"], tr, args.draws, rng)
         idx[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     bands = calibrated_bands(res["calibration"], None, [], idx)
-    td = [(r["track"], (r["predicted"] - r["measured"]) / r["measured"]) for r in bands["indices"]
-          if r["index"] == "tactical_diameter_m" and r["predicted"] is not None and r["measured"]]
-    adv = [(r["track"], (r["predicted"] - r["measured"]) / r["measured"]) for r in bands["indices"]
-           if r["index"] == "advance_m" and r["predicted"] is not None and r["measured"]]
-    return {"unread": unread, "indices": bands["indices"], "coverage": bands.get("coverage"),
-            "parameter_only": bands["parameter_only"], "tactical_diameter_rel_error": td, "advance_rel_error": adv}
+    td = [
+        (r["track"], (r["predicted"] - r["measured"]) / r["measured"])
+        for r in bands["indices"]
+        if r["index"] == "tactical_diameter_m" and r["predicted"] is not None and r["measured"]
+    ]
+    adv = [
+        (r["track"], (r["predicted"] - r["measured"]) / r["measured"])
+        for r in bands["indices"]
+        if r["index"] == "advance_m" and r["predicted"] is not None and r["measured"]
+    ]
+    return {
+        "unread": unread,
+        "indices": bands["indices"],
+        "coverage": bands.get("coverage"),
+        "parameter_only": bands["parameter_only"],
+        "tactical_diameter_rel_error": td,
+        "advance_rel_error": adv,
+    }
 
 
 def main() -> int:
@@ -337,9 +452,8 @@ def main() -> int:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from bayesid.data import datasets
     from bayesid.estimation import msfit
-    from bayesid.report import plots
     from bayesid.models import ship
-    from bayesid.report import fmt, md_table, write_json, write_manifest
+    from bayesid.report import plots, write_json, write_manifest
 
     data = Path(args.data)
     esso_dir, kv_dir = data / "esso-osaka-frt", data / "kvlcc2-simman-hsva"
@@ -364,12 +478,26 @@ def main() -> int:
         train = [t for t in train if t.name.startswith(("zigzag", "turn"))][:3]
         held = [t for t in held if t.name.startswith("zigzag")][:1]
     esso = ship.load_ship("esso_osaka_3m")
-    e_doc, e_res, e_base, e_after = evaluate("esso_osaka", esso, train, held, list(ship.SHIP_CATALOGUE), args, out,
-                                                log)
-    figs = [track_figure((e_base, e_after[:2]), h, 60.0, out / "figures" / f"esso_heldout_{h.name}.png",
-                         f"Esso held-out {h.name}: 60 s windows") for h in held]
-    figs.append(track_figure((e_base, e_after[:2]), train[0], 60.0, out / "figures" / f"esso_train_{train[0].name}.png",
-                             f"Esso training {train[0].name}: 60 s windows"))
+    e_doc, e_res, e_base, e_after = evaluate("esso_osaka", esso, train, held, list(ship.SHIP_CATALOGUE), args, out, log)
+    figs = [
+        track_figure(
+            (e_base, e_after[:2]),
+            h,
+            60.0,
+            out / "figures" / f"esso_heldout_{h.name}.png",
+            f"Esso held-out {h.name}: 60 s windows",
+        )
+        for h in held
+    ]
+    figs.append(
+        track_figure(
+            (e_base, e_after[:2]),
+            train[0],
+            60.0,
+            out / "figures" / f"esso_train_{train[0].name}.png",
+            f"Esso training {train[0].name}: 60 s windows",
+        )
+    )
 
     # ---- KVLCC2 ----
     kruns = datasets.list_runs(kv_dir, "simman-hsva")
@@ -379,53 +507,85 @@ def main() -> int:
     if args.quick:
         ktrain, kheld = ktrain[:3], kheld[:1]
     kv = ship.load_ship("kvlcc2_7m")
-    k_doc, k_res, k_base, k_after = evaluate("kvlcc2_hsva", kv, ktrain, kheld,
-                                                [c for c in ship.SHIP_CATALOGUE if c != "wind"], args, out, log)
+    k_doc, k_res, k_base, k_after = evaluate(
+        "kvlcc2_hsva", kv, ktrain, kheld, [c for c in ship.SHIP_CATALOGUE if c != "wind"], args, out, log
+    )
     am, af, cov = k_after
     circles = msfit.turning_circles(am, af.p, cov, args.draws, rng, U0, RPS)
-    k_doc["turning_circles_35deg"] = {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")}
-                                      for k, v in circles.items()}
+    k_doc["turning_circles_35deg"] = {
+        k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in circles.items()
+    }
     k_doc["literature_baseline"] = dict(
         literature_baseline(kv, kheld, rng),
         source="Yasukawa & Yoshimura (2015), J. Mar. Sci. Technol. 20:37-52, Tables 3-5 (KVLCC2 L7, captive "
-               "tests), as in vehicles/kvlcc2_7m.toml; the cubic hull terms replaced by the cross-flow integral")
+        "tests), as in vehicles/kvlcc2_7m.toml; the cubic hull terms replaced by the cross-flow integral",
+    )
     marin, mfigs = marin_runs(am, af, cov, data, args.draws, rng, out / "figures")
     k_doc["marin_runs"] = marin
     k_doc["turning_circles_35deg"]["measured"] = None
     k_doc["turning_circles_35deg"]["note"] = (
         "no measured turning circle of this hull is in shared/data/real; the other basin's runs "
-        "(MARIN files under --data) are compared below when present" if marin is None else
-        "the other basin's measured runs are compared below, each from its own measured start")
+        "(MARIN files under --data) are compared below when present"
+        if marin is None
+        else "the other basin's measured runs are compared below, each from its own measured start"
+    )
     zz = {}
     for h in kheld:
         tb = msfit.turning_band(am, af.p, cov, h, args.draws, rng, keep_draws=True)
         zz[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     k_doc["zigzag_indices_heldout"] = zz
-    kfigs = [track_figure((k_base, k_after[:2]), h, 60.0, out / "figures" / f"kvlcc2_heldout_{h.name}.png",
-                          f"KVLCC2 held-out {h.name}: 60 s windows") for h in kheld]
-    kfigs.append(track_figure((k_base, k_after[:2]), ktrain[0], 60.0, out / "figures" / f"kvlcc2_train_{ktrain[0].name}.png",
-                              f"KVLCC2 training {ktrain[0].name}: 60 s windows"))
+    kfigs = [
+        track_figure(
+            (k_base, k_after[:2]),
+            h,
+            60.0,
+            out / "figures" / f"kvlcc2_heldout_{h.name}.png",
+            f"KVLCC2 held-out {h.name}: 60 s windows",
+        )
+        for h in kheld
+    ]
+    kfigs.append(
+        track_figure(
+            (k_base, k_after[:2]),
+            ktrain[0],
+            60.0,
+            out / "figures" / f"kvlcc2_train_{ktrain[0].name}.png",
+            f"KVLCC2 training {ktrain[0].name}: 60 s windows",
+        )
+    )
     kfigs.append(plots.turning_band({k: v["_S"] for k, v in circles.items()}, out / "figures" / "kvlcc2_turning35.png"))
 
     # ---- honest uncertainty: calibrated bands on both validation splits; KVLCC2 under three priors ----
     e_unc, _, e_fig = uncertainty("esso_osaka", esso, train, held, ["wind"], args, out / "figures", log)
     k_var, ufigs, tsims = prior_variants(kv, ktrain, kheld, args, out / "figures", log)
     ufigs = ([e_fig] if e_fig else []) + ufigs
-    ufigs.append(plots.turning_band(tsims, out / "figures" / "kvlcc2_turning35_priors.png",
-                                    title="KVLCC2 35 deg turning circles from the HSVA zigzags, three priors"))
+    ufigs.append(
+        plots.turning_band(
+            tsims,
+            out / "figures" / "kvlcc2_turning35_priors.png",
+            title="KVLCC2 35 deg turning circles from the HSVA zigzags, three priors",
+        )
+    )
     e_doc["uncertainty"] = e_unc
     k_doc["uncertainty"] = k_var
 
-    results = {"esso_osaka": e_doc, "kvlcc2_hsva": k_doc, "quick": bool(args.quick),
-               "baseline": BASELINE, "targets": TARGET}
+    results = {
+        "esso_osaka": e_doc,
+        "kvlcc2_hsva": k_doc,
+        "quick": bool(args.quick),
+        "baseline": BASELINE,
+        "targets": TARGET,
+    }
     write_json(out / "results.json", results)
     write_report(out, results, figs, kfigs, args, mfigs, ufigs)
     write_manifest(out, seed=args.seed, quick=args.quick, t_start=t_start)
     for n in ("esso_osaka", "kvlcc2_hsva"):
         d = results[n]
-        print(f"{n}: verdict {d['verdict']}; 30 s {d['w30']['heldout_rms_position_m_base']:.3f} -> "
-              f"{d['w30']['heldout_rms_position_m_after']:.3f} m; 60 s {d['w60']['heldout_rms_position_m_base']:.3f} -> "
-              f"{d['w60']['heldout_rms_position_m_after']:.3f} m (shrinkage {d['shrinkage']:.2f})")
+        print(
+            f"{n}: verdict {d['verdict']}; 30 s {d['w30']['heldout_rms_position_m_base']:.3f} -> "
+            f"{d['w30']['heldout_rms_position_m_after']:.3f} m; 60 s {d['w60']['heldout_rms_position_m_base']:.3f} -> "
+            f"{d['w60']['heldout_rms_position_m_after']:.3f} m (shrinkage {d['shrinkage']:.2f})"
+        )
     return 0
 
 
@@ -435,27 +595,52 @@ def marin_section(M, figs) -> list[str]:
 
     head = ["## KVLCC2: the other basin's free-running runs (MARIN)", ""]
     if M is None:
-        return head + ["No MARIN file (`MARIN_FREE_KVLCC2_*_m.dat`, first line naming MARIN) was found under "
-                       "--data: this basin's runs are withheld from the repository's data. When they are present, "
-                       "this section compares each run's measured indices (tactical diameter, advance, transfer; "
-                       "overshoots for zigzags) with the HSVA-zigzag model's whole-run prediction from the run's "
-                       "own first state and its 5-95 % predictive band, and scores the protocol's windows.", ""]
+        return head + [
+            "No MARIN file (`MARIN_FREE_KVLCC2_*_m.dat`, first line naming MARIN) was found under "
+            "--data: this basin's runs are withheld from the repository's data. When they are present, "
+            "this section compares each run's measured indices (tactical diameter, advance, transfer; "
+            "overshoots for zigzags) with the HSVA-zigzag model's whole-run prediction from the run's "
+            "own first state and its 5-95 % predictive band, and scores the protocol's windows.",
+            "",
+        ]
     rows = []
     for name, e in M["runs"].items():
         for k, band in e["band_5_95"].items():
-            rows.append([name, k, fmt(e["measured"].get(k)), fmt(e["predicted"].get(k)),
-                         f"[{fmt(band[0])}, {fmt(band[1])}]" if band else "-"])
-    wrows = [[name, e["kind"], fmt(e.get("tactical_diameter_rel_error")), str(e.get("measured_in_band", "-")),
-              fmt(e["w30"]["rms_position_m"]), fmt(e["w60"]["rms_position_m"])] for name, e in M["runs"].items()]
+            rows.append(
+                [
+                    name,
+                    k,
+                    fmt(e["measured"].get(k)),
+                    fmt(e["predicted"].get(k)),
+                    f"[{fmt(band[0])}, {fmt(band[1])}]" if band else "-",
+                ]
+            )
+    wrows = [
+        [
+            name,
+            e["kind"],
+            fmt(e.get("tactical_diameter_rel_error")),
+            str(e.get("measured_in_band", "-")),
+            fmt(e["w30"]["rms_position_m"]),
+            fmt(e["w60"]["rms_position_m"]),
+        ]
+        for name, e in M["runs"].items()
+    ]
     n, k = M["n_turning_with_td"], M["tactical_diameter_within_5pct"]
     return head + [
         f"{M['n_runs']} run(s); tactical diameter within 5 % of measured on {k} of {n} turning run(s) "
         f"(largest error {fmt(M['max_abs_tactical_diameter_rel_error'])}). Pooled protocol error over all MARIN runs: "
-        f"30 s {fmt(M['pooled_rms_position_m']['w30'])} m, 60 s {fmt(M['pooled_rms_position_m']['w60'])} m.", "",
-        md_table(["run", "kind", "TD rel. error", "measured TD in band", "30 s RMS (m)", "60 s RMS (m)"], wrows), "",
-        md_table(["run", "index", "measured", "predicted", "band 5-95 %"], rows), "",
-        *[f"Not read: {k}: {v}" for k, v in M["unread"].items()], "",
-        *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
+        f"30 s {fmt(M['pooled_rms_position_m']['w30'])} m, 60 s {fmt(M['pooled_rms_position_m']['w60'])} m.",
+        "",
+        md_table(["run", "kind", "TD rel. error", "measured TD in band", "30 s RMS (m)", "60 s RMS (m)"], wrows),
+        "",
+        md_table(["run", "index", "measured", "predicted", "band 5-95 %"], rows),
+        "",
+        *[f"Not read: {k}: {v}" for k, v in M["unread"].items()],
+        "",
+        *[f"![{p.stem}](figures/{p.name})" for p in figs],
+        "",
+    ]
 
 
 def uncertainty_section(R, ufigs) -> list[str]:
@@ -468,51 +653,87 @@ def uncertainty_section(R, ufigs) -> list[str]:
 
     rows = []
     cases = [("Esso, validation split (wind)", R["esso_osaka"]["uncertainty"])] + [
-        (f"KVLCC2, validation split, prior {k}", v) for k, v in R["kvlcc2_hsva"]["uncertainty"].items()]
+        (f"KVLCC2, validation split, prior {k}", v) for k, v in R["kvlcc2_hsva"]["uncertainty"].items()
+    ]
     for label, d in cases:
         po, cov = d["parameter_only"], d["coverage"] or {}
-        rows.append([label, f"{po['inside']}/{po['n']}" + (f" ({fmt(100 * po['coverage'])} %)" if po["n"] else ""),
-                     *[cov_cell(cov.get(g), "0.9") for g in ("windows", "indices")],
-                     cov_cell(cov.get("all"), "0.5"), fmt(d["heldout_rms_position_m_60s"])])
+        rows.append(
+            [
+                label,
+                f"{po['inside']}/{po['n']}" + (f" ({fmt(100 * po['coverage'])} %)" if po["n"] else ""),
+                *[cov_cell(cov.get(g), "0.9") for g in ("windows", "indices")],
+                cov_cell(cov.get("all"), "0.5"),
+                fmt(d["heldout_rms_position_m_60s"]),
+            ]
+        )
     K = R["kvlcc2_hsva"]["uncertainty"]
     tc_rows = []
     for label, d in K.items():
         for side, c in d["turning_circles_35deg"].items():
             for k in ("advance_m", "tactical_diameter_m"):
                 b = c["band_90"].get(k)
-                tc_rows.append([label, side, k, fmt(c["predicted"][k]),
-                                f"[{fmt(b['lo'])}, {fmt(b['hi'])}]" if b and b["lo"] is not None else "-",
-                                f"[{fmt(c['band_5_95'][k][0])}, {fmt(c['band_5_95'][k][1])}]"
-                                if c["band_5_95"].get(k) else "-"])
+                tc_rows.append(
+                    [
+                        label,
+                        side,
+                        k,
+                        fmt(c["predicted"][k]),
+                        f"[{fmt(b['lo'])}, {fmt(b['hi'])}]" if b and b["lo"] is not None else "-",
+                        f"[{fmt(c['band_5_95'][k][0])}, {fmt(c['band_5_95'][k][1])}]" if c["band_5_95"].get(k) else "-",
+                    ]
+                )
     pg = K["gaussian"]["prior"]
     moved = ", ".join(f"{n} (z {fmt(pg['coefficients'][n]['z'])})" for n in pg.get("moved", [])) or "none"
     lit = R["kvlcc2_hsva"].get("literature_baseline", {}).get("turning_circles_35deg", {})
     lit_td = {side: v.get("tactical_diameter_m") for side, v in lit.items()} if isinstance(lit, dict) else {}
     return [
-        "## Honest uncertainty: calibrated predictive bands", "",
+        "## Honest uncertainty: calibrated predictive bands",
+        "",
         "The path a user takes (`bayesid fit`, then `bayesid predict --window 60`): identify on the training runs "
         "of the validation split (the vehicle file's captive-test priors for KVLCC2 unless stated), calibrate the "
         "bands leave one training run out (refits without each run, scored on it: `bayesid.estimation.calibration`), "
         "predict the held-out runs. *Before*: the 5-95 % band of the posterior draws alone (parameter uncertainty, "
         "Laplace); *after*: the calibrated bands (a window is inside when its largest position and heading errors "
-        "are within the band; an index when the measured value is).", "",
-        md_table(["split", "draws' 5-95 % holds (indices)", "90 % windows", "90 % indices", "50 % all",
-                  "held-out RMS 60 s (m)"], rows), "",
+        "are within the band; an index when the measured value is).",
+        "",
+        md_table(
+            [
+                "split",
+                "draws' 5-95 % holds (indices)",
+                "90 % windows",
+                "90 % indices",
+                "50 % all",
+                "held-out RMS 60 s (m)",
+            ],
+            rows,
+        ),
+        "",
         "Target: nominal 90 % bands hold 80-97 % of the held-out windows and indices, 50 % bands 40-60 %. With 4 "
-        "held-out runs per ship these are a few dozen claims: one claim moves a coverage by several points.", "",
+        "held-out runs per ship these are a few dozen claims: one claim moves a coverage by several points.",
+        "",
         f"KVLCC2 with the captive-test priors ({pg.get('source', '-')}): the data moved (|z| > 1) {moved}; "
-        f"beyond 3 prior sd: {', '.join(pg.get('beyond_3sd', [])) or 'none'}.", "",
+        f"beyond 3 prior sd: {', '.join(pg.get('beyond_3sd', [])) or 'none'}.",
+        "",
         "KVLCC2 35 deg turning circles from the zigzag-only training, under three priors (none; the captive-test "
         "values as a Gaussian prior; the static terms " + ", ".join(KVLCC2_STATIC) + " fixed at the captive-test "
         "values, the paper's Case 2). The 90 % band scales the draws' spread by the calibration's factor; no "
         "turning run was in the calibration, so the factor comes from the zigzag overshoots (pooled scores): "
-        "a transfer assumption, checked only where measured turning circles exist (MARIN runs under --data).", "",
-        md_table(["prior", "side", "index", "predicted (m)", "calibrated 90 % band (m)", "draws' 5-95 % (m)"],
-                 tc_rows), "",
+        "a transfer assumption, checked only where measured turning circles exist (MARIN runs under --data).",
+        "",
+        md_table(["prior", "side", "index", "predicted (m)", "calibrated 90 % band (m)", "draws' 5-95 % (m)"], tc_rows),
+        "",
         *marin_prior_lines(K),
-        ("Captive-test coefficients alone predict a tactical diameter of "
-         + ", ".join(f"{fmt(v)} m ({k})" for k, v in lit_td.items() if v is not None) + ".") if lit_td else "", "",
-        *[f"![{p.stem}](figures/{p.name})" for p in ufigs], ""]
+        (
+            "Captive-test coefficients alone predict a tactical diameter of "
+            + ", ".join(f"{fmt(v)} m ({k})" for k, v in lit_td.items() if v is not None)
+            + "."
+        )
+        if lit_td
+        else "",
+        "",
+        *[f"![{p.stem}](figures/{p.name})" for p in ufigs],
+        "",
+    ]
 
 
 def marin_prior_lines(K) -> list[str]:
@@ -526,14 +747,29 @@ def marin_prior_lines(K) -> list[str]:
             continue
         for r in m["indices"]:
             b = r["band"].get("0.9") if r.get("band") else None
-            rows.append([label, r["track"], r["index"], fmt(r["measured"]), fmt(r["predicted"]),
-                         f"[{fmt(b['lo'])}, {fmt(b['hi'])}]" if b and b["lo"] is not None else "-",
-                         "yes" if r["inside"].get("0.9") else "**no**" if r.get("inside") else "-"])
+            rows.append(
+                [
+                    label,
+                    r["track"],
+                    r["index"],
+                    fmt(r["measured"]),
+                    fmt(r["predicted"]),
+                    f"[{fmt(b['lo'])}, {fmt(b['hi'])}]" if b and b["lo"] is not None else "-",
+                    "yes" if r["inside"].get("0.9") else "**no**" if r.get("inside") else "-",
+                ]
+            )
     if not rows:
-        return ["No MARIN run of this hull under --data (withheld from this repository): the turning-circle bands "
-                "above are not checked against a measured turn here.", ""]
-    return ["The other basin's measured runs (MARIN) against the three variants, calibrated 90 % bands:", "",
-            md_table(["prior", "run", "index", "measured", "predicted", "90 % band", "inside"], rows), ""]
+        return [
+            "No MARIN run of this hull under --data (withheld from this repository): the turning-circle bands "
+            "above are not checked against a measured turn here.",
+            "",
+        ]
+    return [
+        "The other basin's measured runs (MARIN) against the three variants, calibrated 90 % bands:",
+        "",
+        md_table(["prior", "run", "index", "measured", "predicted", "90 % band", "inside"], rows),
+        "",
+    ]
 
 
 def write_report(out, R, figs, kfigs, args, mfigs=(), ufigs=()):
@@ -544,115 +780,236 @@ def write_report(out, R, figs, kfigs, args, mfigs=(), ufigs=()):
         d = R[n]
         for w in ("w30", "w60", "whole_run"):
             b = BASELINE[n].get(w, (None, None))
-            rows.append([label, w, fmt(d[w]["heldout_rms_position_m_base"]), fmt(d[w]["heldout_rms_position_m_after"]),
-                         fmt(d[w]["shrinkage"]), fmt(b[0]), fmt(b[1]), fmt(TARGET[n].get(w))])
+            rows.append(
+                [
+                    label,
+                    w,
+                    fmt(d[w]["heldout_rms_position_m_base"]),
+                    fmt(d[w]["heldout_rms_position_m_after"]),
+                    fmt(d[w]["shrinkage"]),
+                    fmt(b[0]),
+                    fmt(b[1]),
+                    fmt(TARGET[n].get(w)),
+                ]
+            )
+
     def post_rows(d):
         return [[k, fmt(v["mean"], 4), fmt(v["sd"], 3)] for k, v in d["posterior"]["parameters"].items()]
 
     def rank_rows(d):
-        return [[r["effect"], fmt(r["heldout_rms_m"]), fmt(r["excess_removed"]), fmt(r["window_p_value"]),
-                 fmt(r["delta_bic"], 4)] for r in d["ranking"]]
+        return [
+            [
+                r["effect"],
+                fmt(r["heldout_rms_m"]),
+                fmt(r["excess_removed"]),
+                fmt(r["window_p_value"]),
+                fmt(r["delta_bic"], 4),
+            ]
+            for r in d["ranking"]
+        ]
 
     def partial(d):
         cs = d.get("contributors") or []
         rem = d.get("remainder") or {}
-        text = "; ".join(f"**{c['effect']}** ({'added' if c['added'] else 'not added'}) removes "
-                         f"{fmt(c['share_of_excess'])} of the excess over the noise floor (paired Wilcoxon "
-                         f"p = {c['window_p_value']:.2g}, ΔBIC {fmt(c['delta_bic'], 4)})" for c in cs)
-        return ((f"Contributors: {text}. " if cs else "No contributor. ")
-                + (f"Remainder: {fmt(rem.get('fraction_of_excess'))} of the excess"
-                   + (", still significant (structural: no candidate explains it)." if rem.get("significant") else ".")
-                   if rem else ""))
+        text = "; ".join(
+            f"**{c['effect']}** ({'added' if c['added'] else 'not added'}) removes "
+            f"{fmt(c['share_of_excess'])} of the excess over the noise floor (paired Wilcoxon "
+            f"p = {c['window_p_value']:.2g}, ΔBIC {fmt(c['delta_bic'], 4)})"
+            for c in cs
+        )
+        return (f"Contributors: {text}. " if cs else "No contributor. ") + (
+            f"Remainder: {fmt(rem.get('fraction_of_excess'))} of the excess"
+            + (", still significant (structural: no candidate explains it)." if rem.get("significant") else ".")
+            if rem
+            else ""
+        )
 
     E, K = R["esso_osaka"], R["kvlcc2_hsva"]
     tc = K["turning_circles_35deg"]
     lit = K.get("literature_baseline") or {}
-    tc_rows = [[side, k, fmt(tc[side]["predicted"][k]), (f"[{fmt(tc[side]['band_5_95'][k][0])}, "
-               f"{fmt(tc[side]['band_5_95'][k][1])}]" if tc[side]["band_5_95"][k] else "-"),
-                fmt(lit.get("turning_circles_35deg", {}).get(side, {}).get(k))]
-               for side in ("starboard", "port") for k in tc[side]["predicted"]]
+    tc_rows = [
+        [
+            side,
+            k,
+            fmt(tc[side]["predicted"][k]),
+            (
+                f"[{fmt(tc[side]['band_5_95'][k][0])}, {fmt(tc[side]['band_5_95'][k][1])}]"
+                if tc[side]["band_5_95"][k]
+                else "-"
+            ),
+            fmt(lit.get("turning_circles_35deg", {}).get(side, {}).get(k)),
+        ]
+        for side in ("starboard", "port")
+        for k in tc[side]["predicted"]
+    ]
     td_lines, td_diff = [], []
     for side in ("starboard", "port"):
         lt = lit.get("turning_circles_35deg", {}).get(side, {}).get("tactical_diameter_m")
         ft, band = tc[side]["predicted"]["tactical_diameter_m"], tc[side]["band_5_95"]["tactical_diameter_m"]
         if lt and ft and band:
             td_diff.append(abs(ft / lt - 1))
-            td_lines.append(f"{side}: fitted {fmt(ft)} m is {100 * (ft / lt - 1):+.1f} % from the literature "
-                            f"coefficients' {fmt(lt)} m, which lie {'inside' if band[0] <= lt <= band[1] else 'outside'} "
-                            "the 5-95 % band")
-    lit_rows = [[w, fmt(lit.get(w)), fmt(K[w]["heldout_rms_position_m_base"]), fmt(K[w]["heldout_rms_position_m_after"])]
-                for w in ("w30", "w60", "whole_run")] if lit else []
+            td_lines.append(
+                f"{side}: fitted {fmt(ft)} m is {100 * (ft / lt - 1):+.1f} % from the literature "
+                f"coefficients' {fmt(lt)} m, which lie {'inside' if band[0] <= lt <= band[1] else 'outside'} "
+                "the 5-95 % band"
+            )
+    lit_rows = (
+        [
+            [w, fmt(lit.get(w)), fmt(K[w]["heldout_rms_position_m_base"]), fmt(K[w]["heldout_rms_position_m_after"])]
+            for w in ("w30", "w60", "whole_run")
+        ]
+        if lit
+        else []
+    )
     zz_rows = []
     for n, z in K["zigzag_indices_heldout"].items():
         for k, band in z["band_5_95"].items():
-            zz_rows.append([n, k, fmt(z["measured"].get(k)), fmt(z["predicted"].get(k)),
-                            f"[{fmt(band[0])}, {fmt(band[1])}]" if band else "-"])
+            zz_rows.append(
+                [
+                    n,
+                    k,
+                    fmt(z["measured"].get(k)),
+                    fmt(z["predicted"].get(k)),
+                    f"[{fmt(band[0])}, {fmt(band[1])}]" if band else "-",
+                ]
+            )
     miss = []
     for n, d in (("Esso", E), ("KVLCC2", K)):
         w = d["where"]
-        miss.append(f"- {n}: dominant channel {w.get('dominant_channel')}, dominant region "
-                    f"{w.get('dominant_region', {}).get('region')} (error growth "
-                    f"{fmt(w.get('dominant_region', {}).get('growth_ratio'))} x the mean); verdict "
-                    f"**{d['verdict']}**; top-ranked candidate {d['ranking'][0]['effect'] if d['ranking'] else '-'}.")
+        miss.append(
+            f"- {n}: dominant channel {w.get('dominant_channel')}, dominant region "
+            f"{w.get('dominant_region', {}).get('region')} (error growth "
+            f"{fmt(w.get('dominant_region', {}).get('growth_ratio'))} x the mean); verdict "
+            f"**{d['verdict']}**; top-ranked candidate {d['ranking'][0]['effect'] if d['ranking'] else '-'}."
+        )
     met = []
     for n in ("esso_osaka", "kvlcc2_hsva"):
         for w in ("w30", "w60"):
             v = R[n][w]["heldout_rms_position_m_after"]
             met.append(f"{n} {w}: {fmt(v)} m vs target {TARGET[n][w]} m -> {'met' if v <= TARGET[n][w] else 'NOT met'}")
-    text = ["# Real ship data: identification, gap diagnosis (wind withheld) and protocol scores", "",
-            "**Quick run** (smoke test; the committed report is the full run)." if R["quick"] else "Full run.", "",
-            __doc__.split("Method\n------\n")[1].split("\n    python")[0], "",
-            "## Protocol table (held-out runs)", "",
-            "base = fitted without the effect; after = the top-ranked effect added and all coefficients "
-            "re-identified; baseline = the issue's independent implementation.", "",
-            md_table(["data and split", "window", "base (m)", "after (m)", "shrinkage", "baseline base (m)",
-                      "baseline with wind (m)", "target after (m)"], rows), "",
-            "Targets: " + "; ".join(met) + ".", "",
-            "## Esso Osaka: diagnosis (wind withheld from the base model)", "",
-            f"Verdict: **{E['verdict']}** (effects added by the rules: {', '.join(E['effects_added']) or 'none'}; "
-            f"the protocol table's 'after' uses {', '.join(E['after_effects'])}). Noise floor at 60 s: "
-            f"{fmt(E['noise_floor_60s_m'])} m.", "",
-            md_table(["candidate", "held-out RMS 60 s (m)", "excess removed", "window test p", "ΔBIC (train)"],
-                     rank_rows(E)), "", partial(E), "",
-            "Apparent-wind dependence of the missing forces (correlation with the wind-load signatures): "
-            + (", ".join(f"{k} {fmt(v)}" for k, v in E["wind_correlation"].items()) if E.get("wind_correlation") else "-"),
-            "", "Full diagnosis: [esso_osaka_diagnosis/report.md](esso_osaka_diagnosis/report.md).", "",
-            *[f"![{p.stem}](figures/{p.name})" for p in figs], "",
-            "## KVLCC2 (HSVA zigzags)", "",
-            f"Verdict: **{K['verdict']}**; candidates {', '.join(K['candidates'])} (no wind in the tank).", "",
-            md_table(["candidate", "held-out RMS 60 s (m)", "excess removed", "window test p", "ΔBIC (train)"],
-                     rank_rows(K)), "", partial(K), "",
-            "Literature baseline: the published captive-test coefficients (" + lit.get("source", "-") + "), not "
-            "fitted, simulated by this model under the same protocol on the held-out zigzags:", "",
-            md_table(["window", "literature (m)", "fitted base (m)", "fitted after (m)"], lit_rows), "",
-            "Esso has no literature baseline here: the group's published parameter set (mmg_params/ in the data) "
-            "belongs to Yoshimura's low-speed four-quadrant MMG form, whose cross-flow, propeller and rudder terms do "
-            "not map one-to-one onto this model, and the Esso file's start values are the KVLCC2 set, not a model "
-            "of that hull.", "",
-            "Held-out zigzag indices (whole run from the first state; band: 5-95 % of Laplace draws):", "",
-            md_table(["run", "index", "measured", "predicted", "band"], zz_rows), "",
-            "'predicted' is the fitted (MAP) model; the draws are clipped to the physical bounds. "
-            + (f"Coefficients fitted on a bound ({', '.join(K['posterior']['at_bound'])}) are drawn only to "
-               "their feasible side, so the band can lie to one side of the prediction (the Laplace "
-               "approximation does not hold at a bound)." if K["posterior"].get("at_bound")
-               else "No coefficient is fitted on a bound."), "",
-            "Predicted 35 deg turning circles (extrapolation from zigzag-only training):", "",
-            md_table(["side", "index", "predicted (m)", "band 5-95 % (m)", "literature coefficients (m)"], tc_rows), "",
-            ("Tactical diameter, " + "; ".join(td_lines) + ". " + (
+    text = [
+        "# Real ship data: identification, gap diagnosis (wind withheld) and protocol scores",
+        "",
+        "**Quick run** (smoke test; the committed report is the full run)." if R["quick"] else "Full run.",
+        "",
+        __doc__.split("Method\n------\n")[1].split("\n    python")[0],
+        "",
+        "## Protocol table (held-out runs)",
+        "",
+        "base = fitted without the effect; after = the top-ranked effect added and all coefficients "
+        "re-identified; baseline = the issue's independent implementation.",
+        "",
+        md_table(
+            [
+                "data and split",
+                "window",
+                "base (m)",
+                "after (m)",
+                "shrinkage",
+                "baseline base (m)",
+                "baseline with wind (m)",
+                "target after (m)",
+            ],
+            rows,
+        ),
+        "",
+        "Targets: " + "; ".join(met) + ".",
+        "",
+        "## Esso Osaka: diagnosis (wind withheld from the base model)",
+        "",
+        f"Verdict: **{E['verdict']}** (effects added by the rules: {', '.join(E['effects_added']) or 'none'}; "
+        f"the protocol table's 'after' uses {', '.join(E['after_effects'])}). Noise floor at 60 s: "
+        f"{fmt(E['noise_floor_60s_m'])} m.",
+        "",
+        md_table(
+            ["candidate", "held-out RMS 60 s (m)", "excess removed", "window test p", "ΔBIC (train)"], rank_rows(E)
+        ),
+        "",
+        partial(E),
+        "",
+        "Apparent-wind dependence of the missing forces (correlation with the wind-load signatures): "
+        + (", ".join(f"{k} {fmt(v)}" for k, v in E["wind_correlation"].items()) if E.get("wind_correlation") else "-"),
+        "",
+        "Full diagnosis: [esso_osaka_diagnosis/report.md](esso_osaka_diagnosis/report.md).",
+        "",
+        *[f"![{p.stem}](figures/{p.name})" for p in figs],
+        "",
+        "## KVLCC2 (HSVA zigzags)",
+        "",
+        f"Verdict: **{K['verdict']}**; candidates {', '.join(K['candidates'])} (no wind in the tank).",
+        "",
+        md_table(
+            ["candidate", "held-out RMS 60 s (m)", "excess removed", "window test p", "ΔBIC (train)"], rank_rows(K)
+        ),
+        "",
+        partial(K),
+        "",
+        "Literature baseline: the published captive-test coefficients (" + lit.get("source", "-") + "), not "
+        "fitted, simulated by this model under the same protocol on the held-out zigzags:",
+        "",
+        md_table(["window", "literature (m)", "fitted base (m)", "fitted after (m)"], lit_rows),
+        "",
+        "Esso has no literature baseline here: the group's published parameter set (mmg_params/ in the data) "
+        "belongs to Yoshimura's low-speed four-quadrant MMG form, whose cross-flow, propeller and rudder terms do "
+        "not map one-to-one onto this model, and the Esso file's start values are the KVLCC2 set, not a model "
+        "of that hull.",
+        "",
+        "Held-out zigzag indices (whole run from the first state; band: 5-95 % of Laplace draws):",
+        "",
+        md_table(["run", "index", "measured", "predicted", "band"], zz_rows),
+        "",
+        "'predicted' is the fitted (MAP) model; the draws are clipped to the physical bounds. "
+        + (
+            f"Coefficients fitted on a bound ({', '.join(K['posterior']['at_bound'])}) are drawn only to "
+            "their feasible side, so the band can lie to one side of the prediction (the Laplace "
+            "approximation does not hold at a bound)."
+            if K["posterior"].get("at_bound")
+            else "No coefficient is fitted on a bound."
+        ),
+        "",
+        "Predicted 35 deg turning circles (extrapolation from zigzag-only training):",
+        "",
+        md_table(["side", "index", "predicted (m)", "band 5-95 % (m)", "literature coefficients (m)"], tc_rows),
+        "",
+        (
+            "Tactical diameter, "
+            + "; ".join(td_lines)
+            + ". "
+            + (
                 "The zigzags do not pin the turning regime down: the fitted and the captive-test models differ by "
                 "more than the issue's 5 % target, and only measured turning circles can say which is closer."
-                if max(td_diff) > 0.05 else "The fitted and the captive-test models agree within the issue's 5 %.")
-             ) if td_lines else "", "",
-            tc["note"] + ".", "",
-            *[f"![{p.stem}](figures/{p.name})" for p in kfigs], "",
-            *marin_section(K.get("marin_runs"), mfigs),
-            *uncertainty_section(R, ufigs),
-            "## Where the models miss", "", *miss, "",
-            "## Posterior summaries (Laplace, final models)", "",
-            "Esso (strongest correlations: " + "; ".join(f"{a}-{b} {fmt(c)}" for a, b, c in E["posterior"]["strongest_correlations"]) + ")", "",
-            md_table(["parameter", "mean", "sd"], post_rows(E)), "",
-            "KVLCC2 (strongest correlations: " + "; ".join(f"{a}-{b} {fmt(c)}" for a, b, c in K["posterior"]["strongest_correlations"]) + ")", "",
-            md_table(["parameter", "mean", "sd"], post_rows(K)), ""]
+                if max(td_diff) > 0.05
+                else "The fitted and the captive-test models agree within the issue's 5 %."
+            )
+        )
+        if td_lines
+        else "",
+        "",
+        tc["note"] + ".",
+        "",
+        *[f"![{p.stem}](figures/{p.name})" for p in kfigs],
+        "",
+        *marin_section(K.get("marin_runs"), mfigs),
+        *uncertainty_section(R, ufigs),
+        "## Where the models miss",
+        "",
+        *miss,
+        "",
+        "## Posterior summaries (Laplace, final models)",
+        "",
+        "Esso (strongest correlations: "
+        + "; ".join(f"{a}-{b} {fmt(c)}" for a, b, c in E["posterior"]["strongest_correlations"])
+        + ")",
+        "",
+        md_table(["parameter", "mean", "sd"], post_rows(E)),
+        "",
+        "KVLCC2 (strongest correlations: "
+        + "; ".join(f"{a}-{b} {fmt(c)}" for a, b, c in K["posterior"]["strongest_correlations"])
+        + ")",
+        "",
+        md_table(["parameter", "mean", "sd"], post_rows(K)),
+        "",
+    ]
     (out / "report.md").write_text("\n".join(text))
 
 

@@ -1,4 +1,5 @@
 """The bayesid command."""
+
 import numpy as np
 
 from bayesid.cli import main
@@ -7,8 +8,26 @@ from bayesid.data.track import read_csv
 
 def test_simulate_writes_a_track(tmp_path, capsys):
     out = tmp_path / "zz.csv"
-    assert main(["simulate", "--manoeuvre", "zigzag", "--angle", "10", "--duration", "30",
-                 "--mode", "horizontal", "--sample", "0.5", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--manoeuvre",
+                "zigzag",
+                "--angle",
+                "10",
+                "--duration",
+                "30",
+                "--mode",
+                "horizontal",
+                "--sample",
+                "0.5",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     tr = read_csv(out)
     assert tr.n_samples == 61 and np.allclose(np.diff(tr.t), 0.5)
     assert np.max(np.abs(tr["delta_r"])) > 0.17

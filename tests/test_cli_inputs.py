@@ -1,6 +1,7 @@
 """Bad and unusual inputs to the bayesid command (issue 21, the outputs / duplicates / provenance
 part): each is refused with exit code 2 and a message naming the culprit, before any
 computation, or handled correctly."""
+
 from __future__ import annotations
 
 import json
@@ -11,10 +12,10 @@ import numpy as np
 import pytest
 
 from bayesid import cli
-from bayesid.models import effects as ef
-from bayesid.models import manoeuvres as mv
 from bayesid.data.track import write_csv
 from bayesid.data.vehicle import load_vehicle
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -24,8 +25,9 @@ def csvs(tmp_path_factory):
     veh = load_vehicle("nps_auv2")
     d = tmp_path_factory.mktemp("tracks")
     out = []
-    for i, m in enumerate([mv.zigzag(veh, 20.0, dt=0.1, duration=60.0),
-                           mv.zigzag(veh, 10.0, dt=0.1, duration=60.0, first_sign=-1)]):
+    for i, m in enumerate(
+        [mv.zigzag(veh, 20.0, dt=0.1, duration=60.0), mv.zigzag(veh, 10.0, dt=0.1, duration=60.0, first_sign=-1)]
+    ):
         tr = ef.world_track(veh, m, {}, np.random.default_rng(i), sample_every=2, name=f"run{i}")
         write_csv(tr, d / f"run{i}.csv")
         out.append(d / f"run{i}.csv")
@@ -39,8 +41,28 @@ def _run(args, capsys):
 
 
 def _diag(train, held, out, *extra):
-    return ["diagnose", "--vehicle", "nps_auv2", "--free", "Nr", "--train", *train, "--heldout", *held,
-            "--window", "30", "--candidates", "thrust", "--max-nfev", "3", "--max-effects", "1", "--out", out, *extra]
+    return [
+        "diagnose",
+        "--vehicle",
+        "nps_auv2",
+        "--free",
+        "Nr",
+        "--train",
+        *train,
+        "--heldout",
+        *held,
+        "--window",
+        "30",
+        "--candidates",
+        "thrust",
+        "--max-nfev",
+        "3",
+        "--max-effects",
+        "1",
+        "--out",
+        out,
+        *extra,
+    ]
 
 
 BAD = {  # name: (args builder, text the message must contain)
@@ -90,22 +112,36 @@ def test_a_non_empty_out_is_refused_and_overwrite_clears_what_the_command_wrote(
     assert not (out / "figures" / "stale.png").exists() and (out / "notes.txt").read_text() == "mine"
     assert json.loads((out / "diagnosis.json").read_text())
     # another command's folder is never overwritten
-    rc, msg = _run(["predict", "--model", out / "model.json", "--track", csvs[1], "--out", out, "--overwrite"],
-                   capsys)
+    rc, msg = _run(["predict", "--model", out / "model.json", "--track", csvs[1], "--out", out, "--overwrite"], capsys)
     assert rc == 2 and "'bayesid diagnose'" in msg and json.loads((out / "diagnosis.json").read_text())
 
 
 def test_fit_records_provenance_and_predict_refuses_a_changed_vehicle(csvs, tmp_path, capsys):
     veh_file = tmp_path / "auv.toml"
     shutil.copy(ROOT / "bayesid" / "vehicles" / "nps_auv2.toml", veh_file)
-    rc, msg = _run(["fit", "--vehicle", veh_file, "--free", "Nr", "--train", csvs[0], "--window", "30",
-                    "--max-nfev", "3", "--out", tmp_path / "fit"], capsys)
+    rc, msg = _run(
+        [
+            "fit",
+            "--vehicle",
+            veh_file,
+            "--free",
+            "Nr",
+            "--train",
+            csvs[0],
+            "--window",
+            "30",
+            "--max-nfev",
+            "3",
+            "--out",
+            tmp_path / "fit",
+        ],
+        capsys,
+    )
     assert rc == 0, msg
     prov = json.loads((tmp_path / "fit" / "model.json").read_text())["provenance"]
     assert prov["bayesid_version"] and len(prov["vehicle_sha256"]) == 64 and "Yv" in prov["vehicle_coefficients"]
     assert list(prov["input_sha256"]) == [str(csvs[0])]
-    pred = ["predict", "--model", tmp_path / "fit" / "model.json", "--track", csvs[1], "--window", "30",
-            "--draws", "0"]
+    pred = ["predict", "--model", tmp_path / "fit" / "model.json", "--track", csvs[1], "--window", "30", "--draws", "0"]
     assert _run(pred + ["--out", tmp_path / "p0"], capsys)[0] == 0
     veh_file.write_text(veh_file.read_text().replace("Yv = -1.0e-1", "Yv = -1.2e-1"))
     rc, msg = _run(pred + ["--out", tmp_path / "p1"], capsys)
@@ -147,6 +183,7 @@ def _variant(path, tmp_path, name, change):
     data = {k: np.array(v) for k, v in tr.data.items()}
     t = change(tr.t.copy(), data)
     from bayesid.data.track import Track
+
     p = tmp_path / f"{name}.csv"
     write_csv(Track(t, data, name=name), p)
     return p
@@ -154,18 +191,30 @@ def _variant(path, tmp_path, name, change):
 
 UNITS = {  # name: (change (t, data) -> t, column, text)
     "heading in degrees": (lambda t, d: (d.__setitem__("psi", np.degrees(d["psi"]) + 40.0), t)[1], "psi", "degrees"),
-    "rudder in degrees": (lambda t, d: (d.__setitem__("delta_r", np.degrees(d["delta_r"])), t)[1], "delta_r",
-                          "degrees"),
+    "rudder in degrees": (
+        lambda t, d: (d.__setitem__("delta_r", np.degrees(d["delta_r"])), t)[1],
+        "delta_r",
+        "degrees",
+    ),
     "time in milliseconds": (lambda t, d: t * 1000.0, "'t'", "milliseconds"),
-    "speeds in knots": (lambda t, d: (d.__setitem__("u", d["u"] / 0.514444), d.__setitem__("v", d["v"] / 0.514444),
-                                      t)[2], "'u'", "knots"),
+    "speeds in knots": (
+        lambda t, d: (d.__setitem__("u", d["u"] / 0.514444), d.__setitem__("v", d["v"] / 0.514444), t)[2],
+        "'u'",
+        "knots",
+    ),
     "yaw rate in deg/s": (lambda t, d: (d.__setitem__("r", np.degrees(d["r"])), t)[1], "'r'", "deg/s"),
     "rpm given as rps": (lambda t, d: (d.__setitem__("n", d["n"] / 60.0), t)[1], "'n'", "rev/s"),
     "time in minutes": (lambda t, d: t / 60.0, "'t'", "minutes"),
-    "positions in km": (lambda t, d: (d.__setitem__("x", d["x"] / 1e3), d.__setitem__("y", d["y"] / 1e3), t)[2],
-                        "'x'", "km"),
-    "positions in feet": (lambda t, d: (d.__setitem__("x", d["x"] / 0.3048), d.__setitem__("y", d["y"] / 0.3048),
-                                        t)[2], "'x'", "feet"),
+    "positions in km": (
+        lambda t, d: (d.__setitem__("x", d["x"] / 1e3), d.__setitem__("y", d["y"] / 1e3), t)[2],
+        "'x'",
+        "km",
+    ),
+    "positions in feet": (
+        lambda t, d: (d.__setitem__("x", d["x"] / 0.3048), d.__setitem__("y", d["y"] / 0.3048), t)[2],
+        "'x'",
+        "feet",
+    ),
 }
 
 
@@ -187,8 +236,9 @@ def test_the_correct_units_pass_without_warning(csvs):
 
 def test_odd_but_possible_inputs_are_warned_about_in_the_outputs(csvs, tmp_path, capsys):
     stopped = _variant(csvs[0], tmp_path, "stopped", lambda t, d: (d.__setitem__("n", 0.0 * d["n"]), t)[1])
-    fast = _variant(csvs[1], tmp_path, "fast", lambda t, d: (d.__setitem__("x", 10 * d["x"]),
-                                                             d.__setitem__("y", 10 * d["y"]), t)[2])
+    fast = _variant(
+        csvs[1], tmp_path, "fast", lambda t, d: (d.__setitem__("x", 10 * d["x"]), d.__setitem__("y", 10 * d["y"]), t)[2]
+    )
     rc, msg = _run(_diag([stopped], [fast], tmp_path / "o"), capsys)
     assert rc == 0, msg
     doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
@@ -198,22 +248,33 @@ def test_odd_but_possible_inputs_are_warned_about_in_the_outputs(csvs, tmp_path,
 
 
 def test_the_wind_effect_without_wind_columns_is_refused(csvs, tmp_path, capsys):
-    rc, msg = _run(["fit", "--vehicle", "esso_osaka_3m", "--train", csvs[0], "--effects", "wind",
-                    "--out", tmp_path / "f"], capsys)
+    rc, msg = _run(
+        ["fit", "--vehicle", "esso_osaka_3m", "--train", csvs[0], "--effects", "wind", "--out", tmp_path / "f"], capsys
+    )
     assert rc == 2 and "wind_speed" in msg and "run0" in msg, msg
 
 
-@pytest.mark.parametrize("args,text", [
-    (["--dt", "0"], "--dt"), (["--max-nfev", "-5"], "--max-nfev"), (["--max-effects", "0"], "--max-effects"),
-    (["--leadin", "-1"], "--leadin"), (["--window", "nan"], "--window"), (["--fit-window", "inf"], "--fit-window")])
+@pytest.mark.parametrize(
+    "args,text",
+    [
+        (["--dt", "0"], "--dt"),
+        (["--max-nfev", "-5"], "--max-nfev"),
+        (["--max-effects", "0"], "--max-effects"),
+        (["--leadin", "-1"], "--leadin"),
+        (["--window", "nan"], "--window"),
+        (["--fit-window", "inf"], "--fit-window"),
+    ],
+)
 def test_a_bad_number_is_refused_naming_the_option(csvs, tmp_path, capsys, args, text):
     rc, msg = _run(_diag([csvs[0]], [csvs[1]], tmp_path / "o", *args), capsys)
     assert rc == 2 and text in msg and "Traceback" not in msg, msg
 
 
 def test_predict_refuses_negative_draws(csvs, tmp_path, capsys):
-    rc, msg = _run(["predict", "--model", tmp_path / "none.json", "--track", csvs[0], "--draws", "-5",
-                    "--out", tmp_path / "p"], capsys)
+    rc, msg = _run(
+        ["predict", "--model", tmp_path / "none.json", "--track", csvs[0], "--draws", "-5", "--out", tmp_path / "p"],
+        capsys,
+    )
     assert rc == 2 and "--draws" in msg
 
 
@@ -224,8 +285,9 @@ def test_a_vehicle_file_with_an_impossible_value_names_it(tmp_path, capsys, csvs
     text = (ROOT / "bayesid" / "vehicles" / "nps_auv2.toml").read_text()
     bad = tmp_path / "bad.toml"
     bad.write_text(re.sub(rf"(?m)^{key}\s*=.*$", f"{key} = {value}", text, count=1))
-    rc, msg = _run(["diagnose", "--vehicle", bad, "--train", csvs[0], "--heldout", csvs[1], "--out", tmp_path / "o"],
-                   capsys)
+    rc, msg = _run(
+        ["diagnose", "--vehicle", bad, "--train", csvs[0], "--heldout", csvs[1], "--out", tmp_path / "o"], capsys
+    )
     assert rc == 2 and key in msg and "bad.toml" in msg, msg
 
 
@@ -237,9 +299,9 @@ def test_load_vehicle_on_a_ship_file_names_the_right_loader():
 
 
 def test_vessel_line_of_a_track_is_checked_against_the_vehicle():
-    from bayesid.models import load_any_vehicle
     from bayesid.data.track import Track
     from bayesid.data.validate import check_track
+    from bayesid.models import load_any_vehicle
 
     def track(vessel):
         return Track([0.0, 1.0], {"x": [0.0, 1.0]}, meta={"comments": [f"vessel: {vessel}"]})
@@ -256,9 +318,9 @@ def test_vessel_line_of_a_track_is_checked_against_the_vehicle():
 def test_implausible_tracks_for_the_vehicle_are_warned_about(csvs, tmp_path):
     """A propeller astern while moving ahead; a submarine's track (1.9 m/s) given to the 3 m
     full-form Esso Osaka model; pitch-plane columns on a surface ship."""
-    from bayesid.models import load_any_vehicle
     from bayesid.data.track import read_csv
     from bayesid.data.validate import check_track
+    from bayesid.models import load_any_vehicle
 
     auv, esso = load_vehicle("nps_auv2"), load_any_vehicle("esso_osaka_3m")
     astern = read_csv(_variant(csvs[0], tmp_path, "astern", lambda t, d: (d.__setitem__("n", -d["n"]), t)[1]))
@@ -274,8 +336,9 @@ def test_too_little_training_data_is_refused(csvs, tmp_path, capsys):
     short = _variant(csvs[0], tmp_path, "short", lambda t, d: t)
     text = short.read_text().splitlines()
     short.write_text("\n".join(text[:5]) + "\n")  # header + 4 samples
-    rc, msg = _run(["fit", "--vehicle", "nps_auv2", "--train", short, "--max-nfev", "3", "--out", tmp_path / "f"],
-                   capsys)
+    rc, msg = _run(
+        ["fit", "--vehicle", "nps_auv2", "--train", short, "--max-nfev", "3", "--out", tmp_path / "f"], capsys
+    )
     assert rc == 2 and "short.csv" in msg and "scored samples" in msg, msg
 
 
@@ -285,30 +348,64 @@ def test_another_export_of_one_log_is_refused_and_a_training_file_is_flagged(csv
     tr = read_csv(csvs[0])
     lines = ["t,x,y,psi,u,v,r,delta_r,n"] + [
         ",".join(f"{tr[k][i]:.7g}" for k in ("t", "x", "y", "psi", "u", "v", "r", "delta_r", "n"))
-        for i in range(tr.n_samples)]
+        for i in range(tr.n_samples)
+    ]
     (tmp_path / "export7.csv").write_text("\n".join(lines) + "\n")  # 7 significant digits
     rc, msg = _run(_diag([csvs[0]], [tmp_path / "export7.csv"], tmp_path / "o"), capsys)
     assert rc == 2 and "same samples" in msg and "export7.csv" in msg, msg
     # predict on the model's own training file: scored, with a warning in predict.json
-    rc, msg = _run(["fit", "--vehicle", "nps_auv2", "--free", "Nr", "--train", csvs[0], "--window", "30",
-                    "--max-nfev", "2", "--out", tmp_path / "f"], capsys)
+    rc, msg = _run(
+        [
+            "fit",
+            "--vehicle",
+            "nps_auv2",
+            "--free",
+            "Nr",
+            "--train",
+            csvs[0],
+            "--window",
+            "30",
+            "--max-nfev",
+            "2",
+            "--out",
+            tmp_path / "f",
+        ],
+        capsys,
+    )
     assert rc == 0, msg
     model = json.loads((tmp_path / "f" / "model.json").read_text())
-    rc, msg = _run(["predict", "--model", tmp_path / "f" / "model.json", "--track", csvs[0], "--draws", "0",
-                    "--window", "30", "--out", tmp_path / "p"], capsys)
+    rc, msg = _run(
+        [
+            "predict",
+            "--model",
+            tmp_path / "f" / "model.json",
+            "--track",
+            csvs[0],
+            "--draws",
+            "0",
+            "--window",
+            "30",
+            "--out",
+            tmp_path / "p",
+        ],
+        capsys,
+    )
     assert rc == 0 and "training scores" in msg
     assert any("training scores" in w for w in json.loads((tmp_path / "p" / "predict.json").read_text())["warnings"])
     # a hand-edited model file is refused naming the file and the key
     for key, value in (("p", ["a"]), ("cov", [[float("nan")]]), ("dt", -1)):
         bad = dict(model, **{key: value})
         (tmp_path / "f" / "bad.json").write_text(json.dumps(bad))
-        rc, msg = _run(["predict", "--model", tmp_path / "f" / "bad.json", "--track", csvs[1], "--out",
-                        tmp_path / f"q{key}"], capsys)
+        rc, msg = _run(
+            ["predict", "--model", tmp_path / "f" / "bad.json", "--track", csvs[1], "--out", tmp_path / f"q{key}"],
+            capsys,
+        )
         assert rc == 2 and "bad.json" in msg and f"'{key}'" in msg and "Traceback" not in msg, (key, msg)
 
 
-@pytest.mark.parametrize("args,text", [
-    (["--dt", "0.1", "--sample", "0.25"], "--sample"), (["--duration", "1e9"], "--duration")])
+@pytest.mark.parametrize(
+    "args,text", [(["--dt", "0.1", "--sample", "0.25"], "--sample"), (["--duration", "1e9"], "--duration")]
+)
 def test_simulate_refuses_impossible_sampling_and_durations(tmp_path, capsys, args, text):
     rc, msg = _run(["simulate", "--manoeuvre", "straight", *args, "--out", tmp_path / "s.csv"], capsys)
     assert rc == 2 and text in msg and not (tmp_path / "s.csv").exists(), msg

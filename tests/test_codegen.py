@@ -7,6 +7,7 @@ tracks are expected bit-identical; the assertion allows round-off (rtol 1e-12 of
 state) so that a harmless reordering would not fail it, while a dropped or wrong term (a 1e-3
 relative change of one coefficient moves the states by far more) does.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -14,7 +15,8 @@ import pytest
 
 from bayesid.data import terms
 from bayesid.data.vehicle import load_vehicle
-from bayesid.models import codegen, effects as ef
+from bayesid.models import codegen
+from bayesid.models import effects as ef
 from bayesid.models.simulate import Manoeuvre, Simulator
 
 RTOL = 1e-12
@@ -63,8 +65,13 @@ def test_batch_driver_agrees_with_the_interpreted_kernel(veh, mode, B):
     the last pair is padding), sampled every 3rd step."""
     rng = np.random.default_rng(100 + B + len(mode))
     man = _random_manoeuvre(rng, mode)
-    free = [n for n in terms.NAMES if terms.term(n).kind == "force" and veh.coefficients.get(n, 0.0) != 0.0
-            and (mode == "6dof" or terms.term(n).horizontal)] + ["Yvdot", "Nrdot", "Yrdot", "Nvdot"]
+    free = [
+        n
+        for n in terms.NAMES
+        if terms.term(n).kind == "force"
+        and veh.coefficients.get(n, 0.0) != 0.0
+        and (mode == "6dof" or terms.term(n).horizontal)
+    ] + ["Yvdot", "Nrdot", "Yrdot", "Nvdot"]
     runs = {k: Simulator(veh, man, free, mode=mode, sample_every=3, kernel=k) for k in codegen.KINDS}
     theta = _random_coefficients(rng, runs["generated"], B)
     gen, ref = runs["generated"].run(theta), runs["interpreted"].run(theta)
@@ -105,8 +112,9 @@ def test_a_coefficient_zero_at_generation_but_free_is_not_dropped(veh):
     assert np.max(np.abs(gen.states[1] - gen.states[0])) > 1e-3  # the freed term acts
 
 
-@pytest.mark.parametrize("effects,mode", [(("waves", "thrust"), "horizontal"), (("crossflow",), "horizontal"),
-                                          (("roll",), "6dof")])
+@pytest.mark.parametrize(
+    "effects,mode", [(("waves", "thrust"), "horizontal"), (("crossflow",), "horizontal"), (("roll",), "6dof")]
+)
 def test_window_driver_agrees_through_the_effect_model(veh, effects, mode):
     """Exogenous forces (waves, thrust deficit), the cross-flow integral switched on per
     parameter vector, and the 6-DOF window kernel (roll), over several windows of a random
@@ -120,8 +128,10 @@ def test_window_driver_agrees_through_the_effect_model(veh, effects, mode):
     ctx = m.context(tr, 20.0)
     P = np.repeat(m.start()[None], 3, axis=0)
     lo, hi = m.bounds()
-    P[:, m.n_theta:] = np.clip(P[:, m.n_theta:] * (1 + rng.uniform(-0.2, 0.2, (3, P.shape[1] - m.n_theta))), lo[m.n_theta:], hi[m.n_theta:])
-    P[:, :m.n_theta] *= 1 + rng.uniform(-0.2, 0.2, (3, m.n_theta))
+    P[:, m.n_theta :] = np.clip(
+        P[:, m.n_theta :] * (1 + rng.uniform(-0.2, 0.2, (3, P.shape[1] - m.n_theta))), lo[m.n_theta :], hi[m.n_theta :]
+    )
+    P[:, : m.n_theta] *= 1 + rng.uniform(-0.2, 0.2, (3, m.n_theta))
     nu = rng.uniform(-1, 1, (3, max(m.n_nuisance, 1)))
     gen = models["generated"].simulate(ctx, P, nu)
     ref = models["interpreted"].simulate(models["interpreted"].context(tr, 20.0), P, nu)
@@ -148,8 +158,9 @@ def test_a_simulator_pickles_without_its_kernel_and_reloads_it(veh):
     dropped and loaded again on first use, with the same tracks."""
     import pickle
 
-    sim = Simulator(veh, _random_manoeuvre(np.random.default_rng(5), "horizontal", n_steps=100), ["Nr"],
-                    mode="horizontal")
+    sim = Simulator(
+        veh, _random_manoeuvre(np.random.default_rng(5), "horizontal", n_steps=100), ["Nr"], mode="horizontal"
+    )
     a = sim.run()
     b = pickle.loads(pickle.dumps(sim)).run()
     assert np.array_equal(a.states, b.states)

@@ -4,6 +4,7 @@ Real-data tests read ../shared/data/real (relative to the repository) and skip w
 absent; the data are never copied into the repository (licence).  The synthetic tests write
 small files to tmp_path and need no real data.
 """
+
 import json
 import math
 from pathlib import Path
@@ -11,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid.data import datasets as ds
 from bayesid.cli import main
+from bayesid.data import datasets as ds
 from bayesid.data.datasets import FORMATS, DatasetFormatError, list_runs, read_esso_osaka, read_run, read_simman_hsva
 from bayesid.data.track import TrackFormatError, read_csv, write_csv
 
@@ -31,10 +32,12 @@ def need(path):
 
 # ------------------------------------------------------------------ synthetic files
 
-ESSO_HEADER = ("t [s],x_position_mid [m],u_velo [m/s],y_position_mid [m],vm_velo [m/s],"
-               "psi_hat [rad],r_angvelo [rad/s],n_prop [rps],delta_rudder [rad],"
-               "wind_velo_relative_mid [m/s],wind_dir_relative_mid [rad],"
-               "wind_velo_true [m/s],wind_dir_true [rad]")
+ESSO_HEADER = (
+    "t [s],x_position_mid [m],u_velo [m/s],y_position_mid [m],vm_velo [m/s],"
+    "psi_hat [rad],r_angvelo [rad/s],n_prop [rps],delta_rudder [rad],"
+    "wind_velo_relative_mid [m/s],wind_dir_relative_mid [rad],"
+    "wind_velo_true [m/s],wind_dir_true [rad]"
+)
 EMPTY13 = "," * 12
 
 
@@ -48,8 +51,7 @@ def write(path, lines, encoding="utf-8"):
 
 
 def hsva_file(path, rows):
-    head = [" HSVA, experimental data CPMC", " KVLCC2", " Z20°/10° starting to starboard",
-            " Time series of motions"]
+    head = [" HSVA, experimental data CPMC", " KVLCC2", " Z20°/10° starting to starboard", " Time series of motions"]
     body = ["  ".join(f"{v:.9f}" for v in r) if not isinstance(r, str) else r for r in rows]
     return write(path, head + body, encoding="cp1252")
 
@@ -68,15 +70,19 @@ def same_track(a, b):
 
 
 def test_esso_synthetic_conversions(tmp_path):
-    rows = [esso_row(0.0, psi=3.10), esso_row(0.1, psi=-3.12, delta=-0.3, n=-5),
-            esso_row(0.2, psi=-3.05), esso_row(0.3, psi=-2.9)]
+    rows = [
+        esso_row(0.0, psi=3.10),
+        esso_row(0.1, psi=-3.12, delta=-0.3, n=-5),
+        esso_row(0.2, psi=-3.05),
+        esso_row(0.3, psi=-2.9),
+    ]
     tr = read_esso_osaka(write(tmp_path / "turn_x.csv", [ESSO_HEADER, *rows]))
     assert tr.name == "turn_x" and tr.n_samples == 4
     assert tr.state_columns == ["x", "y", "psi", "u", "v", "r"]
     assert tr.input_columns == ["delta_r", "n"]
-    np.testing.assert_allclose(tr["delta_r"], [-0.2, 0.3, -0.2, -0.2])   # sign flipped
+    np.testing.assert_allclose(tr["delta_r"], [-0.2, 0.3, -0.2, -0.2])  # sign flipped
     np.testing.assert_allclose(tr["n"], [600.0, -300.0, 600.0, 600.0])  # rps -> rpm
-    assert np.all(np.abs(np.diff(tr["psi"])) < 0.2)                     # unwrapped
+    assert np.all(np.abs(np.diff(tr["psi"])) < 0.2)  # unwrapped
     np.testing.assert_allclose(tr["psi"][1], -3.12 + 2 * math.pi)
     np.testing.assert_allclose(tr["wind_speed"], 1.6)
     np.testing.assert_allclose(tr["wind_dir"], 3.0)
@@ -89,8 +95,18 @@ def test_esso_synthetic_conversions(tmp_path):
 
 
 def test_esso_empty_rows_dropped_and_repeated_time(tmp_path):
-    lines = [ESSO_HEADER, esso_row(0.0), EMPTY13, esso_row(0.1), "", esso_row(0.2),
-             esso_row(0.2), esso_row(0.3), EMPTY13, EMPTY13]
+    lines = [
+        ESSO_HEADER,
+        esso_row(0.0),
+        EMPTY13,
+        esso_row(0.1),
+        "",
+        esso_row(0.2),
+        esso_row(0.2),
+        esso_row(0.3),
+        EMPTY13,
+        EMPTY13,
+    ]
     tr = read_esso_osaka(write(tmp_path / "r.csv", lines))
     np.testing.assert_array_equal(tr.t, [0.0, 0.1, 0.2, 0.3])
     notes = " ".join(tr.meta["notes"])
@@ -105,20 +121,23 @@ def test_esso_missing_cell_is_nan(tmp_path):
     assert np.isnan(tr["u"][1]) and tr["u"][0] == 0.3
 
 
-@pytest.mark.parametrize("bad,row,column,words", [
-    (lambda L: L.__setitem__(3, L[3].replace(",0.3,", ",abc,", 1)), 4, "u_velo [m/s]",
-     "non-numeric value 'abc'"),
-    (lambda L: L.__setitem__(2, L[2].replace(",0.3,", ",nan,", 1)), 3, "u_velo [m/s]",
-     "non-numeric value 'nan'"),
-    (lambda L: L.__setitem__(3, L[3] + ",7"), 4, None, "has 14 fields, header has 13"),
-    (lambda L: L.__setitem__(4, esso_row(0.05)), 5, "t [s]", "time decreases"),
-    (lambda L: L.__setitem__(2, "," + esso_row(0.1).split(",", 1)[1]), 3, "t [s]",
-     "missing time value"),
-    (lambda L: L.__setitem__(0, L[0].replace("psi_hat [rad],", "heading [rad],")), 1,
-     "psi_hat [rad]", "missing column"),
-    (lambda L: L.__setitem__(0, L[0].replace("n_prop [rps]", "n_prop [rpm]")), 1,
-     "n_prop [rpm]", "expected 'rps'"),
-])
+@pytest.mark.parametrize(
+    "bad,row,column,words",
+    [
+        (lambda L: L.__setitem__(3, L[3].replace(",0.3,", ",abc,", 1)), 4, "u_velo [m/s]", "non-numeric value 'abc'"),
+        (lambda L: L.__setitem__(2, L[2].replace(",0.3,", ",nan,", 1)), 3, "u_velo [m/s]", "non-numeric value 'nan'"),
+        (lambda L: L.__setitem__(3, L[3] + ",7"), 4, None, "has 14 fields, header has 13"),
+        (lambda L: L.__setitem__(4, esso_row(0.05)), 5, "t [s]", "time decreases"),
+        (lambda L: L.__setitem__(2, "," + esso_row(0.1).split(",", 1)[1]), 3, "t [s]", "missing time value"),
+        (
+            lambda L: L.__setitem__(0, L[0].replace("psi_hat [rad],", "heading [rad],")),
+            1,
+            "psi_hat [rad]",
+            "missing column",
+        ),
+        (lambda L: L.__setitem__(0, L[0].replace("n_prop [rps]", "n_prop [rpm]")), 1, "n_prop [rpm]", "expected 'rps'"),
+    ],
+)
 def test_esso_malformed_names_row_and_column(tmp_path, bad, row, column, words):
     lines = [ESSO_HEADER] + [esso_row(round(0.1 * i, 1)) for i in range(5)]
     bad(lines)
@@ -150,8 +169,8 @@ def test_esso_true_wind_from_apparent(tmp_path):
     sa, da = np.hypot(bx, by), np.mod(np.arctan2(-by, -bx), 2 * math.pi)
     header = ESSO_HEADER.split(",")[:11]
     lines = [",".join(header)] + [
-        ",".join(f"{float(c):.17g}" for c in (t[i], 0, u[i], 0, v[i], psi[i], 0, 10, 0, sa[i], da[i]))
-        for i in range(n)]
+        ",".join(f"{float(c):.17g}" for c in (t[i], 0, u[i], 0, v[i], psi[i], 0, 10, 0, sa[i], da[i])) for i in range(n)
+    ]
     tr = read_esso_osaka(write(tmp_path / "app.csv", lines))
     np.testing.assert_allclose(tr["wind_speed"], ws, rtol=1e-12)
     np.testing.assert_allclose(np.angle(np.exp(1j * (tr["wind_dir"] - wd))), 0, atol=1e-12)
@@ -159,11 +178,10 @@ def test_esso_true_wind_from_apparent(tmp_path):
 
 
 def test_hsva_synthetic_conversions(tmp_path):
-    rows = [hsva_row(0.0, psi_deg=179.0), hsva_row(0.05, psi_deg=-179.5), "",
-            hsva_row(0.10, psi_deg=-178.0)]
+    rows = [hsva_row(0.0, psi_deg=179.0), hsva_row(0.05, psi_deg=-179.5), "", hsva_row(0.10, psi_deg=-178.0)]
     tr = read_simman_hsva(hsva_file(tmp_path / "Z.dat", rows))
     assert tr.n_samples == 3 and tr.meta["sample_rate_hz"] == 20.0
-    assert tr.state_columns == ["x", "y", "psi", "r"]          # no u, v: not measured
+    assert tr.state_columns == ["x", "y", "psi", "r"]  # no u, v: not measured
     np.testing.assert_allclose(tr["psi"], np.radians([179.0, 180.5, 182.0]))
     np.testing.assert_allclose(tr["r"], np.radians(-0.5))
     np.testing.assert_allclose(tr["delta_r"], np.radians(10.0))  # sign unchanged
@@ -174,12 +192,19 @@ def test_hsva_synthetic_conversions(tmp_path):
     assert any("dropped 1 empty row(s) (line 7)" in n for n in tr.meta["notes"])
 
 
-@pytest.mark.parametrize("mutate,row,column,words", [
-    (lambda r: r.__setitem__(1, "  ".join(["0.05", "1", "2", "x5", *["0"] * 8])), 6,
-     "col 3 (psi, deg)", "non-numeric value 'x5'"),
-    (lambda r: r.__setitem__(2, "0.1 1 2 3"), 7, None, "has 4 fields, expected 12"),
-    (lambda r: r.__setitem__(2, hsva_row(0.01)), 7, "col 0 (time, s)", "time decreases"),
-])
+@pytest.mark.parametrize(
+    "mutate,row,column,words",
+    [
+        (
+            lambda r: r.__setitem__(1, "  ".join(["0.05", "1", "2", "x5", *["0"] * 8])),
+            6,
+            "col 3 (psi, deg)",
+            "non-numeric value 'x5'",
+        ),
+        (lambda r: r.__setitem__(2, "0.1 1 2 3"), 7, None, "has 4 fields, expected 12"),
+        (lambda r: r.__setitem__(2, hsva_row(0.01)), 7, "col 0 (time, s)", "time decreases"),
+    ],
+)
 def test_hsva_malformed_names_row_and_column(tmp_path, mutate, row, column, words):
     rows = [hsva_row(0.0), hsva_row(0.05), hsva_row(0.10)]
     mutate(rows)
@@ -206,7 +231,7 @@ def test_list_runs_skips_aux_and_trimmed_copies(tmp_path):
     (tmp_path / "turning").mkdir()
     (tmp_path / "mmg_params").mkdir()
     write(tmp_path / "turning" / "turn_a.csv", full)
-    write(tmp_path / "turning" / "turn_cut_a.csv", full[:4] + [EMPTY13])   # trimmed copy
+    write(tmp_path / "turning" / "turn_cut_a.csv", full[:4] + [EMPTY13])  # trimmed copy
     write(tmp_path / "turning" / "turn_b.csv", full[:1] + [esso_row(0.0, u=0.5)])
     write(tmp_path / "mmg_params" / "MMG_params.csv", ["parameter,value", "a,1"])
     write(tmp_path / "turning" / "params.csv", ["parameter,value", "a,1"])
@@ -214,8 +239,7 @@ def test_list_runs_skips_aux_and_trimmed_copies(tmp_path):
     runs = list_runs(tmp_path, "esso-osaka")
     assert [p.name for p in runs] == ["turn_a.csv", "turn_b.csv"]
     kept, skipped = ds.scan_runs(tmp_path, "esso-osaka")
-    assert [(p.name, "trimmed copy of turn_a.csv" in why) for p, why in skipped] == \
-        [("turn_cut_a.csv", True)]
+    assert [(p.name, "trimmed copy of turn_a.csv" in why) for p, why in skipped] == [("turn_cut_a.csv", True)]
     hs = tmp_path / "h"
     (hs / "aux").mkdir(parents=True)
     hsva_file(hs / "Z_1.dat", [hsva_row(0.0), hsva_row(0.05)])
@@ -228,8 +252,7 @@ def test_list_runs_skips_aux_and_trimmed_copies(tmp_path):
 
 
 def test_round_trip_synthetic(tmp_path):
-    tr = read_esso_osaka(write(tmp_path / "a.csv", [ESSO_HEADER, esso_row(0.0), EMPTY13,
-                                                     esso_row(0.1, psi=-3.1)]))
+    tr = read_esso_osaka(write(tmp_path / "a.csv", [ESSO_HEADER, esso_row(0.0), EMPTY13, esso_row(0.1, psi=-3.1)]))
     write_csv(tr, tmp_path / "out.csv")
     same_track(tr, read_csv(tmp_path / "out.csv"))
     tr = read_simman_hsva(hsva_file(tmp_path / "Z.dat", [hsva_row(0.0), hsva_row(0.05)]))
@@ -261,13 +284,15 @@ def test_cli_convert_synthetic_names_unique(tmp_path, capsys):
 
 # ------------------------------------------------------------------ real data
 
+
 def held_plateaus(t, delta, threshold, min_s):
     """(start, stop, sign) of stretches where sign(delta) is held beyond +-threshold."""
     s = np.where(delta > threshold, 1, np.where(delta < -threshold, -1, 0))
     edges = np.flatnonzero(np.diff(s)) + 1
     bounds = np.concatenate([[0], edges, [len(s)]])
-    return [(i, j, s[i]) for i, j in zip(bounds[:-1], bounds[1:])
-            if s[i] != 0 and j < len(s) and t[j - 1] - t[i] >= min_s]
+    return [
+        (i, j, s[i]) for i, j in zip(bounds[:-1], bounds[1:]) if s[i] != 0 and j < len(s) and t[j - 1] - t[i] >= min_s
+    ]
 
 
 def test_real_list_runs_counts_and_duplicates():
@@ -275,9 +300,8 @@ def test_real_list_runs_counts_and_duplicates():
     need(HSVA)
     runs = list_runs(ESSO, "esso-osaka")
     names = {p.name for p in runs}
-    all_csv = {p.name for d in ("turning", "zigzag", "random", "berthing")
-               for p in (ESSO / d).glob("*.csv")}
-    assert "turn_cut_14-Sep-2020_15_58_08.csv" not in names          # trimmed copy of ...
+    all_csv = {p.name for d in ("turning", "zigzag", "random", "berthing") for p in (ESSO / d).glob("*.csv")}
+    assert "turn_cut_14-Sep-2020_15_58_08.csv" not in names  # trimmed copy of ...
     assert {"turn_14-Sep-2020_15_58_08.csv", "turn_cut_14-Sep-2020_16_09_02.csv"} <= names
     assert names == all_csv - {"turn_cut_14-Sep-2020_15_58_08.csv"}
     assert not any("mmg_params" in str(p) for p in runs)
@@ -304,7 +328,7 @@ def test_real_esso_empty_rows_and_psi_unwrapped():
     assert all(np.isfinite(tr[k]).all() for k in ["t", *tr.data])
     assert any("dropped 327 empty row(s)" in n for n in tr.meta["notes"])
     turn = read_esso_osaka(need(ESSO / "turning" / "turn_14-Oct-2020_14_08_51.csv"))
-    assert np.max(np.abs(np.diff(turn["psi"]))) < 0.5          # the file's psi_hat wraps
+    assert np.max(np.abs(np.diff(turn["psi"]))) < 0.5  # the file's psi_hat wraps
     assert np.ptp(turn["psi"]) > 4 * math.pi
 
 
@@ -316,7 +340,7 @@ def test_real_rudder_sign_esso_turning():
         tr = read_esso_osaka(p)
         # turns held >= 60 s (shorter holds at the start of a run from rest are not steady)
         for i, j, s in held_plateaus(tr.t, tr["delta_r"], math.radians(10), 60.0):
-            steady = slice((i + j) // 2, j)             # second half of a held turn
+            steady = slice((i + j) // 2, j)  # second half of a held turn
             assert np.mean(np.sign(tr["r"][steady]) == -s) > 0.95, p.name
             checked += 1
     assert checked >= 10
@@ -346,8 +370,9 @@ def test_real_esso_wind_columns():
         assert wd.min() >= 0 and wd.max() < 2 * math.pi
         # the file's true wind is the from-direction in the earth frame: rebuilding it from the
         # apparent wind and the ship's motion (README formula) reproduces it
-        sp, dr = ds._true_wind_from_apparent(tr["wind_speed_apparent"], tr["wind_dir_apparent"],
-                                             tr["u"], tr["v"], tr["psi"])
+        sp, dr = ds._true_wind_from_apparent(
+            tr["wind_speed_apparent"], tr["wind_dir_apparent"], tr["u"], tr["v"], tr["psi"]
+        )
         assert np.sqrt(np.mean((sp - ws) ** 2)) < 0.01
         strong = ws > 0.5
         assert np.sqrt(np.mean(np.angle(np.exp(1j * (dr - wd)))[strong] ** 2)) < 0.02
@@ -370,8 +395,7 @@ def test_real_cli_convert_round_trip(tmp_path, capsys):
         assert src.name in printed
         summary = json.loads((out / "convert.json").read_text())
         (run,) = summary["runs"]
-        assert {"source", "output", "n_samples", "duration_s", "columns", "sample_rate_hz",
-                "notes"} <= set(run)
+        assert {"source", "output", "n_samples", "duration_s", "columns", "sample_rate_hz", "notes"} <= set(run)
         direct = read_run(src, fmt)
         back = read_csv(run["output"])
         same_track(direct, back)

@@ -1,6 +1,7 @@
 """An effect is one class in one file (issue 22): a yaw-moment bias defined only here is used to
 make world data, then ranked, attributed and supported by the gap diagnosis, with no change to
 the package."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,10 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from bayesid.models import effects as ef
-from bayesid.models import manoeuvres as mv
 from bayesid.analysis.gap import Diagnosis, diagnose
 from bayesid.data.vehicle import load_vehicle
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,8 +31,17 @@ class YawBias(ef.Effect):
         return [np.column_stack([z, z, np.ones_like(z)])]
 
 
-YAW_BIAS = YawBias("yaw_bias", ("N0_Nm",), (-400.0,), (400.0,), (0.0,), (20.0,), neutral=(0.0,), exo_columns=1,
-                   description="constant yaw moment")
+YAW_BIAS = YawBias(
+    "yaw_bias",
+    ("N0_Nm",),
+    (-400.0,),
+    (400.0,),
+    (0.0,),
+    (20.0,),
+    neutral=(0.0,),
+    exo_columns=1,
+    description="constant yaw moment",
+)
 
 
 @pytest.fixture(scope="module")
@@ -39,12 +49,29 @@ def diagnosis():
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng(3)
     truth = {YAW_BIAS: {"N0_Nm": 60.0}}
-    train = [ef.world_track(veh, m, truth, rng, name=f"train_{k}") for k, m in enumerate(
-        [mv.zigzag(veh, 20.0, dt=0.1, duration=150.0), mv.prbs(veh, 15.0, duration=150.0, rng=np.random.default_rng(1))])]
-    held = [ef.world_track(veh, mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1), truth, rng,
-                           name="heldout")]
-    return diagnose(veh, ["Yv", "Nr", "Ndr"], train, held, candidates=[YAW_BIAS, "thrust", "delay"], window_s=60.0,
-                    rng=np.random.default_rng(0), max_nfev=30, max_effects=1)
+    train = [
+        ef.world_track(veh, m, truth, rng, name=f"train_{k}")
+        for k, m in enumerate(
+            [
+                mv.zigzag(veh, 20.0, dt=0.1, duration=150.0),
+                mv.prbs(veh, 15.0, duration=150.0, rng=np.random.default_rng(1)),
+            ]
+        )
+    ]
+    held = [
+        ef.world_track(veh, mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1), truth, rng, name="heldout")
+    ]
+    return diagnose(
+        veh,
+        ["Yv", "Nr", "Ndr"],
+        train,
+        held,
+        candidates=[YAW_BIAS, "thrust", "delay"],
+        window_s=60.0,
+        rng=np.random.default_rng(0),
+        max_nfev=30,
+        max_effects=1,
+    )
 
 
 def test_an_effect_defined_outside_the_package_is_ranked_and_attributed(diagnosis):

@@ -1,11 +1,12 @@
 """Identification: gradient, recovery, errors."""
+
 import numpy as np
 import pytest
 
 from bayesid import cases
-from bayesid.models import manoeuvres as mv
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import Problem
+from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 
 
@@ -87,9 +88,9 @@ def test_one_fit_function_serves_both_objectives(short_problem, nps):
     m = mv.zigzag(nps, 20.0, duration=60.0)
     tr = Simulator(nps, m, mode="horizontal").run().track(0)  # every step: the rudder log is exact
     model = EffectModel(nps.with_coefficients({"Nr": 1.2 * nps.coefficients["Nr"]}), ["Nr"], dt=0.1)
-    res = fit_model(model, [model.context(tr, 30.0)], {c: 0.01 for c in ("x", "y", "psi", "u", "v", "r")},
-                    max_nfev=20)
-    assert isinstance(res, FitResult) and type(res) is type(fit_problem(pb, np.ones(len(case.free)),
-                                                                      case.scaled_bounds(), max_nfev=2))
+    res = fit_model(model, [model.context(tr, 30.0)], {c: 0.01 for c in ("x", "y", "psi", "u", "v", "r")}, max_nfev=20)
+    assert isinstance(res, FitResult) and type(res) is type(
+        fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), max_nfev=2)
+    )
     assert res.coefficients()["Nr"] == pytest.approx(nps.coefficients["Nr"], rel=0.02)
     assert res.k == 1 and res.n_residuals > 0 and res.cost < res.start_cost

@@ -1,10 +1,10 @@
 """Gap diagnosis (issue 5): effect catalogue, window protocol, diagnose(), bayesid diagnose,
 studies/sim_to_real.py --quick."""
+
 from __future__ import annotations
 
 import importlib.util
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from bayesid import cli, protocol
-from bayesid.models import effects as ef
 from bayesid.analysis import gap
-from bayesid.models import manoeuvres as mv
+from bayesid.data.track import write_csv
+from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
-from bayesid.data.track import Track, read_csv, write_csv
-from bayesid.data.vehicle import load_vehicle
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
 
 ROOT = Path(__file__).resolve().parents[1]
 FREE = ["Yv", "Nr", "Ndr"]
@@ -33,8 +33,10 @@ def veh():
 @pytest.fixture(scope="module")
 def scenario(veh):
     """Short training and held-out manoeuvres (inputs only; the world adds the effect)."""
-    train = [mv.zigzag(veh, 20.0, dt=0.1, duration=150.0),
-             mv.prbs(veh, 15.0, duration=150.0, rng=np.random.default_rng(1))]
+    train = [
+        mv.zigzag(veh, 20.0, dt=0.1, duration=150.0),
+        mv.prbs(veh, 15.0, duration=150.0, rng=np.random.default_rng(1)),
+    ]
     held = [mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1)]
     return train, held
 
@@ -92,15 +94,16 @@ def test_protocol_on_the_models_own_track_is_at_the_noise_level(veh):
     noisy = ef.world_track(veh, m, {}, np.random.default_rng(1))
     model = ef.EffectModel(veh, (), (), dt=0.5)
     ctx = model.context(noisy, 60.0)
-    sc = protocol.pooled_scores([{k: v[0] for k, v in ef.errors(ctx, model.simulate(ctx, model.start()[None])).items()}])
+    sc = protocol.pooled_scores(
+        [{k: v[0] for k, v in ef.errors(ctx, model.simulate(ctx, model.start()[None])).items()}]
+    )
     assert 0.15 < sc["rms_position_m"] < 1.0
     assert ctx.W == 3 and list(ctx.starts) == [0, 120, 240, 360]
 
 
 # --- effects ------------------------------------------------------------------------------
 def test_catalogue_has_the_issues_effects_with_sources():
-    assert set(ef.CATALOGUE) >= {"current", "actuator", "delay", "sensor_bias", "crossflow", "thrust",
-                                 "roll", "waves"}
+    assert set(ef.CATALOGUE) >= {"current", "actuator", "delay", "sensor_bias", "crossflow", "thrust", "roll", "waves"}
     for e in ef.CATALOGUE.values():
         assert len(e.magnitudes) == 3 and e.source and e.description
         assert len(e.params) == len(e.lo) == len(e.hi) == len(e.start) == len(e.scale)
@@ -191,18 +194,40 @@ CASES = {  # effect -> (level, distractor candidates)
 }
 
 
-@pytest.mark.parametrize("effect", [pytest.param(e, marks=pytest.mark.xfail(
-    strict=True, reason="known weakness: the 1-parameter roll candidate removes only 17 % of the "
-                        "held-out excess on 150 s tracks (verdict 'none'); benchmark: roll 1/3"))
-    if e == "roll" else e for e in CASES])
+@pytest.mark.parametrize(
+    "effect",
+    [
+        pytest.param(
+            e,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="known weakness: the 1-parameter roll candidate removes only 17 % of the "
+                "held-out excess on 150 s tracks (verdict 'none'); benchmark: roll 1/3",
+            ),
+        )
+        if e == "roll"
+        else e
+        for e in CASES
+    ],
+)
 def test_diagnosis_names_the_withheld_effect(veh, scenario, effect):
     level, distractors = CASES[effect]
     truth = {effect: ef.draw_parameters(effect, level, np.random.default_rng(4))}
     train, held = world(veh, scenario, truth, seed=11)
-    res = gap.diagnose(veh, FREE, train, held, candidates=[effect] + distractors, window_s=60.0,
-                       rng=np.random.default_rng(0), max_nfev=40).to_dict()
-    assert res["verdict"] == effect, (res["verdict"], [(r["effect"], r["heldout_rms_m"], r["excess_removed"],
-                                                        r["delta_bic"]) for r in res["ranking"]])
+    res = gap.diagnose(
+        veh,
+        FREE,
+        train,
+        held,
+        candidates=[effect] + distractors,
+        window_s=60.0,
+        rng=np.random.default_rng(0),
+        max_nfev=40,
+    ).to_dict()
+    assert res["verdict"] == effect, (
+        res["verdict"],
+        [(r["effect"], r["heldout_rms_m"], r["excess_removed"], r["delta_bic"]) for r in res["ranking"]],
+    )
     assert res["gap_after"]["heldout_rms_m"] < res["gap_before"]["heldout_rms_m"]
     assert res["gap_after"]["heldout_log_likelihood"] > res["gap_before"]["heldout_log_likelihood"]
 
@@ -216,22 +241,26 @@ def test_scores_log_likelihood_is_the_gaussian_density_of_the_errors(veh):
     f = FitResult.fixed(model, model.start(), 1)
     sd = {c: 0.5 + i for i, c in enumerate(protocol.CHANNELS)}
     e = ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))
-    want = sum(float(np.sum(-0.5 * (v[0][np.isfinite(v[0])] / sd[c]) ** 2 - np.log(sd[c] * np.sqrt(2 * np.pi))))
-               for c, v in e.items())
+    want = sum(
+        float(np.sum(-0.5 * (v[0][np.isfinite(v[0])] / sd[c]) ** 2 - np.log(sd[c] * np.sqrt(2 * np.pi))))
+        for c, v in e.items()
+    )
     assert wf.scores(model, f, ctx, sd=sd)["log_likelihood"] == pytest.approx(want, rel=1e-12)
     assert "log_likelihood" not in wf.scores(model, f, ctx)
 
 
 def test_no_effect_gives_none_and_a_missing_candidate_gives_unexplained(veh, scenario):
     train, held = world(veh, scenario, {}, seed=21)
-    res = gap.diagnose(veh, FREE, train, held, candidates=["current", "thrust", "delay"],
-                       rng=np.random.default_rng(0), max_nfev=40).to_dict()
+    res = gap.diagnose(
+        veh, FREE, train, held, candidates=["current", "thrust", "delay"], rng=np.random.default_rng(0), max_nfev=40
+    ).to_dict()
     assert res["verdict"] == "none", res["gap_ratio"]
     assert res["gap_ratio"] < res["thresholds"]["none_ratio"]
     truth = {"current": ef.draw_parameters("current", 2, np.random.default_rng(4))}
     train, held = world(veh, scenario, truth, seed=22)
-    res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0),
-                       max_nfev=40).to_dict()
+    res = gap.diagnose(
+        veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0), max_nfev=40
+    ).to_dict()
     assert res["verdict"] == "unexplained"
     assert res["significant_gap"]
     assert res["where"]["dominant_channel"] in ("x", "y", "u", "v")
@@ -243,8 +272,9 @@ def test_a_nesting_candidate_never_fits_the_training_tracks_worse_than_the_base_
     diagnosis then starts it once more at the base optimum. (Before the actuator's rate bound
     covered the logged rudder steps, no-effect benchmark cases showed actuator dBIC of +2e4.)"""
     train, held = world(veh, scenario, {}, seed=21)
-    res = gap.diagnose(veh, FREE, train, held, candidates=["actuator", "delay", "thrust"],
-                       rng=np.random.default_rng(0), max_nfev=4).to_dict()
+    res = gap.diagnose(
+        veh, FREE, train, held, candidates=["actuator", "delay", "thrust"], rng=np.random.default_rng(0), max_nfev=4
+    ).to_dict()
     ln_n = np.log(res["base_fit"]["n_residuals"])
     for r in res["ranking"]:
         assert r["delta_bic"] <= len(r["parameters"]) * ln_n + 1e-6, (r["effect"], r["delta_bic"], r["parameters"])
@@ -255,16 +285,20 @@ def test_shrinkage_is_scored_on_held_out_tracks_disjoint_from_training(veh, scen
     train, held = world(veh, scenario, truth, seed=31)
     with pytest.raises(ValueError, match="overlap"):
         gap.diagnose(veh, FREE, train, [train[0]], candidates=["thrust"]).to_dict()
-    res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0),
-                       max_nfev=40).to_dict()
+    res = gap.diagnose(
+        veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0), max_nfev=40
+    ).to_dict()
     assert set(res["train_tracks"]).isdisjoint(res["heldout_tracks"])
     assert res["heldout_tracks"] == [t.name for t in held]
     expect = 1 - res["gap_after"]["heldout_rms_m"] / res["gap_before"]["heldout_rms_m"]
     assert res["heldout_shrinkage"] == pytest.approx(expect)
     # the held-out score is the protocol on the held-out track, not on a training one
     model = ef.EffectModel(veh, FREE, ("thrust",), dt=0.5)
-    f = FitResult.fixed(model, np.r_[list(res["after_fit"]["coefficients"].values()),
-                                     res["after_fit"]["effects"]["thrust"]["thrust_scale"]], 1)
+    f = FitResult.fixed(
+        model,
+        np.r_[list(res["after_fit"]["coefficients"].values()), res["after_fit"]["effects"]["thrust"]["thrust_scale"]],
+        1,
+    )
     held_score = wf.scores(model, f, [model.context(t, 60.0) for t in held])["rms_position_m"]
     assert held_score == pytest.approx(res["gap_after"]["heldout_rms_m"], rel=1e-9)
 
@@ -279,9 +313,27 @@ def test_bayesid_diagnose_writes_the_contract(veh, scenario, tmp_path):
         write_csv(tr, p)
         paths.append(str(p))
     out = tmp_path / "diag"
-    rc = cli.main(["diagnose", "--vehicle", "nps_auv2", "--free", ",".join(FREE), "--train", *paths[:2],
-                   "--heldout", paths[2], "--window", "60", "--candidates", "actuator,current",
-                   "--max-nfev", "30", "--out", str(out)])
+    rc = cli.main(
+        [
+            "diagnose",
+            "--vehicle",
+            "nps_auv2",
+            "--free",
+            ",".join(FREE),
+            "--train",
+            *paths[:2],
+            "--heldout",
+            paths[2],
+            "--window",
+            "60",
+            "--candidates",
+            "actuator,current",
+            "--max-nfev",
+            "30",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     d = json.loads((out / "diagnosis.json").read_text())
     for k in ("verdict", "ranking", "gap_before", "gap_after", "where"):
@@ -306,47 +358,93 @@ def test_bayesid_diagnose_names_bad_file_row_and_coefficient(veh, scenario, tmp_
     lines[bad_row - 1] = ",".join(cells)
     bad = tmp_path / "bad.csv"
     bad.write_text("\n".join(lines) + "\n")
-    rc = cli.main(["diagnose", "--vehicle", "nps_auv2", "--train", str(bad), "--heldout", str(good),
-                   "--out", str(tmp_path / "o")])
+    rc = cli.main(
+        ["diagnose", "--vehicle", "nps_auv2", "--train", str(bad), "--heldout", str(good), "--out", str(tmp_path / "o")]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and "bad.csv" in err and f"row {bad_row}" in err
     toml = (ROOT / "bayesid" / "vehicles" / "nps_auv2.toml").read_text().replace("Yv = -1.0e-1", "Yvv_typo = -1.0e-1")
     vfile = tmp_path / "typo.toml"
     vfile.write_text(toml)
-    rc = cli.main(["diagnose", "--vehicle", str(vfile), "--train", str(good), "--heldout", str(good),
-                   "--out", str(tmp_path / "o")])
+    rc = cli.main(
+        [
+            "diagnose",
+            "--vehicle",
+            str(vfile),
+            "--train",
+            str(good),
+            "--heldout",
+            str(good),
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and "Yvv_typo" in err
-    rc = cli.main(["diagnose", "--vehicle", "nps_auv2", "--free", "Yv,Nfoo", "--train", str(good),
-                   "--heldout", str(good), "--out", str(tmp_path / "o")])
+    rc = cli.main(
+        [
+            "diagnose",
+            "--vehicle",
+            "nps_auv2",
+            "--free",
+            "Yv,Nfoo",
+            "--train",
+            str(good),
+            "--heldout",
+            str(good),
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     assert rc == 2 and "Nfoo" in capsys.readouterr().err
 
 
 # --- study --------------------------------------------------------------------------------
 def test_sim_to_real_quick_writes_results(tmp_path):
     out = tmp_path / "s2r"
-    r = subprocess.run([sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out)],
-                       capture_output=True, text=True, timeout=900)
+    r = subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert r.returncode == 0, r.stderr[-3000:]
     res = json.loads((out / "results.json").read_text())
-    for k in ("confusion", "overall", "with_velocity_log", "without_velocity_log", "false_alarm_rate",
-              "open_set_no_bare_name_rate", "cases"):
+    for k in (
+        "confusion",
+        "overall",
+        "with_velocity_log",
+        "without_velocity_log",
+        "false_alarm_rate",
+        "open_set_no_bare_name_rate",
+        "cases",
+    ):
         assert k in res
     assert len(res["cases"]) == 4
     for c in res["cases"]:
         assert {"truth", "verdict", "gap_before", "gap_after", "logging", "true_model"} <= set(c)
-        assert c["logging"]["clock_start_s"] > 0 and c["start_rule"] == ("measured" if c["logging"]["velocity_log"]
-                                                                          else "fitted")
+        assert c["logging"]["clock_start_s"] > 0 and c["start_rule"] == (
+            "measured" if c["logging"]["velocity_log"] else "fitted"
+        )
     assert (out / "report.md").exists() and (out / "manifest.json").exists()
     # a re-run resumes the journaled cases and reports the same; another seed is refused, naming it
     before = (out / "results.json").read_text()
-    r = subprocess.run([sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out)],
-                       capture_output=True, text=True, timeout=900)
-    assert r.returncode == 0 and "4 case(s) resumed from" in r.stdout and ", 0 to run" in r.stdout, \
+    r = subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert r.returncode == 0 and "4 case(s) resumed from" in r.stdout and ", 0 to run" in r.stdout, (
         r.stdout + r.stderr[-2000:]
+    )
     assert (out / "results.json").read_text() == before
-    r = subprocess.run([sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out),
-                        "--seed", "7"], capture_output=True, text=True, timeout=900)
+    r = subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "sim_to_real.py"), "--quick", "--out", str(out), "--seed", "7"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert r.returncode == 2 and "seed: journal 2026, this run 7" in r.stderr and "Traceback" not in r.stderr
 
 
@@ -358,17 +456,19 @@ def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scena
     spec = importlib.util.spec_from_file_location("sim_to_real", ROOT / "studies" / "sim_to_real.py")
     s2r = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(s2r)
-    truth = {"waves": ef.draw_parameters("waves", 1, np.random.default_rng(0)),
-             "thrust": ef.draw_parameters("thrust", 2, np.random.default_rng(0))}
+    truth = {
+        "waves": ef.draw_parameters("waves", 1, np.random.default_rng(0)),
+        "thrust": ef.draw_parameters("thrust", 2, np.random.default_rng(0)),
+    }
     rng = np.random.default_rng(5)
     held = [ef.world_track(veh, m, truth, rng, noise={}, name=f"heldout_{m.name}") for m in scenario[1]]
     true = s2r.true_model_scores(veh, held, truth, s2r.WINDOW, {"start_rule": "measured", "leadin_s": 0.0})[
-        "heldout_rms_m"]
+        "heldout_rms_m"
+    ]
     base = ef.EffectModel(veh, s2r.FREE, (), dt=s2r.DT)
     fb = FitResult.fixed(base, base.start(), 1)
     missed = wf.scores(base, fb, [base.context(t, s2r.WINDOW) for t in held])["rms_position_m"]
     assert true < 0.35 and missed > 10 * true, (true, missed)
-
 
 
 def test_two_simultaneous_effects_are_both_added_when_neither_explains_half_alone(veh):
@@ -379,14 +479,26 @@ def test_two_simultaneous_effects_are_both_added_when_neither_explains_half_alon
     D = 240.0
     tm = [mv.zigzag(veh, 20.0, dt=0.1, duration=D), mv.prbs(veh, 15.0, duration=D, rng=np.random.default_rng(1))]
     hm = [mv.zigzag(veh, 10.0, dt=0.1, duration=D, first_sign=-1), mv.multisine(veh, 15.0, duration=D)]
-    truth = {"thrust": ef.draw_parameters("thrust", 1, np.random.default_rng(0)),
-             "waves": ef.draw_parameters("waves", 1, np.random.default_rng(0))}
+    truth = {
+        "thrust": ef.draw_parameters("thrust", 1, np.random.default_rng(0)),
+        "waves": ef.draw_parameters("waves", 1, np.random.default_rng(0)),
+    }
     train, held = world(veh, (tm, hm), truth, seed=41)
-    res = gap.diagnose(veh, FREE, train, held, candidates=["thrust", "waves", "delay"], window_s=30.0,
-                       rng=np.random.default_rng(0), max_nfev=40, max_effects=2).to_dict()
+    res = gap.diagnose(
+        veh,
+        FREE,
+        train,
+        held,
+        candidates=["thrust", "waves", "delay"],
+        window_s=30.0,
+        rng=np.random.default_rng(0),
+        max_nfev=40,
+        max_effects=2,
+    ).to_dict()
     first = res["rounds"][0]
-    assert all(r["excess_removed"] < res["thresholds"]["explain_fraction"] for r in first), \
-        [(r["effect"], r["excess_removed"]) for r in first]
+    assert all(r["excess_removed"] < res["thresholds"]["explain_fraction"] for r in first), [
+        (r["effect"], r["excess_removed"]) for r in first
+    ]
     assert sorted(res["effects_added"]) == ["thrust", "waves"], (res["verdict"], res["rounds"])
     assert res["gap_after"]["heldout_rms_m"] < 1.5 * res["noise_floor"]["heldout_rms_m"]
 
@@ -400,7 +512,7 @@ def test_scores_log_likelihood_leaves_out_channels_the_fit_had_no_sd_for(veh):
     ctx = [model.context(tr, 30.0)]
     f = FitResult.fixed(model, model.start(), 1)
     sd = {c: 0.5 + i for i, c in enumerate(protocol.CHANNELS)}
-    assert "r" in ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))        # the track logs r
+    assert "r" in ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))  # the track logs r
     full = wf.scores(model, f, ctx, sd=sd)["log_likelihood"]
     part = wf.scores(model, f, ctx, sd={c: v for c, v in sd.items() if c != "r"})["log_likelihood"]
     assert np.isfinite(part) and part != full

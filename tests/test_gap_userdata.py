@@ -1,6 +1,7 @@
 """Gap diagnosis on data shaped like a user's log (issue 24): 5 Hz positions with 0.2 m noise and
 heading, no velocity log, a clock that does not start at 0, more held-out than training tracks;
 the fitted window-start rule; cause / contributors / remainder; an effect no candidate models."""
+
 from __future__ import annotations
 
 import json
@@ -9,15 +10,15 @@ import math
 import numpy as np
 import pytest
 
-from bayesid.models import effects as ef
 from bayesid import protocol
-from bayesid.estimation import shooting
 from bayesid.analysis import gap
-from bayesid.models import manoeuvres as mv
-from bayesid.estimation import windows as wf
-from bayesid.estimation.fit import FitResult
 from bayesid.data.track import Track
 from bayesid.data.vehicle import load_vehicle
+from bayesid.estimation import shooting
+from bayesid.estimation import windows as wf
+from bayesid.estimation.fit import FitResult
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
 
 FREE = ["Yv", "Nr", "Ndr"]
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2), "u": 0.02, "v": 0.02, "r": math.radians(0.1)}
@@ -31,11 +32,13 @@ def veh():
 
 def _manoeuvres(veh, k: int, duration: float, seed: int):
     """k manoeuvres cycling through the kinds a survey log has."""
-    kinds = [lambda: mv.zigzag(veh, 20.0, dt=0.1, duration=duration),
-             lambda: mv.prbs(veh, 15.0, duration=duration, rng=np.random.default_rng(seed)),
-             lambda: mv.zigzag(veh, 10.0, dt=0.1, duration=duration, first_sign=-1),
-             lambda: mv.turning_circle(veh, 15.0, dt=0.1, duration=duration),
-             lambda: mv.multisine(veh, 15.0, duration=duration)]
+    kinds = [
+        lambda: mv.zigzag(veh, 20.0, dt=0.1, duration=duration),
+        lambda: mv.prbs(veh, 15.0, duration=duration, rng=np.random.default_rng(seed)),
+        lambda: mv.zigzag(veh, 10.0, dt=0.1, duration=duration, first_sign=-1),
+        lambda: mv.turning_circle(veh, 15.0, dt=0.1, duration=duration),
+        lambda: mv.multisine(veh, 15.0, duration=duration),
+    ]
     return [kinds[i % len(kinds)]() for i in range(k)]
 
 
@@ -60,11 +63,10 @@ def true_model_heldout(veh, effects: dict, held, window_s=30.0):
     names = [k for k in held[0].meta["truth"] if k != "nuisance"]
     m = ef.EffectModel(veh, FREE, names, dt=0.5)
     p = np.concatenate([m.theta0] + [[held[0].meta["truth"][e.name][k] for k in e.params] for e in m.effects])
-    nu = [np.asarray(t.meta["truth"].get("nuisance", [])[:m.n_nuisance], float) for t in held]
+    nu = [np.asarray(t.meta["truth"].get("nuisance", [])[: m.n_nuisance], float) for t in held]
     f = FitResult.fixed(m, p, len(nu), "true model", nu)
     rule = protocol.resolve_start("auto", held)
-    ctxs = [m.context(t, window_s, start=rule, leadin_s=protocol.LEADIN_S if rule == "fitted" else 0.0)
-            for t in held]
+    ctxs = [m.context(t, window_s, start=rule, leadin_s=protocol.LEADIN_S if rule == "fitted" else 0.0) for t in held]
     return wf.scores(m, f, ctxs, nu if m.n_nuisance else None)["rms_position_m"]
 
 
@@ -123,8 +125,17 @@ def test_fitted_start_brings_the_true_models_error_to_the_noise_level(veh):
 @pytest.mark.parametrize("n_train,n_held", [(3, 4), (1, 5), (5, 1)])
 def test_diagnose_runs_for_any_number_of_training_and_held_out_tracks(veh, n_train, n_held):
     train, held = user_world(veh, {"thrust": {"thrust_scale": 0.8}}, 5, n_train, n_held, 60.0)
-    res = gap.diagnose(veh, ["Nr"], train, held, candidates=["thrust"], window_s=30.0,
-                       rng=np.random.default_rng(0), max_nfev=6, max_effects=1).to_dict()
+    res = gap.diagnose(
+        veh,
+        ["Nr"],
+        train,
+        held,
+        candidates=["thrust"],
+        window_s=30.0,
+        rng=np.random.default_rng(0),
+        max_nfev=6,
+        max_effects=1,
+    ).to_dict()
     assert res["heldout_tracks"] == [t.name for t in held] and len(res["train_tracks"]) == n_train
     assert np.isfinite(res["gap_before"]["heldout_rms_m"])
 
@@ -136,8 +147,10 @@ NO_LOG_CASES = {  # effect: (parameters, distractor candidates)
     "actuator": ({"lag_s": 1.0, "rate_max_deg_s": 4.0}, ["delay", "thrust"]),
     "delay": ({"delay_s": 1.5}, ["thrust", "current"]),
     "sensor_bias": ({"heading_bias_deg": 5.0}, ["current", "delay"]),
-    "waves": ({"omega_rad_s": 2 * math.pi / 10, "amp_X_N": 60.0, "amp_Y_N": 250.0, "amp_N_Nm": 500.0},
-              ["current", "thrust"]),
+    "waves": (
+        {"omega_rad_s": 2 * math.pi / 10, "amp_X_N": 60.0, "amp_Y_N": 250.0, "amp_N_Nm": 500.0},
+        ["current", "thrust"],
+    ),
     "sensor_lag": ({"lag_s": 1.0, "skew_s": 1.0}, ["delay", "sensor_bias"]),
 }
 
@@ -150,16 +163,22 @@ def test_without_a_velocity_log_the_withheld_effect_is_named(veh, effect):
     res = _diagnose(veh, train, held, [effect] + distractors)
     true_rms = true_model_heldout(veh, {effect: params}, held)
     assert res["gap_before"]["heldout_rms_m"] > 1.5 * true_rms  # the effect shows on these tracks
-    assert res["verdict"] == effect, (res["verdict"], res["gap_before"]["heldout_rms_m"], true_rms,
-                                      res["noise_floor"]["heldout_rms_m"],
-                                      [(r["effect"], r["heldout_rms_m"], r["delta_bic"]) for r in res["ranking"]])
+    assert res["verdict"] == effect, (
+        res["verdict"],
+        res["gap_before"]["heldout_rms_m"],
+        true_rms,
+        res["noise_floor"]["heldout_rms_m"],
+        [(r["effect"], r["heldout_rms_m"], r["delta_bic"]) for r in res["ranking"]],
+    )
     assert res["cause"] == effect and res["remainder"]["significant"] is False
     # the floor is what a correct model achieves at this noise
     assert 0.5 < res["noise_floor"]["heldout_rms_m"] / true_rms < 2.0
     # gap_after is the model with the attributed effect, scored under the same rule
     m = ef.EffectModel(veh, FREE, [effect], dt=0.5)
-    p = np.r_[[res["after_fit"]["coefficients"][k] for k in FREE],
-              [res["after_fit"]["effects"][effect][k] for k in m.effects[0].params]]
+    p = np.r_[
+        [res["after_fit"]["coefficients"][k] for k in FREE],
+        [res["after_fit"]["effects"][effect][k] for k in m.effects[0].params],
+    ]
     f = FitResult.fixed(m, p, len(train))
     ctxs = [m.context(t, 30.0, start="fitted", leadin_s=10.0) for t in held]
     nu = wf.heldout_nuisance(m, f, ctxs, res["fit_sd"]) if m.n_nuisance else None
@@ -205,14 +224,50 @@ def test_fit_and_predict_commands_fit_the_window_starts_without_a_velocity_log(v
     for tr in train + held:
         paths.append(str(tmp_path / f"{tr.name}.csv"))
         write_csv(tr, paths[-1])
-    assert cli.main(["fit", "--vehicle", "nps_auv2", "--free", "Yv,Nr,Ndr", "--train", *paths[:2], "--window", "30",
-                     "--max-nfev", "15", "--out", str(tmp_path / "fit")]) == 0
+    assert (
+        cli.main(
+            [
+                "fit",
+                "--vehicle",
+                "nps_auv2",
+                "--free",
+                "Yv,Nr,Ndr",
+                "--train",
+                *paths[:2],
+                "--window",
+                "30",
+                "--max-nfev",
+                "15",
+                "--out",
+                str(tmp_path / "fit"),
+            ]
+        )
+        == 0
+    )
     doc = json.loads((tmp_path / "fit" / "model.json").read_text())
     assert doc["start_rule"] == "fitted"
     runs = {}
     for rule in ("auto", "measured"):
-        assert cli.main(["predict", "--model", str(tmp_path / "fit" / "model.json"), "--track", *paths[2:],
-                         "--window", "30", "--draws", "0", "--start", rule, "--out", str(tmp_path / rule)]) == 0
+        assert (
+            cli.main(
+                [
+                    "predict",
+                    "--model",
+                    str(tmp_path / "fit" / "model.json"),
+                    "--track",
+                    *paths[2:],
+                    "--window",
+                    "30",
+                    "--draws",
+                    "0",
+                    "--start",
+                    rule,
+                    "--out",
+                    str(tmp_path / rule),
+                ]
+            )
+            == 0
+        )
         runs[rule] = json.loads((tmp_path / rule / "predict.json").read_text())
     assert runs["auto"]["start_rule"] == "fitted" and runs["auto"]["leadin_s"] == 10.0
     assert runs["auto"]["pooled"]["rms_position_m"] < 0.6 < 3 * 0.6 < runs["measured"]["pooled"]["rms_position_m"]
@@ -221,12 +276,22 @@ def test_fit_and_predict_commands_fit_the_window_starts_without_a_velocity_log(v
 def test_candidates_fitted_by_two_workers_give_the_serial_diagnosis(veh):
     """Issue 32: diagnose(jobs=2) fits each round's candidates in worker processes; the verdict,
     ranking and every number equal the serial run's (timings aside)."""
-    train, held = user_world(veh, {"current": {"current_north_mps": 0.1, "current_east_mps": 0.12}}, 3,
-                             n_train=2, n_held=2, duration=120.0)
+    train, held = user_world(
+        veh, {"current": {"current_north_mps": 0.1, "current_east_mps": 0.12}}, 3, n_train=2, n_held=2, duration=120.0
+    )
     runs = {}
     for jobs in (1, 2):
-        d = gap.diagnose(veh, FREE, train, held, candidates=["current", "thrust", "delay", "sensor_bias"],
-                         window_s=30.0, max_nfev=15, rng=np.random.default_rng(0), jobs=jobs).to_dict()
+        d = gap.diagnose(
+            veh,
+            FREE,
+            train,
+            held,
+            candidates=["current", "thrust", "delay", "sensor_bias"],
+            window_s=30.0,
+            max_nfev=15,
+            rng=np.random.default_rng(0),
+            jobs=jobs,
+        ).to_dict()
         d.pop("seconds")
         for rows in [d["ranking"]] + d["rounds"]:
             for r in rows:

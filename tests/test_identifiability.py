@@ -1,11 +1,12 @@
 """Identifiability dossier: Fisher information, sloppy directions, collinearity, structural nulls."""
+
 import numpy as np
 import pytest
 
 from bayesid import cases
 from bayesid.analysis import identifiability as ida
-from bayesid.models import manoeuvres as mv
 from bayesid.estimation.objective import Problem
+from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 
 SIG = dict(x=0.2, y=0.2, z=0.2, phi=np.radians(0.2), theta=np.radians(0.2), psi=np.radians(0.2))
@@ -15,16 +16,16 @@ def test_exactly_collinear_pair_is_the_sloppiest_direction_and_flagged():
     rng = np.random.default_rng(3)
     n = 400
     S = rng.normal(size=(n, 4))
-    S[:, 2] = S[:, 1]                     # terms b and c have identical sensitivities
+    S[:, 2] = S[:, 1]  # terms b and c have identical sensitivities
     names = ["a", "b", "c", "d"]
     F = ida.fisher_information(S, np.full(n, 0.5))
     sloppiest = ida.eigen_directions(F, names)[0]
     assert abs(sloppiest.eigenvalue) < 1e-10 * np.abs(F).max()
     np.testing.assert_allclose(np.abs(sloppiest.vector), [0, 1 / np.sqrt(2), 1 / np.sqrt(2), 0], atol=1e-8)
-    assert sloppiest.vector[1] * sloppiest.vector[2] < 0      # their difference
+    assert sloppiest.vector[1] * sloppiest.vector[2] < 0  # their difference
     table = ida.collinearity_table(S, names, sizes=(2,), top=3)
     assert table[0]["subset"] == ["b", "c"] and table[0]["gamma"] > 1e6
-    assert table[1]["gamma"] < 2.0                          # the other pairs are near-orthogonal
+    assert table[1]["gamma"] < 2.0  # the other pairs are near-orthogonal
     assert ida.condition_number(F) > 1e12
 
 
@@ -49,11 +50,11 @@ def test_structural_nulls_leave_the_track_unchanged(nps, case1_zigzag):
     assert N.shape[1] == 3 and all("scale" in c for c in causes)
     moved = [base * (1 + 0.02 * N[:, k]) for k in range(N.shape[1])]
     rnd = np.random.default_rng(1).normal(size=base.size)
-    moved.append(base * (1 + 0.02 * rnd / np.linalg.norm(rnd)))   # a generic direction for contrast
+    moved.append(base * (1 + 0.02 * rnd / np.linalg.norm(rnd)))  # a generic direction for contrast
     st = sim.run(np.vstack([base] + moved)).states
     change = [np.max(np.abs(st[0, :, :2] - st[k, :, :2])) for k in range(1, st.shape[0])]
-    assert max(change[:-1]) < 1e-9          # round-off (m)
-    assert change[-1] > 1e-3                # the same step in a generic direction moves the track
+    assert max(change[:-1]) < 1e-9  # round-off (m)
+    assert change[-1] > 1e-3  # the same step in a generic direction moves the track
 
 
 def test_fisher_null_space_is_the_structural_one(nps, case1_zigzag):

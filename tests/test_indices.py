@@ -1,4 +1,5 @@
 """Turning / zigzag classification and indices (issue 21: indices only where they mean something)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bayesid.data.vehicle import load_vehicle
+from bayesid.estimation import msfit
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
-from bayesid.estimation import msfit
 from bayesid.models.simulate import Manoeuvre
-from bayesid.data.vehicle import load_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -29,7 +30,7 @@ def test_a_turning_circle_with_a_small_counter_rudder_is_a_turn(veh):
     m = mv.turning_circle(veh, 20.0, dt=0.1, duration=150.0)
     U = m.inputs.copy()
     k = int(60.0 / 0.1)
-    U[k:k + 10, 0] = -np.radians(5.0)  # 1 s of 5 deg counter-rudder mid-turn
+    U[k : k + 10, 0] = -np.radians(5.0)  # 1 s of 5 deg counter-rudder mid-turn
     d = _indices(veh, Manoeuvre("turn_blip", 0.1, U, m.initial_state))
     assert d["kind"] == "turning", d
     plain = _indices(veh, m)

@@ -1,6 +1,7 @@
 """The layout shows the data flow (issue 22): each layer imports only the layers before it, no
 module reaches into another's private names, and the package docstring and the README's map name
 every module."""
+
 from __future__ import annotations
 
 import ast
@@ -32,7 +33,7 @@ def _imports(f, parts):
     for node in ast.walk(ast.parse(f.read_text())):
         if isinstance(node, ast.ImportFrom):
             if node.level:
-                base = pkg[:len(pkg) - (node.level - 1)]
+                base = pkg[: len(pkg) - (node.level - 1)]
                 mod = base + (node.module.split(".") if node.module else [])
             else:
                 mod = node.module.split(".") if node.module else []
@@ -60,8 +61,13 @@ def test_each_layer_imports_only_the_layers_before_it():
 
 
 def test_no_module_imports_another_modules_private_name():
-    bad = [f"{f.relative_to(ROOT)}:{line}: {'.'.join(mod)} {n}" for f, parts in _modules()
-           for mod, names, line in _imports(f, parts) for n in names if n.startswith("_") and not n.startswith("__")]
+    bad = [
+        f"{f.relative_to(ROOT)}:{line}: {'.'.join(mod)} {n}"
+        for f, parts in _modules()
+        for mod, names, line in _imports(f, parts)
+        for n in names
+        if n.startswith("_") and not n.startswith("__")
+    ]
     assert not bad, "\n".join(bad)
 
 

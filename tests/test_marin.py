@@ -1,21 +1,21 @@
 """The MARIN KVLCC2 reader (bayesid.data.datasets.read_simman_marin): full-scale files in the SIMMAN
 2008 layout, Froude-scaled to the 7 m model. Synthetic files only: the MARIN runs are withheld
 for independent evaluation, so none is read here."""
+
 import json
 import math
 
 import numpy as np
 import pytest
 
-from bayesid.data import datasets as ds
-from bayesid.estimation import msfit
-from bayesid.models import build_model
 from bayesid.cli import main
+from bayesid.data import datasets as ds
 from bayesid.data.datasets import KVLCC2_SCALE, DatasetFormatError, read_run, read_simman_hsva, read_simman_marin
 from bayesid.data.track import read_csv
+from bayesid.estimation import msfit
+from bayesid.models import build_model
 
-TITLE = ["MARIN(Maritime Research Institute Netherlands)",
-         "Turning / Pull-out manoeuvring for KVLCC2 : 35 (deg)", ""]
+TITLE = ["MARIN(Maritime Research Institute Netherlands)", "Turning / Pull-out manoeuvring for KVLCC2 : 35 (deg)", ""]
 DT_FULL = 0.02 * math.sqrt(KVLCC2_SCALE)  # 50 Hz at model scale
 
 
@@ -31,8 +31,19 @@ def port_turn_full_scale(R=520.0, U=7.98, t_approach=20.0, duration=700.0):
     xd, yd = U * np.cos(psi), U * np.sin(psi)
     r = np.where(t > t_approach, -w, 0.0)
     delta = np.where(t > t_approach, 35.0, -1.16)  # + = to port (gives r < 0)
-    cols = [t, x, y, np.full_like(t, -0.1), np.degrees(psi), xd, yd, np.zeros_like(t), np.degrees(r), delta,
-            np.full_like(t, 91.7)]
+    cols = [
+        t,
+        x,
+        y,
+        np.full_like(t, -0.1),
+        np.degrees(psi),
+        xd,
+        yd,
+        np.zeros_like(t),
+        np.degrees(r),
+        delta,
+        np.full_like(t, 91.7),
+    ]
     return np.column_stack(cols)
 
 
@@ -55,7 +66,7 @@ def test_froude_scaling_signs_and_tactical_diameter(tmp_path):
     # v = 0: the file's heading has 1 deg steps past 100 deg (3 digits), which would put up to
     # U sin(0.5 deg) = 0.010 m/s into v; the heading fused with the integral of r removes it
     psi_true = np.radians(a[:, 4].astype(float))
-    assert np.abs(tr["psi_file"] - psi_true).max() > np.radians(0.3)   # the file is rounded
+    assert np.abs(tr["psi_file"] - psi_true).max() > np.radians(0.3)  # the file is rounded
     assert np.abs(tr["psi"] - psi_true).max() < np.radians(0.1)
     np.testing.assert_allclose(tr["v"], 0.0, atol=0.002)
     raw = read_simman_marin(tmp_path / "MARIN_FREE_KVLCC2_tc_35_m.dat", heading_tau_s=None)
@@ -78,12 +89,19 @@ def test_froude_scaling_signs_and_tactical_diameter(tmp_path):
     assert full["n"][0] == pytest.approx(91.7)
 
 
-@pytest.mark.parametrize("mutate,row,column,words", [
-    (lambda a: a.__setitem__(5, "1.0\t2.0\t3.0"), 9, None, "has 3 fields, expected 11"),
-    (lambda a: a.__setitem__(6, "\t".join(["8.11E-01", "6.4E+00", "x1", *["0"] * 8])), 10,
-     "col 2 (y0, m)", "non-numeric value 'x1'"),
-    (lambda a: a.__setitem__(7, "\t".join(["2.00E-01", *["0"] * 10])), 11, "col 0 (time, s)", "time decreases"),
-])
+@pytest.mark.parametrize(
+    "mutate,row,column,words",
+    [
+        (lambda a: a.__setitem__(5, "1.0\t2.0\t3.0"), 9, None, "has 3 fields, expected 11"),
+        (
+            lambda a: a.__setitem__(6, "\t".join(["8.11E-01", "6.4E+00", "x1", *["0"] * 8])),
+            10,
+            "col 2 (y0, m)",
+            "non-numeric value 'x1'",
+        ),
+        (lambda a: a.__setitem__(7, "\t".join(["2.00E-01", *["0"] * 10])), 11, "col 0 (time, s)", "time decreases"),
+    ],
+)
 def test_malformed_names_file_row_and_column(tmp_path, mutate, row, column, words):
     a = [list(r) for r in port_turn_full_scale(duration=5.0)]
     mutate(a)
@@ -115,8 +133,14 @@ def test_bad_scale_and_hsva_reader_points_to_marin(tmp_path):
 
 def test_list_runs_tells_the_basins_apart_and_convert_round_trips(tmp_path, capsys):
     marin_file(tmp_path / "MARIN_FREE_KVLCC2_zz_10_m.dat", port_turn_full_scale(duration=10.0))
-    hsva = [" HSVA, experimental data CPMC", " KVLCC2", " Z10/10", " Time series of motions",
-            "  ".join(["0.0", *["1.0"] * 11]), "  ".join(["0.05", *["1.0"] * 11])]
+    hsva = [
+        " HSVA, experimental data CPMC",
+        " KVLCC2",
+        " Z10/10",
+        " Time series of motions",
+        "  ".join(["0.0", *["1.0"] * 11]),
+        "  ".join(["0.05", *["1.0"] * 11]),
+    ]
     (tmp_path / "HSVA_Z.dat").write_text("\n".join(hsva) + "\n", encoding="cp1252")
     assert [p.name for p in ds.list_runs(tmp_path, "simman-marin")] == ["MARIN_FREE_KVLCC2_zz_10_m.dat"]
     assert [p.name for p in ds.list_runs(tmp_path, "simman-hsva")] == ["HSVA_Z.dat"]
@@ -129,8 +153,21 @@ def test_list_runs_tells_the_basins_apart_and_convert_round_trips(tmp_path, caps
     np.testing.assert_allclose(back.t, src.t, rtol=1e-12)
     for k in ("x", "y", "psi", "u", "v", "r", "delta_r", "n"):
         np.testing.assert_allclose(back[k], src[k], rtol=1e-12, atol=1e-15, err_msg=k)
-    assert main(["convert", "--format", "simman-hsva", str(tmp_path / "HSVA_Z.dat"), "--scale", "2",
-                 "--out", str(tmp_path / "o2")]) == 2
+    assert (
+        main(
+            [
+                "convert",
+                "--format",
+                "simman-hsva",
+                str(tmp_path / "HSVA_Z.dat"),
+                "--scale",
+                "2",
+                "--out",
+                str(tmp_path / "o2"),
+            ]
+        )
+        == 2
+    )
     assert "--scale applies to --format simman-marin only" in capsys.readouterr().err
 
 
@@ -143,7 +180,8 @@ def test_real_ships_study_compares_marin_turns_when_present(tmp_path):
     from bayesid.models import ship
 
     spec = importlib.util.spec_from_file_location(
-        "real_ships", Path(__file__).resolve().parents[1] / "studies" / "real_ships.py")
+        "real_ships", Path(__file__).resolve().parents[1] / "studies" / "real_ships.py"
+    )
     study = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(study)
     data = tmp_path / "data"

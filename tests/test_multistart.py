@@ -1,6 +1,7 @@
 """Multistart identification (issue 32): on a problem with two known minima both are found and
 told apart; the same result serially and on workers; the starts lie inside the bounds; a fit
 with --starts resumes its journal and writes the multistart report."""
+
 from __future__ import annotations
 
 import json
@@ -20,8 +21,13 @@ def double_well(p0, shift: float):
     """Least squares with two minima: r = (x0^2 - 1, 10 (x1 - shift), 1) -> x0 = +-1, x1 = shift,
     both at cost 1 (the constant residual plays the noise)."""
     res = least_squares(lambda x: np.array([x[0] ** 2 - 1.0, 10 * (x[1] - shift), 1.0]), p0, bounds=([-2, -2], [2, 2]))
-    return {"p": res.x.tolist(), "cost": float(2 * res.cost), "success": bool(res.success), "nfev": int(res.nfev),
-            "message": str(res.message)}
+    return {
+        "p": res.x.tolist(),
+        "cost": float(2 * res.cost),
+        "success": bool(res.success),
+        "nfev": int(res.nfev),
+        "message": str(res.message),
+    }
 
 
 def test_two_known_minima_are_both_found_and_told_apart():
@@ -68,11 +74,25 @@ def test_starts_stay_inside_the_bounds_and_the_box():
 def test_fit_starts_writes_the_multistart_report_and_resumes_a_killed_run(tmp_path, capsys):
     from bayesid.cli import main
 
-    for args in (["--manoeuvre", "zigzag", "--angle", "20", "--out", str(tmp_path / "z.csv")],
-                 ["--manoeuvre", "turn", "--angle", "15", "--out", str(tmp_path / "t.csv")]):
+    for args in (
+        ["--manoeuvre", "zigzag", "--angle", "20", "--out", str(tmp_path / "z.csv")],
+        ["--manoeuvre", "turn", "--angle", "15", "--out", str(tmp_path / "t.csv")],
+    ):
         assert main(["simulate", "--mode", "horizontal", "--duration", "90", "--sample", "0.5", *args]) == 0
-    fit = ["fit", "--vehicle", "nps_auv2", "--train", str(tmp_path / "z.csv"), str(tmp_path / "t.csv"),
-           "--starts", "3", "--max-nfev", "8", "--free", "Yv,Nr,Ndr"]
+    fit = [
+        "fit",
+        "--vehicle",
+        "nps_auv2",
+        "--train",
+        str(tmp_path / "z.csv"),
+        str(tmp_path / "t.csv"),
+        "--starts",
+        "3",
+        "--max-nfev",
+        "8",
+        "--free",
+        "Yv,Nr,Ndr",
+    ]
     assert main([*fit, "--out", str(tmp_path / "a")]) == 0
     doc = json.loads((tmp_path / "a" / "model.json").read_text())
     ms = doc["multistart"]

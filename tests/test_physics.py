@@ -1,4 +1,5 @@
 """Physics sanity of the compiled simulator."""
+
 import math
 
 import numpy as np
@@ -15,8 +16,8 @@ def _turn(vehicle, deg, duration=200.0, mode="horizontal"):
 @pytest.mark.parametrize("mode", ["horizontal", "6dof"])
 def test_zero_rudder_goes_straight(nps, mode):
     s = simulate(nps, mv.straight(nps, duration=120.0), mode=mode).states[0]
-    assert np.max(np.abs(s[:, 1])) < 1e-9           # no lateral drift (m)
-    assert np.max(np.abs(s[:, 5])) < 1e-12          # no heading change (rad)
+    assert np.max(np.abs(s[:, 1])) < 1e-9  # no lateral drift (m)
+    assert np.max(np.abs(s[:, 5])) < 1e-12  # no heading change (rad)
     assert s[-1, 0] == pytest.approx(120.0 * nps.steady_speed(nps.nominal_rpm), rel=1e-9)
 
 
@@ -26,11 +27,11 @@ def test_mirrored_rudder_mirrors_the_track(nps, mode):
     veh = nps.without_products_of_inertia()
     a = _turn(veh, 15.0, 120.0, mode)
     b = _turn(veh, -15.0, 120.0, mode)
-    assert np.max(np.abs(a[:, 0] - b[:, 0])) < 1e-9     # x equal
-    assert np.max(np.abs(a[:, 1] + b[:, 1])) < 1e-9     # y mirrored
-    assert np.max(np.abs(a[:, 5] + b[:, 5])) < 1e-12    # psi mirrored
-    assert np.max(np.abs(a[:, 3] + b[:, 3])) < 1e-12    # roll mirrored
-    assert np.max(np.abs(a[:, 2] - b[:, 2])) < 1e-9     # depth equal
+    assert np.max(np.abs(a[:, 0] - b[:, 0])) < 1e-9  # x equal
+    assert np.max(np.abs(a[:, 1] + b[:, 1])) < 1e-9  # y mirrored
+    assert np.max(np.abs(a[:, 5] + b[:, 5])) < 1e-12  # psi mirrored
+    assert np.max(np.abs(a[:, 3] + b[:, 3])) < 1e-12  # roll mirrored
+    assert np.max(np.abs(a[:, 2] - b[:, 2])) < 1e-9  # depth equal
 
 
 def test_products_of_inertia_break_symmetry_in_6dof(nps):
@@ -47,8 +48,8 @@ def test_positive_rudder_turns_to_port(nps):
 
 def _linear_steady_turn_radius(veh, delta):
     """Linearised steady turn (v_dot = r_dot = 0, linear terms, prime form):
-        0 = Y'v v' + (Y'r - m') r' + Y'dr delta
-        0 = N'v v' + (N'r - m' x'G) r' + N'dr delta,   R = L / r'."""
+    0 = Y'v v' + (Y'r - m') r' + Y'dr delta
+    0 = N'v v' + (N'r - m' x'G) r' + N'dr delta,   R = L / r'."""
     c = veh.coefficients
     m = veh.m_prime
     xg = veh.rG[0] / veh.L
@@ -93,12 +94,12 @@ def _yaw_rate_after_kick(veh, r0=0.01, duration=60.0):
 def test_straight_line_stability_sign(nps):
     assert _stability_index(nps) > 0
     r = _yaw_rate_after_kick(nps)
-    assert abs(r[-1]) < 1e-3 * abs(r[0])             # perturbation decays
+    assert abs(r[-1]) < 1e-3 * abs(r[0])  # perturbation decays
     # C = Y'v N'r - N'v (Y'r - m') < 0 needs N'v < -0.037 (a larger destabilising Munk moment)
     unstable = nps.with_coefficients({"Nv": -0.06})
     assert _stability_index(unstable) < 0
     r = _yaw_rate_after_kick(unstable, r0=1e-4)
-    assert abs(r[-1]) > 10 * abs(r[0])               # perturbation grows
+    assert abs(r[-1]) > 10 * abs(r[0])  # perturbation grows
 
 
 def test_divergence_is_flagged_not_raised(nps):
@@ -123,7 +124,7 @@ def test_horizontal_mode_keeps_out_of_plane_states_constant(nps):
     s = _turn(nps, 20.0, 100.0, "horizontal")
     assert np.all(s[:, [2, 3, 4, 8, 9, 10]] == 0.0)
     s6 = _turn(nps, 20.0, 100.0, "6dof")
-    assert np.max(np.abs(s6[:, 3])) > math.radians(1.0)   # 6-DOF does roll in the turn
+    assert np.max(np.abs(s6[:, 3])) > math.radians(1.0)  # 6-DOF does roll in the turn
 
 
 def test_batch_equals_single(nps):
@@ -132,4 +133,4 @@ def test_batch_equals_single(nps):
     th = np.array([[0.03, -0.016], [0.033, -0.015], [0.027, -0.017]])
     batch = sim.run(th).states
     for b in range(3):
-        assert np.array_equal(batch[b], sim.run(th[b:b + 1]).states[0])
+        assert np.array_equal(batch[b], sim.run(th[b : b + 1]).states[0])

@@ -1,18 +1,18 @@
 """The window protocol on tracks with gaps and empty cells (issue 21): no window starts in or
 spans a gap, the scores equal those of the pieces scored as separate tracks, a 1e5 s gap costs
 nothing, and a required channel that is entirely empty is an error naming the column."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bayesid.models import effects as ef
-from bayesid.analysis import gap
-from bayesid.models import manoeuvres as mv
-from bayesid.estimation import windows as wf
-from bayesid.estimation.fit import FitResult
 from bayesid.data.track import Track
 from bayesid.data.vehicle import load_vehicle
+from bayesid.estimation import windows as wf
+from bayesid.estimation.fit import FitResult
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
 
 
 @pytest.fixture(scope="module")
@@ -101,8 +101,13 @@ def test_a_hole_in_a_logged_input_splits_the_track_but_a_slower_input_log_does_n
 
 def _line(sd, rate_hz, rng, velocity_log=False):
     t = np.arange(0.0, 60.0, 1.0 / rate_hz)
-    data = {"x": t + rng.normal(0, sd, t.size), "y": rng.normal(0, sd, t.size), "psi": 0 * t,
-            "delta_r": 0 * t, "n": 0 * t + 1500.0}
+    data = {
+        "x": t + rng.normal(0, sd, t.size),
+        "y": rng.normal(0, sd, t.size),
+        "psi": 0 * t,
+        "delta_r": 0 * t,
+        "n": 0 * t + 1500.0,
+    }
     if velocity_log:
         data.update(u=0 * t + 1.0, v=0 * t, r=0 * t)
     return Track(t, data, name=f"line_{sd}_{rate_hz}")

@@ -6,18 +6,19 @@ weight/buoyancy vectors and kinematics as R(Theta), T(Theta) products, so agreem
 checks the kernel's hand-expanded terms. An "asymmetric" vehicle (x_G, y_G, r_B non-zero, W != B,
 full inertia tensor) exercises the terms that vanish for the packaged NPS AUV II.
 """
+
 import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from bayesid.models import dynamics
 from bayesid.data import terms
+from bayesid.data.vehicle import load_vehicle
+from bayesid.models import dynamics
 from bayesid.models import manoeuvres as mv
 from bayesid.models.reference import ReferenceModel, reference_features, simulate_reference
 from bayesid.models.simulate import Manoeuvre, Simulator, simulate
-from bayesid.data.vehicle import load_vehicle
 
 # Reference tolerances for the trajectory tests: tight enough that the reference's own error
 # (rtol 1e-12 vs 1e-13: <= 3e-8 m on these runs) is far below the RK4 error being bounded.
@@ -47,9 +48,12 @@ def nps():
 def asymmetric(vehicle):
     """NPS AUV II with every rigid-body/hydrostatic term switched on."""
     return dataclasses.replace(
-        vehicle, rG=np.array([0.12, -0.07, 0.061]), rB=np.array([-0.03, 0.02, -0.01]),
+        vehicle,
+        rG=np.array([0.12, -0.07, 0.061]),
+        rB=np.array([-0.03, 0.02, -0.01]),
         weight=53300.0,
-        inertia=np.array([[2038.0, 40.0, -25.0], [40.0, 13587.0, 60.0], [-25.0, 60.0, 13000.0]]))
+        inertia=np.array([[2038.0, 40.0, -25.0], [40.0, 13587.0, 60.0], [-25.0, 60.0, 13000.0]]),
+    )
 
 
 VEHICLES = {
@@ -95,6 +99,7 @@ def max_position_difference(a, b):
 # Features
 # ---------------------------------------------------------------------------------------------
 
+
 def test_features_agree(nps):
     rng = np.random.default_rng(11)
     n = 400
@@ -123,6 +128,7 @@ def test_features_eps_is_zero_at_eta_one(nps):
 # ---------------------------------------------------------------------------------------------
 # Generalized force and state derivative at random states
 # ---------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("mode", ["6dof", "horizontal"])
 @pytest.mark.parametrize("which", list(VEHICLES))
@@ -160,14 +166,17 @@ def test_rhs_check_can_fail(nps):
     S, U = random_states(rng, 5, "6dof"), random_inputs(rng, 5)
     sim = Simulator(veh, mv.straight(veh, dt=0.05, duration=1.0))
     ds_r = ReferenceModel(moved).rhs(S, U)
-    worst = max(np.max(np.abs(kernel_force_and_rhs(sim, None, S[i], U[i])[1][6:] - ds_r[i, 6:]))
-                / np.max(np.abs(ds_r[i, 6:])) for i in range(5))
+    worst = max(
+        np.max(np.abs(kernel_force_and_rhs(sim, None, S[i], U[i])[1][6:] - ds_r[i, 6:])) / np.max(np.abs(ds_r[i, 6:]))
+        for i in range(5)
+    )
     assert worst > 100 * RHS_RTOL
 
 
 # ---------------------------------------------------------------------------------------------
 # Trajectories
 # ---------------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def trajectory_cases(nps):
@@ -224,9 +233,9 @@ def test_trajectory_check_can_fail(trajectory_cases, name, relative_change):
     1e-5 case shows the margin: the test resolves a 0.001 % change of N'r)."""
     veh, m = trajectory_cases["polynomial", name]
     rc = simulate(veh, m, mode="6dof")
-    rr = simulate_reference(veh, m, mode="6dof",
-                            coefficients={"Nr": veh.coefficients["Nr"] * (1 + relative_change)},
-                            **REF_TOL)
+    rr = simulate_reference(
+        veh, m, mode="6dof", coefficients={"Nr": veh.coefficients["Nr"] * (1 + relative_change)}, **REF_TOL
+    )
     tol = TURN_POSITION_TOL_M if name == "turn" else ZIGZAG_POSITION_TOL_M
     assert max_position_difference(rc, rr) > tol
 
@@ -234,6 +243,7 @@ def test_trajectory_check_can_fail(trajectory_cases, name, relative_change):
 # ---------------------------------------------------------------------------------------------
 # simulate_reference behaviour
 # ---------------------------------------------------------------------------------------------
+
 
 def test_divergence_flagged_like_kernel(nps):
     """An unstable sway coefficient: both leave the physical bounds in the same step."""

@@ -1,4 +1,5 @@
 """Richness metrics, joint problems and manoeuvre design (issue 4)."""
+
 import json
 import math
 import subprocess
@@ -10,8 +11,8 @@ import pytest
 
 from bayesid import cases
 from bayesid.analysis import richness
-from bayesid.models import manoeuvres as mv
 from bayesid.estimation.objective import JointProblem, Problem
+from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,7 +33,7 @@ def test_straight_line_gives_rotary_terms_no_information(nps):
     Ft = richness.fisher_metrics(pb_t, theta, NOISE)["F"]
     for n in ("Yr", "Nr", "Yv"):
         j = free.index(n)
-        assert Fs[j, j] < 1e-12 * Ft[j, j], n          # r = v = 0 on a straight line
+        assert Fs[j, j] < 1e-12 * Ft[j, j], n  # r = v = 0 on a straight line
     assert richness.fisher_metrics(pb_s, theta, NOISE)["logdet_fim"] == -math.inf
 
 
@@ -64,8 +65,18 @@ def test_designed_multisine_beats_the_spiral_d_criterion(nps):
         return Problem(sim, sim.run(theta[None]).track(0), theta, channels=("x", "y", "psi"))
 
     spiral = richness.fisher_metrics(make(mv.spiral(nps, dt=0.5)), theta, NOISE)["logdet_fim"]
-    d = richness.design_multisine(nps, make, theta, NOISE, criterion="D", duration=600.0, dt=0.5,
-                                  rng=np.random.default_rng(1), maxiter=1, popsize=2)
+    d = richness.design_multisine(
+        nps,
+        make,
+        theta,
+        NOISE,
+        criterion="D",
+        duration=600.0,
+        dt=0.5,
+        rng=np.random.default_rng(1),
+        maxiter=1,
+        popsize=2,
+    )
     assert d.manoeuvre.duration == pytest.approx(600.0)
     assert np.max(np.abs(np.degrees(d.manoeuvre.inputs[:, 0]))) == pytest.approx(20.0)
     assert d.value >= d.start_value
@@ -76,8 +87,12 @@ def test_designed_multisine_beats_the_spiral_d_criterion(nps):
 
 def test_manoeuvre_richness_quick(tmp_path):
     out = tmp_path / "mr"
-    subprocess.run([sys.executable, str(ROOT / "studies" / "manoeuvre_richness.py"), "--quick", "--out", str(out)],
-                   check=True, cwd=ROOT, timeout=900)
+    subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "manoeuvre_richness.py"), "--quick", "--out", str(out)],
+        check=True,
+        cwd=ROOT,
+        timeout=900,
+    )
     res = json.loads((out / "results.json").read_text())
     for name, m in res["manoeuvres"].items():
         for key in ("logdet_fim", "min_eigenvalue", "condition_number", "max_collinearity_index", "sindy_inclusion"):

@@ -1,5 +1,6 @@
 """bayesid.estimation.sampling: posterior accuracy on a conjugate problem, resume after interruption,
 -inf regions, initial balls, checkpoint mismatch, InferenceData and the convergence verdict."""
+
 import signal
 import subprocess
 import sys
@@ -38,14 +39,14 @@ def test_linear_gaussian_matches_analytic_posterior():
     rng = np.random.default_rng(11)
     n, sigma = 30, 0.3
     t = np.linspace(0, 1, n)
-    A = np.column_stack([np.ones(n), t, t**2])           # strongly collinear columns (corr ~ 0.97)
+    A = np.column_stack([np.ones(n), t, t**2])  # strongly collinear columns (corr ~ 0.97)
     y = A @ np.array([0.5, -1.0, 2.0]) + sigma * rng.standard_normal(n)
     m0, S0inv = np.zeros(3), np.eye(3) / 10.0**2
     prec = A.T @ A / sigma**2 + S0inv
     Sigma = np.linalg.inv(prec)
     mu = Sigma @ (A.T @ y / sigma**2 + S0inv @ m0)
 
-    def log_prob(theta):                                 # (B, 3) -> (B,)
+    def log_prob(theta):  # (B, 3) -> (B,)
         r = y[None] - theta @ A.T
         d = theta - m0
         return -0.5 * np.sum(r**2, axis=1) / sigma**2 - 0.5 * np.einsum("bi,ij,bj->b", d, S0inv, d)
@@ -95,7 +96,7 @@ def test_resume_after_exception_loses_nothing_and_redraws_nothing(tmp_path):
 
     def failing(theta):
         calls[0] += 1
-        if calls[0] > 600:        # mid-way through ensemble 0's second block or later
+        if calls[0] > 600:  # mid-way through ensemble 0's second block or later
             raise Interrupted
         return gauss2(theta)
 
@@ -107,8 +108,8 @@ def test_resume_after_exception_loses_nothing_and_redraws_nothing(tmp_path):
 
     resumed = run_ensembles(gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=path)
     assert resumed.n_steps == reference.n_steps == 300
-    for i, c in enumerate(before):                      # stored part untouched
-        np.testing.assert_array_equal(resumed.chains[i, :len(c)], c.reshape(-1, 16, 2))
+    for i, c in enumerate(before):  # stored part untouched
+        np.testing.assert_array_equal(resumed.chains[i, : len(c)], c.reshape(-1, 16, 2))
     # emcee stores the walkers' random state with the steps: the resumed chain is the chain.
     np.testing.assert_array_equal(resumed.chains, reference.chains)
     np.testing.assert_array_equal(resumed.log_prob, reference.log_prob)
@@ -128,8 +129,8 @@ def test_extending_max_steps_continues_the_stored_chain(tmp_path):
     assert longer.n_steps == 300
     np.testing.assert_array_equal(longer.chains[:, :200], first.chains)
     np.testing.assert_array_equal(longer.chains, reference.chains)
-    assert longer.n_evaluations == 2 * 16 * 100                 # each step evaluates every walker once
-    assert reference.n_evaluations == 2 * 16 * 300 + 2 * 16      # + the initial balls
+    assert longer.n_evaluations == 2 * 16 * 100  # each step evaluates every walker once
+    assert reference.n_evaluations == 2 * 16 * 300 + 2 * 16  # + the initial balls
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX SIGKILL")
@@ -169,7 +170,7 @@ def test_seeded_only_by_the_generator_passed_in():
     c = run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(10))
     np.testing.assert_array_equal(a.chains, b.chains)
     assert not np.array_equal(a.chains, c.chains)
-    assert not np.array_equal(a.chains[0], a.chains[1])     # ensembles are independent
+    assert not np.array_equal(a.chains[0], a.chains[1])  # ensembles are independent
 
 
 # -- 3. diverged region --------------------------------------------------------------------------
@@ -186,12 +187,13 @@ def test_minus_inf_and_nan_regions_are_never_entered():
         return lp
 
     cfg = SamplerConfig(n_ensembles=2, min_steps=400, max_steps=400, check_every=200)
-    res = run_ensembles(log_prob, np.array([0.6, 0.0]), np.diag([0.04, 0.25]), ["x", "y"], cfg,
-                        np.random.default_rng(2))
+    res = run_ensembles(
+        log_prob, np.array([0.6, 0.0]), np.diag([0.04, 0.25]), ["x", "y"], cfg, np.random.default_rng(2)
+    )
     assert res.n_steps == 400
     assert np.all(np.isfinite(res.log_prob)) and np.all(np.isfinite(res.chains))
     assert res.chains[..., 0].max() <= 1.0 and res.chains[..., 1].max() <= 1.2
-    assert res.chains[..., 0].max() > 0.95                # the walkers did reach the edge
+    assert res.chains[..., 0].max() > 0.95  # the walkers did reach the edge
     assert np.all(res.acceptance > 0.05)
 
 
@@ -199,18 +201,19 @@ def test_minus_inf_and_nan_regions_are_never_entered():
 def test_initial_ball_redraws_minus_inf_rows():
     calls = []
 
-    def half_plane(theta):                               # uniform prior theta_0 >= 0
+    def half_plane(theta):  # uniform prior theta_0 >= 0
         calls.append(len(theta))
         return np.where(theta[:, 0] >= 0, 0.0, -np.inf)
 
     pos = initial_ball(np.zeros(2), np.eye(2), 32, np.random.default_rng(0), half_plane)
     assert pos.shape == (32, 2) and np.all(pos[:, 0] >= 0)
-    assert len(calls) > 1 and calls[0] == 32 and calls[1] < 32    # only the failed rows redrawn
-    assert np.std(pos[:, 1]) > 0.5                       # still the Laplace-shaped ball
+    assert len(calls) > 1 and calls[0] == 32 and calls[1] < 32  # only the failed rows redrawn
+    assert np.std(pos[:, 1]) > 0.5  # still the Laplace-shaped ball
 
     with pytest.raises(RuntimeError, match="16 of 16 walkers"):
-        initial_ball(np.zeros(2), np.eye(2), 16, np.random.default_rng(0),
-                     lambda th: np.full(len(th), -np.inf), max_tries=5)
+        initial_ball(
+            np.zeros(2), np.eye(2), 16, np.random.default_rng(0), lambda th: np.full(len(th), -np.inf), max_tries=5
+        )
     with pytest.raises(ValueError, match="positive definite"):
         initial_ball(np.zeros(2), np.ones((2, 2)), 16, np.random.default_rng(0), gauss2)
 
@@ -223,12 +226,18 @@ def test_mismatched_checkpoint_raises_naming_the_file(tmp_path):
     with pytest.raises(ValueError, match=r"other_problem\.h5.*names"):
         run_ensembles(gauss2, MU2, COV2, ["a", "c"], cfg, np.random.default_rng(0), checkpoint=path)
     with pytest.raises(ValueError, match=r"other_problem\.h5.*n_walkers 16 in the file, 20 now"):
-        run_ensembles(gauss2, MU2, COV2, ["a", "b"], SamplerConfig(n_ensembles=2, n_walkers=20, min_steps=20,
-                      max_steps=20, check_every=20), np.random.default_rng(0), checkpoint=path)
-    gauss3 = lambda th: -0.5 * np.sum(th**2, axis=1)   # noqa: E731
+        run_ensembles(
+            gauss2,
+            MU2,
+            COV2,
+            ["a", "b"],
+            SamplerConfig(n_ensembles=2, n_walkers=20, min_steps=20, max_steps=20, check_every=20),
+            np.random.default_rng(0),
+            checkpoint=path,
+        )
+    gauss3 = lambda th: -0.5 * np.sum(th**2, axis=1)  # noqa: E731
     with pytest.raises(ValueError, match=r"other_problem\.h5.*ndim 2 in the file, 3 now"):
-        run_ensembles(gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], cfg, np.random.default_rng(0),
-                      checkpoint=path)
+        run_ensembles(gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], cfg, np.random.default_rng(0), checkpoint=path)
     foreign = tmp_path / "foreign.h5"
     with h5py.File(foreign, "w") as f:
         f.create_group("mcmc")
@@ -247,7 +256,7 @@ def test_inference_data_layout_and_verdict_on_a_too_short_run():
 
     idata = to_inference_data(res, burn=10, thin=3, truth={"a": 0.3})
     assert list(idata.posterior.data_vars) == ["a", "b"]
-    assert idata.posterior["a"].shape == (E * W, 10)               # steps 10, 13, ..., 37
+    assert idata.posterior["a"].shape == (E * W, 10)  # steps 10, 13, ..., 37
     assert list(idata.posterior["draw"].values) == list(range(10, 40, 3))
     e, w = 2, 5
     np.testing.assert_array_equal(idata.posterior["b"].values[e * W + w], res.chains[e, 10::3, w, 1])
@@ -263,12 +272,21 @@ def test_inference_data_layout_and_verdict_on_a_too_short_run():
     diag = diagnostics(default, res)
     for key in ("rhat", "ess_bulk", "ess_tail", "mcse_mean", "rhat_ensembles"):
         assert set(diag[key]) == {"a", "b"}
-    for key in ("rhat_max", "ess_bulk_min", "ess_tail_min", "tau_max", "acceptance_mean", "n_steps",
-                "rhat_ensembles_max", "converged", "verdict"):
+    for key in (
+        "rhat_max",
+        "ess_bulk_min",
+        "ess_tail_min",
+        "tau_max",
+        "acceptance_mean",
+        "n_steps",
+        "rhat_ensembles_max",
+        "converged",
+        "verdict",
+    ):
         assert key in diag
     assert diag["converged"] is False
     assert "tau rule not met: 40 steps" in diag["verdict"] and "max_steps" in diag["verdict"]
-    assert f"bulk ESS min {diag['ess_bulk_min']:.0f}" in diag["verdict"]     # ~ 3 x 16 x 20 draws
+    assert f"bulk ESS min {diag['ess_bulk_min']:.0f}" in diag["verdict"]  # ~ 3 x 16 x 20 draws
 
 
 def test_wall_time_limit_stops_gracefully():
@@ -279,22 +297,32 @@ def test_wall_time_limit_stops_gracefully():
 
 def test_arrival_burn_waits_for_a_stranded_walker():
     from bayesid.estimation.sampling import SamplerResult, arrival_burn
+
     rng = np.random.default_rng(0)
     E, N, W = 2, 1000, 8
     lp = rng.normal(0.0, 1.0, (E, N, W))
-    lp[1, :300, 5] -= 50.0          # one walker far down the tail for 300 steps
-    res = SamplerResult(chains=np.zeros((E, N, W, 1)), log_prob=lp, acceptance=np.zeros((E, W)),
-                        tau=np.array([10.0]), n_steps=N, n_evaluations=0, wall_s=0.0,
-                        reached_tau_rule=True, names=["a"])
+    lp[1, :300, 5] -= 50.0  # one walker far down the tail for 300 steps
+    res = SamplerResult(
+        chains=np.zeros((E, N, W, 1)),
+        log_prob=lp,
+        acceptance=np.zeros((E, W)),
+        tau=np.array([10.0]),
+        n_steps=N,
+        n_evaluations=0,
+        wall_s=0.0,
+        reached_tau_rule=True,
+        names=["a"],
+    )
     assert 300 <= arrival_burn(res) <= 305
     lp[1, :300, 5] += 50.0
-    assert arrival_burn(res) < 100   # without it only noise-level dips remain
-    lp[0, :, 2] -= 50.0              # stranded throughout: capped at half the run
+    assert arrival_burn(res) < 100  # without it only noise-level dips remain
+    lp[0, :, 2] -= 50.0  # stranded throughout: capped at half the run
     assert arrival_burn(res) == N // 2
     lp[0, :, 2] += 50.0
     from bayesid.estimation.sampling import burn_in
+
     assert burn_in(res) < 100
-    res.redraws = [(150, 0, 2), (700, 1, 4)]     # the chains are valid only after the last move
+    res.redraws = [(150, 0, 2), (700, 1, 4)]  # the chains are valid only after the last move
     assert burn_in(res) == 700
 
 
@@ -303,13 +331,14 @@ def test_a_checkpoint_of_another_run_is_refused(tmp_path):
     so its chains are never reported as this run's."""
     path = tmp_path / "ck.h5"
     cfg = SamplerConfig(n_ensembles=2, min_steps=20, max_steps=20, check_every=20)
-    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path,
-                  run_key={"seed": 2003})
-    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path,
-                  run_key={"seed": 2003})  # the same run resumes
+    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path, run_key={"seed": 2003})
+    run_ensembles(
+        gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path, run_key={"seed": 2003}
+    )  # the same run resumes
     with pytest.raises(ValueError, match=r"ck\.h5.*run_key"):
-        run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path,
-                      run_key={"seed": 7})
+        run_ensembles(
+            gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path, run_key={"seed": 7}
+        )
 
 
 def test_until_converged_runs_past_the_tau_rule_to_a_converged_verdict():
@@ -319,16 +348,23 @@ def test_until_converged_runs_past_the_tau_rule_to_a_converged_verdict():
     base = dict(n_ensembles=4, moves="de", min_steps=200, max_steps=20000, check_every=100)
     tau_only = run_ensembles(gauss2, MU2, COV2, ["a", "b"], SamplerConfig(**base), np.random.default_rng(5))
     d0 = diagnostics(to_inference_data(tau_only), tau_only)
-    assert tau_only.stop_reason == "tau rule" and not d0["converged"]       # the point of the option
-    res = run_ensembles(gauss2, MU2, COV2, ["a", "b"], SamplerConfig(**base, until_converged=True),
-                        np.random.default_rng(5))
+    assert tau_only.stop_reason == "tau rule" and not d0["converged"]  # the point of the option
+    res = run_ensembles(
+        gauss2, MU2, COV2, ["a", "b"], SamplerConfig(**base, until_converged=True), np.random.default_rng(5)
+    )
     from bayesid.estimation.sampling import burn_in
+
     d = diagnostics(to_inference_data(res, burn=burn_in(res)), res)
     assert res.stop_reason == "converged" and d["converged"] and res.n_steps > tau_only.n_steps
     assert d["rhat_max"] <= 1.01 and d["ess_tail_min"] >= 400
-    short = run_ensembles(gauss2, MU2, COV2, ["a", "b"],
-                          SamplerConfig(**{**base, "max_steps": tau_only.n_steps}, until_converged=True),
-                          np.random.default_rng(5))
+    short = run_ensembles(
+        gauss2,
+        MU2,
+        COV2,
+        ["a", "b"],
+        SamplerConfig(**{**base, "max_steps": tau_only.n_steps}, until_converged=True),
+        np.random.default_rng(5),
+    )
     assert short.stop_reason == "max_steps"
     assert not diagnostics(to_inference_data(short, burn=burn_in(short)), short)["converged"]
 
@@ -343,19 +379,20 @@ def trap(theta):
     return np.where(np.hypot(th[:, 0] - 20.0, th[:, 1]) < 1.0, -40.0, lp)
 
 
-TRAP_START = (np.zeros(2), np.diag([100.0, 1.0]))     # the ball puts a walker in the trap (seed 7)
+TRAP_START = (np.zeros(2), np.diag([100.0, 1.0]))  # the ball puts a walker in the trap (seed 7)
 CFG_TRAP = dict(n_ensembles=2, min_steps=600, max_steps=600, check_every=100)
 
 
 def test_stranded_walkers_are_those_far_below_the_typical_set_for_the_whole_window():
     from bayesid.estimation.sampling import stranded_walkers
+
     lp = np.random.default_rng(0).normal(0.0, 1.0, (2, 50, 16))
     assert not stranded_walkers(lp).any()
-    lp[1, :, 3] -= 40.0                         # far down for the whole window
-    lp[0, :25, 7] -= 40.0                       # arrived half-way through: not stranded
+    lp[1, :, 3] -= 40.0  # far down for the whole window
+    lp[0, :25, 7] -= 40.0  # arrived half-way through: not stranded
     s = stranded_walkers(lp)
     assert s[1, 3] and s.sum() == 1
-    lp[1, :, :5] -= 40.0                        # 6 of 16 down: the ensemble is still burning in
+    lp[1, :, :5] -= 40.0  # 6 of 16 down: the ensemble is still burning in
     assert not stranded_walkers(lp)[1].any()
     with pytest.raises(ValueError, match=r"\(E, w, W\)"):
         stranded_walkers(lp[0])
@@ -363,15 +400,17 @@ def test_stranded_walkers_are_those_far_below_the_typical_set_for_the_whole_wind
 
 def test_a_stranded_walker_is_moved_and_burn_in_ends_at_the_move():
     from bayesid.estimation.sampling import arrival_burn, burn_in
+
     plain = run_ensembles(trap, *TRAP_START, ["a", "b"], SamplerConfig(**CFG_TRAP), np.random.default_rng(7))
     assert (plain.log_prob[:, 0] == -40.0).sum() == 1 and plain.redraws == []
-    assert arrival_burn(plain) > 200             # without moves it sits in the trap for hundreds of steps
-    res = run_ensembles(trap, *TRAP_START, ["a", "b"], SamplerConfig(**CFG_TRAP, redraw_stranded=True),
-                        np.random.default_rng(7))
-    assert res.redraws == [(100, 0, 2)]          # found at the first block's end
+    assert arrival_burn(plain) > 200  # without moves it sits in the trap for hundreds of steps
+    res = run_ensembles(
+        trap, *TRAP_START, ["a", "b"], SamplerConfig(**CFG_TRAP, redraw_stranded=True), np.random.default_rng(7)
+    )
+    assert res.redraws == [(100, 0, 2)]  # found at the first block's end
     assert not (res.log_prob[:, 100:] == -40.0).any()
     assert burn_in(res) == 100
-    np.testing.assert_array_equal(res.chains[:, :100], plain.chains[:, :100])    # nothing else changed
+    np.testing.assert_array_equal(res.chains[:, :100], plain.chains[:, :100])  # nothing else changed
     # the moved walker took another walker's place, log-probability included
     assert res.log_prob[0, 100, 2] > -20.0
 
@@ -385,21 +424,34 @@ def test_resume_after_a_redraw_gives_the_uninterrupted_chain(tmp_path, extra_cal
     def counting(theta):
         calls[0] += 1
         return trap(theta)
-    run_ensembles(counting, *TRAP_START, ["a", "b"], SamplerConfig(**{**CFG_TRAP, "min_steps": 100, "max_steps": 100}),
-                  np.random.default_rng(7))
+
+    run_ensembles(
+        counting,
+        *TRAP_START,
+        ["a", "b"],
+        SamplerConfig(**{**CFG_TRAP, "min_steps": 100, "max_steps": 100}),
+        np.random.default_rng(7),
+    )
     at_move, calls[0] = calls[0], 0
 
     def failing(theta):
         calls[0] += 1
-        if calls[0] > at_move + extra_calls - 1:    # right after the move, or in the next block
+        if calls[0] > at_move + extra_calls - 1:  # right after the move, or in the next block
             raise Interrupted
         return trap(theta)
+
     path = tmp_path / "trap.h5"
     with pytest.raises(Interrupted):
         run_ensembles(failing, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=path)
     resumed = run_ensembles(trap, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=path)
     np.testing.assert_array_equal(resumed.chains, reference.chains)
     assert resumed.redraws == reference.redraws == [(100, 0, 2)]
-    with pytest.raises(ValueError, match="redraw_stranded"):     # a checkpoint of the other setting
-        run_ensembles(trap, *TRAP_START, ["a", "b"], SamplerConfig(**{**CFG_TRAP, "min_steps": 300, "max_steps": 300}),
-                      np.random.default_rng(7), checkpoint=path)
+    with pytest.raises(ValueError, match="redraw_stranded"):  # a checkpoint of the other setting
+        run_ensembles(
+            trap,
+            *TRAP_START,
+            ["a", "b"],
+            SamplerConfig(**{**CFG_TRAP, "min_steps": 300, "max_steps": 300}),
+            np.random.default_rng(7),
+            checkpoint=path,
+        )

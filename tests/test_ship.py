@@ -1,6 +1,7 @@
 """The surface-ship model (bayesid.models.ship), the multiple-shooting fit and the window protocol on
 ships (bayesid.estimation.msfit), and the fit / predict / diagnose commands on real runs (skipped without
 shared/data/real)."""
+
 from __future__ import annotations
 
 import json
@@ -12,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid.estimation import msfit
-from bayesid.models import ship
-from bayesid.estimation import windows as wf
 from bayesid.data.track import Track
+from bayesid.estimation import msfit
+from bayesid.estimation import windows as wf
+from bayesid.models import ship
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 KV = REAL / "kvlcc2-simman-hsva"
@@ -24,8 +25,20 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def synthetic(model, p, t, delta, rps, U0, rng=None, noise=None, name="syn"):
     """A track of the model itself from straight-ahead motion at U0 (noise sd per channel)."""
-    base = Track(t, {"x": 0 * t, "y": 0 * t, "psi": 0 * t, "u": 0 * t + U0, "v": 0 * t, "r": 0 * t,
-                     "delta_r": delta, "n": 0 * t + rps * 60}, name=name)
+    base = Track(
+        t,
+        {
+            "x": 0 * t,
+            "y": 0 * t,
+            "psi": 0 * t,
+            "u": 0 * t + U0,
+            "v": 0 * t,
+            "r": 0 * t,
+            "delta_r": delta,
+            "n": 0 * t + rps * 60,
+        },
+        name=name,
+    )
     s0 = np.zeros(12)
     s0[6] = U0
     ctx = model.context(base, None, s0=s0)
@@ -80,7 +93,7 @@ def test_starboard_rudder_turns_to_starboard_and_speed_settles():
     m = ship.ShipModel(kv, dt=0.1)
     t = np.arange(0, 120.0, 0.1)
     tr = synthetic(m, m.start(), t, np.where(t > 1, -math.radians(20), 0.0), 10.23, 1.179)
-    assert tr["r"][-1] > math.radians(0.3)          # package rudder negative = to starboard: r > 0
+    assert tr["r"][-1] > math.radians(0.3)  # package rudder negative = to starboard: r > 0
     straight = synthetic(m, m.start(), t, 0 * t, 10.23, 1.179)
     du = np.abs(np.diff(straight["u"][-100:])).max()
     assert du < 1e-4 and 0.7 < straight["u"][-1] < 1.6  # settles at a plausible self-propulsion speed
@@ -102,15 +115,22 @@ def test_neutral_rudder_angle_shifts_the_rudder_zero():
     assert abs(F(0.0, 0.0)[2]) < 1e-12
     assert np.sign(F(0.0, a)[2]) == np.sign(F(-a, 0.0)[2]) != 0
 
-@pytest.mark.parametrize("state,n", [((0, 0, 0, 0.0, 0.0, 0.0), 0.0), ((0, 0, 0, 0.0, 0.0, 0.2), 5.0),
-                                     ((0, 0, 0, -0.3, 0.1, 0.05), -8.0), ((0, 0, 0, 0.0, 0.4, 0.0), 10.0),
-                                     ((0, 0, 0, 1e-9, 0.0, 0.3), 0.0)])
+
+@pytest.mark.parametrize(
+    "state,n",
+    [
+        ((0, 0, 0, 0.0, 0.0, 0.0), 0.0),
+        ((0, 0, 0, 0.0, 0.0, 0.2), 5.0),
+        ((0, 0, 0, -0.3, 0.1, 0.05), -8.0),
+        ((0, 0, 0, 0.0, 0.4, 0.0), 10.0),
+        ((0, 0, 0, 1e-9, 0.0, 0.3), 0.0),
+    ],
+)
 def test_forces_finite_at_low_speed_astern_and_on_the_spot(state, n):
     es = ship.load_ship("esso_osaka_3m")
     prm = es.params(es.wind_start)
     out = np.empty((1, 3))
-    ship.accelerations(np.array([state], float), np.array([[0.3, n]]), np.array([[1.0, 2.0]]),
-                       np.zeros(2), prm, out)
+    ship.accelerations(np.array([state], float), np.array([[0.3, n]]), np.array([[1.0, 2.0]]), np.zeros(2), prm, out)
     assert np.all(np.isfinite(out))
 
 
@@ -133,8 +153,14 @@ def test_window_protocol_on_the_models_own_track_is_at_the_noise_level():
     # windows never overlap, and start after 2 s of history when velocities are derived
     assert np.all(np.diff(ctx.t_start) == pytest.approx(30.0)) and ctx.t_start[0] >= tr.t[0] + 2.0 - 1e-9
     # a window's start state never uses data from its future: change the future, same state
-    fut = Track(tr.t, {k: np.where(tr.t > ctx.t_start[2] + 1e-9, 0.0 if k != "n" else 600.0, tr[k])
-                       for k in ("x", "y", "psi", "r", "delta_r", "n")}, name="fut")
+    fut = Track(
+        tr.t,
+        {
+            k: np.where(tr.t > ctx.t_start[2] + 1e-9, 0.0 if k != "n" else 600.0, tr[k])
+            for k in ("x", "y", "psi", "r", "delta_r", "n")
+        },
+        name="fut",
+    )
     assert np.allclose(m.context(fut, 30.0).s_meas[2], ctx.s_meas[2])
 
 
@@ -145,8 +171,10 @@ def test_multiple_shooting_fit_recovers_coefficients_from_the_equation_error_see
     rng = np.random.default_rng(7)
     t = np.arange(0, 150.0, 0.1)
     noise = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "u": 0.002, "v": 0.002, "r": math.radians(0.02)}
-    tracks = [synthetic(mt, mt.start(), t, zigzag_inputs(t, a, p), 10.23, 1.179, rng, noise, name=f"z{a}")
-              for a, p in ((20, 30), (10, 24))]
+    tracks = [
+        synthetic(mt, mt.start(), t, zigzag_inputs(t, a, p), 10.23, 1.179, rng, noise, name=f"z{a}")
+        for a, p in ((20, 30), (10, 24))
+    ]
     res = msfit.identify(kv, tracks, ["Yv", "Nv", "Nr"], window_s=30.0, dt=0.1, max_nfev=30)
     est = dict(zip(res["model"].param_names, res["fit"].p))
     assert est["Yv"] == pytest.approx(-0.35, rel=0.05)
@@ -159,7 +187,6 @@ def test_residual_weighting_follows_the_structural_error():
     """Two-step feasible GLS: the second fit's channel sds are the first fit's residual RMS, at
     least the noise sd; on the model's own noisy track they stay near the noise; with a model
     that cannot fit (wrong free set) they grow above it."""
-    from bayesid.analysis import gap
 
     kv, tr, noise = _noisy_zigzag()
     sd = {k: noise[k] for k in ("x", "y", "psi", "u", "v", "r")}
@@ -170,7 +197,7 @@ def test_residual_weighting_follows_the_structural_error():
     # the model is right: residuals ~ noise (x, y, psi ~3x: the start-state noise propagates)
     assert all(sd2[k] < 5 * sd[k] for k in sd)
     assert dict(zip(right.param_names, f.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
-    wrong = ship.ShipModel(kv, ["Xuu"], dt=0.1)   # cannot change the turning: structural error
+    wrong = ship.ShipModel(kv, ["Xuu"], dt=0.1)  # cannot change the turning: structural error
     cw = [wrong.context(tr, 30.0)]
     fw, sdw = wf.fit_weighted(wrong, cw, sd, max_nfev=10, weighting="residual")
     assert sdw["psi"] > 5 * sd2["psi"] and sdw["x"] > 5 * sd2["x"]
@@ -185,7 +212,6 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     x, y, psi only recovers it within 2 %. Unknown channels and a track measuring none of the
     fitted channels are errors that name them."""
     from bayesid import cli
-    from bayesid.analysis import gap
 
     kv, tr, noise = _noisy_zigzag()
     bad = tr.with_columns(r=tr["r"] + math.radians(1.0) * np.sin(2 * np.pi * tr.t / 30.0))
@@ -205,9 +231,23 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     with pytest.raises(ValueError, match="no_velocities"):
         wf.fit_model(m, [m.context(no_u, 30.0)], noise, channels=("u",))
     from bayesid.data.track import write_csv
+
     write_csv(bad, tmp_path / "bad.csv")
-    rc = cli.main(["fit", "--vehicle", "kvlcc2_7m", "--train", str(tmp_path / "bad.csv"), "--free", "Yv",
-                   "--fit-channels", "x,y,heading", "--out", str(tmp_path / "fit")])
+    rc = cli.main(
+        [
+            "fit",
+            "--vehicle",
+            "kvlcc2_7m",
+            "--train",
+            str(tmp_path / "bad.csv"),
+            "--free",
+            "Yv",
+            "--fit-channels",
+            "x,y,heading",
+            "--out",
+            str(tmp_path / "fit"),
+        ]
+    )
     assert rc != 0 and "heading" in capsys.readouterr().err
 
 
@@ -220,12 +260,17 @@ def test_ship_fits_use_the_ship_fit_window_whatever_the_scoring_window():
     kv = ship.load_ship("kvlcc2_7m")
     mt = ship.ShipModel(kv, dt=0.2)
     t = np.arange(0, 130.0, 0.2)
-    tracks = [synthetic(mt, mt.start(), t, zigzag_inputs(t, a, p), 10.23, 1.179, name=f"z{a}")
-              for a, p in ((20, 30), (10, 24))]
+    tracks = [
+        synthetic(mt, mt.start(), t, zigzag_inputs(t, a, p), 10.23, 1.179, name=f"z{a}")
+        for a, p in ((20, 30), (10, 24))
+    ]
     kw = dict(candidates=["delay"], window_s=60.0, dt=0.2, max_nfev=1)
     res = gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], **kw).to_dict()
     assert res["settings"]["fit_window_s"] == ship.FIT_WINDOW_S == 15.0 and res["settings"]["window_s"] == 60.0
-    assert gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], fit_window_s=45.0, **kw).to_dict()["settings"]["fit_window_s"] == 45.0
+    assert (
+        gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], fit_window_s=45.0, **kw).to_dict()["settings"]["fit_window_s"]
+        == 45.0
+    )
     assert msfit.identify(kv, tracks[:1], ["Nr"], dt=0.2, max_nfev=1)["window_s"] == 15.0
 
 
@@ -250,7 +295,7 @@ def test_manoeuvre_indices_of_a_circle_and_a_zigzag():
     ind = msfit.manoeuvre_indices(t, x, y, psi, d)
     assert ind["kind"] == "turning"
     assert ind["tactical_diameter_m"] == pytest.approx(2 * R, rel=0.01)
-    assert ind["advance_m"] == pytest.approx(R, rel=0.01)      # from the execute position
+    assert ind["advance_m"] == pytest.approx(R, rel=0.01)  # from the execute position
     h = np.radians(15) * np.sin(2 * np.pi * t / 40)
     dz = np.where(np.cos(2 * np.pi * (t - 5) / 40) > 0, 0.35, -0.35)
     zi = msfit.manoeuvre_indices(t, 0 * t, 0 * t, h, dz)
@@ -264,18 +309,68 @@ def test_fit_predict_diagnose_commands_on_two_converted_runs(tmp_path):
     py = [sys.executable, "-m", "bayesid.cli"]
     subprocess.run(py + ["convert", "--format", "simman-hsva", *map(str, runs), "--out", str(conv)], check=True)
     a, b = sorted(conv.glob("*.csv"))
-    subprocess.run(py + ["fit", "--vehicle", "kvlcc2_7m", "--train", str(a), "--free", "Yv,Nr",
-                         "--max-nfev", "3", "--out", str(tmp_path / "fit")], check=True)
+    subprocess.run(
+        py
+        + [
+            "fit",
+            "--vehicle",
+            "kvlcc2_7m",
+            "--train",
+            str(a),
+            "--free",
+            "Yv,Nr",
+            "--max-nfev",
+            "3",
+            "--out",
+            str(tmp_path / "fit"),
+        ],
+        check=True,
+    )
     doc = json.loads((tmp_path / "fit" / "model.json").read_text())
     assert doc["param_names"] == ["Yv", "Nr"] and len(doc["cov"]) == 2
-    subprocess.run(py + ["predict", "--model", str(tmp_path / "fit" / "model.json"), "--track", str(b),
-                         "--window", "30", "--draws", "3", "--out", str(tmp_path / "pred")], check=True)
+    subprocess.run(
+        py
+        + [
+            "predict",
+            "--model",
+            str(tmp_path / "fit" / "model.json"),
+            "--track",
+            str(b),
+            "--window",
+            "30",
+            "--draws",
+            "3",
+            "--out",
+            str(tmp_path / "pred"),
+        ],
+        check=True,
+    )
     pr = json.loads((tmp_path / "pred" / "predict.json").read_text())
     assert pr["window_s"] == 30 and pr["pooled"]["rms_position_m"] > 0 and pr["windows"]
     assert pr["indices"][b.stem]["measured"]["kind"] == "zigzag"
-    subprocess.run(py + ["diagnose", "--vehicle", "kvlcc2_7m", "--free", "Yv,Nr", "--train", str(a),
-                         "--heldout", str(b), "--window", "30", "--candidates", "delay", "--max-nfev", "2",
-                         "--out", str(tmp_path / "diag")], check=True)
+    subprocess.run(
+        py
+        + [
+            "diagnose",
+            "--vehicle",
+            "kvlcc2_7m",
+            "--free",
+            "Yv,Nr",
+            "--train",
+            str(a),
+            "--heldout",
+            str(b),
+            "--window",
+            "30",
+            "--candidates",
+            "delay",
+            "--max-nfev",
+            "2",
+            "--out",
+            str(tmp_path / "diag"),
+        ],
+        check=True,
+    )
     dg = json.loads((tmp_path / "diag" / "diagnosis.json").read_text())
     assert dg["settings"]["window_s"] == 30 and dg["ranking"][0]["effect"] == "delay"
     assert dg["settings"]["weighting"] == "residual" and {"cause", "contributors", "remainder"} <= set(dg)
@@ -284,13 +379,27 @@ def test_fit_predict_diagnose_commands_on_two_converted_runs(tmp_path):
 
 @pytest.mark.skipif(not REAL.is_dir(), reason="shared/data/real absent")
 def test_real_ships_quick_writes_results(tmp_path):
-    subprocess.run([sys.executable, str(ROOT / "studies" / "real_ships.py"), "--quick", "--out", str(tmp_path)],
-                   check=True, cwd=ROOT)
+    subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "real_ships.py"), "--quick", "--out", str(tmp_path)],
+        check=True,
+        cwd=ROOT,
+    )
     R = json.loads((tmp_path / "results.json").read_text())
     for ds in ("esso_osaka", "kvlcc2_hsva"):
         d = R[ds]
-        for k in ("train_runs", "heldout_runs", "window_s", "heldout_rms_position_m_base",
-                  "heldout_rms_position_m_after", "verdict", "ranking", "shrinkage", "w30", "w60", "whole_run"):
+        for k in (
+            "train_runs",
+            "heldout_runs",
+            "window_s",
+            "heldout_rms_position_m_base",
+            "heldout_rms_position_m_after",
+            "verdict",
+            "ranking",
+            "shrinkage",
+            "w30",
+            "w60",
+            "whole_run",
+        ):
             assert k in d, (ds, k)
         for w in ("w30", "w60"):
             assert set(d[w]) >= {"heldout_rms_position_m_base", "heldout_rms_position_m_after", "shrinkage"}
@@ -315,9 +424,13 @@ def test_wind_loads_follow_the_fourier_form(g_deg):
         out = np.empty((1, 3))
         ship.forces(s, np.array([[0.0, 0.0]]), wind, np.zeros(2), es.params(coef), out)
         F[key] = out[0]
-    pr, qa = es.particulars, 0.5 * es.particulars["rho_air"] * VA ** 2
-    want = [qa * pr["A_front"] * (c["Cx1"] * math.cos(g) + c["Cx3"] * math.cos(3 * g)),
-            qa * pr["A_lateral"] * (c["Cy1"] * math.sin(g) + c["Cy3"] * math.sin(3 * g)),
-            qa * pr["A_lateral"] * pr["L"] * (c["Cn1"] * math.sin(g) + c["Cn2"] * math.sin(2 * g)
-                                              + c["Cn3"] * math.sin(3 * g))]
+    pr, qa = es.particulars, 0.5 * es.particulars["rho_air"] * VA**2
+    want = [
+        qa * pr["A_front"] * (c["Cx1"] * math.cos(g) + c["Cx3"] * math.cos(3 * g)),
+        qa * pr["A_lateral"] * (c["Cy1"] * math.sin(g) + c["Cy3"] * math.sin(3 * g)),
+        qa
+        * pr["A_lateral"]
+        * pr["L"]
+        * (c["Cn1"] * math.sin(g) + c["Cn2"] * math.sin(2 * g) + c["Cn3"] * math.sin(3 * g)),
+    ]
     np.testing.assert_allclose(F["on"] - F["off"], want, rtol=1e-10, atol=1e-12)

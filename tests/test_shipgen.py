@@ -2,6 +2,7 @@
 (bayesid.models.ship.simulate_windows), its oracle: same states to round-off (within 1e-10 of
 each channel's largest magnitude over 300 steps; the measured differences are below 1.2e-15),
 same status, same NaN layout after divergence."""
+
 from __future__ import annotations
 
 import math
@@ -66,8 +67,10 @@ def _assert_agree(args):
     return ref, st_ref
 
 
-@pytest.mark.parametrize("ship_id, seed, windage", [("esso_osaka_3m", 0, True), ("esso_osaka_3m", 1, False),
-                                                     ("kvlcc2_7m", 2, True), ("kvlcc2_7m", 3, False)])
+@pytest.mark.parametrize(
+    "ship_id, seed, windage",
+    [("esso_osaka_3m", 0, True), ("esso_osaka_3m", 1, False), ("kvlcc2_7m", 2, True), ("kvlcc2_7m", 3, False)],
+)
 def test_generated_kernel_agrees_with_the_interpreted_one(ship_id, seed, windage):
     ref, status = _assert_agree(_case(ship_id, seed, windage=windage))
     assert not status.any() and np.isfinite(ref).all()  # every window ran to its end
@@ -101,9 +104,9 @@ def test_diverging_rows_get_the_same_status_and_nan_layout():
     assert status[[1, 5]].all() and status[3].any() and not status[[0, 2, 4, 6]].any()
     for b, channel in ((1, 3), (5, 4)):
         for w in range(STARTS.size - 1):
-            rows = ref[b, STARTS[w] + w:STARTS[w + 1] + w + 1]
+            rows = ref[b, STARTS[w] + w : STARTS[w + 1] + w + 1]
             last = np.argmax(np.isnan(rows[:, 0])) - 1  # the last state within the limits
-            assert 45.0 < rows[last, channel] <= 50.0 and np.isnan(rows[last + 1:]).all()
+            assert 45.0 < rows[last, channel] <= 50.0 and np.isnan(rows[last + 1 :]).all()
 
 
 def test_ship_model_simulates_a_track_the_same_with_either_kernel(monkeypatch):
@@ -120,9 +123,22 @@ def test_ship_model_simulates_a_track_the_same_with_either_kernel(monkeypatch):
     t = np.arange(0.0, 120.0, 0.5)
     delta = np.where(np.sin(2 * np.pi * t / 40) >= 0, -1.0, 1.0) * math.radians(20.0)
     U = 0.6
-    tr = Track(t, {"x": U * t, "y": 0 * t, "psi": 0 * t, "u": 0 * t + U, "v": 0 * t, "r": 0 * t,
-                   "delta_r": delta, "n": 0 * t + 600.0, "wind_speed": 3.0 + np.sin(t / 20),
-                   "wind_dir": 0.5 + 0.3 * np.cos(t / 30)}, name="zigzag")
+    tr = Track(
+        t,
+        {
+            "x": U * t,
+            "y": 0 * t,
+            "psi": 0 * t,
+            "u": 0 * t + U,
+            "v": 0 * t,
+            "r": 0 * t,
+            "delta_r": delta,
+            "n": 0 * t + 600.0,
+            "wind_speed": 3.0 + np.sin(t / 20),
+            "wind_dir": 0.5 + 0.3 * np.cos(t / 30),
+        },
+        name="zigzag",
+    )
     S = {}
     for kind in shipgen.KINDS:
         m = ship.ShipModel(es, effects=("wind", "current", "delay"), dt=0.2, kernel=kind)

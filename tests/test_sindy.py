@@ -1,15 +1,16 @@
 """Issue 4: model-free term check with (ensemble) SINDy, horizontal plane."""
+
 import math
 
 import numpy as np
 import pytest
 
-from bayesid.models import dynamics, manoeuvres
 from bayesid.analysis import sindy
 from bayesid.data import terms
-from bayesid.estimation.posterior import add_noise
-from bayesid.models.simulate import Simulator
 from bayesid.data.track import Track
+from bayesid.estimation.posterior import add_noise
+from bayesid.models import dynamics, manoeuvres
+from bayesid.models.simulate import Simulator
 
 N_MODELS = 30
 
@@ -29,8 +30,7 @@ def multisine_track(nps):
 
 @pytest.fixture(scope="module")
 def multisine_result(nps, multisine_track):
-    return sindy.inclusion_probabilities(multisine_track, nps, n_models=N_MODELS,
-                                         rng=np.random.default_rng(0))
+    return sindy.inclusion_probabilities(multisine_track, nps, n_models=N_MODELS, rng=np.random.default_rng(0))
 
 
 def _true_normalised(vehicle, track):
@@ -43,8 +43,9 @@ def _true_normalised(vehicle, track):
     out = {}
     for j, k in enumerate(names):
         e = sindy.EQUATIONS.index(sindy.equation_of(k))
-        out[k] = abs(vehicle.coefficients.get(k, 0.0)) * np.sqrt(np.mean(Theta[:, j] ** 2)) \
-            / np.sqrt(np.mean(F[:, e] ** 2))
+        out[k] = (
+            abs(vehicle.coefficients.get(k, 0.0)) * np.sqrt(np.mean(Theta[:, j] ** 2)) / np.sqrt(np.mean(F[:, e] ** 2))
+        )
     return out
 
 
@@ -59,17 +60,38 @@ def test_inverse_dynamics_and_library_reproduce_the_simulator(nps):
     acc = np.zeros((S.shape[0], 12))
     f, tau = np.empty(terms.N_FEATURES), np.empty(6)
     for i in range(S.shape[0]):
-        dynamics.rhs(S[i].copy(), U[i].copy(), np.zeros(6), sim.vp, sim.tfac, sim.tdof, tcoef[0], Minv[0],
-                     sim.xs, sim.ws, f, tau, acc[i])
-    motion = dict(u=S[:, 6], v=S[:, 7], r=S[:, 11], u_dot=acc[:, 6], v_dot=acc[:, 7],
-                  r_dot=acc[:, 11], dr_dot=np.zeros(S.shape[0]), input_hold="sample")
+        dynamics.rhs(
+            S[i].copy(),
+            U[i].copy(),
+            np.zeros(6),
+            sim.vp,
+            sim.tfac,
+            sim.tdof,
+            tcoef[0],
+            Minv[0],
+            sim.xs,
+            sim.ws,
+            f,
+            tau,
+            acc[i],
+        )
+    motion = dict(
+        u=S[:, 6],
+        v=S[:, 7],
+        r=S[:, 11],
+        u_dot=acc[:, 6],
+        v_dot=acc[:, 7],
+        r_dot=acc[:, 11],
+        dr_dot=np.zeros(S.shape[0]),
+        input_hold="sample",
+    )
     F = sindy.force_targets(motion, nps, U)
     Theta, names = sindy.candidate_library(motion, U, nps)
     c = np.array([nps.coefficients.get(k, 0.0) for k in names])
     for e, g in enumerate(sindy.EQUATIONS):
         idx = [j for j, k in enumerate(names) if sindy.equation_of(k) == g]
         r = F[:, e] - Theta[:, idx] @ c[idx]
-        assert np.sqrt(np.mean(r ** 2)) < 1e-9 * np.sqrt(np.mean(F[:, e] ** 2)), g
+        assert np.sqrt(np.mean(r**2)) < 1e-9 * np.sqrt(np.mean(F[:, e] ** 2)), g
 
 
 def test_smoothed_motion_keeps_the_true_model(nps, multisine_track):
@@ -84,7 +106,7 @@ def test_smoothed_motion_keeps_the_true_model(nps, multisine_track):
     for e, g in enumerate(sindy.EQUATIONS):
         idx = [j for j, k in enumerate(names) if sindy.equation_of(k) == g]
         r = (F[:, e] - Theta[:, idx] @ c[idx])[sl]
-        assert np.sqrt(np.mean(r ** 2)) < 0.01 * np.sqrt(np.mean(F[sl, e] ** 2)), g
+        assert np.sqrt(np.mean(r**2)) < 0.01 * np.sqrt(np.mean(F[sl, e] ** 2)), g
 
 
 def test_positions_route_recovers_body_velocities(nps):
@@ -98,11 +120,10 @@ def test_positions_route_recovers_body_velocities(nps):
     sl = slice(20, -20)
     for c in ("u", "v", "r"):  # measured relative RMS errors: 2e-5, 4e-4, 1.5e-3
         err = motion[c][sl] - tr[c][sl]
-        assert np.sqrt(np.mean(err ** 2)) < 5e-3 * np.sqrt(np.mean(tr[c][sl] ** 2)), c
+        assert np.sqrt(np.mean(err**2)) < 5e-3 * np.sqrt(np.mean(tr[c][sl] ** 2)), c
 
 
-def test_rich_input_noise_free_finds_active_and_rejects_extras(nps, multisine_track,
-                                                               multisine_result):
+def test_rich_input_noise_free_finds_active_and_rejects_extras(nps, multisine_track, multisine_result):
     """Issue 4 test 1: multisine rudder, noise-free, measured u, v, r: model terms that carry
     >= 2x threshold of their force get probability >= 0.8; model terms well below it and
     every extra (true value 0) get <= 0.2."""
@@ -126,8 +147,7 @@ def test_rich_input_noise_free_finds_active_and_rejects_extras(nps, multisine_tr
     assert {"Yv", "Yr", "Ydr"} <= set(cmp["Y"]["excited_and_in_model"])
     # median coefficients close to the truth for the dominant terms (prime)
     for k in ("Yv", "Yr", "Ydr", "Nv", "Nr", "Ndr"):
-        assert res["coefficients"][sindy.equation_of(k)][k] == pytest.approx(
-            nps.coefficients[k], rel=0.1)
+        assert res["coefficients"][sindy.equation_of(k)][k] == pytest.approx(nps.coefficients[k], rel=0.1)
 
 
 def test_straight_line_does_not_excite_rotary_terms(nps):
@@ -143,14 +163,14 @@ def test_straight_line_does_not_excite_rotary_terms(nps):
 
 def test_noisy_positions_only_runs_and_returns_probabilities(nps, multisine_track):
     """Issue 4 test 3: 0.2 m / 0.2 deg noise on x, y, psi, no u, v, r columns."""
-    noisy = add_noise(multisine_track, {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)},
-                      np.random.default_rng(5))
+    noisy = add_noise(multisine_track, {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}, np.random.default_rng(5))
     noisy = _without(noisy, "u", "v", "r")
     res = sindy.inclusion_probabilities(noisy, nps, n_models=20, rng=np.random.default_rng(2))
     assert res["source"] == "positions" and res["window_s"] == pytest.approx(8.1)
     for g in sindy.EQUATIONS:
-        cand = [k for k in sindy.horizontal_terms(g) if k not in sindy.ADDED_MASS] + \
-            [k for k in sindy.EXTRAS if sindy.equation_of(k) == g]
+        cand = [k for k in sindy.horizontal_terms(g) if k not in sindy.ADDED_MASS] + [
+            k for k in sindy.EXTRAS if sindy.equation_of(k) == g
+        ]
         assert list(res[g]) == cand
         for k, p in res[g].items():
             assert 0.0 <= p <= 1.0
@@ -162,8 +182,9 @@ def test_noisy_positions_only_runs_and_returns_probabilities(nps, multisine_trac
 
 def test_randomness_only_from_rng(nps, multisine_track):
     state = np.random.get_state()[1].copy()
-    a, b = (sindy.inclusion_probabilities(multisine_track, nps, n_models=5,
-                                          rng=np.random.default_rng(7)) for _ in range(2))
+    a, b = (
+        sindy.inclusion_probabilities(multisine_track, nps, n_models=5, rng=np.random.default_rng(7)) for _ in range(2)
+    )
     assert a["Y"] == b["Y"] and a["coefficients"] == b["coefficients"]
     assert np.array_equal(np.random.get_state()[1], state)  # global state untouched
 
@@ -179,14 +200,13 @@ def test_clear_errors(nps, multisine_track):
     with pytest.raises(ValueError, match="'x'"):
         sindy.estimate_motion(_without(multisine_track, "u", "v", "r", "x"))
     with pytest.raises(ValueError, match="'delta_r'"):
-        sindy.inclusion_probabilities(_without(multisine_track, "delta_r"), nps, n_models=2,
-                                      rng=rng)
+        sindy.inclusion_probabilities(_without(multisine_track, "delta_r"), nps, n_models=2, rng=rng)
     with pytest.raises(ValueError, match="Yvdot"):
-        sindy.inclusion_probabilities(multisine_track, nps, n_models=2, rng=rng,
-                                      known=("Xudot", "Yrdot", "Nvdot", "Nrdot"))
+        sindy.inclusion_probabilities(
+            multisine_track, nps, n_models=2, rng=rng, known=("Xudot", "Yrdot", "Nvdot", "Nrdot")
+        )
     with pytest.raises(ValueError, match="Zw"):
-        sindy.force_targets(sindy.estimate_motion(multisine_track), nps,
-                            multisine_track.inputs(), known=("Zw",))
+        sindy.force_targets(sindy.estimate_motion(multisine_track), nps, multisine_track.inputs(), known=("Zw",))
     with pytest.raises(TypeError, match="Generator"):
         sindy.inclusion_probabilities(multisine_track, nps, n_models=2, rng=None)
     with pytest.raises(ValueError, match="'u_dot'"):
@@ -198,12 +218,18 @@ def test_clear_errors(nps, multisine_track):
 
 
 def test_compare_with_model_lists(nps):
-    inc = {"X": {"Xvv": 0.9, "X0": 0.7, "Xrr": 0.1},
-           "Y": {"Yv": 1.0, "Yr": 0.2, "Yvvv": 0.1},
-           "N": {"Nr": 0.6, "Nprop": 0.8}}
+    inc = {
+        "X": {"Xvv": 0.9, "X0": 0.7, "Xrr": 0.1},
+        "Y": {"Yv": 1.0, "Yr": 0.2, "Yvvv": 0.1},
+        "N": {"Nr": 0.6, "Nprop": 0.8},
+    }
     out = sindy.compare_with_model(inc, nps, level=0.5)
-    assert out["X"] == {"in_model": ["Xvv", "Xrr"], "included": ["Xvv", "X0"],
-                        "excited_and_in_model": ["Xvv"], "in_model_not_seen": ["Xrr"],
-                        "spurious": ["X0"]}
+    assert out["X"] == {
+        "in_model": ["Xvv", "Xrr"],
+        "included": ["Xvv", "X0"],
+        "excited_and_in_model": ["Xvv"],
+        "in_model_not_seen": ["Xrr"],
+        "spurious": ["X0"],
+    }
     assert out["Y"]["in_model_not_seen"] == ["Yr"] and out["Y"]["spurious"] == []
     assert out["N"]["spurious"] == ["Nprop"]  # Nprop = 0 in NPS AUV II

@@ -1,6 +1,7 @@
 """studies/fit_sensitivity.py: its splits keep training and held-out runs apart (the
 training-only splits never see the validation held-out runs), and --quick writes results.json
 (skipped without shared/data/real)."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -52,7 +53,7 @@ def test_a_saved_fit_is_keyed_by_data_and_settings(tmp_path):
         (tmp_path / folder / "sub" / "run1.csv").write_text("t,x\n0,0\n")
     job = {"dataset": "esso_osaka", "split": "validation", "setting": "w30_all", "max_nfev": 40, "quick": False}
     key = fs.fit_key(job, fs.data_digest(tmp_path, "esso_osaka"))
-    (tmp_path / "esso-osaka-frt" / "sub" / "run1.csv").write_text("t,x\n0,1\n")   # the data changed
+    (tmp_path / "esso-osaka-frt" / "sub" / "run1.csv").write_text("t,x\n0,1\n")  # the data changed
     assert fs.fit_key(job, fs.data_digest(tmp_path, "esso_osaka")) != key
     (tmp_path / "esso-osaka-frt" / "sub" / "run1.csv").write_text("t,x\n0,0\n")
     assert fs.fit_key(job, fs.data_digest(tmp_path, "esso_osaka")) == key
@@ -62,8 +63,11 @@ def test_a_saved_fit_is_keyed_by_data_and_settings(tmp_path):
 
 @pytest.mark.skipif(not REAL.is_dir(), reason="shared/data/real absent")
 def test_fit_sensitivity_quick_writes_results(tmp_path):
-    subprocess.run([sys.executable, str(ROOT / "studies" / "fit_sensitivity.py"), "--quick", "--out", str(tmp_path)],
-                   check=True, cwd=ROOT)
+    subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "fit_sensitivity.py"), "--quick", "--out", str(tmp_path)],
+        check=True,
+        cwd=ROOT,
+    )
     R = json.loads((tmp_path / "results.json").read_text())
     assert R["quick"] and R["reference"] == "w30_all"
     for ds in ("esso_osaka", "kvlcc2_hsva"):

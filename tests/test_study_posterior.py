@@ -1,18 +1,35 @@
 """studies/posterior.py --quick runs every case and writes issue 9's keys."""
+
 import json
 import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-KEYS = ("rhat_max", "ess_bulk_min", "ess_tail_min", "tau_max", "n_steps", "acceptance_mean", "correlation",
-        "sloppiest_direction", "fim_condition_number", "coverage_90", "converged", "wall_s")
+KEYS = (
+    "rhat_max",
+    "ess_bulk_min",
+    "ess_tail_min",
+    "tau_max",
+    "n_steps",
+    "acceptance_mean",
+    "correlation",
+    "sloppiest_direction",
+    "fim_condition_number",
+    "coverage_90",
+    "converged",
+    "wall_s",
+)
 
 
 def test_posterior_quick(tmp_path):
     out = tmp_path / "posterior"
-    subprocess.run([sys.executable, str(ROOT / "studies" / "posterior.py"), "--quick", "--out", str(out)],
-                   check=True, cwd=ROOT, timeout=900)
+    subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "posterior.py"), "--quick", "--out", str(out)],
+        check=True,
+        cwd=ROOT,
+        timeout=900,
+    )
     res = json.loads((out / "results.json").read_text())
     for case in ("case1", "case2", "case3", "case3b"):
         for key in KEYS:
@@ -45,6 +62,11 @@ def test_a_checkpoint_reused_with_another_seed_is_not_reported_as_that_seed(tmp_
     assert "seed 2003" in (out / "report.md").read_text()  # the old report is untouched
     subprocess.run(cmd + ["--seed", "7", "--fresh"], check=True, cwd=ROOT, timeout=600)
     assert "seed 7" in (out / "report.md").read_text()
-    r = subprocess.run(cmd[:-4] + ["--cases", "3", "--seed", "7", "--out", str(out)], cwd=ROOT, timeout=600,
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        cmd[:-4] + ["--cases", "3", "--seed", "7", "--out", str(out)],
+        cwd=ROOT,
+        timeout=600,
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0 and "dropped" in (out / "report.md").read_text() and "case1" in r.stdout

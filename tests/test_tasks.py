@@ -2,6 +2,7 @@
 LocalCluster; a task that raises is reported with its parameters and the others finish; a journal
 resumes finished tasks, survives a run killed mid-line and refuses another run's identity; a
 worker that dies has its task run again."""
+
 from __future__ import annotations
 
 import json
@@ -30,8 +31,12 @@ def work(x: int, fail: bool = False, log: str | None = None):
         raise RuntimeError(f"cannot do {x}")
     rng = np.random.default_rng(x)
     a = rng.normal(size=(20, 20))
-    return {"x": x, "value": float(np.linalg.eigvalsh(a @ a.T).max()), "vector": (a[0] / 3).tolist(),
-            "nan": float("nan")}
+    return {
+        "x": x,
+        "value": float(np.linalg.eigvalsh(a @ a.T).max()),
+        "vector": (a[0] / 3).tolist(),
+        "nan": float("nan"),
+    }
 
 
 def die_once(x: int, marker: str):

@@ -1,5 +1,6 @@
 """Sampling in an unconstrained space (issue 23, first part): the logit transform of the bounded
 coefficients and its log-Jacobian."""
+
 from __future__ import annotations
 
 import emcee
@@ -16,8 +17,9 @@ def gaussian_logpost(mu, cov, prior):
     icov = np.linalg.inv(cov)
 
     def logpost(theta):
-        d = np.atleast_2d(theta)[:, :len(mu)] - mu
+        d = np.atleast_2d(theta)[:, : len(mu)] - mu
         return -0.5 * np.einsum("bi,ij,bj->b", d, icov, d) + prior.logpdf(theta)
+
     return logpost
 
 
@@ -43,7 +45,7 @@ def test_draws_mapped_back_respect_the_bounds_and_the_map_inverts():
     th = t.to_theta(z)
     assert np.all(np.isfinite(t.log_jacobian(z)))
     assert np.all((th[:, 0] >= -10.0) & (th[:, 0] <= 10.0) & (th[:, 1] >= -4.0) & (th[:, 1] <= 6.0))
-    assert th[2, 2] == 0.0 and th[0, 2] == 5.0          # the Gaussian coordinate is not transformed
+    assert th[2, 2] == 0.0 and th[0, 2] == 5.0  # the Gaussian coordinate is not transformed
     zz = np.random.default_rng(1).normal(0.0, 4.0, (20, 3))
     np.testing.assert_allclose(t.to_z(t.to_theta(zz)), zz, rtol=1e-9, atol=1e-9)
     with pytest.raises(ValueError, match="on or outside its bounds"):

@@ -1,4 +1,5 @@
 """Vehicle files and the term library."""
+
 import math
 import tomllib
 from pathlib import Path
@@ -40,12 +41,15 @@ def test_misspelt_name_suggests_the_right_one():
         terms.term("Yvabvs")
 
 
-@pytest.mark.parametrize("old,new,match", [
-    ("Izz = 13587.0\n", "", r"edited\.toml.*\[inertia\] Izz"),                  # missing mass property
-    ("mass_kg = 5454.54", "# no mass", r"mass_kg"),
-    ("Nr = -1.6e-2", "Nr = nan", r"edited\.toml.*\[coefficients\] Nr"),         # non-finite value
-    ("length_m = 5.3", "length_m = inf", r"length_m"),
-])
+@pytest.mark.parametrize(
+    "old,new,match",
+    [
+        ("Izz = 13587.0\n", "", r"edited\.toml.*\[inertia\] Izz"),  # missing mass property
+        ("mass_kg = 5454.54", "# no mass", r"mass_kg"),
+        ("Nr = -1.6e-2", "Nr = nan", r"edited\.toml.*\[coefficients\] Nr"),  # non-finite value
+        ("length_m = 5.3", "length_m = inf", r"length_m"),
+    ],
+)
 def test_bad_vehicle_file_names_the_key(tmp_path, old, new, match):
     with pytest.raises(VehicleFileError, match=match):
         load_vehicle(_edited(tmp_path, old, new))
@@ -70,12 +74,39 @@ def test_every_file_coefficient_is_a_term():
         assert [n for n in names if n not in terms.INDEX] == [], f
 
 
-@pytest.mark.parametrize("name,k", [
-    ("Xrr", 4), ("Xudot", 3), ("Xvr", 3), ("Xqds", 3), ("Xvv", 2), ("Xdsds_eps", 2), ("Cd0", 2),
-    ("Yrdot", 4), ("Yvdot", 3), ("Yr", 3), ("Yv", 2), ("Ydr", 2), ("Yvabsr", 3), ("Yrabsr", 4),
-    ("Kpdot", 5), ("Kvdot", 4), ("Kp", 4), ("Kv", 3), ("Mqdot", 5), ("Mwdot", 4), ("Mq", 4),
-    ("Nrdot", 5), ("Nvdot", 4), ("Nr", 4), ("Nv", 3), ("Ndr", 3), ("Nabsvr", 4), ("Nrabsr", 5),
-])
+@pytest.mark.parametrize(
+    "name,k",
+    [
+        ("Xrr", 4),
+        ("Xudot", 3),
+        ("Xvr", 3),
+        ("Xqds", 3),
+        ("Xvv", 2),
+        ("Xdsds_eps", 2),
+        ("Cd0", 2),
+        ("Yrdot", 4),
+        ("Yvdot", 3),
+        ("Yr", 3),
+        ("Yv", 2),
+        ("Ydr", 2),
+        ("Yvabsr", 3),
+        ("Yrabsr", 4),
+        ("Kpdot", 5),
+        ("Kvdot", 4),
+        ("Kp", 4),
+        ("Kv", 3),
+        ("Mqdot", 5),
+        ("Mwdot", 4),
+        ("Mq", 4),
+        ("Nrdot", 5),
+        ("Nvdot", 4),
+        ("Nr", 4),
+        ("Nv", 3),
+        ("Ndr", 3),
+        ("Nabsvr", 4),
+        ("Nrabsr", 5),
+    ],
+)
 def test_prime_power_of_L(name, k):
     """The power of L follows the prime rule (coefficients.md tables)."""
     assert terms.term(name).L_power == k
@@ -92,9 +123,11 @@ def test_categories_for_case2():
 
 def test_mass_matrix_symmetric_and_added_mass(nps):
     M = nps.mass_matrix()
-    assert np.allclose(M, M.T, atol=1e-9 * np.abs(M).max())  # NPS added-mass cross terms are symmetric (Yrdot = Nvdot, ...)
+    assert np.allclose(
+        M, M.T, atol=1e-9 * np.abs(M).max()
+    )  # NPS added-mass cross terms are symmetric (Yrdot = Nvdot, ...)
     M0 = nps.mass_matrix({})
     assert np.allclose(M0, M0.T)
-    assert M[1, 5] - M0[1, 5] == pytest.approx(-0.5 * nps.rho * nps.L ** 4 * nps.coefficients["Yrdot"])
+    assert M[1, 5] - M0[1, 5] == pytest.approx(-0.5 * nps.rho * nps.L**4 * nps.coefficients["Yrdot"])
     assert M0[0, 0] == nps.mass and M0[5, 5] == nps.inertia[2, 2]
     assert math.isclose(M0[3, 1], -nps.mass * nps.rG[2])  # K row, v-dot column: -m zG

@@ -2,18 +2,29 @@
 determine (Fisher information, collinearity, structural nulls) and how the sampled posterior
 compares with that along each direction. The posterior study (``studies/posterior.py``) composes
 it; the algorithms live here."""
+
 from __future__ import annotations
 
 import numpy as np
 
-from . import identifiability
 from ..estimation.posterior import direction_draws
+from . import identifiability
 
 __all__ = ["dossier", "direction_convergence"]
 
 
-def dossier(problem, theta_hat, prior_sd_abs, truth, vehicle, samples, sim, noise: dict,
-            determined: float = 0.5, round_off: float = 1e-15) -> dict:
+def dossier(
+    problem,
+    theta_hat,
+    prior_sd_abs,
+    truth,
+    vehicle,
+    samples,
+    sim,
+    noise: dict,
+    determined: float = 0.5,
+    round_off: float = 1e-15,
+) -> dict:
     """The identifiability dossier of a posterior: Fisher information, its eigen-directions,
     collinearity indices, relative influence, structural (exact) null directions checked by
     simulation, and the posterior spread along each Fisher eigen-direction against its
@@ -39,35 +50,48 @@ def dossier(problem, theta_hat, prior_sd_abs, truth, vehicle, samples, sim, nois
     S = identifiability.relative_sensitivity(problem, theta_hat)
     sig = problem.noise_vector(noise)
     F = identifiability.fisher_information(S, sig, problem.mask.reshape(-1))
-    dirs = identifiability.eigen_directions(F, names)               # sloppiest first
+    dirs = identifiability.eigen_directions(F, names)  # sloppiest first
     lam = np.array([d.eigenvalue for d in dirs])
-    W = np.column_stack([d.vector for d in dirs])                   # (P, P) unit columns
+    W = np.column_stack([d.vector for d in dirs])  # (P, P) unit columns
     # prior sd along each direction, in relative units (independent priors)
     psd_rel = np.asarray(prior_sd_abs, float) / np.abs(theta_hat)
-    prior_along = np.sqrt((W ** 2).T @ psd_rel ** 2)
+    prior_along = np.sqrt((W**2).T @ psd_rel**2)
     post_along = direction_draws(samples, W, theta_hat).std(axis=0, ddof=1)
     cr = np.where(lam > 0, 1.0 / np.sqrt(np.clip(lam, 1e-300, None)), np.inf)
     rows = []
     for k, d in enumerate(dirs):
-        rows.append(dict(direction=d.label(), eigenvalue=float(lam[k]), cramer_rao_sd=float(cr[k]),
-                         posterior_sd=float(post_along[k]), prior_sd=float(prior_along[k]),
-                         determined=bool(cr[k] < determined * prior_along[k]),
-                         weights=d.weights(0.1)))
+        rows.append(
+            dict(
+                direction=d.label(),
+                eigenvalue=float(lam[k]),
+                cramer_rao_sd=float(cr[k]),
+                posterior_sd=float(post_along[k]),
+                prior_sd=float(prior_along[k]),
+                determined=bool(cr[k] < determined * prior_along[k]),
+                weights=d.weights(0.1),
+            )
+        )
     # structural (exact) nulls of the sampled set, each checked by moving 2 % along it
     full, causes = identifiability.structural_null_space(names, vehicle)
-    k_round = int(np.sum(lam <= round_off * lam[-1]))      # eigenvalues at round-off level
+    k_round = int(np.sum(lam <= round_off * lam[-1]))  # eigenvalues at round-off level
     nulls = []
     if full.shape[1]:
         base = np.asarray(truth, float)
         st = sim.run(np.vstack([base] + [base * (1 + 0.02 * full[:, k]) for k in range(full.shape[1])])).states
-        null_angles = identifiability.principal_angles_deg(full, W[:, :max(k_round, full.shape[1])]).tolist()
+        null_angles = identifiability.principal_angles_deg(full, W[:, : max(k_round, full.shape[1])]).tolist()
         for k in range(full.shape[1]):
             dd = identifiability.Direction(0.0, full[:, k], names)
-            pa = float(direction_draws(samples, full[:, k:k + 1], theta_hat).std(ddof=1))
-            pr = float(np.sqrt((full[:, k] ** 2) @ psd_rel ** 2))
-            nulls.append(dict(direction=dd.label(threshold=0.15), cause=causes[k] if k < len(causes) else "",
-                              track_change_m=float(np.nanmax(np.abs(st[0, :, :2] - st[k + 1, :, :2]))),
-                              posterior_sd=pa, prior_sd=pr))
+            pa = float(direction_draws(samples, full[:, k : k + 1], theta_hat).std(ddof=1))
+            pr = float(np.sqrt((full[:, k] ** 2) @ psd_rel**2))
+            nulls.append(
+                dict(
+                    direction=dd.label(threshold=0.15),
+                    cause=causes[k] if k < len(causes) else "",
+                    track_change_m=float(np.nanmax(np.abs(st[0, :, :2] - st[k + 1, :, :2]))),
+                    posterior_sd=pa,
+                    prior_sd=pr,
+                )
+            )
     else:
         null_angles = []
     # posterior principal axes vs Fisher directions (relative coordinates)
@@ -77,12 +101,18 @@ def dossier(problem, theta_hat, prior_sd_abs, truth, vehicle, samples, sim, nois
     angle_stiff = float(identifiability.principal_angles_deg(W[:, -1:], EV[:, :1])[0])
     infl = identifiability.relative_influence(S, sig)
     return dict(
-        F=F, lam=lam, W=W, directions=rows, sloppiest=dirs[0],
+        F=F,
+        lam=lam,
+        W=W,
+        directions=rows,
+        sloppiest=dirs[0],
         fim_condition_number=identifiability.condition_number(F),
         lam_ratio_min=float(lam[0] / lam[-1]),
         collinearity=identifiability.collinearity_table(S, names, sizes=(2, 3), top=5),
         relative_influence=dict(zip(names, infl.tolist())),
-        structural_nulls=nulls, structural_null_fim_angles_deg=null_angles, n_round_off_eigenvalues=k_round,
+        structural_nulls=nulls,
+        structural_null_fim_angles_deg=null_angles,
+        n_round_off_eigenvalues=k_round,
         angle_sloppiest_vs_widest_posterior_axis_deg=angle_sloppy,
         angle_stiffest_vs_narrowest_posterior_axis_deg=angle_stiff,
         posterior_axis_widest=identifiability.Direction(float(ev[-1]), EV[:, -1], names).label(),
@@ -98,13 +128,15 @@ def direction_convergence(result, burn, W, theta_hat, determined) -> dict:
     import arviz as az
 
     E, N, Wk, P = result.chains.shape
-    x = direction_draws(result.chains[:, burn:], W, theta_hat)          # (E, D, Wk, K)
-    x = x.transpose(0, 2, 1, 3).reshape(E * Wk, -1, W.shape[1])         # (chains, draws, K)
+    x = direction_draws(result.chains[:, burn:], W, theta_hat)  # (E, D, Wk, K)
+    x = x.transpose(0, 2, 1, 3).reshape(E * Wk, -1, W.shape[1])  # (chains, draws, K)
     rh = np.array([float(az.rhat(x[:, :, k])) for k in range(x.shape[2])])
     ess = np.array([float(az.ess(x[:, :, k], method="bulk")) for k in range(x.shape[2])])
     out = {}
     for label, sel in (("determined", determined), ("undetermined", ~determined)):
-        out[label] = dict(n=int(sel.sum()),
-                          rhat_max=float(rh[sel].max()) if sel.any() else None,
-                          ess_bulk_min=float(ess[sel].min()) if sel.any() else None)
+        out[label] = dict(
+            n=int(sel.sum()),
+            rhat_max=float(rh[sel].max()) if sel.any() else None,
+            ess_bulk_min=float(ess[sel].min()) if sel.any() else None,
+        )
     return out

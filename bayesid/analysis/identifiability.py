@@ -9,6 +9,7 @@ Sources: Fisher information for output-error models (Ljung 1999, Sec. 9.2); slop
 (Gutenkunst et al. 2007, PLoS Comput. Biol. 3:e189); collinearity index and sensitivity measures
 (Brun, Reichert & Kuensch 2001, Water Resour. Res. 37(4):1015-1030, Eqs. 4-7).
 """
+
 from __future__ import annotations
 
 import itertools
@@ -30,8 +31,8 @@ def relative_sensitivity(problem, theta) -> np.ndarray:
     problem : :class:`~bayesid.estimation.objective.Problem`.   theta : (P,) prime coefficients (non-zero).
     """
     p = problem.scaled(theta)
-    _, J = problem.jacobian(p, central=True)   # d r / d p, r = target - sim
-    return -J * p[None, :]                      # d sim / d ln theta = -(d r/d p) * p
+    _, J = problem.jacobian(p, central=True)  # d r / d p, r = target - sim
+    return -J * p[None, :]  # d sim / d ln theta = -(d r/d p) * p
 
 
 def fisher_information(S: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
@@ -40,7 +41,7 @@ def fisher_information(S: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None
     S : (n, P) sensitivities; sigma : (n,) standard deviations; mask : (n,) bool, False for
     missing samples (excluded).
     """
-    w = 1.0 / sigma ** 2
+    w = 1.0 / sigma**2
     if mask is not None:
         w = np.where(mask, w, 0.0)
     return S.T @ (S * w[:, None])
@@ -51,7 +52,7 @@ class Direction:
     """One eigen-direction of the Fisher information (relative coordinates)."""
 
     eigenvalue: float
-    vector: np.ndarray   # (P,), unit length, sign fixed so the largest component is positive
+    vector: np.ndarray  # (P,), unit length, sign fixed so the largest component is positive
     names: list
 
     def __post_init__(self):
@@ -129,7 +130,7 @@ def relative_influence(S: np.ndarray, sigma: np.ndarray | None = None) -> np.nda
     change of the (noise-scaled) track per unit relative change of coefficient j -- the paper's
     point (3), "some coefficients have a very small effect"."""
     Z = S if sigma is None else S / sigma[:, None]
-    return np.sqrt(np.mean(Z ** 2, axis=0))
+    return np.sqrt(np.mean(Z**2, axis=0))
 
 
 #: Rigid-body parts of each horizontal-plane equation row, keyed like terms: (factors, accel).
@@ -137,11 +138,11 @@ def relative_influence(S: np.ndarray, sigma: np.ndarray | None = None) -> np.nda
 #: transformation moves them into the target row's free coefficients of the same key.
 def _rigid_body_row(vehicle, row: str) -> dict:
     m, xg = vehicle.mass, vehicle.rG[0]
-    if row == "X":   # (m - X'udot) u_dot = m (v r + xG r^2) + ...
+    if row == "X":  # (m - X'udot) u_dot = m (v r + xG r^2) + ...
         return {((), 0): m, (("v", "r"), -1): m, (("r", "r"), -1): m * xg}
-    if row == "Y":   # (m - Y'vdot) v_dot + (m xG - Y'rdot) r_dot = -m u r + ...
+    if row == "Y":  # (m - Y'vdot) v_dot + (m xG - Y'rdot) r_dot = -m u r + ...
         return {((), 1): m, ((), 5): m * xg, (("u", "r"), -1): -m}
-    if row == "N":   # (m xG - N'vdot) v_dot + (Iz - N'rdot) r_dot = -m xG u r + ...
+    if row == "N":  # (m xG - N'vdot) v_dot + (Iz - N'rdot) r_dot = -m xG u r + ...
         return {((), 1): m * xg, ((), 5): vehicle.inertia[2, 2], (("u", "r"), -1): -m * xg}
     raise ValueError(f"row must be X, Y or N, not {row!r}")
 
@@ -180,8 +181,8 @@ def row_transform_direction(names, vehicle, target: str, source: str) -> np.ndar
         twin = twins.get(key)
         if twin is None or twin.name not in d:
             return None
-        sign = -1.0 if twin.kind == "added_mass" else 1.0   # M = M_RB - 0.5 rho L^k C'
-        d[twin.name] += sign * val / (half * vehicle.L ** twin.L_power)
+        sign = -1.0 if twin.kind == "added_mass" else 1.0  # M = M_RB - 0.5 rho L^k C'
+        d[twin.name] += sign * val / (half * vehicle.L**twin.L_power)
     v = np.array([d[n] / theta[n] for n in names])
     nrm = np.linalg.norm(v)
     return v / nrm if nrm > 0 else None
@@ -199,7 +200,9 @@ def structural_null_space(names, vehicle) -> tuple[np.ndarray, list[str]]:
             v = row_transform_direction(names, vehicle, tgt, src)
             if v is not None:
                 vecs.append(v)
-                causes.append(f"scale the {tgt} equation" if tgt == src else f"add the {src} equation to the {tgt} equation")
+                causes.append(
+                    f"scale the {tgt} equation" if tgt == src else f"add the {src} equation to the {tgt} equation"
+                )
     if not vecs:
         return np.zeros((len(names), 0)), []
     Q, R = np.linalg.qr(np.array(vecs).T)
@@ -217,6 +220,16 @@ def principal_angles_deg(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(s))
 
 
-__all__ = ["relative_sensitivity", "fisher_information", "Direction", "eigen_directions",
-           "condition_number", "collinearity_index", "collinearity_table", "relative_influence",
-           "row_transform_direction", "structural_null_space", "principal_angles_deg"]
+__all__ = [
+    "relative_sensitivity",
+    "fisher_information",
+    "Direction",
+    "eigen_directions",
+    "condition_number",
+    "collinearity_index",
+    "collinearity_table",
+    "relative_influence",
+    "row_transform_direction",
+    "structural_null_space",
+    "principal_angles_deg",
+]

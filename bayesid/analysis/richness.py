@@ -18,6 +18,7 @@ Design criteria follow Goodwin & Payne (1977, *Dynamic System Identification*, C
 Pukelsheim (1993, *Optimal Design of Experiments*): D-optimal maximises ``log det``; the
 direction criterion is c-optimality (Pukelsheim Sec. 2.10) on the chosen combination.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from . import identifiability
 from ..models import manoeuvres as mv
+from . import identifiability
 
 
 def fisher_metrics(problem, theta, sigmas: dict) -> dict:
@@ -57,10 +58,15 @@ def fisher_metrics(problem, theta, sigmas: dict) -> dict:
     sign, logdet = np.linalg.slogdet(F)
     ok = sign > 0 and lam[0] > lam[-1] * 1e-15
     crsd = np.sqrt(np.diag(np.linalg.inv(F))) if ok else np.full(len(problem.names), np.inf)
-    return dict(F=F, S=S, logdet_fim=float(logdet) if ok else -math.inf, min_eigenvalue=float(lam[0]),
-                condition_number=identifiability.condition_number(F),
-                max_collinearity_index=identifiability.collinearity_index(S, range(S.shape[1])),
-                cramer_rao_sd=dict(zip(problem.names, crsd.tolist())))
+    return dict(
+        F=F,
+        S=S,
+        logdet_fim=float(logdet) if ok else -math.inf,
+        min_eigenvalue=float(lam[0]),
+        condition_number=identifiability.condition_number(F),
+        max_collinearity_index=identifiability.collinearity_index(S, range(S.shape[1])),
+        cramer_rao_sd=dict(zip(problem.names, crsd.tolist())),
+    )
 
 
 def direction_sd(F: np.ndarray, w: np.ndarray, prior_precision: np.ndarray | None = None) -> float:
@@ -84,20 +90,31 @@ def direction_sd(F: np.ndarray, w: np.ndarray, prior_precision: np.ndarray | Non
 class Design:
     """Outcome of :func:`design_multisine`."""
 
-    manoeuvre: object            # the designed Manoeuvre
+    manoeuvre: object  # the designed Manoeuvre
     criterion: str
-    value: float                 # criterion at the design (log det, or predicted sd along w)
-    start_value: float           # criterion at the equal-weight Schroeder multisine
+    value: float  # criterion at the design (log det, or predicted sd along w)
+    start_value: float  # criterion at the equal-weight Schroeder multisine
     weights: np.ndarray
     phases: np.ndarray
     n_evaluations: int
 
 
-def design_multisine(vehicle, make_problem, theta, sigmas: dict, criterion: str = "D",
-                     direction: np.ndarray | None = None, prior_precision=None,
-                     frequencies_hz=(0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2),
-                     amplitude_deg: float = 20.0, duration: float = 600.0, dt: float = 0.5,
-                     rng: np.random.Generator | None = None, maxiter: int = 20, popsize: int = 6) -> Design:
+def design_multisine(
+    vehicle,
+    make_problem,
+    theta,
+    sigmas: dict,
+    criterion: str = "D",
+    direction: np.ndarray | None = None,
+    prior_precision=None,
+    frequencies_hz=(0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2),
+    amplitude_deg: float = 20.0,
+    duration: float = 600.0,
+    dt: float = 0.5,
+    rng: np.random.Generator | None = None,
+    maxiter: int = 20,
+    popsize: int = 6,
+) -> Design:
     """Search multisine rudder inputs (relative amplitude and phase per frequency) for the best
     Fisher information within the rudder limit and a duration budget.
 
@@ -133,8 +150,16 @@ def design_multisine(vehicle, make_problem, theta, sigmas: dict, criterion: str 
 
     def build(x):
         w, ph = x[:K], x[K:]
-        return mv.multisine(vehicle, amplitude_deg=amplitude_deg, frequencies_hz=f, phases_rad=ph,
-                            duration=duration, dt=dt, weights=np.maximum(w, 1e-3), name="designed")
+        return mv.multisine(
+            vehicle,
+            amplitude_deg=amplitude_deg,
+            frequencies_hz=f,
+            phases_rad=ph,
+            duration=duration,
+            dt=dt,
+            weights=np.maximum(w, 1e-3),
+            name="designed",
+        )
 
     def score(x):
         count[0] += 1
@@ -146,12 +171,28 @@ def design_multisine(vehicle, make_problem, theta, sigmas: dict, criterion: str 
     x0 = np.concatenate([np.ones(K), mv.schroeder_phases(K) % (2 * math.pi)])
     start = score(x0)
     bounds = [(0.0, 1.0)] * K + [(0.0, 2 * math.pi)] * K
-    res = optimize.differential_evolution(score, bounds, x0=x0, maxiter=maxiter, popsize=popsize, tol=1e-6,
-                                          seed=int(rng.integers(2**31)), polish=False, init="sobol")
+    res = optimize.differential_evolution(
+        score,
+        bounds,
+        x0=x0,
+        maxiter=maxiter,
+        popsize=popsize,
+        tol=1e-6,
+        seed=int(rng.integers(2**31)),
+        polish=False,
+        init="sobol",
+    )
     best = res.x if res.fun < start else x0
     sign = -1.0 if criterion == "D" else 1.0
-    return Design(build(best), criterion, sign * float(min(res.fun, start)), sign * float(start),
-                  np.maximum(best[:K], 1e-3), best[K:], count[0])
+    return Design(
+        build(best),
+        criterion,
+        sign * float(min(res.fun, start)),
+        sign * float(start),
+        np.maximum(best[:K], 1e-3),
+        best[K:],
+        count[0],
+    )
 
 
 __all__ = ["fisher_metrics", "direction_sd", "Design", "design_multisine"]

@@ -24,6 +24,7 @@ STLSQ); U. Fasel, J. N. Kutz, B. W. Brunton, S. L. Brunton (2022), Ensemble-SIND
 Hydrodynamics and Motion Control, Wiley, Ch. 3 (rigid-body kinetics, M_RB and C_RB); A. Savitzky &
 M. J. E. Golay (1964), Anal. Chem. 36(8):1627-1639 (smoothing differentiator).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -34,12 +35,22 @@ import pysindy as ps
 from threadpoolctl import threadpool_limits
 
 from ..data import terms
-from ..models import dynamics
-from ..models.inverse import (ADDED_MASS, EQUATIONS, estimate_motion, force_targets, held_inputs, horizontal_terms,
-                              inputs_array, known_values, library_columns, motion_arrays, motion_filter,
-                              track_inputs)
 from ..data.track import Track
-
+from ..models import dynamics
+from ..models.inverse import (
+    ADDED_MASS,
+    EQUATIONS,
+    estimate_motion,
+    force_targets,
+    held_inputs,
+    horizontal_terms,
+    inputs_array,
+    known_values,
+    library_columns,
+    motion_arrays,
+    motion_filter,
+    track_inputs,
+)
 
 # Extras: terms the term library does not have, as (equation, factor function, power of L).
 # The factor function takes a dict with u, v, r, dr, dr_dot (smoothed) and U0 (nominal speed) and
@@ -55,17 +66,20 @@ _EXTRA_DEFS = {
     "Xdr": ("X", lambda s: s["u"] ** 2 * s["dr"], 2),
 }
 for _g, _m in (("Y", 0), ("N", 1)):
-    _EXTRA_DEFS.update({
-        f"{_g}0": (_g, lambda s: np.full_like(s["u"], s["U0"] ** 2), 2 + _m),
-        f"{_g}vvv": (_g, lambda s: s["v"] ** 3 / s["ug"], 2 + _m),
-        f"{_g}rrr": (_g, lambda s: s["r"] ** 3 / s["ug"], 5 + _m),
-        f"{_g}vvr": (_g, lambda s: s["v"] ** 2 * s["r"] / s["ug"], 3 + _m),
-        f"{_g}vrr": (_g, lambda s: s["v"] * s["r"] ** 2 / s["ug"], 4 + _m),
-        f"{_g}drdrdr": (_g, lambda s: s["u"] ** 2 * s["dr"] ** 3, 2 + _m),
-        f"{_g}drdot": (_g, lambda s: s["u"] * s["dr_dot"], 3 + _m),  # rudder rate, rad/s
-    })
+    _EXTRA_DEFS.update(
+        {
+            f"{_g}0": (_g, lambda s: np.full_like(s["u"], s["U0"] ** 2), 2 + _m),
+            f"{_g}vvv": (_g, lambda s: s["v"] ** 3 / s["ug"], 2 + _m),
+            f"{_g}rrr": (_g, lambda s: s["r"] ** 3 / s["ug"], 5 + _m),
+            f"{_g}vvr": (_g, lambda s: s["v"] ** 2 * s["r"] / s["ug"], 3 + _m),
+            f"{_g}vrr": (_g, lambda s: s["v"] * s["r"] ** 2 / s["ug"], 4 + _m),
+            f"{_g}drdrdr": (_g, lambda s: s["u"] ** 2 * s["dr"] ** 3, 2 + _m),
+            f"{_g}drdot": (_g, lambda s: s["u"] * s["dr_dot"], 3 + _m),  # rudder rate, rad/s
+        }
+    )
 EXTRAS: tuple[str, ...] = tuple(_EXTRA_DEFS)
 """Names of the extra candidates (never in a vehicle model: their true value is 0)."""
+
 
 def equation_of(name: str) -> str:
     """Equation (``"X"``, ``"Y"``, ``"N"``) of a candidate name (library term or extra).
@@ -79,17 +93,19 @@ def equation_of(name: str) -> str:
         return _EXTRA_DEFS[name][0]
     if name in terms.INDEX and terms.term(name).horizontal:
         return terms.term(name).group
-    raise ValueError(f"{name!r} is not a horizontal-plane candidate term "
-                     f"(library terms: {[n for g in EQUATIONS for n in horizontal_terms(g)]}; "
-                     f"extras: {list(EXTRAS)})")
+    raise ValueError(
+        f"{name!r} is not a horizontal-plane candidate term "
+        f"(library terms: {[n for g in EQUATIONS for n in horizontal_terms(g)]}; "
+        f"extras: {list(EXTRAS)})"
+    )
 
 
 # ---------------------------------------------------------------------------------------------
 # 3. Candidate library
 # ---------------------------------------------------------------------------------------------
 
-def candidate_library(motion: dict, inputs, vehicle, extras: bool = True,
-                      exclude=()) -> tuple[np.ndarray, list[str]]:
+
+def candidate_library(motion: dict, inputs, vehicle, extras: bool = True, exclude=()) -> tuple[np.ndarray, list[str]]:
     """Candidate columns of the three horizontal equations.
 
     Column ``j`` is the factor product of term ``j`` times ``multiplicity*0.5*rho*L**k`` (the
@@ -138,12 +154,18 @@ def candidate_library(motion: dict, inputs, vehicle, extras: bool = True,
     held = held_inputs(inputs_array(inputs, u.size), motion.get("input_hold", "sample"))
     dr_dot = motion.get("dr_dot")
     if dr_dot is None or not np.all(np.isfinite(dr_dot)):
-        raise ValueError("motion has no finite 'dr_dot' (rudder rate) for the drdot extras: "
-                         "the track needs a delta_r column (estimate_motion smooths and "
-                         "differentiates it), or pass extras=False")
+        raise ValueError(
+            "motion has no finite 'dr_dot' (rudder rate) for the drdot extras: "
+            "the track needs a delta_r column (estimate_motion smooths and "
+            "differentiates it), or pass extras=False"
+        )
     ug = np.where(np.abs(u) > dynamics.U_MIN_EPS, u, np.copysign(dynamics.U_MIN_EPS, u))
-    ss = [dict(u=u, v=v, r=r, ug=ug, dr=inp[:, 0], dr_dot=np.asarray(dr_dot, dtype=float),
-               U0=float(vehicle.nominal_speed)) for inp in held]
+    ss = [
+        dict(
+            u=u, v=v, r=r, ug=ug, dr=inp[:, 0], dr_dot=np.asarray(dr_dot, dtype=float), U0=float(vehicle.nominal_speed)
+        )
+        for inp in held
+    ]
     names, cols = [], []
     for g in EQUATIONS:
         for k in names_lib:
@@ -152,7 +174,7 @@ def candidate_library(motion: dict, inputs, vehicle, extras: bool = True,
                 cols.append(Theta_lib[:, names_lib.index(k)])
         for k, (eq, fn, Lk) in _EXTRA_DEFS.items():
             if eq == g and k not in exclude:
-                col = 0.5 * vehicle.rho * vehicle.L ** Lk * sum(fn(s) for s in ss) / len(ss)
+                col = 0.5 * vehicle.rho * vehicle.L**Lk * sum(fn(s) for s in ss) / len(ss)
                 if k[1:] in ("dr", "drdrdr"):  # raw rudder: smooth like the motion
                     col = motion_filter(col, motion)
                 names.append(k)
@@ -163,6 +185,7 @@ def candidate_library(motion: dict, inputs, vehicle, extras: bool = True,
 # ---------------------------------------------------------------------------------------------
 # 4. Ensemble SINDy
 # ---------------------------------------------------------------------------------------------
+
 
 @contextlib.contextmanager
 def legacy_seed(rng: np.random.Generator):
@@ -177,8 +200,9 @@ def legacy_seed(rng: np.random.Generator):
         np.random.set_state(saved)
 
 
-def ensemble_stlsq(Xn: np.ndarray, yn: np.ndarray, rng: np.random.Generator, threshold: float,
-                   alpha: float = 0.0, n_models: int = 100) -> np.ndarray:
+def ensemble_stlsq(
+    Xn: np.ndarray, yn: np.ndarray, rng: np.random.Generator, threshold: float, alpha: float = 0.0, n_models: int = 100
+) -> np.ndarray:
     """Ensemble sequentially thresholded least squares: pysindy ``STLSQ`` (Brunton, Proctor &
     Kutz 2016, PNAS 113(15); ``unbias``, 20 iterations, ridge ``alpha``) inside pysindy's
     ``EnsembleOptimizer`` with bagging (Fasel, Kutz, Brunton & Brunton 2022, Proc. R. Soc. A
@@ -208,11 +232,19 @@ def _collinearity(Xn: np.ndarray) -> tuple[float, np.ndarray]:
     return cond, vif
 
 
-def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshold: float = 0.05,
-                            rng: np.random.Generator | None = None, extras: bool = True,
-                            window_s: float | None = None, polyorder: int = 3,
-                            known=ADDED_MASS, ridge: float = 0.0,
-                            trim_s: float | None = None) -> dict:
+def inclusion_probabilities(
+    track: Track,
+    vehicle,
+    n_models: int = 100,
+    threshold: float = 0.05,
+    rng: np.random.Generator | None = None,
+    extras: bool = True,
+    window_s: float | None = None,
+    polyorder: int = 3,
+    known=ADDED_MASS,
+    ridge: float = 0.0,
+    trim_s: float | None = None,
+) -> dict:
     """Ensemble-SINDy inclusion probability of every horizontal candidate term.
 
     Per equation (X, Y, N) the candidates are that equation's library force terms and extras
@@ -288,8 +320,7 @@ def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshol
         :func:`estimate_motion`, :func:`force_targets`.
     """
     if not isinstance(rng, np.random.Generator):
-        raise TypeError("inclusion_probabilities: rng must be a numpy.random.Generator "
-                        "(all randomness comes from it)")
+        raise TypeError("inclusion_probabilities: rng must be a numpy.random.Generator (all randomness comes from it)")
     if int(n_models) < 1:
         raise ValueError(f"n_models must be >= 1, got {n_models}")
     if not threshold >= 0:
@@ -301,18 +332,19 @@ def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshol
     kv = known_values(known, vehicle)
     missing = [k for k in ADDED_MASS if k not in kv]
     if missing:
-        raise ValueError(f"known must include the added-mass terms {list(ADDED_MASS)} "
-                         f"(missing {missing}): with accelerations among the candidates the "
-                         "equations of motion are linear dependencies of the library and the "
-                         "regression is degenerate (see force_targets)")
+        raise ValueError(
+            f"known must include the added-mass terms {list(ADDED_MASS)} "
+            f"(missing {missing}): with accelerations among the candidates the "
+            "equations of motion are linear dependencies of the library and the "
+            "regression is degenerate (see force_targets)"
+        )
     F = force_targets(motion, vehicle, inputs, known=kv)
     Theta, names = candidate_library(motion, inputs, vehicle, extras=extras, exclude=list(kv))
     trim = motion["window_s"] / 2 if trim_s is None else float(trim_s)
     t = motion["t"]
     keep = (t >= t[0] + trim - 1e-9) & (t <= t[-1] - trim + 1e-9)
     if keep.sum() < 10:
-        raise ValueError(f"track {track.name!r}: only {keep.sum()} samples left after trimming "
-                         f"{trim:g} s at each end")
+        raise ValueError(f"track {track.name!r}: only {keep.sum()} samples left after trimming {trim:g} s at each end")
     Theta, F = Theta[keep], F[keep]
     n = Theta.shape[0]
     U0 = float(vehicle.nominal_speed)
@@ -322,9 +354,9 @@ def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshol
         X = Theta[:, [names.index(k) for k in cand]]
         y = F[:, e]
         # "identically zero" is judged against the force scale 0.5 rho L^2 U0^2 (times L for N)
-        fscale = 0.5 * vehicle.rho * vehicle.L ** (2 + (g == "N")) * U0 ** 2
-        rms_y = float(np.sqrt(np.mean(y ** 2)))
-        rms_x = np.sqrt(np.mean(X ** 2, axis=0))
+        fscale = 0.5 * vehicle.rho * vehicle.L ** (2 + (g == "N")) * U0**2
+        rms_y = float(np.sqrt(np.mean(y**2)))
+        rms_x = np.sqrt(np.mean(X**2, axis=0))
         live = rms_x > 1e-12 * fscale
         prob = np.zeros(len(cand))
         coef = np.zeros(len(cand))
@@ -349,19 +381,26 @@ def inclusion_probabilities(track: Track, vehicle, n_models: int = 100, threshol
         ss = float(np.sum((y - y.mean()) ** 2))
         out[g] = {k: float(p) for k, p in zip(cand, prob)}
         out["coefficients"][g] = {k: float(c) for k, c in zip(cand, coef)}
-        out["r2"][g] = float(1.0 - np.sum(resid ** 2) / ss) if ss > 0 else float("nan")
+        out["r2"][g] = float(1.0 - np.sum(resid**2) / ss) if ss > 0 else float("nan")
         out["condition"][g] = cond
         out["vif"][g] = {k: float(v) for k, v in zip(cand, vif)}
-    out.update(threshold=float(threshold), n_models=int(n_models), n_samples=int(n),
-               window_s=float(motion["window_s"]), source=motion["source"], known=kv,
-               normalisation="columns and target divided by their RMS over the record; "
-                             "threshold on |C' rms(column) / rms(target)|")
+    out.update(
+        threshold=float(threshold),
+        n_models=int(n_models),
+        n_samples=int(n),
+        window_s=float(motion["window_s"]),
+        source=motion["source"],
+        known=kv,
+        normalisation="columns and target divided by their RMS over the record; "
+        "threshold on |C' rms(column) / rms(target)|",
+    )
     return out
 
 
 # ---------------------------------------------------------------------------------------------
 # 5. Comparison with a model
 # ---------------------------------------------------------------------------------------------
+
 
 def compare_with_model(inclusion: dict, vehicle, level: float = 0.5) -> dict:
     """Included terms (inclusion probability >= ``level``) against a vehicle model's terms.
@@ -390,11 +429,9 @@ def compare_with_model(inclusion: dict, vehicle, level: float = 0.5) -> dict:
     out = {}
     for g in EQUATIONS:
         if g not in inclusion:
-            raise ValueError(f"inclusion has no equation {g!r} (expected the output of "
-                             "inclusion_probabilities)")
+            raise ValueError(f"inclusion has no equation {g!r} (expected the output of inclusion_probabilities)")
         probs = inclusion[g]
-        in_model = [k for k in probs
-                    if k not in _EXTRA_DEFS and vehicle.coefficients.get(k, 0.0) != 0.0]
+        in_model = [k for k in probs if k not in _EXTRA_DEFS and vehicle.coefficients.get(k, 0.0) != 0.0]
         included = [k for k, p in probs.items() if p >= level]
         out[g] = {
             "in_model": in_model,
@@ -406,6 +443,15 @@ def compare_with_model(inclusion: dict, vehicle, level: float = 0.5) -> dict:
     return out
 
 
-__all__ = ["EQUATIONS", "ADDED_MASS", "EXTRAS", "horizontal_terms", "equation_of",
-           "estimate_motion",
-           "force_targets", "candidate_library", "inclusion_probabilities", "compare_with_model"]
+__all__ = [
+    "EQUATIONS",
+    "ADDED_MASS",
+    "EXTRAS",
+    "horizontal_terms",
+    "equation_of",
+    "estimate_motion",
+    "force_targets",
+    "candidate_library",
+    "inclusion_probabilities",
+    "compare_with_model",
+]

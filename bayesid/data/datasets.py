@@ -43,6 +43,7 @@ Conventions that hold for every loader:
 Malformed files raise :class:`DatasetFormatError` naming the file, the row
 (1-based line number in the file) and the column.
 """
+
 from __future__ import annotations
 
 import csv
@@ -57,8 +58,13 @@ from .track import Track, TrackFormatError
 from .track import format_error as _track_fail
 
 __all__ = [
-    "FORMATS", "DatasetFormatError", "read_esso_osaka", "read_simman_hsva", "read_simman_marin",
-    "read_run", "list_runs",
+    "FORMATS",
+    "DatasetFormatError",
+    "read_esso_osaka",
+    "read_simman_hsva",
+    "read_simman_marin",
+    "read_run",
+    "list_runs",
 ]
 
 FORMATS = ("esso-osaka", "simman-hsva", "simman-marin")
@@ -131,14 +137,12 @@ def _parse_rows(path, rows, names, row_of):
             for c, name in zip(cells, names):
                 text = c.strip()
                 if text and not _NUMBER.fullmatch(text):
-                    raise _fail(path, f"non-numeric value {text!r}", row=row_of[i],
-                                column=name) from None
-            raise AssertionError("unreachable")  # pragma: no cover
+                    raise _fail(path, f"non-numeric value {text!r}", row=row_of[i], column=name) from None
+            raise AssertionError("unreachable") from None  # pragma: no cover
     bad = np.argwhere(np.isinf(out))
     if bad.size:
         i, j = bad[0]
-        raise _fail(path, f"value {rows[i][j].strip()!r} overflows float64",
-                    row=row_of[i], column=names[j])
+        raise _fail(path, f"value {rows[i][j].strip()!r} overflows float64", row=row_of[i], column=names[j])
     return out
 
 
@@ -151,14 +155,17 @@ def _clean_time(path, t, row_of, t_column, notes):
     dec = np.flatnonzero(dt < 0)
     if dec.size:
         i = int(dec[0]) + 1
-        raise _fail(path, f"time decreases ({t[i]!r} after {t[i - 1]!r} at row "
-                    f"{row_of[i - 1]})", row=row_of[i], column=t_column)
+        raise _fail(
+            path, f"time decreases ({t[i]!r} after {t[i - 1]!r} at row {row_of[i - 1]})", row=row_of[i], column=t_column
+        )
     rep = np.flatnonzero(dt == 0) + 1
     keep = np.ones(t.shape, bool)
     if rep.size:
         keep[rep] = False
-        notes.append(f"dropped {rep.size} row(s) repeating the previous time stamp "
-                     f"(first at line {row_of[rep[0]]}; the first of each repeat is kept)")
+        notes.append(
+            f"dropped {rep.size} row(s) repeating the previous time stamp "
+            f"(first at line {row_of[rep[0]]}; the first of each repeat is kept)"
+        )
     return keep
 
 
@@ -178,9 +185,13 @@ def _sample_rate(t):
 
 def _empty_rows_note(dropped, notes):
     if dropped:
-        span = f"line {dropped[0]}" if len(dropped) == 1 else \
-            f"lines {dropped[0]}-{dropped[-1]}" if dropped[-1] - dropped[0] == len(dropped) - 1 \
+        span = (
+            f"line {dropped[0]}"
+            if len(dropped) == 1
+            else f"lines {dropped[0]}-{dropped[-1]}"
+            if dropped[-1] - dropped[0] == len(dropped) - 1
             else f"first at line {dropped[0]}"
+        )
         notes.append(f"dropped {len(dropped)} empty row(s) ({span})")
 
 
@@ -188,7 +199,8 @@ def _whitespace_table(path, lines, head: int, fields, header_name: str):
     """Whitespace-separated numeric rows after ``head`` header lines -> (array (n, len(fields)),
     line numbers, notes). Empty rows dropped (noted); errors name file, row and column."""
     rows, row_of, dropped = _collect_rows(
-        path, ((k, line.split()) for k, line in enumerate(lines[head:], start=head + 1)), len(fields), "expected")
+        path, ((k, line.split()) for k, line in enumerate(lines[head:], start=head + 1)), len(fields), "expected"
+    )
     if not rows:
         raise _fail(path, f"no data rows after the {header_name}", row=head + 1)
     a = _parse_rows(path, rows, fields, row_of)
@@ -212,12 +224,15 @@ def _build(path, fmt, t, data, units, vessel, reference, conversions, notes, man
         "reference": reference,
     }
     meta["comments"] = (
-        [f"source: {os.fspath(path)} (format {fmt}, read by bayesid.data.datasets)",
-         f"vessel: {vessel}",
-         f"reference: {reference}",
-         f"sample rate: {rate:g} Hz" if rate else "sample rate: n/a (one sample)"]
+        [
+            f"source: {os.fspath(path)} (format {fmt}, read by bayesid.data.datasets)",
+            f"vessel: {vessel}",
+            f"reference: {reference}",
+            f"sample rate: {rate:g} Hz" if rate else "sample rate: n/a (one sample)",
+        ]
         + [f"conversion: {c}" for c in conversions]
-        + [f"note: {n}" for n in notes])
+        + [f"note: {n}" for n in notes]
+    )
     if manoeuvre is not None:  # the file's title line, where its format has one
         meta["manoeuvre"] = manoeuvre
         if manoeuvre:
@@ -231,10 +246,12 @@ def _build(path, fmt, t, data, units, vessel, reference, conversions, notes, man
 # --------------------------------------------------------------------------- Esso Osaka
 
 _ESSO_VESSEL = "Esso Osaka 3 m model (VLCC; Osaka University, Inukai pond, free running)"
-_ESSO_REFERENCE = ("shared/data/real/esso-osaka-frt/README.md; GitHub NAOE-5thLab/FRT-DS-ESSO; "
-                   "Wakita et al. (2022) JMST 27:772, doi:10.1007/s00773-021-00867-1; "
-                   "Miyauchi et al. (2022) JMST 27:1065, doi:10.1007/s00773-022-00889-3; "
-                   "licence CC BY-NC(-SA) 4.0 (non-commercial)")
+_ESSO_REFERENCE = (
+    "shared/data/real/esso-osaka-frt/README.md; GitHub NAOE-5thLab/FRT-DS-ESSO; "
+    "Wakita et al. (2022) JMST 27:772, doi:10.1007/s00773-021-00867-1; "
+    "Miyauchi et al. (2022) JMST 27:1065, doi:10.1007/s00773-022-00889-3; "
+    "licence CC BY-NC(-SA) 4.0 (non-commercial)"
+)
 # file column base name -> (unit in the header, required)
 _ESSO_COLUMNS = {
     "t": ("s", True),
@@ -264,13 +281,13 @@ def _esso_header(path, cells, row):
         if base in index:
             raise _fail(path, "duplicate column", row=row, column=text)
         if base in _ESSO_COLUMNS and unit is not None and unit.strip() != _ESSO_COLUMNS[base][0]:
-            raise _fail(path, f"unit {unit.strip()!r}, expected {_ESSO_COLUMNS[base][0]!r}",
-                        row=row, column=text)
+            raise _fail(path, f"unit {unit.strip()!r}, expected {_ESSO_COLUMNS[base][0]!r}", row=row, column=text)
         index[base] = j
     for base, (unit, required) in _ESSO_COLUMNS.items():
         if required and base not in index:
-            raise _fail(path, f"missing column (header has {[c.strip() for c in cells]})",
-                        row=row, column=f"{base} [{unit}]")
+            raise _fail(
+                path, f"missing column (header has {[c.strip() for c in cells]})", row=row, column=f"{base} [{unit}]"
+            )
     return index
 
 
@@ -351,8 +368,9 @@ def read_esso_osaka(path) -> Track:
     header = next(csv.reader([lines[first]]))
     index = _esso_header(path, header, first + 1)
     names = [c.strip() for c in header]
-    rows, row_of, dropped = _collect_rows(path, enumerate(csv.reader(lines[first + 1:]), start=first + 2),
-                                          len(names), "header has")
+    rows, row_of, dropped = _collect_rows(
+        path, enumerate(csv.reader(lines[first + 1 :]), start=first + 2), len(names), "header has"
+    )
     if not rows:
         raise _fail(path, "no data rows after the header", row=first + 2)
     a = _parse_rows(path, rows, names, row_of)
@@ -364,9 +382,14 @@ def read_esso_osaka(path) -> Track:
 
     psi = _unwrap(col["psi_hat"])
     data = {
-        "x": col["x_position_mid"], "y": col["y_position_mid"], "psi": psi,
-        "u": col["u_velo"], "v": col["vm_velo"], "r": col["r_angvelo"],
-        "delta_r": 0.0 - col["delta_rudder"], "n": 60.0 * col["n_prop"],
+        "x": col["x_position_mid"],
+        "y": col["y_position_mid"],
+        "psi": psi,
+        "u": col["u_velo"],
+        "v": col["vm_velo"],
+        "r": col["r_angvelo"],
+        "delta_r": 0.0 - col["delta_rudder"],
+        "n": 60.0 * col["n_prop"],
     }
     conversions += [
         "x, y = x_position_mid, y_position_mid (midship, pond frame O0-x0y0; x0 is not north)",
@@ -381,39 +404,55 @@ def read_esso_osaka(path) -> Track:
     if has_true:
         data["wind_speed"] = col["wind_velo_true"]
         data["wind_dir"] = np.mod(col["wind_dir_true"], _TWO_PI)
-        conversions.append("wind_speed, wind_dir = wind_velo_true, wind_dir_true "
-                           "(from-direction, earth frame, clockwise from x0)")
+        conversions.append(
+            "wind_speed, wind_dir = wind_velo_true, wind_dir_true (from-direction, earth frame, clockwise from x0)"
+        )
     elif has_app:
         data["wind_speed"], data["wind_dir"] = _true_wind_from_apparent(
-            col["wind_velo_relative_mid"], col["wind_dir_relative_mid"],
-            col["u_velo"], col["vm_velo"], col["psi_hat"])
-        conversions.append("wind_speed, wind_dir computed from the apparent wind and the ship's "
-                           "velocity: w_true = -U_A (cos(g_A+psi), sin(g_A+psi)) + "
-                           "(u cos psi - v sin psi, u sin psi + v cos psi)")
+            col["wind_velo_relative_mid"], col["wind_dir_relative_mid"], col["u_velo"], col["vm_velo"], col["psi_hat"]
+        )
+        conversions.append(
+            "wind_speed, wind_dir computed from the apparent wind and the ship's "
+            "velocity: w_true = -U_A (cos(g_A+psi), sin(g_A+psi)) + "
+            "(u cos psi - v sin psi, u sin psi + v cos psi)"
+        )
     else:
         notes.append("no wind columns in the file")
     if has_app:
         data["wind_speed_apparent"] = col["wind_velo_relative_mid"]
         data["wind_dir_apparent"] = col["wind_dir_relative_mid"]
         units.update(wind_speed_apparent="m/s", wind_dir_apparent="rad")
-        conversions.append("wind_speed_apparent, wind_dir_apparent = wind_velo_relative_mid, "
-                           "wind_dir_relative_mid (from-direction, clockwise from the bow)")
-    return _build(path, "esso-osaka", a[:, index["t"]], data, units, _ESSO_VESSEL,
-                  _ESSO_REFERENCE, conversions, notes)
+        conversions.append(
+            "wind_speed_apparent, wind_dir_apparent = wind_velo_relative_mid, "
+            "wind_dir_relative_mid (from-direction, clockwise from the bow)"
+        )
+    return _build(path, "esso-osaka", a[:, index["t"]], data, units, _ESSO_VESSEL, _ESSO_REFERENCE, conversions, notes)
 
 
 # --------------------------------------------------------------------------- SIMMAN HSVA
 
 _HSVA_VESSEL = "KVLCC2 7 m model (INSEAN 2487, scale 1:45.714; HSVA towing tank, CPMC, SIMMAN 2008)"
-_HSVA_REFERENCE = ("shared/data/real/kvlcc2-simman-hsva/README.md; SIMMAN 2008 (Stern & Agdrup, "
-                   "eds.), HSVA free-running tests; files from GitHub "
-                   "martinlarsalbert/System-identification-of-Vessel-Manoeuvring-Models; "
-                   "Alexandersson et al. (2022) Ocean Eng. 266:112940")
+_HSVA_REFERENCE = (
+    "shared/data/real/kvlcc2-simman-hsva/README.md; SIMMAN 2008 (Stern & Agdrup, "
+    "eds.), HSVA free-running tests; files from GitHub "
+    "martinlarsalbert/System-identification-of-Vessel-Manoeuvring-Models; "
+    "Alexandersson et al. (2022) Ocean Eng. 266:112940"
+)
 _HSVA_HEADER_LINES = 4
-_HSVA_FIELDS = ("col 0 (time, s)", "col 1 (x0, m)", "col 2 (y0, m)", "col 3 (psi, deg)",
-                "col 4 (dx0/dt, m/s)", "col 5 (unverified)", "col 6 (r, deg/s)",
-                "col 7 (unverified)", "col 8 (delta, deg)", "col 9 (n, rps)",
-                "col 10 (thrust, N)", "col 11 (torque, N m)")
+_HSVA_FIELDS = (
+    "col 0 (time, s)",
+    "col 1 (x0, m)",
+    "col 2 (y0, m)",
+    "col 3 (psi, deg)",
+    "col 4 (dx0/dt, m/s)",
+    "col 5 (unverified)",
+    "col 6 (r, deg/s)",
+    "col 7 (unverified)",
+    "col 8 (delta, deg)",
+    "col 9 (n, rps)",
+    "col 10 (thrust, N)",
+    "col 11 (torque, N m)",
+)
 """Column labels used in error messages; 0-based numbers as in the data set README."""
 
 
@@ -468,24 +507,34 @@ def read_simman_hsva(path) -> Track:
     """
     lines = _read_lines(path, "cp1252")
     if len(lines) <= _HSVA_HEADER_LINES:
-        raise _fail(path, f"too short: expected {_HSVA_HEADER_LINES} header lines and data "
-                    f"rows, found {len(lines)} line(s)")
+        raise _fail(
+            path, f"too short: expected {_HSVA_HEADER_LINES} header lines and data rows, found {len(lines)} line(s)"
+        )
     title = lines[2].strip() if len(lines) > 2 else ""
     if lines[0].strip().upper().startswith("MARIN"):
-        raise _fail(path, "is a MARIN file (first line names MARIN), not HSVA: read it with format "
-                    "'simman-marin' (read_simman_marin)", row=1)
+        raise _fail(
+            path,
+            "is a MARIN file (first line names MARIN), not HSVA: read it with format "
+            "'simman-marin' (read_simman_marin)",
+            row=1,
+        )
     a, row_of, notes = _whitespace_table(path, lines, _HSVA_HEADER_LINES, _HSVA_FIELDS, "header")
     keep = _clean_time(path, a[:, 0], row_of, _HSVA_FIELDS[0], notes)
     a = a[keep]
     data = {
-        "x": a[:, 1], "y": a[:, 2], "psi": _unwrap(np.radians(a[:, 3])),
+        "x": a[:, 1],
+        "y": a[:, 2],
+        "psi": _unwrap(np.radians(a[:, 3])),
         "r": np.radians(a[:, 6]),
-        "delta_r": np.radians(a[:, 8]), "n": 60.0 * a[:, 9],
-        "x_dot": a[:, 4], "thrust": a[:, 10], "torque": a[:, 11],
-        "hsva_col5": a[:, 5], "hsva_col7": a[:, 7],
+        "delta_r": np.radians(a[:, 8]),
+        "n": 60.0 * a[:, 9],
+        "x_dot": a[:, 4],
+        "thrust": a[:, 10],
+        "torque": a[:, 11],
+        "hsva_col5": a[:, 5],
+        "hsva_col7": a[:, 7],
     }
-    units = {"x_dot": "m/s", "thrust": "N", "torque": "N*m",
-             "hsva_col5": "unknown", "hsva_col7": "unknown"}
+    units = {"x_dot": "m/s", "thrust": "N", "torque": "N*m", "hsva_col5": "unknown", "hsva_col7": "unknown"}
     conversions = [
         "psi [rad] = unwrap(radians(col 3 [deg]))",
         "r [rad/s] = radians(col 6 [deg/s])",
@@ -495,8 +544,9 @@ def read_simman_hsva(path) -> Track:
         "hsva_col5, hsva_col7 = cols 5, 7 raw (meaning unverified)",
     ]
     notes.append("no u, v: only one earth-frame velocity component (dx0/dt) is in the file")
-    return _build(path, "simman-hsva", a[:, 0], data, units, _HSVA_VESSEL, _HSVA_REFERENCE,
-                  conversions, notes, manoeuvre=title)
+    return _build(
+        path, "simman-hsva", a[:, 0], data, units, _HSVA_VESSEL, _HSVA_REFERENCE, conversions, notes, manoeuvre=title
+    )
 
 
 # --------------------------------------------------------------------------- SIMMAN MARIN
@@ -504,15 +554,28 @@ def read_simman_hsva(path) -> Track:
 KVLCC2_SCALE = 320.0 / 7.0
 """Scale of the SIMMAN 2008 KVLCC2 models (full-scale Lpp 320 m over the 7.00 m models: 1:45.714)."""
 
-_MARIN_VESSEL = ("KVLCC2 (SIMMAN 2008, MARIN free-running model tests; the files are at full scale, "
-                 "Lpp 320 m; the model 1:45.7)")
-_MARIN_REFERENCE = ("shared/research/real-data-sources.md sec. 2.3; SIMMAN 2008 (Stern & Agdrup, eds.), "
-                    "MARIN free-running tests; files MARIN_FREE_KVLCC2_*_m.dat from GitHub "
-                    "martinlarsalbert/System-identification-of-Vessel-Manoeuvring-Models (data/01_raw/kvlcc2); "
-                    "Alexandersson et al. (2022) Ocean Eng. 266:112940")
-_MARIN_FIELDS = ("col 0 (time, s)", "col 1 (x0, m)", "col 2 (y0, m)", "col 3 (phi, deg)",
-                 "col 4 (psi, deg)", "col 5 (dx0/dt, m/s)", "col 6 (dy0/dt, m/s)", "col 7 (p, deg/s)",
-                 "col 8 (r, deg/s)", "col 9 (delta, deg)", "col 10 (n, rpm)")
+_MARIN_VESSEL = (
+    "KVLCC2 (SIMMAN 2008, MARIN free-running model tests; the files are at full scale, Lpp 320 m; the model 1:45.7)"
+)
+_MARIN_REFERENCE = (
+    "shared/research/real-data-sources.md sec. 2.3; SIMMAN 2008 (Stern & Agdrup, eds.), "
+    "MARIN free-running tests; files MARIN_FREE_KVLCC2_*_m.dat from GitHub "
+    "martinlarsalbert/System-identification-of-Vessel-Manoeuvring-Models (data/01_raw/kvlcc2); "
+    "Alexandersson et al. (2022) Ocean Eng. 266:112940"
+)
+_MARIN_FIELDS = (
+    "col 0 (time, s)",
+    "col 1 (x0, m)",
+    "col 2 (y0, m)",
+    "col 3 (phi, deg)",
+    "col 4 (psi, deg)",
+    "col 5 (dx0/dt, m/s)",
+    "col 6 (dy0/dt, m/s)",
+    "col 7 (p, deg/s)",
+    "col 8 (r, deg/s)",
+    "col 9 (delta, deg)",
+    "col 10 (n, rpm)",
+)
 _MARIN_MAX_HEADER = 5
 
 
@@ -527,8 +590,9 @@ def _marin_time(path, stamps, row_of):
     dec = np.flatnonzero(np.diff(stamps) < 0)
     if dec.size:
         i = int(dec[0]) + 1
-        raise _fail(path, f"time decreases ({stamps[i]!r} after {stamps[i - 1]!r})", row=row_of[i],
-                    column=_MARIN_FIELDS[0])
+        raise _fail(
+            path, f"time decreases ({stamps[i]!r} after {stamps[i - 1]!r})", row=row_of[i], column=_MARIN_FIELDS[0]
+        )
     k = np.arange(stamps.size, dtype=float)
     if stamps.size < 2:
         return stamps.copy(), None
@@ -540,8 +604,13 @@ def _marin_time(path, stamps, row_of):
     off = np.flatnonzero(np.abs(stamps - t) > tol)
     if off.size:
         i = int(off[0])
-        raise _fail(path, f"time stamp {stamps[i]:g} s is off the uniform grid ({t[i]:.4g} s at "
-                    f"step {dt:.5g} s): a gap or a time jump", row=row_of[i], column=_MARIN_FIELDS[0])
+        raise _fail(
+            path,
+            f"time stamp {stamps[i]:g} s is off the uniform grid ({t[i]:.4g} s at "
+            f"step {dt:.5g} s): a gap or a time jump",
+            row=row_of[i],
+            column=_MARIN_FIELDS[0],
+        )
     return t, dt
 
 
@@ -614,8 +683,9 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE, heading_tau_s: float | 
     """
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
         raise ValueError(f"scale must be a positive number (Froude scale lambda), got {scale!r}")
-    if heading_tau_s is not None and not (isinstance(heading_tau_s, (int, float))
-                                          and math.isfinite(heading_tau_s) and heading_tau_s > 0):
+    if heading_tau_s is not None and not (
+        isinstance(heading_tau_s, (int, float)) and math.isfinite(heading_tau_s) and heading_tau_s > 0
+    ):
         raise ValueError(f"heading_tau_s must be None or a positive number of seconds, got {heading_tau_s!r}")
     lines = _read_lines(path, "cp1252")
     head = 0
@@ -629,45 +699,68 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE, heading_tau_s: float | 
     t_full, dt = _marin_time(path, a[:, 0], row_of)
     sq = math.sqrt(scale)
     psi_file = _unwrap(np.radians(a[:, 4]))
-    psi = psi_file if heading_tau_s is None else _fuse_heading(psi_file, np.radians(a[:, 8]), t_full,
-                                                                 float(heading_tau_s))
+    psi = (
+        psi_file
+        if heading_tau_s is None
+        else _fuse_heading(psi_file, np.radians(a[:, 8]), t_full, float(heading_tau_s))
+    )
     xd, yd = a[:, 5] / sq, a[:, 6] / sq
     c, s = np.cos(psi), np.sin(psi)
     data = {
-        "x": a[:, 1] / scale, "y": a[:, 2] / scale, "phi": np.radians(a[:, 3]), "psi": psi,
-        "u": c * xd + s * yd, "v": -s * xd + c * yd,
-        "p": np.radians(a[:, 7]) * sq, "r": np.radians(a[:, 8]) * sq,
-        "delta_r": np.radians(a[:, 9]), "n": a[:, 10] * sq,
-        "x_dot": xd, "y_dot": yd,
+        "x": a[:, 1] / scale,
+        "y": a[:, 2] / scale,
+        "phi": np.radians(a[:, 3]),
+        "psi": psi,
+        "u": c * xd + s * yd,
+        "v": -s * xd + c * yd,
+        "p": np.radians(a[:, 7]) * sq,
+        "r": np.radians(a[:, 8]) * sq,
+        "delta_r": np.radians(a[:, 9]),
+        "n": a[:, 10] * sq,
+        "x_dot": xd,
+        "y_dot": yd,
     }
     units = {"x_dot": "m/s", "y_dot": "m/s"}
     if heading_tau_s is not None:
         data["psi_file"], units["psi_file"] = psi_file, "rad"
     conversions = [
         f"Froude scale lambda = {scale:g}: x, y / lambda; t, velocities / sqrt(lambda); p, r, n * sqrt(lambda)",
-        "t rebuilt as t0 + k dt (dt fitted to the 3-digit stamps"
-        + (f": {dt:.6g} s full scale)" if dt else ")"),
+        "t rebuilt as t0 + k dt (dt fitted to the 3-digit stamps" + (f": {dt:.6g} s full scale)" if dt else ")"),
         "phi, psi [rad] = radians(cols 3, 4 [deg]) (psi unwrapped)"
-        + ("" if heading_tau_s is None else
-           f"; psi fused with the integral of r (causal complementary filter, tau {heading_tau_s:g} s full "
-           "scale; the file's heading kept as psi_file)"),
+        + (
+            ""
+            if heading_tau_s is None
+            else f"; psi fused with the integral of r (causal complementary filter, tau {heading_tau_s:g} s full "
+            "scale; the file's heading kept as psi_file)"
+        ),
         "u, v = earth-frame (col 5, col 6) rotated into the body frame by psi",
         "p, r [rad/s] = radians(cols 7, 8 [deg/s])",
         "delta_r [rad] = radians(col 9 [deg]) (sign unchanged: + = to port, gives r < 0)",
         "n [rpm] = col 10 [rpm]",
     ]
-    notes.append("positions, heading and stamps carry 3 significant digits (positions quantised to "
-                 f"{10.0 / scale:.3g} m once |x| > 1000 m full scale; heading to 1 deg past 100 deg)")
-    track = _build(path, "simman-marin", t_full / sq, data, units, _MARIN_VESSEL, _MARIN_REFERENCE,
-                   conversions, notes, manoeuvre=title)
+    notes.append(
+        "positions, heading and stamps carry 3 significant digits (positions quantised to "
+        f"{10.0 / scale:.3g} m once |x| > 1000 m full scale; heading to 1 deg past 100 deg)"
+    )
+    track = _build(
+        path,
+        "simman-marin",
+        t_full / sq,
+        data,
+        units,
+        _MARIN_VESSEL,
+        _MARIN_REFERENCE,
+        conversions,
+        notes,
+        manoeuvre=title,
+    )
     track.meta["scale"] = float(scale)
     return track
 
 
 # --------------------------------------------------------------------------- dispatch, listing
 
-_READERS = {"esso-osaka": read_esso_osaka, "simman-hsva": read_simman_hsva,
-            "simman-marin": read_simman_marin}
+_READERS = {"esso-osaka": read_esso_osaka, "simman-hsva": read_simman_hsva, "simman-marin": read_simman_marin}
 
 
 def _check_format(format):
@@ -740,11 +833,10 @@ def _data_text(path: Path, format: str) -> str:
         lines = f.read().splitlines()
     if format == "esso-osaka":
         first = next((i for i, ln in enumerate(lines) if ln.strip()), len(lines))
-        body = lines[first + 1:]
+        body = lines[first + 1 :]
         blank = ", \t"
     elif format == "simman-marin":
-        first = next((i for i, ln in enumerate(lines) if ln.split() and _NUMBER.fullmatch(ln.split()[0])),
-                     len(lines))
+        first = next((i for i, ln in enumerate(lines) if ln.split() and _NUMBER.fullmatch(ln.split()[0])), len(lines))
         body = lines[first:]
         blank = " \t"
     else:
@@ -763,10 +855,12 @@ def scan_runs(root, format):
         return [root], []
     skip_dirs = {"aux", "mmg_params"}
     candidates = sorted(
-        p for p in root.rglob("*")
-        if p.is_file() and not any(part.lower() in skip_dirs or part.startswith(".")
-                                   for part in p.relative_to(root).parts[:-1])
-        and _is_run_file(p, format))
+        p
+        for p in root.rglob("*")
+        if p.is_file()
+        and not any(part.lower() in skip_dirs or part.startswith(".") for part in p.relative_to(root).parts[:-1])
+        and _is_run_file(p, format)
+    )
     # Duplicate / trimmed copies: within one folder, a file whose data rows
     # are one contiguous block of another file's data rows is dropped; the
     # longer file is kept (ties: the name that sorts first).
@@ -781,15 +875,18 @@ def scan_runs(root, format):
         for p in order:
             text = texts[p]
             first_row = text.split("\n", 1)[0]
-            host = next((q for q in chosen
-                         if text and first_row in texts[q] and "\n" + text in "\n" + texts[q]),
-                        None)
+            host = next((q for q in chosen if text and first_row in texts[q] and "\n" + text in "\n" + texts[q]), None)
             if host is None:
                 chosen.append(p)
             else:
                 what = "an exact copy" if text == texts[host] else "a trimmed copy"
-                skipped.append((p, f"{what} of {host.name} (its data rows are a contiguous "
-                                   f"block of that file's rows); kept {host.name}"))
+                skipped.append(
+                    (
+                        p,
+                        f"{what} of {host.name} (its data rows are a contiguous "
+                        f"block of that file's rows); kept {host.name}",
+                    )
+                )
         kept.extend(chosen)
     return sorted(kept), skipped
 

@@ -14,6 +14,7 @@ Layout (prime values, the file's ``[coefficients]`` units)::
 A name the vehicle does not know, a non-positive or non-finite sd, a relative sd of a zero mean,
 a name given twice and an unknown key are errors that name the file and the coefficient.
 """
+
 from __future__ import annotations
 
 import math

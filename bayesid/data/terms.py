@@ -27,6 +27,7 @@ Conventions (Gertler & Hagen 1967; Feldman 1979; the prime system of ``shared/re
   ``X = 0.5*rho*L**2 * Cd0 * (u_c|u_c| - u|u|)``, i.e. ``u**2 * X'prop(eta)`` with
   ``X'prop = Cd0*(eta|eta| - 1)`` for u > 0, extended to u <= 0 as drag opposing the motion.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -42,8 +43,7 @@ VELOCITIES = ("u", "v", "w", "p", "q", "r")
 
 # Feature vector evaluated once per right-hand-side call; a term is a product of features.
 # The order is shared with the compiled kernel (bayesid.models.dynamics); change both together.
-FEATURES = ("1", "u", "v", "w", "p", "q", "r", "dr", "ds", "db", "eps",
-            "|v|", "|r|", "prop", "|w|", "|q|", "|p|")
+FEATURES = ("1", "u", "v", "w", "p", "q", "r", "dr", "ds", "db", "eps", "|v|", "|r|", "prop", "|w|", "|q|", "|p|")
 F_INDEX = {name: i for i, name in enumerate(FEATURES)}
 N_FEATURES = len(FEATURES)
 MAX_FACTORS = 5
@@ -139,49 +139,118 @@ def _A(name: str) -> Term:
 # New products are appended after these by term() (see parse()).
 TERMS: tuple[Term, ...] = (
     # ---- X (surge) ----
-    _T("Xpp", "p p"), _T("Xqq", "q q"), _T("Xrr", "r r"), _T("Xpr", "p r"),
+    _T("Xpp", "p p"),
+    _T("Xqq", "q q"),
+    _T("Xrr", "r r"),
+    _T("Xpr", "p r"),
     _A("Xudot"),
-    _T("Xwq", "w q"), _T("Xvp", "v p"), _T("Xvr", "v r"),
-    _T("Xqds", "u q ds"), _T("Xqdb", "u q db", 2), _T("Xrdr", "u r dr"),
-    _T("Xvv", "v v"), _T("Xww", "w w"), _T("Xvdr", "u v dr"), _T("Xwds", "u w ds"),
+    _T("Xwq", "w q"),
+    _T("Xvp", "v p"),
+    _T("Xvr", "v r"),
+    _T("Xqds", "u q ds"),
+    _T("Xqdb", "u q db", 2),
+    _T("Xrdr", "u r dr"),
+    _T("Xvv", "v v"),
+    _T("Xww", "w w"),
+    _T("Xvdr", "u v dr"),
+    _T("Xwds", "u w ds"),
     _T("Xwdb", "u w db", 2),
     _T("Xdsds", "u u ds ds"),
     _T("Xdbdb", "u u db db"),  # multiplicity 1: from the 2018 MSS file, where it is for the pair
     _T("Xdrdr", "u u dr dr"),
-    _T("Xqds_eps", "u q ds eps"), _T("Xwds_eps", "u w ds eps"), _T("Xdsds_eps", "u u ds ds eps"),
+    _T("Xqds_eps", "u q ds eps"),
+    _T("Xwds_eps", "u w ds eps"),
+    _T("Xdsds_eps", "u u ds ds eps"),
     _T("Cd0", "prop", dof="X"),
     # ---- Y (sway) ----
-    _A("Ypdot"), _A("Yrdot"), _T("Ypq", "p q"), _T("Yqr", "q r"),
+    _A("Ypdot"),
+    _A("Yrdot"),
+    _T("Ypq", "p q"),
+    _T("Yqr", "q r"),
     _A("Yvdot"),
-    _T("Yp", "u p"), _T("Yr", "u r"), _T("Yvq", "v q"), _T("Ywp", "w p"), _T("Ywr", "w r"),
-    _T("Yv", "u v"), _T("Yvw", "v w"), _T("Ydr", "u u dr"),
-    _T("Yvabsv", "v |v|"), _T("Yvabsr", "v |r|"), _T("Yrabsr", "r |r|"),
+    _T("Yp", "u p"),
+    _T("Yr", "u r"),
+    _T("Yvq", "v q"),
+    _T("Ywp", "w p"),
+    _T("Ywr", "w r"),
+    _T("Yv", "u v"),
+    _T("Yvw", "v w"),
+    _T("Ydr", "u u dr"),
+    _T("Yvabsv", "v |v|"),
+    _T("Yvabsr", "v |r|"),
+    _T("Yrabsr", "r |r|"),
     # ---- Z (heave) ----
-    _A("Zqdot"), _T("Zpp", "p p"), _T("Zpr", "p r"), _T("Zrr", "r r"),
+    _A("Zqdot"),
+    _T("Zpp", "p p"),
+    _T("Zpr", "p r"),
+    _T("Zrr", "r r"),
     _A("Zwdot"),
-    _T("Zq", "u q"), _T("Zvp", "v p"), _T("Zvr", "v r"),
-    _T("Zw", "u w"), _T("Zvv", "v v"), _T("Zds", "u u ds"), _T("Zdb", "u u db", 2),
-    _T("Zq_eps", "u q eps"), _T("Zw_eps", "u w eps"), _T("Zds_eps", "u u ds eps"),
-    _T("Zwabsw", "w |w|"), _T("Zwabsq", "w |q|"), _T("Zqabsq", "q |q|"),
+    _T("Zq", "u q"),
+    _T("Zvp", "v p"),
+    _T("Zvr", "v r"),
+    _T("Zw", "u w"),
+    _T("Zvv", "v v"),
+    _T("Zds", "u u ds"),
+    _T("Zdb", "u u db", 2),
+    _T("Zq_eps", "u q eps"),
+    _T("Zw_eps", "u w eps"),
+    _T("Zds_eps", "u u ds eps"),
+    _T("Zwabsw", "w |w|"),
+    _T("Zwabsq", "w |q|"),
+    _T("Zqabsq", "q |q|"),
     # ---- K (roll) ----
-    _A("Kpdot"), _A("Krdot"), _T("Kpq", "p q"), _T("Kqr", "q r"),
+    _A("Kpdot"),
+    _A("Krdot"),
+    _T("Kpq", "p q"),
+    _T("Kqr", "q r"),
     _A("Kvdot"),
-    _T("Kp", "u p"), _T("Kr", "u r"), _T("Kvq", "v q"), _T("Kwp", "w p"), _T("Kwr", "w r"),
-    _T("Kv", "u v"), _T("Kvw", "v w"), _T("Kdb", "u u db", 2),
-    _T("Kp_eps", "u p eps"), _T("Kprop", "u u"),
+    _T("Kp", "u p"),
+    _T("Kr", "u r"),
+    _T("Kvq", "v q"),
+    _T("Kwp", "w p"),
+    _T("Kwr", "w r"),
+    _T("Kv", "u v"),
+    _T("Kvw", "v w"),
+    _T("Kdb", "u u db", 2),
+    _T("Kp_eps", "u p eps"),
+    _T("Kprop", "u u"),
     # ---- M (pitch) ----
-    _A("Mqdot"), _T("Mpp", "p p"), _T("Mpr", "p r"), _T("Mrr", "r r"),
+    _A("Mqdot"),
+    _T("Mpp", "p p"),
+    _T("Mpr", "p r"),
+    _T("Mrr", "r r"),
     _A("Mwdot"),
-    _T("Mq", "u q"), _T("Mvp", "v p"), _T("Mvr", "v r"),
-    _T("Mw", "u w"), _T("Mvv", "v v"), _T("Mds", "u u ds"), _T("Mdb", "u u db", 2),
-    _T("Mq_eps", "u q eps"), _T("Mw_eps", "u w eps"), _T("Mds_eps", "u u ds eps"),
-    _T("Mwabsw", "w |w|"), _T("Mabswq", "|w| q"), _T("Mqabsq", "q |q|"),
+    _T("Mq", "u q"),
+    _T("Mvp", "v p"),
+    _T("Mvr", "v r"),
+    _T("Mw", "u w"),
+    _T("Mvv", "v v"),
+    _T("Mds", "u u ds"),
+    _T("Mdb", "u u db", 2),
+    _T("Mq_eps", "u q eps"),
+    _T("Mw_eps", "u w eps"),
+    _T("Mds_eps", "u u ds eps"),
+    _T("Mwabsw", "w |w|"),
+    _T("Mabswq", "|w| q"),
+    _T("Mqabsq", "q |q|"),
     # ---- N (yaw) ----
-    _A("Npdot"), _A("Nrdot"), _T("Npq", "p q"), _T("Nqr", "q r"),
+    _A("Npdot"),
+    _A("Nrdot"),
+    _T("Npq", "p q"),
+    _T("Nqr", "q r"),
     _A("Nvdot"),
-    _T("Np", "u p"), _T("Nr", "u r"), _T("Nvq", "v q"), _T("Nwp", "w p"), _T("Nwr", "w r"),
-    _T("Nv", "u v"), _T("Nvw", "v w"), _T("Ndr", "u u dr"), _T("Nprop", "u u"),
-    _T("Nvabsv", "v |v|"), _T("Nabsvr", "|v| r"), _T("Nrabsr", "r |r|"),
+    _T("Np", "u p"),
+    _T("Nr", "u r"),
+    _T("Nvq", "v q"),
+    _T("Nwp", "w p"),
+    _T("Nwr", "w r"),
+    _T("Nv", "u v"),
+    _T("Nvw", "v w"),
+    _T("Ndr", "u u dr"),
+    _T("Nprop", "u u"),
+    _T("Nvabsv", "v |v|"),
+    _T("Nabsvr", "|v| r"),
+    _T("Nrabsr", "r |r|"),
 )
 
 #: The names written out in the table above, in table order. :data:`NAMES` is these followed by the
@@ -191,8 +260,20 @@ NAMES: tuple[str, ...] = LISTED
 INDEX: dict[str, int] = {n: i for i, n in enumerate(NAMES)}
 
 #: The polynomial terms that replace the cross-flow drag integral (Gertler & Hagen form).
-CROSSFLOW_POLYNOMIAL = ("Yvabsv", "Yvabsr", "Yrabsr", "Nvabsv", "Nabsvr", "Nrabsr",
-                        "Zwabsw", "Zwabsq", "Zqabsq", "Mwabsw", "Mabswq", "Mqabsq")
+CROSSFLOW_POLYNOMIAL = (
+    "Yvabsv",
+    "Yvabsr",
+    "Yrabsr",
+    "Nvabsv",
+    "Nabsvr",
+    "Nrabsr",
+    "Zwabsw",
+    "Zwabsq",
+    "Zqabsq",
+    "Mwabsw",
+    "Mabswq",
+    "Mqabsq",
+)
 
 
 class UnknownCoefficientError(KeyError):
@@ -203,9 +284,23 @@ class UnknownCoefficientError(KeyError):
 
 
 # Name grammar of parse(). Tokens of a product name after the force letter, longest first.
-_TOKENS = (("absu", "|u|"), ("absv", "|v|"), ("absw", "|w|"), ("absp", "|p|"), ("absq", "|q|"),
-           ("absr", "|r|"), ("dr", "dr"), ("ds", "ds"), ("db", "db"),
-           ("u", "u"), ("v", "v"), ("w", "w"), ("p", "p"), ("q", "q"), ("r", "r"))
+_TOKENS = (
+    ("absu", "|u|"),
+    ("absv", "|v|"),
+    ("absw", "|w|"),
+    ("absp", "|p|"),
+    ("absq", "|q|"),
+    ("absr", "|r|"),
+    ("dr", "dr"),
+    ("ds", "ds"),
+    ("db", "db"),
+    ("u", "u"),
+    ("v", "v"),
+    ("w", "w"),
+    ("p", "p"),
+    ("q", "q"),
+    ("r", "r"),
+)
 _VELOCITY_FACTORS = {"u", "v", "w", "p", "q", "r", "|u|", "|v|", "|w|", "|p|", "|q|", "|r|"}
 _ACCEL_NAME = re.compile(r"([XYZKMN])([uvwpqr])dot")
 _LOCK = threading.Lock()
@@ -236,8 +331,11 @@ def _read(name: str) -> Term:
             if body.startswith(tok, i):
                 break
         else:
-            raise _unknown(name, f"cannot read {body[i:]!r} (factors are u v w p q r, absv absr absw absq absp, "
-                                 "dr ds db, then optionally _eps)")
+            raise _unknown(
+                name,
+                f"cannot read {body[i:]!r} (factors are u v w p q r, absv absr absw absq absp, "
+                "dr ds db, then optionally _eps)",
+            )
         if feat not in F_INDEX:
             raise _unknown(name, f"{feat} is not a feature of the term library ({', '.join(FEATURES[1:])})")
         factors.append(feat)
@@ -246,8 +344,11 @@ def _read(name: str) -> Term:
         raise _unknown(name, "no factor after the force letter")
     n_vel = sum(f in _VELOCITY_FACTORS for f in factors)
     if n_vel > 2:
-        raise _unknown(name, f"{n_vel} velocity factors; a prime-form term has at most two "
-                             "(a cubic term needs 1/U, which no feature gives)")
+        raise _unknown(
+            name,
+            f"{n_vel} velocity factors; a prime-form term has at most two "
+            "(a cubic term needs 1/U, which no feature gives)",
+        )
     factors = ["u"] * (2 - n_vel) + factors + (["eps"] if eps else [])
     if len(factors) > MAX_FACTORS:
         raise _unknown(name, f"{len(factors)} factors ({' '.join(factors)}); at most {MAX_FACTORS}")
@@ -290,12 +391,12 @@ def parse(name: str) -> Term:
         return TERMS[i]
     t = _read(name)
     key = _product_key(t)
-    for listed in TERMS[:len(LISTED)]:
+    for listed in TERMS[: len(LISTED)]:
         if _product_key(listed) == key:
-            what = (f"the {VELOCITIES[t.accel]}-dot term" if t.accel >= 0
-                    else "the product " + "*".join(t.factors))
-            raise UnknownCoefficientError(f"coefficient {name!r} is {what} in {t.group}, listed as "
-                                          f"{listed.name!r}: use that name")
+            what = f"the {VELOCITIES[t.accel]}-dot term" if t.accel >= 0 else "the product " + "*".join(t.factors)
+            raise UnknownCoefficientError(
+                f"coefficient {name!r} is {what} in {t.group}, listed as {listed.name!r}: use that name"
+            )
     return t
 
 
@@ -349,8 +450,7 @@ def prime_scale(names, rho: float, L: float) -> np.ndarray:
     -------
     ndarray (P,)
     """
-    return np.array([TERMS[INDEX[n]].multiplicity * 0.5 * rho * L ** TERMS[INDEX[n]].L_power
-                     for n in names])
+    return np.array([TERMS[INDEX[n]].multiplicity * 0.5 * rho * L ** TERMS[INDEX[n]].L_power for n in names])
 
 
 def factor_table(names) -> tuple[np.ndarray, np.ndarray]:
@@ -379,8 +479,14 @@ def factor_table(names) -> tuple[np.ndarray, np.ndarray]:
     return fac, dof
 
 
-def names_where(*, group: str | None = None, category: str | None = None,
-                kind: str | None = None, horizontal: bool | None = None, listed: bool = False) -> list[str]:
+def names_where(
+    *,
+    group: str | None = None,
+    category: str | None = None,
+    kind: str | None = None,
+    horizontal: bool | None = None,
+    listed: bool = False,
+) -> list[str]:
     """Term names (table order) matching all given filters.
 
     Example: ``names_where(group="Y", category="rotary", horizontal=True)``. With ``listed`` only
@@ -388,7 +494,7 @@ def names_where(*, group: str | None = None, category: str | None = None,
     since: a candidate library that must not depend on which vehicles were loaded before.
     """
     out = []
-    for t in (TERMS[:len(LISTED)] if listed else TERMS):
+    for t in TERMS[: len(LISTED)] if listed else TERMS:
         if group is not None and t.group != group:
             continue
         if category is not None and t.category != category:

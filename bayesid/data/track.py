@@ -21,6 +21,7 @@ kept in ``Track.meta["comments"]``.  Floats are written with ``repr`` so that
 :func:`write_csv` followed by :func:`read_csv` reproduces every value
 bit-for-bit.
 """
+
 from __future__ import annotations
 
 import copy
@@ -35,8 +36,13 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
-    "STATE_NAMES", "INPUT_NAMES", "UNITS", "TrackFormatError", "Track",
-    "read_csv", "write_csv",
+    "STATE_NAMES",
+    "INPUT_NAMES",
+    "UNITS",
+    "TrackFormatError",
+    "Track",
+    "read_csv",
+    "write_csv",
 ]
 
 STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r")
@@ -47,13 +53,24 @@ INPUT_NAMES = ("delta_r", "delta_s", "delta_b", "n")
 
 UNITS: dict[str, str] = {
     "t": "s",
-    "x": "m", "y": "m", "z": "m",
-    "phi": "rad", "theta": "rad", "psi": "rad",
-    "u": "m/s", "v": "m/s", "w": "m/s",
-    "p": "rad/s", "q": "rad/s", "r": "rad/s",
-    "delta_r": "rad", "delta_s": "rad", "delta_b": "rad",
+    "x": "m",
+    "y": "m",
+    "z": "m",
+    "phi": "rad",
+    "theta": "rad",
+    "psi": "rad",
+    "u": "m/s",
+    "v": "m/s",
+    "w": "m/s",
+    "p": "rad/s",
+    "q": "rad/s",
+    "r": "rad/s",
+    "delta_r": "rad",
+    "delta_s": "rad",
+    "delta_b": "rad",
     "n": "rpm",
-    "wind_speed": "m/s", "wind_dir": "rad",
+    "wind_speed": "m/s",
+    "wind_dir": "rad",
 }
 """Contract unit of every named column; a header annotation must match it."""
 
@@ -140,8 +157,7 @@ class Track:
         bad = np.flatnonzero(np.diff(t) <= 0)
         if bad.size:
             i = int(bad[0]) + 1
-            raise ValueError(f"{label}: column 't' is not strictly increasing at index {i} "
-                             f"({t[i - 1]!r} -> {t[i]!r})")
+            raise ValueError(f"{label}: column 't' is not strictly increasing at index {i} ({t[i - 1]!r} -> {t[i]!r})")
         data = {}
         for key, values in dict(self.data).items():
             if not isinstance(key, str) or not key:
@@ -153,29 +169,29 @@ class Track:
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"{label}: column '{key}' is not numeric: {exc}") from None
             if col.shape != t.shape:
-                raise ValueError(f"{label}: column '{key}' has shape {col.shape}, "
-                                 f"expected {t.shape} like 't'")
+                raise ValueError(f"{label}: column '{key}' has shape {col.shape}, expected {t.shape} like 't'")
             if np.any(np.isinf(col)):
-                raise ValueError(f"{label}: column '{key}' contains infinite values "
-                                 "(use NaN for missing)")
+                raise ValueError(f"{label}: column '{key}' contains infinite values (use NaN for missing)")
             data[key] = col
         units = dict(self.units)
         for key, unit in units.items():
             if key not in data:
-                raise ValueError(f"{label}: unit given for column '{key}' "
-                                 "which is not in the track")
+                raise ValueError(f"{label}: unit given for column '{key}' which is not in the track")
             if key in UNITS:
-                raise ValueError(f"{label}: column '{key}' has the contract unit "
-                                 f"{UNITS[key]!r}; do not list it in `units`")
+                raise ValueError(
+                    f"{label}: column '{key}' has the contract unit {UNITS[key]!r}; do not list it in `units`"
+                )
             if not isinstance(unit, str) or not unit:
                 raise ValueError(f"{label}: unit of column '{key}' must be a non-empty str")
         self.t, self.data, self.units = t, data, units
 
     def __repr__(self):
         span = f"t=[{self.t[0]:g}, {self.t[-1]:g}] s" if self.n_samples else "empty"
-        return (f"Track(name={self.name!r}, n_samples={self.n_samples}, {span}, "
-                f"states={self.state_columns}, inputs={self.input_columns}, "
-                f"exogenous={self.exogenous_columns})")
+        return (
+            f"Track(name={self.name!r}, n_samples={self.n_samples}, {span}, "
+            f"states={self.state_columns}, inputs={self.input_columns}, "
+            f"exogenous={self.exogenous_columns})"
+        )
 
     @property
     def n_samples(self) -> int:
@@ -204,8 +220,7 @@ class Track:
         try:
             return self.data[name]
         except KeyError:
-            raise KeyError(f"track {self.name!r} has no column {name!r}; "
-                           f"available: {['t', *self.data]}") from None
+            raise KeyError(f"track {self.name!r} has no column {name!r}; available: {['t', *self.data]}") from None
 
     def __contains__(self, name) -> bool:
         return name == "t" or name in self.data
@@ -253,14 +268,13 @@ class Track:
         """
         missing = [k for k in INPUT_NAMES if k not in self.data]
         if missing and fill is None:
-            raise KeyError(f"track {self.name!r} has no input column(s) {missing}; "
-                           "pass fill=<value> to fill them")
+            raise KeyError(f"track {self.name!r} has no input column(s) {missing}; pass fill=<value> to fill them")
         out = np.empty((self.n_samples, len(INPUT_NAMES)))
         for j, k in enumerate(INPUT_NAMES):
             out[:, j] = self.data[k] if k in self.data else fill
         return out
 
-    def with_columns(self, **cols) -> "Track":
+    def with_columns(self, **cols) -> Track:
         """Copy with columns added or replaced (units of replaced columns kept).
 
         Parameters
@@ -272,10 +286,9 @@ class Track:
         ValueError
             As in construction (wrong length, infinities, ``t`` given).
         """
-        return Track(self.t, {**self.data, **cols}, name=self.name,
-                     units=self.units, meta=copy.deepcopy(self.meta))
+        return Track(self.t, {**self.data, **cols}, name=self.name, units=self.units, meta=copy.deepcopy(self.meta))
 
-    def slice_time(self, t0: float, t1: float) -> "Track":
+    def slice_time(self, t0: float, t1: float) -> Track:
         """Copy with the samples where ``t0 <= t <= t1`` (s); may be empty.
 
         Raises
@@ -286,11 +299,16 @@ class Track:
         if t0 > t1:
             raise ValueError(f"slice_time: t0={t0!r} > t1={t1!r}")
         keep = (self.t >= t0) & (self.t <= t1)
-        return Track(self.t[keep], {k: v[keep] for k, v in self.data.items()},
-                     name=self.name, units=self.units, meta=copy.deepcopy(self.meta))
+        return Track(
+            self.t[keep],
+            {k: v[keep] for k, v in self.data.items()},
+            name=self.name,
+            units=self.units,
+            meta=copy.deepcopy(self.meta),
+        )
 
     @classmethod
-    def from_arrays(cls, t, states=None, inputs=None, name="", **exogenous) -> "Track":
+    def from_arrays(cls, t, states=None, inputs=None, name="", **exogenous) -> Track:
         """Build a track from arrays.
 
         Parameters
@@ -322,19 +340,16 @@ class Track:
             if isinstance(given, dict):
                 unknown = [k for k in given if k not in names]
                 if unknown:
-                    raise ValueError(f"from_arrays: {arg} has unknown name(s) {unknown}; "
-                                     f"allowed: {list(names)}")
+                    raise ValueError(f"from_arrays: {arg} has unknown name(s) {unknown}; allowed: {list(names)}")
                 data.update({k: given[k] for k in names if k in given})
             else:
                 arr = np.asarray(given, dtype=np.float64)
                 if arr.ndim != 2 or arr.shape[1] != len(names):
-                    raise ValueError(f"from_arrays: {arg} array must have shape "
-                                     f"(n, {len(names)}), got {arr.shape}")
+                    raise ValueError(f"from_arrays: {arg} array must have shape (n, {len(names)}), got {arr.shape}")
                 data.update({k: arr[:, j] for j, k in enumerate(names)})
         clash = [k for k in exogenous if k in _ROLE_NAMES]
         if clash:
-            raise ValueError(f"from_arrays: {clash} are state/input names; "
-                             "pass them via states=/inputs=")
+            raise ValueError(f"from_arrays: {clash} are state/input names; pass them via states=/inputs=")
         data.update(exogenous)
         return cls(t, data, name=name)
 
@@ -345,8 +360,11 @@ def _parse_header(path, cells, row):
     for cell in cells:
         m = _HEADER.fullmatch(cell.strip())
         if m is None or not m["name"]:
-            raise format_error(path, f"malformed column header {cell.strip()!r} "
-                        "(expected 'name', 'name [unit]' or 'name (unit)')", row=row)
+            raise format_error(
+                path,
+                f"malformed column header {cell.strip()!r} (expected 'name', 'name [unit]' or 'name (unit)')",
+                row=row,
+            )
         name = m["name"]
         unit = m["u1"] if m["u1"] is not None else m["u2"]
         if name in names:
@@ -355,8 +373,9 @@ def _parse_header(path, cells, row):
             unit = unit.strip()
             if name in UNITS:
                 if unit != UNITS[name]:
-                    raise format_error(path, f"unknown unit {unit!r}; this column must be in "
-                                f"{UNITS[name]!r}", row=row, column=name)
+                    raise format_error(
+                        path, f"unknown unit {unit!r}; this column must be in {UNITS[name]!r}", row=row, column=name
+                    )
             elif not unit:
                 raise format_error(path, "empty unit annotation", row=row, column=name)
             else:
@@ -365,8 +384,9 @@ def _parse_header(path, cells, row):
     if "t" not in names:
         raise format_error(path, f"no 't' column (columns: {names})", row=row, column="t")
     if not any(k in STATE_NAMES for k in names):
-        raise format_error(path, f"no state column; need at least one of {list(STATE_NAMES)} "
-                    f"(columns: {names})", row=row)
+        raise format_error(
+            path, f"no state column; need at least one of {list(STATE_NAMES)} (columns: {names})", row=row
+        )
     return names, units
 
 
@@ -375,8 +395,9 @@ def _parse_value(path, text, row, column):
     if not text:
         return math.nan
     if not _NUMBER.fullmatch(text):
-        raise format_error(path, f"non-numeric value {text!r} (leave the field empty if missing)",
-                    row=row, column=column)
+        raise format_error(
+            path, f"non-numeric value {text!r} (leave the field empty if missing)", row=row, column=column
+        )
     value = float(text)
     if not math.isfinite(value):
         raise format_error(path, f"value {text!r} overflows float64", row=row, column=column)
@@ -404,8 +425,9 @@ def _block_values(cells: tuple) -> np.ndarray | None:
         values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
     except ValueError:  # empty cells (or a malformed literal such as "1e" or "--1")
         try:
-            values = np.fromiter((float(c) if c and not c.isspace() else math.nan
-                                  for c in cells), dtype=np.float64, count=len(cells))
+            values = np.fromiter(
+                (float(c) if c and not c.isspace() else math.nan for c in cells), dtype=np.float64, count=len(cells)
+            )
         except ValueError:
             return None
     return None if np.isinf(values).any() else values
@@ -426,8 +448,12 @@ def _check_rows(path, names, it, block, rows, last):
             raise format_error(path, "missing time value", row=row, column="t")
         if last is not None and t <= last[0]:
             what = "duplicate" if t == last[0] else "decreasing"
-            raise format_error(path, f"time not strictly increasing ({what}: {t!r} after "
-                        f"{last[0]!r} at row {last[1]})", row=row, column="t")
+            raise format_error(
+                path,
+                f"time not strictly increasing ({what}: {t!r} after {last[0]!r} at row {last[1]})",
+                row=row,
+                column="t",
+            )
         last = (t, row)
         for k, cell in zip(names, cells):
             if k != "t":
@@ -510,7 +536,7 @@ def _read_stream(path, f) -> Track:
         nonlocal block, rows, last
         columns = _convert_block(path, names, it, block, rows, last)
         last = (float(columns[it][-1]), rows[-1])
-        blocks.append(columns)
+        blocks.append(columns)  # noqa: F821 - ruff reads the later `del blocks` as unbinding it here
         block, rows = [], []
 
     try:
@@ -537,8 +563,13 @@ def _read_stream(path, f) -> Track:
         raise format_error(path, "no data rows after the header", row=n_before + 1)
     columns = [np.concatenate(parts) for parts in zip(*blocks)]
     del blocks
-    return Track(columns[it], {k: c for k, c in zip(names, columns) if k != "t"},
-                 name=Path(path).stem, units=units, meta={"comments": comments})
+    return Track(
+        columns[it],
+        {k: c for k, c in zip(names, columns) if k != "t"},
+        name=Path(path).stem,
+        units=units,
+        meta={"comments": comments},
+    )
 
 
 def _format(value: float) -> str:
@@ -578,10 +609,10 @@ def write_csv(track: Track, path) -> None:
         m = _HEADER.fullmatch(cell)
         ok = m is not None and m["name"] == k and (m["u1"] or "").strip() == track.units.get(k, "")
         if not ok or k != k.strip():
-            raise ValueError(f"track {track.name!r}: column {k!r} (unit "
-                             f"{track.units.get(k)!r}) cannot be written as a header")
-    comments = [line for c in track.meta.get("comments", [])
-                for line in re.split(r"\r\n|\r|\n", str(c))]
+            raise ValueError(
+                f"track {track.name!r}: column {k!r} (unit {track.units.get(k)!r}) cannot be written as a header"
+            )
+    comments = [line for c in track.meta.get("comments", []) for line in re.split(r"\r\n|\r|\n", str(c))]
     columns = [track[k] for k in names]
     with open(os.fspath(path), "w", newline="", encoding="utf-8") as f:
         for c in comments:
@@ -589,5 +620,5 @@ def write_csv(track: Track, path) -> None:
         writer = csv.writer(f, lineterminator="\n")
         writer.writerow(header)
         for a in range(0, track.n_samples, _CHUNK_ROWS):  # in blocks: memory stays near the arrays'
-            table = np.column_stack([c[a:a + _CHUNK_ROWS] for c in columns]).tolist()
+            table = np.column_stack([c[a : a + _CHUNK_ROWS] for c in columns]).tolist()
             writer.writerows([_format(v) for v in row] for row in table)

@@ -10,6 +10,7 @@ the column and the unit it looks like. Things that may be real but deserve a loo
 stopped throughout, a speed far outside the vehicle's range) come back as warnings, which the
 commands print and record in their outputs.
 """
+
 from __future__ import annotations
 
 import math
@@ -42,12 +43,13 @@ def _ratio(a, b):
 
 
 #: The packaged vehicles and the words by which a track's ``# vessel:`` line names them.
-PACKAGED_VESSELS = {"nps_auv2": ("nps", "auv2", "sdv"), "esso_osaka_3m": ("esso",),
-                    "kvlcc2_7m": ("kvlcc2",)}
+PACKAGED_VESSELS = {"nps_auv2": ("nps", "auv2", "sdv"), "esso_osaka_3m": ("esso",), "kvlcc2_7m": ("kvlcc2",)}
 
 
-_GENERIC = frozenset("model vehicle ship boat vessel hull scale full the and with from coefficients of "
-                     "form test tests data pond tank free running".split())
+_GENERIC = frozenset(
+    "model vehicle ship boat vessel hull scale full the and with from coefficients of "
+    "form test tests data pond tank free running".split()
+)
 
 
 def _words(text: str) -> set[str]:
@@ -81,17 +83,24 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
         return []
     name = where or track.name
     vid = str(vehicle.id)
-    own = {w for w in _words(" ".join([vid.replace("_", " "), vid, vehicle.display_name]))
-           if len(w) >= 3 and not w.isdigit() and w not in _GENERIC} | set(PACKAGED_VESSELS.get(vid, ()))
+    own = {
+        w
+        for w in _words(" ".join([vid.replace("_", " "), vid, vehicle.display_name]))
+        if len(w) >= 3 and not w.isdigit() and w not in _GENERIC
+    } | set(PACKAGED_VESSELS.get(vid, ()))
     said = _words(declared)
     others = [k for k, keys in PACKAGED_VESSELS.items() if k != vid and said & set(keys)]
     if others and not said & own:
-        raise ValueError(f"{name}: the track's vessel line says {declared!r}, which is the packaged vehicle "
-                         f"{others[0]!r}, but the vehicle is {vid!r}: use --vehicle {others[0]}, or edit the "
-                         "'# vessel:' line if this is intended")
+        raise ValueError(
+            f"{name}: the track's vessel line says {declared!r}, which is the packaged vehicle "
+            f"{others[0]!r}, but the vehicle is {vid!r}: use --vehicle {others[0]}, or edit the "
+            "'# vessel:' line if this is intended"
+        )
     if not said & own:
-        return [f"{name}: the track's vessel line says {declared!r}; the vehicle is {vid!r} (no word in common: "
-                "a track of another vessel?)"]
+        return [
+            f"{name}: the track's vessel line says {declared!r}; the vehicle is {vid!r} (no word in common: "
+            "a track of another vessel?)"
+        ]
     return []
 
 
@@ -119,8 +128,10 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     h = float(np.median(np.diff(t)))
 
     def refuse(col, msg):
-        raise ValueError(f"{name}: column '{col}': {msg}; the track contract is SI with angles in rad, rpm for n "
-                         "(README, Track files)")
+        raise ValueError(
+            f"{name}: column '{col}': {msg}; the track contract is SI with angles in rad, rpm for n "
+            "(README, Track files)"
+        )
 
     for col in ("delta_r", "delta_s", "delta_b"):
         if col in track:
@@ -137,8 +148,11 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         if sp.size:
             ground = float(np.median(sp))
             if h >= 10.0 and 0.1 <= 1000.0 * ground <= 30.0 and ground < 0.05:
-                refuse("t", f"median sample interval {h:.4g} with positions moving {ground:.3g} units per "
-                       "interval-unit: it looks like milliseconds")
+                refuse(
+                    "t",
+                    f"median sample interval {h:.4g} with positions moving {ground:.3g} units per "
+                    "interval-unit: it looks like milliseconds",
+                )
     body = None
     if "u" in track and np.isfinite(track["u"]).any():
         body = float(np.nanmedian(np.hypot(track["u"], track["v"]) if "v" in track else np.abs(track["u"])))
@@ -148,8 +162,11 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         # above, tells those apart)
         for f, unit in TIME_UNITS[:2]:
             if abs(ground / body / f - 1.0) < 0.15:
-                refuse("t", f"the positions move {ground / body:.3g} x as fast per time unit as the body speed "
-                            f"u, v: time looks like {unit}")
+                refuse(
+                    "t",
+                    f"the positions move {ground / body:.3g} x as fast per time unit as the body speed "
+                    f"u, v: time looks like {unit}",
+                )
     if "psi" in track and np.isfinite(track["psi"]).sum() > 10:
         psi = np.asarray(track["psi"], float)
         fin = psi[np.isfinite(psi)]
@@ -163,14 +180,16 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         if k is not None and np.max(np.abs(fin)) <= 2 * math.pi + 0.1:
             for f, unit in TIME_UNITS:
                 if abs(k / f - 1.0) < 0.15:
-                    refuse("t", f"the heading turns {k:.3g} x as fast per time unit as the yaw rate r says: time "
-                                f"looks like {unit}")
+                    refuse(
+                        "t",
+                        f"the heading turns {k:.3g} x as fast per time unit as the yaw rate r says: time "
+                        f"looks like {unit}",
+                    )
         if k is not None and 20.0 < k < 150.0:
             refuse("psi", f"its rate is {k:.3g} x the yaw rate r: heading looks like degrees")
         if k is not None and 1 / 150.0 < k < 1 / 20.0:
             refuse("r", f"the heading's rate is {k:.3g} x r: yaw rate looks like deg/s")
-        if np.max(np.abs(fin)) > 2 * math.pi + 0.1 and np.max(np.abs(fin)) <= 361.0 and (
-                jumps > 300.0).any():
+        if np.max(np.abs(fin)) > 2 * math.pi + 0.1 and np.max(np.abs(fin)) <= 361.0 and (jumps > 300.0).any():
             refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} wrapping by 360: heading looks like degrees")
         if np.median(jumps) > 0.5:
             refuse("psi", f"it changes by {np.median(jumps):.3g} per sample (median): heading looks like degrees")
@@ -178,8 +197,11 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             ok = np.isfinite(psi)
             rate = np.abs(np.diff(psi[ok]) / np.diff(t[ok]))
             if rate.size and np.percentile(rate, 95) > 1.0:
-                refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} turning at {np.percentile(rate, 95):.3g} "
-                              "units/s (95th percentile; no vessel turns at 1 rad/s): heading looks like degrees")
+                refuse(
+                    "psi",
+                    f"values up to {np.max(np.abs(fin)):.4g} turning at {np.percentile(rate, 95):.3g} "
+                    "units/s (95th percentile; no vessel turns at 1 rad/s): heading looks like degrees",
+                )
     if ground is not None and ground > 0.05 and body is not None:
         k = body / ground
         for f, unit in SPEED_UNITS:
@@ -198,8 +220,10 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         n_med = float(np.nanmedian(track["n"]))
         ahead = body if body is not None else ground
         if n_med < 0 and ahead is not None and ahead > 0.05:
-            warn.append(f"{name}: column 'n': propeller speed is negative (median {n_med:.4g} rpm, astern) while "
-                        f"the vessel moves at {ahead:.3g} m/s: sign convention (n > 0 ahead)?")
+            warn.append(
+                f"{name}: column 'n': propeller speed is negative (median {n_med:.4g} rpm, astern) while "
+                f"the vessel moves at {ahead:.3g} m/s: sign convention (n > 0 ahead)?"
+            )
     if vehicle is not None:  # what the vessel itself makes implausible (planes on a ship, speed)
         warn += vehicle.track_warnings(track, name, body, ground)
     nominal_rpm = (vehicle.nominal_rpm or 0.0) if vehicle is not None else 0.0
@@ -209,8 +233,11 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         if n.size and not np.any(n):
             warn.append(f"{name}: column 'n': propeller speed is 0 in every row (drifting or not logged?)")
         elif n.size and nominal_rpm > 0 and np.max(np.abs(n)) < nominal_rpm / 20.0:
-            refuse("n", f"values up to {np.max(np.abs(n)):.4g} against the vehicle's nominal {nominal_rpm:g} rpm: "
-                        "it looks like rev/s")
+            refuse(
+                "n",
+                f"values up to {np.max(np.abs(n)):.4g} against the vehicle's nominal {nominal_rpm:g} rpm: "
+                "it looks like rev/s",
+            )
     return warn
 
 
@@ -222,5 +249,13 @@ def check_tracks(tracks, vehicle=None, paths=None) -> list[str]:
     return out
 
 
-__all__ = ["check_track", "check_tracks", "check_vessel", "track_vessel", "SPEED_UNITS", "POSITION_UNITS", "TIME_UNITS",
-           "PACKAGED_VESSELS"]
+__all__ = [
+    "check_track",
+    "check_tracks",
+    "check_vessel",
+    "track_vessel",
+    "SPEED_UNITS",
+    "POSITION_UNITS",
+    "TIME_UNITS",
+    "PACKAGED_VESSELS",
+]

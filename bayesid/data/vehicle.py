@@ -4,6 +4,7 @@ and its TOML loader.
 Vehicle files follow ``shared/data/vehicles/*.toml``: ``[vehicle]``, ``[inertia]``, ``[geometry]``,
 ``[coefficients]`` (prime form), ``[propulsion]``, ``[crossflow]``, ``[limits]``, ``[source]``.
 """
+
 from __future__ import annotations
 
 import copy
@@ -50,7 +51,7 @@ class Crossflow:
     height_m: float
     breadth_m: float
     stations: np.ndarray  # (n_strips,) m
-    weights: np.ndarray   # (n_strips,) m
+    weights: np.ndarray  # (n_strips,) m
 
 
 @dataclass(frozen=True)
@@ -74,8 +75,9 @@ class Limits:
                 raise ValueError(f"{where}: non-finite {name} at sample {bad[0]}")
             over = np.flatnonzero(np.abs(col) > lim[j] + 1e-12)
             if over.size:
-                raise ValueError(f"{where}: {name} = {col[over[0]]:.6g} at sample {over[0]} exceeds "
-                                 f"the limit {lim[j]:.6g}")
+                raise ValueError(
+                    f"{where}: {name} = {col[over[0]]:.6g} at sample {over[0]} exceeds the limit {lim[j]:.6g}"
+                )
 
 
 @dataclass(frozen=True)
@@ -88,21 +90,21 @@ class Vehicle:
 
     id: str
     name: str
-    L: float                 # m
-    rho: float               # kg/m^3
-    g: float                 # m/s^2
-    mass: float              # kg
-    weight: float            # N
-    buoyancy: float          # N
-    inertia: np.ndarray      # (3, 3) kg m^2 about the body origin, [[Ix,-Ixy,-Ixz],...]
-    rG: np.ndarray           # (3,) m
-    rB: np.ndarray           # (3,) m
-    coefficients: dict       # name -> prime value (every table term; absent ones are 0)
+    L: float  # m
+    rho: float  # kg/m^3
+    g: float  # m/s^2
+    mass: float  # kg
+    weight: float  # N
+    buoyancy: float  # N
+    inertia: np.ndarray  # (3, 3) kg m^2 about the body origin, [[Ix,-Ixy,-Ixz],...]
+    rG: np.ndarray  # (3,) m
+    rB: np.ndarray  # (3,) m
+    coefficients: dict  # name -> prime value (every table term; absent ones are 0)
     propulsion: Propulsion
     limits: Limits
     crossflow: Crossflow | None = None
-    crossflow_model: str = "polynomial"   # "polynomial" (GH terms) or "integral" (strip sum)
-    nominal_speed: float = 1.0             # m/s, steady straight speed at nominal rpm
+    crossflow_model: str = "polynomial"  # "polynomial" (GH terms) or "integral" (strip sum)
+    nominal_speed: float = 1.0  # m/s, steady straight speed at nominal rpm
     nominal_rpm: float = 0.0
     source: dict = field(default_factory=dict)
     path: str = ""
@@ -130,8 +132,10 @@ class Vehicle:
         """Plausibility warnings of a track for this vehicle (:func:`bayesid.data.validate.check_track`):
         a median speed over ground above 4 x the nominal speed (m/s; ``body_speed`` unused)."""
         if self.nominal_rpm > 0 and ground_speed is not None and ground_speed > 4.0 * self.nominal_speed:
-            return [f"{name}: median speed over ground {ground_speed:.3g} m/s is more than 4 x the vehicle's "
-                    f"nominal {self.nominal_speed:.3g} m/s: a track of another vessel, or positions not in metres?"]
+            return [
+                f"{name}: median speed over ground {ground_speed:.3g} m/s is more than 4 x the vehicle's "
+                f"nominal {self.nominal_speed:.3g} m/s: a track of another vessel, or positions not in metres?"
+            ]
         return []
 
     def coefficient_vector(self, names=None) -> np.ndarray:
@@ -140,7 +144,7 @@ class Vehicle:
         terms.check_names(names, f"vehicle {self.id}")
         return np.array([self.coefficients.get(n, 0.0) for n in names], dtype=float)
 
-    def with_coefficients(self, values: dict) -> "Vehicle":
+    def with_coefficients(self, values: dict) -> Vehicle:
         """Copy with some coefficients replaced. Raises UnknownCoefficientError for bad names and
         ValueError for non-finite values, naming the coefficient."""
         terms.check_names(values, f"vehicle {self.id}")
@@ -151,7 +155,7 @@ class Vehicle:
             new[k] = float(v)
         return replace(self, coefficients=new)
 
-    def with_crossflow(self, model: str) -> "Vehicle":
+    def with_crossflow(self, model: str) -> Vehicle:
         """Select the nonlinear sway/yaw (and heave/pitch) damping.
 
         ``"polynomial"``: the Gertler & Hagen terms (``Yvabsv`` ...) of the coefficient table.
@@ -169,14 +173,14 @@ class Vehicle:
         zeroed = {n: 0.0 for n in terms.CROSSFLOW_POLYNOMIAL}
         return replace(self.with_coefficients(zeroed), crossflow_model="integral")
 
-    def without_products_of_inertia(self) -> "Vehicle":
+    def without_products_of_inertia(self) -> Vehicle:
         """Copy with Ixy = Iyz = Ixz = 0 (port/starboard symmetric mass distribution)."""
         return replace(self, inertia=np.diag(np.diag(self.inertia)))
 
     @property
     def m_prime(self) -> float:
         """Non-dimensional mass m' = m / (0.5 rho L^3)."""
-        return self.mass / (0.5 * self.rho * self.L ** 3)
+        return self.mass / (0.5 * self.rho * self.L**3)
 
     def mass_matrix(self, coefficients: dict | None = None) -> np.ndarray:
         """Rigid-body plus added mass, ``M = M_RB - M_A`` (6, 6), SI.
@@ -198,7 +202,7 @@ class Vehicle:
             val = c.get(name, 0.0)
             if val:
                 t = terms.term(name)
-                M[t.dof, t.accel] -= 0.5 * self.rho * self.L ** t.L_power * val
+                M[t.dof, t.accel] -= 0.5 * self.rho * self.L**t.L_power * val
         return M
 
     def steady_speed(self, rpm: float) -> float:
@@ -271,8 +275,10 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
         raise VehicleFileError(f"{p}: not valid TOML: {e}") from None
 
     if doc.get("vehicle", {}).get("kind") == "ship3dof":
-        raise VehicleFileError(f"{p}: a ship file ([vehicle] kind = \"ship3dof\"); load it with "
-                               "bayesid.models.ship.load_ship, or bayesid.models.load_any_vehicle for either kind")
+        raise VehicleFileError(
+            f'{p}: a ship file ([vehicle] kind = "ship3dof"); load it with '
+            "bayesid.models.ship.load_ship, or bayesid.models.load_any_vehicle for either kind"
+        )
     for section, keys in _REQUIRED.items():
         if section not in doc:
             raise VehicleFileError(f"{p}: missing section [{section}]")
@@ -287,8 +293,10 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
             raise VehicleFileError(f"{p}: [vehicle] {k} = {v[k]!r} must be positive")
     form = v.get("coefficient_form", "prime")
     if form != "prime":
-        raise VehicleFileError(f"{p}: [vehicle] coefficient_form = {form!r}; only 'prime' coefficients "
-                               "are supported (convert to prime form, see equations.md)")
+        raise VehicleFileError(
+            f"{p}: [vehicle] coefficient_form = {form!r}; only 'prime' coefficients "
+            "are supported (convert to prime form, see equations.md)"
+        )
     if "coefficients" not in doc:
         raise VehicleFileError(f"{p}: missing section [coefficients]")
     coeffs = {}
@@ -310,8 +318,7 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
         if k in ine:
             _finite(p, "inertia", k, ine[k])
     Ixy, Iyz, Ixz = ine.get("Ixy", 0.0), ine.get("Iyz", 0.0), ine.get("Ixz", 0.0)
-    inertia = np.array([[ine["Ixx"], -Ixy, -Ixz], [-Ixy, ine["Iyy"], -Iyz], [-Ixz, -Iyz, ine["Izz"]]],
-                       dtype=float)
+    inertia = np.array([[ine["Ixx"], -Ixy, -Ixz], [-Ixy, ine["Iyy"], -Iyz], [-Ixz, -Iyz, ine["Izz"]]], dtype=float)
     geo = doc["geometry"]
     for k in ("rG", "rB"):
         if len(geo[k]) != 3:
@@ -333,23 +340,37 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
                 raise VehicleFileError(f"{p}: missing [crossflow] {k}")
             _finite(p, "crossflow", k, cf[k])
         xs = np.linspace(cf["x_start_m"], cf["x_end_m"], int(cf["n_strips"]))
-        crossflow = Crossflow(cf["Cdy"], cf["Cdz"], cf["height_m"], cf["breadth_m"], xs,
-                              np.full(xs.shape, float(cf["dx_m"])))
+        crossflow = Crossflow(
+            cf["Cdy"], cf["Cdz"], cf["height_m"], cf["breadth_m"], xs, np.full(xs.shape, float(cf["dx_m"]))
+        )
         model = cf.get("model", "polynomial")
     prior, prior_source = parse_prior_section(doc.get("prior", {}), p, coeffs, _KnownTerms(), VehicleFileError)
     L = float(v["length_m"])
     propulsion = Propulsion(float(prop["uc_per_omega"]), float(prop["CT_coeff"]))
     rpm = float(v.get("max_rpm", lim["rpm_max"]))
     veh = Vehicle(
-        id=str(v["id"]), name=str(v.get("name", v["id"])), L=L, rho=float(v["rho"]),
-        g=float(v.get("g", 9.81)), mass=float(v["mass_kg"]), weight=float(v["weight_N"]),
-        buoyancy=float(v["buoyancy_N"]), inertia=inertia,
-        rG=np.array(geo["rG"], dtype=float), rB=np.array(geo["rB"], dtype=float),
-        coefficients=coeffs, propulsion=propulsion, limits=limits, crossflow=crossflow,
+        id=str(v["id"]),
+        name=str(v.get("name", v["id"])),
+        L=L,
+        rho=float(v["rho"]),
+        g=float(v.get("g", 9.81)),
+        mass=float(v["mass_kg"]),
+        weight=float(v["weight_N"]),
+        buoyancy=float(v["buoyancy_N"]),
+        inertia=inertia,
+        rG=np.array(geo["rG"], dtype=float),
+        rB=np.array(geo["rB"], dtype=float),
+        coefficients=coeffs,
+        propulsion=propulsion,
+        limits=limits,
+        crossflow=crossflow,
         crossflow_model="polynomial",
         nominal_speed=float(v.get("nominal_speed_mps", propulsion.uc_per_omega * rpm * math.pi / 30)),
-        nominal_rpm=rpm, source=copy.deepcopy(doc.get("source", {})), path=str(p),
-        prior=prior, prior_source=prior_source,
+        nominal_rpm=rpm,
+        source=copy.deepcopy(doc.get("source", {})),
+        path=str(p),
+        prior=prior,
+        prior_source=prior_source,
     )
     if model == "integral":
         veh = veh.with_crossflow("integral")

@@ -27,6 +27,7 @@ posterior draws' spread of that index on the predicted run. Index kinds with few
 :data:`MIN_SCORES_PER_KEY` scores borrow the pooled scores of every index (an exchangeability
 assumption, e.g. turning-circle indices of a zigzag-trained model; the output says so).
 """
+
 from __future__ import annotations
 
 import math
@@ -35,8 +36,20 @@ import numpy as np
 
 from ..tasks import Task, TaskError, run_tasks
 
-__all__ = ["LEVELS", "MAX_FOLDS", "MIN_SCORES_PER_KEY", "MIN_WINDOW_FRACTION", "full_window", "conformal_quantile", "fold_scores", "leave_one_run_out", "calibrated_bands",
-           "window_band", "index_band", "coverage_table"]
+__all__ = [
+    "LEVELS",
+    "MAX_FOLDS",
+    "MIN_SCORES_PER_KEY",
+    "MIN_WINDOW_FRACTION",
+    "full_window",
+    "conformal_quantile",
+    "fold_scores",
+    "leave_one_run_out",
+    "calibrated_bands",
+    "window_band",
+    "index_band",
+    "coverage_table",
+]
 
 #: Nominal levels of the bands and of the reliability figure.
 LEVELS = (0.5, 0.8, 0.9, 0.95)
@@ -76,8 +89,24 @@ def _index_keys(measured: dict) -> list:
     return [k for k in measured if k not in ("kind", "execute_t_s", "reason")]
 
 
-def fold_scores(ks, model, ctxs, sd_fit: dict, p, nuisance, tracks, window_s: float, start: str,
-                leadin_s, channels, max_nfev: int, prior, data_scale, n_draws: int, seed: int) -> dict:
+def fold_scores(
+    ks,
+    model,
+    ctxs,
+    sd_fit: dict,
+    p,
+    nuisance,
+    tracks,
+    window_s: float,
+    start: str,
+    leadin_s,
+    channels,
+    max_nfev: int,
+    prior,
+    data_scale,
+    n_draws: int,
+    seed: int,
+) -> dict:
     """One fold of :func:`leave_one_run_out` (a task): refit without the runs ``ks``, predict them.
 
     Parameters
@@ -100,29 +129,65 @@ def fold_scores(ks, model, ctxs, sd_fit: dict, p, nuisance, tracks, window_s: fl
 
     keep = [i for i in range(len(ctxs)) if i not in set(ks)]
     nu = None if nuisance is None else [nuisance[i] for i in keep]
-    f = wf.fit_model(model, [ctxs[i] for i in keep], sd_fit, np.asarray(p, float), nu, max_nfev=max_nfev,
-                     channels=channels, prior=prior)
+    f = wf.fit_model(
+        model,
+        [ctxs[i] for i in keep],
+        sd_fit,
+        np.asarray(p, float),
+        nu,
+        max_nfev=max_nfev,
+        channels=channels,
+        prior=prior,
+    )
     cov, _ = msfit.laplace_covariance(f, [ctxs[i] for i in keep], prior, data_scale)
     rng = np.random.default_rng(seed)
     wins, idx = [], []
     for track in tracks:
         pr = msfit.predict(model, f.p, [track], window_s, start=start, leadin_s=leadin_s)
-        wins += [{"run": track.name, "max_position_m": w["max_position_m"], "max_heading_deg": w["max_heading_deg"]}
-                 for w in pr["windows"] if full_window(w, window_s)]
+        wins += [
+            {"run": track.name, "max_position_m": w["max_position_m"], "max_heading_deg": w["max_heading_deg"]}
+            for w in pr["windows"]
+            if full_window(w, window_s)
+        ]
         tb = msfit.turning_band(model, f.p, cov, track, n_draws, rng, start=pr["start_rule"], leadin_s=pr["leadin_s"])
         for key in _index_keys(tb["measured"]):
             m, q, sd = tb["measured"].get(key), tb["predicted"].get(key), tb["sd"].get(key)
             ok = all(v is not None and np.isfinite(v) for v in (m, q, sd)) and sd > 0
-            idx.append({"run": track.name, "index": key, "measured": m, "predicted": q, "sd": sd,
-                        "score": abs(m - q) / sd if ok else None,
-                        "abs_error": abs(m - q) if m is not None and q is not None else None})
+            idx.append(
+                {
+                    "run": track.name,
+                    "index": key,
+                    "measured": m,
+                    "predicted": q,
+                    "sd": sd,
+                    "score": abs(m - q) / sd if ok else None,
+                    "abs_error": abs(m - q) if m is not None and q is not None else None,
+                }
+            )
     return {"runs": [t.name for t in tracks], "windows": wins, "indices": idx, "p": f.p.tolist()}
 
 
-def leave_one_run_out(model, train, ctxs, fit, sd_fit: dict, window_s: float, start: str = "measured",
-                      leadin_s=None, channels=None, max_nfev: int = 40, prior=None, data_scale=None,
-                      n_draws: int = 40, seed: int = 0, max_folds: int = MAX_FOLDS, jobs: int = 1,
-                      scheduler: str | None = None, journal=None, progress: str | None = None) -> dict:
+def leave_one_run_out(
+    model,
+    train,
+    ctxs,
+    fit,
+    sd_fit: dict,
+    window_s: float,
+    start: str = "measured",
+    leadin_s=None,
+    channels=None,
+    max_nfev: int = 40,
+    prior=None,
+    data_scale=None,
+    n_draws: int = 40,
+    seed: int = 0,
+    max_folds: int = MAX_FOLDS,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    journal=None,
+    progress: str | None = None,
+) -> dict:
     """Leave-one-run-out calibration of a fitted model (module docstring).
 
     Parameters
@@ -152,23 +217,56 @@ def leave_one_run_out(model, train, ctxs, fit, sd_fit: dict, window_s: float, st
     nuisance = None if fit.nuisance is None or not model.n_nuisance else [np.asarray(v).tolist() for v in fit.nuisance]
     G = min(len(train), int(max_folds))
     groups = [[i for i in range(len(train)) if i % G == g] for g in range(G)]
-    tasks = [Task(f"fold_{g}_of_{G}", {"runs": [train[i].name for i in ks], "fold": g},
-                  (ks, model, ctxs, sd_fit, fit.p, nuisance, [train[i] for i in ks], window_s, start, leadin_s,
-                   channels, max_nfev, prior, data_scale, n_draws, seed + g)) for g, ks in enumerate(groups)]
+    tasks = [
+        Task(
+            f"fold_{g}_of_{G}",
+            {"runs": [train[i].name for i in ks], "fold": g},
+            (
+                ks,
+                model,
+                ctxs,
+                sd_fit,
+                fit.p,
+                nuisance,
+                [train[i] for i in ks],
+                window_s,
+                start,
+                leadin_s,
+                channels,
+                max_nfev,
+                prior,
+                data_scale,
+                n_draws,
+                seed + g,
+            ),
+        )
+        for g, ks in enumerate(groups)
+    ]
     outs = run_tasks(fold_scores, tasks, jobs=jobs, scheduler=scheduler, journal=journal, progress=progress)
-    folds = [{"runs": t.params["runs"], "error": str(o)} if isinstance(o, TaskError) else o for t, o in zip(tasks, outs)]
+    folds = [
+        {"runs": t.params["runs"], "error": str(o)} if isinstance(o, TaskError) else o for t, o in zip(tasks, outs)
+    ]
     good = [f for f in folds if "error" not in f]
     wins = [w for f in good for w in f["windows"]]
     rows = [r for f in good for r in f["indices"]]
     keys = sorted({r["index"] for r in rows})
-    return {"method": "split conformal, leave one training run out (refit on the others)"
-            + (f", runs grouped into {G} folds" if G < len(train) else ""), "window_s": window_s,
-            "start_rule": start, "n_runs": len(train), "n_folds": G, "n_draws": n_draws, "folds": folds,
-            "window_scores": {"max_position_m": [w["max_position_m"] for w in wins],
-                              "max_heading_deg": [w["max_heading_deg"] for w in wins
-                                                  if w["max_heading_deg"] is not None]},
-            "index_scores": {key: [r["score"] for r in rows if r["index"] == key and r["score"] is not None]
-                             for key in keys}}
+    return {
+        "method": "split conformal, leave one training run out (refit on the others)"
+        + (f", runs grouped into {G} folds" if G < len(train) else ""),
+        "window_s": window_s,
+        "start_rule": start,
+        "n_runs": len(train),
+        "n_folds": G,
+        "n_draws": n_draws,
+        "folds": folds,
+        "window_scores": {
+            "max_position_m": [w["max_position_m"] for w in wins],
+            "max_heading_deg": [w["max_heading_deg"] for w in wins if w["max_heading_deg"] is not None],
+        },
+        "index_scores": {
+            key: [r["score"] for r in rows if r["index"] == key and r["score"] is not None] for key in keys
+        },
+    }
 
 
 def window_band(calibration: dict, level: float) -> dict:
@@ -186,14 +284,21 @@ def index_band(calibration: dict, key: str, predicted: float, sd: float, level: 
     q = conformal_quantile(scores, level)
     ok = predicted is not None and sd is not None and np.isfinite(predicted) and np.isfinite(sd)
     half = q * sd if ok else float("nan")
-    return {"lo": predicted - half if ok else None, "hi": predicted + half if ok else None, "q": q,
-            "n_scores": len(scores), "pooled": pooled}
+    return {
+        "lo": predicted - half if ok else None,
+        "hi": predicted + half if ok else None,
+        "q": q,
+        "n_scores": len(scores),
+        "pooled": pooled,
+    }
 
 
 def coverage_table(hits: dict) -> dict:
     """{level: {"n", "inside", "coverage"}} from {level: [bool, ...]}."""
-    return {str(a): {"n": len(v), "inside": int(sum(v)), "coverage": float(np.mean(v)) if v else None}
-            for a, v in hits.items()}
+    return {
+        str(a): {"n": len(v), "inside": int(sum(v)), "coverage": float(np.mean(v)) if v else None}
+        for a, v in hits.items()
+    }
 
 
 def calibrated_bands(calibration: dict | None, window_s, windows: list, indices: dict, levels=LEVELS) -> dict:
@@ -224,22 +329,40 @@ def calibrated_bands(calibration: dict | None, window_s, windows: list, indices:
             if m is None or not np.isfinite(m):
                 continue
             pb = (tb.get("band_5_95") or {}).get(key)
-            row = {"track": name, "index": key, "measured": m, "predicted": q, "sd": sd,
-                   "parameter_band_5_95": pb,
-                   "parameter_inside": bool(pb[0] <= m <= pb[1]) if pb else None, "band": {}, "inside": {}}
+            row = {
+                "track": name,
+                "index": key,
+                "measured": m,
+                "predicted": q,
+                "sd": sd,
+                "parameter_band_5_95": pb,
+                "parameter_inside": bool(pb[0] <= m <= pb[1]) if pb else None,
+                "band": {},
+                "inside": {},
+            }
             if pb:
                 par_hits.append(row["parameter_inside"])
             rows_i.append(row)
-    out["parameter_only"] = {"nominal": 0.9, "n": len(par_hits), "inside": int(sum(par_hits)),
-                             "coverage": float(np.mean(par_hits)) if par_hits else None}
+    out["parameter_only"] = {
+        "nominal": 0.9,
+        "n": len(par_hits),
+        "inside": int(sum(par_hits)),
+        "coverage": float(np.mean(par_hits)) if par_hits else None,
+    }
     if calibration is None:
-        out.update(reason="the model has no calibration (bayesid fit on 3 or more runs computes one)", indices=rows_i,
-                   windows=[])
+        out.update(
+            reason="the model has no calibration (bayesid fit on 3 or more runs computes one)",
+            indices=rows_i,
+            windows=[],
+        )
         return out
     hits = {"windows": {a: [] for a in levels}, "indices": {a: [] for a in levels}}
     rows_w = []
-    same_window = window_s is not None and calibration.get("window_s") is not None and \
-        abs(float(window_s) - float(calibration["window_s"])) < 1e-9
+    same_window = (
+        window_s is not None
+        and calibration.get("window_s") is not None
+        and abs(float(window_s) - float(calibration["window_s"])) < 1e-9
+    )
     if same_window:
         for w in windows:
             if not full_window(w, float(window_s)):
@@ -248,20 +371,30 @@ def calibrated_bands(calibration: dict | None, window_s, windows: list, indices:
             for a in levels:
                 b = window_band(calibration, a)
                 ok = w["max_position_m"] <= b["max_position_m"] and (
-                    w.get("max_heading_deg") is None or w["max_heading_deg"] <= b["max_heading_deg"])
+                    w.get("max_heading_deg") is None or w["max_heading_deg"] <= b["max_heading_deg"]
+                )
                 row["band"][str(a)], row["inside"][str(a)] = b, bool(ok)
                 hits["windows"][a].append(bool(ok))
             rows_w.append(row)
     else:
-        out["window_reason"] = (f"windows of {window_s} s: the calibration is for {calibration.get('window_s')} s "
-                                "windows; predict with that --window for calibrated window bands")
+        out["window_reason"] = (
+            f"windows of {window_s} s: the calibration is for {calibration.get('window_s')} s "
+            "windows; predict with that --window for calibrated window bands"
+        )
     for row in rows_i:
         for a in levels:
             b = index_band(calibration, row["index"], row["predicted"], row["sd"], a)
             ok = b["lo"] is not None and b["lo"] <= row["measured"] <= b["hi"]
             row["band"][str(a)], row["inside"][str(a)] = b, bool(ok)
             hits["indices"][a].append(bool(ok))
-    out.update(windows=rows_w, indices=rows_i, window_s=calibration.get("window_s"),
-               coverage={"windows": coverage_table(hits["windows"]), "indices": coverage_table(hits["indices"]),
-                         "all": coverage_table({a: hits["windows"][a] + hits["indices"][a] for a in levels})})
+    out.update(
+        windows=rows_w,
+        indices=rows_i,
+        window_s=calibration.get("window_s"),
+        coverage={
+            "windows": coverage_table(hits["windows"]),
+            "indices": coverage_table(hits["indices"]),
+            "all": coverage_table({a: hits["windows"][a] + hits["indices"][a] for a in levels}),
+        },
+    )
     return out

@@ -27,6 +27,7 @@ Solvers: SLSQP (``method="slsqp"``; the paper's SQP, Furlong et al. 2003, Sec. 3
 trust-region reflective least squares (``method="least_squares"``, scipy's ``trf``), both with the
 objective's batched finite-difference Jacobian.
 """
+
 from __future__ import annotations
 
 import math
@@ -96,14 +97,15 @@ class FitResult:
     n_starts: int = 0
 
     @classmethod
-    def fixed(cls, model, p, n_tracks: int, message: str = "fixed", nuisance=None) -> "FitResult":
+    def fixed(cls, model, p, n_tracks: int, message: str = "fixed", nuisance=None) -> FitResult:
         """A model at given parameters, not fitted (e.g. the nominal or the true model),
         usable wherever a fit result of ``model`` is: ``p`` (n_params,), ``n_tracks`` tracks
         with ``nuisance`` (one (n_nuisance,) array per track; default zeros)."""
         p = np.asarray(p, float)
         nu = [np.zeros(model.n_nuisance)] * n_tracks if nuisance is None else list(nuisance)
-        return cls("none", list(model.param_names), p, 0.0, message=message, model=model, p=p,
-                   nuisance=nu, k=model.n_params)
+        return cls(
+            "none", list(model.param_names), p, 0.0, message=message, model=model, p=p, nuisance=nu, k=model.n_params
+        )
 
     @property
     def sim_share(self) -> float:
@@ -120,7 +122,7 @@ class FitResult:
         """{coefficient: fitted value} of the free coefficients (prime form)."""
         if self.model is None:
             return {n: float(v) for n, v in zip(self.names, self.theta)}
-        return {n: float(v) for n, v in zip(self.model.free, self.p[:self.model.n_theta])}
+        return {n: float(v) for n, v in zip(self.model.free, self.p[: self.model.n_theta])}
 
     def effect_parameters(self) -> dict:
         """{effect: {parameter: value}} of a model fit's effects, with ``per_track_nuisance``
@@ -135,17 +137,29 @@ class FitResult:
 
     def summary(self) -> dict:
         """JSON-ready summary (no per-iteration history, no arrays)."""
-        return dict(method=self.method, start_cost=self.start_cost, final_cost=self.cost,
-                    n_iterations=self.n_iterations, n_simulations=self.n_simulations,
-                    n_sim_cost=self.n_sim_cost, n_sim_gradient=self.n_sim_gradient,
-                    n_sim_linesearch=self.n_sim_linesearch, wall_s=self.wall_s,
-                    sim_share=self.sim_share, success=bool(self.success), message=self.message,
-                    at_bound=list(self.at_bound))
+        return dict(
+            method=self.method,
+            start_cost=self.start_cost,
+            final_cost=self.cost,
+            n_iterations=self.n_iterations,
+            n_simulations=self.n_simulations,
+            n_sim_cost=self.n_sim_cost,
+            n_sim_gradient=self.n_sim_gradient,
+            n_sim_linesearch=self.n_sim_linesearch,
+            wall_s=self.wall_s,
+            sim_share=self.sim_share,
+            success=bool(self.success),
+            message=self.message,
+            at_bound=list(self.at_bound),
+        )
 
 
 def _active(p, lo, hi, tol=1e-6):
-    return [i for i in range(p.size) if p[i] - lo[i] <= tol * max(1.0, abs(lo[i]))
-            or hi[i] - p[i] <= tol * max(1.0, abs(hi[i]))]
+    return [
+        i
+        for i in range(p.size)
+        if p[i] - lo[i] <= tol * max(1.0, abs(lo[i])) or hi[i] - p[i] <= tol * max(1.0, abs(hi[i]))
+    ]
 
 
 class _Monitor:
@@ -154,9 +168,9 @@ class _Monitor:
 
     def __init__(self, objective):
         self.ob = objective
-        self.evals = []             # (x, cost) of every single-point evaluation
+        self.evals = []  # (x, cost) of every single-point evaluation
         self.n_grad_tracks = 0
-        self._last = None           # (x, r)
+        self._last = None  # (x, r)
         self.t0 = time.perf_counter()
         self.sim0 = objective.sim_seconds
         self.n0 = objective.n_simulations
@@ -184,9 +198,20 @@ class _Monitor:
         return r, J
 
 
-def fit(objective, x0, bounds, method: str = "least_squares", max_nfev: int = 300, maxiter: int = 300,
-        ftol: float | None = None, xtol: float = 1e-15, gtol: float = 1e-15, x_scale=1.0,
-        progress: str | None = None, quiet: bool = False) -> FitResult:
+def fit(
+    objective,
+    x0,
+    bounds,
+    method: str = "least_squares",
+    max_nfev: int = 300,
+    maxiter: int = 300,
+    ftol: float | None = None,
+    xtol: float = 1e-15,
+    gtol: float = 1e-15,
+    x_scale=1.0,
+    progress: str | None = None,
+    quiet: bool = False,
+) -> FitResult:
     """Minimise ``V(x) = r(x)^T r(x)`` of an objective (module docstring) over bounds.
 
     Parameters
@@ -232,6 +257,7 @@ def fit(objective, x0, bounds, method: str = "least_squares", max_nfev: int = 30
         def resid(x):
             bar.update(1)
             return mon.residuals(x)
+
     jac_out = None
     try:
         with warnings.catch_warnings():
@@ -249,19 +275,35 @@ def fit(objective, x0, bounds, method: str = "least_squares", max_nfev: int = 30
                     r = resid(x)
                     return float(r @ r) / norm
 
-                res = optimize.minimize(cost_n, x0, jac=grad, method="SLSQP",
-                                        bounds=list(zip(lo, hi)),
-                                        callback=lambda xk: iterates.append(np.array(xk, dtype=float)),
-                                        options=dict(maxiter=maxiter, ftol=1e-16 if ftol is None else ftol))
+                res = optimize.minimize(
+                    cost_n,
+                    x0,
+                    jac=grad,
+                    method="SLSQP",
+                    bounds=list(zip(lo, hi)),
+                    callback=lambda xk: iterates.append(np.array(xk, dtype=float)),
+                    options=dict(maxiter=maxiter, ftol=1e-16 if ftol is None else ftol),
+                )
                 x = np.clip(res.x, lo, hi)
                 label, success, nit = "SLSQP", res.success, res.nit
             else:
+
                 def cb(intermediate_result):
                     iterates.append(np.array(intermediate_result.x, dtype=float))
 
-                res = optimize.least_squares(resid, x0, jac=lambda x: mon.jac(x)[1], bounds=(lo, hi),
-                                             method="trf", x_scale=x_scale, ftol=1e-15 if ftol is None else ftol,
-                                             xtol=xtol, gtol=gtol, max_nfev=max_nfev, callback=cb)
+                res = optimize.least_squares(
+                    resid,
+                    x0,
+                    jac=lambda x: mon.jac(x)[1],
+                    bounds=(lo, hi),
+                    method="trf",
+                    x_scale=x_scale,
+                    ftol=1e-15 if ftol is None else ftol,
+                    xtol=xtol,
+                    gtol=gtol,
+                    max_nfev=max_nfev,
+                    callback=cb,
+                )
                 x = res.x
                 if not np.array_equal(iterates[-1], x):
                     iterates.append(np.array(x, dtype=float))
@@ -272,7 +314,7 @@ def fit(objective, x0, bounds, method: str = "least_squares", max_nfev: int = 30
     if not objective.cache_residuals:  # a stateful objective: its residuals at the optimum as the solver left it
         r_final = objective.residuals(x)[0]
     wall = time.perf_counter() - mon.t0
-    sim_s = objective.sim_seconds - mon.sim0   # before the bookkeeping evaluations below
+    sim_s = objective.sim_seconds - mon.sim0  # before the bookkeeping evaluations below
     n_sims = objective.n_simulations - mon.n0
     iter_set = {tuple(v) for v in iterates}
     n_cost = sum(1 for v, _ in mon.evals if tuple(v) in iter_set)
@@ -286,18 +328,41 @@ def fit(objective, x0, bounds, method: str = "least_squares", max_nfev: int = 30
 
     hist, prev = [], None
     for k, v in enumerate(iterates):
-        hist.append(dict(iteration=k, cost=cost(v) if objective.cache_residuals else float("nan"),
-                         step=float(np.linalg.norm(v - prev)) if prev is not None else 0.0,
-                         active_bounds=[objective.names[i] for i in _active(v, lo, hi)]))
+        hist.append(
+            dict(
+                iteration=k,
+                cost=cost(v) if objective.cache_residuals else float("nan"),
+                step=float(np.linalg.norm(v - prev)) if prev is not None else 0.0,
+                active_bounds=[objective.names[i] for i in _active(v, lo, hi)],
+            )
+        )
         prev = v
     if objective.cache_residuals:
         final, n_res = cost(x), objective.n_residuals
     else:
         final, n_res = float(r_final @ r_final), r_final.size
     start = hist[0]["cost"] if objective.cache_residuals else (mon.evals[0][1] if mon.evals else float("nan"))
-    out = FitResult(label, list(objective.names), np.array(x, dtype=float), final, float(start), bool(success),
-                    str(res.message), nit, n_sims, n_cost, mon.n_grad_tracks, len(mon.evals) - n_cost, wall,
-                    sim_s, [objective.names[i] for i in _active(x, lo, hi)], hist, jac_out, n_res, x.size)
+    out = FitResult(
+        label,
+        list(objective.names),
+        np.array(x, dtype=float),
+        final,
+        float(start),
+        bool(success),
+        str(res.message),
+        nit,
+        n_sims,
+        n_cost,
+        mon.n_grad_tracks,
+        len(mon.evals) - n_cost,
+        wall,
+        sim_s,
+        [objective.names[i] for i in _active(x, lo, hi)],
+        hist,
+        jac_out,
+        n_res,
+        x.size,
+    )
     for k, v in objective.result_fields(out.x).items():
         setattr(out, k, v)
     return out

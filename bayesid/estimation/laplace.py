@@ -5,6 +5,7 @@ inflation) both use.
 Bishop (2006), *Pattern Recognition and Machine Learning*, Sec. 4.4 (Laplace approximation);
 for a least-squares objective the Hessian is approximated by ``J^T J`` (Gauss-Newton).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -12,9 +13,13 @@ import numpy as np
 __all__ = ["gauss_newton_covariance"]
 
 
-def gauss_newton_covariance(J: np.ndarray, prior_precision: np.ndarray | None = None,
-                            residual_variance: float = 1.0, inflation: float = 1.0,
-                            rcond: float = 1e-12) -> np.ndarray:
+def gauss_newton_covariance(
+    J: np.ndarray,
+    prior_precision: np.ndarray | None = None,
+    residual_variance: float = 1.0,
+    inflation: float = 1.0,
+    rcond: float = 1e-12,
+) -> np.ndarray:
     """Laplace covariance ``(J^T J + diag(prior_precision))^-1 * residual_variance * inflation``.
 
     Parameters

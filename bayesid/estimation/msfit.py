@@ -21,6 +21,7 @@ residuals are strongly correlated, and ignoring that would make the bands far to
 capped at the mean number of samples per window (each window then counts as one independent
 residual per channel).
 """
+
 from __future__ import annotations
 
 import json
@@ -29,17 +30,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..models import effects as ef
-from . import shooting
-from . import windows as wf
-from .fit import FitResult
-from .laplace import gauss_newton_covariance
-from .calibration import leave_one_run_out
-from .multistart import multistart
-from ..protocol import pooled_scores, resolve_start, start_settings
 from ..data.track import Track
 from ..models import build_model, load_any_vehicle
-
+from ..models import effects as ef
+from ..protocol import pooled_scores, resolve_start, start_settings
+from . import shooting
+from . import windows as wf
+from .calibration import leave_one_run_out
+from .fit import FitResult
+from .laplace import gauss_newton_covariance
+from .multistart import multistart
 
 #: Protocol window (s) of a fit whose user gives none, for a family that scores over the
 #: protocol window (submarines; :meth:`~bayesid.models.effects.EffectModel.default_fit_window`).
@@ -65,8 +65,9 @@ def _ar1_inflation(fitres: FitResult, ctxs) -> float:
     return float(min((1 + rho) / (1 - rho), per_window))
 
 
-def laplace_covariance(fitres: FitResult, ctxs, prior: wf.GaussianPrior | None = None,
-                       data_scale: tuple | None = None) -> tuple[np.ndarray, dict]:
+def laplace_covariance(
+    fitres: FitResult, ctxs, prior: wf.GaussianPrior | None = None, data_scale: tuple | None = None
+) -> tuple[np.ndarray, dict]:
     """(n_params, n_params) Laplace covariance of the fitted parameters (module docstring).
 
     Without a prior: ``(J^T J)^+ * s2 * inflation`` with ``s2 = SSR / (n - k)`` and the AR(1)
@@ -78,7 +79,7 @@ def laplace_covariance(fitres: FitResult, ctxs, prior: wf.GaussianPrior | None =
     J = fitres.jac[:, :n]
     J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
     if prior is not None:
-        J = J[:J.shape[0] - prior.idx.size]  # the data rows
+        J = J[: J.shape[0] - prior.idx.size]  # the data rows
         s2, infl = data_scale
         cov = psd_covariance(gauss_newton_covariance(J / math.sqrt(s2 * infl), prior_precision=prior.precision(n)))
     else:
@@ -86,9 +87,12 @@ def laplace_covariance(fitres: FitResult, ctxs, prior: wf.GaussianPrior | None =
         infl = _ar1_inflation(fitres, ctxs)
         cov = psd_covariance(gauss_newton_covariance(J, residual_variance=s2, inflation=infl))
     sv = np.linalg.svd(J, compute_uv=False)
-    return cov, {"residual_variance": s2, "ar1_inflation": infl,
-                 "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
-                 "weak_directions": weak_directions(J, fitres.model.scales())}
+    return cov, {
+        "residual_variance": s2,
+        "ar1_inflation": infl,
+        "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
+        "weak_directions": weak_directions(J, fitres.model.scales()),
+    }
 
 
 def psd_covariance(cov) -> np.ndarray:
@@ -112,11 +116,30 @@ def weak_directions(J, scales, k: int = 3) -> list:
     return [{"eigenvalue": float(lam[i]), "vector": V[:, i].tolist()} for i in range(min(k, lam.size))]
 
 
-def identify(vehicle, train, free=None, effects=(), window_s: float | None = None, dt: float | None = None,
-             max_nfev: int = 60, seed: bool = True, progress=None, weighting: str | None = None,
-             channels=None, start: str = "auto", starts: int = 0, rng=None, jobs: int = 1,
-             scheduler: str | None = None, journal=None, prior: bool = True, calibrate: bool = True,
-             calibration_window_s: float = 60.0, calibration_draws: int = 40, calibration_seed: int = 0) -> dict:
+def identify(
+    vehicle,
+    train,
+    free=None,
+    effects=(),
+    window_s: float | None = None,
+    dt: float | None = None,
+    max_nfev: int = 60,
+    seed: bool = True,
+    progress=None,
+    weighting: str | None = None,
+    channels=None,
+    start: str = "auto",
+    starts: int = 0,
+    rng=None,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    journal=None,
+    prior: bool = True,
+    calibrate: bool = True,
+    calibration_window_s: float = 60.0,
+    calibration_draws: int = 40,
+    calibration_seed: int = 0,
+) -> dict:
     """Identify the free coefficients (and effect parameters) on training tracks.
 
     Parameters
@@ -179,9 +202,11 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     for e in model.effects:
         bare = [t.name for t in train if not all(c in t for c in e.needs_columns)]
         if bare:
-            raise ValueError(f"the {e.name} effect needs columns {' and '.join(e.needs_columns)}; track(s) "
-                             f"{', '.join(bare)} have none (leave --effects {e.name} out, or add the measured "
-                             f"{e.name})")
+            raise ValueError(
+                f"the {e.name} effect needs columns {' and '.join(e.needs_columns)}; track(s) "
+                f"{', '.join(bare)} have none (leave --effects {e.name} out, or add the measured "
+                f"{e.name})"
+            )
     rule = resolve_start(start, train)
     ctxs = [model.context(t, window_s, start=rule) for t in train]
     wf.check_enough_data(model, ctxs, window_s)
@@ -197,8 +222,13 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
             ps, info = seeded
             seed_info = info
             if ps is not None:
-                c_nom, c_seed = wf.window_residuals(model, ctxs, [wf.channel_weights(c, sd, channels) for c in ctxs],
-                                                    np.vstack([p0, ps]), [None] * len(ctxs))
+                c_nom, c_seed = wf.window_residuals(
+                    model,
+                    ctxs,
+                    [wf.channel_weights(c, sd, channels) for c in ctxs],
+                    np.vstack([p0, ps]),
+                    [None] * len(ctxs),
+                )
                 info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
                 if info["cost_seed"] < info["cost_nominal"]:
                     p0, seed_info = ps, dict(info, used=True)
@@ -207,19 +237,45 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
             say(f"equation-error seed: {'used' if seed_info.get('used') else 'not used'}")
     say("multiple-shooting fit")
     weighting = weighting or model.DEFAULT_WEIGHTING
-    f, sd_fit = wf.fit_weighted(model, ctxs, sd, p0, max_nfev=max_nfev, weighting=weighting, channels=channels,
-                                 progress="fit" if progress is not None else None)
+    f, sd_fit = wf.fit_weighted(
+        model,
+        ctxs,
+        sd,
+        p0,
+        max_nfev=max_nfev,
+        weighting=weighting,
+        channels=channels,
+        progress="fit" if progress is not None else None,
+    )
     ms = None
     if starts:
         say(f"multistart: {starts} more start(s) on {scheduler or f'{jobs} worker(s)'}")
-        dflt = {"p": f.p.tolist(), "cost": float(f.cost), "success": bool(f.success), "nfev": int(f.n_simulations),
-                "message": str(f.message)}
-        ms = multistart(model, ctxs, sd_fit, p0, starts, np.random.default_rng(0) if rng is None else rng,
-                        max_nfev=max_nfev, channels=channels, default_fit=dflt, jobs=jobs, scheduler=scheduler,
-                        journal=journal, progress="starts" if progress is not None else None)
+        dflt = {
+            "p": f.p.tolist(),
+            "cost": float(f.cost),
+            "success": bool(f.success),
+            "nfev": int(f.n_simulations),
+            "message": str(f.message),
+        }
+        ms = multistart(
+            model,
+            ctxs,
+            sd_fit,
+            p0,
+            starts,
+            np.random.default_rng(0) if rng is None else rng,
+            max_nfev=max_nfev,
+            channels=channels,
+            default_fit=dflt,
+            jobs=jobs,
+            scheduler=scheduler,
+            journal=journal,
+            progress="starts" if progress is not None else None,
+        )
         if ms.best != 0:  # the best optimum again in this process, for its Jacobian (few evaluations)
-            f = wf.fit_model(model, ctxs, sd_fit, np.asarray(ms.fits[ms.best]["p"]), max_nfev=max_nfev,
-                             channels=channels)
+            f = wf.fit_model(
+                model, ctxs, sd_fit, np.asarray(ms.fits[ms.best]["p"]), max_nfev=max_nfev, channels=channels
+            )
     gp, prior_info = wf.GaussianPrior.of_model(model) if prior else None, {"used": False}
     if gp is not None and gp.idx.size:
         # the prior weighs against the data as a likelihood whose samples count 1 / inflation each
@@ -229,19 +285,40 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
         gp = wf.GaussianPrior(gp.names, gp.idx, gp.mean, gp.sd, math.sqrt(s2 * infl))
         say(f"MAP fit with the vehicle file's priors on {len(gp.names)} coefficient(s)")
         f0 = f
-        f = wf.fit_model(model, ctxs, sd_fit, f.p, f.nuisance, max_nfev=max_nfev, channels=channels, prior=gp,
-                         progress="fit with prior" if progress is not None else None)
+        f = wf.fit_model(
+            model,
+            ctxs,
+            sd_fit,
+            f.p,
+            f.nuisance,
+            max_nfev=max_nfev,
+            channels=channels,
+            prior=gp,
+            progress="fit with prior" if progress is not None else None,
+        )
         cov, post = laplace_covariance(f, ctxs, gp, (s2, infl))
         z = (f.p[gp.idx] - gp.mean) / gp.sd
         z0 = (f0.p[gp.idx] - gp.mean) / gp.sd
-        prior_info = {"used": True, "source": getattr(model.vehicle, "prior_source", ""),
-                      "data_weight_sd": gp.weight, "residual_variance": s2, "ar1_inflation": infl,
-                      "coefficients": {n: {"mean": float(m), "sd": float(d), "identified": float(f.p[i]),
-                                           "z": float(zz), "z_without_prior": float(zz0),
-                                           "posterior_sd": float(math.sqrt(max(cov[i, i], 0.0)))}
-                                       for n, i, m, d, zz, zz0 in zip(gp.names, gp.idx, gp.mean, gp.sd, z, z0)},
-                      "moved": [n for n, zz in zip(gp.names, z) if abs(zz) > 1.0],
-                      "beyond_3sd": [n for n, zz in zip(gp.names, z) if abs(zz) > 3.0]}
+        prior_info = {
+            "used": True,
+            "source": getattr(model.vehicle, "prior_source", ""),
+            "data_weight_sd": gp.weight,
+            "residual_variance": s2,
+            "ar1_inflation": infl,
+            "coefficients": {
+                n: {
+                    "mean": float(m),
+                    "sd": float(d),
+                    "identified": float(f.p[i]),
+                    "z": float(zz),
+                    "z_without_prior": float(zz0),
+                    "posterior_sd": float(math.sqrt(max(cov[i, i], 0.0))),
+                }
+                for n, i, m, d, zz, zz0 in zip(gp.names, gp.idx, gp.mean, gp.sd, z, z0)
+            },
+            "moved": [n for n, zz in zip(gp.names, z) if abs(zz) > 1.0],
+            "beyond_3sd": [n for n, zz in zip(gp.names, z) if abs(zz) > 3.0],
+        }
     else:
         cov, post = laplace_covariance(f, ctxs)
         gp = None
@@ -249,16 +326,44 @@ def identify(vehicle, train, free=None, effects=(), window_s: float | None = Non
     if calibrate and len(train) >= 3:
         rule_p, lead_p = start_settings(start, train, calibration_window_s, model.dt, None)
         say(f"calibration: leave one of {len(train)} runs out on {scheduler or f'{jobs} worker(s)'}")
-        calib = leave_one_run_out(model, train, ctxs, f, sd_fit, calibration_window_s, start=rule_p,
-                                  leadin_s=lead_p, channels=channels, max_nfev=max_nfev, prior=gp,
-                                  data_scale=(prior_info["residual_variance"], prior_info["ar1_inflation"])
-                                  if gp is not None else None, n_draws=calibration_draws, seed=calibration_seed, jobs=jobs,
-                                  scheduler=scheduler, journal=journal,
-                                  progress="calibration" if progress is not None else None)
-    return {"model": model, "fit": f, "cov": cov, "posterior": post, "seed": seed_info, "noise_sd": sd,
-            "fit_sd": sd_fit, "weighting": weighting, "channels": channels, "start_rule": rule,
-            "train_scores": wf.scores(model, f, ctxs), "window_s": window_s, "p0": p0, "multistart": ms,
-            "prior": prior_info, "calibration": calib}
+        calib = leave_one_run_out(
+            model,
+            train,
+            ctxs,
+            f,
+            sd_fit,
+            calibration_window_s,
+            start=rule_p,
+            leadin_s=lead_p,
+            channels=channels,
+            max_nfev=max_nfev,
+            prior=gp,
+            data_scale=(prior_info["residual_variance"], prior_info["ar1_inflation"]) if gp is not None else None,
+            n_draws=calibration_draws,
+            seed=calibration_seed,
+            jobs=jobs,
+            scheduler=scheduler,
+            journal=journal,
+            progress="calibration" if progress is not None else None,
+        )
+    return {
+        "model": model,
+        "fit": f,
+        "cov": cov,
+        "posterior": post,
+        "seed": seed_info,
+        "noise_sd": sd,
+        "fit_sd": sd_fit,
+        "weighting": weighting,
+        "channels": channels,
+        "start_rule": rule,
+        "train_scores": wf.scores(model, f, ctxs),
+        "window_s": window_s,
+        "p0": p0,
+        "multistart": ms,
+        "prior": prior_info,
+        "calibration": calib,
+    }
 
 
 def model_document(res: dict, vehicle_ref: str, train_names, provenance: dict | None = None) -> dict:
@@ -268,17 +373,39 @@ def model_document(res: dict, vehicle_ref: str, train_names, provenance: dict | 
     file hash and values, input hashes; stored as given). :func:`load_model` reads it back."""
     m, f = res["model"], res["fit"]
     sdv = np.sqrt(np.clip(np.diag(res["cov"]), 0, None))
-    doc = {"format": "bayesid-model-1", "vehicle": vehicle_ref, "vehicle_id": m.vehicle.id,
-           "free": list(m.free), "effects": [e.name for e in m.effects], "dt": m.dt,
-           "fit_window_s": res["window_s"], "param_names": m.param_names, "p": f.p.tolist(),
-           "cov": res["cov"].tolist(), "sd": sdv.tolist(), "start": res["p0"].tolist(),
-           "posterior": res["posterior"], "seed": res["seed"], "noise_sd": res["noise_sd"],
-           "weighting": res.get("weighting", "noise"), "fit_sd": res.get("fit_sd", res["noise_sd"]),
-           "fit_channels": None if res.get("channels") is None else list(res["channels"]),
-           "start_rule": res.get("start_rule", "measured"),
-           "train_runs": list(train_names), "train_scores": res["train_scores"], "provenance": provenance or {},
-           "fit": {"ssr": f.cost, "n_residuals": f.n_residuals, "nfev": f.n_simulations, "success": f.success,
-                   "message": f.message, "seconds": f.wall_s, "bic": f.bic}}
+    doc = {
+        "format": "bayesid-model-1",
+        "vehicle": vehicle_ref,
+        "vehicle_id": m.vehicle.id,
+        "free": list(m.free),
+        "effects": [e.name for e in m.effects],
+        "dt": m.dt,
+        "fit_window_s": res["window_s"],
+        "param_names": m.param_names,
+        "p": f.p.tolist(),
+        "cov": res["cov"].tolist(),
+        "sd": sdv.tolist(),
+        "start": res["p0"].tolist(),
+        "posterior": res["posterior"],
+        "seed": res["seed"],
+        "noise_sd": res["noise_sd"],
+        "weighting": res.get("weighting", "noise"),
+        "fit_sd": res.get("fit_sd", res["noise_sd"]),
+        "fit_channels": None if res.get("channels") is None else list(res["channels"]),
+        "start_rule": res.get("start_rule", "measured"),
+        "train_runs": list(train_names),
+        "train_scores": res["train_scores"],
+        "provenance": provenance or {},
+        "fit": {
+            "ssr": f.cost,
+            "n_residuals": f.n_residuals,
+            "nfev": f.n_simulations,
+            "success": f.success,
+            "message": f.message,
+            "seconds": f.wall_s,
+            "bic": f.bic,
+        },
+    }
     if res.get("multistart") is not None:
         doc["multistart"] = res["multistart"].to_dict()
     doc["prior"] = res.get("prior") or {"used": False}
@@ -311,27 +438,33 @@ def load_model(path):
     try:
         model = build_model(vehicle, doc["free"], doc["effects"], doc["dt"])
     except (KeyError, ValueError) as e:
-        raise ValueError(f"{path}: its free coefficients or effects do not fit the vehicle {ref!r}: "
-                         f"{e.args[0] if e.args else e}") from None
+        raise ValueError(
+            f"{path}: its free coefficients or effects do not fit the vehicle {ref!r}: {e.args[0] if e.args else e}"
+        ) from None
     n = len(model.param_names)
     try:
         p, cov = np.array(doc["p"], dtype=float), np.array(doc["cov"], dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{path}: 'p' and 'cov' must be numbers") from None
     if p.shape != (n,) or not np.all(np.isfinite(p)):
-        raise ValueError(f"{path}: 'p' must be {n} finite numbers ({', '.join(model.param_names)}), "
-                         f"got shape {p.shape}")
+        raise ValueError(
+            f"{path}: 'p' must be {n} finite numbers ({', '.join(model.param_names)}), got shape {p.shape}"
+        )
     if cov.shape != (n, n) or not np.all(np.isfinite(cov)):
-        raise ValueError(f"{path}: 'cov' must be a finite {n} x {n} matrix, got shape {cov.shape}"
-                         + ("" if cov.shape != (n, n) else " with non-finite entries"))
+        raise ValueError(
+            f"{path}: 'cov' must be a finite {n} x {n} matrix, got shape {cov.shape}"
+            + ("" if cov.shape != (n, n) else " with non-finite entries")
+        )
     # round-off of an ill-conditioned inverse (relative asymmetry ~1e-7, eigenvalues ~-1e-9 of
     # the largest) is not an edit; an asymmetry or a negative eigenvalue beyond 1e-6 is
     big = max(float(np.abs(cov).max()), 1e-300)
     lam = np.linalg.eigvalsh(0.5 * (cov + cov.T))
     if np.abs(cov - cov.T).max() > 1e-6 * big or lam.min() < -1e-6 * max(float(lam.max()), 1e-300):
-        raise ValueError(f"{path}: 'cov' is not a symmetric positive semi-definite matrix (edited?): relative "
-                         f"asymmetry {np.abs(cov - cov.T).max() / big:.2g}, smallest/largest eigenvalue "
-                         f"{lam.min() / max(float(lam.max()), 1e-300):.2g}")
+        raise ValueError(
+            f"{path}: 'cov' is not a symmetric positive semi-definite matrix (edited?): relative "
+            f"asymmetry {np.abs(cov - cov.T).max() / big:.2g}, smallest/largest eigenvalue "
+            f"{lam.min() / max(float(lam.max()), 1e-300):.2g}"
+        )
     return model, p, psd_covariance(cov), doc
 
 
@@ -359,18 +492,28 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
         for w in range(ctx.W):
             sel = slice(bounds[w], bounds[w + 1])
             if bounds[w + 1] > bounds[w]:
-                windows.append({"track": tr.name, "t_start": float(ctx.t_start[w]),
-                                "duration_s": float(ctx.ts[bounds[w + 1] - 1] - ctx.t_start[w]),
-                                "rms_position_m": float(np.sqrt(np.nanmean(pos[sel] ** 2))),
-                                "max_position_m": float(np.nanmax(pos[sel])),
-                                "rms_heading_deg": float(np.degrees(np.sqrt(np.nanmean(e["psi"][sel] ** 2))))
-                                if "psi" in e else None,
-                                "max_heading_deg": float(np.degrees(np.nanmax(np.abs(e["psi"][sel]))))
-                                if "psi" in e else None})
+                windows.append(
+                    {
+                        "track": tr.name,
+                        "t_start": float(ctx.t_start[w]),
+                        "duration_s": float(ctx.ts[bounds[w + 1] - 1] - ctx.t_start[w]),
+                        "rms_position_m": float(np.sqrt(np.nanmean(pos[sel] ** 2))),
+                        "max_position_m": float(np.nanmax(pos[sel])),
+                        "rms_heading_deg": float(np.degrees(np.sqrt(np.nanmean(e["psi"][sel] ** 2))))
+                        if "psi" in e
+                        else None,
+                        "max_heading_deg": float(np.degrees(np.nanmax(np.abs(e["psi"][sel])))) if "psi" in e else None,
+                    }
+                )
         sims[tr.name] = (ctx, S[0])
-    return {"pooled": pooled_scores(errs), "per_track": per_track, "windows": windows, "_sim": sims,
-            "start_rule": rule, "leadin_s": lead}
-
+    return {
+        "pooled": pooled_scores(errs),
+        "per_track": per_track,
+        "windows": windows,
+        "_sim": sims,
+        "start_rule": rule,
+        "leadin_s": lead,
+    }
 
 
 def posterior_samples(model, p, cov, n: int, rng) -> np.ndarray:
@@ -396,7 +539,7 @@ def _rudder_holds(t, delta, threshold: float, min_hold_s: float):
     for i, j in zip(starts, ends):
         if side[i] == 0 or not (t[j] - t[i] >= min_hold_s or (j == side.size - 1 and not runs)):
             continue
-        peak = float(np.max(np.abs(delta[i:j + 1])))
+        peak = float(np.max(np.abs(delta[i : j + 1])))
         if runs and runs[-1][0] == side[i]:
             s0, a0, _, p0 = runs[-1]
             runs[-1] = (s0, a0, int(j), max(p0, peak))
@@ -436,16 +579,20 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
     h = psi - psi[i0]
     if len(holds) == 1:
         _, a, b, _ = holds[0]
-        turned = float(np.degrees(np.max(np.abs(h[a:b + 1]))))
+        turned = float(np.degrees(np.max(np.abs(h[a : b + 1]))))
         if turned < 90.0:
-            return dict(out, kind="other", reason=f"one rudder hold, but the heading changed only {turned:.0f} deg "
-                                                   "while it was held (a turning circle needs 90)")
+            return dict(
+                out,
+                kind="other",
+                reason=f"one rudder hold, but the heading changed only {turned:.0f} deg "
+                "while it was held (a turning circle needs 90)",
+            )
         out["kind"] = "turning"
         c, s = math.cos(psi[i0]), math.sin(psi[i0])
         along = c * (x - x[i0]) + s * (y - y[i0])
         normal = -s * (x - x[i0]) + c * (y - y[i0])
         for name, ang in (("90", math.pi / 2), ("180", math.pi)):
-            k = np.flatnonzero(np.abs(h[a:b + 1]) >= ang)
+            k = np.flatnonzero(np.abs(h[a : b + 1]) >= ang)
             if k.size:
                 j = a + k[0]
                 if name == "90":
@@ -460,18 +607,24 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
     similar = all(0.5 * first <= p <= 2.0 * first for _, _, _, p in holds)
     span = float(np.degrees(np.max(np.abs(h[i0:]))))
     if len(holds) < 3 or not similar or span >= 90.0:
-        why = (f"the rudder reversed {len(holds) - 1} time(s)" + (", between holds of different sizes" if not similar
-                                                                  else "")
-               + f", and the heading moved up to {span:.0f} deg from the approach heading")
-        return dict(out, kind="other", reason=why + " (a zigzag needs 2 reversals of one rudder angle with the "
-                                                   "heading within 90 deg; a turning circle one hold)")
+        why = (
+            f"the rudder reversed {len(holds) - 1} time(s)"
+            + (", between holds of different sizes" if not similar else "")
+            + f", and the heading moved up to {span:.0f} deg from the approach heading"
+        )
+        return dict(
+            out,
+            kind="other",
+            reason=why + " (a zigzag needs 2 reversals of one rudder angle with the "
+            "heading within 90 deg; a turning circle one hold)",
+        )
     out["kind"] = "zigzag"
     sw = [hd[1] for hd in holds[1:]]  # first sample of each hold after a reversal
     for name, k in (("first_overshoot_deg", 0), ("second_overshoot_deg", 1)):
         if k < len(sw):
             j = sw[k]
             end = sw[k + 1] if k + 1 < len(sw) else h.size
-            going = np.sign(h[j] - h[max(j - 5, 0)]) or 1.0   # the heading keeps turning this way
+            going = np.sign(h[j] - h[max(j - 5, 0)]) or 1.0  # the heading keeps turning this way
             seg = h[j:end]
             ext = seg.max() - h[j] if going > 0 else h[j] - seg.min()
             out[name] = float(np.degrees(max(ext, 0.0)))
@@ -491,8 +644,18 @@ def windowed_xy(ctx, S):
     return np.column_stack([ctx.meas["x"], ctx.meas["y"]]), xy
 
 
-def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured", leadin_s: float = 0.0,
-                 keep_draws: bool = False, chunk: int | None = None) -> dict:
+def turning_band(
+    model,
+    p,
+    cov,
+    track,
+    n_draws: int,
+    rng,
+    start: str = "measured",
+    leadin_s: float = 0.0,
+    keep_draws: bool = False,
+    chunk: int | None = None,
+) -> dict:
     """Whole-run open-loop prediction of a track from its first sample (``start`` rule, resolved:
     the measured state, or the state fitted to the first ``leadin_s`` seconds), with
     the manoeuvre indices of the measured run, the identified model, and a posterior predictive
@@ -516,9 +679,12 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
     pred, kept = [], []
     chunk = chunk or int(max(1, min(8, 2e8 // (8 * 12 * 3 * max(ctx.ts.size, 1)))))
     for i in range(0, P.shape[0], chunk):
-        Pc = P[i:i + chunk]
-        S = (model.simulate(ctx, Pc, starts=shooting.fit_starts(model, ctx_head, Pc)) if start == "fitted"
-             else model.simulate(ctx, Pc))
+        Pc = P[i : i + chunk]
+        S = (
+            model.simulate(ctx, Pc, starts=shooting.fit_starts(model, ctx_head, Pc))
+            if start == "fitted"
+            else model.simulate(ctx, Pc)
+        )
         pred += [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]
         if keep_draws or i == 0:  # a copy: a view (even S[:0]) would keep the whole chunk alive
             kept.append(S if keep_draws else S[:1].copy())
@@ -528,8 +694,15 @@ def turning_band(model, p, cov, track, n_draws: int, rng, start: str = "measured
     keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
     band, _ = predictive_band(pred[1:], keys)
     sd = predictive_sd(pred[1:], keys)  # the draws' spread: the scale of a calibrated band
-    return {"measured": meas, "predicted": pred[0], "band_5_95": band, "sd": sd, "n_draws": int(n_draws),
-            "_S": S, "_ctx": ctx}
+    return {
+        "measured": meas,
+        "predicted": pred[0],
+        "band_5_95": band,
+        "sd": sd,
+        "n_draws": int(n_draws),
+        "_S": S,
+        "_ctx": ctx,
+    }
 
 
 def predictive_band(draws: list, keys) -> tuple[dict, dict]:
@@ -576,8 +749,9 @@ def approach_condition(tracks, first_s: float = 5.0) -> tuple[float, float]:
     return float(np.nanmedian(sp)), float(np.nanmedian(np.concatenate(rps)))
 
 
-def turning_circles(model, p, cov, n_draws: int, rng, speed_mps: float, rps: float, rudder_deg: float = 35.0,
-                    duration_s: float = 300.0) -> dict:
+def turning_circles(
+    model, p, cov, n_draws: int, rng, speed_mps: float, rps: float, rudder_deg: float = 35.0, duration_s: float = 300.0
+) -> dict:
     """Predicted turning circles to starboard and port: from a straight run at ``speed_mps``
     with the propeller at ``rps`` (rev/s), the rudder put over to ``rudder_deg`` at t = 1 s and
     held for ``duration_s``; advance, transfer and tactical diameter (m, :func:`manoeuvre_indices`,
@@ -590,9 +764,20 @@ def turning_circles(model, p, cov, n_draws: int, rng, speed_mps: float, rps: flo
     t = np.arange(0.0, duration_s + 1e-9, 0.1)
     for side, sgn in (("starboard", -1.0), ("port", 1.0)):  # package rudder: + = to port
         dr = np.where(t >= 1.0, sgn * math.radians(rudder_deg), 0.0)
-        tr = Track(t, {"x": np.zeros_like(t), "y": np.zeros_like(t), "psi": np.zeros_like(t),
-                       "u": np.full_like(t, speed_mps), "v": np.zeros_like(t), "r": np.zeros_like(t),
-                       "delta_r": dr, "n": np.full_like(t, rps * 60)}, name=f"turn{rudder_deg:g}_{side}")
+        tr = Track(
+            t,
+            {
+                "x": np.zeros_like(t),
+                "y": np.zeros_like(t),
+                "psi": np.zeros_like(t),
+                "u": np.full_like(t, speed_mps),
+                "v": np.zeros_like(t),
+                "r": np.zeros_like(t),
+                "delta_r": dr,
+                "n": np.full_like(t, rps * 60),
+            },
+            name=f"turn{rudder_deg:g}_{side}",
+        )
         s0 = np.zeros(12)
         s0[6] = speed_mps
         ctx = model.context(tr, None, s0=s0)

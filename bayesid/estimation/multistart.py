@@ -14,6 +14,7 @@ box ``p0 +- spread * scale`` of each parameter (``scale`` the model's typical si
 Every start is fitted with the *same* channel weights (those of the default fit), so the costs
 compare; a two-step (residual-weighted) fit sets the weights once, on the default start.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -23,8 +24,16 @@ from scipy.stats import qmc
 
 from ..tasks import Task, TaskError, run_tasks
 
-__all__ = ["start_points", "fit_start", "MultistartResult", "summarise_starts", "run_starts", "multistart",
-           "COST_TOLERANCE", "DISTINCT_TOLERANCE"]
+__all__ = [
+    "start_points",
+    "fit_start",
+    "MultistartResult",
+    "summarise_starts",
+    "run_starts",
+    "multistart",
+    "COST_TOLERANCE",
+    "DISTINCT_TOLERANCE",
+]
 
 #: A start reached the best optimum when its cost is within this fraction of the best cost.
 COST_TOLERANCE = 0.01
@@ -65,10 +74,20 @@ def fit_start(p0, model, ctxs, sd: dict, max_nfev: int, channels=None) -> dict:
     try:
         f = fit_model(model, ctxs, sd, np.asarray(p0, float), max_nfev=max_nfev, channels=channels)
     except Exception as exc:  # noqa: BLE001 - a start that diverges is a result, not an error
-        return {"p": list(map(float, p0)), "cost": float("inf"), "success": False, "nfev": 0,
-                "message": f"{type(exc).__name__}: {exc}"}
-    return {"p": f.p.tolist(), "cost": float(f.cost) if np.isfinite(f.cost) else float("inf"),
-            "success": bool(f.success), "nfev": int(f.n_simulations), "message": str(f.message)}
+        return {
+            "p": list(map(float, p0)),
+            "cost": float("inf"),
+            "success": False,
+            "nfev": 0,
+            "message": f"{type(exc).__name__}: {exc}",
+        }
+    return {
+        "p": f.p.tolist(),
+        "cost": float(f.cost) if np.isfinite(f.cost) else float("inf"),
+        "success": bool(f.success),
+        "nfev": int(f.n_simulations),
+        "message": str(f.message),
+    }
 
 
 @dataclass
@@ -107,18 +126,32 @@ class MultistartResult:
     def to_dict(self) -> dict:
         """JSON-able summary (model.json's ``multistart``)."""
         best_cost = self.fits[self.best]["cost"]
-        return {"n_starts": len(self.fits), "cost_tolerance": COST_TOLERANCE,
-                "distinct_tolerance_scales": DISTINCT_TOLERANCE, "best_start": self.best,
-                "best_kind": self.kinds[self.best], "best_cost": best_cost,
-                "sorted_costs": self.costs().tolist(),
-                "n_near_best": len(self.near_best), "n_distinct_near_best": len(self.distinct),
-                "max_scaled_distance_near_best": self.max_distance, "spread_near_best_scales": self.spread,
-                "distinct_optima": [{"starts": g, "cost": self.fits[g[0]]["cost"],
-                                     "relative_cost": self.fits[g[0]]["cost"] / best_cost - 1 if best_cost else 0.0,
-                                     "coefficients": dict(zip(self.names, self.fits[g[0]]["p"]))}
-                                    for g in self.distinct],
-                "starts": [{"kind": k, "cost": f["cost"], "success": f["success"], "nfev": f["nfev"]}
-                           for k, f in zip(self.kinds, self.fits)]}
+        return {
+            "n_starts": len(self.fits),
+            "cost_tolerance": COST_TOLERANCE,
+            "distinct_tolerance_scales": DISTINCT_TOLERANCE,
+            "best_start": self.best,
+            "best_kind": self.kinds[self.best],
+            "best_cost": best_cost,
+            "sorted_costs": self.costs().tolist(),
+            "n_near_best": len(self.near_best),
+            "n_distinct_near_best": len(self.distinct),
+            "max_scaled_distance_near_best": self.max_distance,
+            "spread_near_best_scales": self.spread,
+            "distinct_optima": [
+                {
+                    "starts": g,
+                    "cost": self.fits[g[0]]["cost"],
+                    "relative_cost": self.fits[g[0]]["cost"] / best_cost - 1 if best_cost else 0.0,
+                    "coefficients": dict(zip(self.names, self.fits[g[0]]["p"])),
+                }
+                for g in self.distinct
+            ],
+            "starts": [
+                {"kind": k, "cost": f["cost"], "success": f["success"], "nfev": f["nfev"]}
+                for k, f in zip(self.kinds, self.fits)
+            ],
+        }
 
 
 def summarise_starts(names, starts, kinds, fits, scales) -> MultistartResult:
@@ -141,12 +174,24 @@ def summarise_starts(names, starts, kinds, fits, scales) -> MultistartResult:
             groups.append([i])
     spread = dict(zip(names, ((P.max(0) - P.min(0)) / scales).tolist())) if len(near) else {}
     dist = float(max((np.max(np.abs(a - b) / scales) for a in P for b in P), default=0.0))
-    return MultistartResult(list(names), np.asarray(starts, float), list(kinds), list(fits), order, best, near,
-                            groups, spread, dist, scales)
+    return MultistartResult(
+        list(names), np.asarray(starts, float), list(kinds), list(fits), order, best, near, groups, spread, dist, scales
+    )
 
 
-def run_starts(fit_fn, args: tuple, names, starts, kinds, scales, default_fit: dict | None = None, jobs: int = 1,
-               scheduler: str | None = None, journal=None, progress: str | None = None) -> MultistartResult:
+def run_starts(
+    fit_fn,
+    args: tuple,
+    names,
+    starts,
+    kinds,
+    scales,
+    default_fit: dict | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    journal=None,
+    progress: str | None = None,
+) -> MultistartResult:
     """Fit from every start as a task and summarise (:func:`summarise_starts`).
 
     Parameters
@@ -158,21 +203,39 @@ def run_starts(fit_fn, args: tuple, names, starts, kinds, scales, default_fit: d
     jobs, scheduler, journal, progress : :func:`bayesid.tasks.run_tasks`.
     """
     starts = np.asarray(starts, float)
-    tasks = [Task(f"start{i:03d}", {"start": i, "kind": k, "p0": s.tolist()}, (s, *args))
-             for i, (k, s) in enumerate(zip(kinds, starts))]
+    tasks = [
+        Task(f"start{i:03d}", {"start": i, "kind": k, "p0": s.tolist()}, (s, *args))
+        for i, (k, s) in enumerate(zip(kinds, starts))
+    ]
     todo = tasks[1:] if default_fit is not None else tasks
     outs = run_tasks(fit_fn, todo, jobs=jobs, scheduler=scheduler, journal=journal, progress=progress)
     fits = ([default_fit] if default_fit is not None else []) + [
         {"p": t.params["p0"], "cost": float("inf"), "success": False, "nfev": 0, "message": str(o)}
-        if isinstance(o, TaskError) else dict(o) for t, o in zip(todo, outs)]
+        if isinstance(o, TaskError)
+        else dict(o)
+        for t, o in zip(todo, outs)
+    ]
     for f in fits:  # a journaled inf comes back as the string "inf"
         f["cost"] = float(f["cost"])
     return summarise_starts(names, starts, kinds, fits, scales)
 
 
-def multistart(model, ctxs, sd: dict, p_default, n_starts: int, rng, max_nfev: int = 60, channels=None,
-               default_fit: dict | None = None, jobs: int = 1, scheduler: str | None = None, journal=None,
-               spread: float = 1.0, progress: str | None = None) -> MultistartResult:
+def multistart(
+    model,
+    ctxs,
+    sd: dict,
+    p_default,
+    n_starts: int,
+    rng,
+    max_nfev: int = 60,
+    channels=None,
+    default_fit: dict | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    journal=None,
+    spread: float = 1.0,
+    progress: str | None = None,
+) -> MultistartResult:
     """Fit ``model`` from the default start and ``n_starts`` Latin-hypercube starts, as tasks.
 
     Parameters
@@ -192,5 +255,16 @@ def multistart(model, ctxs, sd: dict, p_default, n_starts: int, rng, max_nfev: i
     scales = model.scales()
     extra = start_points(p_default, scales, lo, hi, n_starts, rng, spread)
     starts = np.vstack([np.asarray(p_default, float)[None], extra])
-    return run_starts(fit_start, (model, ctxs, sd, max_nfev, channels), model.param_names, starts,
-                      ["default"] + ["lhs"] * n_starts, scales, default_fit, jobs, scheduler, journal, progress)
+    return run_starts(
+        fit_start,
+        (model, ctxs, sd, max_nfev, channels),
+        model.param_names,
+        starts,
+        ["default"] + ["lhs"] * n_starts,
+        scales,
+        default_fit,
+        jobs,
+        scheduler,
+        journal,
+        progress,
+    )

@@ -14,12 +14,13 @@ the manoeuvre's own inputs (closed-loop zigzags included); the windowed objectiv
 Units: position residuals in metres and angle residuals in radians are summed as they are,
 exactly as the paper's V(p) does.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from ..models.simulate import Simulator
 from ..data.track import STATE_NAMES, Track
+from ..models.simulate import Simulator
 
 PAPER_CHANNELS = ("x", "y", "z", "phi", "theta", "psi")
 #: Residual assigned to every sample of a diverged track, so optimisers see a large finite value
@@ -44,8 +45,7 @@ class Problem:
         times off the simulation grid; no channel in common.
     """
 
-    def __init__(self, simulator: Simulator, target: Track, reference, channels=PAPER_CHANNELS,
-                 fd_step: float = 1e-7):
+    def __init__(self, simulator: Simulator, target: Track, reference, channels=PAPER_CHANNELS, fd_step: float = 1e-7):
         self.sim = simulator
         self.names = list(simulator.free)
         ref = np.asarray(reference, dtype=float)
@@ -62,10 +62,12 @@ class Problem:
         pos = (target.t - simulator.t[0]) / (simulator.t[1] - simulator.t[0])
         idx = np.round(pos).astype(int)
         if np.any(np.abs(pos - idx) > 1e-6) or idx.min() < 0 or idx.max() >= simulator.n_samples:
-            raise ValueError(f"target track {target.name!r}: sample times are not on the simulation grid "
-                             f"(dt_sample = {simulator.t[1] - simulator.t[0]:g} s, span {simulator.t[-1]:g} s)")
+            raise ValueError(
+                f"target track {target.name!r}: sample times are not on the simulation grid "
+                f"(dt_sample = {simulator.t[1] - simulator.t[0]:g} s, span {simulator.t[-1]:g} s)"
+            )
         self.t_idx = idx
-        self.y = np.column_stack([target[c] for c in self.channels])   # (n, C)
+        self.y = np.column_stack([target[c] for c in self.channels])  # (n, C)
         self.mask = np.isfinite(self.y)
         self.y0 = np.where(self.mask, self.y, 0.0)
         self.fd_step = fd_step
@@ -126,7 +128,7 @@ class Problem:
         """
         P = np.atleast_2d(P)
         res = self.sim.run(self.theta(P))
-        S = res.states[:, self.t_idx][:, :, self.ch_idx]          # (B, n, C)
+        S = res.states[:, self.t_idx][:, :, self.ch_idx]  # (B, n, C)
         R = np.where(self.mask[None], self.y0[None] - S, 0.0)
         div = res.diverged | ~np.isfinite(R).all(axis=(1, 2))
         R[div] = DIVERGED_RESIDUAL
@@ -156,10 +158,11 @@ class Problem:
         h = self.fd_step * np.maximum(1.0, np.abs(p))
         if central:
             h = 1e-5 * np.maximum(1.0, np.abs(p))  # truncation O(h^2) ~ 1e-10, round-off ~ 1e-11
-            batch = np.vstack([p[None], np.repeat(p[None], P_, axis=0) + np.diag(h),
-                               np.repeat(p[None], P_, axis=0) - np.diag(h)])
+            batch = np.vstack(
+                [p[None], np.repeat(p[None], P_, axis=0) + np.diag(h), np.repeat(p[None], P_, axis=0) - np.diag(h)]
+            )
             R, _ = self.residuals_batch(batch)
-            return R[0], ((R[1:P_ + 1] - R[P_ + 1:]) / (2 * h)[:, None]).T
+            return R[0], ((R[1 : P_ + 1] - R[P_ + 1 :]) / (2 * h)[:, None]).T
         batch = np.repeat(p[None], P_, axis=0) + np.diag(h)
         if r0 is None:
             R, _ = self.residuals_batch(np.vstack([p[None], batch]))
@@ -215,8 +218,10 @@ class JointProblem(Problem):
         for k, p in enumerate(problems[1:], 1):
             for what in ("names", "channels"):
                 if list(getattr(p, what)) != list(getattr(first, what)):
-                    raise ValueError(f"problem {k} ({p.sim.manoeuvre.name}): {what} {getattr(p, what)} "
-                                     f"differ from {getattr(first, what)}")
+                    raise ValueError(
+                        f"problem {k} ({p.sim.manoeuvre.name}): {what} {getattr(p, what)} "
+                        f"differ from {getattr(first, what)}"
+                    )
             if not np.array_equal(p.reference, first.reference):
                 raise ValueError(f"problem {k} ({p.sim.manoeuvre.name}): reference values differ")
         self.problems = problems

@@ -10,6 +10,7 @@ with a stated relative standard deviation: the Bayesian reading of the paper's C
 "known" values become uncertain nuisance parameters). A diverged simulation or a proposal outside
 the prior support has log-probability ``-inf``, never NaN.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -49,14 +50,20 @@ class CoefficientPrior:
                 raise ValueError(f"prior for {n}: standard deviation {b} must be positive")
 
     @classmethod
-    def build(cls, uniform: dict | None = None, normal: dict | None = None) -> "CoefficientPrior":
+    def build(cls, uniform: dict | None = None, normal: dict | None = None) -> CoefficientPrior:
         """From ``uniform={name: (lo, hi)}`` and ``normal={name: (mean, sd)}`` (order: uniform first).
         Bounds given in either order are sorted (negative coefficients)."""
         names, kind, a, b = [], [], [], []
         for n, (lo, hi) in (uniform or {}).items():
-            names.append(n); kind.append("uniform"); a.append(min(lo, hi)); b.append(max(lo, hi))
+            names.append(n)
+            kind.append("uniform")
+            a.append(min(lo, hi))
+            b.append(max(lo, hi))
         for n, (mu, sd) in (normal or {}).items():
-            names.append(n); kind.append("normal"); a.append(mu); b.append(abs(sd))
+            names.append(n)
+            kind.append("normal")
+            a.append(mu)
+            b.append(abs(sd))
         if len(set(names)) != len(names):
             raise ValueError("a coefficient has two priors")
         return cls(tuple(names), tuple(kind), np.array(a, float), np.array(b, float))
@@ -73,7 +80,7 @@ class CoefficientPrior:
         if (~uni).any():
             mu, sd = self.a[~uni], self.b[~uni]
             z = (theta[:, ~uni] - mu) / sd
-            out += -0.5 * np.sum(z ** 2, axis=1) - np.sum(np.log(sd * np.sqrt(2 * np.pi)))
+            out += -0.5 * np.sum(z**2, axis=1) - np.sum(np.log(sd * np.sqrt(2 * np.pi)))
         return out
 
     def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -111,7 +118,7 @@ class LogPosterior:
         if np.any(~(sig > 0)):
             raise ValueError(f"noise standard deviations must be positive: {dict(zip(problem.channels, sig))}")
         self.problem, self.prior = problem, prior
-        self.w = np.tile(1.0 / sig, problem.y.shape[0])      # (n_residuals,)
+        self.w = np.tile(1.0 / sig, problem.y.shape[0])  # (n_residuals,)
         self.n_evaluations = 0
 
     def log_likelihood(self, theta) -> np.ndarray:
@@ -201,13 +208,13 @@ def add_noise(track: Track, sigmas: dict, rng: np.random.Generator) -> Track:
     for c in sigmas:
         if c not in track:
             raise KeyError(f"track {track.name!r} has no channel {c!r} to add noise to")
-    noisy = {c: track[c] + rng.normal(0.0, float(s), track.n_samples) for c, s in sigmas.items()
-             if c in STATE_NAMES}
+    noisy = {c: track[c] + rng.normal(0.0, float(s), track.n_samples) for c, s in sigmas.items() if c in STATE_NAMES}
     return track.with_columns(**noisy)
 
 
-def laplace_start(theta_hat, cov, prior: CoefficientPrior, margin: float = 0.05,
-                  max_sd_fraction: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+def laplace_start(
+    theta_hat, cov, prior: CoefficientPrior, margin: float = 0.05, max_sd_fraction: float = 0.02
+) -> tuple[np.ndarray, np.ndarray]:
     """Centre and covariance of a walkers' starting ball that respects the prior.
 
     The Laplace (Gauss-Newton) covariance of a sloppy problem can be far wider than a uniform
@@ -259,14 +266,15 @@ def laplace_covariance(problem, theta_hat, sigmas: dict, prior: CoefficientPrior
     from .laplace import gauss_newton_covariance
 
     p = problem.scaled(theta_hat)
-    _, J = problem.jacobian(p, central=True)                  # d r / d p
-    Jw = (J / problem.reference[None, :]) / problem.noise_vector(sigmas)[:, None]   # d r / d theta
+    _, J = problem.jacobian(p, central=True)  # d r / d p
+    Jw = (J / problem.reference[None, :]) / problem.noise_vector(sigmas)[:, None]  # d r / d theta
     Jw = np.where(problem.mask.reshape(-1)[:, None], Jw, 0.0)
     return gauss_newton_covariance(Jw, prior_precision=1.0 / prior_sd(prior) ** 2)
 
 
-def marginal_table(samples: np.ndarray, names, prior: CoefficientPrior, truth: dict | None = None,
-                   level: float = 0.9) -> list[dict]:
+def marginal_table(
+    samples: np.ndarray, names, prior: CoefficientPrior, truth: dict | None = None, level: float = 0.9
+) -> list[dict]:
     """Per-coefficient posterior summary from pooled draws ``samples`` (N, P), prime values.
 
     Each row: name, mean, sd, lower/upper of the central ``level`` credible interval (equal-tailed
@@ -279,8 +287,15 @@ def marginal_table(samples: np.ndarray, names, prior: CoefficientPrior, truth: d
     psd = prior_sd(prior)
     rows = []
     for j, n in enumerate(names):
-        r = dict(name=n, mean=float(mean[j]), sd=float(sd[j]), lower=float(lo[j]), upper=float(hi[j]),
-                 sd_over_prior=float(sd[j] / psd[j]), prior=prior.kind[j])
+        r = dict(
+            name=n,
+            mean=float(mean[j]),
+            sd=float(sd[j]),
+            lower=float(lo[j]),
+            upper=float(hi[j]),
+            sd_over_prior=float(sd[j] / psd[j]),
+            prior=prior.kind[j],
+        )
         if truth is not None:
             t = float(truth[n])
             r.update(truth=t, mean_ratio=float(mean[j] / t), covers=bool(lo[j] <= t <= hi[j]))

@@ -29,6 +29,7 @@ with the state of the walkers' random generator. A run killed (or failing in log
 again with the same arguments continues from the last stored block and yields the same chain,
 bit for bit, as an uninterrupted run.
 """
+
 from __future__ import annotations
 
 import json
@@ -172,8 +173,10 @@ class _Vectorised:
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
         lp = np.asarray(self.f(theta), dtype=float)
         if lp.shape != (theta.shape[0],):
-            raise ValueError(f"log_prob returned shape {lp.shape} for {theta.shape[0]} parameter vectors; "
-                             f"a vectorised log_prob maps (B, P) -> (B,)")
+            raise ValueError(
+                f"log_prob returned shape {lp.shape} for {theta.shape[0]} parameter vectors; "
+                f"a vectorised log_prob maps (B, P) -> (B,)"
+            )
         self.rows += theta.shape[0]
         return np.where(np.isfinite(lp), lp, -np.inf)
 
@@ -190,9 +193,11 @@ def _cholesky(center, cov) -> tuple[np.ndarray, np.ndarray]:
         return center, np.linalg.cholesky(0.5 * (cov + cov.T))
     except np.linalg.LinAlgError:
         lam = np.linalg.eigvalsh(0.5 * (cov + cov.T)).min()
-        raise ValueError(f"cov is not positive definite (smallest eigenvalue {lam:.3g}): the walkers "
-                         f"would start in a subspace; add the prior's precision before inverting, or "
-                         f"a small diagonal") from None
+        raise ValueError(
+            f"cov is not positive definite (smallest eigenvalue {lam:.3g}): the walkers "
+            f"would start in a subspace; add the prior's precision before inverting, or "
+            f"a small diagonal"
+        ) from None
 
 
 def _ball(center, chol, n_walkers, rng, log_prob: _Vectorised, scale, max_tries):
@@ -207,13 +212,16 @@ def _ball(center, chol, n_walkers, rng, log_prob: _Vectorised, scale, max_tries)
         bad = np.flatnonzero(~np.isfinite(lp))
         if bad.size == 0:
             return pos, lp
-    raise RuntimeError(f"initial ball: {bad.size} of {n_walkers} walkers still have log_prob = -inf after "
-                       f"{max_tries} draws from N(center, {scale:g}^2 cov); the ball lies mostly outside "
-                       f"the posterior's support -- check center against the prior bounds or reduce the scale")
+    raise RuntimeError(
+        f"initial ball: {bad.size} of {n_walkers} walkers still have log_prob = -inf after "
+        f"{max_tries} draws from N(center, {scale:g}^2 cov); the ball lies mostly outside "
+        f"the posterior's support -- check center against the prior bounds or reduce the scale"
+    )
 
 
-def initial_ball(center, cov, n_walkers: int, rng: np.random.Generator, log_prob, scale: float = 1.0,
-                 max_tries: int = 50) -> np.ndarray:
+def initial_ball(
+    center, cov, n_walkers: int, rng: np.random.Generator, log_prob, scale: float = 1.0, max_tries: int = 50
+) -> np.ndarray:
     """Walker start positions drawn from N(center, scale^2 cov), rows with log_prob = -inf redrawn.
 
     Parameters
@@ -241,7 +249,7 @@ def _moves(kind: str):
         return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     if kind == "de-stretch":
         return [(emcee.moves.DEMove(), 0.6), (emcee.moves.StretchMove(), 0.2), (emcee.moves.DESnookerMove(), 0.2)]
-    return None     # emcee's default, the stretch move
+    return None  # emcee's default, the stretch move
 
 
 def _tau(chains: list[np.ndarray]) -> np.ndarray:
@@ -257,7 +265,7 @@ def _tau(chains: list[np.ndarray]) -> np.ndarray:
 
 
 def _reached(n_steps: int, tau: np.ndarray, config: SamplerConfig) -> bool:
-    t = float(np.max(tau))      # NaN anywhere -> not reached
+    t = float(np.max(tau))  # NaN anywhere -> not reached
     return bool(n_steps >= config.min_steps and np.isfinite(t) and n_steps >= config.tau_factor * t)
 
 
@@ -280,8 +288,14 @@ class _BlockHDFBackend(emcee.backends.HDFBackend):
     def save_step(self, state, accepted):
         if state.blobs is not None:
             raise ValueError("log_prob returned blobs; bayesid checkpoints store none")
-        self._buffer.append((np.array(state.coords, dtype=float), np.array(state.log_prob, dtype=float),
-                             np.asarray(accepted, dtype=bool).copy(), state.random_state))
+        self._buffer.append(
+            (
+                np.array(state.coords, dtype=float),
+                np.array(state.log_prob, dtype=float),
+                np.asarray(accepted, dtype=bool).copy(),
+                state.random_state,
+            )
+        )
 
     def redraws(self) -> list:
         """[(step, walker), ...] stored by :meth:`record_redraws`."""
@@ -304,8 +318,8 @@ class _BlockHDFBackend(emcee.backends.HDFBackend):
             if g["chain"].shape[0] < it + k:
                 g["chain"].resize(it + k, axis=0)
                 g["log_prob"].resize(it + k, axis=0)
-            g["chain"][it:it + k] = np.stack(coords)
-            g["log_prob"][it:it + k] = np.stack(lps)
+            g["chain"][it : it + k] = np.stack(coords)
+            g["log_prob"][it : it + k] = np.stack(lps)
             g["accepted"][:] += np.sum(acc, axis=0)
             for i, v in enumerate(rstates[-1]):
                 g.attrs[f"random_state_{i}"] = v
@@ -317,8 +331,14 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
     """One HDFBackend per ensemble in ``path``; creates the file or checks it is this problem's
     (and, with ``run_key``, this run's: seed, data, settings)."""
     path = Path(path)
-    meta = {"tag": _CHECKPOINT_TAG, "names": json.dumps(list(names)), "ndim": len(names),
-            "n_walkers": n_walkers, "n_ensembles": config.n_ensembles, "moves": config.moves}
+    meta = {
+        "tag": _CHECKPOINT_TAG,
+        "names": json.dumps(list(names)),
+        "ndim": len(names),
+        "n_walkers": n_walkers,
+        "n_ensembles": config.n_ensembles,
+        "moves": config.moves,
+    }
     if run_key is not None:
         meta["run_key"] = json.dumps(run_key, sort_keys=True)
     meta["redraw_stranded"] = int(config.redraw_stranded)
@@ -339,8 +359,9 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
             if have != want:
                 diff.append(f"{key} {have} in the file, {want} now")
         if diff:
-            raise ValueError(f"checkpoint {path} belongs to a different problem ({'; '.join(diff)}); "
-                             f"delete it or pass another path")
+            raise ValueError(
+                f"checkpoint {path} belongs to a different problem ({'; '.join(diff)}); delete it or pass another path"
+            )
     else:
         # Written under another name and renamed, so a kill never leaves a file without its metadata.
         tmp = path.with_name(path.name + ".part")
@@ -351,9 +372,16 @@ def _checkpoint_backends(path, names, n_walkers, config, run_key=None) -> list:
     return [_BlockHDFBackend(str(path), name=f"ensemble{i}") for i in range(config.n_ensembles)]
 
 
-def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = None,
-                  rng: np.random.Generator | None = None, checkpoint: str | Path | None = None,
-                  run_key: dict | None = None) -> SamplerResult:
+def run_ensembles(
+    log_prob,
+    center,
+    cov,
+    names,
+    config: SamplerConfig | None = None,
+    rng: np.random.Generator | None = None,
+    checkpoint: str | Path | None = None,
+    run_key: dict | None = None,
+) -> SamplerResult:
     """Sample the posterior with ``config.n_ensembles`` independent emcee ensembles.
 
     Each ensemble is an ``emcee.EnsembleSampler(vectorize=True)`` started from its own
@@ -411,9 +439,12 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
     # Drawn whether or not the run resumes, so the caller's rng advances the same way.
     children = rng.spawn(E)
     seeds = [int(c.integers(2**32)) for c in children]
-    backends = (_checkpoint_backends(checkpoint, names, W, config, run_key) if checkpoint is not None
-                else [emcee.backends.Backend() for _ in range(E)])
-    samplers, states = [], []      # states[i]: where ensemble i goes on from
+    backends = (
+        _checkpoint_backends(checkpoint, names, W, config, run_key)
+        if checkpoint is not None
+        else [emcee.backends.Backend() for _ in range(E)]
+    )
+    samplers, states = [], []  # states[i]: where ensemble i goes on from
     for i in range(E):
         s = emcee.EnsembleSampler(W, P, lp_fn, moves=_moves(config.moves), backend=backends[i], vectorize=True)
         if s.iteration == 0:
@@ -428,17 +459,26 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
         samplers.append(s)
 
     # (step, ensemble, walker) of every stranded walker moved so far, the checkpoint's included
-    redraws = sorted((int(st), i, int(w)) for i, b in enumerate(backends) if isinstance(b, _BlockHDFBackend)
-                     and samplers[i].iteration for st, w in b.redraws())
+    redraws = sorted(
+        (int(st), i, int(w))
+        for i, b in enumerate(backends)
+        if isinstance(b, _BlockHDFBackend) and samplers[i].iteration
+        for st, w in b.redraws()
+    )
     its = [int(s.iteration) for s in samplers]
-    next_check = 0          # steps at which the convergence verdict is computed next
-    with tqdm(total=E * config.max_steps, initial=sum(its), unit="step", disable=not config.progress,
-              desc=f"emcee {E} ensembles x {W} walkers") as bar:
+    next_check = 0  # steps at which the convergence verdict is computed next
+    with tqdm(
+        total=E * config.max_steps,
+        initial=sum(its),
+        unit="step",
+        disable=not config.progress,
+        desc=f"emcee {E} ensembles x {W} walkers",
+    ) as bar:
         while True:
             its = [int(s.iteration) for s in samplers]
             n = min(its)
             if n < max(its):
-                target = max(its)           # finish a round that was interrupted
+                target = max(its)  # finish a round that was interrupted
             else:
                 tau = _tau([s.get_chain() for s in samplers]) if n else np.full(P, np.nan)
                 if _reached(n, tau, config):
@@ -467,8 +507,10 @@ def run_ensembles(log_prob, center, cov, names, config: SamplerConfig | None = N
                 # stored step, so fixed blocks would make a long run's checks cost O(n^2)
                 grow = max(config.check_every, n // 10)
                 target = min(-(-(n + grow) // config.check_every) * config.check_every, config.max_steps)
-                bar.set_postfix_str(f"tau_max {np.max(tau):.1f}, steps needed "
-                                    f"{max(config.min_steps, config.tau_factor * np.max(tau)):.0f}")
+                bar.set_postfix_str(
+                    f"tau_max {np.max(tau):.1f}, steps needed "
+                    f"{max(config.min_steps, config.tau_factor * np.max(tau)):.0f}"
+                )
             for i, s in enumerate(samplers):
                 if target <= its[i]:
                     continue
@@ -492,7 +534,7 @@ def _redraw_stranded(samplers, states, seeds, n, redraws) -> None:
     """
     floor = max((r[0] for r in redraws if r[0] < n), default=0)
     w = max(1, (n - floor) // 4)
-    lp = np.stack([s.get_log_prob(discard=n - w) for s in samplers])         # (E, w, W)
+    lp = np.stack([s.get_log_prob(discard=n - w) for s in samplers])  # (E, w, W)
     stranded = stranded_walkers(lp)
     for i, s in enumerate(samplers):
         bad = np.flatnonzero(stranded[i])
@@ -545,9 +587,15 @@ def _result(samplers, tau, lp_fn, t0, names, config, reason, redraws=()) -> Samp
         chains=chains,
         log_prob=np.stack([s.get_log_prob() for s in samplers]),
         acceptance=np.stack([s.acceptance_fraction for s in samplers]),
-        tau=tau, n_steps=int(chains.shape[1]), n_evaluations=lp_fn.rows,
-        wall_s=time.perf_counter() - t0, reached_tau_rule=_reached(int(chains.shape[1]), tau, config),
-        names=names, stop_reason=reason, redraws=list(redraws))
+        tau=tau,
+        n_steps=int(chains.shape[1]),
+        n_evaluations=lp_fn.rows,
+        wall_s=time.perf_counter() - t0,
+        reached_tau_rule=_reached(int(chains.shape[1]), tau, config),
+        names=names,
+        stop_reason=reason,
+        redraws=list(redraws),
+    )
 
 
 def default_burn(result: SamplerResult) -> int:
@@ -580,11 +628,11 @@ def arrival_burn(result: SamplerResult, spread: float = 10.0) -> int:
     Returns ``n_steps // 2`` when walkers are still arriving after that (then the run is too
     short, and R-hat will say so).
     """
-    lp = result.log_prob                                  # (E, N, W)
+    lp = result.log_prob  # (E, N, W)
     N = lp.shape[1]
     if N < 4:
         return 0
-    thr = _typical_floor(lp[:, N // 2:], spread)
+    thr = _typical_floor(lp[:, N // 2 :], spread)
     low = np.flatnonzero(np.any(lp < thr, axis=(0, 2))[: N // 2])
     return min(int(low[-1]) + 1 if low.size else 0, N // 2)
 
@@ -608,7 +656,7 @@ def to_inference_data(result: SamplerResult, burn: int | None = None, thin: int 
     ------
     ValueError : burn outside [0, n_steps), thin < 1, or a truth name not among the coefficients.
     """
-    import arviz as az     # here, not at the top: importing arviz takes ~2 s
+    import arviz as az  # here, not at the top: importing arviz takes ~2 s
 
     E, N, W, P = result.chains.shape
     burn = default_burn(result) if burn is None else int(burn)
@@ -616,7 +664,7 @@ def to_inference_data(result: SamplerResult, burn: int | None = None, thin: int 
         raise ValueError(f"burn = {burn}: must lie in [0, n_steps = {N})")
     if thin < 1:
         raise ValueError(f"thin = {thin}: must be >= 1")
-    x = result.chains[:, burn::thin]                                     # (E, D, W, P)
+    x = result.chains[:, burn::thin]  # (E, D, W, P)
     D = x.shape[1]
     post = x.transpose(0, 2, 1, 3).reshape(E * W, D, P)
     lp = result.log_prob[:, burn::thin].transpose(0, 2, 1).reshape(E * W, D)
@@ -624,17 +672,29 @@ def to_inference_data(result: SamplerResult, burn: int | None = None, thin: int 
         unknown = sorted(set(truth) - set(result.names))
         if unknown:
             raise ValueError(f"truth given for {unknown}, not among the coefficients {result.names}")
-    attrs = dict(burn=burn, thin=thin, n_ensembles=E, n_walkers=W, n_steps=N,
-                 tau_max=float(np.max(result.tau)), reached_tau_rule=int(result.reached_tau_rule),
-                 sampler=f"emcee {emcee.__version__}")
+    attrs = dict(
+        burn=burn,
+        thin=thin,
+        n_ensembles=E,
+        n_walkers=W,
+        n_steps=N,
+        tau_max=float(np.max(result.tau)),
+        reached_tau_rule=int(result.reached_tau_rule),
+        sampler=f"emcee {emcee.__version__}",
+    )
     with warnings.catch_warnings():
         # ArviZ guesses the layout is transposed when chains outnumber draws; here it is not.
         warnings.filterwarnings("ignore", message="More chains")
-        idata = az.from_dict(posterior={n: post[..., j] for j, n in enumerate(result.names)},
-                             sample_stats={"lp": lp}, coords={"draw": burn + thin * np.arange(D)}, attrs=attrs)
+        idata = az.from_dict(
+            posterior={n: post[..., j] for j, n in enumerate(result.names)},
+            sample_stats={"lp": lp},
+            coords={"draw": burn + thin * np.arange(D)},
+            attrs=attrs,
+        )
     if truth:
         # Added as an xarray Dataset: az.from_dict would turn each scalar into a length-1 vector.
         import xarray as xr
+
         idata.add_groups(constant_data=xr.Dataset({f"truth_{k}": float(v) for k, v in truth.items()}))
     return idata
 
@@ -697,11 +757,21 @@ def diagnostics(idata, result: SamplerResult, ensembles_as_chains: bool = False)
     pooled = {n: post[n].values.reshape(E, W, D).transpose(0, 2, 1).reshape(E, D * W) for n in names}
     rhat_ens = _per_name(az.rhat(az.from_dict(posterior=pooled)), names)
 
-    d = dict(rhat=rhat, ess_bulk=ess_bulk, ess_tail=ess_tail, mcse_mean=mcse,
-             rhat_max=float(np.max(list(rhat.values()))), ess_bulk_min=float(np.min(list(ess_bulk.values()))),
-             ess_tail_min=float(np.min(list(ess_tail.values()))), tau_max=float(np.max(result.tau)),
-             acceptance_mean=float(np.mean(result.acceptance)), n_steps=int(result.n_steps), n_draws=int(D),
-             rhat_ensembles=rhat_ens, rhat_ensembles_max=float(np.max(list(rhat_ens.values()))))
+    d = dict(
+        rhat=rhat,
+        ess_bulk=ess_bulk,
+        ess_tail=ess_tail,
+        mcse_mean=mcse,
+        rhat_max=float(np.max(list(rhat.values()))),
+        ess_bulk_min=float(np.min(list(ess_bulk.values()))),
+        ess_tail_min=float(np.min(list(ess_tail.values()))),
+        tau_max=float(np.max(result.tau)),
+        acceptance_mean=float(np.mean(result.acceptance)),
+        n_steps=int(result.n_steps),
+        n_draws=int(D),
+        rhat_ensembles=rhat_ens,
+        rhat_ensembles_max=float(np.max(list(rhat_ens.values()))),
+    )
 
     failed, passed = [], []
 
@@ -710,24 +780,37 @@ def diagnostics(idata, result: SamplerResult, ensembles_as_chains: bool = False)
 
     if ensembles_as_chains:
         ok = d["rhat_ensembles_max"] <= RHAT_MAX
-        judge(ok, f"between-ensemble R-hat max {d['rhat_ensembles_max']:.3f} ({_worst(rhat_ens, high=True)}) "
-                  f"{'<=' if ok else '>'} {RHAT_MAX}")
+        judge(
+            ok,
+            f"between-ensemble R-hat max {d['rhat_ensembles_max']:.3f} ({_worst(rhat_ens, high=True)}) "
+            f"{'<=' if ok else '>'} {RHAT_MAX}",
+        )
     else:
         ok = d["rhat_max"] <= RHAT_MAX
-        judge(ok, f"per-walker R-hat max {d['rhat_max']:.3f} ({_worst(rhat, high=True)}) "
-                  f"{'<=' if ok else '>'} {RHAT_MAX}")
+        judge(
+            ok, f"per-walker R-hat max {d['rhat_max']:.3f} ({_worst(rhat, high=True)}) {'<=' if ok else '>'} {RHAT_MAX}"
+        )
     ok = d["ess_bulk_min"] >= ESS_BULK_MIN
-    judge(ok, f"bulk ESS min {d['ess_bulk_min']:.0f} ({_worst(ess_bulk, high=False)}) "
-              f"{'>=' if ok else '<'} {ESS_BULK_MIN:.0f}")
+    judge(
+        ok,
+        f"bulk ESS min {d['ess_bulk_min']:.0f} ({_worst(ess_bulk, high=False)}) "
+        f"{'>=' if ok else '<'} {ESS_BULK_MIN:.0f}",
+    )
     ok = d["ess_tail_min"] >= ESS_TAIL_MIN
-    judge(ok, f"tail ESS min {d['ess_tail_min']:.0f} ({_worst(ess_tail, high=False)}) "
-              f"{'>=' if ok else '<'} {ESS_TAIL_MIN:.0f}")
+    judge(
+        ok,
+        f"tail ESS min {d['ess_tail_min']:.0f} ({_worst(ess_tail, high=False)}) "
+        f"{'>=' if ok else '<'} {ESS_TAIL_MIN:.0f}",
+    )
     ratio = result.n_steps / d["tau_max"] if d["tau_max"] > 0 else float("nan")
-    judge(result.reached_tau_rule,
-          f"tau rule {'met' if result.reached_tau_rule else 'not met'}: {result.n_steps} steps = {ratio:.1f} x "
-          f"tau_max ({d['tau_max']:.1f} steps)"
-          + ("" if result.reached_tau_rule else f", stopped by {result.stop_reason or 'an unknown reason'}"))
+    judge(
+        result.reached_tau_rule,
+        f"tau rule {'met' if result.reached_tau_rule else 'not met'}: {result.n_steps} steps = {ratio:.1f} x "
+        f"tau_max ({d['tau_max']:.1f} steps)"
+        + ("" if result.reached_tau_rule else f", stopped by {result.stop_reason or 'an unknown reason'}"),
+    )
     d["converged"] = not failed
-    d["verdict"] = ("Converged: " + "; ".join(passed) + "." if not failed
-                    else "Not converged: " + "; ".join(failed) + ".")
+    d["verdict"] = (
+        "Converged: " + "; ".join(passed) + "." if not failed else "Not converged: " + "; ".join(failed) + "."
+    )
     return d

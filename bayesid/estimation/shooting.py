@@ -20,6 +20,7 @@ window solves its own 6 x 6 Levenberg-Marquardt step (Nocedal & Wright 2006, Sec
 Why it matters: from 5 Hz positions with 0.2 m noise, a 1 s slope misjudges the start velocity by
 about 0.1 m/s (6 m after 60 s); a 10 s lead-in through the model pins it to about 0.01 m/s.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -58,8 +59,17 @@ def _row_windows(ctx, weights) -> np.ndarray:
     return np.concatenate([ctx.lead["win"] for c in ctx.channels if c in weights] or [np.zeros(0, np.int64)])
 
 
-def fit_starts(model, ctx, P, nu=None, weights=None, starts0=None, max_iter: int = 12, tol: float = 1e-7,
-               return_jacobian: bool = False):
+def fit_starts(
+    model,
+    ctx,
+    P,
+    nu=None,
+    weights=None,
+    starts0=None,
+    max_iter: int = 12,
+    tol: float = 1e-7,
+    return_jacobian: bool = False,
+):
     """Least-squares start-state offsets of every window of ``ctx`` for parameter rows ``P``.
 
     Parameters

@@ -15,6 +15,7 @@ fit function (:func:`bayesid.estimation.fit.fit`) and returns its :class:`FitRes
 the held-out nuisances, the two-step channel weighting (:func:`fit_weighted`), protocol scores of
 a fitted model (:func:`scores`, :func:`window_rms`), the pooled noise sds and the data check.
 """
+
 from __future__ import annotations
 
 import math
@@ -23,13 +24,27 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models import effects as ef
-from . import shooting
 from ..protocol import CHANNELS, estimate_noise, pooled_scores
+from . import shooting
 from .fit import FitResult, fit
 
-__all__ = ["WindowObjective", "GaussianPrior", "fit_model", "fit_weighted", "heldout_nuisance", "residual_sd", "scores",
-           "window_rms", "window_residuals", "channel_weights", "check_channels", "pooled_noise_sd",
-           "check_enough_data", "MIN_SAMPLES_PER_PARAMETER", "PENALTY"]
+__all__ = [
+    "WindowObjective",
+    "GaussianPrior",
+    "fit_model",
+    "fit_weighted",
+    "heldout_nuisance",
+    "residual_sd",
+    "scores",
+    "window_rms",
+    "window_residuals",
+    "channel_weights",
+    "check_channels",
+    "pooled_noise_sd",
+    "check_enough_data",
+    "MIN_SAMPLES_PER_PARAMETER",
+    "PENALTY",
+]
 
 PENALTY = 1e3  # residual (in noise sds) of a sample in a diverged window
 
@@ -39,8 +54,10 @@ def channel_weights(ctx, sd, channels=None):
     None). Raises ValueError when the track measures none of ``channels``."""
     cs = [c for c in ctx.channels if channels is None or c in channels]
     if not cs:
-        raise ValueError(f"track {ctx.name!r} measures none of the fitted channels {', '.join(channels)} "
-                         f"(it has {', '.join(ctx.channels)})")
+        raise ValueError(
+            f"track {ctx.name!r} measures none of the fitted channels {', '.join(channels)} "
+            f"(it has {', '.join(ctx.channels)})"
+        )
     return {c: 1.0 / sd[c] for c in cs}
 
 
@@ -52,8 +69,9 @@ def check_channels(channels):
     channels = tuple(channels)
     bad = [c for c in channels if c not in CHANNELS]
     if bad or not channels:
-        raise ValueError(f"unknown fit channel(s) {', '.join(bad) or '(none given)'}; "
-                         f"choose from {', '.join(CHANNELS)}")
+        raise ValueError(
+            f"unknown fit channel(s) {', '.join(bad) or '(none given)'}; choose from {', '.join(CHANNELS)}"
+        )
     return channels
 
 
@@ -100,8 +118,17 @@ class WindowObjective:
     cache_residuals = False
     sim_seconds = float("nan")
 
-    def __init__(self, model, ctxs, sd: dict, p0=None, nuisance0=None, fit_nuisance_only: bool = False,
-                 channels=None, prior: GaussianPrior | None = None):
+    def __init__(
+        self,
+        model,
+        ctxs,
+        sd: dict,
+        p0=None,
+        nuisance0=None,
+        fit_nuisance_only: bool = False,
+        channels=None,
+        prior: GaussianPrior | None = None,
+    ):
         self.model, self.ctxs = model, list(ctxs)
         self.prior = prior if prior is not None and not fit_nuisance_only and prior.idx.size else None
         self.p0 = model.start() if p0 is None else np.asarray(p0, float)
@@ -121,11 +148,16 @@ class WindowObjective:
         self.x_scale = np.concatenate(([sc] if free_p else []) + [np.ones(nn)] * T)
         fin = np.isfinite(self.lo) & np.isfinite(self.hi)
         span = np.where(fin, self.hi - self.lo, 0.0)
-        self.x0 = np.where(fin, np.clip(x0, np.where(fin, self.lo, 0.0) + 1e-9 * span,
-                                        np.where(fin, self.hi, 0.0) - 1e-9 * span), x0)
+        self.x0 = np.where(
+            fin, np.clip(x0, np.where(fin, self.lo, 0.0) + 1e-9 * span, np.where(fin, self.hi, 0.0) - 1e-9 * span), x0
+        )
         pn = list(model.param_names) if free_p else []
-        self.names = pn + [f"track{i}.{n}" for i in range(T) for e in model.effects
-                           for n in [f"{e.name}.nuisance{j}" for j in range(e.n_nuisance)]]
+        self.names = pn + [
+            f"track{i}.{n}"
+            for i in range(T)
+            for e in model.effects
+            for n in [f"{e.name}.nuisance{j}" for j in range(e.n_nuisance)]
+        ]
         self.n_simulations = 0
         self.vp = any(c.start == "fitted" for c in self.ctxs)
         self.n_starts = sum(6 * c.W for c in self.ctxs if c.start == "fitted")
@@ -135,9 +167,9 @@ class WindowObjective:
     def split_rows(self, X):
         """(B, n) variables -> (P (B, n_params), [nuisances (B, n_nuisance) or None per track])."""
         nn, T = self.nn, self.T
-        P = X[:, :self.model.n_params] if self.free_p else np.repeat(self.p0[None], X.shape[0], 0)
+        P = X[:, : self.model.n_params] if self.free_p else np.repeat(self.p0[None], X.shape[0], 0)
         off = self.model.n_params if self.free_p else 0
-        return P, [X[:, off + i * nn:off + (i + 1) * nn] if nn else None for i in range(T)]
+        return P, [X[:, off + i * nn : off + (i + 1) * nn] if nn else None for i in range(T)]
 
     def _fit_starts(self, P, nus, want_jac=False):
         out = []
@@ -195,8 +227,11 @@ class WindowObjective:
             return R[0], ((R[1:] - R[0]) / (sign * h)[:, None]).T
         if self._last["x"] is None or not np.array_equal(self._last["x"], x):
             self.residuals(x)
-        held = None if self.lead_in else [None if d is None else np.repeat(d, X.shape[0], axis=0)
-                                          for d in self._last["starts"]]
+        held = (
+            None
+            if self.lead_in
+            else [None if d is None else np.repeat(d, X.shape[0], axis=0) for d in self._last["starts"]]
+        )
         R = self.residuals_batch(X, held)[0]
         J = ((R[1:] - R[0]) / (sign * h)[:, None]).T
         if self.lead_in:
@@ -206,7 +241,7 @@ class WindowObjective:
             n_i = sum(ctx.meas[c].size for c in ctx.channels if c in self.wts[i])
             if ctx.start == "fitted":
                 Jd, rwin = self._last["jd"][i]
-                J[r0:r0 + n_i] = shooting.project_out(J[r0:r0 + n_i], Jd, rwin, ctx.W)
+                J[r0 : r0 + n_i] = shooting.project_out(J[r0 : r0 + n_i], Jd, rwin, ctx.W)
             r0 += n_i
         return R[0], J
 
@@ -215,9 +250,14 @@ class WindowObjective:
         ``k`` (parameters, nuisances and window start states)."""
         P, nus = self.split_rows(np.asarray(x, float)[None])
         nuisance = [np.array(v[0]) if v is not None else np.zeros(0) for v in nus]
-        return {"model": self.model, "p": np.array(P[0]), "nuisance": nuisance, "channels": self.channels,
-                "n_starts": self.n_starts,
-                "k": self.model.n_params + sum(len(v) for v in nuisance) + self.n_starts}
+        return {
+            "model": self.model,
+            "p": np.array(P[0]),
+            "nuisance": nuisance,
+            "channels": self.channels,
+            "n_starts": self.n_starts,
+            "k": self.model.n_params + sum(len(v) for v in nuisance) + self.n_starts,
+        }
 
 
 @dataclass(frozen=True)
@@ -241,14 +281,19 @@ class GaussianPrior:
     weight: float = 1.0
 
     @classmethod
-    def of_model(cls, model, weight: float = 1.0) -> "GaussianPrior":
+    def of_model(cls, model, weight: float = 1.0) -> GaussianPrior:
         """The priors of the model's vehicle file (``vehicle.prior``, the ``[prior]`` section) on
         the model's free parameters (effect parameters have none)."""
         pri = getattr(model.vehicle, "prior", {}) or {}
         names = [n for n in model.param_names if n in pri]
         idx = np.array([model.param_names.index(n) for n in names], dtype=int)
-        return cls(tuple(names), idx, np.array([pri[n][0] for n in names], float),
-                   np.array([pri[n][1] for n in names], float), float(weight))
+        return cls(
+            tuple(names),
+            idx,
+            np.array([pri[n][0] for n in names], float),
+            np.array([pri[n][1] for n in names], float),
+            float(weight),
+        )
 
     def residuals(self, P) -> np.ndarray:
         """(B, K) prior residuals of (B, n_params) parameter rows."""
@@ -257,13 +302,22 @@ class GaussianPrior:
     def precision(self, n_params: int) -> np.ndarray:
         """(n_params,) prior precision ``1 / sd^2`` (0 where a parameter has no Gaussian prior)."""
         out = np.zeros(n_params)
-        out[self.idx] = 1.0 / self.sd ** 2
+        out[self.idx] = 1.0 / self.sd**2
         return out
 
 
-def fit_model(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60,
-              fit_nuisance_only: bool = False, channels=None, progress: str | None = None,
-              prior: GaussianPrior | None = None) -> FitResult:
+def fit_model(
+    model,
+    ctxs,
+    sd: dict,
+    p0=None,
+    nuisance0=None,
+    max_nfev: int = 60,
+    fit_nuisance_only: bool = False,
+    channels=None,
+    progress: str | None = None,
+    prior: GaussianPrior | None = None,
+) -> FitResult:
     """Least-squares fit of a model's parameters (and per-track nuisances) to tracks: the
     :class:`WindowObjective` minimised by :func:`bayesid.estimation.fit.fit` (trust-region
     reflective, ``xtol = ftol = gtol = 1e-8``, variables scaled by ``model.scales()``, a
@@ -286,13 +340,24 @@ def fit_model(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60
     ob = WindowObjective(model, ctxs, sd, p0, nuisance0, fit_nuisance_only, channels, prior)
     if ob.x0.size == 0:
         r = ob.residuals(ob.x0)[0]
-        res = FitResult("none", [], ob.x0, float(r @ r), float(r @ r), True, "nothing to fit", n_simulations=1,
-                        n_residuals=r.size)
+        res = FitResult(
+            "none", [], ob.x0, float(r @ r), float(r @ r), True, "nothing to fit", n_simulations=1, n_residuals=r.size
+        )
         for k, v in ob.result_fields(ob.x0).items():
             setattr(res, k, v)
         return res
-    return fit(ob, ob.x0, (ob.lo, ob.hi), max_nfev=max_nfev, ftol=1e-8, xtol=1e-8, gtol=1e-8, x_scale=ob.x_scale,
-               progress=progress, quiet=True)
+    return fit(
+        ob,
+        ob.x0,
+        (ob.lo, ob.hi),
+        max_nfev=max_nfev,
+        ftol=1e-8,
+        xtol=1e-8,
+        gtol=1e-8,
+        x_scale=ob.x_scale,
+        progress=progress,
+        quiet=True,
+    )
 
 
 def heldout_nuisance(model, fitres: FitResult, ctxs, sd: dict, n_grid: int = 8, max_nfev: int = 30) -> list:
@@ -300,7 +365,6 @@ def heldout_nuisance(model, fitres: FitResult, ctxs, sd: dict, n_grid: int = 8, 
     parameters held: each track starts from the best of ``n_grid`` values spread over the
     nuisance bounds (a phase has a local minimum every period), then :func:`fit_model` refines them.
     Returns a list (one (n_nuisance,) array per track)."""
-    nn = model.n_nuisance
     lo = np.concatenate([np.full(e.n_nuisance, e.nuisance_lo) for e in model.effects])
     hi = np.concatenate([np.full(e.n_nuisance, e.nuisance_hi) for e in model.effects])
     grid = lo[None] + (np.arange(n_grid)[:, None] + 0.5) / n_grid * (hi - lo)[None]
@@ -326,12 +390,23 @@ def residual_sd(model, fitres: FitResult, ctxs, floor: dict) -> dict:
         S = shooting.simulate(model, ctx, fitres.p[None], nu)
         for c, e in ef.errors(ctx, S).items():
             acc.setdefault(c, []).append(e[0][np.isfinite(e[0])])
-    return {c: max(float(np.sqrt(np.mean(np.concatenate(v) ** 2))) if sum(x.size for x in v) else 0.0, floor[c])
-            for c, v in acc.items()}
+    return {
+        c: max(float(np.sqrt(np.mean(np.concatenate(v) ** 2))) if sum(x.size for x in v) else 0.0, floor[c])
+        for c, v in acc.items()
+    }
 
 
-def fit_weighted(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int = 60,
-                 weighting: str = "noise", channels=None, progress: str | None = None) -> tuple[FitResult, dict]:
+def fit_weighted(
+    model,
+    ctxs,
+    sd: dict,
+    p0=None,
+    nuisance0=None,
+    max_nfev: int = 60,
+    weighting: str = "noise",
+    channels=None,
+    progress: str | None = None,
+) -> tuple[FitResult, dict]:
     """:func:`fit_model` with the channel weights chosen by ``weighting``.
 
     ``"noise"``: weights ``1/sd`` from the measurement noise (right when the model structure is
@@ -356,8 +431,16 @@ def fit_weighted(model, ctxs, sd: dict, p0=None, nuisance0=None, max_nfev: int =
     if weighting == "noise":
         return f, dict(sd)
     sd2 = residual_sd(model, f, ctxs, sd)
-    return fit_model(model, ctxs, sd2, f.p, f.nuisance if model.n_nuisance else None, max_nfev=max_nfev,
-               channels=channels, progress=lab("residual weights")), sd2
+    return fit_model(
+        model,
+        ctxs,
+        sd2,
+        f.p,
+        f.nuisance if model.n_nuisance else None,
+        max_nfev=max_nfev,
+        channels=channels,
+        progress=lab("residual weights"),
+    ), sd2
 
 
 def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None) -> dict:
@@ -429,8 +512,12 @@ def check_enough_data(model, ctxs, window_s: float) -> None:
     k = model.n_params
     names = ", ".join(f"track {c.name!r}" for c in ctxs)
     if n < MIN_SAMPLES_PER_PARAMETER * k:
-        raise ValueError(f"training {names}: {n} scored samples for {k} parameters (need at least "
-                         f"{MIN_SAMPLES_PER_PARAMETER * k}); give longer or more tracks, or fewer --free")
+        raise ValueError(
+            f"training {names}: {n} scored samples for {k} parameters (need at least "
+            f"{MIN_SAMPLES_PER_PARAMETER * k}); give longer or more tracks, or fewer --free"
+        )
     if span < window_s:
-        raise ValueError(f"training {names} last {span:.3g} s in all, less than one {window_s:g} s fit "
-                         "window; give longer tracks or a shorter --window")
+        raise ValueError(
+            f"training {names} last {span:.3g} s in all, less than one {window_s:g} s fit "
+            "window; give longer tracks or a shorter --window"
+        )

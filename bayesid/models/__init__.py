@@ -4,6 +4,7 @@
 vehicle description is; everything above the model layer (fits, prediction, the gap diagnosis,
 the command line) works with the model it returns.
 """
+
 from __future__ import annotations
 
 import os
@@ -19,10 +20,10 @@ import numba
 if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "workqueue"
 
-from .effects import EffectModel  # noqa: E402
-from .ship import Ship, ShipModel, is_ship_file, load_ship  # noqa: E402
 from ..data.vehicle import Vehicle, load_vehicle  # noqa: E402
+from .effects import EffectModel  # noqa: E402
 from .interface import SimulationModel  # noqa: E402
+from .ship import Ship, ShipModel, is_ship_file, load_ship  # noqa: E402
 
 __all__ = ["FAMILIES", "SimulationModel", "build_model", "load_any_vehicle", "model_class"]
 
@@ -36,8 +37,9 @@ def model_class(vehicle):
     for kind, cls in FAMILIES.items():
         if isinstance(vehicle, kind):
             return cls
-    raise TypeError(f"no simulation model for a {type(vehicle).__name__}; known: "
-                    f"{', '.join(k.__name__ for k in FAMILIES)}")
+    raise TypeError(
+        f"no simulation model for a {type(vehicle).__name__}; known: {', '.join(k.__name__ for k in FAMILIES)}"
+    )
 
 
 def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal"):

@@ -48,6 +48,7 @@ and ``simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, 
 with the arguments of :func:`bayesid.models.dynamics.simulate_batch` and
 :func:`bayesid.models.dynamics.simulate_windows` less the term encoding (``tfac``, ``tdof``).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -58,8 +59,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from . import dynamics
 from ..data import terms
+from . import dynamics
 
 KINDS = ("generated", "interpreted")
 #: Tracks each thread advances together, their statements interleaved, per mode. Measured with
@@ -69,9 +70,24 @@ KINDS = ("generated", "interpreted")
 LANES = {"6dof": 1, "horizontal": 2}
 
 # Scalar name of each feature in the generated source (terms.FEATURES order).
-_FEATURE_VAR = {"u": "u", "v": "v", "w": "w", "p": "p", "q": "q", "r": "r", "dr": "d_r", "ds": "d_s",
-                "db": "d_b", "eps": "eps", "|v|": "abs(v)", "|r|": "abs(r)", "prop": "prop",
-                "|w|": "abs(w)", "|q|": "abs(q)", "|p|": "abs(p)"}
+_FEATURE_VAR = {
+    "u": "u",
+    "v": "v",
+    "w": "w",
+    "p": "p",
+    "q": "q",
+    "r": "r",
+    "dr": "d_r",
+    "ds": "d_s",
+    "db": "d_b",
+    "eps": "eps",
+    "|v|": "abs(v)",
+    "|r|": "abs(r)",
+    "prop": "prop",
+    "|w|": "abs(w)",
+    "|q|": "abs(q)",
+    "|p|": "abs(p)",
+}
 _STATES = ("x", "y", "z", "ph", "th", "ps", "u", "v", "w", "p", "q", "r")
 _PLANE_STATES = (0, 1, 5, 6, 7, 11)  # x, y, psi, u, v, r
 _PLANE_DOF = (0, 1, 5)  # X, Y, N
@@ -140,19 +156,20 @@ def _rhs_statements(force_names, mode: str) -> list[str]:
         a("F4 += -hx * cth * cph - hz * sth")
         a("F5 += hx * cth * sph + hy * sth")
     # Cross-flow drag strip sum (Feldman 1979 as in MSS), on when vp[VP_XFLOW] != 0.
-    heave = "" if planar else ("\n            F2 -= g * wl"
-                               "\n            F4 += g * wl * xi")
-    a("if vp[VP_XFLOW] != 0.0:\n"
-      "    half_rho = 0.5 * vp[VP_RHO]\n"
-      "    for i in range(xs.shape[0]):\n"
-      "        xi = xs[i]\n"
-      "        vl = v + xi * r\n"
-      "        wl = w - xi * q\n"
-      "        ucf = math.sqrt(vl * vl + wl * wl)\n"
-      "        if ucf > 1e-12:\n"
-      "            g = (vp[VP_CDYH] * vl * vl + vp[VP_CDZB] * wl * wl) * half_rho * ws[i] / ucf\n"
-      "            F1 -= g * vl\n"
-      "            F5 -= g * vl * xi" + heave)
+    heave = "" if planar else ("\n            F2 -= g * wl\n            F4 += g * wl * xi")
+    a(
+        "if vp[VP_XFLOW] != 0.0:\n"
+        "    half_rho = 0.5 * vp[VP_RHO]\n"
+        "    for i in range(xs.shape[0]):\n"
+        "        xi = xs[i]\n"
+        "        vl = v + xi * r\n"
+        "        wl = w - xi * q\n"
+        "        ucf = math.sqrt(vl * vl + wl * wl)\n"
+        "        if ucf > 1e-12:\n"
+        "            g = (vp[VP_CDYH] * vl * vl + vp[VP_CDZB] * wl * wl) * half_rho * ws[i] / ucf\n"
+        "            F1 -= g * vl\n"
+        "            F5 -= g * vl * xi" + heave
+    )
     # Rigid-body velocity terms on the right-hand side (paper Eq. 1; equations.md).
     if planar:
         a("F0 -= m * (-v * r + w * q - xg * (q * q + r * r) + yg * p * q + zg * p * r)")
@@ -162,12 +179,18 @@ def _rhs_statements(force_names, mode: str) -> list[str]:
         a("F0 -= m * (-v * r + w * q - xg * (q * q + r * r) + yg * p * q + zg * p * r)")
         a("F1 -= m * (-w * p + u * r - yg * (r * r + p * p) + zg * q * r + xg * q * p)")
         a("F2 -= m * (-u * q + v * p - zg * (p * p + q * q) + xg * r * p + yg * r * q)")
-        a("F3 -= (Izy * q * r - p * q * Ixz + (r * r - q * q) * Iyz + p * r * Ixy"
-          " + m * (yg * (-u * q + v * p) - zg * (-w * p + u * r)))")
-        a("F4 -= (Ixz_ * r * p - q * r * Ixy + (p * p - r * r) * Ixz + q * p * Iyz"
-          " + m * (zg * (-v * r + w * q) - xg * (-u * q + v * p)))")
-        a("F5 -= (Iyx * p * q - r * p * Iyz + (q * q - p * p) * Ixy + r * q * Ixz"
-          " + m * (xg * (-w * p + u * r) - yg * (-v * r + w * q)))")
+        a(
+            "F3 -= (Izy * q * r - p * q * Ixz + (r * r - q * q) * Iyz + p * r * Ixy"
+            " + m * (yg * (-u * q + v * p) - zg * (-w * p + u * r)))"
+        )
+        a(
+            "F4 -= (Ixz_ * r * p - q * r * Ixy + (p * p - r * r) * Ixz + q * p * Iyz"
+            " + m * (zg * (-v * r + w * q) - xg * (-u * q + v * p)))"
+        )
+        a(
+            "F5 -= (Iyx * p * q - r * p * Iyz + (q * q - p * p) * Ixy + r * q * Ixz"
+            " + m * (xg * (-w * p + u * r) - yg * (-v * r + w * q)))"
+        )
     dofs = _PLANE_DOF if planar else range(6)
     for i in dofs:
         a(f"F{i} += e{i}")
@@ -179,12 +202,14 @@ def _rhs_statements(force_names, mode: str) -> list[str]:
         kin = ["cps * u - sps * v", "sps * u + cps * v", "r"]
         acc = ["A0", "A1", "A5"]
     else:
-        kin = ["cps * cth * u + (cps * sth * sph - sps * cph) * v + (cps * sth * cph + sps * sph) * w",
-               "sps * cth * u + (sps * sth * sph + cps * cph) * v + (sps * sth * cph - cps * sph) * w",
-               "-sth * u + cth * sph * v + cth * cph * w",
-               "p + (sph * q + cph * r) * sth / cth",
-               "cph * q - sph * r",
-               "(sph * q + cph * r) / cth"]
+        kin = [
+            "cps * cth * u + (cps * sth * sph - sps * cph) * v + (cps * sth * cph + sps * sph) * w",
+            "sps * cth * u + (sps * sth * sph + cps * cph) * v + (sps * sth * cph - cps * sph) * w",
+            "-sth * u + cth * sph * v + cth * cph * w",
+            "p + (sph * q + cph * r) * sth / cth",
+            "cph * q - sph * r",
+            "(sph * q + cph * r) / cth",
+        ]
         acc = [f"A{i}" for i in range(6)]
     for i, e in enumerate(kin + acc):
         a(f"D{i} = {e}")
@@ -199,23 +224,56 @@ def _track_constants(force_names, mode: str) -> list[str]:
     if any("eps" in terms.term(n).factors for n in force_names):
         K += ["ct1 = vp[VP_CT] * vp[VP_L] * vp[VP_L] / 2.0", "epsden = math.sqrt(ct1 + 1.0) - 1.0"]
     if mode != "horizontal":
-        K += ["xb = vp[VP_XB]", "yb = vp[VP_YB]", "zb = vp[VP_ZB]",
-              "wb = W - Bu", "hx = xg * W - xb * Bu", "hy = yg * W - yb * Bu", "hz = zg * W - zb * Bu",
-              "Ix = vp[VP_IX]", "Iy = vp[VP_IY]", "Iz = vp[VP_IZ]",
-              "Ixy = vp[VP_IXY]", "Iyz = vp[VP_IYZ]", "Ixz = vp[VP_IXZ]",
-              "Izy = Iz - Iy", "Ixz_ = Ix - Iz", "Iyx = Iy - Ix"]
+        K += [
+            "xb = vp[VP_XB]",
+            "yb = vp[VP_YB]",
+            "zb = vp[VP_ZB]",
+            "wb = W - Bu",
+            "hx = xg * W - xb * Bu",
+            "hy = yg * W - yb * Bu",
+            "hz = zg * W - zb * Bu",
+            "Ix = vp[VP_IX]",
+            "Iy = vp[VP_IY]",
+            "Iz = vp[VP_IZ]",
+            "Ixy = vp[VP_IXY]",
+            "Iyz = vp[VP_IYZ]",
+            "Ixz = vp[VP_IXZ]",
+            "Izy = Iz - Iy",
+            "Ixz_ = Ix - Iz",
+            "Iyx = Iy - Ix",
+        ]
     return K
 
 
 # Names the inliner leaves alone: Python, the math module, the kernel constants, shared arrays.
-_KEEP = {"math", "abs", "range", "if", "else", "for", "in", "not", "and", "or", "min", "max",
-         "xs", "ws", "RPM_TO_RAD_S", "U_MIN_EPS", "OK", "NONFINITE", "OUT_OF_BOUNDS"}
+_KEEP = {
+    "math",
+    "abs",
+    "range",
+    "if",
+    "else",
+    "for",
+    "in",
+    "not",
+    "and",
+    "or",
+    "min",
+    "max",
+    "xs",
+    "ws",
+    "RPM_TO_RAD_S",
+    "U_MIN_EPS",
+    "OK",
+    "NONFINITE",
+    "OUT_OF_BOUNDS",
+}
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
 
 
 def _rename(stmt: str, mapping: dict, suffix: str) -> str:
     """``stmt`` with each name replaced by ``mapping[name]``, or by ``name + suffix`` for a local
     (a name not in :data:`_KEEP` nor a ``VP_`` constant)."""
+
     def sub(mt):
         name = mt.group(1)
         if name in mapping:
@@ -223,6 +281,7 @@ def _rename(stmt: str, mapping: dict, suffix: str) -> str:
         if name in _KEEP or name.startswith("VP_"):
             return name
         return name + suffix
+
     return _IDENT.sub(sub, stmt)
 
 
@@ -239,9 +298,7 @@ def _step_source(force_names, mode: str, lanes: int) -> str:
     st = [_STATES[i] for i in (_PLANE_STATES if mode == "horizontal" else range(12))]
     per_lane = st + ["d_r", "d_s", "d_b", "n", "e0", "e1", "e2", "e3", "e4", "e5", "c", "M", "vp"]
     args = [f"{a}_{l}" for l in range(lanes) for a in per_lane]
-    L = ["@nb.njit(cache=True, error_model='numpy')",
-         f"def _step({', '.join(args)}, dt, xs, ws):",
-         "    h = 0.5 * dt"]
+    L = ["@nb.njit(cache=True, error_model='numpy')", f"def _step({', '.join(args)}, dt, xs, ws):", "    h = 0.5 * dt"]
     consts = _track_constants(force_names, mode)
     hoisted = sorted({_IDENT.match(c).group(1) for c in consts})
     for c in consts:
@@ -262,8 +319,11 @@ def _step_source(force_names, mode: str, lanes: int) -> str:
         for stmt in body:
             for lane in range(lanes):
                 L.append(_indent(_rename(stmt, maps[lane], f"_s{stage}_{lane}"), "    "))
-    out = [f"{s}_{lane} + dt * (D{i}_s1_{lane} + 2.0 * D{i}_s2_{lane} + 2.0 * D{i}_s3_{lane} + D{i}_s4_{lane}) / 6.0"
-           for lane in range(lanes) for i, s in enumerate(st)]
+    out = [
+        f"{s}_{lane} + dt * (D{i}_s1_{lane} + 2.0 * D{i}_s2_{lane} + 2.0 * D{i}_s3_{lane} + D{i}_s4_{lane}) / 6.0"
+        for lane in range(lanes)
+        for i, s in enumerate(st)
+    ]
     L.append("    return (" + ",\n            ".join(out) + ",)")
     return "\n".join(L)
 
@@ -276,11 +336,13 @@ def _check_source(idx, lane: int, pad: str) -> str:
     oob += [f"abs({_STATES[i]}_{lane}) > wmax_{lane}" for i in idx if 9 <= i <= 11]
     if 4 in idx:
         oob.append(f"abs(th_{lane}) > thmax_{lane}")
-    return (f"{pad}flag_{lane} = OK\n"
-            f"{pad}if not ({fin}):\n"
-            f"{pad}    flag_{lane} = NONFINITE\n"
-            f"{pad}elif {' or '.join(oob)}:\n"
-            f"{pad}    flag_{lane} = OUT_OF_BOUNDS")
+    return (
+        f"{pad}flag_{lane} = OK\n"
+        f"{pad}if not ({fin}):\n"
+        f"{pad}    flag_{lane} = NONFINITE\n"
+        f"{pad}elif {' or '.join(oob)}:\n"
+        f"{pad}    flag_{lane} = OUT_OF_BOUNDS"
+    )
 
 
 def _drivers_source(mode: str, lanes: int) -> str:
@@ -308,41 +370,54 @@ def _drivers_source(mode: str, lanes: int) -> str:
 
     # -- batch over coefficient vectors --------------------------------------------------------
     load_b = "\n".join(f"{P12}{_STATES[i]}_{l} = s0[b_{l}, {i}]" for l in range(K) for i in idx)
+
     def lane_setup(l, vp_row, extra, status_lines, rows, start):
         """Per lane before the steps: its row ``b_l`` (the last row again for a padding lane),
         coefficients, inverse mass matrix, parameters; a live lane's outputs start as ``start``."""
-        return (f"{P12}b_{l} = min(g * {K} + {l}, B - 1)\n"
-                f"{P12}live_{l} = g * {K} + {l} < B\n"
-                f"{P12}c_{l} = tcoef[b_{l}]\n"
-                f"{P12}M_{l} = Minv[b_{l}]\n"
-                f"{P12}vp_{l} = {vp_row.format(l=l)}\n"
-                + "".join(f"{P12}{line.format(l=l)}\n" for line in extra)
-                + f"{P12}vmax_{l}, wmax_{l}, thmax_{l} = vp_{l}[VP_VMAX], vp_{l}[VP_WMAX], vp_{l}[VP_THMAX]\n"
-                f"{P12}if live_{l}:\n"
-                + "".join(f"{P16}{line.format(l=l)}\n" for line in status_lines)
-                + f"{P16}for j in range({rows}):\n"
-                f"{P16}    for i in range(12):\n"
-                f"{P16}        out[b_{l}, j, i] = {start.format(l=l)}")
+        return (
+            f"{P12}b_{l} = min(g * {K} + {l}, B - 1)\n"
+            f"{P12}live_{l} = g * {K} + {l} < B\n"
+            f"{P12}c_{l} = tcoef[b_{l}]\n"
+            f"{P12}M_{l} = Minv[b_{l}]\n"
+            f"{P12}vp_{l} = {vp_row.format(l=l)}\n"
+            + "".join(f"{P12}{line.format(l=l)}\n" for line in extra)
+            + f"{P12}vmax_{l}, wmax_{l}, thmax_{l} = vp_{l}[VP_VMAX], vp_{l}[VP_WMAX], vp_{l}[VP_THMAX]\n"
+            f"{P12}if live_{l}:\n"
+            + "".join(f"{P16}{line.format(l=l)}\n" for line in status_lines)
+            + f"{P16}for j in range({rows}):\n"
+            f"{P16}    for i in range(12):\n"
+            f"{P16}        out[b_{l}, j, i] = {start.format(l=l)}"
+        )
 
-    lanes_b = "\n".join(lane_setup(l, "vp", [], ["status[b_{l}] = OK", "fail_step[b_{l}] = -1"], "n_out",
-                                    "s0[b_{l}, i]") for l in range(K))
+    lanes_b = "\n".join(
+        lane_setup(l, "vp", [], ["status[b_{l}] = OK", "fail_step[b_{l}] = -1"], "n_out", "s0[b_{l}, i]")
+        for l in range(K)
+    )
+
     def after_step(l, flagged, nan_rows, start, store):
         """Per lane after a step: check, on divergence record it, NaN-fill ``nan_rows`` and
         restart the lane from ``start``; else store the state under ``store``."""
-        return (f"{P16}if live_{l}:\n" + _check_source(idx, l, P16 + "    ") + "\n"
-                f"{P16}    if flag_{l} != OK:\n"
-                + "".join(f"{P16}        {line.format(l=l)}\n" for line in flagged)
-                + f"{P16}        for j in range({nan_rows}):\n"
-                f"{P16}            for i in range(12):\n"
-                f"{P16}                out[b_{l}, j, i] = np.nan\n"
-                f"{P16}        live_{l} = False\n"
-                + reset(l, start, P16 + "        ") + "\n"
-                f"{P16}    {store}:\n"
-                + "\n".join(f"{P16}        out[b_{l}, row, {i}] = {_STATES[i]}_{l}" for i in idx))
+        return (
+            f"{P16}if live_{l}:\n" + _check_source(idx, l, P16 + "    ") + "\n"
+            f"{P16}    if flag_{l} != OK:\n"
+            + "".join(f"{P16}        {line.format(l=l)}\n" for line in flagged)
+            + f"{P16}        for j in range({nan_rows}):\n"
+            f"{P16}            for i in range(12):\n"
+            f"{P16}                out[b_{l}, j, i] = np.nan\n"
+            f"{P16}        live_{l} = False\n" + reset(l, start, P16 + "        ") + "\n"
+            f"{P16}    {store}:\n" + "\n".join(f"{P16}        out[b_{l}, row, {i}] = {_STATES[i]}_{l}" for i in idx)
+        )
 
-    after_b = [after_step(l, ["status[b_{l}] = flag_{l}", "fail_step[b_{l}] = k"],
-                          "(k + 1 + sample_every - 1) // sample_every, n_out", "s0[b_{l}, {i}]", "elif store")
-               for l in range(K)]
+    after_b = [
+        after_step(
+            l,
+            ["status[b_{l}] = flag_{l}", "fail_step[b_{l}] = k"],
+            "(k + 1 + sample_every - 1) // sample_every, n_out",
+            "s0[b_{l}, {i}]",
+            "elif store",
+        )
+        for l in range(K)
+    ]
     any_live = " or ".join(f"live_{l}" for l in range(K))
     batch = f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
@@ -364,14 +439,25 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, s
 '''
     # -- windows of one record -----------------------------------------------------------------
     load_w = "\n".join(f"{P12}{_STATES[i]}_{l} = s0[b_{l}, w, {i}]" for l in range(K) for i in idx)
-    lanes_w = "\n".join(lane_setup(l, "vp_all[b_{l}]", ["E_{l} = ecoef[b_{l}]"], ["status[b_{l}, w] = OK"],
-                                    "row0, row1 + 1", "s0[b_{l}, w, i]") for l in range(K))
-    ext_w = "\n".join(f"{P16}x{i}_{l} = 0.0" for l in range(K) for i in range(6)) + "\n" + \
-        f"{P16}for j in range(Kx):\n" + "\n".join(
-            f"{P16}    g{l} = exo[b_{l}, k, j]\n" + "\n".join(f"{P16}    x{i}_{l} += g{l} * E_{l}[j, {i}]"
-                                                        for i in range(6)) for l in range(K))
-    after_w = [after_step(l, ["status[b_{l}, w] = flag_{l}"], "row, row1 + 1", "s0[b_{l}, w, {i}]", "else")
-               for l in range(K)]
+    lanes_w = "\n".join(
+        lane_setup(
+            l, "vp_all[b_{l}]", ["E_{l} = ecoef[b_{l}]"], ["status[b_{l}, w] = OK"], "row0, row1 + 1", "s0[b_{l}, w, i]"
+        )
+        for l in range(K)
+    )
+    ext_w = (
+        "\n".join(f"{P16}x{i}_{l} = 0.0" for l in range(K) for i in range(6))
+        + "\n"
+        + f"{P16}for j in range(Kx):\n"
+        + "\n".join(
+            f"{P16}    g{l} = exo[b_{l}, k, j]\n"
+            + "\n".join(f"{P16}    x{i}_{l} += g{l} * E_{l}[j, {i}]" for i in range(6))
+            for l in range(K)
+        )
+    )
+    after_w = [
+        after_step(l, ["status[b_{l}, w] = flag_{l}"], "row, row1 + 1", "s0[b_{l}, w, {i}]", "else") for l in range(K)
+    ]
     windows = f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
 def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp_all, tcoef, Minv, xs, ws, out, status):
@@ -433,8 +519,12 @@ def source(force_names, mode: str = "6dof", lanes: int | None = None) -> str:
         raise ValueError(f"lanes must be >= 1, got {lanes}")
     force_names = list(force_names)
     terms.factor_table(force_names)  # raises on an acceleration term or an unknown name
-    return (_HEADER.format(n=len(force_names), mode=mode, lanes=lanes, names=" ".join(force_names) or "(none)")
-            + _step_source(force_names, mode, lanes) + "\n\n" + _drivers_source(mode, lanes))
+    return (
+        _HEADER.format(n=len(force_names), mode=mode, lanes=lanes, names=" ".join(force_names) or "(none)")
+        + _step_source(force_names, mode, lanes)
+        + "\n\n"
+        + _drivers_source(mode, lanes)
+    )
 
 
 def cache_dir() -> Path:
@@ -495,12 +585,14 @@ class Interpreted:
         self.tfac, self.tdof = terms.factor_table(list(force_names))
 
     def simulate_batch(self, s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step):
-        dynamics.simulate_batch(s0, inputs, dt, sample_every, vp, self.tfac, self.tdof, tcoef, Minv, xs, ws,
-                                out, status, fail_step)
+        dynamics.simulate_batch(
+            s0, inputs, dt, sample_every, vp, self.tfac, self.tdof, tcoef, Minv, xs, ws, out, status, fail_step
+        )
 
     def simulate_windows(self, s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, ws, out, status):
-        dynamics.simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, self.tfac, self.tdof, tcoef, Minv,
-                                  xs, ws, out, status)
+        dynamics.simulate_windows(
+            s0, starts, inputs, exo, ecoef, dt, vp, self.tfac, self.tdof, tcoef, Minv, xs, ws, out, status
+        )
 
 
 def kernel(force_names, mode: str = "6dof", kind: str = "generated"):

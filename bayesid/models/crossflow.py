@@ -6,6 +6,7 @@ The paper's model uses polynomial terms instead. :func:`fit_polynomial_equivalen
 coefficients by least squares against the integral over the (v, r) samples that a set of
 manoeuvres actually visits, so the two variants agree where the vehicle goes.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -41,7 +42,7 @@ def crossflow_forces(states: np.ndarray, vehicle) -> np.ndarray:
     x = cf.stations[None, :]
     vl, wl = v + x * r, w - x * q
     U = np.hypot(vl, wl)
-    g = cf.Cdy * cf.height_m * vl ** 2 + cf.Cdz * cf.breadth_m * wl ** 2
+    g = cf.Cdy * cf.height_m * vl**2 + cf.Cdz * cf.breadth_m * wl**2
     k = np.divide(0.5 * vehicle.rho * g * cf.weights[None, :], U, out=np.zeros_like(U), where=U > 1e-12)
     out = np.zeros((states.shape[0], 6))
     out[:, 1] = -(k * vl).sum(axis=1)
@@ -89,9 +90,13 @@ def fit_polynomial_equivalent(vehicle, manoeuvres, mode: str = "horizontal") -> 
             y = F[:, terms.DOFS.index(dof)]
             sol, *_ = np.linalg.lstsq(Phi, y, rcond=None)
             coeffs.update({n: float(c) for n, c in zip(names, sol)})
-            resid[dof] = float(np.sqrt(np.mean((Phi @ sol - y) ** 2)) / np.sqrt(np.mean(y ** 2)))
-    env = dict(max_abs_v_mps=float(np.abs(S[:, 7]).max()), max_abs_r_rad_s=float(np.abs(S[:, 11]).max()),
-               n_samples=int(S.shape[0]), manoeuvres=[m.name for m in manoeuvres])
+            resid[dof] = float(np.sqrt(np.mean((Phi @ sol - y) ** 2)) / np.sqrt(np.mean(y**2)))
+    env = dict(
+        max_abs_v_mps=float(np.abs(S[:, 7]).max()),
+        max_abs_r_rad_s=float(np.abs(S[:, 11]).max()),
+        n_samples=int(S.shape[0]),
+        manoeuvres=[m.name for m in manoeuvres],
+    )
     return dict(coefficients=coeffs, relative_rms_residual=resid, envelope=env)
 
 

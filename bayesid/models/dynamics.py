@@ -13,6 +13,7 @@ embedded in a 6x6 zero matrix, so w, p, q stay zero and z, phi, theta stay const
 
 Everything here is pure functions over arrays; no allocation in the step functions.
 """
+
 from __future__ import annotations
 
 import math
@@ -48,8 +49,8 @@ def vehicle_params(vehicle, crossflow_integral: bool | None = None) -> np.ndarra
     """
     vp = np.zeros(N_VP)
     vp[VP_M], vp[VP_W], vp[VP_B] = vehicle.mass, vehicle.weight, vehicle.buoyancy
-    vp[VP_XG:VP_ZG + 1] = vehicle.rG
-    vp[VP_XB:VP_ZB + 1] = vehicle.rB
+    vp[VP_XG : VP_ZG + 1] = vehicle.rG
+    vp[VP_XB : VP_ZB + 1] = vehicle.rB
     I = vehicle.inertia
     vp[VP_IX], vp[VP_IY], vp[VP_IZ] = I[0, 0], I[1, 1], I[2, 2]
     vp[VP_IXY], vp[VP_IYZ], vp[VP_IXZ] = -I[0, 1], -I[1, 2], -I[0, 2]
@@ -163,12 +164,27 @@ def generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau):
     tau[0] -= m * (-v * r + w * q - xg * (q * q + r * r) + yg * p * q + zg * p * r)
     tau[1] -= m * (-w * p + u * r - yg * (r * r + p * p) + zg * q * r + xg * q * p)
     tau[2] -= m * (-u * q + v * p - zg * (p * p + q * q) + xg * r * p + yg * r * q)
-    tau[3] -= ((Iz - Iy) * q * r - p * q * Ixz + (r * r - q * q) * Iyz + p * r * Ixy
-               + m * (yg * (-u * q + v * p) - zg * (-w * p + u * r)))
-    tau[4] -= ((Ix - Iz) * r * p - q * r * Ixy + (p * p - r * r) * Ixz + q * p * Iyz
-               + m * (zg * (-v * r + w * q) - xg * (-u * q + v * p)))
-    tau[5] -= ((Iy - Ix) * p * q - r * p * Iyz + (q * q - p * p) * Ixy + r * q * Ixz
-               + m * (xg * (-w * p + u * r) - yg * (-v * r + w * q)))
+    tau[3] -= (
+        (Iz - Iy) * q * r
+        - p * q * Ixz
+        + (r * r - q * q) * Iyz
+        + p * r * Ixy
+        + m * (yg * (-u * q + v * p) - zg * (-w * p + u * r))
+    )
+    tau[4] -= (
+        (Ix - Iz) * r * p
+        - q * r * Ixy
+        + (p * p - r * r) * Ixz
+        + q * p * Iyz
+        + m * (zg * (-v * r + w * q) - xg * (-u * q + v * p))
+    )
+    tau[5] -= (
+        (Iy - Ix) * p * q
+        - r * p * Iyz
+        + (q * q - p * p) * Ixy
+        + r * q * Ixz
+        + m * (xg * (-w * p + u * r) - yg * (-v * r + w * q))
+    )
 
 
 @nb.njit(cache=True)
@@ -240,13 +256,20 @@ def check_state(s, vp):
 def _workspace():
     """Scratch arrays of one integration: features, generalised force, RK4 stages, and the
     external force (zeroed)."""
-    return (np.empty(N_FEATURES), np.empty(6), np.empty(12), np.empty(12), np.empty(12), np.empty(12),
-            np.empty(12), np.zeros(6))
+    return (
+        np.empty(N_FEATURES),
+        np.empty(6),
+        np.empty(12),
+        np.empty(12),
+        np.empty(12),
+        np.empty(12),
+        np.empty(12),
+        np.zeros(6),
+    )
 
 
 @nb.njit(cache=True, parallel=True)
-def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs, ws,
-                   out, status, fail_step):
+def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs, ws, out, status, fail_step):
     """Integrate B tracks in parallel (one per coefficient vector).
 
     Parameters
@@ -266,8 +289,7 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs
         status[b] = OK
         fail_step[b] = -1
         for k in range(n_steps):
-            rk4_step(s, inputs[k], ext, dt, vp, tfac, tdof, tcoef[b], Minv[b], xs, ws,
-                     f, tau, k1, k2, k3, k4, tmp)
+            rk4_step(s, inputs[k], ext, dt, vp, tfac, tdof, tcoef[b], Minv[b], xs, ws, f, tau, k1, k2, k3, k4, tmp)
             flag = check_state(s, vp)
             if flag != OK:
                 status[b] = flag
@@ -281,8 +303,7 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs
 
 
 @nb.njit(cache=True, parallel=True)
-def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, tfac, tdof, tcoef, Minv, xs, ws,
-                     out, status):
+def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, out, status):
     """Integrate B parameter vectors over W consecutive windows of one input record, each window
     restarting from its own state (the window protocol and multiple shooting; parallel over all
     B * W windows).
@@ -316,8 +337,9 @@ def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, tfac, tdof, tcoef, 
                 for j in range(K):
                     acc += exo[b, k, j] * ecoef[b, j, i]
                 ext[i] = acc
-            rk4_step(s, inputs[b, k], ext, dt, vp[b], tfac, tdof, tcoef[b], Minv[b], xs, ws,
-                     f, tau, k1, k2, k3, k4, tmp)
+            rk4_step(
+                s, inputs[b, k], ext, dt, vp[b], tfac, tdof, tcoef[b], Minv[b], xs, ws, f, tau, k1, k2, k3, k4, tmp
+            )
             row += 1
             flag = check_state(s, vp[b])
             if flag != OK:
@@ -330,9 +352,29 @@ def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, tfac, tdof, tcoef, 
 
 
 @nb.njit(cache=True)
-def simulate_triggered_zigzag(s0, n_steps, dt, rpm, i_input, i_state, delta, trigger, first_sign,
-                              response_sign, t_execute, rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws,
-                              out, inputs):
+def simulate_triggered_zigzag(
+    s0,
+    n_steps,
+    dt,
+    rpm,
+    i_input,
+    i_state,
+    delta,
+    trigger,
+    first_sign,
+    response_sign,
+    t_execute,
+    rate_max,
+    vp,
+    tfac,
+    tdof,
+    tcoef,
+    Minv,
+    xs,
+    ws,
+    out,
+    inputs,
+):
     """Closed-loop zigzag on any (input, state) pair: input ``i_input`` is reversed when state
     ``i_state`` has changed from its value at execute by ``trigger`` in the direction the present
     command drives it (ITTC 7.5-04-02-01, Z-manoeuvre test). Heading zigzag: ``i_input = 0``
@@ -391,18 +433,78 @@ def simulate_triggered_zigzag(s0, n_steps, dt, rpm, i_input, i_state, delta, tri
 
 
 @nb.njit(cache=True)
-def simulate_zigzag(s0, n_steps, dt, rpm, delta, psi_trigger, first_sign, turn_sign, t_execute,
-                    rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws, out, inputs):
+def simulate_zigzag(
+    s0,
+    n_steps,
+    dt,
+    rpm,
+    delta,
+    psi_trigger,
+    first_sign,
+    turn_sign,
+    t_execute,
+    rate_max,
+    vp,
+    tfac,
+    tdof,
+    tcoef,
+    Minv,
+    xs,
+    ws,
+    out,
+    inputs,
+):
     """Closed-loop heading zigzag: :func:`simulate_triggered_zigzag` with the rudder (input 0)
     triggered on the heading psi (state 5); ``turn_sign`` is the sign of N'dr."""
-    return simulate_triggered_zigzag(s0, n_steps, dt, rpm, 0, 5, delta, psi_trigger, first_sign,
-                                     turn_sign, t_execute, rate_max, vp, tfac, tdof, tcoef, Minv,
-                                     xs, ws, out, inputs)
+    return simulate_triggered_zigzag(
+        s0,
+        n_steps,
+        dt,
+        rpm,
+        0,
+        5,
+        delta,
+        psi_trigger,
+        first_sign,
+        turn_sign,
+        t_execute,
+        rate_max,
+        vp,
+        tfac,
+        tdof,
+        tcoef,
+        Minv,
+        xs,
+        ws,
+        out,
+        inputs,
+    )
 
 
 @nb.njit(cache=True)
-def simulate_pi_hold(s0, n_steps, dt, rpm, i_input, i_state, reference, kp, ki, plant_sign, u_max,
-                     rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws, out, inputs):
+def simulate_pi_hold(
+    s0,
+    n_steps,
+    dt,
+    rpm,
+    i_input,
+    i_state,
+    reference,
+    kp,
+    ki,
+    plant_sign,
+    u_max,
+    rate_max,
+    vp,
+    tfac,
+    tdof,
+    tcoef,
+    Minv,
+    xs,
+    ws,
+    out,
+    inputs,
+):
     """Closed loop with a discrete PI controller on one state, driving one input (e.g. the rudder
     holding a yaw rate: Bech's reverse spiral). Same RK4 step as :func:`simulate_batch`.
 
@@ -478,11 +580,21 @@ def features_array(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.ndarra
     vp = vehicle_params(vehicle)
     out = np.empty((states.shape[0], N_FEATURES))
     for i in range(states.shape[0]):
-        features(np.ascontiguousarray(states[i], dtype=float), np.ascontiguousarray(inputs[i], dtype=float),
-                 vp, out[i])
+        features(np.ascontiguousarray(states[i], dtype=float), np.ascontiguousarray(inputs[i], dtype=float), vp, out[i])
     return out
 
 
-__all__ = ["vehicle_params", "crossflow_strips", "features", "generalized_force", "rhs", "rk4_step",
-           "simulate_batch", "simulate_windows", "simulate_triggered_zigzag", "simulate_zigzag", "simulate_pi_hold",
-           "features_array"]
+__all__ = [
+    "vehicle_params",
+    "crossflow_strips",
+    "features",
+    "generalized_force",
+    "rhs",
+    "rk4_step",
+    "simulate_batch",
+    "simulate_windows",
+    "simulate_triggered_zigzag",
+    "simulate_zigzag",
+    "simulate_pi_hold",
+    "features_array",
+]

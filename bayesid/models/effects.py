@@ -14,6 +14,7 @@ through one or more of five hooks, applied by :class:`EffectModel`:
 Magnitudes are for NPS AUV II (L = 5.3 m, 1.5-1.9 m/s); each effect's ``magnitudes`` lists the
 three levels the withheld-effect benchmark uses and ``source`` the reasoning behind them.
 """
+
 from __future__ import annotations
 
 import math
@@ -23,16 +24,28 @@ import numba as nb
 import numpy as np
 from scipy import signal
 
+from ..data import terms
+from ..data.track import INPUT_NAMES, STATE_NAMES, Track
+from ..protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
 from . import dynamics, inverse
 from .interface import ParameterLayout
-from ..data import terms
-from ..protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
 from .simulate import Manoeuvre, Simulator
-from ..data.track import INPUT_NAMES, STATE_NAMES, Track
 
 #: Polynomial cross-flow terms that the integral form replaces (crossflow.py bases).
-POLY_CROSSFLOW = ("Yvabsv", "Yvabsr", "Yrabsr", "Nvabsv", "Nabsvr", "Nrabsr",
-                  "Zwabsw", "Zwabsq", "Zqabsq", "Mwabsw", "Mabswq", "Mqabsq")
+POLY_CROSSFLOW = (
+    "Yvabsv",
+    "Yvabsr",
+    "Yrabsr",
+    "Nvabsv",
+    "Nabsvr",
+    "Nrabsr",
+    "Zwabsw",
+    "Zwabsq",
+    "Zqabsq",
+    "Mwabsw",
+    "Mabswq",
+    "Mqabsq",
+)
 IX, IY, IPSI, IU, IV, IR = 0, 1, 5, 6, 7, 11
 
 
@@ -212,8 +225,12 @@ class SensorLag(Effect):
         u, v = S[..., IU].copy(), S[..., IV].copy()
         S[..., IX] -= skew * (c * u - sn * v)
         S[..., IY] -= skew * (sn * u + c * v)
-        _first_order_lag(S, np.asarray(t_rel, float), np.ascontiguousarray(q[:, 0], dtype=float),
-                         np.array([IU, IV, IR], dtype=np.int64))
+        _first_order_lag(
+            S,
+            np.asarray(t_rel, float),
+            np.ascontiguousarray(q[:, 0], dtype=float),
+            np.array([IU, IV, IR], dtype=np.int64),
+        )
 
 
 class Actuator(Effect):
@@ -226,7 +243,7 @@ class Actuator(Effect):
 
     def fit_starts(self, p, i, model, seed):
         alt = p.copy()
-        alt[i:i + 2] = [1.0, 5.0]  # a slow servo: the other basin of the lag / rate trade-off
+        alt[i : i + 2] = [1.0, 5.0]  # a slow servo: the other basin of the lag / rate trade-off
         return [(p, None), (alt, None)]
 
     def force_signature(self, m):
@@ -273,7 +290,7 @@ class Thrust(Effect):
         veh = ctx.model.vehicle
         uc = veh.propulsion.uc_per_omega * inputs[:, :, 3] * dynamics.RPM_TO_RAD_S
         cd0 = float(veh.coefficients.get("Cd0", 0.0))
-        col = (0.5 * veh.rho * veh.L ** 2 * cd0 * uc * np.abs(uc))[:, :, None]
+        col = (0.5 * veh.rho * veh.L**2 * cd0 * uc * np.abs(uc))[:, :, None]
         coef = np.zeros((q.shape[0], 1, 6))
         coef[:, 0, 0] = q[:, 0] - 1.0
         return col, coef
@@ -349,7 +366,7 @@ class Waves(Effect):
             return [(p, None)]
         omega, phases, amp = seed
         p = p.copy()
-        p[i:i + 4] = [omega, amp[0], amp[1], amp[2]]
+        p[i : i + 4] = [omega, amp[0], amp[1], amp[2]]
         nn = model.n_nuisance  # the phase is the model's last nuisance (the effect is added last)
         return [(p, [np.r_[np.zeros(nn - 1), ph] for ph in phases])]
 
@@ -379,7 +396,7 @@ def drift_seed(evidence) -> np.ndarray:
     num, den = np.zeros(2), 0.0
     for ctx, e in zip(evidence["ctxs"], evidence["errors"]):
         num -= np.array([np.nansum(e["x"][0] * ctx.t_rel), np.nansum(e["y"][0] * ctx.t_rel)])
-        den += float(np.sum(ctx.t_rel ** 2))
+        den += float(np.sum(ctx.t_rel**2))
     return num / den if den > 0 else np.zeros(2)
 
 
@@ -388,7 +405,7 @@ def drift_starts(p, i, seed) -> list:
     if seed is None:
         return [(p, None)]
     p = p.copy()
-    p[i:i + 2] = np.clip(seed, -1.4, 1.4)
+    p[i : i + 2] = np.clip(seed, -1.4, 1.4)
     return [(p, None)]
 
 
@@ -410,73 +427,146 @@ RATE_UNLIMITED_DEG_S = 2000.0
 def _catalogue():
     return {
         "current": Current(
-            "current", ("current_north_mps", "current_east_mps"), (-1.5, -1.5), (1.5, 1.5), (0.0, 0.0),
-            (0.1, 0.1), neutral=(0.0, 0.0), magnitudes=({"speed_mps": 0.1}, {"speed_mps": 0.2}, {"speed_mps": 0.3}),
+            "current",
+            ("current_north_mps", "current_east_mps"),
+            (-1.5, -1.5),
+            (1.5, 1.5),
+            (0.0, 0.0),
+            (0.1, 0.1),
+            neutral=(0.0, 0.0),
+            magnitudes=({"speed_mps": 0.1}, {"speed_mps": 0.2}, {"speed_mps": 0.3}),
             source="Coastal tidal and wind-driven currents of 0.1-0.5 m/s are typical AUV operating "
-                   "conditions; 0.1-0.3 m/s against a vehicle speed of 1.9 m/s (5-16 %).",
+            "conditions; 0.1-0.3 m/s against a vehicle speed of 1.9 m/s (5-16 %).",
             description="uniform ocean current (speed, direction) through the relative velocity",
-            signature=("current",)),
+            signature=("current",),
+        ),
         "actuator": Actuator(
-            "actuator", ("lag_s", "rate_max_deg_s"), (0.0, 1.0), (5.0, RATE_UNLIMITED_DEG_S), (0.3, 20.0),
-            (0.3, 5.0), neutral=(0.0, RATE_UNLIMITED_DEG_S),
-            magnitudes=({"lag_s": 0.3, "rate_max_deg_s": 10.0}, {"lag_s": 0.6, "rate_max_deg_s": 6.0},
-                        {"lag_s": 1.0, "rate_max_deg_s": 4.0}),
+            "actuator",
+            ("lag_s", "rate_max_deg_s"),
+            (0.0, 1.0),
+            (5.0, RATE_UNLIMITED_DEG_S),
+            (0.3, 20.0),
+            (0.3, 5.0),
+            neutral=(0.0, RATE_UNLIMITED_DEG_S),
+            magnitudes=(
+                {"lag_s": 0.3, "rate_max_deg_s": 10.0},
+                {"lag_s": 0.6, "rate_max_deg_s": 6.0},
+                {"lag_s": 1.0, "rate_max_deg_s": 4.0},
+            ),
             source="Electric fin servos of 5 m vehicles move at 5-20 deg/s with 0.1-1 s time "
-                   "constants; ITTC's minimum steering-gear rate is 2.3 deg/s at full scale.",
-            description="rudder actuator: first-order lag and rate limit", input_effect=True,
-            signature=("rudder_rate",)),
+            "constants; ITTC's minimum steering-gear rate is 2.3 deg/s at full scale.",
+            description="rudder actuator: first-order lag and rate limit",
+            input_effect=True,
+            signature=("rudder_rate",),
+        ),
         "delay": Delay(
-            "delay", ("delay_s",), (0.0,), (5.0,), (0.2,), (0.3,), neutral=(0.0,),
+            "delay",
+            ("delay_s",),
+            (0.0,),
+            (5.0,),
+            (0.2,),
+            (0.3,),
+            neutral=(0.0,),
             magnitudes=({"delay_s": 0.5}, {"delay_s": 1.0}, {"delay_s": 2.0}),
             source="Control-loop and bus latencies of 0.1-1 s, logging clocks offset by up to 2 s.",
-            description="pure time delay of all inputs", input_effect=True, signature=("rudder_rate",)),
+            description="pure time delay of all inputs",
+            input_effect=True,
+            signature=("rudder_rate",),
+        ),
         "sensor_bias": SensorBias(
-            "sensor_bias", ("heading_bias_deg", "lever_x_m", "lever_y_m"), (-10.0, -3.0, -3.0),
-            (10.0, 3.0, 3.0), (0.0, 0.0, 0.0), (0.5, 0.3, 0.3), neutral=(0.0, 0.0, 0.0),
-            magnitudes=({"heading_bias_deg": 2.0}, {"lever_x_m": 1.5, "lever_y_m": 0.8},
-                        {"heading_bias_deg": 1.0, "lever_x_m": 1.0, "lever_y_m": -0.5}),
+            "sensor_bias",
+            ("heading_bias_deg", "lever_x_m", "lever_y_m"),
+            (-10.0, -3.0, -3.0),
+            (10.0, 3.0, 3.0),
+            (0.0, 0.0, 0.0),
+            (0.5, 0.3, 0.3),
+            neutral=(0.0, 0.0, 0.0),
+            magnitudes=(
+                {"heading_bias_deg": 2.0},
+                {"lever_x_m": 1.5, "lever_y_m": 0.8},
+                {"heading_bias_deg": 1.0, "lever_x_m": 1.0, "lever_y_m": -0.5},
+            ),
             source="Magnetic compass deviation after calibration 0.5-3 deg; a GPS antenna or USBL "
-                   "transponder mounted 0.3-1.5 m from the body origin of a 5.3 m hull.",
-            description="sensor bias: heading offset and position-sensor lever arm"),
+            "transponder mounted 0.3-1.5 m from the body origin of a 5.3 m hull.",
+            description="sensor bias: heading offset and position-sensor lever arm",
+        ),
         "sensor_lag": SensorLag(
-            "sensor_lag", ("lag_s", "skew_s"), (0.0, -3.0), (5.0, 3.0), (0.5, 0.0), (0.3, 0.3), neutral=(0.0, 0.0),
+            "sensor_lag",
+            ("lag_s", "skew_s"),
+            (0.0, -3.0),
+            (5.0, 3.0),
+            (0.5, 0.0),
+            (0.3, 0.3),
+            neutral=(0.0, 0.0),
             magnitudes=({"lag_s": 0.5}, {"lag_s": 1.0, "skew_s": 0.3}, {"lag_s": 1.0, "skew_s": 1.0}),
             source="Velocities from differentiated GNSS/USBL fixes through causal filters lag 0.3-1.5 s; "
-                   "navigation and attitude logged by separate clocks skew by up to 1 s.",
-            description="sensor dynamics: first-order lag of logged u, v, r and a position time skew"),
+            "navigation and attitude logged by separate clocks skew by up to 1 s.",
+            description="sensor dynamics: first-order lag of logged u, v, r and a position time skew",
+        ),
         "crossflow": Crossflow(
-            "crossflow", ("cd_scale",), (0.0,), (4.0,), (1.0,), (0.2,),
+            "crossflow",
+            ("cd_scale",),
+            (0.0,),
+            (4.0,),
+            (1.0,),
+            (0.2,),
             magnitudes=({"cd_scale": 1.4}, {"cd_scale": 1.8}, {"cd_scale": 2.2}),
             source="Cross-flow drag coefficients of bodies of revolution span 0.6-1.2 (Hoerner 1965, "
-                   "Fluid-Dynamic Drag, Ch. 3); NPS AUV II's Cdy = 0.5 scaled by 1.4-2.2.",
+            "Fluid-Dynamic Drag, Ch. 3); NPS AUV II's Cdy = 0.5 scaled by 1.4-2.2.",
             description="hull cross-flow drag in integral form (model: polynomial)",
-            signature=("crossflow",)),
+            signature=("crossflow",),
+        ),
         "thrust": Thrust(
-            "thrust", ("thrust_scale",), (0.2,), (1.5,), (1.0,), (0.05,), neutral=(1.0,),
+            "thrust",
+            ("thrust_scale",),
+            (0.2,),
+            (1.5,),
+            (1.0,),
+            (0.05,),
+            neutral=(1.0,),
             magnitudes=({"thrust_scale": 0.9}, {"thrust_scale": 0.8}, {"thrust_scale": 0.7}),
             source="Fouling, blade damage and wake-fraction errors cost 5-30 % of thrust.",
-            description="propeller thrust deficit (thrust scale factor)", exo_columns=1,
-            signature=("thrust",)),
+            description="propeller thrust deficit (thrust scale factor)",
+            exo_columns=1,
+            signature=("thrust",),
+        ),
         "roll": Roll(
-            "roll", ("zG_m",), (0.002,), (0.3,), (0.061,), (0.02,), mode="6dof",
+            "roll",
+            ("zG_m",),
+            (0.002,),
+            (0.3,),
+            (0.061,),
+            (0.02,),
+            mode="6dof",
             magnitudes=({"zG_m": 0.03}, {"zG_m": 0.02}, {"zG_m": 0.01}),
             source="Metacentric heights BG of AUVs are 1-6 cm (REMUS 100: 2 cm, NPS AUV II: 6.1 cm); "
-                   "the horizontal-plane model ignores the roll they allow.",
+            "the horizontal-plane model ignores the roll they allow.",
             description="roll coupling: 6-DOF truth against the horizontal-plane model",
-            signature=("roll",)),
+            signature=("roll",),
+        ),
         "waves": Waves(
-            "waves", ("omega_rad_s", "amp_X_N", "amp_Y_N", "amp_N_Nm"), (0.2, -3000.0, -3000.0, -6000.0),
-            (2.5, 3000.0, 3000.0, 6000.0), (0.6, 0.0, 0.0, 0.0), (0.05, 50.0, 50.0, 100.0),
+            "waves",
+            ("omega_rad_s", "amp_X_N", "amp_Y_N", "amp_N_Nm"),
+            (0.2, -3000.0, -3000.0, -6000.0),
+            (2.5, 3000.0, 3000.0, 6000.0),
+            (0.6, 0.0, 0.0, 0.0),
+            (0.05, 50.0, 50.0, 100.0),
             neutral=(0.6, 0.0, 0.0, 0.0),
-            magnitudes=({"omega_rad_s": 2 * math.pi / 8, "amp_X_N": 40.0, "amp_Y_N": 150.0, "amp_N_Nm": 300.0},
-                        {"omega_rad_s": 2 * math.pi / 10, "amp_X_N": 60.0, "amp_Y_N": 250.0, "amp_N_Nm": 500.0},
-                        {"omega_rad_s": 2 * math.pi / 12, "amp_X_N": 80.0, "amp_Y_N": 350.0, "amp_N_Nm": 700.0}),
+            magnitudes=(
+                {"omega_rad_s": 2 * math.pi / 8, "amp_X_N": 40.0, "amp_Y_N": 150.0, "amp_N_Nm": 300.0},
+                {"omega_rad_s": 2 * math.pi / 10, "amp_X_N": 60.0, "amp_Y_N": 250.0, "amp_N_Nm": 500.0},
+                {"omega_rad_s": 2 * math.pi / 12, "amp_X_N": 80.0, "amp_Y_N": 350.0, "amp_N_Nm": 700.0},
+            ),
             source="First-order wave forces on a body at shallow submergence in sea state 2-3 with "
-                   "encounter periods of 8-12 s; amplitudes 0.3-0.75 of the 470 N sway force of "
-                   "20 deg rudder at 1.9 m/s.",
+            "encounter periods of 8-12 s; amplitudes 0.3-0.75 of the 470 N sway force of "
+            "20 deg rudder at 1.9 m/s.",
             description="periodic disturbance force at an unknown frequency",
-            n_nuisance=1, nuisance_lo=-2 * math.pi, nuisance_hi=2 * math.pi, exo_columns=1,
-            signature=("waves",)),
+            n_nuisance=1,
+            nuisance_lo=-2 * math.pi,
+            nuisance_hi=2 * math.pi,
+            exo_columns=1,
+            signature=("waves",),
+        ),
     }
 
 
@@ -564,7 +654,7 @@ def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float,
         tk = t[fin]
         hole = np.flatnonzero(np.diff(tk) > max(gap, 5.0 * float(np.median(np.diff(tk)))) + 1e-9)
         for h in hole:
-            ok[fin[h] + 1:fin[h + 1]] = False
+            ok[fin[h] + 1 : fin[h + 1]] = False
     tt = t[ok]
     if tt.size == 0:
         raise ValueError(f"track {track.name!r}: no row has x, y and psi all measured")
@@ -594,8 +684,9 @@ class TrackContext:
     window itself for a training fit without lead-in).
     """
 
-    def __init__(self, model, track: Track, window_s, span_s, s0=None, substeps=10, start="measured",
-                 leadin_s: float = 0.0):
+    def __init__(
+        self, model, track: Track, window_s, span_s, s0=None, substeps=10, start="measured", leadin_s: float = 0.0
+    ):
         dt = model.dt
         t = np.asarray(track.t, float)
         self.model, self.track, self.name = model, track, track.name
@@ -606,20 +697,24 @@ class TrackContext:
         self.t0 = float(t[0])
         self.n_steps = int(math.floor((t[-1] - t[0]) / dt + 1e-9))
         if self.n_steps < 1:
-            raise ValueError(f"track {track.name!r} ({t[-1] - t[0]:g} s) is shorter than one model step of {dt} s "
-                             "(--dt)")
+            raise ValueError(
+                f"track {track.name!r} ({t[-1] - t[0]:g} s) is shorter than one model step of {dt} s (--dt)"
+            )
         if self.n_steps > MAX_GRID_STEPS:
             gaps = np.diff(t)
             i = int(np.argmax(gaps))
             raise ValueError(
                 f"track {track.name!r} spans {t[-1] - t[0]:.4g} s, {self.n_steps} model steps of {dt} s "
                 f"(at most {MAX_GRID_STEPS}); its longest time gap is {gaps[i]:.4g} s, from t = {t[i]:.10g} to "
-                f"{t[i + 1]:.10g} s (a clock jump?): split the file at the gap, one track file per piece")
+                f"{t[i + 1]:.10g} s (a clock jump?): split the file at the gap, one track file per piece"
+            )
         t_end = self.t0 + self.n_steps * dt
         self.t_grid = self.t0 + dt * np.arange(self.n_steps + 1)
         self.t_mid = self.t_grid[:-1] + 0.5 * dt
         if window_s is not None and abs(window_s / dt - round(window_s / dt)) > 1e-6:
-            raise ValueError(f"window {window_s:g} s (--window) is not a whole multiple of the model step {dt:g} s (--dt)")
+            raise ValueError(
+                f"window {window_s:g} s (--window) is not a whole multiple of the model step {dt:g} s (--dt)"
+            )
         leadin_s = float(leadin_s) if self.start == "fitted" else 0.0
         if leadin_s < 0 or abs(leadin_s / dt - round(leadin_s / dt)) > 1e-6:
             raise ValueError(f"lead-in {leadin_s} s is not a non-negative multiple of the model step {dt} s")
@@ -638,8 +733,11 @@ class TrackContext:
         for ta, tb in pieces:
             sel = (t >= ta + first - 1e-9) & (t <= min(tb, t_end) + 1e-9)
             e_piece = min(int(math.floor((tb - self.t0) / dt + 1e-9)), self.n_steps)
-            st = (np.unique(np.round((window_starts(t[sel], window_s) - self.t0) / dt).astype(np.int64))
-                  if sel.any() else np.zeros(0, np.int64))
+            st = (
+                np.unique(np.round((window_starts(t[sel], window_s) - self.t0) / dt).astype(np.int64))
+                if sel.any()
+                else np.zeros(0, np.int64)
+            )
             st = st[st < e_piece]
             if st.size == 0:
                 self.skipped_pieces += 1
@@ -647,8 +745,10 @@ class TrackContext:
             steps.append(st)
             ends.append(np.append(st[1:], e_piece))
         if not steps:
-            raise ValueError(f"track {track.name!r} ({t[-1] - t[0]:g} s) is too short for a window after "
-                             f"{first:g} s of lead-in" + (" in any of its pieces between gaps" if len(pieces) > 1 else ""))
+            raise ValueError(
+                f"track {track.name!r} ({t[-1] - t[0]:g} s) is too short for a window after "
+                f"{first:g} s of lead-in" + (" in any of its pieces between gaps" if len(pieces) > 1 else "")
+            )
         steps, ends = np.concatenate(steps), np.concatenate(ends)
         self.n_pieces = len(pieces)
         self.W = len(steps)
@@ -711,7 +811,7 @@ class TrackContext:
                 np.maximum.accumulate(idx, out=idx)
                 col[:] = col[idx]
                 if bad[0]:
-                    col[:np.argmax(~bad)] = col[np.argmax(~bad)]
+                    col[: np.argmax(~bad)] = col[np.argmax(~bad)]
         pad = 1e5
         dts = np.diff(t)
         cum = np.concatenate([[0.0 * U[0]], np.cumsum(U[:-1] * dts[:, None], axis=0)])
@@ -755,8 +855,15 @@ class TrackContext:
         row, frac = self._rows(sel_t, win)
         # weights of the start fit: the noise sd of each channel, from the track itself
         sd = estimate_noise(track, self.channels)
-        return {"ts": sel_t, "win": win, "row": row, "frac": frac, "t_rel": sel_t - self.t_seg[win],
-                "meas": meas, "sd": sd}
+        return {
+            "ts": sel_t,
+            "win": win,
+            "row": row,
+            "frac": frac,
+            "t_rel": sel_t - self.t_seg[win],
+            "meas": meas,
+            "sd": sd,
+        }
 
     def gather(self, a):
         """Per-step array ``a`` (B, n_steps, ...) laid out on the kernels' virtual step axis."""
@@ -849,8 +956,9 @@ class EffectModel(ParameterLayout):
         """A catalogue effect by name (:func:`get`); an :class:`Effect` passes through."""
         return name if isinstance(name, Effect) else get(name)
 
-    def __init__(self, vehicle, free=(), effects=(), mode: str = "horizontal", dt: float = 0.5,
-                 kernel: str = "generated"):
+    def __init__(
+        self, vehicle, free=(), effects=(), mode: str = "horizontal", dt: float = 0.5, kernel: str = "generated"
+    ):
         self.vehicle, self.dt = vehicle, float(dt)
         self.effects = [self.get_effect(e) for e in effects]
         names = [e.name for e in self.effects]
@@ -880,16 +988,18 @@ class EffectModel(ParameterLayout):
         th = np.maximum(np.abs(self.theta0), 1e-3)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
-    def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
-                leadin_s: float = 0.0) -> TrackContext:
+    def context(
+        self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
+    ) -> TrackContext:
         """Prepare a track (inputs, windows, window-start states). ``s0`` (12,) replaces the
         measured start state (world generation); otherwise the start rule ``start``
         (:data:`bayesid.protocol.START_RULES`, resolved: ``"measured"`` or ``"fitted"``, with a
         lead-in of ``leadin_s`` seconds) gives it."""
         return TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
 
-    def simulate(self, ctx: TrackContext, P, nuisance=None, measured_start: bool = True, starts=None,
-                 samples: str = "scored") -> np.ndarray:
+    def simulate(
+        self, ctx: TrackContext, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
+    ) -> np.ndarray:
         """Predicted measurements at the track's scored samples.
 
         Parameters
@@ -926,12 +1036,12 @@ class EffectModel(ParameterLayout):
         ecoef = np.zeros((B, self.K, 6))
         j, jn = 0, 0
         for e, q in zip(self.effects, qs):
-            res = e.exo(ctx, inputs, q, nu[:, jn:jn + e.n_nuisance])
+            res = e.exo(ctx, inputs, q, nu[:, jn : jn + e.n_nuisance])
             if res is not None:
                 col, coef = res
                 k = col.shape[2]
-                exo[:, :, j:j + k] = col
-                ecoef[:, j:j + k] = coef
+                exo[:, :, j : j + k] = col
+                ecoef[:, j : j + k] = coef
                 j += k
             jn += e.n_nuisance
         s0 = start_states(ctx, B, starts)
@@ -942,9 +1052,21 @@ class EffectModel(ParameterLayout):
             s0[:, :, [2, 3, 4, 8, 9, 10]] = 0.0
         out = np.empty((B, ctx.n_virtual + ctx.W, 12))
         status = np.empty((B, ctx.W), dtype=np.int64)
-        sim.kernel.simulate_windows(np.ascontiguousarray(s0), ctx.starts, ctx.gather(inputs), ctx.gather(exo),
-                                    ecoef, self.dt, np.ascontiguousarray(vp), tcoef, Minv, sim.xs, sim.ws, out,
-                                    status)
+        sim.kernel.simulate_windows(
+            np.ascontiguousarray(s0),
+            ctx.starts,
+            ctx.gather(inputs),
+            ctx.gather(exo),
+            ecoef,
+            self.dt,
+            np.ascontiguousarray(vp),
+            tcoef,
+            Minv,
+            sim.xs,
+            sim.ws,
+            out,
+            status,
+        )
         S, t_rel = sample_rows(ctx, out, samples, slice(3, 6))
         for e, q in zip(self.effects, qs):
             e.to_measured(S, t_rel, q)
@@ -964,8 +1086,11 @@ class EffectModel(ParameterLayout):
         veh = self.vehicle.with_coefficients(fitres.coefficients()) if self.free else self.vehicle
         motion = inverse.estimate_motion(track)
         inputs = inverse.track_inputs(track)
-        known = [t for t in inverse.horizontal_terms("X") + inverse.horizontal_terms("Y") + inverse.horizontal_terms("N")
-                 if veh.coefficients.get(t, 0.0) != 0.0]
+        known = [
+            t
+            for t in inverse.horizontal_terms("X") + inverse.horizontal_terms("Y") + inverse.horizontal_terms("N")
+            if veh.coefficients.get(t, 0.0) != 0.0
+        ]
         known = sorted(set(known) | set(inverse.ADDED_MASS))
         F = inverse.force_targets(motion, veh, inputs, known=known)
         return motion, F, inputs
@@ -978,11 +1103,17 @@ class EffectModel(ParameterLayout):
         dr = np.interp(t, track.t, inputs[:, 0])
         rpm = np.interp(t, track.t, inputs[:, 3])
         veh = self.vehicle
-        m = {"t": t, "u": motion["u"], "v": motion["v"], "r": motion["r"],
-             "psi": np.interp(t, track.t, np.unwrap(track["psi"])), "rudder_rate": np.gradient(dr, t),
-             "propeller_inflow": veh.propulsion.uc_per_omega * rpm * 2 * math.pi / 60,
-             "q_dyn": 0.5 * veh.rho * veh.L ** 2,
-             "omega": waves[0] if (waves := (seeds or {}).get("waves")) else None}
+        m = {
+            "t": t,
+            "u": motion["u"],
+            "v": motion["v"],
+            "r": motion["r"],
+            "psi": np.interp(t, track.t, np.unwrap(track["psi"])),
+            "rudder_rate": np.gradient(dr, t),
+            "propeller_inflow": veh.propulsion.uc_per_omega * rpm * 2 * math.pi / 60,
+            "q_dyn": 0.5 * veh.rho * veh.L**2,
+            "omega": waves[0] if (waves := (seeds or {}).get("waves")) else None,
+        }
         if "phi" in track and np.isfinite(track["phi"]).all():
             m["phi"] = np.interp(t, track.t, track["phi"])
         return signature_dict(self.CATALOGUE.values() if effects is None else effects, m)
@@ -1060,9 +1191,20 @@ def errors(ctx: TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
 
 #: Realistic measurement noise of the withheld-effect benchmark (1 sd): RTK-GPS/USBL-aided
 #: navigation, gyro compass, DVL, rate gyros, depth cell, inclinometers.
-WORLD_NOISE = {"x": 0.2, "y": 0.2, "z": 0.05, "phi": math.radians(0.1), "theta": math.radians(0.1),
-               "psi": math.radians(0.2), "u": 0.02, "v": 0.02, "w": 0.02, "p": math.radians(0.1),
-               "q": math.radians(0.1), "r": math.radians(0.1)}
+WORLD_NOISE = {
+    "x": 0.2,
+    "y": 0.2,
+    "z": 0.05,
+    "phi": math.radians(0.1),
+    "theta": math.radians(0.1),
+    "psi": math.radians(0.2),
+    "u": 0.02,
+    "v": 0.02,
+    "w": 0.02,
+    "p": math.radians(0.1),
+    "q": math.radians(0.1),
+    "r": math.radians(0.1),
+}
 
 
 def draw_parameters(name: str, level: int, rng: np.random.Generator) -> dict:
@@ -1078,9 +1220,18 @@ def draw_parameters(name: str, level: int, rng: np.random.Generator) -> dict:
     return pv
 
 
-def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Generator,
-                noise: dict | None = None, sample_every: int = 1, dt: float | None = None,
-                nuisance=None, name: str | None = None, hold_inputs: bool = False) -> Track:
+def world_track(
+    vehicle,
+    manoeuvre: Manoeuvre,
+    effects: dict,
+    rng: np.random.Generator,
+    noise: dict | None = None,
+    sample_every: int = 1,
+    dt: float | None = None,
+    nuisance=None,
+    name: str | None = None,
+    hold_inputs: bool = False,
+) -> Track:
     """A "measured" track of the vehicle flying ``manoeuvre`` with ``effects`` switched on.
 
     Parameters
@@ -1122,15 +1273,19 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
     t = manoeuvre.t
     if hold_inputs and sample_every > 1:
         U = manoeuvre.inputs[(np.arange(n) // sample_every) * sample_every]
-        manoeuvre = Manoeuvre(manoeuvre.name, manoeuvre.dt, U, manoeuvre.initial_state, manoeuvre.description,
-                              manoeuvre.parameters)
-    log = Track(t, {k: np.append(manoeuvre.inputs[:, j], manoeuvre.inputs[-1, j])
-                    for j, k in enumerate(INPUT_NAMES)}, name=manoeuvre.name)
+        manoeuvre = Manoeuvre(
+            manoeuvre.name, manoeuvre.dt, U, manoeuvre.initial_state, manoeuvre.description, manoeuvre.parameters
+        )
+    log = Track(
+        t,
+        {k: np.append(manoeuvre.inputs[:, j], manoeuvre.inputs[-1, j]) for j, k in enumerate(INPUT_NAMES)},
+        name=manoeuvre.name,
+    )
     ctx = model.context(log, None, s0=manoeuvre.initial_state)
     if nuisance is None:
         nuisance = rng.uniform(-math.pi, math.pi, size=max(model.n_nuisance, 1))
     if model.n_nuisance:
-        truth["nuisance"] = [float(x) for x in nuisance[:model.n_nuisance]]
+        truth["nuisance"] = [float(x) for x in nuisance[: model.n_nuisance]]
     S = model.simulate(ctx, np.array(qrow)[None, :], np.atleast_2d(nuisance), measured_start=False)[0]
     if not np.all(np.isfinite(S)):
         raise RuntimeError(f"world simulation of {manoeuvre.name} with {effects} diverged")
@@ -1145,5 +1300,17 @@ def world_track(vehicle, manoeuvre: Manoeuvre, effects: dict, rng: np.random.Gen
     return Track(t[keep], data, name=name or manoeuvre.name, meta={"truth": truth})
 
 
-__all__ = ["Effect", "CATALOGUE", "get", "EffectModel", "errors", "START_INDEX", "start_states", "sample_rows", "world_track", "draw_parameters", "WORLD_NOISE",
-           "POLY_CROSSFLOW"]
+__all__ = [
+    "Effect",
+    "CATALOGUE",
+    "get",
+    "EffectModel",
+    "errors",
+    "START_INDEX",
+    "start_states",
+    "sample_rows",
+    "world_track",
+    "draw_parameters",
+    "WORLD_NOISE",
+    "POLY_CROSSFLOW",
+]

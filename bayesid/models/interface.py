@@ -11,6 +11,7 @@ vessels is answered by the model (its defaults, its effect catalogue, its invers
 Build one with :func:`bayesid.models.build_model`; a new vessel family implements this protocol
 and registers its vehicle type in :data:`bayesid.models.FAMILIES`.
 """
+
 from __future__ import annotations
 
 from typing import Protocol, runtime_checkable
@@ -75,14 +76,16 @@ class SimulationModel(Protocol):
     def split_params(self, P) -> tuple[np.ndarray, list]:
         """(B, n_params) -> (theta (B, n_theta), [q_e (B, n_q_e) per effect])."""
 
-    def context(self, track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
-                leadin_s: float = 0.0):
+    def context(
+        self, track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
+    ):
         """A track prepared for simulation (:class:`bayesid.models.effects.TrackContext`): step inputs,
         protocol windows (``window_s``; None = whole run), window-start states by the start rule
         ``start`` (lead-in ``leadin_s``), or the state ``s0`` (12,) at the first sample."""
 
-    def simulate(self, ctx, P, nuisance=None, measured_start: bool = True, starts=None,
-                 samples: str = "scored") -> np.ndarray:
+    def simulate(
+        self, ctx, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
+    ) -> np.ndarray:
         """(B, n_samples, 12) predicted measurements (STATE_NAMES order, NaN in a diverged
         window) for (B, n_params) parameter vectors ``P``; ``nuisance`` (B, n_nuisance);
         ``starts`` (B, W, 6) start-state offsets of the fitted start rule; ``samples`` scored or
@@ -128,9 +131,9 @@ class ParameterLayout:
         """(B, n_params) parameter vectors -> (theta (B, n_theta) free coefficients, [q_e (B,
         n_q_e) per effect, in the model's effect order])."""
         P = np.atleast_2d(np.asarray(P, float))
-        th = P[:, :self.n_theta]
+        th = P[:, : self.n_theta]
         qs, i = [], self.n_theta
         for n in self.n_q:
-            qs.append(P[:, i:i + n])
+            qs.append(P[:, i : i + n])
             i += n
         return th, qs

@@ -13,6 +13,7 @@
 The models' inverse dynamics (``missing_forces``, the ship's equation-error seed) and the
 model-free term check (:mod:`bayesid.analysis.sindy`) use them.
 """
+
 from __future__ import annotations
 
 import math
@@ -25,9 +26,21 @@ from ..data import terms
 from ..data.track import Track
 from . import dynamics
 
-__all__ = ["EQUATIONS", "ADDED_MASS", "horizontal_terms", "estimate_motion", "force_targets", "library_columns",
-           "motion_arrays", "motion_filter", "inputs_array", "track_inputs", "require_column", "held_inputs",
-           "known_values"]
+__all__ = [
+    "EQUATIONS",
+    "ADDED_MASS",
+    "horizontal_terms",
+    "estimate_motion",
+    "force_targets",
+    "library_columns",
+    "motion_arrays",
+    "motion_filter",
+    "inputs_array",
+    "track_inputs",
+    "require_column",
+    "held_inputs",
+    "known_values",
+]
 
 EQUATIONS = ("X", "Y", "N")
 #: The horizontal acceleration (added-mass) terms; the regression needs them known (see
@@ -49,16 +62,18 @@ def horizontal_terms(equation: str) -> list[str]:
 # 1. Motion
 # ---------------------------------------------------------------------------------------------
 
+
 def require_column(track: Track, name: str, why: str) -> np.ndarray:
     if name not in track:
-        raise ValueError(f"track {track.name!r} has no column {name!r} ({why}); "
-                         f"columns: {['t', *track.data]}")
+        raise ValueError(f"track {track.name!r} has no column {name!r} ({why}); columns: {['t', *track.data]}")
     col = track[name]
     bad = np.flatnonzero(~np.isfinite(col))
     if bad.size:
-        raise ValueError(f"track {track.name!r}: column {name!r} is missing (NaN) at sample "
-                         f"{bad[0]} (t = {track.t[bad[0]]:g} s); the smoothing differentiator "
-                         "needs a gap-free, uniformly sampled record")
+        raise ValueError(
+            f"track {track.name!r}: column {name!r} is missing (NaN) at sample "
+            f"{bad[0]} (t = {track.t[bad[0]]:g} s); the smoothing differentiator "
+            "needs a gap-free, uniformly sampled record"
+        )
     return col
 
 
@@ -67,8 +82,9 @@ def _window_samples(window_s: float, dt: float, polyorder: int, n: int) -> int:
     w += 1 - w % 2  # odd
     w = max(w, polyorder + 1 + polyorder % 2)  # the smallest odd length > polyorder
     if w > n:
-        raise ValueError(f"smoothing window {window_s:g} s ({w} samples) is longer than the track "
-                         f"({n} samples of {dt:g} s)")
+        raise ValueError(
+            f"smoothing window {window_s:g} s ({w} samples) is longer than the track ({n} samples of {dt:g} s)"
+        )
     return w
 
 
@@ -113,8 +129,13 @@ def held_inputs(inputs: np.ndarray, hold: str) -> list[np.ndarray]:
     return [prev, inputs]
 
 
-def estimate_motion(track: Track, window_s: float | None = None, polyorder: int = 3,
-                    use_velocities: bool | None = None, input_hold: str = "zoh") -> dict:
+def estimate_motion(
+    track: Track,
+    window_s: float | None = None,
+    polyorder: int = 3,
+    use_velocities: bool | None = None,
+    input_hold: str = "zoh",
+) -> dict:
     """Body-frame velocities and accelerations of a horizontal track.
 
     Two routes:
@@ -191,8 +212,10 @@ def estimate_motion(track: Track, window_s: float | None = None, polyorder: int 
     dt = float(np.median(dts))
     if np.max(np.abs(dts - dt)) > 1e-6 * dt + 1e-9:
         i = int(np.argmax(np.abs(dts - dt)))
-        raise ValueError(f"track {track.name!r}: column 't' is not uniformly sampled (step "
-                         f"{dts[i]:g} s at index {i + 1}, median {dt:g} s); resample first")
+        raise ValueError(
+            f"track {track.name!r}: column 't' is not uniformly sampled (step "
+            f"{dts[i]:g} s at index {i + 1}, median {dt:g} s); resample first"
+        )
     have_vel = all(c in track for c in ("u", "v", "r"))
     if use_velocities is None:
         use_velocities = have_vel
@@ -216,14 +239,25 @@ def estimate_motion(track: Track, window_s: float | None = None, polyorder: int 
         y = require_column(track, "y", "positions route: x, y, psi are differentiated")
         _, eta_dot = _smooth_diff(np.column_stack([x, y, psi_u]), t, w, polyorder)
         c, s = np.cos(psi_u), np.sin(psi_u)
-        nu = np.column_stack([c * eta_dot[:, 0] + s * eta_dot[:, 1],
-                              -s * eta_dot[:, 0] + c * eta_dot[:, 1], eta_dot[:, 2]])
+        nu = np.column_stack(
+            [c * eta_dot[:, 0] + s * eta_dot[:, 1], -s * eta_dot[:, 0] + c * eta_dot[:, 1], eta_dot[:, 2]]
+        )
         source, passes = "positions", 2
     nu_s, nu_dot = _smooth_diff(nu, t, w, polyorder)
-    motion = dict(t=t.copy(), u=nu_s[:, 0], v=nu_s[:, 1], r=nu_s[:, 2], u_dot=nu_dot[:, 0],
-                  v_dot=nu_dot[:, 1], r_dot=nu_dot[:, 2], psi=psi_u, window_s=w * dt,
-                  smoother=dict(window=w, polyorder=polyorder, passes=passes),
-                  input_hold=input_hold, source=source)
+    motion = dict(
+        t=t.copy(),
+        u=nu_s[:, 0],
+        v=nu_s[:, 1],
+        r=nu_s[:, 2],
+        u_dot=nu_dot[:, 0],
+        v_dot=nu_dot[:, 1],
+        r_dot=nu_dot[:, 2],
+        psi=psi_u,
+        window_s=w * dt,
+        smoother=dict(window=w, polyorder=polyorder, passes=passes),
+        input_hold=input_hold,
+        source=source,
+    )
     if "delta_r" in track:
         held = held_inputs(require_column(track, "delta_r", "rudder")[:, None], input_hold)
         dr_s = motion_filter(sum(held) / len(held), motion)
@@ -235,6 +269,7 @@ def estimate_motion(track: Track, window_s: float | None = None, polyorder: int 
 # ---------------------------------------------------------------------------------------------
 # 2. Force targets (inverse dynamics)
 # ---------------------------------------------------------------------------------------------
+
 
 def motion_arrays(motion: dict, keys=("u", "v", "r", "u_dot", "v_dot", "r_dot")):
     out = []
@@ -318,9 +353,7 @@ def force_targets(motion: dict, vehicle, inputs=None, known=()) -> np.ndarray:
     m = vehicle.mass
     xg, yg = float(vehicle.rG[0]), float(vehicle.rG[1])
     acc = np.column_stack([ud, vd, rd]) @ Mrb.T
-    cor = np.column_stack([m * (-v * r - xg * r * r),
-                           m * (u * r - yg * r * r),
-                           m * (xg * u * r + yg * v * r)])
+    cor = np.column_stack([m * (-v * r - xg * r * r), m * (u * r - yg * r * r), m * (xg * u * r + yg * v * r)])
     F = acc + cor
     kv = known_values(known, vehicle)
     if kv:
@@ -333,12 +366,10 @@ def force_targets(motion: dict, vehicle, inputs=None, known=()) -> np.ndarray:
 
 def inputs_array(inputs, n: int) -> np.ndarray:
     if inputs is None:
-        raise ValueError("inputs (n, 4) are needed: delta_r (rad) and n (rpm) enter the rudder and "
-                         "propulsion terms")
+        raise ValueError("inputs (n, 4) are needed: delta_r (rad) and n (rpm) enter the rudder and propulsion terms")
     a = np.asarray(inputs, dtype=float)
     if a.shape != (n, 4):
-        raise ValueError(f"inputs must be (n, 4) = delta_r, delta_s, delta_b, n with n = {n}, "
-                         f"got {a.shape}")
+        raise ValueError(f"inputs must be (n, 4) = delta_r, delta_s, delta_b, n with n = {n}, got {a.shape}")
     for j, c in enumerate(("delta_r", "delta_s", "delta_b", "n")):
         bad = np.flatnonzero(~np.isfinite(a[:, j]))
         if bad.size:
@@ -380,7 +411,7 @@ def library_columns(names, motion: dict, inputs, vehicle) -> np.ndarray:
             out[:, j] = phi[:, jf]
             jf += 1
         else:
-            scale = 0.5 * vehicle.rho * vehicle.L ** t.L_power
+            scale = 0.5 * vehicle.rho * vehicle.L**t.L_power
             out[:, j] = scale * accel[terms.VELOCITIES[t.accel]]
     return out
 

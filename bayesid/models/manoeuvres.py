@@ -9,6 +9,7 @@ Y'dr > 0 and N'dr < 0; positive ``delta_s`` pitches it nose down (theta decreasi
 M'ds < 0. Closed-loop manoeuvres (zigzags, reverse spiral) run the loop on the given vehicle (the
 "truth", 6-DOF) and return the inputs it applied; identification replays them open loop.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -48,14 +49,46 @@ def _closed_loop(vehicle, rpm, dt, n):
     return sim, tcoef, Minv, np.empty((n + 1, 12)), np.empty((n, 4))
 
 
-def _triggered_zigzag(vehicle, rpm, dt, n, i_input, i_state, delta_deg, trigger_deg, first_sign,
-                      response_sign, t_execute, rate_deg_s, what) -> np.ndarray:
+def _triggered_zigzag(
+    vehicle,
+    rpm,
+    dt,
+    n,
+    i_input,
+    i_state,
+    delta_deg,
+    trigger_deg,
+    first_sign,
+    response_sign,
+    t_execute,
+    rate_deg_s,
+    what,
+) -> np.ndarray:
     """Run :func:`bayesid.models.dynamics.simulate_triggered_zigzag`; the applied inputs (n, 4)."""
     sim, tcoef, Minv, out, inputs = _closed_loop(vehicle, rpm, dt, n)
     flag = dynamics.simulate_triggered_zigzag(
-        sim.s0, n, dt, float(rpm), i_input, i_state, math.radians(delta_deg), math.radians(trigger_deg),
-        float(first_sign), response_sign, t_execute, math.radians(rate_deg_s), sim.vp, sim.tfac,
-        sim.tdof, tcoef, Minv, sim.xs, sim.ws, out, inputs)
+        sim.s0,
+        n,
+        dt,
+        float(rpm),
+        i_input,
+        i_state,
+        math.radians(delta_deg),
+        math.radians(trigger_deg),
+        float(first_sign),
+        response_sign,
+        t_execute,
+        math.radians(rate_deg_s),
+        sim.vp,
+        sim.tfac,
+        sim.tdof,
+        tcoef,
+        Minv,
+        sim.xs,
+        sim.ws,
+        out,
+        inputs,
+    )
     if flag != dynamics.OK:
         raise RuntimeError(f"{what}: closed-loop simulation diverged")
     return inputs
@@ -77,8 +110,14 @@ def _name_signed(prefix: str, value: float) -> str:
     return f"{prefix}{value:+g}".replace("+", "p").replace("-", "m")
 
 
-def spiral(vehicle, dt: float = 0.1, duration: float = 600.0, rpm: float | None = None,
-           t_straight: float = 30.0, rudder_steps_deg=(2, 4, 6, 8, 10, 12, 14, 16, 18, 20)) -> Manoeuvre:
+def spiral(
+    vehicle,
+    dt: float = 0.1,
+    duration: float = 600.0,
+    rpm: float | None = None,
+    t_straight: float = 30.0,
+    rudder_steps_deg=(2, 4, 6, 8, 10, 12, 14, 16, 18, 20),
+) -> Manoeuvre:
     """The paper's 10-minute spiral-type manoeuvre (Furlong et al. 2003, Fig. 1).
 
     The paper gives no sequence; ours: constant propeller speed; straight for ``t_straight`` s,
@@ -94,16 +133,37 @@ def spiral(vehicle, dt: float = 0.1, duration: float = 600.0, rpm: float | None 
     hold = (duration - t_straight) / len(rudder_steps_deg)
     for i, a in enumerate(rudder_steps_deg):
         inputs[t >= t_straight + i * hold - 1e-9, 0] = math.radians(a)
-    desc = (f"Spiral: {rpm:g} rpm throughout; rudder 0 for {t_straight:g} s, then stepped to "
-            f"{', '.join(f'{a:g}' for a in rudder_steps_deg)} deg, each held {hold:g} s; "
-            f"{duration:g} s, dt {dt:g} s.")
-    return _finish(vehicle, "spiral", dt, inputs, rpm, desc,
-                   dict(dt=dt, duration=duration, rpm=rpm, t_straight=t_straight,
-                        rudder_steps_deg=list(rudder_steps_deg), hold_s=hold))
+    desc = (
+        f"Spiral: {rpm:g} rpm throughout; rudder 0 for {t_straight:g} s, then stepped to "
+        f"{', '.join(f'{a:g}' for a in rudder_steps_deg)} deg, each held {hold:g} s; "
+        f"{duration:g} s, dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        "spiral",
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            dt=dt,
+            duration=duration,
+            rpm=rpm,
+            t_straight=t_straight,
+            rudder_steps_deg=list(rudder_steps_deg),
+            hold_s=hold,
+        ),
+    )
 
 
-def turning_circle(vehicle, rudder_deg: float = 20.0, dt: float = 0.1, duration: float = 150.0,
-                   rpm: float | None = None, t_execute: float = 10.0) -> Manoeuvre:
+def turning_circle(
+    vehicle,
+    rudder_deg: float = 20.0,
+    dt: float = 0.1,
+    duration: float = 150.0,
+    rpm: float | None = None,
+    t_execute: float = 10.0,
+) -> Manoeuvre:
     """Turning circle: straight approach, then the rudder stepped to ``rudder_deg`` and held."""
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     n = _grid(duration, dt)
@@ -111,15 +171,32 @@ def turning_circle(vehicle, rudder_deg: float = 20.0, dt: float = 0.1, duration:
     inputs[:, 3] = rpm
     inputs[np.arange(n) * dt >= t_execute - 1e-9, 0] = math.radians(rudder_deg)
     name = f"turn{rudder_deg:+g}".replace("+", "p").replace("-", "m")
-    desc = (f"Turning circle: {rpm:g} rpm; straight {t_execute:g} s, then rudder {rudder_deg:g} deg "
-            f"held to {duration:g} s; dt {dt:g} s.")
-    return _finish(vehicle, name, dt, inputs, rpm, desc,
-                   dict(rudder_deg=rudder_deg, dt=dt, duration=duration, rpm=rpm, t_execute=t_execute))
+    desc = (
+        f"Turning circle: {rpm:g} rpm; straight {t_execute:g} s, then rudder {rudder_deg:g} deg "
+        f"held to {duration:g} s; dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        name,
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(rudder_deg=rudder_deg, dt=dt, duration=duration, rpm=rpm, t_execute=t_execute),
+    )
 
 
-def zigzag(vehicle, rudder_deg: float = 10.0, heading_deg: float | None = None, dt: float = 0.1,
-           duration: float = 120.0, rpm: float | None = None, t_execute: float = 10.0,
-           first_sign: int = 1, rudder_rate_deg_s: float = 0.0) -> Manoeuvre:
+def zigzag(
+    vehicle,
+    rudder_deg: float = 10.0,
+    heading_deg: float | None = None,
+    dt: float = 0.1,
+    duration: float = 120.0,
+    rpm: float | None = None,
+    t_execute: float = 10.0,
+    first_sign: int = 1,
+    rudder_rate_deg_s: float = 0.0,
+) -> Manoeuvre:
     """Horizontal zigzag (Z-manoeuvre) ``rudder_deg/heading_deg`` triggered on heading.
 
     ITTC 7.5-04-02-01: after a straight approach the rudder is put to ``rudder_deg``; when the
@@ -142,20 +219,49 @@ def zigzag(vehicle, rudder_deg: float = 10.0, heading_deg: float | None = None, 
     heading_deg = rudder_deg if heading_deg is None else heading_deg
     n = _grid(duration, dt)
     turn_sign = math.copysign(1.0, vehicle.coefficients.get("Ndr", -1.0))
-    inputs = _triggered_zigzag(vehicle, rpm, dt, n, 0, 5, rudder_deg, heading_deg, first_sign, turn_sign,
-                               t_execute, rudder_rate_deg_s, f"zigzag {rudder_deg}/{heading_deg}")
+    inputs = _triggered_zigzag(
+        vehicle,
+        rpm,
+        dt,
+        n,
+        0,
+        5,
+        rudder_deg,
+        heading_deg,
+        first_sign,
+        turn_sign,
+        t_execute,
+        rudder_rate_deg_s,
+        f"zigzag {rudder_deg}/{heading_deg}",
+    )
     name = f"zigzag{rudder_deg:g}_{heading_deg:g}" + ("" if first_sign > 0 else "m")
     switches = np.flatnonzero(np.diff(np.sign(inputs[:, 0])) != 0) + 1
-    desc = (f"Zigzag {rudder_deg:g}/{heading_deg:g}: {rpm:g} rpm; straight {t_execute:g} s, then rudder "
-            f"{first_sign * rudder_deg:+g} deg, reversed each time the heading change reaches "
-            f"{heading_deg:g} deg (closed loop on the true vehicle); {len(switches)} rudder changes in "
-            f"{duration:g} s; rudder rate {'instantaneous' if rudder_rate_deg_s <= 0 else f'{rudder_rate_deg_s:g} deg/s'}; "
-            f"dt {dt:g} s.")
-    return _finish(vehicle, name, dt, inputs, rpm, desc,
-                   dict(rudder_deg=rudder_deg, heading_deg=heading_deg, dt=dt, duration=duration,
-                        rpm=rpm, t_execute=t_execute, first_sign=first_sign,
-                        rudder_rate_deg_s=rudder_rate_deg_s,
-                        switch_times_s=[float(k * dt) for k in switches]))
+    desc = (
+        f"Zigzag {rudder_deg:g}/{heading_deg:g}: {rpm:g} rpm; straight {t_execute:g} s, then rudder "
+        f"{first_sign * rudder_deg:+g} deg, reversed each time the heading change reaches "
+        f"{heading_deg:g} deg (closed loop on the true vehicle); {len(switches)} rudder changes in "
+        f"{duration:g} s; rudder rate {'instantaneous' if rudder_rate_deg_s <= 0 else f'{rudder_rate_deg_s:g} deg/s'}; "
+        f"dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        name,
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            rudder_deg=rudder_deg,
+            heading_deg=heading_deg,
+            dt=dt,
+            duration=duration,
+            rpm=rpm,
+            t_execute=t_execute,
+            first_sign=first_sign,
+            rudder_rate_deg_s=rudder_rate_deg_s,
+            switch_times_s=[float(k * dt) for k in switches],
+        ),
+    )
 
 
 def straight(vehicle, dt: float = 0.1, duration: float = 60.0, rpm: float | None = None) -> Manoeuvre:
@@ -164,12 +270,26 @@ def straight(vehicle, dt: float = 0.1, duration: float = 60.0, rpm: float | None
     n = _grid(duration, dt)
     inputs = np.zeros((n, 4))
     inputs[:, 3] = rpm
-    return _finish(vehicle, "straight", dt, inputs, rpm, f"Straight run, {rpm:g} rpm, {duration:g} s.",
-                   dict(dt=dt, duration=duration, rpm=rpm))
+    return _finish(
+        vehicle,
+        "straight",
+        dt,
+        inputs,
+        rpm,
+        f"Straight run, {rpm:g} rpm, {duration:g} s.",
+        dict(dt=dt, duration=duration, rpm=rpm),
+    )
 
 
-def pull_out(vehicle, rudder_deg: float = 20.0, t_execute: float = 10.0, t_hold: float = 60.0,
-             duration: float = 180.0, dt: float = 0.1, rpm: float | None = None) -> Manoeuvre:
+def pull_out(
+    vehicle,
+    rudder_deg: float = 20.0,
+    t_execute: float = 10.0,
+    t_hold: float = 60.0,
+    duration: float = 180.0,
+    dt: float = 0.1,
+    rpm: float | None = None,
+) -> Manoeuvre:
     """Pull-out test (ITTC 7.5-04-02-01, Sec. 2.2.6 "Pullout Test").
 
     Sequence: constant propeller speed ``rpm`` (default nominal) throughout; rudder 0 for
@@ -183,22 +303,47 @@ def pull_out(vehicle, rudder_deg: float = 20.0, t_execute: float = 10.0, t_hold:
     n = _grid(duration, dt)
     k_on, k_off = _steps((t_execute, t_execute + t_hold), dt)
     if not 0 <= k_on <= k_off < n:
-        raise ValueError(f"pull-out: need 0 <= t_execute <= t_execute + t_hold < duration "
-                         f"({t_execute}, {t_hold}, {duration})")
+        raise ValueError(
+            f"pull-out: need 0 <= t_execute <= t_execute + t_hold < duration ({t_execute}, {t_hold}, {duration})"
+        )
     inputs = np.zeros((n, 4))
     inputs[:, 3] = rpm
     inputs[k_on:k_off, 0] = math.radians(rudder_deg)
-    desc = (f"Pull-out (ITTC 7.5-04-02-01): {rpm:g} rpm; rudder 0 for {t_execute:g} s, {rudder_deg:g} deg "
-            f"for {t_hold:g} s (steady turn), then 0 to {duration:g} s; dt {dt:g} s.")
-    return _finish(vehicle, _name_signed("pull_out", rudder_deg), dt, inputs, rpm, desc,
-                   dict(rudder_deg=rudder_deg, t_execute=t_execute, t_hold=t_hold, duration=duration,
-                        dt=dt, rpm=rpm, t_release=t_execute + t_hold))
+    desc = (
+        f"Pull-out (ITTC 7.5-04-02-01): {rpm:g} rpm; rudder 0 for {t_execute:g} s, {rudder_deg:g} deg "
+        f"for {t_hold:g} s (steady turn), then 0 to {duration:g} s; dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        _name_signed("pull_out", rudder_deg),
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            rudder_deg=rudder_deg,
+            t_execute=t_execute,
+            t_hold=t_hold,
+            duration=duration,
+            dt=dt,
+            rpm=rpm,
+            t_release=t_execute + t_hold,
+        ),
+    )
 
 
-def reverse_spiral(vehicle, yaw_rates_deg_s=(4.0, 3.0, 2.0, 1.0, 0.5, 0.0, -0.5, -1.0, -2.0, -3.0, -4.0),
-                   hold_s: float = 30.0, dt: float = 0.1, rpm: float | None = None,
-                   t_straight: float = 10.0, kp: float = 4.0, ki: float = 2.0,
-                   rudder_rate_deg_s: float = 0.0, rudder_max_deg: float | None = None) -> Manoeuvre:
+def reverse_spiral(
+    vehicle,
+    yaw_rates_deg_s=(4.0, 3.0, 2.0, 1.0, 0.5, 0.0, -0.5, -1.0, -2.0, -3.0, -4.0),
+    hold_s: float = 30.0,
+    dt: float = 0.1,
+    rpm: float | None = None,
+    t_straight: float = 10.0,
+    kp: float = 4.0,
+    ki: float = 2.0,
+    rudder_rate_deg_s: float = 0.0,
+    rudder_max_deg: float | None = None,
+) -> Manoeuvre:
     """Bech's reverse spiral (ITTC 7.5-04-02-01, Sec. 2.2.5 "Spiral Manoeuvre", reverse form).
 
     Sequence: constant propeller speed ``rpm``; rudder 0 for ``t_straight`` s; then a closed-loop
@@ -237,35 +382,81 @@ def reverse_spiral(vehicle, yaw_rates_deg_s=(4.0, 3.0, 2.0, 1.0, 0.5, 0.0, -0.5,
     edges = _steps([t_straight + i * hold_s for i in range(len(rates) + 1)], dt)
     ref = np.full(n, np.nan)
     for i, r in enumerate(rates):
-        ref[edges[i]:edges[i + 1]] = math.radians(r)
+        ref[edges[i] : edges[i + 1]] = math.radians(r)
     sign = math.copysign(1.0, vehicle.coefficients.get("Ndr", -1.0))
     sim, tcoef, Minv, out, inputs = _closed_loop(vehicle, rpm, dt, n)
-    flag = dynamics.simulate_pi_hold(sim.s0, n, dt, float(rpm), 0, 11, ref, float(kp), float(ki), sign,
-                                     math.radians(rudder_max_deg), math.radians(rudder_rate_deg_s),
-                                     sim.vp, sim.tfac, sim.tdof, tcoef, Minv, sim.xs, sim.ws, out, inputs)
+    flag = dynamics.simulate_pi_hold(
+        sim.s0,
+        n,
+        dt,
+        float(rpm),
+        0,
+        11,
+        ref,
+        float(kp),
+        float(ki),
+        sign,
+        math.radians(rudder_max_deg),
+        math.radians(rudder_rate_deg_s),
+        sim.vp,
+        sim.tfac,
+        sim.tdof,
+        tcoef,
+        Minv,
+        sim.xs,
+        sim.ws,
+        out,
+        inputs,
+    )
     if flag != dynamics.OK:
         raise RuntimeError("reverse spiral: closed-loop simulation diverged")
     steady_d, steady_r, sat = [], [], []
     for i in range(len(rates)):
         a, b = edges[i + 1] - (edges[i + 1] - edges[i]) // 3, edges[i + 1]
         steady_d.append(float(np.degrees(inputs[a:b, 0].mean())))
-        steady_r.append(float(np.degrees(out[a + 1:b + 1, 11].mean())))
+        steady_r.append(float(np.degrees(out[a + 1 : b + 1, 11].mean())))
         sat.append(bool(np.any(np.abs(inputs[a:b, 0]) >= math.radians(rudder_max_deg) - 1e-12)))
-    desc = (f"Reverse spiral (Bech; ITTC 7.5-04-02-01): {rpm:g} rpm; rudder 0 for {t_straight:g} s, then a "
-            f"PI yaw-rate controller (kp {kp:g} s, ki {ki:g}, rudder limit {rudder_max_deg:g} deg, rate "
-            f"{'instantaneous' if rudder_rate_deg_s <= 0 else f'{rudder_rate_deg_s:g} deg/s'}) holds r = "
-            f"{', '.join(f'{r:g}' for r in rates)} deg/s, {hold_s:g} s each (closed loop on the true "
-            f"vehicle, applied rudder recorded); {duration:g} s, dt {dt:g} s.")
-    return _finish(vehicle, "reverse_spiral", dt, inputs, rpm, desc,
-                   dict(yaw_rates_deg_s=rates, hold_s=hold_s, dt=dt, rpm=rpm, t_straight=t_straight,
-                        kp=kp, ki=ki, rudder_rate_deg_s=rudder_rate_deg_s, rudder_max_deg=rudder_max_deg,
-                        duration=duration, steady_rudder_deg=steady_d, steady_yaw_rate_deg_s=steady_r,
-                        saturated=sat))
+    desc = (
+        f"Reverse spiral (Bech; ITTC 7.5-04-02-01): {rpm:g} rpm; rudder 0 for {t_straight:g} s, then a "
+        f"PI yaw-rate controller (kp {kp:g} s, ki {ki:g}, rudder limit {rudder_max_deg:g} deg, rate "
+        f"{'instantaneous' if rudder_rate_deg_s <= 0 else f'{rudder_rate_deg_s:g} deg/s'}) holds r = "
+        f"{', '.join(f'{r:g}' for r in rates)} deg/s, {hold_s:g} s each (closed loop on the true "
+        f"vehicle, applied rudder recorded); {duration:g} s, dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        "reverse_spiral",
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            yaw_rates_deg_s=rates,
+            hold_s=hold_s,
+            dt=dt,
+            rpm=rpm,
+            t_straight=t_straight,
+            kp=kp,
+            ki=ki,
+            rudder_rate_deg_s=rudder_rate_deg_s,
+            rudder_max_deg=rudder_max_deg,
+            duration=duration,
+            steady_rudder_deg=steady_d,
+            steady_yaw_rate_deg_s=steady_r,
+            saturated=sat,
+        ),
+    )
 
 
-def speed_steps(vehicle, rpm_steps=(1000.0, 500.0, 1000.0, 1500.0), hold_s: float = 80.0,
-                rudder_deg: float = 0.0, dt: float = 0.1, rpm: float | None = None,
-                t_straight: float = 10.0) -> Manoeuvre:
+def speed_steps(
+    vehicle,
+    rpm_steps=(1000.0, 500.0, 1000.0, 1500.0),
+    hold_s: float = 80.0,
+    rudder_deg: float = 0.0,
+    dt: float = 0.1,
+    rpm: float | None = None,
+    t_straight: float = 10.0,
+) -> Manoeuvre:
     """Propeller-speed steps: acceleration and deceleration runs (surge and propulsion excitation).
 
     Sequence: start steady and straight at ``rpm`` (default nominal); ``rpm`` and rudder 0 for
@@ -289,14 +480,30 @@ def speed_steps(vehicle, rpm_steps=(1000.0, 500.0, 1000.0, 1500.0), hold_s: floa
     inputs = np.zeros((n, 4))
     inputs[:, 3] = rpm
     for i, r in enumerate(steps):
-        inputs[edges[i]:edges[i + 1], 3] = r
-    inputs[edges[0]:, 0] = math.radians(rudder_deg)
-    desc = (f"Speed steps: {rpm:g} rpm straight for {t_straight:g} s, then "
-            f"{', '.join(f'{r:g}' for r in steps)} rpm, each held {hold_s:g} s, rudder {rudder_deg:g} deg "
-            f"from the first step; {duration:g} s, dt {dt:g} s.")
-    return _finish(vehicle, "speed_steps", dt, inputs, rpm, desc,
-                   dict(rpm_steps=steps, hold_s=hold_s, rudder_deg=rudder_deg, dt=dt, rpm=rpm,
-                        t_straight=t_straight, duration=duration))
+        inputs[edges[i] : edges[i + 1], 3] = r
+    inputs[edges[0] :, 0] = math.radians(rudder_deg)
+    desc = (
+        f"Speed steps: {rpm:g} rpm straight for {t_straight:g} s, then "
+        f"{', '.join(f'{r:g}' for r in steps)} rpm, each held {hold_s:g} s, rudder {rudder_deg:g} deg "
+        f"from the first step; {duration:g} s, dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        "speed_steps",
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            rpm_steps=steps,
+            hold_s=hold_s,
+            rudder_deg=rudder_deg,
+            dt=dt,
+            rpm=rpm,
+            t_straight=t_straight,
+            duration=duration,
+        ),
+    )
 
 
 def schroeder_phases(n: int) -> np.ndarray:
@@ -306,10 +513,18 @@ def schroeder_phases(n: int) -> np.ndarray:
     return -math.pi * k * (k - 1) / n
 
 
-def multisine(vehicle, amplitude_deg: float = 10.0,
-              frequencies_hz=(0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2), phases_rad=None,
-              duration: float = 300.0, dt: float = 0.1, rpm: float | None = None,
-              t_execute: float = 10.0, weights=None, name: str = "multisine") -> Manoeuvre:
+def multisine(
+    vehicle,
+    amplitude_deg: float = 10.0,
+    frequencies_hz=(0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2),
+    phases_rad=None,
+    duration: float = 300.0,
+    dt: float = 0.1,
+    rpm: float | None = None,
+    t_execute: float = 10.0,
+    weights=None,
+    name: str = "multisine",
+) -> Manoeuvre:
     """Multisine rudder: sum of sines, equal amplitudes (or relative ``weights``, as a
     manoeuvre design chooses them) with (default) Schroeder phases.
 
@@ -346,20 +561,45 @@ def multisine(vehicle, amplitude_deg: float = 10.0,
     inputs[:, 3] = rpm
     inputs[k0:, 0] = scale * raw
     kind = "equal" if weights is None else "weighted"
-    desc = (f"Multisine: {rpm:g} rpm; rudder 0 for {t_execute:g} s, then the sum of {f.size} {kind} sines at "
-            f"{', '.join(f'{x:g}' for x in f)} Hz ({'Schroeder' if phases_rad is None else 'given'} phases), "
-            f"scaled to a peak of {amplitude_deg:g} deg ({math.degrees(scale):.3g} deg each); "
-            f"{duration:g} s, dt {dt:g} s.")
-    return _finish(vehicle, name, dt, inputs, rpm, desc,
-                   dict(amplitude_deg=amplitude_deg, frequencies_hz=f.tolist(), phases_rad=ph.tolist(),
-                        weights=w.tolist(),
-                        schroeder=phases_rad is None, component_amplitude_deg=math.degrees(scale),
-                        duration=duration, dt=dt, rpm=rpm, t_execute=t_execute))
+    desc = (
+        f"Multisine: {rpm:g} rpm; rudder 0 for {t_execute:g} s, then the sum of {f.size} {kind} sines at "
+        f"{', '.join(f'{x:g}' for x in f)} Hz ({'Schroeder' if phases_rad is None else 'given'} phases), "
+        f"scaled to a peak of {amplitude_deg:g} deg ({math.degrees(scale):.3g} deg each); "
+        f"{duration:g} s, dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        name,
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            amplitude_deg=amplitude_deg,
+            frequencies_hz=f.tolist(),
+            phases_rad=ph.tolist(),
+            weights=w.tolist(),
+            schroeder=phases_rad is None,
+            component_amplitude_deg=math.degrees(scale),
+            duration=duration,
+            dt=dt,
+            rpm=rpm,
+            t_execute=t_execute,
+        ),
+    )
 
 
-def prbs(vehicle, amplitude_deg: float = 10.0, min_hold_s: float = 5.0, duration: float = 300.0,
-         rng: np.random.Generator | None = None, dt: float = 0.1, rpm: float | None = None,
-         t_execute: float = 10.0, p_switch: float = 0.5) -> Manoeuvre:
+def prbs(
+    vehicle,
+    amplitude_deg: float = 10.0,
+    min_hold_s: float = 5.0,
+    duration: float = 300.0,
+    rng: np.random.Generator | None = None,
+    dt: float = 0.1,
+    rpm: float | None = None,
+    t_execute: float = 10.0,
+    p_switch: float = 0.5,
+) -> Manoeuvre:
     """Pseudo-random binary rudder sequence with a minimum hold time.
 
     Sequence: constant ``rpm``; rudder 0 for ``t_execute`` s; then the rudder is +-``amplitude_deg``
@@ -387,21 +627,46 @@ def prbs(vehicle, amplitude_deg: float = 10.0, min_hold_s: float = 5.0, duration
     levels = first * np.concatenate(([1.0], np.cumprod(np.where(flips, -1.0, 1.0))))
     inputs = np.zeros((n, 4))
     inputs[:, 3] = rpm
-    inputs[k0:, 0] = math.radians(amplitude_deg) * np.repeat(levels, k_hold)[:n - k0]
+    inputs[k0:, 0] = math.radians(amplitude_deg) * np.repeat(levels, k_hold)[: n - k0]
     switches = [float((k0 + (i + 1) * k_hold) * dt) for i in np.flatnonzero(flips)]
-    desc = (f"PRBS: {rpm:g} rpm; rudder 0 for {t_execute:g} s, then +-{amplitude_deg:g} deg, clock "
-            f"{min_hold_s:g} s, switch probability {p_switch:g} per tick, first level "
-            f"{first * amplitude_deg:+g} deg, {len(switches)} switches; {duration:g} s, dt {dt:g} s.")
-    return _finish(vehicle, "prbs", dt, inputs, rpm, desc,
-                   dict(amplitude_deg=amplitude_deg, min_hold_s=min_hold_s, duration=duration, dt=dt,
-                        rpm=rpm, t_execute=t_execute, p_switch=p_switch,
-                        bit_generator=type(rng.bit_generator).__name__,
-                        levels=[int(x) for x in levels], switch_times_s=switches))
+    desc = (
+        f"PRBS: {rpm:g} rpm; rudder 0 for {t_execute:g} s, then +-{amplitude_deg:g} deg, clock "
+        f"{min_hold_s:g} s, switch probability {p_switch:g} per tick, first level "
+        f"{first * amplitude_deg:+g} deg, {len(switches)} switches; {duration:g} s, dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        "prbs",
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            amplitude_deg=amplitude_deg,
+            min_hold_s=min_hold_s,
+            duration=duration,
+            dt=dt,
+            rpm=rpm,
+            t_execute=t_execute,
+            p_switch=p_switch,
+            bit_generator=type(rng.bit_generator).__name__,
+            levels=[int(x) for x in levels],
+            switch_times_s=switches,
+        ),
+    )
 
 
-def vertical_zigzag(vehicle, planes_deg: float = 10.0, pitch_deg: float | None = None, dt: float = 0.1,
-                    duration: float = 120.0, rpm: float | None = None, t_execute: float = 10.0,
-                    first_sign: int = 1, plane_rate_deg_s: float = 0.0) -> Manoeuvre:
+def vertical_zigzag(
+    vehicle,
+    planes_deg: float = 10.0,
+    pitch_deg: float | None = None,
+    dt: float = 0.1,
+    duration: float = 120.0,
+    rpm: float | None = None,
+    t_execute: float = 10.0,
+    first_sign: int = 1,
+    plane_rate_deg_s: float = 0.0,
+) -> Manoeuvre:
     """Vertical-plane zigzag ``planes_deg/pitch_deg``: stern planes triggered on pitch angle (6-DOF).
 
     The submarine analogue of the ITTC 7.5-04-02-01 Z-manoeuvre (Sec. 2.2.2) in the vertical plane:
@@ -422,19 +687,49 @@ def vertical_zigzag(vehicle, planes_deg: float = 10.0, pitch_deg: float | None =
     pitch_deg = planes_deg if pitch_deg is None else pitch_deg
     n = _grid(duration, dt)
     pitch_sign = math.copysign(1.0, vehicle.coefficients.get("Mds", -1.0))
-    inputs = _triggered_zigzag(vehicle, rpm, dt, n, 1, 4, planes_deg, pitch_deg, first_sign, pitch_sign,
-                               t_execute, plane_rate_deg_s, f"vertical zigzag {planes_deg}/{pitch_deg}")
+    inputs = _triggered_zigzag(
+        vehicle,
+        rpm,
+        dt,
+        n,
+        1,
+        4,
+        planes_deg,
+        pitch_deg,
+        first_sign,
+        pitch_sign,
+        t_execute,
+        plane_rate_deg_s,
+        f"vertical zigzag {planes_deg}/{pitch_deg}",
+    )
     name = f"vertical_zigzag{planes_deg:g}_{pitch_deg:g}" + ("" if first_sign > 0 else "m")
     switches = np.flatnonzero(np.diff(np.sign(inputs[:, 1])) != 0) + 1
-    desc = (f"Vertical zigzag {planes_deg:g}/{pitch_deg:g}: {rpm:g} rpm; straight and level {t_execute:g} s, "
-            f"then stern planes {first_sign * planes_deg:+g} deg, reversed each time the pitch change reaches "
-            f"{pitch_deg:g} deg (closed loop on the true vehicle, 6-DOF); {len(switches)} plane changes in "
-            f"{duration:g} s; plane rate "
-            f"{'instantaneous' if plane_rate_deg_s <= 0 else f'{plane_rate_deg_s:g} deg/s'}; dt {dt:g} s.")
-    return _finish(vehicle, name, dt, inputs, rpm, desc,
-                   dict(planes_deg=planes_deg, pitch_deg=pitch_deg, dt=dt, duration=duration, rpm=rpm,
-                        t_execute=t_execute, first_sign=first_sign, plane_rate_deg_s=plane_rate_deg_s,
-                        switch_times_s=[float(k * dt) for k in switches]))
+    desc = (
+        f"Vertical zigzag {planes_deg:g}/{pitch_deg:g}: {rpm:g} rpm; straight and level {t_execute:g} s, "
+        f"then stern planes {first_sign * planes_deg:+g} deg, reversed each time the pitch change reaches "
+        f"{pitch_deg:g} deg (closed loop on the true vehicle, 6-DOF); {len(switches)} plane changes in "
+        f"{duration:g} s; plane rate "
+        f"{'instantaneous' if plane_rate_deg_s <= 0 else f'{plane_rate_deg_s:g} deg/s'}; dt {dt:g} s."
+    )
+    return _finish(
+        vehicle,
+        name,
+        dt,
+        inputs,
+        rpm,
+        desc,
+        dict(
+            planes_deg=planes_deg,
+            pitch_deg=pitch_deg,
+            dt=dt,
+            duration=duration,
+            rpm=rpm,
+            t_execute=t_execute,
+            first_sign=first_sign,
+            plane_rate_deg_s=plane_rate_deg_s,
+            switch_times_s=[float(k * dt) for k in switches],
+        ),
+    )
 
 
 def library(vehicle, dt: float = 0.1, rpm: float | None = None, seed: int = 0) -> dict[str, Manoeuvre]:
@@ -472,6 +767,18 @@ def library(vehicle, dt: float = 0.1, rpm: float | None = None, seed: int = 0) -
     return {key: (m if m.name == key else dataclasses.replace(m, name=key)) for key, m in out}
 
 
-__all__ = ["steady_state", "spiral", "turning_circle", "zigzag", "straight", "pull_out", "reverse_spiral",
-           "speed_steps", "schroeder_phases", "multisine", "prbs", "vertical_zigzag", "library"]
-
+__all__ = [
+    "steady_state",
+    "spiral",
+    "turning_circle",
+    "zigzag",
+    "straight",
+    "pull_out",
+    "reverse_spiral",
+    "speed_steps",
+    "schroeder_phases",
+    "multisine",
+    "prbs",
+    "vertical_zigzag",
+    "library",
+]

@@ -20,6 +20,7 @@ different form so that agreement between the two means something:
 It is meant for tests and for the benchmark ratio, not for production use: a 600 s track takes
 seconds to tens of seconds. Readability wins over speed everywhere in this module.
 """
+
 from __future__ import annotations
 
 import math
@@ -46,12 +47,11 @@ _OK, _NONFINITE, _OUT_OF_BOUNDS = 0, 1, 2
 # Small matrix helpers (Fossen 1994, Ch. 2)
 # --------------------------------------------------------------------------------------------
 
+
 def skew(a) -> np.ndarray:
     """Skew-symmetric matrix S(a) (3, 3) with ``S(a) b = a x b`` (Fossen 1994, Eq. 2.9)."""
     a1, a2, a3 = a
-    return np.array([[0.0, -a3, a2],
-                     [a3, 0.0, -a1],
-                     [-a2, a1, 0.0]])
+    return np.array([[0.0, -a3, a2], [a3, 0.0, -a1], [-a2, a1, 0.0]])
 
 
 def rotation_matrix(phi: float, theta: float, psi: float) -> np.ndarray:
@@ -71,9 +71,7 @@ def euler_rate_matrix(phi: float, theta: float) -> np.ndarray:
     Singular at theta = +-90 deg."""
     cf, sf = math.cos(phi), math.sin(phi)
     ct, tt = math.cos(theta), math.tan(theta)
-    return np.array([[1.0, sf * tt, cf * tt],
-                     [0.0, cf, -sf],
-                     [0.0, sf / ct, cf / ct]])
+    return np.array([[1.0, sf * tt, cf * tt], [0.0, cf, -sf], [0.0, sf / ct, cf / ct]])
 
 
 def coriolis_rigid_body(M_RB: np.ndarray, nu: np.ndarray) -> np.ndarray:
@@ -97,6 +95,7 @@ def coriolis_rigid_body(M_RB: np.ndarray, nu: np.ndarray) -> np.ndarray:
 # Features of the term library
 # --------------------------------------------------------------------------------------------
 
+
 def propulsion_eps(u: np.ndarray, n_rpm: np.ndarray, vehicle) -> np.ndarray:
     """Propulsion function eps(eta) (n,), Healey & Lienard (1993) as in equations.md "Propulsion".
 
@@ -112,7 +111,7 @@ def propulsion_eps(u: np.ndarray, n_rpm: np.ndarray, vehicle) -> np.ndarray:
     sign_n = np.where(n_rad >= 0.0, 1.0, -1.0)
     u_guarded = np.where(np.abs(u) > U_FLOOR, u, sign_u * U_FLOOR)
     eta = vehicle.propulsion.uc_per_omega * n_rad / u_guarded
-    k = vehicle.propulsion.CT_coeff * vehicle.L ** 2 / 2.0
+    k = vehicle.propulsion.CT_coeff * vehicle.L**2 / 2.0
     CT, CT1 = k * eta * np.abs(eta), k
     return -1.0 + (sign_n / sign_u) * (np.sqrt(np.abs(CT) + 1.0) - 1.0) / (np.sqrt(CT1 + 1.0) - 1.0)
 
@@ -135,10 +134,23 @@ def reference_features(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.nd
     dr, ds, db, n_rpm = (inputs[:, j] for j in range(4))
     uc = vehicle.propulsion.uc_per_omega * n_rpm * (2.0 * np.pi / 60.0)
     columns = {
-        "1": np.ones_like(u), "u": u, "v": v, "w": w, "p": p, "q": q, "r": r,
-        "dr": dr, "ds": ds, "db": db, "eps": propulsion_eps(u, n_rpm, vehicle),
-        "|v|": np.abs(v), "|r|": np.abs(r), "prop": uc * np.abs(uc) - u * np.abs(u),
-        "|w|": np.abs(w), "|q|": np.abs(q), "|p|": np.abs(p),
+        "1": np.ones_like(u),
+        "u": u,
+        "v": v,
+        "w": w,
+        "p": p,
+        "q": q,
+        "r": r,
+        "dr": dr,
+        "ds": ds,
+        "db": db,
+        "eps": propulsion_eps(u, n_rpm, vehicle),
+        "|v|": np.abs(v),
+        "|r|": np.abs(r),
+        "prop": uc * np.abs(uc) - u * np.abs(u),
+        "|w|": np.abs(w),
+        "|q|": np.abs(q),
+        "|p|": np.abs(p),
     }
     return np.column_stack([columns[name] for name in terms.FEATURES])
 
@@ -146,6 +158,7 @@ def reference_features(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.nd
 # --------------------------------------------------------------------------------------------
 # The model: forces, accelerations, state derivative
 # --------------------------------------------------------------------------------------------
+
 
 class ReferenceModel:
     """The equations of motion of one vehicle with one coefficient set, in plain numpy.
@@ -175,11 +188,10 @@ class ReferenceModel:
                 raise ValueError(f"coefficient {name} = {value} is not finite")
         self.vehicle, self.mode = vehicle, mode
         self.coefficients = {**vehicle.coefficients, **{k: float(v) for k, v in coefficients.items()}}
-        self.force_names = [t.name for t in terms.TERMS
-                            if t.kind == "force" and (mode == "6dof" or t.horizontal)]
+        self.force_names = [t.name for t in terms.TERMS if t.kind == "force" and (mode == "6dof" or t.horizontal)]
         self.force_dofs = np.array([terms.term(n).dof for n in self.force_names])
         self.force_values = np.array([self.coefficients.get(n, 0.0) for n in self.force_names])
-        self.M_RB = vehicle.mass_matrix({})              # rigid body only (6, 6)
+        self.M_RB = vehicle.mass_matrix({})  # rigid body only (6, 6)
         self.M = vehicle.mass_matrix(self.coefficients)  # rigid body + added mass (6, 6)
 
     # -- right-hand side pieces, each (n, 6) in X, Y, Z, K, M, N order -------------------------
@@ -228,8 +240,12 @@ class ReferenceModel:
         """
         states = np.atleast_2d(np.asarray(states, dtype=float))
         inputs = np.atleast_2d(np.asarray(inputs, dtype=float))
-        return (self.hydrodynamic_force(states, inputs) + self.hydrostatic_force(states)
-                + self.crossflow_force(states) - self.coriolis_force(states))
+        return (
+            self.hydrodynamic_force(states, inputs)
+            + self.hydrostatic_force(states)
+            + self.crossflow_force(states)
+            - self.coriolis_force(states)
+        )
 
     def acceleration(self, states, inputs) -> np.ndarray:
         """``nu_dot`` (n, 6) from ``M nu_dot = tau`` (6-DOF) or from its (u, v, r) block with
@@ -259,15 +275,15 @@ class ReferenceModel:
         return out
 
 
-def reference_generalized_force(states, inputs, vehicle, mode: str = "6dof",
-                                coefficients: dict | None = None) -> np.ndarray:
+def reference_generalized_force(
+    states, inputs, vehicle, mode: str = "6dof", coefficients: dict | None = None
+) -> np.ndarray:
     """``tau`` (n, 6), the right-hand side of ``M nu_dot = tau`` (see
     :meth:`ReferenceModel.generalized_force`)."""
     return ReferenceModel(vehicle, coefficients, mode).generalized_force(states, inputs)
 
 
-def reference_rhs(states, inputs, vehicle, mode: str = "6dof",
-                  coefficients: dict | None = None) -> np.ndarray:
+def reference_rhs(states, inputs, vehicle, mode: str = "6dof", coefficients: dict | None = None) -> np.ndarray:
     """State derivative (n, 12) at states (n, 12) and inputs (n, 4) (see :meth:`ReferenceModel.rhs`)."""
     return ReferenceModel(vehicle, coefficients, mode).rhs(states, inputs)
 
@@ -276,6 +292,7 @@ def reference_rhs(states, inputs, vehicle, mode: str = "6dof",
 # Integration
 # --------------------------------------------------------------------------------------------
 
+
 def _bounds(vehicle) -> tuple[float, float, float]:
     """Physical bounds beyond which a track counts as diverged (the kernel's rule, see
     :func:`bayesid.models.dynamics.vehicle_params`): speed (m/s), rate (rad/s), |theta| (rad)."""
@@ -283,9 +300,16 @@ def _bounds(vehicle) -> tuple[float, float, float]:
     return vmax, vmax / (vehicle.L / 4.0), math.radians(85.0)
 
 
-def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
-                       coefficients: dict | None = None, sample_every: int = 1,
-                       rtol: float = 1e-10, atol: float = 1e-10, method: str = "DOP853") -> SimResult:
+def simulate_reference(
+    vehicle,
+    manoeuvre: Manoeuvre,
+    mode: str = "6dof",
+    coefficients: dict | None = None,
+    sample_every: int = 1,
+    rtol: float = 1e-10,
+    atol: float = 1e-10,
+    method: str = "DOP853",
+) -> SimResult:
     """Simulate one track with ``solve_ivp`` (DOP853): the anchor for the compiled simulator.
 
     The inputs are a zero-order hold on the manoeuvre grid (input k over [k dt, (k+1) dt)). The
@@ -354,8 +378,9 @@ def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
 
         in_segment = (sample_steps > a) & (sample_steps <= b)
         eval_steps = np.union1d(sample_steps[in_segment], [b])  # always end at the segment end
-        sol = solve_ivp(f, (a * dt, b * dt), s, method=method, t_eval=eval_steps * dt,
-                        rtol=rtol, atol=atol, events=out_of_bounds)
+        sol = solve_ivp(
+            f, (a * dt, b * dt), s, method=method, t_eval=eval_steps * dt, rtol=rtol, atol=atol, events=out_of_bounds
+        )
         n_ok = sol.y.shape[1]
         finite = np.all(np.isfinite(sol.y), axis=0)
         if not finite.all():
@@ -376,10 +401,26 @@ def simulate_reference(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof",
         s = sol.y[:, -1]
 
     inputs_sampled = np.vstack([inputs, inputs[-1:]])[::se]
-    return SimResult(sample_steps * dt, states, inputs_sampled, np.array([status], dtype=np.int64),
-                     np.array([fail_step], dtype=np.int64), name=manoeuvre.name)
+    return SimResult(
+        sample_steps * dt,
+        states,
+        inputs_sampled,
+        np.array([status], dtype=np.int64),
+        np.array([fail_step], dtype=np.int64),
+        name=manoeuvre.name,
+    )
 
 
-__all__ = ["U_FLOOR", "skew", "rotation_matrix", "euler_rate_matrix", "coriolis_rigid_body",
-           "propulsion_eps", "reference_features", "ReferenceModel", "reference_generalized_force",
-           "reference_rhs", "simulate_reference"]
+__all__ = [
+    "U_FLOOR",
+    "skew",
+    "rotation_matrix",
+    "euler_rate_matrix",
+    "coriolis_rigid_body",
+    "propulsion_eps",
+    "reference_features",
+    "ReferenceModel",
+    "reference_generalized_force",
+    "reference_rhs",
+    "simulate_reference",
+]

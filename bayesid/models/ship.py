@@ -69,6 +69,7 @@ State (6,): ``x, y`` (m, earth-fixed, midship), ``psi`` (rad), ``u, v`` (m/s, th
 at midship), ``r`` (rad/s). Inputs: rudder ``delta_r`` (rad, + to port) and propeller ``n``
 (the track's rpm, used in rps).
 """
+
 from __future__ import annotations
 
 import math
@@ -80,22 +81,75 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from . import inverse, shipgen
-from .interface import ParameterLayout
-from .effects import Effect, SensorLag, delay_starts, drift_seed, drift_starts, signature_dict
-from ..protocol import wrap
 from ..data.priors import parse_prior_section
 from ..data.track import Track
 from ..data.vehicle import VehicleFileError
+from ..protocol import wrap
+from . import inverse, shipgen
+from .effects import Effect, SensorLag, delay_starts, drift_seed, drift_starts, signature_dict
+from .interface import ParameterLayout
 
 #: Particulars in the kernel's parameter vector (order fixed; SI units, ratios as noted).
-PARTICULARS = ("L", "B", "d", "mass_kg", "xG", "rho", "kzz", "Cb", "D_prop", "A_rudder",
-               "lambda_rudder", "eta_prop_rudder", "x_rudder", "rho_air", "A_front", "A_lateral")
+PARTICULARS = (
+    "L",
+    "B",
+    "d",
+    "mass_kg",
+    "xG",
+    "rho",
+    "kzz",
+    "Cb",
+    "D_prop",
+    "A_rudder",
+    "lambda_rudder",
+    "eta_prop_rudder",
+    "x_rudder",
+    "rho_air",
+    "A_front",
+    "A_lateral",
+)
 #: Coefficients (MMG prime form; see the module docstring), in the kernel's order.
-COEFFICIENTS = ("mx", "my", "Jz", "Xuu", "Xvv", "Xvr", "Xrr", "Yv", "Yr", "Nv", "Nr", "Ycf", "Ncf",
-                "Yvvr", "Yvrr", "Nvvr", "Nvrr",
-                "wP", "tP", "k0", "k1", "k2", "Ka", "xP", "tR", "aH", "xH", "eps", "kappa", "lR", "gR",
-                "Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3", "dR0")
+COEFFICIENTS = (
+    "mx",
+    "my",
+    "Jz",
+    "Xuu",
+    "Xvv",
+    "Xvr",
+    "Xrr",
+    "Yv",
+    "Yr",
+    "Nv",
+    "Nr",
+    "Ycf",
+    "Ncf",
+    "Yvvr",
+    "Yvrr",
+    "Nvvr",
+    "Nvrr",
+    "wP",
+    "tP",
+    "k0",
+    "k1",
+    "k2",
+    "Ka",
+    "xP",
+    "tR",
+    "aH",
+    "xH",
+    "eps",
+    "kappa",
+    "lR",
+    "gR",
+    "Cx1",
+    "Cx3",
+    "Cy1",
+    "Cy3",
+    "Cn1",
+    "Cn2",
+    "Cn3",
+    "dR0",
+)
 WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3")
 NP = len(PARTICULARS) + len(COEFFICIENTS)
 _IP = {n: i for i, n in enumerate(PARTICULARS)}
@@ -109,10 +163,24 @@ _IC = {n: len(PARTICULARS) + i for i, n in enumerate(COEFFICIENTS)}
 #: free coefficients chase the few long windows of a zigzag set and predicted far worse.
 FIT_WINDOW_S = 15.0
 #: Physical bounds of the coefficients when fitted (None: unbounded).
-BOUNDS = {"mx": (0.0, 0.5), "my": (0.0, 1.5), "Jz": (0.0, 0.2), "Xuu": (-0.2, 0.0), "Ycf": (0.0, 5.0),
-          "Ncf": (0.0, 5.0), "wP": (0.0, 0.9), "tP": (0.0, 0.6), "Ka": (0.0, 1.0), "tR": (0.0, 0.9),
-          "aH": (0.0, 1.0), "eps": (0.3, 2.5), "kappa": (0.0, 1.0), "lR": (-2.0, 0.5), "gR": (0.0, 2.0),
-          "dR0": (-0.1, 0.1)}
+BOUNDS = {
+    "mx": (0.0, 0.5),
+    "my": (0.0, 1.5),
+    "Jz": (0.0, 0.2),
+    "Xuu": (-0.2, 0.0),
+    "Ycf": (0.0, 5.0),
+    "Ncf": (0.0, 5.0),
+    "wP": (0.0, 0.9),
+    "tP": (0.0, 0.6),
+    "Ka": (0.0, 1.0),
+    "tR": (0.0, 0.9),
+    "aH": (0.0, 1.0),
+    "eps": (0.3, 2.5),
+    "kappa": (0.0, 1.0),
+    "lR": (-2.0, 0.5),
+    "gR": (0.0, 2.0),
+    "dR0": (-0.1, 0.1),
+}
 #: Coefficients that enter the forces linearly (the equation-error seed regresses these).
 LINEAR = ("Xuu", "Xvv", "Xvr", "Xrr", "Yv", "Yr", "Nv", "Nr", "Ycf", "Ncf", "Yvvr", "Yvrr", "Nvvr", "Nvrr") + WIND
 
@@ -167,19 +235,26 @@ class Ship:
         (Cb >= 0.7: tankers and bulk carriers meet a wall of wave resistance near Fn 0.2) or 0.45
         for finer displacement hulls."""
         warn = []
-        planes = [k for k in ("delta_s", "delta_b", "z", "w", "q", "theta")
-                  if k in track and np.nanmax(np.abs(track[k]), initial=0.0) > 1e-6]
+        planes = [
+            k
+            for k in ("delta_s", "delta_b", "z", "w", "q", "theta")
+            if k in track and np.nanmax(np.abs(track[k]), initial=0.0) > 1e-6
+        ]
         if planes:
-            warn.append(f"{name}: columns {', '.join(planes)} vary (stern/bow planes, depth or pitch), but "
-                        f"{self.id} is a 3-DOF surface ship: a submarine's track?")
+            warn.append(
+                f"{name}: columns {', '.join(planes)} vary (stern/bow planes, depth or pitch), but "
+                f"{self.id} is a 3-DOF surface ship: a submarine's track?"
+            )
         L, cb = float(self.particulars.get("L", 0.0) or 0.0), float(self.particulars.get("Cb", 0.0) or 0.0)
         limit = 0.25 if cb >= 0.7 else 0.45
         speed = body_speed if body_speed is not None else ground_speed
         if L > 0 and speed is not None and speed / math.sqrt(9.81 * L) > limit:
-            warn.append(f"{name}: median speed {speed:.3g} m/s is a Froude number of "
-                        f"{speed / math.sqrt(9.81 * L):.2f} for the {L:g} m {self.id} "
-                        f"(block coefficient {cb:g}: displacement hulls of this form run below {limit:g}): a track "
-                        "of another vessel, or positions not in metres?")
+            warn.append(
+                f"{name}: median speed {speed:.3g} m/s is a Froude number of "
+                f"{speed / math.sqrt(9.81 * L):.2f} for the {L:g} m {self.id} "
+                f"(block coefficient {cb:g}: displacement hulls of this form run below {limit:g}): a track "
+                "of another vessel, or positions not in metres?"
+            )
         return warn
 
     @property
@@ -195,12 +270,18 @@ class Ship:
         c = dict(self.coefficients, **(coefficients or {}))
         return np.array([float(self.particulars[k]) for k in PARTICULARS] + [float(c[k]) for k in COEFFICIENTS])
 
-    def with_coefficients(self, values: dict) -> "Ship":
+    def with_coefficients(self, values: dict) -> Ship:
         for k in values:
             if k not in COEFFICIENTS:
                 raise KeyError(f"unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
-        return replace(self, particulars=dict(self.particulars), coefficients=dict(self.coefficients, **values),
-                       wind_start=dict(self.wind_start), free=list(self.free), prior=dict(self.prior))
+        return replace(
+            self,
+            particulars=dict(self.particulars),
+            coefficients=dict(self.coefficients, **values),
+            wind_start=dict(self.wind_start),
+            free=list(self.free),
+            prior=dict(self.prior),
+        )
 
 
 def empirical_added_mass(p: dict) -> dict:
@@ -218,8 +299,8 @@ def empirical_added_mass(p: dict) -> dict:
     yvd = k * (1.0 + 0.16 * Cb * B / d - 5.1 * (B / L) ** 2)
     nrd = k * (1.0 / 12.0 + 0.017 * Cb * B / d - 0.33 * B / L)
     V = m / rho
-    mx = 2.7 * rho * V ** (5.0 / 3.0) / L ** 2
-    return {"mx": mx / (0.5 * rho * L ** 2 * d), "my": yvd * L / d, "Jz": nrd * L / d}
+    mx = 2.7 * rho * V ** (5.0 / 3.0) / L**2
+    return {"mx": mx / (0.5 * rho * L**2 * d), "my": yvd * L / d, "Jz": nrd * L / d}
 
 
 def packaged_ships() -> list[str]:
@@ -297,8 +378,10 @@ def load_ship(path_or_id) -> Ship:
     for sec in ("coefficients", "wind"):
         for k, v in doc.get(sec, {}).items():
             if k not in COEFFICIENTS or (sec == "wind") != (k in WIND):
-                raise ShipFileError(f"{p}: [{sec}] unknown coefficient {k!r}; known: "
-                                    f"{', '.join(WIND if sec == 'wind' else [c for c in COEFFICIENTS if c not in WIND])}")
+                raise ShipFileError(
+                    f"{p}: [{sec}] unknown coefficient {k!r}; known: "
+                    f"{', '.join(WIND if sec == 'wind' else [c for c in COEFFICIENTS if c not in WIND])}"
+                )
             coef[k] = num(sec, k, v)
     wind = {k: coef[k] for k in WIND}
     for k in WIND:  # the base model has no wind term; the wind effect starts from these
@@ -309,11 +392,21 @@ def load_ship(path_or_id) -> Ship:
             raise ShipFileError(f"{p}: [fit] free lists unknown coefficient {k!r}")
     v = doc["vehicle"]
     if v.get("kind") != "ship3dof":
-        raise ShipFileError(f"{p}: [vehicle] kind = {v.get('kind')!r}; a ship file has kind = \"ship3dof\"")
-    prior, prior_source = parse_prior_section(doc.get("prior", {}), p, coef,
-                                              [c for c in COEFFICIENTS if c not in WIND], ShipFileError)
-    return Ship(str(v.get("id", p.stem)), part, coef, wind, free, str(v.get("description", "")), str(p),
-                prior=prior, prior_source=prior_source)
+        raise ShipFileError(f'{p}: [vehicle] kind = {v.get("kind")!r}; a ship file has kind = "ship3dof"')
+    prior, prior_source = parse_prior_section(
+        doc.get("prior", {}), p, coef, [c for c in COEFFICIENTS if c not in WIND], ShipFileError
+    )
+    return Ship(
+        str(v.get("id", p.stem)),
+        part,
+        coef,
+        wind,
+        free,
+        str(v.get("description", "")),
+        str(p),
+        prior=prior,
+        prior_source=prior_source,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -363,9 +456,9 @@ def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
     if n > 1e-6:
         J = min(max(uP / (n * D), -0.5), 1.2)
         KT = k0 + k1 * J + k2 * J * J
-        T = rho * n * n * D ** 4 * KT
+        T = rho * n * n * D**4 * KT
     elif n < -1e-6:
-        T = -Ka * rho * n * n * D ** 4
+        T = -Ka * rho * n * n * D**4
     X += (1.0 - tP) * T
     # rudder
     if n > 1e-6:
@@ -489,8 +582,9 @@ def accelerations(states, inputs, wind, cur, prm, out):
     F = np.empty(3)
     ds = np.empty(6)
     for i in range(states.shape[0]):
-        _rhs(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W,
-             F, ds)
+        _rhs(
+            states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W, F, ds
+        )
         out[i, 0] = ds[3]
         out[i, 1] = ds[4]
         out[i, 2] = ds[5]
@@ -501,8 +595,7 @@ def forces(states, inputs, wind, cur, prm, out):
     """External forces (X, Y, N) at given states, as :func:`accelerations`: out (N, 3)."""
     F = np.empty(3)
     for i in range(states.shape[0]):
-        _forces(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W,
-                F)
+        _forces(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W, F)
         out[i] = F
 
 
@@ -563,13 +656,15 @@ class ShipWind(Effect):
             return None
         t = m["t"]
         va, g = apparent_wind(track, m["u"], m["v"], m["psi"], t)
-        qa = 0.5 * pr["rho_air"] * va ** 2
+        qa = 0.5 * pr["rho_air"] * va**2
         z = np.zeros(t.size)
-        return [np.column_stack([qa * pr["A_front"] * np.cos(g), z, z]),
-                np.column_stack([z, qa * pr["A_lateral"] * np.sin(g), z]),
-                np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(g)]),
-                np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(2 * g)]),
-                np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(3 * g)])]
+        return [
+            np.column_stack([qa * pr["A_front"] * np.cos(g), z, z]),
+            np.column_stack([z, qa * pr["A_lateral"] * np.sin(g), z]),
+            np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(g)]),
+            np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(2 * g)]),
+            np.column_stack([z, z, qa * pr["A_lateral"] * pr["L"] * np.sin(3 * g)]),
+        ]
 
 
 class ShipCurrent(Effect):
@@ -589,8 +684,10 @@ class ShipCurrent(Effect):
         # a current leaves the Coriolis term of the current velocity seen in the body frame
         mass, r, t = m["particulars"]["mass_kg"], m["r"], m["t"]
         c, s = np.cos(m["psi"]), np.sin(m["psi"])
-        return [np.column_stack([mass * r * s, mass * r * c, np.zeros(t.size)]),
-                np.column_stack([-mass * r * c, mass * r * s, np.zeros(t.size)])]
+        return [
+            np.column_stack([mass * r * s, mass * r * c, np.zeros(t.size)]),
+            np.column_stack([-mass * r * c, mass * r * s, np.zeros(t.size)]),
+        ]
 
 
 class ShipDelay(Effect):
@@ -611,23 +708,52 @@ class ShipDelay(Effect):
 #: Candidate effects of a surface ship.
 SHIP_CATALOGUE = {
     "wind": ShipWind(
-        "wind", WIND, (-2.0,) * 7, (2.0,) * 7, (-0.7, 0.0, -0.8, 0.0, -0.1, -0.05, 0.0), (0.3,) * 7,
-        neutral=(0.0,) * 7, needs_columns=("wind_speed", "wind_dir"),
+        "wind",
+        WIND,
+        (-2.0,) * 7,
+        (2.0,) * 7,
+        (-0.7, 0.0, -0.8, 0.0, -0.1, -0.05, 0.0),
+        (0.3,) * 7,
+        neutral=(0.0,) * 7,
+        needs_columns=("wind_speed", "wind_dir"),
         description="wind loads from the measured true wind (Fourier form, 7 coefficients)",
         source="Fujiwara, Ueno & Nimura (1998), J. Soc. Naval Arch. Japan 183; windage areas from the "
-        "particulars; start values typical of tankers (Isherwood 1972)"),
+        "particulars; start values typical of tankers (Isherwood 1972)",
+    ),
     "current": ShipCurrent(
-        "current", ("current_x_mps", "current_y_mps"), (-0.5, -0.5), (0.5, 0.5), (0.0, 0.0), (0.05, 0.05),
-        neutral=(0.0, 0.0), description="uniform current: the hull moves through the water, the track over ground",
-        source="kinematic relative-velocity model (Fossen 2011, Sec. 10.3); pond drift of a few cm/s"),
+        "current",
+        ("current_x_mps", "current_y_mps"),
+        (-0.5, -0.5),
+        (0.5, 0.5),
+        (0.0, 0.0),
+        (0.05, 0.05),
+        neutral=(0.0, 0.0),
+        description="uniform current: the hull moves through the water, the track over ground",
+        source="kinematic relative-velocity model (Fossen 2011, Sec. 10.3); pond drift of a few cm/s",
+    ),
     "delay": ShipDelay(
-        "delay", ("delay_s",), (0.0,), (3.0,), (0.2,), (0.3,), neutral=(0.0,),
-        description="pure time delay of the logged rudder and propeller", source="logging / actuator latency"),
+        "delay",
+        ("delay_s",),
+        (0.0,),
+        (3.0,),
+        (0.2,),
+        (0.3,),
+        neutral=(0.0,),
+        description="pure time delay of the logged rudder and propeller",
+        source="logging / actuator latency",
+    ),
     "sensor_lag": SensorLag(
-        "sensor_lag", ("lag_s", "skew_s"), (0.0, -3.0), (5.0, 3.0), (0.5, 0.0), (0.3, 0.3), neutral=(0.0, 0.0),
+        "sensor_lag",
+        ("lag_s", "skew_s"),
+        (0.0, -3.0),
+        (5.0, 3.0),
+        (0.5, 0.0),
+        (0.3, 0.3),
+        neutral=(0.0, 0.0),
         description="sensor dynamics: first-order lag of logged u, v, r and a position time skew",
         source="velocities from GNSS position differences through a causal Kalman filter (Esso Osaka: about "
-        "1 s); navigation and attitude on separate clocks"),
+        "1 s); navigation and attitude on separate clocks",
+    ),
 }
 
 
@@ -727,8 +853,9 @@ class ShipModel(ParameterLayout):
         th = np.maximum(np.abs(self.theta0), 0.01)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
-    def context(self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured",
-                leadin_s: float = 0.0):
+    def context(
+        self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
+    ):
         """Windows, start states and step inputs of a track (see
         :class:`bayesid.models.effects.TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
         wind averaged over each step."""
@@ -753,8 +880,9 @@ class ShipModel(ParameterLayout):
             e.kernel(kp, q)
         return kp["prm"], kp["cur"], kp["delay"]
 
-    def simulate(self, ctx, P, nuisance=None, measured_start: bool = True, starts=None,
-                 samples: str = "scored") -> np.ndarray:
+    def simulate(
+        self, ctx, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
+    ) -> np.ndarray:
         """Predicted measurements at the track's scored samples: (B, n_samples, 12) in
         :data:`~bayesid.data.track.STATE_NAMES` order (u, v over ground; NaN in a diverged window).
         ``starts`` (B, W, 6) offsets of the window-start states and ``samples`` as in
@@ -775,8 +903,17 @@ class ShipModel(ParameterLayout):
         out = np.empty((B, ctx.n_virtual + ctx.W, 6))
         status = np.empty((B, ctx.W), dtype=np.int64)
         run = shipgen.kernel(self.kernel_kind)
-        run(np.ascontiguousarray(s0), ctx.starts, ctx.gather(inp), ctx.gather(ctx.wind[None])[0],
-            np.ascontiguousarray(cur), np.ascontiguousarray(prm), self.dt, out, status)
+        run(
+            np.ascontiguousarray(s0),
+            ctx.starts,
+            ctx.gather(inp),
+            ctx.gather(ctx.wind[None])[0],
+            np.ascontiguousarray(cur),
+            np.ascontiguousarray(prm),
+            self.dt,
+            out,
+            status,
+        )
         S6, t_rel = sample_rows(ctx, out, samples, slice(2, 3))
         c, s = np.cos(S6[..., 2]), np.sin(S6[..., 2])
         S6[..., 3] += c * cur[:, None, 0] + s * cur[:, None, 1]
@@ -795,8 +932,16 @@ class ShipModel(ParameterLayout):
         t = motion["t"]
         dr = motion.get("dr", np.interp(t, track.t, np.asarray(track["delta_r"], float)))
         nrps = np.interp(t, track.t, np.asarray(track["n"], float)) / 60.0
-        states = np.column_stack([np.interp(t, track.t, track["x"]), np.interp(t, track.t, track["y"]),
-                                  motion["psi"], motion["u"], motion["v"], motion["r"]])
+        states = np.column_stack(
+            [
+                np.interp(t, track.t, track["x"]),
+                np.interp(t, track.t, track["y"]),
+                motion["psi"],
+                motion["u"],
+                motion["v"],
+                motion["r"],
+            ]
+        )
         acc = np.column_stack([motion["u_dot"], motion["v_dot"], motion["r_dot"]])
         return motion, states, np.column_stack([dr, nrps]), wind_components(track, t), acc
 
@@ -807,8 +952,14 @@ class ShipModel(ParameterLayout):
         motion, states, inp, wind, acc = self._motion(track)
         prm, cur, _ = self.kernel_params(fitres.p[None])
         a_model = np.empty_like(acc)
-        accelerations(np.ascontiguousarray(states), np.ascontiguousarray(inp), np.ascontiguousarray(wind),
-                      np.ascontiguousarray(cur[0]), np.ascontiguousarray(prm[0]), a_model)
+        accelerations(
+            np.ascontiguousarray(states),
+            np.ascontiguousarray(inp),
+            np.ascontiguousarray(wind),
+            np.ascontiguousarray(cur[0]),
+            np.ascontiguousarray(prm[0]),
+            a_model,
+        )
         M = mass_matrix(prm[0])
         return motion, (acc - a_model) @ M.T, inp
 
@@ -820,8 +971,16 @@ class ShipModel(ParameterLayout):
         """Force-space signatures {effect: [(n, 3) columns]} of ``effects`` (default the ship
         catalogue) that leave one (:meth:`~bayesid.models.effects.Effect.force_signature`)."""
         t = motion["t"]
-        m = {"t": t, "u": motion["u"], "v": motion["v"], "r": motion["r"], "psi": motion["psi"],
-             "rudder_rate": np.gradient(inputs[:, 0], t), "track": track, "particulars": self.vehicle.particulars}
+        m = {
+            "t": t,
+            "u": motion["u"],
+            "v": motion["v"],
+            "r": motion["r"],
+            "psi": motion["psi"],
+            "rudder_rate": np.gradient(inputs[:, 0], t),
+            "track": track,
+            "particulars": self.vehicle.particulars,
+        }
         return signature_dict(SHIP_CATALOGUE.values() if effects is None else effects, m)
 
     def where_samples(self, track: Track, ctx, S):
@@ -833,12 +992,14 @@ class ShipModel(ParameterLayout):
 
     def regions(self) -> dict:
         """Operating-region bins of the *where* analysis for this ship (scaled by its speed range)."""
-        return {"drift_angle_deg": [-180, -30, -10, -3, 3, 10, 30, 180],
-                "yaw_rate_deg_s": [-60, -3, -1, -0.3, 0.3, 1, 3, 60],
-                "rudder_deg": [-40, -20, -5, 5, 20, 40],
-                "speed_mps": [0, 0.1, 0.25, 0.5, 1.0, 2.0],
-                "apparent_wind_speed_mps": [0, 1, 2, 4, 20],
-                "apparent_wind_angle_deg": [0, 30, 60, 120, 150, 180.01]}
+        return {
+            "drift_angle_deg": [-180, -30, -10, -3, 3, 10, 30, 180],
+            "yaw_rate_deg_s": [-60, -3, -1, -0.3, 0.3, 1, 3, 60],
+            "rudder_deg": [-40, -20, -5, 5, 20, 40],
+            "speed_mps": [0, 0.1, 0.25, 0.5, 1.0, 2.0],
+            "apparent_wind_speed_mps": [0, 1, 2, 4, 20],
+            "apparent_wind_angle_deg": [0, 30, 60, 120, 150, 180.01],
+        }
 
 
 def equation_error_seed(model: ShipModel, tracks, names=None) -> tuple[np.ndarray, dict]:
@@ -858,8 +1019,11 @@ def equation_error_seed(model: ShipModel, tracks, names=None) -> tuple[np.ndarra
     dict (``names``, ``n_samples``, ``r2`` per equation).
     """
     p0 = model.start()
-    lin = [i for i, n in enumerate(model.param_names) if n.split(".")[-1] in LINEAR] if names is None else \
-        [model.param_names.index(n) for n in names]
+    lin = (
+        [i for i, n in enumerate(model.param_names) if n.split(".")[-1] in LINEAR]
+        if names is None
+        else [model.param_names.index(n) for n in names]
+    )
     rows, lhs = [], []
     for tr in tracks:
         motion, states, inp, wind, acc = model._motion(tr)
@@ -881,7 +1045,7 @@ def equation_error_seed(model: ShipModel, tracks, names=None) -> tuple[np.ndarra
     y = np.concatenate(lhs)
     ok = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(G), axis=(1, 2))
     G, y = G[ok], y[ok]
-    w = 1.0 / np.sqrt(np.mean(y ** 2, axis=0))
+    w = 1.0 / np.sqrt(np.mean(y**2, axis=0))
     Aw = (G * w[None, :, None]).reshape(-1, len(lin))
     yw = (y * w[None, :]).ravel()
     N = Aw.T @ Aw
@@ -891,6 +1055,9 @@ def equation_error_seed(model: ShipModel, tracks, names=None) -> tuple[np.ndarra
     lo, hi = model.bounds()
     p = np.clip(p, lo, hi)
     res = y - np.einsum("nek,k->ne", G, p[lin] - p0[lin])
-    r2 = 1 - np.sum(res ** 2, axis=0) / np.sum((y - y.mean(axis=0)) ** 2, axis=0)
-    return p, {"names": [model.param_names[i] for i in lin], "n_samples": int(y.shape[0]),
-               "r2": {k: float(v) for k, v in zip("XYN", r2)}}
+    r2 = 1 - np.sum(res**2, axis=0) / np.sum((y - y.mean(axis=0)) ** 2, axis=0)
+    return p, {
+        "names": [model.param_names[i] for i in lin],
+        "n_samples": int(y.shape[0]),
+        "r2": {k: float(v) for k, v in zip("XYN", r2)},
+    }

@@ -53,6 +53,7 @@ The generated module is written once per lane count to :func:`bayesid.models.cod
 (:func:`bayesid.models.codegen.load_module`), named by the hash of its source, and compiled by
 numba with ``cache=True``, so the compile is paid once per machine.
 """
+
 from __future__ import annotations
 
 import re
@@ -289,8 +290,25 @@ _LHS = re.compile(r"^(\w+)\s*=", re.M)
 _ROW_NAMES = set(_LHS.findall(_ROW)) | {"p", "b"}
 _STEP_NAMES = set(_LHS.findall(_STEP))
 # Names the inliner leaves alone: Python, the math module, the shared arrays and loop variables.
-_KEEP = {"math", "abs", "min", "max", "if", "elif", "else", "and", "or", "not", "True", "False",
-         "inputs", "cur", "k", "wn", "we"}
+_KEEP = {
+    "math",
+    "abs",
+    "min",
+    "max",
+    "if",
+    "elif",
+    "else",
+    "and",
+    "or",
+    "not",
+    "True",
+    "False",
+    "inputs",
+    "cur",
+    "k",
+    "wn",
+    "we",
+}
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
 #: RK4: stage s is evaluated at the state plus _FAC[s] times the previous stage's derivative
 _FAC = {2: "h2", 3: "h2", 4: "dt"}
@@ -306,13 +324,15 @@ def _rhs_statements(stage: int) -> list[str]:
     quad = []
     for j in range(gx.size // 2):
         x, c = float(-gx[j]), float(gw[j])
-        quad += [f"xr{j} = h * {x!r} * r",
-                 f"wp{j} = v + xr{j}",
-                 f"wm{j} = v - xr{j}",
-                 f"fp{j} = wp{j} * abs(wp{j})",
-                 f"fm{j} = wm{j} * abs(wm{j})",
-                 f"i0 += {c!r} * (fp{j} + fm{j})",
-                 f"i1 += {c!r} * h * {x!r} * (fp{j} - fm{j})"]
+        quad += [
+            f"xr{j} = h * {x!r} * r",
+            f"wp{j} = v + xr{j}",
+            f"wm{j} = v - xr{j}",
+            f"fp{j} = wp{j} * abs(wp{j})",
+            f"fm{j} = wm{j} * abs(wm{j})",
+            f"i0 += {c!r} * (fp{j} + fm{j})",
+            f"i1 += {c!r} * h * {x!r} * (fp{j} - fm{j})",
+        ]
     blocks = [_RHS_HEADING if stage == 1 else _RHS_HEADING_ADD, _RHS_HEAD, _RHS_WIND, _RHS_HULL, _RHS_WIND_ADD]
     return [s for b in blocks for s in _split(b)] + quad + _split(_RHS_TAIL) + _split(_RHS_ACC)
 
@@ -346,8 +366,16 @@ def _stage_name(stage: int, lane: int):
     """Renamer of the right-hand side at RK4 ``stage`` (1..4) of ``lane``: the state is the
     lane's (stage 1) or the stage's, constants the lane's, locals the stage's; ``cps1``,
     ``sps1`` are stage 1's, ``rprev`` the previous stage's yaw rate and ``fac`` its RK4 factor."""
-    special = {} if stage == 1 else {"cps1": f"cps_s1_{lane}", "sps1": f"sps_s1_{lane}", "fac": _FAC[stage],
-                                     "rprev": f"r_{lane}" if stage == 2 else f"r_s{stage - 1}_{lane}"}
+    special = (
+        {}
+        if stage == 1
+        else {
+            "cps1": f"cps_s1_{lane}",
+            "sps1": f"sps_s1_{lane}",
+            "fac": _FAC[stage],
+            "rprev": f"r_{lane}" if stage == 2 else f"r_s{stage - 1}_{lane}",
+        }
+    )
 
     def fn(nm):
         if nm in _KEEP:
@@ -359,6 +387,7 @@ def _stage_name(stage: int, lane: int):
         if nm in _ROW_NAMES or nm in _STEP_NAMES:
             return f"{nm}_{lane}"
         return f"{nm}_s{stage}_{lane}"
+
     return fn
 
 
@@ -369,17 +398,21 @@ def _kernel_source(lanes: int) -> str:
     P1, P2 = " " * 4, " " * 8
     body = []
     for lane in range(K):
-        body += [f"b_{lane} = min(g * {K} + {lane}, B - 1)",
-                 f"live_{lane} = g * {K} + {lane} < B",
-                 f"p_{lane} = prm[b_{lane}]"]
+        body += [
+            f"b_{lane} = min(g * {K} + {lane}, B - 1)",
+            f"live_{lane} = g * {K} + {lane} < B",
+            f"p_{lane} = prm[b_{lane}]",
+        ]
     for stmt in _split(_ROW):
         for lane in range(K):
             body.append(_rename(stmt, _lane_name(lane)))
     for lane in range(K):
         body += [f"{s}_{lane} = s0[b_{lane}, w, {i}]" for i, s in enumerate(_STATES)]
-        body += [f"if live_{lane}:",
-                 f"    status[b_{lane}, w] = 0",
-                 *(f"    out[b_{lane}, row0, {i}] = {s}_{lane}" for i, s in enumerate(_STATES))]
+        body += [
+            f"if live_{lane}:",
+            f"    status[b_{lane}, w] = 0",
+            *(f"    out[b_{lane}, row0, {i}] = {s}_{lane}" for i, s in enumerate(_STATES)),
+        ]
     step = ["wn = wind[k, 0]", "we = wind[k, 1]"]
     for stmt in _split(_STEP):
         for lane in range(K):
@@ -387,26 +420,34 @@ def _kernel_source(lanes: int) -> str:
     for stage in range(1, 5):
         if stage > 1:  # the stage's state (x and y do not enter the right-hand side)
             for lane in range(K):
-                step += [f"{s}_s{stage}_{lane} = {s}_{lane} + {_FAC[stage]} * D{i}_s{stage - 1}_{lane}"
-                         for i, s in enumerate(_STATES) if i >= 2]
+                step += [
+                    f"{s}_s{stage}_{lane} = {s}_{lane} + {_FAC[stage]} * D{i}_s{stage - 1}_{lane}"
+                    for i, s in enumerate(_STATES)
+                    if i >= 2
+                ]
         for stmt in _rhs_statements(stage):
             for lane in range(K):
                 step.append(_rename(stmt, _stage_name(stage, lane)))
     for lane in range(K):
-        step += [f"{s}_{lane} = {s}_{lane} + dt6 * (D{i}_s1_{lane} + 2.0 * D{i}_s2_{lane} + 2.0 * D{i}_s3_{lane}"
-                 f" + D{i}_s4_{lane})" for i, s in enumerate(_STATES)]
+        step += [
+            f"{s}_{lane} = {s}_{lane} + dt6 * (D{i}_s1_{lane} + 2.0 * D{i}_s2_{lane} + 2.0 * D{i}_s3_{lane}"
+            f" + D{i}_s4_{lane})"
+            for i, s in enumerate(_STATES)
+        ]
         fin = " and ".join(f"math.isfinite({s}_{lane})" for s in _STATES)
-        step += [f"if live_{lane}:",
-                 f"    if not ({fin}) or abs(u_{lane}) > 50.0 or abs(v_{lane}) > 50.0 or abs(r_{lane}) > 10.0:",
-                 f"        status[b_{lane}, w] = 1",
-                 "        for j in range(row, row1 + 1):",
-                 "            for i in range(6):",
-                 f"                out[b_{lane}, j, i] = np.nan",
-                 f"        live_{lane} = False",
-                 # a finished lane restarts from its start state (finite; its results are ignored)
-                 *(f"        {s}_{lane} = s0[b_{lane}, w, {i}]" for i, s in enumerate(_STATES)),
-                 "    else:",
-                 *(f"        out[b_{lane}, row, {i}] = {s}_{lane}" for i, s in enumerate(_STATES))]
+        step += [
+            f"if live_{lane}:",
+            f"    if not ({fin}) or abs(u_{lane}) > 50.0 or abs(v_{lane}) > 50.0 or abs(r_{lane}) > 10.0:",
+            f"        status[b_{lane}, w] = 1",
+            "        for j in range(row, row1 + 1):",
+            "            for i in range(6):",
+            f"                out[b_{lane}, j, i] = np.nan",
+            f"        live_{lane} = False",
+            # a finished lane restarts from its start state (finite; its results are ignored)
+            *(f"        {s}_{lane} = s0[b_{lane}, w, {i}]" for i, s in enumerate(_STATES)),
+            "    else:",
+            *(f"        out[b_{lane}, row, {i}] = {s}_{lane}" for i, s in enumerate(_STATES)),
+        ]
     any_live = " or ".join(f"live_{lane}" for lane in range(K))
     return f'''
 @nb.njit(cache=True, error_model="numpy")

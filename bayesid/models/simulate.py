@@ -4,6 +4,7 @@ The expensive part is one call of the compiled kernel :func:`bayesid.models.dyna
 everything that does not change between calls (active terms, scales, inputs) is prepared once in
 :class:`Simulator`, so an optimiser or a sampler pays only for the integration.
 """
+
 from __future__ import annotations
 
 import time
@@ -12,9 +13,9 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from . import codegen, dynamics
 from ..data import terms
 from ..data.track import INPUT_NAMES, STATE_NAMES, Track
+from . import codegen, dynamics
 
 MODES = ("6dof", "horizontal")
 _PLANE = [0, 1, 5]  # u, v, r rows/columns of the mass matrix
@@ -48,8 +49,9 @@ class Manoeuvre:
         for j, ch in enumerate(INPUT_NAMES):
             bad = np.flatnonzero(~np.isfinite(inp[:, j]))
             if bad.size:
-                raise ValueError(f"manoeuvre {self.name}: input {ch} is not finite at step {bad[0]} "
-                                 f"(t = {bad[0] * self.dt:g} s)")
+                raise ValueError(
+                    f"manoeuvre {self.name}: input {ch} is not finite at step {bad[0]} (t = {bad[0] * self.dt:g} s)"
+                )
         s0 = np.asarray(self.initial_state, dtype=float)
         if s0.shape != (12,) or not np.all(np.isfinite(s0)):
             raise ValueError(f"manoeuvre {self.name}: initial_state must be 12 finite numbers")
@@ -125,8 +127,15 @@ class Simulator:
     Attributes ``n_tracks`` and ``sim_seconds`` count the work done (for the SQP monitor).
     """
 
-    def __init__(self, vehicle, manoeuvre: Manoeuvre, free=(), mode: str = "6dof",
-                 sample_every: int = 1, kernel: str = "generated"):
+    def __init__(
+        self,
+        vehicle,
+        manoeuvre: Manoeuvre,
+        free=(),
+        mode: str = "6dof",
+        sample_every: int = 1,
+        kernel: str = "generated",
+    ):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if kernel not in codegen.KINDS:
@@ -145,8 +154,10 @@ class Simulator:
                     raise ValueError(f"coefficient {name} does not act in the horizontal plane")
             planes = np.flatnonzero(np.any(manoeuvre.inputs[:, 1:3] != 0.0, axis=0))
             if planes.size:
-                raise ValueError(f"manoeuvre {manoeuvre.name}: horizontal mode ignores stern and bow "
-                                 f"planes, but {INPUT_NAMES[1 + planes[0]]} is non-zero; use mode='6dof'")
+                raise ValueError(
+                    f"manoeuvre {manoeuvre.name}: horizontal mode ignores stern and bow "
+                    f"planes, but {INPUT_NAMES[1 + planes[0]]} is non-zero; use mode='6dof'"
+                )
         self.vehicle, self.manoeuvre, self.mode = vehicle, manoeuvre, mode
         self.free = free
         self.sample_every = int(sample_every)
@@ -155,9 +166,13 @@ class Simulator:
         self.s0 = s0
         self.base = vehicle.coefficient_vector()  # (n_terms,) prime
         free_set = set(free)
-        self.force_names = [t.name for t in terms.TERMS if t.kind == "force"
-                            and (self.base[terms.INDEX[t.name]] != 0.0 or t.name in free_set)
-                            and (mode == "6dof" or t.horizontal)]
+        self.force_names = [
+            t.name
+            for t in terms.TERMS
+            if t.kind == "force"
+            and (self.base[terms.INDEX[t.name]] != 0.0 or t.name in free_set)
+            and (mode == "6dof" or t.horizontal)
+        ]
         # term encoding of the interpreted kernels (closed-loop manoeuvres use them directly)
         self.tfac, self.tdof = terms.factor_table(self.force_names)
         self.kernel_kind = kernel
@@ -167,12 +182,12 @@ class Simulator:
         self._free_idx = np.array([terms.INDEX[n] for n in free], dtype=np.int64)
         self._am = [(terms.INDEX[n], terms.term(n)) for n in terms.names_where(kind="added_mass")]
         self._M0 = vehicle.mass_matrix({})  # rigid body only
-        self._am_scale = np.array([0.5 * vehicle.rho * vehicle.L ** t.L_power for _, t in self._am])
+        self._am_scale = np.array([0.5 * vehicle.rho * vehicle.L**t.L_power for _, t in self._am])
         self.vp = dynamics.vehicle_params(vehicle)
         self.xs, self.ws = dynamics.crossflow_strips(vehicle)
         self.n_samples = manoeuvre.n_steps // self.sample_every + 1
-        self.t = manoeuvre.t[::self.sample_every]
-        self.inputs_sampled = np.vstack([manoeuvre.inputs, manoeuvre.inputs[-1:]])[::self.sample_every]
+        self.t = manoeuvre.t[:: self.sample_every]
+        self.inputs_sampled = np.vstack([manoeuvre.inputs, manoeuvre.inputs[-1:]])[:: self.sample_every]
         self.n_tracks = 0
         self.sim_seconds = 0.0
 
@@ -242,8 +257,11 @@ class Simulator:
         """
         tcoef, Minv = self.kernel_arrays(theta_free)
         B = tcoef.shape[0]
-        s0 = np.repeat(self.s0[None], B, axis=0) if initial_states is None else \
-            np.ascontiguousarray(np.broadcast_to(initial_states, (B, 12)), dtype=float)
+        s0 = (
+            np.repeat(self.s0[None], B, axis=0)
+            if initial_states is None
+            else np.ascontiguousarray(np.broadcast_to(initial_states, (B, 12)), dtype=float)
+        )
         out = np.empty((B, self.n_samples, 12))
         status = np.empty(B, dtype=np.int64)
         fail = np.empty(B, dtype=np.int64)
@@ -253,8 +271,20 @@ class Simulator:
         n_threads = numba.get_num_threads()
         numba.set_num_threads(max(1, min(B, numba.config.NUMBA_NUM_THREADS)))
         try:
-            self.kernel.simulate_batch(s0, self.manoeuvre.inputs, self.manoeuvre.dt, self.sample_every,
-                                       self.vp, tcoef, Minv, self.xs, self.ws, out, status, fail)
+            self.kernel.simulate_batch(
+                s0,
+                self.manoeuvre.inputs,
+                self.manoeuvre.dt,
+                self.sample_every,
+                self.vp,
+                tcoef,
+                Minv,
+                self.xs,
+                self.ws,
+                out,
+                status,
+                fail,
+            )
         finally:
             numba.set_num_threads(n_threads)
         self.sim_seconds += time.perf_counter() - tic

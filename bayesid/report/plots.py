@@ -1,5 +1,6 @@
 """Figures for reports (matplotlib, Agg backend). No algorithm lives here: every function takes
 results already computed and writes one PNG."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -90,8 +91,15 @@ def coefficient_ratios(names, start, converged, known, path, title: str = "", lo
         k = sum(terms.term(n).group == g for n in order)
         if pos:
             ax.axvline(pos - 0.5, color="0.5", ls="--", lw=0.8)
-        ax.text(pos + k / 2 - 0.5, 1.0, f"{g} coefficients", ha="center", va="bottom",
-                transform=ax.get_xaxis_transform(), fontsize=9)
+        ax.text(
+            pos + k / 2 - 0.5,
+            1.0,
+            f"{g} coefficients",
+            ha="center",
+            va="bottom",
+            transform=ax.get_xaxis_transform(),
+            fontsize=9,
+        )
         pos += k
     ax.set_xticks(xs, order, rotation=70, fontsize=8)
     ax.set_ylabel("estimated / true")
@@ -134,8 +142,7 @@ def singular_values(svals: dict, path, title: str = ""):
     return _save(fig, path)
 
 
-def walker_traces(chains: np.ndarray, names, show, path, burn: int = 0, truth: dict | None = None,
-                  title: str = ""):
+def walker_traces(chains: np.ndarray, names, show, path, burn: int = 0, truth: dict | None = None, title: str = ""):
     """Trace of every walker for the coefficients ``show``; colour = ensemble.
 
     chains : (n_ensembles, n_steps, n_walkers, P) prime values.   burn : steps shaded as burn-in.
@@ -189,8 +196,9 @@ def rank_histograms(draws: dict, path, title: str = ""):
     return _save(fig, path)
 
 
-def pair_scatter(samples: np.ndarray, names, pairs, path, truth: dict | None = None,
-                 bounds: dict | None = None, title: str = ""):
+def pair_scatter(
+    samples: np.ndarray, names, pairs, path, truth: dict | None = None, bounds: dict | None = None, title: str = ""
+):
     """2-D posterior scatter for each (a, b) of ``pairs``; truth as a star, prior box dashed.
 
     samples (N, P) prime values; bounds name -> (lo, hi) for uniform priors.
@@ -238,7 +246,7 @@ def fim_spectra(spectra: dict, path, prior_level: dict | None = None, title: str
     for i, (label, lam) in enumerate(spectra.items()):
         lam = np.sort(np.asarray(lam, dtype=float))[::-1]
         sd = np.where(lam > 0, 1.0 / np.sqrt(np.clip(lam, 1e-300, None)), np.nan)
-        line, = ax.semilogy(np.arange(1, lam.size + 1), sd, "o-", ms=4, label=label)
+        (line,) = ax.semilogy(np.arange(1, lam.size + 1), sd, "o-", ms=4, label=label)
         if prior_level and label in prior_level:
             ax.axhline(prior_level[label], color=line.get_color(), ls="--", lw=0.8)
     ax.set_xlabel("eigen-direction (stiffest first)")
@@ -304,13 +312,25 @@ def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), pre
     A = np.array([[matrix[a][b] for b in cols] for a in rows], dtype=float)
     fig, ax = plt.subplots(figsize=(0.8 * len(cols) + 3, 0.45 * len(rows) + 1.8))
     from matplotlib.colors import LogNorm
+
     pos = A[np.isfinite(A) & (A > 0)]
-    im = ax.imshow(np.where(A > 0, A, np.nan), cmap="magma_r", aspect="auto",
-                   norm=LogNorm(vmin=max(pos.min(), 1e-3), vmax=pos.max()) if pos.size else None)
+    im = ax.imshow(
+        np.where(A > 0, A, np.nan),
+        cmap="magma_r",
+        aspect="auto",
+        norm=LogNorm(vmin=max(pos.min(), 1e-3), vmax=pos.max()) if pos.size else None,
+    )
     for i in range(len(rows)):
         for j in range(len(cols)):
-            ax.text(j, i, f"{A[i, j]:.2g}", ha="center", va="center", fontsize=6,
-                    color="w" if pos.size and A[i, j] > np.sqrt(pos.min() * pos.max()) else "k")
+            ax.text(
+                j,
+                i,
+                f"{A[i, j]:.2g}",
+                ha="center",
+                va="center",
+                fontsize=6,
+                color="w" if pos.size and A[i, j] > np.sqrt(pos.min() * pos.max()) else "k",
+            )
     ax.set_xticks(range(len(cols)), cols, rotation=60, fontsize=7, ha="right")
     ax.set_yticks(range(len(rows)), rows, fontsize=7)
     fig.colorbar(im, ax=ax, shrink=0.8, label="RMS position error, m")
@@ -320,8 +340,7 @@ def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), pre
 
 def design_inputs(manoeuvres: dict, path, title: str = "Rudder inputs: spiral and designed manoeuvres"):
     """Rudder angle (deg) against time for each manoeuvre (label -> Manoeuvre)."""
-    fig, axes = plt.subplots(len(manoeuvres), 1, figsize=(8, 1.7 * len(manoeuvres) + 0.6), sharex=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(len(manoeuvres), 1, figsize=(8, 1.7 * len(manoeuvres) + 0.6), sharex=True, squeeze=False)
     for a, (label, m) in zip(axes[:, 0], manoeuvres.items()):
         a.step(np.arange(m.n_steps) * m.dt, np.degrees(m.inputs[:, 0]), where="post", lw=0.8)
         a.set_ylabel("rudder, deg", fontsize=8)
@@ -348,12 +367,29 @@ def predicted_vs_measured(design: dict, path, title: str = "Designed / spiral: p
     return _save(fig, path)
 
 
-__all__ = ["inclusion_heatmap", "cross_prediction", "design_inputs", "predicted_vs_measured", "track_xy", "inputs_time", "position_error", "coefficient_ratios", "convergence",
-           "singular_values", "walker_traces", "rank_histograms", "pair_scatter", "correlation_heatmap",
-           "fim_spectra", "marginals_vs_truth"]
+__all__ = [
+    "inclusion_heatmap",
+    "cross_prediction",
+    "design_inputs",
+    "predicted_vs_measured",
+    "track_xy",
+    "inputs_time",
+    "position_error",
+    "coefficient_ratios",
+    "convergence",
+    "singular_values",
+    "walker_traces",
+    "rank_histograms",
+    "pair_scatter",
+    "correlation_heatmap",
+    "fim_spectra",
+    "marginals_vs_truth",
+]
 
 
-def gap_ranking(ranking: list, before: float, floor: float, path, title: str = "Candidates: held-out RMS position error"):
+def gap_ranking(
+    ranking: list, before: float, floor: float, path, title: str = "Candidates: held-out RMS position error"
+):
     """Horizontal bars of each candidate's held-out RMS (m) with the base model and noise floor."""
     names = [r["effect"] for r in ranking]
     vals = [r["heldout_rms_m"] for r in ranking]
@@ -458,11 +494,16 @@ def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
     ax = axes[0, 0]
     floor = max(1e-8, summary["cost_tolerance"] * 1e-3)
     ax.semilogy(np.arange(1, costs.size + 1), np.maximum(rel, floor), "o-", ms=4)
-    ax.axhline(summary["cost_tolerance"], ls="--", c="k", lw=0.8, label=f"{100 * summary['cost_tolerance']:g} % of the best")
+    ax.axhline(
+        summary["cost_tolerance"], ls="--", c="k", lw=0.8, label=f"{100 * summary['cost_tolerance']:g} % of the best"
+    )
     ax.set_xlabel("start, sorted by final cost")
     ax.set_ylabel("cost / best cost - 1")
-    ax.set_title(f"{summary['n_near_best']} of {summary['n_starts']} starts within tolerance, "
-                 f"{summary['n_distinct_near_best']} distinct", fontsize=9)
+    ax.set_title(
+        f"{summary['n_near_best']} of {summary['n_starts']} starts within tolerance, "
+        f"{summary['n_distinct_near_best']} distinct",
+        fontsize=9,
+    )
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     if circles:
@@ -479,8 +520,12 @@ def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
     return _save(fig, path)
 
 
-def reliability(coverage: dict, path, parameter_only: dict | None = None,
-                title: str = "Predictive bands: nominal vs empirical coverage"):
+def reliability(
+    coverage: dict,
+    path,
+    parameter_only: dict | None = None,
+    title: str = "Predictive bands: nominal vs empirical coverage",
+):
     """Reliability diagram: for each group of claims (``coverage``: {group: {level: {"coverage",
     "n"}}}), the fraction of measured values inside the band against the band's nominal level;
     the diagonal is perfect calibration. ``parameter_only`` ({"nominal", "coverage", "n"}) adds
@@ -494,8 +539,14 @@ def reliability(coverage: dict, path, parameter_only: dict | None = None,
         ys = [cov[str(a)]["coverage"] for a in lv]
         ax.plot(lv, ys, marker=mk, label=f"{group} (n = {cov[str(lv[0])]['n']})")
     if parameter_only and parameter_only.get("coverage") is not None:
-        ax.plot([parameter_only["nominal"]], [parameter_only["coverage"]], "rx", ms=10, mew=2,
-                label=f"posterior draws alone, 5-95 % (n = {parameter_only['n']})")
+        ax.plot(
+            [parameter_only["nominal"]],
+            [parameter_only["coverage"]],
+            "rx",
+            ms=10,
+            mew=2,
+            label=f"posterior draws alone, 5-95 % (n = {parameter_only['n']})",
+        )
     ax.set_xlim(0.4, 1.0)
     ax.set_ylim(0.0, 1.02)
     ax.set_xlabel("nominal coverage")
@@ -506,8 +557,18 @@ def reliability(coverage: dict, path, parameter_only: dict | None = None,
     return _save(fig, path)
 
 
-def prediction_band(t, measured: dict, predicted: dict, win, rudder, radius_m: float | None, heading_deg: float | None,
-                    path, level: float = 0.9, title: str = ""):
+def prediction_band(
+    t,
+    measured: dict,
+    predicted: dict,
+    win,
+    rudder,
+    radius_m: float | None,
+    heading_deg: float | None,
+    path,
+    level: float = 0.9,
+    title: str = "",
+):
     """Time histories of a windowed prediction with its calibrated band: plan view (measured
     track, predicted windows, a circle of ``radius_m`` round each window's end: the band the
     track must stay within), heading (prediction +- ``heading_deg``, shaded) and rudder angle.
@@ -520,13 +581,26 @@ def prediction_band(t, measured: dict, predicted: dict, win, rudder, radius_m: f
     cut = np.flatnonzero(np.diff(win) != 0) + 1
     ends = np.append(cut - 1, t.size - 1)
     for k, (a, b) in enumerate(zip(np.insert(cut, 0, 0), np.append(cut, t.size))):
-        ax.plot(predicted["y"][a:b], predicted["x"][a:b], "tab:blue", lw=1.0,
-                label="prediction (window protocol)" if k == 0 else None)
+        ax.plot(
+            predicted["y"][a:b],
+            predicted["x"][a:b],
+            "tab:blue",
+            lw=1.0,
+            label="prediction (window protocol)" if k == 0 else None,
+        )
     if radius_m is not None and np.isfinite(radius_m):
         for k, e in enumerate(ends):
-            ax.add_patch(plt.Circle((predicted["y"][e], predicted["x"][e]), radius_m, fill=False, color="tab:blue",
-                                    alpha=0.5, lw=0.8, label=f"{100 * level:g} % band radius {radius_m:.3g} m"
-                                    if k == 0 else None))
+            ax.add_patch(
+                plt.Circle(
+                    (predicted["y"][e], predicted["x"][e]),
+                    radius_m,
+                    fill=False,
+                    color="tab:blue",
+                    alpha=0.5,
+                    lw=0.8,
+                    label=f"{100 * level:g} % band radius {radius_m:.3g} m" if k == 0 else None,
+                )
+            )
     ax.set_xlabel("y (east), m")
     ax.set_ylabel("x (north), m")
     ax.set_aspect("equal", adjustable="datalim")
@@ -541,8 +615,14 @@ def prediction_band(t, measured: dict, predicted: dict, win, rudder, radius_m: f
     for k, (a, b) in enumerate(zip(np.insert(cut, 0, 0), np.append(cut, t.size))):
         ax2.plot(t[a:b], psi_p[a:b], "tab:blue", lw=1.0, label="prediction" if k == 0 else None)
         if heading_deg is not None and np.isfinite(heading_deg):
-            ax2.fill_between(t[a:b], psi_p[a:b] - heading_deg, psi_p[a:b] + heading_deg, color="tab:blue", alpha=0.2,
-                             label=f"{100 * level:g} % band" if k == 0 else None)
+            ax2.fill_between(
+                t[a:b],
+                psi_p[a:b] - heading_deg,
+                psi_p[a:b] + heading_deg,
+                color="tab:blue",
+                alpha=0.2,
+                label=f"{100 * level:g} % band" if k == 0 else None,
+            )
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)

@@ -23,23 +23,36 @@ world = {"current": {"current_north_mps": 0.15, "current_east_mps": -0.1}}
 zigzag20 = mv.zigzag(vehicle, 20.0, duration=150.0)
 turn20 = mv.turning_circle(vehicle, 20.0, duration=150.0)
 zigzag10 = mv.zigzag(vehicle, 10.0, duration=150.0, first_sign=-1)
-train = [ef.world_track(vehicle, zigzag20, world, rng, name="zigzag20"),
-         ef.world_track(vehicle, turn20, world, rng, name="turn20")]
+train = [
+    ef.world_track(vehicle, zigzag20, world, rng, name="zigzag20"),
+    ef.world_track(vehicle, turn20, world, rng, name="turn20"),
+]
 heldout = [ef.world_track(vehicle, zigzag10, world, rng, name="zigzag10")]
 
 # %%
 # The diagnosis
 # -------------
-d = diagnose(vehicle, ["Yv", "Nr", "Ndr"], train, heldout,
-             candidates=["current", "thrust", "delay"], window_s=60.0,
-             rng=np.random.default_rng(0), max_nfev=30, max_effects=1)
+d = diagnose(
+    vehicle,
+    ["Yv", "Nr", "Ndr"],
+    train,
+    heldout,
+    candidates=["current", "thrust", "delay"],
+    window_s=60.0,
+    rng=np.random.default_rng(0),
+    max_nfev=30,
+    max_effects=1,
+)
 print(f"verdict: {d.verdict}")
-print(f"held-out RMS position error {d.gap_before['heldout_rms_m']:.3f} m"
-      f" -> {d.gap_after['heldout_rms_m']:.3f} m;"
-      f" noise floor {d.noise_floor['heldout_rms_m']:.3f} m")
+print(
+    f"held-out RMS position error {d.gap_before['heldout_rms_m']:.3f} m"
+    f" -> {d.gap_after['heldout_rms_m']:.3f} m;"
+    f" noise floor {d.noise_floor['heldout_rms_m']:.3f} m"
+)
 for row in d.ranking:
-    print(f"{row['effect']:8s} held-out {row['heldout_rms_m']:.3f} m,"
-          f" dBIC {row['delta_bic']:11.1f}, role {row['role']}")
+    print(
+        f"{row['effect']:8s} held-out {row['heldout_rms_m']:.3f} m, dBIC {row['delta_bic']:11.1f}, role {row['role']}"
+    )
 
 # %%
 # The fitted current against the one the world had: the diagnosis never saw the truth.

@@ -25,12 +25,13 @@ from bayesid.models.simulate import Simulator
 vehicle = load_vehicle("nps_auv2")
 rng = np.random.default_rng(7)
 FREE = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
-NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}   # m, m, rad
+NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}  # m, m, rad
 
 manoeuvre = mv.zigzag(vehicle, 20.0, duration=150.0)
 truth = vehicle.coefficient_vector(FREE)
-measured = add_noise(Simulator(vehicle, manoeuvre, mode="horizontal", sample_every=10).run().track(0),
-                     NOISE, rng)                     # sampled at 1 s, noise on x, y, psi
+measured = add_noise(
+    Simulator(vehicle, manoeuvre, mode="horizontal", sample_every=10).run().track(0), NOISE, rng
+)  # sampled at 1 s, noise on x, y, psi
 
 # %%
 # The fit
@@ -55,7 +56,7 @@ for name, s, p in zip(FREE, start, result.p):
 theta = problem.theta(result.p)
 S = ident.relative_sensitivity(problem, theta)
 F = ident.fisher_information(S, problem.noise_vector(NOISE))
-directions = ident.eigen_directions(F, FREE)   # sloppiest first
+directions = ident.eigen_directions(F, FREE)  # sloppiest first
 for d in directions:
     print(f"Cramer-Rao sd {100 * d.sd_relative:8.3f} %  along  {d.label()}")
 print(f"condition number {ident.condition_number(F):.3g}")
@@ -72,8 +73,11 @@ corr = cov / np.outer(sd, sd)
 fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
 lam = np.sort(np.linalg.eigvalsh(F))[::-1]
 ax.semilogy(range(1, len(lam) + 1), 1.0 / np.sqrt(lam), "o-")
-ax.set(xlabel="eigen-direction (best determined first)", ylabel="Cramer-Rao sd, relative",
-       title="how well each direction is determined")
+ax.set(
+    xlabel="eigen-direction (best determined first)",
+    ylabel="Cramer-Rao sd, relative",
+    title="how well each direction is determined",
+)
 im = ax2.imshow(corr, vmin=-1, vmax=1, cmap="RdBu_r")
 ax2.set_xticks(range(6), FREE)
 ax2.set_yticks(range(6), FREE)

@@ -38,7 +38,7 @@ from bayesid.data.vehicle import load_vehicle
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 
-RHO, L = 1030.0, 1.33            # kg/m^3, m (Prestero's sea water and hull length)
+RHO, L = 1030.0, 1.33  # kg/m^3, m (Prestero's sea water and hull length)
 
 PRESTERO = [  # (thesis name, value, unit, bayesid name)
     ("Xudot", -0.93, "kg", "Xudot"),
@@ -86,9 +86,9 @@ PRESTERO = [  # (thesis name, value, unit, bayesid name)
     ("Nrdot", -4.88, "kg m^2/rad", "Nrdot"),
     ("Nuudr", -6.15, "kg/rad", "Ndr"),
 ]
-XUABSU = -1.62       # kg/m, axial drag X = Xuabsu * u|u|
-XPROP = 3.86         # N, constant thrust at the nominal shaft speed
-KPROP = -0.543       # N m, constant propeller torque
+XUABSU = -1.62  # kg/m, axial drag X = Xuabsu * u|u|
+XPROP = 3.86  # N, constant thrust at the nominal shaft speed
+KPROP = -0.543  # N m, constant propeller torque
 
 # %%
 # Dimensional to prime
@@ -118,11 +118,13 @@ for name, why in left_out:
 # speed.
 RPM = 1500.0
 cd0 = -XUABSU / (0.5 * RHO * L**2)
-u_nominal = math.sqrt(XPROP / -XUABSU)                   # m/s, where thrust = drag
+u_nominal = math.sqrt(XPROP / -XUABSU)  # m/s, where thrust = drag
 uc_per_omega = u_nominal / (RPM * 2.0 * math.pi / 60.0)  # m per rad/s
 prime["Kprop"] = KPROP / (0.5 * RHO * L ** terms.term("Kprop").L_power * u_nominal**2)
-print(f"Cd0 = {cd0:.6g}, nominal speed {u_nominal:.4f} m/s, uc_per_omega = {uc_per_omega:.6g} m, "
-      f"Kprop = {prime['Kprop']:.6g}")
+print(
+    f"Cd0 = {cd0:.6g}, nominal speed {u_nominal:.4f} m/s, uc_per_omega = {uc_per_omega:.6g} m, "
+    f"Kprop = {prime['Kprop']:.6g}"
+)
 
 # %%
 # The vehicle file
@@ -194,7 +196,7 @@ def vehicle_toml() -> str:
         'path = "REMUS.m"',
         'commit = "7fc6641dd154ad0c8c7c096627443f90cc9c2843"',
         'notes = "Yvabsv = -131 kg/m (printed -1310, taken as a x10 typo: it equals Zwabsw by the '
-        'thesis method). Buoyancy set to the weight (W = B). Dimensional to prime by '
+        "thesis method). Buoyancy set to the weight (W = B). Dimensional to prime by "
         'docs/examples/plot_remus100.py."',
     ]
     return "\n".join(lines) + "\n"
@@ -208,7 +210,7 @@ if "--write" in sys.argv[1:]:
     print(f"wrote {path}")
 elif path.read_text() != text:
     raise SystemExit(f"{path} is not this conversion's output: run this script with --write")
-print(text[text.index("[coefficients]"):text.index("[propulsion]")])
+print(text[text.index("[coefficients]") : text.index("[propulsion]")])
 
 # %%
 # Load and fly it
@@ -223,8 +225,10 @@ for angle in (5.0, 10.0, 15.0):
     res = Simulator(remus, m, mode="horizontal").run()
     s = res.states[0]
     radius = s[-1, 6] / abs(s[-1, 11])  # steady turn: R = U / r (u >> v)
-    print(f"rudder {angle:4.1f} deg: steady u = {s[-1, 6]:.3f} m/s, r = {math.degrees(s[-1, 11]):.1f} deg/s, "
-          f"radius about {radius:.1f} m")
+    print(
+        f"rudder {angle:4.1f} deg: steady u = {s[-1, 6]:.3f} m/s, r = {math.degrees(s[-1, 11]):.1f} deg/s, "
+        f"radius about {radius:.1f} m"
+    )
     ax.plot(s[:, 1], s[:, 0], label=f"{angle:g} deg, R = {radius:.1f} m")
 ax.set(xlabel="y (east), m", ylabel="x (north), m", title="REMUS 100 turning circles", aspect="equal")
 ax.legend(fontsize=8)

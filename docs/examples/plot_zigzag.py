@@ -16,7 +16,7 @@ from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 
 vehicle = load_vehicle("nps_auv2")
-zigzag = mv.zigzag(vehicle, 20.0, duration=150.0)   # rudder 20 deg, reversed at 20 deg heading change
+zigzag = mv.zigzag(vehicle, 20.0, duration=150.0)  # rudder 20 deg, reversed at 20 deg heading change
 print(zigzag.description)
 
 # %%

@@ -1,5 +1,6 @@
 """Stand-in logs: the simulated tracks with sensor noise (positions 2 cm, heading 0.2 deg,
 DVL velocities 5 mm/s, gyro 0.1 deg/s)."""
+
 from pathlib import Path
 
 import numpy as np

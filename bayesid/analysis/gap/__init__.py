@@ -61,11 +61,22 @@ Verdict rules (stated in the report):
   (fraction of the base excess, significant or not); ``contributors`` lists every effect that
   passed the contributor test (added or not) with its share, p-value, ΔBIC and parameters.
 """
+
 from .candidates import Stage
 from .diagnose import Diagnosis, diagnose
 from .support import signature_regression
 from .verdict import Thresholds, noise_floor, paired_window_test
 from .where import ljung_box, where, window_xy
 
-__all__ = ["Diagnosis", "Stage", "Thresholds", "diagnose", "ljung_box", "noise_floor", "paired_window_test",
-           "signature_regression", "where", "window_xy"]
+__all__ = [
+    "Diagnosis",
+    "Stage",
+    "Thresholds",
+    "diagnose",
+    "ljung_box",
+    "noise_floor",
+    "paired_window_test",
+    "signature_regression",
+    "where",
+    "window_xy",
+]

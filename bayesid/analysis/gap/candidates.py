@@ -9,6 +9,7 @@ candidate whose effect has a ``neutral`` value nests the model it extends; when 
 worse than that model it is refitted once more from that model's optimum with the effect neutral
 (:func:`nested_start`), so its ΔBIC is at most k ln n.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -19,8 +20,15 @@ from ...estimation.fit import FitResult
 from ...estimation.windows import fit_model, heldout_nuisance, scores, window_rms
 from .verdict import paired_window_test
 
-__all__ = ["Stage", "candidate_starts", "effect_offset", "nested_start", "extended_nuisance", "fit_candidate",
-           "candidate_row"]
+__all__ = [
+    "Stage",
+    "candidate_starts",
+    "effect_offset",
+    "nested_start",
+    "extended_nuisance",
+    "fit_candidate",
+    "candidate_row",
+]
 
 
 @dataclass
@@ -60,8 +68,10 @@ def extended_nuisance(model, ref_model, ref_fit):
     (None when ``model`` has none)."""
     if not model.n_nuisance:
         return None
-    return [np.concatenate([np.asarray(v, float), np.zeros(model.n_nuisance - ref_model.n_nuisance)])
-            for v in ref_fit.nuisance]
+    return [
+        np.concatenate([np.asarray(v, float), np.zeros(model.n_nuisance - ref_model.n_nuisance)])
+        for v in ref_fit.nuisance
+    ]
 
 
 def nested_start(effect, model, ref_model, ref_fit):
@@ -73,8 +83,9 @@ def nested_start(effect, model, ref_model, ref_fit):
     return np.concatenate([ref_fit.p, np.asarray(effect.neutral, float)]), extended_nuisance(model, ref_model, ref_fit)
 
 
-def fit_candidate(effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, seeds: dict, max_nfev: int,
-                  label: str | None = None) -> tuple[Stage | None, list]:
+def fit_candidate(
+    effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, seeds: dict, max_nfev: int, label: str | None = None
+) -> tuple[Stage | None, list]:
     """Fit ``model`` (``ref.model`` plus ``effect``) on the training contexts from every start
     (:func:`candidate_starts`; effects already chosen keep their fitted values), keep the best,
     try the nested start when that is worse than the reference, and score it on the training
@@ -93,10 +104,10 @@ def fit_candidate(effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, 
     """
     messages = []
     best = None
-    for p0, nu0 in candidate_starts(effect, model, ref.fit.p[:ref.model.n_theta], seeds):
+    for p0, nu0 in candidate_starts(effect, model, ref.fit.p[: ref.model.n_theta], seeds):
         if ref.model.effects:  # effects already chosen keep their fitted values as the start
             p0 = p0.copy()
-            p0[:ref.model.n_params] = ref.fit.p
+            p0[: ref.model.n_params] = ref.fit.p
             if nu0 is None and ref.model.n_nuisance:
                 nu0 = extended_nuisance(model, ref.model, ref.fit)
         try:
@@ -118,8 +129,14 @@ def fit_candidate(effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, 
     if best is None:
         return None, messages
     nu_h = heldout_nuisance(model, best, ctx_held, sd_fit) if model.n_nuisance else None
-    return Stage(model, best, scores(model, best, ctx_train, sd=sd_fit), scores(model, best, ctx_held, nu_h, sd=sd_fit),
-                 nu_h, window_rms(model, best, ctx_held, nu_h)), messages
+    return Stage(
+        model,
+        best,
+        scores(model, best, ctx_train, sd=sd_fit),
+        scores(model, best, ctx_held, nu_h, sd=sd_fit),
+        nu_h,
+        window_rms(model, best, ctx_held, nu_h),
+    ), messages
 
 
 def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> dict:
@@ -129,11 +146,17 @@ def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: floa
     shrinkage, its parameters, heading RMS (deg), the paired window test's p-value, cost."""
     excess = ref.held["rms_position_m"] - floor_rms
     gain = ref.held["rms_position_m"] - st.held["rms_position_m"]
-    return {"effect": effect.name, "heldout_rms_m": st.held["rms_position_m"],
-            "train_rms_m": st.train["rms_position_m"],
-            "delta_bic": st.fit.bic - ref.fit.bic, "excess_removed": gain / excess if excess > 0 else 0.0,
-            "share_of_excess": gain / excess0 if excess0 > 0 else 0.0,
-            "heldout_shrinkage": 1 - st.held["rms_position_m"] / ref.held["rms_position_m"],
-            "parameters": st.fit.effect_parameters()[effect.name],
-            "heading_rms_deg": st.held["rms_heading_deg"], "window_p_value": paired_window_test(ref.windows, st.windows),
-            "nfev": st.fit.n_simulations, "fit_seconds": st.fit.wall_s}
+    return {
+        "effect": effect.name,
+        "heldout_rms_m": st.held["rms_position_m"],
+        "train_rms_m": st.train["rms_position_m"],
+        "delta_bic": st.fit.bic - ref.fit.bic,
+        "excess_removed": gain / excess if excess > 0 else 0.0,
+        "share_of_excess": gain / excess0 if excess0 > 0 else 0.0,
+        "heldout_shrinkage": 1 - st.held["rms_position_m"] / ref.held["rms_position_m"],
+        "parameters": st.fit.effect_parameters()[effect.name],
+        "heading_rms_deg": st.held["rms_heading_deg"],
+        "window_p_value": paired_window_test(ref.windows, st.windows),
+        "nfev": st.fit.n_simulations,
+        "fit_seconds": st.fit.wall_s,
+    }

@@ -1,5 +1,6 @@
 """The orchestration of the gap diagnosis: base fit, noise floor, *where*, greedy rounds of
 candidates, verdict, support (the rules: :mod:`bayesid.analysis.gap`)."""
+
 from __future__ import annotations
 
 import time
@@ -7,11 +8,11 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from ...models import effects as ef
 from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.windows import check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
 from ...models import build_model, model_class
+from ...models import effects as ef
 from ...protocol import start_settings
 from ...tasks import Task, TaskError, check_jobs, run_tasks
 from .candidates import Stage, candidate_row, fit_candidate
@@ -86,13 +87,31 @@ class Diagnosis:
         return out
 
 
-def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_s: float | None = 60.0,
-             dt: float | None = None, mode: str = "horizontal", rng=None, max_nfev: int = 60,
-             none_ratio: float = 1.5, explain_fraction: float = 0.5, bic_threshold: float = -10.0,
-             max_effects: int = 2, progress=None, fit_window_s: float | None = None,
-             weighting: str | None = None, partial_p: float = 0.01, start: str = "auto",
-             leadin_s: float | None = None, progress_bars: bool = False, jobs: int = 1,
-             scheduler: str | None = None) -> Diagnosis:
+def diagnose(
+    vehicle,
+    free,
+    train: list,
+    heldout: list,
+    candidates=None,
+    window_s: float | None = 60.0,
+    dt: float | None = None,
+    mode: str = "horizontal",
+    rng=None,
+    max_nfev: int = 60,
+    none_ratio: float = 1.5,
+    explain_fraction: float = 0.5,
+    bic_threshold: float = -10.0,
+    max_effects: int = 2,
+    progress=None,
+    fit_window_s: float | None = None,
+    weighting: str | None = None,
+    partial_p: float = 0.01,
+    start: str = "auto",
+    leadin_s: float | None = None,
+    progress_bars: bool = False,
+    jobs: int = 1,
+    scheduler: str | None = None,
+) -> Diagnosis:
     """Diagnose the sim-to-real gap of a base model (see :mod:`bayesid.analysis.gap`).
 
     Parameters
@@ -159,8 +178,11 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
 
     def build(effects):
         m = build_model(vehicle, free, effects, dt=dt, mode=mode)
-        return (m, [m.context(t, fw, start=rule) for t in train],
-                [m.context(t, window_s, start=rule, leadin_s=lead) for t in heldout])
+        return (
+            m,
+            [m.context(t, fw, start=rule) for t in train],
+            [m.context(t, window_s, start=rule, leadin_s=lead) for t in heldout],
+        )
 
     weighting = weighting or family.DEFAULT_WEIGHTING
     base, ctr, cho = build(())
@@ -174,8 +196,9 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     nominal = FitResult.fixed(base, base.start(), len(train), "nominal")
     # the noise itself, not the weights' lower bound (a 1 mm carriage track is not 1 cm noise)
     sd_raw = pooled_noise_sd(train + heldout, floor=False)
-    floor = min((noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)),
-                key=lambda d: d["rms_position_m"])
+    floor = min(
+        (noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)), key=lambda d: d["rms_position_m"]
+    )
     w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])
     seeds = _seeds(cand_effects, base, bfit, ctr, train)
     significant = b_held["rms_position_m"] > none_ratio * floor["rms_position_m"]
@@ -188,15 +211,17 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         ref = current
         results, stages = [], {}
         todo = [e for e in cand_effects if e.name not in chosen]
-        say(f"round {rnd + 1}: {len(todo)} candidate(s)"
-            + (f" on {scheduler or f'{jobs} workers'}" if parallel else ""))
+        say(
+            f"round {rnd + 1}: {len(todo)} candidate(s)" + (f" on {scheduler or f'{jobs} workers'}" if parallel else "")
+        )
         tasks = []
         for e in todo:
             m, ct, ch = build([c for c in cand_effects if c.name in chosen] + [e])
             # one progress bar per fit in this process; workers' bars would interleave
             label = None if parallel else bar(f"round {rnd + 1}: {e.name}")
-            tasks.append(Task(e.name, {"round": rnd + 1, "effect": e.name},
-                              (e, ref, m, ct, ch, sd_fit, seeds, max_nfev, label)))
+            tasks.append(
+                Task(e.name, {"round": rnd + 1, "effect": e.name}, (e, ref, m, ct, ch, sd_fit, seeds, max_nfev, label))
+            )
 
         def done(task, out, seconds, r=rnd):
             if isinstance(out, TaskError):
@@ -221,7 +246,8 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         # the best-ranked cause closes the gap; else the best-ranked contributor is added and the
         # next round looks for what explains the rest
         top = next((r for r in results if r["role"] == "cause"), None) or next(
-            (r for r in results if r["role"] == "contributor"), None)
+            (r for r in results if r["role"] == "contributor"), None
+        )
         if top is None:
             break
         chosen.append(top["effect"])
@@ -234,11 +260,16 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
     # every effect that improves the held-out windows significantly without closing the gap,
     # added or not (round 1 alone, or as added in its round)
     contributors = [contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
-    contributors += [contribution(r, added=False) for r in ranking
-                     if r["role"] == "contributor" and r["effect"] not in chosen]
-    remainder = {"heldout_rms_m": after.held["rms_position_m"],
-                 "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
-                 if excess0 > 0 else 0.0, "significant": remainder_sig}
+    contributors += [
+        contribution(r, added=False) for r in ranking if r["role"] == "contributor" and r["effect"] not in chosen
+    ]
+    remainder = {
+        "heldout_rms_m": after.held["rms_position_m"],
+        "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
+        if excess0 > 0
+        else 0.0,
+        "significant": remainder_sig,
+    }
     support = {}
     if forces:
         try:
@@ -253,22 +284,53 @@ def diagnose(vehicle, free, train: list, heldout: list, candidates=None, window_
         verdict=verdict_of(bool(significant), chosen, remainder_sig),
         effects_added=chosen,
         cause=next((e for e in chosen if roles[e]["role"] == "cause"), None),
-        contributors=contributors, remainder=remainder, ranking=ranking, rounds=rounds,
-        gap_before=gap_summary(b_train, b_held), gap_after=gap_summary(after.train, after.held),
+        contributors=contributors,
+        remainder=remainder,
+        ranking=ranking,
+        rounds=rounds,
+        gap_before=gap_summary(b_train, b_held),
+        gap_after=gap_summary(after.train, after.held),
         heldout_shrinkage=1 - after.held["rms_position_m"] / b_held["rms_position_m"],
-        noise_floor={"heldout_rms_m": floor["rms_position_m"], "heading_rms_deg": floor["rms_heading_deg"],
-                     "by_channel": floor["rms"]},
+        noise_floor={
+            "heldout_rms_m": floor["rms_position_m"],
+            "heading_rms_deg": floor["rms_heading_deg"],
+            "by_channel": floor["rms"],
+        },
         gap_ratio=b_held["rms_position_m"] / floor["rms_position_m"],
-        significant_gap=bool(significant), where=w, sindy_support=support, noise_sd=sd, fit_sd=sd_fit,
-        base_fit={"coefficients": bfit.coefficients(), "nominal": dict(zip(base.free, base.theta0.tolist())),
-                  "bic": bfit.bic, "n_residuals": bfit.n_residuals, "success": bfit.success,
-                  "nfev": bfit.n_simulations},
+        significant_gap=bool(significant),
+        where=w,
+        sindy_support=support,
+        noise_sd=sd,
+        fit_sd=sd_fit,
+        base_fit={
+            "coefficients": bfit.coefficients(),
+            "nominal": dict(zip(base.free, base.theta0.tolist())),
+            "bic": bfit.bic,
+            "n_residuals": bfit.n_residuals,
+            "success": bfit.success,
+            "nfev": bfit.n_simulations,
+        },
         after_fit={"coefficients": after.fit.coefficients(), "effects": after.fit.effect_parameters()},
-        train_tracks=names_t, heldout_tracks=names_h,
-        settings={"free": list(free), "candidates": cands, "window_s": window_s, "fit_window_s": fw, "dt": dt,
-                  "mode": mode, "start_rule": rule, "leadin_s": lead, "max_nfev": max_nfev,
-                  "max_effects": max_effects, "weighting": weighting},
-        thresholds=th.as_dict(), seconds=time.perf_counter() - t_start, base=base_stage, after=after)
+        train_tracks=names_t,
+        heldout_tracks=names_h,
+        settings={
+            "free": list(free),
+            "candidates": cands,
+            "window_s": window_s,
+            "fit_window_s": fw,
+            "dt": dt,
+            "mode": mode,
+            "start_rule": rule,
+            "leadin_s": lead,
+            "max_nfev": max_nfev,
+            "max_effects": max_effects,
+            "weighting": weighting,
+        },
+        thresholds=th.as_dict(),
+        seconds=time.perf_counter() - t_start,
+        base=base_stage,
+        after=after,
+    )
 
 
 def _seeds(effects, base, bfit, ctxs, train) -> dict:

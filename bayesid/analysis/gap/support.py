@@ -5,6 +5,7 @@ inverse dynamics on the effects' force signatures (each effect's
 Fasel, Kutz, Brunton & Brunton (2022), Ensemble-SINDy, Proc. R. Soc. A 478 (ensemble STLSQ with
 bagging; :func:`bayesid.analysis.sindy.ensemble_stlsq`).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -36,8 +37,8 @@ def signature_regression(F_list, cols_list, rng, n_models: int = 50, threshold: 
                 X.append(np.concatenate([cl[e][c][:, eq] for cl in cols_list]))
                 owner.append(e)
         X = np.column_stack(X)
-        ry = np.sqrt(np.mean(y ** 2))
-        rx = np.sqrt(np.mean(X ** 2, axis=0))
+        ry = np.sqrt(np.mean(y**2))
+        rx = np.sqrt(np.mean(X**2, axis=0))
         live = rx > 1e-12 * max(rx.max(), 1e-300)
         if ry == 0 or not live.any():
             continue

@@ -7,6 +7,7 @@ removed, a one-sided Wilcoxon signed-rank test of the paired per-window errors (
 Biometrics Bulletin 1(6)), and the training BIC difference (<= -10: strong evidence, Kass &
 Raftery 1995, JASA 90(430)).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,13 +15,20 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from ...models import effects as ef
-from ...estimation import shooting
-from ...protocol import pooled_scores, wrap
 from ...data.track import STATE_NAMES, Track
+from ...estimation import shooting
+from ...models import effects as ef
+from ...protocol import pooled_scores, wrap
 
-__all__ = ["Thresholds", "noise_floor", "paired_window_test", "gap_summary", "assign_roles", "contribution",
-           "verdict_of"]
+__all__ = [
+    "Thresholds",
+    "noise_floor",
+    "paired_window_test",
+    "gap_summary",
+    "assign_roles",
+    "contribution",
+    "verdict_of",
+]
 
 
 @dataclass(frozen=True)
@@ -36,8 +44,12 @@ class Thresholds:
     partial_p: float = 0.01
 
     def as_dict(self) -> dict:
-        return {"none_ratio": self.none_ratio, "explain_fraction": self.explain_fraction,
-                "bic_threshold": self.bic_threshold, "partial_p": self.partial_p}
+        return {
+            "none_ratio": self.none_ratio,
+            "explain_fraction": self.explain_fraction,
+            "bic_threshold": self.bic_threshold,
+            "partial_p": self.partial_p,
+        }
 
 
 def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
@@ -79,40 +91,64 @@ def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
 
 def gap_summary(train: dict, held: dict) -> dict:
     """The JSON summary of a model's training and held-out scores (:func:`~bayesid.estimation.windows.scores`)."""
-    return {"train_rms_m": train["rms_position_m"], "heldout_rms_m": held["rms_position_m"],
-            "heldout_max_m": held["max_position_m"], "heading_rms_deg": held["rms_heading_deg"],
-            "train_heading_rms_deg": train["rms_heading_deg"],
-            "train_log_likelihood": train.get("log_likelihood"), "heldout_log_likelihood": held.get("log_likelihood"),
-            "heldout_rms_by_channel": held["rms"]}
+    return {
+        "train_rms_m": train["rms_position_m"],
+        "heldout_rms_m": held["rms_position_m"],
+        "heldout_max_m": held["max_position_m"],
+        "heading_rms_deg": held["rms_heading_deg"],
+        "train_heading_rms_deg": train["rms_heading_deg"],
+        "train_log_likelihood": train.get("log_likelihood"),
+        "heldout_log_likelihood": held.get("log_likelihood"),
+        "heldout_rms_by_channel": held["rms"],
+    }
 
 
 def is_cause(r: dict, significant: bool, band: float, th: Thresholds) -> bool:
     """The effect closes the gap: held-out error inside the noise-floor band, at least
     ``explain_fraction`` of the excess removed, ΔBIC at most ``bic_threshold``."""
-    return bool(significant and r["heldout_rms_m"] <= band and r["excess_removed"] >= th.explain_fraction
-                and r["delta_bic"] <= th.bic_threshold)
+    return bool(
+        significant
+        and r["heldout_rms_m"] <= band
+        and r["excess_removed"] >= th.explain_fraction
+        and r["delta_bic"] <= th.bic_threshold
+    )
 
 
 def is_contributor(r: dict, significant: bool, th: Thresholds) -> bool:
     """The effect improves the held-out windows without closing the gap: paired window test
     p < ``partial_p`` (or at least ``explain_fraction`` of the excess removed, where too few
     windows make the test powerless), ΔBIC at most ``bic_threshold``, positive shrinkage."""
-    return bool(significant and r["delta_bic"] <= th.bic_threshold and r["heldout_shrinkage"] > 0
-                and (r["window_p_value"] < th.partial_p or r["excess_removed"] >= th.explain_fraction))
+    return bool(
+        significant
+        and r["delta_bic"] <= th.bic_threshold
+        and r["heldout_shrinkage"] > 0
+        and (r["window_p_value"] < th.partial_p or r["excess_removed"] >= th.explain_fraction)
+    )
 
 
 def assign_roles(results: list, significant: bool, band: float, th: Thresholds) -> None:
     """Set every ranked candidate's ``role`` (``"cause"``, ``"contributor"`` or None) in place."""
     for r in results:
-        r["role"] = ("cause" if is_cause(r, significant, band, th) else
-                     "contributor" if is_contributor(r, significant, th) else None)
+        r["role"] = (
+            "cause"
+            if is_cause(r, significant, band, th)
+            else "contributor"
+            if is_contributor(r, significant, th)
+            else None
+        )
 
 
 def contribution(r: dict, added: bool) -> dict:
     """The report's record of a contributor (added to the model or not)."""
-    return {"effect": r["effect"], "added": added, "share_of_excess": r["share_of_excess"],
-            "heldout_rms_m": r["heldout_rms_m"], "window_p_value": r["window_p_value"],
-            "delta_bic": r["delta_bic"], "parameters": r["parameters"]}
+    return {
+        "effect": r["effect"],
+        "added": added,
+        "share_of_excess": r["share_of_excess"],
+        "heldout_rms_m": r["heldout_rms_m"],
+        "window_p_value": r["window_p_value"],
+        "delta_bic": r["delta_bic"],
+        "parameters": r["parameters"],
+    }
 
 
 def verdict_of(significant: bool, chosen: list, remainder_significant: bool) -> str:

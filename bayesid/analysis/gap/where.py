@@ -3,13 +3,14 @@ and the missing forces of inverse dynamics (spectrum, whiteness, correlation wit
 
 Ljung & Box (1978), Biometrika 65(2) for the whiteness test; Welch periodogram (scipy.signal).
 """
+
 from __future__ import annotations
 
 import numpy as np
 from scipy import signal, stats
 
-from ...models import effects as ef
 from ...estimation import shooting
+from ...models import effects as ef
 from ...protocol import pooled_scores
 
 __all__ = ["where", "ljung_box", "window_xy"]
@@ -22,11 +23,9 @@ def ljung_box(x, lags: int = 10) -> tuple[float, float]:
     n = x.size
     if n <= lags + 1 or not np.any(x):
         return float("nan"), float("nan")
-    ac = np.array([np.sum(x[k:] * x[:n - k]) for k in range(lags + 1)]) / np.sum(x * x)
+    ac = np.array([np.sum(x[k:] * x[: n - k]) for k in range(lags + 1)]) / np.sum(x * x)
     q = n * (n + 2) * np.sum(ac[1:] ** 2 / (n - np.arange(1, lags + 1)))
     return float(q), float(stats.chi2.sf(q, lags))
-
-
 
 
 def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None) -> tuple[dict, tuple | None]:
@@ -43,8 +42,15 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
 
     Returns (JSON-able dict, (F list (n, 3) per track, [(motion, inputs, track)]) or None when
     inverse dynamics failed -- the error is then in the dict under ``forces``)."""
-    out = {"channels": {}, "regions": {}, "phases": {}, "spectrum": {}, "forces": {}, "whiteness": {},
-           "input_correlation": {}}
+    out = {
+        "channels": {},
+        "regions": {},
+        "phases": {},
+        "spectrum": {},
+        "forces": {},
+        "whiteness": {},
+        "input_correlation": {},
+    }
     errs = []
     per_sample = []
     for i, ctx in enumerate(ctxs):
@@ -53,25 +59,39 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
         e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
         errs.append(e)
         tr = tracks[i]
-        u, v, r = (np.asarray(tr[c], float)[ctx.idx] for c in ("u", "v", "r")) if all(
-            c in tr for c in ("u", "v", "r")) else (S[0, :, 6], S[0, :, 7], S[0, :, 11])
+        u, v, r = (
+            (np.asarray(tr[c], float)[ctx.idx] for c in ("u", "v", "r"))
+            if all(c in tr for c in ("u", "v", "r"))
+            else (S[0, :, 6], S[0, :, 7], S[0, :, 11])
+        )
         dr = np.asarray(tr["delta_r"], float)[ctx.idx]
         drate = np.gradient(dr, ctx.ts)
         pos = np.hypot(e["x"], e["y"])
         # growth rate of the position error: what goes wrong locally, not what accumulated
         growth = np.gradient(pos, ctx.ts)
         growth[np.r_[True, np.diff(ctx.win) != 0]] = np.nan
-        row = dict(drift_angle_deg=np.degrees(np.arctan2(-v, u)), yaw_rate_deg_s=np.degrees(r),
-                   rudder_deg=np.degrees(dr), speed_mps=np.hypot(u, v), pos=pos,
-                   growth=growth, psi=np.degrees(e["psi"]), rudder_moving=np.abs(drate) > np.radians(0.5),
-                   turning=np.abs(r) > np.radians(1.0))
+        row = dict(
+            drift_angle_deg=np.degrees(np.arctan2(-v, u)),
+            yaw_rate_deg_s=np.degrees(r),
+            rudder_deg=np.degrees(dr),
+            speed_mps=np.hypot(u, v),
+            pos=pos,
+            growth=growth,
+            psi=np.degrees(e["psi"]),
+            rudder_moving=np.abs(drate) > np.radians(0.5),
+            turning=np.abs(r) > np.radians(1.0),
+        )
         row.update(model.where_samples(tr, ctx, S))
         per_sample.append(row)
     pooled = pooled_scores(errs)
     for c, val in pooled["rms"].items():
         fl = None if floor_by_channel is None else floor_by_channel.get(c)
-        out["channels"][c] = {"rms": val, "noise_sd": sd.get(c), "floor_rms": fl,
-                              "excess_ratio": (val / fl) if fl else None}
+        out["channels"][c] = {
+            "rms": val,
+            "noise_sd": sd.get(c),
+            "floor_rms": fl,
+            "excess_ratio": (val / fl) if fl else None,
+        }
     out["channels"]["position"] = {"rms": pooled["rms_position_m"]}
     ex = {c: d["excess_ratio"] for c, d in out["channels"].items() if d.get("excess_ratio")}
     out["dominant_channel"] = max(ex, key=ex.get) if ex else None
@@ -87,10 +107,15 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
             sel = (cat[reg] >= a) & (cat[reg] < b)
             g = cat["growth"][sel]
             g = g[np.isfinite(g)]
-            rows.append({"bin": [a, b], "n": int(sel.sum()),
-                         "rms_position_m": float(np.sqrt(np.mean(cat["pos"][sel] ** 2))) if sel.any() else None,
-                         "mean_error_growth_mps": float(np.mean(np.abs(g))) if g.size else None,
-                         "rms_heading_deg": float(np.sqrt(np.mean(cat["psi"][sel] ** 2))) if sel.any() else None})
+            rows.append(
+                {
+                    "bin": [a, b],
+                    "n": int(sel.sum()),
+                    "rms_position_m": float(np.sqrt(np.mean(cat["pos"][sel] ** 2))) if sel.any() else None,
+                    "mean_error_growth_mps": float(np.mean(np.abs(g))) if g.size else None,
+                    "rms_heading_deg": float(np.sqrt(np.mean(cat["psi"][sel] ** 2))) if sel.any() else None,
+                }
+            )
         out["regions"][reg] = rows
         g_all = np.nanmean(np.abs(cat["growth"]))
         for row in rows:
@@ -99,16 +124,20 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
                 if ratio > best[1]:
                     best = (f"{reg} in [{row['bin'][0]}, {row['bin'][1]})", ratio)
     out["dominant_region"] = {"region": best[0], "growth_ratio": best[1]}
-    phases = {"straight, rudder steady": (~cat["turning"]) & (~cat["rudder_moving"]),
-              "turning, rudder steady": cat["turning"] & (~cat["rudder_moving"]),
-              "rudder moving": cat["rudder_moving"]}
+    phases = {
+        "straight, rudder steady": (~cat["turning"]) & (~cat["rudder_moving"]),
+        "turning, rudder steady": cat["turning"] & (~cat["rudder_moving"]),
+        "rudder moving": cat["rudder_moving"],
+    }
     for k, sel in phases.items():
         g = cat["growth"][sel]
         g = g[np.isfinite(g)]
-        out["phases"][k] = {"fraction_of_time": float(sel.mean()),
-                            "mean_error_growth_mps": float(np.mean(np.abs(g))) if g.size else None}
+        out["phases"][k] = {
+            "fraction_of_time": float(sel.mean()),
+            "mean_error_growth_mps": float(np.mean(np.abs(g))) if g.size else None,
+        }
     # missing forces, spectrum, whiteness, input correlation (first track with velocities)
-    Fs, cols, motions = [], [], []
+    Fs, motions = [], []
     for i, tr in enumerate(tracks):
         try:
             motion, F, inputs = model.missing_forces(fitres, tr)
@@ -127,15 +156,18 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
             f, pxx = signal.welch(Fs[0][:, j] - Fs[0][:, j].mean(), fs=fs, nperseg=min(len(t), int(256 * fs / 2)))
             sel = f > 0.02
             kk = np.argmax(pxx[sel])
-            out["spectrum"][k] = {"peak_period_s": float(1.0 / f[sel][kk]), "peak_frequency_hz": float(f[sel][kk]),
-                                  "peak_to_median": float(pxx[sel][kk] / np.median(pxx[sel]))}
+            out["spectrum"][k] = {
+                "peak_period_s": float(1.0 / f[sel][kk]),
+                "peak_frequency_hz": float(f[sel][kk]),
+                "peak_to_median": float(pxx[sel][kk] / np.median(pxx[sel])),
+            }
             dec = max(1, int(round(motion["window_s"] * fs)))
             qv, pv = ljung_box(Fs[0][::dec, j])
             out["whiteness"][k] = {"ljung_box_q": qv, "p_value": pv, "decimation": dec}
             corr = {}
             dr = np.interp(t, tr.t, inputs[:, 0])
             for name, sig in (("delta_r", dr), ("delta_r_rate", np.gradient(dr, t))):
-                a = (sig - sig.mean())
+                a = sig - sig.mean()
                 b = Fs[0][:, j] - Fs[0][:, j].mean()
                 den = np.sqrt(np.sum(a * a) * np.sum(b * b))
                 if den > 0:
