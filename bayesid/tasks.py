@@ -437,7 +437,8 @@ def _run_parallel(fn, tasks, todo, jobs, scheduler, threads, finish, retries) ->
         client, cluster = _dask_client(scheduler)
         if threads is None and cluster is not None:
             threads = max(1, (os.cpu_count() or 1) // len(cluster.workers))
-        config = joblib.parallel_config(backend="dask", scheduler_host=client.scheduler.address)
+        # the backend uses this client (one it made itself would outlive the cluster and retry for 30 s)
+        config = joblib.parallel_config(backend="dask", client=client)
         n_jobs = -1
     else:
         threads = threads or max(1, (os.cpu_count() or 1) // int(jobs))

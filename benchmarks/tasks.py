@@ -6,7 +6,7 @@ Workloads:
 
 * *simulation task*: one multiple-shooting objective evaluation's worth of work -- NPS AUV II,
   horizontal plane, a 300 s zigzag, 16 coefficient vectors in one batched call, repeated
-  ``--sim-repeats`` times (about 0.5 s a task on this machine with one thread);
+  ``--sim-repeats`` times (about 1 s a task on this machine);
 * *empty task*: returns at once; its wall time per task is the path's overhead;
 * *diagnosis*: NPS AUV II with a current the base model lacks; 3 training and 4 held-out tracks of
   200 s at 5 Hz (0.2 m / 0.2 deg noise, no velocity log: the fitted window-start rule), free
@@ -100,7 +100,7 @@ def _without_timings(d: dict) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tasks", type=int, default=16)
-    ap.add_argument("--sim-repeats", type=int, default=20)
+    ap.add_argument("--sim-repeats", type=int, default=400)
     ap.add_argument("--no-dask", action="store_true")
     ap.add_argument("--no-diagnose", action="store_true")
     args = ap.parse_args()
