@@ -61,6 +61,7 @@ __all__ = [
     "digest",
     "jsonable",
     "add_arguments",
+    "parse_checked",
     "JOURNAL_VERSION",
 ]
 
@@ -80,6 +81,17 @@ def add_arguments(parser, jobs_default: int = 1) -> None:
     """Add ``--jobs N`` and ``--scheduler ADDRESS`` to an argparse parser (commands and studies)."""
     parser.add_argument("--jobs", type=int, default=jobs_default, help=JOBS_HELP)
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS", help=SCHEDULER_HELP)
+
+
+def parse_checked(parser, argv=None):
+    """``parser.parse_args(argv)`` with ``--jobs`` and ``--scheduler`` checked
+    (:func:`check_jobs`): a bad value ends with the parser's usage error (exit code 2)."""
+    args = parser.parse_args(argv)
+    try:
+        check_jobs(args.jobs, args.scheduler)
+    except ValueError as exc:
+        parser.error(str(exc))
+    return args
 
 
 def jsonable(x):

@@ -16,7 +16,8 @@ Method
   different runs of every kind. A setting that is better only on the validation split was
   chosen by the validation data; one that is better on the training-only splits too is a
   candidate for a default.
-- Every fit starts from the equation-error seed (``bayesid.estimation.msfit.identify``) and is scored by the
+- Every fit starts from the equation-error seed (``bayesid.estimation.msfit.identify``, without the vehicle file's priors
+  and without calibrating bands: the data and the setting alone) and is scored by the
   fixed window protocol (30 s and 60 s windows) on its split's held-out runs.
 - Fits are tasks of :mod:`bayesid.tasks` (``--jobs N`` worker processes, or ``--scheduler`` on
   Dask); each finished fit is appended to ``journal.jsonl`` with the key it depends on (split,
@@ -38,7 +39,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from bayesid.tasks import Journal, Task, TaskError, add_arguments, check_jobs, run_tasks  # noqa: E402
+from bayesid.tasks import Journal, Task, TaskError, add_arguments, parse_checked, run_tasks  # noqa: E402
 
 ESSO_VALIDATION = [
     "random_06-Aug-2020_16_24_25_6",
@@ -89,12 +90,7 @@ def parse_args():
     ap.add_argument("--fresh", action="store_true", help="start over: remove the journal of finished fits")
     add_arguments(ap, jobs_default=os.cpu_count() or 1)
     ap.add_argument("--max-nfev", type=int, default=40)
-    args = ap.parse_args()
-    try:
-        check_jobs(args.jobs, args.scheduler)
-    except ValueError as exc:
-        ap.error(str(exc))
-    return args
+    return parse_checked(ap)
 
 
 def load_runs(data: Path, dataset: str):
@@ -178,6 +174,10 @@ def run_fit(job: dict) -> dict:
         weighting="residual",
         channels=channels,
         start="measured",
+        # the fit settings alone, on the data alone: the journaled fits were made before fit used
+        # the vehicle file's [prior] and calibrated its bands by default
+        prior=False,
+        calibrate=False,
     )
     out = {k: job[k] for k in ("dataset", "split", "setting", "key")}
     out.update(

@@ -43,7 +43,7 @@ from bayesid.estimation.posterior import add_noise
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 from bayesid.report import fmt, md_table, plots, prepare_out, write_json, write_manifest
-from bayesid.tasks import Task, TaskError, add_arguments, check_jobs, run_tasks
+from bayesid.tasks import Task, TaskError, add_arguments, parse_checked, run_tasks
 
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}
 CHANNELS = ("x", "y", "psi")
@@ -65,12 +65,7 @@ def parse_args():
     ap.add_argument("--out", default="reports/manoeuvre_richness")
     ap.add_argument("--seed", type=int, default=2003)
     add_arguments(ap)
-    args = ap.parse_args()
-    try:
-        check_jobs(args.jobs, args.scheduler)
-    except ValueError as exc:
-        ap.error(str(exc))
-    return args
+    return parse_checked(ap)
 
 
 def mode_of(m) -> str:

@@ -57,7 +57,7 @@ from bayesid.estimation.posterior import (
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 from bayesid.report import fmt, md_table, plots, prepare_out, write_json, write_manifest
-from bayesid.tasks import Task, TaskError, add_arguments, check_jobs, run_tasks
+from bayesid.tasks import Task, TaskError, add_arguments, parse_checked, run_tasks
 
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}  # realistic navigation noise (m, m, rad)
 CHANNELS = ("x", "y", "psi")
@@ -124,12 +124,7 @@ def parse_args():
     )
     ap.add_argument("--max-minutes", type=float, default=None, help=f"wall-time budget per case (default {BUDGET_MIN})")
     add_arguments(ap)  # cases in parallel: on 2 cores one case at a time with both cores is faster
-    args = ap.parse_args()
-    try:
-        check_jobs(args.jobs, args.scheduler)
-    except ValueError as exc:
-        ap.error(str(exc))
-    return args
+    return parse_checked(ap)
 
 
 @dataclass

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bayesid.tasks import add_arguments, check_jobs  # noqa: E402
+from bayesid.tasks import add_arguments, parse_checked  # noqa: E402
 
 BASELINE = {  # issue 8's independent baseline (its table), for the report only
     "esso_osaka": {"w30": (0.364, 0.249), "w60": (1.141, 0.714)},
@@ -74,12 +74,7 @@ def parse_args():
     ap.add_argument("--max-nfev", type=int, default=40)
     ap.add_argument("--seed", type=int, default=2026)
     add_arguments(ap)
-    args = ap.parse_args()
-    try:
-        check_jobs(args.jobs, args.scheduler)
-    except ValueError as exc:
-        ap.error(str(exc))
-    return args
+    return parse_checked(ap)
 
 
 def _scores(model, fitres, tracks, window):

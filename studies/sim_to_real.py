@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesid.tasks import Journal, Task, TaskError, add_arguments, check_jobs, run_tasks
+from bayesid.tasks import Journal, Task, TaskError, add_arguments, parse_checked, run_tasks
 
 FREE = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
 DT, WINDOW = 0.5, 60.0
@@ -80,12 +80,7 @@ def parse_args():
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--fresh", action="store_true", help="start over: remove the journal of finished cases")
     add_arguments(ap, jobs_default=os.cpu_count() or 1)
-    args = ap.parse_args()
-    try:
-        check_jobs(args.jobs, args.scheduler)
-    except ValueError as exc:
-        ap.error(str(exc))
-    return args
+    return parse_checked(ap)
 
 
 # ---------------------------------------------------------------------------------------------
