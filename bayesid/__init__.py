@@ -25,7 +25,9 @@ The layout follows the data flow; each layer imports only the ones before it:
   :mod:`~bayesid.estimation.posterior`, :mod:`~bayesid.estimation.sampling` (emcee, ArviZ),
   :mod:`~bayesid.estimation.msfit` (long runs, prediction, indices),
   :mod:`~bayesid.estimation.multistart` (many starts of one fit),
-  :mod:`~bayesid.estimation.calibration` (predictive bands calibrated leave one run out).
+  :mod:`~bayesid.estimation.calibration` (predictive bands calibrated leave one run out),
+  :mod:`~bayesid.estimation.track_posterior` (the posterior given a user's tracks: error model,
+  importance-reweighted Laplace, MCMC refinement; ``bayesid sample``).
 * :mod:`bayesid.analysis` -- what the data say: :mod:`~bayesid.analysis.identifiability`,
   :mod:`~bayesid.analysis.dossier`, :mod:`~bayesid.analysis.richness`,
   :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis).

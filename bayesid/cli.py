@@ -196,12 +196,28 @@ WRITES = {
     "diagnose": ("diagnosis.json", "report.md", "figures"),
     "fit": ("model.json", "report.md", "figures", "journal.jsonl"),
     "predict": ("predict.json", "report.md", "figures"),
+    "sample": (
+        "sample.json",
+        "report.md",
+        "figures",
+        "journal.jsonl",
+        "chains.h5",
+        "posterior.nc",
+        "posterior_model.json",
+        "fit",
+    ),
     "convert": ("convert.json", "convert.md"),
 }
 
 
 #: The file that marks a folder as a command's output.
-MAIN_OUTPUT = {"diagnose": "diagnosis.json", "fit": "model.json", "predict": "predict.json", "convert": "convert.json"}
+MAIN_OUTPUT = {
+    "diagnose": "diagnosis.json",
+    "fit": "model.json",
+    "predict": "predict.json",
+    "convert": "convert.json",
+    "sample": "sample.json",
+}
 
 
 def _check_out(path, command: str, overwrite: bool, resumable: bool = False) -> Path:
@@ -516,6 +532,233 @@ def _fit(args) -> int:
         f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
         f"wrote {out / 'model.json'}"
     )
+    return 0
+
+
+#: Units of each scored channel in reports: (factor from SI, label).
+_UNITS = {
+    "x": (1.0, "m"),
+    "y": (1.0, "m"),
+    "psi": (57.29577951308232, "deg"),
+    "u": (1.0, "m/s"),
+    "v": (1.0, "m/s"),
+    "r": (57.29577951308232, "deg/s"),
+}
+
+
+def _sample(args) -> int:
+    """``bayesid sample``: the posterior of a fitted model given its training tracks ->
+    DIR/sample.json, posterior.nc, report.md, figures, posterior_model.json."""
+    import numpy as np
+
+    from . import __version__
+    from .analysis.dossier import AT_PRIOR, DETERMINED, data_dossier
+    from .estimation import msfit
+    from .estimation import track_posterior as tp
+    from .models import load_any_vehicle
+    from .protocol import resolve_start
+    from .report import plots, write_json, write_sample_report
+
+    if (args.model is None) == (args.vehicle is None):
+        raise ValueError("give --model (a model.json of bayesid fit) or --vehicle (fit first), not both or neither")
+    if args.draws < 100:
+        raise ValueError(f"--draws must be at least 100, not {args.draws}")
+    if not args.df > 0 or not args.max_minutes > 0:
+        raise ValueError(f"--df and --max-minutes must be positive, not {args.df:g} and {args.max_minutes:g}")
+    tasks.check_jobs(args.jobs, args.scheduler)
+    out = _check_out(args.out, "sample", args.overwrite, resumable=True)
+    vehicle_arg = args.vehicle
+    if args.model is not None:
+        model, p, _cov, doc = msfit.load_model(args.model)
+        _check_vehicle_unchanged(doc, model.vehicle, args.model, False)
+        got = _read_tracks([("--train", args.train)], model.vehicle)
+        fitted = set(((doc.get("provenance") or {}).get("input_sha256") or {}).values())
+        other = [f for f, h in got["_sha256"].items() if fitted and h not in fitted]
+        if other:
+            w = f"{', '.join(other)}: not among the tracks {args.model} was fitted on; the posterior is over these tracks"
+            print(f"warning: {w}", file=sys.stderr)
+            got["_warnings"].append(w)
+        model_sha = _file_sha256(args.model)
+    else:
+        vehicle = load_any_vehicle(vehicle_arg)
+        got = _read_tracks([("--train", args.train)], vehicle)
+        print("  fitting first (bayesid fit with its defaults, no calibration)", flush=True)
+        res = msfit.identify(
+            vehicle,
+            got["--train"],
+            _free_list(vehicle, args.free),
+            _split_names(args.effects, "--effects"),
+            progress=lambda m: print(f"  {m}", flush=True),
+            prior=args.prior == "file",
+            calibrate=False,
+        )
+        doc = msfit.model_document(
+            res,
+            _vehicle_ref(vehicle_arg),
+            [t.name for t in got["--train"]],
+            provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]),
+        )
+        (out / "fit").mkdir(parents=True, exist_ok=True)
+        write_json(out / "fit" / "model.json", doc)
+        model, p, _cov, doc = msfit.load_model(out / "fit" / "model.json")
+        model_sha = _file_sha256(out / "fit" / "model.json")
+    train = got["--train"]
+    rule = resolve_start(doc.get("start_rule", "auto"), train)
+    identity = {
+        "command": "sample",
+        "model_sha256": model_sha,
+        "inputs": sorted(got["_sha256"].values()),
+        "seed": args.seed,
+        "method": args.method,
+        "draws": args.draws,
+        "df": args.df,
+        "prior": args.prior,
+    }
+    journal = tasks.Journal(out / "journal.jsonl", identity)
+    res = tp.sample_tracks(
+        model,
+        p,
+        train,
+        window_s=doc["fit_window_s"],
+        start_rule=rule,
+        fit_sd=doc.get("fit_sd") or doc["noise_sd"],
+        channels=doc.get("fit_channels"),
+        use_prior=args.prior == "file",
+        method=args.method,
+        n_draws=args.draws,
+        df=args.df,
+        seed=args.seed,
+        max_minutes=args.max_minutes,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        journal=journal,
+        checkpoint=out / "chains.h5",
+        run_key=identity,
+        progress=lambda m: print(f"  {m}", flush=True),
+    )
+    names, draws, prior = res["names"], res["draws"], res["prior"]
+    scales = model.scales()
+    dos = data_dossier(
+        names,
+        res["mode"]["fisher"],
+        res["mode"]["jac"],
+        scales,
+        prior.marginal_mean(),
+        prior.marginal_sd(),
+        prior.gaussian,
+        draws,
+    )
+    q05, q95 = np.quantile(draws, [0.05, 0.95], axis=0)
+    em = res["errors"].to_dict()
+    for j, c in enumerate(res["errors"].channels):
+        f, unit = _UNITS.get(c, (1.0, ""))
+        s = res["sigma"][:, j] * f
+        em[c]["unit"] = unit
+        em[c]["sigma_at_mode"] *= f
+        em[c]["sigma_posterior"] = {
+            "mean": float(np.mean(s)),
+            "q05": float(np.quantile(s, 0.05)),
+            "q95": float(np.quantile(s, 0.95)),
+        }
+    label = {
+        "importance": f"importance-reweighted Laplace ({args.draws} multivariate Student-t draws, df {args.df:g}, "
+        "Pareto-smoothed weights, resampled)",
+        "mcmc": "MCMC (2 independent emcee ensembles, DE moves, run until converged or the budget)",
+    }[res["method"]]
+    sdoc = {
+        "format": "bayesid-sample-1",
+        "model": str(args.model) if args.model else str(out / "fit" / "model.json"),
+        "vehicle": doc["vehicle"],
+        "train_runs": [t.name for t in train],
+        "input_sha256": got["_sha256"],
+        "warnings": got["_warnings"],
+        "seed": args.seed,
+        "method_requested": args.method,
+        "method": res["method"],
+        "method_label": label,
+        "n_draws": int(draws.shape[0]),
+        "df": args.df,
+        "window_s": doc["fit_window_s"],
+        "start_rule": rule,
+        "start_states": (
+            "measured (causal 1 s estimate at each window start)"
+            if rule == "measured"
+            else "profiled: fitted for every parameter draw, as in the fit (6 per window; sampling them would add "
+            f"{6 * res['n_windows']} dimensions)"
+        ),
+        "verdict": res["verdict"],
+        "cost": {
+            "seconds_per_evaluation": res["seconds_per_evaluation"],
+            "n_windows": res["n_windows"],
+            "n_parameters": len(names),
+            "seconds": res["seconds"],
+        },
+        "error_model": em,
+        "prior": {
+            "used": args.prior == "file",
+            "source": getattr(model.vehicle, "prior_source", ""),
+            **prior.to_dict(),
+        },
+        "fit_estimate": dict(zip(names, map(float, p))),
+        "mode": dict(zip(names, map(float, res["mode"]["p"]))),
+        "laplace_sd": dict(zip(names, map(float, np.sqrt(np.diag(res["mode"]["cov"]))))),
+        "marginals": {
+            n: {
+                "mean": float(draws[:, j].mean()),
+                "sd": float(draws[:, j].std(ddof=1)),
+                "q05": float(q05[j]),
+                "q95": float(q95[j]),
+            }
+            for j, n in enumerate(names)
+        },
+        "thresholds": {"determined": DETERMINED, "at_prior": AT_PRIOR},
+        "dossier": dos,
+        "figures": {"sampler": "trace" if res["method"] == "mcmc" else "weights"},
+        "provenance": {
+            "version": __version__,
+            "command": "bayesid " + " ".join(sys.argv[1:]),
+            "model_sha256": model_sha,
+        },
+    }
+    idata = tp.inference_data(
+        res, {"bayesid_version": __version__, "seed": args.seed, "method": res["method"], "model_sha256": model_sha}
+    )
+    tmp = out / "posterior.nc.part"
+    idata.to_netcdf(str(tmp))
+    tmp.replace(out / "posterior.nc")
+    figs = out / "figures"
+    figs.mkdir(parents=True, exist_ok=True)
+    pdict = prior.to_dict()
+    plots.prior_posterior_marginals(draws, names, pdict, figs / "marginals.png", dict(zip(names, p)))
+    pairs = [tuple(r["pair"]) for r in dos["correlations"][:3]]
+    plots.pair_scatter(draws, names, pairs, figs / "pairs.png", title="Most correlated coefficients (posterior)")
+    if res["method"] == "mcmc":
+        r = res["mcmc"]["result"]
+        show = list(dict.fromkeys([a for pr in pairs for a in pr]))[:6]
+        plots.walker_traces(r.chains, names, show, figs / "trace.png", burn=res["mcmc"]["burn"])
+    else:
+        imp = res["importance"]
+        plots.importance_weights(imp["weights"], imp["k_hat"], imp["ess"], figs / "weights.png")
+    plots.fim_spectra(
+        {"these tracks": dos["fisher_eigenvalues"]},
+        figs / "fisher.png",
+        title="Fisher information of the tracks (parameters in units of their typical size)",
+    )
+    # the fit's model with this posterior: predict draws from it
+    pm = json.loads(Path(sdoc["model"]).read_text())
+    if not Path(pm["vehicle"]).is_absolute() and (Path(sdoc["model"]).parent / pm["vehicle"]).is_file():
+        pm["vehicle"] = str((Path(sdoc["model"]).parent / pm["vehicle"]).resolve())
+    cov = msfit.psd_covariance(np.cov(draws, rowvar=False))
+    pm.update(p=res["mode"]["p"].tolist(), cov=cov.tolist(), sd=np.sqrt(np.diag(cov)).tolist())
+    pm["posterior_source"] = {
+        "sample": str(out / "sample.json"),
+        "method": res["method"],
+        "converged": bool(res["verdict"]["converged"]),
+    }
+    write_json(out / "posterior_model.json", pm)
+    write_json(out / "sample.json", sdoc)
+    write_sample_report(sdoc, out, command=sdoc["provenance"]["command"])
+    print(f"{res['verdict']['text']} wrote {out / 'sample.json'}")
     return 0
 
 
@@ -1006,7 +1249,34 @@ def main(argv=None) -> int:
         f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)",
     )
     pp.add_argument("--out", required=True, help="output folder")
-    for p in (s, c, d, f, pp):
+    sm = sub.add_parser(
+        "sample", formatter_class=fmt, help="posterior of a fitted model's parameters given its training tracks"
+    )
+    sm.add_argument("--model", default=None, help="model.json written by bayesid fit (or give --vehicle to fit first)")
+    sm.add_argument("--vehicle", default=None, help="packaged id or TOML path: fit first with bayesid fit's defaults")
+    sm.add_argument("--free", default="", help="with --vehicle: comma-separated free coefficients")
+    sm.add_argument("--effects", default="", help="with --vehicle: comma-separated effects in the model")
+    sm.add_argument("--train", nargs="+", required=True, metavar="CSV", help="the training Track CSVs")
+    sm.add_argument(
+        "--method",
+        choices=("auto", "importance", "mcmc"),
+        default="auto",
+        help="importance: importance-reweighted Laplace; mcmc: emcee ensembles until converged; auto: "
+        "importance, then MCMC when its Pareto k-hat >= 0.7 or ESS < 400",
+    )
+    sm.add_argument("--draws", type=int, default=4000, help="importance draws (and posterior draws kept)")
+    sm.add_argument("--df", type=float, default=5.0, help="degrees of freedom of the Student-t proposal")
+    sm.add_argument("--max-minutes", type=float, default=20.0, help="wall budget of the whole run incl. MCMC, min")
+    sm.add_argument("--seed", type=int, default=0, help="random seed of every draw")
+    sm.add_argument(
+        "--prior",
+        choices=("file", "none"),
+        default="file",
+        help="file: Gaussian priors of the vehicle file's [prior] section; none: uniform in the model's bounds",
+    )
+    tasks.add_arguments(sm)
+    sm.add_argument("--out", required=True, help="output folder (resumed when it holds a killed run's journal)")
+    for p in (s, c, d, f, pp, sm):
         p.add_argument(
             "--overwrite",
             action="store_true",
@@ -1020,9 +1290,14 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     try:
         _check_numbers(args)
-        run = {"convert": _convert, "simulate": _simulate, "diagnose": _diagnose, "fit": _fit, "predict": _predict}[
-            args.command
-        ]
+        run = {
+            "convert": _convert,
+            "simulate": _simulate,
+            "diagnose": _diagnose,
+            "fit": _fit,
+            "predict": _predict,
+            "sample": _sample,
+        }[args.command]
         return run(args)
     except (ValueError, KeyError, FileNotFoundError) as e:
         print(f"error: {_with_files(str(e))}", file=sys.stderr)

@@ -403,7 +403,10 @@ def test_a_stranded_walker_is_moved_and_burn_in_ends_at_the_move():
 
     plain = run_ensembles(trap, *TRAP_START, ["a", "b"], SamplerConfig(**CFG_TRAP), np.random.default_rng(7))
     assert (plain.log_prob[:, 0] == -40.0).sum() == 1 and plain.redraws == []
-    assert arrival_burn(plain) > 200  # without moves it sits in the trap for hundreds of steps
+    # without moves it sits in the trap past the first check (100 steps), where the move below
+    # frees it; how much longer depends on the DE proposals' random stream (161 steps with numpy
+    # 2.4, over 200 before)
+    assert arrival_burn(plain) > 150
     res = run_ensembles(
         trap, *TRAP_START, ["a", "b"], SamplerConfig(**CFG_TRAP, redraw_stranded=True), np.random.default_rng(7)
     )

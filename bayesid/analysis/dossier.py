@@ -10,7 +10,12 @@ import numpy as np
 from ..estimation.posterior import direction_draws
 from . import identifiability
 
-__all__ = ["dossier", "direction_convergence"]
+__all__ = ["dossier", "direction_convergence", "data_dossier", "DETERMINED", "AT_PRIOR"]
+
+#: Posterior sd / prior sd below which a coefficient is determined by the data, and above which
+#: it stays at its prior (between the two: partly determined).
+DETERMINED = 0.5
+AT_PRIOR = 0.9
 
 
 def dossier(
@@ -140,3 +145,86 @@ def direction_convergence(result, burn, W, theta_hat, determined) -> dict:
             ess_bulk_min=float(ess[sel].min()) if sel.any() else None,
         )
     return out
+
+
+def data_dossier(names, fisher, jac, scales, prior_mean, prior_sd, gaussian, draws, top: int = 5) -> dict:
+    """The identifiability dossier of a user's tracks (``bayesid sample``): the Fisher spectrum,
+    its named sloppy directions with the posterior and prior spread along them, collinearity
+    indices, and per coefficient whether the data determine it, move it or leave it at its prior.
+
+    Parameters
+    ----------
+    names : (P,) parameter names.   fisher : (P, P) the data's information about the parameters
+        (``J^T J`` of the posterior's weighted residuals, prior excluded).   jac : (n, P) that
+        Jacobian (or any matrix with the same ``J^T J``, e.g. its QR factor R).
+    scales : (P,) typical size of each parameter: directions are in units of it (``d theta / scale``).
+    prior_mean, prior_sd : (P,) the prior's (sd inf for a flat prior).   gaussian : (P,) bool.
+    draws : (N, P) unweighted posterior draws.
+
+    Returns a JSON-able dict: ``fisher_eigenvalues`` (scaled units, sloppiest first),
+    ``fim_condition_number``, ``directions`` (each: label, eigenvalue, Cramer-Rao sd, posterior and
+    prior sd along it, in scales), ``sloppy`` (the ``top`` sloppiest), ``collinearity`` (Brun et al.
+    2001 index of the most collinear pairs and triples), ``coefficients`` (per name: posterior
+    mean, sd, prior mean and sd, ``sd_ratio``, ``z`` of the posterior mean against a Gaussian
+    prior, ``status``: ``determined`` (ratio < :data:`DETERMINED`), ``partly``, ``at prior``
+    (ratio > :data:`AT_PRIOR`)), ``moved`` (|z| > 1), ``moved_beyond_3sd``, ``correlations``.
+    Sources as :func:`dossier` (Ljung 1999 Sec. 7.4; Brun, Reichert & Kuensch 2001).
+    """
+    names = list(names)
+    D = np.abs(np.asarray(scales, float))
+    Fs = np.asarray(fisher, float) * np.outer(D, D)
+    dirs = identifiability.eigen_directions(Fs, names)
+    W = np.column_stack([d.vector for d in dirs])
+    draws = np.asarray(draws, float)
+    psd = np.asarray(prior_sd, float)
+    post_along = ((draws - draws.mean(axis=0)) / D) @ W
+    post_along = post_along.std(axis=0, ddof=1)
+    with np.errstate(invalid="ignore"):
+        prior_along = np.sqrt((W**2).T @ (psd / D) ** 2)
+    rows = []
+    for k, d in enumerate(dirs):
+        rows.append(
+            dict(
+                direction=d.label(),
+                eigenvalue=float(d.eigenvalue),
+                cramer_rao_sd=d.sd_relative,
+                posterior_sd=float(post_along[k]),
+                prior_sd=float(prior_along[k]),
+                weights=d.weights(0.1),
+            )
+        )
+    R = np.linalg.qr(np.asarray(jac, float) / D, mode="r")
+    mean, sd = draws.mean(axis=0), draws.std(axis=0, ddof=1)
+    coef, moved, beyond = {}, [], []
+    for j, n in enumerate(names):
+        ratio = float(sd[j] / psd[j]) if np.isfinite(psd[j]) and psd[j] > 0 else 0.0
+        status = "determined" if ratio < DETERMINED else ("at prior" if ratio > AT_PRIOR else "partly")
+        z = float((mean[j] - prior_mean[j]) / psd[j]) if gaussian[j] else None
+        coef[n] = dict(
+            mean=float(mean[j]),
+            sd=float(sd[j]),
+            prior_mean=None if not np.isfinite(prior_mean[j]) else float(prior_mean[j]),
+            prior_sd=None if not np.isfinite(psd[j]) else float(psd[j]),
+            prior="normal" if gaussian[j] else "uniform",
+            sd_ratio=ratio,
+            z=z,
+            status=status,
+        )
+        if z is not None and abs(z) > 1.0:
+            moved.append(n)
+            if abs(z) > 3.0:
+                beyond.append(n)
+    C = np.corrcoef(draws, rowvar=False)
+    iu = np.triu_indices(len(names), 1)
+    order = np.argsort(-np.abs(np.nan_to_num(C[iu])))[: 2 * top]
+    return dict(
+        fisher_eigenvalues=[float(d.eigenvalue) for d in dirs],
+        fim_condition_number=identifiability.condition_number(Fs),
+        directions=rows,
+        sloppy=rows[:top],
+        collinearity=identifiability.collinearity_table(R, names, sizes=(2, 3), top=top),
+        coefficients=coef,
+        moved=moved,
+        moved_beyond_3sd=beyond,
+        correlations=[dict(pair=[names[iu[0][i]], names[iu[1][i]]], r=float(C[iu][i])) for i in order],
+    )

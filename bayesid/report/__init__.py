@@ -507,3 +507,118 @@ def _multistart_lines(ms: dict) -> list:
         lines += [f"No turning circles: {tc['error']}.", ""]
     lines += [md_table(head, rows), "", "![multistart](figures/multistart.png)", ""]
     return lines
+
+
+# --- bayesid sample ---------------------------------------------------------------------------
+
+
+def write_sample_report(doc: dict, out, command: str = "") -> None:
+    """``report.md`` of ``bayesid sample`` from its ``sample.json`` document: method and verdict,
+    cost, error model, the coefficients the data determine, move or leave at their prior, the
+    sloppy directions and collinearity of the user's tracks, and the figures."""
+    out = Path(out)
+    v, em, dos = doc["verdict"], doc["error_model"], doc["dossier"]
+    lines = [
+        "# Posterior of the model's parameters given the training tracks",
+        "",
+        f"`{command}`" if command else "",
+        "",
+        f"Tracks: {', '.join(doc['train_runs'])} ({doc['cost']['n_windows']} windows of {doc['window_s']:g} s). "
+        f"Start states of the windows: {doc['start_states']}.",
+        "",
+        "## Method and verdict",
+        "",
+        f"Method: **{doc['method_label']}** (requested: {doc['method_requested']}). {v['text']}",
+        "",
+        f"Cost: one evaluation of the objective takes {1e3 * doc['cost']['seconds_per_evaluation']:.1f} ms per "
+        f"parameter row; stages (s): " + ", ".join(f"{k} {fmt(s, 3)}" for k, s in doc["cost"]["seconds"].items()) + ".",
+        "",
+        "## Error model",
+        "",
+        "Per channel, the errors within a window are AR(1); the lag-1 autocorrelation rho gives the variance "
+        "inflation (1 + rho) / (1 - rho), capped at the samples per window, and n / inflation independent "
+        "errors of evidence. The noise scale is integrated out (Jeffreys prior) and drawn afterwards.",
+        "",
+        md_table(
+            ["channel", "samples", "rho", "inflation", "effective samples", "sigma (5-95 %)"],
+            [
+                [
+                    c,
+                    e["n"],
+                    fmt(e["rho"], 4),
+                    fmt(e["inflation"]),
+                    fmt(e["n_eff"]),
+                    f"{fmt(e['sigma_posterior']['q05'])} - {fmt(e['sigma_posterior']['q95'])} {e['unit']}",
+                ]
+                for c, e in em.items()
+            ],
+        ),
+        "",
+        "## Coefficients: prior, fit, posterior",
+        "",
+        f"Status: *determined* when the posterior sd is below {doc['thresholds']['determined']} x the prior sd, "
+        f"*at prior* above {doc['thresholds']['at_prior']} x; z: posterior mean against a Gaussian prior, in prior sds.",
+        "",
+        md_table(
+            ["parameter", "prior", "fit", "posterior mean", "sd", "5-95 %", "sd / prior sd", "z", "status"],
+            [
+                [
+                    n,
+                    (
+                        f"N({fmt(c['prior_mean'])}, {fmt(c['prior_sd'])})"
+                        if c["prior"] == "normal"
+                        else "uniform in bounds"
+                    ),
+                    fmt(doc["fit_estimate"][n]),
+                    fmt(c["mean"]),
+                    fmt(c["sd"]),
+                    f"{fmt(doc['marginals'][n]['q05'])} - {fmt(doc['marginals'][n]['q95'])}",
+                    fmt(c["sd_ratio"], 2),
+                    fmt(c["z"], 2) if c["z"] is not None else "",
+                    c["status"],
+                ]
+                for n, c in dos["coefficients"].items()
+            ],
+        ),
+        "",
+        f"The data moved (|z| > 1): {', '.join(dos['moved']) or 'none'}; beyond 3 prior sds: "
+        f"{', '.join(dos['moved_beyond_3sd']) or 'none'}.",
+        "",
+        "## What these tracks determine",
+        "",
+        f"Fisher information of the tracks (parameters in units of their typical size): condition number "
+        f"{fmt(dos['fim_condition_number'])}. The sloppiest directions, with the spread of the prior and of "
+        "the posterior along each:",
+        "",
+        md_table(
+            ["direction", "Cramér-Rao sd", "posterior sd", "prior sd"],
+            [
+                [r["direction"], fmt(r["cramer_rao_sd"]), fmt(r["posterior_sd"]), fmt(r["prior_sd"])]
+                for r in dos["sloppy"]
+            ],
+        ),
+        "",
+        "Most collinear subsets (collinearity index, Brun et al. 2001; above 10-15: not separately identifiable):",
+        "",
+        md_table(
+            ["subset", "collinearity index"], [["-".join(r["subset"]), fmt(r["gamma"])] for r in dos["collinearity"]]
+        ),
+        "",
+        "Strongest posterior correlations: "
+        + ", ".join(f"{a}-{b} {r['r']:+.2f}" for r in dos["correlations"][:6] for a, b in [r["pair"]])
+        + ".",
+        "",
+        "![marginals](figures/marginals.png)",
+        "",
+        "![pairs](figures/pairs.png)",
+        "",
+        f"![{doc['figures']['sampler']}](figures/{doc['figures']['sampler']}.png)",
+        "",
+        "![fisher](figures/fisher.png)",
+        "",
+        f"Files: `posterior.nc` (ArviZ InferenceData), `sample.json`, `posterior_model.json` (the fit's model "
+        f"with this posterior's mode and covariance, for `bayesid predict`). bayesid {doc['provenance']['version']}, "
+        f"seed {doc['seed']}.",
+        "",
+    ]
+    (out / "report.md").write_text("\n".join(lines))

@@ -632,3 +632,54 @@ def prediction_band(
     ax3.set_xlabel("t, s")
     ax3.grid(alpha=0.3)
     return _save(fig, path)
+
+
+def prior_posterior_marginals(draws: np.ndarray, names, prior: dict, path, mark: dict | None = None, title: str = ""):
+    """One panel per parameter: histogram of the posterior draws (N, P) and the prior's density
+    (a Gaussian's curve; a bounded uniform's level, drawn when it is not much wider than the
+    posterior), ``mark`` {name: value} a vertical line (e.g. the fit's estimate).
+
+    prior : {name: {"kind": "normal", "mean", "sd"} or {"kind": "uniform", "lower", "upper"}}."""
+    P = len(names)
+    nc = min(6, P)
+    nr = -(-P // nc)
+    fig, axes = plt.subplots(nr, nc, figsize=(2.2 * nc, 1.8 * nr + 0.6), squeeze=False)
+    for j, n in enumerate(names):
+        a = axes[j // nc, j % nc]
+        x = draws[:, j]
+        lo, hi = np.quantile(x, [0.001, 0.999])
+        pr = prior.get(n, {})
+        if pr.get("kind") == "normal":
+            lo, hi = min(lo, pr["mean"] - 3 * pr["sd"]), max(hi, pr["mean"] + 3 * pr["sd"])
+        span = hi - lo if hi > lo else max(abs(lo), 1e-12)
+        a.hist(x, bins=40, range=(lo - 0.05 * span, hi + 0.05 * span), density=True, color="tab:blue", alpha=0.7)
+        g = np.linspace(lo - 0.05 * span, hi + 0.05 * span, 200)
+        if pr.get("kind") == "normal":
+            a.plot(g, np.exp(-0.5 * ((g - pr["mean"]) / pr["sd"]) ** 2) / (pr["sd"] * np.sqrt(2 * np.pi)), "k--", lw=1)
+        elif pr.get("kind") == "uniform" and np.isfinite(pr["upper"] - pr["lower"]):
+            if pr["upper"] - pr["lower"] < 20 * span:
+                a.axhline(1.0 / (pr["upper"] - pr["lower"]), color="k", ls="--", lw=1)
+        if mark and n in mark:
+            a.axvline(mark[n], color="tab:red", lw=1)
+        a.set_title(n, fontsize=8)
+        a.tick_params(labelsize=6)
+        a.set_yticks([])
+    for j in range(P, nr * nc):
+        axes[j // nc, j % nc].axis("off")
+    fig.suptitle((title + "\n" if title else "") + "posterior (bars), prior (dashed), fit estimate (red)", fontsize=9)
+    return _save(fig, path)
+
+
+def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, title: str = ""):
+    """Sorted normalised importance weights (largest first, log scale) with the Pareto k-hat and
+    the importance ESS: a few draws carrying most of the weight is what k-hat >= 0.7 flags."""
+    w = np.sort(np.asarray(weights, float))[::-1]
+    fig, ax = plt.subplots(figsize=(6, 3.4))
+    ax.semilogy(np.arange(1, w.size + 1), np.clip(w, 1e-300, None), lw=1)
+    ax.axhline(1.0 / w.size, color="k", ls="--", lw=0.8, label="equal weights")
+    ax.set_xlabel("draw (sorted by weight)")
+    ax.set_ylabel("normalised weight")
+    ax.set_title((title + ": " if title else "") + f"Pareto k-hat {k_hat:.2f}, ESS {ess:.0f} of {w.size}", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
+    return _save(fig, path)

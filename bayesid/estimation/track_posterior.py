@@ -1,0 +1,718 @@
+"""The posterior of a fitted model's parameters given a user's tracks (``bayesid sample``).
+
+The objective is the one ``bayesid fit`` minimises (:class:`bayesid.estimation.windows.WindowObjective`:
+the same windows, start rule, scored channels), read as a likelihood that does not count
+serially correlated samples as independent evidence.
+
+Error model
+-----------
+Per scored channel ``c`` the simulation errors ``e`` over the windows are Gaussian with an
+unknown scale ``sigma_c`` and lag-1 autocorrelation ``rho_c`` within a window (AR(1)). At the
+fit's optimum ``rho_c`` is estimated from consecutive errors of the same window
+(:func:`ar1_noise`) and gives the variance inflation ``k_c = (1 + rho_c) / (1 - rho_c)``, at
+most the samples per window (a window then counts as one independent error per channel): the
+channel's ``n_c`` errors carry the evidence of ``n_eff,c = n_c / k_c`` independent ones. The
+likelihood is tempered accordingly, ``p(e | theta, sigma)^(1 / k_c)`` (a power likelihood;
+Grünwald & van Ommen 2017, Bayesian Analysis 12(4); for the AR(1) inflation of the variance of
+a mean, Box, Jenkins & Reinsel, *Time Series Analysis*, Sec. 2.1), and ``sigma_c`` is
+integrated out under the Jeffreys prior ``1 / sigma``:
+
+    log p(theta | data) = sum_c -(n_eff,c / 2) log SSR_c(theta) + log p(theta) + const.
+
+``sigma_c`` is then drawn for each posterior draw from its conditional posterior,
+``sigma_c^2 = SSR_c / (k_c chi2(n_eff,c))`` (:meth:`ErrorModel.sigma_draws`). Window start
+states of the fitted start rule are *profiled*, as in the fits: 6 per window, hundreds on a
+real data set, fitted for every parameter vector by the objective (variable projection); the
+per-track nuisances of effects (e.g. a wave phase) are held at their fitted values.
+
+Prior: Gaussian where the vehicle file's ``[prior]`` section names the parameter (towing-tank
+values with their error, :mod:`bayesid.data.priors`), uniform inside the model's bounds
+otherwise (improper and flat along an unbounded parameter).
+
+Sampling
+--------
+1. Mode and Laplace covariance of this posterior: a least-squares fit from the ``fit`` optimum
+   with channel weights ``1 / (s_c sqrt(k_c))`` and the prior's residuals (the Gauss-Newton form
+   of the log posterior at fixed ``SSR_c``), and ``(J^T J + prior precision)^-1`` of that fit.
+2. Importance-reweighted Laplace (:func:`importance_laplace`): draws from a multivariate
+   Student-t around the mode with the Laplace covariance, Pareto-smoothed importance weights
+   and their diagnostic k-hat (Vehtari, Simpson, Gelman, Yao & Gabry 2024, JMLR 25(72); ArviZ
+   ``psislw``): k-hat < 0.7 means the weighted draws estimate the posterior reliably.
+3. Otherwise (or on request) MCMC: independent emcee ensembles
+   (:func:`bayesid.estimation.sampling.run_ensembles`) started from the Laplace ball, run until
+   the convergence verdict holds or the budget ends.
+
+The draws are evaluated in chunks as tasks (:func:`bayesid.tasks.run_tasks`), journaled, so a
+killed run resumes where it stopped and gives the same draws and weights, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..tasks import Task, TaskError, run_tasks
+from . import windows as wf
+from .laplace import gauss_newton_covariance
+from .msfit import psd_covariance
+
+__all__ = [
+    "KHAT_MAX",
+    "ErrorModel",
+    "ParameterPrior",
+    "TrackPosterior",
+    "ar1_noise",
+    "residual_layout",
+    "error_model",
+    "posterior_mode",
+    "importance_laplace",
+    "resample",
+    "evaluate_chunk",
+    "sample_tracks",
+    "inference_data",
+    "METHODS",
+]
+
+#: Pareto k-hat above which importance weights are unreliable (Vehtari et al. 2024, Sec. 3.2.4).
+KHAT_MAX = 0.7
+
+
+def ar1_noise(e: np.ndarray, win: np.ndarray) -> dict:
+    """Lag-1 autocorrelation and scale of errors that restart every window (AR(1) within windows).
+
+    Parameters
+    ----------
+    e : (n,) errors of one channel in time order (NaN where not measured).
+    win : (n,) window index of each error; pairs of consecutive errors count only inside one window.
+
+    Returns
+    -------
+    dict: ``rho`` (conditional least-squares estimate, clipped to [0, 0.999]), ``rho_se`` (its
+    asymptotic standard error ``sqrt((1 - rho^2) / pairs)``), ``sigma`` (RMS of the errors, the
+    marginal sd), ``innovation_sd`` (``sigma sqrt(1 - rho^2)``), ``n`` (finite errors),
+    ``pairs``. Box, Jenkins & Reinsel, *Time Series Analysis*, Sec. 7.1 (AR(1) estimation).
+
+    Raises ValueError when ``e`` and ``win`` differ in shape.
+    """
+    e, win = np.asarray(e, float), np.asarray(win)
+    if e.shape != win.shape or e.ndim != 1:
+        raise ValueError(f"errors {e.shape} and window indices {win.shape} must be equal 1-D shapes")
+    ok = np.isfinite(e)
+    same = (win[1:] == win[:-1]) & ok[1:] & ok[:-1]
+    a, b = e[:-1][same], e[1:][same]
+    n = int(ok.sum())
+    sigma = float(np.sqrt(np.mean(e[ok] ** 2))) if n else float("nan")
+    den = float(a @ a)
+    rho = float(np.clip(a @ b / den, 0.0, 0.999)) if a.size > 2 and den > 0 else 0.0
+    return {
+        "rho": rho,
+        "rho_se": float(math.sqrt(max(1.0 - rho**2, 0.0) / max(a.size, 1))),
+        "sigma": sigma,
+        "innovation_sd": float(sigma * math.sqrt(1.0 - rho**2)),
+        "n": n,
+        "pairs": int(a.size),
+    }
+
+
+def residual_layout(ob) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
+    """Which channel, window and measurement each column of ``ob``'s data residuals is.
+
+    The columns follow :func:`bayesid.estimation.windows.window_residuals`: per track, per scored
+    channel, one column per sample. Returns ``(channels, channel_index (n_res,), window_id
+    (n_res,) unique over tracks, measured (n_res,) bool)``."""
+    names, ci, wid, meas = [], [], [], []
+    off = 0
+    for ctx, w in zip(ob.ctxs, ob.wts):
+        for c in ctx.channels:
+            if c not in w:
+                continue
+            if c not in names:
+                names.append(c)
+            m = np.asarray(ctx.meas[c], float)
+            ci.append(np.full(m.size, names.index(c)))
+            wid.append(off + np.asarray(ctx.win))
+            meas.append(np.isfinite(m))
+        off += int(np.max(ctx.win)) + 1 if ctx.ts.size else 0
+    return names, np.concatenate(ci), np.concatenate(wid), np.concatenate(meas)
+
+
+@dataclass
+class ErrorModel:
+    """Per-channel error model of a fit's residuals (module docstring).
+
+    Attributes
+    ----------
+    channels : (C,) scored channel names.   column : (n_res,) channel index of each residual
+        column (-1: not measured, left out).   n : (C,) measured errors per channel.
+    rho, rho_se : (C,) lag-1 autocorrelation within windows and its standard error.
+    inflation : (C,) ``min((1 + rho) / (1 - rho), samples per window)``.
+    unit : (C,) SI size of one residual unit (the fit's channel sd: residuals are errors / unit).
+    sigma : (C,) RMS error at the estimate (SI).
+    """
+
+    channels: tuple
+    column: np.ndarray
+    n: np.ndarray
+    rho: np.ndarray
+    rho_se: np.ndarray
+    inflation: np.ndarray
+    unit: np.ndarray
+    sigma: np.ndarray
+
+    @property
+    def n_eff(self) -> np.ndarray:
+        """(C,) effective independent errors per channel, ``n / inflation``."""
+        return self.n / self.inflation
+
+    def ssr(self, R: np.ndarray) -> np.ndarray:
+        """(B, C) sum of squared residuals per channel of (B, n_res) residual rows (residual units)."""
+        R = np.atleast_2d(R)
+        out = np.empty((R.shape[0], len(self.channels)))
+        for j in range(len(self.channels)):
+            Rj = R[:, self.column == j]
+            out[:, j] = np.einsum("ij,ij->i", Rj, Rj)
+        return out
+
+    def log_likelihood(self, ssr: np.ndarray) -> np.ndarray:
+        """(B,) ``sum_c -(n_eff,c / 2) log SSR_c`` of (B, C) sums of squares (non-positive or
+        non-finite SSR: ``-inf``)."""
+        ssr = np.atleast_2d(ssr)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ll = -0.5 * np.log(ssr) @ self.n_eff
+        return np.where(np.all(np.isfinite(ssr) & (ssr > 0), axis=1), ll, -np.inf)
+
+    def sigma_draws(self, ssr: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(B, C) draws of each channel's error sd (SI) given the draws' (B, C) sums of squares:
+        ``sigma^2 = unit^2 SSR / (inflation chi2(n_eff))``, the conditional posterior of the
+        tempered likelihood under the Jeffreys prior."""
+        ssr = np.atleast_2d(ssr)
+        chi = rng.chisquare(self.n_eff, size=ssr.shape)
+        return self.unit * np.sqrt(ssr / (self.inflation * chi))
+
+    def fit_sd(self) -> dict:
+        """{channel: sd} whose squared inverse weights a least-squares fit like this posterior:
+        ``sigma_c sqrt(inflation_c)`` (SI)."""
+        return {c: float(s * math.sqrt(k)) for c, s, k in zip(self.channels, self.sigma, self.inflation)}
+
+    def to_dict(self) -> dict:
+        """JSON-able summary per channel."""
+        return {
+            c: {
+                "n": int(self.n[j]),
+                "rho": float(self.rho[j]),
+                "rho_se": float(self.rho_se[j]),
+                "inflation": float(self.inflation[j]),
+                "n_eff": float(self.n_eff[j]),
+                "sigma_at_mode": float(self.sigma[j]),
+            }
+            for j, c in enumerate(self.channels)
+        }
+
+
+def error_model(ob, x) -> ErrorModel:
+    """:class:`ErrorModel` of the residuals of ``ob`` (a
+    :class:`~bayesid.estimation.windows.WindowObjective` without a prior) at the variables ``x``.
+
+    Raises ValueError when a scored channel has no measured error at all."""
+    names, ci, wid, meas = residual_layout(ob)
+    R = ob.residuals_batch(np.asarray(x, float)[None])[0][0]
+    unit = np.empty(len(names))
+    for ctx, w in zip(ob.ctxs, ob.wts):
+        for c in w:
+            if c in names:
+                unit[names.index(c)] = 1.0 / w[c]
+    col = np.where(meas, ci, -1)
+    rows = []
+    for j, c in enumerate(names):
+        sel = col == j
+        if not sel.any():
+            raise ValueError(f"channel {c}: no measured sample in any window")
+        a = ar1_noise(R[sel], wid[sel])
+        per_window = sel.sum() / max(np.unique(wid[sel]).size, 1)
+        k = min((1 + a["rho"]) / (1 - a["rho"]), max(1.0, float(per_window)))
+        rows.append((a["n"], a["rho"], a["rho_se"], k, a["sigma"] * unit[j]))
+    n, rho, rse, k, sig = (np.array(v, float) for v in zip(*rows))
+    return ErrorModel(tuple(names), col, n, rho, rse, k, unit, sig)
+
+
+@dataclass(frozen=True)
+class ParameterPrior:
+    """Prior of a model's parameters: Gaussian where ``gaussian`` is True (mean, sd), uniform on
+    ``[lo, hi]`` otherwise (flat, improper along an unbounded parameter); the model's bounds hold
+    for every parameter (the Gaussian is truncated there, as in the fits).
+
+    Attributes: ``names``, ``gaussian`` (P,) bool, ``mean``, ``sd``, ``lo``, ``hi`` (P,)."""
+
+    names: tuple
+    gaussian: np.ndarray
+    mean: np.ndarray
+    sd: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @classmethod
+    def of_model(cls, model, use_file: bool = True) -> ParameterPrior:
+        """Gaussian priors from the vehicle file's ``[prior]`` section (``use_file``), uniform in
+        ``model.bounds()`` otherwise."""
+        gp = wf.GaussianPrior.of_model(model) if use_file else None
+        P = model.n_params
+        g, mean, sd = np.zeros(P, bool), np.full(P, np.nan), np.full(P, np.nan)
+        if gp is not None and gp.idx.size:
+            g[gp.idx], mean[gp.idx], sd[gp.idx] = True, gp.mean, gp.sd
+        lo, hi = model.bounds()
+        return cls(tuple(model.param_names), g, mean, sd, np.asarray(lo, float), np.asarray(hi, float))
+
+    def logpdf(self, P: np.ndarray) -> np.ndarray:
+        """(B,) log density (up to a constant) of (B, P) rows; ``-inf`` outside the bounds."""
+        P = np.atleast_2d(P)
+        inside = np.all((P >= self.lo) & (P <= self.hi), axis=1)
+        z = (P[:, self.gaussian] - self.mean[self.gaussian]) / self.sd[self.gaussian]
+        return np.where(inside, -0.5 * np.sum(z * z, axis=1), -np.inf)
+
+    def marginal_sd(self) -> np.ndarray:
+        """(P,) prior sd: the Gaussian's, or a uniform's width / sqrt(12) (inf when unbounded)."""
+        with np.errstate(invalid="ignore"):
+            uni = (self.hi - self.lo) / math.sqrt(12.0)
+        return np.where(self.gaussian, self.sd, np.where(np.isfinite(uni), uni, np.inf))
+
+    def marginal_mean(self) -> np.ndarray:
+        """(P,) prior mean (NaN for an unbounded uniform)."""
+        with np.errstate(invalid="ignore"):
+            mid = 0.5 * (self.lo + self.hi)
+        return np.where(self.gaussian, self.mean, np.where(np.isfinite(mid), mid, np.nan))
+
+    def gaussian_prior(self) -> wf.GaussianPrior:
+        """The Gaussian part as fit residuals (weight 1)."""
+        idx = np.flatnonzero(self.gaussian)
+        names = tuple(self.names[i] for i in idx)
+        return wf.GaussianPrior(names, idx, self.mean[idx], self.sd[idx], 1.0)
+
+    def precision(self, scales) -> np.ndarray:
+        """(P,) prior precision of the Laplace approximation: ``1 / sd^2`` of a Gaussian, a uniform's
+        ``12 / width^2`` stand-in, and ``1 / (100 scale)^2`` along an unbounded parameter (a weak
+        ridge that keeps the matrix invertible where the data say nothing)."""
+        sd = self.marginal_sd()
+        sd = np.where(np.isfinite(sd), sd, 100.0 * np.abs(np.asarray(scales, float)))
+        return 1.0 / sd**2
+
+    def to_dict(self) -> dict:
+        """JSON-able: per parameter its kind and numbers."""
+        out = {}
+        for j, n in enumerate(self.names):
+            if self.gaussian[j]:
+                out[n] = {"kind": "normal", "mean": float(self.mean[j]), "sd": float(self.sd[j])}
+            else:
+                out[n] = {"kind": "uniform", "lower": float(self.lo[j]), "upper": float(self.hi[j])}
+        return out
+
+
+class TrackPosterior:
+    """Vectorised log posterior ``(B, P) -> (B,)`` of a model's parameters on tracks (module
+    docstring); :meth:`evaluate` also returns the per-channel sums of squares.
+
+    Parameters
+    ----------
+    ob : :class:`~bayesid.estimation.windows.WindowObjective` of the tracks (no prior; its
+        nuisances are held at ``nuisance``).   errors : :class:`ErrorModel` of ``ob``.
+    prior : :class:`ParameterPrior` over ``ob.model.param_names``.
+    nuisance : (n_nuisance_total,) fixed nuisance variables appended to each row (may be empty).
+    """
+
+    def __init__(self, ob, errors: ErrorModel, prior: ParameterPrior, nuisance=None):
+        if list(prior.names) != list(ob.model.param_names):
+            raise ValueError(f"prior over {list(prior.names)}, model parameters {ob.model.param_names}")
+        self.ob, self.errors, self.prior = ob, errors, prior
+        self.nuisance = np.zeros(0) if nuisance is None else np.asarray(nuisance, float).ravel()
+        self.names = list(ob.model.param_names)
+
+    def evaluate(self, P) -> tuple[np.ndarray, np.ndarray]:
+        """((B,) log posterior, (B, C) per-channel SSR) of (B, P) parameter rows; rows outside the
+        prior's support are not simulated (-inf, SSR NaN); a diverged window gives -inf."""
+        P = np.atleast_2d(np.asarray(P, float))
+        lp = self.prior.logpdf(P)
+        ssr = np.full((P.shape[0], len(self.errors.channels)), np.nan)
+        ok = np.isfinite(lp)
+        if ok.any():
+            X = np.hstack([P[ok], np.repeat(self.nuisance[None], ok.sum(), axis=0)])
+            R = self.ob.residuals_batch(X)[0]
+            diverged = np.any(R[:, self.errors.column >= 0] == wf.PENALTY, axis=1)
+            s = self.errors.ssr(R)
+            s[diverged] = np.nan
+            ssr[ok] = s
+            lp[ok] = lp[ok] + self.errors.log_likelihood(s)
+        return np.where(np.isfinite(lp), lp, -np.inf), ssr
+
+    def __call__(self, P) -> np.ndarray:
+        return self.evaluate(P)[0]
+
+
+def posterior_mode(post: TrackPosterior, p0, max_nfev: int = 30) -> dict:
+    """Mode and Laplace covariance of ``post`` (module docstring, step 1), from ``p0``.
+
+    Returns dict: ``p`` (P,), ``cov`` (P, P) symmetric PSD, ``fisher`` (P, P) the data's
+    information ``J^T J`` (without the prior), ``jac`` (n_res, P) the weighted data Jacobian, and
+    ``fit`` (the :class:`~bayesid.estimation.fit.FitResult`)."""
+    ob, em = post.ob, post.errors
+    model = ob.model
+    gp = post.prior.gaussian_prior()
+    nu0 = None
+    if post.nuisance.size:
+        nu0 = [post.nuisance[i * model.n_nuisance : (i + 1) * model.n_nuisance] for i in range(len(ob.ctxs))]
+    f = wf.fit_model(
+        model,
+        ob.ctxs,
+        em.fit_sd(),
+        np.asarray(p0, float),
+        nu0,
+        max_nfev=max_nfev,
+        channels=ob.channels,
+        prior=gp if gp.idx.size else None,
+    )
+    n = model.n_params
+    J = f.jac[:, :n]
+    J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    if gp.idx.size:
+        J = J[: J.shape[0] - gp.idx.size]
+    # the measured columns only: an unmeasured sample's residual is a constant
+    Jm = J[np.flatnonzero(em.column >= 0)] if J.shape[0] == em.column.size else J
+    F = Jm.T @ Jm
+    cov = psd_covariance(gauss_newton_covariance(Jm, prior_precision=post.prior.precision(model.scales())))
+    return {"p": np.array(f.p), "cov": cov, "fisher": F, "jac": Jm, "fit": f}
+
+
+def evaluate_chunk(post: TrackPosterior, rows) -> dict:
+    """Task: log posterior and per-channel SSR of parameter rows (a list of lists), JSON-able."""
+    lp, ssr = post.evaluate(np.asarray(rows, float))
+    return {
+        "log_prob": [float(v) if np.isfinite(v) else None for v in lp],
+        "ssr": [[float(v) if np.isfinite(v) else None for v in r] for r in ssr],
+    }
+
+
+def _as_array(values) -> np.ndarray:
+    return np.array([np.nan if v is None else v for v in values], float)
+
+
+def importance_laplace(
+    post: TrackPosterior,
+    center,
+    cov,
+    n_draws: int,
+    rng: np.random.Generator,
+    df: float = 5.0,
+    chunk: int = 64,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    journal=None,
+    progress: str | None = None,
+) -> dict:
+    """Importance-reweighted Laplace approximation of ``post`` (module docstring, step 2).
+
+    Draws ``n_draws`` rows from a multivariate Student-t (``df`` degrees of freedom) with location
+    ``center`` and shape ``cov`` (scipy.stats.multivariate_t), evaluates ``post`` on them in chunks
+    of ``chunk`` rows as tasks (``jobs``, ``scheduler``, ``journal``: :func:`bayesid.tasks.run_tasks`)
+    and weights them by ``post / proposal`` with Pareto smoothing (``arviz.psislw``).
+
+    Returns
+    -------
+    dict: ``draws`` (N, P), ``log_prob`` (N,), ``ssr`` (N, C), ``log_proposal`` (N,),
+    ``log_weights`` (N,) smoothed and normalised, ``k_hat``, ``ess`` (``1 / sum w^2``),
+    ``reliable`` (k-hat < :data:`KHAT_MAX`), ``finite`` (draws with a finite posterior).
+
+    Raises
+    ------
+    ValueError : ``n_draws`` below 100, ``df`` not positive, or a chunk task failed (named).
+    """
+    import warnings
+
+    import arviz as az
+    from scipy.stats import multivariate_t
+
+    if n_draws < 100 or not df > 0:
+        raise ValueError(f"importance sampling needs at least 100 draws and df > 0, got {n_draws} and {df}")
+    center = np.asarray(center, float)
+    scale = np.where(np.diag(cov) > 0, np.sqrt(np.clip(np.diag(cov), 0, None)), 1.0)
+    # drawn in units of the Laplace sds: the shape matrix is then a correlation matrix, well scaled
+    corr = cov / np.outer(scale, scale) + 1e-12 * np.eye(center.size)
+    dist = multivariate_t(loc=np.zeros(center.size), shape=corr, df=df, allow_singular=True)
+    U = dist.rvs(size=n_draws, random_state=rng).reshape(n_draws, -1)
+    draws = center + U * scale
+    logq = dist.logpdf(U) - np.sum(np.log(scale))
+    tasks = [
+        Task(f"draws{i:05d}", {"first": i, "n": min(chunk, n_draws - i)}, (post, draws[i : i + chunk].tolist()))
+        for i in range(0, n_draws, chunk)
+    ]
+    res = run_tasks(evaluate_chunk, tasks, jobs=jobs, scheduler=scheduler, journal=journal, progress=progress)
+    failed = [r for r in res if isinstance(r, TaskError)]
+    if failed:
+        raise ValueError(f"{len(failed)} chunk(s) of posterior draws failed; first: {failed[0]}")
+    lp = np.concatenate([_as_array(r["log_prob"]) for r in res])
+    ssr = np.vstack([np.array([[np.nan if v is None else v for v in row] for row in r["ssr"]]) for r in res])
+    lp = np.where(np.isfinite(lp), lp, -np.inf)
+    raw = lp - logq
+    finite = np.isfinite(raw)
+    if finite.sum() < 10:
+        raise ValueError(
+            f"only {int(finite.sum())} of {n_draws} draws have a finite posterior: the Laplace approximation "
+            "is far from the posterior's support (check the fit, or use --method mcmc)"
+        )
+    lw = np.full(n_draws, -np.inf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # ArviZ warns on k-hat > 0.7; the verdict reports it
+        sm, k = az.psislw(raw[finite] - raw[finite].max())
+    lw[finite] = np.asarray(sm, float)
+    w = np.exp(lw - np.max(lw))
+    w /= w.sum()
+    k = float(np.asarray(k))
+    return {
+        "draws": draws,
+        "log_prob": lp,
+        "ssr": ssr,
+        "log_proposal": logq,
+        "log_weights": np.log(np.where(w > 0, w, np.finfo(float).tiny)),
+        "weights": w,
+        "k_hat": k,
+        "ess": float(1.0 / np.sum(w**2)),
+        "reliable": bool(k < KHAT_MAX),
+        "finite": int(finite.sum()),
+    }
+
+
+def resample(weights, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n,) indices drawn with probabilities ``weights`` by systematic resampling (Kitagawa 1996,
+    J. Comput. Graph. Stat. 5(1)): the importance-weighted draws as an unweighted sample."""
+    w = np.asarray(weights, float)
+    c = np.cumsum(w / w.sum())
+    c[-1] = 1.0
+    u = (rng.random() + np.arange(n)) / n
+    return np.searchsorted(c, u, side="left")
+
+
+METHODS = ("auto", "importance", "mcmc")
+
+
+def sample_tracks(
+    model,
+    p0,
+    tracks,
+    *,
+    window_s: float,
+    start_rule: str,
+    fit_sd: dict,
+    channels=None,
+    use_prior: bool = True,
+    method: str = "auto",
+    n_draws: int = 4000,
+    df: float = 5.0,
+    seed: int = 0,
+    max_minutes: float = 20.0,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    journal=None,
+    checkpoint=None,
+    run_key: dict | None = None,
+    progress=None,
+) -> dict:
+    """The posterior of ``model``'s parameters given ``tracks`` (module docstring), from a fit's
+    optimum ``p0``.
+
+    Parameters
+    ----------
+    model : a :class:`~bayesid.models.interface.SimulationModel` (e.g. from a ``model.json``).
+    p0 : (P,) the fit's estimate.   tracks : the training Tracks.
+    window_s, start_rule, fit_sd, channels : the fit's windows (s), window start rule
+        (``"measured"`` or ``"fitted"``), channel sds {channel: SI} and scored channels: the
+        objective ``bayesid fit`` used.
+    use_prior : Gaussian priors of the vehicle file's ``[prior]`` section (else uniform in bounds).
+    method : ``"importance"`` (importance-reweighted Laplace), ``"mcmc"`` (emcee ensembles), or
+        ``"auto"``: importance first, MCMC when its k-hat or ESS fails.
+    n_draws : importance draws.   df : their Student-t degrees of freedom.
+    seed : the one seed of every random draw (proposal, resampling, noise scales, ensembles).
+    max_minutes : wall budget of the MCMC refinement.
+    jobs, scheduler, journal : where the importance draws are evaluated (:func:`bayesid.tasks.run_tasks`).
+    checkpoint, run_key : the MCMC's HDF5 checkpoint and its identity
+        (:func:`bayesid.estimation.sampling.run_ensembles`).
+    progress : callable(str) for progress messages, or None.
+
+    Returns
+    -------
+    dict: ``names``, ``prior`` (:class:`ParameterPrior`), ``errors`` (:class:`ErrorModel`),
+    ``mode`` (:func:`posterior_mode`), ``method`` (the one that gave the draws), ``importance``
+    (:func:`importance_laplace` result or None), ``mcmc`` (``{"result", "idata", "diagnostics"}``
+    or None), ``draws`` (N, P) unweighted posterior draws, ``log_prob`` (N,), ``sigma`` (N, C)
+    noise-scale draws (SI), ``verdict`` (``{"converged", "text", ...}``), ``seconds``
+    (per stage) and ``seconds_per_evaluation`` (one parameter row of the objective).
+
+    Raises
+    ------
+    ValueError : an unknown method, too few draws, an unreadable or foreign checkpoint or journal.
+    """
+    import time
+
+    from .sampling import SamplerConfig, burn_in, diagnostics, run_ensembles, to_inference_data
+
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, not {method!r}")
+    say = progress or (lambda m: None)
+    t0 = time.perf_counter()
+    secs = {}
+    ctxs = [model.context(t, window_s, start=start_rule) for t in tracks]
+    ob = wf.WindowObjective(model, ctxs, fit_sd, p0, channels=channels)
+    nuisance = np.zeros(0)
+    if model.n_nuisance:
+        fr = type("Fitted", (), {"p": np.asarray(p0, float)})()
+        nuisance = np.concatenate(wf.heldout_nuisance(model, fr, ctxs, fit_sd))
+    x0 = np.concatenate([np.asarray(p0, float), nuisance])
+    errors = error_model(ob, x0)
+    prior = ParameterPrior.of_model(model, use_prior)
+    post = TrackPosterior(ob, errors, prior, nuisance)
+    t = time.perf_counter()
+    post.evaluate(np.repeat(np.asarray(p0, float)[None], 8, axis=0))
+    per_eval = (time.perf_counter() - t) / 8
+    say(f"one evaluation: {1e3 * per_eval:.1f} ms per parameter row (batch of 8)")
+    say("posterior mode and Laplace covariance")
+    mode = posterior_mode(post, p0)
+    secs["mode"] = time.perf_counter() - t0
+    seeds = np.random.SeedSequence(seed).spawn(4)  # proposal, resampling, noise scales, ensembles
+    imp, mc, verdict = None, None, None
+    used = method
+    if method in ("importance", "auto"):
+        t = time.perf_counter()
+        say(f"importance-reweighted Laplace: {n_draws} Student-t draws")
+        imp = importance_laplace(
+            post,
+            mode["p"],
+            mode["cov"],
+            n_draws,
+            np.random.default_rng(seeds[0]),
+            df=df,
+            jobs=jobs,
+            scheduler=scheduler,
+            journal=journal,
+            progress="draws" if progress is not None else None,
+        )
+        secs["importance"] = time.perf_counter() - t
+        ok_k, ok_e = imp["k_hat"] < KHAT_MAX, imp["ess"] >= 400
+        verdict = {
+            "method": "importance",
+            "converged": bool(ok_k and ok_e),
+            "k_hat": imp["k_hat"],
+            "k_hat_max": KHAT_MAX,
+            "ess": imp["ess"],
+            "ess_min": 400,
+            "text": (
+                f"{'Reliable' if ok_k and ok_e else 'Not reliable'}: Pareto k-hat {imp['k_hat']:.2f} "
+                f"{'<' if ok_k else '>='} {KHAT_MAX} and importance ESS {imp['ess']:.0f} "
+                f"{'>=' if ok_e else '<'} 400 of {n_draws} draws ({imp['finite']} with a finite posterior)."
+            ),
+        }
+        used = "importance"
+    if method == "mcmc" or (method == "auto" and not verdict["converged"]):
+        t = time.perf_counter()
+        budget = max(60.0, 60.0 * max_minutes - (time.perf_counter() - t0))
+        say(f"MCMC: 2 emcee ensembles until converged or {budget / 60:.1f} min")
+        cfg = SamplerConfig(
+            n_ensembles=2,
+            moves="de",
+            min_steps=500,
+            max_steps=200_000,
+            until_converged=True,
+            redraw_stranded=True,
+            max_wall_s=budget,
+            progress=progress is not None,
+        )
+        res = run_ensembles(
+            post,
+            mode["p"],
+            mode["cov"],
+            post.names,
+            cfg,
+            np.random.default_rng(seeds[3]),
+            checkpoint=checkpoint,
+            run_key=run_key,
+        )
+        burn = burn_in(res)
+        idata = to_inference_data(res, burn=burn)
+        diag = diagnostics(idata, res)
+        mc = {"result": res, "idata": idata, "diagnostics": diag, "burn": burn}
+        secs["mcmc"] = time.perf_counter() - t
+        verdict = dict(
+            {k: v for k, v in diag.items() if not isinstance(v, dict)},
+            method="mcmc",
+            text=diag["verdict"],
+            per_parameter={k: diag[k] for k in ("rhat", "ess_bulk", "ess_tail")},
+            importance_first=None if imp is None else {"k_hat": imp["k_hat"], "ess": imp["ess"]},
+        )
+        used = "mcmc"
+    rng_r, rng_s = np.random.default_rng(seeds[1]), np.random.default_rng(seeds[2])
+    if used == "importance":
+        idx = resample(imp["weights"], n_draws, rng_r)
+        draws, lp, ssr = imp["draws"][idx], imp["log_prob"][idx], imp["ssr"][idx]
+    else:
+        res = mc["result"]
+        flat = res.chains[:, mc["burn"] :].reshape(-1, len(post.names))
+        keep = np.unique(np.linspace(0, flat.shape[0] - 1, min(n_draws, flat.shape[0])).astype(int))
+        draws = flat[keep]
+        lp, ssr = post.evaluate(draws)  # the SSR of the kept draws, for the noise scales
+    sigma = errors.sigma_draws(ssr, rng_s)
+    secs["total"] = time.perf_counter() - t0
+    return {
+        "names": post.names,
+        "prior": prior,
+        "errors": errors,
+        "mode": mode,
+        "method": used,
+        "importance": imp,
+        "mcmc": mc,
+        "draws": draws,
+        "log_prob": lp,
+        "sigma": sigma,
+        "verdict": verdict,
+        "seconds": secs,
+        "seconds_per_evaluation": per_eval,
+        "n_windows": int(sum(c.W for c in ctxs)),
+    }
+
+
+def inference_data(res: dict, attrs: dict | None = None):
+    """ArviZ InferenceData of a :func:`sample_tracks` result: ``posterior`` (one variable per
+    parameter; MCMC: every walker a chain; importance: the resampled draws as one chain),
+    ``sample_stats`` (``lp``), ``noise_scale`` (``sigma_<channel>`` draws, SI, dim ``sample``) and,
+    for importance sampling, ``importance`` (the raw proposal draws, their log posterior, log
+    proposal density and smoothed log weights, dim ``proposal``). ``attrs`` go on the posterior."""
+    import warnings
+
+    import arviz as az
+    import xarray as xr
+
+    if res["method"] == "mcmc":
+        idata = res["mcmc"]["idata"]
+    else:
+        d = res["draws"]
+        idata = az.from_dict(
+            posterior={n: d[None, :, j] for j, n in enumerate(res["names"])},
+            sample_stats={"lp": res["log_prob"][None]},
+        )
+    idata.posterior.attrs.update({k: v for k, v in (attrs or {}).items() if v is not None})
+    groups = {
+        "noise_scale": xr.Dataset(
+            {f"sigma_{c}": ("sample", res["sigma"][:, j]) for j, c in enumerate(res["errors"].channels)}
+        )
+    }
+    imp = res["importance"]
+    if imp is not None:
+        groups["importance"] = xr.Dataset(
+            {
+                **{n: ("proposal", imp["draws"][:, j]) for j, n in enumerate(res["names"])},
+                "log_prob": ("proposal", imp["log_prob"]),
+                "log_proposal": ("proposal", imp["log_proposal"]),
+                "log_weight": ("proposal", imp["log_weights"]),
+            },
+            attrs={"k_hat": imp["k_hat"], "ess": imp["ess"]},
+        )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # groups outside ArviZ's schema are allowed, with a warning
+        idata.add_groups(groups)
+    return idata
