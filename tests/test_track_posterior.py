@@ -60,6 +60,19 @@ def test_the_error_model_recovers_known_ar1_noise(rho, sigma):
     assert (hi - lo) / sigma == pytest.approx(2 * 1.645 / math.sqrt(2 * n / k), rel=0.25)
 
 
+def test_integrated_time_of_ar1_and_of_a_persistent_error_under_noise():
+    rng = np.random.default_rng(4)
+    for rho in (0.0, 0.8, 0.95):
+        e, win = _ar1(rng, 300, 100, rho, 1.0)
+        assert tp.integrated_time(e, win, 100) == pytest.approx((1 + rho) / (1 - rho), rel=0.25)
+    # white noise plus an error constant over each window (half the variance): lag 1 sees 0.5,
+    # yet every lag does, so the time is tens of samples where AR(1) would say 3
+    e = rng.normal(size=200 * 60) + np.repeat(rng.normal(size=200), 60)
+    win = np.repeat(np.arange(200), 60)
+    assert tp.ar1_noise(e, win)["rho"] < 0.6
+    assert tp.integrated_time(e, win, 60) > 20
+
+
 def test_ar1_noise_refuses_mismatched_shapes():
     with pytest.raises(ValueError, match="shape"):
         tp.ar1_noise(np.zeros(5), np.zeros(4))

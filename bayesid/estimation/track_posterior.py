@@ -7,11 +7,13 @@ serially correlated samples as independent evidence.
 Error model
 -----------
 Per scored channel ``c`` the simulation errors ``e`` over the windows are Gaussian with an
-unknown scale ``sigma_c`` and lag-1 autocorrelation ``rho_c`` within a window (AR(1)). At the
-fit's optimum ``rho_c`` is estimated from consecutive errors of the same window
-(:func:`ar1_noise`) and gives the variance inflation ``k_c = (1 + rho_c) / (1 - rho_c)``, at
-most the samples per window (a window then counts as one independent error per channel): the
-channel's ``n_c`` errors carry the evidence of ``n_eff,c = n_c / k_c`` independent ones. The
+unknown scale ``sigma_c`` and serially correlated within a window. At the fit's optimum the
+integrated autocorrelation time ``k_c`` of the errors within windows (:func:`integrated_time`;
+for AR(1) errors it is ``(1 + rho_c) / (1 - rho_c)``, :func:`ar1_noise` reports ``rho_c``) gives
+the variance inflation, at most the samples per window (a window then counts as one independent
+error per channel): the channel's ``n_c`` errors carry the evidence of ``n_eff,c = n_c / k_c``
+independent ones. The lag-1 reading alone was too narrow: a persistent structural error under
+white noise has a small lag-1 correlation, yet correlates at every lag. The
 likelihood is tempered accordingly, ``p(e | theta, sigma)^(1 / k_c)`` (a power likelihood;
 Grünwald & van Ommen 2017, Bayesian Analysis 12(4); for the AR(1) inflation of the variance of
 a mean, Box, Jenkins & Reinsel, *Time Series Analysis*, Sec. 2.1), and ``sigma_c`` is
@@ -65,6 +67,7 @@ __all__ = [
     "TrackPosterior",
     "ar1_noise",
     "residual_layout",
+    "integrated_time",
     "error_model",
     "posterior_mode",
     "importance_laplace",
@@ -75,6 +78,8 @@ __all__ = [
     "METHODS",
 ]
 
+#: Sokal's window constant of :func:`integrated_time`.
+SOKAL_C = 5.0
 #: Pareto k-hat above which importance weights are unreliable (Vehtari et al. 2024, Sec. 3.2.4).
 KHAT_MAX = 0.7
 
@@ -116,6 +121,42 @@ def ar1_noise(e: np.ndarray, win: np.ndarray) -> dict:
     }
 
 
+def integrated_time(e: np.ndarray, win: np.ndarray, max_lag: int | None = None) -> float:
+    """Integrated autocorrelation time of errors that restart every window: ``1 + 2 sum_k rho_k``
+    over the pooled within-window autocorrelation ``rho_k`` (pairs ``k`` samples apart inside one
+    window), summed up to a lag window whose length is chosen by Sokal's rule, the first lag ``M >= 5 tau(M)``; Sokal 1997, "Monte
+    Carlo methods in statistical mechanics", as in emcee's ``integrated_time``).
+
+    Unlike the AR(1) reading ``(1 + rho_1) / (1 - rho_1)``, it sees a persistent structural error
+    under white noise: the lag-1 correlation of such a mixture is small, yet every lag keeps the
+    structural share of the variance. Returns the time in samples (>= 1).
+
+    Raises ValueError when ``e`` and ``win`` differ in shape."""
+    e, win = np.asarray(e, float), np.asarray(win)
+    if e.shape != win.shape or e.ndim != 1:
+        raise ValueError(f"errors {e.shape} and window indices {win.shape} must be equal 1-D shapes")
+    x = np.where(np.isfinite(e), e, 0.0)
+    ok = np.isfinite(e)
+    var = float(x @ x)
+    if var <= 0:
+        return 1.0
+    n = e.size
+    L = n - 1 if max_lag is None else min(max_lag, n - 1)
+    rho = np.zeros(L)
+    for k in range(1, L + 1):
+        same = (win[k:] == win[:-k]) & ok[k:] & ok[:-k]
+        if not same.any():
+            rho = rho[: k - 1]
+            break
+        # normalised per pair, so lags with fewer pairs inside the windows are not biased low
+        rho[k - 1] = float(x[k:][same] @ x[:-k][same]) / same.sum() / (var / ok.sum())
+    taus = 1.0 + 2.0 * np.cumsum(rho)
+    # Sokal's automatic window: the first lag M with M >= c tau(M), c = 5
+    m = np.arange(1, rho.size + 1) >= SOKAL_C * taus
+    tau = taus[np.argmax(m)] if m.any() else (taus[-1] if taus.size else 1.0)
+    return float(max(1.0, tau))
+
+
 def residual_layout(ob) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
     """Which channel, window and measurement each column of ``ob``'s data residuals is.
 
@@ -147,7 +188,7 @@ class ErrorModel:
     channels : (C,) scored channel names.   column : (n_res,) channel index of each residual
         column (-1: not measured, left out).   n : (C,) measured errors per channel.
     rho, rho_se : (C,) lag-1 autocorrelation within windows and its standard error.
-    inflation : (C,) ``min((1 + rho) / (1 - rho), samples per window)``.
+    inflation : (C,) ``min(integrated autocorrelation time, samples per window)``.
     unit : (C,) SI size of one residual unit (the fit's channel sd: residuals are errors / unit).
     sigma : (C,) RMS error at the estimate (SI).
     """
@@ -231,7 +272,7 @@ def error_model(ob, x) -> ErrorModel:
             raise ValueError(f"channel {c}: no measured sample in any window")
         a = ar1_noise(R[sel], wid[sel])
         per_window = sel.sum() / max(np.unique(wid[sel]).size, 1)
-        k = min((1 + a["rho"]) / (1 - a["rho"]), max(1.0, float(per_window)))
+        k = min(integrated_time(R[sel], wid[sel], max_lag=int(np.ceil(per_window))), max(1.0, float(per_window)))
         rows.append((a["n"], a["rho"], a["rho_se"], k, a["sigma"] * unit[j]))
     n, rho, rse, k, sig = (np.array(v, float) for v in zip(*rows))
     return ErrorModel(tuple(names), col, n, rho, rse, k, unit, sig)

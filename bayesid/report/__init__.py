@@ -535,9 +535,10 @@ def write_sample_report(doc: dict, out, command: str = "") -> None:
         "",
         "## Error model",
         "",
-        "Per channel, the errors within a window are AR(1); the lag-1 autocorrelation rho gives the variance "
-        "inflation (1 + rho) / (1 - rho), capped at the samples per window, and n / inflation independent "
-        "errors of evidence. The noise scale is integrated out (Jeffreys prior) and drawn afterwards.",
+        "Per channel, the integrated autocorrelation time of the errors within a window (Geyer's initial "
+        "positive sequence; (1 + rho) / (1 - rho) for AR(1) errors with lag-1 correlation rho) gives the variance "
+        "inflation, capped at the samples per window, and n / inflation independent errors of evidence. The "
+        "noise scale is integrated out (Jeffreys prior) and drawn afterwards.",
         "",
         md_table(
             ["channel", "samples", "rho", "inflation", "effective samples", "sigma (5-95 %)"],

@@ -1,0 +1,126 @@
+"""Are the posterior widths of ``bayesid sample`` honest under a structural error? (issue 31)
+
+Replicate experiment: R independent training sets (3 runs each: zigzags and turns of 8-20 deg,
+150 s, NPS AUV II, horizontal plane) in a world with a 0.14 m/s current the model lacks. Each set
+is fitted as ``bayesid fit`` does and sampled as ``bayesid sample`` does (importance-reweighted
+Laplace). If the posterior sds were honest, the scatter of the R posterior means around their
+average would match the posterior sds: the ratio "sd of the means across replicates / median
+posterior sd" would be about 1. The same ratio is printed for the Laplace posterior that counts
+every sample as independent evidence (inflation 1), the reading the issue started from.
+
+    python benchmarks/posterior_widths.py [--replicates 8] [--seed 3]
+
+Writes reports/benchmark_posterior_widths.txt.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bayesid import __version__
+from bayesid.data.track import Track
+from bayesid.data.vehicle import load_vehicle
+from bayesid.estimation import msfit
+from bayesid.estimation import track_posterior as tp
+from bayesid.models import effects as ef
+from bayesid.models import manoeuvres as mv
+from bayesid.models import model_class
+from bayesid.report import git_commit
+
+NOISE = {"x": 0.1, "y": 0.1, "psi": math.radians(0.2), "u": 0.01, "v": 0.01, "r": math.radians(0.1)}
+CURRENT = {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--replicates", type=int, default=8)
+    ap.add_argument("--seed", type=int, default=3)
+    ap.add_argument("--draws", type=int, default=1000)
+    ap.add_argument(
+        "--out", default=str(Path(__file__).resolve().parents[1] / "reports" / "benchmark_posterior_widths.txt")
+    )
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    veh = load_vehicle("nps_auv2")
+    free = model_class(veh).default_free(veh)
+    rng = np.random.default_rng(a.seed)
+
+    def world(i):
+        ang, kind = float(rng.uniform(8, 20)), rng.integers(2)
+        m = (
+            mv.zigzag(veh, ang, dt=0.1, duration=150.0, first_sign=int(rng.choice([-1, 1])))
+            if kind == 0
+            else mv.turning_circle(veh, ang, dt=0.1, duration=150.0)
+        )
+        tr = ef.world_track(veh, m, CURRENT, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        return Track(tr.t, dict(tr.data), name=f"run{i}_{m.name}", meta=tr.meta)
+
+    lines = [
+        f"benchmarks/posterior_widths.py: bayesid {__version__}, commit {git_commit()}, {platform.node()}, "
+        f"{time.strftime('%Y-%m-%d')}",
+        f"{a.replicates} replicate training sets of 3 runs in a world with a current the model lacks; "
+        f"{a.draws} importance draws each, seed {a.seed}",
+        "",
+    ]
+    means, sds, iid_sds, verdicts = [], [], [], []
+    for r in range(a.replicates):
+        train = [world(3 * r + k) for k in range(3)]
+        res = msfit.identify(veh, train, free, max_nfev=15, calibrate=False)
+        out = tp.sample_tracks(
+            res["model"],
+            res["fit"].p,
+            train,
+            window_s=res["window_s"],
+            start_rule=res["start_rule"],
+            fit_sd=res["fit_sd"],
+            method="importance",
+            n_draws=a.draws,
+            seed=r,
+        )
+        d = out["draws"]
+        means.append(d.mean(axis=0))
+        sds.append(d.std(axis=0, ddof=1))
+        em = out["errors"]
+        iid = tp.ErrorModel(
+            em.channels, em.column, em.n, em.rho, em.rho_se, np.ones_like(em.inflation), em.unit, em.sigma
+        )
+        post_iid = tp.TrackPosterior(
+            __import__("bayesid.estimation.windows", fromlist=["x"]).WindowObjective(
+                res["model"],
+                [res["model"].context(t, res["window_s"], start=res["start_rule"]) for t in train],
+                res["fit_sd"],
+                res["fit"].p,
+            ),
+            iid,
+            out["prior"],
+        )
+        iid_sds.append(np.sqrt(np.diag(tp.posterior_mode(post_iid, out["mode"]["p"])["cov"])))
+        verdicts.append(out["verdict"]["text"])
+        lines.append(
+            f"replicate {r}: inflation per channel "
+            + ", ".join(f"{c} {k:.0f}" for c, k in zip(em.channels, em.inflation))
+            + f"; {out['verdict']['text']}"
+        )
+    names = res["model"].param_names
+    means, sds, iid_sds = np.array(means), np.array(sds), np.array(iid_sds)
+    across = means.std(axis=0, ddof=1)
+    lines += ["", "sd of the replicates' posterior means / median posterior sd (honest: about 1)", ""]
+    lines.append(f"{'parameter':10s} {'bayesid sample':>15s} {'iid Laplace':>12s}")
+    for j, n in enumerate(names):
+        lines.append(f"{n:10s} {across[j] / np.median(sds[:, j]):15.2f} {across[j] / np.median(iid_sds[:, j]):12.2f}")
+    lines += ["", f"wall {time.perf_counter() - t0:.0f} s"]
+    text = "\n".join(lines)
+    print(text)
+    Path(a.out).write_text(text + "\n")
+    print(f"wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
