@@ -23,7 +23,9 @@ Method
 
 The cases are tasks of :mod:`bayesid.tasks`: ``--jobs 1`` (the default) samples one case at a time
 with every core for the batched simulations, which on 2 cores beats two cases side by side;
-on a cluster (``--scheduler``) the cases run at once. Each case resumes from its own checkpoint.
+on a cluster (``--scheduler``) the cases run at once. With ``--ensembles-as-tasks`` the cases run
+one after another and the ensembles of each case run at once as tasks instead (the same chains,
+bit for bit). Each case resumes from its own checkpoint.
 """
 
 from __future__ import annotations
@@ -124,6 +126,12 @@ def parse_args():
     )
     ap.add_argument("--max-minutes", type=float, default=None, help=f"wall-time budget per case (default {BUDGET_MIN})")
     add_arguments(ap)  # cases in parallel: on 2 cores one case at a time with both cores is faster
+    ap.add_argument(
+        "--ensembles-as-tasks",
+        action="store_true",
+        help="sample the cases one after another and run each case's ensembles as tasks on --jobs / "
+        "--scheduler instead (a cluster with more workers than cases)",
+    )
     return parse_checked(ap)
 
 
@@ -242,9 +250,13 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
     stored_key = stored.get("run_key") if stored else None
     if stored and stored_key is not None and stored_key != run_key:
         raise ValueError(f"{done}: finished under {stored_key}, not {run_key}; pass --fresh or another --out")
-    result = sampling.run_ensembles(logpost, centre, cov0, setup.names, cfg, rng, checkpoint=ckfile, run_key=run_key)
+    where = {"jobs": args.jobs, "scheduler": args.scheduler} if args.ensembles_as_tasks else {}
+    result = sampling.run_ensembles(
+        logpost, centre, cov0, setup.names, cfg, rng, checkpoint=ckfile, run_key=run_key, **where
+    )
     sample_s = sampled_s = time.perf_counter() - t_s
-    n_new = logpost.n_evaluations - n_eval0
+    # rows evaluated on workers count in the result, not in this process's log posterior
+    n_new = result.n_evaluations if where else logpost.n_evaluations - n_eval0
     evals_per_s = n_new / sample_s if n_new else None
     if stored:  # timing and stop reason of the run that drew the chains
         sample_s, evals_per_s = stored["sampling_wall_s"], stored["log_prob_evals_per_s"]
@@ -704,7 +716,10 @@ def main():
                 flush=True,
             )
 
-    outs = run_tasks(run_case, tasks, jobs=args.jobs, scheduler=args.scheduler, on_done=done)
+    if args.ensembles_as_tasks:
+        outs = run_tasks(run_case, tasks, on_done=done)
+    else:
+        outs = run_tasks(run_case, tasks, jobs=args.jobs, scheduler=args.scheduler, on_done=done)
     failed = [o for o in outs if isinstance(o, TaskError)]
     if failed:  # a checkpoint of another run, a bad option: named, after the other cases finished
         raise ValueError("; ".join(str(f) for f in failed))

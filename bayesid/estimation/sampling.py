@@ -297,6 +297,15 @@ class _BlockHDFBackend(emcee.backends.HDFBackend):
             )
         )
 
+    def append_block(self, coords, log_prob, accepted, random_state) -> None:
+        """Store k steps run elsewhere (coords (k, W, P), log_prob (k, W), accepted (k, W) counts,
+        the walkers' random state after the last step) and flush them."""
+        for j in range(len(coords)):
+            self._buffer.append(
+                (np.asarray(coords[j], float), np.asarray(log_prob[j], float), accepted[j], random_state)
+            )
+        self.flush()
+
     def redraws(self) -> list:
         """[(step, walker), ...] stored by :meth:`record_redraws`."""
         with self.open() as f:
@@ -381,6 +390,8 @@ def run_ensembles(
     rng: np.random.Generator | None = None,
     checkpoint: str | Path | None = None,
     run_key: dict | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> SamplerResult:
     """Sample the posterior with ``config.n_ensembles`` independent emcee ensembles.
 
@@ -410,6 +421,12 @@ def run_ensembles(
     run_key : JSON-able description of the run (seed, a hash of the data, settings) stored in a
         new checkpoint; resuming a checkpoint written under another key raises ValueError, so
         chains of another seed or other data are never reported as this run's.
+    jobs, scheduler : with ``jobs > 1`` or a Dask ``scheduler``, each round's blocks of the
+        ensembles run at once as tasks (:func:`bayesid.tasks.run_tasks`; ``log_prob`` must then
+        be picklable): a worker advances one ensemble from its last state and random state in
+        memory and returns the steps, which this process stores. The chains are the ones a
+        serial run gives, bit for bit, when ``log_prob`` does not depend on the process
+        (the task layer runs BLAS on one thread).
 
     Returns
     -------
@@ -511,6 +528,9 @@ def run_ensembles(
                     f"tau_max {np.max(tau):.1f}, steps needed "
                     f"{max(config.min_steps, config.tau_factor * np.max(tau)):.0f}"
                 )
+            if int(jobs) > 1 or scheduler is not None:
+                _advance_as_tasks(samplers, states, its, target, log_prob, config, lp_fn, bar, jobs, scheduler)
+                continue
             for i, s in enumerate(samplers):
                 if target <= its[i]:
                     continue
@@ -522,6 +542,72 @@ def run_ensembles(
                     if isinstance(s.backend, _BlockHDFBackend):
                         s.backend.flush()
     return _result(samplers, tau, lp_fn, t0, names, config, reason, redraws)
+
+
+def advance_ensemble(log_prob, n_walkers: int, moves: str, coords, lp, random_state, iterations: int) -> dict:
+    """Task of :func:`run_ensembles` on workers: ``iterations`` steps of one ensemble from the
+    walkers' ``coords`` (W, P), their ``lp`` (W,) and the walkers' ``random_state`` (numpy
+    RandomState state tuple), in memory. Returns ``coords`` (k, W, P), ``log_prob`` (k, W),
+    ``accepted`` (W,) counts, the final ``random_state`` and the ``rows`` evaluated."""
+    coords = np.asarray(coords, float)
+    f = _Vectorised(log_prob)
+    s = emcee.EnsembleSampler(int(n_walkers), coords.shape[1], f, moves=_moves(moves), vectorize=True)
+    last = None
+    for last in s.sample(
+        State(coords, log_prob=np.asarray(lp, float), random_state=random_state), iterations=iterations
+    ):
+        pass
+    return {
+        "coords": s.get_chain(),
+        "log_prob": s.get_log_prob(),
+        "accepted": np.asarray(s.backend.accepted, dtype=int),
+        "random_state": last.random_state,
+        "rows": f.rows,
+    }
+
+
+def _advance_as_tasks(samplers, states, its, target, log_prob, config, lp_fn, bar, jobs, scheduler) -> None:
+    """One round of blocks of every ensemble as tasks (:func:`advance_ensemble`); the steps are
+    stored in each ensemble's backend here, in this process."""
+    from ..tasks import Task, TaskError, run_tasks
+
+    todo = [i for i, s in enumerate(samplers) if target > its[i]]
+    tasks = [
+        Task(
+            f"ensemble{i}",
+            {"ensemble": i, "from": its[i], "to": target},
+            (
+                log_prob,
+                samplers[i].nwalkers,
+                config.moves,
+                np.asarray(states[i].coords, float),
+                np.asarray(states[i].log_prob, float),
+                states[i].random_state if states[i].random_state is not None else samplers[i].random_state,
+                target - its[i],
+            ),
+        )
+        for i in todo
+    ]
+    out = run_tasks(advance_ensemble, tasks, jobs=jobs, scheduler=scheduler)
+    bad = [o for o in out if isinstance(o, TaskError)]
+    if bad:
+        raise RuntimeError(f"{bad[0]}\n{bad[0].traceback}")
+    for i, r in zip(todo, out):
+        s, k = samplers[i], r["coords"].shape[0]
+        acc = np.zeros((k, s.nwalkers), dtype=int)
+        acc[0] = r["accepted"]  # the backends keep only the sum over steps
+        if isinstance(s.backend, _BlockHDFBackend):
+            s.backend.append_block(r["coords"], r["log_prob"], acc, r["random_state"])
+        else:
+            s.backend.grow(k, None)
+            for j in range(k):
+                s.backend.save_step(
+                    State(r["coords"][j], log_prob=r["log_prob"][j], random_state=r["random_state"]), acc[j]
+                )
+        s.random_state = r["random_state"]
+        states[i] = State(r["coords"][-1], log_prob=r["log_prob"][-1], random_state=r["random_state"])
+        lp_fn.rows += int(r["rows"])
+        bar.update(k)
 
 
 def _redraw_stranded(samplers, states, seeds, n, redraws) -> None:

@@ -572,7 +572,8 @@ def sample_tracks(
     n_draws : importance draws.   df : their Student-t degrees of freedom.
     seed : the one seed of every random draw (proposal, resampling, noise scales, ensembles).
     max_minutes : wall budget of the MCMC refinement.
-    jobs, scheduler, journal : where the importance draws are evaluated (:func:`bayesid.tasks.run_tasks`).
+    jobs, scheduler : where the importance draws and the MCMC ensembles run (:func:`bayesid.tasks.run_tasks`).
+    journal : the :class:`bayesid.tasks.Journal` of the importance draws.
     checkpoint, run_key : the MCMC's HDF5 checkpoint and its identity
         (:func:`bayesid.estimation.sampling.run_ensembles`).
     progress : callable(str) for progress messages, or None.
@@ -673,6 +674,8 @@ def sample_tracks(
             np.random.default_rng(seeds[3]),
             checkpoint=checkpoint,
             run_key=run_key,
+            jobs=jobs,
+            scheduler=scheduler,
         )
         burn = burn_in(res)
         idata = to_inference_data(res, burn=burn)
