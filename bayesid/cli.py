@@ -582,7 +582,7 @@ def _sample(args) -> int:
     else:
         vehicle = load_any_vehicle(vehicle_arg)
         got = _read_tracks([("--train", args.train)], vehicle)
-        print("  fitting first (bayesid fit with its defaults, no calibration)", flush=True)
+        print("  fitting first (bayesid fit with its defaults)", flush=True)
         res = msfit.identify(
             vehicle,
             got["--train"],
@@ -590,7 +590,8 @@ def _sample(args) -> int:
             _split_names(args.effects, "--effects"),
             progress=lambda m: print(f"  {m}", flush=True),
             prior=args.prior == "file",
-            calibrate=False,
+            jobs=args.jobs,
+            scheduler=args.scheduler,
         )
         doc = msfit.model_document(
             res,
@@ -629,6 +630,7 @@ def _sample(args) -> int:
         df=args.df,
         seed=args.seed,
         max_minutes=args.max_minutes,
+        folds=[f["p"] for f in ((doc.get("calibration") or {}).get("folds") or []) if "p" in f],
         jobs=args.jobs,
         scheduler=args.scheduler,
         journal=journal,
@@ -694,6 +696,7 @@ def _sample(args) -> int:
             "seconds": res["seconds"],
         },
         "error_model": em,
+        "between_runs": dict(res["between_runs"], per_parameter=dict(zip(names, res["between_runs"]["per_parameter"]))),
         "prior": {
             "used": args.prior == "file",
             "source": getattr(model.vehicle, "prior_source", ""),

@@ -209,3 +209,19 @@ def test_sample_refuses_the_journal_of_another_seed_or_other_data(two_runs, caps
     assert "inputs" in capsys.readouterr().err
     assert _sample(d, files, out, "--draws", "50") == 2  # too few draws: an error naming the option
     assert "--draws" in capsys.readouterr().err
+
+
+def test_the_jackknife_factor_measures_the_scatter_between_runs():
+    rng = np.random.default_rng(0)
+    cov = np.diag([1.0, 4.0, 0.25])
+    loo = rng.normal(size=(10, 3)) * np.sqrt(np.diag(cov))
+    G = 10
+    v = (G - 1) / G * np.sum((loo - loo.mean(0)) ** 2, axis=0)  # delete-one jackknife variance
+    f = tp.jackknife_factor(loo, cov)
+    assert f["n_folds"] == 10 and f["per_parameter"] == pytest.approx(list(v / np.diag(cov)))
+    assert f["factor"] == pytest.approx(max(1.0, float(np.median(v / np.diag(cov)))))
+    # leave-one-out estimates that scatter 10 x more widen by 100 x (a variance ratio)
+    assert tp.jackknife_factor(loo * 10, cov)["factor"] == pytest.approx(100 * float(np.median(v / np.diag(cov))))
+    assert tp.jackknife_factor(np.zeros((10, 3)), cov)["factor"] == 1.0  # never narrower
+    few = tp.jackknife_factor(np.ones((2, 3)), cov)
+    assert few["n_folds"] == 2 and few["factor"] == 1.0  # too few folds: no factor

@@ -555,6 +555,28 @@ def write_sample_report(doc: dict, out, command: str = "") -> None:
             ],
         ),
         "",
+        (
+            f"Between runs: the leave-one-run-out estimates of the fit's calibration ({doc['between_runs']['n_folds']} "
+            f"folds) scatter {doc['between_runs']['median_ratio']:.2f} x the posterior variance (median over the "
+            "parameters, jackknife); "
+            + (
+                "the effective samples above are divided by that factor."
+                if doc["between_runs"]["factor"] > 1
+                else "no widening needed."
+            )
+            + " Parameters that scatter more than their posterior sd says (variance ratio > 1): "
+            + (
+                ", ".join(
+                    f"{n} {r:.2f}" for n, r in doc["between_runs"]["per_parameter"].items() if r is not None and r > 1
+                )
+                or "none"
+            )
+            + "."
+            if doc["between_runs"]["n_folds"]
+            else "Between runs: no leave-one-run-out folds in the model (fewer than 3 runs, or --calibration none): "
+            "the posterior is not widened for the scatter between runs."
+        ),
+        "",
         "## Coefficients: prior, fit, posterior",
         "",
         f"Status: *determined* when the posterior sd is below {doc['thresholds']['determined']} x the prior sd, "
