@@ -494,7 +494,8 @@ def importance_laplace(
     """Importance-reweighted Laplace approximation of ``post`` (module docstring, step 2).
 
     Draws ``n_draws`` rows from a multivariate Student-t (``df`` degrees of freedom) with location
-    ``center`` and shape ``cov`` (scipy.stats.multivariate_t), evaluates ``post`` on them in chunks
+    ``center`` and shape ``cov`` (scipy.stats.multivariate_t) truncated to the prior's bounds
+    (draws outside are redrawn), evaluates ``post`` on them in chunks
     of ``chunk`` rows as tasks (``jobs``, ``scheduler``, ``journal``: :func:`bayesid.tasks.run_tasks`)
     and weights them by ``post / proposal`` with Pareto smoothing (``arviz.psislw``).
 
@@ -506,7 +507,8 @@ def importance_laplace(
 
     Raises
     ------
-    ValueError : ``n_draws`` below 100, ``df`` not positive, or a chunk task failed (named).
+    ValueError : ``n_draws`` below 100, ``df`` not positive, fewer than 1 % of the proposal inside
+        the bounds, or a chunk task failed (named).
     """
     import warnings
 
@@ -520,7 +522,20 @@ def importance_laplace(
     # drawn in units of the Laplace sds: the shape matrix is then a correlation matrix, well scaled
     corr = cov / np.outer(scale, scale) + 1e-12 * np.eye(center.size)
     dist = multivariate_t(loc=np.zeros(center.size), shape=corr, df=df, allow_singular=True)
-    U = dist.rvs(size=n_draws, random_state=rng).reshape(n_draws, -1)
+    # the proposal truncated to the prior's support (the parameters' bounds): draws outside are
+    # redrawn; the truncated density is q / P(inside), a constant the self-normalised weights ignore
+    lo, hi = post.prior.lo, post.prior.hi
+    kept, drawn = [], 0
+    while sum(k.shape[0] for k in kept) < n_draws:
+        V = dist.rvs(size=n_draws, random_state=rng).reshape(n_draws, -1)
+        drawn += n_draws
+        kept.append(V[np.all((center + V * scale >= lo) & (center + V * scale <= hi), axis=1)])
+        if drawn >= 100 * n_draws and sum(k.shape[0] for k in kept) < n_draws:
+            raise ValueError(
+                "fewer than 1 % of the proposal's draws lie inside the parameters' bounds: the mode sits "
+                "outside or on a bound the Laplace approximation cannot describe (use --method mcmc)"
+            )
+    U = np.vstack(kept)[:n_draws]
     draws = center + U * scale
     logq = dist.logpdf(U) - np.sum(np.log(scale))
     tasks = [
