@@ -386,7 +386,7 @@ def sampled_posterior(name, label, model, p, res, train, held, prior, args, log)
         method="importance" if args.quick else "auto",
         n_draws=300 if args.quick else 4000,
         seed=args.seed,
-        max_minutes=20.0,
+        max_minutes=8.0,  # the MCMC refinement's budget per split (four splits)
         folds=[f["p"] for f in (res["calibration"] or {}).get("folds", []) if "p" in f],
         jobs=args.jobs,
         scheduler=args.scheduler,
