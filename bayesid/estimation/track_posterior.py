@@ -485,7 +485,7 @@ def importance_laplace(
     n_draws: int,
     rng: np.random.Generator,
     df: float = 5.0,
-    chunk: int = 64,
+    chunk: int = 16,
     jobs: int = 1,
     scheduler: str | None = None,
     journal=None,
