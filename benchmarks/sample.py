@@ -237,7 +237,7 @@ def bench_set(key, args, data, say, keys):
     best = min(batches, key=lambda B: tb[B][1])
     say(
         f"  cheapest row at batch {best} ({1e3 * tb[best][1]:.2f} ms); importance_laplace's chunk of {IS_CHUNK} costs "
-        f"{tb[64][1] / tb[best][1]:.2f} x that per row"
+        f"{tb[IS_CHUNK][1] / tb[best][1]:.2f} x that per row"
     )
     # estimates
     is_row = tb[IS_CHUNK][1]
