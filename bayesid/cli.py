@@ -745,7 +745,8 @@ def _sample(args) -> int:
     plots.fim_spectra(
         {"these tracks": dos["fisher_eigenvalues"]},
         figs / "fisher.png",
-        title="Fisher information of the tracks (parameters in units of their typical size)",
+        title="Fisher information of the tracks",
+        ylabel="Cramér–Rao sd along it (in typical sizes of the parameters)",
     )
     # the fit's model with this posterior: predict draws from it
     pm = json.loads(Path(sdoc["model"]).read_text())

@@ -426,7 +426,8 @@ def posterior_mode(post: TrackPosterior, p0, max_nfev: int = 30) -> dict:
 
 def jackknife_factor(fold_estimates, cov, min_folds: int = 3) -> dict:
     """How much more the estimate moves between runs than the posterior says: the delete-a-group
-    jackknife variance of the leave-one-run-out estimates (Efron & Stein 1981, Ann. Stat. 9(3);
+    jackknife variance ``(G - 1) s^2`` of the leave-one-run-out estimates, their scatter ``s`` read
+    robustly as 1.4826 x the median absolute deviation (Efron & Stein 1981, Ann. Stat. 9(3);
     the folds of :func:`bayesid.estimation.calibration.leave_one_run_out`) against the posterior
     variance, per parameter, median over the parameters, at least 1.
 
@@ -452,7 +453,11 @@ def jackknife_factor(fold_estimates, cov, min_folds: int = 3) -> dict:
             "n_folds": int(F.shape[0]) if F.ndim == 2 else 0,
         }
     G = F.shape[0]
-    v = (G - 1) / G * np.sum((F - F.mean(axis=0)) ** 2, axis=0)
+    # (G - 1) s^2, the jackknife variance, with s the folds' scatter read robustly (1.4826 MAD):
+    # one fold whose refit failed (a run whose absence leaves the rest unidentifiable) must not
+    # flatten the posterior
+    mad = np.median(np.abs(F - np.median(F, axis=0)), axis=0)
+    v = (G - 1) * (1.4826 * mad) ** 2
     d = np.diag(cov)
     ok = d > 0
     ratio = np.where(ok, v / np.where(ok, d, 1.0), np.nan)

@@ -237,7 +237,13 @@ def correlation_heatmap(C: np.ndarray, names, path, title: str = ""):
     return _save(fig, path)
 
 
-def fim_spectra(spectra: dict, path, prior_level: dict | None = None, title: str = ""):
+def fim_spectra(
+    spectra: dict,
+    path,
+    prior_level: dict | None = None,
+    title: str = "",
+    ylabel: str = "Cramér–Rao sd along it (relative, 1 = 100 %)",
+):
     """Cramér–Rao relative sd ``1/sqrt(lambda)`` of each Fisher-information eigen-direction,
     per case (label -> eigenvalues), stiffest first; non-positive eigenvalues (exact nulls, at
     round-off) have no finite sd and are not drawn -- the report gives their count.
@@ -250,7 +256,7 @@ def fim_spectra(spectra: dict, path, prior_level: dict | None = None, title: str
         if prior_level and label in prior_level:
             ax.axhline(prior_level[label], color=line.get_color(), ls="--", lw=0.8)
     ax.set_xlabel("eigen-direction (stiffest first)")
-    ax.set_ylabel("Cramér–Rao sd along it (relative, 1 = 100 %)")
+    ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     ax.set_title(title, fontsize=10)
