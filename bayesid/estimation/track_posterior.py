@@ -57,6 +57,7 @@ import numpy as np
 
 from ..tasks import Task, TaskError, run_tasks
 from . import windows as wf
+from .fit import FitResult
 from .laplace import gauss_newton_covariance
 from .msfit import psd_covariance
 
@@ -211,9 +212,11 @@ class ErrorModel:
     def ssr(self, R: np.ndarray) -> np.ndarray:
         """(B, C) sum of squared residuals per channel of (B, n_res) residual rows (residual units)."""
         R = np.atleast_2d(R)
+        if getattr(self, "_cols", None) is None:  # each channel's columns, found once
+            self._cols = [np.flatnonzero(self.column == j) for j in range(len(self.channels))]
         out = np.empty((R.shape[0], len(self.channels)))
-        for j in range(len(self.channels)):
-            Rj = R[:, self.column == j]
+        for j, cols in enumerate(self._cols):
+            Rj = R[:, cols]
             out[:, j] = np.einsum("ij,ij->i", Rj, Rj)
         return out
 
@@ -669,8 +672,8 @@ def sample_tracks(
     ob = wf.WindowObjective(model, ctxs, fit_sd, p0, channels=channels)
     nuisance = np.zeros(0)
     if model.n_nuisance:
-        fr = type("Fitted", (), {"p": np.asarray(p0, float)})()
-        nuisance = np.concatenate(wf.heldout_nuisance(model, fr, ctxs, fit_sd))
+        fixed = FitResult.fixed(model, p0, len(ctxs))
+        nuisance = np.concatenate(wf.heldout_nuisance(model, fixed, ctxs, fit_sd))
     x0 = np.concatenate([np.asarray(p0, float), nuisance])
     errors = error_model(ob, x0)
     prior = ParameterPrior.of_model(model, use_prior)
