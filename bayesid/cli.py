@@ -859,7 +859,12 @@ def _predict(args) -> int:
             b90.get("max_position_m"),
             b90.get("max_heading_deg"),
             out / "figures" / f"{tr.name}.png",
-            title=f"{tr.name}: {window or 'whole-run'} s windows, identified model",
+            title=f"{tr.name}: {window or 'whole-run'} s windows, identified model"
+            + (
+                " (extrapolated: band not calibrated)"
+                if tr.name in (bands.get("extrapolated") or {}).get("runs", [])
+                else ""
+            ),
         )
         del pr["_sim"][tr.name]
     if bands.get("coverage"):
@@ -971,6 +976,21 @@ def _band_lines(bands: dict, n_draws: int) -> list:
     ]
     if bands.get("window_reason"):
         lines += [f"No window bands: {bands['window_reason']}.", ""]
+    ext = bands.get("extrapolated") or {}
+    if ext.get("runs"):
+        xc = ext["coverage"]
+        lines += [
+            f"**Extrapolated, not calibrated**: {', '.join(ext['runs'])} ({', '.join(ext['kinds'])}; indices "
+            f"{', '.join(ext['index_kinds'])}): {ext['note']}. They are left out of the table above; their "
+            "borrowed 90 % bands hold "
+            + "; ".join(
+                f"{g} {c['0.9']['inside']}/{c['0.9']['n']}"
+                for g, c in (("windows", xc["windows"]), ("indices", xc["indices"]))
+                if c["0.9"]["n"]
+            )
+            + " here.",
+            "",
+        ]
     rows = [
         [
             r["track"],
@@ -978,7 +998,9 @@ def _band_lines(bands: dict, n_draws: int) -> list:
             fmt(r["measured"]),
             fmt(r["predicted"]),
             f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
-            + (" (pooled scores)" if r["band"]["0.9"]["pooled"] else ""),
+            + (
+                " (extrapolated)" if r.get("extrapolated") else " (pooled scores)" if r["band"]["0.9"]["pooled"] else ""
+            ),
             "yes" if r["inside"]["0.9"] else "**no**",
             f"[{fmt(r['parameter_band_5_95'][0])}, {fmt(r['parameter_band_5_95'][1])}]"
             if r["parameter_band_5_95"]
@@ -991,6 +1013,18 @@ def _band_lines(bands: dict, n_draws: int) -> list:
             "Indices, 90 % band:",
             "",
             md_table(["track", "index", "measured", "predicted", "90 % band", "inside", "draws' 5-95 %"], rows),
+            "",
+            "Band: predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd the draws' spread of the index, kappa "
+            "the training runs' median relative error of that index (model fit on the others): "
+            + ", ".join(sorted({f"{r['index']} {fmt(r['band']['0.9']['kappa'])}" for r in bands["indices"]}))
+            + "."
+            + (
+                " Pooled scores: the training runs had too few of this index (a manoeuvre they did not contain, "
+                "e.g. a turning circle from zigzags), so its band borrows the scores of every index: a transfer "
+                "assumption that only measured runs of that kind check."
+                if any(r["band"]["0.9"]["pooled"] for r in bands["indices"])
+                else ""
+            ),
             "",
         ]
     wrows = [

@@ -14,7 +14,13 @@ import pytest
 from bayesid.cli import main
 from bayesid.data.track import Track, write_csv
 from bayesid.data.vehicle import load_vehicle
-from bayesid.estimation.calibration import calibrated_bands, conformal_quantile, index_band
+from bayesid.estimation.calibration import (
+    calibrated_bands,
+    conformal_quantile,
+    index_band,
+    index_scores,
+    window_band,
+)
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
 
@@ -31,16 +37,59 @@ def test_conformal_quantile_is_the_finite_sample_order_statistic():
         conformal_quantile(s, 1.0)
 
 
-def test_index_bands_pool_the_scores_of_a_kind_with_too_few():
-    cal = {
-        "index_scores": {"first_overshoot_deg": [1.0] * 3, "second_overshoot_deg": list(np.arange(1.0, 11.0))},
-        "window_scores": {"max_position_m": [], "max_heading_deg": []},
-        "window_s": 60.0,
-    }
+def _cal(index_rows=(), window_rows=(), window_s=60.0):
+    """A calibration as leave_one_run_out writes it, from fold rows (one fold)."""
+    return {"folds": [{"runs": ["a"], "indices": list(index_rows), "windows": list(window_rows)}], "window_s": window_s}
+
+
+def test_index_scores_are_normalised_by_parameter_spread_and_relative_structural_error():
+    # first overshoot: 3 rows (too few: pooled); second: 10 rows, 2-20 % relative errors
+    first = [{"index": "first_overshoot_deg", "measured": 5.5, "predicted": 5.0, "sd": 0.01}] * 3
+    second = [
+        {"index": "second_overshoot_deg", "measured": 10.0 + 0.2 * e, "predicted": 10.0, "sd": 0.0}
+        for e in range(1, 11)
+    ]
+    cal = _cal(first + second + [{"index": "advance_m", "measured": None, "predicted": 3.0, "sd": 1.0}])
+    kappas, scores = index_scores(cal)
+    rel = [0.1] * 3 + [0.02 * e for e in range(1, 11)]
+    assert kappas["all"] == pytest.approx(np.median(rel)) and kappas["first_overshoot_deg"] == pytest.approx(0.1)
+    kappa = kappas["second_overshoot_deg"]
+    assert kappa == pytest.approx(0.11)  # its own median relative error
+    assert scores["second_overshoot_deg"] == pytest.approx([0.2 * e / (kappa * 10) for e in range(1, 11)])
+    assert scores["first_overshoot_deg"][0] == pytest.approx(0.5 / math.hypot(0.01, 0.1 * 5.0))
+    assert "advance_m" not in scores  # nothing measured: no score
     b = index_band(cal, "first_overshoot_deg", 5.0, 0.5, 0.9)
-    assert b["pooled"] and b["n_scores"] == 13 and b["q"] == conformal_quantile([1.0] * 3 + list(range(1, 11)), 0.9)
-    b2 = index_band(cal, "second_overshoot_deg", 5.0, 0.5, 0.9)
-    assert not b2["pooled"] and b2["lo"] == pytest.approx(5.0 - 10 * 0.5)
+    pooled = scores["first_overshoot_deg"] + scores["second_overshoot_deg"]
+    assert b["pooled"] and b["n_scores"] == 13 and b["q"] == conformal_quantile(pooled, 0.9)
+    assert b["hi"] - 5.0 == pytest.approx(b["q"] * math.hypot(0.5, 0.1 * 5.0))
+    # a turning circle from these zigzag scores: pooled, and the band scales with the index's size
+    td = index_band(cal, "tactical_diameter_m", 40.0, 0.0, 0.9)
+    assert td["pooled"] and td["lo"] > 0 and td["hi"] - 40.0 == pytest.approx(td["q"] * kappas["all"] * 40.0)
+    b2 = index_band(cal, "second_overshoot_deg", 10.0, 0.0, 0.9)
+    assert not b2["pooled"] and b2["hi"] == pytest.approx(12.0)  # the largest of 10 errors, rescaled
+    # a calibration written with the older score (rows with "score", stale index_scores) gets the current one
+    old = _cal([dict(r, score=99.0) for r in first + second])
+    old["index_scores"] = {"second_overshoot_deg": [99.0] * 10}
+    assert index_band(old, "second_overshoot_deg", 10.0, 0.0, 0.9)["hi"] == pytest.approx(b2["hi"])
+
+
+def test_window_bands_hold_jointly_for_position_and_heading():
+    # independent position and heading errors: marginal 50 % radii would hold jointly ~25 % of the time
+    rng = np.random.default_rng(0)
+
+    def rows(n):
+        return [{"max_position_m": a, "max_heading_deg": b} for a, b in zip(rng.gamma(2, 0.5, n), rng.gamma(2, 3.0, n))]
+
+    cal = _cal(window_rows=rows(399))
+    fresh = rows(4000)
+    for a in (0.5, 0.9):
+        b = window_band(cal, a)
+        held = np.mean(
+            [w["max_position_m"] <= b["max_position_m"] and w["max_heading_deg"] <= b["max_heading_deg"] for w in fresh]
+        )
+        assert abs(held - a) < 0.04, (a, held)
+    marg = [np.quantile([w[k] for w in cal["folds"][0]["windows"]], 0.5) for k in ("max_position_m", "max_heading_deg")]
+    assert np.mean([w["max_position_m"] <= marg[0] and w["max_heading_deg"] <= marg[1] for w in fresh]) < 0.35
     # a prediction with another window length gets no window band, and says why
     out = calibrated_bands(cal, 30.0, [{"max_position_m": 1.0, "max_heading_deg": 1.0, "duration_s": 30.0}], {})
     assert out["windows"] == [] and "60" in out["window_reason"]
@@ -117,3 +166,45 @@ def test_calibrated_bands_hold_their_coverage_and_parameter_bands_do_not(synthet
         "## Predictive bands and their coverage" in rep
         and (synthetic / "pred" / "figures" / "reliability.png").is_file()
     )
+
+
+def test_a_manoeuvre_the_training_runs_lacked_is_flagged_extrapolated_not_counted_as_calibrated(tmp_path):
+    """Zigzag-only training, turning circles predicted: their bands borrow the overshoots' scores
+    and would not hold (here under half of the tactical diameters and windows), so predict keeps
+    them out of the calibrated coverage and says so; the held-out zigzags stay calibrated."""
+    veh = load_vehicle("nps_auv2")
+    rng = np.random.default_rng(5)
+
+    def world(tag, i, turn):
+        a = float(rng.uniform(8, 20))
+        m = (
+            mv.turning_circle(veh, a, dt=0.1, duration=150.0)
+            if turn
+            else mv.zigzag(veh, a, dt=0.1, duration=150.0, first_sign=int(rng.choice([-1, 1])))
+        )
+        cur = {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}}
+        tr = ef.world_track(veh, m, cur, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        t = Track(tr.t, dict(tr.data), name=f"{tag}{i}_{m.name}", meta=tr.meta)
+        write_csv(t, tmp_path / f"{t.name}.csv")
+        return str(tmp_path / f"{t.name}.csv")
+
+    train = [world("tr", i, False) for i in range(6)]
+    held = [world("tc", i, True) for i in range(6)] + [world("zz", i, False) for i in range(3)]
+    fit = ["fit", "--vehicle", "nps_auv2", "--train", *train, "--max-nfev", "15", "--out", str(tmp_path / "fit")]
+    assert main(fit) == 0
+    pred = ["predict", "--model", str(tmp_path / "fit" / "model.json"), "--track", *held, "--window", "60"]
+    assert main([*pred, "--out", str(tmp_path / "pred")]) == 0
+    B = json.loads((tmp_path / "pred" / "predict.json").read_text())["bands"]
+    ext = B["extrapolated"]
+    assert ext["kinds"] == ["turning"] and len(ext["runs"]) == 6 and all(r.startswith("tc") for r in ext["runs"])
+    assert {"advance_m", "tactical_diameter_m"} <= set(ext["index_kinds"])
+    rows = B["indices"]
+    assert all(r["extrapolated"] == r["track"].startswith("tc") for r in rows)
+    assert all(w["extrapolated"] == w["track"].startswith("tc") for w in B["windows"])
+    # the calibrated coverage counts the zigzags only; the borrowed turning bands do not hold
+    assert B["coverage"]["indices"]["0.9"]["n"] == sum(not r["extrapolated"] for r in rows) > 0
+    td = [r["inside"]["0.9"] for r in rows if r["index"] == "tactical_diameter_m"]
+    assert len(td) == 6 and np.mean(td) < 0.5, td
+    xw = ext["coverage"]["windows"]["0.9"]
+    assert xw["n"] >= 12 and xw["coverage"] < 0.5, xw
+    assert "Extrapolated, not calibrated" in (tmp_path / "pred" / "report.md").read_text()

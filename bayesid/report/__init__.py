@@ -422,11 +422,12 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
         ]
     cal = doc.get("calibration")
     if cal:
-        from ..estimation.calibration import LEVELS, conformal_quantile, window_band
+        from ..estimation.calibration import LEVELS, conformal_quantile, index_scores, window_band
 
         failed = [f for f in cal["folds"] if "error" in f]
         wb = {a: window_band(cal, a) for a in LEVELS}
-        keys = sorted(cal["index_scores"])
+        kappa, scores = index_scores(cal)
+        keys = sorted(scores)
         lines += [
             "## Calibration of the predictive bands",
             "",
@@ -437,25 +438,30 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
                 else ""
             )
             + f"; {len(cal['window_scores']['max_position_m'])} windows of {cal['window_s']:g} s and "
-            f"{sum(len(v) for v in cal['index_scores'].values())} manoeuvre indices scored on the left-out runs "
+            f"{sum(len(v) for v in scores.values())} manoeuvre indices scored on the left-out runs "
             f"({cal['n_draws']} posterior draws per fold). `bayesid predict --window {cal['window_s']:g}` reports "
             "these bands and their coverage.",
             "",
             md_table(
-                ["nominal", "window position radius (m)", "window heading (deg)", *[f"{k} (x sd)" for k in keys]],
+                ["nominal", "window position radius (m)", "window heading (deg)", *[f"{k} (q)" for k in keys]],
                 [
                     [
                         f"{100 * a:g} %",
                         fmt(wb[a]["max_position_m"]),
                         fmt(wb[a]["max_heading_deg"]),
-                        *[fmt(conformal_quantile(cal["index_scores"][k], a)) for k in keys],
+                        *[fmt(conformal_quantile(scores[k], a)) for k in keys],
                     ]
                     for a in LEVELS
                 ],
             ),
             "",
-            "Index columns: the factor q of the band predicted +- q x (posterior sd of the index); inf where "
-            "too few scores for the level (predict then pools the scores of every index).",
+            "Index columns: the factor q of the band predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd "
+            "the posterior draws' spread of the index and kappa the median relative error of the left-out runs' "
+            "values of that index (the structural error: "
+            + ", ".join(f"{k} {fmt(v)}" for k, v in kappa.items())
+            + ", 'all' for an index with fewer than 3); inf "
+            "where too few scores for the level (predict then pools the scores of every index, the only choice "
+            "for a manoeuvre the training runs did not contain: a transfer assumption).",
             "",
         ]
     ms = doc.get("multistart")
