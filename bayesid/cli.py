@@ -934,8 +934,17 @@ def _predict(args) -> int:
             )
     lines += ["", *_band_lines(bands, args.draws), *[f"![{t.name}](figures/{t.name}.png)" for t in tracks], ""]
     (out / "report.md").write_text("\n".join(lines))
+    c90 = ((bands.get("coverage") or {}).get("all") or {}).get("0.9") or {}
+    ext = (bands.get("extrapolated") or {}).get("runs") or []
     print(
-        f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows); wrote {out / 'predict.json'}"
+        f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows)"
+        + (f"; calibrated 90 % bands hold {c90['inside']} of {c90['n']} claims" if c90.get("n") else "")
+        + (
+            f"; {len(ext)} run(s) extrapolated (a manoeuvre the training runs lacked: bands not calibrated)"
+            if ext
+            else ""
+        )
+        + f"; wrote {out / 'predict.json'}"
     )
     return 0
 
@@ -959,7 +968,9 @@ def _band_lines(bands: dict, n_draws: int) -> list:
     lines += [
         "Calibrated bands (split conformal, leave one training run out: they include the structural error "
         "the model made on training runs it did not see). A window is inside when its largest position and "
-        "heading errors are within the band; an index when the measured value is.",
+        "heading errors are both within the band (one joint claim); an index when the measured value is, and "
+        "is counted outside when the model predicts no value for it (e.g. its simulated zigzag never reaches "
+        "the overshoot).",
         "",
         md_table(
             ["nominal", "windows inside", "indices inside", "all"],
@@ -997,7 +1008,11 @@ def _band_lines(bands: dict, n_draws: int) -> list:
             r["index"],
             fmt(r["measured"]),
             fmt(r["predicted"]),
-            f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
+            (
+                f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
+                if r["band"]["0.9"]["lo"] is not None
+                else "no predicted value"
+            )
             + (
                 " (extrapolated)" if r.get("extrapolated") else " (pooled scores)" if r["band"]["0.9"]["pooled"] else ""
             ),
@@ -1019,9 +1034,8 @@ def _band_lines(bands: dict, n_draws: int) -> list:
             + ", ".join(sorted({f"{r['index']} {fmt(r['band']['0.9']['kappa'])}" for r in bands["indices"]}))
             + "."
             + (
-                " Pooled scores: the training runs had too few of this index (a manoeuvre they did not contain, "
-                "e.g. a turning circle from zigzags), so its band borrows the scores of every index: a transfer "
-                "assumption that only measured runs of that kind check."
+                " Pooled scores: the training runs gave fewer than 9 scores of this index, so its band uses the "
+                "scores of every index (each normalised by its own index's kappa)."
                 if any(r["band"]["0.9"]["pooled"] for r in bands["indices"])
                 else ""
             ),
