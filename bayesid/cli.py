@@ -807,7 +807,7 @@ def _predict(args) -> int:
     import numpy as np
 
     from .estimation import msfit
-    from .estimation.calibration import calibrated_bands, window_band
+    from .estimation.calibration import calibrated_bands, excitation, window_band
     from .report import fmt, md_table, plots, write_json
 
     out = _check_out(args.out, "predict", args.overwrite)
@@ -844,7 +844,9 @@ def _predict(args) -> int:
             model, p, cov, tr, args.draws, rng, start=whole["start_rule"], leadin_s=whole["leadin_s"]
         )
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(doc.get("calibration"), window, pr["windows"], indices)
+    bands = calibrated_bands(
+        doc.get("calibration"), window, pr["windows"], indices, excitations={t.name: excitation(t) for t in tracks}
+    )
     b90 = window_band(doc["calibration"], 0.9) if bands.get("windows") else {}
     for tr in tracks:
         ctx, S = pr["_sim"][tr.name]
@@ -940,6 +942,11 @@ def _predict(args) -> int:
         f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows)"
         + (f"; calibrated 90 % bands hold {c90['inside']} of {c90['n']} claims" if c90.get("n") else "")
         + (
+            f" ({len(bands['outside_range'])} run(s) outside the training runs' range: see report.md)"
+            if bands.get("outside_range")
+            else ""
+        )
+        + (
             f"; {len(ext)} run(s) extrapolated (a manoeuvre the training runs lacked: bands not calibrated)"
             if ext
             else ""
@@ -987,6 +994,17 @@ def _band_lines(bands: dict, n_draws: int) -> list:
     ]
     if bands.get("window_reason"):
         lines += [f"No window bands: {bands['window_reason']}.", ""]
+    if bands.get("outside_range"):
+        ir = bands["coverage_in_range"]
+        lines += [
+            "**Outside the training runs' range** (a calibrated band assumes a run like the calibration runs; these "
+            "are driven harder or more gently, and their claims are counted above): "
+            + "; ".join(f"{t}: {', '.join(v)}" for t, v in bands["outside_range"].items())
+            + ". The other runs' 90 % claims: "
+            + "; ".join(f"{g} {c['0.9']['inside']}/{c['0.9']['n']}" for g, c in ir.items() if c["0.9"]["n"])
+            + ".",
+            "",
+        ]
     ext = bands.get("extrapolated") or {}
     if ext.get("runs"):
         xc = ext["coverage"]

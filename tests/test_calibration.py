@@ -17,8 +17,10 @@ from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation.calibration import (
     calibrated_bands,
     conformal_quantile,
+    excitation,
     index_band,
     index_scores,
+    outside_excitation,
     window_band,
 )
 from bayesid.models import effects as ef
@@ -95,6 +97,31 @@ def test_window_bands_hold_jointly_for_position_and_heading():
     assert out["windows"] == [] and "60" in out["window_reason"]
 
 
+def test_runs_driven_outside_the_training_range_are_named():
+    t = np.arange(0.0, 100.0, 0.1)
+
+    def run(name, rudder_deg, yaw_deg_s, log_r=True):
+        d = {"delta_r": np.radians(rudder_deg) * np.sign(np.sin(t / 10)), "psi": np.radians(yaw_deg_s) * t}
+        if log_r:
+            d["r"] = np.full_like(t, np.radians(yaw_deg_s))
+        return Track(t, d, name=name)
+
+    train = [run("a", 10, 2.0), run("b", 35, 3.5)]
+    cal = _cal(window_rows=[{"track": "x", "max_position_m": 1.0, "max_heading_deg": 1.0}] * 20)
+    cal["excitation"] = {tr.name: excitation(tr) for tr in train}
+    assert excitation(train[0])["rudder_deg"] == pytest.approx(10.0)
+    assert excitation(run("c", 20, 3.0, log_r=False))["yaw_rate_deg_s"] == pytest.approx(3.0)  # from psi
+    assert outside_excitation(cal, excitation(run("in", 20, 2.5))) == []
+    why = outside_excitation(cal, excitation(run("small", 5, 0.8)))
+    assert len(why) == 2 and why[0].startswith("rudder 5 deg below the training runs' 10-35 deg")
+    assert outside_excitation({}, excitation(run("small", 5, 0.8))) == []  # older calibrations: no claim
+    w = [{"track": n, "max_position_m": 0.5, "max_heading_deg": 0.5, "duration_s": 60.0} for n in ("in", "small")]
+    exc = {"in": excitation(run("in", 20, 2.5)), "small": excitation(run("small", 5, 0.8))}
+    out = calibrated_bands(cal, 60.0, w, {}, excitations=exc)
+    assert list(out["outside_range"]) == ["small"]
+    assert out["coverage"]["windows"]["0.9"]["n"] == 2 and out["coverage_in_range"]["windows"]["0.9"]["n"] == 1
+
+
 @pytest.fixture(scope="module")
 def synthetic(tmp_path_factory):
     """10 training and 12 held-out runs from one distribution of zigzags and turns (8-20 deg),
@@ -160,6 +187,7 @@ def test_calibrated_bands_hold_their_coverage_and_parameter_bands_do_not(synthet
     assert all({"measured", "predicted", "band", "inside", "parameter_band_5_95"} <= set(r) for r in rows)
     doc = json.loads((synthetic / "fit" / "model.json").read_text())
     assert doc["calibration"]["n_folds"] == 10 and len(doc["calibration"]["window_scores"]["max_position_m"]) >= 20
+    assert len(doc["calibration"]["excitation"]) == 10 and P["bands"]["outside_range"] == {}  # one distribution
     assert "## Calibration of the predictive bands" in (synthetic / "fit" / "report.md").read_text()
     rep = (synthetic / "pred" / "report.md").read_text()
     assert (
