@@ -17,9 +17,10 @@ did not see, on the training runs themselves:
    predicted)^2)``: ``sd`` the fold's posterior spread of the index (parameter uncertainty) and
    ``kappa`` the calibration's typical relative error of that index (the median of
    ``|measured - predicted| / |predicted|`` over its scored rows, or over every row for an index
-   with too few: the model's structural error, which grows with the size of the index). One score serves indices of different size and kind, and the band
-   widens where the posterior is uncertain (an extrapolated manoeuvre) as well as where the
-   index is large (locally weighted conformal: Lei et al. 2018, Sec. 5.2);
+   with too few: the model's structural error, which grows with the size of the index). One
+   score serves indices of different size and kind, and the band widens where the posterior is
+   uncertain (an extrapolated manoeuvre) as well as where the index is large (locally weighted
+   conformal: Lei et al. 2018, Sec. 5.2);
 4. a band at level ``a`` is the split-conformal quantile of the scores (Vovk, Gammerman & Shafer
    2005; Lei et al. 2018, JASA 113:1094, Sec. 2): the ``ceil((n + 1) a)``-th smallest of ``n``
    scores, which holds at least ``a`` of the time for a new run exchangeable with the
@@ -27,11 +28,12 @@ did not see, on the training runs themselves:
    hidden).
 
 A window band is the joint claim "the measured track stays within ``r`` of the prediction over
-the window, and the heading within ``h``" (one score per window: :func:`window_scores`); an index band is ``predicted +- q * sqrt(sd^2 + (kappa *
-predicted)^2)`` with ``sd`` the posterior draws' spread of that index on the predicted run. Index
-kinds with fewer than :data:`MIN_SCORES_PER_KEY` scores borrow the pooled scores of every index
-(an exchangeability assumption, e.g. turning-circle indices of a zigzag-trained model; the
-output says so).
+the window, and the heading within ``h``" (one score per window: :func:`window_scores`); an
+index band is ``predicted +- q * sqrt(sd^2 + (kappa * predicted)^2)`` with ``sd`` the posterior
+draws' spread of that index on the predicted run. Index kinds with fewer than
+:data:`MIN_SCORES_PER_KEY` scores borrow the pooled scores of every index. An index kind with
+no score at all (a turning circle predicted by a zigzag-trained model) is an extrapolation: its
+band is given but flagged and kept out of the calibrated coverage (:data:`EXTRAPOLATION_NOTE`).
 
 An earlier score, ``|measured - predicted| / sd`` alone, failed on real runs: an overshoot's
 posterior spread can be a hundredth of its structural error, so the pooled scores reached 360
