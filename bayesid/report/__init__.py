@@ -455,13 +455,31 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
                 ],
             ),
             "",
+            *(
+                [
+                    "The bands are calibrated for runs like these: "
+                    + ", ".join(
+                        f"{label} {min(v):.3g}-{max(v):.3g} {unit}"
+                        for key, label, unit in (
+                            ("rudder_deg", "rudder (95th percentile of |delta_r|)", "deg"),
+                            ("yaw_rate_deg_s", "yaw rate (95th percentile of |r|)", "deg/s"),
+                        )
+                        if (v := [e[key] for e in cal["excitation"].values() if e.get(key) is not None])
+                    )
+                    + "; `predict` names a run outside 0.8x-1.25x this range.",
+                    "",
+                ]
+                if cal.get("excitation")
+                else []
+            ),
             "Index columns: the factor q of the band predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd "
             "the posterior draws' spread of the index and kappa the median relative error of the left-out runs' "
             "values of that index (the structural error: "
             + ", ".join(f"{k} {fmt(v)}" for k, v in kappa.items())
             + ", 'all' for an index with fewer than 3); inf "
-            "where too few scores for the level (predict then pools the scores of every index, the only choice "
-            "for a manoeuvre the training runs did not contain: a transfer assumption).",
+            "where too few scores for the level (predict then pools the scores of every index; an index no "
+            "training run had, e.g. a turning circle from zigzags, is flagged extrapolated and not counted as "
+            "calibrated).",
             "",
         ]
     ms = doc.get("multistart")
