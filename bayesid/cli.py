@@ -941,6 +941,7 @@ def _predict(args) -> int:
     print(
         f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows)"
         + (f"; calibrated 90 % bands hold {c90['inside']} of {c90['n']} claims" if c90.get("n") else "")
+        + (f" ({c90['unbounded']} of them unbounded: too few training scores for 90 %)" if c90.get("unbounded") else "")
         + (
             f" ({len(bands['outside_range'])} run(s) outside the training runs' range: see report.md)"
             if bands.get("outside_range")
@@ -984,7 +985,10 @@ def _band_lines(bands: dict, n_draws: int) -> list:
             [
                 [f"{100 * float(a):g} %"]
                 + [
-                    f"{c[a]['inside']}/{c[a]['n']} ({fmt(100 * c[a]['coverage'])} %)" if c[a]["n"] else "-"
+                    f"{c[a]['inside']}/{c[a]['n']} ({fmt(100 * c[a]['coverage'])} %)"
+                    + (f", {c[a]['unbounded']} unbounded" if c[a].get("unbounded") else "")
+                    if c[a]["n"]
+                    else "-"
                     for c in (cov["windows"], cov["indices"], cov["all"])
                 ]
                 for a in cov["all"]
@@ -992,6 +996,13 @@ def _band_lines(bands: dict, n_draws: int) -> list:
         ),
         "",
     ]
+    if any(c.get("unbounded") for c in cov["all"].values()):
+        lines += [
+            "Unbounded: claims whose band at that level is infinite, because the calibration has too few scores "
+            "for it (n scores support levels up to n / (n + 1)); they hold trivially and say nothing. Train on "
+            "more runs for a finite band.",
+            "",
+        ]
     if bands.get("window_reason"):
         lines += [f"No window bands: {bands['window_reason']}.", ""]
     if bands.get("outside_range"):

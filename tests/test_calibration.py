@@ -119,6 +119,10 @@ def test_runs_driven_outside_the_training_range_are_named():
     exc = {"in": excitation(run("in", 20, 2.5)), "small": excitation(run("small", 5, 0.8))}
     out = calibrated_bands(cal, 60.0, w, {}, excitations=exc)
     assert list(out["outside_range"]) == ["small"]
+    # 20 window scores support 90 % (finite band) but not 96 %: those claims are counted as unbounded
+    assert out["coverage"]["windows"]["0.9"]["unbounded"] == 0
+    wide = calibrated_bands(cal, 60.0, w, {}, levels=(0.9, 0.96), excitations=exc)
+    assert wide["coverage"]["windows"]["0.96"] == {"n": 2, "inside": 2, "coverage": 1.0, "unbounded": 2}
     assert out["coverage"]["windows"]["0.9"]["n"] == 2 and out["coverage_in_range"]["windows"]["0.9"]["n"] == 1
 
 

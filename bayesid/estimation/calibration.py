@@ -485,12 +485,18 @@ def index_band(calibration: dict, key: str, predicted: float, sd: float, level: 
     }
 
 
-def coverage_table(hits: dict) -> dict:
-    """{level: {"n", "inside", "coverage"}} from {level: [bool, ...]}."""
-    return {
+def coverage_table(hits: dict, rows=None) -> dict:
+    """{level: {"n", "inside", "coverage"}} from {level: [bool, ...]}; with the claims' ``rows``
+    (each with ``band`` {level: {"q"}}), also ``unbounded``: how many of them had no finite band
+    at that level (too few calibration scores), which hold trivially."""
+    out = {
         str(a): {"n": len(v), "inside": int(sum(v)), "coverage": float(np.mean(v)) if v else None}
         for a, v in hits.items()
     }
+    if rows is not None:
+        for a, c in out.items():
+            c["unbounded"] = sum(not np.isfinite(r["band"][a]["q"]) for r in rows)
+    return out
 
 
 def calibrated_bands(
@@ -619,9 +625,12 @@ def calibrated_bands(
         indices=rows_i,
         window_s=calibration.get("window_s"),
         coverage={
-            "windows": coverage_table(hits["windows"]),
-            "indices": coverage_table(hits["indices"]),
-            "all": coverage_table({a: hits["windows"][a] + hits["indices"][a] for a in levels}),
+            "windows": coverage_table(hits["windows"], [r for r in rows_w if not r["extrapolated"]]),
+            "indices": coverage_table(hits["indices"], [r for r in rows_i if not r["extrapolated"]]),
+            "all": coverage_table(
+                {a: hits["windows"][a] + hits["indices"][a] for a in levels},
+                [r for r in rows_w + rows_i if not r["extrapolated"]],
+            ),
         },
         extrapolated={
             "runs": ext_runs,
