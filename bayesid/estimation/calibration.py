@@ -68,7 +68,9 @@ __all__ = [
     "window_rows",
     "window_scores",
     "excitation",
+    "excitation_range",
     "outside_excitation",
+    "EXCITATION_MEASURES",
     "structural_scale",
     "coverage_table",
 ]
@@ -302,16 +304,22 @@ def leave_one_run_out(
     }
 
 
+def _fold_rows(calibration: dict, field: str, finite: tuple) -> list:
+    """The rows ``field`` (``"windows"`` or ``"indices"``) of a calibration's successful folds
+    whose ``finite`` entries are all present and finite."""
+    return [
+        r
+        for f in calibration.get("folds") or []
+        if "error" not in f
+        for r in f.get(field, [])
+        if all(r.get(k) is not None and np.isfinite(r[k]) for k in finite)
+    ]
+
+
 def window_rows(calibration: dict) -> list:
     """Every window a calibration scored: ``{run, max_position_m, max_heading_deg}`` of its
     successful folds (heading None where the run has no heading)."""
-    return [
-        w
-        for f in calibration.get("folds") or []
-        if "error" not in f
-        for w in f.get("windows", [])
-        if w.get("max_position_m") is not None and np.isfinite(w["max_position_m"])
-    ]
+    return _fold_rows(calibration, "windows", ("max_position_m",))
 
 
 def window_scores(calibration: dict) -> tuple[dict, list]:
@@ -356,6 +364,21 @@ def excitation(track) -> dict:
     return out
 
 
+#: The measures of :func:`excitation`: (key, label, unit).
+EXCITATION_MEASURES = (("rudder_deg", "rudder", "deg"), ("yaw_rate_deg_s", "yaw rate", "deg/s"))
+
+
+def excitation_range(calibration: dict) -> dict:
+    """{measure: (smallest, largest)} of the calibration runs' :func:`excitation`, for each
+    measure some run has; empty for a calibration written before it recorded excitation."""
+    out = {}
+    for key, _, _ in EXCITATION_MEASURES:
+        vals = [v[key] for v in (calibration.get("excitation") or {}).values() if v.get(key) is not None]
+        if vals:
+            out[key] = (min(vals), max(vals))
+    return out
+
+
 def outside_excitation(calibration: dict, exc: dict) -> list:
     """Reasons a run's :func:`excitation` lies outside the calibration runs' range (below 0.8 x
     their smallest or above 1.25 x their largest value of a measure), e.g. ``"rudder 5 deg below
@@ -365,14 +388,13 @@ def outside_excitation(calibration: dict, exc: dict) -> list:
     zigzags, a model trained on the six ``Z_xx_05`` runs, 10-35 deg rudder and yaw rates of
     2.3-3.7 deg/s, missed the 90 % window band on ``Z_05_01``, 5 deg rudder, and ``Z_10_01``,
     1.3 deg/s). Reported beside the bands, not removed from their coverage."""
-    tr = calibration.get("excitation") or {}
+    rng = excitation_range(calibration)
     out = []
-    for key, label, unit in (("rudder_deg", "rudder", "deg"), ("yaw_rate_deg_s", "yaw rate", "deg/s")):
-        vals = [v[key] for v in tr.values() if v.get(key) is not None]
+    for key, label, unit in EXCITATION_MEASURES:
         x = exc.get(key)
-        if not vals or x is None:
+        if key not in rng or x is None:
             continue
-        lo, hi = min(vals), max(vals)
+        lo, hi = rng[key]
         if x < 0.8 * lo or x > 1.25 * hi:
             out.append(
                 f"{label} {x:.3g} {unit} {'below' if x < lo else 'above'} the training runs' {lo:.3g}-{hi:.3g} {unit}"
@@ -399,13 +421,7 @@ def window_band(calibration: dict, level: float, scores=None) -> dict:
 def index_rows(calibration: dict) -> list:
     """Every index a calibration scored: the rows ``{run, index, measured, predicted, sd}`` of its
     successful folds (:func:`fold_scores`), with finite measured and predicted values."""
-    return [
-        r
-        for f in calibration.get("folds") or []
-        if "error" not in f
-        for r in f.get("indices", [])
-        if all(r.get(k) is not None and np.isfinite(r[k]) for k in ("measured", "predicted"))
-    ]
+    return _fold_rows(calibration, "indices", ("measured", "predicted"))
 
 
 def structural_scale(rows) -> dict:

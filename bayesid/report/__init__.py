@@ -422,7 +422,14 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
         ]
     cal = doc.get("calibration")
     if cal:
-        from ..estimation.calibration import LEVELS, conformal_quantile, index_scores, window_band
+        from ..estimation.calibration import (
+            EXCITATION_MEASURES,
+            LEVELS,
+            conformal_quantile,
+            excitation_range,
+            index_scores,
+            window_band,
+        )
 
         failed = [f for f in cal["folds"] if "error" in f]
         wb = {a: window_band(cal, a) for a in LEVELS}
@@ -457,19 +464,16 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
             "",
             *(
                 [
-                    "The bands are calibrated for runs like these: "
+                    "The bands are calibrated for runs like these (95th percentiles of |delta_r| and |r|): "
                     + ", ".join(
-                        f"{label} {min(v):.3g}-{max(v):.3g} {unit}"
-                        for key, label, unit in (
-                            ("rudder_deg", "rudder (95th percentile of |delta_r|)", "deg"),
-                            ("yaw_rate_deg_s", "yaw rate (95th percentile of |r|)", "deg/s"),
-                        )
-                        if (v := [e[key] for e in cal["excitation"].values() if e.get(key) is not None])
+                        f"{label} {xr[key][0]:.3g}-{xr[key][1]:.3g} {unit}"
+                        for key, label, unit in EXCITATION_MEASURES
+                        if key in xr
                     )
                     + "; `predict` names a run outside 0.8x-1.25x this range.",
                     "",
                 ]
-                if cal.get("excitation")
+                if (xr := excitation_range(cal))
                 else []
             ),
             "Index columns: the factor q of the band predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd "
