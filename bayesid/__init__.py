@@ -1,13 +1,16 @@
 """bayesid: identify the hydrodynamic coefficients of manoeuvring vessels from their tracks,
 with honest uncertainty.
 
-The layout follows the data flow; each layer imports only the ones before it:
+The layout follows the data flow; each layer imports only the ones before it (``tests/test_layers.py``
+reads the import graph and fails on an import that runs up a layer or closes a circle):
 
 * :mod:`bayesid.data` -- what comes in: :mod:`~bayesid.data.terms` (the term library),
   :mod:`~bayesid.data.vehicle` (vehicle files), :mod:`~bayesid.data.priors` (their ``[prior]``
   section), :mod:`~bayesid.data.track` (the Track CSV
   contract), :mod:`~bayesid.data.validate` (unit and plausibility checks),
   :mod:`~bayesid.data.datasets` (readers of real free-running data).
+* :mod:`bayesid.protocol` -- the window protocol on tracks (windows, start rules, noise, pooled
+  scores), which the models' track contexts use.
 * :mod:`bayesid.models` -- what simulates a vessel: :mod:`~bayesid.models.interface` (the
   SimulationModel contract), :mod:`~bayesid.models.dynamics` (compiled kernels, interpreting the term table),
   :mod:`~bayesid.models.codegen` (kernels generated from the term table),
@@ -17,13 +20,16 @@ The layout follows the data flow; each layer imports only the ones before it:
   :mod:`~bayesid.models.effects` (effects and the submarine model),
   :mod:`~bayesid.models.ship` (the MMG surface ship), :mod:`~bayesid.models.shipgen` (its
   generated kernel).
-* :mod:`bayesid.protocol` -- the window protocol (windows, start rules, noise, pooled scores).
 * :mod:`bayesid.estimation` -- fitting: :mod:`~bayesid.estimation.fit` (the one fit function
   and result), :mod:`~bayesid.estimation.objective` (the paper's whole-track objective),
   :mod:`~bayesid.estimation.windows` (multiple shooting), :mod:`~bayesid.estimation.shooting`
   (fitted window starts), :mod:`~bayesid.estimation.laplace`,
   :mod:`~bayesid.estimation.posterior`, :mod:`~bayesid.estimation.sampling` (emcee, ArviZ),
-  :mod:`~bayesid.estimation.msfit` (long runs, prediction, indices),
+  :mod:`~bayesid.estimation.options` (FitOptions, CalibrationOptions),
+  :mod:`~bayesid.estimation.identification` (identification on long runs),
+  :mod:`~bayesid.estimation.prediction` (window protocol and whole-run predictions),
+  :mod:`~bayesid.estimation.indices` (manoeuvre indices),
+  :mod:`~bayesid.estimation.modelfile` (``model.json``: ModelDocument),
   :mod:`~bayesid.estimation.multistart` (many starts of one fit),
   :mod:`~bayesid.estimation.calibration` (predictive bands calibrated leave one run out),
   :mod:`~bayesid.estimation.track_posterior` (the posterior given a user's tracks: error model,
@@ -34,7 +40,8 @@ The layout follows the data flow; each layer imports only the ones before it:
 * :mod:`bayesid.report` -- study folders, manifests, report writers; :mod:`bayesid.report.plots`.
 * :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
-  workers or on Dask, with a resumable journal.
+  workers or on Dask, with a resumable journal; :class:`~bayesid.tasks.Runner` is the one object
+  a step that runs tasks takes.
 """
 
 __version__ = "0.1.0"

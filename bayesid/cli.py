@@ -424,7 +424,7 @@ def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> Non
     """Refuse (ValueError) to predict with a model whose vehicle file changed after the fit; with
     ``allow`` print a warning instead."""
 
-    want = (doc.get("provenance") or {}).get("vehicle_sha256")
+    want = doc.provenance.get("vehicle_sha256")
     vf = Path(vehicle.file_path) if vehicle.file_path else None
     if want is None or vf is None or not vf.is_file():
         return
@@ -440,11 +440,12 @@ def _check_vehicle_unchanged(doc: dict, vehicle, model_path, allow: bool) -> Non
 
 def _fit(args) -> int:
     """``bayesid fit``: multiple-shooting identification -> DIR/model.json + report.md."""
-    import numpy as np
 
-    from .estimation import msfit
+    from .estimation.identification import identify
+    from .estimation.modelfile import ModelDocument
+    from .estimation.options import CalibrationOptions, FitOptions
     from .models import load_any_vehicle
-    from .report import write_fit_report, write_json
+    from .report import write_fit_report
 
     if args.window is not None and not args.window > 0:
         raise ValueError(f"--window must be a positive number of seconds, not {args.window:g}")
@@ -458,78 +459,62 @@ def _fit(args) -> int:
         )
     out = _check_out(args.out, "fit", args.overwrite, resumable=bool(args.starts) or args.calibration == "loro")
     vehicle = load_any_vehicle(args.vehicle)
-    free = _free_list(vehicle, args.free)
     got = _read_tracks([("--train", args.train)], vehicle)
     train = got["--train"]
-    effects = _split_names(args.effects, "--effects")
-    channels = _split_names(args.fit_channels, "--fit-channels") or None
+    options = FitOptions(
+        free=_free_list(vehicle, args.free),
+        effects=_split_names(args.effects, "--effects"),
+        window_s=args.window,
+        dt=args.dt,
+        max_nfev=args.max_nfev,
+        weighting=args.weighting or None,
+        channels=_split_names(args.fit_channels, "--fit-channels") or None,
+        start=args.start,
+        starts=args.starts,
+        random_seed=args.seed,
+        prior=args.prior == "file",
+    )
+    calibration = None
+    if args.calibration == "loro" and len(train) >= 3:
+        calibration = CalibrationOptions(window_s=args.calibration_window, draws=args.calibration_draws, seed=args.seed)
     journal = None
-    calibrate = args.calibration == "loro" and len(train) >= 3
-    if args.starts or calibrate:
-        # finished starts survive a killed run: the same command resumes them
+    if args.starts or calibration is not None:
+        # finished starts and folds survive a killed run: the same command resumes them
         journal = tasks.Journal(
             out / "journal.jsonl",
             {
                 "command": "fit",
                 "inputs": sorted(got["_sha256"].values()),
                 "vehicle": _provenance(vehicle, {})["vehicle_sha256"] or args.vehicle,
-                "free": free,
-                "effects": effects,
-                "window": args.window,
-                "dt": args.dt,
-                "max_nfev": args.max_nfev,
-                "weighting": args.weighting,
-                "channels": channels,
-                "start": args.start,
-                "starts": args.starts,
-                "seed": args.seed,
-                "prior": args.prior,
-                "calibration": args.calibration if calibrate else "none",
-                "calibration_window": args.calibration_window,
-                "calibration_draws": args.calibration_draws,
+                "fit": options.to_dict(),
+                "calibration": None if calibration is None else calibration.to_dict(),
             },
         )
-    res = msfit.identify(
+    res = identify(
         vehicle,
         train,
-        free,
-        effects,
-        window_s=args.window,
-        dt=args.dt,
-        max_nfev=args.max_nfev,
-        progress=lambda m: print(f"  {m}", flush=True),
-        weighting=args.weighting or None,
-        channels=channels,
-        start=args.start,
-        starts=args.starts,
-        rng=np.random.default_rng(args.seed),
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        journal=journal,
-        prior=args.prior == "file",
-        calibrate=calibrate,
-        calibration_window_s=args.calibration_window,
-        calibration_draws=args.calibration_draws,
-        calibration_seed=args.seed,
+        options,
+        calibration,
+        runner=tasks.Runner(args.jobs, args.scheduler, journal, progress=lambda m: print(f"  {m}", flush=True)),
     )
-    doc = msfit.model_document(
+    doc = ModelDocument.from_identify(
         res,
         _vehicle_ref(args.vehicle),
         [t.name for t in train],
         provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]),
     )
     circles = None
-    if res["multistart"] is not None:
+    if res.multistart is not None:
         circles = _multistart_circles(res, doc, train)
-    write_json(out / "model.json", doc)
-    write_fit_report(doc, out, command="bayesid " + " ".join(sys.argv[1:]))
-    if res["multistart"] is not None:
+    doc.to_json(out / "model.json")
+    write_fit_report(doc.to_dict(), out, command="bayesid " + " ".join(sys.argv[1:]))
+    if res.multistart is not None:
         from .report import plots
 
         (out / "figures").mkdir(parents=True, exist_ok=True)
-        plots.multistart(doc["multistart"], circles, out / "figures" / "multistart.png")
+        plots.multistart(doc.multistart, circles, out / "figures" / "multistart.png")
     print(
-        f"training RMS position {res['train_scores']['rms_position_m']:.3f} m over {res['window_s']:g} s windows; "
+        f"training RMS position {res.train_scores['rms_position_m']:.3f} m over {res.window_s:g} s windows; "
         f"wrote {out / 'model.json'}"
     )
     return 0
@@ -553,8 +538,12 @@ def _sample(args) -> int:
 
     from . import __version__
     from .analysis.dossier import AT_PRIOR, DETERMINED, data_dossier
-    from .estimation import msfit
     from .estimation import track_posterior as tp
+    from .estimation.identification import identify
+    from .estimation.modelfile import ModelDocument, load_model
+    from .estimation.options import FitOptions
+    from .estimation.sampling import Checkpoint
+    from .estimation.windows import FitProblem
     from .models import load_any_vehicle
     from .protocol import resolve_start
     from .report import plots, write_json, write_sample_report
@@ -569,10 +558,10 @@ def _sample(args) -> int:
     out = _check_out(args.out, "sample", args.overwrite, resumable=True)
     vehicle_arg = args.vehicle
     if args.model is not None:
-        model, p, _cov, doc = msfit.load_model(args.model)
+        model, p, _cov, doc = load_model(args.model)
         _check_vehicle_unchanged(doc, model.vehicle, args.model, False)
         got = _read_tracks([("--train", args.train)], model.vehicle)
-        fitted = set(((doc.get("provenance") or {}).get("input_sha256") or {}).values())
+        fitted = set((doc.provenance.get("input_sha256") or {}).values())
         other = [f for f, h in got["_sha256"].items() if fitted and h not in fitted]
         if other:
             w = f"{', '.join(other)}: not among the tracks {args.model} was fitted on; the posterior is over these tracks"
@@ -583,28 +572,27 @@ def _sample(args) -> int:
         vehicle = load_any_vehicle(vehicle_arg)
         got = _read_tracks([("--train", args.train)], vehicle)
         print("  fitting first (bayesid fit with its defaults)", flush=True)
-        res = msfit.identify(
+        options = FitOptions(
+            free=_free_list(vehicle, args.free),
+            effects=_split_names(args.effects, "--effects"),
+            prior=args.prior == "file",
+        )
+        res = identify(
             vehicle,
             got["--train"],
-            _free_list(vehicle, args.free),
-            _split_names(args.effects, "--effects"),
-            progress=lambda m: print(f"  {m}", flush=True),
-            prior=args.prior == "file",
-            jobs=args.jobs,
-            scheduler=args.scheduler,
+            options,
+            runner=tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True)),
         )
-        doc = msfit.model_document(
+        ModelDocument.from_identify(
             res,
             _vehicle_ref(vehicle_arg),
             [t.name for t in got["--train"]],
             provenance=dict(_provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]),
-        )
-        (out / "fit").mkdir(parents=True, exist_ok=True)
-        write_json(out / "fit" / "model.json", doc)
-        model, p, _cov, doc = msfit.load_model(out / "fit" / "model.json")
+        ).to_json(out / "fit" / "model.json")
+        model, p, _cov, doc = load_model(out / "fit" / "model.json")
         model_sha = _file_sha256(out / "fit" / "model.json")
     train = got["--train"]
-    rule = resolve_start(doc.get("start_rule", "auto"), train)
+    rule = resolve_start(doc.start_rule, train)
     identity = {
         "command": "sample",
         "model_sha256": model_sha,
@@ -616,45 +604,35 @@ def _sample(args) -> int:
         "prior": args.prior,
     }
     journal = tasks.Journal(out / "journal.jsonl", identity)
-    res = tp.sample_tracks(
-        model,
-        p,
-        train,
-        window_s=doc["fit_window_s"],
-        start_rule=rule,
-        fit_sd=doc.get("fit_sd") or doc["noise_sd"],
-        channels=doc.get("fit_channels"),
-        use_prior=args.prior == "file",
-        method=args.method,
-        n_draws=args.draws,
-        df=args.df,
-        seed=args.seed,
-        max_minutes=args.max_minutes,
-        folds=[f["p"] for f in ((doc.get("calibration") or {}).get("folds") or []) if "p" in f],
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        journal=journal,
-        checkpoint=out / "chains.h5",
-        run_key=identity,
-        progress=lambda m: print(f"  {m}", flush=True),
+    problem = FitProblem(
+        model, [model.context(t, doc.fit_window_s, start=rule) for t in train], doc.fit_sd, doc.fit_channels
     )
-    names, draws, prior = res["names"], res["draws"], res["prior"]
+    res = tp.sample_tracks(
+        problem,
+        p,
+        tp.SampleOptions(
+            method=args.method, use_prior=args.prior == "file", seed=args.seed, max_minutes=args.max_minutes
+        ),
+        importance=tp.ImportanceOptions(n_draws=args.draws, df=args.df),
+        folds=[f["p"] for f in ((doc.calibration or {}).get("folds") or []) if "p" in f],
+        checkpoint=Checkpoint(out / "chains.h5", identity),
+        runner=tasks.Runner(args.jobs, args.scheduler, journal, progress=lambda m: print(f"  {m}", flush=True)),
+    )
+    names, draws, prior = res.names, res.draws, res.prior
     scales = model.scales()
     dos = data_dossier(
         names,
-        res["mode"]["fisher"],
-        res["mode"]["jac"],
+        res.mode["fisher"],
+        res.mode["jac"],
         scales,
-        prior.marginal_mean(),
-        prior.marginal_sd(),
-        prior.gaussian,
+        prior,
         draws,
     )
     q05, q95 = np.quantile(draws, [0.05, 0.95], axis=0)
-    em = res["errors"].to_dict()
-    for j, c in enumerate(res["errors"].channels):
+    em = res.errors.to_dict()
+    for j, c in enumerate(res.errors.channels):
         f, unit = _UNITS.get(c, (1.0, ""))
-        s = res["sigma"][:, j] * f
+        s = res.sigma[:, j] * f
         em[c]["unit"] = unit
         em[c]["sigma_at_mode"] *= f
         em[c]["sigma_posterior"] = {
@@ -666,45 +644,45 @@ def _sample(args) -> int:
         "importance": f"importance-reweighted Laplace ({args.draws} multivariate Student-t draws, df {args.df:g}, "
         "Pareto-smoothed weights, resampled)",
         "mcmc": "MCMC (2 independent emcee ensembles, DE moves, run until converged or the budget)",
-    }[res["method"]]
+    }[res.method]
     sdoc = {
         "format": "bayesid-sample-1",
         "model": str(args.model) if args.model else str(out / "fit" / "model.json"),
-        "vehicle": doc["vehicle"],
+        "vehicle": doc.vehicle,
         "train_runs": [t.name for t in train],
         "input_sha256": got["_sha256"],
         "warnings": got["_warnings"],
         "seed": args.seed,
         "method_requested": args.method,
-        "method": res["method"],
+        "method": res.method,
         "method_label": label,
         "n_draws": int(draws.shape[0]),
         "df": args.df,
-        "window_s": doc["fit_window_s"],
+        "window_s": doc.fit_window_s,
         "start_rule": rule,
         "start_states": (
             "measured (causal 1 s estimate at each window start)"
             if rule == "measured"
             else "profiled: fitted for every parameter draw, as in the fit (6 per window; sampling them would add "
-            f"{6 * res['n_windows']} dimensions)"
+            f"{6 * res.n_windows} dimensions)"
         ),
-        "verdict": res["verdict"],
+        "verdict": res.verdict,
         "cost": {
-            "seconds_per_evaluation": res["seconds_per_evaluation"],
-            "n_windows": res["n_windows"],
+            "seconds_per_evaluation": res.seconds_per_evaluation,
+            "n_windows": res.n_windows,
             "n_parameters": len(names),
-            "seconds": res["seconds"],
+            "seconds": res.seconds,
         },
         "error_model": em,
-        "between_runs": dict(res["between_runs"], per_parameter=dict(zip(names, res["between_runs"]["per_parameter"]))),
+        "between_runs": dict(res.between_runs, per_parameter=dict(zip(names, res.between_runs["per_parameter"]))),
         "prior": {
             "used": args.prior == "file",
             "source": getattr(model.vehicle, "prior_source", ""),
             **prior.to_dict(),
         },
         "fit_estimate": dict(zip(names, map(float, p))),
-        "mode": dict(zip(names, map(float, res["mode"]["p"]))),
-        "laplace_sd": dict(zip(names, map(float, np.sqrt(np.diag(res["mode"]["cov"]))))),
+        "mode": dict(zip(names, map(float, res.mode["p"]))),
+        "laplace_sd": dict(zip(names, map(float, np.sqrt(np.diag(res.mode["cov"]))))),
         "marginals": {
             n: {
                 "mean": float(draws[:, j].mean()),
@@ -716,7 +694,7 @@ def _sample(args) -> int:
         },
         "thresholds": {"determined": DETERMINED, "at_prior": AT_PRIOR},
         "dossier": dos,
-        "figures": {"sampler": "trace" if res["method"] == "mcmc" else "weights"},
+        "figures": {"sampler": "trace" if res.method == "mcmc" else "weights"},
         "provenance": {
             "version": __version__,
             "command": "bayesid " + " ".join(sys.argv[1:]),
@@ -724,7 +702,7 @@ def _sample(args) -> int:
         },
     }
     idata = tp.inference_data(
-        res, {"bayesid_version": __version__, "seed": args.seed, "method": res["method"], "model_sha256": model_sha}
+        res, {"bayesid_version": __version__, "seed": args.seed, "method": res.method, "model_sha256": model_sha}
     )
     tmp = out / "posterior.nc.part"
     idata.to_netcdf(str(tmp))
@@ -735,12 +713,12 @@ def _sample(args) -> int:
     plots.prior_posterior_marginals(draws, names, pdict, figs / "marginals.png", dict(zip(names, p)))
     pairs = [tuple(r["pair"]) for r in dos["correlations"][:3]]
     plots.pair_scatter(draws, names, pairs, figs / "pairs.png", title="Most correlated coefficients (posterior)")
-    if res["method"] == "mcmc":
-        r = res["mcmc"]["result"]
+    if res.method == "mcmc":
+        r = res.mcmc["result"]
         show = list(dict.fromkeys([a for pr in pairs for a in pr]))[:6]
-        plots.walker_traces(r.chains, names, show, figs / "trace.png", burn=res["mcmc"]["burn"])
+        plots.walker_traces(r.chains, names, show, figs / "trace.png", burn=res.mcmc["burn"])
     else:
-        imp = res["importance"]
+        imp = res.importance
         plots.importance_weights(imp["weights"], imp["k_hat"], imp["ess"], figs / "weights.png")
     plots.fim_spectra(
         {"these tracks": dos["fisher_eigenvalues"]},
@@ -749,20 +727,14 @@ def _sample(args) -> int:
         ylabel="Cramér–Rao sd along it (in typical sizes of the parameters)",
     )
     # the fit's model with this posterior: predict draws from it
-    pm = json.loads(Path(sdoc["model"]).read_text())
-    if not Path(pm["vehicle"]).is_absolute() and (Path(sdoc["model"]).parent / pm["vehicle"]).is_file():
-        pm["vehicle"] = str((Path(sdoc["model"]).parent / pm["vehicle"]).resolve())
-    cov = msfit.psd_covariance(np.cov(draws, rowvar=False))
-    pm.update(p=res["mode"]["p"].tolist(), cov=cov.tolist(), sd=np.sqrt(np.diag(cov)).tolist())
-    pm["posterior_source"] = {
-        "sample": str(out / "sample.json"),
-        "method": res["method"],
-        "converged": bool(res["verdict"]["converged"]),
-    }
-    write_json(out / "posterior_model.json", pm)
+    doc.with_posterior(
+        res.mode["p"],
+        np.cov(draws, rowvar=False),
+        {"sample": str(out / "sample.json"), "method": res.method, "converged": bool(res.verdict["converged"])},
+    ).to_json(out / "posterior_model.json")
     write_json(out / "sample.json", sdoc)
     write_sample_report(sdoc, out, command=sdoc["provenance"]["command"])
-    print(f"{res['verdict']['text']} wrote {out / 'sample.json'}")
+    print(f"{res.verdict['text']} wrote {out / 'sample.json'}")
     return 0
 
 
@@ -773,19 +745,21 @@ def _multistart_circles(res, doc, train, rudder_deg: float = 35.0, most: int = 6
     figure, or None when the model cannot simulate a turn from these tracks (said in the doc)."""
     import numpy as np
 
-    from .estimation import msfit
+    from .estimation.prediction import FittedModel, approach_condition, turning_circles
 
-    ms = doc["multistart"]
+    ms = doc.multistart
     try:
-        u0, rps = msfit.approach_condition(train)
+        u0, rps = approach_condition(train)
     except ValueError as exc:
         ms["turning_circle"] = {"error": str(exc)}
         return None
     ms["turning_circle"] = {"rudder_deg": rudder_deg, "side": "starboard", "speed_mps": u0, "rps": rps}
     out = []
     for k, opt in enumerate(ms["distinct_optima"][:most]):
-        p = np.array([opt["coefficients"][n] for n in doc["param_names"]])
-        tc = msfit.turning_circles(res["model"], p, None, 0, np.random.default_rng(0), u0, rps, rudder_deg)["starboard"]
+        p = np.array([opt["coefficients"][n] for n in doc.param_names])
+        tc = turning_circles(FittedModel(res.model, p, None), 0, np.random.default_rng(0), u0, rps, rudder_deg)[
+            "starboard"
+        ]
         opt["turning_circle"] = tc["predicted"]
         S = tc["_S"][0]
         out.append(
@@ -806,16 +780,17 @@ def _predict(args) -> int:
     """``bayesid predict``: the window protocol (and whole run) on tracks -> DIR/predict.json."""
     import numpy as np
 
-    from .estimation import msfit
     from .estimation.calibration import calibrated_bands, excitation, window_band
+    from .estimation.modelfile import load_model
+    from .estimation.prediction import FittedModel, predict, turning_band
     from .report import fmt, md_table, plots, write_json
 
     out = _check_out(args.out, "predict", args.overwrite)
-    model, p, cov, doc = msfit.load_model(args.model)
+    model, p, cov, doc = load_model(args.model)
     _check_vehicle_unchanged(doc, model.vehicle, args.model, args.allow_changed_vehicle)
     got = _read_tracks([("--track", args.track)], model.vehicle)
     tracks = got["--track"]
-    trained = {h: f for f, h in ((doc.get("provenance") or {}).get("input_sha256") or {}).items()}
+    trained = {h: f for f, h in (doc.provenance.get("input_sha256") or {}).items()}
     for f, h in got["_sha256"].items():
         if h in trained:
             w = (
@@ -834,20 +809,20 @@ def _predict(args) -> int:
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
     lead = args.leadin if args.leadin > 0 else None
-    pr = msfit.predict(model, p, tracks, window, start=args.start, leadin_s=lead)
-    whole = msfit.predict(model, p, tracks, None, start=args.start, leadin_s=lead)
+    pr = predict(model, p, tracks, window, start=args.start, leadin_s=lead)
+    whole = predict(model, p, tracks, None, start=args.start, leadin_s=lead)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)
     indices = {}
     for tr in tracks:
-        tb = msfit.turning_band(
-            model, p, cov, tr, args.draws, rng, start=whole["start_rule"], leadin_s=whole["leadin_s"]
+        tb = turning_band(
+            FittedModel(model, p, cov), tr, args.draws, rng, start=whole["start_rule"], leadin_s=whole["leadin_s"]
         )
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     bands = calibrated_bands(
-        doc.get("calibration"), window, pr["windows"], indices, excitations={t.name: excitation(t) for t in tracks}
+        doc.calibration, window, pr["windows"], indices, excitations={t.name: excitation(t) for t in tracks}
     )
-    b90 = window_band(doc["calibration"], 0.9) if bands.get("windows") else {}
+    b90 = window_band(doc.calibration, 0.9) if bands.get("windows") else {}
     for tr in tracks:
         ctx, S = pr["_sim"][tr.name]
         k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
@@ -1111,7 +1086,7 @@ def _diagnose(args) -> int:
     """``bayesid diagnose``: base fit, where / which / how far (bayesid.analysis.gap)."""
     import numpy as np
 
-    from .analysis.gap import diagnose
+    from .analysis.gap import DiagnoseOptions, diagnose
     from .models import load_any_vehicle, model_class
     from .report import write_diagnosis
 
@@ -1140,21 +1115,20 @@ def _diagnose(args) -> int:
         free,
         train,
         held,
-        candidates=cands,
-        window_s=window,
-        dt=dt,
-        mode=args.mode,
+        DiagnoseOptions(
+            candidates=cands,
+            window_s=window,
+            dt=dt,
+            mode=args.mode,
+            max_nfev=args.max_nfev,
+            max_effects=args.max_effects,
+            fit_window_s=args.fit_window if args.fit_window else None,
+            weighting=args.weighting or None,
+            start=args.start,
+            leadin_s=args.leadin if args.leadin > 0 else None,
+        ),
         rng=np.random.default_rng(args.seed),
-        max_nfev=args.max_nfev,
-        max_effects=args.max_effects,
-        progress=lambda m: print(f"  {m}", flush=True),
-        fit_window_s=args.fit_window if args.fit_window else None,
-        weighting=args.weighting or None,
-        start=args.start,
-        leadin_s=args.leadin if args.leadin > 0 else None,
-        progress_bars=True,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
+        runner=tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True)),
     )
     res.warnings = got["_warnings"]
     res.input_sha256 = got["_sha256"]

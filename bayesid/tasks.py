@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "Runner",
     "Task",
     "TaskError",
     "Journal",
@@ -203,10 +204,11 @@ class Journal:
             )
         old = head.get("identity", {})
         if old != self.identity:
-            keys = sorted(k for k in set(old) | set(self.identity) if old.get(k) != self.identity.get(k))
+            # nested identities (an options object's fields) are compared field by field
+            was, now = _flat(old), _flat(self.identity)
+            keys = sorted(k for k in set(was) | set(now) if was.get(k) != now.get(k))
             what = "; ".join(
-                f"{k}: journal {json.dumps(old.get(k))[:80]}, this run {json.dumps(self.identity.get(k))[:80]}"
-                for k in keys
+                f"{k}: journal {json.dumps(was.get(k))[:80]}, this run {json.dumps(now.get(k))[:80]}" for k in keys
             )
             raise ValueError(
                 f"{self.path}: written by a run with other inputs ({what}); its results do not "
@@ -255,6 +257,17 @@ class Journal:
         rec = json.loads(line)
         self.records[task.key] = rec
         return rec
+
+
+def _flat(d, prefix: str = "") -> dict:
+    """``{"a": {"b": 1}}`` as ``{"a.b": 1}``: the fields of a nested identity by dotted name."""
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict) and v:
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
 
 
 def check_jobs(jobs, scheduler, option_jobs: str = "--jobs", option_scheduler: str = "--scheduler") -> None:
@@ -353,17 +366,81 @@ def _dask_client(scheduler: str):
         raise ValueError(f"--scheduler {val}: cannot connect ({exc})") from None
 
 
+@dataclass(frozen=True)
+class Runner:
+    """How a step runs its independent tasks, and where it reports its progress: the one object
+    passed where parallel work happens (as emcee's ``pool`` or pyPESTO's ``Engine``).
+
+    Attributes
+    ----------
+    jobs : int
+        Worker processes (joblib's loky backend) when ``scheduler`` is None; 1 runs the tasks in
+        this process.
+    scheduler : str or None
+        ``"local:N"`` or a Dask scheduler address (:func:`run_tasks`).
+    journal : Journal or None
+        The resumable record of finished tasks of the run.
+    progress : callable or None
+        ``progress(message)`` receives the step's progress messages; when it is set, long loops
+        also show tqdm bars. None: silent.
+
+    Raises
+    ------
+    ValueError
+        ``jobs < 1`` or a malformed scheduler (:func:`check_jobs`).
+    """
+
+    jobs: int = 1
+    scheduler: str | None = None
+    journal: Journal | None = None
+    progress: Callable[[str], None] | None = None
+
+    def __post_init__(self):
+        check_jobs(self.jobs, self.scheduler)
+
+    def say(self, message: str) -> None:
+        """Pass a progress message on (nothing when the runner is silent)."""
+        if self.progress is not None:
+            self.progress(message)
+
+    def bar(self, label: str) -> str | None:
+        """The label of a progress bar, or None when the runner is silent."""
+        return label if self.progress is not None else None
+
+    def where(self) -> str:
+        """Where the tasks run, for messages: the scheduler, or ``"N worker(s)"``."""
+        return self.scheduler or f"{self.jobs} worker(s)"
+
+    def run(self, fn: Callable, tasks: Sequence[Task], *, label: str | None = None, on_done=None) -> list:
+        """:func:`run_tasks` with this runner's workers, journal and progress.
+
+        Parameters
+        ----------
+        fn : callable
+            Module-level task function.
+        tasks : sequence of Task
+        label : str, optional
+            Label of the progress bar (shown when the runner reports progress).
+        on_done : callable, optional
+            ``on_done(task, result_or_TaskError, seconds)`` as each new task finishes.
+
+        Returns
+        -------
+        list
+            One result (or :class:`TaskError`) per task, in task order.
+        """
+        return run_tasks(fn, tasks, self, on_done=on_done, bar=self.bar(label) if label else None)
+
+
 def run_tasks(
     fn: Callable,
     tasks: Sequence[Task],
+    runner: Runner = Runner(),
     *,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    journal: Journal | None = None,
     threads: int | None = None,
     on_done: Callable | None = None,
     retries: int = 2,
-    progress: str | None = None,
+    bar: str | None = None,
 ) -> list:
     """Run ``fn(*task.args)`` for every task; return the results in task order.
 
@@ -372,19 +449,20 @@ def run_tasks(
     fn : module-level function (importable by the workers); its result must be JSON-able
         (:func:`jsonable`) when a journal is given.
     tasks : the tasks (unique keys; ValueError otherwise).
-    jobs : worker processes (joblib's loky backend) when ``scheduler`` is None; 1 runs the tasks
-        in this process, one after another.
-    scheduler : ``"local:N"`` or a Dask scheduler address (``tcp://HOST:PORT``): the tasks run on
-        Dask through joblib's Dask backend (``jobs`` is then ignored).
-    journal : :class:`Journal` of the run: finished tasks are skipped and their stored results
-        returned; every newly finished task is appended before the next result is taken.
+    runner : :class:`Runner`: ``jobs`` worker processes (joblib's loky backend) when its
+        ``scheduler`` is None (1 runs the tasks in this process, one after another), or a
+        ``scheduler`` (``"local:N"`` or a Dask scheduler address ``tcp://HOST:PORT``: the tasks run
+        on Dask through joblib's Dask backend, ``jobs`` then ignored); its ``journal`` of the
+        run: finished tasks are skipped and their stored results returned, every newly finished
+        task is appended before the next result is taken. Its progress reporter is not used
+        here (``bar`` labels a bar).
     threads : numba threads per task (default: cores // local workers; on an external cluster
         numba's own default).
     on_done : callable ``(task, result_or_TaskError, seconds)`` called in this process as each
         new task finishes (not for journaled ones).
     retries : times the remaining tasks are resubmitted after a worker process died (a killed
         or crashed worker fails every task it held; they run again).
-    progress : label of a tqdm progress bar over the tasks (None: no bar).
+    bar : label of a tqdm progress bar over the tasks (None: no bar).
 
     Returns
     -------
@@ -400,7 +478,7 @@ def run_tasks(
     keys = [t.key for t in tasks]
     if len(set(keys)) != len(keys):
         raise ValueError(f"task keys repeat: {sorted({k for k in keys if keys.count(k) > 1})}")
-    check_jobs(jobs, scheduler)
+    jobs, scheduler, journal = runner.jobs, runner.scheduler, runner.journal
     out: list = [None] * len(tasks)
     todo = []
     for i, t in enumerate(tasks):
@@ -410,10 +488,11 @@ def run_tasks(
         else:
             todo.append(i)
     bar = None
-    if progress is not None and todo:
+    label, bar = bar, None
+    if label is not None and todo:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=progress, unit="task")
+        bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=label, unit="task")
 
     def finish(i, status, payload, extra):
         t = tasks[i]

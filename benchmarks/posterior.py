@@ -135,7 +135,13 @@ def main():
                 )
                 tic = time.perf_counter()
                 res = sampling.run_ensembles(
-                    target_lp, c0, cov0, setup.names, cfg, np.random.default_rng([args.seed, 7]), checkpoint=ck
+                    target_lp,
+                    c0,
+                    cov0,
+                    setup.names,
+                    cfg,
+                    np.random.default_rng([args.seed, 7]),
+                    checkpoint=sampling.Checkpoint(ck),
                 )
                 sampled += time.perf_counter() - tic
                 if logit:

@@ -26,9 +26,11 @@ import numpy as np
 from bayesid import __version__
 from bayesid.data.track import Track
 from bayesid.data.vehicle import load_vehicle
-from bayesid.estimation import msfit
 from bayesid.estimation import track_posterior as tp
 from bayesid.estimation import windows as wf
+from bayesid.estimation.identification import identify
+from bayesid.estimation.options import FitOptions
+from bayesid.estimation.windows import FitProblem
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
 from bayesid.models import model_class
@@ -75,47 +77,42 @@ def main(argv=None) -> int:
     means, sds, iid_sds, verdicts, modes, lap_sds = [], [], [], [], [], []
     for r in range(a.replicates):
         train = [world(3 * r + k) for k in range(3)]
-        res = msfit.identify(veh, train, free, max_nfev=15)
+        res = identify(veh, train, FitOptions(free=free, max_nfev=15))
+        ctxs = [res.model.context(t, res.window_s, start=res.start_rule) for t in train]
         out = tp.sample_tracks(
-            res["model"],
-            res["fit"].p,
-            train,
-            window_s=res["window_s"],
-            start_rule=res["start_rule"],
-            fit_sd=res["fit_sd"],
-            method="auto",
-            max_minutes=3.0,
-            n_draws=a.draws,
-            seed=r,
-            folds=None if a.no_folds else [f["p"] for f in res["calibration"]["folds"] if "p" in f],
+            FitProblem(res.model, ctxs, res.fit_sd),
+            res.fit.p,
+            tp.SampleOptions(method="auto", seed=r, max_minutes=3.0),
+            importance=tp.ImportanceOptions(n_draws=a.draws),
+            folds=None if a.no_folds else [f["p"] for f in res.calibration["folds"] if "p" in f],
         )
-        d = out["draws"]
+        d = out.draws
         means.append(d.mean(axis=0))
         sds.append(d.std(axis=0, ddof=1))
-        modes.append(out["mode"]["p"])
-        lap_sds.append(np.sqrt(np.diag(out["mode"]["cov"])))
-        em = out["errors"]
+        modes.append(out.mode["p"])
+        lap_sds.append(np.sqrt(np.diag(out.mode["cov"])))
+        em = out.errors
         iid = tp.ErrorModel(
             em.channels, em.column, em.n, em.rho, em.rho_se, np.ones_like(em.inflation), em.unit, em.sigma
         )
         post_iid = tp.TrackPosterior(
             wf.WindowObjective(
-                res["model"],
-                [res["model"].context(t, res["window_s"], start=res["start_rule"]) for t in train],
-                res["fit_sd"],
-                res["fit"].p,
+                res.model,
+                [res.model.context(t, res.window_s, start=res.start_rule) for t in train],
+                res.fit_sd,
+                res.fit.p,
             ),
             iid,
-            out["prior"],
+            out.prior,
         )
-        iid_sds.append(np.sqrt(np.diag(tp.posterior_mode(post_iid, out["mode"]["p"])["cov"])))
-        verdicts.append(out["verdict"]["text"])
+        iid_sds.append(np.sqrt(np.diag(tp.posterior_mode(post_iid, out.mode["p"])["cov"])))
+        verdicts.append(out.verdict["text"])
         lines.append(
             f"replicate {r}: inflation per channel "
             + ", ".join(f"{c} {k:.0f}" for c, k in zip(em.channels, em.inflation))
             + f"; between-run factor {out['between_runs']['factor']:.2f}; {out['verdict']['text']}"
         )
-    names = res["model"].param_names
+    names = res.model.param_names
     means, sds, iid_sds = np.array(means), np.array(sds), np.array(iid_sds)
     modes, lap_sds = np.array(modes), np.array(lap_sds)
     across, across_mode = means.std(axis=0, ddof=1), modes.std(axis=0, ddof=1)

@@ -11,9 +11,9 @@ Data sets (``../shared/data/real``; the benchmark prints a message and exits 0 w
 
 Per data set:
 
-1. fit as ``bayesid fit`` does with its defaults (:func:`bayesid.estimation.msfit.identify`: the
+1. fit as ``bayesid fit`` does with its defaults (:func:`bayesid.estimation.identify`: the
    vehicle's free coefficients, the family's window, step, weighting and start rule, the vehicle
-   file's priors) but ``calibrate=False`` and ``max_nfev`` capped (``--max-nfev``, default 30);
+   file's priors) but ``calibration=None`` and ``max_nfev`` capped (``--max-nfev``, default 30);
 2. build the posterior exactly as :func:`~bayesid.estimation.track_posterior.sample_tracks` does
    (``WindowObjective`` with the fit's ``fit_sd``, channels, window and start rule; the held-out
    nuisances when the model has any; :func:`error_model`; ``ParameterPrior.of_model``;
@@ -93,7 +93,7 @@ def _header(args) -> list[str]:
         "# load average at start (1/5/15 min): "
         + " ".join(f"{v:.2f}" for v in os.getloadavg())
         + " (other processes on the machine slow every timing down)",
-        f"# fits: bayesid fit defaults but calibrate=False and max_nfev capped at {args.max_nfev} "
+        f"# fits: bayesid fit defaults but calibration=None and max_nfev capped at {args.max_nfev} "
         "(the benchmark times the posterior, not the fit; a fuller fit moves the mode, not the cost)",
     ]
 
@@ -110,25 +110,26 @@ def _tracks(data: Path, key: str, quick: bool):
 
 def build(vehicle_id, effects, train, max_nfev, say):
     """Fit (``bayesid fit`` defaults, no calibration) and the posterior as ``sample_tracks`` builds it."""
-    from bayesid.estimation import msfit
     from bayesid.estimation import track_posterior as tp
     from bayesid.estimation import windows as wf
+    from bayesid.estimation.identification import identify
+    from bayesid.estimation.options import FitOptions
     from bayesid.models import load_any_vehicle
 
     vehicle = load_any_vehicle(vehicle_id)
     t = time.perf_counter()
-    res = msfit.identify(vehicle, train, None, effects, max_nfev=max_nfev, prior=True, calibrate=False)
+    res = identify(vehicle, train, FitOptions(effects=effects, max_nfev=max_nfev, prior=True), calibration=None)
     fit_s = time.perf_counter() - t
-    model, p0 = res["model"], np.asarray(res["fit"].p, float)
-    say(f"  fit: {fit_s:.1f} s, {res['fit'].n_simulations} simulations, success {res['fit'].success}")
+    model, p0 = res.model, np.asarray(res.fit.p, float)
+    say(f"  fit: {fit_s:.1f} s, {res.fit.n_simulations} simulations, success {res.fit.success}")
     # --- as sample_tracks (the model.json round trip keeps these values) ---
     t = time.perf_counter()
-    ctxs = [model.context(tr, res["window_s"], start=res["start_rule"]) for tr in train]
-    ob = wf.WindowObjective(model, ctxs, res["fit_sd"], p0, channels=res["channels"])
+    ctxs = [model.context(tr, res.window_s, start=res.start_rule) for tr in train]
+    ob = wf.WindowObjective(model, ctxs, res.fit_sd, p0, channels=res.channels)
     nuisance = np.zeros(0)
     if model.n_nuisance:
         fr = type("Fitted", (), {"p": p0})()
-        nuisance = np.concatenate(wf.heldout_nuisance(model, fr, ctxs, res["fit_sd"]))
+        nuisance = np.concatenate(wf.heldout_nuisance(model, fr, ctxs, res.fit_sd))
     errors = tp.error_model(ob, np.concatenate([p0, nuisance]))
     prior = tp.ParameterPrior.of_model(model, True)
     post = tp.TrackPosterior(ob, errors, prior, nuisance)
@@ -195,7 +196,7 @@ def bench_set(key, args, data, say, keys):
     n_win = sum(c.W for c in post.ob.ctxs)
     n_res = int((post.errors.column >= 0).sum())
     say(
-        f"  posterior: {P} parameters, {n_win} windows of {res['window_s']:g} s, start rule {res['start_rule']}"
+        f"  posterior: {P} parameters, {n_win} windows of {res.window_s:g} s, start rule {res.start_rule}"
         + (f" ({post.ob.n_starts} profiled start states)" if post.ob.vp else "")
         + f", dt {post.ob.model.dt:g} s, {n_res} measured residuals, channels {', '.join(post.errors.channels)}, "
         f"{int(post.prior.gaussian.sum())} Gaussian priors, {post.nuisance.size} held nuisances; built in {setup_s:.1f} s"
@@ -207,7 +208,7 @@ def bench_set(key, args, data, say, keys):
             for c, r, k, n in zip(post.errors.channels, post.errors.rho, post.errors.inflation, post.errors.n_eff)
         )
     )
-    p0 = np.asarray(res["fit"].p, float)
+    p0 = np.asarray(res.fit.p, float)
     # warm-up (numba kernels loaded/compiled), then sample_tracks' own cost line
     post.evaluate(p0[None])
     t = time.perf_counter()
@@ -281,7 +282,9 @@ def bench_set(key, args, data, say, keys):
     )
     # a real importance run
     t = time.perf_counter()
-    imp = tp.importance_laplace(post, mode["p"], mode["cov"], args.draws, np.random.default_rng([args.seed, 2]), jobs=1)
+    imp = tp.importance_laplace(
+        post, mode["p"], mode["cov"], np.random.default_rng([args.seed, 2]), tp.ImportanceOptions(n_draws=args.draws)
+    )
     imp_s = time.perf_counter() - t
     inside = int(np.isfinite(post.prior.logpdf(imp["draws"])).sum())
     say(

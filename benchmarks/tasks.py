@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from bayesid.tasks import Task, run_tasks
+from bayesid.tasks import Runner, Task, run_tasks
 
 FREE = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
 
@@ -49,7 +49,7 @@ def empty_task(i: int) -> int:
 
 def _time(fn, tasks, **kw) -> tuple[float, list]:
     tic = time.perf_counter()
-    out = run_tasks(fn, tasks, **kw)
+    out = run_tasks(fn, tasks, Runner(**kw))
     return time.perf_counter() - tic, out
 
 

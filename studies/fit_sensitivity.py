@@ -16,7 +16,7 @@ Method
   different runs of every kind. A setting that is better only on the validation split was
   chosen by the validation data; one that is better on the training-only splits too is a
   candidate for a default.
-- Every fit starts from the equation-error seed (``bayesid.estimation.msfit.identify``, without the vehicle file's priors
+- Every fit starts from the equation-error seed (``bayesid.estimation.identify``, without the vehicle file's priors
   and without calibrating bands: the data and the setting alone) and is scored by the
   fixed window protocol (30 s and 60 s windows) on its split's held-out runs.
 - Fits are tasks of :mod:`bayesid.tasks` (``--jobs N`` worker processes, or ``--scheduler`` on
@@ -39,7 +39,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from bayesid.tasks import Journal, Task, TaskError, add_arguments, parse_checked, run_tasks  # noqa: E402
+from bayesid.tasks import Journal, Runner, Task, TaskError, add_arguments, parse_checked, run_tasks  # noqa: E402
 
 ESSO_VALIDATION = [
     "random_06-Aug-2020_16_24_25_6",
@@ -153,7 +153,9 @@ def split_runs(tracks, dataset: str, split: str):
 def run_fit(job: dict) -> dict:
     """One (data set, split, setting) fit and its protocol scores (runs in a worker)."""
     sys.path.insert(0, str(ROOT))
-    from bayesid.estimation import msfit
+    from bayesid.estimation.identification import identify
+    from bayesid.estimation.options import FitOptions
+    from bayesid.estimation.prediction import predict
     from bayesid.models import ship
 
     t0 = time.perf_counter()
@@ -163,36 +165,34 @@ def run_fit(job: dict) -> dict:
         train, held = train[:2], held[:1]
     vessel = ship.load_ship("esso_osaka_3m" if job["dataset"] == "esso_osaka" else "kvlcc2_7m")
     window, channels = SETTINGS[job["setting"]]
-    res = msfit.identify(
-        vessel,
-        train,
-        vessel.free,
-        EFFECTS[job["dataset"]],
+    # the fit settings alone, on the data alone: the journaled fits were made before fit used
+    # the vehicle file's [prior] and calibrated its bands by default
+    options = FitOptions(
+        free=vessel.free,
+        effects=EFFECTS[job["dataset"]],
         window_s=window,
         dt=0.2,
         max_nfev=job["max_nfev"],
         weighting="residual",
         channels=channels,
         start="measured",
-        # the fit settings alone, on the data alone: the journaled fits were made before fit used
-        # the vehicle file's [prior] and calibrated its bands by default
         prior=False,
-        calibrate=False,
     )
+    res = identify(vessel, train, options, calibration=None)
     out = {k: job[k] for k in ("dataset", "split", "setting", "key")}
     out.update(
         train_runs=[t.name for t in train],
         heldout_runs=[t.name for t in held],
         fit_window_s=window,
         channels=list(channels) if channels else "all",
-        nfev=res["fit"].n_simulations,
+        nfev=res.fit.n_simulations,
     )
     for key, w in (("w30", 30.0), ("w60", 60.0)):
-        pr = msfit.predict(res["model"], res["fit"].p, held, w, start="measured")
+        pr = predict(res.model, res.fit.p, held, w, start="measured")
         out[key] = pr["pooled"]["rms_position_m"]
         out[key + "_heading_deg"] = pr["pooled"]["rms_heading_deg"]
         out[key + "_per_run"] = {n: v["rms_position_m"] for n, v in pr["per_track"].items()}
-    out["parameters"] = dict(zip(res["model"].param_names, map(float, res["fit"].p)))
+    out["parameters"] = dict(zip(res.model.param_names, map(float, res.fit.p)))
     out["seconds"] = time.perf_counter() - t0
     return out
 
@@ -430,7 +430,7 @@ def main() -> int:
         else:
             print(f"  {task.key}: 30 s {r['w30']:.3f} m, 60 s {r['w60']:.3f} m ({r['seconds']:.0f} s)", flush=True)
 
-    outs = run_tasks(run_fit, tasks, jobs=args.jobs, scheduler=args.scheduler, journal=journal, on_done=done)
+    outs = run_tasks(run_fit, tasks, Runner(jobs=args.jobs, scheduler=args.scheduler, journal=journal), on_done=done)
     failed = [r for r in outs if isinstance(r, TaskError)]
     fits = [r for r in outs if not isinstance(r, TaskError)]
     if failed:  # the summary needs every fit of a setting; say which failed and stop

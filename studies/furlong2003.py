@@ -20,6 +20,7 @@ from bayesid import cases
 from bayesid.analysis import identifiability
 from bayesid.data import terms
 from bayesid.data.vehicle import load_vehicle
+from bayesid.estimation.fit import SolverOptions
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import Problem
 from bayesid.models import manoeuvres as mv
@@ -53,8 +54,8 @@ def run_case(number, vehicle, spiral, target, rng, quick):
     bounds = case.scaled_bounds()
     p0 = np.ones(len(case.free))
     fits = {
-        "slsqp": fit_problem(problem, p0, bounds, method="slsqp", maxiter=100 if quick else 400),
-        "least_squares": fit_problem(problem, p0, bounds, max_nfev=60 if quick else 600),
+        "slsqp": fit_problem(problem, p0, bounds, SolverOptions(method="slsqp", maxiter=100 if quick else 400)),
+        "least_squares": fit_problem(problem, p0, bounds, SolverOptions(max_nfev=60 if quick else 600)),
     }
     out = {}
     for key, fit in fits.items():

@@ -37,13 +37,14 @@ from bayesid import cases
 from bayesid.analysis import richness, sindy
 from bayesid.data.track import Track
 from bayesid.data.vehicle import load_vehicle
+from bayesid.estimation.fit import SolverOptions
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import JointProblem, Problem
 from bayesid.estimation.posterior import add_noise
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 from bayesid.report import fmt, md_table, plots, prepare_out, write_json, write_manifest
-from bayesid.tasks import Task, TaskError, add_arguments, parse_checked, run_tasks
+from bayesid.tasks import Runner, Task, TaskError, add_arguments, parse_checked, run_tasks
 
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}
 CHANNELS = ("x", "y", "psi")
@@ -91,7 +92,7 @@ def sindy_check(vehicle, m, rng, n_models):
         name=m.name,
     )
     noisy = add_noise(nav, {**NOISE, **VELOCITY_NOISE}, rng)
-    inc = sindy.inclusion_probabilities(noisy, vehicle, n_models=n_models, rng=rng)
+    inc = sindy.inclusion_probabilities(noisy, vehicle, sindy.SindyOptions(n_models=n_models), rng=rng)
     flat = {t: p for eq in sindy.EQUATIONS for t, p in inc[eq].items()}
     return flat, sindy.compare_with_model(inc, vehicle)
 
@@ -102,7 +103,7 @@ def fit_on(case, vehicle_k, problems, quick):
         pb,
         np.array([case.start[n] for n in case.free]) / pb.reference,
         case.scaled_bounds(),
-        max_nfev=30 if quick else 200,
+        SolverOptions(max_nfev=30 if quick else 200),
     )
     return fit.theta
 
@@ -116,7 +117,7 @@ def rms_position_error(sim, theta, truth_track) -> float:
 def mc_fit(problem, p0, max_nfev: int) -> list:
     """One Monte-Carlo realisation (a task): the least-squares estimate - 1 (relative units)."""
     lo, hi = np.full(p0.size, 1 - BOUND), np.full(p0.size, 1 + BOUND)
-    return (fit_problem(problem, p0, (lo, hi), max_nfev=max_nfev).p - 1.0).tolist()
+    return (fit_problem(problem, p0, (lo, hi), SolverOptions(max_nfev=max_nfev)).p - 1.0).tolist()
 
 
 def monte_carlo_sd(vehicle, m, case, theta_true, n, rng, quick, w, jobs=1, scheduler=None):
@@ -131,7 +132,7 @@ def monte_carlo_sd(vehicle, m, case, theta_true, n, rng, quick, w, jobs=1, sched
         pb = Problem(clean.sim, add_noise(truth, NOISE, rng), theta_true, channels=CHANNELS)
         p0 = 1.0 + rng.uniform(-0.1, 0.1, theta_true.size)
         tasks.append(Task(f"mc{i:04d}", {"realisation": i}, (pb, p0, 30 if quick else 150)))
-    outs = run_tasks(mc_fit, tasks, jobs=jobs, scheduler=scheduler)
+    outs = run_tasks(mc_fit, tasks, Runner(jobs=jobs, scheduler=scheduler))
     failed = [o for o in outs if isinstance(o, TaskError)]
     if failed:
         raise RuntimeError(f"{len(failed)} Monte-Carlo fit(s) failed; first: {failed[0]}")
@@ -230,20 +231,16 @@ def main():
     )
     designs = {}
     for crit in ("D", "direction"):
-        d = richness.design_multisine(
-            vehicle,
-            make,
-            theta,
-            NOISE,
+        options = richness.DesignOptions(
             criterion=crit,
             direction=w,
             prior_precision=prior,
             duration=600.0,
             dt=dt_d,
-            rng=np.random.default_rng([args.seed, 21]),
             maxiter=2 if args.quick else 12,
             popsize=3 if args.quick else 5,
         )
+        d = richness.design_multisine(vehicle, make, theta, NOISE, options, rng=np.random.default_rng([args.seed, 21]))
         designs[crit] = d
         met_d = richness.fisher_metrics(make(d.manoeuvre), theta, NOISE)
         cr_sp = np.sqrt(np.diag(np.linalg.inv(met_sp["F"] + np.diag(prior))))

@@ -41,9 +41,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from bayesid import cases
-from bayesid.analysis.dossier import direction_convergence, dossier
+from bayesid.analysis.dossier import ROUND_OFF, direction_convergence, dossier
 from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation import sampling
+from bayesid.estimation.fit import SolverOptions
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import Problem
 from bayesid.estimation.posterior import (
@@ -59,7 +60,7 @@ from bayesid.estimation.posterior import (
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 from bayesid.report import fmt, md_table, plots, prepare_out, write_json, write_manifest
-from bayesid.tasks import Task, TaskError, add_arguments, parse_checked, run_tasks
+from bayesid.tasks import Runner, Task, TaskError, add_arguments, parse_checked, run_tasks
 
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}  # realistic navigation noise (m, m, rad)
 CHANNELS = ("x", "y", "psi")
@@ -67,7 +68,6 @@ DT_TRUTH, DT_MODEL, SAMPLE_S = 0.1, 1.0, 1.0
 START_MARGIN = 0.05  # walkers' centre at least this fraction of the prior width inside the bounds
 KNOWN_SD = 0.01  # Bayesian Case 3: relative sd of the towing-tank values
 LEVEL = 0.9  # credible interval shown: central (equal-tailed) 90 %
-ROUND_OFF = 1e-15  # Fisher eigenvalues below this x the largest: numerically zero (eigh precision ~1e-16)
 DETERMINED = 0.5  # a direction is "determined" when its Cramer-Rao sd < this x prior sd along it
 CASE_KEYS = ("case2", "case1", "case3", "case3b")
 #: Sampling budget per case, minutes: a cap, as each case stops when its chains converge
@@ -174,9 +174,11 @@ def optimum(setup, vehicle, spiral, target, quick):
     )
     pb = Problem(sim, target, c.reference(), channels=CHANNELS)
     lo, hi = c.scaled_bounds()
-    fit = fit_problem(pb, np.ones(len(c.free)), (lo, hi), max_nfev=40 if quick else 300)
+    fit = fit_problem(pb, np.ones(len(c.free)), (lo, hi), SolverOptions(max_nfev=40 if quick else 300))
     m = START_MARGIN * (hi - lo)
-    inner = fit_problem(pb, np.clip(fit.p, lo + m, hi - m), (lo + m, hi - m), max_nfev=20 if quick else 100)
+    inner = fit_problem(
+        pb, np.clip(fit.p, lo + m, hi - m), (lo + m, hi - m), SolverOptions(max_nfev=20 if quick else 100)
+    )
 
     def full(theta_free):
         th = dict(zip(c.free, theta_free))
@@ -252,7 +254,14 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
         raise ValueError(f"{done}: finished under {stored_key}, not {run_key}; pass --fresh or another --out")
     where = {"jobs": args.jobs, "scheduler": args.scheduler} if args.ensembles_as_tasks else {}
     result = sampling.run_ensembles(
-        logpost, centre, cov0, setup.names, cfg, rng, checkpoint=ckfile, run_key=run_key, **where
+        logpost,
+        centre,
+        cov0,
+        setup.names,
+        cfg,
+        rng,
+        checkpoint=sampling.Checkpoint(ckfile, run_key),
+        runner=Runner(**where),
     )
     sample_s = sampled_s = time.perf_counter() - t_s
     # rows evaluated on workers count in the result, not in this process's log posterior
@@ -295,10 +304,8 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
         [setup.truth[n] for n in setup.names],
         vehicle,
         samples,
-        sim,
         NOISE,
         determined=DETERMINED,
-        round_off=ROUND_OFF,
     )
     determined = np.array([d["determined"] for d in dos["directions"]])
     conv_dirs = direction_convergence(result, burn, dos["W"], theta_hat, determined)
@@ -719,7 +726,7 @@ def main():
     if args.ensembles_as_tasks:
         outs = run_tasks(run_case, tasks, on_done=done)
     else:
-        outs = run_tasks(run_case, tasks, jobs=args.jobs, scheduler=args.scheduler, on_done=done)
+        outs = run_tasks(run_case, tasks, Runner(jobs=args.jobs, scheduler=args.scheduler), on_done=done)
     failed = [o for o in outs if isinstance(o, TaskError)]
     if failed:  # a checkpoint of another run, a bad option: named, after the other cases finished
         raise ValueError("; ".join(str(f) for f in failed))

@@ -11,7 +11,7 @@ Method
 - Fit: multiple shooting over the package's ship fit window (``bayesid.models.ship.FIT_WINDOW_S``, 15 s,
   chosen on training-only splits in ``studies/fit_sensitivity.py``; the issue's baseline used
   30 s) restarting from the causal measured state, seeded by
-  an equation-error regression (``bayesid.estimation.msfit``); channel weights by two-step feasible GLS (the
+  an equation-error regression (``bayesid.estimation.identification``); channel weights by two-step feasible GLS (the
   residual RMS of a first, noise-weighted fit: on these runs the structural error over a window
   is 10-100x the sensor noise); Laplace posterior with an AR(1) inflation.
 - Diagnosis (``bayesid.analysis.gap.diagnose``): the base model is fitted without the wind; candidates
@@ -78,20 +78,21 @@ def parse_args():
 
 
 def _scores(model, fitres, tracks, window):
-    from bayesid.estimation import msfit
+    from bayesid.estimation.prediction import predict
 
-    pr = msfit.predict(model, fitres.p, tracks, window, start="measured")
+    pr = predict(model, fitres.p, tracks, window, start="measured")
     return pr["pooled"]
 
 
 def evaluate(name, ship, train, held, candidates, args, out, log):
     """Diagnose, then score base and after models at 30 s, 60 s and whole run."""
-    from bayesid.analysis.gap import diagnose
-    from bayesid.estimation import msfit
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.estimation import windows as wf
+    from bayesid.estimation.laplace import fit_covariance
     from bayesid.models import build_model
     from bayesid.models.ship import FIT_WINDOW_S as fw
     from bayesid.report import write_diagnosis
+    from bayesid.tasks import Runner
 
     t0 = time.perf_counter()
     diag = diagnose(
@@ -99,14 +100,11 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
         ship.free,
         train,
         held,
-        candidates=candidates,
-        window_s=60.0,
-        fit_window_s=fw,
-        dt=0.2,
+        DiagnoseOptions(
+            candidates=candidates, window_s=60.0, fit_window_s=fw, dt=0.2, max_nfev=args.max_nfev, start="measured"
+        ),
         rng=np.random.default_rng(args.seed),
-        max_nfev=args.max_nfev,
-        start="measured",
-        progress=lambda m: log(f"{name}: {m}"),
+        runner=Runner(progress=lambda m: log(f"{name}: {m}")),
     )
     write_diagnosis(diag, out / f"{name}_diagnosis", held, command=f"studies/real_ships.py ({name})")
     res = diag.to_dict()
@@ -136,7 +134,7 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     if not res["effects_added"] and top is not None:
         am = build_model(ship, ship.free, [top], 0.2)
         ctr = [am.context(t, fw) for t in train]
-        af = wf.fit_model(am, ctr, res["fit_sd"], am.start(bf.p[: bm.n_theta]), max_nfev=args.max_nfev)
+        af = wf.fit_model(wf.FitProblem(am, ctr, res["fit_sd"], max_nfev=args.max_nfev), am.start(bf.p[: bm.n_theta]))
     doc["after_effects"] = [e.name for e in am.effects]
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
         b, a = _scores(bm, bf, held, w), _scores(am, af, held, w)
@@ -156,7 +154,7 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
         doc[k] = doc["w60"][k]
     # posterior of the final model (Laplace on the training windows)
     ctr = [am.context(t, fw) for t in train]
-    cov, post = msfit.laplace_covariance(af, ctr)
+    cov, post = fit_covariance(af, ctr)
     doc["posterior"] = {
         "laplace": post,
         "parameters": {
@@ -186,29 +184,29 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
 
 
 def track_figure(models, track, window, path, title):
-    from bayesid.estimation import msfit
+    from bayesid.estimation.prediction import predict, windowed_xy
     from bayesid.report import plots
 
     (bm, bf), (am, af) = models
-    pr_b = msfit.predict(bm, bf.p, [track], window, start="measured")["_sim"][track.name]
-    pr_a = msfit.predict(am, af.p, [track], window, start="measured")["_sim"][track.name]
-    meas, xb = msfit.windowed_xy(*pr_b)
-    _, xa = msfit.windowed_xy(*pr_a)
+    pr_b = predict(bm, bf.p, [track], window, start="measured")["_sim"][track.name]
+    pr_a = predict(am, af.p, [track], window, start="measured")["_sim"][track.name]
+    meas, xb = windowed_xy(*pr_b)
+    _, xa = windowed_xy(*pr_a)
     return plots.window_tracks(None, meas, xb, xa, path, title=title)
 
 
 def literature_baseline(vessel, held, rng):
     """The vehicle file's published coefficients, not fitted, in this model: protocol scores on the
     held-out runs (30 s, 60 s, whole run) and the predicted 35 deg turning circles."""
-    from bayesid.estimation import msfit
+    from bayesid.estimation.prediction import FittedModel, predict, turning_circles
     from bayesid.models import build_model
 
     m = build_model(vessel, vessel.free, [], 0.2)
     p = m.start()
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
-        out[key] = msfit.predict(m, p, held, w, start="measured")["pooled"]["rms_position_m"]
-    tc = msfit.turning_circles(m, p, None, 0, rng, U0, RPS)
+        out[key] = predict(m, p, held, w, start="measured")["pooled"]["rms_position_m"]
+    tc = turning_circles(FittedModel(m, p, None), 0, rng, U0, RPS)
     out["turning_circles_35deg"] = {side: v["predicted"] for side, v in tc.items()}
     return out
 
@@ -219,12 +217,12 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
 
     Each run is simulated whole, open loop, from its first (causal) measured state with the
     recorded rudder and propeller, by the HSVA-zigzag model and its Laplace draws
-    (:func:`bayesid.estimation.msfit.turning_band`): standard indices measured vs predicted with the 5-95 %
+    (:func:`bayesid.estimation.turning_band`): standard indices measured vs predicted with the 5-95 %
     predictive band; the tactical diameter's relative error against the issue's 5 % target; and
     the protocol's pooled window errors (30 s, 60 s). Returns (None, []) when no MARIN file is
     there (they are withheld from this repository's data)."""
     from bayesid.data import datasets
-    from bayesid.estimation import msfit
+    from bayesid.estimation.prediction import FittedModel, predict, turning_band
     from bayesid.report import plots
 
     paths = datasets.list_runs(data, "simman-marin")
@@ -238,7 +236,7 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
             unread[str(p)] = str(exc)
             continue
         tracks.append(tr)
-        tb = msfit.turning_band(am, af.p, cov, tr, draws, rng, keep_draws=True)
+        tb = turning_band(FittedModel(am, af.p, cov), tr, draws, rng, keep_draws=True)
         meas, pred = tb["measured"], tb["predicted"]
         e = {
             "file": str(p),
@@ -267,7 +265,7 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
     pooled = {"w30": None, "w60": None}
     for key, w in (("w30", 30.0), ("w60", 60.0)):
         if tracks:  # one protocol pass per window length: pooled over the runs and per run
-            pr = msfit.predict(am, af.p, tracks, w, start="measured")
+            pr = predict(am, af.p, tracks, w, start="measured")
             pooled[key] = pr["pooled"]["rms_position_m"]
             for name, sc in pr["per_track"].items():
                 runs[name][key] = sc
@@ -295,38 +293,32 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
     training runs (the vehicle file's priors unless ``prior`` is False; leave-one-run-out
     calibration of the bands), predict the held-out runs over 60 s windows, and score every band
     against what was measured: the posterior draws' own 5-95 % index bands (before) and the
-    calibrated bands at 50/80/90/95 % (after). Returns (doc, identify result)."""
-    from bayesid.estimation import msfit
+    calibrated bands at 50/80/90/95 % (after). Returns (doc, identify result, reliability figure,
+    {"p", "cov"} of the sampled posterior)."""
     from bayesid.estimation.calibration import calibrated_bands
+    from bayesid.estimation.identification import identify
+    from bayesid.estimation.options import CalibrationOptions, FitOptions
+    from bayesid.estimation.prediction import FittedModel, predict, turning_band
     from bayesid.report import plots
+    from bayesid.tasks import Runner
 
     t0 = time.perf_counter()
     free = list(vessel.free if free is None else free)
-    res = msfit.identify(
+    res = identify(
         vessel,
         train,
-        free,
-        effects,
-        dt=0.2,
-        max_nfev=args.max_nfev,
-        start="measured",
-        prior=prior,
-        calibrate=True,
-        calibration_window_s=60.0,
-        calibration_draws=40,
-        calibration_seed=args.seed,
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        progress=lambda m: log(f"{name} {label}: {m}"),
+        FitOptions(free=free, effects=effects, dt=0.2, max_nfev=args.max_nfev, start="measured", prior=prior),
+        CalibrationOptions(window_s=60.0, draws=40, seed=args.seed),
+        runner=Runner(args.jobs, args.scheduler, progress=lambda m: log(f"{name} {label}: {m}")),
     )
-    m, p, cov = res["model"], res["fit"].p, res["cov"]
-    pr = msfit.predict(m, p, held, 60.0, start="measured")
+    m, p, cov = res.model, res.fit.p, res.cov
+    pr = predict(m, p, held, 60.0, start="measured")
     rng = np.random.default_rng([args.seed, 31])
     idx = {}
     for h in held:
-        tb = msfit.turning_band(m, p, cov, h, args.draws, rng, start="measured")
+        tb = turning_band(FittedModel(m, p, cov), h, args.draws, rng, start="measured")
         idx[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(res["calibration"], 60.0, pr["windows"], idx)
+    bands = calibrated_bands(res.calibration, 60.0, pr["windows"], idx)
     fig = None
     if bands.get("coverage"):
         fig = plots.reliability(
@@ -339,13 +331,13 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
             bands["parameter_only"],
             title=f"{name}{' (' + label + ')' if label else ''}: held-out runs",
         )
-    cal = res["calibration"]
+    cal = res.calibration
     post, idx_s = sampled_posterior(name, label, m, p, res, train, held, prior, args, log)
     doc = {
         "sample": post,
         "free": free,
         "effects": list(effects),
-        "prior": res["prior"],
+        "prior": res.prior,
         "heldout_rms_position_m_60s": pr["pooled"]["rms_position_m"],
         "parameter_only": bands["parameter_only"],
         "coverage": bands.get("coverage"),
@@ -365,8 +357,7 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
         },
         "seconds": time.perf_counter() - t0,
     }
-    res["_sampled"] = idx_s
-    return doc, res, fig
+    return doc, res, fig, idx_s
 
 
 def sampled_posterior(name, label, model, p, res, train, held, prior, args, log):
@@ -374,49 +365,48 @@ def sampled_posterior(name, label, model, p, res, train, held, prior, args, log)
     vehicle file's priors when ``prior``, the calibration's leave-one-run-out folds), and the
     held-out indices' 5-95 % bands of its draws against what was measured. Returns (JSON-able
     summary, {"p", "cov"} of the sampled posterior)."""
-    from bayesid.estimation import msfit
     from bayesid.estimation import track_posterior as tp
+    from bayesid.estimation.laplace import psd_covariance
+    from bayesid.estimation.prediction import FittedModel, turning_band
+    from bayesid.estimation.windows import FitProblem
+    from bayesid.tasks import Runner
 
     t0 = time.perf_counter()
-    post = tp.sample_tracks(
-        model,
-        p,
-        train,
-        window_s=res["window_s"],
-        start_rule=res["start_rule"],
-        fit_sd=res["fit_sd"],
-        channels=res["channels"],
-        use_prior=prior,
-        method="importance" if args.quick else "auto",
-        n_draws=300 if args.quick else 4000,
-        seed=args.seed,
-        max_minutes=8.0,  # the MCMC refinement's budget per split (four splits)
-        folds=[f["p"] for f in (res["calibration"] or {}).get("folds", []) if "p" in f],
-        jobs=args.jobs,
-        scheduler=args.scheduler,
-        progress=lambda m: log(f"{name} {label} sample: {m}"),
+    problem = FitProblem(
+        model, [model.context(t, res.window_s, start=res.start_rule) for t in train], res.fit_sd, res.channels
     )
-    ps, cs = post["mode"]["p"], msfit.psd_covariance(np.cov(post["draws"], rowvar=False))
+    post = tp.sample_tracks(
+        problem,
+        p,
+        # the MCMC refinement's budget is 8 min per split (four splits)
+        tp.SampleOptions(
+            method="importance" if args.quick else "auto", use_prior=prior, seed=args.seed, max_minutes=8.0
+        ),
+        importance=tp.ImportanceOptions(n_draws=300 if args.quick else 4000),
+        folds=[f["p"] for f in (res.calibration or {}).get("folds", []) if "p" in f],
+        runner=Runner(args.jobs, args.scheduler, progress=lambda m: log(f"{name} {label} sample: {m}")),
+    )
+    ps, cs = post.mode["p"], psd_covariance(np.cov(post.draws, rowvar=False))
     rng = np.random.default_rng([args.seed, 37])
     inside = n = 0
     for h in held:
-        tb = msfit.turning_band(model, ps, cs, h, args.draws, rng, start="measured")
+        tb = turning_band(FittedModel(model, ps, cs), h, args.draws, rng, start="measured")
         for k, b in tb["band_5_95"].items():
             v = tb["measured"].get(k)
             if b and v is not None and np.isfinite(v):
                 n += 1
                 inside += int(b[0] <= v <= b[1])
-    em = post["errors"]
-    names = post["names"]
-    lap = np.sqrt(np.clip(np.diag(res["cov"]), 0, None))
+    em = post.errors
+    names = post.names
+    lap = np.sqrt(np.clip(np.diag(res.cov), 0, None))
     return {
-        "method": post["method"],
-        "verdict": post["verdict"]["text"],
-        "converged": bool(post["verdict"]["converged"]),
+        "method": post.method,
+        "verdict": post.verdict["text"],
+        "converged": bool(post.verdict["converged"]),
         "seconds": time.perf_counter() - t0,
-        "seconds_per_evaluation": post["seconds_per_evaluation"],
+        "seconds_per_evaluation": post.seconds_per_evaluation,
         "inflation": dict(zip(em.channels, map(float, em.inflation))),
-        "between_runs": {k: post["between_runs"][k] for k in ("factor", "median_ratio", "n_folds")},
+        "between_runs": {k: post.between_runs[k] for k in ("factor", "median_ratio", "n_folds")},
         "sd_over_laplace": {n: float(np.sqrt(cs[j, j]) / lap[j]) if lap[j] > 0 else None for j, n in enumerate(names)},
         "parameter_only": {"inside": inside, "n": n, "coverage": inside / n if n else None},
     }, {"p": ps, "cov": cs}
@@ -426,8 +416,8 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
     """KVLCC2 from the HSVA zigzags under three priors on the captive-test values: none, the
     vehicle file's Gaussian prior, and the static terms fixed (the paper's Case 2); for each the
     held-out coverage and the predicted 35 deg turning circle with its calibrated 90 % band."""
-    from bayesid.estimation import msfit
     from bayesid.estimation.calibration import index_band
+    from bayesid.estimation.prediction import FittedModel, turning_circles
 
     variants = {
         "none": dict(prior=False),
@@ -436,10 +426,10 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
     }
     out, figs, sims = {}, [], {}
     for label, kw in variants.items():
-        doc, res, fig = uncertainty("kvlcc2_hsva", kv, ktrain, kheld, [], args, figdir, log, label=label, **kw)
+        doc, res, fig, smp = uncertainty("kvlcc2_hsva", kv, ktrain, kheld, [], args, figdir, log, label=label, **kw)
         figs += [fig] if fig else []
-        circ = msfit.turning_circles(
-            res["model"], res["fit"].p, res["cov"], args.draws, np.random.default_rng([args.seed, 41]), U0, RPS
+        circ = turning_circles(
+            FittedModel(res.model, res.fit.p, res.cov), args.draws, np.random.default_rng([args.seed, 41]), U0, RPS
         )
         tc = {}
         for side, c in circ.items():
@@ -448,16 +438,15 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
                 "band_5_95": c["band_5_95"],
                 "sd": c["sd"],
                 "band_90": {
-                    k: index_band(res["calibration"], k, c["predicted"][k], c["sd"][k], 0.9)
-                    if res["calibration"] is not None and c["sd"].get(k)
+                    k: index_band(res.calibration, k, c["predicted"][k], c["sd"][k], 0.9)
+                    if res.calibration is not None and c["sd"].get(k)
                     else None
                     for k in c["predicted"]
                 },
             }
             sims[f"{label} {side}"] = c["_S"][:1]
-        smp = res["_sampled"]
-        circ_s = msfit.turning_circles(
-            res["model"], smp["p"], smp["cov"], args.draws, np.random.default_rng([args.seed, 47]), U0, RPS
+        circ_s = turning_circles(
+            FittedModel(res.model, smp["p"], smp["cov"]), args.draws, np.random.default_rng([args.seed, 47]), U0, RPS
         )
         for side, c in circ_s.items():
             tc[side]["sampled_band_5_95"] = c["band_5_95"]
@@ -472,8 +461,8 @@ def marin_coverage(res, args, rng):
     with calibrated bands: per run and index the measured value, the prediction, the calibrated
     90 % band and whether it holds; the tactical diameter's relative error. None without files."""
     from bayesid.data import datasets
-    from bayesid.estimation import msfit
     from bayesid.estimation.calibration import calibrated_bands
+    from bayesid.estimation.prediction import FittedModel, turning_band
 
     paths = datasets.list_runs(Path(args.data), "simman-marin")
     if not paths:
@@ -485,9 +474,9 @@ def marin_coverage(res, args, rng):
         except ValueError as exc:
             unread[str(p)] = str(exc)
             continue
-        tb = msfit.turning_band(res["model"], res["fit"].p, res["cov"], tr, args.draws, rng)
+        tb = turning_band(FittedModel(res.model, res.fit.p, res.cov), tr, args.draws, rng)
         idx[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(res["calibration"], None, [], idx)
+    bands = calibrated_bands(res.calibration, None, [], idx)
     td = [
         (r["track"], (r["predicted"] - r["measured"]) / r["measured"])
         for r in bands["indices"]
@@ -513,7 +502,7 @@ def main() -> int:
     args = parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from bayesid.data import datasets
-    from bayesid.estimation import msfit
+    from bayesid.estimation.prediction import FittedModel, turning_band, turning_circles
     from bayesid.models import ship
     from bayesid.report import plots, write_json, write_manifest
 
@@ -573,7 +562,7 @@ def main() -> int:
         "kvlcc2_hsva", kv, ktrain, kheld, [c for c in ship.SHIP_CATALOGUE if c != "wind"], args, out, log
     )
     am, af, cov = k_after
-    circles = msfit.turning_circles(am, af.p, cov, args.draws, rng, U0, RPS)
+    circles = turning_circles(FittedModel(am, af.p, cov), args.draws, rng, U0, RPS)
     k_doc["turning_circles_35deg"] = {
         k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in circles.items()
     }
@@ -593,7 +582,7 @@ def main() -> int:
     )
     zz = {}
     for h in kheld:
-        tb = msfit.turning_band(am, af.p, cov, h, args.draws, rng, keep_draws=True)
+        tb = turning_band(FittedModel(am, af.p, cov), h, args.draws, rng, keep_draws=True)
         zz[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     k_doc["zigzag_indices_heldout"] = zz
     kfigs = [
@@ -618,7 +607,7 @@ def main() -> int:
     kfigs.append(plots.turning_band({k: v["_S"] for k, v in circles.items()}, out / "figures" / "kvlcc2_turning35.png"))
 
     # ---- honest uncertainty: calibrated bands on both validation splits; KVLCC2 under three priors ----
-    e_unc, _, e_fig = uncertainty("esso_osaka", esso, train, held, ["wind"], args, out / "figures", log)
+    e_unc, _, e_fig, _ = uncertainty("esso_osaka", esso, train, held, ["wind"], args, out / "figures", log)
     k_var, ufigs, tsims = prior_variants(kv, ktrain, kheld, args, out / "figures", log)
     ufigs = ([e_fig] if e_fig else []) + ufigs
     ufigs.append(

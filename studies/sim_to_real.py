@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesid.tasks import Journal, Task, TaskError, add_arguments, parse_checked, run_tasks
+from bayesid.tasks import Journal, Runner, Task, TaskError, add_arguments, parse_checked, run_tasks
 
 FREE = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
 DT, WINDOW = 0.5, 60.0
@@ -269,7 +269,7 @@ def window_for(cfg: dict) -> float:
 
 def run_case(case: dict, seed: int, quick: bool) -> dict:
     """Generate the case's world tracks, diagnose them, return truth + diagnosis (JSON-able)."""
-    from bayesid.analysis.gap import diagnose
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.data.vehicle import load_vehicle
     from bayesid.models import effects as ef
 
@@ -295,11 +295,8 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
         FREE,
         train,
         held,
-        candidates=cands,
-        window_s=window,
-        dt=DT,
+        DiagnoseOptions(candidates=cands, window_s=window, dt=DT, max_nfev=15 if quick else 40),
         rng=np.random.default_rng(seed),
-        max_nfev=15 if quick else 40,
     ).to_dict()
     res["where"].pop("regions", None)  # keep results.json small; the summary stays
     oracle = true_model_scores(world_veh, held, objs, window, res["settings"])
@@ -509,7 +506,7 @@ def main():
             flush=True,
         )
 
-    outs = run_tasks(run_case, tasks, jobs=args.jobs, scheduler=args.scheduler, journal=journal, on_done=done)
+    outs = run_tasks(run_case, tasks, Runner(jobs=args.jobs, scheduler=args.scheduler, journal=journal), on_done=done)
     failed = [r for r in outs if isinstance(r, TaskError)]
     results = [r for r in outs if not isinstance(r, TaskError)]
     order = {c["id"]: i for i, c in enumerate(case_list(args.quick))}

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from bayesid.analysis.gap import Diagnosis, diagnose
+from bayesid.analysis.gap import DiagnoseOptions, Diagnosis, diagnose
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
@@ -66,11 +66,8 @@ def diagnosis():
         ["Yv", "Nr", "Ndr"],
         train,
         held,
-        candidates=[YAW_BIAS, "thrust", "delay"],
-        window_s=60.0,
+        DiagnoseOptions(candidates=[YAW_BIAS, "thrust", "delay"], window_s=60.0, max_nfev=30, max_effects=1),
         rng=np.random.default_rng(0),
-        max_nfev=30,
-        max_effects=1,
     )
 
 

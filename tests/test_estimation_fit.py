@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from bayesid import cases
+from bayesid.estimation.fit import SolverOptions
 from bayesid.estimation.fit import fit as fit_problem
 from bayesid.estimation.objective import Problem
 from bayesid.models import manoeuvres as mv
@@ -39,7 +40,7 @@ def test_jacobian_is_one_batched_call(short_problem):
 @pytest.mark.parametrize("method", ["least_squares", "slsqp"])
 def test_case2_recovers_true_coefficients(short_problem, method):
     case, pb = short_problem
-    res = fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), method=method)
+    res = fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), SolverOptions(method=method))
     ratio = res.theta / np.array([case.true[n] for n in case.free])
     # noise-free 60 s zigzag 20/20, 14 rotary + added-mass coefficients free:
     # least squares recovers every one to 1e-4; SLSQP stops earlier on this short, sloppy problem
@@ -79,18 +80,20 @@ def test_one_fit_function_serves_both_objectives(short_problem, nps):
     """The paper's whole-track Problem and the multiple-shooting WindowObjective go through the
     same fit() and return the same FitResult type; an unknown method is refused by name."""
     from bayesid.estimation.fit import FitResult
-    from bayesid.estimation.windows import fit_model
+    from bayesid.estimation.windows import FitProblem, fit_model
     from bayesid.models.effects import EffectModel
 
     case, pb = short_problem
     with pytest.raises(ValueError, match="unknown fit method 'bfgs'"):
-        fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), method="bfgs")
+        fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), SolverOptions(method="bfgs"))
     m = mv.zigzag(nps, 20.0, duration=60.0)
     tr = Simulator(nps, m, mode="horizontal").run().track(0)  # every step: the rudder log is exact
     model = EffectModel(nps.with_coefficients({"Nr": 1.2 * nps.coefficients["Nr"]}), ["Nr"], dt=0.1)
-    res = fit_model(model, [model.context(tr, 30.0)], {c: 0.01 for c in ("x", "y", "psi", "u", "v", "r")}, max_nfev=20)
+    res = fit_model(
+        FitProblem(model, [model.context(tr, 30.0)], {c: 0.01 for c in ("x", "y", "psi", "u", "v", "r")}, max_nfev=20)
+    )
     assert isinstance(res, FitResult) and type(res) is type(
-        fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), max_nfev=2)
+        fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), SolverOptions(max_nfev=2))
     )
     assert res.coefficients()["Nr"] == pytest.approx(nps.coefficients["Nr"], rel=0.02)
     assert res.k == 1 and res.n_residuals > 0 and res.cost < res.start_cost

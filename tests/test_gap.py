@@ -219,10 +219,8 @@ def test_diagnosis_names_the_withheld_effect(veh, scenario, effect):
         FREE,
         train,
         held,
-        candidates=[effect] + distractors,
-        window_s=60.0,
+        gap.DiagnoseOptions(candidates=[effect] + distractors, window_s=60.0, max_nfev=40),
         rng=np.random.default_rng(0),
-        max_nfev=40,
     ).to_dict()
     assert res["verdict"] == effect, (
         res["verdict"],
@@ -252,14 +250,24 @@ def test_scores_log_likelihood_is_the_gaussian_density_of_the_errors(veh):
 def test_no_effect_gives_none_and_a_missing_candidate_gives_unexplained(veh, scenario):
     train, held = world(veh, scenario, {}, seed=21)
     res = gap.diagnose(
-        veh, FREE, train, held, candidates=["current", "thrust", "delay"], rng=np.random.default_rng(0), max_nfev=40
+        veh,
+        FREE,
+        train,
+        held,
+        gap.DiagnoseOptions(candidates=["current", "thrust", "delay"], max_nfev=40),
+        rng=np.random.default_rng(0),
     ).to_dict()
     assert res["verdict"] == "none", res["gap_ratio"]
     assert res["gap_ratio"] < res["thresholds"]["none_ratio"]
     truth = {"current": ef.draw_parameters("current", 2, np.random.default_rng(4))}
     train, held = world(veh, scenario, truth, seed=22)
     res = gap.diagnose(
-        veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0), max_nfev=40
+        veh,
+        FREE,
+        train,
+        held,
+        gap.DiagnoseOptions(candidates=["thrust", "delay"], max_nfev=40),
+        rng=np.random.default_rng(0),
     ).to_dict()
     assert res["verdict"] == "unexplained"
     assert res["significant_gap"]
@@ -273,7 +281,12 @@ def test_a_nesting_candidate_never_fits_the_training_tracks_worse_than_the_base_
     covered the logged rudder steps, no-effect benchmark cases showed actuator dBIC of +2e4.)"""
     train, held = world(veh, scenario, {}, seed=21)
     res = gap.diagnose(
-        veh, FREE, train, held, candidates=["actuator", "delay", "thrust"], rng=np.random.default_rng(0), max_nfev=4
+        veh,
+        FREE,
+        train,
+        held,
+        gap.DiagnoseOptions(candidates=["actuator", "delay", "thrust"], max_nfev=4),
+        rng=np.random.default_rng(0),
     ).to_dict()
     ln_n = np.log(res["base_fit"]["n_residuals"])
     for r in res["ranking"]:
@@ -284,9 +297,14 @@ def test_shrinkage_is_scored_on_held_out_tracks_disjoint_from_training(veh, scen
     truth = {"thrust": {"thrust_scale": 0.7}}
     train, held = world(veh, scenario, truth, seed=31)
     with pytest.raises(ValueError, match="overlap"):
-        gap.diagnose(veh, FREE, train, [train[0]], candidates=["thrust"]).to_dict()
+        gap.diagnose(veh, FREE, train, [train[0]], gap.DiagnoseOptions(candidates=["thrust"])).to_dict()
     res = gap.diagnose(
-        veh, FREE, train, held, candidates=["thrust", "delay"], rng=np.random.default_rng(0), max_nfev=40
+        veh,
+        FREE,
+        train,
+        held,
+        gap.DiagnoseOptions(candidates=["thrust", "delay"], max_nfev=40),
+        rng=np.random.default_rng(0),
     ).to_dict()
     assert set(res["train_tracks"]).isdisjoint(res["heldout_tracks"])
     assert res["heldout_tracks"] == [t.name for t in held]
@@ -489,11 +507,8 @@ def test_two_simultaneous_effects_are_both_added_when_neither_explains_half_alon
         FREE,
         train,
         held,
-        candidates=["thrust", "waves", "delay"],
-        window_s=30.0,
+        gap.DiagnoseOptions(candidates=["thrust", "waves", "delay"], window_s=30.0, max_nfev=40, max_effects=2),
         rng=np.random.default_rng(0),
-        max_nfev=40,
-        max_effects=2,
     ).to_dict()
     first = res["rounds"][0]
     assert all(r["excess_removed"] < res["thresholds"]["explain_fraction"] for r in first), [

@@ -19,6 +19,7 @@ from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
+from bayesid.tasks import Runner
 
 FREE = ["Yv", "Nr", "Ndr"]
 NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2), "u": 0.02, "v": 0.02, "r": math.radians(0.1)}
@@ -71,8 +72,8 @@ def true_model_heldout(veh, effects: dict, held, window_s=30.0):
 
 
 def _diagnose(veh, train, held, cands, **kw):
-    kw = {"window_s": 30.0, "rng": np.random.default_rng(0), "max_nfev": 25, **kw}
-    return gap.diagnose(veh, FREE, train, held, candidates=cands, **kw).to_dict()
+    options = gap.DiagnoseOptions(candidates=cands, **{"window_s": 30.0, "max_nfev": 25, **kw})
+    return gap.diagnose(veh, FREE, train, held, options, rng=np.random.default_rng(0)).to_dict()
 
 
 # --- the fitted start rule --------------------------------------------------------------------
@@ -130,11 +131,8 @@ def test_diagnose_runs_for_any_number_of_training_and_held_out_tracks(veh, n_tra
         ["Nr"],
         train,
         held,
-        candidates=["thrust"],
-        window_s=30.0,
+        gap.DiagnoseOptions(candidates=["thrust"], window_s=30.0, max_nfev=6, max_effects=1),
         rng=np.random.default_rng(0),
-        max_nfev=6,
-        max_effects=1,
     ).to_dict()
     assert res["heldout_tracks"] == [t.name for t in held] and len(res["train_tracks"]) == n_train
     assert np.isfinite(res["gap_before"]["heldout_rms_m"])
@@ -286,11 +284,9 @@ def test_candidates_fitted_by_two_workers_give_the_serial_diagnosis(veh):
             FREE,
             train,
             held,
-            candidates=["current", "thrust", "delay", "sensor_bias"],
-            window_s=30.0,
-            max_nfev=15,
+            gap.DiagnoseOptions(candidates=["current", "thrust", "delay", "sensor_bias"], window_s=30.0, max_nfev=15),
             rng=np.random.default_rng(0),
-            jobs=jobs,
+            runner=Runner(jobs=jobs),
         ).to_dict()
         d.pop("seconds")
         for rows in [d["ranking"]] + d["rounds"]:
@@ -300,4 +296,4 @@ def test_candidates_fitted_by_two_workers_give_the_serial_diagnosis(veh):
     assert json.loads(runs[1])["verdict"] == "current"
     assert runs[1] == runs[2]
     with pytest.raises(ValueError, match="jobs must be at least 1"):
-        gap.diagnose(veh, FREE, train, held, jobs=0)
+        gap.diagnose(veh, FREE, train, held, runner=Runner(jobs=0))

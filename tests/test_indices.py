@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bayesid.data.vehicle import load_vehicle
-from bayesid.estimation import msfit
+from bayesid.estimation.indices import manoeuvre_indices
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Manoeuvre
@@ -23,7 +23,7 @@ def veh():
 
 def _indices(veh, m):
     tr = ef.world_track(veh, m, {}, np.random.default_rng(0), noise={})
-    return msfit.manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
+    return manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
 
 
 def test_a_turning_circle_with_a_small_counter_rudder_is_a_turn(veh):
@@ -65,5 +65,5 @@ def test_the_esso_turn_of_724_degrees_is_a_turn():
     if run is None:
         pytest.skip("real data not present")
     tr = datasets.read_run(run, "esso-osaka")
-    d = msfit.manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
+    d = manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
     assert d["kind"] in ("turning", "other") and "second_overshoot_deg" not in d, d

@@ -1,6 +1,6 @@
-"""The layout shows the data flow (issue 22): each layer imports only the layers before it, no
-module reaches into another's private names, and the package docstring and the README's map name
-every module."""
+"""The layout shows the data flow: each layer imports only the layers before it, no modules import
+each other in a circle (function-level imports included), no module reaches into another's private
+names, and the package docstring and the README's map name every module."""
 
 from __future__ import annotations
 
@@ -58,6 +58,84 @@ def test_each_layer_imports_only_the_layers_before_it():
                 if lay is not None and lay > own:
                     bad.append(f"{f.relative_to(ROOT)}:{line} imports {'.'.join(x for x in t if x)}")
     assert not bad, "\n".join(bad)
+
+
+def import_graph(modules) -> dict:
+    """{module: set of package modules it imports} of ``[(path, parts)]``: ``from pkg import name``
+    counts as an import of ``pkg.name`` when that is a module, else of ``pkg``."""
+    modules = list(modules)
+    names = {".".join(parts) for _, parts in modules}
+    edges = {}
+    for f, parts in modules:
+        me = ".".join(parts)
+        edges[me] = set()
+        for mod, imported, _ in _imports(f, parts):
+            target = ".".join(mod)
+            subs = {f"{target}.{n}" for n in imported if f"{target}.{n}" in names}
+            if len(subs) < max(len(imported), 1) and target in names:
+                subs.add(target)
+            edges[me] |= subs - {me}
+    return edges
+
+
+def circles(edges: dict) -> list:
+    """The strongly connected components of more than one module (Tarjan), each sorted."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while not comp or comp[-1] != v:
+                comp.append(stack.pop())
+                on.discard(comp[-1])
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_modules_import_each_other_in_a_circle():
+    found = circles(import_graph(_modules()))
+    assert not found, found
+
+
+@pytest.mark.parametrize(
+    "edges, expect",
+    [
+        ({"a": {"b"}, "b": {"a"}, "c": set()}, [["a", "b"]]),
+        ({"a": {"b"}, "b": {"c"}, "c": set()}, []),
+        ({"a": {"b"}, "b": {"c"}, "c": {"a"}}, [["a", "b", "c"]]),
+    ],
+)
+def test_the_circle_finder_finds_circles(edges, expect):
+    assert circles(edges) == expect
+
+
+def test_the_import_graph_reads_relative_and_deferred_imports(tmp_path):
+    pkg = tmp_path / "bayesid"
+    (pkg / "models").mkdir(parents=True)
+    files = {
+        pkg / "models" / "a.py": "def f():\n    from ..report import x\n",
+        pkg / "report.py": "from .models import a\n",
+    }
+    for f, text in files.items():
+        f.write_text(text)
+    mods = [(f, list(f.relative_to(tmp_path).with_suffix("").parts)) for f in files]
+    edges = import_graph(mods)
+    assert edges == {"bayesid.models.a": {"bayesid.report"}, "bayesid.report": {"bayesid.models.a"}}
+    assert circles(edges) == [["bayesid.models.a", "bayesid.report"]]
 
 
 def test_no_module_imports_another_modules_private_name():

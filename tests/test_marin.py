@@ -12,7 +12,7 @@ from bayesid.cli import main
 from bayesid.data import datasets as ds
 from bayesid.data.datasets import KVLCC2_SCALE, DatasetFormatError, read_run, read_simman_hsva, read_simman_marin
 from bayesid.data.track import read_csv
-from bayesid.estimation import msfit
+from bayesid.estimation.indices import manoeuvre_indices
 from bayesid.models import build_model
 
 TITLE = ["MARIN(Maritime Research Institute Netherlands)", "Turning / Pull-out manoeuvring for KVLCC2 : 35 (deg)", ""]
@@ -78,7 +78,7 @@ def test_froude_scaling_signs_and_tactical_diameter(tmp_path):
     np.testing.assert_allclose(tr["r"][turning], -7.98 / 520.0 * sq, rtol=6e-3)
     assert tr.meta["scale"] == KVLCC2_SCALE and "Froude" in tr.meta["conversions"][0]
     # the tactical diameter of the converted track is the full-scale one over lambda (2 R / lambda)
-    ind = msfit.manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
+    ind = manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
     assert ind["kind"] == "turning"
     assert ind["tactical_diameter_m"] == pytest.approx(2 * 520.0 / KVLCC2_SCALE, rel=0.01)
     assert ind["advance_m"] == pytest.approx(520.0 / KVLCC2_SCALE, rel=0.01)

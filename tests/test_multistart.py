@@ -13,6 +13,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from bayesid.estimation.multistart import DISTINCT_TOLERANCE, run_starts, start_points
+from bayesid.tasks import Runner
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
@@ -42,7 +43,7 @@ def test_two_known_minima_are_both_found_and_told_apart():
     assert ms.max_distance == pytest.approx(2.0, abs=1e-6) and ms.spread["x0"] == pytest.approx(2.0, abs=1e-6)
     d = ms.to_dict()
     assert d["n_distinct_near_best"] == 2 and d["sorted_costs"] == sorted(d["sorted_costs"])
-    parallel = run_starts(double_well, (0.3,), ["x0", "x1"], starts, kinds, [1.0, 1.0], jobs=2)
+    parallel = run_starts(double_well, (0.3,), ["x0", "x1"], starts, kinds, [1.0, 1.0], runner=Runner(jobs=2))
     assert json.dumps(parallel.to_dict()) == json.dumps(d)
 
 
@@ -112,4 +113,4 @@ def test_fit_starts_writes_the_multistart_report_and_resumes_a_killed_run(tmp_pa
     (tmp_path / "a" / "model.json").unlink()
     (tmp_path / "a" / "report.md").unlink()
     assert main([*fit, "--seed", "5", "--out", str(tmp_path / "a")]) == 2
-    assert "seed: journal 0, this run 5" in capsys.readouterr().err
+    assert "fit.random_seed: journal 0, this run 5" in capsys.readouterr().err

@@ -14,7 +14,8 @@ import pytest
 
 from bayesid.cli import main
 from bayesid.data.vehicle import VehicleFileError, load_vehicle
-from bayesid.estimation import msfit
+from bayesid.estimation.laplace import psd_covariance
+from bayesid.estimation.modelfile import load_model
 from bayesid.models.ship import ShipFileError, load_ship
 
 NPS = Path(str(resources.files("bayesid") / "vehicles" / "nps_auv2.toml"))
@@ -206,12 +207,12 @@ def test_predict_accepts_round_off_in_a_covariance_and_refuses_an_edit(tmp_path,
         )
         assert (rc == 0) == ok, (name, capsys.readouterr().err)
     assert "not a symmetric positive semi-definite" in capsys.readouterr().err
-    model, p, cov, _ = msfit.load_model(tmp_path / "f" / "roundoff.json")
+    model, p, cov, _ = load_model(tmp_path / "f" / "roundoff.json")
     assert np.array_equal(cov, cov.T) and np.linalg.eigvalsh(cov).min() >= 0
 
 
 def test_psd_covariance_keeps_a_good_matrix_and_clips_round_off():
     C = np.array([[2.0, 0.5], [0.5, 1.0]])
-    assert np.allclose(msfit.psd_covariance(C), C)
+    assert np.allclose(psd_covariance(C), C)
     D = np.array([[1.0, 1.0], [1.0, 1.0 - 1e-12]])
-    assert np.linalg.eigvalsh(msfit.psd_covariance(D)).min() >= 0
+    assert np.linalg.eigvalsh(psd_covariance(D)).min() >= 0

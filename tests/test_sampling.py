@@ -11,7 +11,15 @@ import h5py
 import numpy as np
 import pytest
 
-from bayesid.estimation.sampling import SamplerConfig, diagnostics, initial_ball, run_ensembles, to_inference_data
+from bayesid.estimation.sampling import (
+    Checkpoint,
+    SamplerConfig,
+    diagnostics,
+    initial_ball,
+    run_ensembles,
+    to_inference_data,
+)
+from bayesid.tasks import Runner
 
 # A correlated 2-D Gaussian for the bookkeeping tests (resume, mismatch, shapes).
 MU2 = np.array([0.3, -0.2])
@@ -101,12 +109,14 @@ def test_resume_after_exception_loses_nothing_and_redraws_nothing(tmp_path):
         return gauss2(theta)
 
     with pytest.raises(Interrupted):
-        run_ensembles(failing, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=path)
+        run_ensembles(failing, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=Checkpoint(path))
     before = stored_chains(path, 2)
     n_before = [len(c) for c in before]
     assert 0 < max(n_before) < 300
 
-    resumed = run_ensembles(gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=path)
+    resumed = run_ensembles(
+        gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=Checkpoint(path)
+    )
     assert resumed.n_steps == reference.n_steps == 300
     for i, c in enumerate(before):  # stored part untouched
         np.testing.assert_array_equal(resumed.chains[i, : len(c)], c.reshape(-1, 16, 2))
@@ -115,16 +125,20 @@ def test_resume_after_exception_loses_nothing_and_redraws_nothing(tmp_path):
     np.testing.assert_array_equal(resumed.log_prob, reference.log_prob)
     assert resumed.n_evaluations < reference.n_evaluations
     # A finished run re-run with the same arguments does no new work.
-    again = run_ensembles(gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=path)
+    again = run_ensembles(
+        gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=Checkpoint(path)
+    )
     assert again.n_evaluations == 0 and again.n_steps == 300
 
 
 def test_extending_max_steps_continues_the_stored_chain(tmp_path):
     path = tmp_path / "chk.h5"
     short = SamplerConfig(n_ensembles=2, min_steps=100, max_steps=200, check_every=100)
-    first = run_ensembles(gauss2, MU2, COV2, ["a", "b"], short, np.random.default_rng(5), checkpoint=path)
+    first = run_ensembles(gauss2, MU2, COV2, ["a", "b"], short, np.random.default_rng(5), checkpoint=Checkpoint(path))
     assert first.n_steps == 200 and first.stop_reason == "max_steps"
-    longer = run_ensembles(gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=path)
+    longer = run_ensembles(
+        gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=Checkpoint(path)
+    )
     reference = run_ensembles(gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5))
     assert longer.n_steps == 300
     np.testing.assert_array_equal(longer.chains[:, :200], first.chains)
@@ -139,7 +153,7 @@ def test_resume_after_sigkill(tmp_path):
     script = textwrap.dedent(f"""
         import os, signal
         import numpy as np
-        from bayesid.estimation.sampling import SamplerConfig, run_ensembles
+        from bayesid.estimation.sampling import Checkpoint, SamplerConfig, run_ensembles
         MU2 = np.array({MU2.tolist()}); PREC2 = np.linalg.inv(np.array({COV2.tolist()}))
         calls = [0]
         def lp(theta):
@@ -150,13 +164,15 @@ def test_resume_after_sigkill(tmp_path):
             return -0.5 * np.einsum("bi,ij,bj->b", d, PREC2, d)
         cfg = SamplerConfig(n_ensembles=2, min_steps=300, max_steps=300, check_every=100)
         run_ensembles(lp, MU2, np.array({COV2.tolist()}), ["a", "b"], cfg, np.random.default_rng(5),
-                      checkpoint={str(path)!r})
+                      checkpoint=Checkpoint({str(path)!r}))
     """)
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     before = stored_chains(path, 2)
     assert 0 < max(len(c) for c in before) < 300
-    resumed = run_ensembles(gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=path)
+    resumed = run_ensembles(
+        gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5), checkpoint=Checkpoint(path)
+    )
     reference = run_ensembles(gauss2, MU2, COV2, ["a", "b"], CFG_RESUME, np.random.default_rng(5))
     np.testing.assert_array_equal(resumed.chains, reference.chains)
 
@@ -222,9 +238,9 @@ def test_initial_ball_redraws_minus_inf_rows():
 def test_mismatched_checkpoint_raises_naming_the_file(tmp_path):
     path = tmp_path / "other_problem.h5"
     cfg = SamplerConfig(n_ensembles=2, min_steps=20, max_steps=20, check_every=20)
-    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path)
+    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=Checkpoint(path))
     with pytest.raises(ValueError, match=r"other_problem\.h5.*names"):
-        run_ensembles(gauss2, MU2, COV2, ["a", "c"], cfg, np.random.default_rng(0), checkpoint=path)
+        run_ensembles(gauss2, MU2, COV2, ["a", "c"], cfg, np.random.default_rng(0), checkpoint=Checkpoint(path))
     with pytest.raises(ValueError, match=r"other_problem\.h5.*n_walkers 16 in the file, 20 now"):
         run_ensembles(
             gauss2,
@@ -233,16 +249,18 @@ def test_mismatched_checkpoint_raises_naming_the_file(tmp_path):
             ["a", "b"],
             SamplerConfig(n_ensembles=2, n_walkers=20, min_steps=20, max_steps=20, check_every=20),
             np.random.default_rng(0),
-            checkpoint=path,
+            checkpoint=Checkpoint(path),
         )
     gauss3 = lambda th: -0.5 * np.sum(th**2, axis=1)  # noqa: E731
     with pytest.raises(ValueError, match=r"other_problem\.h5.*ndim 2 in the file, 3 now"):
-        run_ensembles(gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], cfg, np.random.default_rng(0), checkpoint=path)
+        run_ensembles(
+            gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], cfg, np.random.default_rng(0), checkpoint=Checkpoint(path)
+        )
     foreign = tmp_path / "foreign.h5"
     with h5py.File(foreign, "w") as f:
         f.create_group("mcmc")
     with pytest.raises(ValueError, match=r"foreign\.h5.*not written by bayesid"):
-        run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=foreign)
+        run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=Checkpoint(foreign))
 
 
 # -- 6. InferenceData and verdict ----------------------------------------------------------------
@@ -331,13 +349,15 @@ def test_a_checkpoint_of_another_run_is_refused(tmp_path):
     so its chains are never reported as this run's."""
     path = tmp_path / "ck.h5"
     cfg = SamplerConfig(n_ensembles=2, min_steps=20, max_steps=20, check_every=20)
-    run_ensembles(gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path, run_key={"seed": 2003})
     run_ensembles(
-        gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path, run_key={"seed": 2003}
+        gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=Checkpoint(path, {"seed": 2003})
+    )
+    run_ensembles(
+        gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=Checkpoint(path, {"seed": 2003})
     )  # the same run resumes
     with pytest.raises(ValueError, match=r"ck\.h5.*run_key"):
         run_ensembles(
-            gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=path, run_key={"seed": 7}
+            gauss2, MU2, COV2, ["a", "b"], cfg, np.random.default_rng(0), checkpoint=Checkpoint(path, {"seed": 7})
         )
 
 
@@ -445,8 +465,8 @@ def test_resume_after_a_redraw_gives_the_uninterrupted_chain(tmp_path, extra_cal
 
     path = tmp_path / "trap.h5"
     with pytest.raises(Interrupted):
-        run_ensembles(failing, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=path)
-    resumed = run_ensembles(trap, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=path)
+        run_ensembles(failing, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=Checkpoint(path))
+    resumed = run_ensembles(trap, *TRAP_START, ["a", "b"], cfg, np.random.default_rng(7), checkpoint=Checkpoint(path))
     np.testing.assert_array_equal(resumed.chains, reference.chains)
     assert resumed.redraws == reference.redraws == [(100, 0, 2)]
     with pytest.raises(ValueError, match="redraw_stranded"):  # a checkpoint of the other setting
@@ -456,7 +476,7 @@ def test_resume_after_a_redraw_gives_the_uninterrupted_chain(tmp_path, extra_cal
             ["a", "b"],
             SamplerConfig(**{**CFG_TRAP, "min_steps": 300, "max_steps": 300}),
             np.random.default_rng(7),
-            checkpoint=path,
+            checkpoint=Checkpoint(path),
         )
 
 
@@ -473,17 +493,17 @@ def test_ensembles_as_tasks_give_the_serial_chains_bit_for_bit(tmp_path):
     cfg = SamplerConfig(n_ensembles=2, min_steps=300, max_steps=300, check_every=100)
     args = (_gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], cfg)
     serial = run_ensembles(*args, np.random.default_rng(11))
-    par = run_ensembles(*args, np.random.default_rng(11), jobs=2)
+    par = run_ensembles(*args, np.random.default_rng(11), runner=Runner(jobs=2))
     np.testing.assert_array_equal(par.chains, serial.chains)
     np.testing.assert_array_equal(par.log_prob, serial.log_prob)
     np.testing.assert_array_equal(par.acceptance, serial.acceptance)
     assert par.n_evaluations == serial.n_evaluations
     # checkpointed in parallel, resumed serially with a longer budget: the serial chain again
     ck = tmp_path / "ck.h5"
-    run_ensembles(*args, np.random.default_rng(11), checkpoint=ck, jobs=2)
+    run_ensembles(*args, np.random.default_rng(11), checkpoint=Checkpoint(ck), runner=Runner(jobs=2))
     longer = SamplerConfig(n_ensembles=2, min_steps=500, max_steps=500, check_every=100)
     a = run_ensembles(
-        _gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], longer, np.random.default_rng(11), checkpoint=ck
+        _gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], longer, np.random.default_rng(11), checkpoint=Checkpoint(ck)
     )
     b = run_ensembles(_gauss3, np.zeros(3), np.eye(3), ["a", "b", "c"], longer, np.random.default_rng(11))
     np.testing.assert_array_equal(a.chains, b.chains)

@@ -1,5 +1,5 @@
 """The surface-ship model (bayesid.models.ship), the multiple-shooting fit and the window protocol on
-ships (bayesid.estimation.msfit), and the fit / predict / diagnose commands on real runs (skipped without
+ships (bayesid.estimation.identification), and the fit / predict / diagnose commands on real runs (skipped without
 shared/data/real)."""
 
 from __future__ import annotations
@@ -14,8 +14,11 @@ import numpy as np
 import pytest
 
 from bayesid.data.track import Track
-from bayesid.estimation import msfit
 from bayesid.estimation import windows as wf
+from bayesid.estimation.identification import identify
+from bayesid.estimation.indices import manoeuvre_indices
+from bayesid.estimation.options import FitOptions
+from bayesid.estimation.prediction import predict
 from bayesid.models import ship
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
@@ -142,13 +145,13 @@ def test_window_protocol_on_the_models_own_track_is_at_the_noise_level():
     noise = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "r": math.radians(0.02)}
     tr = synthetic(m, m.start(), t, zigzag_inputs(t), 10.23, 1.179, rng, noise)
     tr = Track(tr.t, {k: tr[k] for k in ("x", "y", "psi", "r", "delta_r", "n")}, name="syn")  # u, v unmeasured
-    pr = msfit.predict(m, m.start(), [tr], 30.0)
+    pr = predict(m, m.start(), [tr], 30.0)
     # noise 0.01 m: the start-state velocity (from 2 s of noisy positions) errs by a few mm/s,
     # which grows to ~0.1 m over 30 s; without noise the protocol reproduces the track exactly
     assert pr["pooled"]["rms_position_m"] < 0.2
     clean = synthetic(m, m.start(), t, zigzag_inputs(t), 10.23, 1.179)
     clean = Track(clean.t, {k: clean[k] for k in ("x", "y", "psi", "r", "delta_r", "n")}, name="clean")
-    assert msfit.predict(m, m.start(), [clean], 30.0)["pooled"]["rms_position_m"] < 0.02
+    assert predict(m, m.start(), [clean], 30.0)["pooled"]["rms_position_m"] < 0.02
     ctx = m.context(tr, 30.0)
     # windows never overlap, and start after 2 s of history when velocities are derived
     assert np.all(np.diff(ctx.t_start) == pytest.approx(30.0)) and ctx.t_start[0] >= tr.t[0] + 2.0 - 1e-9
@@ -175,12 +178,12 @@ def test_multiple_shooting_fit_recovers_coefficients_from_the_equation_error_see
         synthetic(mt, mt.start(), t, zigzag_inputs(t, a, p), 10.23, 1.179, rng, noise, name=f"z{a}")
         for a, p in ((20, 30), (10, 24))
     ]
-    res = msfit.identify(kv, tracks, ["Yv", "Nv", "Nr"], window_s=30.0, dt=0.1, max_nfev=30)
-    est = dict(zip(res["model"].param_names, res["fit"].p))
+    res = identify(kv, tracks, FitOptions(free=("Yv", "Nv", "Nr"), window_s=30.0, dt=0.1, max_nfev=30))
+    est = dict(zip(res.model.param_names, res.fit.p))
     assert est["Yv"] == pytest.approx(-0.35, rel=0.05)
     assert est["Nv"] == pytest.approx(-0.12, rel=0.05)
     assert est["Nr"] == pytest.approx(-0.055, rel=0.05)
-    assert res["seed"]["used"] or res["seed"].get("cost_seed") is not None
+    assert res.seed["used"] or res.seed.get("cost_seed") is not None
 
 
 def test_residual_weighting_follows_the_structural_error():
@@ -192,18 +195,20 @@ def test_residual_weighting_follows_the_structural_error():
     sd = {k: noise[k] for k in ("x", "y", "psi", "u", "v", "r")}
     right = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [right.context(tr, 30.0)]
-    f, sd2 = wf.fit_weighted(right, ctx, sd, max_nfev=20, weighting="residual")
+    f, sd2 = wf.fit_weighted(wf.FitProblem(right, ctx, sd, max_nfev=20), weighting="residual")
     assert set(sd2) == set(sd) and all(sd2[k] >= sd[k] for k in sd)
     # the model is right: residuals ~ noise (x, y, psi ~3x: the start-state noise propagates)
     assert all(sd2[k] < 5 * sd[k] for k in sd)
     assert dict(zip(right.param_names, f.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
     wrong = ship.ShipModel(kv, ["Xuu"], dt=0.1)  # cannot change the turning: structural error
     cw = [wrong.context(tr, 30.0)]
-    fw, sdw = wf.fit_weighted(wrong, cw, sd, max_nfev=10, weighting="residual")
+    fw, sdw = wf.fit_weighted(wf.FitProblem(wrong, cw, sd, max_nfev=10), weighting="residual")
     assert sdw["psi"] > 5 * sd2["psi"] and sdw["x"] > 5 * sd2["x"]
-    assert sdw == pytest.approx(wf.residual_sd(wrong, wf.fit_model(wrong, cw, sd, max_nfev=10), cw, sd), rel=0.2)
+    assert sdw == pytest.approx(
+        wf.residual_sd(wrong, wf.fit_model(wf.FitProblem(wrong, cw, sd, max_nfev=10)), cw, sd), rel=0.2
+    )
     with pytest.raises(ValueError, match="weighting"):
-        wf.fit_weighted(right, ctx, sd, weighting="robust")
+        wf.fit_weighted(wf.FitProblem(right, ctx, sd), weighting="robust")
 
 
 def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tmp_path, capsys):
@@ -217,19 +222,21 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     bad = tr.with_columns(r=tr["r"] + math.radians(1.0) * np.sin(2 * np.pi * tr.t / 30.0))
     m = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [m.context(bad, 30.0)]
-    every = wf.fit_model(m, ctx, noise, max_nfev=20)
-    pos = wf.fit_model(m, ctx, noise, max_nfev=20, channels=("x", "y", "psi"))
+    every = wf.fit_model(wf.FitProblem(m, ctx, noise, max_nfev=20))
+    pos = wf.fit_model(wf.FitProblem(m, ctx, noise, channels=("x", "y", "psi"), max_nfev=20))
     assert pos.channels == ("x", "y", "psi") and pos.n_residuals == every.n_residuals // 2
     assert dict(zip(m.param_names, pos.p))["Yv"] == pytest.approx(-0.25, rel=0.02)
     assert dict(zip(m.param_names, pos.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
     assert abs(dict(zip(m.param_names, every.p))["Yv"] / -0.25 - 1) > 0.08
-    res = msfit.identify(kv, [bad], ["Nr", "Yv"], window_s=30.0, dt=0.1, max_nfev=20, channels=["x", "y", "psi"])
-    assert res["fit"].channels == ("x", "y", "psi") and np.all(np.isfinite(res["cov"]))
+    res = identify(
+        kv, [bad], FitOptions(free=("Nr", "Yv"), window_s=30.0, dt=0.1, max_nfev=20, channels=("x", "y", "psi"))
+    )
+    assert res.fit.channels == ("x", "y", "psi") and np.all(np.isfinite(res.cov))
     with pytest.raises(ValueError, match="'q'|q;"):
-        wf.fit_model(m, ctx, noise, channels=("x", "q"))
+        wf.fit_model(wf.FitProblem(m, ctx, noise, channels=("x", "q")))
     no_u = Track(tr.t, {k: tr[k] for k in ("x", "y", "psi", "delta_r", "n")}, name="no_velocities")
     with pytest.raises(ValueError, match="no_velocities"):
-        wf.fit_model(m, [m.context(no_u, 30.0)], noise, channels=("u",))
+        wf.fit_model(wf.FitProblem(m, [m.context(no_u, 30.0)], noise, channels=("u",)))
     from bayesid.data.track import write_csv
 
     write_csv(bad, tmp_path / "bad.csv")
@@ -253,7 +260,7 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
 
 def test_ship_fits_use_the_ship_fit_window_whatever_the_scoring_window():
     """``bayesid diagnose --window 60`` on a ship scores 60 s windows but fits over
-    ``ship.FIT_WINDOW_S`` (15 s) ones, and so does ``msfit.identify`` without a window; an
+    ``ship.FIT_WINDOW_S`` (15 s) ones, and so does ``identify`` without a window; an
     explicit fit window wins."""
     from bayesid.analysis import gap
 
@@ -265,13 +272,15 @@ def test_ship_fits_use_the_ship_fit_window_whatever_the_scoring_window():
         for a, p in ((20, 30), (10, 24))
     ]
     kw = dict(candidates=["delay"], window_s=60.0, dt=0.2, max_nfev=1)
-    res = gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], **kw).to_dict()
+    res = gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], gap.DiagnoseOptions(**kw)).to_dict()
     assert res["settings"]["fit_window_s"] == ship.FIT_WINDOW_S == 15.0 and res["settings"]["window_s"] == 60.0
     assert (
-        gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], fit_window_s=45.0, **kw).to_dict()["settings"]["fit_window_s"]
+        gap.diagnose(kv, ["Nr"], tracks[:1], tracks[1:], gap.DiagnoseOptions(fit_window_s=45.0, **kw)).to_dict()[
+            "settings"
+        ]["fit_window_s"]
         == 45.0
     )
-    assert msfit.identify(kv, tracks[:1], ["Nr"], dt=0.2, max_nfev=1)["window_s"] == 15.0
+    assert identify(kv, tracks[:1], FitOptions(free=("Nr",), dt=0.2, max_nfev=1)).window_s == 15.0
 
 
 def test_paired_window_test_detects_a_consistent_improvement():
@@ -292,13 +301,13 @@ def test_manoeuvre_indices_of_a_circle_and_a_zigzag():
     x = np.where(t > 10, 10 + R * np.sin(psi), t)
     y = np.where(t > 10, R * (1 - np.cos(psi)), 0.0)
     d = np.where(t > 10, -0.6, 0.0)
-    ind = msfit.manoeuvre_indices(t, x, y, psi, d)
+    ind = manoeuvre_indices(t, x, y, psi, d)
     assert ind["kind"] == "turning"
     assert ind["tactical_diameter_m"] == pytest.approx(2 * R, rel=0.01)
     assert ind["advance_m"] == pytest.approx(R, rel=0.01)  # from the execute position
     h = np.radians(15) * np.sin(2 * np.pi * t / 40)
     dz = np.where(np.cos(2 * np.pi * (t - 5) / 40) > 0, 0.35, -0.35)
-    zi = msfit.manoeuvre_indices(t, 0 * t, 0 * t, h, dz)
+    zi = manoeuvre_indices(t, 0 * t, 0 * t, h, dz)
     assert zi["kind"] == "zigzag" and zi["first_overshoot_deg"] > 0
 
 

@@ -30,7 +30,9 @@ def multisine_track(nps):
 
 @pytest.fixture(scope="module")
 def multisine_result(nps, multisine_track):
-    return sindy.inclusion_probabilities(multisine_track, nps, n_models=N_MODELS, rng=np.random.default_rng(0))
+    return sindy.inclusion_probabilities(
+        multisine_track, nps, sindy.SindyOptions(n_models=N_MODELS), rng=np.random.default_rng(0)
+    )
 
 
 def _true_normalised(vehicle, track):
@@ -153,7 +155,7 @@ def test_rich_input_noise_free_finds_active_and_rejects_extras(nps, multisine_tr
 def test_straight_line_does_not_excite_rotary_terms(nps):
     """Issue 4 test 2: straight run (v = r = 0): Yr, Nr (and all sway/yaw terms) get 0."""
     tr = _track(nps, manoeuvres.straight(nps, duration=40.0))
-    res = sindy.inclusion_probabilities(tr, nps, n_models=N_MODELS, rng=np.random.default_rng(1))
+    res = sindy.inclusion_probabilities(tr, nps, sindy.SindyOptions(n_models=N_MODELS), rng=np.random.default_rng(1))
     for k in ("Yr", "Nr", "Yv", "Nv", "Xrr", "Xvr"):
         g = sindy.equation_of(k)
         assert res[g][k] <= 0.2
@@ -165,7 +167,7 @@ def test_noisy_positions_only_runs_and_returns_probabilities(nps, multisine_trac
     """Issue 4 test 3: 0.2 m / 0.2 deg noise on x, y, psi, no u, v, r columns."""
     noisy = add_noise(multisine_track, {"x": 0.2, "y": 0.2, "psi": math.radians(0.2)}, np.random.default_rng(5))
     noisy = _without(noisy, "u", "v", "r")
-    res = sindy.inclusion_probabilities(noisy, nps, n_models=20, rng=np.random.default_rng(2))
+    res = sindy.inclusion_probabilities(noisy, nps, sindy.SindyOptions(n_models=20), rng=np.random.default_rng(2))
     assert res["source"] == "positions" and res["window_s"] == pytest.approx(8.1)
     for g in sindy.EQUATIONS:
         cand = [k for k in sindy.horizontal_terms(g) if k not in sindy.ADDED_MASS] + [
@@ -183,7 +185,10 @@ def test_noisy_positions_only_runs_and_returns_probabilities(nps, multisine_trac
 def test_randomness_only_from_rng(nps, multisine_track):
     state = np.random.get_state()[1].copy()
     a, b = (
-        sindy.inclusion_probabilities(multisine_track, nps, n_models=5, rng=np.random.default_rng(7)) for _ in range(2)
+        sindy.inclusion_probabilities(
+            multisine_track, nps, sindy.SindyOptions(n_models=5), rng=np.random.default_rng(7)
+        )
+        for _ in range(2)
     )
     assert a["Y"] == b["Y"] and a["coefficients"] == b["coefficients"]
     assert np.array_equal(np.random.get_state()[1], state)  # global state untouched
@@ -194,21 +199,23 @@ def test_clear_errors(nps, multisine_track):
     rng = np.random.default_rng(0)
     no_psi = _without(multisine_track, "psi")
     with pytest.raises(ValueError, match="'psi'"):
-        sindy.inclusion_probabilities(no_psi, nps, n_models=2, rng=rng)
+        sindy.inclusion_probabilities(no_psi, nps, sindy.SindyOptions(n_models=2), rng=rng)
     with pytest.raises(ValueError, match="'psi'"):
         sindy.estimate_motion(no_psi)
     with pytest.raises(ValueError, match="'x'"):
         sindy.estimate_motion(_without(multisine_track, "u", "v", "r", "x"))
     with pytest.raises(ValueError, match="'delta_r'"):
-        sindy.inclusion_probabilities(_without(multisine_track, "delta_r"), nps, n_models=2, rng=rng)
+        sindy.inclusion_probabilities(
+            _without(multisine_track, "delta_r"), nps, sindy.SindyOptions(n_models=2), rng=rng
+        )
     with pytest.raises(ValueError, match="Yvdot"):
         sindy.inclusion_probabilities(
-            multisine_track, nps, n_models=2, rng=rng, known=("Xudot", "Yrdot", "Nvdot", "Nrdot")
+            multisine_track, nps, sindy.SindyOptions(n_models=2, known=("Xudot", "Yrdot", "Nvdot", "Nrdot")), rng=rng
         )
     with pytest.raises(ValueError, match="Zw"):
         sindy.force_targets(sindy.estimate_motion(multisine_track), nps, multisine_track.inputs(), known=("Zw",))
     with pytest.raises(TypeError, match="Generator"):
-        sindy.inclusion_probabilities(multisine_track, nps, n_models=2, rng=None)
+        sindy.inclusion_probabilities(multisine_track, nps, sindy.SindyOptions(n_models=2), rng=None)
     with pytest.raises(ValueError, match="'u_dot'"):
         sindy.force_targets({"u": np.ones(3), "v": np.ones(3), "r": np.ones(3)}, nps)
     with pytest.raises(ValueError, match="Kp"):

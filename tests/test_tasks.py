@@ -15,7 +15,7 @@ import cloudpickle
 import numpy as np
 import pytest
 
-from bayesid.tasks import Journal, Task, TaskError, check_jobs, digest, parse_scheduler, run_tasks
+from bayesid.tasks import Journal, Runner, Task, TaskError, check_jobs, digest, parse_scheduler, run_tasks
 
 # the workers cannot import this test module by name: ship its functions by value
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -53,8 +53,8 @@ def _tasks(n=6, failing=(), log=None):
 
 
 def test_serial_and_loky_give_the_same_results_and_report_a_failing_task():
-    serial = run_tasks(work, _tasks(failing={3}), jobs=1)
-    loky = run_tasks(work, _tasks(failing={3}), jobs=2)
+    serial = run_tasks(work, _tasks(failing={3}), Runner(jobs=1))
+    loky = run_tasks(work, _tasks(failing={3}), Runner(jobs=2))
     assert isinstance(serial[3], TaskError) and isinstance(loky[3], TaskError)
     assert serial[3].params == {"x": 3} and "RuntimeError: cannot do 3" in str(loky[3]) and '"x": 3' in str(loky[3])
     assert "Traceback" in loky[3].traceback
@@ -65,21 +65,21 @@ def test_serial_and_loky_give_the_same_results_and_report_a_failing_task():
 
 def test_dask_local_cluster_gives_the_same_results():
     pytest.importorskip("distributed")
-    serial = run_tasks(work, _tasks(4), jobs=1)
-    dask = run_tasks(work, _tasks(4), scheduler="local:2")
+    serial = run_tasks(work, _tasks(4), Runner(jobs=1))
+    dask = run_tasks(work, _tasks(4), Runner(scheduler="local:2"))
     assert [json.dumps(r) for r in serial] == [json.dumps(r) for r in dask]
 
 
 def test_journal_resumes_and_equals_an_uninterrupted_run(tmp_path):
     log = tmp_path / "ran.txt"
     ident = {"data": digest([1, 2, 3]), "seed": 7}
-    whole = run_tasks(work, _tasks(5, log=None), journal=Journal(tmp_path / "a.jsonl", ident))
+    whole = run_tasks(work, _tasks(5, log=None), Runner(journal=Journal(tmp_path / "a.jsonl", ident)))
     # a run that stopped after three tasks, the third cut mid-line by a kill
     j = Journal(tmp_path / "b.jsonl", ident)
-    run_tasks(work, _tasks(3, log=None), journal=j)
+    run_tasks(work, _tasks(3, log=None), Runner(journal=j))
     text = (tmp_path / "b.jsonl").read_text()
     (tmp_path / "b.jsonl").write_text(text[:-25])
-    resumed = run_tasks(work, _tasks(5, log=str(log)), journal=Journal(tmp_path / "b.jsonl", ident), jobs=2)
+    resumed = run_tasks(work, _tasks(5, log=str(log)), Runner(journal=Journal(tmp_path / "b.jsonl", ident), jobs=2))
     assert sorted(int(v) for v in log.read_text().split()) == [2, 3, 4]  # 0 and 1 were not run again
     assert json.dumps(resumed) == json.dumps(whole)
     assert whole[0]["nan"] == "nan"  # results go through the journal's strict JSON
@@ -100,15 +100,15 @@ def test_journal_of_other_data_or_seed_is_refused(tmp_path):
 
 def test_a_journaled_key_with_other_parameters_is_refused(tmp_path):
     j = Journal(tmp_path / "j.jsonl", {"seed": 1})
-    run_tasks(work, [Task("a", {"x": 1}, (1,))], journal=j)
+    run_tasks(work, [Task("a", {"x": 1}, (1,))], Runner(journal=j))
     with pytest.raises(ValueError, match="task a was journaled with other parameters"):
-        run_tasks(work, [Task("a", {"x": 2}, (2,))], journal=Journal(tmp_path / "j.jsonl", {"seed": 1}))
+        run_tasks(work, [Task("a", {"x": 2}, (2,))], Runner(journal=Journal(tmp_path / "j.jsonl", {"seed": 1})))
 
 
 def test_a_lost_worker_loses_no_finished_task_and_its_task_runs_again(tmp_path):
     marker = str(tmp_path / "marker")
     j = Journal(tmp_path / "j.jsonl", {"seed": 0})
-    out = run_tasks(die_once, [Task(f"t{i}", {"x": i}, (i, marker)) for i in range(6)], jobs=2, journal=j)
+    out = run_tasks(die_once, [Task(f"t{i}", {"x": i}, (i, marker)) for i in range(6)], Runner(jobs=2, journal=j))
     assert Path(marker).exists()  # the worker did die
     assert out == [{"x": i, "pid_ok": True} for i in range(6)]
     assert len(Journal(tmp_path / "j.jsonl", {"seed": 0}).records) == 6

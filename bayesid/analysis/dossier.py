@@ -18,6 +18,10 @@ DETERMINED = 0.5
 AT_PRIOR = 0.9
 
 
+#: Fisher eigenvalues below this x the largest are numerically zero (eigh precision ~1e-16).
+ROUND_OFF = 1e-15
+
+
 def dossier(
     problem,
     theta_hat,
@@ -25,10 +29,8 @@ def dossier(
     truth,
     vehicle,
     samples,
-    sim,
     noise: dict,
     determined: float = 0.5,
-    round_off: float = 1e-15,
 ) -> dict:
     """The identifiability dossier of a posterior: Fisher information, its eigen-directions,
     collinearity indices, relative influence, structural (exact) null directions checked by
@@ -41,10 +43,11 @@ def dossier(
     theta_hat : (P,) optimum, prime form.   prior_sd_abs : (P,) prior sd of each coefficient.
     truth : (P,) reference coefficients of the structural-null check (2 % steps along each null).
     vehicle : the vehicle (its term table gives the structural nulls).
-    samples : (n, P) posterior draws, prime form.   sim : the problem's Simulator.
+    samples : (n, P) posterior draws, prime form (the structural nulls are checked with the
+        problem's Simulator, ``problem.sim``).
     noise : {channel: sd} of the measurements (SI).
     determined : a direction is determined when its Cramer-Rao sd is below this x the prior sd
-        along it.   round_off : Fisher eigenvalues below this x the largest count as zero.
+        along it. Fisher eigenvalues below :data:`ROUND_OFF` x the largest count as zero.
 
     Returns a dict (``F``, ``lam``, ``W`` arrays for further use, and JSON-able tables).
     Sources: Fisher information and Cramer-Rao bound (Ljung 1999, Sec. 7.4); collinearity index
@@ -78,11 +81,11 @@ def dossier(
         )
     # structural (exact) nulls of the sampled set, each checked by moving 2 % along it
     full, causes = identifiability.structural_null_space(names, vehicle)
-    k_round = int(np.sum(lam <= round_off * lam[-1]))  # eigenvalues at round-off level
+    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1]))  # eigenvalues at round-off level
     nulls = []
     if full.shape[1]:
         base = np.asarray(truth, float)
-        st = sim.run(np.vstack([base] + [base * (1 + 0.02 * full[:, k]) for k in range(full.shape[1])])).states
+        st = problem.sim.run(np.vstack([base] + [base * (1 + 0.02 * full[:, k]) for k in range(full.shape[1])])).states
         null_angles = identifiability.principal_angles_deg(full, W[:, : max(k_round, full.shape[1])]).tolist()
         for k in range(full.shape[1]):
             dd = identifiability.Direction(0.0, full[:, k], names)
@@ -147,7 +150,7 @@ def direction_convergence(result, burn, W, theta_hat, determined) -> dict:
     return out
 
 
-def data_dossier(names, fisher, jac, scales, prior_mean, prior_sd, gaussian, draws, top: int = 5) -> dict:
+def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict:
     """The identifiability dossier of a user's tracks (``bayesid sample``): the Fisher spectrum,
     its named sloppy directions with the posterior and prior spread along them, collinearity
     indices, and per coefficient whether the data determine it, move it or leave it at its prior.
@@ -158,7 +161,8 @@ def data_dossier(names, fisher, jac, scales, prior_mean, prior_sd, gaussian, dra
         (``J^T J`` of the posterior's weighted residuals, prior excluded).   jac : (n, P) that
         Jacobian (or any matrix with the same ``J^T J``, e.g. its QR factor R).
     scales : (P,) typical size of each parameter: directions are in units of it (``d theta / scale``).
-    prior_mean, prior_sd : (P,) the prior's (sd inf for a flat prior).   gaussian : (P,) bool.
+    prior : the posterior's prior (:class:`~bayesid.estimation.track_posterior.ParameterPrior`):
+        its ``marginal_mean()``, ``marginal_sd()`` (inf for a flat prior) and ``gaussian`` (P,) bool.
     draws : (N, P) unweighted posterior draws.
 
     Returns a JSON-able dict: ``fisher_eigenvalues`` (scaled units, sloppiest first),
@@ -171,6 +175,7 @@ def data_dossier(names, fisher, jac, scales, prior_mean, prior_sd, gaussian, dra
     Sources as :func:`dossier` (Ljung 1999 Sec. 7.4; Brun, Reichert & Kuensch 2001).
     """
     names = list(names)
+    prior_mean, prior_sd, gaussian = prior.marginal_mean(), prior.marginal_sd(), prior.gaussian
     D = np.abs(np.asarray(scales, float))
     Fs = np.asarray(fisher, float) * np.outer(D, D)
     dirs = identifiability.eigen_directions(Fs, names)

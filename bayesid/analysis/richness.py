@@ -99,50 +99,94 @@ class Design:
     n_evaluations: int
 
 
+@dataclass(frozen=True)
+class DesignOptions:
+    """What :func:`design_multisine` searches and for which criterion.
+
+    Attributes
+    ----------
+    criterion : str
+        ``"D"`` (maximise log det F) or ``"direction"`` (minimise the predicted sd along
+        ``direction`` with ``prior_precision``).
+    direction : (P,) array or None
+        A unit vector in relative units (the direction criterion).
+    prior_precision : (P,) array or None
+        The prior's precision in relative units (the direction criterion).
+    frequencies_hz : tuple of float
+        The multisine's frequencies (Hz).
+    amplitude_deg : float
+        The rudder peak (deg): the multisine is scaled to it, never clipped.
+    duration : float
+        The manoeuvre's duration (s).
+    dt : float
+        Its input step (s).
+    maxiter : int
+        Differential-evolution generations.
+    popsize : int
+        Its population factor (cost: maxiter * popsize * 2K problems).
+
+    Raises
+    ------
+    ValueError
+        An unknown criterion, or ``direction`` missing for the direction criterion.
+    """
+
+    criterion: str = "D"
+    direction: np.ndarray | None = None
+    prior_precision: np.ndarray | None = None
+    frequencies_hz: tuple = (0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2)
+    amplitude_deg: float = 20.0
+    duration: float = 600.0
+    dt: float = 0.5
+    maxiter: int = 20
+    popsize: int = 6
+
+    def __post_init__(self):
+        if self.criterion not in ("D", "direction"):
+            raise ValueError(f"criterion must be 'D' or 'direction', not {self.criterion!r}")
+        if self.criterion == "direction" and self.direction is None:
+            raise ValueError("the direction criterion needs a direction (P,)")
+
+
 def design_multisine(
     vehicle,
     make_problem,
     theta,
     sigmas: dict,
-    criterion: str = "D",
-    direction: np.ndarray | None = None,
-    prior_precision=None,
-    frequencies_hz=(0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2),
-    amplitude_deg: float = 20.0,
-    duration: float = 600.0,
-    dt: float = 0.5,
+    options: DesignOptions = DesignOptions(),
+    *,
     rng: np.random.Generator | None = None,
-    maxiter: int = 20,
-    popsize: int = 6,
 ) -> Design:
     """Search multisine rudder inputs (relative amplitude and phase per frequency) for the best
     Fisher information within the rudder limit and a duration budget.
 
-    The rudder peak is always ``amplitude_deg`` (the multisine is scaled, never clipped), so every
-    candidate uses the same control authority; the propeller is held at the nominal speed.
-    Search: :func:`scipy.optimize.differential_evolution` (seeded from ``rng``), started from
-    the equal-weight Schroeder-phase multisine.
+    The rudder peak is always ``options.amplitude_deg`` (the multisine is scaled, never clipped),
+    so every candidate uses the same control authority; the propeller is held at the nominal
+    speed. Search: :func:`scipy.optimize.differential_evolution` (seeded from ``rng``), started
+    from the equal-weight Schroeder-phase multisine.
 
     Parameters
     ----------
-    make_problem : callable(manoeuvre) -> Problem (same free coefficients, noise-free target).
-    theta : (P,) prime coefficients where F is evaluated (local design).
-    criterion : ``"D"`` (maximise log det F) or ``"direction"`` (minimise the predicted sd along
-        ``direction``, (P,) unit vector in relative units, with ``prior_precision``).
-    maxiter, popsize : differential-evolution settings (cost: maxiter * popsize * 2K problems).
+    vehicle : Vehicle
+        The vehicle the manoeuvres are built for.
+    make_problem : callable
+        ``make_problem(manoeuvre) -> Problem`` (same free coefficients, noise-free target).
+    theta : (P,) array
+        Prime coefficients where F is evaluated (local design).
+    sigmas : dict
+        ``{channel: sd}`` of the measurements (SI).
+    options : DesignOptions
+        Criterion, multisine space and search settings.
+    rng : numpy.random.Generator, optional
+        Seeds the search (default seed 0).
 
     Returns
     -------
-    :class:`Design`.
-
-    Raises
-    ------
-    ValueError : unknown criterion, or ``direction`` missing for the direction criterion.
+    Design
     """
-    if criterion not in ("D", "direction"):
-        raise ValueError(f"criterion must be 'D' or 'direction', not {criterion!r}")
-    if criterion == "direction" and direction is None:
-        raise ValueError("the direction criterion needs a direction (P,)")
+    criterion, direction, prior_precision = options.criterion, options.direction, options.prior_precision
+    amplitude_deg, duration, dt = options.amplitude_deg, options.duration, options.dt
+    frequencies_hz, maxiter, popsize = options.frequencies_hz, options.maxiter, options.popsize
     rng = np.random.default_rng(0) if rng is None else rng
     f = np.asarray(frequencies_hz, dtype=float)
     K = f.size
@@ -195,4 +239,4 @@ def design_multisine(
     )
 
 
-__all__ = ["fisher_metrics", "direction_sd", "Design", "design_multisine"]
+__all__ = ["fisher_metrics", "direction_sd", "Design", "DesignOptions", "design_multisine"]

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import pysindy as ps
@@ -232,18 +233,60 @@ def _collinearity(Xn: np.ndarray) -> tuple[float, np.ndarray]:
     return cond, vif
 
 
+@dataclass(frozen=True)
+class SindyOptions:
+    """The ensemble-SINDy term check's settings (:func:`inclusion_probabilities`).
+
+    Attributes
+    ----------
+    n_models : int
+        Bootstrap models (>= 1).
+    threshold : float
+        STLSQ threshold on the normalised coefficients (>= 0).
+    extras : bool
+        Include the extra candidates (:data:`EXTRAS`).
+    window_s : float or None
+        Smoothing window (s; :func:`estimate_motion`).
+    polyorder : int
+        Smoothing polynomial order (:func:`estimate_motion`).
+    known : tuple or dict
+        Names (vehicle values) or ``{name: prime value}`` of library terms subtracted from the
+        target and removed from the candidates; must contain every term of :data:`ADDED_MASS`.
+    ridge : float
+        Ridge weight per sample on the normalised problem (>= 0).
+    trim_s : float or None
+        Seconds dropped at either end (default: half the smoothing window).
+
+    Raises
+    ------
+    ValueError
+        ``n_models < 1``, a negative ``threshold`` or ``ridge``.
+    """
+
+    n_models: int = 100
+    threshold: float = 0.05
+    extras: bool = True
+    window_s: float | None = None
+    polyorder: int = 3
+    known: object = ADDED_MASS
+    ridge: float = 0.0
+    trim_s: float | None = None
+
+    def __post_init__(self):
+        if int(self.n_models) < 1:
+            raise ValueError(f"n_models must be >= 1, got {self.n_models}")
+        if not self.threshold >= 0:
+            raise ValueError(f"threshold must be >= 0, got {self.threshold}")
+        if not self.ridge >= 0:
+            raise ValueError(f"ridge must be >= 0, got {self.ridge}")
+
+
 def inclusion_probabilities(
     track: Track,
     vehicle,
-    n_models: int = 100,
-    threshold: float = 0.05,
+    options: SindyOptions = SindyOptions(),
+    *,
     rng: np.random.Generator | None = None,
-    extras: bool = True,
-    window_s: float | None = None,
-    polyorder: int = 3,
-    known=ADDED_MASS,
-    ridge: float = 0.0,
-    trim_s: float | None = None,
 ) -> dict:
     """Ensemble-SINDy inclusion probability of every horizontal candidate term.
 
@@ -286,16 +329,10 @@ def inclusion_probabilities(
     track : Track (see :func:`estimate_motion`); also needs ``delta_r`` (rad) and ``n`` (rpm).
     vehicle : :class:`~bayesid.data.vehicle.Vehicle` (mass properties, rho, L, propulsion; its
         coefficients are used only for the ``known`` terms).
-    n_models : number of bootstrap models (>= 1).
-    threshold : STLSQ threshold on the normalised coefficients (>= 0).
+    options : :class:`SindyOptions` (bootstrap models, threshold, extras, smoothing, known terms
+        -- by default exactly the added masses at the vehicle's values, see
+        :func:`force_targets` for why --, ridge, trim).
     rng : numpy.random.Generator -- all randomness (the bootstrap) comes from it. Required.
-    extras : include the extra candidates (:data:`EXTRAS`).
-    window_s, polyorder : smoothing (see :func:`estimate_motion`).
-    known : names (vehicle values) or {name: prime value} of library terms subtracted from the
-        target and removed from the candidates; must contain every term of :data:`ADDED_MASS`
-        (default: exactly those, at the vehicle's values; see :func:`force_targets` for why).
-    ridge : ridge weight per sample on the normalised problem (default 0).
-    trim_s : seconds dropped at either end (default: half the smoothing window).
 
     Returns
     -------
@@ -315,18 +352,14 @@ def inclusion_probabilities(
     TypeError
         ``rng`` is not a ``numpy.random.Generator``.
     ValueError
-        A missing track column (named: psi, x, y, delta_r, n ...); ``n_models < 1``; negative
-        ``threshold`` or ``ridge``; ``known`` without an added-mass term (named); see also
+        A missing track column (named: psi, x, y, delta_r, n ...); ``known`` without an
+        added-mass term (named); see also
         :func:`estimate_motion`, :func:`force_targets`.
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError("inclusion_probabilities: rng must be a numpy.random.Generator (all randomness comes from it)")
-    if int(n_models) < 1:
-        raise ValueError(f"n_models must be >= 1, got {n_models}")
-    if not threshold >= 0:
-        raise ValueError(f"threshold must be >= 0, got {threshold}")
-    if not ridge >= 0:
-        raise ValueError(f"ridge must be >= 0, got {ridge}")
+    n_models, threshold, extras, known = options.n_models, options.threshold, options.extras, options.known
+    window_s, polyorder, ridge, trim_s = options.window_s, options.polyorder, options.ridge, options.trim_s
     motion = estimate_motion(track, window_s=window_s, polyorder=polyorder)
     inputs = track_inputs(track)
     kv = known_values(known, vehicle)
@@ -444,6 +477,7 @@ def compare_with_model(inclusion: dict, vehicle, level: float = 0.5) -> dict:
 
 
 __all__ = [
+    "SindyOptions",
     "EQUATIONS",
     "ADDED_MASS",
     "EXTRAS",

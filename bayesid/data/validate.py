@@ -241,17 +241,8 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     return warn
 
 
-def check_tracks(tracks, vehicle=None, paths=None) -> list[str]:
-    """:func:`check_track` on each track (``paths`` name the files); returns all warnings."""
-    out = []
-    for i, tr in enumerate(tracks):
-        out += check_track(tr, vehicle, None if paths is None else str(paths[i]))
-    return out
-
-
 __all__ = [
     "check_track",
-    "check_tracks",
     "check_vessel",
     "track_vessel",
     "SPEED_UNITS",

@@ -42,11 +42,17 @@ and a zigzag-trained model's turning-circle band ran from -450 m to 490 m (Esso 
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..tasks import Task, TaskError, run_tasks
+from ..tasks import Runner, Task, TaskError
+from . import windows as wf
+from .laplace import fit_covariance
+from .options import CalibrationOptions
+from .prediction import FittedModel, predict, turning_band
 
 __all__ = [
     "LEVELS",
@@ -58,6 +64,7 @@ __all__ = [
     "EXTRAPOLATION_NOTE",
     "full_window",
     "conformal_quantile",
+    "Fold",
     "fold_scores",
     "leave_one_run_out",
     "calibrated_bands",
@@ -82,7 +89,7 @@ MIN_SCORES_PER_KEY = 9
 #: An index with fewer calibration rows takes the median relative error of every index as its scale.
 MIN_ROWS_PER_KAPPA = 3
 #: Refits of a calibration: with more training runs, runs are left out in groups.
-MAX_FOLDS = 10
+MAX_FOLDS = CalibrationOptions.max_folds
 #: A window shorter than this fraction of the protocol window (a run's last, cut-off window) is
 #: neither a calibration score nor a claim: its error has had no time to grow.
 MIN_WINDOW_FRACTION = 0.5
@@ -98,7 +105,7 @@ INDEX_SCORE = "|measured - predicted| / sqrt(sd^2 + (kappa * predicted)^2)"
 
 
 def full_window(w: dict, window_s: float) -> bool:
-    """True when a protocol window (:func:`bayesid.estimation.msfit.predict`) lasts at least
+    """True when a protocol window (:func:`bayesid.estimation.prediction.predict`) lasts at least
     :data:`MIN_WINDOW_FRACTION` of ``window_s``."""
     return w.get("duration_s") is None or w["duration_s"] >= MIN_WINDOW_FRACTION * window_s
 
@@ -124,68 +131,79 @@ def _index_keys(measured: dict) -> list:
     return [k for k in measured if k not in ("kind", "execute_t_s", "reason")]
 
 
-def fold_scores(
-    ks,
-    model,
-    ctxs,
-    sd_fit: dict,
-    p,
-    nuisance,
-    tracks,
-    window_s: float,
-    start: str,
-    leadin_s,
-    channels,
-    max_nfev: int,
-    prior,
-    data_scale,
-    n_draws: int,
-    seed: int,
-) -> dict:
-    """One fold of :func:`leave_one_run_out` (a task): refit without the runs ``ks``, predict them.
+@dataclass(frozen=True)
+class Fold:
+    """One fold of :func:`leave_one_run_out`, a task of :func:`fold_scores`.
+
+    Attributes
+    ----------
+    refit : FitProblem
+    ks : list of int
+        Indices of the left-out runs in ``refit.ctxs``.
+    p : (n_params,) array
+        The full fit's optimum (the refit's start).
+    nuisance : list or None
+        Its per-track nuisances.
+    tracks : list of Track
+        The left-out runs, in the order of ``ks``.
+    window_s : float
+        The protocol window of the scores (s).
+    start : str
+        The start rule of the predictions.
+    leadin_s : float or None
+        The lead-in of the fitted start rule.
+    n_draws : int
+        Posterior draws for the index spreads.
+    seed : int
+        Seed of those draws.
+    """
+
+    refit: wf.FitProblem
+    ks: list
+    p: object
+    nuisance: list | None
+    tracks: list
+    window_s: float
+    start: str
+    leadin_s: float | None
+    n_draws: int
+    seed: int
+
+
+def fold_scores(fold: Fold) -> dict:
+    """One fold of :func:`leave_one_run_out` (a task): refit without the runs ``fold.ks``, predict them.
 
     Parameters
     ----------
-    ks : indices of the left-out runs in ``ctxs``.   ctxs : the training contexts (fit window).
-    sd_fit : the full fit's channel weights.   p, nuisance : its optimum (start of the refit).
-    tracks : the left-out runs (Tracks, in the order of ``ks``).
-    window_s, start, leadin_s : the protocol of the scores.
-    channels, max_nfev, prior, data_scale : as the full fit
-    (:func:`bayesid.estimation.windows.fit_model`, :func:`bayesid.estimation.msfit.laplace_covariance`).
-    n_draws : posterior draws for the index spreads.   seed : of those draws.
+    fold : Fold
+        The fold (:func:`bayesid.estimation.windows.fit_model` and
+        :func:`bayesid.estimation.laplace.fit_covariance` as the full fit).
 
-    Returns a JSON-able dict: ``runs``, ``windows`` [{``run``, ``max_position_m``,
-    ``max_heading_deg``}] (windows shorter than :data:`MIN_WINDOW_FRACTION` of ``window_s`` left
-    out), ``indices`` [{``run``, ``index``, ``measured``, ``predicted``, ``sd``,
-    ``abs_error``}] (scored once every fold is in: :func:`index_scores`), ``p`` (the fold's
-    optimum).
+    Returns
+    -------
+    dict
+        JSON-able: ``runs``, ``windows`` [{``run``, ``max_position_m``, ``max_heading_deg``}]
+        (windows shorter than :data:`MIN_WINDOW_FRACTION` of ``window_s`` left out), ``indices``
+        [{``run``, ``index``, ``measured``, ``predicted``, ``sd``, ``abs_error``}] (scored once
+        every fold is in: :func:`index_scores`), ``p`` (the fold's optimum).
     """
-    from . import msfit
-    from . import windows as wf
-
-    keep = [i for i in range(len(ctxs)) if i not in set(ks)]
-    nu = None if nuisance is None else [nuisance[i] for i in keep]
-    f = wf.fit_model(
-        model,
-        [ctxs[i] for i in keep],
-        sd_fit,
-        np.asarray(p, float),
-        nu,
-        max_nfev=max_nfev,
-        channels=channels,
-        prior=prior,
-    )
-    cov, _ = msfit.laplace_covariance(f, [ctxs[i] for i in keep], prior, data_scale)
-    rng = np.random.default_rng(seed)
+    rf = fold.refit
+    keep = [i for i in range(len(rf.ctxs)) if i not in set(fold.ks)]
+    nu = None if fold.nuisance is None else [fold.nuisance[i] for i in keep]
+    f = wf.fit_model(dataclasses.replace(rf, ctxs=[rf.ctxs[i] for i in keep]), np.asarray(fold.p, float), nu)
+    cov, _ = fit_covariance(f, [rf.ctxs[i] for i in keep], rf.prior, rf.data_scale)
+    rng = np.random.default_rng(fold.seed)
     wins, idx = [], []
-    for track in tracks:
-        pr = msfit.predict(model, f.p, [track], window_s, start=start, leadin_s=leadin_s)
+    for track in fold.tracks:
+        pr = predict(rf.model, f.p, [track], fold.window_s, start=fold.start, leadin_s=fold.leadin_s)
         wins += [
             {"run": track.name, "max_position_m": w["max_position_m"], "max_heading_deg": w["max_heading_deg"]}
             for w in pr["windows"]
-            if full_window(w, window_s)
+            if full_window(w, fold.window_s)
         ]
-        tb = msfit.turning_band(model, f.p, cov, track, n_draws, rng, start=pr["start_rule"], leadin_s=pr["leadin_s"])
+        tb = turning_band(
+            FittedModel(rf.model, f.p, cov), track, fold.n_draws, rng, start=pr["start_rule"], leadin_s=pr["leadin_s"]
+        )
         for key in _index_keys(tb["measured"]):
             m, q, sd = tb["measured"].get(key), tb["predicted"].get(key), tb["sd"].get(key)
             idx.append(
@@ -198,86 +216,80 @@ def fold_scores(
                     "abs_error": abs(m - q) if m is not None and q is not None else None,
                 }
             )
-    return {"runs": [t.name for t in tracks], "windows": wins, "indices": idx, "p": f.p.tolist()}
+    return {"runs": [t.name for t in fold.tracks], "windows": wins, "indices": idx, "p": f.p.tolist()}
 
 
 def leave_one_run_out(
-    model,
-    train,
-    ctxs,
+    refit: wf.FitProblem,
     fit,
-    sd_fit: dict,
-    window_s: float,
+    train,
+    options: CalibrationOptions = CalibrationOptions(),
+    *,
     start: str = "measured",
-    leadin_s=None,
-    channels=None,
-    max_nfev: int = 40,
-    prior=None,
-    data_scale=None,
-    n_draws: int = 40,
-    seed: int = 0,
-    max_folds: int = MAX_FOLDS,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    journal=None,
-    progress: str | None = None,
+    leadin_s: float | None = None,
+    runner: Runner = Runner(),
 ) -> dict:
     """Leave-one-run-out calibration of a fitted model (module docstring).
 
     Parameters
     ----------
-    model : the fitted model.   train : its training Tracks (at least 3).
-    ctxs : the fit's contexts of those tracks (its multiple-shooting windows and start rule).
-    fit : its :class:`~bayesid.estimation.fit.FitResult` (``p``, ``nuisance``).
-    sd_fit : the fit's channel weights.
-    window_s : the protocol window of the window scores (s; predictions are then calibrated for
-        windows of this length only).   start, leadin_s : the start rule of the predictions.
-    channels, max_nfev, prior, data_scale : as the full fit.   n_draws, seed : posterior draws.
-    max_folds : with more runs than this, run ``i`` is left out in fold ``i % max_folds`` (each
-        run still scored by a model that never saw it; fewer refits).
-    jobs, scheduler, journal, progress : the folds are tasks (:func:`bayesid.tasks.run_tasks`).
+    refit : FitProblem
+        The full fit's problem and settings, which every fold refits.
+    fit : FitResult
+        The full fit (``p``, ``nuisance``: the refits' start).
+    train : list of Track
+        Its training tracks (at least 3), in the order of ``refit.ctxs``.
+    options : CalibrationOptions
+        The protocol window of the scores, the posterior draws and their seed, the most folds.
+    start : str
+        The (resolved) start rule of the predictions.
+    leadin_s : float or None
+        Its lead-in.
+    runner : Runner
+        Runs the folds as tasks (:class:`bayesid.tasks.Runner`).
 
     Returns
     -------
-    JSON-able dict: ``method``, ``window_s``, ``n_runs``, ``n_folds``, ``folds``
-    (:func:`fold_scores` each, or ``{"runs", "error"}``), ``window_scores``
-    {``max_position_m``, ``max_heading_deg``: lists}, ``structural_scale`` (``kappa``,
-    :func:`structural_scale`), ``index_scores`` {key: list of normalised scores,
-    :func:`index_scores`}.
+    dict
+        JSON-able: ``method``, ``window_s``, ``n_runs``, ``n_folds``, ``folds``
+        (:func:`fold_scores` each, or ``{"runs", "error"}``), ``window_scores``
+        {``max_position_m``, ``max_heading_deg``: lists}, ``structural_scale`` (``kappa``,
+        :func:`structural_scale`), ``index_scores`` {key: list of normalised scores,
+        :func:`index_scores`}.
 
-    Raises ValueError with fewer than 3 training runs.
+    Raises
+    ------
+    ValueError
+        With fewer than 3 training runs.
     """
     if len(train) < 3:
         raise ValueError(f"leave-one-run-out calibration needs at least 3 training runs, not {len(train)}")
+    model = refit.model
     nuisance = None if fit.nuisance is None or not model.n_nuisance else [np.asarray(v).tolist() for v in fit.nuisance]
-    G = min(len(train), int(max_folds))
+    G = min(len(train), int(options.max_folds))
     groups = [[i for i in range(len(train)) if i % G == g] for g in range(G)]
     tasks = [
         Task(
             f"fold_{g}_of_{G}",
             {"runs": [train[i].name for i in ks], "fold": g},
             (
-                ks,
-                model,
-                ctxs,
-                sd_fit,
-                fit.p,
-                nuisance,
-                [train[i] for i in ks],
-                window_s,
-                start,
-                leadin_s,
-                channels,
-                max_nfev,
-                prior,
-                data_scale,
-                n_draws,
-                seed + g,
+                Fold(
+                    refit=refit,
+                    ks=ks,
+                    p=fit.p,
+                    nuisance=nuisance,
+                    tracks=[train[i] for i in ks],
+                    window_s=options.window_s,
+                    start=start,
+                    leadin_s=leadin_s,
+                    n_draws=options.draws,
+                    seed=options.seed + g,
+                ),
             ),
         )
         for g, ks in enumerate(groups)
     ]
-    outs = run_tasks(fold_scores, tasks, jobs=jobs, scheduler=scheduler, journal=journal, progress=progress)
+    outs = runner.run(fold_scores, tasks, label="calibration")
     folds = [
         {"runs": t.params["runs"], "error": str(o)} if isinstance(o, TaskError) else o for t, o in zip(tasks, outs)
     ]
@@ -287,11 +299,11 @@ def leave_one_run_out(
     return {
         "method": "split conformal, leave one training run out (refit on the others)"
         + (f", runs grouped into {G} folds" if G < len(train) else ""),
-        "window_s": window_s,
+        "window_s": options.window_s,
         "start_rule": start,
         "n_runs": len(train),
         "n_folds": G,
-        "n_draws": n_draws,
+        "n_draws": options.draws,
         "folds": folds,
         "window_scores": {
             "max_position_m": [w["max_position_m"] for w in wins],
@@ -524,9 +536,9 @@ def calibrated_bands(
     ----------
     calibration : a model's :func:`leave_one_run_out` result (None: no calibration).
     window_s : the prediction's protocol window (s); window bands need the calibration's.
-    windows : :func:`bayesid.estimation.msfit.predict`'s ``windows`` (with ``max_position_m``,
+    windows : :func:`bayesid.estimation.prediction.predict`'s ``windows`` (with ``max_position_m``,
         ``max_heading_deg``).
-    indices : {track: :func:`bayesid.estimation.msfit.turning_band` result (``measured``,
+    indices : {track: :func:`bayesid.estimation.prediction.turning_band` result (``measured``,
         ``predicted``, ``sd``, ``band_5_95``)}.
     excitations : {track: :func:`excitation`} of the predicted runs (optional): runs driven
         outside the calibration runs' range are listed (``outside_range`` {track: reasons}) and

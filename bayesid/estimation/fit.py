@@ -198,119 +198,168 @@ class _Monitor:
         return r, J
 
 
+@dataclass(frozen=True)
+class SolverOptions:
+    """The solver and its budgets and tolerances (:func:`fit`), grouped as scipy groups a
+    method's ``options``.
+
+    Attributes
+    ----------
+    method : str
+        ``"least_squares"`` (scipy ``least_squares``, trust-region reflective, on the residual
+        vector) or ``"slsqp"`` (scipy ``minimize(method="SLSQP")`` on ``V(x)/V(x0)``: on the raw
+        cost, gradients of order 1e6 in scaled units make scipy's SLSQP stop after its first QP
+        subproblem without moving -- seen with scipy 1.17 on the paper's Case 3; normalising
+        changes no minimiser and every reported cost is ``V`` itself).
+    max_nfev : int
+        Least-squares evaluation budget.
+    maxiter : int
+        SLSQP iteration budget.
+    ftol : float or None
+        Tolerance on the cost (None: 1e-15 for least squares, 1e-16 for SLSQP, on the
+        normalised cost there).
+    xtol : float
+        Least-squares step tolerance.
+    gtol : float
+        Least-squares gradient tolerance.
+    x_scale : float or (n,) array
+        Least-squares variable scales.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``method`` (named with the known ones).
+    """
+
+    method: str = "least_squares"
+    max_nfev: int = 300
+    maxiter: int = 300
+    ftol: float | None = None
+    xtol: float = 1e-15
+    gtol: float = 1e-15
+    x_scale: object = 1.0
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"unknown fit method {self.method!r}; choose from {', '.join(METHODS)}")
+
+
 def fit(
     objective,
     x0,
     bounds,
-    method: str = "least_squares",
-    max_nfev: int = 300,
-    maxiter: int = 300,
-    ftol: float | None = None,
-    xtol: float = 1e-15,
-    gtol: float = 1e-15,
-    x_scale=1.0,
-    progress: str | None = None,
+    options: SolverOptions = SolverOptions(),
+    *,
+    bar: str | None = None,
     quiet: bool = False,
 ) -> FitResult:
     """Minimise ``V(x) = r(x)^T r(x)`` of an objective (module docstring) over bounds.
 
     Parameters
     ----------
-    objective : see the module docstring.
-    x0 : (n,) start, clipped to the bounds.   bounds : (lo (n,), hi (n,)), +-inf allowed.
-    method : ``"least_squares"`` (scipy ``least_squares``, trust-region reflective, on the
-        residual vector) or ``"slsqp"`` (scipy ``minimize(method="SLSQP")`` on ``V(x)/V(x0)``:
-        on the raw cost, gradients of order 1e6 in scaled units make scipy's SLSQP stop after
-        its first QP subproblem without moving -- seen with scipy 1.17 on the paper's Case 3;
-        normalising changes no minimiser and every reported cost is ``V`` itself).
-    max_nfev : least-squares evaluation budget.   maxiter : SLSQP iteration budget.
-    ftol : tolerance on the cost (default 1e-15 for least squares, 1e-16 for SLSQP, on the
-        normalised cost there).   xtol, gtol : least-squares step and gradient tolerances.
-    x_scale : least-squares variable scales ((n,) or a number).
-    progress : a label to show a progress bar (tqdm, on stderr) of the residual evaluations.
-    quiet : silence the solver's warnings (e.g. a diverged trial point).
+    objective : object
+        See the module docstring.
+    x0 : (n,) array
+        The start, clipped to the bounds.
+    bounds : tuple
+        ``(lo (n,), hi (n,))``, +-inf allowed.
+    options : SolverOptions
+        The solver (least squares or SLSQP), its budgets and tolerances.
+    bar : str, optional
+        A label to show a progress bar (tqdm, on stderr) of the residual evaluations.
+    quiet : bool
+        Silence the solver's warnings (e.g. a diverged trial point).
 
     Returns
     -------
-    :class:`FitResult` with the iterates (``history``), simulations by purpose, the
-    wall-time share in simulation, and for least squares the Jacobian at the optimum. ``cost``
-    is ``V`` at the optimum, taken from the fit's own evaluation when the objective is pure,
-    else evaluated once more.
-
-    Raises
-    ------
-    ValueError : an unknown ``method`` (named with the known ones).
+    FitResult
+        With the iterates (``history``), simulations by purpose, the wall-time share in
+        simulation, and for least squares the Jacobian at the optimum. ``cost`` is ``V`` at the
+        optimum, taken from the fit's own evaluation when the objective is pure, else evaluated
+        once more.
     """
-    if method not in METHODS:
-        raise ValueError(f"unknown fit method {method!r}; choose from {', '.join(METHODS)}")
     lo, hi = (np.asarray(b, dtype=float) for b in bounds)
     x0 = np.clip(np.asarray(x0, dtype=float), lo, hi)
     mon = _Monitor(objective)
     iterates = [x0.copy()]
-    bar = None
     resid = mon.residuals
-    if progress:
+    pbar = None
+    if bar:
         from tqdm import tqdm
 
-        bar = tqdm(total=max_nfev, desc=progress, unit=" evaluations", leave=True)
+        pbar = tqdm(total=options.max_nfev, desc=bar, unit=" evaluations", leave=True)
 
         def resid(x):
-            bar.update(1)
+            pbar.update(1)
             return mon.residuals(x)
 
-    jac_out = None
     try:
         with warnings.catch_warnings():
             if quiet:
                 warnings.simplefilter("ignore")
-            if method == "slsqp":
-                V0 = mon.cost(x0)
-                norm = V0 if np.isfinite(V0) and V0 > 0 else 1.0
-
-                def grad(x):
-                    r, J = mon.jac(x)
-                    return 2.0 * (J.T @ r) / norm
-
-                def cost_n(x):
-                    r = resid(x)
-                    return float(r @ r) / norm
-
-                res = optimize.minimize(
-                    cost_n,
-                    x0,
-                    jac=grad,
-                    method="SLSQP",
-                    bounds=list(zip(lo, hi)),
-                    callback=lambda xk: iterates.append(np.array(xk, dtype=float)),
-                    options=dict(maxiter=maxiter, ftol=1e-16 if ftol is None else ftol),
-                )
-                x = np.clip(res.x, lo, hi)
-                label, success, nit = "SLSQP", res.success, res.nit
-            else:
-
-                def cb(intermediate_result):
-                    iterates.append(np.array(intermediate_result.x, dtype=float))
-
-                res = optimize.least_squares(
-                    resid,
-                    x0,
-                    jac=lambda x: mon.jac(x)[1],
-                    bounds=(lo, hi),
-                    method="trf",
-                    x_scale=x_scale,
-                    ftol=1e-15 if ftol is None else ftol,
-                    xtol=xtol,
-                    gtol=gtol,
-                    max_nfev=max_nfev,
-                    callback=cb,
-                )
-                x = res.x
-                if not np.array_equal(iterates[-1], x):
-                    iterates.append(np.array(x, dtype=float))
-                label, success, nit, jac_out = "least_squares (trf)", res.status > 0, len(iterates) - 1, res.jac
+            solver = _slsqp if options.method == "slsqp" else _least_squares
+            x, res, label, success, nit, jac_out = solver(mon, resid, x0, (lo, hi), options, iterates)
     finally:
-        if bar is not None:
-            bar.close()
+        if pbar is not None:
+            pbar.close()
+    return _result(objective, mon, x, (lo, hi), iterates, (res, label, success, nit, jac_out))
+
+
+def _slsqp(mon, resid, x0, bounds, options: SolverOptions, iterates) -> tuple:
+    """scipy's SLSQP on the normalised cost ``V(x)/V(x0)``: (x, result, label, success, nit, None)."""
+    lo, hi = bounds
+    V0 = mon.cost(x0)
+    norm = V0 if np.isfinite(V0) and V0 > 0 else 1.0
+
+    def grad(x):
+        r, J = mon.jac(x)
+        return 2.0 * (J.T @ r) / norm
+
+    def cost_n(x):
+        r = resid(x)
+        return float(r @ r) / norm
+
+    res = optimize.minimize(
+        cost_n,
+        x0,
+        jac=grad,
+        method="SLSQP",
+        bounds=list(zip(lo, hi)),
+        callback=lambda xk: iterates.append(np.array(xk, dtype=float)),
+        options=dict(maxiter=options.maxiter, ftol=1e-16 if options.ftol is None else options.ftol),
+    )
+    return np.clip(res.x, lo, hi), res, "SLSQP", res.success, res.nit, None
+
+
+def _least_squares(mon, resid, x0, bounds, options: SolverOptions, iterates) -> tuple:
+    """scipy's trust-region reflective least squares: (x, result, label, success, nit, Jacobian)."""
+
+    def cb(intermediate_result):
+        iterates.append(np.array(intermediate_result.x, dtype=float))
+
+    res = optimize.least_squares(
+        resid,
+        x0,
+        jac=lambda x: mon.jac(x)[1],
+        bounds=bounds,
+        method="trf",
+        x_scale=options.x_scale,
+        ftol=1e-15 if options.ftol is None else options.ftol,
+        xtol=options.xtol,
+        gtol=options.gtol,
+        max_nfev=options.max_nfev,
+        callback=cb,
+    )
+    x = res.x
+    if not np.array_equal(iterates[-1], x):
+        iterates.append(np.array(x, dtype=float))
+    return x, res, "least_squares (trf)", res.status > 0, len(iterates) - 1, res.jac
+
+
+def _result(objective, mon, x, bounds, iterates, solved) -> FitResult:
+    """The :class:`FitResult` of a finished solve: costs of the iterates, counters, wall times."""
+    res, label, success, nit, jac_out = solved
+    lo, hi = bounds
     if not objective.cache_residuals:  # a stateful objective: its residuals at the optimum as the solver left it
         r_final = objective.residuals(x)[0]
     wall = time.perf_counter() - mon.t0

@@ -1,6 +1,13 @@
 """Gauss-Newton (Laplace) covariance of fitted parameters: the one implementation that the
 posterior study (known noise, weak prior) and the long-run fits (residual variance, AR(1)
-inflation) both use.
+inflation) both use, and the covariance of a multiple-shooting fit built on it.
+
+The covariance of a fit on long, noisy runs (:func:`fit_covariance`) is
+``cov = s^2 (J^T J)^-1 * n/n_eff`` with ``s^2 = SSR / (n - k)`` and ``n/n_eff = (1 + rho1) /
+(1 - rho1)`` from the lag-1 autocorrelation ``rho1`` of the residuals within windows
+(:func:`ar1_inflation`, an AR(1) correction: simulation-error residuals are strongly correlated,
+and ignoring that would make the bands far too narrow), capped at the mean number of samples per
+window (each window then counts as one independent residual per channel).
 
 Bishop (2006), *Pattern Recognition and Machine Learning*, Sec. 4.4 (Laplace approximation);
 for a least-squares objective the Hessian is approximated by ``J^T J`` (Gauss-Newton).
@@ -8,9 +15,15 @@ for a least-squares objective the Hessian is approximated by ``J^T J`` (Gauss-Ne
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["gauss_newton_covariance"]
+from ..models.effects import errors
+from . import shooting
+from .fit import FitResult
+
+__all__ = ["ar1_inflation", "gauss_newton_covariance", "fit_covariance", "psd_covariance", "weak_directions"]
 
 
 def gauss_newton_covariance(
@@ -48,3 +61,90 @@ def gauss_newton_covariance(
     H = J.T @ J + np.diag(np.asarray(prior_precision, float))
     cov = np.linalg.inv(0.5 * (H + H.T))
     return cov if residual_variance == 1.0 and inflation == 1.0 else cov * residual_variance * inflation
+
+
+def ar1_inflation(fitres: FitResult, ctxs) -> float:
+    """Variance inflation ``(1 + rho1) / (1 - rho1)`` of serially correlated window residuals.
+
+    ``rho1`` is the median lag-1 autocorrelation of the fit's residuals within windows over the
+    scored channels of every track (clipped to [0, 0.999]); the result is capped at the mean
+    number of samples per window, so that every window counts as at least one independent
+    residual per channel.
+
+    Parameters
+    ----------
+    fitres : FitResult
+        The fit (its model, optimum ``p`` and scored ``channels``).
+    ctxs : list of TrackContext
+        The fit's training contexts.
+
+    Returns
+    -------
+    float
+        The inflation factor, at least 1.
+    """
+    r = []
+    for ctx in ctxs:
+        S = shooting.simulate(fitres.model, ctx, fitres.p[None])
+        for c, e in errors(ctx, S).items():
+            if fitres.channels is not None and c not in fitres.channels:
+                continue
+            e = e[0]
+            same = ctx.win[1:] == ctx.win[:-1]
+            a, b = e[:-1][same], e[1:][same]
+            ok = np.isfinite(a) & np.isfinite(b)
+            if ok.sum() > 10 and np.std(a[ok]) > 0:
+                r.append(np.corrcoef(a[ok], b[ok])[0, 1])
+    rho = float(np.clip(np.median(r), 0.0, 0.999)) if r else 0.0
+    # at most the samples per window: every window counts as one independent residual per channel
+    per_window = max(1.0, np.mean([ctx.ts.size / ctx.W for ctx in ctxs]))
+    return float(min((1 + rho) / (1 - rho), per_window))
+
+
+def fit_covariance(fitres: FitResult, ctxs, prior=None, data_scale: tuple | None = None) -> tuple[np.ndarray, dict]:
+    """(n_params, n_params) Laplace covariance of the fitted parameters (module docstring).
+
+    Without a prior: ``(J^T J)^+ * s2 * inflation`` with ``s2 = SSR / (n - k)`` and the AR(1)
+    inflation of the residuals. With a ``prior`` (whose residuals end the fit's residual vector,
+    weighted by ``sqrt(s2 * inflation)``; ``data_scale = (s2, inflation)`` of the fit without
+    it): ``(J_d^T J_d / (s2 * inflation) + diag(1 / sd^2))^-1``, the Gaussian posterior of a
+    likelihood whose samples count ``1 / inflation`` each."""
+    n = fitres.model.n_params
+    J = fitres.jac[:, :n]
+    J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    if prior is not None:
+        J = J[: J.shape[0] - prior.idx.size]  # the data rows
+        s2, infl = data_scale
+        cov = psd_covariance(gauss_newton_covariance(J / math.sqrt(s2 * infl), prior_precision=prior.precision(n)))
+    else:
+        s2 = fitres.cost / max(fitres.n_residuals - J.shape[1], 1)
+        infl = ar1_inflation(fitres, ctxs)
+        cov = psd_covariance(gauss_newton_covariance(J, residual_variance=s2, inflation=infl))
+    sv = np.linalg.svd(J, compute_uv=False)
+    return cov, {
+        "residual_variance": s2,
+        "ar1_inflation": infl,
+        "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
+        "weak_directions": weak_directions(J, fitres.model.scales()),
+    }
+
+
+def psd_covariance(cov) -> np.ndarray:
+    """The symmetric positive semi-definite form of a covariance: its symmetric part with the
+    eigenvalues below zero (round-off of an ill-conditioned Gauss-Newton inverse) set to zero.
+    What ``fit`` writes is what ``predict`` reads (:func:`load_model`)."""
+    C = 0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T)
+    lam, V = np.linalg.eigh(C)
+    C = (V * np.clip(lam, 0.0, None)) @ V.T
+    return 0.5 * (C + C.T)
+
+
+def weak_directions(J, scales, k: int = 3) -> list:
+    """The ``k`` directions of parameter space the residuals constrain least: eigenvectors of
+    ``(J D)^T (J D)`` with ``D = diag(scales)`` (parameters in units of their typical size), the
+    smallest eigenvalue first. Each: ``{"eigenvalue", "vector"}`` (unit vector over the
+    parameters, in scaled units), labelled by the report layer
+    (:class:`bayesid.analysis.identifiability.Direction`)."""
+    Js = np.asarray(J, float) * np.abs(np.asarray(scales, float))[None, :]
+    lam, V = np.linalg.eigh(Js.T @ Js)
+    return [{"eigenvalue": float(lam[i]), "vector": V[:, i].tolist()} for i in range(min(k, lam.size))]

@@ -17,12 +17,14 @@ compare; a two-step (residual-weighted) fit sets the weights once, on the defaul
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import qmc
 
-from ..tasks import Task, TaskError, run_tasks
+from ..tasks import Runner, Task, TaskError
+from .windows import FitProblem, fit_model
 
 __all__ = [
     "start_points",
@@ -63,16 +65,14 @@ def start_points(p0, scales, lo, hi, n: int, rng, spread: float = 1.0) -> np.nda
     return a + u * (b - a)
 
 
-def fit_start(p0, model, ctxs, sd: dict, max_nfev: int, channels=None) -> dict:
+def fit_start(p0, problem: FitProblem) -> dict:
     """One start of a multistart fit of a model (a task; runs in a worker): the multiple-shooting
-    fit (:func:`bayesid.estimation.windows.fit_model`) from ``p0`` with fixed weights ``sd``.
+    fit (:func:`bayesid.estimation.windows.fit_model`) of ``problem`` (fixed weights) from ``p0``.
 
     Returns a JSON-able dict: ``p`` (P,), ``cost`` (noise-scaled SSR, inf when the fit failed),
     ``success``, ``nfev``, ``message``."""
-    from .windows import fit_model
-
     try:
-        f = fit_model(model, ctxs, sd, np.asarray(p0, float), max_nfev=max_nfev, channels=channels)
+        f = fit_model(problem, np.asarray(p0, float))
     except Exception as exc:  # noqa: BLE001 - a start that diverges is a result, not an error
         return {
             "p": list(map(float, p0)),
@@ -187,10 +187,7 @@ def run_starts(
     kinds,
     scales,
     default_fit: dict | None = None,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    journal=None,
-    progress: str | None = None,
+    runner: Runner = Runner(),
 ) -> MultistartResult:
     """Fit from every start as a task and summarise (:func:`summarise_starts`).
 
@@ -200,7 +197,7 @@ def run_starts(
         (:func:`fit_start` for a model).   names : parameter names.
     starts : (n, P), the default first.   kinds : per start.   scales : (P,) parameter scales.
     default_fit : the first start's result when already fitted (it is then not run again).
-    jobs, scheduler, journal, progress : :func:`bayesid.tasks.run_tasks`.
+    runner : :class:`bayesid.tasks.Runner` of the starts.
     """
     starts = np.asarray(starts, float)
     tasks = [
@@ -208,7 +205,7 @@ def run_starts(
         for i, (k, s) in enumerate(zip(kinds, starts))
     ]
     todo = tasks[1:] if default_fit is not None else tasks
-    outs = run_tasks(fit_fn, todo, jobs=jobs, scheduler=scheduler, journal=journal, progress=progress)
+    outs = runner.run(fit_fn, todo, label="starts")
     fits = ([default_fit] if default_fit is not None else []) + [
         {"p": t.params["p0"], "cost": float("inf"), "success": False, "nfev": 0, "message": str(o)}
         if isinstance(o, TaskError)
@@ -221,50 +218,43 @@ def run_starts(
 
 
 def multistart(
-    model,
-    ctxs,
-    sd: dict,
+    problem: FitProblem,
     p_default,
     n_starts: int,
     rng,
-    max_nfev: int = 60,
-    channels=None,
+    *,
     default_fit: dict | None = None,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    journal=None,
     spread: float = 1.0,
-    progress: str | None = None,
+    runner: Runner = Runner(),
 ) -> MultistartResult:
     """Fit ``model`` from the default start and ``n_starts`` Latin-hypercube starts, as tasks.
 
     Parameters
     ----------
-    model, ctxs : the model and its training contexts.   sd : {channel: sd} fixed weights.
+    problem : :class:`~bayesid.estimation.windows.FitProblem` (model, training contexts, fixed
+        channel weights ``sd``, scored channels, iterations; its prior is not used).
     p_default : (P,) the default start.   n_starts : extra starts (>= 1).   rng : Generator.
     default_fit : the default start's result when already fitted (a :func:`fit_start` dict),
         else it is fitted as one of the tasks.
-    jobs, scheduler, journal : :func:`bayesid.tasks.run_tasks` (the journal resumes a killed run).
+    runner : :class:`bayesid.tasks.Runner` of the starts (its journal resumes a killed run).
     spread : half-width of the start box in scales (:func:`start_points`).
 
     Returns a :class:`MultistartResult`. Raises ValueError for ``n_starts < 1``.
     """
     if n_starts < 1:
         raise ValueError(f"multistart needs at least one start besides the default, not {n_starts}")
+    model = problem.model
     lo, hi = model.bounds()
     scales = model.scales()
     extra = start_points(p_default, scales, lo, hi, n_starts, rng, spread)
     starts = np.vstack([np.asarray(p_default, float)[None], extra])
     return run_starts(
         fit_start,
-        (model, ctxs, sd, max_nfev, channels),
+        (dataclasses.replace(problem, prior=None, data_scale=None),),
         model.param_names,
         starts,
         ["default"] + ["lhs"] * n_starts,
         scales,
         default_fit,
-        jobs,
-        scheduler,
-        journal,
-        progress,
+        runner,
     )

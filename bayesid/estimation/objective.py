@@ -242,9 +242,4 @@ class JointProblem(Problem):
         return R, div
 
 
-def max_position_error(a: Track, b: Track) -> float:
-    """Maximum horizontal distance between two tracks sampled at the same times, m."""
-    return float(np.nanmax(np.hypot(a["x"] - b["x"], a["y"] - b["y"])))
-
-
-__all__ = ["Problem", "JointProblem", "max_position_error", "PAPER_CHANNELS", "DIVERGED_RESIDUAL"]
+__all__ = ["Problem", "JointProblem", "PAPER_CHANNELS", "DIVERGED_RESIDUAL"]

@@ -46,6 +46,8 @@ from emcee.autocorr import integrated_time
 from emcee.state import State
 from tqdm import tqdm
 
+from ..tasks import Runner, Task, TaskError
+
 MOVES = ("de", "stretch", "de-stretch")
 #: Thresholds of the convergence verdict (Vehtari et al. 2021, Sec. 4).
 RHAT_MAX = 1.01
@@ -123,6 +125,24 @@ class SamplerConfig:
             raise ValueError(f"check_every = {self.check_every}: need at least 1")
         if not self.init_scale > 0:
             raise ValueError(f"init_scale = {self.init_scale}: must be positive")
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """Where :func:`run_ensembles` stores its chains, and whose they are (as emcee's ``backend``).
+
+    Attributes
+    ----------
+    path : str or Path
+        The HDF5 file (emcee ``HDFBackend`` layout, one group per ensemble).
+    run_key : dict or None
+        JSON-able description of the run (seed, a hash of the data, settings) stored in a new
+        checkpoint; resuming a checkpoint written under another key raises ValueError, so chains
+        of another seed or other data are never reported as this run's.
+    """
+
+    path: str | Path
+    run_key: dict | None = None
 
 
 @dataclass
@@ -388,10 +408,9 @@ def run_ensembles(
     names,
     config: SamplerConfig | None = None,
     rng: np.random.Generator | None = None,
-    checkpoint: str | Path | None = None,
-    run_key: dict | None = None,
-    jobs: int = 1,
-    scheduler: str | None = None,
+    *,
+    checkpoint: Checkpoint | None = None,
+    runner: Runner = Runner(),
 ) -> SamplerResult:
     """Sample the posterior with ``config.n_ensembles`` independent emcee ensembles.
 
@@ -417,13 +436,10 @@ def run_ensembles(
     center : (P,) centre of the initial balls.   cov : (P, P) their covariance (times init_scale^2).
     names : P coefficient names.   config : :class:`SamplerConfig` (default settings if None).
     rng : numpy Generator; the only source of randomness (``default_rng(0)`` if None).
-    checkpoint : HDF5 path, or None to keep the chains in memory.
-    run_key : JSON-able description of the run (seed, a hash of the data, settings) stored in a
-        new checkpoint; resuming a checkpoint written under another key raises ValueError, so
-        chains of another seed or other data are never reported as this run's.
-    jobs, scheduler : with ``jobs > 1`` or a Dask ``scheduler``, each round's blocks of the
-        ensembles run at once as tasks (:func:`bayesid.tasks.run_tasks`; ``log_prob`` must then
-        be picklable): a worker advances one ensemble from its last state and random state in
+    checkpoint : :class:`Checkpoint` (HDF5 path and the run's identity), or None to keep the
+        chains in memory.
+    runner : :class:`bayesid.tasks.Runner`; with ``jobs > 1`` or a Dask ``scheduler``, each
+        round's blocks of the ensembles run at once as tasks (``log_prob`` must then be picklable): a worker advances one ensemble from its last state and random state in
         memory and returns the steps, which this process stores. The chains are the ones a
         serial run gives, bit for bit, when ``log_prob`` does not depend on the process
         (the task layer runs BLAS on one thread).
@@ -457,7 +473,7 @@ def run_ensembles(
     children = rng.spawn(E)
     seeds = [int(c.integers(2**32)) for c in children]
     backends = (
-        _checkpoint_backends(checkpoint, names, W, config, run_key)
+        _checkpoint_backends(checkpoint.path, names, W, config, checkpoint.run_key)
         if checkpoint is not None
         else [emcee.backends.Backend() for _ in range(E)]
     )
@@ -528,8 +544,8 @@ def run_ensembles(
                     f"tau_max {np.max(tau):.1f}, steps needed "
                     f"{max(config.min_steps, config.tau_factor * np.max(tau)):.0f}"
                 )
-            if int(jobs) > 1 or scheduler is not None:
-                _advance_as_tasks(samplers, states, its, target, log_prob, config, lp_fn, bar, jobs, scheduler)
+            if int(runner.jobs) > 1 or runner.scheduler is not None:
+                _advance_as_tasks(samplers, states, its, target, log_prob, config, lp_fn, bar, runner)
                 continue
             for i, s in enumerate(samplers):
                 if target <= its[i]:
@@ -566,11 +582,10 @@ def advance_ensemble(log_prob, n_walkers: int, moves: str, coords, lp, random_st
     }
 
 
-def _advance_as_tasks(samplers, states, its, target, log_prob, config, lp_fn, bar, jobs, scheduler) -> None:
+def _advance_as_tasks(samplers, states, its, target, log_prob, config, lp_fn, bar, runner) -> None:
     """One round of blocks of every ensemble as tasks (:func:`advance_ensemble`); the steps are
-    stored in each ensemble's backend here, in this process."""
-    from ..tasks import Task, TaskError, run_tasks
-
+    stored in each ensemble's backend here, in this process (the blocks are not journaled: the
+    checkpoint is the record)."""
     todo = [i for i, s in enumerate(samplers) if target > its[i]]
     tasks = [
         Task(
@@ -588,7 +603,7 @@ def _advance_as_tasks(samplers, states, its, target, log_prob, config, lp_fn, ba
         )
         for i in todo
     ]
-    out = run_tasks(advance_ensemble, tasks, jobs=jobs, scheduler=scheduler)
+    out = Runner(runner.jobs, runner.scheduler).run(advance_ensemble, tasks)
     bad = [o for o in out if isinstance(o, TaskError)]
     if bad:
         raise RuntimeError(f"{bad[0]}\n{bad[0].traceback}")

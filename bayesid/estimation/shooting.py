@@ -32,6 +32,10 @@ from ..models.effects import START_INDEX, errors
 START_STEP = np.array([1e-3, 1e-3, 1e-5, 1e-4, 1e-4, 1e-5])
 #: Residual (in weighted units) of a sample of a diverged window.
 PENALTY = 1e3
+#: Levenberg-Marquardt iterations of :func:`fit_starts` (each: 7 batched simulations of the start
+#: samples), and the relative cost decrease below which it stops.
+LM_ITERATIONS = 12
+LM_TOLERANCE = 1e-7
 
 
 def _weights(ctx, weights):
@@ -66,8 +70,6 @@ def fit_starts(
     nu=None,
     weights=None,
     starts0=None,
-    max_iter: int = 12,
-    tol: float = 1e-7,
     return_jacobian: bool = False,
 ):
     """Least-squares start-state offsets of every window of ``ctx`` for parameter rows ``P``.
@@ -78,7 +80,6 @@ def fit_starts(
     P : (B, n_params) parameter vectors (held fixed).   nu : (B, n_nuisance) or None.
     weights : {channel: 1/sd} (default: the track's own noise sds, ``ctx.lead["sd"]``).
     starts0 : (B, W, 6) first offsets (default zeros: the guess of ``ctx.s_meas``).
-    max_iter : Levenberg-Marquardt iterations (each: 7 batched simulations of the start samples).
     return_jacobian : also return the Jacobian (6, B, n_rows) of :func:`lead_residuals` at the
         last linearisation and the window of each row (for variable projection).
 
@@ -107,7 +108,7 @@ def fit_starts(
     cost = window_cost(r)
     lam = np.full((B, W), 1e-3)
     J = np.zeros((6, B, rwin.size))
-    for _ in range(max_iter):
+    for _ in range(LM_ITERATIONS):
         # the 6 perturbed start vectors of every window in one batch: rows b*7 + j (j = 0: base)
         Dp = np.repeat(D, 7, axis=0).reshape(B, 7, W, 6)
         for j in range(6):
@@ -141,7 +142,7 @@ def fit_starts(
             cost = np.where(acc, ct, cost)
             lam = np.where(acc, lam / 3.0, lam * 4.0)
             if acc.any():
-                improved = bool(np.max(gain) > tol)
+                improved = bool(np.max(gain) > LM_TOLERANCE)
                 break
         if not improved:
             break

@@ -50,16 +50,25 @@ killed run resumes where it stopped and gives the same draws and weights, bit fo
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..tasks import Task, TaskError, run_tasks
+from ..tasks import Runner, Task, TaskError
 from . import windows as wf
 from .fit import FitResult
-from .laplace import gauss_newton_covariance
-from .msfit import psd_covariance
+from .laplace import gauss_newton_covariance, psd_covariance
+from .sampling import (
+    ESS_BULK_MIN,
+    Checkpoint,
+    SamplerConfig,
+    burn_in,
+    diagnostics,
+    run_ensembles,
+    to_inference_data,
+)
 
 __all__ = [
     "KHAT_MAX",
@@ -77,6 +86,10 @@ __all__ = [
     "jackknife_factor",
     "sample_tracks",
     "inference_data",
+    "ImportanceOptions",
+    "SampleOptions",
+    "TrackPosteriorResult",
+    "TRACK_SAMPLER",
     "METHODS",
 ]
 
@@ -381,8 +394,7 @@ class TrackPosterior:
         ok = np.isfinite(lp)
         if ok.any():
             X = np.hstack([P[ok], np.repeat(self.nuisance[None], ok.sum(), axis=0)])
-            R = self.ob.residuals_batch(X)[0]
-            diverged = np.any(R[:, self.errors.column >= 0] == wf.PENALTY, axis=1)
+            R, diverged = self.ob.residuals_batch(X)
             s = self.errors.ssr(R)
             s[diverged] = np.nan
             ssr[ok] = s
@@ -406,14 +418,11 @@ def posterior_mode(post: TrackPosterior, p0, max_nfev: int = 30) -> dict:
     if post.nuisance.size:
         nu0 = [post.nuisance[i * model.n_nuisance : (i + 1) * model.n_nuisance] for i in range(len(ob.ctxs))]
     f = wf.fit_model(
-        model,
-        ob.ctxs,
-        em.fit_sd(),
+        wf.FitProblem(
+            model, ob.ctxs, em.fit_sd(), channels=ob.channels, max_nfev=max_nfev, prior=gp if gp.idx.size else None
+        ),
         np.asarray(p0, float),
         nu0,
-        max_nfev=max_nfev,
-        channels=ob.channels,
-        prior=gp if gp.idx.size else None,
     )
     n = model.n_params
     J = f.jac[:, :n]
@@ -486,26 +495,102 @@ def _as_array(values) -> np.ndarray:
     return np.array([np.nan if v is None else v for v in values], float)
 
 
+@dataclass(frozen=True)
+class ImportanceOptions:
+    """The importance-reweighted Laplace stage of :func:`sample_tracks` (:func:`importance_laplace`).
+
+    Attributes
+    ----------
+    n_draws : int
+        Student-t proposal draws (at least 100).
+    df : float
+        Their degrees of freedom (positive).
+    chunk : int
+        Draws evaluated per task (per-row cost is lowest at batches of 13-19 on the real data sets).
+
+    Raises
+    ------
+    ValueError
+        Fewer than 100 draws, ``df`` not positive, or ``chunk`` below 1.
+    """
+
+    n_draws: int = 4000
+    df: float = 5.0
+    chunk: int = 16
+
+    def __post_init__(self):
+        if int(self.n_draws) < 100 or not self.df > 0 or int(self.chunk) < 1:
+            raise ValueError(
+                f"importance sampling needs at least 100 draws, df > 0 and chunks of 1 or more, got "
+                f"{self.n_draws}, {self.df} and {self.chunk}"
+            )
+
+
+@dataclass(frozen=True)
+class SampleOptions:
+    """How :func:`sample_tracks` samples.
+
+    Attributes
+    ----------
+    method : str
+        ``"importance"`` (importance-reweighted Laplace), ``"mcmc"`` (emcee ensembles), or
+        ``"auto"``: importance first, MCMC when its k-hat or ESS fails.
+    use_prior : bool
+        Gaussian priors of the vehicle file's ``[prior]`` section (else uniform in the bounds).
+    seed : int
+        The one seed of every random draw (proposal, resampling, noise scales, ensembles).
+    max_minutes : float
+        Wall budget of the MCMC refinement (from the start of the sampling).
+
+    Raises
+    ------
+    ValueError
+        An unknown method or a budget that is not positive.
+    """
+
+    method: str = "auto"
+    use_prior: bool = True
+    seed: int = 0
+    max_minutes: float = 20.0
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, not {self.method!r}")
+        if not self.max_minutes > 0:
+            raise ValueError(f"max_minutes must be positive, not {self.max_minutes}")
+
+
+METHODS = ("auto", "importance", "mcmc")
+
+#: The MCMC refinement of :func:`sample_tracks`: two emcee ensembles (between-ensemble R-hat),
+#: differential-evolution moves, run until converged (or the wall budget), stranded walkers redrawn.
+TRACK_SAMPLER = SamplerConfig(
+    n_ensembles=2,
+    moves="de",
+    min_steps=500,
+    max_steps=200_000,
+    until_converged=True,
+    redraw_stranded=True,
+)
+
+
 def importance_laplace(
     post: TrackPosterior,
     center,
     cov,
-    n_draws: int,
     rng: np.random.Generator,
-    df: float = 5.0,
-    chunk: int = 16,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    journal=None,
-    progress: str | None = None,
+    options: ImportanceOptions = ImportanceOptions(),
+    *,
+    runner: Runner = Runner(),
 ) -> dict:
     """Importance-reweighted Laplace approximation of ``post`` (module docstring, step 2).
 
-    Draws ``n_draws`` rows from a multivariate Student-t (``df`` degrees of freedom) with location
-    ``center`` and shape ``cov`` (scipy.stats.multivariate_t) truncated to the prior's bounds
-    (draws outside are redrawn), evaluates ``post`` on them in chunks
-    of ``chunk`` rows as tasks (``jobs``, ``scheduler``, ``journal``: :func:`bayesid.tasks.run_tasks`)
-    and weights them by ``post / proposal`` with Pareto smoothing (``arviz.psislw``).
+    Draws ``options.n_draws`` rows from a multivariate Student-t (``options.df`` degrees of
+    freedom) with location ``center`` and shape ``cov`` (scipy.stats.multivariate_t) truncated to
+    the prior's bounds (draws outside are redrawn), evaluates ``post`` on them in chunks of
+    ``options.chunk`` rows as tasks of ``runner`` (:class:`bayesid.tasks.Runner`, whose journal
+    resumes a killed run) and weights them by ``post / proposal`` with Pareto smoothing
+    (``arviz.psislw``).
 
     Returns
     -------
@@ -523,8 +608,7 @@ def importance_laplace(
     import arviz as az
     from scipy.stats import multivariate_t
 
-    if n_draws < 100 or not df > 0:
-        raise ValueError(f"importance sampling needs at least 100 draws and df > 0, got {n_draws} and {df}")
+    n_draws, df, chunk = options.n_draws, options.df, options.chunk
     center = np.asarray(center, float)
     scale = np.where(np.diag(cov) > 0, np.sqrt(np.clip(np.diag(cov), 0, None)), 1.0)
     # drawn in units of the Laplace sds: the shape matrix is then a correlation matrix, well scaled
@@ -550,7 +634,7 @@ def importance_laplace(
         Task(f"draws{i:05d}", {"first": i, "n": min(chunk, n_draws - i)}, (post, draws[i : i + chunk].tolist()))
         for i in range(0, n_draws, chunk)
     ]
-    res = run_tasks(evaluate_chunk, tasks, jobs=jobs, scheduler=scheduler, journal=journal, progress=progress)
+    res = runner.run(evaluate_chunk, tasks, label="draws")
     failed = [r for r in res if isinstance(r, TaskError)]
     if failed:
         raise ValueError(f"{len(failed)} chunk(s) of posterior draws failed; first: {failed[0]}")
@@ -596,92 +680,115 @@ def resample(weights, n: int, rng: np.random.Generator) -> np.ndarray:
     return np.searchsorted(c, u, side="left")
 
 
-METHODS = ("auto", "importance", "mcmc")
+@dataclass
+class TrackPosteriorResult:
+    """What :func:`sample_tracks` found.
+
+    Attributes
+    ----------
+    names : list of str
+        The parameter names, ``(P,)``.
+    prior : ParameterPrior
+        The prior used.
+    errors : ErrorModel
+        The per-channel error model (AR(1) inflation, effective samples).
+    mode : dict
+        :func:`posterior_mode`: ``p`` (P,), ``cov`` (P, P), ``fisher``, ``jac``.
+    method : str
+        The method that gave the draws (``"importance"`` or ``"mcmc"``).
+    importance : dict or None
+        :func:`importance_laplace`'s result.
+    mcmc : dict or None
+        ``{"result", "idata", "diagnostics", "burn"}`` of the emcee refinement.
+    draws : (N, P) ndarray
+        Unweighted posterior draws.
+    log_prob : (N,) ndarray
+        Their log posterior.
+    sigma : (N, C) ndarray
+        Noise-scale draws per channel (SI).
+    verdict : dict
+        ``converged``, ``text`` and the criteria of the method used.
+    seconds : dict
+        Wall time per stage (s).
+    seconds_per_evaluation : float
+        One parameter row of the objective (s).
+    n_windows : int
+        Windows of the objective.
+    between_runs : dict
+        :func:`jackknife_factor` of the leave-one-run-out estimates.
+    """
+
+    names: list
+    prior: object
+    errors: object
+    mode: dict
+    method: str
+    importance: dict | None
+    mcmc: dict | None
+    draws: np.ndarray
+    log_prob: np.ndarray
+    sigma: np.ndarray
+    verdict: dict
+    seconds: dict
+    seconds_per_evaluation: float
+    n_windows: int
+    between_runs: dict
 
 
 def sample_tracks(
-    model,
+    problem: wf.FitProblem,
     p0,
-    tracks,
+    options: SampleOptions = SampleOptions(),
     *,
-    window_s: float,
-    start_rule: str,
-    fit_sd: dict,
-    channels=None,
-    use_prior: bool = True,
-    method: str = "auto",
-    n_draws: int = 4000,
-    df: float = 5.0,
-    seed: int = 0,
-    max_minutes: float = 20.0,
+    importance: ImportanceOptions = ImportanceOptions(),
+    sampler: SamplerConfig = TRACK_SAMPLER,
     folds=None,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    journal=None,
-    checkpoint=None,
-    run_key: dict | None = None,
-    progress=None,
-) -> dict:
-    """The posterior of ``model``'s parameters given ``tracks`` (module docstring), from a fit's
-    optimum ``p0``.
+    checkpoint: Checkpoint | None = None,
+    runner: Runner = Runner(),
+) -> TrackPosteriorResult:
+    """The posterior of a fitted model's parameters given its training tracks (module docstring),
+    from the fit's optimum ``p0``.
 
     Parameters
     ----------
-    model : a :class:`~bayesid.models.interface.SimulationModel` (e.g. from a ``model.json``).
-    p0 : (P,) the fit's estimate.   tracks : the training Tracks.
-    window_s, start_rule, fit_sd, channels : the fit's windows (s), window start rule
-        (``"measured"`` or ``"fitted"``), channel sds {channel: SI} and scored channels: the
-        objective ``bayesid fit`` used.
-    use_prior : Gaussian priors of the vehicle file's ``[prior]`` section (else uniform in bounds).
-    method : ``"importance"`` (importance-reweighted Laplace), ``"mcmc"`` (emcee ensembles), or
-        ``"auto"``: importance first, MCMC when its k-hat or ESS fails.
-    n_draws : importance draws.   df : their Student-t degrees of freedom.
-    seed : the one seed of every random draw (proposal, resampling, noise scales, ensembles).
-    max_minutes : wall budget of the MCMC refinement.
-    folds : (G, P) leave-one-run-out estimates (``model.json``'s calibration folds) or None: with
-        3 or more, the effective sample counts are divided by :func:`jackknife_factor`.
-    jobs, scheduler : where the importance draws and the MCMC ensembles run (:func:`bayesid.tasks.run_tasks`).
-    journal : the :class:`bayesid.tasks.Journal` of the importance draws.
-    checkpoint, run_key : the MCMC's HDF5 checkpoint and its identity
-        (:func:`bayesid.estimation.sampling.run_ensembles`).
-    progress : callable(str) for progress messages, or None.
+    problem : FitProblem
+        The fit's objective: the model (e.g. from a ``model.json``), the contexts of the training
+        tracks (the fit's windows and start rule), its channel weights and scored channels
+        (:class:`~bayesid.estimation.windows.FitProblem`; its prior and iterations are not used:
+        the prior is ``options.use_prior``'s).
+    p0 : (P,) array
+        The fit's estimate.
+    options : SampleOptions
+        Method, prior, seed and the MCMC's wall budget.
+    importance : ImportanceOptions
+        The importance stage's draws, their Student-t degrees of freedom and chunk size.
+    sampler : SamplerConfig
+        The MCMC refinement's ensembles (:data:`TRACK_SAMPLER`); its wall budget is set from
+        ``options.max_minutes`` and its progress bar from the runner.
+    folds : (G, P) array or None
+        Leave-one-run-out estimates (``model.json``'s calibration folds): with 3 or more, the
+        effective sample counts are divided by :func:`jackknife_factor`.
+    checkpoint : Checkpoint or None
+        The MCMC's HDF5 checkpoint and its identity (:class:`bayesid.estimation.sampling.Checkpoint`).
+    runner : Runner
+        Where the importance draws and the MCMC ensembles run (its journal records the importance
+        draws), and where progress messages go.
 
     Returns
     -------
-    dict: ``names``, ``prior`` (:class:`ParameterPrior`), ``errors`` (:class:`ErrorModel`),
-    ``mode`` (:func:`posterior_mode`), ``method`` (the one that gave the draws), ``importance``
-    (:func:`importance_laplace` result or None), ``mcmc`` (``{"result", "idata", "diagnostics"}``
-    or None), ``draws`` (N, P) unweighted posterior draws, ``log_prob`` (N,), ``sigma`` (N, C)
-    noise-scale draws (SI), ``verdict`` (``{"converged", "text", ...}``), ``seconds``
-    (per stage) and ``seconds_per_evaluation`` (one parameter row of the objective).
+    TrackPosteriorResult
 
     Raises
     ------
-    ValueError : an unknown method, too few draws, an unreadable or foreign checkpoint or journal.
+    ValueError
+        An unreadable or foreign checkpoint or journal; too few finite draws.
     """
     import time
 
-    from .sampling import SamplerConfig, burn_in, diagnostics, run_ensembles, to_inference_data
-
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, not {method!r}")
-    say = progress or (lambda m: None)
+    say = runner.say
     t0 = time.perf_counter()
     secs = {}
-    ctxs = [model.context(t, window_s, start=start_rule) for t in tracks]
-    ob = wf.WindowObjective(model, ctxs, fit_sd, p0, channels=channels)
-    nuisance = np.zeros(0)
-    if model.n_nuisance:
-        fixed = FitResult.fixed(model, p0, len(ctxs))
-        nuisance = np.concatenate(wf.heldout_nuisance(model, fixed, ctxs, fit_sd))
-    x0 = np.concatenate([np.asarray(p0, float), nuisance])
-    errors = error_model(ob, x0)
-    prior = ParameterPrior.of_model(model, use_prior)
-    post = TrackPosterior(ob, errors, prior, nuisance)
-    t = time.perf_counter()
-    post.evaluate(np.repeat(np.asarray(p0, float)[None], 8, axis=0))
-    per_eval = (time.perf_counter() - t) / 8
-    say(f"one evaluation: {1e3 * per_eval:.1f} ms per parameter row (batch of 8)")
+    post, per_eval = _track_posterior(problem, p0, options.use_prior, say)
     say("posterior mode and Laplace covariance")
     mode = posterior_mode(post, p0)
     between = jackknife_factor(folds if folds is not None else np.zeros((0, len(post.names))), mode["cov"])
@@ -690,74 +797,28 @@ def sample_tracks(
             f"between-run scatter (jackknife of {between['n_folds']} folds): effective samples divided by "
             f"{between['factor']:.2f}"
         )
-        errors.inflation = errors.inflation * between["factor"]
+        post.errors.inflation = post.errors.inflation * between["factor"]
         mode = posterior_mode(post, mode["p"])
     secs["mode"] = time.perf_counter() - t0
-    seeds = np.random.SeedSequence(seed).spawn(4)  # proposal, resampling, noise scales, ensembles
+    seeds = np.random.SeedSequence(options.seed).spawn(4)  # proposal, resampling, noise scales, ensembles
     imp, mc, verdict = None, None, None
-    used = method
-    if method in ("importance", "auto"):
+    used = options.method
+    if options.method in ("importance", "auto"):
         t = time.perf_counter()
-        say(f"importance-reweighted Laplace: {n_draws} Student-t draws")
+        say(f"importance-reweighted Laplace: {importance.n_draws} Student-t draws")
         imp = importance_laplace(
-            post,
-            mode["p"],
-            mode["cov"],
-            n_draws,
-            np.random.default_rng(seeds[0]),
-            df=df,
-            jobs=jobs,
-            scheduler=scheduler,
-            journal=journal,
-            progress="draws" if progress is not None else None,
+            post, mode["p"], mode["cov"], np.random.default_rng(seeds[0]), importance, runner=runner
         )
         secs["importance"] = time.perf_counter() - t
-        ok_k, ok_e = imp["k_hat"] < KHAT_MAX, imp["ess"] >= 400
-        verdict = {
-            "method": "importance",
-            "converged": bool(ok_k and ok_e),
-            "k_hat": imp["k_hat"],
-            "k_hat_max": KHAT_MAX,
-            "ess": imp["ess"],
-            "ess_min": 400,
-            "text": (
-                f"{'Reliable' if ok_k and ok_e else 'Not reliable'}: Pareto k-hat {imp['k_hat']:.2f} "
-                f"{'<' if ok_k else '>='} {KHAT_MAX} and importance ESS {imp['ess']:.0f} "
-                f"{'>=' if ok_e else '<'} 400 of {n_draws} draws ({imp['finite']} with a finite posterior)."
-            ),
-        }
-        used = "importance"
-    if method == "mcmc" or (method == "auto" and not verdict["converged"]):
+        verdict, used = _importance_verdict(imp, importance.n_draws), "importance"
+    if options.method == "mcmc" or (options.method == "auto" and not verdict["converged"]):
         t = time.perf_counter()
-        budget = max(60.0, 60.0 * max_minutes - (time.perf_counter() - t0))
-        say(f"MCMC: 2 emcee ensembles until converged or {budget / 60:.1f} min")
-        cfg = SamplerConfig(
-            n_ensembles=2,
-            moves="de",
-            min_steps=500,
-            max_steps=200_000,
-            until_converged=True,
-            redraw_stranded=True,
-            max_wall_s=budget,
-            progress=progress is not None,
-        )
-        res = run_ensembles(
-            post,
-            mode["p"],
-            mode["cov"],
-            post.names,
-            cfg,
-            np.random.default_rng(seeds[3]),
-            checkpoint=checkpoint,
-            run_key=run_key,
-            jobs=jobs,
-            scheduler=scheduler,
-        )
-        burn = burn_in(res)
-        idata = to_inference_data(res, burn=burn)
-        diag = diagnostics(idata, res)
-        mc = {"result": res, "idata": idata, "diagnostics": diag, "burn": burn}
+        budget = max(60.0, 60.0 * options.max_minutes - (time.perf_counter() - t0))
+        say(f"MCMC: {sampler.n_ensembles} emcee ensembles until converged or {budget / 60:.1f} min")
+        cfg = dataclasses.replace(sampler, max_wall_s=budget, progress=runner.progress is not None)
+        mc = _mcmc(post, mode, cfg, np.random.default_rng(seeds[3]), checkpoint, runner)
         secs["mcmc"] = time.perf_counter() - t
+        diag = mc["diagnostics"]
         verdict = dict(
             {k: v for k, v in diag.items() if not isinstance(v, dict)},
             method="mcmc",
@@ -767,6 +828,7 @@ def sample_tracks(
         )
         used = "mcmc"
     rng_r, rng_s = np.random.default_rng(seeds[1]), np.random.default_rng(seeds[2])
+    n_draws = importance.n_draws
     if used == "importance":
         idx = resample(imp["weights"], n_draws, rng_r)
         draws, lp, ssr = imp["draws"][idx], imp["log_prob"][idx], imp["ssr"][idx]
@@ -776,28 +838,75 @@ def sample_tracks(
         keep = np.unique(np.linspace(0, flat.shape[0] - 1, min(n_draws, flat.shape[0])).astype(int))
         draws = flat[keep]
         lp, ssr = post.evaluate(draws)  # the SSR of the kept draws, for the noise scales
-    sigma = errors.sigma_draws(ssr, rng_s)
+    sigma = post.errors.sigma_draws(ssr, rng_s)
     secs["total"] = time.perf_counter() - t0
+    return TrackPosteriorResult(
+        names=post.names,
+        prior=post.prior,
+        errors=post.errors,
+        mode=mode,
+        method=used,
+        importance=imp,
+        mcmc=mc,
+        draws=draws,
+        log_prob=lp,
+        sigma=sigma,
+        verdict=verdict,
+        seconds=secs,
+        seconds_per_evaluation=per_eval,
+        n_windows=int(sum(c.W for c in problem.ctxs)),
+        between_runs=between,
+    )
+
+
+def _track_posterior(problem, p0, use_prior: bool, say) -> tuple:
+    """(:class:`TrackPosterior` of the fit's objective at ``p0`` with its error model and prior,
+    seconds of one evaluation per parameter row)."""
+    import time
+
+    model, ctxs = problem.model, problem.ctxs
+    ob = wf.WindowObjective(model, ctxs, problem.sd, p0, channels=problem.channels)
+    nuisance = np.zeros(0)
+    if model.n_nuisance:
+        fixed = FitResult.fixed(model, p0, len(ctxs))
+        nuisance = np.concatenate(wf.heldout_nuisance(model, fixed, ctxs, problem.sd))
+    x0 = np.concatenate([np.asarray(p0, float), nuisance])
+    post = TrackPosterior(ob, error_model(ob, x0), ParameterPrior.of_model(model, use_prior), nuisance)
+    t = time.perf_counter()
+    post.evaluate(np.repeat(np.asarray(p0, float)[None], 8, axis=0))
+    per_eval = (time.perf_counter() - t) / 8
+    say(f"one evaluation: {1e3 * per_eval:.1f} ms per parameter row (batch of 8)")
+    return post, per_eval
+
+
+def _importance_verdict(imp: dict, n_draws: int) -> dict:
+    """The verdict of an importance stage: reliable when k-hat < :data:`KHAT_MAX` and the
+    importance ESS reaches :data:`~bayesid.estimation.sampling.ESS_BULK_MIN`."""
+    ok_k, ok_e = imp["k_hat"] < KHAT_MAX, imp["ess"] >= ESS_BULK_MIN
     return {
-        "names": post.names,
-        "prior": prior,
-        "errors": errors,
-        "mode": mode,
-        "method": used,
-        "importance": imp,
-        "mcmc": mc,
-        "draws": draws,
-        "log_prob": lp,
-        "sigma": sigma,
-        "verdict": verdict,
-        "seconds": secs,
-        "seconds_per_evaluation": per_eval,
-        "n_windows": int(sum(c.W for c in ctxs)),
-        "between_runs": between,
+        "method": "importance",
+        "converged": bool(ok_k and ok_e),
+        "k_hat": imp["k_hat"],
+        "k_hat_max": KHAT_MAX,
+        "ess": imp["ess"],
+        "ess_min": int(ESS_BULK_MIN),
+        "text": (
+            f"{'Reliable' if ok_k and ok_e else 'Not reliable'}: Pareto k-hat {imp['k_hat']:.2f} "
+            f"{'<' if ok_k else '>='} {KHAT_MAX} and importance ESS {imp['ess']:.0f} "
+            f"{'>=' if ok_e else '<'} {ESS_BULK_MIN:.0f} of {n_draws} draws ({imp['finite']} with a finite posterior)."
+        ),
     }
 
 
-def inference_data(res: dict, attrs: dict | None = None):
+def _mcmc(post, mode: dict, cfg: SamplerConfig, rng, checkpoint, runner) -> dict:
+    """The emcee refinement from the mode: ``{"result", "idata", "diagnostics", "burn"}``."""
+    res = run_ensembles(post, mode["p"], mode["cov"], post.names, cfg, rng, checkpoint=checkpoint, runner=runner)
+    burn = burn_in(res)
+    idata = to_inference_data(res, burn=burn)
+    return {"result": res, "idata": idata, "diagnostics": diagnostics(idata, res), "burn": burn}
+
+
+def inference_data(res: TrackPosteriorResult, attrs: dict | None = None):
     """ArviZ InferenceData of a :func:`sample_tracks` result: ``posterior`` (one variable per
     parameter; MCMC: every walker a chain; importance: the resampled draws as one chain),
     ``sample_stats`` (``lp``), ``noise_scale`` (``sigma_<channel>`` draws, SI, dim ``sample``) and,
@@ -808,25 +917,25 @@ def inference_data(res: dict, attrs: dict | None = None):
     import arviz as az
     import xarray as xr
 
-    if res["method"] == "mcmc":
-        idata = res["mcmc"]["idata"]
+    if res.method == "mcmc":
+        idata = res.mcmc["idata"]
     else:
-        d = res["draws"]
+        d = res.draws
         idata = az.from_dict(
-            posterior={n: d[None, :, j] for j, n in enumerate(res["names"])},
-            sample_stats={"lp": res["log_prob"][None]},
+            posterior={n: d[None, :, j] for j, n in enumerate(res.names)},
+            sample_stats={"lp": res.log_prob[None]},
         )
     idata.posterior.attrs.update({k: v for k, v in (attrs or {}).items() if v is not None})
     groups = {
         "noise_scale": xr.Dataset(
-            {f"sigma_{c}": ("sample", res["sigma"][:, j]) for j, c in enumerate(res["errors"].channels)}
+            {f"sigma_{c}": ("sample", res.sigma[:, j]) for j, c in enumerate(res.errors.channels)}
         )
     }
-    imp = res["importance"]
+    imp = res.importance
     if imp is not None:
         groups["importance"] = xr.Dataset(
             {
-                **{n: ("proposal", imp["draws"][:, j]) for j, n in enumerate(res["names"])},
+                **{n: ("proposal", imp["draws"][:, j]) for j, n in enumerate(res.names)},
                 "log_prob": ("proposal", imp["log_prob"]),
                 "log_proposal": ("proposal", imp["log_proposal"]),
                 "log_weight": ("proposal", imp["log_weights"]),

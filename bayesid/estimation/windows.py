@@ -9,7 +9,7 @@ by its noise sd (heading difference wrapped):
 
 The model is anything that implements :class:`bayesid.models.interface.SimulationModel`
 (submarine :class:`~bayesid.models.effects.EffectModel`, ship :class:`~bayesid.models.ship.ShipModel`). The
-same objective serves the identification of long runs (:mod:`bayesid.estimation.msfit`), every model of the
+same objective serves the identification of long runs (:mod:`bayesid.estimation.identification`), every model of the
 gap diagnosis (:mod:`bayesid.analysis.gap`) and the studies; :func:`fit_model` minimises it with the one
 fit function (:func:`bayesid.estimation.fit.fit`) and returns its :class:`FitResult`. Also here:
 the held-out nuisances, the two-step channel weighting (:func:`fit_weighted`), protocol scores of
@@ -18,6 +18,7 @@ a fitted model (:func:`scores`, :func:`window_rms`), the pooled noise sds and th
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -26,7 +27,8 @@ import numpy as np
 from ..models import effects as ef
 from ..protocol import CHANNELS, estimate_noise, pooled_scores
 from . import shooting
-from .fit import FitResult, fit
+from .fit import FitResult, SolverOptions, fit
+from .shooting import PENALTY
 
 __all__ = [
     "WindowObjective",
@@ -44,9 +46,8 @@ __all__ = [
     "check_enough_data",
     "MIN_SAMPLES_PER_PARAMETER",
     "PENALTY",
+    "FitProblem",
 ]
-
-PENALTY = 1e3  # residual (in noise sds) of a sample in a diverged window
 
 
 def channel_weights(ctx, sd, channels=None):
@@ -75,19 +76,43 @@ def check_channels(channels):
     return channels
 
 
-def window_residuals(model, ctxs, wts, P, nus, starts=None):
-    """(B, n_res) noise-scaled residuals over all tracks; ``starts``: per track the (B, W, 6)
-    start offsets of the fitted start rule (None: the measured rule)."""
+def window_residuals(model, ctxs, wts, P, nus, starts=None) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-scaled residuals over all tracks, and which rows diverged.
+
+    Parameters
+    ----------
+    model : SimulationModel
+    ctxs : list of TrackContext
+    wts : list of dict
+        Per track ``{channel: 1 / sd}`` of the scored channels.
+    P : (B, n_params) array
+        Parameter rows.
+    nus : list
+        Per track the (B, n_nuisance) nuisances or None.
+    starts : list or None
+        Per track the (B, W, 6) start offsets of the fitted start rule (None: the measured rule).
+
+    Returns
+    -------
+    R : (B, n_res) ndarray
+        The residuals; a sample of a diverged window holds :data:`PENALTY` (so an optimiser sees
+        a large finite value).
+    diverged : (B,) bool ndarray
+        The rows with a diverged window (the one divergence flag).
+    """
     out = []
+    diverged = np.zeros(np.atleast_2d(P).shape[0], dtype=bool)
     for i, (ctx, w, nu) in enumerate(zip(ctxs, wts, nus)):
         S = model.simulate(ctx, P, nu, starts=None if starts is None else starts[i])
         for c, e in ef.errors(ctx, S).items():
             if c not in w:
                 continue
             r = e * w[c]
-            r[~np.isfinite(r)] = PENALTY
+            bad = ~np.isfinite(r)
+            diverged |= bad.any(axis=1)
+            r[bad] = PENALTY
             out.append(r)
-    return np.concatenate(out, axis=1)
+    return np.concatenate(out, axis=1), diverged
 
 
 class WindowObjective:
@@ -189,15 +214,16 @@ class WindowObjective:
         return out
 
     def residuals_batch(self, X, starts=None):
-        """(B, n) variables -> ((B, n_res) residuals, (B,) False: a diverged window's samples hold
-        :data:`PENALTY`). Fitted start states are fitted for each row unless ``starts`` holds them."""
+        """(B, n) variables -> ((B, n_res) residuals, (B,) diverged: a diverged window's samples
+        hold :data:`PENALTY`). Fitted start states are fitted for each row unless ``starts`` holds
+        them."""
         X = np.atleast_2d(X)
         self.n_simulations += X.shape[0]
         P, nus = self.split_rows(X)
         if self.vp and starts is None:
             starts = self._fit_starts(P, nus)
-        R = self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, starts), P)
-        return R, np.zeros(R.shape[0], dtype=bool)
+        R, diverged = window_residuals(self.model, self.ctxs, self.wts, P, nus, starts)
+        return self._with_prior(R, P), diverged
 
     def _with_prior(self, R, P):
         """The data residuals followed by the prior's (:class:`GaussianPrior`), when there is one."""
@@ -211,7 +237,7 @@ class WindowObjective:
         P, nus = self.split_rows(x[None])
         st = self._fit_starts(P, nus, want_jac=True)
         self._last["x"], self._last["starts"] = x.copy(), st
-        return self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, st), P)[0], False
+        return self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, st)[0], P)[0], False
 
     def jacobian(self, x, r0=None):
         """(residuals at ``x``, forward-difference Jacobian (n_res, n)) from one batched
@@ -266,7 +292,7 @@ class GaussianPrior:
     ``weight * (p[idx] - mean) / sd`` appended to a fit's data residuals: the fit then minimises
     ``SSR + weight^2 * sum(z^2)``, the negative log posterior times ``2 * weight^2`` when the data
     residuals have variance ``weight^2`` (the residual variance times the serial-correlation
-    inflation of the fit, :func:`bayesid.estimation.msfit.identify`).
+    inflation of the fit, :func:`bayesid.estimation.identification.identify`).
 
     Attributes
     ----------
@@ -306,17 +332,46 @@ class GaussianPrior:
         return out
 
 
+@dataclass(frozen=True)
+class FitProblem:
+    """A multiple-shooting fit's problem and settings: what a multistart fits from every start
+    and every fold of a calibration refits.
+
+    Attributes
+    ----------
+    model : SimulationModel
+        The model.
+    ctxs : list of TrackContext
+        The contexts of the training tracks (windows and start rule).
+    sd : dict
+        ``{channel: sd}``, the channel weights.
+    channels : tuple of str or None
+        The scored channels (None: every measured one).
+    max_nfev : int
+        Least-squares iterations of each fit.
+    prior : GaussianPrior or None
+        :class:`GaussianPrior` of a MAP fit.
+    data_scale : tuple or None
+        ``(residual variance, AR(1) inflation)`` of the fit without the prior
+        for its covariance (:func:`bayesid.estimation.laplace.fit_covariance`).
+    """
+
+    model: object
+    ctxs: list
+    sd: dict
+    channels: tuple | None = None
+    max_nfev: int = 60
+    prior: object = None
+    data_scale: tuple | None = None
+
+
 def fit_model(
-    model,
-    ctxs,
-    sd: dict,
+    problem: FitProblem,
     p0=None,
     nuisance0=None,
-    max_nfev: int = 60,
+    *,
     fit_nuisance_only: bool = False,
-    channels=None,
-    progress: str | None = None,
-    prior: GaussianPrior | None = None,
+    bar: str | None = None,
 ) -> FitResult:
     """Least-squares fit of a model's parameters (and per-track nuisances) to tracks: the
     :class:`WindowObjective` minimised by :func:`bayesid.estimation.fit.fit` (trust-region
@@ -325,19 +380,32 @@ def fit_model(
 
     Parameters
     ----------
-    ctxs : track contexts of ``model``.   sd : {channel: noise sd} used as weights.
-    p0 : start (default ``model.start()``).   nuisance0 : per track (n_nuisance,).
-    fit_nuisance_only : keep ``p0`` fixed and fit only the nuisances (held-out tracks).
-    channels : the scored channels in the objective (default: all the tracks measure).
-    progress : a label to show a progress bar (tqdm, on stderr) of the evaluations with it.
-    prior : :class:`GaussianPrior` whose residuals are appended to the data's (a MAP fit).
+    problem : FitProblem
+        The model, its track contexts, the channel weights ``{channel: sd}``, the scored channels
+        (None: all the tracks measure), the iterations and the :class:`GaussianPrior` whose
+        residuals are appended to the data's (a MAP fit; None: none).
+    p0 : (n_params,) array, optional
+        The start (default ``model.start()``).
+    nuisance0 : list of (n_nuisance,) arrays, optional
+        Per track.
+    fit_nuisance_only : bool
+        Keep ``p0`` fixed and fit only the nuisances (held-out tracks).
+    bar : str, optional
+        A label to show a progress bar (tqdm, on stderr) of the evaluations with it.
 
-    Returns a :class:`~bayesid.estimation.fit.FitResult` (``p``, ``nuisance``, ``cost`` the
-    noise-scaled SSR, ``k``, ``bic``, ``n_simulations``, ``jac``).
+    Returns
+    -------
+    FitResult
+        ``p``, ``nuisance``, ``cost`` the noise-scaled SSR, ``k``, ``bic``, ``n_simulations``,
+        ``jac``.
 
-    Raises ValueError for an unknown channel or a track that measures none of ``channels``.
+    Raises
+    ------
+    ValueError
+        An unknown channel or a track that measures none of the channels.
     """
-    ob = WindowObjective(model, ctxs, sd, p0, nuisance0, fit_nuisance_only, channels, prior)
+    model, ctxs, sd, max_nfev = problem.model, problem.ctxs, problem.sd, problem.max_nfev
+    ob = WindowObjective(model, ctxs, sd, p0, nuisance0, fit_nuisance_only, problem.channels, problem.prior)
     if ob.x0.size == 0:
         r = ob.residuals(ob.x0)[0]
         res = FitResult(
@@ -350,12 +418,8 @@ def fit_model(
         ob,
         ob.x0,
         (ob.lo, ob.hi),
-        max_nfev=max_nfev,
-        ftol=1e-8,
-        xtol=1e-8,
-        gtol=1e-8,
-        x_scale=ob.x_scale,
-        progress=progress,
+        SolverOptions(max_nfev=max_nfev, ftol=1e-8, xtol=1e-8, gtol=1e-8, x_scale=ob.x_scale),
+        bar=bar,
         quiet=True,
     )
 
@@ -373,9 +437,9 @@ def heldout_nuisance(model, fitres: FitResult, ctxs, sd: dict, n_grid: int = 8, 
     for ctx in ctxs:
         w = channel_weights(ctx, sd)
         st = [shooting.fit_starts(model, ctx, P, grid, w)] if ctx.start == "fitted" else None
-        r = window_residuals(model, [ctx], [w], P, [grid], st)
+        r = window_residuals(model, [ctx], [w], P, [grid], st)[0]
         starts.append(grid[int(np.argmin(np.sum(r * r, axis=1)))].copy())
-    return fit_model(model, ctxs, sd, fitres.p, starts, max_nfev=max_nfev, fit_nuisance_only=True).nuisance
+    return fit_model(FitProblem(model, ctxs, sd, max_nfev=max_nfev), fitres.p, starts, fit_nuisance_only=True).nuisance
 
 
 def residual_sd(model, fitres: FitResult, ctxs, floor: dict) -> dict:
@@ -397,15 +461,12 @@ def residual_sd(model, fitres: FitResult, ctxs, floor: dict) -> dict:
 
 
 def fit_weighted(
-    model,
-    ctxs,
-    sd: dict,
+    problem: FitProblem,
     p0=None,
     nuisance0=None,
-    max_nfev: int = 60,
+    *,
     weighting: str = "noise",
-    channels=None,
-    progress: str | None = None,
+    bar: str | None = None,
 ) -> tuple[FitResult, dict]:
     """:func:`fit_model` with the channel weights chosen by ``weighting``.
 
@@ -419,28 +480,41 @@ def fit_weighted(
     The maximum-likelihood estimate with an unknown error variance per channel has these
     weights at its optimum (e.g. Ljung 1999, "System Identification", Sec. 7.3 and 15.2).
 
-    ``channels`` restricts the objective to those scored channels (:func:`fit_model`); ``progress``
-    labels a progress bar of each stage.
+    Parameters
+    ----------
+    problem : FitProblem
+        As :func:`fit_model`, with the noise sds as its weights (``problem.sd``; its prior is not
+        used).
+    p0 : (n_params,) array, optional
+        The start.
+    nuisance0 : list of arrays, optional
+        The nuisances' start per track.
+    weighting : str
+        ``"noise"`` or ``"residual"``.
+    bar : str, optional
+        Labels a progress bar of each stage.
 
-    Returns (fit, the sd dict of its weights). Raises ValueError on an unknown ``weighting``.
+    Returns
+    -------
+    fit : FitResult
+    sd : dict
+        ``{channel: sd}`` of its weights.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``weighting``.
     """
     if weighting not in ("noise", "residual"):
         raise ValueError(f"weighting must be 'noise' or 'residual', not {weighting!r}")
-    lab = (lambda k: None) if not progress else (lambda k: f"{progress} ({k})")
-    f = fit_model(model, ctxs, sd, p0, nuisance0, max_nfev=max_nfev, channels=channels, progress=lab("noise weights"))
+    lab = (lambda k: None) if not bar else (lambda k: f"{bar} ({k})")
+    first = dataclasses.replace(problem, prior=None, data_scale=None)
+    f = fit_model(first, p0, nuisance0, bar=lab("noise weights"))
     if weighting == "noise":
-        return f, dict(sd)
-    sd2 = residual_sd(model, f, ctxs, sd)
-    return fit_model(
-        model,
-        ctxs,
-        sd2,
-        f.p,
-        f.nuisance if model.n_nuisance else None,
-        max_nfev=max_nfev,
-        channels=channels,
-        progress=lab("residual weights"),
-    ), sd2
+        return f, dict(problem.sd)
+    sd2 = residual_sd(problem.model, f, problem.ctxs, problem.sd)
+    nuisance = f.nuisance if problem.model.n_nuisance else None
+    return fit_model(dataclasses.replace(first, sd=sd2), f.p, nuisance, bar=lab("residual weights")), sd2
 
 
 def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None) -> dict:

@@ -771,7 +771,7 @@ def get_effect(name) -> Effect:
 class ShipModel(ParameterLayout):
     """The ship model plus effects, simulated over a track's protocol windows: the surface-ship
     implementation of :class:`bayesid.models.interface.SimulationModel`, so the window fits
-    (:mod:`bayesid.estimation.windows`), :mod:`bayesid.estimation.msfit` and the gap diagnosis
+    (:mod:`bayesid.estimation.windows`), :mod:`bayesid.estimation.identification` and the gap diagnosis
     (:func:`bayesid.analysis.gap.diagnose`) work on it unchanged.
 
     Parameters

@@ -12,7 +12,7 @@ out as the cause: added, it brings the held-out error down to the noise floor.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from bayesid.analysis.gap import diagnose
+from bayesid.analysis.gap import DiagnoseOptions, diagnose
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
@@ -37,11 +37,8 @@ d = diagnose(
     ["Yv", "Nr", "Ndr"],
     train,
     heldout,
-    candidates=["current", "thrust", "delay"],
-    window_s=60.0,
+    DiagnoseOptions(candidates=["current", "thrust", "delay"], window_s=60.0, max_nfev=30, max_effects=1),
     rng=np.random.default_rng(0),
-    max_nfev=30,
-    max_effects=1,
 )
 print(f"verdict: {d.verdict}")
 print(

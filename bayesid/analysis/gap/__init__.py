@@ -63,12 +63,13 @@ Verdict rules (stated in the report):
 """
 
 from .candidates import Stage
-from .diagnose import Diagnosis, diagnose
+from .diagnose import DiagnoseOptions, Diagnosis, diagnose
 from .support import signature_regression
 from .verdict import Thresholds, noise_floor, paired_window_test
 from .where import ljung_box, where, window_xy
 
 __all__ = [
+    "DiagnoseOptions",
     "Diagnosis",
     "Stage",
     "Thresholds",

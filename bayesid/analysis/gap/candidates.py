@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...estimation.fit import FitResult
-from ...estimation.windows import fit_model, heldout_nuisance, scores, window_rms
+from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores, window_rms
 from .verdict import paired_window_test
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "effect_offset",
     "nested_start",
     "extended_nuisance",
+    "CandidateFit",
     "fit_candidate",
     "candidate_row",
 ]
@@ -83,35 +84,79 @@ def nested_start(effect, model, ref_model, ref_fit):
     return np.concatenate([ref_fit.p, np.asarray(effect.neutral, float)]), extended_nuisance(model, ref_model, ref_fit)
 
 
-def fit_candidate(
-    effect, ref: Stage, model, ctx_train, ctx_held, sd_fit: dict, seeds: dict, max_nfev: int, label: str | None = None
-) -> tuple[Stage | None, list]:
-    """Fit ``model`` (``ref.model`` plus ``effect``) on the training contexts from every start
-    (:func:`candidate_starts`; effects already chosen keep their fitted values), keep the best,
-    try the nested start when that is worse than the reference, and score it on the training
-    and held-out contexts (held-out nuisances fitted with the parameters held).
+@dataclass(frozen=True)
+class CandidateFit:
+    """One candidate of a diagnosis round: a task of :func:`fit_candidate`.
 
-    A module-level function of picklable arguments: the diagnosis runs the candidates of a round
-    as tasks (:func:`bayesid.tasks.run_tasks`), in this process or in workers.
+    Attributes
+    ----------
+    effect : Effect
+        The candidate effect.
+    ref : Stage
+        The model it extends (the base, or the base with the effects already chosen).
+    model : SimulationModel
+        ``ref.model`` plus ``effect``.
+    ctx_train : list of TrackContext
+        The training contexts of ``model``.
+    ctx_held : list of TrackContext
+        Its held-out contexts.
+    sd_fit : dict
+        ``{channel: sd}``, the base fit's channel weights (every candidate is fitted with them,
+        so costs and BICs compare).
+    seeds : dict
+        ``{effect name: seed}`` of the candidates that have one.
+    max_nfev : int
+        Least-squares iterations of each fit.
+    label : str or None
+        Progress-bar label of the fits (tqdm on stderr), None for no bar.
+    """
+
+    effect: object
+    ref: Stage
+    model: object
+    ctx_train: list
+    ctx_held: list
+    sd_fit: dict
+    seeds: dict
+    max_nfev: int
+    label: str | None = None
+
+
+def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
+    """Fit a candidate's model on the training contexts from every start and score it.
+
+    Every start of :func:`candidate_starts` is fitted (effects already chosen keep their fitted
+    values), the best kept, the nested start tried when that is worse than the reference, and
+    the best scored on the training and held-out contexts (held-out nuisances fitted with the
+    parameters held). A module-level function of a picklable argument: the diagnosis runs the
+    candidates of a round as tasks (:class:`bayesid.tasks.Runner`), in this process or in
+    workers.
 
     Parameters
     ----------
-    label : progress-bar label of the fits (tqdm on stderr), None for no bar.
+    task : CandidateFit
+        The candidate, the model it extends and the fit settings.
 
     Returns
     -------
-    (:class:`Stage` or None when every fit failed, [messages about failed starts]).
+    stage : Stage or None
+        None when every fit failed.
+    messages : list of str
+        About failed starts.
     """
+    effect, ref, model, sd_fit, label = task.effect, task.ref, task.model, task.sd_fit, task.label
+    ctx_train, ctx_held = task.ctx_train, task.ctx_held
+    problem = FitProblem(model, ctx_train, sd_fit, max_nfev=task.max_nfev)
     messages = []
     best = None
-    for p0, nu0 in candidate_starts(effect, model, ref.fit.p[: ref.model.n_theta], seeds):
+    for p0, nu0 in candidate_starts(effect, model, ref.fit.p[: ref.model.n_theta], task.seeds):
         if ref.model.effects:  # effects already chosen keep their fitted values as the start
             p0 = p0.copy()
             p0[: ref.model.n_params] = ref.fit.p
             if nu0 is None and ref.model.n_nuisance:
                 nu0 = extended_nuisance(model, ref.model, ref.fit)
         try:
-            f = fit_model(model, ctx_train, sd_fit, p0, nu0, max_nfev=max_nfev, progress=label)
+            f = fit_model(problem, p0, nu0, bar=label)
         except Exception as exc:  # noqa: BLE001 - a failed candidate is reported
             messages.append(f"{effect.name} failed: {exc}")
             continue
@@ -121,7 +166,7 @@ def fit_candidate(
     if nested is not None and (best is None or best.cost > ref.fit.cost):
         # a candidate that nests the model it extends cannot fit worse than it
         try:
-            f = fit_model(model, ctx_train, sd_fit, *nested, max_nfev=max_nfev)
+            f = fit_model(problem, *nested)
             if best is None or f.cost < best.cost:
                 best = f
         except Exception as exc:  # noqa: BLE001

@@ -10,17 +10,17 @@ import numpy as np
 
 from ...estimation import shooting
 from ...estimation.fit import FitResult
-from ...estimation.windows import check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
+from ...estimation.windows import FitProblem, check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
 from ...models import build_model, model_class
 from ...models import effects as ef
 from ...protocol import start_settings
-from ...tasks import Task, TaskError, check_jobs, run_tasks
-from .candidates import Stage, candidate_row, fit_candidate
+from ...tasks import Runner, Task, TaskError
+from .candidates import CandidateFit, Stage, candidate_row, fit_candidate
 from .support import signature_regression
 from .verdict import Thresholds, assign_roles, contribution, gap_summary, noise_floor, verdict_of
 from .where import where
 
-__all__ = ["Diagnosis", "diagnose"]
+__all__ = ["DiagnoseOptions", "Diagnosis", "diagnose"]
 
 
 @dataclass
@@ -87,78 +87,130 @@ class Diagnosis:
         return out
 
 
+@dataclass(frozen=True)
+class DiagnoseOptions:
+    """What a gap diagnosis fits and compares (:func:`diagnose`).
+
+    Attributes
+    ----------
+    candidates : tuple or None
+        Effects, as names of the model family's ``CATALOGUE`` or
+        :class:`~bayesid.models.effects.Effect` objects (None: the whole catalogue).
+    window_s : float or None
+        The protocol window (s) of the held-out scores; None: the whole run.
+    fit_window_s : float or None
+        The window of the multiple-shooting fits on the training tracks; None: the family's
+        ``default_fit_window(window_s)`` (ship :data:`bayesid.models.ship.FIT_WINDOW_S`,
+        submarine ``window_s``).
+    dt : float or None
+        The model step (s); None: the family's ``DEFAULT_DT``.
+    mode : str
+        The submarine equations (``"horizontal"``, ``"6dof"``, ...).
+    max_nfev : int
+        Least-squares iterations of each fit.
+    max_effects : int
+        Greedy rounds (after a contributor, try the others on top of it; a cause ends the search).
+    weighting : str or None
+        Channel weights of the fits (:func:`~bayesid.estimation.windows.fit_weighted`); None: the
+        family's. The base fit sets the weights; every candidate is fitted with the same weights,
+        so their costs and BICs compare.
+    start : str
+        The window start-state rule (:data:`bayesid.protocol.START_RULES`), the same for every
+        model compared, the training fits and the noise floor.
+    leadin_s : float or None
+        The lead-in of the fitted rule on the held-out tracks (s); None:
+        :func:`bayesid.protocol.start_settings`.
+    """
+
+    candidates: tuple | None = None
+    window_s: float | None = 60.0
+    fit_window_s: float | None = None
+    dt: float | None = None
+    mode: str = "horizontal"
+    max_nfev: int = 60
+    max_effects: int = 2
+    weighting: str | None = None
+    start: str = "auto"
+    leadin_s: float | None = None
+
+    def __post_init__(self):
+        if self.candidates is not None and not isinstance(self.candidates, tuple):
+            object.__setattr__(self, "candidates", tuple(self.candidates))
+
+
+@dataclass
+class _Setup:
+    """What every model of one diagnosis shares: vehicle, free coefficients, tracks, windows."""
+
+    vehicle: object
+    free: list
+    train: list
+    heldout: list
+    dt: float
+    mode: str
+    fit_window_s: float | None
+    window_s: float | None
+    rule: str
+    leadin_s: float | None
+
+    def build(self, effects):
+        """(model, training contexts, held-out contexts) of the model with ``effects``."""
+        m = build_model(self.vehicle, self.free, effects, dt=self.dt, mode=self.mode)
+        return (
+            m,
+            [m.context(t, self.fit_window_s, start=self.rule) for t in self.train],
+            [m.context(t, self.window_s, start=self.rule, leadin_s=self.leadin_s) for t in self.heldout],
+        )
+
+
 def diagnose(
     vehicle,
     free,
     train: list,
     heldout: list,
-    candidates=None,
-    window_s: float | None = 60.0,
-    dt: float | None = None,
-    mode: str = "horizontal",
+    options: DiagnoseOptions = DiagnoseOptions(),
+    thresholds: Thresholds = Thresholds(),
+    *,
     rng=None,
-    max_nfev: int = 60,
-    none_ratio: float = 1.5,
-    explain_fraction: float = 0.5,
-    bic_threshold: float = -10.0,
-    max_effects: int = 2,
-    progress=None,
-    fit_window_s: float | None = None,
-    weighting: str | None = None,
-    partial_p: float = 0.01,
-    start: str = "auto",
-    leadin_s: float | None = None,
-    progress_bars: bool = False,
-    jobs: int = 1,
-    scheduler: str | None = None,
+    runner: Runner = Runner(),
 ) -> Diagnosis:
     """Diagnose the sim-to-real gap of a base model (see :mod:`bayesid.analysis.gap`).
 
     Parameters
     ----------
-    vehicle : the nominal vehicle (a submarine :class:`~bayesid.data.vehicle.Vehicle` or a
-        :class:`~bayesid.models.ship.Ship`; its model family comes from :func:`bayesid.models.build_model`).
-    free : coefficient names the fits change.
-    train, heldout : lists of Tracks (disjoint; ValueError if a track object or name repeats).
-    candidates : effects, as names of the model family's ``CATALOGUE`` or
-        :class:`~bayesid.models.effects.Effect` objects (default: the whole catalogue).
-    window_s : protocol window (s) of the held-out scores, None = whole run.
-    dt : model step (s; default the family's ``DEFAULT_DT``).   mode : submarine equations.
-    fit_window_s : window of the multiple-shooting fits on the training tracks (default: the
-        family's ``default_fit_window(window_s)``: ship :data:`bayesid.models.ship.FIT_WINDOW_S`,
-        submarine ``window_s``).
-    rng : numpy Generator (noise-floor simulation, bootstrap of the signature regression).
-    max_effects : greedy rounds (default 2: after a contributor, try the others on top of it;
-        a cause ends the search).
-    weighting : channel weights of the fits (:func:`~bayesid.estimation.windows.fit_weighted`);
-        default the family's (``"residual"`` for a ship, ``"noise"`` for a submarine). The base
-        fit sets the weights; every candidate is fitted with the same weights, so their costs
-        and BICs compare.
-    none_ratio, explain_fraction, bic_threshold, partial_p : the verdict's thresholds
-        (:class:`~bayesid.analysis.gap.verdict.Thresholds`).
-    start : window start-state rule (:data:`bayesid.protocol.START_RULES`). The same rule serves
-        every model compared, the training fits and the noise floor.
-    leadin_s : lead-in of the fitted rule on the held-out tracks (s; default
-        :func:`bayesid.protocol.start_settings`).
-    progress : callable taking a message.   progress_bars : a progress bar (tqdm) of every fit
-        (in this process only: fits in workers run without one).
-    jobs, scheduler : where the candidates of a round are fitted (:func:`bayesid.tasks.run_tasks`:
-        ``jobs`` worker processes, or a Dask scheduler ``"local:N"`` / ``"tcp://HOST:PORT"``).
-        The candidates are independent and each fit is deterministic, so the verdict, ranking
-        and every number equal a serial run's (only the timings differ).
+    vehicle : Vehicle or Ship
+        The nominal vehicle (its model family comes from :func:`bayesid.models.build_model`).
+    free : list of str
+        Coefficient names the fits change.
+    train : list of Track
+        The training tracks.
+    heldout : list of Track
+        The held-out tracks (disjoint from ``train``).
+    options : DiagnoseOptions
+        Candidates, windows, step, iterations, greedy rounds, weighting and start rule.
+    thresholds : Thresholds
+        The verdict's thresholds (:class:`~bayesid.analysis.gap.verdict.Thresholds`).
+    rng : numpy.random.Generator, optional
+        Noise-floor simulation and the bootstrap of the signature regression (default seed 0).
+    runner : Runner
+        Where the candidates of a round are fitted and where progress messages go
+        (:class:`bayesid.tasks.Runner`); with a progress reporter, every fit in this process
+        shows a progress bar. The candidates are independent and each fit is deterministic, so
+        the verdict, ranking and every number equal a serial run's (only the timings differ).
 
     Returns
     -------
-    :class:`Diagnosis`.
+    Diagnosis
 
     Raises
     ------
-    ValueError : empty or overlapping track sets; unknown effect (named); too little data;
-        ``jobs < 1`` or a malformed ``scheduler``.
-    KeyError : unknown coefficient (named).
+    ValueError
+        Empty or overlapping track sets; an unknown effect (named); too little data.
+    KeyError
+        An unknown coefficient (named).
     """
     t_start = time.perf_counter()
-    check_jobs(jobs, scheduler, "jobs", "scheduler")
+    opt, th = options, thresholds
     rng = np.random.default_rng(0) if rng is None else rng
     if not train or not heldout:
         raise ValueError("diagnose needs at least one training and one held-out track")
@@ -167,29 +219,22 @@ def diagnose(
     if overlap or any(a is b for a in train for b in heldout):
         raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
     family = model_class(vehicle)
-    dt = family.DEFAULT_DT if dt is None else dt
-    cand_effects = [family.get_effect(c) for c in (list(family.CATALOGUE) if candidates is None else candidates)]
-    cands = [e.name for e in cand_effects]
-    th = Thresholds(none_ratio, explain_fraction, bic_threshold, partial_p)
-    say = progress or (lambda msg: None)
+    dt = family.DEFAULT_DT if opt.dt is None else opt.dt
+    cand_effects = [
+        family.get_effect(c) for c in (list(family.CATALOGUE) if opt.candidates is None else opt.candidates)
+    ]
+    say = runner.say
     sd = pooled_noise_sd(train + heldout)
-    fw = fit_window_s if fit_window_s is not None else family.default_fit_window(window_s)
-    rule, lead = start_settings(start, train + heldout, window_s, dt, leadin_s)
-
-    def build(effects):
-        m = build_model(vehicle, free, effects, dt=dt, mode=mode)
-        return (
-            m,
-            [m.context(t, fw, start=rule) for t in train],
-            [m.context(t, window_s, start=rule, leadin_s=lead) for t in heldout],
-        )
-
-    weighting = weighting or family.DEFAULT_WEIGHTING
-    base, ctr, cho = build(())
+    fw = opt.fit_window_s if opt.fit_window_s is not None else family.default_fit_window(opt.window_s)
+    rule, lead = start_settings(opt.start, train + heldout, opt.window_s, dt, opt.leadin_s)
+    setup = _Setup(vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead)
+    weighting = opt.weighting or family.DEFAULT_WEIGHTING
+    base, ctr, cho = setup.build(())
     check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
     say("base fit")
-    bar = (lambda label: label) if progress_bars else (lambda label: None)
-    bfit, sd_fit = fit_weighted(base, ctr, sd, max_nfev=max_nfev, weighting=weighting, progress=bar("base fit"))
+    bfit, sd_fit = fit_weighted(
+        FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
+    )
     b_train, b_held = scores(base, bfit, ctr, sd=sd_fit), scores(base, bfit, cho, sd=sd_fit)
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
     # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
@@ -201,27 +246,118 @@ def diagnose(
     )
     w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])
     seeds = _seeds(cand_effects, base, bfit, ctr, train)
-    significant = b_held["rms_position_m"] > none_ratio * floor["rms_position_m"]
-    band = none_ratio * floor["rms_position_m"]
+    significant = bool(b_held["rms_position_m"] > th.none_ratio * floor["rms_position_m"])
+    base_stage = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
+    search = _greedy_rounds(
+        setup, cand_effects, base_stage, (sd_fit, seeds, opt.max_nfev), floor, significant, th, opt.max_effects, runner
+    )
+    after = search["after"]
+    band = th.none_ratio * floor["rms_position_m"]
     excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
+    remainder_sig = bool(significant and after.held["rms_position_m"] > band)
+    chosen, roles, ranking = search["chosen"], search["roles"], search["ranking"]
+    # every effect that improves the held-out windows significantly without closing the gap,
+    # added or not (round 1 alone, or as added in its round)
+    contributors = [contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
+    contributors += [
+        contribution(r, added=False) for r in ranking if r["role"] == "contributor" and r["effect"] not in chosen
+    ]
+    remainder = {
+        "heldout_rms_m": after.held["rms_position_m"],
+        "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
+        if excess0 > 0
+        else 0.0,
+        "significant": remainder_sig,
+    }
+    support = _signature_support(family, cand_effects, base, forces, seeds, rng)
+    return Diagnosis(
+        verdict=verdict_of(significant, chosen, remainder_sig),
+        effects_added=chosen,
+        cause=next((e for e in chosen if roles[e]["role"] == "cause"), None),
+        contributors=contributors,
+        remainder=remainder,
+        ranking=ranking,
+        rounds=search["rounds"],
+        gap_before=gap_summary(b_train, b_held),
+        gap_after=gap_summary(after.train, after.held),
+        heldout_shrinkage=1 - after.held["rms_position_m"] / b_held["rms_position_m"],
+        noise_floor={
+            "heldout_rms_m": floor["rms_position_m"],
+            "heading_rms_deg": floor["rms_heading_deg"],
+            "by_channel": floor["rms"],
+        },
+        gap_ratio=b_held["rms_position_m"] / floor["rms_position_m"],
+        significant_gap=significant,
+        where=w,
+        sindy_support=support,
+        noise_sd=sd,
+        fit_sd=sd_fit,
+        base_fit={
+            "coefficients": bfit.coefficients(),
+            "nominal": dict(zip(base.free, base.theta0.tolist())),
+            "bic": bfit.bic,
+            "n_residuals": bfit.n_residuals,
+            "success": bfit.success,
+            "nfev": bfit.n_simulations,
+        },
+        after_fit={"coefficients": after.fit.coefficients(), "effects": after.fit.effect_parameters()},
+        train_tracks=names_t,
+        heldout_tracks=names_h,
+        settings={
+            "free": list(free),
+            "candidates": [e.name for e in cand_effects],
+            "window_s": opt.window_s,
+            "fit_window_s": fw,
+            "dt": dt,
+            "mode": opt.mode,
+            "start_rule": rule,
+            "leadin_s": lead,
+            "max_nfev": opt.max_nfev,
+            "max_effects": opt.max_effects,
+            "weighting": weighting,
+        },
+        thresholds=th.as_dict(),
+        seconds=time.perf_counter() - t_start,
+        base=base_stage,
+        after=after,
+    )
+
+
+def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant, th, max_effects, runner) -> dict:
+    """The candidate rounds of :func:`diagnose`: each round fits every effect not yet chosen on
+    top of the chosen ones (as tasks), ranks them on the held-out windows and adds the best cause
+    (which ends the search) or the best contributor. ``fit_args`` = (channel weights, seeds,
+    iterations). Returns ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles`` and ``after``
+    (the last stage)."""
+    sd_fit, seeds, max_nfev = fit_args
+    say = runner.say
+    band = th.none_ratio * floor["rms_position_m"]
+    excess0 = base_stage.held["rms_position_m"] - floor["rms_position_m"]
     ranking, rounds, chosen, roles = [], [], [], {}
-    base_stage = current = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
-    parallel = scheduler is not None or int(jobs) > 1
+    current = base_stage
+    parallel = runner.scheduler is not None or int(runner.jobs) > 1
     for rnd in range(max(1, int(max_effects))):
         ref = current
         results, stages = [], {}
         todo = [e for e in cand_effects if e.name not in chosen]
-        say(
-            f"round {rnd + 1}: {len(todo)} candidate(s)" + (f" on {scheduler or f'{jobs} workers'}" if parallel else "")
-        )
+        say(f"round {rnd + 1}: {len(todo)} candidate(s)" + (f" on {runner.where()}" if parallel else ""))
         tasks = []
         for e in todo:
-            m, ct, ch = build([c for c in cand_effects if c.name in chosen] + [e])
+            m, ct, ch = setup.build([c for c in cand_effects if c.name in chosen] + [e])
             # one progress bar per fit in this process; workers' bars would interleave
-            label = None if parallel else bar(f"round {rnd + 1}: {e.name}")
-            tasks.append(
-                Task(e.name, {"round": rnd + 1, "effect": e.name}, (e, ref, m, ct, ch, sd_fit, seeds, max_nfev, label))
+            label = None if parallel else runner.bar(f"round {rnd + 1}: {e.name}")
+            fit = CandidateFit(
+                effect=e,
+                ref=ref,
+                model=m,
+                ctx_train=ct,
+                ctx_held=ch,
+                sd_fit=sd_fit,
+                seeds=seeds,
+                max_nfev=max_nfev,
+                label=label,
             )
+            tasks.append(Task(e.name, {"round": rnd + 1, "effect": e.name}, (fit,)))
 
         def done(task, out, seconds, r=rnd):
             if isinstance(out, TaskError):
@@ -232,7 +368,8 @@ def diagnose(
             if out[0] is not None:
                 say(f"round {r + 1}: {task.key} held-out RMS {out[0].held['rms_position_m']:.3f} m")
 
-        outs = run_tasks(fit_candidate, tasks, jobs=jobs, scheduler=scheduler, on_done=done)
+        # candidate fits are not journaled: a diagnosis is one run
+        outs = Runner(runner.jobs, runner.scheduler).run(fit_candidate, tasks, on_done=done)
         for e, out in zip(todo, outs):
             if isinstance(out, TaskError) or out[0] is None:
                 continue
@@ -255,82 +392,23 @@ def diagnose(
         current = stages[top["effect"]]
         if current.held["rms_position_m"] <= band:
             break
-    after = current
-    remainder_sig = bool(significant and after.held["rms_position_m"] > band)
-    # every effect that improves the held-out windows significantly without closing the gap,
-    # added or not (round 1 alone, or as added in its round)
-    contributors = [contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
-    contributors += [
-        contribution(r, added=False) for r in ranking if r["role"] == "contributor" and r["effect"] not in chosen
-    ]
-    remainder = {
-        "heldout_rms_m": after.held["rms_position_m"],
-        "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
-        if excess0 > 0
-        else 0.0,
-        "significant": remainder_sig,
-    }
-    support = {}
-    if forces:
-        try:
-            F_list, motions = forces
-            order = list(family.CATALOGUE)  # catalogue effects first, in catalogue order
-            ranked = sorted(cand_effects, key=lambda e: order.index(e.name) if e.name in order else len(order))
-            cols = [base.signature_columns(mo, inp, tr, seeds, ranked) for (mo, inp, tr) in motions]
-            support = signature_regression(F_list, cols, rng)
-        except Exception as exc:  # noqa: BLE001
-            support = {"error": f"{type(exc).__name__}: {exc}"}
-    return Diagnosis(
-        verdict=verdict_of(bool(significant), chosen, remainder_sig),
-        effects_added=chosen,
-        cause=next((e for e in chosen if roles[e]["role"] == "cause"), None),
-        contributors=contributors,
-        remainder=remainder,
-        ranking=ranking,
-        rounds=rounds,
-        gap_before=gap_summary(b_train, b_held),
-        gap_after=gap_summary(after.train, after.held),
-        heldout_shrinkage=1 - after.held["rms_position_m"] / b_held["rms_position_m"],
-        noise_floor={
-            "heldout_rms_m": floor["rms_position_m"],
-            "heading_rms_deg": floor["rms_heading_deg"],
-            "by_channel": floor["rms"],
-        },
-        gap_ratio=b_held["rms_position_m"] / floor["rms_position_m"],
-        significant_gap=bool(significant),
-        where=w,
-        sindy_support=support,
-        noise_sd=sd,
-        fit_sd=sd_fit,
-        base_fit={
-            "coefficients": bfit.coefficients(),
-            "nominal": dict(zip(base.free, base.theta0.tolist())),
-            "bic": bfit.bic,
-            "n_residuals": bfit.n_residuals,
-            "success": bfit.success,
-            "nfev": bfit.n_simulations,
-        },
-        after_fit={"coefficients": after.fit.coefficients(), "effects": after.fit.effect_parameters()},
-        train_tracks=names_t,
-        heldout_tracks=names_h,
-        settings={
-            "free": list(free),
-            "candidates": cands,
-            "window_s": window_s,
-            "fit_window_s": fw,
-            "dt": dt,
-            "mode": mode,
-            "start_rule": rule,
-            "leadin_s": lead,
-            "max_nfev": max_nfev,
-            "max_effects": max_effects,
-            "weighting": weighting,
-        },
-        thresholds=th.as_dict(),
-        seconds=time.perf_counter() - t_start,
-        base=base_stage,
-        after=after,
-    )
+    return {"ranking": ranking, "rounds": rounds, "chosen": chosen, "roles": roles, "after": current}
+
+
+def _signature_support(family, cand_effects, base, forces, seeds, rng) -> dict:
+    """The model-free support of the candidates: the missing forces of the held-out tracks
+    regressed on the candidates' force signatures (:func:`signature_regression`); ``{}`` without
+    forces, ``{"error": ...}`` when the regression fails."""
+    if not forces:
+        return {}
+    try:
+        F_list, motions = forces
+        order = list(family.CATALOGUE)  # catalogue effects first, in catalogue order
+        ranked = sorted(cand_effects, key=lambda e: order.index(e.name) if e.name in order else len(order))
+        cols = [base.signature_columns(mo, inp, tr, seeds, ranked) for (mo, inp, tr) in motions]
+        return signature_regression(F_list, cols, rng)
+    except Exception as exc:  # noqa: BLE001
+        return {"error": f"{type(exc).__name__}: {exc}"}
 
 
 def _seeds(effects, base, bfit, ctxs, train) -> dict:

@@ -51,8 +51,31 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
         "whiteness": {},
         "input_correlation": {},
     }
-    errs = []
-    per_sample = []
+    errs, per_sample = _per_sample(model, fitres, ctxs, tracks, nuisance)
+    pooled = pooled_scores(errs)
+    for c, val in pooled["rms"].items():
+        fl = None if floor_by_channel is None else floor_by_channel.get(c)
+        out["channels"][c] = {
+            "rms": val,
+            "noise_sd": sd.get(c),
+            "floor_rms": fl,
+            "excess_ratio": (val / fl) if fl else None,
+        }
+    out["channels"]["position"] = {"rms": pooled["rms_position_m"]}
+    ex = {c: d["excess_ratio"] for c, d in out["channels"].items() if d.get("excess_ratio")}
+    out["dominant_channel"] = max(ex, key=ex.get) if ex else None
+    common = set.intersection(*(set(p) for p in per_sample))
+    cat = {k: np.concatenate([p[k] for p in per_sample]) for k in per_sample[0] if k in common}
+    out["regions"], out["dominant_region"] = _regions(model.regions(), cat)
+    out["phases"] = _phases(cat)
+    return _force_diagnostics(model, fitres, tracks, out)
+
+
+def _per_sample(model, fitres, ctxs, tracks, nuisance) -> tuple[list, list]:
+    """(per track {channel: errors}, per track {feature: per-sample values}) of the fitted
+    model's protocol windows: drift angle, yaw rate, rudder, speed, position error, its growth
+    rate, heading error, rudder moving, turning, and the model family's own features."""
+    errs, per_sample = [], []
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
         S = shooting.simulate(model, ctx, fitres.p[None], nu)
@@ -83,22 +106,13 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
         )
         row.update(model.where_samples(tr, ctx, S))
         per_sample.append(row)
-    pooled = pooled_scores(errs)
-    for c, val in pooled["rms"].items():
-        fl = None if floor_by_channel is None else floor_by_channel.get(c)
-        out["channels"][c] = {
-            "rms": val,
-            "noise_sd": sd.get(c),
-            "floor_rms": fl,
-            "excess_ratio": (val / fl) if fl else None,
-        }
-    out["channels"]["position"] = {"rms": pooled["rms_position_m"]}
-    ex = {c: d["excess_ratio"] for c, d in out["channels"].items() if d.get("excess_ratio")}
-    out["dominant_channel"] = max(ex, key=ex.get) if ex else None
-    common = set.intersection(*(set(p) for p in per_sample))
-    cat = {k: np.concatenate([p[k] for p in per_sample]) for k in per_sample[0] if k in common}
-    best = (None, 0.0)
-    regions = model.regions()
+    return errs, per_sample
+
+
+def _regions(regions: dict, cat: dict) -> tuple[dict, dict]:
+    """(per region the binned RMS errors and error growth, the dominant region: the bin of the
+    fastest mean error growth relative to the whole record, among bins of 5 % of the samples)."""
+    out, best = {}, (None, 0.0)
     for reg, edges in regions.items():
         if reg not in cat:
             continue
@@ -116,27 +130,38 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
                     "rms_heading_deg": float(np.sqrt(np.mean(cat["psi"][sel] ** 2))) if sel.any() else None,
                 }
             )
-        out["regions"][reg] = rows
+        out[reg] = rows
         g_all = np.nanmean(np.abs(cat["growth"]))
         for row in rows:
             if row["mean_error_growth_mps"] and row["n"] >= 0.05 * cat["pos"].size:
                 ratio = row["mean_error_growth_mps"] / g_all
                 if ratio > best[1]:
                     best = (f"{reg} in [{row['bin'][0]}, {row['bin'][1]})", ratio)
-    out["dominant_region"] = {"region": best[0], "growth_ratio": best[1]}
+    return out, {"region": best[0], "growth_ratio": best[1]}
+
+
+def _phases(cat: dict) -> dict:
+    """Per manoeuvre phase (straight, turning, rudder moving) its share of the time and the mean
+    error growth in it."""
     phases = {
         "straight, rudder steady": (~cat["turning"]) & (~cat["rudder_moving"]),
         "turning, rudder steady": cat["turning"] & (~cat["rudder_moving"]),
         "rudder moving": cat["rudder_moving"],
     }
+    out = {}
     for k, sel in phases.items():
         g = cat["growth"][sel]
         g = g[np.isfinite(g)]
-        out["phases"][k] = {
+        out[k] = {
             "fraction_of_time": float(sel.mean()),
             "mean_error_growth_mps": float(np.mean(np.abs(g))) if g.size else None,
         }
-    # missing forces, spectrum, whiteness, input correlation (first track with velocities)
+    return out
+
+
+def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | None]:
+    """The missing forces' RMS, spectrum, whiteness and input correlation (first track with
+    velocities) and wind correlation added to ``out``; returns (out, (forces, motions) or None)."""
     Fs, motions = [], []
     for i, tr in enumerate(tracks):
         try:

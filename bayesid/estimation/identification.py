@@ -1,0 +1,299 @@
+"""Identification on long, noisy runs: multiple shooting, seeded by equation error, with a
+Laplace posterior, an optional prior from the vehicle file and predictive bands calibrated leave
+one run out.
+
+The objective (:class:`bayesid.estimation.windows.WindowObjective`) is the simulation error over
+non-overlapping windows that restart from the measured state (causal estimate,
+:func:`bayesid.protocol.state_at`) or from start states fitted with the model, so a long run that
+an open-loop simulation would leave within a minute still gives a well-posed fit. Each channel is
+weighted by its noise sd, estimated from the data (differences, Gasser et al. 1986;
+:func:`bayesid.protocol.estimate_noise`), or by the residual RMS of a first fit; heading errors are
+wrapped; tracks may have different sampling rates (the model steps at ``dt``, predictions are
+interpolated to the samples); unmeasured velocities are not scored.
+
+It works for both model families: a :class:`bayesid.models.ship.Ship` (the MMG 3-DOF model, seeded
+by :func:`bayesid.models.ship.equation_error_seed`) and a submarine
+:class:`bayesid.data.vehicle.Vehicle` (horizontal-plane model, started at the nominal
+coefficients). The covariance is the Laplace approximation at the optimum with the AR(1)
+inflation of the residuals (:mod:`bayesid.estimation.laplace`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models import build_model
+from ..protocol import resolve_start, start_settings
+from ..tasks import Runner
+from . import windows as wf
+from .calibration import leave_one_run_out
+from .fit import FitResult
+from .laplace import ar1_inflation, fit_covariance
+from .multistart import MultistartResult, multistart
+from .options import CalibrationOptions, FitOptions
+
+__all__ = ["DEFAULT_WINDOW_S", "IdentifyResult", "identify"]
+
+#: Protocol window (s) of a fit whose user gives none, for a family that scores over the
+#: protocol window (submarines; ``default_fit_window`` of the submarine model).
+DEFAULT_WINDOW_S = 30.0
+
+
+@dataclass
+class IdentifyResult:
+    """What :func:`identify` found.
+
+    Attributes
+    ----------
+    model : SimulationModel
+        The simulation model (free coefficients, effects, step).
+    fit : FitResult
+        The final fit (with the prior when one was used).
+    cov : (n_params, n_params) ndarray
+        The Laplace covariance of the parameters.
+    posterior : dict
+        The Laplace summary: ``residual_variance``, ``ar1_inflation``, ``condition_number``,
+        ``weak_directions``.
+    seed : dict
+        The equation-error seed's summary (``used``, its R^2 and costs).
+    noise_sd : dict
+        ``{channel: noise sd}`` estimated from the tracks.
+    fit_sd : dict
+        ``{channel: sd}`` of the final weights.
+    weighting : str
+        The channel weighting used.
+    channels : tuple of str or None
+        The scored channels.
+    start_rule : str
+        The window start rule, resolved on the tracks.
+    train_scores : dict
+        Pooled scores of the fit on its training tracks.
+    window_s : float
+        The multiple-shooting window (s).
+    p0 : (n_params,) ndarray
+        The start of the fit (nominal or equation-error seed).
+    multistart : MultistartResult or None
+        The multistart, when extra starts were asked for.
+    prior : dict
+        ``used``; with a prior per coefficient mean, sd, identified value, z-score with and
+        without the prior, posterior sd, and the names the data ``moved`` beyond 1 prior sd and
+        ``beyond_3sd``.
+    calibration : dict or None
+        The leave-one-run-out scores (:func:`bayesid.estimation.calibration.leave_one_run_out`).
+    """
+
+    model: object
+    fit: FitResult
+    cov: np.ndarray
+    posterior: dict
+    seed: dict
+    noise_sd: dict
+    fit_sd: dict
+    weighting: str
+    channels: tuple | None
+    start_rule: str
+    train_scores: dict
+    window_s: float
+    p0: np.ndarray
+    multistart: MultistartResult | None
+    prior: dict
+    calibration: dict | None
+
+
+def identify(
+    vehicle,
+    train,
+    options: FitOptions = FitOptions(),
+    calibration: CalibrationOptions | None = CalibrationOptions(),
+    *,
+    runner: Runner = Runner(),
+) -> IdentifyResult:
+    """Identify the free coefficients (and effect parameters) on training tracks.
+
+    Parameters
+    ----------
+    vehicle : Ship or Vehicle
+        The vessel description (:class:`~bayesid.models.ship.Ship` or
+        :class:`~bayesid.data.vehicle.Vehicle`).
+    train : list of Track
+        The training tracks (``t, x, y, psi, delta_r, n``; ``u, v, r`` when measured; ``wind_*``
+        for the wind effect).
+    options : FitOptions
+        What is fitted and how: free coefficients, effects, window, step, iterations, seed,
+        weighting, scored channels, start rule, multistart, prior
+        (:class:`~bayesid.estimation.options.FitOptions`). With the vehicle file's ``[prior]``, a
+        MAP fit follows the fit without it, whose data residuals count as ``1 / inflation``
+        independent samples each (the AR(1) inflation of the first fit's residuals, at most the
+        samples per window), and the covariance is the Laplace covariance of that posterior.
+    calibration : CalibrationOptions or None
+        With 3 or more training runs, calibrate the predictive bands leave one run out
+        (:func:`bayesid.estimation.calibration.leave_one_run_out`); None: no calibration.
+    runner : Runner
+        Runs the multistart's starts and the calibration's folds, and receives progress
+        messages (:class:`bayesid.tasks.Runner`).
+
+    Returns
+    -------
+    IdentifyResult
+
+    Raises
+    ------
+    ValueError
+        No training track; a track without the needed columns (named); an unknown channel or a
+        track that measures none of the channels; too little data
+        (:func:`bayesid.estimation.windows.check_enough_data`).
+    KeyError
+        An unknown coefficient name.
+    """
+    if not train:
+        raise ValueError("identify needs at least one training track")
+    say = runner.say
+    channels = wf.check_channels(options.channels)
+    model = build_model(vehicle, options.free, options.effects, options.dt)
+    window_s = options.window_s if options.window_s is not None else model.default_fit_window(DEFAULT_WINDOW_S)
+    for e in model.effects:
+        bare = [t.name for t in train if not all(c in t for c in e.needs_columns)]
+        if bare:
+            raise ValueError(
+                f"the {e.name} effect needs columns {' and '.join(e.needs_columns)}; track(s) "
+                f"{', '.join(bare)} have none (leave --effects {e.name} out, or add the measured "
+                f"{e.name})"
+            )
+    rule = resolve_start(options.start, train)
+    ctxs = [model.context(t, window_s, start=rule) for t in train]
+    wf.check_enough_data(model, ctxs, window_s)
+    sd = wf.pooled_noise_sd(train)
+    p0, seed_info = model.start(), {"used": False}
+    if options.equation_error_seed:
+        p0, seed_info = _equation_error_start(model, ctxs, train, sd, channels)
+        if seed_info.get("tried"):
+            say(f"equation-error seed: {'used' if seed_info.get('used') else 'not used'}")
+        seed_info.pop("tried", None)
+    say("multiple-shooting fit")
+    max_nfev = options.max_nfev
+    weighting = options.weighting or model.DEFAULT_WEIGHTING
+    problem = wf.FitProblem(model, ctxs, sd, channels=channels, max_nfev=max_nfev)
+    f, sd_fit = wf.fit_weighted(problem, p0, weighting=weighting, bar=runner.bar("fit"))
+    problem = dataclasses.replace(problem, sd=sd_fit)
+    ms = None
+    if options.starts:
+        say(f"multistart: {options.starts} more start(s) on {runner.where()}")
+        f, ms = _multistart(problem, f, p0, options, runner)
+    gp = wf.GaussianPrior.of_model(model) if options.prior else None
+    if gp is not None and gp.idx.size:
+        say(f"MAP fit with the vehicle file's priors on {len(gp.names)} coefficient(s)")
+        f, cov, post, gp, prior_info = _map_fit(problem, f, gp, runner)
+    else:
+        cov, post = fit_covariance(f, ctxs)
+        gp, prior_info = None, {"used": False}
+    calib = None
+    if calibration is not None and len(train) >= 3:
+        rule_p, lead_p = start_settings(options.start, train, calibration.window_s, model.dt, None)
+        say(f"calibration: leave one of {len(train)} runs out on {runner.where()}")
+        scale = (prior_info["residual_variance"], prior_info["ar1_inflation"]) if gp is not None else None
+        refit = dataclasses.replace(problem, prior=gp, data_scale=scale)
+        calib = leave_one_run_out(refit, f, train, calibration, start=rule_p, leadin_s=lead_p, runner=runner)
+    return IdentifyResult(
+        model=model,
+        fit=f,
+        cov=cov,
+        posterior=post,
+        seed=seed_info,
+        noise_sd=sd,
+        fit_sd=sd_fit,
+        weighting=weighting,
+        channels=channels,
+        start_rule=rule,
+        train_scores=wf.scores(model, f, ctxs),
+        window_s=window_s,
+        p0=p0,
+        multistart=ms,
+        prior=prior_info,
+        calibration=calib,
+    )
+
+
+def _equation_error_start(model, ctxs, train, sd, channels) -> tuple:
+    """(start, seed summary) of a fit: the model's equation-error estimate (``model.seed``) when
+    it simulates the training windows better than the nominal coefficients, else the nominal
+    ones. The summary's ``tried`` says whether the family has a seed (None: it has none)."""
+    p0 = model.start()
+    try:
+        seeded = model.seed(train)  # None: the model family has no equation-error seed
+    except Exception as exc:  # noqa: BLE001 - reported; the fit starts from nominal
+        seeded = (None, {"error": f"{type(exc).__name__}: {exc}"})
+    if seeded is None:
+        return p0, {"used": False}
+    ps, info = seeded
+    if ps is None:
+        return p0, dict(info, tried=True)
+    c_nom, c_seed = wf.window_residuals(
+        model,
+        ctxs,
+        [wf.channel_weights(c, sd, channels) for c in ctxs],
+        np.vstack([p0, ps]),
+        [None] * len(ctxs),
+    )[0]
+    info["cost_nominal"], info["cost_seed"] = float(c_nom @ c_nom), float(c_seed @ c_seed)
+    if info["cost_seed"] < info["cost_nominal"]:
+        return ps, dict(info, used=True, tried=True)
+    return p0, dict(info, used=False, tried=True)
+
+
+def _multistart(problem: wf.FitProblem, f: FitResult, p0, options: FitOptions, runner: Runner) -> tuple:
+    """(best fit, :class:`MultistartResult`) of ``options.starts`` more starts besides the
+    default fit ``f`` (:func:`bayesid.estimation.multistart.multistart`)."""
+    dflt = {
+        "p": f.p.tolist(),
+        "cost": float(f.cost),
+        "success": bool(f.success),
+        "nfev": int(f.n_simulations),
+        "message": str(f.message),
+    }
+    ms = multistart(
+        problem, p0, options.starts, np.random.default_rng(options.random_seed), default_fit=dflt, runner=runner
+    )
+    if ms.best != 0:  # the best optimum again in this process, for its Jacobian (few evaluations)
+        f = wf.fit_model(problem, np.asarray(ms.fits[ms.best]["p"]))
+    return f, ms
+
+
+def _map_fit(problem: wf.FitProblem, f: FitResult, gp, runner: Runner) -> tuple:
+    """The MAP fit with the vehicle file's Gaussian prior ``gp`` from the fit ``f`` without it:
+    (fit, covariance, Laplace summary, the weighted prior, prior summary). The prior weighs
+    against the data as a likelihood whose samples count 1 / inflation each (serially correlated
+    residuals), with the residual variance of the fit without it."""
+    model, ctxs = problem.model, problem.ctxs
+    s2 = f.cost / max(f.n_residuals - model.n_params, 1)
+    infl = ar1_inflation(f, ctxs)
+    gp = wf.GaussianPrior(gp.names, gp.idx, gp.mean, gp.sd, math.sqrt(s2 * infl))
+    f0 = f
+    f = wf.fit_model(dataclasses.replace(problem, prior=gp), f.p, f.nuisance, bar=runner.bar("fit with prior"))
+    cov, post = fit_covariance(f, ctxs, gp, (s2, infl))
+    z = (f.p[gp.idx] - gp.mean) / gp.sd
+    z0 = (f0.p[gp.idx] - gp.mean) / gp.sd
+    prior_info = {
+        "used": True,
+        "source": getattr(model.vehicle, "prior_source", ""),
+        "data_weight_sd": gp.weight,
+        "residual_variance": s2,
+        "ar1_inflation": infl,
+        "coefficients": {
+            n: {
+                "mean": float(m),
+                "sd": float(d),
+                "identified": float(f.p[i]),
+                "z": float(zz),
+                "z_without_prior": float(zz0),
+                "posterior_sd": float(math.sqrt(max(cov[i, i], 0.0))),
+            }
+            for n, i, m, d, zz, zz0 in zip(gp.names, gp.idx, gp.mean, gp.sd, z, z0)
+        },
+        "moved": [n for n, zz in zip(gp.names, z) if abs(zz) > 1.0],
+        "beyond_3sd": [n for n, zz in zip(gp.names, z) if abs(zz) > 3.0],
+    }
+    return f, cov, post, gp, prior_info

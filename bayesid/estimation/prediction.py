@@ -1,0 +1,327 @@
+"""Prediction of tracks by a fitted model under the fixed window protocol, posterior draws of it,
+and whole-run predictions reduced to manoeuvre indices with their posterior bands.
+
+:func:`predict` restarts the model at every protocol window (:mod:`bayesid.protocol`) and scores
+position and heading errors; :func:`turning_band` predicts a run open loop from its first sample
+and reduces the model's and each posterior draw's prediction to the run's manoeuvre indices
+(:mod:`bayesid.estimation.indices`); :func:`turning_circles` predicts standard turning circles from
+an approach condition.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data.track import Track
+from ..models.effects import errors
+from ..protocol import pooled_scores, start_settings
+from . import shooting
+from .indices import manoeuvre_indices
+
+#: The size a batch of whole-run predictions of posterior draws stays near (bytes).
+BATCH_BYTES = 2e8
+
+__all__ = [
+    "approach_condition",
+    "BATCH_BYTES",
+    "FittedModel",
+    "predict",
+    "predictive_band",
+    "predictive_sd",
+    "turning_band",
+    "turning_circles",
+    "windowed_xy",
+]
+
+
+def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadin_s: float | None = None) -> dict:
+    """The protocol on tracks: per window and pooled RMS position / heading errors.
+
+    ``start``: window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"`` decides
+    on these tracks); ``leadin_s``: lead-in of the fitted rule (default
+    :func:`bayesid.protocol.start_settings`). The result's ``start_rule`` and
+    ``leadin_s`` say what was used.
+
+    Returns dict ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track``
+    {name: pooled scores}, ``windows`` (list of {track, t_start, duration_s (of its scored
+    samples), rms_position_m, max_position_m, rms_heading_deg, max_heading_deg}) and ``_sim`` (per track (ctx, S) for plots)."""
+    errs, per_track, windows, sims = [], {}, [], {}
+    rule, lead = start_settings(start, tracks, window_s, model.dt, leadin_s)
+    for tr in tracks:
+        ctx = model.context(tr, window_s, start=rule, leadin_s=lead)
+        S = shooting.simulate(model, ctx, np.asarray(p)[None])
+        e = {k: v[0] for k, v in errors(ctx, S).items()}
+        errs.append(e)
+        per_track[tr.name] = pooled_scores([e])
+        pos = np.hypot(e["x"], e["y"])
+        bounds = np.searchsorted(ctx.win, np.arange(ctx.W + 1))  # samples are in window order
+        for w in range(ctx.W):
+            sel = slice(bounds[w], bounds[w + 1])
+            if bounds[w + 1] > bounds[w]:
+                windows.append(
+                    {
+                        "track": tr.name,
+                        "t_start": float(ctx.t_start[w]),
+                        "duration_s": float(ctx.ts[bounds[w + 1] - 1] - ctx.t_start[w]),
+                        "rms_position_m": float(np.sqrt(np.nanmean(pos[sel] ** 2))),
+                        "max_position_m": float(np.nanmax(pos[sel])),
+                        "rms_heading_deg": float(np.degrees(np.sqrt(np.nanmean(e["psi"][sel] ** 2))))
+                        if "psi" in e
+                        else None,
+                        "max_heading_deg": float(np.degrees(np.nanmax(np.abs(e["psi"][sel])))) if "psi" in e else None,
+                    }
+                )
+        sims[tr.name] = (ctx, S[0])
+    return {
+        "pooled": pooled_scores(errs),
+        "per_track": per_track,
+        "windows": windows,
+        "_sim": sims,
+        "start_rule": rule,
+        "leadin_s": lead,
+    }
+
+
+@dataclass(frozen=True)
+class FittedModel:
+    """A fitted model at its estimate, with the Gaussian (Laplace or sampled) covariance of it.
+
+    Attributes
+    ----------
+    model : SimulationModel
+        The model (free coefficients, effects, step).
+    p : (n_params,) ndarray
+        The estimate.
+    cov : (n_params, n_params) ndarray or None
+        Its covariance (None: no posterior draws can be made).
+    """
+
+    model: object
+    p: np.ndarray
+    cov: np.ndarray | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "p", np.asarray(self.p, float))
+
+    def draws(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``(n, n_params)`` draws from the Gaussian posterior, kept inside the parameter bounds."""
+        lo, hi = self.model.bounds()
+        cov = np.asarray(self.cov, float)
+        L = np.linalg.cholesky(cov + 1e-15 * np.eye(cov.shape[0]) * max(np.trace(cov), 1e-30))
+        X = self.p[None] + rng.standard_normal((n, self.p.size)) @ L.T
+        return np.clip(X, lo, hi)
+
+    def rows(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """``(1 + n, n_params)``: the estimate, then ``n`` posterior draws (none drawn when ``n`` is 0)."""
+        return np.vstack([self.p[None], self.draws(n, rng)]) if n else self.p[None]
+
+
+def windowed_xy(ctx, S):
+    """(measured (n, 2), predicted (n + cuts, 2)) x, y with NaN between windows (for plots)."""
+    xy = S[:, :2].copy()
+    cut = np.flatnonzero(np.diff(ctx.win) != 0) + 1
+    xy = np.insert(xy, cut, np.nan, axis=0)
+    return np.column_stack([ctx.meas["x"], ctx.meas["y"]]), xy
+
+
+def turning_band(
+    fitted: FittedModel,
+    track,
+    n_draws: int,
+    rng,
+    *,
+    start: str = "measured",
+    leadin_s: float = 0.0,
+    keep_draws: bool = False,
+) -> dict:
+    """Whole-run open-loop prediction of a track from its first sample, with the manoeuvre
+    indices of the measured run, of the identified model and a posterior predictive band.
+
+    The draws are simulated a few at a time (each batch of predictions near
+    :data:`BATCH_BYTES`) and reduced to their indices, so memory does not grow with ``n_draws``
+    x the track length.
+
+    Parameters
+    ----------
+    fitted : FittedModel
+        The model, its estimate and covariance.
+    track : Track
+        The run (``t, x, y, psi, delta_r`` and the model's inputs).
+    n_draws : int
+        Posterior draws of the band (0: none).
+    rng : numpy.random.Generator
+        Draws them.
+    start : str
+        The resolved start rule: ``"measured"`` (the measured first state) or ``"fitted"`` (the
+        state fitted to the first ``leadin_s`` seconds, at least 2 s).
+    leadin_s : float
+        The lead-in of the fitted rule (s).
+    keep_draws : bool
+        Keep every draw's prediction in ``_S`` (else the identified model's only).
+
+    Returns
+    -------
+    dict
+        ``measured`` and ``predicted`` indices (:func:`manoeuvre_indices`), ``band_5_95`` (5-95 %
+        of the draws' values), ``sd`` ({index: sd of the draws' values}, None with fewer than 3
+        finite draws), ``n_draws``, ``_S`` ((1, n, 12) or (1 + n_draws, n, 12) predictions) and
+        ``_ctx``.
+    """
+    model = fitted.model
+    P = fitted.rows(n_draws, rng)
+    if start == "fitted":
+        # the whole run from its first sample: the start state fitted to the first lead-in
+        # seconds only (indices need the execute, which a lead-in before the window would cut)
+        sel = track.t <= track.t[0] + max(leadin_s, 2.0) + 1e-9
+        head = Track(track.t[sel], {k: np.asarray(v)[sel] for k, v in track.data.items()}, name=track.name)
+        ctx = model.context(track, None, start="fitted", leadin_s=0.0)
+        ctx_head = model.context(head, None, start="fitted", leadin_s=0.0)
+    else:
+        ctx = model.context(track, None)
+    dr = np.asarray(track["delta_r"], float)[ctx.idx]
+    meas = manoeuvre_indices(ctx.ts, ctx.meas["x"], ctx.meas["y"], ctx.meas["psi"], dr)
+    pred, kept = [], []
+    chunk = int(max(1, min(8, BATCH_BYTES // (8 * 12 * 3 * max(ctx.ts.size, 1)))))
+    for i in range(0, P.shape[0], chunk):
+        Pc = P[i : i + chunk]
+        S = (
+            model.simulate(ctx, Pc, starts=shooting.fit_starts(model, ctx_head, Pc))
+            if start == "fitted"
+            else model.simulate(ctx, Pc)
+        )
+        pred += [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr) for s in S]
+        if keep_draws or i == 0:  # a copy: a view (even S[:0]) would keep the whole chunk alive
+            kept.append(S if keep_draws else S[:1].copy())
+        del S
+    S = np.concatenate(kept, axis=0)
+    # the indices of what the measured run is (none, with the reason, for anything else)
+    keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
+    band, _ = predictive_band(pred[1:], keys)
+    sd = predictive_sd(pred[1:], keys)  # the draws' spread: the scale of a calibrated band
+    return {
+        "measured": meas,
+        "predicted": pred[0],
+        "band_5_95": band,
+        "sd": sd,
+        "n_draws": int(n_draws),
+        "_S": S,
+        "_ctx": ctx,
+    }
+
+
+def predictive_band(draws: list, keys) -> tuple[dict, dict]:
+    """({key: [5 %, 95 %] percentiles over the draws' finite values, or None with fewer than 3},
+    {key: number of finite draws}) of a list of index dicts (one per posterior draw)."""
+    band, n = {}, {}
+    for k in keys:
+        vals = np.array([d.get(k, np.nan) for d in draws], float)
+        vals = vals[np.isfinite(vals)]
+        band[k] = [float(np.percentile(vals, 5)), float(np.percentile(vals, 95))] if vals.size >= 3 else None
+        n[k] = int(vals.size)
+    return band, n
+
+
+def predictive_sd(draws: list, keys) -> dict:
+    """{key: standard deviation of the draws' finite values, or None with fewer than 3} of a list
+    of index dicts (one per posterior draw)."""
+    out = {}
+    for k in keys:
+        v = np.array([d.get(k, np.nan) for d in draws], float)
+        v = v[np.isfinite(v)]
+        out[k] = float(np.std(v, ddof=1)) if v.size >= 3 else None
+    return out
+
+
+def approach_condition(tracks, first_s: float = 5.0) -> tuple[float, float]:
+    """(speed m/s, propeller rev/s) of the tracks' approach: medians over the first ``first_s``
+    seconds of every track of the speed (from ``u, v`` when logged, else the positions'
+    differences) and of ``n`` (rpm / 60). The condition a predicted turning circle starts from.
+    Raises ValueError when no track has ``n``."""
+    speeds, rps = [], []
+    for tr in tracks:
+        k = np.asarray(tr.t) <= tr.t[0] + first_s
+        if "u" in tr and np.isfinite(tr["u"][k]).any():
+            v = tr["v"][k] if "v" in tr else 0.0
+            speeds.append(np.hypot(tr["u"][k], v))
+        elif k.sum() >= 2:
+            speeds.append(np.hypot(np.diff(tr["x"][k]), np.diff(tr["y"][k])) / np.diff(tr.t[k]))
+        if "n" in tr:
+            rps.append(np.asarray(tr["n"][k], float) / 60.0)
+    if not rps:
+        raise ValueError("approach_condition: no track logs the propeller speed n")
+    sp = np.concatenate([np.atleast_1d(s) for s in speeds]) if speeds else np.array([np.nan])
+    return float(np.nanmedian(sp)), float(np.nanmedian(np.concatenate(rps)))
+
+
+def turning_circles(
+    fitted: FittedModel,
+    n_draws: int,
+    rng,
+    speed_mps: float,
+    rps: float,
+    rudder_deg: float = 35.0,
+    duration_s: float = 300.0,
+) -> dict:
+    """Predicted turning circles to starboard and port.
+
+    From a straight run at ``speed_mps`` with the propeller at ``rps``, the rudder is put over to
+    ``rudder_deg`` at t = 1 s and held for ``duration_s``; advance, transfer and tactical diameter
+    (m, :func:`manoeuvre_indices`, ITTC definitions) of the model at its estimate, with the
+    5-95 % band of ``n_draws`` posterior draws.
+
+    Parameters
+    ----------
+    fitted : FittedModel
+        The model, its estimate and covariance (None is allowed with ``n_draws`` 0).
+    n_draws : int
+        Posterior draws of the band (0: no band).
+    rng : numpy.random.Generator
+        Draws them.
+    speed_mps : float
+        The approach speed (m/s).
+    rps : float
+        The propeller rate (rev/s).
+    rudder_deg : float
+        The rudder angle (deg).
+    duration_s : float
+        The time the rudder is held (s).
+
+    Returns
+    -------
+    dict
+        ``{side: {"predicted", "band_5_95", "sd" (of the draws), "n_finite_draws", "_S" (B, n, 12)
+        predictions}}``.
+    """
+    model = fitted.model
+    out = {}
+    t = np.arange(0.0, duration_s + 1e-9, 0.1)
+    for side, sgn in (("starboard", -1.0), ("port", 1.0)):  # package rudder: + = to port
+        dr = np.where(t >= 1.0, sgn * math.radians(rudder_deg), 0.0)
+        tr = Track(
+            t,
+            {
+                "x": np.zeros_like(t),
+                "y": np.zeros_like(t),
+                "psi": np.zeros_like(t),
+                "u": np.full_like(t, speed_mps),
+                "v": np.zeros_like(t),
+                "r": np.zeros_like(t),
+                "delta_r": dr,
+                "n": np.full_like(t, rps * 60),
+            },
+            name=f"turn{rudder_deg:g}_{side}",
+        )
+        s0 = np.zeros(12)
+        s0[6] = speed_mps
+        ctx = model.context(tr, None, s0=s0)
+        S = model.simulate(ctx, fitted.rows(n_draws, rng), measured_start=False)
+        ind = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr[ctx.idx]) for s in S]
+        res = {"predicted": {k: ind[0][k] for k in ("advance_m", "transfer_m", "tactical_diameter_m")}}
+        res["band_5_95"], res["n_finite_draws"] = predictive_band(ind[1:], list(res["predicted"]))
+        res["sd"] = predictive_sd(ind[1:], list(res["predicted"]))
+        res["_S"] = S
+        out[side] = res
+    return out

@@ -1,0 +1,72 @@
+"""model.json has one reader and writer (ModelDocument): a file written by bayesid 0.1.0 before
+the class existed loads, rebuilds its model and writes back the same JSON object; files that lack
+the optional fields get their defaults; a damaged file is refused, naming it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bayesid.estimation.modelfile import FORMAT, ModelDocument, load_model
+
+OLD = Path(__file__).resolve().parent / "data" / "model_written_by_0.1.0.json"
+
+
+def test_a_file_written_before_the_class_loads_and_round_trips(tmp_path):
+    raw = json.loads(OLD.read_text())
+    model, p, cov, doc = load_model(OLD)
+    assert doc.vehicle == "nps_auv2" and list(model.free) == ["Yv", "Nr", "Ndr"]
+    assert np.array_equal(p, np.array(raw["p"])) and cov.shape == (3, 3)
+    assert doc.calibration["n_folds"] == 3 and doc.provenance["bayesid_version"] == "0.1.0"
+    doc.to_json(tmp_path / "again.json")
+    assert json.loads((tmp_path / "again.json").read_text()) == raw
+    assert list(json.loads((tmp_path / "again.json").read_text())) == list(raw)  # the same key order
+
+
+def test_optional_fields_get_their_defaults(tmp_path):
+    raw = json.loads(OLD.read_text())
+    for k in ("weighting", "fit_sd", "fit_channels", "start_rule", "prior", "calibration", "provenance"):
+        raw.pop(k)
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(raw))
+    doc = ModelDocument.from_json(path)
+    assert doc.weighting == "noise" and doc.fit_sd == raw["noise_sd"] and doc.fit_channels is None
+    assert doc.start_rule == "measured" and doc.prior == {"used": False} and doc.calibration is None
+    assert doc.provenance == {}
+    model, p, _ = doc.build()
+    assert p.size == model.n_params
+
+
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (lambda d: d.update(format="other"), "not a bayesid model file"),
+        (lambda d: d.pop("cov"), "without 'cov'"),
+        (lambda d: d.update(free="Yv"), "'free' and 'effects' lists"),
+        (lambda d: d.update(p=[1.0, 2.0]), "'p' must be 3 finite numbers"),
+        (lambda d: d.update(cov=[[1.0, 2.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]), "not a symmetric"),
+        (lambda d: d.update(free=["Yv", "Xyz"]), "do not fit the vehicle"),
+    ],
+)
+def test_a_damaged_file_is_refused_naming_it(tmp_path, edit, match):
+    raw = json.loads(OLD.read_text())
+    edit(raw)
+    path = tmp_path / "damaged.json"
+    path.write_text(json.dumps(raw))
+    with pytest.raises(ValueError, match=match) as err:
+        load_model(path)
+    assert str(path) in str(err.value)
+
+
+def test_a_sampled_posterior_replaces_the_estimate_and_keeps_the_rest(tmp_path):
+    _, _, _, doc = load_model(OLD)
+    post = doc.with_posterior([0.1, 0.2, 0.3], np.diag([1.0, 4.0, 9.0]), {"method": "importance"})
+    assert post.p == [0.1, 0.2, 0.3] and post.sd == [1.0, 2.0, 3.0]
+    d = post.to_dict()
+    assert d["format"] == FORMAT and list(d)[-1] == "posterior_source"
+    assert {k: v for k, v in d.items() if k not in ("p", "cov", "sd", "posterior_source")} == {
+        k: v for k, v in doc.to_dict().items() if k not in ("p", "cov", "sd")
+    }
