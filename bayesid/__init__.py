@@ -14,7 +14,9 @@ The layout follows the data flow; each layer imports only the ones before it:
   :mod:`~bayesid.models.simulate` (Manoeuvre, Simulator), :mod:`~bayesid.models.reference`
   (solve_ivp anchor), :mod:`~bayesid.models.crossflow`, :mod:`~bayesid.models.manoeuvres`,
   :mod:`~bayesid.models.inverse` (smoothed motion, inverse dynamics),
-  :mod:`~bayesid.models.effects` (effects and the submarine model),
+  :mod:`~bayesid.models.effects` (the effect catalogue), :mod:`~bayesid.models.context` (the
+  track context: windows, start states, step inputs), :mod:`~bayesid.models.submarine` (the
+  submarine model), :mod:`~bayesid.models.world` (synthetic tracks with effects switched on),
   :mod:`~bayesid.models.ship` (the MMG surface ship), :mod:`~bayesid.models.shipgen` (its
   generated kernel).
 * :mod:`bayesid.protocol` -- the window protocol (windows, start rules, noise, pooled scores).

@@ -56,8 +56,8 @@ def _time(fn, tasks, **kw) -> tuple[float, list]:
 def _diagnosis_data(seed: int = 11):
     from bayesid.data.track import Track
     from bayesid.data.vehicle import load_vehicle
-    from bayesid.models import effects as ef
     from bayesid.models import manoeuvres as mv
+    from bayesid.models.world import world_track
 
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng(seed)
@@ -72,7 +72,7 @@ def _diagnosis_data(seed: int = 11):
     tracks = []
     for i in range(7):
         m = kinds[i % len(kinds)]()
-        tr = ef.world_track(
+        tr = world_track(
             veh,
             m,
             {"current": {"current_north_mps": 0.15, "current_east_mps": -0.1}},

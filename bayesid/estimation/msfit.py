@@ -32,7 +32,7 @@ import numpy as np
 
 from ..data.track import Track
 from ..models import build_model, load_any_vehicle
-from ..models import effects as ef
+from ..models import context as ctxmod
 from ..protocol import pooled_scores, resolve_start, start_settings
 from . import shooting
 from . import windows as wf
@@ -50,7 +50,7 @@ def _ar1_inflation(fitres: FitResult, ctxs) -> float:
     r = []
     for ctx in ctxs:
         S = shooting.simulate(fitres.model, ctx, fitres.p[None])
-        for c, e in ef.errors(ctx, S).items():
+        for c, e in ctxmod.errors(ctx, S).items():
             if fitres.channels is not None and c not in fitres.channels:
                 continue
             e = e[0]
@@ -484,7 +484,7 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
     for tr in tracks:
         ctx = model.context(tr, window_s, start=rule, leadin_s=lead)
         S = shooting.simulate(model, ctx, np.asarray(p)[None])
-        e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
+        e = {k: v[0] for k, v in ctxmod.errors(ctx, S).items()}
         errs.append(e)
         per_track[tr.name] = pooled_scores([e])
         pos = np.hypot(e["x"], e["y"])

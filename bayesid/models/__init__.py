@@ -21,9 +21,9 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "workqueue"
 
 from ..data.vehicle import Vehicle, load_vehicle  # noqa: E402
-from .effects import EffectModel  # noqa: E402
 from .interface import SimulationModel  # noqa: E402
 from .ship import Ship, ShipModel, is_ship_file, load_ship  # noqa: E402
+from .submarine import EffectModel  # noqa: E402
 
 __all__ = ["FAMILIES", "SimulationModel", "build_model", "load_any_vehicle", "model_class"]
 
@@ -45,7 +45,7 @@ def model_class(vehicle):
 def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal"):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
     :class:`~bayesid.models.ship.ShipModel` (``free`` default: the file's ``[fit] free``), for a
-    submarine :class:`~bayesid.models.effects.EffectModel` in ``mode`` (``free`` default: none).
+    submarine :class:`~bayesid.models.submarine.EffectModel` in ``mode`` (``free`` default: none).
     ``dt`` default: the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
 
     Raises KeyError for an unknown coefficient, ValueError for an unknown effect."""

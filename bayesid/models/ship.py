@@ -857,9 +857,9 @@ class ShipModel(ParameterLayout):
         self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
     ):
         """Windows, start states and step inputs of a track (see
-        :class:`bayesid.models.effects.TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
+        :class:`bayesid.models.context.TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
         wind averaged over each step."""
-        from .effects import TrackContext
+        from .context import TrackContext
 
         ctx = TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
         # wind held over a step: the mean of the interpolated wind at 5 points in the step
@@ -886,8 +886,8 @@ class ShipModel(ParameterLayout):
         """Predicted measurements at the track's scored samples: (B, n_samples, 12) in
         :data:`~bayesid.data.track.STATE_NAMES` order (u, v over ground; NaN in a diverged window).
         ``starts`` (B, W, 6) offsets of the window-start states and ``samples`` as in
-        :meth:`bayesid.models.effects.EffectModel.simulate`."""
-        from .effects import sample_rows, start_states
+        :meth:`bayesid.models.submarine.EffectModel.simulate`."""
+        from .context import sample_rows, start_states
 
         prm, cur, delay = self.kernel_params(P)
         B = prm.shape[0]
