@@ -260,7 +260,7 @@ class Delay(Effect):
         return delay_starts(p, i)
 
 
-class Crossflow(Effect):
+class CrossflowEffect(Effect):
     """Nonlinear sway/yaw (and heave/pitch) damping in the cross-flow integral form of NPS AUV
     II (Healey & Lienard 1993; strip sum as in MSS ``npsauv.m``) instead of the polynomial
     ``Y'v|v|`` ... terms; ``cd_scale`` multiplies the drag coefficients Cdy, Cdz."""
@@ -502,7 +502,7 @@ def _catalogue():
             "navigation and attitude logged by separate clocks skew by up to 1 s.",
             description="sensor dynamics: first-order lag of logged u, v, r and a position time skew",
         ),
-        "crossflow": Crossflow(
+        "crossflow": CrossflowEffect(
             "crossflow",
             ("cd_scale",),
             (0.0,),
