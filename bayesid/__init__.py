@@ -17,8 +17,12 @@ The layout follows the data flow; each layer imports only the ones before it:
   :mod:`~bayesid.models.effects` (the effect catalogue), :mod:`~bayesid.models.context` (the
   track context: windows, start states, step inputs), :mod:`~bayesid.models.submarine` (the
   submarine model), :mod:`~bayesid.models.world` (synthetic tracks with effects switched on),
-  :mod:`~bayesid.models.ship` (the MMG surface ship), :mod:`~bayesid.models.shipgen` (its
-  generated kernel).
+  :mod:`~bayesid.models.ship` (the MMG surface ship: :mod:`~bayesid.models.ship.fileformat` the
+  ship file, :mod:`~bayesid.models.ship.layout` the kernels' parameter vector,
+  :mod:`~bayesid.models.ship.dynamics` the equations as interpreted kernels,
+  :mod:`~bayesid.models.ship.kernel` the generated kernel, :mod:`~bayesid.models.ship.effects`
+  its effects, :mod:`~bayesid.models.ship.model` the model, :mod:`~bayesid.models.ship.seed` the
+  equation-error seed).
 * :mod:`bayesid.protocol` -- the window protocol (windows, start rules, noise, pooled scores).
 * :mod:`bayesid.estimation` -- fitting: :mod:`~bayesid.estimation.fit` (the one fit function
   and result), :mod:`~bayesid.estimation.objective` (the paper's whole-track objective),

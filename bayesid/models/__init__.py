@@ -44,7 +44,7 @@ def model_class(vehicle):
 
 def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal"):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
-    :class:`~bayesid.models.ship.ShipModel` (``free`` default: the file's ``[fit] free``), for a
+    :class:`~bayesid.models.ship.model.ShipModel` (``free`` default: the file's ``[fit] free``), for a
     submarine :class:`~bayesid.models.submarine.EffectModel` in ``mode`` (``free`` default: none).
     ``dt`` default: the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
 

@@ -553,7 +553,7 @@ def load_module(src: str, prefix: str):
     """Import generated source ``src`` as a module named ``<prefix>_<hash>``: written once to
     :func:`cache_dir` (atomically; a concurrent process sees the old or the whole new file) and
     imported once per process, so numba's ``cache=True`` keeps its compiled code between
-    processes. Shared by this module and :mod:`bayesid.models.shipgen`."""
+    processes. Shared by this module and :mod:`bayesid.models.ship.kernel`."""
     name = f"{prefix}_{hashlib.sha256(src.encode()).hexdigest()[:16]}"
     mod = _LOADED.get(name)
     if mod is not None:

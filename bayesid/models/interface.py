@@ -3,7 +3,7 @@ analysis layers.
 
 Two implementations: the submarine's horizontal-plane or 6-DOF model with effects
 (:class:`bayesid.models.submarine.EffectModel`) and the 3-DOF surface ship in MMG form
-(:class:`bayesid.models.ship.ShipModel`). The fits (:mod:`bayesid.estimation.windows`), the long-run
+(:class:`bayesid.models.ship.model.ShipModel`). The fits (:mod:`bayesid.estimation.windows`), the long-run
 identification and prediction (:mod:`bayesid.estimation.msfit`), the gap diagnosis (:mod:`bayesid.analysis.gap`) and
 the command line take a model and never ask which kind of vessel it is; what differs between
 vessels is answered by the model (its defaults, its effect catalogue, its inverse dynamics).
