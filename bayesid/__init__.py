@@ -40,7 +40,8 @@ The layout follows the data flow; each layer imports only the ones before it:
 * :mod:`bayesid.report` -- study folders, manifests, report writers; :mod:`bayesid.report.plots`.
 * :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
-  workers or on Dask, with a resumable journal.
+  workers or on Dask, with a resumable journal. ``bayesid._numba`` -- under every layer too:
+  numba's threading layer, selected where the package first starts numba's threads.
 """
 
 __version__ = "0.1.0"

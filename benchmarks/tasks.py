@@ -107,10 +107,12 @@ def main() -> None:
 
     import numba
 
+    from bayesid._numba import use_package_threading_layer
     from bayesid.data.vehicle import load_vehicle
     from bayesid.models import manoeuvres as mv
     from bayesid.models.simulate import Simulator
 
+    use_package_threading_layer()  # the layer the package's kernels select, printed before any runs
     print(f"cores {os.cpu_count()}, numba threading layer {numba.config.THREADING_LAYER}")
     veh = load_vehicle("nps_auv2")
     sim = Simulator(veh, mv.zigzag(veh, 20.0, dt=0.5, duration=300.0), free=FREE, mode="horizontal")

@@ -59,6 +59,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .._numba import use_package_threading_layer
 from ..data import terms
 from . import dynamics
 
@@ -605,6 +606,7 @@ def kernel(force_names, mode: str = "6dof", kind: str = "generated"):
     """
     if mode not in LANES:
         raise ValueError(f"mode must be '6dof' or 'horizontal', got {mode!r}")
+    use_package_threading_layer()
     if kind == "generated":
         return generated(force_names, mode)
     if kind == "interpreted":

@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import re
 
+from ..._numba import use_package_threading_layer
 from ..codegen import load_module
 from . import dynamics
 from .layout import GAUSS_W, GAUSS_X
@@ -519,6 +520,7 @@ def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status, lanes:
 def kernel(kind: str):
     """The window driver of ``kind``: ``"generated"`` (this module) or ``"interpreted"``
     (:func:`bayesid.models.ship.dynamics.simulate_windows`). ValueError naming the option otherwise."""
+    use_package_threading_layer()
     if kind == "generated":
         return simulate_windows
     if kind == "interpreted":
