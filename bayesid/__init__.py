@@ -17,9 +17,15 @@ reads the import graph and fails on an import that runs up a layer or closes a c
   :mod:`~bayesid.models.simulate` (Manoeuvre, Simulator), :mod:`~bayesid.models.reference`
   (solve_ivp anchor), :mod:`~bayesid.models.crossflow`, :mod:`~bayesid.models.manoeuvres`,
   :mod:`~bayesid.models.inverse` (smoothed motion, inverse dynamics),
-  :mod:`~bayesid.models.effects` (effects and the submarine model),
-  :mod:`~bayesid.models.ship` (the MMG surface ship), :mod:`~bayesid.models.shipgen` (its
-  generated kernel).
+  :mod:`~bayesid.models.effects` (the effect catalogue), :mod:`~bayesid.models.context` (the
+  track context: windows, start states, step inputs), :mod:`~bayesid.models.submarine` (the
+  submarine model), :mod:`~bayesid.models.world` (synthetic tracks with effects switched on),
+  :mod:`~bayesid.models.ship` (the MMG surface ship: :mod:`~bayesid.models.ship.fileformat` the
+  ship file, :mod:`~bayesid.models.ship.layout` the kernels' parameter vector,
+  :mod:`~bayesid.models.ship.dynamics` the equations as interpreted kernels,
+  :mod:`~bayesid.models.ship.kernel` the generated kernel, :mod:`~bayesid.models.ship.effects`
+  its effects, :mod:`~bayesid.models.ship.model` the model, :mod:`~bayesid.models.ship.seed` the
+  equation-error seed).
 * :mod:`bayesid.estimation` -- fitting: :mod:`~bayesid.estimation.fit` (the one fit function
   and result), :mod:`~bayesid.estimation.objective` (the paper's whole-track objective),
   :mod:`~bayesid.estimation.windows` (multiple shooting), :mod:`~bayesid.estimation.shooting`
@@ -41,7 +47,8 @@ reads the import graph and fails on an import that runs up a layer or closes a c
 * :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
   workers or on Dask, with a resumable journal; :class:`~bayesid.tasks.Runner` is the one object
-  a step that runs tasks takes.
+  a step that runs tasks takes. ``bayesid._numba`` -- under every layer too: numba's threading
+  layer, selected where the package first starts numba's threads.
 """
 
 __version__ = "0.1.0"

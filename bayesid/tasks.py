@@ -16,7 +16,7 @@ in another order (measured: a serial run and a worker's differed at 1e-16 relati
 numba kernels use ``threads`` threads
 (default: the machine's cores divided by the local workers, so 2 workers on 2 cores use one
 thread each and never oversubscribe). numba's ``workqueue`` threading layer (the package
-default, :mod:`bayesid.models`) must not be entered from two threads of one process at once, so
+default) must not be entered from two threads of one process at once, so
 Dask workers are processes with one thread (``LocalCluster(processes=True,
 threads_per_worker=1)``; start an external cluster's workers with ``--nthreads 1``), and a
 process-wide lock makes a worker with several threads run its tasks one after another rather
@@ -319,6 +319,9 @@ class _Call:
                 if self.threads:
                     import numba
 
+                    from ._numba import use_package_threading_layer
+
+                    use_package_threading_layer()
                     numba.set_num_threads(max(1, min(int(self.threads), numba.config.NUMBA_NUM_THREADS)))
                 out = self.fn(*args)
             except Exception as exc:  # noqa: BLE001 - reported with the task's parameters, others go on

@@ -74,7 +74,10 @@ SETS = {
 def _header(args) -> list[str]:
     import numba
 
+    from bayesid._numba import use_package_threading_layer
     from bayesid.report import git_commit
+
+    use_package_threading_layer()  # before numba.get_num_threads() below starts the thread pool
 
     def ver(p):
         try:

@@ -56,8 +56,8 @@ def _time(fn, tasks, **kw) -> tuple[float, list]:
 def _diagnosis_data(seed: int = 11):
     from bayesid.data.track import Track
     from bayesid.data.vehicle import load_vehicle
-    from bayesid.models import effects as ef
     from bayesid.models import manoeuvres as mv
+    from bayesid.models.world import world_track
 
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng(seed)
@@ -72,7 +72,7 @@ def _diagnosis_data(seed: int = 11):
     tracks = []
     for i in range(7):
         m = kinds[i % len(kinds)]()
-        tr = ef.world_track(
+        tr = world_track(
             veh,
             m,
             {"current": {"current_north_mps": 0.15, "current_east_mps": -0.1}},
@@ -107,10 +107,12 @@ def main() -> None:
 
     import numba
 
+    from bayesid._numba import use_package_threading_layer
     from bayesid.data.vehicle import load_vehicle
     from bayesid.models import manoeuvres as mv
     from bayesid.models.simulate import Simulator
 
+    use_package_threading_layer()  # the layer the package's kernels select, printed before any runs
     print(f"cores {os.cpu_count()}, numba threading layer {numba.config.THREADING_LAYER}")
     veh = load_vehicle("nps_auv2")
     sim = Simulator(veh, mv.zigzag(veh, 20.0, dt=0.5, duration=300.0), free=FREE, mode="horizontal")

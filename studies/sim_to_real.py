@@ -235,7 +235,7 @@ def manoeuvre(veh, kind: str, duration: float, dt: float, seed: int):
 def world_tracks(veh, world_veh, truth: dict, cfg: dict, rng, seed: int):
     """The case's training and held-out tracks under its logging configuration."""
     from bayesid.data.track import Track
-    from bayesid.models import effects as ef
+    from bayesid.models.world import world_track
 
     dt = 0.05 if cfg["rate_hz"] == 20 else 0.1
     every = max(1, int(round(1.0 / (cfg["rate_hz"] * dt))))
@@ -253,7 +253,7 @@ def world_tracks(veh, world_veh, truth: dict, cfg: dict, rng, seed: int):
     for i, dur in enumerate(cfg["durations_s"]):
         kind = kinds[i % len(kinds)]
         m = manoeuvre(world_veh, kind, dur, dt, seed + i)
-        tr = ef.world_track(world_veh, m, truth, rng, noise=noise, sample_every=every, hold_inputs=True)
+        tr = world_track(world_veh, m, truth, rng, noise=noise, sample_every=every, hold_inputs=True)
         role = "train" if i < cfg["n_train"] else "heldout"
         out.append(
             Track(tr.t + t, {k: v for k, v in tr.data.items() if k in keep}, name=f"{role}{i}_{kind}", meta=tr.meta)
@@ -272,6 +272,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.data.vehicle import load_vehicle
     from bayesid.models import effects as ef
+    from bayesid.models.world import draw_parameters
 
     tic = time.perf_counter()
     veh = load_vehicle("nps_auv2")
@@ -285,7 +286,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
             objs[outside[e]] = dict(outside[e].magnitudes[k])
             truth[e] = objs[outside[e]]
         else:
-            truth[e] = ef.draw_parameters(e, k, rng)
+            truth[e] = draw_parameters(e, k, rng)
             objs[e] = truth[e]
     train, held = world_tracks(veh, world_veh, objs, cfg, rng, seed)
     cands = [c for c in ef.CATALOGUE if c not in case["exclude"]]
@@ -319,9 +320,9 @@ def true_model_scores(world_veh, held: list, effects: dict, window: float, setti
     candidate can land a little above it by fitting noise)."""
     from bayesid.estimation import windows as wf
     from bayesid.estimation.fit import FitResult
-    from bayesid.models import effects as ef
+    from bayesid.models.submarine import EffectModel
 
-    m = ef.EffectModel(world_veh, FREE, list(effects), dt=DT)
+    m = EffectModel(world_veh, FREE, list(effects), dt=DT)
     p = np.concatenate([m.theta0] + [[held[0].meta["truth"][e.name][k] for k in e.params] for e in m.effects])
     nu = [np.asarray(t.meta["truth"].get("nuisance", [])[: m.n_nuisance], float) for t in held]
     f = FitResult.fixed(m, p, len(nu), "true model", nu)

@@ -23,8 +23,8 @@ from bayesid.estimation.calibration import (
     outside_excitation,
     window_band,
 )
-from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
+from bayesid.models.world import world_track
 
 NOISE = {"x": 0.1, "y": 0.1, "psi": math.radians(0.2), "u": 0.01, "v": 0.01, "r": math.radians(0.1)}
 
@@ -142,7 +142,7 @@ def synthetic(tmp_path_factory):
             if kind == 0
             else mv.turning_circle(veh, a, dt=0.1, duration=180.0)
         )
-        tr = ef.world_track(
+        tr = world_track(
             veh,
             m,
             {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}},
@@ -216,7 +216,7 @@ def test_a_manoeuvre_the_training_runs_lacked_is_flagged_extrapolated_not_counte
             else mv.zigzag(veh, a, dt=0.1, duration=150.0, first_sign=int(rng.choice([-1, 1])))
         )
         cur = {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}}
-        tr = ef.world_track(veh, m, cur, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        tr = world_track(veh, m, cur, rng, noise=NOISE, sample_every=2, hold_inputs=True)
         t = Track(tr.t, dict(tr.data), name=f"{tag}{i}_{m.name}", meta=tr.meta)
         write_csv(t, tmp_path / f"{t.name}.csv")
         return str(tmp_path / f"{t.name}.csv")

@@ -16,8 +16,8 @@ import pytest
 from bayesid.data import terms
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import codegen
-from bayesid.models import effects as ef
 from bayesid.models.simulate import Manoeuvre, Simulator
+from bayesid.models.submarine import EffectModel
 
 RTOL = 1e-12
 
@@ -123,7 +123,7 @@ def test_window_driver_agrees_through_the_effect_model(veh, effects, mode):
     man = _random_manoeuvre(rng, "horizontal", n_steps=900)
     truth = Simulator(veh, man, mode="horizontal").run()
     tr = truth.track(0, name="random")
-    models = {k: ef.EffectModel(veh, ["Yv", "Nr"], effects, mode=mode, dt=0.2, kernel=k) for k in codegen.KINDS}
+    models = {k: EffectModel(veh, ["Yv", "Nr"], effects, mode=mode, dt=0.2, kernel=k) for k in codegen.KINDS}
     m = models["generated"]
     ctx = m.context(tr, 20.0)
     P = np.repeat(m.start()[None], 3, axis=0)

@@ -13,6 +13,7 @@ from bayesid.analysis.gap import DiagnoseOptions, Diagnosis, diagnose
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
+from bayesid.models.world import world_track
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,7 +51,7 @@ def diagnosis():
     rng = np.random.default_rng(3)
     truth = {YAW_BIAS: {"N0_Nm": 60.0}}
     train = [
-        ef.world_track(veh, m, truth, rng, name=f"train_{k}")
+        world_track(veh, m, truth, rng, name=f"train_{k}")
         for k, m in enumerate(
             [
                 mv.zigzag(veh, 20.0, dt=0.1, duration=150.0),
@@ -58,9 +59,7 @@ def diagnosis():
             ]
         )
     ]
-    held = [
-        ef.world_track(veh, mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1), truth, rng, name="heldout")
-    ]
+    held = [world_track(veh, mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1), truth, rng, name="heldout")]
     return diagnose(
         veh,
         ["Yv", "Nr", "Ndr"],

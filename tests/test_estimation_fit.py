@@ -81,7 +81,7 @@ def test_one_fit_function_serves_both_objectives(short_problem, nps):
     same fit() and return the same FitResult type; an unknown method is refused by name."""
     from bayesid.estimation.fit import FitResult
     from bayesid.estimation.windows import FitProblem, fit_model
-    from bayesid.models.effects import EffectModel
+    from bayesid.models.submarine import EffectModel
 
     case, pb = short_problem
     with pytest.raises(ValueError, match="unknown fit method 'bfgs'"):

@@ -20,6 +20,9 @@ from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
+from bayesid.models.context import errors
+from bayesid.models.submarine import EffectModel
+from bayesid.models.world import WORLD_NOISE, draw_parameters, world_track
 
 ROOT = Path(__file__).resolve().parents[1]
 FREE = ["Yv", "Nr", "Ndr"]
@@ -44,8 +47,8 @@ def scenario(veh):
 def world(veh, scenario, effects, seed):
     rng = np.random.default_rng(seed)
     tm, hm = scenario
-    train = [ef.world_track(veh, m, effects, rng, name=f"train_{m.name}") for m in tm]
-    held = [ef.world_track(veh, m, effects, rng, name=f"heldout_{m.name}") for m in hm]
+    train = [world_track(veh, m, effects, rng, name=f"train_{m.name}") for m in tm]
+    held = [world_track(veh, m, effects, rng, name=f"heldout_{m.name}") for m in hm]
     return train, held
 
 
@@ -62,7 +65,7 @@ def test_windows_do_not_overlap_and_cover_the_run():
 
 def test_window_start_state_uses_no_future_data(veh):
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
-    tr = ef.world_track(veh, m, {}, np.random.default_rng(0))
+    tr = world_track(veh, m, {}, np.random.default_rng(0))
     t0 = 30.0
     s1 = protocol.state_at(tr, t0)
     late = tr.t > t0
@@ -76,27 +79,25 @@ def test_window_start_state_uses_no_future_data(veh):
 
 def test_noise_estimate_recovers_the_sd(veh):
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=120.0)
-    tr = ef.world_track(veh, m, {}, np.random.default_rng(3))
+    tr = world_track(veh, m, {}, np.random.default_rng(3))
     sd = protocol.estimate_noise(tr, ["x", "psi", "u", "r"])
     for k in sd:
-        assert sd[k] == pytest.approx(ef.WORLD_NOISE[k], rel=0.25), k  # r: rudder steps are not smooth at 10 Hz
+        assert sd[k] == pytest.approx(WORLD_NOISE[k], rel=0.25), k  # r: rudder steps are not smooth at 10 Hz
 
 
 def test_protocol_on_the_models_own_track_is_at_the_noise_level(veh):
     """The window protocol with the true model on its own noisy track: the pooled error is the
     noise floor (well under a metre), and the nominal model reproduces a noise-free track."""
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=180.0)
-    clean = ef.world_track(veh, m, {}, np.random.default_rng(0), noise={})
-    model = ef.EffectModel(veh, (), (), dt=0.1)
+    clean = world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    model = EffectModel(veh, (), (), dt=0.1)
     ctx = model.context(clean, None)
-    e = ef.errors(ctx, model.simulate(ctx, model.start()[None]))
+    e = errors(ctx, model.simulate(ctx, model.start()[None]))
     assert np.max(np.abs(e["x"])) < 1e-6 and np.max(np.abs(e["psi"])) < 1e-8
-    noisy = ef.world_track(veh, m, {}, np.random.default_rng(1))
-    model = ef.EffectModel(veh, (), (), dt=0.5)
+    noisy = world_track(veh, m, {}, np.random.default_rng(1))
+    model = EffectModel(veh, (), (), dt=0.5)
     ctx = model.context(noisy, 60.0)
-    sc = protocol.pooled_scores(
-        [{k: v[0] for k, v in ef.errors(ctx, model.simulate(ctx, model.start()[None])).items()}]
-    )
+    sc = protocol.pooled_scores([{k: v[0] for k, v in errors(ctx, model.simulate(ctx, model.start()[None])).items()}])
     assert 0.15 < sc["rms_position_m"] < 1.0
     assert ctx.W == 3 and list(ctx.starts) == [0, 120, 240, 360]
 
@@ -108,7 +109,7 @@ def test_catalogue_has_the_issues_effects_with_sources():
         assert len(e.magnitudes) == 3 and e.source and e.description
         assert len(e.params) == len(e.lo) == len(e.hi) == len(e.start) == len(e.scale)
         for mag in e.magnitudes:
-            for k, v in ef.draw_parameters(e.name, e.magnitudes.index(mag), np.random.default_rng(0)).items():
+            for k, v in draw_parameters(e.name, e.magnitudes.index(mag), np.random.default_rng(0)).items():
                 i = e.params.index(k)
                 assert e.lo[i] <= v <= e.hi[i], (e.name, k)
     with pytest.raises(ValueError, match="unknown effect 'tide'"):
@@ -128,13 +129,13 @@ def test_an_effect_at_its_neutral_value_changes_nothing(veh, name):
     """Thrust scale 1, no lag and an unlimited rate, no delay, zero current, zero bias, zero
     wave amplitude (the catalogue's ``neutral``): the effect model reproduces the base model."""
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
-    tr = ef.world_track(veh, m, {}, np.random.default_rng(0))
-    base = ef.EffectModel(veh, (), (), dt=0.5)
+    tr = world_track(veh, m, {}, np.random.default_rng(0))
+    base = EffectModel(veh, (), (), dt=0.5)
     cb = base.context(tr, 30.0)
     Sb = base.simulate(cb, base.start()[None])
     e = ef.get(name)
     neutral = e.neutral
-    em = ef.EffectModel(veh, (), (name,), dt=0.5)
+    em = EffectModel(veh, (), (name,), dt=0.5)
     ce = em.context(tr, 30.0)
     Se = em.simulate(ce, np.array(neutral)[None], np.zeros((1, max(e.n_nuisance, 1))))
     assert np.max(np.abs(Se - Sb)) < 1e-9
@@ -146,14 +147,14 @@ def test_sensor_lag_filters_the_logged_velocities_and_skews_the_positions(veh):
     from scipy import signal
 
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=90.0)
-    true = ef.world_track(veh, m, {}, np.random.default_rng(0), noise={})
-    lag = ef.world_track(veh, m, {"sensor_lag": {"lag_s": 1.0, "skew_s": 0.0}}, np.random.default_rng(0), noise={})
+    true = world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    lag = world_track(veh, m, {"sensor_lag": {"lag_s": 1.0, "skew_s": 0.0}}, np.random.default_rng(0), noise={})
     a = np.exp(-0.1 / 1.0)
     for k in ("u", "v", "r"):
         want, _ = signal.lfilter([1 - a], [1, -a], true[k], zi=[a * true[k][0]])
         assert np.allclose(lag[k], want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max())), k
     assert np.allclose(lag["x"], true["x"]) and np.allclose(lag["psi"], true["psi"])
-    skew = ef.world_track(veh, m, {"sensor_lag": {"lag_s": 0.0, "skew_s": 0.5}}, np.random.default_rng(0), noise={})
+    skew = world_track(veh, m, {"sensor_lag": {"lag_s": 0.0, "skew_s": 0.5}}, np.random.default_rng(0), noise={})
     late = np.interp(true.t - 0.5, true.t, true["x"])
     sel = true.t > 1.0
     assert np.max(np.abs(skew["x"][sel] - late[sel])) < 0.01
@@ -165,13 +166,13 @@ def test_current_acts_through_the_relative_velocity(veh):
     track drifts by V_c t against the same vehicle without current."""
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
     par = {"current_north_mps": 0.2, "current_east_mps": -0.1}
-    tr = ef.world_track(veh, m, {"current": par}, np.random.default_rng(0), noise={})
-    still = ef.world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    tr = world_track(veh, m, {"current": par}, np.random.default_rng(0), noise={})
+    still = world_track(veh, m, {}, np.random.default_rng(0), noise={})
     assert tr["x"][-1] - still["x"][-1] == pytest.approx(0.2 * 60.0, abs=1e-9)
     assert tr["y"][-1] - still["y"][-1] == pytest.approx(-0.1 * 60.0, abs=1e-9)
-    model = ef.EffectModel(veh, (), ("current",), dt=0.1)
+    model = EffectModel(veh, (), ("current",), dt=0.1)
     ctx = model.context(tr, 20.0)
-    e = ef.errors(ctx, model.simulate(ctx, np.array([[0.2, -0.1]])))
+    e = errors(ctx, model.simulate(ctx, np.array([[0.2, -0.1]])))
     assert np.max(np.abs(e["x"])) < 0.05 and np.max(np.abs(e["y"])) < 0.1  # window starts from a 1 s causal fit
 
 
@@ -212,7 +213,7 @@ CASES = {  # effect -> (level, distractor candidates)
 )
 def test_diagnosis_names_the_withheld_effect(veh, scenario, effect):
     level, distractors = CASES[effect]
-    truth = {effect: ef.draw_parameters(effect, level, np.random.default_rng(4))}
+    truth = {effect: draw_parameters(effect, level, np.random.default_rng(4))}
     train, held = world(veh, scenario, truth, seed=11)
     res = gap.diagnose(
         veh,
@@ -233,12 +234,12 @@ def test_diagnosis_names_the_withheld_effect(veh, scenario, effect):
 def test_scores_log_likelihood_is_the_gaussian_density_of_the_errors(veh):
     """``scores(..., sd=)``: sum over channels and finite samples of -e^2/(2 sd^2) - ln(sd sqrt(2 pi))."""
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
-    tr = ef.world_track(veh, m, {"thrust": {"thrust_scale": 0.8}}, np.random.default_rng(3))
-    model = ef.EffectModel(veh, ("Nr",), (), dt=0.5)
+    tr = world_track(veh, m, {"thrust": {"thrust_scale": 0.8}}, np.random.default_rng(3))
+    model = EffectModel(veh, ("Nr",), (), dt=0.5)
     ctx = [model.context(tr, 30.0)]
     f = FitResult.fixed(model, model.start(), 1)
     sd = {c: 0.5 + i for i, c in enumerate(protocol.CHANNELS)}
-    e = ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))
+    e = errors(ctx[0], model.simulate(ctx[0], f.p[None]))
     want = sum(
         float(np.sum(-0.5 * (v[0][np.isfinite(v[0])] / sd[c]) ** 2 - np.log(sd[c] * np.sqrt(2 * np.pi))))
         for c, v in e.items()
@@ -259,7 +260,7 @@ def test_no_effect_gives_none_and_a_missing_candidate_gives_unexplained(veh, sce
     ).to_dict()
     assert res["verdict"] == "none", res["gap_ratio"]
     assert res["gap_ratio"] < res["thresholds"]["none_ratio"]
-    truth = {"current": ef.draw_parameters("current", 2, np.random.default_rng(4))}
+    truth = {"current": draw_parameters("current", 2, np.random.default_rng(4))}
     train, held = world(veh, scenario, truth, seed=22)
     res = gap.diagnose(
         veh,
@@ -311,7 +312,7 @@ def test_shrinkage_is_scored_on_held_out_tracks_disjoint_from_training(veh, scen
     expect = 1 - res["gap_after"]["heldout_rms_m"] / res["gap_before"]["heldout_rms_m"]
     assert res["heldout_shrinkage"] == pytest.approx(expect)
     # the held-out score is the protocol on the held-out track, not on a training one
-    model = ef.EffectModel(veh, FREE, ("thrust",), dt=0.5)
+    model = EffectModel(veh, FREE, ("thrust",), dt=0.5)
     f = FitResult.fixed(
         model,
         np.r_[list(res["after_fit"]["coefficients"].values()), res["after_fit"]["effects"]["thrust"]["thrust_scale"]],
@@ -323,7 +324,7 @@ def test_shrinkage_is_scored_on_held_out_tracks_disjoint_from_training(veh, scen
 
 # --- command line -------------------------------------------------------------------------
 def test_bayesid_diagnose_writes_the_contract(veh, scenario, tmp_path):
-    truth = {"actuator": ef.draw_parameters("actuator", 2, np.random.default_rng(0))}
+    truth = {"actuator": draw_parameters("actuator", 2, np.random.default_rng(0))}
     train, held = world(veh, scenario, truth, seed=41)
     paths = []
     for tr in train + held:
@@ -475,15 +476,15 @@ def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scena
     s2r = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(s2r)
     truth = {
-        "waves": ef.draw_parameters("waves", 1, np.random.default_rng(0)),
-        "thrust": ef.draw_parameters("thrust", 2, np.random.default_rng(0)),
+        "waves": draw_parameters("waves", 1, np.random.default_rng(0)),
+        "thrust": draw_parameters("thrust", 2, np.random.default_rng(0)),
     }
     rng = np.random.default_rng(5)
-    held = [ef.world_track(veh, m, truth, rng, noise={}, name=f"heldout_{m.name}") for m in scenario[1]]
+    held = [world_track(veh, m, truth, rng, noise={}, name=f"heldout_{m.name}") for m in scenario[1]]
     true = s2r.true_model_scores(veh, held, truth, s2r.WINDOW, {"start_rule": "measured", "leadin_s": 0.0})[
         "heldout_rms_m"
     ]
-    base = ef.EffectModel(veh, s2r.FREE, (), dt=s2r.DT)
+    base = EffectModel(veh, s2r.FREE, (), dt=s2r.DT)
     fb = FitResult.fixed(base, base.start(), 1)
     missed = wf.scores(base, fb, [base.context(t, s2r.WINDOW) for t in held])["rms_position_m"]
     assert true < 0.35 and missed > 10 * true, (true, missed)
@@ -498,8 +499,8 @@ def test_two_simultaneous_effects_are_both_added_when_neither_explains_half_alon
     tm = [mv.zigzag(veh, 20.0, dt=0.1, duration=D), mv.prbs(veh, 15.0, duration=D, rng=np.random.default_rng(1))]
     hm = [mv.zigzag(veh, 10.0, dt=0.1, duration=D, first_sign=-1), mv.multisine(veh, 15.0, duration=D)]
     truth = {
-        "thrust": ef.draw_parameters("thrust", 1, np.random.default_rng(0)),
-        "waves": ef.draw_parameters("waves", 1, np.random.default_rng(0)),
+        "thrust": draw_parameters("thrust", 1, np.random.default_rng(0)),
+        "waves": draw_parameters("waves", 1, np.random.default_rng(0)),
     }
     train, held = world(veh, (tm, hm), truth, seed=41)
     res = gap.diagnose(
@@ -522,12 +523,12 @@ def test_scores_log_likelihood_leaves_out_channels_the_fit_had_no_sd_for(veh):
     """Training tracks without a yaw-rate log give fitted sds without ``r``; a held-out track
     that logs ``r`` is scored over the fitted channels only (it raised KeyError: 'r' before)."""
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
-    tr = ef.world_track(veh, m, {}, np.random.default_rng(0))
-    model = ef.EffectModel(veh, (), (), dt=0.5)
+    tr = world_track(veh, m, {}, np.random.default_rng(0))
+    model = EffectModel(veh, (), (), dt=0.5)
     ctx = [model.context(tr, 30.0)]
     f = FitResult.fixed(model, model.start(), 1)
     sd = {c: 0.5 + i for i, c in enumerate(protocol.CHANNELS)}
-    assert "r" in ef.errors(ctx[0], model.simulate(ctx[0], f.p[None]))  # the track logs r
+    assert "r" in errors(ctx[0], model.simulate(ctx[0], f.p[None]))  # the track logs r
     full = wf.scores(model, f, ctx, sd=sd)["log_likelihood"]
     part = wf.scores(model, f, ctx, sd={c: v for c, v in sd.items() if c != "r"})["log_likelihood"]
     assert np.isfinite(part) and part != full

@@ -19,6 +19,9 @@ from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
 from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
+from bayesid.models.context import START_INDEX
+from bayesid.models.submarine import EffectModel
+from bayesid.models.world import world_track
 from bayesid.tasks import Runner
 
 FREE = ["Yv", "Nr", "Ndr"]
@@ -50,7 +53,7 @@ def user_world(veh, effects, seed, n_train=2, n_held=2, duration=150.0, velocity
     rng = np.random.default_rng(seed)
     out, t = [], t0
     for i, m in enumerate(_manoeuvres(veh, n_train + n_held, duration, seed)):
-        tr = ef.world_track(veh, m, effects, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        tr = world_track(veh, m, effects, rng, noise=NOISE, sample_every=2, hold_inputs=True)
         keep = {k: v for k, v in tr.data.items() if velocity_log or k in LOGGED}
         name = f"{'train' if i < n_train else 'held'}{i}_{m.name}"
         out.append(Track(tr.t + t, keep, name=name, meta=tr.meta))
@@ -62,7 +65,7 @@ def true_model_heldout(veh, effects: dict, held, window_s=30.0):
     """Held-out protocol error of the world's own model (nominal coefficients, effect parameters
     as drawn, wave phases from the tracks), under the same start rule as the diagnosis."""
     names = [k for k in held[0].meta["truth"] if k != "nuisance"]
-    m = ef.EffectModel(veh, FREE, names, dt=0.5)
+    m = EffectModel(veh, FREE, names, dt=0.5)
     p = np.concatenate([m.theta0] + [[held[0].meta["truth"][e.name][k] for k in e.params] for e in m.effects])
     nu = [np.asarray(t.meta["truth"].get("nuisance", [])[: m.n_nuisance], float) for t in held]
     f = FitResult.fixed(m, p, len(nu), "true model", nu)
@@ -90,7 +93,7 @@ def test_fitted_start_scores_only_samples_after_its_lead_in(veh):
     """The lead-in samples lie before the window start; every scored sample is at or after it;
     a change of the measurements after a window's start leaves that window's start untouched."""
     _, held = user_world(veh, {}, 2, 1, 1, 120.0)
-    m = ef.EffectModel(veh, FREE, (), dt=0.5)
+    m = EffectModel(veh, FREE, (), dt=0.5)
     ctx = m.context(held[0], 30.0, start="fitted", leadin_s=10.0)
     assert ctx.t_start[0] == pytest.approx(held[0].t[0] + 10.0)
     for w in range(ctx.W):
@@ -103,8 +106,8 @@ def test_fitted_start_scores_only_samples_after_its_lead_in(veh):
     data["x"][later] += 0.5 * (held[0].t[later] - ctx.t_start[1])  # the future drifts away
     ctx2 = m.context(Track(held[0].t, data, name="x"), 30.0, start="fitted", leadin_s=10.0)
     d2 = shooting.fit_starts(m, ctx2, m.start()[None])
-    s0 = ctx.s_meas[:, ef.START_INDEX] + d0[0]
-    s2 = ctx2.s_meas[:, ef.START_INDEX] + d2[0]
+    s0 = ctx.s_meas[:, START_INDEX] + d0[0]
+    s2 = ctx2.s_meas[:, START_INDEX] + d2[0]
     # windows 0 and 1 start from the past only (the channel weights, a noise sd of the whole
     # track, move by the robust estimator's sliver); windows 2 and 3 see the drift in their lead-in
     assert np.allclose(s0[:2], s2[:2], rtol=1e-3, atol=1e-3)
@@ -115,7 +118,7 @@ def test_fitted_start_brings_the_true_models_error_to_the_noise_level(veh):
     """Without a velocity log the measured rule's 1 s slopes drift metres; the lead-in fit
     predicts the true model's held-out windows within a few tenths of a metre."""
     _, held = user_world(veh, {}, 3, 1, 3, 150.0)
-    m = ef.EffectModel(veh, FREE, (), dt=0.5)
+    m = EffectModel(veh, FREE, (), dt=0.5)
     f = FitResult.fixed(m, m.start(), 1, "nominal")
     measured = wf.scores(m, f, [m.context(t, 60.0) for t in held])["rms_position_m"]
     fitted = wf.scores(m, f, [m.context(t, 60.0, start="fitted", leadin_s=10.0) for t in held])["rms_position_m"]
@@ -172,7 +175,7 @@ def test_without_a_velocity_log_the_withheld_effect_is_named(veh, effect):
     # the floor is what a correct model achieves at this noise
     assert 0.5 < res["noise_floor"]["heldout_rms_m"] / true_rms < 2.0
     # gap_after is the model with the attributed effect, scored under the same rule
-    m = ef.EffectModel(veh, FREE, [effect], dt=0.5)
+    m = EffectModel(veh, FREE, [effect], dt=0.5)
     p = np.r_[
         [res["after_fit"]["coefficients"][k] for k in FREE],
         [res["after_fit"]["effects"][effect][k] for k in m.effects[0].params],

@@ -11,16 +11,17 @@ from bayesid.data.track import Track
 from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation import windows as wf
 from bayesid.estimation.fit import FitResult
-from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
+from bayesid.models.submarine import EffectModel
+from bayesid.models.world import world_track
 
 
 @pytest.fixture(scope="module")
 def setup():
     veh = load_vehicle("nps_auv2")
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=200.0)
-    tr = ef.world_track(veh, m, {"thrust": {"thrust_scale": 0.8}}, np.random.default_rng(0))
-    model = ef.EffectModel(veh, ["Yv", "Nr"], (), dt=0.5)
+    tr = world_track(veh, m, {"thrust": {"thrust_scale": 0.8}}, np.random.default_rng(0))
+    model = EffectModel(veh, ["Yv", "Nr"], (), dt=0.5)
     fit = FitResult.fixed(model, model.start(), 1)
     return tr, model, fit
 

@@ -20,6 +20,7 @@ from bayesid.estimation.indices import manoeuvre_indices
 from bayesid.estimation.options import FitOptions
 from bayesid.estimation.prediction import predict
 from bayesid.models import ship
+from bayesid.models.ship import dynamics as shipdyn
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 KV = REAL / "kvlcc2-simman-hsva"
@@ -111,7 +112,7 @@ def test_neutral_rudder_angle_shifts_the_rudder_zero():
 
     def F(delta, dR0):
         out = np.empty((1, 3))
-        ship.forces(s, np.array([[delta, 10.0]]), np.zeros((1, 2)), np.zeros(2), kv.params({"dR0": dR0}), out)
+        shipdyn.forces(s, np.array([[delta, 10.0]]), np.zeros((1, 2)), np.zeros(2), kv.params({"dR0": dR0}), out)
         return out[0]
 
     np.testing.assert_allclose(F(a, a), F(0.0, 0.0), rtol=1e-12, atol=1e-12)
@@ -133,7 +134,7 @@ def test_forces_finite_at_low_speed_astern_and_on_the_spot(state, n):
     es = ship.load_ship("esso_osaka_3m")
     prm = es.params(es.wind_start)
     out = np.empty((1, 3))
-    ship.accelerations(np.array([state], float), np.array([[0.3, n]]), np.array([[1.0, 2.0]]), np.zeros(2), prm, out)
+    shipdyn.accelerations(np.array([state], float), np.array([[0.3, n]]), np.array([[1.0, 2.0]]), np.zeros(2), prm, out)
     assert np.all(np.isfinite(out))
 
 
@@ -431,7 +432,7 @@ def test_wind_loads_follow_the_fourier_form(g_deg):
     F = {}
     for key, coef in (("on", c), ("off", {k: 0.0 for k in c})):
         out = np.empty((1, 3))
-        ship.forces(s, np.array([[0.0, 0.0]]), wind, np.zeros(2), es.params(coef), out)
+        shipdyn.forces(s, np.array([[0.0, 0.0]]), wind, np.zeros(2), es.params(coef), out)
         F[key] = out[0]
     pr, qa = es.particulars, 0.5 * es.particulars["rho_air"] * VA**2
     want = [

@@ -1,5 +1,5 @@
-"""The generated ship kernel (bayesid.models.shipgen) against the interpreted one
-(bayesid.models.ship.simulate_windows), its oracle: same states to round-off (within 1e-10 of
+"""The generated ship kernel (bayesid.models.ship.kernel) against the interpreted one
+(bayesid.models.ship.dynamics.simulate_windows), its oracle: same states to round-off (within 1e-10 of
 each channel's largest magnitude over 300 steps; the measured differences are below 1.2e-15),
 same status, same NaN layout after divergence."""
 
@@ -11,7 +11,10 @@ import numpy as np
 import pytest
 
 from bayesid.data.track import Track
-from bayesid.models import ship, shipgen
+from bayesid.models import ship
+from bayesid.models.ship import dynamics as shipdyn
+from bayesid.models.ship import kernel as shipkernel
+from bayesid.models.ship import layout
 
 #: agreement of the two kernels, relative to each state channel's largest magnitude
 TOL = 1e-10
@@ -27,12 +30,12 @@ def _case(ship_id, seed, B=7, windage=True):
     rng = np.random.default_rng(seed)
     base = ship.load_ship(ship_id).params(WIND_COEF)
     if not windage:
-        base[[ship._IP["A_front"], ship._IP["A_lateral"]]] = 0.0
-    elif base[ship._IP["A_lateral"]] == 0.0:  # KVLCC2 (tank): give it windage
-        base[[ship._IP["A_front"], ship._IP["A_lateral"]]] = [0.5, 2.0]
+        base[[layout.PARTICULAR_INDEX["A_front"], layout.PARTICULAR_INDEX["A_lateral"]]] = 0.0
+    elif base[layout.PARTICULAR_INDEX["A_lateral"]] == 0.0:  # KVLCC2 (tank): give it windage
+        base[[layout.PARTICULAR_INDEX["A_front"], layout.PARTICULAR_INDEX["A_lateral"]]] = [0.5, 2.0]
     prm = np.repeat(base[None], B, axis=0)
-    o = len(ship.PARTICULARS)
-    prm[:, o:] *= 1.0 + 0.1 * rng.standard_normal((B, len(ship.COEFFICIENTS)))
+    o = len(layout.PARTICULARS)
+    prm[:, o:] *= 1.0 + 0.1 * rng.standard_normal((B, len(layout.COEFFICIENTS)))
     W, n = STARTS.size - 1, STARTS[-1]
     s0 = np.zeros((B, W, 6))
     s0[..., 0:2] = rng.normal(0.0, 5.0, (B, W, 2))
@@ -57,8 +60,8 @@ def _run(fn, args):
 
 
 def _assert_agree(args):
-    ref, st_ref = _run(ship.simulate_windows, args)
-    gen, st_gen = _run(shipgen.simulate_windows, args)
+    ref, st_ref = _run(shipdyn.simulate_windows, args)
+    gen, st_gen = _run(shipkernel.simulate_windows, args)
     np.testing.assert_array_equal(st_gen, st_ref)
     np.testing.assert_array_equal(np.isnan(gen), np.isnan(ref))
     scale = np.nanmax(np.abs(ref), axis=(0, 1))
@@ -80,7 +83,7 @@ def test_generated_kernel_agrees_with_the_interpreted_one(ship_id, seed, windage
 def test_rows_with_and_without_windage_in_one_call():
     """Every other row without windage: each lane pair of the generated kernel mixes the two."""
     args = _case("esso_osaka_3m", 4, B=6)
-    args[5][::2, [ship._IP["A_front"], ship._IP["A_lateral"]]] = 0.0
+    args[5][::2, [layout.PARTICULAR_INDEX["A_front"], layout.PARTICULAR_INDEX["A_lateral"]]] = 0.0
     _assert_agree(args)
 
 
@@ -93,13 +96,15 @@ def test_diverging_rows_get_the_same_status_and_nan_layout():
     args = _case("esso_osaka_3m", 5, B=7)
     s0, inputs, prm = args[0], args[2], args[5]
     for b, channel, name in ((1, 3, "Xuu"), (5, 4, "Yv")):
-        prm[b, [ship._IP["A_front"], ship._IP["A_lateral"], ship._IP["xG"]]] = 0.0
-        prm[b, [ship._IC[k] for k in ("Xvv", "Ycf", "Ncf", "gR")]] = 0.0
-        prm[b, ship._IC[name]] = 0.005
+        prm[
+            b, [layout.PARTICULAR_INDEX["A_front"], layout.PARTICULAR_INDEX["A_lateral"], layout.PARTICULAR_INDEX["xG"]]
+        ] = 0.0
+        prm[b, [layout.COEFFICIENT_INDEX[k] for k in ("Xvv", "Ycf", "Ncf", "gR")]] = 0.0
+        prm[b, layout.COEFFICIENT_INDEX[name]] = 0.005
         inputs[b] = 0.0
         s0[b, :, 3:] = 0.0
         s0[b, :, channel] = 20.0
-    prm[3, ship._IC["Nr"]] = 0.3
+    prm[3, layout.COEFFICIENT_INDEX["Nr"]] = 0.3
     ref, status = _assert_agree(args)
     assert status[[1, 5]].all() and status[3].any() and not status[[0, 2, 4, 6]].any()
     for b, channel in ((1, 3), (5, 4)):
@@ -112,13 +117,13 @@ def test_diverging_rows_get_the_same_status_and_nan_layout():
 def test_ship_model_simulates_a_track_the_same_with_either_kernel(monkeypatch):
     """Through ShipModel.simulate: a 120 s zigzag track with wind columns, the wind, current and
     delay effects on, three parameter rows; kernel="generated" runs the generated kernel."""
-    generated, calls = shipgen.simulate_windows, []
+    generated, calls = shipkernel.simulate_windows, []
 
     def spy(*args):
         calls.append(len(args))
         return generated(*args)
 
-    monkeypatch.setattr(shipgen, "simulate_windows", spy)
+    monkeypatch.setattr(shipkernel, "simulate_windows", spy)
     es = ship.load_ship("esso_osaka_3m")
     t = np.arange(0.0, 120.0, 0.5)
     delta = np.where(np.sin(2 * np.pi * t / 40) >= 0, -1.0, 1.0) * math.radians(20.0)
@@ -140,7 +145,7 @@ def test_ship_model_simulates_a_track_the_same_with_either_kernel(monkeypatch):
         name="zigzag",
     )
     S = {}
-    for kind in shipgen.KINDS:
+    for kind in shipkernel.KINDS:
         m = ship.ShipModel(es, effects=("wind", "current", "delay"), dt=0.2, kernel=kind)
         ctx = m.context(tr, 30.0)
         P = np.repeat(m.start()[None], 3, axis=0)
@@ -159,4 +164,4 @@ def test_unknown_kernel_is_named():
     with pytest.raises(ValueError, match="kernel.*'compiled'"):
         ship.ShipModel(ship.load_ship("kvlcc2_7m"), kernel="compiled")
     with pytest.raises(ValueError, match="'compiled'"):
-        shipgen.kernel("compiled")
+        shipkernel.kernel("compiled")

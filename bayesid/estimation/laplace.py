@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from ..models.effects import errors
+from ..models.context import errors
 from . import shooting
 from .fit import FitResult
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.track import Track
-from ..models.effects import errors
+from ..models.context import errors
 from ..protocol import pooled_scores, start_settings
 from . import shooting
 from .indices import manoeuvre_indices

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
-from ..models.effects import START_INDEX, errors
+from ..models.context import START_INDEX, errors
 
 #: Finite-difference steps of the start offsets x, y (m), psi (rad), u, v (m/s), r (rad/s).
 START_STEP = np.array([1e-3, 1e-3, 1e-5, 1e-4, 1e-4, 1e-5])

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models import effects as ef
+from ..models import context as ctxmod
 from ..protocol import CHANNELS, estimate_noise, pooled_scores
 from . import shooting
 from .fit import FitResult, SolverOptions, fit
@@ -104,7 +104,7 @@ def window_residuals(model, ctxs, wts, P, nus, starts=None) -> tuple[np.ndarray,
     diverged = np.zeros(np.atleast_2d(P).shape[0], dtype=bool)
     for i, (ctx, w, nu) in enumerate(zip(ctxs, wts, nus)):
         S = model.simulate(ctx, P, nu, starts=None if starts is None else starts[i])
-        for c, e in ef.errors(ctx, S).items():
+        for c, e in ctxmod.errors(ctx, S).items():
             if c not in w:
                 continue
             r = e * w[c]
@@ -452,7 +452,7 @@ def residual_sd(model, fitres: FitResult, ctxs, floor: dict) -> dict:
     for i, ctx in enumerate(ctxs):
         nu = fitres.nuisance[i][None] if fitres.nuisance and len(fitres.nuisance[i]) else None
         S = shooting.simulate(model, ctx, fitres.p[None], nu)
-        for c, e in ef.errors(ctx, S).items():
+        for c, e in ctxmod.errors(ctx, S).items():
             acc.setdefault(c, []).append(e[0][np.isfinite(e[0])])
     return {
         c: max(float(np.sqrt(np.mean(np.concatenate(v) ** 2))) if sum(x.size for x in v) else 0.0, floor[c])
@@ -532,7 +532,7 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
         S = shooting.simulate(model, ctx, fitres.p[None], nu)
-        e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
+        e = {k: v[0] for k, v in ctxmod.errors(ctx, S).items()}
         errs.append(e)
         per_track[ctx.name] = pooled_scores([e])["rms_position_m"]
         if sd is not None:
@@ -554,7 +554,7 @@ def window_rms(model, fitres: FitResult, ctxs, nuisance=None) -> np.ndarray:
     out = []
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
-        e = ef.errors(ctx, shooting.simulate(model, ctx, fitres.p[None], nu))
+        e = ctxmod.errors(ctx, shooting.simulate(model, ctx, fitres.p[None], nu))
         pos2 = e["x"][0] ** 2 + e["y"][0] ** 2
         for w in range(ctx.W):
             v = pos2[(ctx.win == w) & np.isfinite(pos2)]

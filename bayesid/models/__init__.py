@@ -7,23 +7,10 @@ the command line) works with the model it returns.
 
 from __future__ import annotations
 
-import os
-
-import numba
-
-# numba's thread pool: "workqueue" unless the user chose one (NUMBA_THREADING_LAYER). With the
-# OpenMP layer, a parallel kernel call costs a floor of 6-8 ms on the 2-core machines we measured
-# (waking the pool), whatever its size: 15 tracks of a 600-step spiral took 7.7 ms instead of
-# 1.5 ms, which made short batched calls (a sampler's half-ensemble, a Jacobian) 3-5x slower.
-# Read when the first parallel kernel runs, so it must be set before; a process that already
-# ran one keeps its layer; benchmarks/simulate.py prints the layer in use.
-if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
-
-from ..data.vehicle import Vehicle, load_vehicle  # noqa: E402
-from .effects import EffectModel  # noqa: E402
-from .interface import SimulationModel  # noqa: E402
-from .ship import Ship, ShipModel, is_ship_file, load_ship  # noqa: E402
+from ..data.vehicle import Vehicle, load_vehicle
+from .interface import SimulationModel
+from .ship import Ship, ShipModel, is_ship_file, load_ship
+from .submarine import EffectModel
 
 __all__ = ["FAMILIES", "SimulationModel", "build_model", "load_any_vehicle", "model_class"]
 
@@ -44,8 +31,8 @@ def model_class(vehicle):
 
 def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal"):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
-    :class:`~bayesid.models.ship.ShipModel` (``free`` default: the file's ``[fit] free``), for a
-    submarine :class:`~bayesid.models.effects.EffectModel` in ``mode`` (``free`` default: none).
+    :class:`~bayesid.models.ship.model.ShipModel` (``free`` default: the file's ``[fit] free``), for a
+    submarine :class:`~bayesid.models.submarine.EffectModel` in ``mode`` (``free`` default: none).
     ``dt`` default: the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
 
     Raises KeyError for an unknown coefficient, ValueError for an unknown effect."""

@@ -59,6 +59,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .._numba import use_package_threading_layer
 from ..data import terms
 from . import dynamics
 
@@ -553,7 +554,7 @@ def load_module(src: str, prefix: str):
     """Import generated source ``src`` as a module named ``<prefix>_<hash>``: written once to
     :func:`cache_dir` (atomically; a concurrent process sees the old or the whole new file) and
     imported once per process, so numba's ``cache=True`` keeps its compiled code between
-    processes. Shared by this module and :mod:`bayesid.models.shipgen`."""
+    processes. Shared by this module and :mod:`bayesid.models.ship.kernel`."""
     name = f"{prefix}_{hashlib.sha256(src.encode()).hexdigest()[:16]}"
     mod = _LOADED.get(name)
     if mod is not None:
@@ -605,6 +606,7 @@ def kernel(force_names, mode: str = "6dof", kind: str = "generated"):
     """
     if mode not in LANES:
         raise ValueError(f"mode must be '6dof' or 'horizontal', got {mode!r}")
+    use_package_threading_layer()
     if kind == "generated":
         return generated(force_names, mode)
     if kind == "interpreted":

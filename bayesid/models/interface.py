@@ -2,8 +2,8 @@
 analysis layers.
 
 Two implementations: the submarine's horizontal-plane or 6-DOF model with effects
-(:class:`bayesid.models.effects.EffectModel`) and the 3-DOF surface ship in MMG form
-(:class:`bayesid.models.ship.ShipModel`). The fits (:mod:`bayesid.estimation.windows`), the long-run
+(:class:`bayesid.models.submarine.EffectModel`) and the 3-DOF surface ship in MMG form
+(:class:`bayesid.models.ship.model.ShipModel`). The fits (:mod:`bayesid.estimation.windows`), the long-run
 identification and prediction (:mod:`bayesid.estimation.identification`), the gap diagnosis (:mod:`bayesid.analysis.gap`) and
 the command line take a model and never ask which kind of vessel it is; what differs between
 vessels is answered by the model (its defaults, its effect catalogue, its inverse dynamics).
@@ -79,7 +79,7 @@ class SimulationModel(Protocol):
     def context(
         self, track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
     ):
-        """A track prepared for simulation (:class:`bayesid.models.effects.TrackContext`): step inputs,
+        """A track prepared for simulation (:class:`bayesid.models.context.TrackContext`): step inputs,
         protocol windows (``window_s``; None = whole run), window-start states by the start rule
         ``start`` (lead-in ``leadin_s``), or the state ``s0`` (12,) at the first sample."""
 

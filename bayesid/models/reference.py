@@ -275,19 +275,6 @@ class ReferenceModel:
         return out
 
 
-def reference_generalized_force(
-    states, inputs, vehicle, mode: str = "6dof", coefficients: dict | None = None
-) -> np.ndarray:
-    """``tau`` (n, 6), the right-hand side of ``M nu_dot = tau`` (see
-    :meth:`ReferenceModel.generalized_force`)."""
-    return ReferenceModel(vehicle, coefficients, mode).generalized_force(states, inputs)
-
-
-def reference_rhs(states, inputs, vehicle, mode: str = "6dof", coefficients: dict | None = None) -> np.ndarray:
-    """State derivative (n, 12) at states (n, 12) and inputs (n, 4) (see :meth:`ReferenceModel.rhs`)."""
-    return ReferenceModel(vehicle, coefficients, mode).rhs(states, inputs)
-
-
 # --------------------------------------------------------------------------------------------
 # Integration
 # --------------------------------------------------------------------------------------------
@@ -420,7 +407,5 @@ __all__ = [
     "propulsion_eps",
     "reference_features",
     "ReferenceModel",
-    "reference_generalized_force",
-    "reference_rhs",
     "simulate_reference",
 ]

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from .._numba import use_package_threading_layer
 from ..data import terms
 from ..data.track import INPUT_NAMES, STATE_NAMES, Track
 from . import codegen, dynamics
@@ -268,6 +269,7 @@ class Simulator:
         tic = time.perf_counter()
         # No more threads than tracks: an idle worker has nothing to do (with the OpenMP layer
         # it even busy-waited and stole CPU from a single track; bayesid selects workqueue).
+        use_package_threading_layer()
         n_threads = numba.get_num_threads()
         numba.set_num_threads(max(1, min(B, numba.config.NUMBA_NUM_THREADS)))
         try:

@@ -3,7 +3,7 @@ A small gap diagnosis
 =====================
 
 "World" tracks of NPS AUV II are made with an ocean current the model does not have
-(:func:`bayesid.models.effects.world_track`: the true vehicle, the effect switched on, navigation
+(:func:`bayesid.models.world.world_track`: the true vehicle, the effect switched on, navigation
 noise on every state). The base model -- three free coefficients, fitted on two training tracks --
 is then diagnosed on a held-out track against three candidate effects. The current should come
 out as the cause: added, it brings the held-out error down to the noise floor.
@@ -14,8 +14,8 @@ import numpy as np
 
 from bayesid.analysis.gap import DiagnoseOptions, diagnose
 from bayesid.data.vehicle import load_vehicle
-from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
+from bayesid.models.world import world_track
 
 vehicle = load_vehicle("nps_auv2")
 rng = np.random.default_rng(5)
@@ -24,10 +24,10 @@ zigzag20 = mv.zigzag(vehicle, 20.0, duration=150.0)
 turn20 = mv.turning_circle(vehicle, 20.0, duration=150.0)
 zigzag10 = mv.zigzag(vehicle, 10.0, duration=150.0, first_sign=-1)
 train = [
-    ef.world_track(vehicle, zigzag20, world, rng, name="zigzag20"),
-    ef.world_track(vehicle, turn20, world, rng, name="turn20"),
+    world_track(vehicle, zigzag20, world, rng, name="zigzag20"),
+    world_track(vehicle, turn20, world, rng, name="turn20"),
 ]
-heldout = [ef.world_track(vehicle, zigzag10, world, rng, name="zigzag10")]
+heldout = [world_track(vehicle, zigzag10, world, rng, name="zigzag10")]
 
 # %%
 # The diagnosis

@@ -12,7 +12,7 @@ from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.windows import FitProblem, check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
 from ...models import build_model, model_class
-from ...models import effects as ef
+from ...models import context as ctxmod
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError
 from .candidates import CandidateFit, Stage, candidate_row, fit_candidate
@@ -415,7 +415,7 @@ def _seeds(effects, base, bfit, ctxs, train) -> dict:
     """{effect name: seed} of the candidates that have one
     (:meth:`~bayesid.models.effects.Effect.diagnosis_seed`), from the base fit's errors on the training
     windows and the training tracks' missing forces (None when inverse dynamics fails)."""
-    errors = [ef.errors(ctx, shooting.simulate(base, ctx, bfit.p[None])) for ctx in ctxs]
+    errors = [ctxmod.errors(ctx, shooting.simulate(base, ctx, bfit.p[None])) for ctx in ctxs]
     try:  # wave frequency and per-track phases from the TRAINING tracks' missing forces
         tr_forces = [base.missing_forces(bfit, t) for t in train]
         forces = ([f[1] for f in tr_forces], [(f[0], f[2], t) for f, t in zip(tr_forces, train)])

@@ -17,7 +17,7 @@ from scipy import stats
 
 from ...data.track import STATE_NAMES, Track
 from ...estimation import shooting
-from ...models import effects as ef
+from ...models import context as ctxmod
 from ...protocol import pooled_scores, wrap
 
 __all__ = [
@@ -63,7 +63,7 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
     for ctx, tr in zip(ctxs, tracks):
         s_first = ctx.s_meas[0].copy()
         if ctx.start == "fitted":  # the first segment's start as the rule estimates it
-            s_first[ef.START_INDEX] += shooting.fit_starts(model, ctx, fitres.p[None])[0, 0]
+            s_first[ctxmod.START_INDEX] += shooting.fit_starts(model, ctx, fitres.p[None])[0, 0]
         whole = model.context(tr, None, s0=s_first)
         S = model.simulate(whole, fitres.p[None], measured_start=False)[0]
         for _ in range(n_rep):
@@ -76,7 +76,7 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
             syn = Track(tr.t, data, name=tr.name)
             c2 = model.context(syn, ctx.window_s, start=ctx.start, leadin_s=ctx.leadin_s)
             S2 = shooting.simulate(model, c2, fitres.p[None])
-            errs.append({k: v[0] for k, v in ef.errors(c2, S2).items()})
+            errs.append({k: v[0] for k, v in ctxmod.errors(c2, S2).items()})
     return pooled_scores(errs)
 
 

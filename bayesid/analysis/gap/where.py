@@ -10,7 +10,7 @@ import numpy as np
 from scipy import signal, stats
 
 from ...estimation import shooting
-from ...models import effects as ef
+from ...models import context as ctxmod
 from ...protocol import pooled_scores
 
 __all__ = ["where", "ljung_box", "window_xy"]
@@ -79,7 +79,7 @@ def _per_sample(model, fitres, ctxs, tracks, nuisance) -> tuple[list, list]:
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
         S = shooting.simulate(model, ctx, fitres.p[None], nu)
-        e = {k: v[0] for k, v in ef.errors(ctx, S).items()}
+        e = {k: v[0] for k, v in ctxmod.errors(ctx, S).items()}
         errs.append(e)
         tr = tracks[i]
         u, v, r = (

@@ -1,0 +1,389 @@
+"""The track context: what a model needs of one track to simulate it over the window protocol.
+
+:class:`TrackContext` lays a track on the model's step grid: the continuous pieces between gaps
+(:func:`continuous_pieces`), the protocol windows and their start states, the scored samples (and
+under the fitted start rule the samples that estimate the starts), and the logged inputs averaged
+over each step, delayed and passed through a servo by the input effects. Both model families use
+it (:class:`bayesid.models.submarine.EffectModel`, :class:`bayesid.models.ship.ShipModel`), and
+the fits read a simulation against it: :func:`start_states` (the window-start states with the
+fitted offsets), :func:`sample_rows` (the states at the samples) and :func:`errors` (prediction
+minus measurement per channel).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from ..data.track import INPUT_NAMES, STATE_NAMES, Track
+from ..protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
+from .effects import Effect
+
+
+# ---------------------------------------------------------------------------------------------
+# Input processing
+# ---------------------------------------------------------------------------------------------
+@nb.njit(cache=True)
+def _servo(x, dt, lag, rate):
+    """First-order lag behind a rate limit, in place on (B, n) commands sampled every dt (s).
+    The surface starts at the first command."""
+    B, n = x.shape
+    for b in range(B):
+        y = x[b, 0]
+        a = math.exp(-dt / lag[b]) if lag[b] > 1e-9 else 0.0
+        step = rate[b] * dt
+        for k in range(n):
+            target = y + (x[b, k] - y) * (1.0 - a)
+            d = target - y
+            if step > 0.0:
+                d = min(max(d, -step), step)
+            y += d
+            x[b, k] = y
+
+
+def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float, float]]:
+    """(first, last) sample times of the continuous pieces of a track: runs of samples with
+    finite x, y and psi, split where consecutive such samples are more than
+    ``max(5 x the median sample interval, min_gap_s)`` apart (a logging gap, or a stretch of
+    empty cells). A logged input (``delta_r``, ``delta_s``, ``delta_b``, ``n``) with no value
+    for longer than that and five of its own median intervals removes the samples in between
+    (a piece never runs on a guessed input; shorter holes are held, zero-order). Raises
+    ValueError naming the track and column when x, y or psi is absent or
+    entirely empty."""
+    t = np.asarray(track.t, float)
+    ok = np.ones(t.size, bool)
+    for k in ("x", "y", "psi"):
+        if k not in track:
+            raise ValueError(f"track {track.name!r} has no column {k!r}; the protocol needs x, y, psi")
+        fin = np.isfinite(np.asarray(track[k], float))
+        if not fin.any():
+            raise ValueError(f"track {track.name!r}: column {k!r} is empty (no value in any row)")
+        ok &= fin
+    gap = max(5.0 * float(np.median(np.diff(t))) if t.size > 1 else 0.0, min_gap_s)
+    # a logged input (rudder, propeller) missing for longer than five of its own sample intervals
+    # is a hole too: the model would fly on a guessed input there (shorter stretches are held)
+    for k in ("delta_r", "delta_s", "delta_b", "n"):
+        if k not in track:
+            continue
+        fin = np.flatnonzero(np.isfinite(np.asarray(track[k], float)))
+        if fin.size < 2:
+            continue
+        tk = t[fin]
+        hole = np.flatnonzero(np.diff(tk) > max(gap, 5.0 * float(np.median(np.diff(tk)))) + 1e-9)
+        for h in hole:
+            ok[fin[h] + 1 : fin[h + 1]] = False
+    tt = t[ok]
+    if tt.size == 0:
+        raise ValueError(f"track {track.name!r}: no row has x, y and psi all measured")
+    cut = np.flatnonzero(np.diff(tt) > gap + 1e-9)
+    lo = np.r_[0, cut + 1]
+    hi = np.r_[cut, tt.size - 1]
+    return [(float(tt[a]), float(tt[b])) for a, b in zip(lo, hi)]
+
+
+#: Longest model step grid a track context builds (a track's span over the model step): about
+#: 6 days at 0.5 s. The grid covers the gaps between a track's pieces too, so a clock jump of
+#: 1e9 s would otherwise allocate gigabytes; such a track is refused with the gap named.
+MAX_GRID_STEPS = 1_000_000
+
+
+class TrackContext:
+    """What the model needs of one track: time grid, inputs, windows and samples.
+
+    Window ``w`` is simulated over one *segment* of the model's step grid, from step
+    ``seg_step[w]`` (``lead_steps`` before the window start under the fitted start rule with a
+    lead-in, else the window start) to the next window's start. Segments may overlap (a lead-in
+    lies in the previous window); the kernels see them laid end to end on a virtual step axis
+    (``vmap`` maps a virtual step to the real one; None when the layout is the real grid).
+    Samples scored: ``ts`` (window ``win``, output row ``row``, interpolation ``frac``, time since
+    the segment start ``t_rel``, measurements ``meas``); under the fitted rule the samples that
+    estimate the start are ``lead`` (same keys; the lead-in before each window start, or the
+    window itself for a training fit without lead-in).
+    """
+
+    def __init__(
+        self, model, track: Track, window_s, span_s, s0=None, substeps=10, start="measured", leadin_s: float = 0.0
+    ):
+        dt = model.dt
+        t = np.asarray(track.t, float)
+        self.model, self.track, self.name = model, track, track.name
+        if start not in ("measured", "fitted"):
+            raise ValueError(f"start rule must be 'measured' or 'fitted' here, not {start!r}")
+        self.start = "measured" if s0 is not None else start
+        self.window_s = window_s
+        self.t0 = float(t[0])
+        self.n_steps = int(math.floor((t[-1] - t[0]) / dt + 1e-9))
+        if self.n_steps < 1:
+            raise ValueError(
+                f"track {track.name!r} ({t[-1] - t[0]:g} s) is shorter than one model step of {dt} s (--dt)"
+            )
+        if self.n_steps > MAX_GRID_STEPS:
+            gaps = np.diff(t)
+            i = int(np.argmax(gaps))
+            raise ValueError(
+                f"track {track.name!r} spans {t[-1] - t[0]:.4g} s, {self.n_steps} model steps of {dt} s "
+                f"(at most {MAX_GRID_STEPS}); its longest time gap is {gaps[i]:.4g} s, from t = {t[i]:.10g} to "
+                f"{t[i + 1]:.10g} s (a clock jump?): split the file at the gap, one track file per piece"
+            )
+        t_end = self.t0 + self.n_steps * dt
+        self.t_grid = self.t0 + dt * np.arange(self.n_steps + 1)
+        self.t_mid = self.t_grid[:-1] + 0.5 * dt
+        if window_s is not None and abs(window_s / dt - round(window_s / dt)) > 1e-6:
+            raise ValueError(
+                f"window {window_s:g} s (--window) is not a whole multiple of the model step {dt:g} s (--dt)"
+            )
+        leadin_s = float(leadin_s) if self.start == "fitted" else 0.0
+        if leadin_s < 0 or abs(leadin_s / dt - round(leadin_s / dt)) > 1e-6:
+            raise ValueError(f"lead-in {leadin_s} s is not a non-negative multiple of the model step {dt} s")
+        if window_s is not None and leadin_s > window_s + 1e-9:
+            raise ValueError(f"lead-in {leadin_s} s is longer than the window {window_s} s")
+        self.leadin_s = leadin_s
+        self.lead_steps = int(round(leadin_s / dt))
+        # With a velocity not measured, the causal start-state estimate needs 2*span_s of history
+        # (slopes of the positions): the first window starts after it. The fitted rule starts
+        # the first window after its lead-in. Windows never cross a gap in the record (a stretch
+        # without x, y, psi or without samples): each continuous piece gets its own windows.
+        derived = s0 is None and any(k not in track for k in ("u", "v", "r"))
+        first = leadin_s if self.start == "fitted" else (2.0 * span_s if derived else 0.0)
+        pieces = [(t[0], t[-1])] if s0 is not None else continuous_pieces(track, 2.0 * dt)
+        steps, ends, self.skipped_pieces = [], [], 0
+        for ta, tb in pieces:
+            sel = (t >= ta + first - 1e-9) & (t <= min(tb, t_end) + 1e-9)
+            e_piece = min(int(math.floor((tb - self.t0) / dt + 1e-9)), self.n_steps)
+            st = (
+                np.unique(np.round((window_starts(t[sel], window_s) - self.t0) / dt).astype(np.int64))
+                if sel.any()
+                else np.zeros(0, np.int64)
+            )
+            st = st[st < e_piece]
+            if st.size == 0:
+                self.skipped_pieces += 1
+                continue
+            steps.append(st)
+            ends.append(np.append(st[1:], e_piece))
+        if not steps:
+            raise ValueError(
+                f"track {track.name!r} ({t[-1] - t[0]:g} s) is too short for a window after "
+                f"{first:g} s of lead-in" + (" in any of its pieces between gaps" if len(pieces) > 1 else "")
+            )
+        steps, ends = np.concatenate(steps), np.concatenate(ends)
+        self.n_pieces = len(pieces)
+        self.W = len(steps)
+        self.t_start = self.t_grid[steps]
+        self.t_end = self.t_grid[ends]
+        self.seg_step = np.maximum(steps - self.lead_steps, 0)
+        contiguous = self.lead_steps == 0 and np.array_equal(steps[1:], ends[:-1]) and ends[-1] == self.n_steps
+        if contiguous:
+            # the real grid (steps before the first window are simulated by no window)
+            self.vmap = None
+            self.starts = np.append(steps, self.n_steps).astype(np.int64)
+        else:
+            self.vmap = np.concatenate([np.arange(a, b) for a, b in zip(self.seg_step, ends)]).astype(np.int64)
+            self.starts = np.concatenate([[0], np.cumsum(ends - self.seg_step)]).astype(np.int64)
+        self._ends = ends
+        self.t_seg = self.t_grid[self.seg_step]
+        # samples scored: inside a window (from its start to its end, the next window's start
+        # excluded)
+        cand = np.flatnonzero(t >= self.t_start[0] - 1e-9)
+        win = np.searchsorted(self.t_start, t[cand] + 1e-9, side="right") - 1
+        inside = t[cand] <= self.t_end[win] + 1e-9
+        self.idx = cand[inside]
+        self.ts = t[self.idx]
+        self.win = win[inside]
+        keep = np.zeros(t.size, bool)
+        keep[self.idx] = True
+        self.row, self.frac = self._rows(self.ts, self.win)
+        self.t_rel = self.ts - self.t_seg[self.win]
+        # measured channels
+        self.channels = [c for c in CHANNELS if c in track and np.isfinite(track[c][keep]).any()]
+        self.meas = {c: np.asarray(track[c], float)[keep] for c in self.channels}
+        # window start states: the given true initial state, the causal estimate (measured
+        # rule) or the first guess at each segment start (fitted rule)
+        if s0 is not None:
+            self.s_meas = np.asarray(s0, float)[None, :].repeat(self.W, 0)
+        elif self.start == "fitted":
+            # first guess from a local fit over at least 8 samples (2 s at 4 Hz and faster): of the
+            # lead-in, or of the window itself for a training fit (at 1 Hz a 2 s span held 3
+            # samples, and a fit from so bad a guess stalled at the nominal coefficients)
+            h = float(np.median(np.diff(t))) if t.size > 1 else dt
+            span = max(2.0, 8.0 * h) if leadin_s == 0 else min(max(2.0, 8.0 * h), max(leadin_s, 2.0))
+            self.s_meas = np.array([state_guess(track, ta, span) for ta in self.t_seg])
+        else:
+            self.s_meas = np.array([state_at(track, ts, span_s) for ts in self.t_start])
+        if model.mode == "horizontal":
+            self.s_meas[:, [2, 3, 4, 8, 9, 10]] = 0.0
+        self.lead = self._lead_samples(track, t) if self.start == "fitted" else None
+        # inputs: cumulative integral of the zero-order-held record (exact averages)
+        missing = [k for k in ("delta_r", "n") if k not in track]
+        if missing:
+            raise ValueError(f"track {track.name!r} has no input column(s) {missing}")
+        U = track.inputs(fill=0.0)
+        for j in range(4):  # forward-fill missing samples
+            col = U[:, j]
+            bad = ~np.isfinite(col)
+            if bad.all():
+                raise ValueError(f"track {track.name!r}: input {INPUT_NAMES[j]} has no value")
+            if bad.any():
+                idx = np.where(~bad, np.arange(col.size), 0)
+                np.maximum.accumulate(idx, out=idx)
+                col[:] = col[idx]
+                if bad[0]:
+                    col[: np.argmax(~bad)] = col[np.argmax(~bad)]
+        pad = 1e5
+        dts = np.diff(t)
+        cum = np.concatenate([[0.0 * U[0]], np.cumsum(U[:-1] * dts[:, None], axis=0)])
+        self._tk = np.concatenate([[t[0] - pad], t, [t[-1] + pad]])
+        self._ck = np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad])
+        self.substeps = int(substeps)
+        self.step_inputs = self.average_inputs(np.zeros(1))[0]
+
+    @property
+    def n_virtual(self) -> int:
+        """Steps the kernels integrate (segments end to end)."""
+        return int(self.starts[-1])
+
+    def _rows(self, ts, win):
+        """(output row of the step at or before each time, fraction of the step) for samples at
+        times ``ts`` simulated by windows ``win``."""
+        dt = self.model.dt
+        g = (ts - self.t0) / dt
+        ends = self._ends
+        k = np.minimum(np.floor(g + 1e-9).astype(np.int64), ends[win] - 1)
+        k = np.maximum(k, self.seg_step[win])
+        frac = np.clip(g - k, 0.0, 1.0)
+        return self.starts[win] + (k - self.seg_step[win]) + win, frac
+
+    def _lead_samples(self, track, t):
+        """Samples that estimate each window's start state under the fitted rule: the lead-in
+        ``[t_seg, t_start)`` (strictly before the first scored sample), or with no lead-in the
+        window's own samples (a training fit: multiple shooting proper)."""
+        if self.lead_steps == 0:
+            sel_t, win = self.ts, self.win
+            meas = self.meas
+        else:
+            idx, win = [], []
+            for w in range(self.W):
+                i = np.flatnonzero((t >= self.t_seg[w] - 1e-9) & (t < self.t_start[w] - 1e-9))
+                idx.append(i)
+                win.append(np.full(i.size, w))
+            idx, win = np.concatenate(idx), np.concatenate(win).astype(np.int64)
+            sel_t = t[idx]
+            meas = {c: np.asarray(track[c], float)[idx] for c in self.channels}
+        row, frac = self._rows(sel_t, win)
+        # weights of the start fit: the noise sd of each channel, from the track itself
+        sd = estimate_noise(track, self.channels)
+        return {
+            "ts": sel_t,
+            "win": win,
+            "row": row,
+            "frac": frac,
+            "t_rel": sel_t - self.t_seg[win],
+            "meas": meas,
+            "sd": sd,
+        }
+
+    def gather(self, a):
+        """Per-step array ``a`` (B, n_steps, ...) laid out on the kernels' virtual step axis."""
+        return a if self.vmap is None else np.ascontiguousarray(a[:, self.vmap])
+
+    def average_inputs(self, delay, fine=False):
+        """Inputs averaged over each step (or substep if ``fine``), delayed by ``delay`` (B,) s:
+        (B, n, 4)."""
+        m = self.substeps if fine else 1
+        tf = self.t0 + self.model.dt / m * np.arange(self.n_steps * m + 1)
+        out = np.empty((delay.size, tf.size - 1, 4))
+        h = self.model.dt / m
+        for b, d in enumerate(delay):
+            for j in range(4):
+                c = np.interp(tf - d, self._tk, self._ck[:, j])
+                out[b, :, j] = np.diff(c) / h
+        return out
+
+    def inputs(self, effects, qs, B: int) -> np.ndarray:
+        """(B, n_steps, 4) inputs after the input effects."""
+        delay, servo = None, None
+        for e, q in zip(effects, qs):
+            delay = e.delay(q) if e.delay(q) is not None else delay
+            servo = e.actuator(q) if e.actuator(q) is not None else servo
+        if delay is None and servo is None:
+            x = np.repeat(self.step_inputs[None], B, axis=0)
+        elif servo is None:
+            x = self.average_inputs(np.zeros(B) if delay is None else np.asarray(delay, float))
+        else:
+            x = self.average_inputs(np.zeros(B) if delay is None else np.asarray(delay, float), fine=True)
+            m = self.substeps
+            lag, rate = servo
+            for j in range(3):
+                col = np.ascontiguousarray(x[:, :, j])
+                _servo(col, self.model.dt / m, np.asarray(lag, float), np.asarray(rate, float))
+                x[:, :, j] = col
+            x = x.reshape(B, self.n_steps, m, 4).mean(axis=2)
+        for e, q in zip(effects, qs):
+            if type(e).input_map is not Effect.input_map:
+                e.input_map(x, q)
+        return x
+
+
+#: State components (STATE_NAMES indices x, y, psi, u, v, r) of a window start that the fitted
+#: start rule estimates.
+START_INDEX = np.array([0, 1, 5, 6, 7, 11])
+
+
+def start_states(ctx: TrackContext, B: int, starts=None) -> np.ndarray:
+    """(B, W, 12) window-start states of ``ctx`` (measured frame) plus the offsets ``starts``
+    (B, W, 6) in the :data:`START_INDEX` components, headings wrapped."""
+    s0 = np.repeat(ctx.s_meas[None], B, axis=0)
+    if starts is not None:
+        s0[..., START_INDEX] += starts
+        s0[..., 5] = wrap(s0[..., 5])
+    return s0
+
+
+def sample_rows(ctx: TrackContext, out: np.ndarray, samples: str, angles: slice):
+    """States at a context's samples, linearly interpolated between the kernel's output rows
+    ``out`` (B, n_virtual + W, n_state) (angles by their wrapped increment). ``samples``:
+    ``"scored"`` or ``"lead"``. Returns (S (B, n, n_state), t_rel (n,) since the segment start)."""
+    if samples == "lead":
+        if ctx.lead is None:
+            raise ValueError(f"track {ctx.name!r}: no lead-in samples (start rule {ctx.start!r})")
+        row, frac, t_rel = ctx.lead["row"], ctx.lead["frac"], ctx.lead["t_rel"]
+    elif samples == "scored":
+        row, frac, t_rel = ctx.row, ctx.frac, ctx.t_rel
+    else:
+        raise ValueError(f"samples must be 'scored' or 'lead', not {samples!r}")
+    a = out[:, row]
+    b = out[:, np.minimum(row + 1, out.shape[1] - 1)]
+    f = frac[None, :, None]
+    ang = a[..., angles] + f * wrap(b[..., angles] - a[..., angles])
+    # S = (1 - f) a + f b, in place (a and b are copies): two arrays of the output's size
+    a *= 1.0 - f
+    b *= f
+    a += b
+    del b
+    a[..., angles] = ang
+    return a, t_rel
+
+
+def errors(ctx: TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
+    """Prediction minus measurement per scored channel, (B, n) arrays (psi wrapped), at the
+    scored samples or (``samples="lead"``) at the samples that estimate the start states."""
+    out = {}
+    meas = ctx.lead["meas"] if samples == "lead" else ctx.meas
+    for c in ctx.channels:
+        i = STATE_NAMES.index(c)
+        e = S[..., i] - meas[c][None, :]
+        out[c] = wrap(e) if c == "psi" else e
+    return out
+
+
+__all__ = [
+    "TrackContext",
+    "continuous_pieces",
+    "MAX_GRID_STEPS",
+    "errors",
+    "START_INDEX",
+    "start_states",
+    "sample_rows",
+]

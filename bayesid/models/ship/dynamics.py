@@ -1,0 +1,243 @@
+"""The ship's equations (:mod:`bayesid.models.ship`) as compiled kernels that read the parameter
+vector (:mod:`bayesid.models.ship.layout`) at every call: the hydrodynamic, propeller, rudder and
+wind forces, the window driver :func:`simulate_windows` (the baseline and test oracle of the
+generated kernel, :mod:`bayesid.models.ship.kernel`), the accelerations and forces at given
+states and the generalised mass (inverse dynamics and the equation-error seed); and the true and
+apparent wind of a track.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from ...data.track import Track
+from .layout import GAUSS_W, GAUSS_X, PARTICULARS
+
+
+@nb.njit(cache=True)
+def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
+    """Hydrodynamic, propeller, rudder and wind forces (X, Y, N) at state s: F (3,)."""
+    L, d, rho = p[0], p[2], p[5]
+    D, AR, lam, eta, xR = p[8], p[9], p[10], p[11], p[12]
+    rhoa, AT, AL = p[13], p[14], p[15]
+    o = 16
+    Xuu, Xvv, Xvr, Xrr = p[o + 3], p[o + 4], p[o + 5], p[o + 6]
+    Yv, Yr, Nv, Nr, Ycf, Ncf = p[o + 7], p[o + 8], p[o + 9], p[o + 10], p[o + 11], p[o + 12]
+    Yvvr, Yvrr, Nvvr, Nvrr = p[o + 13], p[o + 14], p[o + 15], p[o + 16]
+    o = 20
+    wP0, tP, k0, k1, k2, Ka, xP = p[o + 13], p[o + 14], p[o + 15], p[o + 16], p[o + 17], p[o + 18], p[o + 19]
+    tR, aH, xH, eps, kap, lR, gR = p[o + 20], p[o + 21], p[o + 22], p[o + 23], p[o + 24], p[o + 25], p[o + 26]
+    psi, u, v, r = s[2], s[3], s[4], s[5]
+    U = math.sqrt(u * u + v * v)
+    q = 0.5 * rho * L * d
+    X = q * (Xuu * u * abs(u) + Xvv * v * v + Xvr * v * r * L + Xrr * r * r * L * L)
+    Y = q * (Yv * U * v + Yr * u * r * L)
+    N = q * L * (Nv * u * v + Nr * U * r * L)
+    Ut = math.sqrt(u * u + v * v + r * r * L * L)
+    if Ut > 1e-9:
+        rl = r * L
+        Y += q * (Yvvr * v * v * rl + Yvrr * v * rl * rl) / Ut
+        N += q * L * (Nvvr * v * v * rl + Nvrr * v * rl * rl) / Ut
+    i0 = 0.0
+    i1 = 0.0
+    h = 0.5 * L
+    for k in range(gx.size):
+        x = h * gx[k]
+        w = v + x * r
+        i0 += gw[k] * w * abs(w)
+        i1 += gw[k] * x * w * abs(w)
+    Y -= 0.5 * rho * d * Ycf * h * i0
+    N -= 0.5 * rho * d * Ncf * h * i1
+    # propeller
+    vp = v + xP * L * r
+    b2 = vp * vp / (u * u + vp * vp + 1e-12)
+    wP = wP0 * math.exp(-4.0 * b2)
+    uP = (1.0 - wP) * u
+    KT = 0.0
+    T = 0.0
+    if n > 1e-6:
+        J = min(max(uP / (n * D), -0.5), 1.2)
+        KT = k0 + k1 * J + k2 * J * J
+        T = rho * n * n * D**4 * KT
+    elif n < -1e-6:
+        T = -Ka * rho * n * n * D**4
+    X += (1.0 - tP) * T
+    # rudder
+    if n > 1e-6:
+        slip = math.sqrt(uP * uP + 8.0 * max(KT, 0.0) * n * n * D * D / math.pi)
+        if uP >= 0.0:
+            a = uP * (1.0 - kap) + kap * slip
+            uR = eps * math.sqrt(eta * a * a + (1.0 - eta) * uP * uP)
+        else:
+            uR = eps * math.sqrt(eta) * kap * slip + (1.0 - math.sqrt(eta)) * uP
+    elif uP >= 0.0:
+        uR = eps * uP
+    else:
+        uR = uP
+    vR = -gR * (v + lR * L * r)
+    UR = math.sqrt(uR * uR + vR * vR)
+    fa = 6.13 * lam / (lam + 2.25)
+    dm = p[o + 34] - dlt
+    FN = 0.5 * rho * AR * fa * UR * (uR * math.sin(dm) - vR * math.cos(dm))
+    X -= (1.0 - tR) * FN * math.sin(dm)
+    Y -= (1.0 + aH) * FN * math.cos(dm)
+    N -= (xR + aH * xH) * L * FN * math.cos(dm)
+    # wind
+    if AT > 0.0 or AL > 0.0:
+        c, sn = math.cos(psi), math.sin(psi)
+        wbx = c * wn + sn * we
+        wby = -sn * wn + c * we
+        ax = wbx - (u + c * cn + sn * ce)
+        ay = wby - (v - sn * cn + c * ce)
+        va2 = ax * ax + ay * ay
+        if va2 > 0.0:
+            g = math.atan2(-ay, -ax)
+            qa = 0.5 * rhoa * va2
+            X += qa * AT * (p[o + 27] * math.cos(g) + p[o + 28] * math.cos(3.0 * g))
+            Y += qa * AL * (p[o + 29] * math.sin(g) + p[o + 30] * math.sin(3.0 * g))
+            N += qa * AL * L * (p[o + 31] * math.sin(g) + p[o + 32] * math.sin(2.0 * g) + p[o + 33] * math.sin(3.0 * g))
+    F[0] = X
+    F[1] = Y
+    F[2] = N
+
+
+@nb.njit(cache=True)
+def _rhs(s, dlt, n, wn, we, cn, ce, p, gx, gw, F, ds):
+    L, d, m, xG, rho, kzz = p[0], p[2], p[3], p[4], p[5], p[6]
+    o = 16
+    q2 = 0.5 * rho * L * L * d
+    mx, my, Jz = p[o] * q2, p[o + 1] * q2, p[o + 2] * q2 * L * L
+    _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F)
+    psi, u, v, r = s[2], s[3], s[4], s[5]
+    c, sn = math.cos(psi), math.sin(psi)
+    ds[0] = u * c - v * sn + cn
+    ds[1] = u * sn + v * c + ce
+    ds[2] = r
+    ds[3] = (F[0] + (m + my) * v * r + xG * m * r * r) / (m + mx)
+    Iz = m * (kzz * L) ** 2 + xG * xG * m + Jz
+    a11, a12, a22 = m + my, xG * m, Iz
+    b1 = F[1] - (m + mx) * u * r
+    b2 = F[2] - xG * m * u * r
+    det = a11 * a22 - a12 * a12
+    ds[4] = (a22 * b1 - a12 * b2) / det
+    ds[5] = (a11 * b2 - a12 * b1) / det
+
+
+@nb.njit(cache=True, parallel=True)
+def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status):
+    """RK4 of B parameter vectors over W windows, each restarting from its own state.
+
+    s0 (B, W, 6); starts (W+1,) step indices (last = n); inputs (B, n, 2) rudder (rad, + to
+    port) and propeller (rps), held over each step; wind (n, 2) true wind velocity towards
+    (north/x, east/y) m/s, held over each step; cur (B, 2) current (m/s, earth frame);
+    prm (B, NP); out (B, n + W, 6) states at the window's step points (window w occupies rows
+    starts[w] + w ... starts[w+1] + w); status (B, W) 0 ok, 1 diverged (rest of window NaN).
+    """
+    B, W = s0.shape[0], s0.shape[1]
+    gx, gw = GAUSS_X, GAUSS_W
+    for job in nb.prange(B * W):
+        b = job // W
+        w = job % W
+        s = s0[b, w].copy()
+        k1 = np.empty(6)
+        k2 = np.empty(6)
+        k3 = np.empty(6)
+        k4 = np.empty(6)
+        tmp = np.empty(6)
+        F = np.empty(3)
+        p = prm[b]
+        cn, ce = cur[b, 0], cur[b, 1]
+        i0, i1 = starts[w], starts[w + 1]
+        row = i0 + w
+        out[b, row] = s
+        status[b, w] = 0
+        for k in range(i0, i1):
+            dl, nn = inputs[b, k, 0], inputs[b, k, 1]
+            wn, we = wind[k, 0], wind[k, 1]
+            _rhs(s, dl, nn, wn, we, cn, ce, p, gx, gw, F, k1)
+            for j in range(6):
+                tmp[j] = s[j] + 0.5 * dt * k1[j]
+            _rhs(tmp, dl, nn, wn, we, cn, ce, p, gx, gw, F, k2)
+            for j in range(6):
+                tmp[j] = s[j] + 0.5 * dt * k2[j]
+            _rhs(tmp, dl, nn, wn, we, cn, ce, p, gx, gw, F, k3)
+            for j in range(6):
+                tmp[j] = s[j] + dt * k3[j]
+            _rhs(tmp, dl, nn, wn, we, cn, ce, p, gx, gw, F, k4)
+            bad = False
+            for j in range(6):
+                s[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                if not math.isfinite(s[j]):
+                    bad = True
+            if bad or abs(s[3]) > 50.0 or abs(s[4]) > 50.0 or abs(s[5]) > 10.0:
+                status[b, w] = 1
+                for kk in range(k + 1, i1 + 1):
+                    out[b, kk + w, :] = np.nan
+                break
+            out[b, k + 1 + w] = s
+
+
+@nb.njit(cache=True)
+def accelerations(states, inputs, wind, cur, prm, out):
+    """Model accelerations (u', v', r') at given states: states (N, 6), inputs (N, 2) rudder
+    (rad) and rps, wind (N, 2), cur (2,), prm (NP,) -> out (N, 3)."""
+    F = np.empty(3)
+    ds = np.empty(6)
+    for i in range(states.shape[0]):
+        _rhs(
+            states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W, F, ds
+        )
+        out[i, 0] = ds[3]
+        out[i, 1] = ds[4]
+        out[i, 2] = ds[5]
+
+
+@nb.njit(cache=True)
+def forces(states, inputs, wind, cur, prm, out):
+    """External forces (X, Y, N) at given states, as :func:`accelerations`: out (N, 3)."""
+    F = np.empty(3)
+    for i in range(states.shape[0]):
+        _forces(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W, F)
+        out[i] = F
+
+
+def mass_matrix(prm: np.ndarray) -> np.ndarray:
+    """(3, 3) generalised mass of the MMG equations (rigid body plus added mass), kg and kg m^2."""
+    L, d, m, xG, rho, kzz = prm[0], prm[2], prm[3], prm[4], prm[5], prm[6]
+    o = len(PARTICULARS)
+    q2 = 0.5 * rho * L * L * d
+    mx, my, Jz = prm[o] * q2, prm[o + 1] * q2, prm[o + 2] * q2 * L * L
+    Iz = m * (kzz * L) ** 2 + xG * xG * m + Jz
+    return np.array([[m + mx, 0, 0], [0, m + my, xG * m], [0, xG * m, Iz]])
+
+
+def wind_components(track: Track, t: np.ndarray) -> np.ndarray:
+    """(len(t), 2) true-wind velocity towards (x/north, y/east), m/s, interpolated at ``t`` from
+    the track's ``wind_speed`` and ``wind_dir`` (direction the wind comes FROM); zeros when the
+    track has no wind columns."""
+    if "wind_speed" not in track or "wind_dir" not in track:
+        return np.zeros((t.size, 2))
+    sp = np.asarray(track["wind_speed"], float)
+    di = np.asarray(track["wind_dir"], float)
+    wn, we = -sp * np.cos(di), -sp * np.sin(di)
+    ok = np.isfinite(wn) & np.isfinite(we)
+    if not ok.any():
+        return np.zeros((t.size, 2))
+    return np.column_stack([np.interp(t, track.t[ok], wn[ok]), np.interp(t, track.t[ok], we[ok])])
+
+
+def apparent_wind(track: Track, u, v, psi, t=None) -> tuple[np.ndarray, np.ndarray]:
+    """Apparent wind speed (m/s) and angle off the bow it comes from (rad, + from starboard) for
+    body velocities ``u, v`` and heading ``psi`` at times ``t`` (default the track's)."""
+    t = track.t if t is None else t
+    w = wind_components(track, t)
+    c, s = np.cos(psi), np.sin(psi)
+    ax = c * w[:, 0] + s * w[:, 1] - u
+    ay = -s * w[:, 0] + c * w[:, 1] - v
+    return np.hypot(ax, ay), np.arctan2(-ay, -ax)
+
+
+__all__ = ["simulate_windows", "accelerations", "forces", "mass_matrix", "wind_components", "apparent_wind"]

@@ -1,0 +1,242 @@
+"""The ship file: a TOML vehicle file with ``[vehicle] kind = "ship3dof"``, ``[particulars]``,
+``[coefficients]``, optional ``[wind]``, ``[fit] free`` and ``[prior]`` sections, read into a
+:class:`Ship` by :func:`load_ship`; :func:`is_ship_file` tells a ship file from a submarine's.
+Added masses the file does not give are estimated from the particulars
+(:func:`empirical_added_mass`).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ...data.priors import parse_prior_section
+from ...data.vehicle import VehicleFileError
+from .layout import COEFFICIENTS, PARTICULARS, WIND
+
+
+class ShipFileError(VehicleFileError):
+    """A ship vehicle file is malformed (the message names file, section and key)."""
+
+
+@dataclass
+class Ship:
+    """A surface ship: particulars (SI) and MMG prime coefficients.
+
+    ``coefficients`` holds every name of :data:`~bayesid.models.ship.layout.COEFFICIENTS` (added masses estimated when the
+    file gives none; wind coefficients 0 unless a ``[wind]`` section gives start values, kept in
+    ``wind_start``). ``free`` is the default list of coefficients a fit changes.
+    """
+
+    id: str
+    particulars: dict
+    coefficients: dict
+    wind_start: dict = field(default_factory=dict)
+    free: list = field(default_factory=list)
+    description: str = ""
+    source: str = ""
+    kind: str = "ship3dof"
+    #: {name: (mean, sd)} Gaussian priors of the file's ``[prior]`` section, and their source
+    prior: dict = field(default_factory=dict)
+    prior_source: str = ""
+
+    @property
+    def file_path(self) -> str:
+        """The TOML file the ship was loaded from ("" when built in code)."""
+        return self.source
+
+    @property
+    def display_name(self) -> str:
+        """No name beyond the id (for the vessel check of a track)."""
+        return ""
+
+    #: ship files give no nominal propeller speed (so no rev/s check on n)
+    nominal_rpm = 0.0
+
+    def track_warnings(self, track, name: str, body_speed, ground_speed) -> list[str]:
+        """Plausibility warnings of a track for this ship (:func:`bayesid.data.validate.check_track`):
+        stern/bow planes, depth or pitch that vary (a submarine's track), and a median speed
+        (m/s, ``body_speed`` else ``ground_speed``) above Froude number 0.25 for a full form
+        (Cb >= 0.7: tankers and bulk carriers meet a wall of wave resistance near Fn 0.2) or 0.45
+        for finer displacement hulls."""
+        warn = []
+        planes = [
+            k
+            for k in ("delta_s", "delta_b", "z", "w", "q", "theta")
+            if k in track and np.nanmax(np.abs(track[k]), initial=0.0) > 1e-6
+        ]
+        if planes:
+            warn.append(
+                f"{name}: columns {', '.join(planes)} vary (stern/bow planes, depth or pitch), but "
+                f"{self.id} is a 3-DOF surface ship: a submarine's track?"
+            )
+        L, cb = float(self.particulars.get("L", 0.0) or 0.0), float(self.particulars.get("Cb", 0.0) or 0.0)
+        limit = 0.25 if cb >= 0.7 else 0.45
+        speed = body_speed if body_speed is not None else ground_speed
+        if L > 0 and speed is not None and speed / math.sqrt(9.81 * L) > limit:
+            warn.append(
+                f"{name}: median speed {speed:.3g} m/s is a Froude number of "
+                f"{speed / math.sqrt(9.81 * L):.2f} for the {L:g} m {self.id} "
+                f"(block coefficient {cb:g}: displacement hulls of this form run below {limit:g}): a track "
+                "of another vessel, or positions not in metres?"
+            )
+        return warn
+
+    @property
+    def L(self) -> float:
+        return float(self.particulars["L"])
+
+    @property
+    def rho(self) -> float:
+        return float(self.particulars["rho"])
+
+    def params(self, coefficients: dict | None = None) -> np.ndarray:
+        """(NP,) kernel parameter vector (particulars, then coefficients)."""
+        c = dict(self.coefficients, **(coefficients or {}))
+        return np.array([float(self.particulars[k]) for k in PARTICULARS] + [float(c[k]) for k in COEFFICIENTS])
+
+    def with_coefficients(self, values: dict) -> Ship:
+        for k in values:
+            if k not in COEFFICIENTS:
+                raise KeyError(f"unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
+        return replace(
+            self,
+            particulars=dict(self.particulars),
+            coefficients=dict(self.coefficients, **values),
+            wind_start=dict(self.wind_start),
+            free=list(self.free),
+            prior=dict(self.prior),
+        )
+
+
+def empirical_added_mass(p: dict) -> dict:
+    """Added masses from the particulars, MMG prime form: ``{"mx", "my", "Jz"}``.
+
+    ``my``, ``Jz``: Clarke, Gedling & Hine (1983), Trans. RINA 125, regressions
+    ``-Y'vdot / (pi (T/L)^2) = 1 + 0.16 Cb B/T - 5.1 (B/L)^2`` and
+    ``-N'rdot / (pi (T/L)^2) = 1/12 + 0.017 Cb B/T - 0.33 B/L`` (Clarke's primes on ``0.5 rho L^3``
+    and ``0.5 rho L^5``; times ``L/d`` for the MMG primes). ``mx = 2.7 rho V^(5/3) / L^2`` with the
+    displaced volume ``V = m / rho`` (Soeding 1982). For KVLCC2 this gives my' 0.244, Jz' 0.0126
+    (MMG-published 0.223, 0.011; Yasukawa & Yoshimura 2015, Table 3).
+    """
+    L, B, d, Cb, rho, m = (float(p[k]) for k in ("L", "B", "d", "Cb", "rho", "mass_kg"))
+    k = math.pi * (d / L) ** 2
+    yvd = k * (1.0 + 0.16 * Cb * B / d - 5.1 * (B / L) ** 2)
+    nrd = k * (1.0 / 12.0 + 0.017 * Cb * B / d - 0.33 * B / L)
+    V = m / rho
+    mx = 2.7 * rho * V ** (5.0 / 3.0) / L**2
+    return {"mx": mx / (0.5 * rho * L**2 * d), "my": yvd * L / d, "Jz": nrd * L / d}
+
+
+def packaged_ships() -> list[str]:
+    root = resources.files("bayesid") / "vehicles"
+    out = []
+    for p in root.iterdir():
+        if p.name.endswith(".toml"):
+            with open(str(p), "rb") as fh:
+                if tomllib.load(fh).get("vehicle", {}).get("kind") == "ship3dof":
+                    out.append(p.name[:-5])
+    return sorted(out)
+
+
+def is_ship_file(path_or_id) -> bool:
+    """True when the vehicle file (path or packaged id) declares ``kind = "ship3dof"``."""
+    try:
+        p = _resolve(path_or_id)
+        with open(p, "rb") as fh:
+            return tomllib.load(fh).get("vehicle", {}).get("kind") == "ship3dof"
+    except (FileNotFoundError, tomllib.TOMLDecodeError, OSError):
+        return False
+
+
+def _resolve(path_or_id) -> Path:
+    if not str(path_or_id).strip():
+        raise FileNotFoundError("empty vehicle name; give a packaged id or a TOML path")
+    p = Path(path_or_id)
+    if not p.suffix and not p.exists():
+        res = resources.files("bayesid") / "vehicles" / f"{path_or_id}.toml"
+        if not res.is_file():
+            raise FileNotFoundError(f"no vehicle file {path_or_id!r}; packaged ships: {packaged_ships()}")
+        return Path(str(res))
+    if not p.is_file():
+        raise FileNotFoundError(f"vehicle file {p} does not exist")
+    return p
+
+
+def load_ship(path_or_id) -> Ship:
+    """Load a ship vehicle file (TOML with ``[vehicle] kind = "ship3dof"``, ``[particulars]``,
+    ``[coefficients]``, optional ``[wind]`` and ``[fit] free``).
+
+    Raises
+    ------
+    FileNotFoundError : no such file or packaged id.
+    ShipFileError : missing section or particular, non-finite value, unknown coefficient name
+        (the message names the file, section and key).
+    """
+    p = _resolve(path_or_id)
+    try:
+        with open(p, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as e:
+        raise ShipFileError(f"{p}: not valid TOML: {e}") from None
+    for sec in ("vehicle", "particulars", "coefficients"):
+        if sec not in doc:
+            raise ShipFileError(f"{p}: missing section [{sec}]")
+
+    def num(sec, k, v):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ShipFileError(f"{p}: [{sec}] {k} = {v!r} is not a finite number")
+        return float(v)
+
+    part = {}
+    for k in PARTICULARS:
+        if k not in doc["particulars"]:
+            raise ShipFileError(f"{p}: missing [particulars] {k}")
+        part[k] = num("particulars", k, doc["particulars"][k])
+        if k in ("L", "B", "d", "mass_kg", "rho", "Cb", "D_prop", "A_rudder", "kzz") and not part[k] > 0:
+            raise ShipFileError(f"{p}: [particulars] {k} = {part[k]!r} must be positive")
+    unknown = set(doc["particulars"]) - set(PARTICULARS)
+    if unknown:
+        raise ShipFileError(f"{p}: [particulars] unknown key(s) {sorted(unknown)}; known: {', '.join(PARTICULARS)}")
+    coef = {k: 0.0 for k in COEFFICIENTS}
+    coef.update(empirical_added_mass(part))
+    for sec in ("coefficients", "wind"):
+        for k, v in doc.get(sec, {}).items():
+            if k not in COEFFICIENTS or (sec == "wind") != (k in WIND):
+                raise ShipFileError(
+                    f"{p}: [{sec}] unknown coefficient {k!r}; known: "
+                    f"{', '.join(WIND if sec == 'wind' else [c for c in COEFFICIENTS if c not in WIND])}"
+                )
+            coef[k] = num(sec, k, v)
+    wind = {k: coef[k] for k in WIND}
+    for k in WIND:  # the base model has no wind term; the wind effect starts from these
+        coef[k] = 0.0
+    free = list(doc.get("fit", {}).get("free", []))
+    for k in free:
+        if k not in COEFFICIENTS or k in WIND:
+            raise ShipFileError(f"{p}: [fit] free lists unknown coefficient {k!r}")
+    v = doc["vehicle"]
+    if v.get("kind") != "ship3dof":
+        raise ShipFileError(f'{p}: [vehicle] kind = {v.get("kind")!r}; a ship file has kind = "ship3dof"')
+    prior, prior_source = parse_prior_section(
+        doc.get("prior", {}), p, coef, [c for c in COEFFICIENTS if c not in WIND], ShipFileError
+    )
+    return Ship(
+        str(v.get("id", p.stem)),
+        part,
+        coef,
+        wind,
+        free,
+        str(v.get("description", "")),
+        str(p),
+        prior=prior,
+        prior_source=prior_source,
+    )
+
+
+__all__ = ["Ship", "ShipFileError", "load_ship", "is_ship_file", "packaged_ships", "empirical_added_mass"]

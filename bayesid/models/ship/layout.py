@@ -1,0 +1,86 @@
+"""The parameter vector of the ship's compiled kernels: particulars, then MMG coefficients, in a
+fixed order, and the quadrature of the hull cross-flow integral. The interpreted kernels
+(:mod:`bayesid.models.ship.dynamics`), the generated one (:mod:`bayesid.models.ship.kernel`), the
+ship file (:mod:`bayesid.models.ship.fileformat`) and the model all read this layout.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Particulars in the kernel's parameter vector (order fixed; SI units, ratios as noted).
+PARTICULARS = (
+    "L",
+    "B",
+    "d",
+    "mass_kg",
+    "xG",
+    "rho",
+    "kzz",
+    "Cb",
+    "D_prop",
+    "A_rudder",
+    "lambda_rudder",
+    "eta_prop_rudder",
+    "x_rudder",
+    "rho_air",
+    "A_front",
+    "A_lateral",
+)
+#: Coefficients (MMG prime form; see the module docstring), in the kernel's order.
+COEFFICIENTS = (
+    "mx",
+    "my",
+    "Jz",
+    "Xuu",
+    "Xvv",
+    "Xvr",
+    "Xrr",
+    "Yv",
+    "Yr",
+    "Nv",
+    "Nr",
+    "Ycf",
+    "Ncf",
+    "Yvvr",
+    "Yvrr",
+    "Nvvr",
+    "Nvrr",
+    "wP",
+    "tP",
+    "k0",
+    "k1",
+    "k2",
+    "Ka",
+    "xP",
+    "tR",
+    "aH",
+    "xH",
+    "eps",
+    "kappa",
+    "lR",
+    "gR",
+    "Cx1",
+    "Cx3",
+    "Cy1",
+    "Cy3",
+    "Cn1",
+    "Cn2",
+    "Cn3",
+    "dR0",
+)
+WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3")
+NP = len(PARTICULARS) + len(COEFFICIENTS)
+#: Position of each particular in the parameter vector.
+PARTICULAR_INDEX = {n: i for i, n in enumerate(PARTICULARS)}
+#: Position of each coefficient in the parameter vector.
+COEFFICIENT_INDEX = {n: len(PARTICULARS) + i for i, n in enumerate(COEFFICIENTS)}
+
+#: Gauss-Legendre nodes (on [-1, 1]) and weights of the hull cross-flow integral, 16 points: the
+#: stations are ``x = h * GAUSS_X`` with ``h`` the half length (see ``_forces``). Shared by the
+#: interpreted kernels (:mod:`bayesid.models.ship.dynamics`) and the generated one
+#: (:mod:`bayesid.models.ship.kernel`).
+GAUSS_X, GAUSS_W = np.polynomial.legendre.leggauss(16)
+
+
+__all__ = ["PARTICULARS", "COEFFICIENTS", "WIND", "NP", "PARTICULAR_INDEX", "COEFFICIENT_INDEX", "GAUSS_X", "GAUSS_W"]

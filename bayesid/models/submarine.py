@@ -1,0 +1,258 @@
+"""The submarine model: the base equations (:mod:`bayesid.models.dynamics`, the generated kernels of
+:mod:`bayesid.models.codegen`) plus effects of the catalogue (:mod:`bayesid.models.effects`),
+simulated over a track's protocol windows.
+
+:class:`EffectModel` implements :class:`bayesid.models.interface.SimulationModel` for a
+:class:`~bayesid.data.vehicle.Vehicle`; :data:`REGIONS` are the operating-region bins of its
+*where* analysis.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..data import terms
+from ..data.track import Track
+from ..protocol import wrap
+from . import inverse
+from .context import TrackContext, sample_rows, start_states
+from .effects import CATALOGUE, Effect, get, signature_dict
+from .interface import ParameterLayout
+from .simulate import Manoeuvre, Simulator
+
+
+class EffectModel(ParameterLayout):
+    """The base model plus a list of effects, simulated over a track's protocol windows.
+
+    Parameters
+    ----------
+    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (nominal coefficients, prime form).
+    free : names of the coefficients the fit changes (SNAME; unknown names raise).
+    effects : effect names (see :data:`~bayesid.models.effects.CATALOGUE`), applied in this order.
+    mode : ``"horizontal"`` or ``"6dof"`` (an effect with ``mode="6dof"`` forces 6-DOF).
+    dt : integration step (s).
+    kernel : ``"generated"`` (default) or ``"interpreted"``: the compiled kernel kind
+        (:class:`bayesid.models.simulate.Simulator`, :mod:`bayesid.models.codegen`).
+
+    The parameter vector of one model is ``[theta_free (P), q_1, ..., q_E]`` with ``q_e`` the
+    effect parameters in the units of their names; per-track nuisance parameters
+    (``n_nuisance``) are passed separately.
+
+    Implements :class:`bayesid.models.interface.SimulationModel` (the submarine family).
+    """
+
+    DEFAULT_DT = 0.5
+    DEFAULT_WEIGHTING = "noise"
+    #: the horizontal-plane coefficients freed when the user names none
+    DEFAULT_FREE = ("Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr")
+
+    @classmethod
+    def for_vehicle(cls, vehicle, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal"):
+        """The model of :func:`bayesid.models.build_model` (``free`` None: none)."""
+        return cls(vehicle, free or (), effects, mode=mode, dt=dt)
+
+    @staticmethod
+    def default_fit_window(scoring_window_s):
+        """A submarine's training fits use the scoring window (None: the whole run)."""
+        return scoring_window_s
+
+    @classmethod
+    def default_free(cls, vehicle) -> list:
+        return list(cls.DEFAULT_FREE)
+
+    @staticmethod
+    def check_free(vehicle, names, option: str = "free") -> None:
+        """KeyError naming ``option`` and an unknown coefficient name."""
+        terms.check_names(names, option)
+
+    @staticmethod
+    def get_effect(name):
+        """A catalogue effect by name (:func:`~bayesid.models.effects.get`); an
+        :class:`~bayesid.models.effects.Effect` passes through."""
+        return name if isinstance(name, Effect) else get(name)
+
+    def __init__(
+        self, vehicle, free=(), effects=(), mode: str = "horizontal", dt: float = 0.5, kernel: str = "generated"
+    ):
+        self.vehicle, self.dt = vehicle, float(dt)
+        self.effects = [self.get_effect(e) for e in effects]
+        names = [e.name for e in self.effects]
+        if len(set(names)) != len(names):
+            raise ValueError(f"effect listed twice in {names}")
+        if any(e.name == "crossflow" for e in self.effects) and vehicle.crossflow is None:
+            raise ValueError(f"vehicle {vehicle.id} has no [crossflow] section for the crossflow effect")
+        self.mode = "6dof" if any(e.mode == "6dof" for e in self.effects) else mode
+        dummy = Manoeuvre("protocol", self.dt, np.zeros((1, 4)), np.zeros(12))
+        self.sim = Simulator(vehicle, dummy, free, self.mode, kernel=kernel)
+        self.free = list(self.sim.free)
+        self.force_index = {n: i for i, n in enumerate(self.sim.force_names)}
+        self.theta0 = vehicle.coefficient_vector(self.free) if self.free else np.zeros(0)
+        self.n_q = [len(e.params) for e in self.effects]
+        self.n_theta = len(self.free)
+        self.param_names = self.free + [f"{e.name}.{p}" for e in self.effects for p in e.params]
+        self.n_nuisance = sum(e.n_nuisance for e in self.effects)
+        self.K = max(1, sum(e.exo_columns for e in self.effects))
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the parameter vector: coefficients unbounded, effects as catalogued."""
+        lo = [np.full(self.n_theta, -np.inf)] + [np.asarray(e.lo, float) for e in self.effects]
+        hi = [np.full(self.n_theta, np.inf)] + [np.asarray(e.hi, float) for e in self.effects]
+        return np.concatenate(lo), np.concatenate(hi)
+
+    def scales(self) -> np.ndarray:
+        th = np.maximum(np.abs(self.theta0), 1e-3)
+        return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
+
+    def context(
+        self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
+    ) -> TrackContext:
+        """Prepare a track (inputs, windows, window-start states). ``s0`` (12,) replaces the
+        measured start state (world generation); otherwise the start rule ``start``
+        (:data:`bayesid.protocol.START_RULES`, resolved: ``"measured"`` or ``"fitted"``, with a
+        lead-in of ``leadin_s`` seconds) gives it."""
+        return TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
+
+    def simulate(
+        self, ctx: TrackContext, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
+    ) -> np.ndarray:
+        """Predicted measurements at the track's scored samples.
+
+        Parameters
+        ----------
+        P : (B, n_params) or (n_params,) parameter vectors.
+        nuisance : (B, n_nuisance) per-track parameters of this track (default zeros).
+        measured_start : map the window-start states through the effects' sensor models
+            (False: ``ctx.s_meas`` are already model states, e.g. the true initial state).
+        starts : (B, W, 6) offsets added to the start state of every window (segment) in the
+            measured frame, components :data:`~bayesid.models.context.START_INDEX` (x, y, psi, u,
+            v, r); the fitted start rule (:mod:`bayesid.estimation.shooting`). Default none.
+        samples : ``"scored"`` (the window samples) or ``"lead"`` (the samples that estimate the
+            start states, ``ctx.lead``).
+
+        Returns
+        -------
+        (B, n_samples, 12) states as the sensors would report them (NaN in a diverged window).
+        """
+        th, qs = self.split_params(P)
+        B = th.shape[0]
+        nu = np.zeros((B, max(self.n_nuisance, 1))) if nuisance is None else np.atleast_2d(nuisance)
+        sim = self.sim
+        C = sim.coefficient_matrix(th if self.n_theta else None)
+        if C.shape[0] != B:
+            C = np.repeat(C, B, axis=0)
+        tcoef = np.ascontiguousarray(C[:, sim.force_idx] * sim.tscale)
+        M = sim.mass_matrices(C)
+        vp = np.repeat(sim.vp[None], B, axis=0)
+        for e, q in zip(self.effects, qs):
+            e.modify(self, C, M, vp, tcoef, q)
+        Minv = sim.inverse_mass_matrices(C, M)
+        inputs = np.ascontiguousarray(ctx.inputs(self.effects, qs, B))
+        exo = np.zeros((B, ctx.n_steps, self.K))
+        ecoef = np.zeros((B, self.K, 6))
+        j, jn = 0, 0
+        for e, q in zip(self.effects, qs):
+            res = e.exo(ctx, inputs, q, nu[:, jn : jn + e.n_nuisance])
+            if res is not None:
+                col, coef = res
+                k = col.shape[2]
+                exo[:, :, j : j + k] = col
+                ecoef[:, j : j + k] = coef
+                j += k
+            jn += e.n_nuisance
+        s0 = start_states(ctx, B, starts)
+        if measured_start:
+            for e, q in reversed(list(zip(self.effects, qs))):
+                e.to_model(s0, q)
+        if self.mode == "horizontal":
+            s0[:, :, [2, 3, 4, 8, 9, 10]] = 0.0
+        out = np.empty((B, ctx.n_virtual + ctx.W, 12))
+        status = np.empty((B, ctx.W), dtype=np.int64)
+        sim.kernel.simulate_windows(
+            np.ascontiguousarray(s0),
+            ctx.starts,
+            ctx.gather(inputs),
+            ctx.gather(exo),
+            ecoef,
+            self.dt,
+            np.ascontiguousarray(vp),
+            tcoef,
+            Minv,
+            sim.xs,
+            sim.ws,
+            out,
+            status,
+        )
+        S, t_rel = sample_rows(ctx, out, samples, slice(3, 6))
+        for e, q in zip(self.effects, qs):
+            e.to_measured(S, t_rel, q)
+        S[..., 5] = wrap(S[..., 5])
+        return S
+
+    # -- what the analysis layer asks of a model ----------------------------------------------
+    def seed(self, tracks):
+        """No equation-error seed: a submarine fit starts at the nominal coefficients."""
+        return None
+
+    def missing_forces(self, fitres, track: Track):
+        """Missing X, Y, N (N, N m) over time: rigid-body inverse dynamics of the smoothed
+        measured motion minus the fitted model's hydrodynamic forces (Savitzky-Golay smoothed
+        differentiation, :func:`bayesid.models.inverse.estimate_motion`). Returns (motion dict, F (n, 3),
+        inputs (n, 4))."""
+        veh = self.vehicle.with_coefficients(fitres.coefficients()) if self.free else self.vehicle
+        motion = inverse.estimate_motion(track)
+        inputs = inverse.track_inputs(track)
+        known = [
+            t
+            for t in inverse.horizontal_terms("X") + inverse.horizontal_terms("Y") + inverse.horizontal_terms("N")
+            if veh.coefficients.get(t, 0.0) != 0.0
+        ]
+        known = sorted(set(known) | set(inverse.ADDED_MASS))
+        F = inverse.force_targets(motion, veh, inputs, known=known)
+        return motion, F, inputs
+
+    def signature_columns(self, motion, inputs, track: Track, seeds=None, effects=None) -> dict:
+        """Force-space signatures {effect: [(n, 3) columns of X, Y, N]} of ``effects`` (default
+        the catalogue) that leave one (:meth:`~bayesid.models.effects.Effect.force_signature`),
+        from the smoothed motion and the logged inputs (n, 4); ``seeds`` of the diagnosis (the
+        waves' frequency)."""
+        t = motion["t"]
+        dr = np.interp(t, track.t, inputs[:, 0])
+        rpm = np.interp(t, track.t, inputs[:, 3])
+        veh = self.vehicle
+        m = {
+            "t": t,
+            "u": motion["u"],
+            "v": motion["v"],
+            "r": motion["r"],
+            "psi": np.interp(t, track.t, np.unwrap(track["psi"])),
+            "rudder_rate": np.gradient(dr, t),
+            "propeller_inflow": veh.propulsion.uc_per_omega * rpm * 2 * math.pi / 60,
+            "q_dyn": 0.5 * veh.rho * veh.L**2,
+            "omega": waves[0] if (waves := (seeds or {}).get("waves")) else None,
+        }
+        if "phi" in track and np.isfinite(track["phi"]).all():
+            m["phi"] = np.interp(t, track.t, track["phi"])
+        return signature_dict(self.CATALOGUE.values() if effects is None else effects, m)
+
+    def where_samples(self, track: Track, ctx, S) -> dict:
+        """No extra region variables for a submarine."""
+        return {}
+
+    def regions(self) -> dict:
+        """Operating-region bins of the *where* analysis (:data:`REGIONS`)."""
+        return REGIONS
+
+
+#: Operating-region bins of a submarine's *where* analysis (NPS AUV II speeds and rates).
+REGIONS = {
+    "drift_angle_deg": [-90, -6, -2, 2, 6, 90],
+    "yaw_rate_deg_s": [-30, -3, -1, 1, 3, 30],
+    "rudder_deg": [-40, -15, -5, 5, 15, 40],
+    "speed_mps": [0, 1.0, 1.5, 1.8, 10],
+}
+EffectModel.CATALOGUE = CATALOGUE
+
+
+__all__ = ["EffectModel", "REGIONS"]
