@@ -306,10 +306,13 @@ def test_manoeuvre_indices_of_a_circle_and_a_zigzag():
     assert ind["kind"] == "turning"
     assert ind["tactical_diameter_m"] == pytest.approx(2 * R, rel=0.01)
     assert ind["advance_m"] == pytest.approx(R, rel=0.01)  # from the execute position
+    # the rudder reverses where the heading passes +-10 deg outwards (t = 4.65 s, then every 20 s);
+    # the heading peaks at 15 deg: the overshoot from the check heading is 15 - h(4.65 s)
     h = np.radians(15) * np.sin(2 * np.pi * t / 40)
-    dz = np.where(np.cos(2 * np.pi * (t - 5) / 40) > 0, 0.35, -0.35)
+    dz = np.where(((t - 4.65) % 40) < 20, -0.35, 0.35)
     zi = manoeuvre_indices(t, 0 * t, 0 * t, h, dz)
-    assert zi["kind"] == "zigzag" and zi["first_overshoot_deg"] > 0
+    expect = 15 - 15 * np.sin(2 * np.pi * 4.65 / 40)
+    assert zi["kind"] == "zigzag" and zi["first_overshoot_deg"] == pytest.approx(expect, abs=0.1)  # one sample
 
 
 @pytest.mark.skipif(not KV.is_dir(), reason="shared/data/real absent")

@@ -50,6 +50,7 @@ import numpy as np
 
 from ..tasks import Runner, Task, TaskError
 from . import windows as wf
+from .indices import index_keys
 from .laplace import fit_covariance
 from .options import CalibrationOptions
 from .prediction import FittedModel, predict, turning_band
@@ -127,10 +128,6 @@ def conformal_quantile(scores, level: float) -> float:
     return float(s[k - 1]) if 1 <= k <= s.size else float("inf")
 
 
-def _index_keys(measured: dict) -> list:
-    return [k for k in measured if k not in ("kind", "execute_t_s", "reason")]
-
-
 @dataclass(frozen=True)
 class Fold:
     """One fold of :func:`leave_one_run_out`, a task of :func:`fold_scores`.
@@ -204,7 +201,7 @@ def fold_scores(fold: Fold) -> dict:
         tb = turning_band(
             FittedModel(rf.model, f.p, cov), track, fold.n_draws, rng, start=pr["start_rule"], leadin_s=pr["leadin_s"]
         )
-        for key in _index_keys(tb["measured"]):
+        for key in index_keys(tb["measured"]):
             m, q, sd = tb["measured"].get(key), tb["predicted"].get(key), tb["sd"].get(key)
             idx.append(
                 {
@@ -560,7 +557,7 @@ def calibrated_bands(
     par_hits = []
     rows_i = []
     for name, tb in indices.items():
-        for key in _index_keys(tb["measured"]):
+        for key in index_keys(tb["measured"]):
             m, q, sd = tb["measured"].get(key), tb["predicted"].get(key), (tb.get("sd") or {}).get(key)
             if m is None or not np.isfinite(m):
                 continue

@@ -1,8 +1,17 @@
-"""Standard manoeuvre indices of a track: zigzag overshoots, initial turning time and period,
-turning-circle advance, transfer and tactical diameter (ITTC 7.5-04-02-01).
+"""Standard manoeuvre indices of a track, by the ITTC and IMO definitions: zigzag overshoots from
+the check heading, initial turning time, time to check yaw and period; turning-circle advance,
+transfer, tactical diameter, steady turning diameter and speed loss.
+
+Sources: ITTC Recommended Procedure 7.5-04-02-01 (2017), "Full Scale Manoeuvring Trials", Sec.
+2.2.1 (turning circle) and 2.2.2 (zigzag); IMO Resolution MSC.137(76), "Standards for ship
+manoeuvrability", Sec. 4.2, and MSC/Circ.1053 (explanatory notes).
 
 Pure functions over arrays of a run (time, position, heading, rudder): the measured run and every
-prediction of it are reduced to the same indices by the same code.
+prediction of it are reduced to the same indices by the same code. The rudder *orders* (executes)
+are read from the rudder angle: the first execute is the rudder leaving its approach angle, every
+later one the rudder leaving its hold; the heading at an order is the check heading the standard
+measures an overshoot from (with a finite rudder rate the ship turns on while the rudder moves, so
+measuring from the heading at which the counter-rudder passes some angle understates it).
 """
 
 from __future__ import annotations
@@ -11,7 +20,7 @@ import math
 
 import numpy as np
 
-__all__ = ["manoeuvre_indices"]
+__all__ = ["INDICES", "ZIGZAG_TIMING", "index_keys", "manoeuvre_indices", "rudder_orders"]
 
 
 def _rudder_holds(t, delta, threshold: float, min_hold_s: float):
@@ -35,33 +44,239 @@ def _rudder_holds(t, delta, threshold: float, min_hold_s: float):
     return runs
 
 
-def manoeuvre_indices(t, x, y, psi, delta) -> dict:
-    """Standard indices of a turning circle or a zigzag from a track (ITTC 7.5-04-02-01, 2002,
-    "Full scale manoeuvring trials procedure", Sec. 2.2: definitions of the turning circle and
-    zigzag tests), after deciding which manoeuvre the run is.
+#: The indices of each manoeuvre kind that a model predicts from the recorded rudder (what is
+#: predicted, banded and calibrated). The zigzag's ``initial_turning_time_s`` and ``period_s`` are
+#: reported for the measured run but not here: they are times between rudder executes, which an
+#: open-loop prediction from the recorded rudder inherits from the record (only a closed-loop
+#: simulation, reversing at the check heading, predicts them). Every other key of
+#: :func:`manoeuvre_indices`' result describes the run (``kind``, ``reason``, execute times).
+INDICES = {
+    "turning": ("advance_m", "transfer_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss"),
+    "zigzag": ("first_overshoot_deg", "second_overshoot_deg", "time_to_check_yaw_s"),
+}
+#: The timing indices of a zigzag: set by the rudder record (see :data:`INDICES`).
+ZIGZAG_TIMING = ("initial_turning_time_s", "period_s")
+#: A rudder hold is a run beyond this angle (rad) on one side lasting at least HOLD_MIN_S.
+HOLD_ANGLE = math.radians(3.0)
+HOLD_MIN_S = 2.0
+#: The rudder has left its hold (or its approach angle) once it is further than this from it (rad),
+#: or four times the rudder signal's noise sd when that is larger.
+ORDER_TOLERANCE = math.radians(0.5)
 
-    The rudder is read as holds: runs beyond 3 deg on one side lasting at least 2 s (shorter
-    counter-rudder blips are not reversals). Execute: the first hold's start.
+
+def index_keys(indices: dict) -> list:
+    """The index keys of a :func:`manoeuvre_indices` result present in it (none for ``"other"``)."""
+    return [k for k in INDICES.get(indices.get("kind"), ()) if k in indices]
+
+
+def _noise_sd(x) -> float:
+    """Robust sd of a signal's sample-to-sample noise (1.4826 MAD of its differences / sqrt 2)."""
+    d = np.diff(np.asarray(x, float))
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0)) if d.size > 2 else 0.0
+
+
+def _left(t, delta, i_from: int, i_to: int, value: float, tol: float) -> int:
+    """The sample at which ``delta`` leaves ``value`` within ``[i_from, i_to]``: the last one
+    within ``tol`` of it, moved back to where the ramp that follows extrapolates to ``value``
+    (a steering gear of finite rate takes ``tol / rate`` to get past ``tol``; the order was given
+    where it started to move)."""
+    dev = np.abs(delta[i_from : i_to + 1] - value)
+    near = np.flatnonzero(dev <= tol)
+    if not near.size:
+        return i_from
+    j = int(near[-1])
+    if j + 2 >= dev.size:
+        return i_from + j
+    k = j + 1 + int(np.argmax(dev[j + 1 :] >= 3.0 * tol))  # a point well on the ramp
+    if k <= j + 1 or dev[k] <= dev[j + 1]:
+        return i_from + j
+    tt = t[i_from : i_to + 1]
+    rate = (dev[k] - dev[j + 1]) / (tt[k] - tt[j + 1])
+    start = tt[j + 1] - dev[j + 1] / rate
+    back = int(np.searchsorted(tt, start + 1e-9 * max(1.0, abs(start)), side="right")) - 1
+    return i_from + int(np.clip(back, 0, j))
+
+
+def rudder_orders(t, delta) -> dict:
+    """The rudder orders (executes) of a run, read from its rudder angle.
+
+    Parameters
+    ----------
+    t : (n,) array
+        Time (s).
+    delta : (n,) array
+        Rudder angle (rad).
+
+    Returns
+    -------
+    dict
+        ``holds``: the rudder holds (side, first index, last index, peak |delta|): runs beyond
+        :data:`HOLD_ANGLE` on one side lasting :data:`HOLD_MIN_S`; ``executes``: the sample
+        index of each order: the first where the rudder leaves its approach angle before the
+        first hold, then where it leaves each hold that another hold follows (ITTC 7.5-04-02-01
+        Sec. 2.2.2: first, second, third ... execute). Empty lists without a hold.
+    """
+    t, delta = np.asarray(t, float), np.asarray(delta, float)
+    holds = _rudder_holds(t, delta, HOLD_ANGLE, HOLD_MIN_S)
+    if not holds:
+        return {"holds": [], "executes": []}
+    first = holds[0][1]
+    approach = float(np.median(delta[: first + 1])) if first > 0 else float(delta[0])
+    tol = max(ORDER_TOLERANCE, 4.0 * _noise_sd(delta[: first + 1]))
+    executes = [_left(t, delta, 0, first, approach, tol) if first > 0 else 0]
+    for (side, a, b, peak), nxt in zip(holds[:-1], holds[1:]):
+        # the held angle is the hold's peak (a hold can be shorter than the ramps into it); the
+        # noise sd of the signal near it widens the tolerance around it
+        core = delta[a : b + 1][side * delta[a : b + 1] >= 0.8 * peak]
+        tol = max(ORDER_TOLERANCE, 4.0 * _noise_sd(core))
+        executes.append(_left(t, delta, a, nxt[1], side * peak, tol))
+    return {"holds": holds, "executes": executes}
+
+
+def _speed(t, x, y) -> np.ndarray:
+    """(n,) speed over ground (m/s) from positions, centred differences over about 1 s."""
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    k = max(1, int(round(0.5 / dt)))
+    i = np.arange(t.size)
+    lo, hi = np.clip(i - k, 0, t.size - 1), np.clip(i + k, 0, t.size - 1)
+    span = np.where(hi > lo, t[hi] - t[lo], np.nan)
+    return np.hypot(x[hi] - x[lo], y[hi] - y[lo]) / span
+
+
+def _circle_diameter(x, y) -> float:
+    """Diameter (m) of the least-squares circle through points (algebraic fit: Kasa 1976, IEEE
+    Trans. Instrum. Meas. 25(1))."""
+    A = np.column_stack([x, y, np.ones_like(x)])
+    b = x * x + y * y
+    (cx2, cy2, c), *_ = np.linalg.lstsq(A, b, rcond=None)
+    r2 = c + (cx2 / 2) ** 2 + (cy2 / 2) ** 2
+    return float(2.0 * math.sqrt(r2)) if r2 > 0 else float("nan")
+
+
+def _crossing(h, a: int, b: int, ang: float):
+    """Fractional index in ``[a, b]`` where ``|h|`` first reaches ``ang`` (linear between
+    samples), or None."""
+    k = np.flatnonzero(np.abs(h[a : b + 1]) >= ang)
+    if not k.size:
+        return None
+    j = a + int(k[0])
+    if j == a:
+        return float(j)
+    h0, h1 = abs(h[j - 1]), abs(h[j])
+    return j - 1 + (ang - h0) / (h1 - h0) if h1 != h0 else float(j)
+
+
+def _at(v, f: float) -> float:
+    """``v`` at a fractional index (linear)."""
+    j = int(math.floor(f))
+    w = f - j
+    return float(v[j]) if w == 0 or j + 1 >= v.size else float((1 - w) * v[j] + w * v[j + 1])
+
+
+def _turning(t, x, y, psi, h, i0: int, hold) -> dict:
+    """The turning-circle indices of one rudder hold from the execute ``i0`` (ITTC
+    7.5-04-02-01 Sec. 2.2.1, IMO MSC.137(76) Sec. 2.3-2.4)."""
+    _, a, b, _ = hold
+    c, s = math.cos(psi[i0]), math.sin(psi[i0])
+    along = c * (x - x[i0]) + s * (y - y[i0])
+    normal = -s * (x - x[i0]) + c * (y - y[i0])
+    out = {}
+    f90, f180 = _crossing(h, i0, b, math.pi / 2), _crossing(h, i0, b, math.pi)
+    out["advance_m"] = _at(along, f90) if f90 is not None else float("nan")
+    out["transfer_m"] = abs(_at(normal, f90)) if f90 is not None else float("nan")
+    out["tactical_diameter_m"] = abs(_at(normal, f180)) if f180 is not None else float("nan")
+    # steady turning: from 180 deg of heading change to the end of the hold, at least 90 deg of arc
+    steady = np.flatnonzero(np.abs(h[a : b + 1]) >= math.pi) + a
+    speed = _speed(t, x, y)
+    approach = speed[max(0, np.searchsorted(t, t[i0] - 10.0)) : i0 + 1]
+    u0 = float(np.nanmedian(approach)) if np.isfinite(approach).any() else float("nan")
+    if steady.size and abs(h[steady[-1]] - h[steady[0]]) >= math.pi / 2:
+        out["steady_turning_diameter_m"] = _circle_diameter(x[steady], y[steady])
+        out["speed_loss"] = float(1.0 - np.nanmedian(speed[steady]) / u0) if u0 > 0 else float("nan")
+    else:
+        out["steady_turning_diameter_m"] = float("nan")
+        out["speed_loss"] = float("nan")
+    return out
+
+
+def _zigzag(t, h, executes) -> dict:
+    """The zigzag indices from the executes (ITTC 7.5-04-02-01 Sec. 2.2.2, IMO MSC.137(76) Sec.
+    2.4): overshoots measured from the heading at the 2nd and 3rd executes."""
+    out = {"check_heading_deg": [float(np.degrees(h[m])) for m in executes[1:]]}
+    orders = executes[1:]
+    peak1 = None
+    for name, k in (("first_overshoot_deg", 0), ("second_overshoot_deg", 1)):
+        if k >= len(orders):
+            out[name] = float("nan")
+            continue
+        m = orders[k]
+        prev = executes[k]
+        going = np.sign(h[m] - h[prev]) or 1.0  # the way the heading turned towards this check heading
+        end = orders[k + 1] if k + 1 < len(orders) else h.size - 1
+        seg = going * (h[m : end + 1] - h[m])
+        j = int(np.argmax(seg))
+        out[name] = float(np.degrees(max(seg[j], 0.0)))
+        if k == 0:
+            peak1 = m + j
+    out["initial_turning_time_s"] = float(t[orders[0]] - t[executes[0]]) if orders else float("nan")
+    out["time_to_check_yaw_s"] = float(t[peak1] - t[orders[0]]) if peak1 is not None else float("nan")
+    out["period_s"] = float(t[orders[2]] - t[orders[0]]) if len(orders) >= 3 else float("nan")
+    return out
+
+
+def manoeuvre_indices(t, x, y, psi, delta) -> dict:
+    """Standard indices of a turning circle or a zigzag from a track, after deciding which
+    manoeuvre the run is (module docstring for the sources).
+
+    The rudder is read as holds and orders (:func:`rudder_orders`); the first execute is the
+    rudder leaving its approach angle, and the heading change is measured from the heading there
+    (the original course).
 
     * **turning**: one hold (the rudder never reversed) during which the heading changes by at
-      least 90 deg: ``advance_m`` (distance along the approach heading at 90 deg of heading
-      change), ``transfer_m`` (normal to it, at 90 deg) and ``tactical_diameter_m`` (normal
-      distance at 180 deg; NaN when the heading does not get there before the rudder returns);
+      least 90 deg: ``advance_m`` (distance along the original course from the execute to 90 deg
+      of heading change), ``transfer_m`` (normal to it, at 90 deg), ``tactical_diameter_m``
+      (normal distance at 180 deg), each interpolated between samples; ``steady_turning_diameter_m``
+      (least-squares circle through the track from 180 deg of heading change to the end of the
+      hold, given at least 90 deg of arc) and ``speed_loss`` (1 - steady turning speed /
+      approach speed, both from the positions; approach: the 10 s before the execute). NaN
+      where the heading does not get there before the rudder returns;
     * **zigzag**: at least two reversals between holds of similar size (each within a factor of
-      two of the first), the heading oscillating about the approach heading (never 90 deg away):
-      ``first_overshoot_deg`` and ``second_overshoot_deg`` (heading beyond the switching heading
-      after the 1st and 2nd reversal);
+      two of the first), the heading oscillating about the original course (never 90 deg away):
+      ``first_overshoot_deg`` and ``second_overshoot_deg`` (the heading beyond the check heading,
+      i.e. the heading at the 2nd and 3rd executes), ``initial_turning_time_s`` (1st to 2nd
+      execute), ``time_to_check_yaw_s`` (2nd execute to the first heading extreme) and
+      ``period_s`` (2nd to 4th execute: one cycle, NaN with fewer executes); also
+      ``check_heading_deg`` (the heading change at each later execute) and ``executes_t_s``
+      (every execute);
     * otherwise ``"other"`` with the ``reason``, and no index.
 
-    Arrays (n,): t (s), x, y (m), psi (rad, any wrap), delta (rad). Returns a dict with ``kind``
-    (``"turning"``, ``"zigzag"``, ``"other"``), ``execute_t_s`` and the indices or ``reason``.
+    Parameters
+    ----------
+    t : (n,) array
+        Time (s).
+    x : (n,) array
+        North position (m).
+    y : (n,) array
+        East position (m).
+    psi : (n,) array
+        Heading (rad, any wrap).
+    delta : (n,) array
+        Rudder angle (rad).
+
+    Returns
+    -------
+    dict
+        ``kind`` (``"turning"``, ``"zigzag"``, ``"other"``), ``execute_t_s`` (the first execute)
+        and the indices of :data:`INDICES` for the kind (a zigzag also :data:`ZIGZAG_TIMING`), or
+        ``reason``.
     """
     t, x, y, delta = (np.asarray(a, float) for a in (t, x, y, delta))
     psi = np.unwrap(np.asarray(psi, float))
-    holds = _rudder_holds(t, delta, math.radians(3.0), 2.0)
+    orders = rudder_orders(t, delta)
+    holds, executes = orders["holds"], orders["executes"]
     if not holds:
         return {"kind": "other", "reason": "the rudder is never held beyond 3 deg for 2 s"}
-    i0 = holds[0][1]
+    i0 = executes[0]
     out = {"execute_t_s": float(t[i0])}
     h = psi - psi[i0]
     if len(holds) == 1:
@@ -74,22 +289,7 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
                 reason=f"one rudder hold, but the heading changed only {turned:.0f} deg "
                 "while it was held (a turning circle needs 90)",
             )
-        out["kind"] = "turning"
-        c, s = math.cos(psi[i0]), math.sin(psi[i0])
-        along = c * (x - x[i0]) + s * (y - y[i0])
-        normal = -s * (x - x[i0]) + c * (y - y[i0])
-        for name, ang in (("90", math.pi / 2), ("180", math.pi)):
-            k = np.flatnonzero(np.abs(h[a : b + 1]) >= ang)
-            if k.size:
-                j = a + k[0]
-                if name == "90":
-                    out["advance_m"] = float(along[j])
-                    out["transfer_m"] = float(abs(normal[j]))
-                else:
-                    out["tactical_diameter_m"] = float(abs(normal[j]))
-        for key in ("advance_m", "transfer_m", "tactical_diameter_m"):
-            out.setdefault(key, float("nan"))
-        return out
+        return dict(out, kind="turning", **_turning(t, x, y, psi, h, i0, holds[0]))
     first = holds[0][3]
     similar = all(0.5 * first <= p <= 2.0 * first for _, _, _, p in holds)
     span = float(np.degrees(np.max(np.abs(h[i0:]))))
@@ -105,16 +305,5 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
             reason=why + " (a zigzag needs 2 reversals of one rudder angle with the "
             "heading within 90 deg; a turning circle one hold)",
         )
-    out["kind"] = "zigzag"
-    sw = [hd[1] for hd in holds[1:]]  # first sample of each hold after a reversal
-    for name, k in (("first_overshoot_deg", 0), ("second_overshoot_deg", 1)):
-        if k < len(sw):
-            j = sw[k]
-            end = sw[k + 1] if k + 1 < len(sw) else h.size
-            going = np.sign(h[j] - h[max(j - 5, 0)]) or 1.0  # the heading keeps turning this way
-            seg = h[j:end]
-            ext = seg.max() - h[j] if going > 0 else h[j] - seg.min()
-            out[name] = float(np.degrees(max(ext, 0.0)))
-        else:
-            out[name] = float("nan")
-    return out
+    out["executes_t_s"] = [float(t[m]) for m in executes]
+    return dict(out, kind="zigzag", **_zigzag(t, h, executes))

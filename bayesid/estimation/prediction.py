@@ -19,7 +19,7 @@ from ..data.track import Track
 from ..models.context import errors
 from ..protocol import pooled_scores, start_settings
 from . import shooting
-from .indices import manoeuvre_indices
+from .indices import index_keys, manoeuvre_indices
 
 #: The size a batch of whole-run predictions of posterior draws stays near (bytes).
 BATCH_BYTES = 2e8
@@ -198,7 +198,7 @@ def turning_band(
         del S
     S = np.concatenate(kept, axis=0)
     # the indices of what the measured run is (none, with the reason, for anything else)
-    keys = [k for k in meas if k not in ("kind", "execute_t_s", "reason")]
+    keys = index_keys(meas)
     band, _ = predictive_band(pred[1:], keys)
     sd = predictive_sd(pred[1:], keys)  # the draws' spread: the scale of a calibrated band
     return {
