@@ -585,6 +585,7 @@ def main() -> int:
         tb = turning_band(FittedModel(am, af.p, cov), h, args.draws, rng, keep_draws=True)
         zz[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
     k_doc["zigzag_indices_heldout"] = zz
+    k_doc["hsva_indices_ittc"] = hsva_indices(FittedModel(am, af.p, cov), ktracks, [t.name for t in ktrain])
     kfigs = [
         track_figure(
             (k_base, k_after[:2]),
@@ -638,6 +639,76 @@ def main() -> int:
             f"{d['w60']['heldout_rms_position_m_after']:.3f} m (shrinkage {d['shrinkage']:.2f})"
         )
     return 0
+
+
+def hsva_indices(fitted, tracks, train_names) -> dict:
+    """Every HSVA zigzag's indices by the ITTC definitions (overshoots from the heading at which the
+    rudder leaves its hold), measured on the whole record and predicted by the diagnosis's model
+    from the run's first modelled state and its recorded rudder (open loop, no draws)."""
+    from bayesid.estimation.indices import ZIGZAG_TIMING, manoeuvre_indices
+    from bayesid.estimation.prediction import turning_band
+
+    out = {}
+    for tr in tracks:
+        # measured on the whole record (the model's context starts 2 s in, after the first execute
+        # of some runs); the overshoots are the same either way, the check headings and times not
+        m = manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
+        p = turning_band(fitted, tr, 0, None)["predicted"]
+        out[tr.name] = {
+            "split": "training" if tr.name in train_names else "held out",
+            "check_heading_deg": m.get("check_heading_deg", [])[:2],
+            "measured": {k: m.get(k) for k in ("first_overshoot_deg", "second_overshoot_deg", "time_to_check_yaw_s")},
+            "predicted": {k: p.get(k) for k in ("first_overshoot_deg", "second_overshoot_deg", "time_to_check_yaw_s")},
+            "timing": {k: m.get(k) for k in ZIGZAG_TIMING},
+        }
+    return out
+
+
+def hsva_indices_section(H) -> list[str]:
+    """Report lines: the ITTC indices of every HSVA run, measured and predicted."""
+    from bayesid.report import fmt, md_table
+
+    rows = []
+    for n, d in H.items():
+        m, p = d["measured"], d["predicted"]
+        rows.append(
+            [
+                n.replace("HSVA_CPMC_KVLCC2_", ""),
+                d["split"],
+                ", ".join(fmt(c) for c in d["check_heading_deg"]),
+                f"{fmt(m['first_overshoot_deg'])} / {fmt(p['first_overshoot_deg'])}",
+                f"{fmt(m['second_overshoot_deg'])} / {fmt(p['second_overshoot_deg'])}",
+                f"{fmt(m['time_to_check_yaw_s'])} / {fmt(p['time_to_check_yaw_s'])}",
+                fmt(d["timing"]["initial_turning_time_s"]),
+                fmt(d["timing"]["period_s"]),
+            ]
+        )
+    return [
+        "### The HSVA zigzags by the ITTC definitions",
+        "",
+        "Overshoots are the heading beyond the check heading, the heading at which the rudder leaves its hold "
+        "(2nd and 3rd execute; ITTC 7.5-04-02-01 Sec. 2.2.2, IMO MSC.137(76)). The check headings show that the "
+        "rudder moved after the nominal check angle had been passed, so an overshoot counted from the nominal angle "
+        "would be larger by that difference. Measured / predicted by the model of the diagnosis above (trained on "
+        "the training split; open loop from each run's first state with its recorded rudder). Initial turning time "
+        "and period are times between executes: an open-loop prediction from the recorded rudder inherits them, so "
+        "only the measured values are given.",
+        "",
+        md_table(
+            [
+                "run",
+                "split",
+                "check headings (deg)",
+                "1st overshoot (deg)",
+                "2nd overshoot (deg)",
+                "time to check yaw (s)",
+                "initial turning time (s)",
+                "period (s)",
+            ],
+            rows,
+        ),
+        "",
+    ]
 
 
 def marin_section(M, figs) -> list[str]:
@@ -1083,6 +1154,7 @@ def write_report(out, R, figs, kfigs, args, mfigs=(), ufigs=()):
         "",
         md_table(["run", "index", "measured", "predicted", "band"], zz_rows),
         "",
+        *hsva_indices_section(K["hsva_indices_ittc"]),
         "'predicted' is the fitted (MAP) model; the draws are clipped to the physical bounds. "
         + (
             f"Coefficients fitted on a bound ({', '.join(K['posterior']['at_bound'])}) are drawn only to "
