@@ -33,8 +33,8 @@ The layout follows the data flow; each layer imports only the ones before it:
   :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis).
 * :mod:`bayesid.report` -- what goes out: :mod:`~bayesid.report.study` (study folders, JSON,
   manifests), :mod:`~bayesid.report.markdown` (tables, number format), the report writers
-  :mod:`~bayesid.report.diagnosis`, :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.sample`;
-  :mod:`~bayesid.report.plots`.
+  :mod:`~bayesid.report.diagnosis`, :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.predict`,
+  :mod:`~bayesid.report.sample`, :mod:`~bayesid.report.convert`; :mod:`~bayesid.report.plots`.
 * :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
   workers or on Dask, with a resumable journal.

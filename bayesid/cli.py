@@ -24,6 +24,7 @@ from .data.track import write_csv
 from .data.vehicle import load_vehicle
 from .models import manoeuvres as mv
 from .models.simulate import MODES, Simulator
+from .report.convert import write_convert_report
 
 #: Longest simulation ``bayesid simulate`` runs (model steps): 1e6 s at 0.1 s.
 MAX_SIMULATE_STEPS = 10_000_000
@@ -137,23 +138,7 @@ def _convert(args) -> int:
             "runs": runs,
             "skipped": [{"source": str(p), "reason": why} for p, why in skipped],
         }
-        (out / "convert.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-        lines = [
-            f"# bayesid convert --format {args.format}",
-            "",
-            f"{len(runs)} run(s) converted to Track CSVs (SI, rad, rpm; rudder + = to port).",
-            "",
-            "| output | samples | duration (s) | rate (Hz) | notes |",
-            "|---|---|---|---|---|",
-        ]
-        lines += [
-            f"| {Path(r['output']).name} | {r['n_samples']} | {r['duration_s']:.1f} | "
-            f"{r['sample_rate_hz']} | {'; '.join(r['notes']) or '-'} |"
-            for r in runs
-        ]
-        if skipped:
-            lines += ["", "Skipped:", *[f"- {p}: {why}" for p, why in skipped]]
-        (out / "convert.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+        write_convert_report(summary, out)
     except FileNotFoundError:
         raise
     except OSError as exc:
@@ -808,7 +793,7 @@ def _predict(args) -> int:
 
     from .estimation import msfit
     from .estimation.calibration import calibrated_bands, excitation, window_band
-    from .report import fmt, md_table, plots, write_json
+    from .report import plots, write_json, write_predict_report
 
     out = _check_out(args.out, "predict", args.overwrite)
     model, p, cov, doc = msfit.load_model(args.model)
@@ -854,12 +839,10 @@ def _predict(args) -> int:
         dr = np.asarray(tr["delta_r"], float)[ctx.idx]
         plots.prediction_band(
             ctx.ts[::k],
-            {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
+            {"x": ctx.meas["x"][::k], "y": ctx.meas["y"][::k], "psi": ctx.meas["psi"][::k], "delta_r": dr[::k]},
             {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
             ctx.win[::k],
-            dr[::k],
-            b90.get("max_position_m"),
-            b90.get("max_heading_deg"),
+            b90,
             out / "figures" / f"{tr.name}.png",
             title=f"{tr.name}: {window or 'whole-run'} s windows, identified model"
             + (
@@ -892,50 +875,7 @@ def _predict(args) -> int:
         "bands": bands,
     }
     write_json(out / "predict.json", res)
-    rows = [
-        [
-            n,
-            fmt(d["rms_position_m"]),
-            fmt(d["max_position_m"]),
-            fmt(d["rms_heading_deg"]),
-            fmt(whole["per_track"][n]["rms_position_m"]),
-        ]
-        for n, d in pr["per_track"].items()
-    ]
-    lines = [
-        "# Prediction under the window protocol",
-        "",
-        f"`bayesid {' '.join(sys.argv[1:])}`",
-        "",
-        f"Windows of {window} s restart from "
-        + (
-            "the measured (causal) state"
-            if pr["start_rule"] == "measured"
-            else f"a state fitted with the model over the {pr['leadin_s']:g} s before each window (no velocity log)"
-        )
-        + "; whole run = one open-loop simulation from the first state.",
-        "",
-        md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows),
-        "",
-        f"Pooled: {fmt(pr['pooled']['rms_position_m'])} m, heading {fmt(pr['pooled']['rms_heading_deg'])} deg; "
-        f"whole run {fmt(whole['pooled']['rms_position_m'])} m.",
-        "",
-    ]
-    lines += [f"- **Warning**: {w}" for w in got["_warnings"]] + ([""] if got["_warnings"] else [])
-    for n, d in indices.items():
-        if d["measured"].get("kind") == "other":
-            lines.append(f"- {n}: no turning or zigzag indices ({d['measured'].get('reason')})")
-        if d["measured"].get("kind") in ("turning", "zigzag"):
-            lines.append(
-                f"- {n} ({d['measured']['kind']}): "
-                + "; ".join(
-                    f"{k} measured {fmt(d['measured'].get(k))}, predicted {fmt(d['predicted'].get(k))}"
-                    + (f" [{fmt(d['band_5_95'][k][0])}, {fmt(d['band_5_95'][k][1])}]" if d["band_5_95"].get(k) else "")
-                    for k in d["band_5_95"]
-                )
-            )
-    lines += ["", *_band_lines(bands, args.draws), *[f"![{t.name}](figures/{t.name}.png)" for t in tracks], ""]
-    (out / "report.md").write_text("\n".join(lines))
+    write_predict_report(res, out, [t.name for t in tracks], command=f"bayesid {' '.join(sys.argv[1:])}")
     c90 = ((bands.get("coverage") or {}).get("all") or {}).get("0.9") or {}
     ext = (bands.get("extrapolated") or {}).get("runs") or []
     print(
@@ -955,156 +895,6 @@ def _predict(args) -> int:
         + f"; wrote {out / 'predict.json'}"
     )
     return 0
-
-
-def _band_lines(bands: dict, n_draws: int) -> list:
-    """The calibrated-band section of predict's report.md."""
-    from .report import fmt, md_table
-
-    po = bands["parameter_only"]
-    lines = [
-        "## Predictive bands and their coverage on these runs",
-        "",
-        f"Posterior draws: {n_draws}. The draws' own 5-95 % index bands (parameter uncertainty only) hold "
-        f"{po['inside']} of {po['n']} measured indices"
-        + (f" ({fmt(100 * po['coverage'])} %)." if po["coverage"] is not None else "."),
-        "",
-    ]
-    if not bands["calibrated"]:
-        return lines + [f"No calibrated bands: {bands['reason']}.", ""]
-    cov = bands["coverage"]
-    lines += [
-        "Calibrated bands (split conformal, leave one training run out: they include the structural error "
-        "the model made on training runs it did not see). A window is inside when its largest position and "
-        "heading errors are both within the band (one joint claim); an index when the measured value is, and "
-        "is counted outside when the model predicts no value for it (e.g. its simulated zigzag never reaches "
-        "the overshoot).",
-        "",
-        md_table(
-            ["nominal", "windows inside", "indices inside", "all"],
-            [
-                [f"{100 * float(a):g} %"]
-                + [
-                    f"{c[a]['inside']}/{c[a]['n']} ({fmt(100 * c[a]['coverage'])} %)"
-                    + (f", {c[a]['unbounded']} unbounded" if c[a].get("unbounded") else "")
-                    if c[a]["n"]
-                    else "-"
-                    for c in (cov["windows"], cov["indices"], cov["all"])
-                ]
-                for a in cov["all"]
-            ],
-        ),
-        "",
-    ]
-    if any(c.get("unbounded") for c in cov["all"].values()):
-        lines += [
-            "Unbounded: claims whose band at that level is infinite, because the calibration has too few scores "
-            "for it (n scores support levels up to n / (n + 1)); they hold trivially and say nothing. Train on "
-            "more runs for a finite band.",
-            "",
-        ]
-    if bands.get("window_reason"):
-        lines += [f"No window bands: {bands['window_reason']}.", ""]
-    if bands.get("outside_range"):
-        ir = bands["coverage_in_range"]
-        lines += [
-            "**Outside the training runs' range** (a calibrated band assumes a run like the calibration runs; these "
-            "are driven harder or more gently, and their claims are counted above): "
-            + "; ".join(f"{t}: {', '.join(v)}" for t, v in bands["outside_range"].items())
-            + ". The other runs' 90 % claims: "
-            + "; ".join(f"{g} {c['0.9']['inside']}/{c['0.9']['n']}" for g, c in ir.items() if c["0.9"]["n"])
-            + ".",
-            "",
-        ]
-    ext = bands.get("extrapolated") or {}
-    if ext.get("runs"):
-        xc = ext["coverage"]
-        lines += [
-            f"**Extrapolated, not calibrated**: {', '.join(ext['runs'])} ({', '.join(ext['kinds'])}; indices "
-            f"{', '.join(ext['index_kinds'])}): {ext['note']}. They are left out of the table above; their "
-            "borrowed 90 % bands hold "
-            + "; ".join(
-                f"{g} {c['0.9']['inside']}/{c['0.9']['n']}"
-                for g, c in (("windows", xc["windows"]), ("indices", xc["indices"]))
-                if c["0.9"]["n"]
-            )
-            + " here.",
-            "",
-        ]
-    rows = [
-        [
-            r["track"],
-            r["index"],
-            fmt(r["measured"]),
-            fmt(r["predicted"]),
-            (
-                f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
-                if r["band"]["0.9"]["lo"] is not None
-                else "no predicted value"
-            )
-            + (
-                " (extrapolated)" if r.get("extrapolated") else " (pooled scores)" if r["band"]["0.9"]["pooled"] else ""
-            ),
-            "yes" if r["inside"]["0.9"] else "**no**",
-            f"[{fmt(r['parameter_band_5_95'][0])}, {fmt(r['parameter_band_5_95'][1])}]"
-            if r["parameter_band_5_95"]
-            else "-",
-        ]
-        for r in bands["indices"]
-    ]
-    if rows:
-        lines += [
-            "Indices, 90 % band:",
-            "",
-            md_table(["track", "index", "measured", "predicted", "90 % band", "inside", "draws' 5-95 %"], rows),
-            "",
-            "Band: predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd the draws' spread of the index, kappa "
-            "the training runs' median relative error of that index (model fit on the others): "
-            + ", ".join(sorted({f"{r['index']} {fmt(r['band']['0.9']['kappa'])}" for r in bands["indices"]}))
-            + "."
-            + (
-                " Pooled scores: the training runs gave fewer than 9 scores of this index, so its band uses the "
-                "scores of every index (each normalised by its own index's kappa)."
-                if any(r["band"]["0.9"]["pooled"] for r in bands["indices"])
-                else ""
-            ),
-            "",
-        ]
-    wrows = [
-        [
-            w["track"],
-            fmt(w["t_start"]),
-            fmt(w["max_position_m"]),
-            fmt(w["band"]["0.9"]["max_position_m"]),
-            fmt(w["max_heading_deg"]),
-            fmt(w["band"]["0.9"]["max_heading_deg"]),
-            "yes" if w["inside"]["0.9"] else "**no**",
-        ]
-        for w in bands["windows"]
-    ]
-    if wrows:
-        lines += [
-            "Windows, 90 % band:",
-            "",
-            md_table(
-                [
-                    "track",
-                    "window start (s)",
-                    "max position error (m)",
-                    "band (m)",
-                    "max heading error (deg)",
-                    "band (deg)",
-                    "inside",
-                ],
-                wrows,
-            ),
-            "",
-            "![reliability](figures/reliability.png)",
-            "",
-        ]
-    elif rows:
-        lines += ["![reliability](figures/reliability.png)", ""]
-    return lines
 
 
 def _diagnose(args) -> int:

@@ -5,8 +5,9 @@ of their own.
   ``manifest.json`` (command line, seed, git commit, package versions, wall time, quick or full).
 * :mod:`~bayesid.report.markdown` -- markdown tables and the compact number format.
 * :mod:`~bayesid.report.diagnosis` -- the report of a gap diagnosis (``bayesid diagnose``).
-* :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.sample` -- the reports of ``bayesid fit``
-  and ``bayesid sample``.
+* :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.predict`, :mod:`~bayesid.report.sample`,
+  :mod:`~bayesid.report.convert` -- the reports of ``bayesid fit``, ``predict``, ``sample`` and
+  ``convert``.
 * :mod:`~bayesid.report.plots` -- the figures.
 
 The names below are importable from ``bayesid.report`` itself.
@@ -14,9 +15,11 @@ The names below are importable from ``bayesid.report`` itself.
 
 from __future__ import annotations
 
+from .convert import write_convert_report
 from .diagnosis import attribution_lines, write_diagnosis
 from .fit import write_fit_report
 from .markdown import fmt, md_table
+from .predict import write_predict_report
 from .sample import write_sample_report
 from .study import PACKAGES, git_commit, prepare_out, write_json, write_manifest
 
@@ -27,9 +30,11 @@ __all__ = [
     "git_commit",
     "md_table",
     "prepare_out",
+    "write_convert_report",
     "write_diagnosis",
     "write_fit_report",
     "write_json",
     "write_manifest",
+    "write_predict_report",
     "write_sample_report",
 ]
