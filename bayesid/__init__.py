@@ -35,7 +35,13 @@ The layout follows the data flow; each layer imports only the ones before it:
   manifests), :mod:`~bayesid.report.markdown` (tables, number format), the report writers
   :mod:`~bayesid.report.diagnosis`, :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.predict`,
   :mod:`~bayesid.report.sample`, :mod:`~bayesid.report.convert`; :mod:`~bayesid.report.plots`.
-* :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
+* :mod:`bayesid.cases` (the paper's Cases 1-3).
+* :mod:`bayesid.cli` -- the ``bayesid`` command (also ``python -m bayesid.cli``,
+  ``bayesid.cli.__main__``): one module per subcommand, :mod:`~bayesid.cli.simulate`,
+  :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`, :mod:`~bayesid.cli.fit`,
+  :mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`; :mod:`~bayesid.cli.options` (options
+  shared by the subcommands, checks of numbers), :mod:`~bayesid.cli.inputs` (track files),
+  :mod:`~bayesid.cli.outputs` (``--out`` folders), :mod:`~bayesid.cli.provenance`.
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
   workers or on Dask, with a resumable journal.
 """
