@@ -53,7 +53,7 @@ def run(args) -> int:
         The exit code (0).
     """
     out = check_out(args.out, "convert", args.overwrite)
-    sources, skipped = _sources(args.inputs, args.format)
+    sources, skipped = _sources(args)
     options = {}
     if args.scale is not None:
         if args.format != "simman-marin":
@@ -84,14 +84,14 @@ def run(args) -> int:
     return 0
 
 
-def _sources(inputs, fmt: str):
+def _sources(args):
     """The run files of the inputs (files or folders searched recursively), each once, and the
     files skipped with the reason; ValueError for an input without any run file."""
     sources, skipped, seen = [], [], set()
-    for item in inputs:
-        kept, skip = datasets.scan_runs(item, fmt)
+    for item in args.inputs:
+        kept, skip = datasets.scan_runs(item, args.format)
         if not kept:
-            raise ValueError(f"{item}: no {fmt} run files found")
+            raise ValueError(f"{item}: no {args.format} run files found")
         for p in kept:
             if p.resolve() not in seen:
                 seen.add(p.resolve())

@@ -100,7 +100,8 @@ def run(args) -> int:
             got["_warnings"].append(w)
         model_sha = file_sha256(args.model)
     else:
-        vehicle = load_any_vehicle(args.vehicle)
+        vehicle_arg = args.vehicle
+        vehicle = load_any_vehicle(vehicle_arg)
         got = read_tracks([("--train", args.train)], vehicle)
         with naming_files(got):
             model, p, doc, model_sha = _fit_first(args, vehicle, got, out)
@@ -347,7 +348,8 @@ def _posterior_model(res: dict, sdoc: dict, out: Path) -> dict:
     pm = json.loads(Path(sdoc["model"]).read_text())
     if not Path(pm["vehicle"]).is_absolute() and (Path(sdoc["model"]).parent / pm["vehicle"]).is_file():
         pm["vehicle"] = str((Path(sdoc["model"]).parent / pm["vehicle"]).resolve())
-    cov = msfit.psd_covariance(np.cov(res["draws"], rowvar=False))
+    draws = res["draws"]
+    cov = msfit.psd_covariance(np.cov(draws, rowvar=False))
     pm.update(p=res["mode"]["p"].tolist(), cov=cov.tolist(), sd=np.sqrt(np.diag(cov)).tolist())
     pm["posterior_source"] = {
         "sample": str(out / "sample.json"),
