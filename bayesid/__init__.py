@@ -43,8 +43,17 @@ reads the import graph and fails on an import that runs up a layer or closes a c
 * :mod:`bayesid.analysis` -- what the data say: :mod:`~bayesid.analysis.identifiability`,
   :mod:`~bayesid.analysis.dossier`, :mod:`~bayesid.analysis.richness`,
   :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis).
-* :mod:`bayesid.report` -- study folders, manifests, report writers; :mod:`bayesid.report.plots`.
-* :mod:`bayesid.cases` (the paper's Cases 1-3) and :mod:`bayesid.cli` (the ``bayesid`` command).
+* :mod:`bayesid.report` -- what goes out: :mod:`~bayesid.report.study` (study folders, JSON,
+  manifests), :mod:`~bayesid.report.markdown` (tables, number format), the report writers
+  :mod:`~bayesid.report.diagnosis`, :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.predict`,
+  :mod:`~bayesid.report.sample`, :mod:`~bayesid.report.convert`; :mod:`~bayesid.report.plots`.
+* :mod:`bayesid.cases` (the paper's Cases 1-3).
+* :mod:`bayesid.cli` -- the ``bayesid`` command (also ``python -m bayesid.cli``,
+  ``bayesid.cli.__main__``): one module per subcommand, :mod:`~bayesid.cli.simulate`,
+  :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`, :mod:`~bayesid.cli.fit`,
+  :mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`; :mod:`~bayesid.cli.options` (options
+  shared by the subcommands, checks of numbers), :mod:`~bayesid.cli.inputs` (track files),
+  :mod:`~bayesid.cli.outputs` (``--out`` folders), :mod:`~bayesid.cli.provenance`.
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib
   workers or on Dask, with a resumable journal; :class:`~bayesid.tasks.Runner` is the one object
   a step that runs tasks takes. ``bayesid._numba`` -- under every layer too: numba's threading

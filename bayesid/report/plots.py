@@ -563,24 +563,38 @@ def reliability(
     return _save(fig, path)
 
 
-def prediction_band(
-    t,
-    measured: dict,
-    predicted: dict,
-    win,
-    rudder,
-    radius_m: float | None,
-    heading_deg: float | None,
-    path,
-    level: float = 0.9,
-    title: str = "",
-):
+def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, level: float = 0.9, title: str = ""):
     """Time histories of a windowed prediction with its calibrated band: plan view (measured
-    track, predicted windows, a circle of ``radius_m`` round each window's end: the band the
-    track must stay within), heading (prediction +- ``heading_deg``, shaded) and rudder angle.
+    track, predicted windows, a circle of the band's position radius round each window's end:
+    the band the track must stay within), heading (prediction +- the band's heading error,
+    shaded) and rudder angle.
 
-    Arrays (n,): ``t`` (s); ``measured``/``predicted`` {"x", "y" (m), "psi" (rad)}; ``win``
-    window index of each sample; ``rudder`` (rad)."""
+    Parameters
+    ----------
+    t : ndarray (n,)
+        Sample times, s.
+    measured : dict
+        The measured ``"x"``, ``"y"`` (m), ``"psi"`` and rudder angle ``"delta_r"`` (rad), arrays (n,).
+    predicted : dict
+        The predicted ``"x"``, ``"y"``, ``"psi"``, arrays (n,).
+    win : ndarray (n,)
+        The window index of each sample.
+    band : dict
+        The band at ``level``: ``"max_position_m"`` and ``"max_heading_deg"`` (deg); an absent or
+        non-finite value is not drawn.
+    path : str or Path
+        The PNG written.
+    level : float
+        The band's nominal level, in the legend.
+    title : str
+        The plan view's title.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    radius_m, heading_deg, rudder = band.get("max_position_m"), band.get("max_heading_deg"), measured["delta_r"]
     fig = plt.figure(figsize=(11, 6.5))
     ax = fig.add_subplot(1, 2, 1)
     ax.plot(measured["y"], measured["x"], "k.", ms=1.2, label="measured")

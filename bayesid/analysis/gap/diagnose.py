@@ -44,7 +44,7 @@ class Diagnosis:
     noise_sd, fit_sd : {channel: sd} of the data and of the fits' weights (SI).
     base_fit, after_fit : coefficients (and effect parameters) of the two models.
     train_tracks, heldout_tracks : names.   settings, thresholds : what was run.
-    seconds : wall time.   warnings, input_sha256 : input checks and hashes (set by the CLI).
+    seconds : wall time.
     base, after : the two models as :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
         scores, nuisances) for plots; not in :meth:`to_dict`.
     """
@@ -75,16 +75,10 @@ class Diagnosis:
     seconds: float
     base: Stage = field(repr=False, default=None)
     after: Stage = field(repr=False, default=None)
-    warnings: list | None = None
-    input_sha256: dict | None = None
 
     def to_dict(self) -> dict:
         """The JSON-able fields, in order (the models are left out)."""
-        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("base", "after")}
-        for k in ("warnings", "input_sha256"):  # set by the command line only
-            if out[k] is None:
-                out.pop(k)
-        return out
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("base", "after")}
 
 
 @dataclass(frozen=True)

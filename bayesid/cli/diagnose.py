@@ -1,0 +1,128 @@
+"""``bayesid diagnose``: the sim-to-real gap of a vehicle's model on training and held-out
+tracks -- where, which effect, how far (:mod:`bayesid.analysis.gap`) -- written as
+``diagnosis.json``, ``report.md`` and figures."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .. import tasks
+from ..models.simulate import MODES
+from . import options as opt
+from .inputs import free_list, naming_files, read_tracks
+from .outputs import check_out
+
+
+def add_parser(sub) -> None:
+    """Declare ``bayesid diagnose`` and its options.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subparsers of the ``bayesid`` parser.
+    """
+    d = opt.add_subcommand(sub, "diagnose", "sim-to-real gap: where / which effect / how far")
+    opt.add_vehicle(d, "packaged id or TOML path (nominal coefficients)", required=True)
+    opt.add_free(d, "comma-separated free coefficients (empty: the vehicle's; submarines Yv,Yr,Nv,Nr,Ydr,Ndr)")
+    opt.add_tracks(d, "--train", "training Track CSVs")
+    opt.add_tracks(d, "--heldout", "held-out Track CSVs")
+    opt.add_window(d)
+    opt.add_dt(d, None, "model integration step, s (none: 0.5; ships 0.2)")
+    opt.add_number(
+        d,
+        "--fit-window",
+        opt.NON_NEGATIVE,
+        default=0.0,
+        help="window of the training fits, s (0: 15 for a ship, --window for a submarine)",
+    )
+    d.add_argument("--mode", choices=MODES, default="horizontal")
+    d.add_argument("--candidates", default="", help="comma-separated effects (empty: the whole catalogue)")
+    d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
+    opt.add_number(
+        d,
+        "--max-effects",
+        opt.POSITIVE,
+        kind=int,
+        default=2,
+        help="greedy rounds of effect addition (a contributor is added and the others tried on top)",
+    )
+    opt.add_start(d)
+    opt.add_leadin(d)
+    opt.add_max_nfev(d, "least-squares iterations per fit")
+    opt.add_seed(d, "random seed (noise-floor simulation, ensemble of the force-signature regression)")
+    opt.add_weighting(d)
+    opt.add_jobs(d)
+    opt.add_out(d, "output folder")
+    opt.add_overwrite(d)
+
+
+def run(args) -> int:
+    """Run ``bayesid diagnose``: base fit, then where / which / how far.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    import numpy as np
+
+    from ..analysis.gap import DiagnoseOptions, diagnose
+    from ..models import load_any_vehicle, model_class
+    from ..report import write_diagnosis
+
+    tasks.check_jobs(args.jobs, args.scheduler)
+    check_out(args.out, "diagnose", args.overwrite)
+    vehicle = load_any_vehicle(args.vehicle)
+    family = model_class(vehicle)
+    free = free_list(vehicle, args.free)
+    got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
+    train, held = got["--train"], got["--heldout"]
+    with naming_files(got):
+        cands = _candidates(args, family, train + held)
+        window = None if args.window <= 0 else args.window
+        dt = args.dt if args.dt is not None else family.DEFAULT_DT
+        options = DiagnoseOptions(
+            candidates=cands,
+            window_s=window,
+            fit_window_s=args.fit_window if args.fit_window else None,
+            dt=dt,
+            mode=args.mode,
+            max_nfev=args.max_nfev,
+            max_effects=args.max_effects,
+            weighting=args.weighting or None,
+            start=args.start,
+            leadin_s=args.leadin if args.leadin > 0 else None,
+        )
+        runner = tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True))
+        res = diagnose(vehicle, free, train, held, options, rng=np.random.default_rng(args.seed), runner=runner)
+        inputs = {"warnings": got["_warnings"], "input_sha256": got["_sha256"]}
+        write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]), inputs=inputs)
+    print(
+        f"verdict: {res.verdict}; held-out RMS {res.gap_before['heldout_rms_m']:.3f} m -> "
+        f"{res.gap_after['heldout_rms_m']:.3f} m (noise floor {res.noise_floor['heldout_rms_m']:.3f} m, "
+        f"window starts {res.settings['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}"
+    )
+    return 0
+
+
+def _candidates(args, family, tracks) -> list:
+    """The candidate effects: ``--candidates``, or the catalogue less the effects whose columns
+    not every track has (said); less ``--exclude`` (ValueError for one not among them)."""
+    cands = list(family.CATALOGUE) if not args.candidates else opt.split_names(args.candidates, "--candidates")
+    if not args.candidates:
+        for name in list(cands):
+            need = family.CATALOGUE[name].needs_columns
+            if not all(c in t for t in tracks for c in need):
+                cands.remove(name)
+                print(f"  no {', '.join(need)} columns in every track: the {name} candidate is left out")
+    for c in opt.split_names(args.exclude, "--exclude"):
+        if c not in cands:
+            raise ValueError(f"--exclude {c}: not among the candidates {cands}")
+        cands.remove(c)
+    return cands

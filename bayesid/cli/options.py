@@ -1,0 +1,252 @@
+"""The options of the ``bayesid`` subcommands that several of them take, each declared once, and
+the argparse types that check numeric options while the command line is parsed.
+
+A subcommand adds a shared option with its ``add_*`` function, passing its own default or help
+text where it differs from the others'. A numeric option's type (:func:`number`) converts the
+text and checks the value: text that is no number is argparse's usage error; a value out of range
+raises :class:`OptionError`, which :func:`bayesid.cli.main` prints as ``error: ...`` with exit
+code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from .. import protocol, tasks
+
+#: The window start rules' help text (``--start``).
+START_HELP = (
+    "window start states: measured (causal 1 s estimate), fitted (with the model, over a lead-in), "
+    "auto (fitted when a track does not log u, v and r and its positions are too noisy for a 1 s "
+    "slope estimate of the velocity)"
+)
+#: The choices of ``--weighting`` ("": the model's default).
+WEIGHTINGS = ("", "noise", "residual")
+#: The help text of ``--weighting``.
+WEIGHTING_HELP = (
+    "channel weights of the fits: noise sds, or the residual RMS of a first fit (two-step "
+    "feasible GLS); default residual for ships, noise for submarines"
+)
+
+
+def add_subcommand(sub, name: str, help: str) -> argparse.ArgumentParser:
+    """A subcommand's parser, its help showing each option's default.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subparsers of the ``bayesid`` parser.
+    name : str
+        The subcommand.
+    help : str
+        Its line in ``bayesid --help``.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The subcommand's parser.
+    """
+    return sub.add_parser(name, formatter_class=argparse.ArgumentDefaultsHelpFormatter, help=help)
+
+
+class OptionError(Exception):
+    """A numeric option's value out of its range, raised by a :func:`number` type while parsing.
+
+    Not a ValueError, so that argparse passes it on instead of turning it into its generic
+    "invalid float value" usage error; the message names the option.
+    """
+
+
+#: A check of :func:`number`: the value is positive.
+POSITIVE = (lambda v: v > 0, "{option} must be positive, not {value}")
+#: A check of :func:`number`: the value is zero or positive.
+NON_NEGATIVE = (lambda v: v >= 0, "{option} must be >= 0, not {value}")
+
+
+def at_least(least, message: str = "{option} must be at least {least}, not {value}") -> tuple:
+    """A check of :func:`number`: the value is ``least`` or more.
+
+    Parameters
+    ----------
+    least : int or float
+        The smallest value allowed.
+    message : str
+        The error message, formatted with ``option``, ``least`` and ``value``.
+
+    Returns
+    -------
+    tuple
+        ``(predicate, message)``.
+    """
+    return (lambda v: v >= least, message.replace("{least}", str(least)))
+
+
+def number(option: str, kind=float, *checks):
+    """The argparse type of a numeric option.
+
+    Parameters
+    ----------
+    option : str
+        The option, named in the error messages (``"--dt"``).
+    kind : type
+        ``float`` or ``int``: converts the text; text that is no such number is argparse's usage
+        error ("invalid float value").
+    *checks : tuple
+        ``(predicate, message)`` pairs, in order: the first predicate that is false raises
+        :class:`OptionError` with its message, formatted with ``option`` and ``value``
+        (:data:`POSITIVE`, :data:`NON_NEGATIVE`, :func:`at_least`). A float must be finite
+        before any check.
+
+    Returns
+    -------
+    callable
+        The type, named like ``kind`` for argparse's messages.
+    """
+
+    def parse(text: str):
+        value = kind(text)
+        if kind is float and not math.isfinite(value):
+            raise OptionError(f"{option} must be a finite number, not {value}")
+        for ok, message in checks:
+            if not ok(value):
+                raise OptionError(message.format(option=option, value=value))
+        return value
+
+    parse.__name__ = kind.__name__
+    return parse
+
+
+def add_number(parser, option: str, *checks, kind=float, **kwargs) -> None:
+    """Add a numeric option whose type is :func:`number`.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    option : str
+        The option (``"--dt"``).
+    *checks : tuple
+        The checks of :func:`number`.
+    kind : type
+        ``float`` or ``int``.
+    **kwargs
+        ``default``, ``help`` and other arguments of ``add_argument``.
+    """
+    parser.add_argument(option, type=number(option, kind, *checks), **kwargs)
+
+
+def split_names(text, option: str = "") -> list:
+    """The comma-separated names of an option.
+
+    Parameters
+    ----------
+    text : str or None
+        The option's value.
+    option : str
+        The option, named in the error message.
+
+    Returns
+    -------
+    list of str
+        The names, blanks dropped.
+
+    Raises
+    ------
+    ValueError
+        A name given twice, naming the option.
+    """
+    names = [n.strip() for n in text.split(",") if n.strip()] if text else []
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"{option or 'option'}: {', '.join(twice)} given twice")
+    return names
+
+
+# --- options shared by several subcommands ------------------------------------------------------
+
+
+def add_vehicle(parser, help: str, **kwargs) -> None:
+    """``--vehicle``: a packaged vehicle id or a vehicle file (``required`` or ``default`` in kwargs)."""
+    parser.add_argument("--vehicle", help=help, **kwargs)
+
+
+def add_free(parser, help: str) -> None:
+    """``--free``: comma-separated free coefficients (empty: the vehicle's)."""
+    parser.add_argument("--free", default="", help=help)
+
+
+def add_effects(parser, help: str) -> None:
+    """``--effects``: comma-separated effects in the model."""
+    parser.add_argument("--effects", default="", help=help)
+
+
+def add_tracks(parser, option: str, help: str) -> None:
+    """A list of Track CSVs (``--train``, ``--heldout``, ``--track``), at least one."""
+    parser.add_argument(option, nargs="+", required=True, metavar="CSV", help=help)
+
+
+def add_window(parser, *checks, default=60.0, help: str = "protocol window, s (<= 0: whole run)") -> None:
+    """``--window``: the protocol window, s (finite, and passing ``checks``, those of :func:`number`)."""
+    add_number(parser, "--window", *checks, default=default, help=help)
+
+
+def add_dt(parser, default, help: str) -> None:
+    """``--dt``: the model's integration step, s (positive)."""
+    add_number(parser, "--dt", POSITIVE, default=default, help=help)
+
+
+def add_max_nfev(parser, help: str) -> None:
+    """``--max-nfev``: least-squares iterations (positive; default 60)."""
+    add_number(parser, "--max-nfev", POSITIVE, kind=int, default=60, help=help)
+
+
+def add_weighting(parser) -> None:
+    """``--weighting``: the channel weights of the fits."""
+    parser.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
+
+
+def add_start(parser) -> None:
+    """``--start``: the window start rule."""
+    parser.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
+
+
+def add_leadin(parser) -> None:
+    """``--leadin``: the lead-in of the fitted start rule, s (>= 0; 0: the protocol's)."""
+    add_number(
+        parser,
+        "--leadin",
+        NON_NEGATIVE,
+        default=0.0,
+        help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
+        f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)",
+    )
+
+
+def add_seed(parser, help: str) -> None:
+    """``--seed``: a random seed (>= 0; default 0)."""
+    add_number(parser, "--seed", NON_NEGATIVE, kind=int, default=0, help=help)
+
+
+def add_prior(parser, help: str) -> None:
+    """``--prior``: file (the vehicle file's ``[prior]``) or none."""
+    parser.add_argument("--prior", choices=("file", "none"), default="file", help=help)
+
+
+def add_jobs(parser) -> None:
+    """``--jobs`` and ``--scheduler`` (:func:`bayesid.tasks.add_arguments`)."""
+    tasks.add_arguments(parser)
+
+
+def add_out(parser, help: str | None = None) -> None:
+    """``--out``: the output folder (or file), required."""
+    parser.add_argument("--out", required=True, help=help)
+
+
+def add_overwrite(parser) -> None:
+    """``--overwrite``: replace this command's earlier output in ``--out``."""
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace what this command wrote before in --out (a non-empty --out is refused otherwise)",
+    )

@@ -1,0 +1,199 @@
+"""``bayesid predict``: score a fitted model on tracks with the window protocol (and over whole
+runs), with the manoeuvre indices and the calibrated predictive bands, written as
+``predict.json``, ``report.md`` and figures."""
+
+from __future__ import annotations
+
+import sys
+
+from . import options as opt
+from .inputs import naming_files, read_tracks
+from .outputs import check_out
+from .provenance import check_vehicle_unchanged
+
+
+def add_parser(sub) -> None:
+    """Declare ``bayesid predict`` and its options.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subparsers of the ``bayesid`` parser.
+    """
+    pp = opt.add_subcommand(sub, "predict", "score a fitted model on tracks with the window protocol")
+    pp.add_argument("--model", required=True, help="model.json written by bayesid fit")
+    opt.add_tracks(pp, "--track", "Track CSVs")
+    opt.add_window(pp)
+    opt.add_number(
+        pp,
+        "--draws",
+        opt.NON_NEGATIVE,
+        kind=int,
+        default=100,
+        help="posterior draws for the index bands (100 gives a 5 %% quantile to about 2 draws)",
+    )
+    opt.add_seed(pp, "random seed of the posterior draws")
+    opt.add_start(pp)
+    opt.add_leadin(pp)
+    opt.add_out(pp, "output folder")
+    opt.add_overwrite(pp)
+    pp.add_argument(
+        "--allow-changed-vehicle",
+        action="store_true",
+        help="predict even if the vehicle file changed after the fit (a warning is printed)",
+    )
+
+
+def run(args) -> int:
+    """Run ``bayesid predict``: ``predict.json``, ``report.md`` and figures in ``--out``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from ..estimation.modelfile import load_model
+    from ..report import write_json, write_predict_report
+
+    out = check_out(args.out, "predict", args.overwrite)
+    model, p, cov, doc = load_model(args.model)
+    check_vehicle_unchanged(doc, model.vehicle, args.model, args.allow_changed_vehicle)
+    got = read_tracks([("--track", args.track)], model.vehicle)
+    tracks = got["--track"]
+    window = None if args.window <= 0 else args.window
+    _warn(doc, got, window)
+    with naming_files(got):
+        pr, whole, indices, bands = _predict(args, (model, p, cov), doc, tracks, window, out)
+        _figures(pr, bands, doc, tracks, window, out)
+        res = {
+            "model": str(args.model),
+            "window_s": window,
+            "start_rule": pr["start_rule"],
+            "leadin_s": pr["leadin_s"],
+            "warnings": got["_warnings"],
+            "input_sha256": got["_sha256"],
+            "pooled": pr["pooled"],
+            "per_track": pr["per_track"],
+            "windows": pr["windows"],
+            "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
+            "indices": indices,
+            "n_draws": args.draws,
+            "bands": bands,
+        }
+        write_json(out / "predict.json", res)
+        write_predict_report(res, out, [t.name for t in tracks], command=f"bayesid {' '.join(sys.argv[1:])}")
+    print(_summary(pr, bands, window, out))
+    return 0
+
+
+def _warn(doc, got: dict, window) -> None:
+    """Warnings (printed, and added to the inputs' warnings) for a track the model was fitted on
+    and for a track shorter than one window."""
+    trained = {h: f for f, h in (doc.provenance.get("input_sha256") or {}).items()}
+    for f, h in got["_sha256"].items():
+        if h in trained:
+            w = (
+                f"{f}: the model was fitted on this file ({trained[h]}): its scores are training scores, "
+                "not a prediction of unseen data"
+            )
+            print(f"warning: {w}", file=sys.stderr)
+            got["_warnings"].append(w)
+    for tr in got["--track"]:
+        if window is not None and tr.t[-1] - tr.t[0] < window:
+            w = (
+                f"{tr.name}: lasts {tr.t[-1] - tr.t[0]:.3g} s, less than one {window:g} s window: its score is "
+                "over that shorter span, not comparable with full windows"
+            )
+            print(f"warning: {w}", file=sys.stderr)
+            got["_warnings"].append(w)
+
+
+def _predict(args, fitted, doc, tracks, window, out):
+    """The windowed and whole-run predictions, each track's manoeuvre indices with their
+    posterior band, and the calibrated bands (``out/figures`` is created on the way)."""
+    import numpy as np
+
+    from ..estimation.calibration import calibrated_bands, excitation
+    from ..estimation.prediction import FittedModel, predict, turning_band
+
+    model, p, cov = fitted
+    lead = args.leadin if args.leadin > 0 else None
+    pr = predict(model, p, tracks, window, start=args.start, leadin_s=lead)
+    whole = predict(model, p, tracks, None, start=args.start, leadin_s=lead)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(args.seed)
+    indices = {}
+    for tr in tracks:
+        tb = turning_band(
+            FittedModel(model, p, cov), tr, args.draws, rng, start=whole["start_rule"], leadin_s=whole["leadin_s"]
+        )
+        indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
+    bands = calibrated_bands(
+        doc.calibration, window, pr["windows"], indices, excitations={t.name: excitation(t) for t in tracks}
+    )
+    return pr, whole, indices, bands
+
+
+def _figures(pr: dict, bands: dict, doc, tracks, window, out) -> None:
+    """Each track's windowed prediction with its 90 % band, and the reliability diagram; the
+    simulations are dropped from ``pr`` once drawn."""
+    import numpy as np
+
+    from ..estimation.calibration import window_band
+    from ..report import plots
+
+    b90 = window_band(doc.calibration, 0.9) if bands.get("windows") else {}
+    for tr in tracks:
+        ctx, S = pr["_sim"][tr.name]
+        k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
+        dr = np.asarray(tr["delta_r"], float)[ctx.idx]
+        plots.prediction_band(
+            ctx.ts[::k],
+            {"x": ctx.meas["x"][::k], "y": ctx.meas["y"][::k], "psi": ctx.meas["psi"][::k], "delta_r": dr[::k]},
+            {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
+            ctx.win[::k],
+            b90,
+            out / "figures" / f"{tr.name}.png",
+            title=f"{tr.name}: {window or 'whole-run'} s windows, identified model"
+            + (
+                " (extrapolated: band not calibrated)"
+                if tr.name in (bands.get("extrapolated") or {}).get("runs", [])
+                else ""
+            ),
+        )
+        del pr["_sim"][tr.name]
+    if bands.get("coverage"):
+        groups = {
+            g: bands["coverage"][g]
+            for g in ("windows", "indices")
+            if any(v["n"] for v in bands["coverage"][g].values())
+        }
+        plots.reliability(groups, out / "figures" / "reliability.png", bands["parameter_only"])
+
+
+def _summary(pr: dict, bands: dict, window, out) -> str:
+    """The line printed at the end: pooled score, coverage of the 90 % bands, runs outside the
+    training runs' range or extrapolated."""
+    c90 = ((bands.get("coverage") or {}).get("all") or {}).get("0.9") or {}
+    ext = (bands.get("extrapolated") or {}).get("runs") or []
+    return (
+        f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows)"
+        + (f"; calibrated 90 % bands hold {c90['inside']} of {c90['n']} claims" if c90.get("n") else "")
+        + (f" ({c90['unbounded']} of them unbounded: too few training scores for 90 %)" if c90.get("unbounded") else "")
+        + (
+            f" ({len(bands['outside_range'])} run(s) outside the training runs' range: see report.md)"
+            if bands.get("outside_range")
+            else ""
+        )
+        + (
+            f"; {len(ext)} run(s) extrapolated (a manoeuvre the training runs lacked: bands not calibrated)"
+            if ext
+            else ""
+        )
+        + f"; wrote {out / 'predict.json'}"
+    )

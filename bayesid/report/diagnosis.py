@@ -1,0 +1,271 @@
+"""The report of a gap diagnosis (``bayesid diagnose``, ``studies/real_ships.py``):
+``diagnosis.json``, ``report.md`` (how far, which effect, where) and its figures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .markdown import fmt, md_table
+from .study import write_json
+
+
+def attribution_lines(res: dict) -> list[str]:
+    """The verdict of a diagnosis in words: cause, contributors (with their shares) and the remainder.
+
+    Parameters
+    ----------
+    res : dict
+        A diagnosis as :meth:`bayesid.analysis.gap.Diagnosis.to_dict` gives it.
+
+    Returns
+    -------
+    list of str
+        Markdown lines.
+    """
+    out = []
+    if res.get("cause"):
+        out.append(f"Cause: **{res['cause']}** (with it the held-out error is inside the noise-floor band).")
+    for c in res.get("contributors", []):
+        out.append(
+            f"- Contributor **{c['effect']}** ({'added' if c['added'] else 'not added'}): removes "
+            f"{fmt(c['share_of_excess'])} of the base model's excess (held-out {fmt(c['heldout_rms_m'])} m; "
+            f"paired window test p = {fmt(c['window_p_value'])}, ΔBIC {fmt(c['delta_bic'], 4)})."
+        )
+    rem = res.get("remainder")
+    if rem and res["significant_gap"]:
+        out.append(
+            f"Remainder: {fmt(rem['fraction_of_excess'])} of the excess over the floor "
+            f"(held-out {fmt(rem['heldout_rms_m'])} m), "
+            + ("still significant: no candidate explains it." if rem["significant"] else "inside the band.")
+        )
+    return out
+
+
+def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | None = None) -> None:
+    """Write the report of a gap diagnosis into a folder.
+
+    Parameters
+    ----------
+    diag : bayesid.analysis.gap.Diagnosis
+        The diagnosis.
+    out : str or Path
+        The folder (created); ``diagnosis.json``, ``report.md`` and ``figures/*.png`` are written there.
+    heldout : list of Track
+        The held-out tracks; the first one's windows are plotted.
+    command : str
+        The command line, quoted at the top of the report (none when empty).
+    inputs : dict, optional
+        What the caller checked of its input files: ``warnings`` (list of str) and
+        ``input_sha256`` ({file: SHA-256}); written into ``diagnosis.json`` after the diagnosis.
+    """
+    out = Path(out)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    res = dict(diag.to_dict(), **(inputs or {}))
+    write_json(out / "diagnosis.json", res)
+    figs = _figures(diag, res, out, heldout)
+    lines = [*_summary_lines(res, command), *_how_far_lines(res), *_which_lines(res), *_where_lines(res)]
+    lines += ["", *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
+    (out / "report.md").write_text("\n".join(lines))
+
+
+def _figures(diag, res: dict, out: Path, heldout: list) -> list:
+    """The diagnosis' figures (ranking, channels, regions, the first held-out track's windows
+    before and after the effects added); returns their paths."""
+    from ..analysis.gap import window_xy
+    from . import plots
+
+    figs = []
+    if res["ranking"]:
+        figs.append(
+            plots.gap_ranking(
+                res["ranking"],
+                res["gap_before"]["heldout_rms_m"],
+                res["noise_floor"]["heldout_rms_m"],
+                out / "figures" / "ranking.png",
+            )
+        )
+    figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
+    figs.append(plots.gap_regions(res["where"], out / "figures" / "regions.png"))
+    if diag.base is not None and heldout:
+        w = res["settings"]["window_s"]
+        rule, lead = res["settings"]["start_rule"], res["settings"]["leadin_s"]
+        meas, before = window_xy(diag.base.model, diag.base.fit, heldout[0], w, start=rule, leadin_s=lead)
+        after = None
+        if res["effects_added"]:
+            anu = diag.after.nuisance
+            _, after = window_xy(
+                diag.after.model,
+                diag.after.fit,
+                heldout[0],
+                w,
+                None if anu is None else anu[0],
+                start=rule,
+                leadin_s=lead,
+            )
+        figs.append(
+            plots.window_tracks(
+                None,
+                meas,
+                before,
+                after,
+                out / "figures" / "heldout_track.png",
+                title=f"{heldout[0].name}: {w} s windows",
+            )
+        )
+    return figs
+
+
+def _summary_lines(res: dict, command: str) -> list:
+    """Title, command, input warnings, verdict and settings."""
+    return [
+        "# Gap diagnosis",
+        "",
+        f"`{command}`" if command else "",
+        "",
+        *(["**Input warnings:** " + "; ".join(res["warnings"]), ""] if res.get("warnings") else []),
+        f"**Verdict: {res['verdict']}**"
+        + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""),
+        "",
+        f"Training tracks: {', '.join(res['train_tracks'])}; held-out: {', '.join(res['heldout_tracks'])}. "
+        f"Free coefficients: {', '.join(res['settings']['free']) or 'none'}. Protocol windows: "
+        f"{res['settings']['window_s']} s; model step {res['settings']['dt']} s; channel weights of the fits: "
+        f"{res['settings'].get('weighting', 'noise')} sds ({', '.join(f'{k} {fmt(v)}' for k, v in res.get('fit_sd', {}).items())}).",
+        "",
+    ]
+
+
+def _how_far_lines(res: dict) -> list:
+    """The "How far" section: base model against the model with the effects added."""
+    gb, ga = res["gap_before"], res["gap_after"]
+    return [
+        "## How far",
+        "",
+        md_table(
+            [
+                "",
+                "train RMS (m)",
+                "held-out RMS (m)",
+                "held-out max (m)",
+                "heading RMS (deg)",
+                "train log-lik. (nats)",
+                "held-out log-lik. (nats)",
+            ],
+            [
+                [
+                    label,
+                    fmt(g["train_rms_m"]),
+                    fmt(g["heldout_rms_m"]),
+                    fmt(g["heldout_max_m"]),
+                    fmt(g["heading_rms_deg"]),
+                    fmt(g.get("train_log_likelihood"), 5),
+                    fmt(g.get("heldout_log_likelihood"), 5),
+                ]
+                for label, g in (("base model", gb), ("with " + ("+".join(res["effects_added"]) or "nothing"), ga))
+            ],
+        ),
+        "Log-likelihood: Gaussian at the fits' channel sds, samples treated as independent (a "
+        "before/after comparison on the same samples, not a calibrated likelihood).",
+        "",
+        f"Held-out shrinkage {fmt(res['heldout_shrinkage'])}; noise floor (perfect model at the "
+        f"estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
+        f"{fmt(res['gap_ratio'])} (significant above {res['thresholds']['none_ratio']}).",
+        "",
+    ]
+
+
+def _which_lines(res: dict) -> list:
+    """The "Which" section: the ranking of the candidate effects, the verdict in words, the rules
+    and the sparse-regression support."""
+    return [
+        "## Which",
+        "",
+        md_table(
+            ["effect", "held-out RMS (m)", "excess removed", "window test p", "ΔBIC (train)", "role", "parameters"],
+            [
+                [
+                    r["effect"],
+                    fmt(r["heldout_rms_m"]),
+                    fmt(r["excess_removed"]),
+                    fmt(r.get("window_p_value")),
+                    fmt(r["delta_bic"], 4),
+                    r.get("role") or "-",
+                    ", ".join(f"{k} {fmt(v)}" for k, v in r["parameters"].items() if k != "per_track_nuisance"),
+                ]
+                for r in res["ranking"]
+            ],
+        ),
+        "",
+        *attribution_lines(res),
+        "",
+        f"Rules: an effect is the cause if, added, the held-out error falls within "
+        f"{res['thresholds']['none_ratio']} x the floor, it removes >= {res['thresholds']['explain_fraction']} "
+        f"of the excess and its ΔBIC <= {res['thresholds']['bic_threshold']}; a contributor improves the "
+        f"held-out windows (paired Wilcoxon p < {res['thresholds']['partial_p']}, ΔBIC <= "
+        f"{res['thresholds']['bic_threshold']}) without closing the gap and is added, the next round trying the "
+        "others on top of it; `+unexplained` marks a remainder still above the band; `none`: the gap is not "
+        f"significant. Window starts: {res['settings'].get('start_rule', 'measured')} rule"
+        + (
+            f" (lead-in {fmt(res['settings'].get('leadin_s'))} s)"
+            if res["settings"].get("start_rule") == "fitted"
+            else ""
+        )
+        + ".",
+        "",
+        "Sparse-regression support (ensemble STLSQ inclusion probability of each effect's force "
+        "signature in the missing forces; sensor bias leaves none): "
+        + ", ".join(f"{k} {fmt(v)}" for k, v in res["sindy_support"].items() if not isinstance(v, str)),
+        "",
+    ]
+
+
+def _where_lines(res: dict) -> list:
+    """The "Where" section: channels, dominant region, phases, missing forces, wind dependence
+    and the residuals' spectra."""
+    lines = [
+        "## Where",
+        "",
+        md_table(
+            ["channel", "RMS", "noise sd", "floor RMS", "ratio"],
+            [
+                [c, fmt(d.get("rms")), fmt(d.get("noise_sd")), fmt(d.get("floor_rms")), fmt(d.get("excess_ratio"))]
+                for c, d in res["where"]["channels"].items()
+            ],
+        ),
+        "",
+        f"Dominant channel: {res['where']['dominant_channel']}; dominant region: "
+        f"{res['where']['dominant_region']['region']} (error growth {fmt(res['where']['dominant_region']['growth_ratio'])}"
+        " x the mean).",
+        "",
+    ]
+    ph = res["where"]["phases"]
+    lines += [
+        "Phases: "
+        + "; ".join(
+            f"{k}: {fmt(v['fraction_of_time'])} of the time, growth {fmt(v['mean_error_growth_mps'])} m/s"
+            for k, v in ph.items()
+        ),
+        "",
+    ]
+    if res["where"].get("forces"):
+        lines += [
+            "Missing forces (RMS, inverse dynamics of the first held-out track's smoothed motion minus "
+            "the fitted model): "
+            + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["forces"].items() if not isinstance(v, str)),
+            "",
+        ]
+    if res["where"].get("wind_correlation"):
+        lines += [
+            "Apparent-wind dependence: correlation of the missing X, Y, N with the wind-load signatures "
+            "(0.5 rho_a VA^2 A cos g, sin g) over the held-out tracks: "
+            + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["wind_correlation"].items()),
+            "",
+        ]
+    for k, v in res["where"].get("spectrum", {}).items():
+        wb = res["where"]["whiteness"].get(k, {})
+        ic = res["where"]["input_correlation"].get(k, {})
+        lines.append(
+            f"- {k}: spectral peak at {fmt(v['peak_period_s'])} s ({fmt(v['peak_to_median'])} x median); "
+            f"Ljung-Box p = {fmt(wb.get('p_value'))}; "
+            + ", ".join(f"corr with {n} {fmt(c['max_abs_corr'])} at lag {fmt(c['lag_s'])} s" for n, c in ic.items())
+        )
+    return lines

@@ -1,0 +1,245 @@
+"""The report of ``bayesid fit`` (``report.md`` beside ``model.json``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .markdown import fmt, md_table
+
+
+def write_fit_report(doc: dict, out, command: str = "") -> None:
+    """Write ``report.md`` of ``bayesid fit``: the identified coefficients with their Laplace sds, the
+    priors, the weakly determined directions, the calibration of the predictive bands and the multistart.
+
+    Parameters
+    ----------
+    doc : dict
+        The model document (``model.json``) of the fit.
+    out : str or Path
+        The folder written to (it exists).
+    command : str
+        The command line, quoted at the top of the report (none when empty).
+    """
+    out = Path(out)
+    rows = [
+        [n, fmt(s0, 4), fmt(p, 4), fmt(sd, 3)]
+        for n, s0, p, sd in zip(doc["param_names"], doc["start"], doc["p"], doc["sd"])
+    ]
+    ts = doc["train_scores"]
+    warn = (doc.get("provenance") or {}).get("warnings") or []
+    lines = [
+        "# Identified model",
+        "",
+        f"`{command}`" if command else "",
+        "",
+        *(["**Input warnings:** " + "; ".join(warn), ""] if warn else []),
+        f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
+        f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s; "
+        f"{len(doc['train_runs'])} training run(s).",
+        "",
+        f"Equation-error seed: {'used' if doc['seed'].get('used') else 'not used'} "
+        f"(R^2 X/Y/N: {', '.join(fmt(v) for v in doc['seed'].get('r2', {}).values()) or '-'}).",
+        "",
+        f"Training RMS position error {fmt(ts['rms_position_m'])} m, heading {fmt(ts['rms_heading_deg'])} deg "
+        f"({doc['fit_window_s']} s windows). Fit: {doc['fit']['nfev']} evaluations, {doc['fit']['message']}",
+        "",
+        "Posterior: Laplace approximation, residual variance x AR(1) inflation "
+        f"{fmt(doc['posterior']['ar1_inflation'])}; Jacobian condition number "
+        f"{fmt(doc['posterior']['condition_number'])}.",
+        "",
+        md_table(["parameter", "start", "identified", "sd (Laplace)"], rows),
+        "",
+    ]
+    lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
+    ms = doc.get("multistart")
+    if ms:
+        lines += _multistart_lines(ms)
+    (out / "report.md").write_text("\n".join(lines))
+
+
+def _prior_lines(doc: dict) -> list:
+    """The priors of the vehicle file against the identified values (none when not used)."""
+    lines = []
+    pr = doc.get("prior") or {}
+    if pr.get("used"):
+        prow = [
+            [
+                n,
+                fmt(c["mean"], 4),
+                fmt(c["sd"], 3),
+                fmt(c["identified"], 4),
+                fmt(c["posterior_sd"], 3),
+                fmt(c["z"], 2),
+                fmt(c["z_without_prior"], 2),
+            ]
+            for n, c in pr["coefficients"].items()
+        ]
+        lines += [
+            "## Priors from the vehicle file",
+            "",
+            f"Source: {pr.get('source') or '(not given)'}. MAP fit: the data residuals weigh as a likelihood "
+            f"of residual sd {fmt(pr['data_weight_sd'])} (residual variance {fmt(pr['residual_variance'])} x "
+            f"serial-correlation inflation {fmt(pr['ar1_inflation'])}); z = (identified - prior mean) / prior sd.",
+            "",
+            md_table(
+                [
+                    "coefficient",
+                    "prior mean",
+                    "prior sd",
+                    "identified",
+                    "posterior sd (Laplace)",
+                    "z",
+                    "z without the prior",
+                ],
+                prow,
+            ),
+            "",
+            "The data moved (|z| > 1): "
+            + (", ".join(pr["moved"]) or "none")
+            + "; beyond 3 prior sd: "
+            + (", ".join(pr["beyond_3sd"]) or "none")
+            + ".",
+            "",
+        ]
+    return lines
+
+
+def _weak_direction_lines(doc: dict) -> list:
+    """The directions the training runs determine least."""
+    lines = []
+    weak = doc["posterior"].get("weak_directions") or []
+    if weak:
+        from ..analysis.identifiability import Direction
+
+        lines += [
+            "Directions the training runs determine least (eigenvectors of the scaled Gauss-Newton "
+            "information; parameters in units of their typical size, smallest eigenvalue first): "
+            + "; ".join(
+                f"`{Direction(w['eigenvalue'], np.array(w['vector']), doc['param_names']).label()}` "
+                f"(eigenvalue {fmt(w['eigenvalue'])})"
+                for w in weak
+            )
+            + ". An ill-conditioned covariance means these combinations are set by the start and the "
+            "bounds more than by the data.",
+            "",
+        ]
+    return lines
+
+
+def _calibration_lines(doc: dict) -> list:
+    """The calibration of the predictive bands (none without one)."""
+    lines = []
+    cal = doc.get("calibration")
+    if cal:
+        from ..estimation.calibration import (
+            EXCITATION_MEASURES,
+            LEVELS,
+            conformal_quantile,
+            excitation_range,
+            index_scores,
+            window_band,
+        )
+
+        failed = [f for f in cal["folds"] if "error" in f]
+        wb = {a: window_band(cal, a) for a in LEVELS}
+        kappa, scores = index_scores(cal)
+        keys = sorted(scores)
+        lines += [
+            "## Calibration of the predictive bands",
+            "",
+            f"{cal['method']}: {cal['n_runs']} runs in {cal['n_folds']} folds"
+            + (
+                f" ({len(failed)} failed: " + "; ".join(f"{', '.join(f['runs'])}: {f['error']}" for f in failed) + ")"
+                if failed
+                else ""
+            )
+            + f"; {len(cal['window_scores']['max_position_m'])} windows of {cal['window_s']:g} s and "
+            f"{sum(len(v) for v in scores.values())} manoeuvre indices scored on the left-out runs "
+            f"({cal['n_draws']} posterior draws per fold). `bayesid predict --window {cal['window_s']:g}` reports "
+            "these bands and their coverage.",
+            "",
+            md_table(
+                ["nominal", "window position radius (m)", "window heading (deg)", *[f"{k} (q)" for k in keys]],
+                [
+                    [
+                        f"{100 * a:g} %",
+                        fmt(wb[a]["max_position_m"]),
+                        fmt(wb[a]["max_heading_deg"]),
+                        *[fmt(conformal_quantile(scores[k], a)) for k in keys],
+                    ]
+                    for a in LEVELS
+                ],
+            ),
+            "",
+            *(
+                [
+                    "The bands are calibrated for runs like these (95th percentiles of |delta_r| and |r|): "
+                    + ", ".join(
+                        f"{label} {xr[key][0]:.3g}-{xr[key][1]:.3g} {unit}"
+                        for key, label, unit in EXCITATION_MEASURES
+                        if key in xr
+                    )
+                    + "; `predict` names a run outside 0.8x-1.25x this range.",
+                    "",
+                ]
+                if (xr := excitation_range(cal))
+                else []
+            ),
+            "Index columns: the factor q of the band predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd "
+            "the posterior draws' spread of the index and kappa the median relative error of the left-out runs' "
+            "values of that index (the structural error: "
+            + ", ".join(f"{k} {fmt(v)}" for k, v in kappa.items())
+            + ", 'all' for an index with fewer than 3); inf "
+            "where too few scores for the level (predict then pools the scores of every index; an index no "
+            "training run had, e.g. a turning circle from zigzags, is flagged extrapolated and not counted as "
+            "calibrated).",
+            "",
+        ]
+    return lines
+
+
+def _multistart_lines(ms: dict) -> list:
+    """The multistart section of a fit report: counts, distances and the distinct optima."""
+    tc = ms.get("turning_circle") or {}
+    head = ["optimum", "starts", "cost / best - 1"]
+    if tc.get("speed_mps") is not None:
+        head += ["advance (m)", "tactical diameter (m)"]
+    rows = []
+    for k, o in enumerate(ms["distinct_optima"]):
+        r = [str(k + 1), str(len(o["starts"])), fmt(o["relative_cost"], 3)]
+        if tc.get("speed_mps") is not None:
+            c = o.get("turning_circle") or {}
+            r += [fmt(c.get("advance_m")), fmt(c.get("tactical_diameter_m"))]
+        rows.append(r)
+    worst = sorted(ms["spread_near_best_scales"].items(), key=lambda kv: -kv[1])[:5]
+    lines = [
+        "## Multistart",
+        "",
+        f"{ms['n_starts']} starts (the default and {ms['n_starts'] - 1} Latin-hypercube starts); the best came from "
+        f"the {ms['best_kind']} start. **{ms['n_near_best']} of {ms['n_starts']}** reach the best cost within "
+        f"{100 * ms['cost_tolerance']:g} %; they form **{ms['n_distinct_near_best']} distinct optimum/optima** "
+        f"(optima differing by more than {ms['distinct_tolerance_scales']:g} of a parameter's scale), at most "
+        f"{fmt(ms['max_scaled_distance_near_best'])} scales apart.",
+        "",
+    ]
+    if worst:
+        lines += [
+            "Largest spread of the near-best optima (in parameter scales): "
+            + ", ".join(f"{n} {fmt(v)}" for n, v in worst)
+            + ".",
+            "",
+        ]
+    if tc.get("speed_mps") is not None:
+        rng = ms.get("tactical_diameter_range_m")
+        lines += [
+            f"Turning circles: {tc['rudder_deg']:g} deg rudder to {tc['side']} from {fmt(tc['speed_mps'])} m/s, "
+            f"{fmt(tc['rps'])} rev/s (the training runs' approach)"
+            + (f"; tactical diameter {fmt(rng[0])}-{fmt(rng[1])} m across the distinct optima." if rng else "."),
+            "",
+        ]
+    elif tc.get("error"):
+        lines += [f"No turning circles: {tc['error']}.", ""]
+    lines += [md_table(head, rows), "", "![multistart](figures/multistart.png)", ""]
+    return lines

@@ -1,0 +1,248 @@
+"""The report of ``bayesid predict`` (``report.md`` beside ``predict.json``): the window
+protocol's scores, the manoeuvre indices, and the calibrated predictive bands with their coverage."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .markdown import fmt, md_table
+
+
+def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> None:
+    """Write ``report.md`` of ``bayesid predict`` from its ``predict.json`` document.
+
+    Parameters
+    ----------
+    doc : dict
+        The ``predict.json`` document: window, start rule, warnings, windowed and whole-run
+        scores, manoeuvre indices, bands.
+    out : str or Path
+        The folder written to (it exists; the figures are in ``figures/``).
+    tracks : list of str
+        The names of the predicted tracks, in the order of their figures.
+    command : str
+        The command line, quoted at the top of the report (none when empty).
+    """
+    window, whole = doc["window_s"], doc["whole_run"]
+    rows = [
+        [
+            n,
+            fmt(d["rms_position_m"]),
+            fmt(d["max_position_m"]),
+            fmt(d["rms_heading_deg"]),
+            fmt(whole["per_track"][n]["rms_position_m"]),
+        ]
+        for n, d in doc["per_track"].items()
+    ]
+    lines = [
+        "# Prediction under the window protocol",
+        "",
+        f"`{command}`" if command else "",
+        "",
+        f"Windows of {window} s restart from "
+        + (
+            "the measured (causal) state"
+            if doc["start_rule"] == "measured"
+            else f"a state fitted with the model over the {doc['leadin_s']:g} s before each window (no velocity log)"
+        )
+        + "; whole run = one open-loop simulation from the first state.",
+        "",
+        md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows),
+        "",
+        f"Pooled: {fmt(doc['pooled']['rms_position_m'])} m, heading {fmt(doc['pooled']['rms_heading_deg'])} deg; "
+        f"whole run {fmt(whole['pooled']['rms_position_m'])} m.",
+        "",
+    ]
+    lines += [f"- **Warning**: {w}" for w in doc["warnings"]] + ([""] if doc["warnings"] else [])
+    lines += _index_lines(doc["indices"])
+    lines += ["", *_band_lines(doc["bands"], doc["n_draws"]), *[f"![{t}](figures/{t}.png)" for t in tracks], ""]
+    (Path(out) / "report.md").write_text("\n".join(lines))
+
+
+def _index_lines(indices: dict) -> list:
+    """Each track's measured and predicted manoeuvre indices with the draws' 5-95 % band."""
+    lines = []
+    for n, d in indices.items():
+        if d["measured"].get("kind") == "other":
+            lines.append(f"- {n}: no turning or zigzag indices ({d['measured'].get('reason')})")
+        if d["measured"].get("kind") in ("turning", "zigzag"):
+            lines.append(
+                f"- {n} ({d['measured']['kind']}): "
+                + "; ".join(
+                    f"{k} measured {fmt(d['measured'].get(k))}, predicted {fmt(d['predicted'].get(k))}"
+                    + (f" [{fmt(d['band_5_95'][k][0])}, {fmt(d['band_5_95'][k][1])}]" if d["band_5_95"].get(k) else "")
+                    for k in d["band_5_95"]
+                )
+            )
+    return lines
+
+
+def _band_lines(bands: dict, n_draws: int) -> list:
+    """The section of the predictive bands and their coverage on the predicted runs (``bands``:
+    those of ``predict.json``; ``n_draws``: the posterior draws behind the parameter-only bands)."""
+    po = bands["parameter_only"]
+    lines = [
+        "## Predictive bands and their coverage on these runs",
+        "",
+        f"Posterior draws: {n_draws}. The draws' own 5-95 % index bands (parameter uncertainty only) hold "
+        f"{po['inside']} of {po['n']} measured indices"
+        + (f" ({fmt(100 * po['coverage'])} %)." if po["coverage"] is not None else "."),
+        "",
+    ]
+    if not bands["calibrated"]:
+        return lines + [f"No calibrated bands: {bands['reason']}.", ""]
+    lines += _coverage_lines(bands)
+    index_rows = _index_band_lines(bands)
+    lines += index_rows
+    window_rows = _window_band_lines(bands)
+    if window_rows:
+        lines += window_rows
+    elif index_rows:
+        lines += ["![reliability](figures/reliability.png)", ""]
+    return lines
+
+
+def _coverage_lines(bands: dict) -> list:
+    """The coverage table of the calibrated bands, and the runs outside the training runs' range
+    or extrapolated."""
+    cov = bands["coverage"]
+    lines = [
+        "Calibrated bands (split conformal, leave one training run out: they include the structural error "
+        "the model made on training runs it did not see). A window is inside when its largest position and "
+        "heading errors are both within the band (one joint claim); an index when the measured value is, and "
+        "is counted outside when the model predicts no value for it (e.g. its simulated zigzag never reaches "
+        "the overshoot).",
+        "",
+        md_table(
+            ["nominal", "windows inside", "indices inside", "all"],
+            [
+                [f"{100 * float(a):g} %"]
+                + [
+                    f"{c[a]['inside']}/{c[a]['n']} ({fmt(100 * c[a]['coverage'])} %)"
+                    + (f", {c[a]['unbounded']} unbounded" if c[a].get("unbounded") else "")
+                    if c[a]["n"]
+                    else "-"
+                    for c in (cov["windows"], cov["indices"], cov["all"])
+                ]
+                for a in cov["all"]
+            ],
+        ),
+        "",
+    ]
+    if any(c.get("unbounded") for c in cov["all"].values()):
+        lines += [
+            "Unbounded: claims whose band at that level is infinite, because the calibration has too few scores "
+            "for it (n scores support levels up to n / (n + 1)); they hold trivially and say nothing. Train on "
+            "more runs for a finite band.",
+            "",
+        ]
+    if bands.get("window_reason"):
+        lines += [f"No window bands: {bands['window_reason']}.", ""]
+    if bands.get("outside_range"):
+        ir = bands["coverage_in_range"]
+        lines += [
+            "**Outside the training runs' range** (a calibrated band assumes a run like the calibration runs; these "
+            "are driven harder or more gently, and their claims are counted above): "
+            + "; ".join(f"{t}: {', '.join(v)}" for t, v in bands["outside_range"].items())
+            + ". The other runs' 90 % claims: "
+            + "; ".join(f"{g} {c['0.9']['inside']}/{c['0.9']['n']}" for g, c in ir.items() if c["0.9"]["n"])
+            + ".",
+            "",
+        ]
+    ext = bands.get("extrapolated") or {}
+    if ext.get("runs"):
+        xc = ext["coverage"]
+        lines += [
+            f"**Extrapolated, not calibrated**: {', '.join(ext['runs'])} ({', '.join(ext['kinds'])}; indices "
+            f"{', '.join(ext['index_kinds'])}): {ext['note']}. They are left out of the table above; their "
+            "borrowed 90 % bands hold "
+            + "; ".join(
+                f"{g} {c['0.9']['inside']}/{c['0.9']['n']}"
+                for g, c in (("windows", xc["windows"]), ("indices", xc["indices"]))
+                if c["0.9"]["n"]
+            )
+            + " here.",
+            "",
+        ]
+    return lines
+
+
+def _index_band_lines(bands: dict) -> list:
+    """The table of the indices' 90 % bands and how they are built (none without index bands)."""
+    rows = [
+        [
+            r["track"],
+            r["index"],
+            fmt(r["measured"]),
+            fmt(r["predicted"]),
+            (
+                f"[{fmt(r['band']['0.9']['lo'])}, {fmt(r['band']['0.9']['hi'])}]"
+                if r["band"]["0.9"]["lo"] is not None
+                else "no predicted value"
+            )
+            + (
+                " (extrapolated)" if r.get("extrapolated") else " (pooled scores)" if r["band"]["0.9"]["pooled"] else ""
+            ),
+            "yes" if r["inside"]["0.9"] else "**no**",
+            f"[{fmt(r['parameter_band_5_95'][0])}, {fmt(r['parameter_band_5_95'][1])}]"
+            if r["parameter_band_5_95"]
+            else "-",
+        ]
+        for r in bands["indices"]
+    ]
+    if not rows:
+        return []
+    return [
+        "Indices, 90 % band:",
+        "",
+        md_table(["track", "index", "measured", "predicted", "90 % band", "inside", "draws' 5-95 %"], rows),
+        "",
+        "Band: predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd the draws' spread of the index, kappa "
+        "the training runs' median relative error of that index (model fit on the others): "
+        + ", ".join(sorted({f"{r['index']} {fmt(r['band']['0.9']['kappa'])}" for r in bands["indices"]}))
+        + "."
+        + (
+            " Pooled scores: the training runs gave fewer than 9 scores of this index, so its band uses the "
+            "scores of every index (each normalised by its own index's kappa)."
+            if any(r["band"]["0.9"]["pooled"] for r in bands["indices"])
+            else ""
+        ),
+        "",
+    ]
+
+
+def _window_band_lines(bands: dict) -> list:
+    """The table of the windows' 90 % bands and the reliability figure (none without window bands)."""
+    wrows = [
+        [
+            w["track"],
+            fmt(w["t_start"]),
+            fmt(w["max_position_m"]),
+            fmt(w["band"]["0.9"]["max_position_m"]),
+            fmt(w["max_heading_deg"]),
+            fmt(w["band"]["0.9"]["max_heading_deg"]),
+            "yes" if w["inside"]["0.9"] else "**no**",
+        ]
+        for w in bands["windows"]
+    ]
+    if not wrows:
+        return []
+    return [
+        "Windows, 90 % band:",
+        "",
+        md_table(
+            [
+                "track",
+                "window start (s)",
+                "max position error (m)",
+                "band (m)",
+                "max heading error (deg)",
+                "band (deg)",
+                "inside",
+            ],
+            wrows,
+        ),
+        "",
+        "![reliability](figures/reliability.png)",
+        "",
+    ]

@@ -1,0 +1,169 @@
+"""The report of ``bayesid sample`` (``report.md`` beside ``sample.json``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .markdown import fmt, md_table
+
+
+def write_sample_report(doc: dict, out, command: str = "") -> None:
+    """Write ``report.md`` of ``bayesid sample`` from its ``sample.json`` document: method and
+    verdict, cost, error model, the coefficients the data determine, move or leave at their prior,
+    the sloppy directions and collinearity of the user's tracks, and the figures.
+
+    Parameters
+    ----------
+    doc : dict
+        The ``sample.json`` document.
+    out : str or Path
+        The folder written to (it exists).
+    command : str
+        The command line, quoted at the top of the report (none when empty).
+    """
+    out = Path(out)
+    v, em = doc["verdict"], doc["error_model"]
+    lines = [
+        "# Posterior of the model's parameters given the training tracks",
+        "",
+        f"`{command}`" if command else "",
+        "",
+        f"Tracks: {', '.join(doc['train_runs'])} ({doc['cost']['n_windows']} windows of {doc['window_s']:g} s). "
+        f"Start states of the windows: {doc['start_states']}.",
+        "",
+        "## Method and verdict",
+        "",
+        f"Method: **{doc['method_label']}** (requested: {doc['method_requested']}). {v['text']}",
+        "",
+        f"Cost: one evaluation of the objective takes {1e3 * doc['cost']['seconds_per_evaluation']:.1f} ms per "
+        f"parameter row; stages (s): " + ", ".join(f"{k} {fmt(s, 3)}" for k, s in doc["cost"]["seconds"].items()) + ".",
+        "",
+        "## Error model",
+        "",
+        "Per channel, the integrated autocorrelation time of the errors within a window (Geyer's initial "
+        "positive sequence; (1 + rho) / (1 - rho) for AR(1) errors with lag-1 correlation rho) gives the variance "
+        "inflation, capped at the samples per window, and n / inflation independent errors of evidence. The "
+        "noise scale is integrated out (Jeffreys prior) and drawn afterwards.",
+        "",
+        md_table(
+            ["channel", "samples", "rho", "inflation", "effective samples", "sigma (5-95 %)"],
+            [
+                [
+                    c,
+                    e["n"],
+                    fmt(e["rho"], 4),
+                    fmt(e["inflation"]),
+                    fmt(e["n_eff"]),
+                    f"{fmt(e['sigma_posterior']['q05'])} - {fmt(e['sigma_posterior']['q95'])} {e['unit']}",
+                ]
+                for c, e in em.items()
+            ],
+        ),
+        "",
+        (
+            f"Between runs: the leave-one-run-out estimates of the fit's calibration ({doc['between_runs']['n_folds']} "
+            f"folds) scatter {doc['between_runs']['median_ratio']:.2f} x the posterior variance (median over the "
+            "parameters, jackknife); "
+            + (
+                "the effective samples above are divided by that factor."
+                if doc["between_runs"]["factor"] > 1
+                else "no widening needed."
+            )
+            + " Parameters that scatter more than their posterior sd says (variance ratio > 1): "
+            + (
+                ", ".join(
+                    f"{n} {r:.2f}" for n, r in doc["between_runs"]["per_parameter"].items() if r is not None and r > 1
+                )
+                or "none"
+            )
+            + "."
+            if doc["between_runs"]["n_folds"]
+            else "Between runs: no leave-one-run-out folds in the model (fewer than 3 runs, or --calibration none): "
+            "the posterior is not widened for the scatter between runs."
+        ),
+        "",
+        *_coefficient_lines(doc),
+        *_determined_lines(doc),
+    ]
+    (out / "report.md").write_text("\n".join(lines))
+
+
+def _coefficient_lines(doc: dict) -> list:
+    """Prior, fit and posterior of each coefficient, and its status."""
+    dos = doc["dossier"]
+    return [
+        "## Coefficients: prior, fit, posterior",
+        "",
+        f"Status: *determined* when the posterior sd is below {doc['thresholds']['determined']} x the prior sd, "
+        f"*at prior* above {doc['thresholds']['at_prior']} x; z: posterior mean against a Gaussian prior, in prior sds.",
+        "",
+        md_table(
+            ["parameter", "prior", "fit", "posterior mean", "sd", "5-95 %", "sd / prior sd", "z", "status"],
+            [
+                [
+                    n,
+                    (
+                        f"N({fmt(c['prior_mean'])}, {fmt(c['prior_sd'])})"
+                        if c["prior"] == "normal"
+                        else "uniform in bounds"
+                    ),
+                    fmt(doc["fit_estimate"][n]),
+                    fmt(c["mean"]),
+                    fmt(c["sd"]),
+                    f"{fmt(doc['marginals'][n]['q05'])} - {fmt(doc['marginals'][n]['q95'])}",
+                    fmt(c["sd_ratio"], 2),
+                    fmt(c["z"], 2) if c["z"] is not None else "",
+                    c["status"],
+                ]
+                for n, c in dos["coefficients"].items()
+            ],
+        ),
+        "",
+        f"The data moved (|z| > 1): {', '.join(dos['moved']) or 'none'}; beyond 3 prior sds: "
+        f"{', '.join(dos['moved_beyond_3sd']) or 'none'}.",
+        "",
+    ]
+
+
+def _determined_lines(doc: dict) -> list:
+    """What the tracks determine: sloppy directions, collinear subsets, correlations, the figures
+    and the files."""
+    dos = doc["dossier"]
+    return [
+        "## What these tracks determine",
+        "",
+        f"Fisher information of the tracks (parameters in units of their typical size): condition number "
+        f"{fmt(dos['fim_condition_number'])}. The sloppiest directions, with the spread of the prior and of "
+        "the posterior along each:",
+        "",
+        md_table(
+            ["direction", "Cramér-Rao sd", "posterior sd", "prior sd"],
+            [
+                [r["direction"], fmt(r["cramer_rao_sd"]), fmt(r["posterior_sd"]), fmt(r["prior_sd"])]
+                for r in dos["sloppy"]
+            ],
+        ),
+        "",
+        "Most collinear subsets (collinearity index, Brun et al. 2001; above 10-15: not separately identifiable):",
+        "",
+        md_table(
+            ["subset", "collinearity index"], [["-".join(r["subset"]), fmt(r["gamma"])] for r in dos["collinearity"]]
+        ),
+        "",
+        "Strongest posterior correlations: "
+        + ", ".join(f"{a}-{b} {r['r']:+.2f}" for r in dos["correlations"][:6] for a, b in [r["pair"]])
+        + ".",
+        "",
+        "![marginals](figures/marginals.png)",
+        "",
+        "![pairs](figures/pairs.png)",
+        "",
+        f"![{doc['figures']['sampler']}](figures/{doc['figures']['sampler']}.png)",
+        "",
+        "![fisher](figures/fisher.png)",
+        "",
+        f"Files: `posterior.nc` (ArviZ InferenceData), `sample.json`, `posterior_model.json` (the fit's model "
+        f"with this posterior's mode and covariance, for `bayesid predict`). bayesid {doc['provenance']['version']}, "
+        f"seed {doc['seed']}.",
+        "",
+    ]
