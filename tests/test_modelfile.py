@@ -70,3 +70,27 @@ def test_a_sampled_posterior_replaces_the_estimate_and_keeps_the_rest(tmp_path):
     assert {k: v for k, v in d.items() if k not in ("p", "cov", "sd", "posterior_source")} == {
         k: v for k, v in doc.to_dict().items() if k not in ("p", "cov", "sd")
     }
+
+
+def test_one_free_coefficient_gets_a_posterior_document_and_a_dossier():
+    """bayesid sample with one free coefficient: np.cov of its draws is 0-d and it has no pair of
+    coefficients to correlate (both raised before)."""
+    from bayesid.analysis.dossier import data_dossier
+
+    class FlatPrior:
+        gaussian = np.array([False])
+
+        def marginal_mean(self):
+            return np.array([np.nan])
+
+        def marginal_sd(self):
+            return np.array([np.inf])
+
+    draws = np.random.default_rng(0).normal(0.5, 0.1, size=(400, 1))
+    d = data_dossier(["Nr"], np.array([[4.0]]), np.array([[2.0], [0.0]]), np.array([1.0]), FlatPrior(), draws)
+    assert d["correlations"] == [] and d["collinearity"] == [] and d["coefficients"]["Nr"]["status"] == "determined"
+    raw = json.loads(OLD.read_text())
+    one = dict(raw, free=["Nr"], param_names=["Nr"], p=[raw["p"][1]], cov=[[raw["cov"][1][1]]], sd=[raw["sd"][1]])
+    doc = ModelDocument(**{k: v for k, v in one.items() if k != "format"})
+    post = doc.with_posterior(draws.mean(axis=0), np.cov(draws, rowvar=False), {"method": "importance"})
+    assert np.array(post.cov).shape == (1, 1) and post.sd[0] == pytest.approx(0.1, rel=0.1)

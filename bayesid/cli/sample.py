@@ -315,7 +315,8 @@ def _figures(res, dos: dict, p, figs: Path) -> None:
     pdict = prior.to_dict()
     plots.prior_posterior_marginals(draws, names, pdict, figs / "marginals.png", dict(zip(names, p)))
     pairs = [tuple(r["pair"]) for r in dos["correlations"][:3]]
-    plots.pair_scatter(draws, names, pairs, figs / "pairs.png", title="Most correlated coefficients (posterior)")
+    if pairs:  # none with one free coefficient
+        plots.pair_scatter(draws, names, pairs, figs / "pairs.png", title="Most correlated coefficients (posterior)")
     if res.method == "mcmc":
         r = res.mcmc["result"]
         show = list(dict.fromkeys([a for pr in pairs for a in pr]))[:6]

@@ -133,7 +133,8 @@ def psd_covariance(cov) -> np.ndarray:
     """The symmetric positive semi-definite form of a covariance: its symmetric part with the
     eigenvalues below zero (round-off of an ill-conditioned Gauss-Newton inverse) set to zero.
     What ``fit`` writes is what ``predict`` reads (:func:`load_model`)."""
-    C = 0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T)
+    C = np.atleast_2d(np.asarray(cov, float))  # np.cov of one parameter's draws is 0-d
+    C = 0.5 * (C + C.T)
     lam, V = np.linalg.eigh(C)
     C = (V * np.clip(lam, 0.0, None)) @ V.T
     return 0.5 * (C + C.T)

@@ -150,14 +150,17 @@ def _determined_lines(doc: dict) -> list:
             ["subset", "collinearity index"], [["-".join(r["subset"]), fmt(r["gamma"])] for r in dos["collinearity"]]
         ),
         "",
-        "Strongest posterior correlations: "
-        + ", ".join(f"{a}-{b} {r['r']:+.2f}" for r in dos["correlations"][:6] for a, b in [r["pair"]])
-        + ".",
+        (
+            "Strongest posterior correlations: "
+            + ", ".join(f"{a}-{b} {r['r']:+.2f}" for r in dos["correlations"][:6] for a, b in [r["pair"]])
+            + "."
+            if dos["correlations"]
+            else "One free coefficient: no correlations."
+        ),
         "",
         "![marginals](figures/marginals.png)",
         "",
-        "![pairs](figures/pairs.png)",
-        "",
+        *(["![pairs](figures/pairs.png)", ""] if dos["correlations"] else []),
         f"![{doc['figures']['sampler']}](figures/{doc['figures']['sampler']}.png)",
         "",
         "![fisher](figures/fisher.png)",
