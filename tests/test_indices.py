@@ -174,3 +174,16 @@ def test_hsva_zigzags_follow_the_ittc_definition():
             seg = h[ex[k] : ex[k + 1] + 1] if k + 1 < len(ex) else h[ex[k] :]
             peak = seg.max() if check > 0 else -seg.min()
             assert d[name] == pytest.approx(peak - abs(check), abs=1e-9), (tr.name, name)
+
+
+def test_a_turn_from_rest_has_no_speed_loss():
+    """The speed loss compares the steady turning speed with a steady approach; a turn that starts
+    while the ship accelerates (the Esso Osaka turns start from rest) gets NaN, not a 'gain'."""
+    dt, R = 0.05, 50.0
+    t = np.round(np.arange(0.0, 300.0, dt), 10)
+    u = np.minimum(0.02 + 0.1 * t, 1.4)  # accelerating from rest
+    s = np.cumsum(u) * dt
+    turn = s / R
+    x, y = R * np.sin(turn), R * (1 - np.cos(turn))
+    d = manoeuvre_indices(t, x, y, turn, _rudder(t, [0.5], 35.0, 15.8))
+    assert d["kind"] == "turning" and np.isnan(d["speed_loss"]) and np.isfinite(d["steady_turning_diameter_m"])

@@ -56,6 +56,10 @@ INDICES = {
 }
 #: The timing indices of a zigzag: set by the rudder record (see :data:`INDICES`).
 ZIGZAG_TIMING = ("initial_turning_time_s", "period_s")
+#: The speed loss of a turn needs a steady approach: at least this many seconds before the execute,
+#: over which the speed's 10-90 % spread is at most this fraction of its median.
+APPROACH_MIN_S = 5.0
+APPROACH_SPREAD = 0.1
 #: A rudder hold is a run beyond this angle (rad) on one side lasting at least HOLD_MIN_S.
 HOLD_ANGLE = math.radians(3.0)
 HOLD_MIN_S = 2.0
@@ -173,6 +177,21 @@ def _at(v, f: float) -> float:
     return float(v[j]) if w == 0 or j + 1 >= v.size else float((1 - w) * v[j] + w * v[j + 1])
 
 
+def _approach_speed(t, speed, i0: int) -> float:
+    """The steady approach speed before the execute ``i0``: the median speed over the 10 s before
+    it, or NaN when there are fewer than :data:`APPROACH_MIN_S` seconds of approach or the speed
+    varies there by more than :data:`APPROACH_SPREAD` of it (a ship still accelerating, as the
+    Esso Osaka turns that start from rest: a speed loss then means nothing)."""
+    k = max(0, int(np.searchsorted(t, t[i0] - 10.0)))
+    v = speed[k : i0 + 1]
+    v = v[np.isfinite(v)]
+    if t[i0] - t[k] < APPROACH_MIN_S or v.size < 3:
+        return float("nan")
+    med = float(np.median(v))
+    lo, hi = np.percentile(v, [10, 90])
+    return med if med > 0 and (hi - lo) <= APPROACH_SPREAD * med else float("nan")
+
+
 def _turning(t, x, y, psi, h, i0: int, hold) -> dict:
     """The turning-circle indices of one rudder hold from the execute ``i0`` (ITTC
     7.5-04-02-01 Sec. 2.2.1, IMO MSC.137(76) Sec. 2.3-2.4)."""
@@ -188,8 +207,7 @@ def _turning(t, x, y, psi, h, i0: int, hold) -> dict:
     # steady turning: from 180 deg of heading change to the end of the hold, at least 90 deg of arc
     steady = np.flatnonzero(np.abs(h[a : b + 1]) >= math.pi) + a
     speed = _speed(t, x, y)
-    approach = speed[max(0, np.searchsorted(t, t[i0] - 10.0)) : i0 + 1]
-    u0 = float(np.nanmedian(approach)) if np.isfinite(approach).any() else float("nan")
+    u0 = _approach_speed(t, speed, i0)
     if steady.size and abs(h[steady[-1]] - h[steady[0]]) >= math.pi / 2:
         out["steady_turning_diameter_m"] = _circle_diameter(x[steady], y[steady])
         out["speed_loss"] = float(1.0 - np.nanmedian(speed[steady]) / u0) if u0 > 0 else float("nan")
@@ -238,8 +256,9 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
       (normal distance at 180 deg), each interpolated between samples; ``steady_turning_diameter_m``
       (least-squares circle through the track from 180 deg of heading change to the end of the
       hold, given at least 90 deg of arc) and ``speed_loss`` (1 - steady turning speed /
-      approach speed, both from the positions; approach: the 10 s before the execute). NaN
-      where the heading does not get there before the rudder returns;
+      approach speed, both from the positions; approach: the 10 s before the execute, NaN
+      without a steady approach). NaN where the heading does not get there before the rudder
+      returns;
     * **zigzag**: at least two reversals between holds of similar size (each within a factor of
       two of the first), the heading oscillating about the original course (never 90 deg away):
       ``first_overshoot_deg`` and ``second_overshoot_deg`` (the heading beyond the check heading,
