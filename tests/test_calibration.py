@@ -60,6 +60,9 @@ def test_index_scores_are_normalised_by_parameter_spread_and_relative_structural
     assert scores["second_overshoot_deg"] == pytest.approx([0.2 * e / (kappa * 10) for e in range(1, 11)])
     assert scores["first_overshoot_deg"][0] == pytest.approx(0.5 / math.hypot(0.01, 0.1 * 5.0))
     assert "advance_m" not in scores  # nothing measured: no score
+    # a journaled fit stores a non-finite value as text: such a row is left out, not a TypeError
+    text = [{"index": "speed_loss", "measured": "nan", "predicted": 0.3, "sd": "nan"}] * 3
+    assert index_scores(_cal(first + second + text)) == (kappas, scores)
     b = index_band(cal, "first_overshoot_deg", 5.0, 0.5, 0.9)
     pooled = scores["first_overshoot_deg"] + scores["second_overshoot_deg"]
     assert b["pooled"] and b["n_scores"] == 13 and b["q"] == conformal_quantile(pooled, 0.9)

@@ -202,7 +202,9 @@ def fold_scores(fold: Fold) -> dict:
             FittedModel(rf.model, f.p, cov), track, fold.n_draws, rng, start=pr["start_rule"], leadin_s=pr["leadin_s"]
         )
         for key in index_keys(tb["measured"]):
-            m, q, sd = tb["measured"].get(key), tb["predicted"].get(key), tb["sd"].get(key)
+            # NaN (an index the run or the prediction does not reach) is stored as None: a journaled
+            # result goes through JSON, where a NaN would come back as the string "nan"
+            m, q, sd = (_number(d.get(key)) for d in (tb["measured"], tb["predicted"], tb["sd"]))
             idx.append(
                 {
                     "run": track.name,
@@ -313,15 +315,21 @@ def leave_one_run_out(
     }
 
 
+def _number(v) -> float | None:
+    """``v`` as a finite float, or None (missing, NaN, or a non-finite value stored as text)."""
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) else None
+
+
 def _fold_rows(calibration: dict, field: str, finite: tuple) -> list:
     """The rows ``field`` (``"windows"`` or ``"indices"``) of a calibration's successful folds
-    whose ``finite`` entries are all present and finite."""
+    whose ``finite`` entries are all present and finite numbers (a model file written by a
+    journaled fit may hold a non-finite value as the string ``"nan"``)."""
     return [
         r
         for f in calibration.get("folds") or []
         if "error" not in f
         for r in f.get(field, [])
-        if all(r.get(k) is not None and np.isfinite(r[k]) for k in finite)
+        if all(_number(r.get(k)) is not None for k in finite)
     ]
 
 
@@ -454,8 +462,9 @@ def structural_scale(rows) -> dict:
 def _scale(predicted, sd, kappa) -> float | None:
     """``sqrt(sd^2 + (kappa * predicted)^2)`` (``sd`` None or non-finite counts as 0); None when
     it is not positive and finite."""
-    s = sd if sd is not None and np.isfinite(sd) and sd > 0 else 0.0
-    v = math.hypot(s, kappa * abs(predicted)) if predicted is not None and np.isfinite(predicted) else float("nan")
+    sd, predicted = _number(sd), _number(predicted)
+    s = sd if sd is not None and sd > 0 else 0.0
+    v = math.hypot(s, kappa * abs(predicted)) if predicted is not None else float("nan")
     return v if np.isfinite(v) and v > 0 else None
 
 
