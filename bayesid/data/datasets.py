@@ -86,6 +86,17 @@ class DatasetFormatError(TrackFormatError):
     number in the file) and the column (the file's own column name, or
     ``col k (...)`` for files without a header); also available as the
     attributes ``path``, ``row`` and ``column``.
+
+    Parameters
+    ----------
+    message : str
+        The full message (file, row and column included).
+    path : str, optional
+        The file.
+    row : int, optional
+        1-based line number in the file.
+    column : str, optional
+        The column: the file's own column name, or ``col k (...)``.
     """
 
 
@@ -663,12 +674,15 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE, heading_tau_s: float | 
 
     Raises
     ------
-    FileNotFoundError : ``path`` does not exist.
-    ValueError : ``scale`` not a positive finite number; ``heading_tau_s`` neither None nor a
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If ``scale`` is not a positive finite number, or ``heading_tau_s`` neither None nor a
         positive finite number.
-    DatasetFormatError : naming file, row (line number) and column (``col k (...)``): no data
-        rows; a row without 11 fields; a non-numeric or overflowing value; a time stamp that is
-        missing, decreases or is off the uniform grid.
+    DatasetFormatError
+        Naming file, row (line number) and column (``col k (...)``): no data rows; a row
+        without 11 fields; a non-numeric or overflowing value; a time stamp that is missing,
+        decreases or is off the uniform grid.
 
     Notes
     -----
@@ -846,7 +860,29 @@ def _data_text(path: Path, format: str) -> str:
 
 
 def scan_runs(root, format):
-    """(kept paths, [(skipped path, reason)]) for :func:`list_runs` and the CLI."""
+    """The run files of a data set folder and the files left out, for :func:`list_runs` and the CLI.
+
+    Parameters
+    ----------
+    root : str or os.PathLike
+        A data set folder, or a single run file.
+    format : {"esso-osaka", "simman-hsva", "simman-marin"}
+        The data set's format (:func:`list_runs` says which files are runs of it).
+
+    Returns
+    -------
+    kept : list of pathlib.Path
+        The run files, sorted.
+    skipped : list of tuple
+        ``(path, reason)`` of each duplicate or trimmed copy left out.
+
+    Raises
+    ------
+    ValueError
+        Unknown ``format``.
+    FileNotFoundError
+        If ``root`` does not exist.
+    """
     _check_format(format)
     root = Path(root)
     if not root.exists():
