@@ -376,9 +376,34 @@ def diagnose(
 def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant, th, max_effects, runner) -> dict:
     """The candidate rounds of :func:`diagnose`: each round fits every effect not yet chosen on
     top of the chosen ones (as tasks), ranks them on the held-out windows and adds the best cause
-    (which ends the search) or the best contributor. ``fit_args`` = (channel weights, seeds,
-    iterations). Returns ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles`` and ``after``
-    (the last stage)."""
+    (which ends the search) or the best contributor.
+
+    Parameters
+    ----------
+    setup : _Setup
+        What every model of the diagnosis shares.
+    cand_effects : list of Effect
+        The candidates.
+    base_stage : Stage
+        The base model.
+    fit_args : tuple
+        ``(channel weights, seeds, iterations)``.
+    floor : dict
+        The noise floor's scores.
+    significant : bool
+        Whether the gap is significant.
+    th : Thresholds
+        The verdict's thresholds.
+    max_effects : int
+        Greedy rounds.
+    runner : Runner
+        Runs the candidates of a round as tasks.
+
+    Returns
+    -------
+    dict
+        ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles`` and ``after`` (the last stage).
+    """
     sd_fit, seeds, max_nfev = fit_args
     say = runner.say
     band = th.none_ratio * floor["rms_position_m"]
