@@ -84,6 +84,7 @@ class Term:
 
     @property
     def kind(self) -> str:
+        """``"added_mass"`` (an acceleration term) or ``"force"`` (:data:`TERM_KINDS`)."""
         return "added_mass" if self.accel >= 0 else "force"
 
     @property

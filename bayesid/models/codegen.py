@@ -641,11 +641,25 @@ class Interpreted:
         self.tfac, self.tdof = terms.factor_table(list(force_names))
 
     def simulate_batch(self, s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step):
+        """:func:`bayesid.models.dynamics.simulate_batch` with this kernel's term encoding.
+
+        Parameters
+        ----------
+        s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step : object
+            As in :func:`bayesid.models.dynamics.simulate_batch`.
+        """
         dynamics.simulate_batch(
             s0, inputs, dt, sample_every, vp, self.tfac, self.tdof, tcoef, Minv, xs, ws, out, status, fail_step
         )
 
     def simulate_windows(self, s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, ws, out, status):
+        """:func:`bayesid.models.dynamics.simulate_windows` with this kernel's term encoding.
+
+        Parameters
+        ----------
+        s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, ws, out, status : object
+            As in :func:`bayesid.models.dynamics.simulate_windows`.
+        """
         dynamics.simulate_windows(
             s0, starts, inputs, exo, ecoef, dt, vp, self.tfac, self.tdof, tcoef, Minv, xs, ws, out, status
         )

@@ -75,6 +75,7 @@ class Manoeuvre:
 
     @property
     def n_steps(self) -> int:
+        """Number of integration steps (rows of ``inputs``)."""
         return self.inputs.shape[0]
 
     @property
@@ -84,6 +85,7 @@ class Manoeuvre:
 
     @property
     def duration(self) -> float:
+        """Length of the manoeuvre, s."""
         return self.n_steps * self.dt
 
 

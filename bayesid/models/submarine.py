@@ -105,6 +105,18 @@ class EffectModel(ParameterLayout):
 
     @classmethod
     def default_free(cls, vehicle) -> list:
+        """The coefficients freed when the user names none.
+
+        Parameters
+        ----------
+        vehicle : Vehicle
+            The vehicle (unused: the list is the family's).
+
+        Returns
+        -------
+        list of str
+            :attr:`DEFAULT_FREE`.
+        """
         return list(cls.DEFAULT_FREE)
 
     @staticmethod
@@ -183,6 +195,14 @@ class EffectModel(ParameterLayout):
         return np.concatenate(lo), np.concatenate(hi)
 
     def scales(self) -> np.ndarray:
+        """Typical sizes of the parameters: the nominal coefficients' magnitudes (at least 1e-3)
+        and the effects' catalogued scales.
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            The typical sizes.
+        """
         th = np.maximum(np.abs(self.theta0), 1e-3)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 

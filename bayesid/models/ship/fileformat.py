@@ -128,10 +128,12 @@ class Ship:
 
     @property
     def L(self) -> float:
+        """Length between perpendiculars, m (``particulars["L"]``)."""
         return float(self.particulars["L"])
 
     @property
     def rho(self) -> float:
+        """Water density, kg/m^3 (``particulars["rho"]``)."""
         return float(self.particulars["rho"])
 
     def params(self, coefficients: dict | None = None) -> np.ndarray:

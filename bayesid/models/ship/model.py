@@ -188,6 +188,14 @@ class ShipModel(ParameterLayout):
         self._ifree = np.array([COEFFICIENT_INDEX[k] for k in self.free], dtype=np.int64)
 
     def bounds(self):
+        """Bounds of the parameter vector: the coefficients' :data:`BOUNDS` (unbounded when not
+        listed), the effects' as catalogued.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (n_params,)
+            Lower and upper bounds.
+        """
         lo = [BOUNDS.get(k, (-np.inf, np.inf))[0] for k in self.free]
         hi = [BOUNDS.get(k, (-np.inf, np.inf))[1] for k in self.free]
         for e in self.effects:
@@ -196,6 +204,14 @@ class ShipModel(ParameterLayout):
         return np.array(lo, float), np.array(hi, float)
 
     def scales(self) -> np.ndarray:
+        """Typical sizes of the parameters: the nominal coefficients' magnitudes (at least 0.01)
+        and the effects' catalogued scales.
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            The typical sizes.
+        """
         th = np.maximum(np.abs(self.theta0), 0.01)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
