@@ -1,8 +1,8 @@
 """bayesid: identify the hydrodynamic coefficients of manoeuvring vessels from their tracks,
 with honest uncertainty.
 
-The layout follows the data flow; each layer imports only the ones before it (``tests/test_layers.py``
-reads the import graph and fails on an import that runs up a layer or closes a circle):
+The layout follows the data flow; each layer imports only the ones before it (no import runs up a
+layer or closes a circle; the import graph is checked):
 
 * :mod:`bayesid.data` -- what comes in: :mod:`~bayesid.data.terms` (the term library),
   :mod:`~bayesid.data.vehicle` (vehicle files), :mod:`~bayesid.data.priors` (their ``[prior]``

@@ -20,8 +20,8 @@ def use_package_threading_layer() -> None:
     count is read or set): the layer is read when the pool starts, so a process that already
     started it keeps its layer."""
     # With the OpenMP layer, a parallel kernel call costs a floor of 6-8 ms on the 2-core machines
-    # we measured (waking the pool), whatever its size: 15 tracks of a 600-step spiral took 7.7 ms
-    # instead of 1.5 ms, which made short batched calls (a sampler's half-ensemble, a Jacobian)
+    # we measured (waking the pool), whatever its size: 15 tracks of a 600-step spiral take 7.7 ms
+    # instead of 1.5 ms, which makes short batched calls (a sampler's half-ensemble, a Jacobian)
     # 3-5x slower. benchmarks/simulate.py prints the layer in use.
     if "NUMBA_THREADING_LAYER" not in os.environ:
         numba.config.THREADING_LAYER = "workqueue"

@@ -8,7 +8,8 @@
 * Case 3: Case 2 with each known coefficient perturbed by up to +-1 % (uniform).
 
 Coefficients whose true value is zero cannot be scaled as a ratio and are never free (the paper's
-"crosses": zero or known). The categories come from the term library (:attr:`Term.category`).
+"crosses": zero or known). The categories come from the term library
+(:attr:`bayesid.data.terms.Term.category`).
 """
 
 from __future__ import annotations
@@ -24,13 +25,24 @@ from .data import terms
 class Case:
     """Setup of one identification case (all values prime).
 
-    Attributes
+    Parameters
     ----------
-    free : names identified.   known : horizontal-plane names held fixed (non-zero truth).
-    true : name -> true value (all horizontal-plane terms).
-    start : free name -> starting value (also the ratio-scaling reference).
-    lower, upper : free name -> bound values.
-    known_values : known name -> value used (perturbed in Case 3).
+    name : str
+        ``"case1"``, ``"case2"`` or ``"case3"``.
+    description : str
+        The case in words.
+    free : list of str
+        Names identified.
+    known : list of str
+        Horizontal-plane names held fixed (non-zero truth).
+    true : dict
+        ``{name: true value}`` (all horizontal-plane terms).
+    start : dict
+        ``{free name: starting value}`` (also the ratio-scaling reference).
+    lower, upper : dict
+        ``{free name: bound value}``.
+    known_values : dict
+        ``{known name: value used}`` (perturbed in Case 3).
     """
 
     name: str
@@ -44,11 +56,23 @@ class Case:
     known_values: dict
 
     def reference(self) -> np.ndarray:
-        """Scaling reference (P,) = starting values."""
+        """Scaling reference: the starting values.
+
+        Returns
+        -------
+        ndarray, shape (P,)
+            The starting values of the free coefficients.
+        """
         return np.array([self.start[n] for n in self.free])
 
     def scaled_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds on p = theta / start, (P,), (P,)."""
+        """Bounds on p = theta / start.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (P,)
+            Lower and upper bounds.
+        """
         ref = self.reference()
         a = np.array([self.lower[n] for n in self.free]) / ref
         b = np.array([self.upper[n] for n in self.free]) / ref
@@ -56,7 +80,13 @@ class Case:
 
     def true_outside_bounds(self) -> list:
         """Free coefficients whose true value lies outside their bounds (possible in Case 1,
-        where bounds are +-10 % of a start that is itself up to 10 % off)."""
+        where bounds are +-10 % of a start that is itself up to 10 % off).
+
+        Returns
+        -------
+        list of str
+            The names.
+        """
         out = []
         for n in self.free:
             lo, hi = sorted((self.lower[n], self.upper[n]))
@@ -65,23 +95,64 @@ class Case:
         return out
 
     def vehicle(self, vehicle):
-        """The vehicle with the case's known values (identity except in Case 3)."""
+        """The vehicle with the case's known values (identity except in Case 3).
+
+        Parameters
+        ----------
+        vehicle : Vehicle
+            The true vehicle.
+
+        Returns
+        -------
+        Vehicle
+            A copy with the known values.
+        """
         return vehicle.with_coefficients(self.known_values)
 
 
 def horizontal_coefficients(vehicle) -> list[str]:
-    """X, Y, N terms of the horizontal-plane model with non-zero value, table order."""
+    """X, Y, N terms of the horizontal-plane model with non-zero value, table order.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+
+    Returns
+    -------
+    list of str
+        The names.
+    """
     return [n for n in terms.names_where(horizontal=True) if vehicle.coefficients.get(n, 0.0) != 0.0]
 
 
 def make_case(
     number: int, vehicle, rng: np.random.Generator, start_spread: float = 0.10, known_error: float = 0.01
 ) -> Case:
-    """Build Case 1, 2 or 3 for ``vehicle`` with random numbers from ``rng``.
+    """Build Case 1, 2 or 3 for a vehicle.
+
+    Parameters
+    ----------
+    number : {1, 2, 3}
+        The case.
+    vehicle : Vehicle
+        The true vehicle.
+    rng : numpy.random.Generator
+        Draws the starts (and the Case 3 perturbations).
+    start_spread : float, default 0.10
+        Starts lie within +- this fraction of the truth.
+    known_error : float, default 0.01
+        Case 3: known values perturbed within +- this fraction.
+
+    Returns
+    -------
+    Case
+        The case.
 
     Raises
     ------
-    ValueError for a case number other than 1, 2, 3.
+    ValueError
+        For a case number other than 1, 2, 3.
     """
     names = horizontal_coefficients(vehicle)
     true = {n: vehicle.coefficients[n] for n in names}

@@ -80,8 +80,21 @@ def slope_sd(track: Track, span_s: float = 1.0) -> float:
     """Standard error (m/s) of a least-squares slope of ``x``, ``y`` over ``span_s`` seconds of
     the track's samples: ``sd * sqrt(12 h / span_s**3)`` for position noise ``sd``
     (:func:`estimate_noise`, unfloored) and sample interval ``h`` (the variance of a regression
-    slope over N = span_s / h equally spaced samples, ``12 sd^2 / (N span_s^2)``). Infinite with
-    fewer than 3 samples in the span or without ``x``, ``y``."""
+    slope over N = span_s / h equally spaced samples, ``12 sd^2 / (N span_s^2)``).
+
+    Parameters
+    ----------
+    track : Track
+        The track; its ``x``, ``y`` columns are read.
+    span_s : float, default 1.0
+        Span of the slope fit, s.
+
+    Returns
+    -------
+    float
+        The standard error, m/s; infinite with fewer than 3 samples in the span or without
+        ``x``, ``y``.
+    """
     if "x" not in track or "y" not in track or track.n_samples < 3:
         return math.inf
     h = float(np.median(np.diff(track.t)))
@@ -92,10 +105,27 @@ def slope_sd(track: Track, span_s: float = 1.0) -> float:
 
 
 def resolve_start(start: str, tracks) -> str:
-    """The start rule for a set of tracks: ``"measured"`` or ``"fitted"``. ``"auto"``: measured
-    when every track logs u, v and r, or when every track's positions are precise enough for the
-    measured rule's slope estimate (:func:`slope_sd` at most :data:`AUTO_MAX_SLOPE_SD`); else
-    fitted. Raises ValueError naming an unknown rule."""
+    """The start rule for a set of tracks: ``"measured"`` or ``"fitted"``.
+
+    Parameters
+    ----------
+    start : {"auto", "measured", "fitted"}
+        The rule asked for (:data:`START_RULES`). ``"auto"``: measured when every track logs
+        u, v and r, or when every track's positions are precise enough for the measured rule's
+        slope estimate (:func:`slope_sd` at most :data:`AUTO_MAX_SLOPE_SD`); else fitted.
+    tracks : iterable of Track
+        The tracks the rule is for.
+
+    Returns
+    -------
+    str
+        ``"measured"`` or ``"fitted"``.
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown rule.
+    """
     if start not in START_RULES:
         raise ValueError(f"start rule must be one of {', '.join(START_RULES)}, not {start!r}")
     if start != "auto":
@@ -107,7 +137,18 @@ def resolve_start(start: str, tracks) -> str:
 
 
 def wrap(a):
-    """Angle(s) wrapped to [-pi, pi) (rad)."""
+    """Angle(s) wrapped to [-pi, pi) (rad).
+
+    Parameters
+    ----------
+    a : float or array_like
+        Angle(s), rad.
+
+    Returns
+    -------
+    ndarray or float
+        The wrapped angle(s), rad, of the shape of ``a``.
+    """
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
@@ -123,16 +164,22 @@ def estimate_noise(track: Track, channels=None, floor: bool = True) -> dict:
 
     Parameters
     ----------
-    track : Track with at least 3 samples.
-    channels : state names to estimate (default: the track's state columns).
+    track : Track
+        The track, with at least 3 samples.
+    channels : sequence of str, optional
+        State names to estimate; default the track's state columns.
+    floor : bool, default True
+        Floor each sd at :data:`NOISE_FLOOR`.
 
     Returns
     -------
-    dict name -> sd in the channel's SI unit (m, rad, m/s, rad/s).
+    dict
+        ``{name: sd}`` in the channel's SI unit (m, rad, m/s, rad/s).
 
     Raises
     ------
-    ValueError : fewer than 3 samples; a requested channel absent (named).
+    ValueError
+        Fewer than 3 samples; a requested channel absent (named).
     """
     names = list(track.state_columns if channels is None else channels)
     if track.n_samples < 3:
@@ -156,10 +203,27 @@ def estimate_noise(track: Track, channels=None, floor: bool = True) -> dict:
 
 
 def window_starts(t, window_s: float | None) -> np.ndarray:
-    """Start times (s) of the protocol's non-overlapping windows over ``t`` (n,).
+    """Start times of the protocol's non-overlapping windows over ``t``.
 
-    Windows start at ``t[0] + i * window_s`` for every i whose start lies before ``t[-1]``;
-    ``window_s=None`` gives one window. Raises ValueError for a non-positive window."""
+    Windows start at ``t[0] + i * window_s`` for every i whose start lies before ``t[-1]``.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times, s.
+    window_s : float or None
+        Window length, s; None gives one window.
+
+    Returns
+    -------
+    ndarray
+        The start times, s (at least one).
+
+    Raises
+    ------
+    ValueError
+        For a non-positive window.
+    """
     t = np.asarray(t, float)
     if window_s is None:
         return t[:1].copy()
@@ -191,13 +255,24 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
     ``psi``) over ``2*span_s``, rotated into the body frame (horizontal kinematics, Fossen 2011,
     Ch. 2). Any other unmeasured state is 0.
 
+    Parameters
+    ----------
+    track : Track
+        The track; it must have ``x``, ``y`` and ``psi``.
+    t0 : float
+        The time of the state, s.
+    span_s : float, default 1.0
+        Span of the local-linear fit, s.
+
     Returns
     -------
-    (12,) state in :data:`~bayesid.data.track.STATE_NAMES` order (SI).
+    ndarray, shape (12,)
+        The state in :data:`~bayesid.data.track.STATE_NAMES` order (SI).
 
     Raises
     ------
-    ValueError : no sample at or before ``t0``; ``x``, ``y`` or ``psi`` missing.
+    ValueError
+        No sample at or before ``t0``; ``x``, ``y`` or ``psi`` missing.
     """
     t = track.t
     if t0 < t[0] - 1e-9:
@@ -206,8 +281,8 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
         if k not in track:
             raise ValueError(f"track {track.name!r} has no column {k!r}; the protocol needs x, y, psi")
     s = np.zeros(12)
-    # only the samples this estimate can use (unwrapping the whole channel for every window made
-    # the protocol quadratic in the track length)
+    # only the samples this estimate can use (unwrapping the whole channel for every window would
+    # make the protocol quadratic in the track length)
     lo, hi = (
         np.searchsorted(t, [t0 - 2 * span_s - 1e-9, t0 + 1e-9], side="left")[0],
         np.searchsorted(t, t0 + 1e-9, side="right"),
@@ -241,11 +316,35 @@ def state_at(track: Track, t0: float, span_s: float = 1.0) -> np.ndarray:
 def start_settings(
     start: str, tracks, window_s: float | None, dt: float, leadin_s: float | None = None
 ) -> tuple[str, float]:
-    """(rule, lead-in s) of the window start states for a set of tracks: ``start`` resolved
-    (:func:`resolve_start`); for the fitted rule the lead-in ``leadin_s``, by default the larger
-    of :data:`LEADIN_S` and :data:`LEADIN_SAMPLES` median sample intervals of the slowest
-    track, rounded up to a multiple of the model step ``dt`` and at most the window; 0 for the
-    measured rule. Raises ValueError for an unknown rule or a negative lead-in."""
+    """Rule and lead-in of the window start states for a set of tracks.
+
+    Parameters
+    ----------
+    start : {"auto", "measured", "fitted"}
+        The rule asked for, resolved by :func:`resolve_start`.
+    tracks : sequence of Track
+        The tracks.
+    window_s : float or None
+        Protocol window, s (None: one window per run); the lead-in is at most the window.
+    dt : float
+        Model step, s.
+    leadin_s : float, optional
+        Lead-in of the fitted rule, s; by default the larger of :data:`LEADIN_S` and
+        :data:`LEADIN_SAMPLES` median sample intervals of the slowest track, rounded up to a
+        multiple of ``dt``.
+
+    Returns
+    -------
+    rule : str
+        ``"measured"`` or ``"fitted"``.
+    leadin_s : float
+        The lead-in, s (at most the window); 0 for the measured rule.
+
+    Raises
+    ------
+    ValueError
+        For an unknown rule or a negative lead-in.
+    """
     rule = resolve_start(start, tracks)
     if rule != "fitted":
         return rule, 0.0
@@ -263,11 +362,29 @@ def state_guess(track: Track, t_a: float, span_s: float = 2.0) -> np.ndarray:
     """First guess of the 12-state at ``t_a`` from the samples in ``[t_a, t_a + span_s]`` (the
     start of a lead-in or of a training window; the fitted start rule refines it).
 
-    Measured channels: local-linear fit evaluated at ``t_a`` (headings unwrapped); unmeasured
-    ``u``, ``v``, ``r``: the local-quadratic slope of ``x, y`` (``psi``) rotated into the body
-    frame; any other unmeasured state 0. Returns (12,) in STATE_NAMES order.
+    Measured channels: local-linear fit evaluated at ``t_a`` (headings unwrapped; ``x``, ``y``,
+    ``psi`` local-quadratic); unmeasured ``u``, ``v``, ``r``: the local-quadratic slope of
+    ``x, y`` (``psi``) rotated into the body frame; any other unmeasured state 0.
 
-    Raises ValueError when ``x``, ``y`` or ``psi`` is missing."""
+    Parameters
+    ----------
+    track : Track
+        The track; it must have ``x``, ``y`` and ``psi``.
+    t_a : float
+        The time of the state, s.
+    span_s : float, default 2.0
+        Span of the fit after ``t_a``, s.
+
+    Returns
+    -------
+    ndarray, shape (12,)
+        The state in :data:`~bayesid.data.track.STATE_NAMES` order (SI).
+
+    Raises
+    ------
+    ValueError
+        When ``x``, ``y`` or ``psi`` is missing.
+    """
     t = track.t
     for k in ("x", "y", "psi"):
         if k not in track:
@@ -319,13 +436,16 @@ def pooled_scores(errors: list[dict]) -> dict:
 
     Parameters
     ----------
-    errors : list of dicts with arrays (n_i,) of prediction minus measurement per channel
+    errors : list of dict
+        One ``{channel: array (n_i,)}`` per window: prediction minus measurement per channel
         (``x``, ``y`` m, ``psi`` rad wrapped, ``u``, ``v`` m/s, ``r`` rad/s; any subset).
 
     Returns
     -------
-    dict: ``rms_position_m`` (sqrt of the mean of ex^2 + ey^2), ``max_position_m``,
-    ``rms_heading_deg``, ``rms`` per channel (SI), ``n_samples``.
+    dict
+        ``rms_position_m`` (sqrt of the mean of ex^2 + ey^2; NaN without ``x``, ``y``),
+        ``max_position_m``, ``rms_heading_deg`` (NaN without ``psi``), ``rms`` (``{channel:
+        RMS}``, SI) and ``n_samples`` (of ``x``).
     """
     cat = {}
     for e in errors:

@@ -12,7 +12,7 @@ the first time a model is simulated, then keep both for every later task.
 
 Cores. Each worker process runs one task at a time, with BLAS on one thread in every mode
 (threadpoolctl), so a task's numbers do not depend on where it ran: a multithreaded BLAS sums
-in another order (measured: a serial run and a worker's differed at 1e-16 relative in ΔBIC). Its
+in another order (measured: a serial run and a worker's differ at 1e-16 relative in ΔBIC). Its
 numba kernels use ``threads`` threads
 (default: the machine's cores divided by the local workers, so 2 workers on 2 cores use one
 thread each and never oversubscribe). numba's ``workqueue`` threading layer (the package
@@ -79,14 +79,35 @@ SCHEDULER_HELP = (
 
 
 def add_arguments(parser, jobs_default: int = 1) -> None:
-    """Add ``--jobs N`` and ``--scheduler ADDRESS`` to an argparse parser (commands and studies)."""
+    """Add ``--jobs N`` and ``--scheduler ADDRESS`` to an argparse parser (commands and studies).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The parser.
+    jobs_default : int, default 1
+        Default of ``--jobs``.
+    """
     parser.add_argument("--jobs", type=int, default=jobs_default, help=JOBS_HELP)
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS", help=SCHEDULER_HELP)
 
 
 def parse_checked(parser, argv=None):
     """``parser.parse_args(argv)`` with ``--jobs`` and ``--scheduler`` checked
-    (:func:`check_jobs`): a bad value ends with the parser's usage error (exit code 2)."""
+    (:func:`check_jobs`): a bad value ends with the parser's usage error (exit code 2).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        A parser with the options of :func:`add_arguments`.
+    argv : list of str, optional
+        The arguments; default ``sys.argv[1:]``.
+
+    Returns
+    -------
+    argparse.Namespace
+        The parsed arguments.
+    """
     args = parser.parse_args(argv)
     try:
         check_jobs(args.jobs, args.scheduler)
@@ -98,7 +119,18 @@ def parse_checked(parser, argv=None):
 def jsonable(x):
     """``x`` with numpy arrays and scalars as Python lists and numbers, tuples as lists, keys as
     strings, and non-finite floats as the strings ``"nan"``, ``"inf"``, ``"-inf"`` (strict JSON).
-    The one JSON form of the package: journals and report files."""
+    The one JSON form of the package: journals and report files.
+
+    Parameters
+    ----------
+    x : object
+        A nest of dicts, lists, tuples, numpy arrays and scalars.
+
+    Returns
+    -------
+    object
+        The JSON-able copy (other objects pass through unchanged).
+    """
     if isinstance(x, dict):
         return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -120,8 +152,19 @@ def _dumps(obj, sort_keys: bool = True) -> str:
 
 
 def digest(obj) -> str:
-    """SHA-256 (hex) of an object's canonical JSON (:func:`jsonable`, sorted keys): a data digest
-    for a journal's identity. Arrays are hashed by value: pass the data, not its file name."""
+    """SHA-256 of an object's canonical JSON (:func:`jsonable`, sorted keys): a data digest for a
+    journal's identity. Arrays are hashed by value: pass the data, not its file name.
+
+    Parameters
+    ----------
+    obj : object
+        What to hash (JSON-able through :func:`jsonable`).
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
     return hashlib.sha256(_dumps(obj).encode()).hexdigest()
 
 
@@ -129,13 +172,16 @@ def digest(obj) -> str:
 class Task:
     """One independent task.
 
-    Attributes
+    Parameters
     ----------
-    key : str, unique within a run; names the task in messages and in the journal.
-    params : dict, JSON-able description of the task (stored in the journal, printed when the
-        task fails; a journaled task is matched by key *and* params).
-    args : tuple passed to the task function after nothing else: ``fn(*args)``. It may hold
-        large objects (tracks, models); it is pickled to the worker, never stored.
+    key : str
+        Unique within a run; names the task in messages and in the journal.
+    params : dict
+        JSON-able description of the task (stored in the journal, printed when the task fails;
+        a journaled task is matched by key *and* params).
+    args : tuple, default ()
+        Passed to the task function after nothing else: ``fn(*args)``. It may hold large
+        objects (tracks, models); it is pickled to the worker, never stored.
     """
 
     key: str
@@ -145,8 +191,19 @@ class Task:
 
 @dataclass
 class TaskError:
-    """A task that raised: its key and parameters, the exception as text and the worker's
-    traceback. Returned in the task's place by :func:`run_tasks`."""
+    """A task that raised. Returned in the task's place by :func:`run_tasks`.
+
+    Parameters
+    ----------
+    key : str
+        The task's key.
+    params : dict
+        Its parameters.
+    error : str
+        The exception as text.
+    traceback : str, default ""
+        The worker's traceback.
+    """
 
     key: str
     params: dict
@@ -166,14 +223,18 @@ class Journal:
 
     Parameters
     ----------
-    path : the file (created with its folder when absent).
-    identity : JSON-able dict of what the results depend on besides each task's parameters (data
-        digest, seed, settings, code version of the design).
+    path : str or Path
+        The file (created with its folder when absent).
+    identity : dict
+        JSON-able: what the results depend on besides each task's parameters (data digest, seed,
+        settings, code version of the design).
 
     Raises
     ------
-    ValueError : the file is not a journal, a line other than the last is not JSON, or the file was
-        written under another identity (the message names the file and the keys that differ).
+    ValueError
+        The file is not a journal (or of another version), a line other than the last is not
+        JSON, or the file was written under another identity (the message names the file and the
+        keys that differ).
     """
 
     def __init__(self, path, identity: dict):
@@ -234,8 +295,23 @@ class Journal:
             os.replace(tmp, self.path)
 
     def get(self, task: Task):
-        """The stored record of ``task`` (dict with ``result``), or None when it has not finished.
-        Raises ValueError when the key was journaled with other parameters."""
+        """The stored record of a task.
+
+        Parameters
+        ----------
+        task : Task
+            The task.
+
+        Returns
+        -------
+        dict or None
+            The record (with ``result``), or None when the task has not finished.
+
+        Raises
+        ------
+        ValueError
+            When the key was journaled with other parameters.
+        """
         rec = self.records.get(task.key)
         if rec is None:
             return None
@@ -247,7 +323,22 @@ class Journal:
         return rec
 
     def add(self, task: Task, result, seconds: float) -> dict:
-        """Append a finished task (flushed and synced) and return its record as read back."""
+        """Append a finished task (flushed and synced).
+
+        Parameters
+        ----------
+        task : Task
+            The task.
+        result : object
+            Its JSON-able result.
+        seconds : float
+            Its run time, s.
+
+        Returns
+        -------
+        dict
+            Its record as read back (``key``, ``params``, ``result``, ``seconds``).
+        """
         # the result keeps its key order (reports are built from it)
         line = _dumps({"key": task.key, "params": task.params, "result": result, "seconds": seconds}, sort_keys=False)
         with open(self.path, "a", encoding="utf-8") as f:
@@ -271,8 +362,25 @@ def _flat(d, prefix: str = "") -> dict:
 
 
 def check_jobs(jobs, scheduler, option_jobs: str = "--jobs", option_scheduler: str = "--scheduler") -> None:
-    """ValueError naming the option for ``jobs < 1`` or a scheduler address that is neither
-    ``local:N`` (N >= 1) nor ``tcp://HOST:PORT`` / another Dask address with ``://``."""
+    """Check the worker options.
+
+    Parameters
+    ----------
+    jobs : int
+        Worker processes.
+    scheduler : str or None
+        Dask scheduler option.
+    option_jobs : str, default "--jobs"
+        Name of the jobs option in messages.
+    option_scheduler : str, default "--scheduler"
+        Name of the scheduler option in messages.
+
+    Raises
+    ------
+    ValueError
+        Naming the option for ``jobs < 1`` or a scheduler address that is neither ``local:N``
+        (N >= 1) nor ``tcp://HOST:PORT`` / another Dask address with ``://``.
+    """
     if int(jobs) < 1:
         raise ValueError(f"{option_jobs} must be at least 1, not {jobs}")
     if scheduler is not None:
@@ -280,8 +388,25 @@ def check_jobs(jobs, scheduler, option_jobs: str = "--jobs", option_scheduler: s
 
 
 def parse_scheduler(text: str, option: str = "--scheduler") -> tuple[str, object]:
-    """``("local", N)`` for ``local:N`` or ``("address", text)`` for ``tcp://HOST:PORT`` (any
-    Dask address with a protocol). ValueError naming the option otherwise."""
+    """Parse a scheduler option.
+
+    Parameters
+    ----------
+    text : str
+        ``local:N`` or a Dask address with a protocol (``tcp://HOST:PORT``).
+    option : str, default "--scheduler"
+        Name of the option in messages.
+
+    Returns
+    -------
+    tuple
+        ``("local", N)`` for ``local:N`` or ``("address", text)`` for an address.
+
+    Raises
+    ------
+    ValueError
+        Naming the option for anything else.
+    """
     text = str(text).strip()
     if text.startswith("local:"):
         try:
@@ -374,16 +499,16 @@ class Runner:
     """How a step runs its independent tasks, and where it reports its progress: the one object
     passed where parallel work happens (as emcee's ``pool`` or pyPESTO's ``Engine``).
 
-    Attributes
+    Parameters
     ----------
-    jobs : int
+    jobs : int, default 1
         Worker processes (joblib's loky backend) when ``scheduler`` is None; 1 runs the tasks in
         this process.
-    scheduler : str or None
+    scheduler : str, optional
         ``"local:N"`` or a Dask scheduler address (:func:`run_tasks`).
-    journal : Journal or None
+    journal : Journal, optional
         The resumable record of finished tasks of the run.
-    progress : callable or None
+    progress : callable, optional
         ``progress(message)`` receives the step's progress messages; when it is set, long loops
         also show tqdm bars. None: silent.
 
@@ -402,16 +527,39 @@ class Runner:
         check_jobs(self.jobs, self.scheduler)
 
     def say(self, message: str) -> None:
-        """Pass a progress message on (nothing when the runner is silent)."""
+        """Pass a progress message on (nothing when the runner is silent).
+
+        Parameters
+        ----------
+        message : str
+            The message.
+        """
         if self.progress is not None:
             self.progress(message)
 
     def bar(self, label: str) -> str | None:
-        """The label of a progress bar, or None when the runner is silent."""
+        """The label of a progress bar.
+
+        Parameters
+        ----------
+        label : str
+            The label.
+
+        Returns
+        -------
+        str or None
+            ``label``, or None when the runner is silent.
+        """
         return label if self.progress is not None else None
 
     def where(self) -> str:
-        """Where the tasks run, for messages: the scheduler, or ``"N worker(s)"``."""
+        """Where the tasks run, for messages.
+
+        Returns
+        -------
+        str
+            The scheduler, or ``"N worker(s)"``.
+        """
         return self.scheduler or f"{self.jobs} worker(s)"
 
     def run(self, fn: Callable, tasks: Sequence[Task], *, label: str | None = None, on_done=None) -> list:
@@ -422,6 +570,7 @@ class Runner:
         fn : callable
             Module-level task function.
         tasks : sequence of Task
+            The tasks.
         label : str, optional
             Label of the progress bar (shown when the runner reports progress).
         on_done : callable, optional
@@ -449,33 +598,41 @@ def run_tasks(
 
     Parameters
     ----------
-    fn : module-level function (importable by the workers); its result must be JSON-able
+    fn : callable
+        Module-level function (importable by the workers); its result must be JSON-able
         (:func:`jsonable`) when a journal is given.
-    tasks : the tasks (unique keys; ValueError otherwise).
-    runner : :class:`Runner`: ``jobs`` worker processes (joblib's loky backend) when its
-        ``scheduler`` is None (1 runs the tasks in this process, one after another), or a
-        ``scheduler`` (``"local:N"`` or a Dask scheduler address ``tcp://HOST:PORT``: the tasks run
-        on Dask through joblib's Dask backend, ``jobs`` then ignored); its ``journal`` of the
-        run: finished tasks are skipped and their stored results returned, every newly finished
-        task is appended before the next result is taken. Its progress reporter is not used
-        here (``bar`` labels a bar).
-    threads : numba threads per task (default: cores // local workers; on an external cluster
-        numba's own default).
-    on_done : callable ``(task, result_or_TaskError, seconds)`` called in this process as each
-        new task finishes (not for journaled ones).
-    retries : times the remaining tasks are resubmitted after a worker process died (a killed
-        or crashed worker fails every task it held; they run again).
-    bar : label of a tqdm progress bar over the tasks (None: no bar).
+    tasks : sequence of Task
+        The tasks (unique keys; ValueError otherwise).
+    runner : Runner, default Runner()
+        ``jobs`` worker processes (joblib's loky backend) when its ``scheduler`` is None (1 runs
+        the tasks in this process, one after another), or a ``scheduler`` (``"local:N"`` or a
+        Dask scheduler address ``tcp://HOST:PORT``: the tasks run on Dask through joblib's Dask
+        backend, ``jobs`` then ignored); its ``journal`` of the run: finished tasks are skipped
+        and their stored results returned, every newly finished task is appended before the
+        next result is taken. Its progress reporter is not used here (``bar`` labels a bar).
+    threads : int, optional
+        Numba threads per task (default: cores // local workers; on an external cluster numba's
+        own default).
+    on_done : callable, optional
+        ``on_done(task, result_or_TaskError, seconds)``, called in this process as each new task
+        finishes (not for journaled ones).
+    retries : int, default 2
+        Times the remaining tasks are resubmitted after a worker process died (a killed or
+        crashed worker fails every task it held; they run again).
+    bar : str, optional
+        Label of a tqdm progress bar over the tasks (None: no bar).
 
     Returns
     -------
-    list, one entry per task: its result (read back through JSON when journaled, so a resumed
-    and a fresh run return equal objects) or a :class:`TaskError`.
+    list
+        One entry per task: its result (read back through JSON when journaled, so a resumed and
+        a fresh run return equal objects) or a :class:`TaskError`.
 
     Raises
     ------
-    ValueError : duplicate keys, ``jobs < 1``, a malformed scheduler address, Dask missing or
-        unreachable, a journal of another run (:class:`Journal`).
+    ValueError
+        Duplicate keys, a malformed scheduler address, Dask missing or unreachable, a journal of
+        another run (:class:`Journal`).
     """
     tasks = list(tasks)
     keys = [t.key for t in tasks]

@@ -52,10 +52,22 @@ html_sidebars = {page: [] for page in ("index", "getting_started", "vessel", "ga
 html_static_path: list[str] = []
 
 # ---- docstrings --------------------------------------------------------------------------------
-# The package's docstrings are numpydoc with a compact habit ("name : desc.   other : desc." on
-# one line); they render as they are. No numpydoc validation, no class-member tables (autodoc
-# documents the members itself).
-numpydoc_validation_checks: set[str] = set()
+# The package's docstrings are numpydoc, one entry per parameter. numpydoc validates the
+# parameter and return sections of every documented object (a warning, hence an error under -W):
+# PR01 a parameter not documented, PR02 a documented parameter the signature does not have,
+# PR03 parameters in another order than the signature, PR04 a parameter without a type, PR07 a
+# parameter without a description, PR10 no space before the colon of "name : type", RT01 a
+# function that returns something without a Returns section, RT03 a return value without a
+# description. No class-member tables (autodoc documents the members itself).
+numpydoc_validation_checks = {"PR01", "PR02", "PR03", "PR04", "PR07", "PR10", "RT01", "RT03"}
+numpydoc_validation_exclude = {
+    # the command line and the report writers are being rewritten; validated after they land
+    r"^bayesid\.cli\b",
+    r"^bayesid\.report\b",
+    # a typing.Protocol: its inherited __init__(*args, **kwargs) only refuses instantiation, so
+    # there are no constructor parameters to document (its methods are validated)
+    r"^bayesid\.models\.interface\.SimulationModel$",
+}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
@@ -168,46 +180,8 @@ def _absolute_values(app, what, name, obj, options, lines) -> None:
             lines[i] = "".join(p if k % 2 else _ABS.sub(r"\\|\1\\|", p) for k, p in enumerate(parts))
 
 
-# The docstrings' compact habit in parameter lists: "name : what it is, in words." (numpydoc
-# reads the words as a type) and several entries on one line, "a : ...   b : ...". Before numpydoc
-# parses them, such words move to the description line and each entry gets its own line.
-_SECTIONS = {"Parameters", "Other Parameters", "Attributes", "Returns", "Yields", "Raises", "Warns"}
-_ENTRY = re.compile(r"^(\*{0,2}[A-Za-z_][\w, *]*?) : (.+)$")
-_NEXT_ENTRY = re.compile(r"(?<=\.)\s{3,}(?=\*{0,2}[A-Za-z_][\w, ]*? : )")
-_TYPE_WORDS = re.compile(r"^[\w.`~:\[\](), |*-]+$")
-
-
-def _looks_like_type(text: str) -> bool:
-    """A short type expression ("float", "ndarray (P,)", ":class:`Track`") rather than words."""
-    return len(text.split()) <= 3 and not text.rstrip().endswith(".") and bool(_TYPE_WORDS.match(text))
-
-
-def _compact_entries(app, what, name, obj, options, lines) -> None:
-    out, section, i = [], None, 0
-    while i < len(lines):
-        line = lines[i]
-        nxt = lines[i + 1] if i + 1 < len(lines) else ""
-        if nxt.strip() and set(nxt.strip()) == {"-"} and line.strip():
-            section = line.strip()
-            out += [line, nxt]
-            i += 2
-            continue
-        if section in _SECTIONS and line and not line[0].isspace():
-            for part in _NEXT_ENTRY.split(line):
-                m = _ENTRY.match(part.strip())
-                if m and not _looks_like_type(m.group(2)):
-                    out += [m.group(1), "    " + m.group(2)]
-                else:
-                    out.append(part.strip())
-        else:
-            out.append(line)
-        i += 1
-    lines[:] = out
-
-
 def setup(app):
     app.connect("builder-inited", _write_api_pages)
-    app.connect("autodoc-process-docstring", _compact_entries, priority=400)  # before numpydoc
     app.connect("autodoc-process-docstring", _absolute_values, priority=600)  # after numpydoc
 
 

@@ -37,22 +37,41 @@ def dossier(
     simulation, and the posterior spread along each Fisher eigen-direction against its
     Cramer-Rao prediction (relative units, ``d theta / theta``).
 
-    Parameters
-    ----------
-    problem : :class:`~bayesid.estimation.objective.Problem` (its free names are the sampled set).
-    theta_hat : (P,) optimum, prime form.   prior_sd_abs : (P,) prior sd of each coefficient.
-    truth : (P,) reference coefficients of the structural-null check (2 % steps along each null).
-    vehicle : the vehicle (its term table gives the structural nulls).
-    samples : (n, P) posterior draws, prime form (the structural nulls are checked with the
-        problem's Simulator, ``problem.sim``).
-    noise : {channel: sd} of the measurements (SI).
-    determined : a direction is determined when its Cramer-Rao sd is below this x the prior sd
-        along it. Fisher eigenvalues below :data:`ROUND_OFF` x the largest count as zero.
-
-    Returns a dict (``F``, ``lam``, ``W`` arrays for further use, and JSON-able tables).
     Sources: Fisher information and Cramer-Rao bound (Ljung 1999, Sec. 7.4); collinearity index
     (Brun, Reichert & Kuensch 2001, Water Resour. Res. 37(4)); principal angles (Bjorck & Golub
     1973, Math. Comp. 27).
+
+    Parameters
+    ----------
+    problem : Problem
+        :class:`~bayesid.estimation.objective.Problem` (its free names are the sampled set).
+    theta_hat : array_like, shape (P,)
+        Optimum, prime form.
+    prior_sd_abs : array_like, shape (P,)
+        Prior sd of each coefficient.
+    truth : array_like, shape (P,)
+        Reference coefficients of the structural-null check (2 % steps along each null).
+    vehicle : Vehicle
+        The vehicle (its term table gives the structural nulls).
+    samples : ndarray, shape (n, P)
+        Posterior draws, prime form (the structural nulls are checked with the problem's
+        Simulator, ``problem.sim``).
+    noise : dict
+        ``{channel: sd}`` of the measurements (SI).
+    determined : float, default 0.5
+        A direction is determined when its Cramer-Rao sd is below this x the prior sd along it.
+        Fisher eigenvalues below :data:`ROUND_OFF` x the largest count as zero.
+
+    Returns
+    -------
+    dict
+        ``F``, ``lam``, ``W`` (Fisher information, its eigenvalues and unit eigenvectors,
+        sloppiest first) and ``sloppiest`` (a :class:`~bayesid.analysis.identifiability.Direction`)
+        for further use, and JSON-able tables: ``directions``, ``fim_condition_number``,
+        ``lam_ratio_min``, ``collinearity``, ``relative_influence``, ``structural_nulls``,
+        ``structural_null_fim_angles_deg``, ``n_round_off_eigenvalues``, the angles between the
+        extreme Fisher directions and posterior axes, and the posterior's widest and narrowest
+        axes.
     """
     names = list(problem.names)
     S = identifiability.relative_sensitivity(problem, theta_hat)
@@ -130,9 +149,27 @@ def dossier(
 
 def direction_convergence(result, burn, W, theta_hat, determined) -> dict:
     """R-hat (walkers as chains) and bulk ESS (ArviZ) of the posterior draws projected on the
-    determined and on the undetermined Fisher directions (columns of ``W``, relative units;
-    ``determined`` (K,) bool), reported separately; ``result`` a
-    :class:`~bayesid.estimation.sampling.SamplingResult`, ``burn`` the steps dropped."""
+    determined and on the undetermined Fisher directions, reported separately.
+
+    Parameters
+    ----------
+    result : SamplerResult
+        The sampling run (:class:`~bayesid.estimation.sampling.SamplerResult`).
+    burn : int
+        The steps dropped.
+    W : ndarray, shape (P, K)
+        The Fisher directions (columns, relative units).
+    theta_hat : ndarray, shape (P,)
+        The reference of the relative units.
+    determined : ndarray of bool, shape (K,)
+        Which directions are determined.
+
+    Returns
+    -------
+    dict
+        ``determined`` and ``undetermined``: ``n``, ``rhat_max``, ``ess_bulk_min`` (None
+        without such a direction).
+    """
     import arviz as az
 
     E, N, Wk, P = result.chains.shape
@@ -155,24 +192,38 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
     its named sloppy directions with the posterior and prior spread along them, collinearity
     indices, and per coefficient whether the data determine it, move it or leave it at its prior.
 
+    Sources as :func:`dossier` (Ljung 1999 Sec. 7.4; Brun, Reichert & Kuensch 2001).
+
     Parameters
     ----------
-    names : (P,) parameter names.   fisher : (P, P) the data's information about the parameters
-        (``J^T J`` of the posterior's weighted residuals, prior excluded).   jac : (n, P) that
-        Jacobian (or any matrix with the same ``J^T J``, e.g. its QR factor R).
-    scales : (P,) typical size of each parameter: directions are in units of it (``d theta / scale``).
-    prior : the posterior's prior (:class:`~bayesid.estimation.track_posterior.ParameterPrior`):
-        its ``marginal_mean()``, ``marginal_sd()`` (inf for a flat prior) and ``gaussian`` (P,) bool.
-    draws : (N, P) unweighted posterior draws.
+    names : sequence of str
+        The P parameter names.
+    fisher : ndarray, shape (P, P)
+        The data's information about the parameters (``J^T J`` of the posterior's weighted
+        residuals, prior excluded).
+    jac : ndarray, shape (n, P)
+        That Jacobian (or any matrix with the same ``J^T J``, e.g. its QR factor R).
+    scales : array_like, shape (P,)
+        Typical size of each parameter: directions are in units of it (``d theta / scale``).
+    prior : ParameterPrior
+        The posterior's prior (:class:`~bayesid.estimation.track_posterior.ParameterPrior`): its
+        ``marginal_mean()``, ``marginal_sd()`` (inf for a flat prior) and ``gaussian`` (P,) bool.
+    draws : ndarray, shape (N, P)
+        Unweighted posterior draws.
+    top : int, default 5
+        Sloppy directions listed (and twice as many correlations).
 
-    Returns a JSON-able dict: ``fisher_eigenvalues`` (scaled units, sloppiest first),
-    ``fim_condition_number``, ``directions`` (each: label, eigenvalue, Cramer-Rao sd, posterior and
-    prior sd along it, in scales), ``sloppy`` (the ``top`` sloppiest), ``collinearity`` (Brun et al.
-    2001 index of the most collinear pairs and triples), ``coefficients`` (per name: posterior
-    mean, sd, prior mean and sd, ``sd_ratio``, ``z`` of the posterior mean against a Gaussian
-    prior, ``status``: ``determined`` (ratio < :data:`DETERMINED`), ``partly``, ``at prior``
-    (ratio > :data:`AT_PRIOR`)), ``moved`` (|z| > 1), ``moved_beyond_3sd``, ``correlations``.
-    Sources as :func:`dossier` (Ljung 1999 Sec. 7.4; Brun, Reichert & Kuensch 2001).
+    Returns
+    -------
+    dict
+        JSON-able: ``fisher_eigenvalues`` (scaled units, sloppiest first),
+        ``fim_condition_number``, ``directions`` (each: label, eigenvalue, Cramer-Rao sd,
+        posterior and prior sd along it, in scales), ``sloppy`` (the ``top`` sloppiest),
+        ``collinearity`` (Brun et al. 2001 index of the most collinear pairs and triples),
+        ``coefficients`` (per name: posterior mean, sd, prior mean and sd, ``sd_ratio``, ``z`` of
+        the posterior mean against a Gaussian prior, ``status``: ``determined`` (ratio <
+        :data:`DETERMINED`), ``partly``, ``at prior`` (ratio > :data:`AT_PRIOR`)), ``moved``
+        (|z| > 1), ``moved_beyond_3sd``, ``correlations``.
     """
     names = list(names)
     prior_mean, prior_sd, gaussian = prior.marginal_mean(), prior.marginal_sd(), prior.gaussian

@@ -21,14 +21,22 @@ from ..data import terms
 
 
 def relative_sensitivity(problem, theta) -> np.ndarray:
-    """Sensitivity of the simulated channels to relative coefficient changes, (n_residuals, P).
+    """Sensitivity of the simulated channels to relative coefficient changes.
 
     ``S[:, j] = d y_sim / d ln(theta_j)`` from central differences in ONE batched simulation
     (2P + 1 tracks). Units: metres or radians per unit relative change.
 
     Parameters
     ----------
-    problem : :class:`~bayesid.estimation.objective.Problem`.   theta : (P,) prime coefficients (non-zero).
+    problem : Problem
+        The identification problem (:class:`~bayesid.estimation.objective.Problem`).
+    theta : array_like, shape (P,)
+        Prime coefficients (non-zero).
+
+    Returns
+    -------
+    ndarray, shape (n_residuals, P)
+        The sensitivities.
     """
     p = problem.scaled(theta)
     _, J = problem.jacobian(p, central=True)  # d r / d p, r = target - sim
@@ -36,10 +44,21 @@ def relative_sensitivity(problem, theta) -> np.ndarray:
 
 
 def fisher_information(S: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
-    """Fisher information of Gaussian output error, ``F = S^T diag(1/sigma^2) S`` (P, P).
+    """Fisher information of Gaussian output error, ``F = S^T diag(1/sigma^2) S``.
 
-    S : (n, P) sensitivities; sigma : (n,) standard deviations; mask : (n,) bool, False for
-    missing samples (excluded).
+    Parameters
+    ----------
+    S : ndarray, shape (n, P)
+        Sensitivities.
+    sigma : ndarray, shape (n,)
+        Standard deviations.
+    mask : ndarray of bool, shape (n,), optional
+        False for missing samples (excluded).
+
+    Returns
+    -------
+    ndarray, shape (P, P)
+        F.
     """
     w = 1.0 / sigma**2
     if mask is not None:
@@ -49,7 +68,17 @@ def fisher_information(S: np.ndarray, sigma: np.ndarray, mask: np.ndarray | None
 
 @dataclass
 class Direction:
-    """One eigen-direction of the Fisher information (relative coordinates)."""
+    """One eigen-direction of the Fisher information (relative coordinates).
+
+    Parameters
+    ----------
+    eigenvalue : float
+        Its Fisher eigenvalue.
+    vector : array_like, shape (P,)
+        Unit length; its sign is fixed here so the largest component is positive.
+    names : list of str
+        The P coefficient names.
+    """
 
     eigenvalue: float
     vector: np.ndarray  # (P,), unit length, sign fixed so the largest component is positive
@@ -65,12 +94,36 @@ class Direction:
         return float(1.0 / np.sqrt(self.eigenvalue)) if self.eigenvalue > 0 else float("inf")
 
     def weights(self, threshold: float = 0.1) -> dict:
-        """name -> weight for components with |weight| >= threshold, largest first."""
+        """The direction's large components.
+
+        Parameters
+        ----------
+        threshold : float, default 0.1
+            Smallest |weight| kept.
+
+        Returns
+        -------
+        dict
+            ``{name: weight}`` for components with |weight| >= threshold, largest first.
+        """
         order = np.argsort(-np.abs(self.vector))
         return {self.names[i]: float(self.vector[i]) for i in order if abs(self.vector[i]) >= threshold}
 
     def label(self, threshold: float = 0.2, digits: int = 2) -> str:
-        """E.g. ``"0.71*Xvr - 0.70*Xrr"``."""
+        """The direction in words, e.g. ``"0.71*Xvr - 0.70*Xrr"``.
+
+        Parameters
+        ----------
+        threshold : float, default 0.2
+            Smallest |weight| written.
+        digits : int, default 2
+            Decimals of the weights.
+
+        Returns
+        -------
+        str
+            The label.
+        """
         parts = []
         for n, w in self.weights(threshold).items():
             sign = "-" if w < 0 else ("+" if parts else "")
@@ -79,7 +132,20 @@ class Direction:
 
 
 def eigen_directions(F: np.ndarray, names) -> list[Direction]:
-    """Eigen-decomposition of the Fisher information, sloppiest (smallest eigenvalue) first."""
+    """Eigen-decomposition of the Fisher information, sloppiest (smallest eigenvalue) first.
+
+    Parameters
+    ----------
+    F : ndarray, shape (P, P)
+        Fisher information (symmetrised here).
+    names : sequence of str
+        The P coefficient names.
+
+    Returns
+    -------
+    list of Direction
+        The P directions.
+    """
     lam, V = np.linalg.eigh(0.5 * (F + F.T))
     out = []
     for k in range(lam.size):
@@ -88,7 +154,18 @@ def eigen_directions(F: np.ndarray, names) -> list[Direction]:
 
 
 def condition_number(F: np.ndarray) -> float:
-    """Ratio of the largest to the smallest eigenvalue of F (inf if singular)."""
+    """Ratio of the largest to the smallest eigenvalue of F.
+
+    Parameters
+    ----------
+    F : ndarray, shape (P, P)
+        A symmetric matrix (symmetrised here).
+
+    Returns
+    -------
+    float
+        The condition number (inf if singular).
+    """
     lam = np.linalg.eigvalsh(0.5 * (F + F.T))
     return float(lam[-1] / lam[0]) if lam[0] > 0 else float("inf")
 
@@ -99,6 +176,18 @@ def collinearity_index(S: np.ndarray, subset) -> float:
     ``gamma_K = 1 / sqrt(min eig(S_K~^T S_K~))`` with the columns of S normalised to unit length.
     gamma = 1: orthogonal sensitivities; gamma -> inf: exactly linearly dependent. Brun et al. take
     gamma > 10-15 as practically non-identifiable.
+
+    Parameters
+    ----------
+    S : ndarray, shape (n, P)
+        Sensitivities.
+    subset : iterable of int
+        Column indices of the subset.
+
+    Returns
+    -------
+    float
+        gamma (inf for a zero column or a singular subset).
     """
     Sk = S[:, list(subset)]
     norms = np.linalg.norm(Sk, axis=0)
@@ -110,7 +199,24 @@ def collinearity_index(S: np.ndarray, subset) -> float:
 
 
 def collinearity_table(S: np.ndarray, names, sizes=(2, 3), top: int = 10) -> list[dict]:
-    """The ``top`` most collinear subsets of each size: list of {subset, gamma}, largest first."""
+    """The most collinear subsets of each size.
+
+    Parameters
+    ----------
+    S : ndarray, shape (n, P)
+        Sensitivities.
+    names : sequence of str
+        The P coefficient names.
+    sizes : sequence of int, default (2, 3)
+        Subset sizes.
+    top : int, default 10
+        Subsets kept per size.
+
+    Returns
+    -------
+    list of dict
+        ``{subset, gamma}``, largest gamma first.
+    """
     rows = []
     for k in sizes:
         for sub in itertools.combinations(range(S.shape[1]), k):
@@ -126,9 +232,22 @@ def collinearity_table(S: np.ndarray, names, sizes=(2, 3), top: int = 10) -> lis
 
 
 def relative_influence(S: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
-    """Brun's sensitivity measure ``delta_msqr_j = sqrt(mean_i (S_ij / sigma_i)^2)`` (P,): the RMS
+    """Brun's sensitivity measure ``delta_msqr_j = sqrt(mean_i (S_ij / sigma_i)^2)``: the RMS
     change of the (noise-scaled) track per unit relative change of coefficient j -- the paper's
-    point (3), "some coefficients have a very small effect"."""
+    point (3), "some coefficients have a very small effect".
+
+    Parameters
+    ----------
+    S : ndarray, shape (n, P)
+        Sensitivities.
+    sigma : ndarray, shape (n,), optional
+        Noise sds (None: unscaled).
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        The measure per coefficient.
+    """
     Z = S if sigma is None else S / sigma[:, None]
     return np.sqrt(np.mean(Z**2, axis=0))
 
@@ -148,9 +267,9 @@ def _rigid_body_row(vehicle, row: str) -> dict:
 
 
 def row_transform_direction(names, vehicle, target: str, source: str) -> np.ndarray | None:
-    """Coefficient direction (relative units, unit length, (P,)) generated by adding a small
-    multiple of equation row ``source`` to row ``target`` of the horizontal-plane model
-    ``M nu_dot = tau`` (``source == target``: scaling that row).
+    """Coefficient direction generated by adding a small multiple of equation row ``source`` to
+    row ``target`` of the horizontal-plane model ``M nu_dot = tau`` (``source == target``:
+    scaling that row).
 
     Multiplying an equation system by an invertible matrix leaves its solution unchanged, so if the
     transformed row can be written with the same terms -- every term and rigid-body part of the
@@ -162,6 +281,20 @@ def row_transform_direction(names, vehicle, target: str, source: str) -> np.ndar
     Derivative of the target coefficients with respect to the mixing factor, prime units:
     ``d C'_twin = C'_source_term * L**(k_source - k_twin)`` for hydrodynamic terms, and
     ``-/+ value / (0.5 rho L**k_twin)`` for mass-matrix / right-hand-side rigid-body parts.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The P free coefficients.
+    vehicle : Vehicle
+        The vehicle (its coefficients, mass and inertia).
+    target, source : {"X", "Y", "N"}
+        The equation rows.
+
+    Returns
+    -------
+    ndarray, shape (P,) or None
+        The direction (relative units, unit length), or None.
     """
     names = list(names)
     theta = vehicle.coefficients
@@ -189,10 +322,25 @@ def row_transform_direction(names, vehicle, target: str, source: str) -> np.ndar
 
 
 def structural_null_space(names, vehicle) -> tuple[np.ndarray, list[str]]:
-    """Orthonormal basis (P, k) of the exact null directions that row transformations of the
-    horizontal-plane equations generate for this free set, and their causes in words.
+    """The exact null directions that row transformations of the horizontal-plane equations
+    generate for this free set, and their causes in words.
 
-    Raises nothing; returns a (P, 0) array when no transformation is representable.
+    Raises nothing.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The P free coefficients.
+    vehicle : Vehicle
+        The vehicle.
+
+    Returns
+    -------
+    basis : ndarray, shape (P, k)
+        Orthonormal basis of the null directions (a (P, 0) array when no transformation is
+        representable).
+    causes : list of str
+        The cause of each representable transformation, in words.
     """
     vecs, causes = [], []
     for tgt in ("X", "Y", "N"):
@@ -211,7 +359,20 @@ def structural_null_space(names, vehicle) -> tuple[np.ndarray, list[str]]:
 
 
 def principal_angles_deg(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Principal angles (deg) between the column spaces of A and B (orthonormalised here)."""
+    """Principal angles between the column spaces of A and B (orthonormalised here).
+
+    Parameters
+    ----------
+    A : ndarray, shape (P, a)
+        First set of columns.
+    B : ndarray, shape (P, b)
+        Second set of columns.
+
+    Returns
+    -------
+    ndarray, shape (min(a, b),)
+        The angles, deg (empty when either has no column).
+    """
     if A.shape[1] == 0 or B.shape[1] == 0:
         return np.zeros(0)
     Qa, _ = np.linalg.qr(A)

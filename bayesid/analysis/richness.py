@@ -36,19 +36,25 @@ def fisher_metrics(problem, theta, sigmas: dict) -> dict:
 
     Parameters
     ----------
-    problem : :class:`~bayesid.estimation.objective.Problem` or ``JointProblem`` (a combination of manoeuvres).
-    theta : (P,) prime coefficients (the truth in a synthetic study).
-    sigmas : channel -> noise sd (m, rad).
+    problem : Problem or JointProblem
+        :class:`~bayesid.estimation.objective.Problem` or ``JointProblem`` (a combination of
+        manoeuvres).
+    theta : array_like, shape (P,)
+        Prime coefficients (the truth in a synthetic study).
+    sigmas : dict
+        ``{channel: noise sd}`` (m, rad).
 
     Returns
     -------
-    dict: ``F`` (P, P), ``logdet_fim`` (``-inf`` when singular), ``min_eigenvalue``,
-    ``condition_number``, ``max_collinearity_index``, ``cramer_rao_sd`` (name -> relative sd,
-    ``inf`` when F is singular), ``S`` (n, P) relative sensitivities.
+    dict
+        ``F`` (P, P), ``logdet_fim`` (``-inf`` when singular), ``min_eigenvalue``,
+        ``condition_number``, ``max_collinearity_index``, ``cramer_rao_sd`` (name -> relative
+        sd, ``inf`` when F is singular), ``S`` (n, P) relative sensitivities.
 
     Raises
     ------
-    KeyError naming a channel without a sigma.
+    KeyError
+        Naming a channel without a sigma.
     """
     S = identifiability.relative_sensitivity(problem, theta)
     sig = problem.noise_vector(sigmas)
@@ -70,10 +76,21 @@ def fisher_metrics(problem, theta, sigmas: dict) -> dict:
 
 
 def direction_sd(F: np.ndarray, w: np.ndarray, prior_precision: np.ndarray | None = None) -> float:
-    """Predicted posterior sd along the unit direction ``w`` (relative units):
-    ``sqrt(w^T (F + P0)^-1 w)``; ``inf`` when that matrix is singular along ``w``.
+    """Predicted posterior sd along a unit direction (relative units): ``sqrt(w^T (F + P0)^-1 w)``.
 
-    F (P, P) Fisher information; w (P,); prior_precision (P,) diagonal or (P, P), relative units.
+    Parameters
+    ----------
+    F : ndarray, shape (P, P)
+        Fisher information.
+    w : ndarray, shape (P,)
+        The unit direction.
+    prior_precision : ndarray, shape (P,) or (P, P), optional
+        Prior precision ``P0`` (diagonal or full), relative units.
+
+    Returns
+    -------
+    float
+        The sd; ``inf`` when the matrix is singular along ``w``.
     """
     A = np.array(F, dtype=float)
     if prior_precision is not None:
@@ -88,7 +105,25 @@ def direction_sd(F: np.ndarray, w: np.ndarray, prior_precision: np.ndarray | Non
 
 @dataclass
 class Design:
-    """Outcome of :func:`design_multisine`."""
+    """Outcome of :func:`design_multisine`.
+
+    Parameters
+    ----------
+    manoeuvre : Manoeuvre
+        The designed manoeuvre.
+    criterion : str
+        ``"D"`` or ``"direction"``.
+    value : float
+        Criterion at the design (log det, or predicted sd along ``w``).
+    start_value : float
+        Criterion at the equal-weight Schroeder multisine.
+    weights : ndarray, shape (K,)
+        Relative amplitudes of the frequencies.
+    phases : ndarray, shape (K,)
+        Their phases, rad.
+    n_evaluations : int
+        Problems evaluated by the search.
+    """
 
     manoeuvre: object  # the designed Manoeuvre
     criterion: str
@@ -103,26 +138,26 @@ class Design:
 class DesignOptions:
     """What :func:`design_multisine` searches and for which criterion.
 
-    Attributes
+    Parameters
     ----------
-    criterion : str
+    criterion : {"D", "direction"}, default "D"
         ``"D"`` (maximise log det F) or ``"direction"`` (minimise the predicted sd along
         ``direction`` with ``prior_precision``).
-    direction : (P,) array or None
+    direction : ndarray, shape (P,), optional
         A unit vector in relative units (the direction criterion).
-    prior_precision : (P,) array or None
+    prior_precision : ndarray, shape (P,), optional
         The prior's precision in relative units (the direction criterion).
-    frequencies_hz : tuple of float
+    frequencies_hz : tuple of float, default (0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2)
         The multisine's frequencies (Hz).
-    amplitude_deg : float
+    amplitude_deg : float, default 20.0
         The rudder peak (deg): the multisine is scaled to it, never clipped.
-    duration : float
+    duration : float, default 600.0
         The manoeuvre's duration (s).
-    dt : float
+    dt : float, default 0.5
         Its input step (s).
-    maxiter : int
+    maxiter : int, default 20
         Differential-evolution generations.
-    popsize : int
+    popsize : int, default 6
         Its population factor (cost: maxiter * popsize * 2K problems).
 
     Raises
@@ -171,11 +206,11 @@ def design_multisine(
         The vehicle the manoeuvres are built for.
     make_problem : callable
         ``make_problem(manoeuvre) -> Problem`` (same free coefficients, noise-free target).
-    theta : (P,) array
+    theta : array_like, shape (P,)
         Prime coefficients where F is evaluated (local design).
     sigmas : dict
         ``{channel: sd}`` of the measurements (SI).
-    options : DesignOptions
+    options : DesignOptions, default DesignOptions()
         Criterion, multisine space and search settings.
     rng : numpy.random.Generator, optional
         Seeds the search (default seed 0).
@@ -183,6 +218,7 @@ def design_multisine(
     Returns
     -------
     Design
+        The best multisine found (the start when the search does not improve on it).
     """
     criterion, direction, prior_precision = options.criterion, options.direction, options.prior_precision
     amplitude_deg, duration, dt = options.amplitude_deg, options.duration, options.dt

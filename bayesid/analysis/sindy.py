@@ -83,7 +83,17 @@ EXTRAS: tuple[str, ...] = tuple(_EXTRA_DEFS)
 
 
 def equation_of(name: str) -> str:
-    """Equation (``"X"``, ``"Y"``, ``"N"``) of a candidate name (library term or extra).
+    """Equation of a candidate name (library term or extra).
+
+    Parameters
+    ----------
+    name : str
+        The candidate.
+
+    Returns
+    -------
+    str
+        ``"X"``, ``"Y"`` or ``"N"``.
 
     Raises
     ------
@@ -128,17 +138,24 @@ def candidate_library(motion: dict, inputs, vehicle, extras: bool = True, exclud
 
     Parameters
     ----------
-    motion : dict from :func:`estimate_motion`.
-    inputs : (n, 4) ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm); planes are ignored.
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (rho, L, nominal speed, propulsion).
-    extras : add the extra candidates.
-    exclude : names to leave out (e.g. terms passed as ``known`` to :func:`force_targets`).
+    motion : dict
+        From :func:`estimate_motion`.
+    inputs : array_like, shape (n, 4)
+        ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm); planes are ignored.
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle` (rho, L, nominal speed, propulsion).
+    extras : bool, default True
+        Add the extra candidates.
+    exclude : iterable of str, default ()
+        Names to leave out (e.g. terms passed as ``known`` to :func:`force_targets`).
 
     Returns
     -------
-    Theta : ndarray (n, K), N (X, Y columns) or N m (N columns) per unit prime coefficient.
-    names : list of K str, grouped X, Y, N; in each group the library terms (table order), then
-        the extras. :func:`equation_of` gives a name's equation.
+    Theta : ndarray, shape (n, K)
+        N (X, Y columns) or N m (N columns) per unit prime coefficient.
+    names : list of str
+        The K names, grouped X, Y, N; in each group the library terms (table order), then the
+        extras. :func:`equation_of` gives a name's equation.
 
     Raises
     ------
@@ -192,7 +209,13 @@ def candidate_library(motion: dict, inputs, vehicle, extras: bool = True, exclud
 def legacy_seed(rng: np.random.Generator):
     """pysindy's EnsembleOptimizer draws its bootstrap indices from the legacy global
     ``np.random`` state; seed it from ``rng`` for the duration and restore it afterwards, so the
-    result depends on ``rng`` only and the caller's global state is untouched."""
+    result depends on ``rng`` only and the caller's global state is untouched.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Draws the legacy seed.
+    """
     saved = np.random.get_state()
     np.random.seed(int(rng.integers(0, 2**32 - 1)))
     try:
@@ -210,8 +233,26 @@ def ensemble_stlsq(
     478), on already normalised columns ``Xn`` (n, K) and target ``yn`` (n,); the bootstrap is
     seeded from ``rng`` (:func:`legacy_seed`), BLAS on one thread.
 
-    Returns (n_models, K) coefficients; the inclusion probability of a column is the share of
-    non-zero rows."""
+    Parameters
+    ----------
+    Xn : ndarray, shape (n, K)
+        Normalised columns.
+    yn : ndarray, shape (n,)
+        Normalised target.
+    rng : numpy.random.Generator
+        Seeds the bootstrap.
+    threshold : float
+        STLSQ threshold.
+    alpha : float, default 0.0
+        Ridge weight.
+    n_models : int, default 100
+        Bootstrap models.
+
+    Returns
+    -------
+    ndarray, shape (n_models, K)
+        Coefficients; the inclusion probability of a column is the share of non-zero rows.
+    """
     stl = ps.STLSQ(threshold=float(threshold), alpha=float(alpha), normalize_columns=False, unbias=True, max_iter=20)
     ens = ps.EnsembleOptimizer(stl, bagging=True, n_models=int(n_models), replace=True)
     with legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
@@ -237,24 +278,24 @@ def _collinearity(Xn: np.ndarray) -> tuple[float, np.ndarray]:
 class SindyOptions:
     """The ensemble-SINDy term check's settings (:func:`inclusion_probabilities`).
 
-    Attributes
+    Parameters
     ----------
-    n_models : int
+    n_models : int, default 100
         Bootstrap models (>= 1).
-    threshold : float
+    threshold : float, default 0.05
         STLSQ threshold on the normalised coefficients (>= 0).
-    extras : bool
+    extras : bool, default True
         Include the extra candidates (:data:`EXTRAS`).
-    window_s : float or None
+    window_s : float, optional
         Smoothing window (s; :func:`estimate_motion`).
-    polyorder : int
+    polyorder : int, default 3
         Smoothing polynomial order (:func:`estimate_motion`).
-    known : tuple or dict
+    known : tuple or dict, default ADDED_MASS
         Names (vehicle values) or ``{name: prime value}`` of library terms subtracted from the
         target and removed from the candidates; must contain every term of :data:`ADDED_MASS`.
-    ridge : float
+    ridge : float, default 0.0
         Ridge weight per sample on the normalised problem (>= 0).
-    trim_s : float or None
+    trim_s : float, optional
         Seconds dropped at either end (default: half the smoothing window).
 
     Raises
@@ -307,7 +348,7 @@ def inclusion_probabilities(
 
     Regression: pysindy ``STLSQ`` (Brunton et al. 2016; ridge ``alpha = ridge * n`` on the
     normalised problem, default 0 = plain sequentially thresholded least squares, which on NPS
-    AUV II selected better than any ridge tried; the support found is refitted without ridge)
+    AUV II selects better than any ridge tried; the support found is refitted without ridge)
     inside pysindy's ``EnsembleOptimizer`` with bagging (Fasel et al. 2022): ``n_models``
     bootstrap resamples of the samples, with replacement, each the size of the record. The
     inclusion probability of a term is the fraction of the models in which it survives;
@@ -326,13 +367,16 @@ def inclusion_probabilities(
 
     Parameters
     ----------
-    track : Track (see :func:`estimate_motion`); also needs ``delta_r`` (rad) and ``n`` (rpm).
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (mass properties, rho, L, propulsion; its
+    track : Track
+        The track (see :func:`estimate_motion`); also needs ``delta_r`` (rad) and ``n`` (rpm).
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle` (mass properties, rho, L, propulsion; its
         coefficients are used only for the ``known`` terms).
-    options : :class:`SindyOptions` (bootstrap models, threshold, extras, smoothing, known terms
-        -- by default exactly the added masses at the vehicle's values, see
-        :func:`force_targets` for why --, ridge, trim).
-    rng : numpy.random.Generator -- all randomness (the bootstrap) comes from it. Required.
+    options : SindyOptions, default SindyOptions()
+        Bootstrap models, threshold, extras, smoothing, known terms (by default exactly the
+        added masses at the vehicle's values, see :func:`force_targets` for why), ridge, trim.
+    rng : numpy.random.Generator
+        All randomness (the bootstrap) comes from it. Required.
 
     Returns
     -------
@@ -440,10 +484,13 @@ def compare_with_model(inclusion: dict, vehicle, level: float = 0.5) -> dict:
 
     Parameters
     ----------
-    inclusion : dict from :func:`inclusion_probabilities` (needs ``"X"``, ``"Y"``, ``"N"``).
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle`; a term is "in the model" if its prime
+    inclusion : dict
+        From :func:`inclusion_probabilities` (needs ``"X"``, ``"Y"``, ``"N"``).
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle`; a term is "in the model" if its prime
         coefficient is non-zero (extras never are).
-    level : inclusion-probability level in (0, 1].
+    level : float, default 0.5
+        Inclusion-probability level in (0, 1].
 
     Returns
     -------

@@ -86,6 +86,17 @@ class DatasetFormatError(TrackFormatError):
     number in the file) and the column (the file's own column name, or
     ``col k (...)`` for files without a header); also available as the
     attributes ``path``, ``row`` and ``column``.
+
+    Parameters
+    ----------
+    message : str
+        The full message (file, row and column included).
+    path : str, optional
+        The file.
+    row : int, optional
+        1-based line number in the file.
+    column : str, optional
+        The column: the file's own column name, or ``col k (...)``.
     """
 
 
@@ -95,8 +106,33 @@ def _fail(path, message, row=None, column=None) -> DatasetFormatError:
 
 def _collect_rows(path, numbered_cells, n_fields: int, expected: str):
     """Data rows from ``(line number, cells)`` pairs: empty rows dropped (their line numbers
-    returned), a row with a field count other than ``n_fields`` an error naming its line
-    (``expected`` completes the message). Returns rows, their line numbers, dropped lines."""
+    returned), a row with a field count other than ``n_fields`` an error naming its line.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file, named in messages.
+    numbered_cells : iterable of tuple
+        ``(line number, cells)`` pairs.
+    n_fields : int
+        Fields of a data row.
+    expected : str
+        Completes the message of a row with another field count.
+
+    Returns
+    -------
+    rows : list of list of str
+        The data rows.
+    row_of : list of int
+        Their line numbers.
+    dropped : list of int
+        The line numbers of the empty rows.
+
+    Raises
+    ------
+    DatasetFormatError
+        At the first row with another field count.
+    """
     rows, row_of, dropped = [], [], []
     for k, cells in numbered_cells:
         if not any(c.strip() for c in cells):
@@ -124,8 +160,28 @@ def _parse_rows(path, rows, names, row_of):
     """Parse data rows (lists of cell strings) into a float array.
 
     ``rows[i]`` is a list of ``len(names)`` cells from file line ``row_of[i]``.
-    Empty cells -> NaN.  Raises DatasetFormatError on a non-numeric or
-    overflowing cell.
+    Empty cells -> NaN.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file, named in messages.
+    rows : list of list of str
+        The data rows.
+    names : list of str
+        The column names, named in messages.
+    row_of : list of int
+        The line number of each row.
+
+    Returns
+    -------
+    ndarray, shape (len(rows), len(names))
+        The values.
+
+    Raises
+    ------
+    DatasetFormatError
+        On a non-numeric or overflowing cell.
     """
     out = np.empty((len(rows), len(names)))
     for i, cells in enumerate(rows):
@@ -581,9 +637,31 @@ _MARIN_MAX_HEADER = 5
 
 def _marin_time(path, stamps, row_of):
     """A uniform time base from 3-significant-digit stamps: ``t0 + k dt`` with ``dt`` the
-    least-squares slope of stamp on row index. Raises naming the first row whose stamp is
-    missing, decreases, or lies off that grid by more than its rounding (half a unit of the
-    third significant digit) plus one step."""
+    least-squares slope of stamp on row index.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file, named in messages.
+    stamps : ndarray, shape (n,)
+        The time stamps, s.
+    row_of : list of int
+        The line number of each stamp.
+
+    Returns
+    -------
+    t : ndarray, shape (n,)
+        The uniform time base (the stamps as they are with fewer than 2).
+    dt : float or None
+        The step, s (None with fewer than 2 stamps).
+
+    Raises
+    ------
+    DatasetFormatError
+        Naming the first row whose stamp is missing, decreases, or lies off that grid by more
+        than its rounding (half a unit of the third significant digit) plus one step; or when
+        the time does not advance.
+    """
     missing = np.flatnonzero(np.isnan(stamps))
     if missing.size:
         raise _fail(path, "missing time value", row=row_of[missing[0]], column=_MARIN_FIELDS[0])
@@ -663,12 +741,15 @@ def read_simman_marin(path, scale: float = KVLCC2_SCALE, heading_tau_s: float | 
 
     Raises
     ------
-    FileNotFoundError : ``path`` does not exist.
-    ValueError : ``scale`` not a positive finite number; ``heading_tau_s`` neither None nor a
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If ``scale`` is not a positive finite number, or ``heading_tau_s`` neither None nor a
         positive finite number.
-    DatasetFormatError : naming file, row (line number) and column (``col k (...)``): no data
-        rows; a row without 11 fields; a non-numeric or overflowing value; a time stamp that is
-        missing, decreases or is off the uniform grid.
+    DatasetFormatError
+        Naming file, row (line number) and column (``col k (...)``): no data rows; a row
+        without 11 fields; a non-numeric or overflowing value; a time stamp that is missing,
+        decreases or is off the uniform grid.
 
     Notes
     -----
@@ -846,7 +927,29 @@ def _data_text(path: Path, format: str) -> str:
 
 
 def scan_runs(root, format):
-    """(kept paths, [(skipped path, reason)]) for :func:`list_runs` and the CLI."""
+    """The run files of a data set folder and the files left out, for :func:`list_runs` and the CLI.
+
+    Parameters
+    ----------
+    root : str or os.PathLike
+        A data set folder, or a single run file.
+    format : {"esso-osaka", "simman-hsva", "simman-marin"}
+        The data set's format (:func:`list_runs` says which files are runs of it).
+
+    Returns
+    -------
+    kept : list of pathlib.Path
+        The run files, sorted.
+    skipped : list of tuple
+        ``(path, reason)`` of each duplicate or trimmed copy left out.
+
+    Raises
+    ------
+    ValueError
+        Unknown ``format``.
+    FileNotFoundError
+        If ``root`` does not exist.
+    """
     _check_format(format)
     root = Path(root)
     if not root.exists():

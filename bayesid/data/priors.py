@@ -27,19 +27,29 @@ def parse_prior_section(section: dict, path, values: dict, known, error=ValueErr
 
     Parameters
     ----------
-    section : the parsed TOML table (empty: no priors).
-    path : the file (named in every message).
-    values : {name: value} of the file's coefficients (the default means).
-    known : container of the coefficient names the vehicle family accepts.
-    error : exception class raised (the loader's file error).
+    section : dict
+        The parsed TOML table (empty or None: no priors).
+    path : str or path-like
+        The file, named in every message.
+    values : dict
+        ``{name: value}`` of the file's coefficients (prime form); the default means.
+    known : container of str
+        The coefficient names the vehicle family accepts.
+    error : type, default ValueError
+        Exception class raised (the loader's file error).
 
     Returns
     -------
-    ({name: (mean, sd)}, source text).
+    priors : dict
+        ``{name: (mean, sd)}``, the Gaussian prior of each coefficient with an entry (prime form).
+    source : str
+        The section's ``source`` text ("" when not given).
 
     Raises
     ------
-    ``error`` naming the file, the section and the coefficient.
+    error
+        On any fault of the section listed in the module docstring; the message names the file,
+        the section and the coefficient.
     """
     section = dict(section or {})
     source = str(section.pop("source", ""))

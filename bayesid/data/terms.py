@@ -61,14 +61,19 @@ CATEGORIES = ("static", "rotary", "added_mass")
 class Term:
     """One hydrodynamic coefficient.
 
-    Attributes
+    Parameters
     ----------
-    name : SNAME name, e.g. ``"Yvabsv"``.
-    dof : index into ``DOFS`` of the force/moment it acts in.
-    factors : feature names whose product the coefficient multiplies (force terms),
+    name : str
+        SNAME name, e.g. ``"Yvabsv"``.
+    dof : int
+        Index into ``DOFS`` of the force/moment it acts in.
+    factors : tuple of str
+        Feature names (:data:`FEATURES`) whose product the coefficient multiplies (force terms);
         empty for acceleration terms.
-    accel : index into ``VELOCITIES`` of the acceleration (added-mass terms), else -1.
-    multiplicity : 2 for per-bow-plane terms driven by one ``delta_b`` input, else 1.
+    accel : int, default -1
+        Index into ``VELOCITIES`` of the acceleration (added-mass terms), else -1.
+    multiplicity : int, default 1
+        2 for per-bow-plane terms driven by one ``delta_b`` input, else 1.
     """
 
     name: str
@@ -79,6 +84,7 @@ class Term:
 
     @property
     def kind(self) -> str:
+        """``"added_mass"`` (an acceleration term) or ``"force"`` (:data:`TERM_KINDS`)."""
         return "added_mass" if self.accel >= 0 else "force"
 
     @property
@@ -378,6 +384,16 @@ def parse(name: str) -> Term:
     A listed name returns its listed term. Two spellings of a product that is not listed
     (``Nvabsr``, ``Nabsrv``) are two terms: give a vehicle one of them.
 
+    Parameters
+    ----------
+    name : str
+        SNAME name of the coefficient, e.g. ``"Nvabsr"``.
+
+    Returns
+    -------
+    Term
+        The listed term of a listed name, else the term read from the name.
+
     Raises
     ------
     UnknownCoefficientError
@@ -407,6 +423,16 @@ def term(name: str) -> Term:
     receives a pickled vehicle) starts from the listed table: :func:`check_names` of the
     vehicle's coefficient names adds its products there.
 
+    Parameters
+    ----------
+    name : str
+        SNAME name of the coefficient.
+
+    Returns
+    -------
+    Term
+        The term of the table under ``name``.
+
     Raises
     ------
     UnknownCoefficientError
@@ -429,7 +455,20 @@ def term(name: str) -> Term:
 
 def check_names(names, where: str = "") -> None:
     """Raise :class:`UnknownCoefficientError` naming the first name that is neither in the table
-    nor a product of the features; the products are added to the table (:func:`term`)."""
+    nor a product of the features; the products are added to the table (:func:`term`).
+
+    Parameters
+    ----------
+    names : iterable of str
+        Coefficient names to check.
+    where : str, default ""
+        Where the names come from (e.g. a file); appended to the message as ``" in <where>"``.
+
+    Raises
+    ------
+    UnknownCoefficientError
+        For the first name that is neither in the table nor a product of the features.
+    """
     for n in names:
         if n not in INDEX:
             try:
@@ -443,12 +482,17 @@ def prime_scale(names, rho: float, L: float) -> np.ndarray:
 
     Parameters
     ----------
-    names : sequence of str, length P.
-    rho : water density, kg/m^3.   L : reference length, m.
+    names : sequence of str
+        The P term names.
+    rho : float
+        Water density, kg/m^3.
+    L : float
+        Reference length, m.
 
     Returns
     -------
-    ndarray (P,)
+    ndarray, shape (P,)
+        The dimensional factor of each term.
     """
     return np.array([TERMS[INDEX[n]].multiplicity * 0.5 * rho * L ** TERMS[INDEX[n]].L_power for n in names])
 
@@ -456,15 +500,23 @@ def prime_scale(names, rho: float, L: float) -> np.ndarray:
 def factor_table(names) -> tuple[np.ndarray, np.ndarray]:
     """Compiled-kernel encoding of force terms.
 
+    Parameters
+    ----------
+    names : sequence of str
+        The P force-term names; a product not in the table yet is added (:func:`term`).
+
     Returns
     -------
-    factors : int64 (P, MAX_FACTORS), feature indices padded at the end with 0, the index of
-        ``"1"`` (never a real factor; the kernel stops at the first 0).
-    dof : int64 (P,)
+    factors : ndarray of int64, shape (P, MAX_FACTORS)
+        Feature indices padded at the end with 0, the index of ``"1"`` (never a real factor;
+        the kernel stops at the first 0).
+    dof : ndarray of int64, shape (P,)
+        Index into ``DOFS`` of each term's force or moment.
 
     Raises
     ------
-    ValueError if a name is an acceleration term (those belong in the mass matrix).
+    ValueError
+        If a name is an acceleration term (those belong in the mass matrix).
     """
     P = len(names)
     fac = np.zeros((P, MAX_FACTORS), dtype=np.int64)
@@ -489,9 +541,28 @@ def names_where(
 ) -> list[str]:
     """Term names (table order) matching all given filters.
 
-    Example: ``names_where(group="Y", category="rotary", horizontal=True)``. With ``listed`` only
-    the names written out in the table (:data:`LISTED`), not the products this process added
-    since: a candidate library that must not depend on which vehicles were loaded before.
+    Example: ``names_where(group="Y", category="rotary", horizontal=True)``.
+
+    Parameters
+    ----------
+    group : str, optional
+        Force/moment letter (:attr:`Term.group`: ``"X"``, ``"Y"``, ...).
+    category : str, optional
+        One of :data:`CATEGORIES` (:attr:`Term.category`).
+    kind : str, optional
+        One of :data:`TERM_KINDS` (:attr:`Term.kind`).
+    horizontal : bool, optional
+        Keep only the terms that do (True) or do not (False) act in the horizontal-plane model
+        (:attr:`Term.horizontal`).
+    listed : bool, default False
+        Only the names written out in the table (:data:`LISTED`), not the products this process
+        added since: a candidate library that must not depend on which vehicles were loaded
+        before.
+
+    Returns
+    -------
+    list of str
+        The matching names, in table order. A filter left at None does not filter.
     """
     out = []
     for t in TERMS[: len(LISTED)] if listed else TERMS:
@@ -514,12 +585,19 @@ def regressors(features: np.ndarray, names, rho: float, L: float) -> np.ndarray:
 
     Parameters
     ----------
-    features : (n, N_FEATURES) from :func:`bayesid.models.dynamics.features`.
-    names : sequence of P force-term names.
+    features : ndarray, shape (n, N_FEATURES)
+        Feature rows, from :func:`bayesid.models.dynamics.features`.
+    names : sequence of str
+        The P force-term names.
+    rho : float
+        Water density, kg/m^3.
+    L : float
+        Reference length, m.
 
     Returns
     -------
-    ndarray (n, P), newtons or newton-metres per unit coefficient.
+    ndarray, shape (n, P)
+        The regressor columns, newtons or newton-metres per unit coefficient.
     """
     fac, _ = factor_table(names)
     scale = prime_scale(names, rho, L)

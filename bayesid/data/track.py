@@ -87,6 +87,17 @@ class TrackFormatError(ValueError):
     The message names the file, and where applicable the row (1-based line
     number in the file) and the column; these are also available as the
     attributes ``path``, ``row`` and ``column`` (None when not applicable).
+
+    Parameters
+    ----------
+    message : str
+        The full message (file, row and column included, see :func:`format_error`).
+    path : str, optional
+        The file.
+    row : int, optional
+        1-based line number in the file.
+    column : str, optional
+        The column name.
     """
 
     def __init__(self, message, path=None, row=None, column=None):
@@ -95,7 +106,27 @@ class TrackFormatError(ValueError):
 
 
 def format_error(path, message, row=None, column=None, error=None):
-    """The error (``error`` class, default :class:`TrackFormatError`) naming file, row, column."""
+    """The error (``error`` class, default :class:`TrackFormatError`) naming file, row, column.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    message : str
+        What is wrong; prefixed with ``"<path>: row <row>, column '<column>': "``.
+    row : int, optional
+        1-based line number in the file.
+    column : str, optional
+        The column name.
+    error : type, optional
+        Exception class, called as ``error(text, path=, row=, column=)``; default
+        :class:`TrackFormatError`.
+
+    Returns
+    -------
+    Exception
+        The error, not raised.
+    """
     where = str(path)
     if row is not None:
         where += f": row {row}"
@@ -107,6 +138,8 @@ def format_error(path, message, row=None, column=None, error=None):
 @dataclass(eq=False, repr=False)
 class Track:
     """One measured (or simulated) track: time base plus named columns.
+
+    Arrays are copied to float64 on construction.
 
     Parameters
     ----------
@@ -125,8 +158,6 @@ class Track:
     meta : dict
         Free-form metadata; ``meta["comments"]`` (list of str) is written to
         and read from ``#`` lines in the file.
-
-    Arrays are copied to float64 on construction.
 
     Raises
     ------
@@ -236,6 +267,7 @@ class Track:
         Returns
         -------
         ndarray, shape (n_samples, len(names))
+            The columns side by side (an empty (n_samples, 0) array when there are none).
 
         Raises
         ------
@@ -259,6 +291,7 @@ class Track:
         Returns
         -------
         ndarray, shape (n_samples, 4)
+            The input columns, absent ones filled with ``fill``.
 
         Raises
         ------
@@ -280,6 +313,12 @@ class Track:
         Parameters
         ----------
         **cols : array_like, each shape (n_samples,)
+            Columns by name, in the contract units of :data:`UNITS`.
+
+        Returns
+        -------
+        Track
+            The new track (name, units and a deep copy of ``meta`` kept).
 
         Raises
         ------
@@ -290,6 +329,18 @@ class Track:
 
     def slice_time(self, t0: float, t1: float) -> Track:
         """Copy with the samples where ``t0 <= t <= t1`` (s); may be empty.
+
+        Parameters
+        ----------
+        t0 : float
+            First time kept, s.
+        t1 : float
+            Last time kept, s.
+
+        Returns
+        -------
+        Track
+            The new track (name, units and a deep copy of ``meta`` kept).
 
         Raises
         ------
@@ -321,9 +372,15 @@ class Track:
         inputs : dict of str to array_like, or array_like of shape (n, 4), optional
             A dict keyed by (a subset of) :data:`INPUT_NAMES`, or all four
             inputs as columns in :data:`INPUT_NAMES` order.
-        name : str
+        name : str, default ""
+            Track name.
         **exogenous : array_like, each shape (n,)
             Other columns, e.g. ``wind_speed=..., wind_dir=...``.
+
+        Returns
+        -------
+        Track
+            The new track.
 
         Raises
         ------
@@ -588,6 +645,7 @@ def write_csv(track: Track, path) -> None:
     Parameters
     ----------
     track : Track
+        The track to write (re-validated first).
     path : str or os.PathLike
         Overwritten if it exists.
 

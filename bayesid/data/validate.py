@@ -59,7 +59,18 @@ def _words(text: str) -> set[str]:
 
 def track_vessel(track: Track) -> str | None:
     """The vessel a track says it is of: ``meta["vessel"]`` (dataset readers) or the first
-    ``vessel: ...`` comment line of its file, else None."""
+    ``vessel: ...`` comment line of its file, else None.
+
+    Parameters
+    ----------
+    track : Track
+        The track; its ``meta["vessel"]`` and ``meta["comments"]`` are read.
+
+    Returns
+    -------
+    str or None
+        The declared vessel, as written; None when the track declares none.
+    """
     if track.meta.get("vessel"):
         return str(track.meta["vessel"])
     for c in track.meta.get("comments", []):
@@ -76,7 +87,26 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
     one is an error; a vessel line that shares no word of three or more characters with the
     vehicle's id or name (generic words such as "model" aside) is a warning (it may be the same hull under another name).
 
-    Returns the warnings; raises ValueError naming the file and both vessels.
+    Parameters
+    ----------
+    track : Track
+        The track.
+    vehicle : Vehicle or Ship or None
+        The vessel description it is fitted to (its ``id`` and ``display_name`` are compared);
+        None skips the check.
+    where : str, optional
+        The file named in messages; default the track's name.
+
+    Returns
+    -------
+    list of str
+        The warnings (empty when the track declares no vessel or its vessel matches).
+
+    Raises
+    ------
+    ValueError
+        When the declared vessel is another packaged vehicle; the message names the file and
+        both vessels.
     """
     declared = track_vessel(track)
     if declared is None or vehicle is None:
@@ -109,16 +139,25 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
 
     Parameters
     ----------
-    track : a Track.   vehicle : the vehicle it will be fitted to (nominal speed and rpm of a
-    submarine file; None skips those checks).   where : the file named in messages.
+    track : Track
+        The track to check.
+    vehicle : Vehicle or Ship, optional
+        The vessel description it will be fitted to (its declared vessel, nominal rpm and its
+        own plausibility checks, :meth:`~bayesid.data.vehicle.Vehicle.track_warnings`); None
+        skips those checks.
+    where : str, optional
+        The file named in messages; default the track's name.
 
     Returns
     -------
-    list of warning strings (empty when nothing looks odd).
+    list of str
+        The warnings (empty when nothing looks odd).
 
     Raises
     ------
-    ValueError : a column in the wrong unit, naming file, column and the unit it looks like.
+    ValueError
+        A column in the wrong unit, naming file, column and the unit it looks like; or a
+        declared vessel that is another packaged vehicle (:func:`check_vessel`).
     """
     name = where or track.name
     warn = check_vessel(track, vehicle, where)

@@ -1,8 +1,9 @@
 """Vehicle description (mass properties, geometry, hydrostatics, propulsion, limits, coefficients)
 and its TOML loader.
 
-Vehicle files follow ``shared/data/vehicles/*.toml``: ``[vehicle]``, ``[inertia]``, ``[geometry]``,
-``[coefficients]`` (prime form), ``[propulsion]``, ``[crossflow]``, ``[limits]``, ``[source]``.
+Vehicle files (the packaged ones: :func:`packaged_vehicles`) have the sections ``[vehicle]``,
+``[inertia]``, ``[geometry]``, ``[coefficients]`` (prime form), ``[propulsion]``, ``[crossflow]``,
+``[limits]``, ``[source]`` and ``[prior]`` (:mod:`bayesid.data.priors`).
 """
 
 from __future__ import annotations
@@ -31,6 +32,13 @@ class Propulsion:
     ``u_c = uc_per_omega * n`` (n in rad/s), ``eta = u_c/u``; the axial force is the ``Cd0`` term of
     the term library; ``eps(eta)`` multiplies the ``_eps`` terms, with
     ``C_T = CT_coeff*L**2*eta|eta|/2`` and ``C_T1 = CT_coeff*L**2/2``.
+
+    Parameters
+    ----------
+    uc_per_omega : float
+        Ratio of the propeller-induced speed ``u_c`` to the shaft speed, m (per rad/s).
+    CT_coeff : float
+        Thrust coefficient of ``C_T`` above.
     """
 
     uc_per_omega: float  # m (per rad/s)
@@ -44,6 +52,21 @@ class Crossflow:
     The force is ``-(rho/2) * sum_i w_i * g(x_i) * (v + x_i r)/U_cf(x_i)`` (equations.md,
     "Crossflow drag as implemented"); ``stations`` and ``weights`` are the strip positions (m) and
     lengths (m). We follow the vehicle file's MSS strip sum: every station carries the full ``dx``.
+
+    Parameters
+    ----------
+    Cdy : float
+        Cross-flow drag coefficient in sway.
+    Cdz : float
+        Cross-flow drag coefficient in heave.
+    height_m : float
+        Hull height, m (``Cdy * height_m`` weighs the sway cross flow of a strip).
+    breadth_m : float
+        Hull breadth, m (``Cdz * breadth_m`` weighs the heave cross flow of a strip).
+    stations : ndarray, shape (n_strips,)
+        Strip positions along the body x axis, m.
+    weights : ndarray, shape (n_strips,)
+        Strip lengths, m.
     """
 
     Cdy: float
@@ -56,7 +79,21 @@ class Crossflow:
 
 @dataclass(frozen=True)
 class Limits:
-    """Control limits, radians and rpm."""
+    """Control limits, radians and rpm.
+
+    Parameters
+    ----------
+    rudder_max : float
+        Largest rudder angle, rad.
+    stern_plane_max : float
+        Largest stern-plane angle, rad.
+    bow_plane_max : float
+        Largest bow-plane angle, rad.
+    rpm_max : float
+        Largest propeller speed, rpm.
+    actuator_time_constant_s : float, optional
+        Time constant of the control-surface actuators, s (None: not given).
+    """
 
     rudder_max: float
     stern_plane_max: float
@@ -65,8 +102,21 @@ class Limits:
     actuator_time_constant_s: float | None = None
 
     def check(self, inputs: np.ndarray, where: str = "inputs") -> None:
-        """Raise ValueError naming the channel and sample if ``inputs`` (n, 4) exceed the limits
-        (1e-12 rad tolerance) or are not finite."""
+        """Raise ValueError naming the channel and sample if ``inputs`` exceed the limits
+        (1e-12 rad tolerance) or are not finite.
+
+        Parameters
+        ----------
+        inputs : ndarray, shape (n, 4)
+            ``delta_r, delta_s, delta_b`` (rad) and ``n`` (rpm) per sample.
+        where : str, default "inputs"
+            What the inputs are, at the start of the message.
+
+        Raises
+        ------
+        ValueError
+            At the first non-finite value or value beyond its limit, naming channel and sample.
+        """
         lim = (self.rudder_max, self.stern_plane_max, self.bow_plane_max, self.rpm_max)
         for j, name in enumerate(("delta_r", "delta_s", "delta_b", "n")):
             col = inputs[:, j]
@@ -86,6 +136,53 @@ class Vehicle:
 
     Use :func:`load_vehicle` to build one from a file; ``with_coefficients`` and
     ``with_crossflow`` return modified copies (the object itself is immutable).
+
+    Parameters
+    ----------
+    id : str
+        Vehicle id (the packaged file's stem, e.g. ``"nps_auv2"``).
+    name : str
+        Display name.
+    L : float
+        Reference length, m.
+    rho : float
+        Water density, kg/m^3.
+    g : float
+        Gravitational acceleration, m/s^2.
+    mass : float
+        Mass, kg.
+    weight : float
+        Weight, N.
+    buoyancy : float
+        Buoyancy, N.
+    inertia : ndarray, shape (3, 3)
+        Inertia tensor about the body origin, kg m^2, ``[[Ix, -Ixy, -Ixz], ...]``.
+    rG : ndarray, shape (3,)
+        Centre of gravity in body axes, m.
+    rB : ndarray, shape (3,)
+        Centre of buoyancy in body axes, m.
+    coefficients : dict
+        ``{name: prime value}`` of the terms (every table term; absent ones are 0).
+    propulsion : Propulsion
+        The propulsion model.
+    limits : Limits
+        The control limits.
+    crossflow : Crossflow, optional
+        The strip-sum cross-flow drag (None: the file has no ``[crossflow]`` section).
+    crossflow_model : str, default "polynomial"
+        ``"polynomial"`` (the Gertler & Hagen terms) or ``"integral"`` (the strip sum).
+    nominal_speed : float, default 1.0
+        Steady straight speed at the nominal rpm, m/s.
+    nominal_rpm : float, default 0.0
+        Nominal propeller speed, rpm.
+    source : dict
+        The file's ``[source]`` section.
+    path : str, default ""
+        The file the vehicle was loaded from ("" when built in code).
+    prior : dict
+        ``{name: (mean, sd)}`` Gaussian priors of the file's ``[prior]`` section (prime form).
+    prior_source : str, default ""
+        The ``[prior]`` section's source text.
     """
 
     id: str
@@ -130,7 +227,24 @@ class Vehicle:
 
     def track_warnings(self, track, name: str, body_speed, ground_speed) -> list[str]:
         """Plausibility warnings of a track for this vehicle (:func:`bayesid.data.validate.check_track`):
-        a median speed over ground above 4 x the nominal speed (m/s; ``body_speed`` unused)."""
+        a median speed over ground above 4 x the nominal speed.
+
+        Parameters
+        ----------
+        track : Track
+            The track (not read here; vessel families that check its columns do).
+        name : str
+            The file named in messages.
+        body_speed : float or None
+            Median speed through the water from ``u, v``, m/s (unused here).
+        ground_speed : float or None
+            Median speed over ground from the positions, m/s (None: no positions).
+
+        Returns
+        -------
+        list of str
+            The warnings (empty when nothing looks odd).
+        """
         if self.nominal_rpm > 0 and ground_speed is not None and ground_speed > 4.0 * self.nominal_speed:
             return [
                 f"{name}: median speed over ground {ground_speed:.3g} m/s is more than 4 x the vehicle's "
@@ -139,14 +253,47 @@ class Vehicle:
         return []
 
     def coefficient_vector(self, names=None) -> np.ndarray:
-        """Prime coefficients as an array (P,), in ``names`` order (default: the whole table)."""
+        """Prime coefficients as an array, in ``names`` order.
+
+        Parameters
+        ----------
+        names : sequence of str, optional
+            The P coefficient names; default the whole table (:data:`bayesid.data.terms.NAMES`).
+
+        Returns
+        -------
+        ndarray, shape (P,)
+            The prime values (0 for a term the vehicle does not list).
+
+        Raises
+        ------
+        UnknownCoefficientError
+            For a name that is not a term.
+        """
         names = terms.NAMES if names is None else names
         terms.check_names(names, f"vehicle {self.id}")
         return np.array([self.coefficients.get(n, 0.0) for n in names], dtype=float)
 
     def with_coefficients(self, values: dict) -> Vehicle:
-        """Copy with some coefficients replaced. Raises UnknownCoefficientError for bad names and
-        ValueError for non-finite values, naming the coefficient."""
+        """Copy with some coefficients replaced.
+
+        Parameters
+        ----------
+        values : dict
+            ``{name: prime value}`` of the coefficients to replace or add.
+
+        Returns
+        -------
+        Vehicle
+            The modified copy.
+
+        Raises
+        ------
+        UnknownCoefficientError
+            For a name that is not a term.
+        ValueError
+            For a non-finite value, naming the coefficient.
+        """
         terms.check_names(values, f"vehicle {self.id}")
         new = dict(self.coefficients)
         for k, v in values.items():
@@ -161,6 +308,22 @@ class Vehicle:
         ``"polynomial"``: the Gertler & Hagen terms (``Yvabsv`` ...) of the coefficient table.
         ``"integral"``: the strip-sum cross-flow integral; the polynomial terms are set to zero so
         the damping is not counted twice.
+
+        Parameters
+        ----------
+        model : {"polynomial", "integral"}
+            The damping model.
+
+        Returns
+        -------
+        Vehicle
+            ``self`` for ``"polynomial"``, else a copy with the polynomial terms zeroed.
+
+        Raises
+        ------
+        ValueError
+            For another model name, ``"integral"`` without a ``[crossflow]`` section, or
+            ``"polynomial"`` on a copy whose polynomial terms were removed.
         """
         if model == "polynomial":
             if self.crossflow_model == "integral":
@@ -174,7 +337,13 @@ class Vehicle:
         return replace(self.with_coefficients(zeroed), crossflow_model="integral")
 
     def without_products_of_inertia(self) -> Vehicle:
-        """Copy with Ixy = Iyz = Ixz = 0 (port/starboard symmetric mass distribution)."""
+        """Copy with Ixy = Iyz = Ixz = 0 (port/starboard symmetric mass distribution).
+
+        Returns
+        -------
+        Vehicle
+            The modified copy.
+        """
         return replace(self, inertia=np.diag(np.diag(self.inertia)))
 
     @property
@@ -188,6 +357,16 @@ class Vehicle:
         Rows X, Y, Z, K, M, N; columns u', v', w', p', q', r' (accelerations). Rigid-body part from
         the left-hand sides of equations.md "Rigid body" (Feldman 1979; paper Eq. 1); the added
         mass of term ``Yrdot`` enters at (Y, r) as ``-0.5*rho*L**4*Yrdot``.
+
+        Parameters
+        ----------
+        coefficients : dict, optional
+            ``{name: prime value}`` to take the added-mass terms from; default the vehicle's.
+
+        Returns
+        -------
+        ndarray, shape (6, 6)
+            The mass matrix, SI.
         """
         c = self.coefficients if coefficients is None else coefficients
         m = self.mass
@@ -206,7 +385,18 @@ class Vehicle:
         return M
 
     def steady_speed(self, rpm: float) -> float:
-        """Straight-line steady speed for a propeller speed, m/s (eta = 1: u = u_c)."""
+        """Straight-line steady speed for a propeller speed (eta = 1: u = u_c).
+
+        Parameters
+        ----------
+        rpm : float
+            Propeller speed, rpm.
+
+        Returns
+        -------
+        float
+            The steady speed, m/s.
+        """
         return self.propulsion.uc_per_omega * rpm * 2.0 * math.pi / 60.0
 
 
@@ -239,7 +429,13 @@ class _KnownTerms:
 
 
 def packaged_vehicles() -> list[str]:
-    """Ids of the vehicle files shipped with the package."""
+    """Ids of the vehicle files shipped with the package.
+
+    Returns
+    -------
+    list of str
+        The ids (file stems), sorted.
+    """
     root = resources.files("bayesid") / "vehicles"
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith(".toml"))
 
@@ -249,14 +445,23 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
 
     Parameters
     ----------
-    path_or_id : a path to a TOML file, or the id of a packaged vehicle (``"nps_auv2"``).
+    path_or_id : str or Path
+        A path to a TOML file, or the id of a packaged vehicle (``"nps_auv2"``).
+
+    Returns
+    -------
+    Vehicle
+        The vehicle, with the file's cross-flow model selected (:meth:`Vehicle.with_crossflow`).
 
     Raises
     ------
-    FileNotFoundError : no such file or packaged id.
-    VehicleFileError : missing mass property or section, non-finite value, unsupported form;
+    FileNotFoundError
+        No such file or packaged id.
+    VehicleFileError
+        Missing mass property or section, non-finite value, unsupported form, a ship file;
         the message names the file, section and key.
-    UnknownCoefficientError : a coefficient name not in the term library (names file and key).
+    UnknownCoefficientError
+        A coefficient name not in the term library (names file and key).
     """
     if not str(path_or_id).strip():
         raise FileNotFoundError(f"empty vehicle name; give a packaged id ({packaged_vehicles()}) or a TOML path")

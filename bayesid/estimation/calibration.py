@@ -3,7 +3,7 @@ predictions on its own training runs, leave one run out.
 
 A Laplace (or MCMC) posterior carries parameter uncertainty only. On real runs the model's
 structural error dominates: at 20 Hz, samples inside one structural miss are not independent
-evidence, and a 5-95 % band of posterior draws held 1 of 8 measured overshoots on the KVLCC2
+evidence, and a 5-95 % band of posterior draws holds 1 of 8 measured overshoots on the KVLCC2
 held-out zigzags. The remedy here is to measure the error the model actually makes on runs it
 did not see, on the training runs themselves:
 
@@ -35,9 +35,10 @@ draws' spread of that index on the predicted run. Index kinds with fewer than
 no score at all (a turning circle predicted by a zigzag-trained model) is an extrapolation: its
 band is given but flagged and kept out of the calibrated coverage (:data:`EXTRAPOLATION_NOTE`).
 
-An earlier score, ``|measured - predicted| / sd`` alone, failed on real runs: an overshoot's
-posterior spread can be a hundredth of its structural error, so the pooled scores reached 360
-and a zigzag-trained model's turning-circle band ran from -450 m to 490 m (Esso Osaka, 2026).
+The index score needs ``kappa``: ``|measured - predicted| / sd`` alone fails on real runs, as an
+overshoot's posterior spread can be a hundredth of its structural error, so the pooled scores
+reach 360 and a zigzag-trained model's turning-circle band runs from -450 m to 490 m (Esso
+Osaka).
 """
 
 from __future__ import annotations
@@ -106,8 +107,21 @@ INDEX_SCORE = "|measured - predicted| / sqrt(sd^2 + (kappa * predicted)^2)"
 
 
 def full_window(w: dict, window_s: float) -> bool:
-    """True when a protocol window (:func:`bayesid.estimation.prediction.predict`) lasts at least
-    :data:`MIN_WINDOW_FRACTION` of ``window_s``."""
+    """Whether a protocol window is long enough to score.
+
+    Parameters
+    ----------
+    w : dict
+        A window of :func:`bayesid.estimation.prediction.predict` (its ``duration_s``).
+    window_s : float
+        The protocol window, s.
+
+    Returns
+    -------
+    bool
+        True when the window lasts at least :data:`MIN_WINDOW_FRACTION` of ``window_s`` (or
+        has no duration).
+    """
     return w.get("duration_s") is None or w["duration_s"] >= MIN_WINDOW_FRACTION * window_s
 
 
@@ -117,9 +131,20 @@ def conformal_quantile(scores, level: float) -> float:
 
     Parameters
     ----------
-    scores : (n,) nonconformity scores (non-finite ones are dropped).   level : in (0, 1).
+    scores : iterable of float
+        The n nonconformity scores (None and non-finite ones are dropped).
+    level : float
+        In (0, 1).
 
-    Raises ValueError for a level outside (0, 1).
+    Returns
+    -------
+    float
+        The quantile, ``inf`` with too few scores.
+
+    Raises
+    ------
+    ValueError
+        For a level outside (0, 1).
     """
     if not 0 < level < 1:
         raise ValueError(f"conformal level must be in (0, 1), not {level}")
@@ -132,12 +157,13 @@ def conformal_quantile(scores, level: float) -> float:
 class Fold:
     """One fold of :func:`leave_one_run_out`, a task of :func:`fold_scores`.
 
-    Attributes
+    Parameters
     ----------
     refit : FitProblem
+        The full fit's problem and settings, refitted without the left-out runs.
     ks : list of int
         Indices of the left-out runs in ``refit.ctxs``.
-    p : (n_params,) array
+    p : ndarray, shape (n_params,)
         The full fit's optimum (the refit's start).
     nuisance : list or None
         Its per-track nuisances.
@@ -238,23 +264,24 @@ def leave_one_run_out(
         The full fit (``p``, ``nuisance``: the refits' start).
     train : list of Track
         Its training tracks (at least 3), in the order of ``refit.ctxs``.
-    options : CalibrationOptions
+    options : CalibrationOptions, default CalibrationOptions()
         The protocol window of the scores, the posterior draws and their seed, the most folds.
-    start : str
+    start : str, default "measured"
         The (resolved) start rule of the predictions.
-    leadin_s : float or None
+    leadin_s : float, optional
         Its lead-in.
-    runner : Runner
+    runner : Runner, default Runner()
         Runs the folds as tasks (:class:`bayesid.tasks.Runner`).
 
     Returns
     -------
     dict
-        JSON-able: ``method``, ``window_s``, ``n_runs``, ``n_folds``, ``folds``
-        (:func:`fold_scores` each, or ``{"runs", "error"}``), ``window_scores``
-        {``max_position_m``, ``max_heading_deg``: lists}, ``structural_scale`` (``kappa``,
-        :func:`structural_scale`), ``index_scores`` {key: list of normalised scores,
-        :func:`index_scores`}.
+        JSON-able: ``method``, ``window_s``, ``start_rule``, ``n_runs``, ``n_folds``,
+        ``n_draws``, ``folds`` (:func:`fold_scores` each, or ``{"runs", "error"}``),
+        ``window_scores`` {``max_position_m``, ``max_heading_deg``: lists}, ``excitation``
+        ({run: :func:`excitation`}), ``index_score`` (:data:`INDEX_SCORE`),
+        ``structural_scale`` (``kappa``, :func:`structural_scale`), ``index_scores`` {key: list
+        of normalised scores, :func:`index_scores`}.
 
     Raises
     ------
@@ -334,21 +361,45 @@ def _fold_rows(calibration: dict, field: str, finite: tuple) -> list:
 
 
 def window_rows(calibration: dict) -> list:
-    """Every window a calibration scored: ``{run, max_position_m, max_heading_deg}`` of its
-    successful folds (heading None where the run has no heading)."""
+    """Every window a calibration scored.
+
+    Parameters
+    ----------
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+
+    Returns
+    -------
+    list of dict
+        ``{run, max_position_m, max_heading_deg}`` of its successful folds (heading None where
+        the run has no heading).
+    """
     return _fold_rows(calibration, "windows", ("max_position_m",))
 
 
 def window_scores(calibration: dict) -> tuple[dict, list]:
-    """({``max_position_m``, ``max_heading_deg``: scale}, joint scores) of a calibration's windows.
+    """Scales and joint scores of a calibration's windows.
 
     A window's claim is joint: the track within ``r`` *and* the heading within ``h``. Marginal
     quantiles of the two errors would hold jointly less often than either (at 50 %, 6 of 26
     claims on the Esso validation split). So each error is divided by its median over the
     calibration windows and the score is the larger of the two ratios (the max-normalised score
     of multi-output conformal prediction); a band at level ``a`` is ``r = q_a * scale_position``,
-    ``h = q_a * scale_heading``, which holds jointly at ``a``. Scales: the medians (1.0 where a
-    median is not positive, None for the heading when no window has one)."""
+    ``h = q_a * scale_heading``, which holds jointly at ``a``.
+
+    Parameters
+    ----------
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+
+    Returns
+    -------
+    scales : dict
+        ``{max_position_m, max_heading_deg: scale}``: the medians (1.0 where a median is not
+        positive, None for the heading when no window has one).
+    joint : list of float
+        The joint score of each window.
+    """
     rows = window_rows(calibration)
     pos = np.array([w["max_position_m"] for w in rows], float)
     hd = np.array([w["max_heading_deg"] for w in rows if w.get("max_heading_deg") is not None], float)
@@ -362,9 +413,20 @@ def window_scores(calibration: dict) -> tuple[dict, list]:
 
 
 def excitation(track) -> dict:
-    """How hard a run drives the vessel: ``rudder_deg``, the 95th percentile of ``|delta_r|``
-    (deg), and ``yaw_rate_deg_s``, that of ``|r|`` (deg/s; from the heading's time derivative
-    when ``r`` is not logged). None for a channel the track lacks."""
+    """How hard a run drives the vessel.
+
+    Parameters
+    ----------
+    track : Track
+        The run.
+
+    Returns
+    -------
+    dict
+        ``rudder_deg``, the 95th percentile of ``|delta_r|`` (deg), and ``yaw_rate_deg_s``, that
+        of ``|r|`` (deg/s; from the heading's time derivative when ``r`` is not logged). None
+        for a channel the track lacks.
+    """
     out = {"rudder_deg": None, "yaw_rate_deg_s": None}
     if "delta_r" in track:
         d = np.abs(np.asarray(track["delta_r"], float))
@@ -386,8 +448,19 @@ EXCITATION_MEASURES = (("rudder_deg", "rudder", "deg"), ("yaw_rate_deg_s", "yaw 
 
 
 def excitation_range(calibration: dict) -> dict:
-    """{measure: (smallest, largest)} of the calibration runs' :func:`excitation`, for each
-    measure some run has; empty for a calibration written before it recorded excitation."""
+    """Range of the calibration runs' :func:`excitation`.
+
+    Parameters
+    ----------
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+
+    Returns
+    -------
+    dict
+        ``{measure: (smallest, largest)}`` for each measure some run has; empty for a
+        calibration written before it recorded excitation.
+    """
     out = {}
     for key, _, _ in EXCITATION_MEASURES:
         vals = [v[key] for v in (calibration.get("excitation") or {}).values() if v.get(key) is not None]
@@ -403,8 +476,21 @@ def outside_excitation(calibration: dict, exc: dict) -> list:
     its runs' excitation (written before it did). A calibrated band assumes a new run
     exchangeable with the calibration runs; a run driven outside their range is not (on the HSVA
     zigzags, a model trained on the six ``Z_xx_05`` runs, 10-35 deg rudder and yaw rates of
-    2.3-3.7 deg/s, missed the 90 % window band on ``Z_05_01``, 5 deg rudder, and ``Z_10_01``,
-    1.3 deg/s). Reported beside the bands, not removed from their coverage."""
+    2.3-3.7 deg/s, misses the 90 % window band on ``Z_05_01``, 5 deg rudder, and ``Z_10_01``,
+    1.3 deg/s). Reported beside the bands, not removed from their coverage.
+
+    Parameters
+    ----------
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+    exc : dict
+        The run's :func:`excitation`.
+
+    Returns
+    -------
+    list of str
+        The reasons, one per measure outside the range.
+    """
     rng = excitation_range(calibration)
     out = []
     for key, label, unit in EXCITATION_MEASURES:
@@ -420,10 +506,23 @@ def outside_excitation(calibration: dict, exc: dict) -> list:
 
 
 def window_band(calibration: dict, level: float, scores=None) -> dict:
-    """The joint window band at ``level`` (:func:`window_scores`): {``max_position_m`` (m),
-    ``max_heading_deg`` (deg; None without headings), ``q`` (the conformal factor), ``n_scores``};
-    inf radii with too few windows for the level. ``scores``: :func:`window_scores` of the
-    calibration when the caller has them."""
+    """The joint window band at a level (:func:`window_scores`).
+
+    Parameters
+    ----------
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+    level : float
+        Nominal coverage in (0, 1).
+    scores : tuple, optional
+        :func:`window_scores` of the calibration when the caller has them.
+
+    Returns
+    -------
+    dict
+        ``max_position_m`` (m), ``max_heading_deg`` (deg; None without headings), ``q`` (the
+        conformal factor), ``n_scores``; inf radii with too few windows for the level.
+    """
     scales, joint = scores if scores is not None else window_scores(calibration)
     q = conformal_quantile(joint, level)
     sh = scales["max_heading_deg"]
@@ -436,8 +535,19 @@ def window_band(calibration: dict, level: float, scores=None) -> dict:
 
 
 def index_rows(calibration: dict) -> list:
-    """Every index a calibration scored: the rows ``{run, index, measured, predicted, sd}`` of its
-    successful folds (:func:`fold_scores`), with finite measured and predicted values."""
+    """Every index a calibration scored.
+
+    Parameters
+    ----------
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+
+    Returns
+    -------
+    list of dict
+        The rows ``{run, index, measured, predicted, sd}`` of its successful folds
+        (:func:`fold_scores`), with finite measured and predicted values.
+    """
     return _fold_rows(calibration, "indices", ("measured", "predicted"))
 
 
@@ -447,8 +557,19 @@ def structural_scale(rows) -> dict:
     fraction of it; ``"all"``: the median over every row, used for an index with fewer than
     :data:`MIN_ROWS_PER_KAPPA` rows (0.0 without rows: the scores are then the parameter spread
     alone). Per index, because a model's relative errors differ by kind: on synthetic turns and
-    zigzags 4 % for tactical diameters, 10-30 % for overshoots; one pooled kappa made the 90 %
-    bands of the tactical diameters hold every time and those of the overshoots too seldom."""
+    zigzags 4 % for tactical diameters, 10-30 % for overshoots; one pooled kappa makes the 90 %
+    bands of the tactical diameters hold every time and those of the overshoots too seldom.
+
+    Parameters
+    ----------
+    rows : iterable of dict
+        Scored rows (:func:`index_rows`).
+
+    Returns
+    -------
+    dict
+        ``{index or "all": kappa}``.
+    """
     rel: dict = {}
     for r in rows:
         if r["predicted"] != 0:
@@ -469,10 +590,22 @@ def _scale(predicted, sd, kappa) -> float | None:
 
 
 def index_scores(calibration: dict) -> tuple[dict, dict]:
-    """(``kappa`` {index or ``"all"``: relative scale}, {index: normalised scores}) of a
-    calibration (:func:`structural_scale`), recomputed from its folds' rows (module docstring,
-    step 3), so a model file written with an older score gets the current one. Rows whose scale
-    is zero (no spread and a zero prediction) are left out."""
+    """Structural scales and normalised index scores of a calibration, recomputed from its
+    folds' rows (module docstring, step 3), so a model file written with an older score gets the
+    current one. Rows whose scale is zero (no spread and a zero prediction) are left out.
+
+    Parameters
+    ----------
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+
+    Returns
+    -------
+    kappa : dict
+        ``{index or "all": relative scale}`` (:func:`structural_scale`).
+    scores : dict
+        ``{index: normalised scores}``, indices sorted.
+    """
     rows = index_rows(calibration)
     kappa = structural_scale(rows)
     out: dict = {}
@@ -488,16 +621,28 @@ def index_band(calibration: dict, key: str, predicted: float, sd: float, level: 
 
     Parameters
     ----------
-    calibration : a :func:`leave_one_run_out` result.   key : the index (``tactical_diameter_m``, ...).
-    predicted : the model's value of the index.   sd : the posterior draws' spread of it (None: 0).
-    level : nominal coverage in (0, 1).   scores : :func:`index_scores` of the calibration, when
-        the caller has them (they are recomputed otherwise).
+    calibration : dict
+        A :func:`leave_one_run_out` result.
+    key : str
+        The index (``tactical_diameter_m``, ...).
+    predicted : float
+        The model's value of the index.
+    sd : float or None
+        The posterior draws' spread of it (None: 0).
+    level : float
+        Nominal coverage in (0, 1).
+    scores : tuple, optional
+        :func:`index_scores` of the calibration, when the caller has them (they are recomputed
+        otherwise).
 
-    Returns ``lo``, ``hi`` (None when the prediction is not finite), ``q`` (the conformal factor),
-    ``scale`` (the square root above), ``kappa`` (the index's own, or the median over every index
-    when it had fewer than :data:`MIN_ROWS_PER_KAPPA` rows), ``n_scores`` and ``pooled`` (True
-    when the key had fewer than :data:`MIN_SCORES_PER_KEY` scores and the pooled scores of every
-    index were used).
+    Returns
+    -------
+    dict
+        ``lo``, ``hi`` (None when the prediction is not finite), ``q`` (the conformal factor),
+        ``scale`` (the square root above), ``kappa`` (the index's own, or the median over every
+        index when it had fewer than :data:`MIN_ROWS_PER_KAPPA` rows), ``n_scores`` and
+        ``pooled`` (True when the key had fewer than :data:`MIN_SCORES_PER_KEY` scores and the
+        pooled scores of every index were used).
     """
     kappas, by_key = scores if scores is not None else index_scores(calibration)
     kappa = kappas.get(key, kappas["all"])
@@ -520,9 +665,22 @@ def index_band(calibration: dict, key: str, predicted: float, sd: float, level: 
 
 
 def coverage_table(hits: dict, rows=None) -> dict:
-    """{level: {"n", "inside", "coverage"}} from {level: [bool, ...]}; with the claims' ``rows``
-    (each with ``band`` {level: {"q"}}), also ``unbounded``: how many of them had no finite band
-    at that level (too few calibration scores), which hold trivially."""
+    """Coverage of claims per level.
+
+    Parameters
+    ----------
+    hits : dict
+        ``{level: [bool, ...]}``, whether each claim held.
+    rows : list of dict, optional
+        The claims (each with ``band`` {level: {"q"}}).
+
+    Returns
+    -------
+    dict
+        ``{str(level): {"n", "inside", "coverage"}}``; with ``rows`` also ``unbounded``: how
+        many of them had no finite band at that level (too few calibration scores), which hold
+        trivially.
+    """
     out = {
         str(a): {"n": len(v), "inside": int(sum(v)), "coverage": float(np.mean(v)) if v else None}
         for a, v in hits.items()
@@ -540,27 +698,36 @@ def calibrated_bands(
 
     Parameters
     ----------
-    calibration : a model's :func:`leave_one_run_out` result (None: no calibration).
-    window_s : the prediction's protocol window (s); window bands need the calibration's.
-    windows : :func:`bayesid.estimation.prediction.predict`'s ``windows`` (with ``max_position_m``,
+    calibration : dict or None
+        A model's :func:`leave_one_run_out` result (None: no calibration).
+    window_s : float or None
+        The prediction's protocol window (s); window bands need the calibration's.
+    windows : list of dict
+        :func:`bayesid.estimation.prediction.predict`'s ``windows`` (with ``max_position_m``,
         ``max_heading_deg``).
-    indices : {track: :func:`bayesid.estimation.prediction.turning_band` result (``measured``,
-        ``predicted``, ``sd``, ``band_5_95``)}.
-    excitations : {track: :func:`excitation`} of the predicted runs (optional): runs driven
-        outside the calibration runs' range are listed (``outside_range`` {track: reasons}) and
-        the coverage of the other runs' claims is given apart (``coverage_in_range``).
+    indices : dict
+        ``{track: turning_band result}`` (:func:`bayesid.estimation.prediction.turning_band`:
+        ``measured``, ``predicted``, ``sd``, ``band_5_95``).
+    levels : sequence of float, default LEVELS
+        Nominal levels of the bands.
+    excitations : dict, optional
+        ``{track: excitation}`` (:func:`excitation`) of the predicted runs: runs driven outside
+        the calibration runs' range are listed (``outside_range`` {track: reasons}) and the
+        coverage of the other runs' claims is given apart (``coverage_in_range``).
 
     Returns
     -------
-    dict: ``calibrated`` (bool) and ``reason`` when not; ``windows`` (the full ones,
-    :func:`full_window`) and ``indices`` (each row with ``band``, ``inside`` per level and
-    ``extrapolated``); ``coverage`` {``windows``, ``indices``, ``all``: :func:`coverage_table`}
-    of the calibrated claims; ``extrapolated`` {``runs``, ``kinds``, ``index_kinds``, ``note``,
-    ``coverage``}: the index kinds the calibration never scored (an index row of such a kind,
-    and every window of a run all of whose indices are such) have bands from the pooled scores
-    but are not calibrated claims, and their coverage is kept apart; ``parameter_only`` (the
-    posterior draws' own 5-95 % index bands: inside or not, and their coverage, the comparison
-    the calibration is for).
+    dict
+        ``calibrated`` (bool), ``levels``, and ``reason`` when not calibrated; ``windows`` (the
+        full ones, :func:`full_window`) and ``indices`` (each row with ``band``, ``inside`` per
+        level and ``extrapolated``); ``window_reason`` when the windows differ from the
+        calibration's; ``coverage`` {``windows``, ``indices``, ``all``:
+        :func:`coverage_table`} of the calibrated claims; ``extrapolated`` {``runs``, ``kinds``,
+        ``index_kinds``, ``note``, ``coverage``}: the index kinds the calibration never scored
+        (an index row of such a kind, and every window of a run all of whose indices are such)
+        have bands from the pooled scores but are not calibrated claims, and their coverage is
+        kept apart; ``parameter_only`` (the posterior draws' own 5-95 % index bands: inside or
+        not, and their coverage, the comparison the calibration is for).
     """
     out = {"calibrated": calibration is not None, "levels": list(levels)}
     par_hits = []

@@ -49,24 +49,63 @@ class FitResult:
     """Outcome of one fit (in the spirit of ``scipy.optimize.OptimizeResult``), with the SQP
     activity monitor of the paper (Furlong et al. 2003, Sec. 3, point 2).
 
-    Attributes
-    ----------
-    method : solver label.   names : parameter names of ``x`` (and of ``p``).
-    x : (n,) optimum in the objective's variables.   cost : ``V(x)``, the final sum of squares.
-    start_cost : ``V`` at the start (NaN when not evaluated).
-    success, message : the solver's.
-    n_iterations : accepted iterates.   n_simulations : parameter vectors simulated by the fit.
-    n_sim_cost, n_sim_gradient, n_sim_linesearch : simulations at accepted iterates, for
-        finite-difference Jacobians and at rejected trial points.
-    wall_s : wall time of the fit (s).   sim_s : of it inside the simulator (s; NaN: not measured).
-    at_bound : names of parameters at a bound at the optimum.   history : per iterate cost,
-        step and active bounds.   jac : (n_res, n) Jacobian at the optimum when the solver has one.
-    n_residuals : length of the residual vector.   k : number of estimated parameters (those of
-        ``x`` plus any the objective eliminated, e.g. window start states).
-
     Model fits (:mod:`bayesid.estimation.windows`) also carry ``model``, ``p`` (the model's
     parameter vector), ``nuisance`` (per-track nuisances), ``channels`` and ``n_starts``; the
     paper's fits ``p`` (scaled ratios) and ``theta`` (prime coefficients).
+
+    Parameters
+    ----------
+    method : str
+        Solver label.
+    names : list of str
+        Parameter names of ``x`` (and of ``p``).
+    x : ndarray, shape (n,)
+        Optimum in the objective's variables.
+    cost : float
+        ``V(x)``, the final sum of squares.
+    start_cost : float, default NaN
+        ``V`` at the start (NaN when not evaluated).
+    success : bool, default True
+        The solver's success flag.
+    message : str, default ""
+        The solver's message.
+    n_iterations : int, default 0
+        Accepted iterates.
+    n_simulations : int, default 0
+        Parameter vectors simulated by the fit.
+    n_sim_cost : int, default 0
+        Simulations at accepted iterates.
+    n_sim_gradient : int, default 0
+        Simulations for finite-difference Jacobians.
+    n_sim_linesearch : int, default 0
+        Simulations at rejected trial points.
+    wall_s : float, default 0.0
+        Wall time of the fit, s.
+    sim_s : float, default NaN
+        Of it inside the simulator, s (NaN: not measured).
+    at_bound : list of str
+        Names of parameters at a bound at the optimum.
+    history : list of dict
+        Per iterate: cost, step and active bounds.
+    jac : ndarray, shape (n_res, n), optional
+        Jacobian at the optimum when the solver has one.
+    n_residuals : int, default 0
+        Length of the residual vector.
+    k : int, default 0
+        Number of estimated parameters (those of ``x`` plus any the objective eliminated, e.g.
+        window start states).
+    model : SimulationModel, optional
+        The model of a model fit.
+    p : ndarray, optional
+        The model's parameter vector (model fits), or the scaled ratios (the paper's fits).
+    theta : ndarray, optional
+        Prime coefficients (the paper's fits).
+    nuisance : list of ndarray
+        Per-track nuisance parameters (model fits).
+    channels : tuple of str, optional
+        The channels fitted (model fits).
+    n_starts : int, default 0
+        Number of window start states fitted (model fits).
     """
 
     method: str
@@ -99,8 +138,26 @@ class FitResult:
     @classmethod
     def fixed(cls, model, p, n_tracks: int, message: str = "fixed", nuisance=None) -> FitResult:
         """A model at given parameters, not fitted (e.g. the nominal or the true model),
-        usable wherever a fit result of ``model`` is: ``p`` (n_params,), ``n_tracks`` tracks
-        with ``nuisance`` (one (n_nuisance,) array per track; default zeros)."""
+        usable wherever a fit result of ``model`` is.
+
+        Parameters
+        ----------
+        model : SimulationModel
+            The model.
+        p : array_like, shape (n_params,)
+            Its parameter vector.
+        n_tracks : int
+            Number of tracks.
+        message : str, default "fixed"
+            The result's message.
+        nuisance : sequence of array_like, optional
+            One (n_nuisance,) array per track; default zeros.
+
+        Returns
+        -------
+        FitResult
+            Method ``"none"``, cost 0, ``k`` the model's number of parameters.
+        """
         p = np.asarray(p, float)
         nu = [np.zeros(model.n_nuisance)] * n_tracks if nuisance is None else list(nuisance)
         return cls(
@@ -119,14 +176,26 @@ class FitResult:
         return float(self.cost + self.k * math.log(max(self.n_residuals, 1)))
 
     def coefficients(self) -> dict:
-        """{coefficient: fitted value} of the free coefficients (prime form)."""
+        """The fitted free coefficients.
+
+        Returns
+        -------
+        dict
+            ``{coefficient: fitted value}`` (prime form).
+        """
         if self.model is None:
             return {n: float(v) for n, v in zip(self.names, self.theta)}
         return {n: float(v) for n, v in zip(self.model.free, self.p[: self.model.n_theta])}
 
     def effect_parameters(self) -> dict:
-        """{effect: {parameter: value}} of a model fit's effects, with ``per_track_nuisance``
-        where the effect has one."""
+        """The fitted parameters of a model fit's effects.
+
+        Returns
+        -------
+        dict
+            ``{effect: {parameter: value}}``, with ``per_track_nuisance`` (a list) where the
+            effect has one.
+        """
         th, qs = self.model.split_params(self.p[None])
         out = {}
         for e, q in zip(self.model.effects, qs):
@@ -136,7 +205,14 @@ class FitResult:
         return out
 
     def summary(self) -> dict:
-        """JSON-ready summary (no per-iteration history, no arrays)."""
+        """JSON-ready summary (no per-iteration history, no arrays).
+
+        Returns
+        -------
+        dict
+            ``method``, ``start_cost``, ``final_cost``, the iteration and simulation counters,
+            ``wall_s``, ``sim_share``, ``success``, ``message`` and ``at_bound``.
+        """
         return dict(
             method=self.method,
             start_cost=self.start_cost,
@@ -203,26 +279,26 @@ class SolverOptions:
     """The solver and its budgets and tolerances (:func:`fit`), grouped as scipy groups a
     method's ``options``.
 
-    Attributes
+    Parameters
     ----------
-    method : str
+    method : str, default "least_squares"
         ``"least_squares"`` (scipy ``least_squares``, trust-region reflective, on the residual
         vector) or ``"slsqp"`` (scipy ``minimize(method="SLSQP")`` on ``V(x)/V(x0)``: on the raw
         cost, gradients of order 1e6 in scaled units make scipy's SLSQP stop after its first QP
         subproblem without moving -- seen with scipy 1.17 on the paper's Case 3; normalising
         changes no minimiser and every reported cost is ``V`` itself).
-    max_nfev : int
+    max_nfev : int, default 300
         Least-squares evaluation budget.
-    maxiter : int
+    maxiter : int, default 300
         SLSQP iteration budget.
-    ftol : float or None
+    ftol : float, optional
         Tolerance on the cost (None: 1e-15 for least squares, 1e-16 for SLSQP, on the
         normalised cost there).
-    xtol : float
+    xtol : float, default 1e-15
         Least-squares step tolerance.
-    gtol : float
+    gtol : float, default 1e-15
         Least-squares gradient tolerance.
-    x_scale : float or (n,) array
+    x_scale : float or array_like, shape (n,), default 1.0
         Least-squares variable scales.
 
     Raises
@@ -259,15 +335,15 @@ def fit(
     ----------
     objective : object
         See the module docstring.
-    x0 : (n,) array
+    x0 : array_like, shape (n,)
         The start, clipped to the bounds.
     bounds : tuple
         ``(lo (n,), hi (n,))``, +-inf allowed.
-    options : SolverOptions
+    options : SolverOptions, default SolverOptions()
         The solver (least squares or SLSQP), its budgets and tolerances.
     bar : str, optional
         A label to show a progress bar (tqdm, on stderr) of the residual evaluations.
-    quiet : bool
+    quiet : bool, default False
         Silence the solver's warnings (e.g. a diverged trial point).
 
     Returns

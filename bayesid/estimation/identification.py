@@ -47,13 +47,13 @@ DEFAULT_WINDOW_S = 30.0
 class IdentifyResult:
     """What :func:`identify` found.
 
-    Attributes
+    Parameters
     ----------
     model : SimulationModel
         The simulation model (free coefficients, effects, step).
     fit : FitResult
         The final fit (with the prior when one was used).
-    cov : (n_params, n_params) ndarray
+    cov : ndarray, shape (n_params, n_params)
         The Laplace covariance of the parameters.
     posterior : dict
         The Laplace summary: ``residual_variance``, ``ar1_inflation``, ``condition_number``,
@@ -67,14 +67,14 @@ class IdentifyResult:
     weighting : str
         The channel weighting used.
     channels : tuple of str or None
-        The scored channels.
+        The scored channels (None: every measured one).
     start_rule : str
         The window start rule, resolved on the tracks.
     train_scores : dict
         Pooled scores of the fit on its training tracks.
     window_s : float
         The multiple-shooting window (s).
-    p0 : (n_params,) ndarray
+    p0 : ndarray, shape (n_params,)
         The start of the fit (nominal or equation-error seed).
     multistart : MultistartResult or None
         The multistart, when extra starts were asked for.
@@ -122,23 +122,25 @@ def identify(
     train : list of Track
         The training tracks (``t, x, y, psi, delta_r, n``; ``u, v, r`` when measured; ``wind_*``
         for the wind effect).
-    options : FitOptions
+    options : FitOptions, default FitOptions()
         What is fitted and how: free coefficients, effects, window, step, iterations, seed,
         weighting, scored channels, start rule, multistart, prior
         (:class:`~bayesid.estimation.options.FitOptions`). With the vehicle file's ``[prior]``, a
         MAP fit follows the fit without it, whose data residuals count as ``1 / inflation``
         independent samples each (the AR(1) inflation of the first fit's residuals, at most the
         samples per window), and the covariance is the Laplace covariance of that posterior.
-    calibration : CalibrationOptions or None
+    calibration : CalibrationOptions or None, default CalibrationOptions()
         With 3 or more training runs, calibrate the predictive bands leave one run out
         (:func:`bayesid.estimation.calibration.leave_one_run_out`); None: no calibration.
-    runner : Runner
+    runner : Runner, default Runner()
         Runs the multistart's starts and the calibration's folds, and receives progress
         messages (:class:`bayesid.tasks.Runner`).
 
     Returns
     -------
     IdentifyResult
+        The model, final fit, covariance, weights, scores and (with 3 or more runs) the
+        calibration.
 
     Raises
     ------

@@ -69,7 +69,18 @@ ORDER_TOLERANCE = math.radians(0.5)
 
 
 def index_keys(indices: dict) -> list:
-    """The index keys of a :func:`manoeuvre_indices` result present in it (none for ``"other"``)."""
+    """The index keys of a :func:`manoeuvre_indices` result present in it.
+
+    Parameters
+    ----------
+    indices : dict
+        A :func:`manoeuvre_indices` result.
+
+    Returns
+    -------
+    list of str
+        The keys of :data:`INDICES` for its kind present in it (none for ``"other"``).
+    """
     return [k for k in INDICES.get(indices.get("kind"), ()) if k in indices]
 
 

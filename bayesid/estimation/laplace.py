@@ -37,23 +37,31 @@ def gauss_newton_covariance(
 
     Parameters
     ----------
-    J : (n_res, P) Jacobian of the residuals, each residual divided by its noise sd when the
-        noise is known (then ``residual_variance`` is 1), in the units of the parameters.
-    prior_precision : (P,) ``1 / prior_sd**2`` of a Gaussian prior (or a uniform prior's
-        width^2/12 stand-in), or None for none. With a prior the (symmetrised) matrix is inverted;
-        without one its pseudo-inverse is taken (``rcond``), so that directions the data do not
-        determine get zero variance rather than an error: read them with the condition number.
-    residual_variance : factor for an estimated noise variance (``SSR / (n - P)``).
-    inflation : factor for correlated residuals (e.g. the AR(1) variance inflation of a fit
-        whose residuals are serially correlated).
+    J : ndarray, shape (n_res, P)
+        Jacobian of the residuals, each residual divided by its noise sd when the noise is known
+        (then ``residual_variance`` is 1), in the units of the parameters.
+    prior_precision : ndarray, shape (P,), optional
+        ``1 / prior_sd**2`` of a Gaussian prior (or a uniform prior's width^2/12 stand-in), or
+        None for none. With a prior the (symmetrised) matrix is inverted; without one its
+        pseudo-inverse is taken (``rcond``), so that directions the data do not determine get
+        zero variance rather than an error: read them with the condition number.
+    residual_variance : float, default 1.0
+        Factor for an estimated noise variance (``SSR / (n - P)``).
+    inflation : float, default 1.0
+        Factor for correlated residuals (e.g. the AR(1) variance inflation of a fit whose
+        residuals are serially correlated).
+    rcond : float, default 1e-12
+        Cut-off of the pseudo-inverse (no prior), relative to the largest singular value.
 
     Returns
     -------
-    (P, P) covariance.
+    ndarray, shape (P, P)
+        The covariance.
 
     Raises
     ------
-    numpy.linalg.LinAlgError when a prior is given and the matrix is singular.
+    numpy.linalg.LinAlgError
+        When a prior is given and the matrix is singular.
     """
     J = np.asarray(J, float)
     if prior_precision is None:
@@ -102,13 +110,32 @@ def ar1_inflation(fitres: FitResult, ctxs) -> float:
 
 
 def fit_covariance(fitres: FitResult, ctxs, prior=None, data_scale: tuple | None = None) -> tuple[np.ndarray, dict]:
-    """(n_params, n_params) Laplace covariance of the fitted parameters (module docstring).
+    """Laplace covariance of the fitted parameters (module docstring).
 
     Without a prior: ``(J^T J)^+ * s2 * inflation`` with ``s2 = SSR / (n - k)`` and the AR(1)
     inflation of the residuals. With a ``prior`` (whose residuals end the fit's residual vector,
-    weighted by ``sqrt(s2 * inflation)``; ``data_scale = (s2, inflation)`` of the fit without
-    it): ``(J_d^T J_d / (s2 * inflation) + diag(1 / sd^2))^-1``, the Gaussian posterior of a
-    likelihood whose samples count ``1 / inflation`` each."""
+    weighted by ``sqrt(s2 * inflation)``): ``(J_d^T J_d / (s2 * inflation) + diag(1 / sd^2))^-1``,
+    the Gaussian posterior of a likelihood whose samples count ``1 / inflation`` each.
+
+    Parameters
+    ----------
+    fitres : FitResult
+        The fit (model, Jacobian ``jac``, cost, residual count).
+    ctxs : list of TrackContext
+        Its training contexts (for the AR(1) inflation).
+    prior : GaussianPrior, optional
+        The prior of a MAP fit (:class:`bayesid.estimation.windows.GaussianPrior`).
+    data_scale : tuple, optional
+        ``(s2, inflation)`` of the fit without the prior; needed with a prior.
+
+    Returns
+    -------
+    cov : ndarray, shape (n_params, n_params)
+        The covariance (:func:`psd_covariance`).
+    info : dict
+        ``residual_variance``, ``ar1_inflation``, ``condition_number`` (of the data Jacobian)
+        and ``weak_directions`` (:func:`weak_directions`).
+    """
     n = fitres.model.n_params
     J = fitres.jac[:, :n]
     J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
@@ -132,7 +159,18 @@ def fit_covariance(fitres: FitResult, ctxs, prior=None, data_scale: tuple | None
 def psd_covariance(cov) -> np.ndarray:
     """The symmetric positive semi-definite form of a covariance: its symmetric part with the
     eigenvalues below zero (round-off of an ill-conditioned Gauss-Newton inverse) set to zero.
-    What ``fit`` writes is what ``predict`` reads (:func:`load_model`)."""
+    What ``fit`` writes is what ``predict`` reads (:func:`bayesid.estimation.modelfile.load_model`).
+
+    Parameters
+    ----------
+    cov : array_like, shape (P, P)
+        A covariance.
+
+    Returns
+    -------
+    ndarray, shape (P, P)
+        Its symmetric positive semi-definite form.
+    """
     C = np.atleast_2d(np.asarray(cov, float))  # np.cov of one parameter's draws is 0-d
     C = 0.5 * (C + C.T)
     lam, V = np.linalg.eigh(C)
@@ -141,11 +179,25 @@ def psd_covariance(cov) -> np.ndarray:
 
 
 def weak_directions(J, scales, k: int = 3) -> list:
-    """The ``k`` directions of parameter space the residuals constrain least: eigenvectors of
+    """The directions of parameter space the residuals constrain least: eigenvectors of
     ``(J D)^T (J D)`` with ``D = diag(scales)`` (parameters in units of their typical size), the
-    smallest eigenvalue first. Each: ``{"eigenvalue", "vector"}`` (unit vector over the
-    parameters, in scaled units), labelled by the report layer
-    (:class:`bayesid.analysis.identifiability.Direction`)."""
+    smallest eigenvalue first.
+
+    Parameters
+    ----------
+    J : array_like, shape (n_res, P)
+        Jacobian of the residuals.
+    scales : array_like, shape (P,)
+        Typical sizes of the parameters.
+    k : int, default 3
+        Number of directions.
+
+    Returns
+    -------
+    list of dict
+        ``{"eigenvalue", "vector"}`` each (unit vector over the parameters, in scaled units),
+        labelled by the report layer (:class:`bayesid.analysis.identifiability.Direction`).
+    """
     Js = np.asarray(J, float) * np.abs(np.asarray(scales, float))[None, :]
     lam, V = np.linalg.eigh(Js.T @ Js)
     return [{"eigenvalue": float(lam[i]), "vector": V[:, i].tolist()} for i in range(min(k, lam.size))]

@@ -34,7 +34,7 @@ _WITHOUT_DEFAULT = ("vehicle_id", "fit_window_s", "param_names", "sd", "start", 
 class ModelDocument:
     """A fitted model as ``model.json`` stores it (format :data:`FORMAT`).
 
-    Attributes
+    Parameters
     ----------
     vehicle : str
         The vehicle file as the user named it (packaged id or path; a relative path is read
@@ -66,13 +66,13 @@ class ModelDocument:
         The equation-error seed's summary.
     noise_sd : dict
         ``{channel: noise sd}`` estimated from the tracks.
-    weighting : str
+    weighting : str, default "noise"
         ``"noise"`` or ``"residual"``: the channel weights of the fit.
-    fit_sd : dict
-        ``{channel: sd}`` of the final weights.
-    fit_channels : list of str or None
+    fit_sd : dict, optional
+        ``{channel: sd}`` of the final weights (None: ``noise_sd``).
+    fit_channels : list of str, optional
         The scored channels (None: every measured one).
-    start_rule : str
+    start_rule : str, default "measured"
         The window start rule the fit used.
     train_runs : list of str
         The training runs' names.
@@ -82,16 +82,16 @@ class ModelDocument:
         Package version, vehicle file hash and values, input hashes, warnings, command.
     fit : dict
         ``ssr``, ``n_residuals``, ``nfev``, ``success``, ``message``, ``seconds``, ``bic``.
-    multistart : dict or None
+    multistart : dict, optional
         The multistart summary, when the fit had extra starts.
-    prior : dict
+    prior : dict, default {"used": False}
         The vehicle file's prior as used (``{"used": False}`` without one).
-    calibration : dict or None
+    calibration : dict, optional
         The leave-one-run-out calibration of the predictive bands.
-    posterior_source : dict or None
+    posterior_source : dict, optional
         Set when ``p`` and ``cov`` come from ``bayesid sample`` (its ``sample.json``, method,
         convergence).
-    path : Path or None
+    path : Path, optional
         The file the document was read from (not stored).
     """
 
@@ -134,7 +134,7 @@ class ModelDocument:
         Parameters
         ----------
         result : IdentifyResult
-            What :func:`bayesid.estimation.identify.identify` returned.
+            What :func:`bayesid.estimation.identification.identify` returned.
         vehicle_ref : str
             The vehicle file as the user named it.
         train_names : list of str
@@ -145,6 +145,7 @@ class ModelDocument:
         Returns
         -------
         ModelDocument
+            The document (optimum, covariance, weights, scores, settings, summaries).
         """
         m, f = result.model, result.fit
         return cls(
@@ -184,8 +185,14 @@ class ModelDocument:
         )
 
     def to_dict(self) -> dict:
-        """The JSON object of the document, keys in the order of the fields (``multistart`` and
-        ``posterior_source`` only when set)."""
+        """The JSON object of the document.
+
+        Returns
+        -------
+        dict
+            ``format`` then the fields in their order (``multistart`` and ``posterior_source``
+            only when set; ``path`` never).
+        """
         d = {"format": FORMAT}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
@@ -194,7 +201,13 @@ class ModelDocument:
         return d
 
     def to_json(self, path) -> None:
-        """Write the document to ``path`` (the report layer's JSON conventions: NaN as null)."""
+        """Write the document (the report layer's JSON conventions: NaN as null).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file; its folder is created when missing.
+        """
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(jsonable(self.to_dict()), indent=2) + "\n")
@@ -246,7 +259,14 @@ class ModelDocument:
         return doc
 
     def vehicle_path(self) -> str:
-        """The vehicle reference, relative paths resolved against the model file's folder first."""
+        """The vehicle reference, relative paths resolved against the model file's folder first.
+
+        Returns
+        -------
+        str
+            The path of the vehicle file next to the model file when there is one, else the
+            reference as stored.
+        """
         ref = self.vehicle
         if self.path is not None and not Path(ref).is_absolute() and (self.path.parent / ref).is_file():
             return str(self.path.parent / ref)
@@ -259,9 +279,10 @@ class ModelDocument:
         -------
         model : SimulationModel
             The model of the vehicle with the document's free coefficients, effects and step.
-        p : (n_params,) ndarray
-        cov : (n_params, n_params) ndarray
-            Symmetric positive semi-definite (round-off of the writer removed).
+        p : ndarray, shape (n_params,)
+            The optimum.
+        cov : ndarray, shape (n_params, n_params)
+            Its covariance, symmetric positive semi-definite (round-off of the writer removed).
 
         Raises
         ------
@@ -311,9 +332,9 @@ class ModelDocument:
 
         Parameters
         ----------
-        p : (n_params,) array
+        p : array_like, shape (n_params,)
             The posterior mode.
-        cov : (n_params, n_params) array
+        cov : array_like, shape (n_params, n_params)
             The draws' covariance (made positive semi-definite here).
         source : dict
             ``sample`` (path of sample.json), ``method``, ``converged``.
@@ -348,9 +369,13 @@ def load_model(path):
     Returns
     -------
     model : SimulationModel
-    p : (n_params,) ndarray
-    cov : (n_params, n_params) ndarray
+        The fitted model (:meth:`ModelDocument.build`).
+    p : ndarray, shape (n_params,)
+        The optimum.
+    cov : ndarray, shape (n_params, n_params)
+        Its covariance.
     doc : ModelDocument
+        The document.
 
     Raises
     ------

@@ -44,15 +44,32 @@ DISTINCT_TOLERANCE = 0.05
 
 
 def start_points(p0, scales, lo, hi, n: int, rng, spread: float = 1.0) -> np.ndarray:
-    """(n, P) Latin-hypercube starts in ``p0 +- spread * |scales|`` clipped to ``[lo, hi]``.
+    """Latin-hypercube starts in ``p0 +- spread * |scales|`` clipped to ``[lo, hi]``.
 
     Parameters
     ----------
-    p0, scales, lo, hi : (P,) default start, typical sizes, bounds (+-inf allowed).
-    n : number of starts (>= 0).   rng : numpy Generator (seeds the hypercube).
-    spread : half-width of the box in units of ``scales``.
+    p0 : array_like, shape (P,)
+        Default start.
+    scales : array_like, shape (P,)
+        Typical sizes of the parameters.
+    lo, hi : array_like, shape (P,)
+        Bounds (+-inf allowed).
+    n : int
+        Number of starts (>= 0).
+    rng : numpy.random.Generator
+        Seeds the hypercube.
+    spread : float, default 1.0
+        Half-width of the box in units of ``scales``.
 
-    Raises ValueError for ``n < 0`` or a non-positive ``spread``.
+    Returns
+    -------
+    ndarray, shape (n, P)
+        The starts.
+
+    Raises
+    ------
+    ValueError
+        For ``n < 0`` or a non-positive ``spread``.
     """
     p0, scales = np.asarray(p0, float), np.abs(np.asarray(scales, float))
     if n < 0 or not spread > 0:
@@ -69,8 +86,19 @@ def fit_start(p0, problem: FitProblem) -> dict:
     """One start of a multistart fit of a model (a task; runs in a worker): the multiple-shooting
     fit (:func:`bayesid.estimation.windows.fit_model`) of ``problem`` (fixed weights) from ``p0``.
 
-    Returns a JSON-able dict: ``p`` (P,), ``cost`` (noise-scaled SSR, inf when the fit failed),
-    ``success``, ``nfev``, ``message``."""
+    Parameters
+    ----------
+    p0 : array_like, shape (P,)
+        The start.
+    problem : FitProblem
+        The fit's problem and settings.
+
+    Returns
+    -------
+    dict
+        JSON-able: ``p`` (P,), ``cost`` (noise-scaled SSR, inf when the fit failed),
+        ``success``, ``nfev``, ``message``.
+    """
     try:
         f = fit_model(problem, np.asarray(p0, float))
     except Exception as exc:  # noqa: BLE001 - a start that diverges is a result, not an error
@@ -94,17 +122,32 @@ def fit_start(p0, problem: FitProblem) -> dict:
 class MultistartResult:
     """The starts and their optima, best first.
 
-    Attributes
+    Parameters
     ----------
-    names : parameter names.   starts : (n, P) start vectors, the default first.
-    kinds : per start, ``"default"`` or ``"lhs"``.   fits : per start, :func:`fit_start`'s dict.
-    order : start indices sorted by final cost.   best : index of the lowest cost.
-    near_best : indices within :data:`COST_TOLERANCE` of the best cost.
-    distinct : list of groups (lists of start indices) of near-best optima that lie within
+    names : list of str
+        Parameter names.
+    starts : ndarray, shape (n, P)
+        Start vectors, the default first.
+    kinds : list of str
+        Per start, ``"default"`` or ``"lhs"``.
+    fits : list of dict
+        Per start, :func:`fit_start`'s dict.
+    order : list of int
+        Start indices sorted by final cost.
+    best : int
+        Index of the lowest cost.
+    near_best : list of int
+        Indices within :data:`COST_TOLERANCE` of the best cost.
+    distinct : list of list of int
+        Groups (lists of start indices) of near-best optima that lie within
         :data:`DISTINCT_TOLERANCE` scales of each other; the first holds the best.
-    spread : {name: (max - min) of the near-best optima / scale} per parameter.
-    max_distance : largest scaled distance (max over parameters of |difference| / scale)
-        between two near-best optima.
+    spread : dict
+        ``{name: (max - min) of the near-best optima / scale}`` per parameter.
+    max_distance : float
+        Largest scaled distance (max over parameters of |difference| / scale) between two
+        near-best optima.
+    scales : ndarray, shape (P,), optional
+        The parameter scales.
     """
 
     names: list
@@ -120,11 +163,24 @@ class MultistartResult:
     scales: np.ndarray = field(repr=False, default=None)
 
     def costs(self) -> np.ndarray:
-        """(n,) final costs sorted ascending (the waterfall)."""
+        """Final costs sorted ascending (the waterfall).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            The costs.
+        """
         return np.array([self.fits[i]["cost"] for i in self.order], float)
 
     def to_dict(self) -> dict:
-        """JSON-able summary (model.json's ``multistart``)."""
+        """JSON-able summary (model.json's ``multistart``).
+
+        Returns
+        -------
+        dict
+            Counts, tolerances, the best start and cost, the sorted costs, the near-best and
+            distinct optima (with their coefficients) and one entry per start.
+        """
         best_cost = self.fits[self.best]["cost"]
         return {
             "n_starts": len(self.fits),
@@ -157,7 +213,26 @@ class MultistartResult:
 def summarise_starts(names, starts, kinds, fits, scales) -> MultistartResult:
     """Sort the optima, count the near-best and group them into distinct optima (greedy, in cost
     order: an optimum joins the first group whose best member is within
-    :data:`DISTINCT_TOLERANCE` scales in every parameter)."""
+    :data:`DISTINCT_TOLERANCE` scales in every parameter).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Parameter names.
+    starts : array_like, shape (n, P)
+        Start vectors.
+    kinds : sequence of str
+        Per start, ``"default"`` or ``"lhs"``.
+    fits : sequence of dict
+        Per start, :func:`fit_start`'s dict.
+    scales : array_like, shape (P,)
+        Parameter scales.
+
+    Returns
+    -------
+    MultistartResult
+        The summary.
+    """
     scales = np.abs(np.asarray(scales, float))
     costs = np.array([f["cost"] for f in fits], float)
     order = [int(i) for i in np.argsort(np.where(np.isfinite(costs), costs, np.inf), kind="stable")]
@@ -193,11 +268,28 @@ def run_starts(
 
     Parameters
     ----------
-    fit_fn : module-level ``fit_fn(p0, *args) -> {"p", "cost", "success", "nfev", "message"}``
-        (:func:`fit_start` for a model).   names : parameter names.
-    starts : (n, P), the default first.   kinds : per start.   scales : (P,) parameter scales.
-    default_fit : the first start's result when already fitted (it is then not run again).
-    runner : :class:`bayesid.tasks.Runner` of the starts.
+    fit_fn : callable
+        Module-level ``fit_fn(p0, *args) -> {"p", "cost", "success", "nfev", "message"}``
+        (:func:`fit_start` for a model).
+    args : tuple
+        The further arguments of ``fit_fn``.
+    names : sequence of str
+        Parameter names.
+    starts : array_like, shape (n, P)
+        The starts, the default first.
+    kinds : sequence of str
+        Per start, ``"default"`` or ``"lhs"``.
+    scales : array_like, shape (P,)
+        Parameter scales.
+    default_fit : dict, optional
+        The first start's result when already fitted (it is then not run again).
+    runner : Runner, default Runner()
+        :class:`bayesid.tasks.Runner` of the starts.
+
+    Returns
+    -------
+    MultistartResult
+        The summary; a failed task counts as a start with an infinite cost.
     """
     starts = np.asarray(starts, float)
     tasks = [
@@ -227,19 +319,36 @@ def multistart(
     spread: float = 1.0,
     runner: Runner = Runner(),
 ) -> MultistartResult:
-    """Fit ``model`` from the default start and ``n_starts`` Latin-hypercube starts, as tasks.
+    """Fit a model from the default start and ``n_starts`` Latin-hypercube starts, as tasks.
 
     Parameters
     ----------
-    problem : :class:`~bayesid.estimation.windows.FitProblem` (model, training contexts, fixed
-        channel weights ``sd``, scored channels, iterations; its prior is not used).
-    p_default : (P,) the default start.   n_starts : extra starts (>= 1).   rng : Generator.
-    default_fit : the default start's result when already fitted (a :func:`fit_start` dict),
-        else it is fitted as one of the tasks.
-    runner : :class:`bayesid.tasks.Runner` of the starts (its journal resumes a killed run).
-    spread : half-width of the start box in scales (:func:`start_points`).
+    problem : FitProblem
+        :class:`~bayesid.estimation.windows.FitProblem` (model, training contexts, fixed channel
+        weights ``sd``, scored channels, iterations; its prior is not used).
+    p_default : array_like, shape (P,)
+        The default start.
+    n_starts : int
+        Extra starts (>= 1).
+    rng : numpy.random.Generator
+        Seeds the Latin hypercube.
+    default_fit : dict, optional
+        The default start's result when already fitted (a :func:`fit_start` dict), else it is
+        fitted as one of the tasks.
+    spread : float, default 1.0
+        Half-width of the start box in scales (:func:`start_points`).
+    runner : Runner, default Runner()
+        :class:`bayesid.tasks.Runner` of the starts (its journal resumes a killed run).
 
-    Returns a :class:`MultistartResult`. Raises ValueError for ``n_starts < 1``.
+    Returns
+    -------
+    MultistartResult
+        The starts and their optima, best first.
+
+    Raises
+    ------
+    ValueError
+        For ``n_starts < 1``.
     """
     if n_starts < 1:
         raise ValueError(f"multistart needs at least one start besides the default, not {n_starts}")

@@ -33,16 +33,22 @@ class Problem:
 
     Parameters
     ----------
-    simulator : :class:`~bayesid.models.simulate.Simulator` whose ``free`` names are identified.
-    target : :class:`~bayesid.data.track.Track` whose times lie on the simulator's sample grid.
-    reference : (P,) non-zero prime values; the optimiser works on ``p = theta / reference``.
-    channels : state columns compared (default the paper's six; absent ones are skipped).
-    fd_step : forward-difference step in scaled units.
+    simulator : Simulator
+        The :class:`~bayesid.models.simulate.Simulator` whose ``free`` names are identified.
+    target : Track
+        The :class:`~bayesid.data.track.Track` whose times lie on the simulator's sample grid.
+    reference : array_like, shape (P,)
+        Non-zero prime values; the optimiser works on ``p = theta / reference``.
+    channels : sequence of str, default PAPER_CHANNELS
+        State columns compared (the paper's six; absent ones are skipped).
+    fd_step : float, default 1e-7
+        Forward-difference step in scaled units.
 
     Raises
     ------
-    ValueError : a reference value is zero or non-finite (a ratio cannot be formed); target
-        times off the simulation grid; no channel in common.
+    ValueError
+        A reference of another shape, a reference value that is zero or non-finite (a ratio
+        cannot be formed); target times off the simulation grid; no channel in common.
     """
 
     def __init__(self, simulator: Simulator, target: Track, reference, channels=PAPER_CHANNELS, fd_step: float = 1e-7):
@@ -88,17 +94,56 @@ class Problem:
         return self.sim.sim_seconds
 
     def residuals(self, p) -> tuple[np.ndarray, bool]:
-        """(n_residuals,) residuals at one scaled vector ``p`` and whether it diverged."""
+        """Residuals at one scaled vector and whether it diverged.
+
+        Parameters
+        ----------
+        p : array_like, shape (n_free,)
+            Scaled parameters.
+
+        Returns
+        -------
+        r : ndarray, shape (n_residuals,)
+            The residuals.
+        diverged : bool
+            Whether the simulation diverged.
+        """
         R, div = self.residuals_batch(np.asarray(p, dtype=float)[None])
         return R[0], bool(div[0])
 
     def result_fields(self, p) -> dict:
-        """The fit result's ``p`` (scaled) and ``theta`` (prime) at ``p``."""
+        """The fit result's fields at ``p``.
+
+        Parameters
+        ----------
+        p : array_like, shape (n_free,)
+            Scaled parameters.
+
+        Returns
+        -------
+        dict
+            ``p`` (scaled) and ``theta`` (prime).
+        """
         return {"p": np.asarray(p, dtype=float), "theta": self.theta(p)}
 
     def noise_vector(self, sigmas: dict) -> np.ndarray:
-        """Per-residual noise standard deviation (n_residuals,) from per-channel values
-        ``sigmas`` ({channel: sd}, SI). KeyError naming a channel without one."""
+        """Per-residual noise standard deviation from per-channel values.
+
+        Parameters
+        ----------
+        sigmas : dict
+            ``{channel: sd}``, SI.
+
+        Returns
+        -------
+        ndarray, shape (n_residuals,)
+            The sd of each residual.
+
+        Raises
+        ------
+        KeyError
+            Naming a channel without one.
+        """
         missing = [c for c in self.channels if c not in sigmas]
         if missing:
             raise KeyError(f"no noise standard deviation for channel(s) {missing}")
@@ -107,10 +152,33 @@ class Problem:
 
     # -- scaled <-> prime ----------------------------------------------------------------------
     def theta(self, p) -> np.ndarray:
-        """Prime coefficients from scaled parameters, same shape as ``p``."""
+        """Prime coefficients from scaled parameters.
+
+        Parameters
+        ----------
+        p : array_like, shape (..., n_free)
+            Scaled parameters.
+
+        Returns
+        -------
+        ndarray
+            Prime coefficients, same shape as ``p``.
+        """
         return np.asarray(p, dtype=float) * self.reference
 
     def scaled(self, theta) -> np.ndarray:
+        """Scaled parameters from prime coefficients.
+
+        Parameters
+        ----------
+        theta : array_like, shape (..., n_free)
+            Prime coefficients.
+
+        Returns
+        -------
+        ndarray
+            ``theta / reference``, same shape as ``theta``.
+        """
         return np.asarray(theta, dtype=float) / self.reference
 
     # -- batched evaluations -------------------------------------------------------------------
@@ -119,12 +187,15 @@ class Problem:
 
         Parameters
         ----------
-        P : (B, n_free) scaled parameters.
+        P : array_like, shape (B, n_free)
+            Scaled parameters.
 
         Returns
         -------
-        R : (B, n_residuals), sample-major; zero where the target is missing.
-        diverged : (B,) bool; diverged rows hold ``DIVERGED_RESIDUAL``.
+        R : ndarray, shape (B, n_residuals)
+            Sample-major; zero where the target is missing.
+        diverged : ndarray of bool, shape (B,)
+            Diverged rows hold ``DIVERGED_RESIDUAL``.
         """
         P = np.atleast_2d(P)
         res = self.sim.run(self.theta(P))
@@ -135,13 +206,36 @@ class Problem:
         return R.reshape(R.shape[0], -1), div
 
     def cost_batch(self, P) -> np.ndarray:
-        """V(p) for B parameter vectors, (B,); ``+inf`` for a diverged simulation."""
+        """V(p) for B parameter vectors.
+
+        Parameters
+        ----------
+        P : array_like, shape (B, n_free)
+            Scaled parameters.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The costs; ``+inf`` for a diverged simulation.
+        """
         R, div = self.residuals_batch(P)
         V = np.einsum("ij,ij->i", R, R)
         V[div] = np.inf
         return V
 
     def cost(self, p) -> float:
+        """V(p) at one scaled vector.
+
+        Parameters
+        ----------
+        p : array_like, shape (n_free,)
+            Scaled parameters.
+
+        Returns
+        -------
+        float
+            The cost; ``+inf`` for a diverged simulation.
+        """
         return float(self.cost_batch(np.asarray(p)[None])[0])
 
     def jacobian(self, p, r0=None, central: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -149,9 +243,21 @@ class Problem:
         simulation of P + 1 tracks (P if ``r0``, the residuals at p, is given; 2P + 1 for
         ``central`` differences, whose O(h^2) error suits identifiability analysis).
 
+        Parameters
+        ----------
+        p : array_like, shape (P,)
+            Scaled parameters.
+        r0 : ndarray, shape (n_residuals,), optional
+            The residuals at ``p`` when known (forward differences only).
+        central : bool, default False
+            Central differences (step 1e-5 in scaled units) instead of forward ones.
+
         Returns
         -------
-        r : (n_residuals,)   J : (n_residuals, P)
+        r : ndarray, shape (n_residuals,)
+            The residuals at ``p``.
+        J : ndarray, shape (n_residuals, P)
+            The Jacobian.
         """
         p = np.asarray(p, dtype=float)
         P_ = p.size
@@ -173,7 +279,22 @@ class Problem:
 
     def gradient(self, p, r0=None) -> tuple[float, np.ndarray]:
         """Cost and gradient ``dV/dp = 2 J^T r`` (J = d r / d p) -- differencing the residuals
-        avoids the cancellation of differencing V itself. One batched call."""
+        avoids the cancellation of differencing V itself. One batched call.
+
+        Parameters
+        ----------
+        p : array_like, shape (P,)
+            Scaled parameters.
+        r0 : ndarray, shape (n_residuals,), optional
+            The residuals at ``p`` when known.
+
+        Returns
+        -------
+        cost : float
+            V(p).
+        gradient : ndarray, shape (P,)
+            dV/dp.
+        """
         r, J = self.jacobian(p, r0)
         return float(r @ r), 2.0 * (J.T @ r)
 
@@ -203,11 +324,13 @@ class JointProblem(Problem):
 
     Parameters
     ----------
-    problems : list of :class:`Problem` with the same free names, reference and channels.
+    problems : list of Problem
+        Members with the same free names, reference and channels.
 
     Raises
     ------
-    ValueError : empty list, or members differing in free names, reference or channels (named).
+    ValueError
+        Empty list, or members differing in free names, reference or channels (named).
     """
 
     def __init__(self, problems):
@@ -234,7 +357,20 @@ class JointProblem(Problem):
         self.sim = _SimGroup(p.sim for p in problems)
 
     def residuals_batch(self, P) -> tuple[np.ndarray, np.ndarray]:
-        """Stacked residuals (B, sum of members' n_residuals) and (B,) divergence flags."""
+        """Stacked residuals of the members for B parameter vectors.
+
+        Parameters
+        ----------
+        P : array_like, shape (B, n_free)
+            Scaled parameters.
+
+        Returns
+        -------
+        R : ndarray, shape (B, sum of the members' n_residuals)
+            The residuals; diverged rows hold ``DIVERGED_RESIDUAL``.
+        diverged : ndarray of bool, shape (B,)
+            Whether any member diverged.
+        """
         parts = [p.residuals_batch(P) for p in self.problems]
         R = np.hstack([r for r, _ in parts])
         div = np.any(np.vstack([d for _, d in parts]), axis=0)

@@ -15,37 +15,42 @@ __all__ = ["CalibrationOptions", "FitOptions"]
 
 @dataclass(frozen=True)
 class FitOptions:
-    """What a fit identifies and how (:func:`bayesid.estimation.identify.identify`).
+    """What a fit identifies and how (:func:`bayesid.estimation.identification.identify`).
 
-    Attributes
+    Parameters
     ----------
-    free : tuple of str or None
+    free : tuple of str, optional
         The free coefficients (None: the vehicle file's ``[fit] free`` for a ship, none for a
-        submarine).
-    effects : tuple of str
+        submarine); any sequence is stored as a tuple.
+    effects : tuple of str, default ()
         The effects in the model (ship: :data:`bayesid.models.ship.SHIP_CATALOGUE`).
-    window_s : float or None
-        The multiple-shooting window (s); None: the family's ``default_fit_window``.
-    dt : float or None
-        The model step (s); None: the family's ``DEFAULT_DT``.
-    max_nfev : int
-        Least-squares iterations of each fit.
-    equation_error_seed : bool
+    window_s : float, optional
+        The multiple-shooting window (s), positive; None: the family's ``default_fit_window``.
+    dt : float, optional
+        The model step (s), positive; None: the family's ``DEFAULT_DT``.
+    max_nfev : int, default 60
+        Least-squares iterations of each fit, at least 1.
+    equation_error_seed : bool, default True
         Start from the model's equation-error estimate (``model.seed``; ships) when it
         simulates better than the nominal coefficients.
-    weighting : str or None
+    weighting : str, optional
         ``"noise"`` or ``"residual"`` channel weights
         (:func:`bayesid.estimation.windows.fit_weighted`); None: the family's default.
-    channels : tuple of str or None
+    channels : tuple of str, optional
         The scored channels (None: every one the tracks measure).
-    start : str
+    start : str, default "auto"
         The window start-state rule (:data:`bayesid.protocol.START_RULES`).
-    starts : int
+    starts : int, default 0
         Extra Latin-hypercube starts of a multistart fit (0: the default start alone).
-    random_seed : int
+    random_seed : int, default 0
         Seed of the multistart starts.
-    prior : bool
+    prior : bool, default True
         Use the vehicle file's ``[prior]`` section when it has one (a MAP fit).
+
+    Raises
+    ------
+    ValueError
+        ``max_nfev`` below 1, negative ``starts``, a non-positive ``window_s`` or ``dt``.
     """
 
     free: tuple | None = None
@@ -76,7 +81,13 @@ class FitOptions:
                 raise ValueError(f"FitOptions.{name} must be positive, not {v}")
 
     def to_dict(self) -> dict:
-        """The options as a JSON-able dict (a run's identity)."""
+        """The options as a JSON-able dict (a run's identity).
+
+        Returns
+        -------
+        dict
+            ``{field: value}``, tuples as lists.
+        """
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
 
@@ -85,16 +96,21 @@ class CalibrationOptions:
     """How a fit calibrates its predictive bands leave one run out
     (:func:`bayesid.estimation.calibration.leave_one_run_out`).
 
-    Attributes
+    Parameters
     ----------
-    window_s : float
+    window_s : float, default 60.0
         The protocol window of the window scores (s): the bands hold for windows of this length.
-    draws : int
+    draws : int, default 40
         Posterior draws of each fold for the index spreads (at least 3).
-    seed : int
+    seed : int, default 0
         Seed of those draws (fold ``g`` uses ``seed + g``).
-    max_folds : int
-        With more runs than this, run ``i`` is left out in fold ``i % max_folds``.
+    max_folds : int, default 10
+        With more runs than this, run ``i`` is left out in fold ``i % max_folds`` (at least 3).
+
+    Raises
+    ------
+    ValueError
+        A non-positive window, fewer than 3 draws or fewer than 3 folds.
     """
 
     window_s: float = 60.0
@@ -112,5 +128,11 @@ class CalibrationOptions:
             raise ValueError(f"CalibrationOptions.max_folds must be at least 3, not {self.max_folds}")
 
     def to_dict(self) -> dict:
-        """The options as a JSON-able dict (a run's identity)."""
+        """The options as a JSON-able dict (a run's identity).
+
+        Returns
+        -------
+        dict
+            ``{field: value}``.
+        """
         return asdict(self)

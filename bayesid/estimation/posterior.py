@@ -25,11 +25,21 @@ from ..data.track import STATE_NAMES, Track
 class CoefficientPrior:
     """Independent priors for the free coefficients (prime values).
 
-    Attributes
+    Parameters
     ----------
-    names : (P,) coefficient names.
-    kind : (P,) "uniform" or "normal".
-    a, b : (P,) lower/upper bound (uniform) or mean/standard deviation (normal).
+    names : tuple of str
+        The P coefficient names.
+    kind : tuple of str
+        Per coefficient ``"uniform"`` or ``"normal"``.
+    a, b : ndarray, shape (P,)
+        Lower/upper bound (uniform) or mean/standard deviation (normal).
+
+    Raises
+    ------
+    UnknownCoefficientError
+        A name not in the term library.
+    ValueError
+        An unknown kind, non-finite parameters, bounds not increasing, a non-positive sd.
     """
 
     names: tuple
@@ -51,8 +61,26 @@ class CoefficientPrior:
 
     @classmethod
     def build(cls, uniform: dict | None = None, normal: dict | None = None) -> CoefficientPrior:
-        """From ``uniform={name: (lo, hi)}`` and ``normal={name: (mean, sd)}`` (order: uniform first).
-        Bounds given in either order are sorted (negative coefficients)."""
+        """Priors from two dicts (order: uniform first).
+
+        Parameters
+        ----------
+        uniform : dict, optional
+            ``{name: (lo, hi)}``; bounds given in either order are sorted (negative
+            coefficients).
+        normal : dict, optional
+            ``{name: (mean, sd)}``; the sd's sign is dropped.
+
+        Returns
+        -------
+        CoefficientPrior
+            The priors.
+
+        Raises
+        ------
+        ValueError
+            A coefficient with two priors, or any error of the constructor.
+        """
         names, kind, a, b = [], [], [], []
         for n, (lo, hi) in (uniform or {}).items():
             names.append(n)
@@ -69,7 +97,18 @@ class CoefficientPrior:
         return cls(tuple(names), tuple(kind), np.array(a, float), np.array(b, float))
 
     def logpdf(self, theta: np.ndarray) -> np.ndarray:
-        """Log prior density (B,) for theta (B, P); ``-inf`` outside a uniform support."""
+        """Log prior density.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (B, P)
+            Prime coefficients.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The log density; ``-inf`` outside a uniform support.
+        """
         theta = np.atleast_2d(theta)
         uni = np.array([k == "uniform" for k in self.kind])
         out = np.zeros(theta.shape[0])
@@ -84,7 +123,20 @@ class CoefficientPrior:
         return out
 
     def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """(n, P) draws from the prior."""
+        """Draws from the prior.
+
+        Parameters
+        ----------
+        n : int
+            Number of draws.
+        rng : numpy.random.Generator
+            The random generator.
+
+        Returns
+        -------
+        ndarray, shape (n, P)
+            The draws.
+        """
         out = np.empty((n, len(self.names)))
         for j, k in enumerate(self.kind):
             out[:, j] = rng.uniform(self.a[j], self.b[j], n) if k == "uniform" else rng.normal(self.a[j], self.b[j], n)
@@ -94,18 +146,23 @@ class CoefficientPrior:
 class LogPosterior:
     """Vectorised log-posterior over the free coefficients of an identification problem.
 
+    Call with theta (B, P) prime values; returns (B,). ``n_evaluations`` counts rows evaluated.
+
     Parameters
     ----------
-    problem : :class:`~bayesid.estimation.objective.Problem`; its free names must equal ``prior.names``.
-    sigmas : channel -> noise standard deviation (m or rad) for every channel of the problem.
-    prior : :class:`CoefficientPrior`.
-
-    Call with theta (B, P) prime values; returns (B,). ``n_evaluations`` counts rows evaluated.
+    problem : Problem
+        :class:`~bayesid.estimation.objective.Problem`; its free names must equal ``prior.names``.
+    sigmas : dict
+        ``{channel: noise standard deviation}`` (m or rad) for every channel of the problem.
+    prior : CoefficientPrior
+        The priors.
 
     Raises
     ------
-    ValueError if the prior's names differ from the problem's free names or a sigma is not
-    positive; KeyError naming a channel without a sigma.
+    ValueError
+        If the prior's names differ from the problem's free names or a sigma is not positive.
+    KeyError
+        Naming a channel without a sigma.
     """
 
     def __init__(self, problem, sigmas: dict, prior: CoefficientPrior):
@@ -122,7 +179,18 @@ class LogPosterior:
         self.n_evaluations = 0
 
     def log_likelihood(self, theta) -> np.ndarray:
-        """(B,) Gaussian log-likelihood up to a constant; ``-inf`` for diverged tracks."""
+        """Gaussian log-likelihood up to a constant.
+
+        Parameters
+        ----------
+        theta : array_like, shape (B, P)
+            Prime coefficients.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The log-likelihood; ``-inf`` for diverged tracks.
+        """
         theta = np.atleast_2d(theta)
         R, div = self.problem.residuals_batch(self.problem.scaled(theta))
         ll = -0.5 * np.sum((R * self.w) ** 2, axis=1)
@@ -149,7 +217,13 @@ class LogitTransform:
 
     ``to_theta`` / ``to_z`` map (B, P) arrays; ``log_jacobian(z)`` (B,) is
     ``sum log |d theta / d z| = sum log(hi - lo) + log sigmoid(z) + log sigmoid(-z)`` over the
-    bounded coordinates (computed with ``logaddexp``, finite for any finite z)."""
+    bounded coordinates (computed with ``logaddexp``, finite for any finite z).
+
+    Parameters
+    ----------
+    prior : CoefficientPrior
+        The priors (their kinds and uniform bounds).
+    """
 
     def __init__(self, prior: CoefficientPrior):
         self.bounded = np.array([k == "uniform" for k in prior.kind])
@@ -157,13 +231,40 @@ class LogitTransform:
         self.width = np.where(self.bounded, prior.b - prior.a, 1.0)
 
     def to_theta(self, z) -> np.ndarray:
+        """Coefficients from unconstrained coordinates.
+
+        Parameters
+        ----------
+        z : array_like, shape (B, P)
+            Unconstrained coordinates.
+
+        Returns
+        -------
+        ndarray, shape (B, P)
+            Prime coefficients.
+        """
         z = np.atleast_2d(np.asarray(z, dtype=float))
         s = 0.5 * (1.0 + np.tanh(0.5 * z))  # sigmoid without overflow
         return np.where(self.bounded, self.lo + self.width * s, z)
 
     def to_z(self, theta) -> np.ndarray:
-        """Inverse of :meth:`to_theta`; ValueError when a bounded coordinate is not strictly
-        inside its bounds (it would map to +-inf)."""
+        """Inverse of :meth:`to_theta`.
+
+        Parameters
+        ----------
+        theta : array_like, shape (B, P)
+            Prime coefficients.
+
+        Returns
+        -------
+        ndarray, shape (B, P)
+            Unconstrained coordinates.
+
+        Raises
+        ------
+        ValueError
+            When a bounded coordinate is not strictly inside its bounds (it would map to +-inf).
+        """
         theta = np.atleast_2d(np.asarray(theta, dtype=float))
         u = (theta - self.lo) / self.width
         if np.any(self.bounded & ~((u > 0) & (u < 1))):
@@ -172,11 +273,34 @@ class LogitTransform:
             return np.where(self.bounded, np.log(u) - np.log1p(-u), theta)
 
     def log_jacobian_terms(self, z) -> np.ndarray:
-        """(B, P) ``log |d theta_j / d z_j|`` per coordinate (0 for the unbounded ones)."""
+        """``log |d theta_j / d z_j|`` per coordinate (0 for the unbounded ones).
+
+        Parameters
+        ----------
+        z : array_like, shape (B, P)
+            Unconstrained coordinates.
+
+        Returns
+        -------
+        ndarray, shape (B, P)
+            The log-Jacobian terms.
+        """
         z = np.atleast_2d(np.asarray(z, dtype=float))
         return np.where(self.bounded, np.log(self.width) - np.logaddexp(0.0, -z) - np.logaddexp(0.0, z), 0.0)
 
     def log_jacobian(self, z) -> np.ndarray:
+        """``sum log |d theta / d z|`` over the coordinates.
+
+        Parameters
+        ----------
+        z : array_like, shape (B, P)
+            Unconstrained coordinates.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The log-Jacobian.
+        """
         return np.sum(self.log_jacobian_terms(z), axis=1)
 
 
@@ -186,12 +310,15 @@ class TransformedLogPosterior:
     prior-dominated direction of a uniform box becomes a smooth (logistic) density instead of
     a hard wall that rejects every proposal outside it.
 
+    Call with z (B, P); returns (B,). ``transform`` maps draws back (``to_theta``).
+
     Parameters
     ----------
-    logpost : callable theta (B, P) -> (B,) log-density in coefficient space (e.g.
-        :class:`LogPosterior`).   prior : its :class:`CoefficientPrior` (the bounds).
-
-    Call with z (B, P); returns (B,). ``transform`` maps draws back (``to_theta``)."""
+    logpost : callable
+        ``theta (B, P) -> (B,)`` log-density in coefficient space (e.g. :class:`LogPosterior`).
+    prior : CoefficientPrior
+        Its priors (the bounds).
+    """
 
     def __init__(self, logpost, prior: CoefficientPrior):
         self.logpost, self.transform = logpost, LogitTransform(prior)
@@ -202,9 +329,27 @@ class TransformedLogPosterior:
 
 
 def add_noise(track: Track, sigmas: dict, rng: np.random.Generator) -> Track:
-    """Copy of ``track`` with independent Gaussian noise (channel -> sd) added to state channels.
+    """Copy of a track with independent Gaussian noise added to state channels.
 
-    Raises KeyError naming a channel that the track does not have."""
+    Parameters
+    ----------
+    track : Track
+        The track.
+    sigmas : dict
+        ``{channel: sd}``, SI; only state channels are changed.
+    rng : numpy.random.Generator
+        The random generator.
+
+    Returns
+    -------
+    Track
+        The noisy copy.
+
+    Raises
+    ------
+    KeyError
+        Naming a channel that the track does not have.
+    """
     for c in sigmas:
         if c not in track:
             raise KeyError(f"track {track.name!r} has no channel {c!r} to add noise to")
@@ -222,11 +367,28 @@ def laplace_start(
     optimum often sits on a bound, so a ball around it falls outside the support. This moves the
     centre ``margin`` of the prior width inside each uniform support and scales each coordinate of
     the covariance down, keeping its correlation structure, so that no marginal sd exceeds
-    ``max_sd_fraction`` of the prior width (uniform) or of the prior sd (normal).
+    ``max_sd_fraction`` of the prior width (uniform) or of ten prior sds (normal).
+
+    Parameters
+    ----------
+    theta_hat : array_like, shape (P,)
+        The optimum, prime values.
+    cov : array_like, shape (P, P)
+        Its Laplace covariance.
+    prior : CoefficientPrior
+        The priors.
+    margin : float, default 0.05
+        Fraction of a uniform prior's width the centre keeps from each bound.
+    max_sd_fraction : float, default 0.02
+        Largest marginal sd, as a fraction of the prior width (uniform) or of ten prior sds
+        (normal).
 
     Returns
     -------
-    centre (P,), covariance (P, P).
+    centre : ndarray, shape (P,)
+        The centre of the ball.
+    covariance : ndarray, shape (P, P)
+        Its covariance.
     """
     theta_hat = np.asarray(theta_hat, dtype=float)
     cov = 0.5 * (np.asarray(cov, dtype=float) + np.asarray(cov, dtype=float).T)
@@ -245,13 +407,24 @@ def laplace_start(
 
 
 def prior_sd(prior: CoefficientPrior) -> np.ndarray:
-    """Standard deviation of each marginal prior (P,): width/sqrt(12) (uniform) or sd (normal)."""
+    """Standard deviation of each marginal prior.
+
+    Parameters
+    ----------
+    prior : CoefficientPrior
+        The priors.
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        width/sqrt(12) (uniform) or sd (normal).
+    """
     uni = np.array([k == "uniform" for k in prior.kind])
     return np.where(uni, (prior.b - prior.a) / np.sqrt(12.0), prior.b)
 
 
 def laplace_covariance(problem, theta_hat, sigmas: dict, prior: CoefficientPrior) -> np.ndarray:
-    """Gauss-Newton (Laplace) posterior covariance at ``theta_hat``, (P, P), prime units.
+    """Gauss-Newton (Laplace) posterior covariance at ``theta_hat``, prime units.
 
     ``cov = (J_w^T J_w + diag(1 / prior_sd**2))^-1`` with ``J_w`` the noise-weighted Jacobian of
     the simulated channels with respect to theta (central differences, one batched call). A
@@ -259,9 +432,26 @@ def laplace_covariance(problem, theta_hat, sigmas: dict, prior: CoefficientPrior
     matrix invertible along directions the data do not determine (exact structural nulls
     included). Bishop 2006, Sec. 4.4 (Laplace approximation).
 
+    Parameters
+    ----------
+    problem : Problem
+        The identification problem (:class:`~bayesid.estimation.objective.Problem`).
+    theta_hat : array_like, shape (P,)
+        The optimum, prime values.
+    sigmas : dict
+        ``{channel: noise sd}``, SI.
+    prior : CoefficientPrior
+        The priors.
+
+    Returns
+    -------
+    ndarray, shape (P, P)
+        The covariance.
+
     Raises
     ------
-    KeyError naming a channel without a sigma (:meth:`bayesid.estimation.objective.Problem.noise_vector`).
+    KeyError
+        Naming a channel without a sigma (:meth:`bayesid.estimation.objective.Problem.noise_vector`).
     """
     from .laplace import gauss_newton_covariance
 
@@ -275,11 +465,28 @@ def laplace_covariance(problem, theta_hat, sigmas: dict, prior: CoefficientPrior
 def marginal_table(
     samples: np.ndarray, names, prior: CoefficientPrior, truth: dict | None = None, level: float = 0.9
 ) -> list[dict]:
-    """Per-coefficient posterior summary from pooled draws ``samples`` (N, P), prime values.
+    """Per-coefficient posterior summary from pooled draws.
 
-    Each row: name, mean, sd, lower/upper of the central ``level`` credible interval (equal-tailed
-    quantiles), ``sd_over_prior`` (posterior sd / prior sd: near 1 = the data add nothing), and
-    with ``truth``: truth, ``mean_ratio`` (mean / truth) and ``covers`` (interval holds truth).
+    Parameters
+    ----------
+    samples : ndarray, shape (N, P)
+        Pooled draws, prime values.
+    names : sequence of str
+        The P coefficient names.
+    prior : CoefficientPrior
+        The priors.
+    truth : dict, optional
+        ``{name: true value}``.
+    level : float, default 0.9
+        Level of the central credible interval.
+
+    Returns
+    -------
+    list of dict
+        One row per coefficient: name, mean, sd, lower/upper of the central ``level`` credible
+        interval (equal-tailed quantiles), ``sd_over_prior`` (posterior sd / prior sd: near 1 =
+        the data add nothing), ``prior`` (its kind), and with ``truth``: truth, ``mean_ratio``
+        (mean / truth) and ``covers`` (interval holds truth).
     """
     a = (1.0 - level) / 2.0
     lo, hi = np.quantile(samples, [a, 1.0 - a], axis=0)
@@ -304,7 +511,22 @@ def marginal_table(
 
 
 def top_correlations(samples: np.ndarray, names, k: int = 10) -> dict:
-    """The ``k`` strongest posterior correlations, ``"A–B" -> r`` ordered by |r| (samples (N, P))."""
+    """The strongest posterior correlations.
+
+    Parameters
+    ----------
+    samples : ndarray, shape (N, P)
+        Draws.
+    names : sequence of str
+        The P names.
+    k : int, default 10
+        Number of pairs.
+
+    Returns
+    -------
+    dict
+        ``{"A–B": r}`` ordered by |r|.
+    """
     C = np.corrcoef(samples, rowvar=False)
     iu = np.triu_indices(len(names), 1)
     order = np.argsort(-np.abs(C[iu]))[:k]
@@ -314,8 +536,19 @@ def top_correlations(samples: np.ndarray, names, k: int = 10) -> dict:
 def direction_draws(draws: np.ndarray, directions: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """Project draws onto unit directions in relative coordinates.
 
-    draws (..., P) prime values; directions (P, K) unit vectors in ``theta / reference`` units;
-    returns (..., K): ``sum_j w_jk * theta_j / reference_j`` -- e.g. the position along
-    ``0.71*Xvr - 0.70*Xrr`` in fractions of the reference values.
+    Parameters
+    ----------
+    draws : ndarray, shape (..., P)
+        Prime values.
+    directions : ndarray, shape (P, K)
+        Unit vectors in ``theta / reference`` units.
+    reference : ndarray, shape (P,)
+        The reference values.
+
+    Returns
+    -------
+    ndarray, shape (..., K)
+        ``sum_j w_jk * theta_j / reference_j`` -- e.g. the position along
+        ``0.71*Xvr - 0.70*Xrr`` in fractions of the reference values.
     """
     return (draws / reference) @ directions

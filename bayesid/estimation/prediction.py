@@ -40,14 +40,30 @@ __all__ = [
 def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadin_s: float | None = None) -> dict:
     """The protocol on tracks: per window and pooled RMS position / heading errors.
 
-    ``start``: window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"`` decides
-    on these tracks); ``leadin_s``: lead-in of the fitted rule (default
-    :func:`bayesid.protocol.start_settings`). The result's ``start_rule`` and
-    ``leadin_s`` say what was used.
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    p : array_like, shape (n_params,)
+        Its parameter vector.
+    tracks : sequence of Track
+        The tracks predicted.
+    window_s : float or None
+        Protocol window, s (None: one window per run).
+    start : str, default "auto"
+        Window start-state rule (:data:`bayesid.protocol.START_RULES`; ``"auto"`` decides on
+        these tracks).
+    leadin_s : float, optional
+        Lead-in of the fitted rule, s (default :func:`bayesid.protocol.start_settings`).
 
-    Returns dict ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track``
-    {name: pooled scores}, ``windows`` (list of {track, t_start, duration_s (of its scored
-    samples), rms_position_m, max_position_m, rms_heading_deg, max_heading_deg}) and ``_sim`` (per track (ctx, S) for plots)."""
+    Returns
+    -------
+    dict
+        ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track`` {name: pooled
+        scores}, ``windows`` (list of {track, t_start, duration_s (of its scored samples),
+        rms_position_m, max_position_m, rms_heading_deg, max_heading_deg}), ``_sim`` (per track
+        (ctx, S) for plots), and ``start_rule`` and ``leadin_s``: what was used.
+    """
     errs, per_track, windows, sims = [], {}, [], {}
     rule, lead = start_settings(start, tracks, window_s, model.dt, leadin_s)
     for tr in tracks:
@@ -89,13 +105,13 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
 class FittedModel:
     """A fitted model at its estimate, with the Gaussian (Laplace or sampled) covariance of it.
 
-    Attributes
+    Parameters
     ----------
     model : SimulationModel
         The model (free coefficients, effects, step).
-    p : (n_params,) ndarray
-        The estimate.
-    cov : (n_params, n_params) ndarray or None
+    p : array_like, shape (n_params,)
+        The estimate (stored as a float array).
+    cov : ndarray, shape (n_params, n_params), optional
         Its covariance (None: no posterior draws can be made).
     """
 
@@ -107,7 +123,20 @@ class FittedModel:
         object.__setattr__(self, "p", np.asarray(self.p, float))
 
     def draws(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``(n, n_params)`` draws from the Gaussian posterior, kept inside the parameter bounds."""
+        """Draws from the Gaussian posterior, kept inside the parameter bounds.
+
+        Parameters
+        ----------
+        n : int
+            Number of draws.
+        rng : numpy.random.Generator
+            The random generator.
+
+        Returns
+        -------
+        ndarray, shape (n, n_params)
+            The draws.
+        """
         lo, hi = self.model.bounds()
         cov = np.asarray(self.cov, float)
         L = np.linalg.cholesky(cov + 1e-15 * np.eye(cov.shape[0]) * max(np.trace(cov), 1e-30))
@@ -115,12 +144,40 @@ class FittedModel:
         return np.clip(X, lo, hi)
 
     def rows(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``(1 + n, n_params)``: the estimate, then ``n`` posterior draws (none drawn when ``n`` is 0)."""
+        """The estimate, then posterior draws.
+
+        Parameters
+        ----------
+        n : int
+            Number of draws (none drawn when 0).
+        rng : numpy.random.Generator
+            The random generator.
+
+        Returns
+        -------
+        ndarray, shape (1 + n, n_params)
+            The rows.
+        """
         return np.vstack([self.p[None], self.draws(n, rng)]) if n else self.p[None]
 
 
 def windowed_xy(ctx, S):
-    """(measured (n, 2), predicted (n + cuts, 2)) x, y with NaN between windows (for plots)."""
+    """Measured and predicted x, y of a protocol prediction, with NaN between windows (for plots).
+
+    Parameters
+    ----------
+    ctx : TrackContext
+        The prepared track.
+    S : ndarray, shape (n, 12)
+        The predicted states at its scored samples.
+
+    Returns
+    -------
+    measured : ndarray, shape (n, 2)
+        The measured x, y.
+    predicted : ndarray, shape (n + cuts, 2)
+        The predicted x, y, a NaN row at each window boundary.
+    """
     xy = S[:, :2].copy()
     cut = np.flatnonzero(np.diff(ctx.win) != 0) + 1
     xy = np.insert(xy, cut, np.nan, axis=0)
@@ -154,12 +211,12 @@ def turning_band(
         Posterior draws of the band (0: none).
     rng : numpy.random.Generator
         Draws them.
-    start : str
+    start : str, default "measured"
         The resolved start rule: ``"measured"`` (the measured first state) or ``"fitted"`` (the
         state fitted to the first ``leadin_s`` seconds, at least 2 s).
-    leadin_s : float
+    leadin_s : float, default 0.0
         The lead-in of the fitted rule (s).
-    keep_draws : bool
+    keep_draws : bool, default False
         Keep every draw's prediction in ``_S`` (else the identified model's only).
 
     Returns
@@ -213,8 +270,23 @@ def turning_band(
 
 
 def predictive_band(draws: list, keys) -> tuple[dict, dict]:
-    """({key: [5 %, 95 %] percentiles over the draws' finite values, or None with fewer than 3},
-    {key: number of finite draws}) of a list of index dicts (one per posterior draw)."""
+    """Posterior predictive band of manoeuvre indices.
+
+    Parameters
+    ----------
+    draws : list of dict
+        Index dicts, one per posterior draw.
+    keys : iterable of str
+        The indices.
+
+    Returns
+    -------
+    band : dict
+        ``{key: [5 %, 95 %]}`` percentiles over the draws' finite values, or None with fewer
+        than 3.
+    n : dict
+        ``{key: number of finite draws}``.
+    """
     band, n = {}, {}
     for k in keys:
         vals = np.array([d.get(k, np.nan) for d in draws], float)
@@ -225,8 +297,20 @@ def predictive_band(draws: list, keys) -> tuple[dict, dict]:
 
 
 def predictive_sd(draws: list, keys) -> dict:
-    """{key: standard deviation of the draws' finite values, or None with fewer than 3} of a list
-    of index dicts (one per posterior draw)."""
+    """Posterior spread of manoeuvre indices.
+
+    Parameters
+    ----------
+    draws : list of dict
+        Index dicts, one per posterior draw.
+    keys : iterable of str
+        The indices.
+
+    Returns
+    -------
+    dict
+        ``{key: standard deviation of the draws' finite values}``, or None with fewer than 3.
+    """
     out = {}
     for k in keys:
         v = np.array([d.get(k, np.nan) for d in draws], float)
@@ -236,10 +320,29 @@ def predictive_sd(draws: list, keys) -> dict:
 
 
 def approach_condition(tracks, first_s: float = 5.0) -> tuple[float, float]:
-    """(speed m/s, propeller rev/s) of the tracks' approach: medians over the first ``first_s``
-    seconds of every track of the speed (from ``u, v`` when logged, else the positions'
-    differences) and of ``n`` (rpm / 60). The condition a predicted turning circle starts from.
-    Raises ValueError when no track has ``n``."""
+    """The tracks' approach: medians over the first ``first_s`` seconds of every track of the
+    speed (from ``u, v`` when logged, else the positions' differences) and of ``n`` (rpm / 60).
+    The condition a predicted turning circle starts from.
+
+    Parameters
+    ----------
+    tracks : iterable of Track
+        The tracks.
+    first_s : float, default 5.0
+        Length of the approach, s.
+
+    Returns
+    -------
+    speed : float
+        Approach speed, m/s.
+    rps : float
+        Propeller speed, rev/s.
+
+    Raises
+    ------
+    ValueError
+        When no track has ``n``.
+    """
     speeds, rps = [], []
     for tr in tracks:
         k = np.asarray(tr.t) <= tr.t[0] + first_s
@@ -284,9 +387,9 @@ def turning_circles(
         The approach speed (m/s).
     rps : float
         The propeller rate (rev/s).
-    rudder_deg : float
+    rudder_deg : float, default 35.0
         The rudder angle (deg).
-    duration_s : float
+    duration_s : float, default 300.0
         The time the rudder is held (s).
 
     Returns

@@ -62,28 +62,41 @@ _META_BEFORE = {"redraw_stranded": 0}
 class SamplerConfig:
     """Settings of :func:`run_ensembles`.
 
-    Attributes
+    Parameters
     ----------
-    n_ensembles : independent emcee ensembles (>= 2 for a between-ensemble R-hat).
-    n_walkers : walkers per ensemble, even and >= 2 P; default ``max(2 P + 2, 16)``.
-    moves : ``"de"`` (DEMove 0.8 + DESnookerMove 0.2), ``"stretch"`` (emcee's default) or
+    n_ensembles : int, default 4
+        Independent emcee ensembles (>= 2 for a between-ensemble R-hat).
+    n_walkers : int, optional
+        Walkers per ensemble, even and >= 2 P; default ``max(2 P + 2, 16)``.
+    moves : {"de", "stretch", "de-stretch"}, default "de"
+        ``"de"`` (DEMove 0.8 + DESnookerMove 0.2), ``"stretch"`` (emcee's default) or
         ``"de-stretch"`` (DEMove 0.6 + StretchMove 0.2 + DESnookerMove 0.2).
-    min_steps, max_steps : bounds on the number of steps per walker.
-    tau_factor : stop once ``n_steps >= tau_factor * max tau``.
-    check_every : steps between autocorrelation checks (and lockstep blocks of the ensembles);
-        once the run is longer than ten blocks, a block is a tenth of the run, rounded up to a
-        multiple of ``check_every``.
-    init_scale : walkers start at ``center + init_scale * N(0, cov)``.
-    progress : tqdm progress bar over steps.
-    max_wall_s : stop after the first block that ends past this wall time (s).
-    until_converged : once the tau rule holds, do not stop on it: go on until
-        :func:`diagnostics` (burn-in :func:`burn_in`, draws thinned by tau / 20) calls the chains
-        converged, checked when the tau rule first holds and then each time the run has grown by
-        15 %, or until max_steps / max_wall_s. The caller's verdict on every draw can differ from
-        the thinned one in the last digits of R-hat and ESS.
-    redraw_stranded : during the run, move walkers stranded in the tails onto other walkers of
-        their ensemble (:func:`stranded_walkers`); the draws before the last such move are then
-        burn-in (:func:`burn_in`).
+    min_steps : int, default 500
+        Lower bound on the number of steps per walker.
+    max_steps : int, default 20000
+        Upper bound on the number of steps per walker.
+    tau_factor : float, default 50.0
+        Stop once ``n_steps >= tau_factor * max tau``.
+    check_every : int, default 250
+        Steps between autocorrelation checks (and lockstep blocks of the ensembles); once the
+        run is longer than ten blocks, a block is a tenth of the run, rounded up to a multiple of
+        ``check_every``.
+    init_scale : float, default 1.0
+        Walkers start at ``center + init_scale * N(0, cov)``.
+    progress : bool, default False
+        Show a tqdm progress bar over steps.
+    max_wall_s : float, optional
+        Stop after the first block that ends past this wall time (s).
+    until_converged : bool, default False
+        Once the tau rule holds, do not stop on it: go on until :func:`diagnostics` (burn-in
+        :func:`burn_in`, draws thinned by tau / 20) calls the chains converged, checked when the
+        tau rule first holds and then each time the run has grown by 15 %, or until max_steps /
+        max_wall_s. The caller's verdict on every draw can differ from the thinned one in the
+        last digits of R-hat and ESS.
+    redraw_stranded : bool, default False
+        During the run, move walkers stranded in the tails onto other walkers of their ensemble
+        (:func:`stranded_walkers`); the draws before the last such move are then burn-in
+        (:func:`burn_in`).
     """
 
     n_ensembles: int = 4
@@ -100,11 +113,22 @@ class SamplerConfig:
     redraw_stranded: bool = False
 
     def walkers(self, n_params: int) -> int:
-        """Walkers per ensemble for P = ``n_params``.
+        """Walkers per ensemble.
+
+        Parameters
+        ----------
+        n_params : int
+            P, the number of sampled parameters.
+
+        Returns
+        -------
+        int
+            ``n_walkers``, or ``max(2 P + 2, 16)`` when it is None.
 
         Raises
         ------
-        ValueError : ``n_walkers`` odd or below 2 P (a red-blue move then cannot span the space).
+        ValueError
+            ``n_walkers`` odd or below 2 P (a red-blue move then cannot span the space).
         """
         if self.n_walkers is None:
             return max(2 * n_params + 2, 16)
@@ -114,7 +138,13 @@ class SamplerConfig:
         return w
 
     def check(self) -> None:
-        """Raise ValueError naming the first inconsistent setting."""
+        """Check the settings.
+
+        Raises
+        ------
+        ValueError
+            Naming the first inconsistent setting.
+        """
         if self.moves not in MOVES:
             raise ValueError(f"moves = {self.moves!r}: expected one of {MOVES}")
         if self.n_ensembles < 1:
@@ -131,11 +161,11 @@ class SamplerConfig:
 class Checkpoint:
     """Where :func:`run_ensembles` stores its chains, and whose they are (as emcee's ``backend``).
 
-    Attributes
+    Parameters
     ----------
     path : str or Path
         The HDF5 file (emcee ``HDFBackend`` layout, one group per ensemble).
-    run_key : dict or None
+    run_key : dict, optional
         JSON-able description of the run (seed, a hash of the data, settings) stored in a new
         checkpoint; resuming a checkpoint written under another key raises ValueError, so chains
         of another seed or other data are never reported as this run's.
@@ -149,23 +179,34 @@ class Checkpoint:
 class SamplerResult:
     """All samples of all ensembles, with what the stopping rule saw.
 
-    Attributes
+    Parameters
     ----------
-    chains : (n_ensembles, n_steps, n_walkers, P), every sample, no burn-in removed.
-    log_prob : (n_ensembles, n_steps, n_walkers); finite everywhere (walkers never accept -inf).
-    acceptance : (n_ensembles, n_walkers) acceptance fraction over all steps.
-    tau : (P,) integrated autocorrelation time (steps), max over ensembles; NaN when fewer than
-        two steps or the estimate is not finite (e.g. a frozen ensemble).
-    n_steps : steps per walker.
-    n_evaluations : log_prob rows evaluated by *this* call (initial balls included; a resumed
-        run counts only its new work).
-    wall_s : wall time of this call (s).
-    reached_tau_rule : ``n_steps >= max(min_steps, tau_factor * max(tau))`` at the end.
-    names : coefficient names, length P.
-    stop_reason : ``"tau rule"``, ``"converged"`` (:attr:`SamplerConfig.until_converged`),
+    chains : ndarray, shape (n_ensembles, n_steps, n_walkers, P)
+        Every sample, no burn-in removed.
+    log_prob : ndarray, shape (n_ensembles, n_steps, n_walkers)
+        Finite everywhere (walkers never accept -inf).
+    acceptance : ndarray, shape (n_ensembles, n_walkers)
+        Acceptance fraction over all steps.
+    tau : ndarray, shape (P,)
+        Integrated autocorrelation time (steps), max over ensembles; NaN when fewer than two
+        steps or the estimate is not finite (e.g. a frozen ensemble).
+    n_steps : int
+        Steps per walker.
+    n_evaluations : int
+        log_prob rows evaluated by *this* call (initial balls included; a resumed run counts
+        only its new work).
+    wall_s : float
+        Wall time of this call (s).
+    reached_tau_rule : bool
+        ``n_steps >= max(min_steps, tau_factor * max(tau))`` at the end.
+    names : list of str
+        Coefficient names, length P.
+    stop_reason : str, default ""
+        ``"tau rule"``, ``"converged"`` (:attr:`SamplerConfig.until_converged`),
         ``"max_steps"`` or ``"max_wall_s"``.
-    redraws : ``(step, ensemble, walker)`` of every stranded walker moved onto another walker
-        after ``step`` steps (:attr:`SamplerConfig.redraw_stranded`), in order.
+    redraws : list of tuple
+        ``(step, ensemble, walker)`` of every stranded walker moved onto another walker after
+        ``step`` steps (:attr:`SamplerConfig.redraw_stranded`), in order.
     """
 
     chains: np.ndarray
@@ -246,19 +287,32 @@ def initial_ball(
 
     Parameters
     ----------
-    center : (P,) e.g. the least-squares estimate.   cov : (P, P) e.g. its Laplace covariance.
-    n_walkers : rows to draw.   rng : the only source of randomness.
-    log_prob : vectorised, (B, P) -> (B,); NaN and +-inf count as -inf.
-    max_tries : draws per row before giving up.
+    center : array_like, shape (P,)
+        E.g. the least-squares estimate.
+    cov : array_like, shape (P, P)
+        E.g. its Laplace covariance.
+    n_walkers : int
+        Rows to draw.
+    rng : numpy.random.Generator
+        The only source of randomness.
+    log_prob : callable
+        Vectorised, (B, P) -> (B,); NaN and +-inf count as -inf.
+    scale : float, default 1.0
+        Scale of the ball (times the covariance's square root).
+    max_tries : int, default 50
+        Draws per row before giving up.
 
     Returns
     -------
-    (n_walkers, P) positions, every one with a finite log_prob.
+    ndarray, shape (n_walkers, P)
+        Positions, every one with a finite log_prob.
 
     Raises
     ------
-    ValueError : center/cov malformed, or cov not positive definite.
-    RuntimeError : some rows still at -inf after ``max_tries`` draws (says how many).
+    ValueError
+        center/cov malformed, or cov not positive definite.
+    RuntimeError
+        Some rows still at -inf after ``max_tries`` draws (says how many).
     """
     center, chol = _cholesky(center, cov)
     return _ball(center, chol, int(n_walkers), rng, _Vectorised(log_prob), scale, max_tries)[0]
@@ -327,12 +381,24 @@ class _BlockHDFBackend(emcee.backends.HDFBackend):
         self.flush()
 
     def redraws(self) -> list:
-        """[(step, walker), ...] stored by :meth:`record_redraws`."""
+        """The redraws stored by :meth:`record_redraws`.
+
+        Returns
+        -------
+        list of tuple
+            ``[(step, walker), ...]``.
+        """
         with self.open() as f:
             return [tuple(r) for r in json.loads(f[self.name].attrs.get("redraws", "[]"))]
 
     def record_redraws(self, redraws: list) -> None:
-        """Store this ensemble's [(step, walker), ...] (replacing what is stored)."""
+        """Store this ensemble's redraws (replacing what is stored).
+
+        Parameters
+        ----------
+        redraws : list of tuple
+            ``[(step, walker), ...]``.
+        """
         with self.open("a") as f:
             f[self.name].attrs["redraws"] = json.dumps([list(r) for r in redraws])
 
@@ -430,31 +496,45 @@ def run_ensembles(
     the chain an uninterrupted run would give. Nothing stored is lost: a smaller ``max_steps``
     returns the longer stored chain.
 
+    Exceptions raised by ``log_prob`` propagate; the steps stored before them are kept.
+
     Parameters
     ----------
-    log_prob : vectorised log posterior, ``(B, P) -> (B,)``; non-finite means -inf.
-    center : (P,) centre of the initial balls.   cov : (P, P) their covariance (times init_scale^2).
-    names : P coefficient names.   config : :class:`SamplerConfig` (default settings if None).
-    rng : numpy Generator; the only source of randomness (``default_rng(0)`` if None).
-    checkpoint : :class:`Checkpoint` (HDF5 path and the run's identity), or None to keep the
-        chains in memory.
-    runner : :class:`bayesid.tasks.Runner`; with ``jobs > 1`` or a Dask ``scheduler``, each
-        round's blocks of the ensembles run at once as tasks (``log_prob`` must then be picklable): a worker advances one ensemble from its last state and random state in
-        memory and returns the steps, which this process stores. The chains are the ones a
-        serial run gives, bit for bit, when ``log_prob`` does not depend on the process
-        (the task layer runs BLAS on one thread).
+    log_prob : callable
+        Vectorised log posterior, ``(B, P) -> (B,)``; non-finite means -inf.
+    center : array_like, shape (P,)
+        Centre of the initial balls.
+    cov : array_like, shape (P, P)
+        Their covariance (times init_scale^2).
+    names : sequence of str
+        The P coefficient names.
+    config : SamplerConfig, optional
+        The settings (default settings if None).
+    rng : numpy.random.Generator, optional
+        The only source of randomness (``default_rng(0)`` if None).
+    checkpoint : Checkpoint, optional
+        HDF5 path and the run's identity, or None to keep the chains in memory.
+    runner : Runner, default Runner()
+        :class:`bayesid.tasks.Runner`; with ``jobs > 1`` or a Dask ``scheduler``, each round's
+        blocks of the ensembles run at once as tasks (``log_prob`` must then be picklable): a
+        worker advances one ensemble from its last state and random state in memory and returns
+        the steps, which this process stores. The chains are the ones a serial run gives, bit
+        for bit, when ``log_prob`` does not depend on the process (the task layer runs BLAS on
+        one thread).
 
     Returns
     -------
-    :class:`SamplerResult`.
+    SamplerResult
+        Every sample of every ensemble, with what the stopping rule saw.
 
     Raises
     ------
-    ValueError : inconsistent shapes or settings; cov not positive definite; ``checkpoint`` exists
-        but was written for a different problem (P, names, n_walkers, n_ensembles or moves differ),
+    ValueError
+        Inconsistent shapes or settings; cov not positive definite; ``checkpoint`` exists but
+        was written for a different problem (P, names, n_walkers, n_ensembles or moves differ),
         the message names the file and the mismatch.
-    RuntimeError : an initial ball could not be placed where log_prob is finite.
-    Exceptions raised by ``log_prob`` propagate; the steps stored before them are kept.
+    RuntimeError
+        An initial ball could not be placed where log_prob is finite.
     """
     t0 = time.perf_counter()
     config = SamplerConfig() if config is None else config
@@ -561,10 +641,31 @@ def run_ensembles(
 
 
 def advance_ensemble(log_prob, n_walkers: int, moves: str, coords, lp, random_state, iterations: int) -> dict:
-    """Task of :func:`run_ensembles` on workers: ``iterations`` steps of one ensemble from the
-    walkers' ``coords`` (W, P), their ``lp`` (W,) and the walkers' ``random_state`` (numpy
-    RandomState state tuple), in memory. Returns ``coords`` (k, W, P), ``log_prob`` (k, W),
-    ``accepted`` (W,) counts, the final ``random_state`` and the ``rows`` evaluated."""
+    """Task of :func:`run_ensembles` on workers: steps of one ensemble, in memory.
+
+    Parameters
+    ----------
+    log_prob : callable
+        Vectorised log posterior.
+    n_walkers : int
+        W, the walkers of the ensemble.
+    moves : {"de", "stretch", "de-stretch"}
+        The moves (:class:`SamplerConfig`).
+    coords : array_like, shape (W, P)
+        The walkers' positions.
+    lp : array_like, shape (W,)
+        Their log-probabilities.
+    random_state : tuple
+        The walkers' numpy RandomState state tuple.
+    iterations : int
+        Steps to run.
+
+    Returns
+    -------
+    dict
+        ``coords`` (k, W, P), ``log_prob`` (k, W), ``accepted`` (W,) counts, the final
+        ``random_state`` and the ``rows`` evaluated.
+    """
     coords = np.asarray(coords, float)
     f = _Vectorised(log_prob)
     s = emcee.EnsembleSampler(int(n_walkers), coords.shape[1], f, moves=_moves(moves), vectorize=True)
@@ -666,6 +767,25 @@ def stranded_walkers(log_prob, spread: float = 10.0, max_share: float = 0.25) ->
     Moving stranded walkers onto others is a burn-in device (e.g. Hou, Goodman, Hogg, Goodman &
     Lang 2012, ApJ 745, 198, Sec. 4: "resetting" stuck walkers): the chains are valid only after
     the last move, which :func:`burn_in` respects.
+
+    Parameters
+    ----------
+    log_prob : array_like, shape (E, w, W)
+        The last w steps' log-probabilities of E ensembles of W walkers.
+    spread : float, default 10.0
+        The threshold, in lower one-sigma spreads below the median.
+    max_share : float, default 0.25
+        An ensemble with more than this share of its walkers below is left alone.
+
+    Returns
+    -------
+    ndarray of bool, shape (E, W)
+        The stranded walkers.
+
+    Raises
+    ------
+    ValueError
+        For a ``log_prob`` that is not 3-D.
     """
     lp = np.asarray(log_prob, dtype=float)
     if lp.ndim != 3:
@@ -700,7 +820,18 @@ def _result(samplers, tau, lp_fn, t0, names, config, reason, redraws=()) -> Samp
 
 
 def default_burn(result: SamplerResult) -> int:
-    """``min(n_steps // 2, int(2 max tau))``, or ``n_steps // 2`` when tau is not finite."""
+    """Burn-in of two autocorrelation times.
+
+    Parameters
+    ----------
+    result : SamplerResult
+        The run.
+
+    Returns
+    -------
+    int
+        ``min(n_steps // 2, int(2 max tau))``, or ``n_steps // 2`` when tau is not finite.
+    """
     t = float(np.max(result.tau))
     half = result.n_steps // 2
     return min(half, int(2 * t)) if np.isfinite(t) else half
@@ -710,24 +841,46 @@ def burn_in(result: SamplerResult) -> int:
     """The burn-in the posterior study and :attr:`SamplerConfig.until_converged` use:
     ``max(default_burn, arrival_burn, last redraw)`` -- 2 tau, or longer until the last stranded
     walker has reached the typical set, and never less than the step at which the last stranded
-    walker was moved (:attr:`SamplerResult.redraws`)."""
+    walker was moved (:attr:`SamplerResult.redraws`).
+
+    Parameters
+    ----------
+    result : SamplerResult
+        The run.
+
+    Returns
+    -------
+    int
+        The burn-in, steps.
+    """
     last = max((r[0] for r in result.redraws), default=0)
     return max(default_burn(result), arrival_burn(result), last)
 
 
 def arrival_burn(result: SamplerResult, spread: float = 10.0) -> int:
-    """Steps until every walker has reached the typical set, (int), at most ``n_steps // 2``.
+    """Steps until every walker has reached the typical set, at most ``n_steps // 2``.
 
     An ensemble started off the posterior ridge can leave a few walkers stranded in the tails for
-    thousands of steps while the rest mix (seen in Case 2: 3 of 120 walkers took ~8000 steps to
+    thousands of steps while the rest mix (in Case 2, 3 of 120 walkers take ~8000 steps to
     arrive). Their early draws inflate the per-walker R-hat without saying anything about the
     posterior. Over the second half of all chains, with ``m`` the median log-probability and
     ``s = m - q16`` its lower one-sigma spread (robust to the stranded walkers themselves), the
     threshold is ``m - spread * s`` (for a 14-dimensional Gaussian about chi2 = 76, probability
     ~1e-10: a stationary walker does not dip that low); the burn-in is the last step at which any
     walker is still below it, plus one.
-    Returns ``n_steps // 2`` when walkers are still arriving after that (then the run is too
-    short, and R-hat will say so).
+
+    Parameters
+    ----------
+    result : SamplerResult
+        The run.
+    spread : float, default 10.0
+        The threshold, in lower one-sigma spreads below the median.
+
+    Returns
+    -------
+    int
+        The burn-in, steps (0 with fewer than 4 steps); ``n_steps // 2`` when walkers are still
+        arriving after that (then the run is too short, and R-hat will say so).
     """
     lp = result.log_prob  # (E, N, W)
     N = lp.shape[1]
@@ -749,13 +902,24 @@ def to_inference_data(result: SamplerResult, burn: int | None = None, thin: int 
 
     Parameters
     ----------
-    burn : steps discarded at the start; default :func:`default_burn`.
-    thin : keep every ``thin``-th step after burn-in.
-    truth : {name: value} for a synthetic study.
+    result : SamplerResult
+        The run.
+    burn : int, optional
+        Steps discarded at the start; default :func:`default_burn`.
+    thin : int, default 1
+        Keep every ``thin``-th step after burn-in.
+    truth : dict, optional
+        ``{name: value}`` for a synthetic study.
+
+    Returns
+    -------
+    arviz.InferenceData
+        The draws, with the groups above.
 
     Raises
     ------
-    ValueError : burn outside [0, n_steps), thin < 1, or a truth name not among the coefficients.
+    ValueError
+        Burn outside [0, n_steps), thin < 1, or a truth name not among the coefficients.
     """
     import arviz as az  # here, not at the top: importing arviz takes ~2 s
 
@@ -821,8 +985,8 @@ def diagnostics(idata, result: SamplerResult, ensembles_as_chains: bool = False)
     ``converged``: R-hat <= 1.01 and ``ess_bulk_min >= 400`` and ``ess_tail_min >= 400`` (the
     5 % and 95 % quantiles' ESS, which a run can pass in bulk and fail in the tails) and
     ``result.reached_tau_rule``,
-    where R-hat is the per-walker ``rhat_max`` (default; the stricter of the two, which issue 9's
-    protocol makes the verdict) or ``rhat_ensembles_max`` when ``ensembles_as_chains``. Both are
+    where R-hat is the per-walker ``rhat_max`` (default; the stricter of the two) or
+    ``rhat_ensembles_max`` when ``ensembles_as_chains``. Both are
     always reported. Measured on an exact 3-D Gaussian with 4 x 16 walkers: per-walker R-hat is
     1.016-1.018 after 50 tau and below 1.01 only after about 120 tau, while the between-ensemble
     R-hat is 1.001 already -- walkers of one ensemble are coupled and individually short, so the
@@ -830,18 +994,24 @@ def diagnostics(idata, result: SamplerResult, ensembles_as_chains: bool = False)
 
     Parameters
     ----------
-    idata : from :func:`to_inference_data` (``n_ensembles * n_walkers`` chains).
-    result : the run it came from.
+    idata : arviz.InferenceData
+        From :func:`to_inference_data` (``n_ensembles * n_walkers`` chains).
+    result : SamplerResult
+        The run it came from.
+    ensembles_as_chains : bool, default False
+        Judge R-hat by the between-ensemble R-hat.
 
     Returns
     -------
-    dict (JSON-ready floats): rhat, ess_bulk, ess_tail, mcse_mean, rhat_ensembles ({name: float});
-    rhat_max, ess_bulk_min, ess_tail_min, tau_max, acceptance_mean, rhat_ensembles_max, n_steps,
-    n_draws, converged, verdict.
+    dict
+        JSON-ready floats: rhat, ess_bulk, ess_tail, mcse_mean, rhat_ensembles ({name: float});
+        rhat_max, ess_bulk_min, ess_tail_min, tau_max, acceptance_mean, rhat_ensembles_max,
+        n_steps, n_draws, converged, verdict.
 
     Raises
     ------
-    ValueError : idata's chain count is not ``n_ensembles * n_walkers`` of ``result``.
+    ValueError
+        idata's chain count is not ``n_ensembles * n_walkers`` of ``result``.
     """
     import arviz as az
 

@@ -3,7 +3,7 @@
 Under the fitted rule (:data:`bayesid.protocol.START_RULES`) the state at the start of each
 window segment is not read off the measurements: a first guess
 (:func:`bayesid.protocol.state_guess`) is corrected by offsets in x, y, psi, u, v, r
-(:data:`bayesid.models.effects.START_INDEX`) that minimise the noise-weighted squared error of the
+(:data:`bayesid.models.context.START_INDEX`) that minimise the noise-weighted squared error of the
 model's prediction over the samples that belong to the start (``ctx.lead``):
 
 * on a held-out track, the lead-in before the window (the window is scored only after it):
@@ -46,8 +46,29 @@ def _weights(ctx, weights):
 
 
 def lead_residuals(model, ctx, P, nu, starts, weights) -> np.ndarray:
-    """(B, n_rows) weighted residuals over the start samples ``ctx.lead`` (channels in the order
-    of ``ctx.channels`` restricted to ``weights``; PENALTY where a window diverged)."""
+    """Weighted residuals over the start samples ``ctx.lead``.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    ctx : TrackContext
+        A context with the fitted start rule.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    nu : array_like, shape (B, n_nuisance), or None
+        Nuisances of the track.
+    starts : ndarray, shape (B, W, 6)
+        Start offsets (:data:`START_INDEX` components).
+    weights : dict
+        ``{channel: 1/sd}`` of the channels used.
+
+    Returns
+    -------
+    ndarray, shape (B, n_rows)
+        The residuals, channels in the order of ``ctx.channels`` restricted to ``weights``;
+        PENALTY where a window diverged.
+    """
     S = model.simulate(ctx, P, nu, starts=starts, samples="lead")
     out = []
     for c, e in errors(ctx, S, samples="lead").items():
@@ -76,19 +97,35 @@ def fit_starts(
 
     Parameters
     ----------
-    model : EffectModel or ShipModel.   ctx : a context with the fitted start rule.
-    P : (B, n_params) parameter vectors (held fixed).   nu : (B, n_nuisance) or None.
-    weights : {channel: 1/sd} (default: the track's own noise sds, ``ctx.lead["sd"]``).
-    starts0 : (B, W, 6) first offsets (default zeros: the guess of ``ctx.s_meas``).
-    return_jacobian : also return the Jacobian (6, B, n_rows) of :func:`lead_residuals` at the
-        last linearisation and the window of each row (for variable projection).
+    model : EffectModel or ShipModel
+        The model.
+    ctx : TrackContext
+        A context with the fitted start rule.
+    P : array_like, shape (B, n_params)
+        Parameter vectors (held fixed).
+    nu : array_like, shape (B, n_nuisance), optional
+        Nuisances of the track.
+    weights : dict, optional
+        ``{channel: 1/sd}`` (default: the track's own noise sds, ``ctx.lead["sd"]``).
+    starts0 : array_like, shape (B, W, 6), optional
+        First offsets (default zeros: the guess of ``ctx.s_meas``).
+    return_jacobian : bool, default False
+        Also return the Jacobian of :func:`lead_residuals` at the last linearisation and the
+        window of each row (for variable projection).
 
     Returns
     -------
-    (B, W, 6) offsets in x (m), y (m), psi (rad), u, v (m/s), r (rad/s) (:data:`START_INDEX`);
-    with ``return_jacobian`` a tuple (offsets, J, row_windows).
+    offsets : ndarray, shape (B, W, 6)
+        Offsets in x (m), y (m), psi (rad), u, v (m/s), r (rad/s) (:data:`START_INDEX`).
+    J : ndarray, shape (6, B, n_rows)
+        Only with ``return_jacobian``: the Jacobian of the residuals by the offsets.
+    row_windows : ndarray, shape (n_rows,)
+        Only with ``return_jacobian``: the window of each residual row.
 
-    Raises ValueError when ``ctx`` has no start samples (the measured rule).
+    Raises
+    ------
+    ValueError
+        When ``ctx`` has no start samples (the measured rule).
     """
     if ctx.lead is None:
         raise ValueError(f"track {ctx.name!r}: the start rule is {ctx.start!r}, not 'fitted'")
@@ -154,7 +191,27 @@ def fit_starts(
 def simulate(model, ctx, P, nu=None, weights=None, starts=None) -> np.ndarray:
     """``model.simulate`` at the scored samples under the context's start rule: with the fitted
     rule, the start offsets are fitted first (:func:`fit_starts`, or the given ``starts``).
-    Returns (B, n_samples, 12)."""
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    ctx : TrackContext
+        The prepared track.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    nu : array_like, shape (B, n_nuisance), optional
+        Nuisances of the track.
+    weights : dict, optional
+        ``{channel: 1/sd}`` of the start fit (:func:`fit_starts`).
+    starts : ndarray, shape (B, W, 6), optional
+        Start offsets, instead of fitting them.
+
+    Returns
+    -------
+    ndarray, shape (B, n_samples, 12)
+        The predicted measurements.
+    """
     if ctx.start != "fitted":
         return model.simulate(ctx, P, nu)
     if starts is None:
@@ -163,9 +220,25 @@ def simulate(model, ctx, P, nu=None, weights=None, starts=None) -> np.ndarray:
 
 
 def project_out(J: np.ndarray, Jd: np.ndarray, rwin: np.ndarray, W: int) -> np.ndarray:
-    """Kaufman's variable-projection Jacobian: the columns of ``J`` (n, k) with, window by
-    window, their component in the span of that window's start-state Jacobian ``Jd`` (n, 6)
-    removed (rows of window w: ``rwin == w``). Returns a new (n, k) array."""
+    """Kaufman's variable-projection Jacobian: the columns of ``J`` with, window by window, their
+    component in the span of that window's start-state Jacobian removed.
+
+    Parameters
+    ----------
+    J : ndarray, shape (n, k)
+        Jacobian by the parameters.
+    Jd : ndarray, shape (n, 6)
+        Jacobian by the start offsets.
+    rwin : ndarray, shape (n,)
+        Window of each row (rows of window w: ``rwin == w``).
+    W : int
+        Number of windows.
+
+    Returns
+    -------
+    ndarray, shape (n, k)
+        A new array.
+    """
     out = np.array(J, float)
     for wi in range(W):
         rows = np.flatnonzero(rwin == wi)

@@ -12,7 +12,7 @@ integrated autocorrelation time ``k_c`` of the errors within windows (:func:`int
 for AR(1) errors it is ``(1 + rho_c) / (1 - rho_c)``, :func:`ar1_noise` reports ``rho_c``) gives
 the variance inflation, at most the samples per window (a window then counts as one independent
 error per channel): the channel's ``n_c`` errors carry the evidence of ``n_eff,c = n_c / k_c``
-independent ones. The lag-1 reading alone was too narrow: a persistent structural error under
+independent ones. The lag-1 reading alone is too narrow: a persistent structural error under
 white noise has a small lag-1 correlation, yet correlates at every lag. The
 likelihood is tempered accordingly, ``p(e | theta, sigma)^(1 / k_c)`` (a power likelihood;
 Grünwald & van Ommen 2017, Bayesian Analysis 12(4); for the AR(1) inflation of the variance of
@@ -102,19 +102,27 @@ KHAT_MAX = 0.7
 def ar1_noise(e: np.ndarray, win: np.ndarray) -> dict:
     """Lag-1 autocorrelation and scale of errors that restart every window (AR(1) within windows).
 
+    Box, Jenkins & Reinsel, *Time Series Analysis*, Sec. 7.1 (AR(1) estimation).
+
     Parameters
     ----------
-    e : (n,) errors of one channel in time order (NaN where not measured).
-    win : (n,) window index of each error; pairs of consecutive errors count only inside one window.
+    e : ndarray, shape (n,)
+        Errors of one channel in time order (NaN where not measured).
+    win : ndarray, shape (n,)
+        Window index of each error; pairs of consecutive errors count only inside one window.
 
     Returns
     -------
-    dict: ``rho`` (conditional least-squares estimate, clipped to [0, 0.999]), ``rho_se`` (its
-    asymptotic standard error ``sqrt((1 - rho^2) / pairs)``), ``sigma`` (RMS of the errors, the
-    marginal sd), ``innovation_sd`` (``sigma sqrt(1 - rho^2)``), ``n`` (finite errors),
-    ``pairs``. Box, Jenkins & Reinsel, *Time Series Analysis*, Sec. 7.1 (AR(1) estimation).
+    dict
+        ``rho`` (conditional least-squares estimate, clipped to [0, 0.999]), ``rho_se`` (its
+        asymptotic standard error ``sqrt((1 - rho^2) / pairs)``), ``sigma`` (RMS of the errors,
+        the marginal sd), ``innovation_sd`` (``sigma sqrt(1 - rho^2)``), ``n`` (finite errors),
+        ``pairs``.
 
-    Raises ValueError when ``e`` and ``win`` differ in shape.
+    Raises
+    ------
+    ValueError
+        When ``e`` and ``win`` differ in shape or are not 1-D.
     """
     e, win = np.asarray(e, float), np.asarray(win)
     if e.shape != win.shape or e.ndim != 1:
@@ -139,14 +147,33 @@ def ar1_noise(e: np.ndarray, win: np.ndarray) -> dict:
 def integrated_time(e: np.ndarray, win: np.ndarray, max_lag: int | None = None) -> float:
     """Integrated autocorrelation time of errors that restart every window: ``1 + 2 sum_k rho_k``
     over the pooled within-window autocorrelation ``rho_k`` (pairs ``k`` samples apart inside one
-    window), summed up to a lag window whose length is chosen by Sokal's rule, the first lag ``M >= 5 tau(M)``; Sokal 1997, "Monte
-    Carlo methods in statistical mechanics", as in emcee's ``integrated_time``).
+    window), summed up to a lag window whose length is chosen by Sokal's rule (the first lag
+    ``M >= 5 tau(M)``; Sokal 1997, "Monte Carlo methods in statistical mechanics", as in emcee's
+    ``integrated_time``).
 
     Unlike the AR(1) reading ``(1 + rho_1) / (1 - rho_1)``, it sees a persistent structural error
     under white noise: the lag-1 correlation of such a mixture is small, yet every lag keeps the
-    structural share of the variance. Returns the time in samples (>= 1).
+    structural share of the variance.
 
-    Raises ValueError when ``e`` and ``win`` differ in shape."""
+    Parameters
+    ----------
+    e : ndarray, shape (n,)
+        Errors of one channel in time order (NaN where not measured).
+    win : ndarray, shape (n,)
+        Window index of each error.
+    max_lag : int, optional
+        Largest lag summed; default ``n - 1``.
+
+    Returns
+    -------
+    float
+        The time in samples (>= 1).
+
+    Raises
+    ------
+    ValueError
+        When ``e`` and ``win`` differ in shape or are not 1-D.
+    """
     e, win = np.asarray(e, float), np.asarray(win)
     if e.shape != win.shape or e.ndim != 1:
         raise ValueError(f"errors {e.shape} and window indices {win.shape} must be equal 1-D shapes")
@@ -176,8 +203,24 @@ def residual_layout(ob) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
     """Which channel, window and measurement each column of ``ob``'s data residuals is.
 
     The columns follow :func:`bayesid.estimation.windows.window_residuals`: per track, per scored
-    channel, one column per sample. Returns ``(channels, channel_index (n_res,), window_id
-    (n_res,) unique over tracks, measured (n_res,) bool)``."""
+    channel, one column per sample.
+
+    Parameters
+    ----------
+    ob : WindowObjective
+        The objective.
+
+    Returns
+    -------
+    channels : list of str
+        The scored channels, in order of appearance.
+    channel_index : ndarray, shape (n_res,)
+        Index into ``channels`` of each column.
+    window_id : ndarray, shape (n_res,)
+        Window of each column, unique over tracks.
+    measured : ndarray of bool, shape (n_res,)
+        Whether the column's sample is measured.
+    """
     names, ci, wid, meas = [], [], [], []
     off = 0
     for ctx, w in zip(ob.ctxs, ob.wts):
@@ -198,14 +241,24 @@ def residual_layout(ob) -> tuple[list, np.ndarray, np.ndarray, np.ndarray]:
 class ErrorModel:
     """Per-channel error model of a fit's residuals (module docstring).
 
-    Attributes
+    Parameters
     ----------
-    channels : (C,) scored channel names.   column : (n_res,) channel index of each residual
-        column (-1: not measured, left out).   n : (C,) measured errors per channel.
-    rho, rho_se : (C,) lag-1 autocorrelation within windows and its standard error.
-    inflation : (C,) ``min(integrated autocorrelation time, samples per window)``.
-    unit : (C,) SI size of one residual unit (the fit's channel sd: residuals are errors / unit).
-    sigma : (C,) RMS error at the estimate (SI).
+    channels : tuple of str
+        The C scored channel names.
+    column : ndarray, shape (n_res,)
+        Channel index of each residual column (-1: not measured, left out).
+    n : ndarray, shape (C,)
+        Measured errors per channel.
+    rho : ndarray, shape (C,)
+        Lag-1 autocorrelation within windows.
+    rho_se : ndarray, shape (C,)
+        Its standard error.
+    inflation : ndarray, shape (C,)
+        ``min(integrated autocorrelation time, samples per window)``.
+    unit : ndarray, shape (C,)
+        SI size of one residual unit (the fit's channel sd: residuals are errors / unit).
+    sigma : ndarray, shape (C,)
+        RMS error at the estimate (SI).
     """
 
     channels: tuple
@@ -223,7 +276,18 @@ class ErrorModel:
         return self.n / self.inflation
 
     def ssr(self, R: np.ndarray) -> np.ndarray:
-        """(B, C) sum of squared residuals per channel of (B, n_res) residual rows (residual units)."""
+        """Sum of squared residuals per channel.
+
+        Parameters
+        ----------
+        R : ndarray, shape (B, n_res)
+            Residual rows (residual units).
+
+        Returns
+        -------
+        ndarray, shape (B, C)
+            The sums of squares.
+        """
         R = np.atleast_2d(R)
         if getattr(self, "_cols", None) is None:  # each channel's columns, found once
             self._cols = [np.flatnonzero(self.column == j) for j in range(len(self.channels))]
@@ -234,28 +298,62 @@ class ErrorModel:
         return out
 
     def log_likelihood(self, ssr: np.ndarray) -> np.ndarray:
-        """(B,) ``sum_c -(n_eff,c / 2) log SSR_c`` of (B, C) sums of squares (non-positive or
-        non-finite SSR: ``-inf``)."""
+        """The tempered log-likelihood ``sum_c -(n_eff,c / 2) log SSR_c``.
+
+        Parameters
+        ----------
+        ssr : ndarray, shape (B, C)
+            Sums of squares per channel.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The log-likelihood (non-positive or non-finite SSR: ``-inf``).
+        """
         ssr = np.atleast_2d(ssr)
         with np.errstate(divide="ignore", invalid="ignore"):
             ll = -0.5 * np.log(ssr) @ self.n_eff
         return np.where(np.all(np.isfinite(ssr) & (ssr > 0), axis=1), ll, -np.inf)
 
     def sigma_draws(self, ssr: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """(B, C) draws of each channel's error sd (SI) given the draws' (B, C) sums of squares:
+        """Draws of each channel's error sd given the draws' sums of squares:
         ``sigma^2 = unit^2 SSR / (inflation chi2(n_eff))``, the conditional posterior of the
-        tempered likelihood under the Jeffreys prior."""
+        tempered likelihood under the Jeffreys prior.
+
+        Parameters
+        ----------
+        ssr : ndarray, shape (B, C)
+            Sums of squares per channel.
+        rng : numpy.random.Generator
+            The random generator.
+
+        Returns
+        -------
+        ndarray, shape (B, C)
+            The sds, SI.
+        """
         ssr = np.atleast_2d(ssr)
         chi = rng.chisquare(self.n_eff, size=ssr.shape)
         return self.unit * np.sqrt(ssr / (self.inflation * chi))
 
     def fit_sd(self) -> dict:
-        """{channel: sd} whose squared inverse weights a least-squares fit like this posterior:
-        ``sigma_c sqrt(inflation_c)`` (SI)."""
+        """Channel sds whose squared inverse weights a least-squares fit like this posterior.
+
+        Returns
+        -------
+        dict
+            ``{channel: sigma_c sqrt(inflation_c)}``, SI.
+        """
         return {c: float(s * math.sqrt(k)) for c, s, k in zip(self.channels, self.sigma, self.inflation)}
 
     def to_dict(self) -> dict:
-        """JSON-able summary per channel."""
+        """JSON-able summary per channel.
+
+        Returns
+        -------
+        dict
+            ``{channel: {n, rho, rho_se, inflation, n_eff, sigma_at_mode}}``.
+        """
         return {
             c: {
                 "n": int(self.n[j]),
@@ -270,10 +368,25 @@ class ErrorModel:
 
 
 def error_model(ob, x) -> ErrorModel:
-    """:class:`ErrorModel` of the residuals of ``ob`` (a
-    :class:`~bayesid.estimation.windows.WindowObjective` without a prior) at the variables ``x``.
+    """The error model of an objective's residuals.
 
-    Raises ValueError when a scored channel has no measured error at all."""
+    Parameters
+    ----------
+    ob : WindowObjective
+        A :class:`~bayesid.estimation.windows.WindowObjective` without a prior.
+    x : array_like
+        Its variables (parameters and nuisances).
+
+    Returns
+    -------
+    ErrorModel
+        The per-channel error model at ``x``.
+
+    Raises
+    ------
+    ValueError
+        When a scored channel has no measured error at all.
+    """
     names, ci, wid, meas = residual_layout(ob)
     R = ob.residuals_batch(np.asarray(x, float)[None])[0][0]
     unit = np.empty(len(names))
@@ -301,7 +414,17 @@ class ParameterPrior:
     ``[lo, hi]`` otherwise (flat, improper along an unbounded parameter); the model's bounds hold
     for every parameter (the Gaussian is truncated there, as in the fits).
 
-    Attributes: ``names``, ``gaussian`` (P,) bool, ``mean``, ``sd``, ``lo``, ``hi`` (P,)."""
+    Parameters
+    ----------
+    names : tuple of str
+        The P parameter names.
+    gaussian : ndarray of bool, shape (P,)
+        Which parameters have a Gaussian prior.
+    mean, sd : ndarray, shape (P,)
+        The Gaussian priors' means and sds (NaN elsewhere).
+    lo, hi : ndarray, shape (P,)
+        The bounds.
+    """
 
     names: tuple
     gaussian: np.ndarray
@@ -312,8 +435,21 @@ class ParameterPrior:
 
     @classmethod
     def of_model(cls, model, use_file: bool = True) -> ParameterPrior:
-        """Gaussian priors from the vehicle file's ``[prior]`` section (``use_file``), uniform in
-        ``model.bounds()`` otherwise."""
+        """Gaussian priors from the vehicle file's ``[prior]`` section, uniform in
+        ``model.bounds()`` otherwise.
+
+        Parameters
+        ----------
+        model : SimulationModel
+            The model.
+        use_file : bool, default True
+            Use the file's ``[prior]`` section (False: uniform everywhere).
+
+        Returns
+        -------
+        ParameterPrior
+            The prior.
+        """
         gp = wf.GaussianPrior.of_model(model) if use_file else None
         P = model.n_params
         g, mean, sd = np.zeros(P, bool), np.full(P, np.nan), np.full(P, np.nan)
@@ -323,40 +459,86 @@ class ParameterPrior:
         return cls(tuple(model.param_names), g, mean, sd, np.asarray(lo, float), np.asarray(hi, float))
 
     def logpdf(self, P: np.ndarray) -> np.ndarray:
-        """(B,) log density (up to a constant) of (B, P) rows; ``-inf`` outside the bounds."""
+        """Log density (up to a constant).
+
+        Parameters
+        ----------
+        P : ndarray, shape (B, P)
+            Parameter rows.
+
+        Returns
+        -------
+        ndarray, shape (B,)
+            The log density; ``-inf`` outside the bounds.
+        """
         P = np.atleast_2d(P)
         inside = np.all((P >= self.lo) & (P <= self.hi), axis=1)
         z = (P[:, self.gaussian] - self.mean[self.gaussian]) / self.sd[self.gaussian]
         return np.where(inside, -0.5 * np.sum(z * z, axis=1), -np.inf)
 
     def marginal_sd(self) -> np.ndarray:
-        """(P,) prior sd: the Gaussian's, or a uniform's width / sqrt(12) (inf when unbounded)."""
+        """Prior sd of each parameter.
+
+        Returns
+        -------
+        ndarray, shape (P,)
+            The Gaussian's, or a uniform's width / sqrt(12) (inf when unbounded).
+        """
         with np.errstate(invalid="ignore"):
             uni = (self.hi - self.lo) / math.sqrt(12.0)
         return np.where(self.gaussian, self.sd, np.where(np.isfinite(uni), uni, np.inf))
 
     def marginal_mean(self) -> np.ndarray:
-        """(P,) prior mean (NaN for an unbounded uniform)."""
+        """Prior mean of each parameter.
+
+        Returns
+        -------
+        ndarray, shape (P,)
+            The mean (NaN for an unbounded uniform).
+        """
         with np.errstate(invalid="ignore"):
             mid = 0.5 * (self.lo + self.hi)
         return np.where(self.gaussian, self.mean, np.where(np.isfinite(mid), mid, np.nan))
 
     def gaussian_prior(self) -> wf.GaussianPrior:
-        """The Gaussian part as fit residuals (weight 1)."""
+        """The Gaussian part as fit residuals (weight 1).
+
+        Returns
+        -------
+        GaussianPrior
+            The Gaussian priors (:class:`~bayesid.estimation.windows.GaussianPrior`).
+        """
         idx = np.flatnonzero(self.gaussian)
         names = tuple(self.names[i] for i in idx)
         return wf.GaussianPrior(names, idx, self.mean[idx], self.sd[idx], 1.0)
 
     def precision(self, scales) -> np.ndarray:
-        """(P,) prior precision of the Laplace approximation: ``1 / sd^2`` of a Gaussian, a uniform's
+        """Prior precision of the Laplace approximation: ``1 / sd^2`` of a Gaussian, a uniform's
         ``12 / width^2`` stand-in, and ``1 / (100 scale)^2`` along an unbounded parameter (a weak
-        ridge that keeps the matrix invertible where the data say nothing)."""
+        ridge that keeps the matrix invertible where the data say nothing).
+
+        Parameters
+        ----------
+        scales : array_like, shape (P,)
+            Typical sizes of the parameters.
+
+        Returns
+        -------
+        ndarray, shape (P,)
+            The precisions.
+        """
         sd = self.marginal_sd()
         sd = np.where(np.isfinite(sd), sd, 100.0 * np.abs(np.asarray(scales, float)))
         return 1.0 / sd**2
 
     def to_dict(self) -> dict:
-        """JSON-able: per parameter its kind and numbers."""
+        """JSON-able: per parameter its kind and numbers.
+
+        Returns
+        -------
+        dict
+            ``{name: {"kind": "normal", "mean", "sd"} or {"kind": "uniform", "lower", "upper"}}``.
+        """
         out = {}
         for j, n in enumerate(self.names):
             if self.gaussian[j]:
@@ -372,10 +554,20 @@ class TrackPosterior:
 
     Parameters
     ----------
-    ob : :class:`~bayesid.estimation.windows.WindowObjective` of the tracks (no prior; its
-        nuisances are held at ``nuisance``).   errors : :class:`ErrorModel` of ``ob``.
-    prior : :class:`ParameterPrior` over ``ob.model.param_names``.
-    nuisance : (n_nuisance_total,) fixed nuisance variables appended to each row (may be empty).
+    ob : WindowObjective
+        :class:`~bayesid.estimation.windows.WindowObjective` of the tracks (no prior; its
+        nuisances are held at ``nuisance``).
+    errors : ErrorModel
+        The error model of ``ob``.
+    prior : ParameterPrior
+        The prior over ``ob.model.param_names``.
+    nuisance : array_like, shape (n_nuisance_total,), optional
+        Fixed nuisance variables appended to each row (may be empty).
+
+    Raises
+    ------
+    ValueError
+        When the prior's names differ from the model's parameters.
     """
 
     def __init__(self, ob, errors: ErrorModel, prior: ParameterPrior, nuisance=None):
@@ -386,8 +578,21 @@ class TrackPosterior:
         self.names = list(ob.model.param_names)
 
     def evaluate(self, P) -> tuple[np.ndarray, np.ndarray]:
-        """((B,) log posterior, (B, C) per-channel SSR) of (B, P) parameter rows; rows outside the
-        prior's support are not simulated (-inf, SSR NaN); a diverged window gives -inf."""
+        """Log posterior and per-channel sums of squares of parameter rows. Rows outside the
+        prior's support are not simulated (-inf, SSR NaN); a diverged window gives -inf.
+
+        Parameters
+        ----------
+        P : array_like, shape (B, P)
+            Parameter rows.
+
+        Returns
+        -------
+        log_prob : ndarray, shape (B,)
+            The log posterior.
+        ssr : ndarray, shape (B, C)
+            The per-channel SSR.
+        """
         P = np.atleast_2d(np.asarray(P, float))
         lp = self.prior.logpdf(P)
         ssr = np.full((P.shape[0], len(self.errors.channels)), np.nan)
@@ -406,11 +611,24 @@ class TrackPosterior:
 
 
 def posterior_mode(post: TrackPosterior, p0, max_nfev: int = 30) -> dict:
-    """Mode and Laplace covariance of ``post`` (module docstring, step 1), from ``p0``.
+    """Mode and Laplace covariance of a posterior (module docstring, step 1).
 
-    Returns dict: ``p`` (P,), ``cov`` (P, P) symmetric PSD, ``fisher`` (P, P) the data's
-    information ``J^T J`` (without the prior), ``jac`` (n_res, P) the weighted data Jacobian, and
-    ``fit`` (the :class:`~bayesid.estimation.fit.FitResult`)."""
+    Parameters
+    ----------
+    post : TrackPosterior
+        The posterior.
+    p0 : array_like, shape (P,)
+        The start.
+    max_nfev : int, default 30
+        Least-squares iterations.
+
+    Returns
+    -------
+    dict
+        ``p`` (P,), ``cov`` (P, P) symmetric PSD, ``fisher`` (P, P) the data's information
+        ``J^T J`` (without the prior), ``jac`` (n_res, P) the weighted data Jacobian, and ``fit``
+        (the :class:`~bayesid.estimation.fit.FitResult`).
+    """
     ob, em = post.ob, post.errors
     model = ob.model
     gp = post.prior.gaussian_prior()
@@ -451,11 +669,19 @@ def jackknife_factor(fold_estimates, cov, min_folds: int = 3) -> dict:
 
     Parameters
     ----------
-    fold_estimates : (G, P) estimates with one group of runs left out each.
-    cov : (P, P) the posterior covariance to compare with.
+    fold_estimates : array_like, shape (G, P)
+        Estimates with one group of runs left out each.
+    cov : ndarray, shape (P, P)
+        The posterior covariance to compare with.
+    min_folds : int, default 3
+        Fewest folds for a factor.
 
-    Returns dict: ``factor``, ``median_ratio``, ``per_parameter`` (P,) ratios, ``n_folds``; factor 1
-    with fewer than ``min_folds`` folds."""
+    Returns
+    -------
+    dict
+        ``factor``, ``median_ratio``, ``per_parameter`` (P,) ratios, ``n_folds``; factor 1 with
+        fewer than ``min_folds`` folds.
+    """
     F = np.asarray(fold_estimates, float)
     if F.ndim != 2 or F.shape[0] < min_folds:
         return {
@@ -483,7 +709,20 @@ def jackknife_factor(fold_estimates, cov, min_folds: int = 3) -> dict:
 
 
 def evaluate_chunk(post: TrackPosterior, rows) -> dict:
-    """Task: log posterior and per-channel SSR of parameter rows (a list of lists), JSON-able."""
+    """Task: log posterior and per-channel SSR of parameter rows, JSON-able.
+
+    Parameters
+    ----------
+    post : TrackPosterior
+        The posterior.
+    rows : list of list of float
+        Parameter rows.
+
+    Returns
+    -------
+    dict
+        ``log_prob`` (list) and ``ssr`` (list of lists), None for a non-finite value.
+    """
     lp, ssr = post.evaluate(np.asarray(rows, float))
     return {
         "log_prob": [float(v) if np.isfinite(v) else None for v in lp],
@@ -499,13 +738,13 @@ def _as_array(values) -> np.ndarray:
 class ImportanceOptions:
     """The importance-reweighted Laplace stage of :func:`sample_tracks` (:func:`importance_laplace`).
 
-    Attributes
+    Parameters
     ----------
-    n_draws : int
+    n_draws : int, default 4000
         Student-t proposal draws (at least 100).
-    df : float
+    df : float, default 5.0
         Their degrees of freedom (positive).
-    chunk : int
+    chunk : int, default 16
         Draws evaluated per task (per-row cost is lowest at batches of 13-19 on the real data sets).
 
     Raises
@@ -530,16 +769,16 @@ class ImportanceOptions:
 class SampleOptions:
     """How :func:`sample_tracks` samples.
 
-    Attributes
+    Parameters
     ----------
-    method : str
+    method : {"auto", "importance", "mcmc"}, default "auto"
         ``"importance"`` (importance-reweighted Laplace), ``"mcmc"`` (emcee ensembles), or
         ``"auto"``: importance first, MCMC when its k-hat or ESS fails.
-    use_prior : bool
+    use_prior : bool, default True
         Gaussian priors of the vehicle file's ``[prior]`` section (else uniform in the bounds).
-    seed : int
+    seed : int, default 0
         The one seed of every random draw (proposal, resampling, noise scales, ensembles).
-    max_minutes : float
+    max_minutes : float, default 20.0
         Wall budget of the MCMC refinement (from the start of the sampling).
 
     Raises
@@ -592,16 +831,34 @@ def importance_laplace(
     resumes a killed run) and weights them by ``post / proposal`` with Pareto smoothing
     (``arviz.psislw``).
 
+    Parameters
+    ----------
+    post : TrackPosterior
+        The posterior.
+    center : array_like, shape (P,)
+        Location of the proposal (the mode).
+    cov : ndarray, shape (P, P)
+        Its shape (the Laplace covariance).
+    rng : numpy.random.Generator
+        Draws the proposal.
+    options : ImportanceOptions, default ImportanceOptions()
+        Draws, degrees of freedom and chunk size (which check ``n_draws`` >= 100 and ``df`` > 0).
+    runner : Runner, default Runner()
+        Runs the chunks as tasks.
+
     Returns
     -------
-    dict: ``draws`` (N, P), ``log_prob`` (N,), ``ssr`` (N, C), ``log_proposal`` (N,),
-    ``log_weights`` (N,) smoothed and normalised, ``k_hat``, ``ess`` (``1 / sum w^2``),
-    ``reliable`` (k-hat < :data:`KHAT_MAX`), ``finite`` (draws with a finite posterior).
+    dict
+        ``draws`` (N, P), ``log_prob`` (N,), ``ssr`` (N, C), ``log_proposal`` (N,),
+        ``log_weights`` (N,) smoothed and normalised, ``weights`` (N,), ``k_hat``, ``ess``
+        (``1 / sum w^2``), ``reliable`` (k-hat < :data:`KHAT_MAX`), ``finite`` (draws with a
+        finite posterior).
 
     Raises
     ------
-    ValueError : ``n_draws`` below 100, ``df`` not positive, fewer than 1 % of the proposal inside
-        the bounds, or a chunk task failed (named).
+    ValueError
+        Fewer than 1 % of the proposal inside the bounds, a chunk task failed (named), or fewer
+        than 10 draws with a finite posterior.
     """
     import warnings
 
@@ -671,8 +928,23 @@ def importance_laplace(
 
 
 def resample(weights, n: int, rng: np.random.Generator) -> np.ndarray:
-    """(n,) indices drawn with probabilities ``weights`` by systematic resampling (Kitagawa 1996,
-    J. Comput. Graph. Stat. 5(1)): the importance-weighted draws as an unweighted sample."""
+    """Indices drawn with probabilities ``weights`` by systematic resampling (Kitagawa 1996,
+    J. Comput. Graph. Stat. 5(1)): the importance-weighted draws as an unweighted sample.
+
+    Parameters
+    ----------
+    weights : array_like, shape (N,)
+        Non-negative weights (normalised here).
+    n : int
+        Number of indices.
+    rng : numpy.random.Generator
+        The random generator (one uniform draw).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Indices into the weights.
+    """
     w = np.asarray(weights, float)
     c = np.cumsum(w / w.sum())
     c[-1] = 1.0
@@ -684,7 +956,7 @@ def resample(weights, n: int, rng: np.random.Generator) -> np.ndarray:
 class TrackPosteriorResult:
     """What :func:`sample_tracks` found.
 
-    Attributes
+    Parameters
     ----------
     names : list of str
         The parameter names, ``(P,)``.
@@ -700,11 +972,11 @@ class TrackPosteriorResult:
         :func:`importance_laplace`'s result.
     mcmc : dict or None
         ``{"result", "idata", "diagnostics", "burn"}`` of the emcee refinement.
-    draws : (N, P) ndarray
+    draws : ndarray, shape (N, P)
         Unweighted posterior draws.
-    log_prob : (N,) ndarray
+    log_prob : ndarray, shape (N,)
         Their log posterior.
-    sigma : (N, C) ndarray
+    sigma : ndarray, shape (N, C)
         Noise-scale draws per channel (SI).
     verdict : dict
         ``converged``, ``text`` and the criteria of the method used.
@@ -756,27 +1028,28 @@ def sample_tracks(
         tracks (the fit's windows and start rule), its channel weights and scored channels
         (:class:`~bayesid.estimation.windows.FitProblem`; its prior and iterations are not used:
         the prior is ``options.use_prior``'s).
-    p0 : (P,) array
+    p0 : array_like, shape (P,)
         The fit's estimate.
-    options : SampleOptions
+    options : SampleOptions, default SampleOptions()
         Method, prior, seed and the MCMC's wall budget.
-    importance : ImportanceOptions
+    importance : ImportanceOptions, default ImportanceOptions()
         The importance stage's draws, their Student-t degrees of freedom and chunk size.
-    sampler : SamplerConfig
+    sampler : SamplerConfig, default TRACK_SAMPLER
         The MCMC refinement's ensembles (:data:`TRACK_SAMPLER`); its wall budget is set from
         ``options.max_minutes`` and its progress bar from the runner.
-    folds : (G, P) array or None
+    folds : array_like, shape (G, P), optional
         Leave-one-run-out estimates (``model.json``'s calibration folds): with 3 or more, the
         effective sample counts are divided by :func:`jackknife_factor`.
-    checkpoint : Checkpoint or None
+    checkpoint : Checkpoint, optional
         The MCMC's HDF5 checkpoint and its identity (:class:`bayesid.estimation.sampling.Checkpoint`).
-    runner : Runner
+    runner : Runner, default Runner()
         Where the importance draws and the MCMC ensembles run (its journal records the importance
         draws), and where progress messages go.
 
     Returns
     -------
     TrackPosteriorResult
+        The mode, the draws, the noise scales and the verdict of the method used.
 
     Raises
     ------
@@ -911,7 +1184,20 @@ def inference_data(res: TrackPosteriorResult, attrs: dict | None = None):
     parameter; MCMC: every walker a chain; importance: the resampled draws as one chain),
     ``sample_stats`` (``lp``), ``noise_scale`` (``sigma_<channel>`` draws, SI, dim ``sample``) and,
     for importance sampling, ``importance`` (the raw proposal draws, their log posterior, log
-    proposal density and smoothed log weights, dim ``proposal``). ``attrs`` go on the posterior."""
+    proposal density and smoothed log weights, dim ``proposal``).
+
+    Parameters
+    ----------
+    res : TrackPosteriorResult
+        The result.
+    attrs : dict, optional
+        Attributes put on the posterior group (None values left out).
+
+    Returns
+    -------
+    arviz.InferenceData
+        The groups above.
+    """
     import warnings
 
     import arviz as az

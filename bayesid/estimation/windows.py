@@ -8,7 +8,7 @@ by its noise sd (heading difference wrapped):
     V(x) = sum_tracks sum_windows sum_samples sum_channels ((prediction - measurement) / sd)^2
 
 The model is anything that implements :class:`bayesid.models.interface.SimulationModel`
-(submarine :class:`~bayesid.models.effects.EffectModel`, ship :class:`~bayesid.models.ship.ShipModel`). The
+(submarine :class:`~bayesid.models.submarine.EffectModel`, ship :class:`~bayesid.models.ship.ShipModel`). The
 same objective serves the identification of long runs (:mod:`bayesid.estimation.identification`), every model of the
 gap diagnosis (:mod:`bayesid.analysis.gap`) and the studies; :func:`fit_model` minimises it with the one
 fit function (:func:`bayesid.estimation.fit.fit`) and returns its :class:`FitResult`. Also here:
@@ -51,8 +51,27 @@ __all__ = [
 
 
 def channel_weights(ctx, sd, channels=None):
-    """{channel: 1/sd} over the channels of ``ctx`` in the objective (all when ``channels`` is
-    None). Raises ValueError when the track measures none of ``channels``."""
+    """Weights of the channels of a track in the objective.
+
+    Parameters
+    ----------
+    ctx : TrackContext
+        The prepared track (its measured ``channels``).
+    sd : dict
+        ``{channel: sd}``, SI.
+    channels : sequence of str, optional
+        The scored channels; None: all the track measures.
+
+    Returns
+    -------
+    dict
+        ``{channel: 1/sd}``.
+
+    Raises
+    ------
+    ValueError
+        When the track measures none of ``channels``.
+    """
     cs = [c for c in ctx.channels if channels is None or c in channels]
     if not cs:
         raise ValueError(
@@ -63,8 +82,24 @@ def channel_weights(ctx, sd, channels=None):
 
 
 def check_channels(channels):
-    """``channels`` as a tuple (None stays None); ValueError naming a channel the protocol does not
-    score (:data:`bayesid.protocol.CHANNELS`)."""
+    """Check a list of fit channels.
+
+    Parameters
+    ----------
+    channels : sequence of str or None
+        The channels.
+
+    Returns
+    -------
+    tuple of str or None
+        ``channels`` as a tuple (None stays None).
+
+    Raises
+    ------
+    ValueError
+        Naming a channel the protocol does not score (:data:`bayesid.protocol.CHANNELS`), or
+        for an empty list.
+    """
     if channels is None:
         return None
     channels = tuple(channels)
@@ -82,10 +117,12 @@ def window_residuals(model, ctxs, wts, P, nus, starts=None) -> tuple[np.ndarray,
     Parameters
     ----------
     model : SimulationModel
+        The model.
     ctxs : list of TrackContext
+        The prepared tracks.
     wts : list of dict
         Per track ``{channel: 1 / sd}`` of the scored channels.
-    P : (B, n_params) array
+    P : ndarray, shape (B, n_params)
         Parameter rows.
     nus : list
         Per track the (B, n_nuisance) nuisances or None.
@@ -94,10 +131,10 @@ def window_residuals(model, ctxs, wts, P, nus, starts=None) -> tuple[np.ndarray,
 
     Returns
     -------
-    R : (B, n_res) ndarray
+    R : ndarray, shape (B, n_res)
         The residuals; a sample of a diverged window holds :data:`PENALTY` (so an optimiser sees
         a large finite value).
-    diverged : (B,) bool ndarray
+    diverged : ndarray of bool, shape (B,)
         The rows with a diverged window (the one divergence flag).
     """
     out = []
@@ -120,15 +157,6 @@ class WindowObjective:
     ``x = [p (n_params), nuisance_1, ..., nuisance_T]`` (only the nuisances when the parameters
     are held: ``fit_nuisance_only``), with the protocol of :mod:`bayesid.estimation.fit`.
 
-    Parameters
-    ----------
-    model : a :class:`~bayesid.models.interface.SimulationModel`.
-    ctxs : its track contexts (``model.context``).   sd : {channel: noise sd} of the weights.
-    p0 : (n_params,) start (default ``model.start()``).   nuisance0 : per track (n_nuisance,).
-    fit_nuisance_only : hold ``p0`` and fit only the per-track nuisances (held-out tracks).
-    channels : the scored channels in the objective (None: all the tracks measure); the others
-        still give the window start states.
-
     Contexts with the fitted start rule have their window start states estimated with the
     parameters (6 per window, counted in the result's ``k``), eliminated by variable
     projection: every evaluation fits them for its parameters, warm-started at the last optimum
@@ -137,7 +165,31 @@ class WindowObjective:
     they come from a lead-in rather than the fitted samples themselves, re-fits them for every
     perturbed vector.
 
-    Raises ValueError for an unknown channel or a track that measures none of ``channels``.
+    Parameters
+    ----------
+    model : SimulationModel
+        A :class:`~bayesid.models.interface.SimulationModel`.
+    ctxs : list of TrackContext
+        Its track contexts (``model.context``).
+    sd : dict
+        ``{channel: noise sd}`` of the weights, SI.
+    p0 : array_like, shape (n_params,), optional
+        Start (default ``model.start()``).
+    nuisance0 : list of array_like, optional
+        Per track, the (n_nuisance,) start of the nuisances (default zeros).
+    fit_nuisance_only : bool, default False
+        Hold ``p0`` and fit only the per-track nuisances (held-out tracks).
+    channels : sequence of str, optional
+        The scored channels in the objective (None: all the tracks measure); the others still
+        give the window start states.
+    prior : GaussianPrior, optional
+        Priors whose residuals follow the data's (a MAP fit); ignored with
+        ``fit_nuisance_only`` or when it has no parameter.
+
+    Raises
+    ------
+    ValueError
+        For an unknown channel or a track that measures none of ``channels``.
     """
 
     cache_residuals = False
@@ -190,7 +242,20 @@ class WindowObjective:
         self._last = {"x": None, "starts": [None] * T, "jd": [None] * T}
 
     def split_rows(self, X):
-        """(B, n) variables -> (P (B, n_params), [nuisances (B, n_nuisance) or None per track])."""
+        """Split rows of the objective's variables into parameters and nuisances.
+
+        Parameters
+        ----------
+        X : ndarray, shape (B, n)
+            Variables.
+
+        Returns
+        -------
+        P : ndarray, shape (B, n_params)
+            Parameter rows (``p0`` repeated when only the nuisances are fitted).
+        nuisances : list
+            Per track the (B, n_nuisance) nuisances, or None without nuisances.
+        """
         nn, T = self.nn, self.T
         P = X[:, : self.model.n_params] if self.free_p else np.repeat(self.p0[None], X.shape[0], 0)
         off = self.model.n_params if self.free_p else 0
@@ -214,9 +279,23 @@ class WindowObjective:
         return out
 
     def residuals_batch(self, X, starts=None):
-        """(B, n) variables -> ((B, n_res) residuals, (B,) diverged: a diverged window's samples
-        hold :data:`PENALTY`). Fitted start states are fitted for each row unless ``starts`` holds
-        them."""
+        """Residuals of rows of variables. Fitted start states are fitted for each row unless
+        ``starts`` holds them.
+
+        Parameters
+        ----------
+        X : array_like, shape (B, n)
+            Variables.
+        starts : list, optional
+            Per track the (B, W, 6) start offsets, or None for a track with the measured rule.
+
+        Returns
+        -------
+        R : ndarray, shape (B, n_res)
+            The residuals (a diverged window's samples hold :data:`PENALTY`), the prior's last.
+        diverged : ndarray of bool, shape (B,)
+            The rows with a diverged window.
+        """
         X = np.atleast_2d(X)
         self.n_simulations += X.shape[0]
         P, nus = self.split_rows(X)
@@ -230,8 +309,21 @@ class WindowObjective:
         return R if self.prior is None else np.hstack([R, self.prior.residuals(P)])
 
     def residuals(self, x):
-        """(n_res,) residuals at ``x`` (fitted start states warm-started and remembered for the
-        Jacobian), and False (divergence is penalised, not flagged)."""
+        """Residuals at one vector of variables (fitted start states warm-started and remembered
+        for the Jacobian).
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+            Variables.
+
+        Returns
+        -------
+        r : ndarray, shape (n_res,)
+            The residuals.
+        diverged : bool
+            False: divergence is penalised, not flagged.
+        """
         if not self.vp:
             return self.residuals_batch(x)[0][0], False
         P, nus = self.split_rows(x[None])
@@ -240,9 +332,23 @@ class WindowObjective:
         return self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, st)[0], P)[0], False
 
     def jacobian(self, x, r0=None):
-        """(residuals at ``x``, forward-difference Jacobian (n_res, n)) from one batched
-        simulation of n + 1 vectors (steps ``1e-6 x_scale``, backwards at an upper bound);
-        ``r0`` is not used (the base row is simulated with the perturbed ones)."""
+        """Residuals and forward-difference Jacobian from one batched simulation of n + 1 vectors
+        (steps ``1e-6 x_scale``, backwards at an upper bound).
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+            Variables.
+        r0 : ndarray, optional
+            Not used (the base row is simulated with the perturbed ones).
+
+        Returns
+        -------
+        r : ndarray, shape (n_res,)
+            The residuals at ``x``.
+        J : ndarray, shape (n_res, n)
+            The Jacobian (fitted start states projected out, or re-fitted under a lead-in).
+        """
         xsc, xhi = self.x_scale, self.hi
         h = 1e-6 * np.maximum(xsc, 1e-8)
         sign = np.where(x + h > xhi, -1.0, 1.0)
@@ -272,8 +378,19 @@ class WindowObjective:
         return R[0], J
 
     def result_fields(self, x) -> dict:
-        """The fit result's ``model``, ``p``, per-track ``nuisance``, ``channels``, ``n_starts`` and
-        ``k`` (parameters, nuisances and window start states)."""
+        """The fit result's fields at ``x``.
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            Variables.
+
+        Returns
+        -------
+        dict
+            ``model``, ``p``, per-track ``nuisance``, ``channels``, ``n_starts`` and ``k``
+            (parameters, nuisances and window start states).
+        """
         P, nus = self.split_rows(np.asarray(x, float)[None])
         nuisance = [np.array(v[0]) if v is not None else np.zeros(0) for v in nus]
         return {
@@ -294,10 +411,18 @@ class GaussianPrior:
     residuals have variance ``weight^2`` (the residual variance times the serial-correlation
     inflation of the fit, :func:`bayesid.estimation.identification.identify`).
 
-    Attributes
+    Parameters
     ----------
-    names : (K,) parameter names.   idx : (K,) their indices in the model's parameter vector.
-    mean, sd : (K,) prior means and standard deviations.   weight : residual sd of the data.
+    names : tuple of str
+        The K parameter names.
+    idx : ndarray of int, shape (K,)
+        Their indices in the model's parameter vector.
+    mean : ndarray, shape (K,)
+        Prior means.
+    sd : ndarray, shape (K,)
+        Prior standard deviations.
+    weight : float, default 1.0
+        Residual sd of the data.
     """
 
     names: tuple
@@ -309,7 +434,20 @@ class GaussianPrior:
     @classmethod
     def of_model(cls, model, weight: float = 1.0) -> GaussianPrior:
         """The priors of the model's vehicle file (``vehicle.prior``, the ``[prior]`` section) on
-        the model's free parameters (effect parameters have none)."""
+        the model's free parameters (effect parameters have none).
+
+        Parameters
+        ----------
+        model : SimulationModel
+            The model.
+        weight : float, default 1.0
+            Residual sd of the data.
+
+        Returns
+        -------
+        GaussianPrior
+            The priors (none when the file has no ``[prior]`` section).
+        """
         pri = getattr(model.vehicle, "prior", {}) or {}
         names = [n for n in model.param_names if n in pri]
         idx = np.array([model.param_names.index(n) for n in names], dtype=int)
@@ -322,11 +460,33 @@ class GaussianPrior:
         )
 
     def residuals(self, P) -> np.ndarray:
-        """(B, K) prior residuals of (B, n_params) parameter rows."""
+        """Prior residuals of parameter rows.
+
+        Parameters
+        ----------
+        P : array_like, shape (B, n_params)
+            Parameter rows.
+
+        Returns
+        -------
+        ndarray, shape (B, K)
+            ``weight * (p[idx] - mean) / sd``.
+        """
         return self.weight * (np.atleast_2d(P)[:, self.idx] - self.mean) / self.sd
 
     def precision(self, n_params: int) -> np.ndarray:
-        """(n_params,) prior precision ``1 / sd^2`` (0 where a parameter has no Gaussian prior)."""
+        """Prior precision of the parameter vector.
+
+        Parameters
+        ----------
+        n_params : int
+            Length of the parameter vector.
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            ``1 / sd^2`` (0 where a parameter has no Gaussian prior).
+        """
         out = np.zeros(n_params)
         out[self.idx] = 1.0 / self.sd**2
         return out
@@ -337,21 +497,21 @@ class FitProblem:
     """A multiple-shooting fit's problem and settings: what a multistart fits from every start
     and every fold of a calibration refits.
 
-    Attributes
+    Parameters
     ----------
     model : SimulationModel
         The model.
     ctxs : list of TrackContext
         The contexts of the training tracks (windows and start rule).
     sd : dict
-        ``{channel: sd}``, the channel weights.
-    channels : tuple of str or None
+        ``{channel: sd}``, the channel weights (SI).
+    channels : tuple of str, optional
         The scored channels (None: every measured one).
-    max_nfev : int
+    max_nfev : int, default 60
         Least-squares iterations of each fit.
-    prior : GaussianPrior or None
+    prior : GaussianPrior, optional
         :class:`GaussianPrior` of a MAP fit.
-    data_scale : tuple or None
+    data_scale : tuple, optional
         ``(residual variance, AR(1) inflation)`` of the fit without the prior
         for its covariance (:func:`bayesid.estimation.laplace.fit_covariance`).
     """
@@ -384,11 +544,11 @@ def fit_model(
         The model, its track contexts, the channel weights ``{channel: sd}``, the scored channels
         (None: all the tracks measure), the iterations and the :class:`GaussianPrior` whose
         residuals are appended to the data's (a MAP fit; None: none).
-    p0 : (n_params,) array, optional
+    p0 : array_like, shape (n_params,), optional
         The start (default ``model.start()``).
-    nuisance0 : list of (n_nuisance,) arrays, optional
-        Per track.
-    fit_nuisance_only : bool
+    nuisance0 : list of array_like, optional
+        Per track, the (n_nuisance,) start of the nuisances.
+    fit_nuisance_only : bool, default False
         Keep ``p0`` fixed and fit only the nuisances (held-out tracks).
     bar : str, optional
         A label to show a progress bar (tqdm, on stderr) of the evaluations with it.
@@ -428,7 +588,27 @@ def heldout_nuisance(model, fitres: FitResult, ctxs, sd: dict, n_grid: int = 8, 
     """Per-track nuisances (e.g. a wave phase) of tracks the fit did not see, with the fitted
     parameters held: each track starts from the best of ``n_grid`` values spread over the
     nuisance bounds (a phase has a local minimum every period), then :func:`fit_model` refines them.
-    Returns a list (one (n_nuisance,) array per track)."""
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fit (its ``p`` is held).
+    ctxs : list of TrackContext
+        The held-out tracks.
+    sd : dict
+        ``{channel: sd}``, the channel weights.
+    n_grid : int, default 8
+        Starting values per nuisance range.
+    max_nfev : int, default 30
+        Least-squares iterations of the refinement.
+
+    Returns
+    -------
+    list of ndarray
+        One (n_nuisance,) array per track.
+    """
     lo = np.concatenate([np.full(e.n_nuisance, e.nuisance_lo) for e in model.effects])
     hi = np.concatenate([np.full(e.n_nuisance, e.nuisance_hi) for e in model.effects])
     grid = lo[None] + (np.arange(n_grid)[:, None] + 0.5) / n_grid * (hi - lo)[None]
@@ -446,8 +626,27 @@ def residual_sd(model, fitres: FitResult, ctxs, floor: dict) -> dict:
     """Per-channel RMS of a fit's simulation residuals over the protocol windows of ``ctxs``
     (heading wrapped; diverged samples ignored), each at least ``floor[channel]``.
 
-    Returns {channel: sd} in the channel's SI unit. Raises KeyError when ``floor`` lacks a
-    scored channel."""
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fit (``p`` and ``nuisance``).
+    ctxs : list of TrackContext
+        The tracks.
+    floor : dict
+        ``{channel: smallest sd}``, SI.
+
+    Returns
+    -------
+    dict
+        ``{channel: sd}`` in the channel's SI unit.
+
+    Raises
+    ------
+    KeyError
+        When ``floor`` lacks a scored channel.
+    """
     acc = {}
     for i, ctx in enumerate(ctxs):
         nu = fitres.nuisance[i][None] if fitres.nuisance and len(fitres.nuisance[i]) else None
@@ -485,18 +684,19 @@ def fit_weighted(
     problem : FitProblem
         As :func:`fit_model`, with the noise sds as its weights (``problem.sd``; its prior is not
         used).
-    p0 : (n_params,) array, optional
+    p0 : array_like, shape (n_params,), optional
         The start.
-    nuisance0 : list of arrays, optional
+    nuisance0 : list of array_like, optional
         The nuisances' start per track.
-    weighting : str
-        ``"noise"`` or ``"residual"``.
+    weighting : {"noise", "residual"}, default "noise"
+        The channel weighting.
     bar : str, optional
         Labels a progress bar of each stage.
 
     Returns
     -------
     fit : FitResult
+        The (last) fit.
     sd : dict
         ``{channel: sd}`` of its weights.
 
@@ -526,7 +726,27 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
     sds and samples), not a calibrated one: simulation errors are correlated in time. Only the
     channels ``sd`` has enter it: a held-out track may log a channel (say ``r``) that the
     training tracks, whose fit gave ``sd``, did not; the log-likelihood stays over the fitted
-    channels, the same before and after an effect."""
+    channels, the same before and after an effect.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fit (its ``p``).
+    ctxs : list of TrackContext
+        The tracks.
+    nuisance : list of ndarray, optional
+        Per track nuisances (:func:`heldout_nuisance`).
+    sd : dict, optional
+        ``{channel: sd}``, SI, for the log-likelihood.
+
+    Returns
+    -------
+    dict
+        :func:`bayesid.protocol.pooled_scores` plus ``per_track_rms_position_m``
+        (``{track name: m}``) and, with ``sd``, ``log_likelihood``.
+    """
     errs, per_track = [], {}
     ll = 0.0
     for i, ctx in enumerate(ctxs):
@@ -549,8 +769,25 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
 
 
 def window_rms(model, fitres: FitResult, ctxs, nuisance=None) -> np.ndarray:
-    """(n_windows,) RMS horizontal position error (m) of every protocol window of ``ctxs``
-    (tracks in order, windows in time order; NaN for a window without a finite sample)."""
+    """RMS horizontal position error of every protocol window of a set of tracks.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fit (its ``p``).
+    ctxs : list of TrackContext
+        The tracks.
+    nuisance : list of ndarray, optional
+        Per track nuisances.
+
+    Returns
+    -------
+    ndarray, shape (n_windows,)
+        RMS error, m (tracks in order, windows in time order; NaN for a window without a
+        finite sample).
+    """
     out = []
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
@@ -563,9 +800,21 @@ def window_rms(model, fitres: FitResult, ctxs, nuisance=None) -> np.ndarray:
 
 
 def pooled_noise_sd(tracks, floor: bool = True) -> dict:
-    """{channel: noise sd} pooled over tracks: the median over the tracks of
-    :func:`bayesid.protocol.estimate_noise` of each scored channel (SI units; floored at
-    :data:`bayesid.protocol.NOISE_FLOOR` unless ``floor`` is False)."""
+    """Noise sds pooled over tracks: the median over the tracks of
+    :func:`bayesid.protocol.estimate_noise` of each scored channel.
+
+    Parameters
+    ----------
+    tracks : iterable of Track
+        The tracks.
+    floor : bool, default True
+        Floor each track's sd at :data:`bayesid.protocol.NOISE_FLOOR`.
+
+    Returns
+    -------
+    dict
+        ``{channel: noise sd}``, SI units.
+    """
     sds = {}
     for tr in tracks:
         for k, v in estimate_noise(tr, [c for c in CHANNELS if c in tr], floor=floor).items():
@@ -578,9 +827,23 @@ MIN_SAMPLES_PER_PARAMETER = 10
 
 
 def check_enough_data(model, ctxs, window_s: float) -> None:
-    """Refuse (ValueError, naming the tracks) a fit whose training tracks are too short to say
-    anything: fewer scored samples than :data:`MIN_SAMPLES_PER_PARAMETER` per parameter, or
-    tracks that together last less than one fit window."""
+    """Refuse a fit whose training tracks are too short to say anything.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model (its number of parameters).
+    ctxs : list of TrackContext
+        The training tracks.
+    window_s : float
+        The fit window, s.
+
+    Raises
+    ------
+    ValueError
+        Naming the tracks: fewer scored samples than :data:`MIN_SAMPLES_PER_PARAMETER` per
+        parameter, or tracks that together last less than one fit window.
+    """
     n = sum(int(c.ts.size) for c in ctxs)
     span = sum(float(c.ts[-1] - c.t_start[0]) if c.ts.size else 0.0 for c in ctxs)
     k = model.n_params

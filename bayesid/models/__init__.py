@@ -19,8 +19,23 @@ FAMILIES = {Vehicle: EffectModel, Ship: ShipModel}
 
 
 def model_class(vehicle):
-    """The model class of a vehicle description (:data:`FAMILIES`); TypeError for an unknown
-    type."""
+    """The model class of a vehicle description (:data:`FAMILIES`).
+
+    Parameters
+    ----------
+    vehicle : Vehicle or Ship
+        The vessel description.
+
+    Returns
+    -------
+    type
+        The model class registered for the description's type.
+
+    Raises
+    ------
+    TypeError
+        For a type no family registers.
+    """
     for kind, cls in FAMILIES.items():
         if isinstance(vehicle, kind):
             return cls
@@ -31,15 +46,53 @@ def model_class(vehicle):
 
 def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal"):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
-    :class:`~bayesid.models.ship.model.ShipModel` (``free`` default: the file's ``[fit] free``), for a
-    submarine :class:`~bayesid.models.submarine.EffectModel` in ``mode`` (``free`` default: none).
-    ``dt`` default: the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
+    :class:`~bayesid.models.ship.model.ShipModel`, for a submarine
+    :class:`~bayesid.models.submarine.EffectModel` in ``mode``.
 
-    Raises KeyError for an unknown coefficient, ValueError for an unknown effect."""
+    Parameters
+    ----------
+    vehicle : Vehicle or Ship
+        The vessel description.
+    free : list of str, optional
+        The coefficients the fits change; default for a ship the file's ``[fit] free``, for a
+        submarine none.
+    effects : sequence of Effect or str, default ()
+        The effects added to the model (catalogue names or :class:`~bayesid.models.effects.Effect`).
+    dt : float, optional
+        Model step, s; default the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
+    mode : {"horizontal", "6dof"}, default "horizontal"
+        Degrees of freedom of a submarine model (a ship is always 3-DOF).
+
+    Returns
+    -------
+    SimulationModel
+        The model.
+
+    Raises
+    ------
+    KeyError
+        For an unknown coefficient (:class:`~bayesid.data.terms.UnknownCoefficientError`).
+    ValueError
+        For an unknown effect.
+    TypeError
+        For a vehicle description of no registered family.
+    """
     cls = model_class(vehicle)
     return cls.for_vehicle(vehicle, free, effects, dt=cls.DEFAULT_DT if dt is None else dt, mode=mode)
 
 
 def load_any_vehicle(path_or_id):
-    """A ship (``kind = "ship3dof"``) or a submarine vehicle file, by path or packaged id."""
+    """A ship (``kind = "ship3dof"``) or a submarine vehicle file, by path or packaged id.
+
+    Parameters
+    ----------
+    path_or_id : str or Path
+        A path to a TOML file, or the id of a packaged vehicle.
+
+    Returns
+    -------
+    Ship or Vehicle
+        The ship (:func:`~bayesid.models.ship.load_ship`) or the submarine
+        (:func:`~bayesid.data.vehicle.load_vehicle`).
+    """
     return load_ship(path_or_id) if is_ship_file(path_or_id) else load_vehicle(path_or_id)

@@ -17,7 +17,7 @@ right-hand side in which
   floating-point register, and few are live there) and are shared between kinematics and
   hydrostatics; the sine and cosine of one angle sit side by side, and LLVM already merges them
   into one ``sincos`` call (seen in numba's x86-64 assembly; an explicit ``sincos`` intrinsic
-  was tried and measured no faster);
+  measures no faster);
 * ``M^-1 tau`` is unrolled; the horizontal plane (paper Sec. 4) is its own 3-DOF kernel (states
   x, y, psi, u, v, r; the (u, v, r) block of ``M^-1``; rigid-body terms with w = p = q = 0,
   hydrostatics left out as they vanish at phi = theta = 0), not the 6-DOF one with a zeroed
@@ -30,8 +30,8 @@ right-hand side in which
 The equations are those of :mod:`bayesid.models.dynamics` (Furlong et al. 2003, Sec. 2.2,
 Eqs. 1, 3-5; ``shared/research/equations.md``), term for term and operation for operation (every
 sum and product in the interpreted kernel's order, no fast-math), so generated and interpreted
-kernels give bit-identical tracks (``tests/test_codegen.py`` checks agreement; the tolerance it
-states is round-off). What is specialised is the *structure* (which terms are active, the mode):
+kernels give bit-identical tracks (compared side by side, they agree to round-off). What is
+specialised is the *structure* (which terms are active, the mode):
 the coefficient values still come in per track through ``tcoef`` (B, P) = prime coefficient *
 0.5 rho L^k, so one generated kernel serves every coefficient vector, every free set with the
 same active terms, and every effect that rescales coefficients or switches the cross-flow
@@ -504,14 +504,28 @@ from bayesid.models.dynamics import (OK, NONFINITE, OUT_OF_BOUNDS, RPM_TO_RAD_S,
 
 
 def source(force_names, mode: str = "6dof", lanes: int | None = None) -> str:
-    """Python source of the generated kernel module for the active force terms ``force_names``
-    (the order of the ``tcoef`` columns) in ``mode`` (``"6dof"`` or ``"horizontal"``), each
-    thread advancing ``lanes`` tracks together (default :data:`LANES` of the mode).
+    """Python source of the generated kernel module for a model's active force terms.
+
+    Parameters
+    ----------
+    force_names : sequence of str
+        The active force terms (the order of the ``tcoef`` columns).
+    mode : {"6dof", "horizontal"}, default "6dof"
+        Degrees of freedom.
+    lanes : int, optional
+        Tracks each thread advances together; default :data:`LANES` of the mode.
+
+    Returns
+    -------
+    str
+        The module's source.
 
     Raises
     ------
-    ValueError : unknown mode, or an acceleration term among ``force_names``.
-    UnknownCoefficientError : a name not in the term table.
+    ValueError
+        Unknown mode, ``lanes`` < 1, or an acceleration term among ``force_names``.
+    UnknownCoefficientError
+        A name not in the term table.
     """
     if mode not in LANES:
         raise ValueError(f"mode must be '6dof' or 'horizontal', got {mode!r}")
@@ -529,9 +543,14 @@ def source(force_names, mode: str = "6dof", lanes: int | None = None) -> str:
 
 
 def cache_dir() -> Path:
-    """Directory of the generated kernel modules: ``$BAYESID_CACHE/kernels`` or
-    ``~/.cache/bayesid/kernels`` (``$XDG_CACHE_HOME`` respected); a temporary directory if
-    neither is writable."""
+    """Directory of the generated kernel modules, created if needed.
+
+    Returns
+    -------
+    Path
+        ``$BAYESID_CACHE/kernels`` or ``~/.cache/bayesid/kernels`` (``$XDG_CACHE_HOME``
+        respected); a temporary directory if neither is writable.
+    """
     root = os.environ.get("BAYESID_CACHE")
     if root is None:
         root = os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "bayesid")
@@ -551,10 +570,23 @@ _LOADED: dict[str, object] = {}
 
 
 def load_module(src: str, prefix: str):
-    """Import generated source ``src`` as a module named ``<prefix>_<hash>``: written once to
+    """Import generated source as a module named ``<prefix>_<hash>``: written once to
     :func:`cache_dir` (atomically; a concurrent process sees the old or the whole new file) and
     imported once per process, so numba's ``cache=True`` keeps its compiled code between
-    processes. Shared by this module and :mod:`bayesid.models.ship.kernel`."""
+    processes. Shared by this module and :mod:`bayesid.models.ship.kernel`.
+
+    Parameters
+    ----------
+    src : str
+        The module's source.
+    prefix : str
+        Start of the module's name.
+
+    Returns
+    -------
+    module
+        The imported module.
+    """
     name = f"{prefix}_{hashlib.sha256(src.encode()).hexdigest()[:16]}"
     mod = _LOADED.get(name)
     if mod is not None:
@@ -573,36 +605,87 @@ def load_module(src: str, prefix: str):
 
 
 def generated(force_names, mode: str = "6dof", lanes: int | None = None):
-    """The generated kernel module for ``force_names``, ``mode`` and ``lanes``
-    (:func:`load_module` of :func:`source`)."""
+    """The generated kernel module (:func:`load_module` of :func:`source`).
+
+    Parameters
+    ----------
+    force_names : sequence of str
+        The active force terms.
+    mode : {"6dof", "horizontal"}, default "6dof"
+        Degrees of freedom.
+    lanes : int, optional
+        Tracks each thread advances together; default :data:`LANES` of the mode.
+
+    Returns
+    -------
+    module
+        The module, with the drivers ``simulate_batch`` and ``simulate_windows``.
+    """
     return load_module(source(force_names, mode, lanes), "bayesid_kernel")
 
 
 class Interpreted:
     """The interpreted kernel behind the same two drivers as a generated one (the baseline of
-    ``benchmarks/simulate.py`` and the oracle of ``tests/test_codegen.py``)."""
+    ``benchmarks/simulate.py`` and the oracle the generated kernels are checked against).
+
+    The drivers take the arguments of :func:`bayesid.models.dynamics.simulate_batch` and
+    :func:`bayesid.models.dynamics.simulate_windows` less the term encoding.
+
+    Parameters
+    ----------
+    force_names : sequence of str
+        The active force terms (the order of the ``tcoef`` columns).
+    """
 
     def __init__(self, force_names):
         self.tfac, self.tdof = terms.factor_table(list(force_names))
 
     def simulate_batch(self, s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step):
+        """:func:`bayesid.models.dynamics.simulate_batch` with this kernel's term encoding.
+
+        Parameters
+        ----------
+        s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step : object
+            As in :func:`bayesid.models.dynamics.simulate_batch`.
+        """
         dynamics.simulate_batch(
             s0, inputs, dt, sample_every, vp, self.tfac, self.tdof, tcoef, Minv, xs, ws, out, status, fail_step
         )
 
     def simulate_windows(self, s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, ws, out, status):
+        """:func:`bayesid.models.dynamics.simulate_windows` with this kernel's term encoding.
+
+        Parameters
+        ----------
+        s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, ws, out, status : object
+            As in :func:`bayesid.models.dynamics.simulate_windows`.
+        """
         dynamics.simulate_windows(
             s0, starts, inputs, exo, ecoef, dt, vp, self.tfac, self.tdof, tcoef, Minv, xs, ws, out, status
         )
 
 
 def kernel(force_names, mode: str = "6dof", kind: str = "generated"):
-    """The compiled drivers for a model's active force terms: ``kind`` ``"generated"`` (this
-    module) or ``"interpreted"`` (:mod:`bayesid.models.dynamics`).
+    """The compiled drivers for a model's active force terms.
+
+    Parameters
+    ----------
+    force_names : sequence of str
+        The active force terms.
+    mode : {"6dof", "horizontal"}, default "6dof"
+        Degrees of freedom.
+    kind : {"generated", "interpreted"}, default "generated"
+        ``"generated"`` (this module) or ``"interpreted"`` (:mod:`bayesid.models.dynamics`).
+
+    Returns
+    -------
+    module or Interpreted
+        An object with the drivers ``simulate_batch`` and ``simulate_windows``.
 
     Raises
     ------
-    ValueError : unknown ``kind`` or ``mode``.
+    ValueError
+        Unknown ``kind`` or ``mode``.
     """
     if mode not in LANES:
         raise ValueError(f"mode must be '6dof' or 'horizontal', got {mode!r}")

@@ -27,8 +27,20 @@ from .effects import Effect
 # ---------------------------------------------------------------------------------------------
 @nb.njit(cache=True)
 def _servo(x, dt, lag, rate):
-    """First-order lag behind a rate limit, in place on (B, n) commands sampled every dt (s).
-    The surface starts at the first command."""
+    """First-order lag behind a rate limit, in place on commands sampled every ``dt``.
+    The surface starts at the first command.
+
+    Parameters
+    ----------
+    x : ndarray, shape (B, n)
+        Commands, rad; replaced by the surface angles.
+    dt : float
+        Sample interval, s.
+    lag : ndarray, shape (B,)
+        Time constant of the lag, s (<= 1e-9: none).
+    rate : ndarray, shape (B,)
+        Rate limit, rad/s (<= 0: none).
+    """
     B, n = x.shape
     for b in range(B):
         y = x[b, 0]
@@ -44,14 +56,32 @@ def _servo(x, dt, lag, rate):
 
 
 def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float, float]]:
-    """(first, last) sample times of the continuous pieces of a track: runs of samples with
-    finite x, y and psi, split where consecutive such samples are more than
-    ``max(5 x the median sample interval, min_gap_s)`` apart (a logging gap, or a stretch of
-    empty cells). A logged input (``delta_r``, ``delta_s``, ``delta_b``, ``n``) with no value
-    for longer than that and five of its own median intervals removes the samples in between
-    (a piece never runs on a guessed input; shorter holes are held, zero-order). Raises
-    ValueError naming the track and column when x, y or psi is absent or
-    entirely empty."""
+    """The continuous pieces of a track: runs of samples with finite x, y and psi, split where
+    consecutive such samples are more than ``max(5 x the median sample interval, min_gap_s)``
+    apart (a logging gap, or a stretch of empty cells).
+
+    A logged input (``delta_r``, ``delta_s``, ``delta_b``, ``n``) with no value for longer than
+    that and five of its own median intervals removes the samples in between (a piece never runs
+    on a guessed input; shorter holes are held, zero-order).
+
+    Parameters
+    ----------
+    track : Track
+        The track.
+    min_gap_s : float, default 0.0
+        Smallest gap that splits the track, s.
+
+    Returns
+    -------
+    list of tuple
+        ``(first, last)`` sample times of each piece, s.
+
+    Raises
+    ------
+    ValueError
+        Naming the track and column when x, y or psi is absent or entirely empty, or when no
+        row has all three.
+    """
     t = np.asarray(track.t, float)
     ok = np.ones(t.size, bool)
     for k in ("x", "y", "psi"):
@@ -101,6 +131,37 @@ class TrackContext:
     the segment start ``t_rel``, measurements ``meas``); under the fitted rule the samples that
     estimate the start are ``lead`` (same keys; the lead-in before each window start, or the
     window itself for a training fit without lead-in).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model (its step ``dt`` and ``mode`` are read).
+    track : Track
+        The track; it needs ``x``, ``y``, ``psi``, ``delta_r`` and ``n``.
+    window_s : float or None
+        Protocol window, s, a whole multiple of the model step; None is one window per
+        continuous piece.
+    span_s : float
+        Span of the measured start-state estimate, s (:func:`bayesid.protocol.state_at`); a track
+        without ``u``, ``v`` or ``r`` starts its first window after ``2 * span_s``.
+    s0 : array_like, shape (12,), optional
+        The true state at the first sample (world generation): the start of the one window of
+        the whole run, a model state.
+    substeps : int, default 10
+        Substeps per model step of the input servo (:meth:`average_inputs`).
+    start : {"measured", "fitted"}, default "measured"
+        The (resolved) start rule.
+    leadin_s : float, default 0.0
+        Lead-in of the fitted rule, s, a non-negative multiple of the model step and at most the
+        window.
+
+    Raises
+    ------
+    ValueError
+        An unknown start rule; a track shorter than one model step, or spanning more than
+        :data:`MAX_GRID_STEPS` steps (names its longest gap), or too short for a window after the
+        lead-in; a window or lead-in that is not a multiple of the step; a lead-in longer than
+        the window; a missing ``delta_r`` or ``n`` column or an input without any value.
     """
 
     def __init__(
@@ -205,8 +266,8 @@ class TrackContext:
             self.s_meas = np.asarray(s0, float)[None, :].repeat(self.W, 0)
         elif self.start == "fitted":
             # first guess from a local fit over at least 8 samples (2 s at 4 Hz and faster): of the
-            # lead-in, or of the window itself for a training fit (at 1 Hz a 2 s span held 3
-            # samples, and a fit from so bad a guess stalled at the nominal coefficients)
+            # lead-in, or of the window itself for a training fit (at 1 Hz a 2 s span holds 3
+            # samples, and a fit from so bad a guess stalls at the nominal coefficients)
             h = float(np.median(np.diff(t))) if t.size > 1 else dt
             span = max(2.0, 8.0 * h) if leadin_s == 0 else min(max(2.0, 8.0 * h), max(leadin_s, 2.0))
             self.s_meas = np.array([state_guess(track, ta, span) for ta in self.t_seg])
@@ -285,12 +346,35 @@ class TrackContext:
         }
 
     def gather(self, a):
-        """Per-step array ``a`` (B, n_steps, ...) laid out on the kernels' virtual step axis."""
+        """Lay a per-step array out on the kernels' virtual step axis.
+
+        Parameters
+        ----------
+        a : ndarray, shape (B, n_steps, ...)
+            Per-step values.
+
+        Returns
+        -------
+        ndarray, shape (B, n_virtual, ...)
+            ``a`` itself when the layout is the real grid, else a contiguous copy.
+        """
         return a if self.vmap is None else np.ascontiguousarray(a[:, self.vmap])
 
     def average_inputs(self, delay, fine=False):
-        """Inputs averaged over each step (or substep if ``fine``), delayed by ``delay`` (B,) s:
-        (B, n, 4)."""
+        """Inputs averaged over each step (or substep), delayed.
+
+        Parameters
+        ----------
+        delay : ndarray, shape (B,)
+            Delay of the inputs, s.
+        fine : bool, default False
+            Average over the substeps (``substeps`` per step) instead of the steps.
+
+        Returns
+        -------
+        ndarray, shape (B, n, 4)
+            The averaged inputs; n is ``n_steps`` (times ``substeps`` if ``fine``).
+        """
         m = self.substeps if fine else 1
         tf = self.t0 + self.model.dt / m * np.arange(self.n_steps * m + 1)
         out = np.empty((delay.size, tf.size - 1, 4))
@@ -302,7 +386,22 @@ class TrackContext:
         return out
 
     def inputs(self, effects, qs, B: int) -> np.ndarray:
-        """(B, n_steps, 4) inputs after the input effects."""
+        """Step inputs after the input effects (delay, servo, input maps).
+
+        Parameters
+        ----------
+        effects : sequence of Effect
+            The model's effects.
+        qs : sequence of ndarray
+            Their parameters, (B, n_q_e) each.
+        B : int
+            Number of parameter vectors.
+
+        Returns
+        -------
+        ndarray, shape (B, n_steps, 4)
+            The inputs per step.
+        """
         delay, servo = None, None
         for e, q in zip(effects, qs):
             delay = e.delay(q) if e.delay(q) is not None else delay
@@ -332,8 +431,22 @@ START_INDEX = np.array([0, 1, 5, 6, 7, 11])
 
 
 def start_states(ctx: TrackContext, B: int, starts=None) -> np.ndarray:
-    """(B, W, 12) window-start states of ``ctx`` (measured frame) plus the offsets ``starts``
-    (B, W, 6) in the :data:`START_INDEX` components, headings wrapped."""
+    """Window-start states of a context (measured frame) plus the fitted offsets.
+
+    Parameters
+    ----------
+    ctx : TrackContext
+        The prepared track.
+    B : int
+        Number of parameter vectors.
+    starts : ndarray, shape (B, W, 6), optional
+        Offsets in the :data:`START_INDEX` components.
+
+    Returns
+    -------
+    ndarray, shape (B, W, 12)
+        The start states, headings wrapped.
+    """
     s0 = np.repeat(ctx.s_meas[None], B, axis=0)
     if starts is not None:
         s0[..., START_INDEX] += starts
@@ -343,8 +456,31 @@ def start_states(ctx: TrackContext, B: int, starts=None) -> np.ndarray:
 
 def sample_rows(ctx: TrackContext, out: np.ndarray, samples: str, angles: slice):
     """States at a context's samples, linearly interpolated between the kernel's output rows
-    ``out`` (B, n_virtual + W, n_state) (angles by their wrapped increment). ``samples``:
-    ``"scored"`` or ``"lead"``. Returns (S (B, n, n_state), t_rel (n,) since the segment start)."""
+    (angles by their wrapped increment).
+
+    Parameters
+    ----------
+    ctx : TrackContext
+        The prepared track.
+    out : ndarray, shape (B, n_virtual + W, n_state)
+        The kernel's output rows.
+    samples : {"scored", "lead"}
+        The scored samples or those that estimate the start states.
+    angles : slice
+        The angle components of the state.
+
+    Returns
+    -------
+    S : ndarray, shape (B, n, n_state)
+        The states at the samples.
+    t_rel : ndarray, shape (n,)
+        Time of each sample since its segment start, s.
+
+    Raises
+    ------
+    ValueError
+        For another ``samples``, or ``"lead"`` on a context without lead-in samples.
+    """
     if samples == "lead":
         if ctx.lead is None:
             raise ValueError(f"track {ctx.name!r}: no lead-in samples (start rule {ctx.start!r})")
@@ -367,8 +503,22 @@ def sample_rows(ctx: TrackContext, out: np.ndarray, samples: str, angles: slice)
 
 
 def errors(ctx: TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
-    """Prediction minus measurement per scored channel, (B, n) arrays (psi wrapped), at the
-    scored samples or (``samples="lead"``) at the samples that estimate the start states."""
+    """Prediction minus measurement per scored channel.
+
+    Parameters
+    ----------
+    ctx : TrackContext
+        The prepared track.
+    S : ndarray, shape (B, n, 12)
+        Predicted states at the samples (:func:`sample_rows`).
+    samples : {"scored", "lead"}, default "scored"
+        The scored samples or those that estimate the start states.
+
+    Returns
+    -------
+    dict
+        ``{channel: (B, n) errors}``, psi wrapped.
+    """
     out = {}
     meas = ctx.lead["meas"] if samples == "lead" else ctx.meas
     for c in ctx.channels:

@@ -29,11 +29,20 @@ def crossflow_forces(states: np.ndarray, vehicle) -> np.ndarray:
 
     Parameters
     ----------
-    states : (n, 12) in the simulator's state order.
+    states : ndarray, shape (n, 12)
+        States in the simulator's state order (SI).
+    vehicle : Vehicle
+        The vehicle, with ``[crossflow]`` data.
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        Force and moment, X, Y, Z, K, M, N (N, N m).
 
     Raises
     ------
-    ValueError if the vehicle has no ``[crossflow]`` data.
+    ValueError
+        If the vehicle has no ``[crossflow]`` data.
     """
     cf = vehicle.crossflow
     if cf is None:
@@ -62,10 +71,26 @@ def fit_polynomial_equivalent(vehicle, manoeuvres, mode: str = "horizontal") -> 
     local cross-flow velocity ``w - x q`` equal to ``v + x r``: no vertical manoeuvre is needed
     for a body whose strip sum is the same in both planes up to Cdz b / Cdy h.
 
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle, with ``[crossflow]`` data.
+    manoeuvres : sequence of Manoeuvre
+        The manoeuvres that define the envelope (:func:`envelope_manoeuvres`).
+    mode : {"horizontal", "6dof"}, default "horizontal"
+        Degrees of freedom of the simulations.
+
     Returns
     -------
-    dict with ``coefficients`` (name -> prime value), ``relative_rms_residual`` (per force:
-    RMS(poly - integral) / RMS(integral)), ``envelope`` (max |v| m/s, max |r| rad/s, n samples).
+    dict
+        ``coefficients`` (``{name: prime value}``), ``relative_rms_residual`` (per force:
+        RMS(poly - integral) / RMS(integral)), ``envelope`` (``max_abs_v_mps``,
+        ``max_abs_r_rad_s``, ``n_samples`` and the ``manoeuvres``' names).
+
+    Raises
+    ------
+    RuntimeError
+        If a manoeuvre diverges with the integral cross-flow.
     """
     from .simulate import simulate
 
@@ -102,7 +127,20 @@ def fit_polynomial_equivalent(vehicle, manoeuvres, mode: str = "horizontal") -> 
 
 def envelope_manoeuvres(vehicle, dt: float = 0.1) -> list:
     """The manoeuvres whose envelope defines the packaged polynomial equivalent: the spiral,
-    turning circles at +-10 and +-20 deg, zigzags 10/10 and 20/20 (both first-rudder signs)."""
+    turning circles at +-10 and +-20 deg, zigzags 10/10 and 20/20 (both first-rudder signs).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle, with ``[crossflow]`` data.
+    dt : float, default 0.1
+        Step of the manoeuvres, s.
+
+    Returns
+    -------
+    list of Manoeuvre
+        The manoeuvres, for the vehicle with the integral cross-flow.
+    """
     from . import manoeuvres as mv
 
     vi = vehicle.with_crossflow("integral")

@@ -42,10 +42,23 @@ assert F_INDEX["|p|"] == 16 and N_FEATURES == 17  # kernel below hard-codes this
 
 
 def vehicle_params(vehicle, crossflow_integral: bool | None = None) -> np.ndarray:
-    """Pack a :class:`~bayesid.data.vehicle.Vehicle` into the kernels' parameter vector (N_VP,).
+    """Pack a :class:`~bayesid.data.vehicle.Vehicle` into the kernels' parameter vector.
 
     Divergence bounds: |u|,|v|,|w| > max(20 * nominal speed, 10) m/s, |p|,|q|,|r| > that speed /
     (L/4) rad/s, or |theta| > 85 deg (near the zyx Euler singularity) flag a track as diverged.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    crossflow_integral : bool, optional
+        Switch the strip-sum cross-flow integral on; default when the vehicle's
+        ``crossflow_model`` is ``"integral"``.
+
+    Returns
+    -------
+    ndarray, shape (N_VP,)
+        The parameter vector (indices ``VP_*`` of this module), SI.
     """
     vp = np.zeros(N_VP)
     vp[VP_M], vp[VP_W], vp[VP_B] = vehicle.mass, vehicle.weight, vehicle.buoyancy
@@ -67,7 +80,20 @@ def vehicle_params(vehicle, crossflow_integral: bool | None = None) -> np.ndarra
 
 
 def crossflow_strips(vehicle) -> tuple[np.ndarray, np.ndarray]:
-    """Strip stations and weights (m) of the vehicle's cross-flow integral (zeros if none)."""
+    """Strip stations and weights of the vehicle's cross-flow integral.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+
+    Returns
+    -------
+    xs : ndarray, shape (n_strips,)
+        Strip stations, m (one zero when the vehicle has no cross-flow data).
+    ws : ndarray, shape (n_strips,)
+        Strip weights (lengths), m (one zero when the vehicle has no cross-flow data).
+    """
     if vehicle.crossflow is None:
         return np.zeros(1), np.zeros(1)
     return np.ascontiguousarray(vehicle.crossflow.stations), np.ascontiguousarray(vehicle.crossflow.weights)
@@ -87,7 +113,19 @@ def _eps(u, n_rad, eta, vp):
 
 @nb.njit(cache=True)
 def features(s, uin, vp, f):
-    """Fill ``f`` (N_FEATURES,) with the factors of the term library at state s, input uin."""
+    """Fill ``f`` with the factors of the term library at a state and input.
+
+    Parameters
+    ----------
+    s : ndarray, shape (12,)
+        State (SI).
+    uin : ndarray, shape (4,)
+        Inputs ``delta_r, delta_s, delta_b`` (rad) and ``n`` (rpm).
+    vp : ndarray, shape (N_VP,)
+        Vehicle parameters (:func:`vehicle_params`).
+    f : ndarray, shape (N_FEATURES,)
+        Output: the features, in :data:`bayesid.data.terms.FEATURES` order (written in place).
+    """
     u, v, w, p, q, r = s[6], s[7], s[8], s[9], s[10], s[11]
     n_rad = uin[3] * RPM_TO_RAD_S
     uc = vp[VP_UC] * n_rad
@@ -116,7 +154,28 @@ def generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau):
     """Right-hand side of ``M nu_dot = tau`` (6,): hydrodynamic terms, hydrostatics, cross-flow
     integral (if on) minus the rigid-body velocity terms. Writes ``tau`` in place.
 
-    tfac (P, 5) int64, tdof (P,) int64, tcoef (P,) = prime coefficient * 0.5 rho L^k.
+    Parameters
+    ----------
+    s : ndarray, shape (12,)
+        State (SI).
+    uin : ndarray, shape (4,)
+        Inputs ``delta_r, delta_s, delta_b`` (rad) and ``n`` (rpm).
+    vp : ndarray, shape (N_VP,)
+        Vehicle parameters (:func:`vehicle_params`).
+    tfac : ndarray of int64, shape (P, 5)
+        Feature indices of each term (:func:`bayesid.data.terms.factor_table`).
+    tdof : ndarray of int64, shape (P,)
+        Degree of freedom of each term.
+    tcoef : ndarray, shape (P,)
+        Dimensional term coefficients: prime coefficient * 0.5 rho L^k.
+    xs : ndarray, shape (n_strips,)
+        Cross-flow strip stations, m (:func:`crossflow_strips`).
+    ws : ndarray, shape (n_strips,)
+        Cross-flow strip weights, m.
+    f : ndarray, shape (N_FEATURES,)
+        Scratch array of the features.
+    tau : ndarray, shape (6,)
+        Output: the generalised force X, Y, Z, K, M, N (N, N m), written in place.
     """
     features(s, uin, vp, f)
     for i in range(6):
@@ -191,9 +250,29 @@ def generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau):
 def rhs(s, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, ds):
     """State derivative ``ds`` (12,) = d s / dt, in place (paper Eqs. 3-5).
 
-    ``ext`` (6,) is an external generalised force (N, N m) added to the right-hand side of
-    ``M nu_dot = tau``: zero for the vehicle alone, the exogenous forces of
-    :mod:`bayesid.models.effects` (wave forcing, thrust deficit) otherwise."""
+    Parameters
+    ----------
+    s : ndarray, shape (12,)
+        State (SI).
+    uin : ndarray, shape (4,)
+        Inputs ``delta_r, delta_s, delta_b`` (rad) and ``n`` (rpm).
+    ext : ndarray, shape (6,)
+        External generalised force (N, N m) added to the right-hand side of
+        ``M nu_dot = tau``: zero for the vehicle alone, the exogenous forces of
+        :mod:`bayesid.models.effects` (wave forcing, thrust deficit) otherwise.
+    vp : ndarray, shape (N_VP,)
+        Vehicle parameters (:func:`vehicle_params`).
+    tfac, tdof, tcoef : ndarray
+        The term encoding of :func:`generalized_force`.
+    Minv : ndarray, shape (6, 6)
+        Inverse mass matrix.
+    xs, ws : ndarray, shape (n_strips,)
+        Cross-flow strip stations and weights, m.
+    f, tau : ndarray
+        Scratch arrays, shapes (N_FEATURES,) and (6,).
+    ds : ndarray, shape (12,)
+        Output: the state derivative, written in place.
+    """
     generalized_force(s, uin, vp, tfac, tdof, tcoef, xs, ws, f, tau)
     for i in range(6):
         tau[i] += ext[i]
@@ -218,8 +297,25 @@ def rhs(s, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, ds):
 
 @nb.njit(cache=True)
 def rk4_step(s, uin, ext, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k2, k3, k4, tmp):
-    """Advance ``s`` (12,) in place by one classical RK4 step of length dt (s); the input
-    ``uin`` and the external force ``ext`` (6,) are held over the step."""
+    """Advance ``s`` in place by one classical RK4 step; the input ``uin`` and the external
+    force ``ext`` are held over the step.
+
+    Parameters
+    ----------
+    s : ndarray, shape (12,)
+        State (SI), advanced in place.
+    uin : ndarray, shape (4,)
+        Inputs ``delta_r, delta_s, delta_b`` (rad) and ``n`` (rpm).
+    ext : ndarray, shape (6,)
+        External generalised force, N and N m (:func:`rhs`).
+    dt : float
+        Step length, s.
+    vp, tfac, tdof, tcoef, Minv, xs, ws : ndarray
+        The vehicle, terms, inverse mass matrix and cross-flow strips of :func:`rhs`.
+    f, tau, k1, k2, k3, k4, tmp : ndarray
+        Scratch arrays: features (N_FEATURES,), generalised force (6,), the RK4 stages and
+        an intermediate state (12,) each.
+    """
     rhs(s, uin, ext, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1)
     for i in range(12):
         tmp[i] = s[i] + 0.5 * dt * k1[i]
@@ -236,7 +332,20 @@ def rk4_step(s, uin, ext, dt, vp, tfac, tdof, tcoef, Minv, xs, ws, f, tau, k1, k
 
 @nb.njit(cache=True)
 def check_state(s, vp):
-    """Divergence flag of a state: OK, NONFINITE or OUT_OF_BOUNDS."""
+    """Divergence flag of a state: OK, NONFINITE or OUT_OF_BOUNDS.
+
+    Parameters
+    ----------
+    s : ndarray, shape (12,)
+        State (SI).
+    vp : ndarray, shape (N_VP,)
+        Vehicle parameters, with the divergence bounds (:func:`vehicle_params`).
+
+    Returns
+    -------
+    int
+        ``OK``, ``NONFINITE`` or ``OUT_OF_BOUNDS``.
+    """
     for i in range(12):
         if not math.isfinite(s[i]):
             return NONFINITE
@@ -274,11 +383,30 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tfac, tdof, tcoef, Minv, xs
 
     Parameters
     ----------
-    s0 : (B, 12) initial states.   inputs : (n_steps, 4), shared by all tracks.
-    dt : step (s).   sample_every : store every k-th state.
-    tcoef : (B, P) dimensional term coefficients.   Minv : (B, 6, 6).
-    out : (B, n_steps // sample_every + 1, 12) filled with samples; NaN after a divergence.
-    status : (B,) int64 OK / NONFINITE / OUT_OF_BOUNDS.   fail_step : (B,) first bad step or -1.
+    s0 : ndarray, shape (B, 12)
+        Initial states.
+    inputs : ndarray, shape (n_steps, 4)
+        Inputs per step, shared by all tracks.
+    dt : float
+        Step, s.
+    sample_every : int
+        Store every k-th state.
+    vp : ndarray, shape (N_VP,)
+        Vehicle parameters (:func:`vehicle_params`).
+    tfac, tdof : ndarray of int64
+        The term encoding of :func:`generalized_force`.
+    tcoef : ndarray, shape (B, P)
+        Dimensional term coefficients per track.
+    Minv : ndarray, shape (B, 6, 6)
+        Inverse mass matrices per track.
+    xs, ws : ndarray, shape (n_strips,)
+        Cross-flow strip stations and weights, m.
+    out : ndarray, shape (B, n_steps // sample_every + 1, 12)
+        Output: filled with the samples; NaN after a divergence.
+    status : ndarray of int64, shape (B,)
+        Output: OK / NONFINITE / OUT_OF_BOUNDS per track.
+    fail_step : ndarray of int64, shape (B,)
+        Output: first bad step per track, or -1.
     """
     B = s0.shape[0]
     n_steps = inputs.shape[0]
@@ -310,15 +438,34 @@ def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp, tfac, tdof, tcoef, 
 
     Parameters
     ----------
-    s0 : (B, W, 12) state at each window start.
-    starts : (W + 1,) int64 step index of each window start; ``starts[W]`` = n_steps.
-    inputs : (B, n_steps, 4) inputs per parameter vector (held over a step).
-    exo : (B, n_steps, K) exogenous signals, ecoef : (B, K, 6): the external generalised force
-        over step k is ``sum_j exo[b, k, j] * ecoef[b, j, :]`` (N, N m; held over the step).
-    vp : (B, N_VP) vehicle parameters.   tcoef : (B, P).   Minv : (B, 6, 6).
-    out : (B, n_steps + W, 12): window w occupies rows ``starts[w] + w .. starts[w + 1] + w``
-        (its start and end state both kept); NaN after a divergence.
-    status : (B, W) int64 OK / NONFINITE / OUT_OF_BOUNDS per window.
+    s0 : ndarray, shape (B, W, 12)
+        State at each window start.
+    starts : ndarray of int64, shape (W + 1,)
+        Step index of each window start; ``starts[W]`` = n_steps.
+    inputs : ndarray, shape (B, n_steps, 4)
+        Inputs per parameter vector (held over a step).
+    exo : ndarray, shape (B, n_steps, K)
+        Exogenous signals.
+    ecoef : ndarray, shape (B, K, 6)
+        Their force coefficients: the external generalised force over step k is
+        ``sum_j exo[b, k, j] * ecoef[b, j, :]`` (N, N m; held over the step).
+    dt : float
+        Step, s.
+    vp : ndarray, shape (B, N_VP)
+        Vehicle parameters per parameter vector.
+    tfac, tdof : ndarray of int64
+        The term encoding of :func:`generalized_force`.
+    tcoef : ndarray, shape (B, P)
+        Dimensional term coefficients.
+    Minv : ndarray, shape (B, 6, 6)
+        Inverse mass matrices.
+    xs, ws : ndarray, shape (n_strips,)
+        Cross-flow strip stations and weights, m.
+    out : ndarray, shape (B, n_steps + W, 12)
+        Output: window w occupies rows ``starts[w] + w .. starts[w + 1] + w`` (its start and
+        end state both kept); NaN after a divergence.
+    status : ndarray of int64, shape (B, W)
+        Output: OK / NONFINITE / OUT_OF_BOUNDS per window.
     """
     B = s0.shape[0]
     W = starts.shape[0] - 1
@@ -383,17 +530,43 @@ def simulate_triggered_zigzag(
 
     Parameters
     ----------
-    rpm : propeller speed, held.   i_input : 0..2 actuated input.   i_state : 0..11 trigger state.
-    delta, trigger : rad.   first_sign : +1/-1 sign of the first command.
-    response_sign : sign of the change of state ``i_state`` that a positive input produces (sign of
-        N'dr for the rudder and heading, of M'ds for the stern planes and pitch).
-    t_execute : time of the first command (s); straight approach with all inputs zero before.
-    rate_max : actuator rate limit (rad/s); <= 0 means instantaneous.
-    out : (n_steps + 1, 12) states.   inputs : (n_steps, 4) applied inputs (written).
+    s0 : ndarray, shape (12,)
+        Initial state.
+    n_steps : int
+        Number of steps.
+    dt : float
+        Step, s.
+    rpm : float
+        Propeller speed, rpm, held.
+    i_input : int
+        Actuated input, 0..2.
+    i_state : int
+        Trigger state, 0..11.
+    delta : float
+        Command amplitude, rad.
+    trigger : float
+        Change of the trigger state that reverses the command (rad for an angle).
+    first_sign : float
+        +1/-1, sign of the first command.
+    response_sign : float
+        Sign of the change of state ``i_state`` that a positive input produces (sign of N'dr
+        for the rudder and heading, of M'ds for the stern planes and pitch).
+    t_execute : float
+        Time of the first command, s; straight approach with all inputs zero before.
+    rate_max : float
+        Actuator rate limit, rad/s; <= 0 means instantaneous.
+    vp, tfac, tdof, tcoef, Minv, xs, ws : ndarray
+        The vehicle, terms, inverse mass matrix and cross-flow strips of :func:`rhs` (one
+        parameter vector).
+    out : ndarray, shape (n_steps + 1, 12)
+        Output: the states.
+    inputs : ndarray, shape (n_steps, 4)
+        Output: the applied inputs.
 
     Returns
     -------
-    int : divergence flag (OK when the run completed).
+    int
+        Divergence flag (OK when the run completed).
     """
     s = s0.copy()
     f, tau, k1, k2, k3, k4, tmp, ext = _workspace()
@@ -455,7 +628,26 @@ def simulate_zigzag(
     inputs,
 ):
     """Closed-loop heading zigzag: :func:`simulate_triggered_zigzag` with the rudder (input 0)
-    triggered on the heading psi (state 5); ``turn_sign`` is the sign of N'dr."""
+    triggered on the heading psi (state 5).
+
+    Parameters
+    ----------
+    s0, n_steps, dt, rpm, delta : ndarray, int or float
+        As in :func:`simulate_triggered_zigzag`.
+    psi_trigger : float
+        Heading change that reverses the rudder, rad.
+    first_sign : float
+        +1/-1, sign of the first rudder command.
+    turn_sign : float
+        Sign of N'dr (the ``response_sign``).
+    t_execute, rate_max, vp, tfac, tdof, tcoef, Minv, xs, ws, out, inputs : float or ndarray
+        As in :func:`simulate_triggered_zigzag`.
+
+    Returns
+    -------
+    int
+        Divergence flag (OK when the run completed).
+    """
     return simulate_triggered_zigzag(
         s0,
         n_steps,
@@ -519,16 +711,42 @@ def simulate_pi_hold(
 
     Parameters
     ----------
-    reference : (n_steps,) target of state ``i_state`` per step (its units) or NaN.
-    kp : input per unit of error (e.g. rad rudder per rad/s of yaw rate = s).
-    ki : input per unit of integrated error (e.g. rad rudder per rad of heading).
-    plant_sign : sign of the steady change of the state that a positive input produces.
-    u_max : saturation of the command (rad).   rate_max : rate limit (rad/s).
-    out : (n_steps + 1, 12) states.   inputs : (n_steps, 4) applied inputs (written).
+    s0 : ndarray, shape (12,)
+        Initial state.
+    n_steps : int
+        Number of steps.
+    dt : float
+        Step, s.
+    rpm : float
+        Propeller speed, rpm, held.
+    i_input : int
+        Driven input, 0..2.
+    i_state : int
+        Controlled state, 0..11.
+    reference : ndarray, shape (n_steps,)
+        Target of state ``i_state`` per step (its units), or NaN.
+    kp : float
+        Input per unit of error (e.g. rad rudder per rad/s of yaw rate = s).
+    ki : float
+        Input per unit of integrated error (e.g. rad rudder per rad of heading).
+    plant_sign : float
+        Sign of the steady change of the state that a positive input produces.
+    u_max : float
+        Saturation of the command, rad.
+    rate_max : float
+        Rate limit, rad/s.
+    vp, tfac, tdof, tcoef, Minv, xs, ws : ndarray
+        The vehicle, terms, inverse mass matrix and cross-flow strips of :func:`rhs` (one
+        parameter vector).
+    out : ndarray, shape (n_steps + 1, 12)
+        Output: the states.
+    inputs : ndarray, shape (n_steps, 4)
+        Output: the applied inputs.
 
     Returns
     -------
-    int : divergence flag (OK when the run completed).
+    int
+        Divergence flag (OK when the run completed).
     """
     s = s0.copy()
     f, tau, k1, k2, k3, k4, tmp, ext = _workspace()
@@ -573,9 +791,21 @@ def simulate_pi_hold(
 
 
 def features_array(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.ndarray:
-    """Term-library features for many samples (compiled path), (n, N_FEATURES).
+    """Term-library features for many samples (compiled path).
 
-    states (n, 12), inputs (n, 4) as the state and input conventions above.
+    Parameters
+    ----------
+    states : ndarray, shape (n, 12)
+        States, in the state convention of this module.
+    inputs : ndarray, shape (n, 4)
+        Inputs, in the input convention of this module.
+    vehicle : Vehicle
+        The vehicle.
+
+    Returns
+    -------
+    ndarray, shape (n, N_FEATURES)
+        The features of each sample.
     """
     vp = vehicle_params(vehicle)
     out = np.empty((states.shape[0], N_FEATURES))

@@ -53,25 +53,49 @@ class Effect:
     """One unmodelled effect: its parameters, bounds and magnitudes. Subclasses implement
     the hooks they need; the defaults do nothing.
 
-    Attributes
-    ----------
-    name : catalogue key.   params : parameter names (units in the name).
-    lo, hi : bounds.   start : starting value of a fit.   scale : typical size (fit scaling).
-    n_nuisance : parameters per track (e.g. a wave phase); ``nuisance_lo/hi``.
-    mode : ``"6dof"`` if the effect needs the full equations, else None.
-    magnitudes : the benchmark's three levels ({param: value}).   source : why these values.
-    signature : the force-space columns (see :func:`signature_columns`) it leaves, if any.
-    neutral : parameter values (inside the bounds) at which the effect changes nothing, so the
-        candidate model nests the base model there; ``None`` when it does not nest it (roll:
-        6-DOF against the horizontal plane; crossflow: integral form in place of the polynomial).
-    needs_columns : track columns the effect needs (e.g. the measured wind).
-
     Everything about an effect is here: the simulation hooks (:meth:`delay`, :meth:`actuator`,
     :meth:`exo`, :meth:`input_map`, :meth:`modify`, :meth:`to_model`, :meth:`to_measured`, and
     :meth:`kernel` for models whose compiled kernel takes the effect as parameters), its start
     values (:meth:`start_values`), the diagnosis' seeds and extra starts (:meth:`diagnosis_seed`,
     :meth:`fit_starts`) and its force signature (:meth:`force_signature`). A new effect is one
     subclass; pass an instance wherever an effect name is accepted.
+
+    Parameters
+    ----------
+    name : str
+        Catalogue key.
+    params : tuple of str
+        Parameter names (units in the name).
+    lo, hi : tuple of float
+        Lower and upper bounds of the parameters.
+    start : tuple of float
+        Starting values of a fit.
+    scale : tuple of float
+        Typical sizes (fit scaling).
+    magnitudes : tuple of dict, default ()
+        The withheld-effect benchmark's three levels, ``{param: value}`` each.
+    source : str, default ""
+        Why these values.
+    description : str, default ""
+        What the effect is, in a line.
+    n_nuisance : int, default 0
+        Parameters per track (e.g. a wave phase).
+    nuisance_lo, nuisance_hi : float, default 0.0
+        Bounds of the per-track parameters.
+    mode : str, optional
+        ``"6dof"`` if the effect needs the full equations, else None.
+    input_effect : bool, default False
+        True for an effect on the inputs the vehicle receives (delay, actuator).
+    exo_columns : int, default 0
+        Number of exogenous signal columns its :meth:`exo` adds.
+    signature : tuple of str, default ()
+        The force-space columns (see :meth:`force_signature`) it leaves, if any.
+    neutral : tuple of float, optional
+        Parameter values (inside the bounds) at which the effect changes nothing, so the
+        candidate model nests the base model there; None when it does not nest it (roll:
+        6-DOF against the horizontal plane; crossflow: integral form in place of the polynomial).
+    needs_columns : tuple of str, default ()
+        Track columns the effect needs (e.g. the measured wind).
     """
 
     name: str
@@ -95,59 +119,195 @@ class Effect:
 
     # --- hooks ------------------------------------------------------------------------------
     def delay(self, q):
-        """(B,) input delay (s) or None."""
+        """Input delay.
+
+        Parameters
+        ----------
+        q : ndarray, shape (B, n_q)
+            The effect's parameters, one row per parameter vector.
+
+        Returns
+        -------
+        ndarray or None
+            The delay (B,), s; None for an effect without one.
+        """
         return None
 
     def actuator(self, q):
-        """(lag_s (B,), rate_max rad/s (B,)) or None."""
+        """Servo of the control surfaces.
+
+        Parameters
+        ----------
+        q : ndarray, shape (B, n_q)
+            The effect's parameters, one row per parameter vector.
+
+        Returns
+        -------
+        tuple or None
+            ``(lag_s (B,), rate_max (B,))``, the lag (s) and rate limit (rad/s); None for an
+            effect without a servo.
+        """
         return None
 
     def exo(self, ctx, inputs, q, nu):
-        """Exogenous signals (B, n_steps, K) and coefficients (B, K, 6) or None."""
+        """Exogenous signals and their force coefficients.
+
+        Parameters
+        ----------
+        ctx : TrackContext
+            The prepared track.
+        inputs : ndarray, shape (B, n_steps, 4)
+            The step inputs.
+        q : ndarray, shape (B, n_q)
+            The effect's parameters.
+        nu : ndarray, shape (B, n_nuisance)
+            The effect's per-track parameters on this track.
+
+        Returns
+        -------
+        tuple or None
+            ``(signals (B, n_steps, K), coefficients (B, K, 6))``: the external force over a
+            step is the signals times the coefficients (N, N m); None for an effect without one.
+        """
         return None
 
     def input_map(self, x, q):
-        """What acts on the vehicle, from the logged inputs after delay and servo: change x
-        (B, n, 4) (``delta_r, delta_s, delta_b`` rad, ``n`` rpm, per step) in place."""
+        """What acts on the vehicle, from the logged inputs after delay and servo.
+
+        Parameters
+        ----------
+        x : ndarray, shape (B, n, 4)
+            The inputs per step (``delta_r, delta_s, delta_b`` rad, ``n`` rpm); changed in place.
+        q : ndarray, shape (B, n_q)
+            The effect's parameters.
+        """
 
     def modify(self, model, C, M, vp, tcoef, q):
-        """Change prime coefficients C, mass matrices M, vehicle parameters vp or dimensional
-        term coefficients tcoef (all (B, ...)) in place."""
+        """Change prime coefficients, mass matrices, vehicle parameters or dimensional term
+        coefficients in place.
+
+        Parameters
+        ----------
+        model : EffectModel
+            The model simulated.
+        C : ndarray, shape (B, n_terms)
+            Prime coefficients.
+        M : ndarray, shape (B, 6, 6)
+            Mass matrices.
+        vp : ndarray, shape (B, N_VP)
+            Vehicle parameters (:func:`bayesid.models.dynamics.vehicle_params`).
+        tcoef : ndarray, shape (B, P)
+            Dimensional term coefficients.
+        q : ndarray, shape (B, n_q)
+            The effect's parameters.
+        """
 
     def to_model(self, s, q):
-        """Measured window-start states s (B, W, 12) -> model states, in place."""
+        """Measured window-start states to model states, in place.
+
+        Parameters
+        ----------
+        s : ndarray, shape (B, W, 12)
+            Window-start states.
+        q : ndarray, shape (B, n_q)
+            The effect's parameters.
+        """
 
     def to_measured(self, S, t_rel, q):
-        """Model states S (B, n, 12) at times t_rel (n,) since their window start -> what the
-        sensors report, in place."""
+        """Model states to what the sensors report, in place.
+
+        Parameters
+        ----------
+        S : ndarray, shape (B, n, 12)
+            Model states.
+        t_rel : ndarray, shape (n,)
+            Times since each sample's window start, s.
+        q : ndarray, shape (B, n_q)
+            The effect's parameters.
+        """
 
     def kernel(self, kp: dict, q):
         """Parameters of a compiled kernel that takes the effect as parameters (the ship's MMG
-        kernel): change the arrays of ``kp`` (``prm`` (B, NP), ``cur`` (B, 2), ``delay`` (B,) or
-        None) in place or replace them."""
+        kernel), changed in place or replaced.
+
+        Parameters
+        ----------
+        kp : dict
+            The kernel's arrays: ``prm`` (B, NP), ``cur`` (B, 2), ``delay`` (B,) or None.
+        q : ndarray, shape (B, n_q)
+            The effect's parameters.
+        """
 
     # --- fitting and diagnosis -----------------------------------------------------------------
     def start_values(self, vehicle) -> np.ndarray:
-        """Start of the effect's parameters in a fit of ``vehicle`` (default ``start``)."""
+        """Start of the effect's parameters in a fit of ``vehicle``.
+
+        Parameters
+        ----------
+        vehicle : Vehicle or Ship
+            The vessel description.
+
+        Returns
+        -------
+        ndarray, shape (n_q,)
+            The start (default ``start``).
+        """
         return np.asarray(self.start, float)
 
     def diagnosis_seed(self, evidence: dict):
-        """A start hint from the base model's misfit on the training tracks, or None.
-        ``evidence``: ``ctxs`` (training contexts), ``errors`` (their protocol errors,
-        :func:`~bayesid.models.context.errors` of the base fit, B = 1), ``forces`` ((F list,
-        motions) of the training tracks' missing forces, or None when inverse dynamics failed)."""
+        """A start hint from the base model's misfit on the training tracks.
+
+        Parameters
+        ----------
+        evidence : dict
+            ``ctxs`` (training contexts), ``errors`` (their protocol errors,
+            :func:`~bayesid.models.context.errors` of the base fit, B = 1), ``forces``
+            (``(F list, motions)`` of the training tracks' missing forces, or None when inverse
+            dynamics failed).
+
+        Returns
+        -------
+        object or None
+            The seed, passed to :meth:`fit_starts`; None when the effect has none.
+        """
         return None
 
     def fit_starts(self, p, i: int, model, seed) -> list:
-        """Start vectors [(p0, nuisance0 or None)] of a candidate fit from ``p`` (the model's
-        start, the effect's parameters at ``p[i:]``) and the effect's ``seed``."""
+        """Start vectors of a candidate fit.
+
+        Parameters
+        ----------
+        p : ndarray, shape (n_params,)
+            The model's start.
+        i : int
+            Index of the effect's first parameter in ``p``.
+        model : SimulationModel
+            The candidate model.
+        seed : object
+            The effect's :meth:`diagnosis_seed`.
+
+        Returns
+        -------
+        list of tuple
+            ``(p0, nuisance0 or None)`` per start.
+        """
         return [(p, None)]
 
     def force_signature(self, m: dict):
-        """[(n, 3) columns of X, Y, N]: the shape of the force the effect leaves in the missing
-        forces (inverse dynamics), from the motion signals ``m`` (``t``, ``u``, ``v``, ``r``,
-        ``psi``, ``rudder_rate``, ...; see the model's ``signature_columns``); None when it leaves
-        none (it acts on the measurements, or a signal it needs is absent)."""
+        """The shape of the force the effect leaves in the missing forces (inverse dynamics).
+
+        Parameters
+        ----------
+        m : dict
+            The motion signals (``t``, ``u``, ``v``, ``r``, ``psi``, ``rudder_rate``, ...; see
+            the model's ``signature_columns``).
+
+        Returns
+        -------
+        list of ndarray or None
+            Columns (n, 3) of X, Y, N; None when the effect leaves none (it acts on the
+            measurements, or a signal it needs is absent).
+        """
         return None
 
 
@@ -378,8 +538,21 @@ class Waves(Effect):
 
 
 def signature_dict(effects, m: dict) -> dict:
-    """{effect name: columns} of the effects whose :meth:`Effect.force_signature` on the motion
-    signals ``m`` is not None, in the order given."""
+    """Force signatures of the effects that leave one.
+
+    Parameters
+    ----------
+    effects : iterable of Effect
+        The effects.
+    m : dict
+        The motion signals (:meth:`Effect.force_signature`).
+
+    Returns
+    -------
+    dict
+        ``{effect name: columns}`` of the effects whose :meth:`Effect.force_signature` on ``m``
+        is not None, in the order given.
+    """
     cols = {}
     for e in effects:
         c = e.force_signature(m)
@@ -389,9 +562,20 @@ def signature_dict(effects, m: dict) -> dict:
 
 
 def drift_seed(evidence) -> np.ndarray:
-    """Earth-frame drift (m/s) that best explains the base model's position errors in the
-    training windows: measured - predicted ~ V_c t_rel (least squares through the window
-    starts). The seed of a current."""
+    """Earth-frame drift that best explains the base model's position errors in the training
+    windows: measured - predicted ~ V_c t_rel (least squares through the window starts). The
+    seed of a current.
+
+    Parameters
+    ----------
+    evidence : dict
+        The evidence of :meth:`Effect.diagnosis_seed` (``ctxs`` and ``errors`` are read).
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        The drift north and east, m/s.
+    """
     num, den = np.zeros(2), 0.0
     for ctx, e in zip(evidence["ctxs"], evidence["errors"]):
         num -= np.array([np.nansum(e["x"][0] * ctx.t_rel), np.nansum(e["y"][0] * ctx.t_rel)])
@@ -400,7 +584,22 @@ def drift_seed(evidence) -> np.ndarray:
 
 
 def drift_starts(p, i, seed) -> list:
-    """The start of a current's fit at its drift seed (two parameters at ``p[i:]``)."""
+    """The start of a current's fit at its drift seed.
+
+    Parameters
+    ----------
+    p : ndarray, shape (n_params,)
+        The model's start.
+    i : int
+        Index of the current's two parameters in ``p``.
+    seed : ndarray, shape (2,) or None
+        The drift seed (:func:`drift_seed`), m/s; clipped to +-1.4 m/s.
+
+    Returns
+    -------
+    list of tuple
+        One ``(p0, None)``.
+    """
     if seed is None:
         return [(p, None)]
     p = p.copy()
@@ -409,7 +608,20 @@ def drift_starts(p, i, seed) -> list:
 
 
 def delay_starts(p, i) -> list:
-    """A delay's fit from its catalogue start and from 1.5 s (a second basin of attraction)."""
+    """A delay's fit from its catalogue start and from 1.5 s (a second basin of attraction).
+
+    Parameters
+    ----------
+    p : ndarray, shape (n_params,)
+        The model's start.
+    i : int
+        Index of the delay in ``p``.
+
+    Returns
+    -------
+    list of tuple
+        Two ``(p0, None)``.
+    """
     alt = p.copy()
     alt[i] = 1.5
     return [(p, None), (alt, None)]
@@ -417,9 +629,9 @@ def delay_starts(p, i) -> list:
 
 #: Upper bound of the servo rate (deg/s): at it the limit never acts (100 deg per 0.05 s
 #: substep of a 0.5 s model step), so the actuator candidate nests the ideal actuator of the
-#: base model. With a bound of 60 deg/s it could not: a logged 40 deg zigzag reversal then
-#: took 0.7 s, and on no-actuator data the candidate fitted worse than the base model
-#: (training dBIC +7000 to +170000 in the committed benchmark before this bound).
+#: base model. A bound of 60 deg/s would not: a logged 40 deg zigzag reversal takes 0.7 s at
+#: that rate, and on no-actuator data such a candidate fits worse than the base model
+#: (training dBIC +7000 to +170000 in the withheld-effect benchmark).
 RATE_UNLIMITED_DEG_S = 2000.0
 
 
@@ -573,7 +785,23 @@ CATALOGUE: dict[str, Effect] = _catalogue()
 
 
 def get(name: str) -> Effect:
-    """Catalogue effect by name; ValueError naming the unknown effect and the known ones."""
+    """Catalogue effect by name.
+
+    Parameters
+    ----------
+    name : str
+        The catalogue key.
+
+    Returns
+    -------
+    Effect
+        The effect of :data:`CATALOGUE`.
+
+    Raises
+    ------
+    ValueError
+        Naming the unknown effect and the known ones.
+    """
     try:
         return CATALOGUE[name]
     except KeyError:

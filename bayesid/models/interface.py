@@ -26,27 +26,54 @@ class SimulationModel(Protocol):
     """A vessel's simulation model plus a list of effects, simulated over a track's protocol
     windows (the contract; units SI, angles in radians unless a name says otherwise).
 
-    Parameters and layout
-    ---------------------
-    ``vehicle`` : the vessel description it was built from (nominal coefficients).
-    ``free`` : list of the coefficient names the fits change (SNAME or MMG names).
-    ``effects`` : list of :class:`bayesid.models.effects.Effect`, in parameter order.
-    ``param_names`` : ``free + ["effect.param", ...]``; the parameter vector is
-    ``[theta_free (n_theta), q_1, ..., q_E]``; ``n_theta``, ``n_q`` (per effect), ``n_params``.
-    ``theta0`` : (n_theta,) nominal values of the free coefficients.
-    ``n_nuisance`` : per-track parameters (e.g. a wave phase), passed separately to
-    :meth:`simulate`.   ``dt`` : model step (s).   ``mode`` : ``"horizontal"`` or ``"6dof"``.
+    The parameter vector is ``[theta_free (n_theta), q_1, ..., q_E]``: the free coefficients,
+    then the parameters of each effect. A protocol is not instantiated: each family has its own
+    constructor and ``for_vehicle`` class method (:func:`bayesid.models.build_model`).
 
-    Class-level defaults (the vessel family's)
-    ------------------------------------------
-    ``DEFAULT_DT`` : model step (s) when the user gives none.
-    ``DEFAULT_WEIGHTING`` : channel weighting of its fits (``"noise"`` or ``"residual"``,
-    :func:`bayesid.estimation.windows.fit_weighted`).
-    ``CATALOGUE`` : {name: Effect} candidate effects of the gap diagnosis.
-    ``default_fit_window(scoring_window_s)`` : fit window (s) of the training fits when the
-    protocol scores over ``scoring_window_s``.
-    ``default_free(vehicle)``, ``check_free(vehicle, names, option)`` : the free list.
-    ``get_effect(name)`` : a catalogue effect, ValueError naming an unknown one.
+    Attributes
+    ----------
+    vehicle : object
+        The vessel description it was built from (nominal coefficients).
+    free : list of str
+        The coefficient names the fits change (SNAME or MMG names).
+    effects : list of Effect
+        The :class:`bayesid.models.effects.Effect` objects, in parameter order.
+    param_names : list of str
+        ``free + ["effect.param", ...]``, the names of the parameter vector.
+    n_theta : int
+        Number of free coefficients.
+    n_q : list of int
+        Number of parameters of each effect.
+    n_params : int
+        Length of the parameter vector.
+    n_nuisance : int
+        Number of per-track parameters (e.g. a wave phase), passed separately to
+        :meth:`simulate`.
+    theta0 : ndarray, shape (n_theta,)
+        Nominal values of the free coefficients.
+    dt : float
+        Model step, s.
+    mode : str
+        ``"horizontal"`` or ``"6dof"``.
+    DEFAULT_DT : float
+        Class level, the vessel family's: model step (s) when the user gives none.
+    DEFAULT_WEIGHTING : str
+        Class level: channel weighting of its fits (``"noise"`` or ``"residual"``,
+        :func:`bayesid.estimation.windows.fit_weighted`).
+    CATALOGUE : dict
+        Class level: ``{name: Effect}``, the candidate effects of the gap diagnosis.
+
+    Methods
+    -------
+    default_fit_window(scoring_window_s)
+        Class level: fit window (s) of the training fits when the protocol scores over
+        ``scoring_window_s``.
+    default_free(vehicle)
+        Class level: the default free list of a vehicle.
+    check_free(vehicle, names, option)
+        Class level: raise KeyError naming ``option`` and an unknown coefficient of ``names``.
+    get_effect(name)
+        Class level: a catalogue effect by name; ValueError naming an unknown one.
     """
 
     vehicle: object
@@ -65,56 +92,197 @@ class SimulationModel(Protocol):
         """Length of the parameter vector."""
 
     def start(self, theta=None) -> np.ndarray:
-        """(n_params,) start of a fit: ``theta`` (default ``theta0``) and the effects' starts."""
+        """Start of a fit: ``theta`` and the effects' starts.
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_theta,), optional
+            Free coefficients; default ``theta0``.
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            The parameter vector.
+        """
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(lo, hi) of the parameter vector (+-inf where unbounded)."""
+        """Bounds of the parameter vector.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (n_params,)
+            Lower and upper bounds (+-inf where unbounded).
+        """
 
     def scales(self) -> np.ndarray:
-        """(n_params,) typical sizes (fit scaling, finite-difference steps)."""
+        """Typical sizes of the parameters (fit scaling, finite-difference steps).
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            The typical sizes, in the parameters' units.
+        """
 
     def split_params(self, P) -> tuple[np.ndarray, list]:
-        """(B, n_params) -> (theta (B, n_theta), [q_e (B, n_q_e) per effect])."""
+        """Split parameter vectors into the free coefficients and the effects' parameters.
+
+        Parameters
+        ----------
+        P : array_like, shape (B, n_params)
+            Parameter vectors.
+
+        Returns
+        -------
+        theta : ndarray, shape (B, n_theta)
+            The free coefficients.
+        qs : list of ndarray
+            ``q_e`` of shape (B, n_q_e) per effect.
+        """
 
     def context(
         self, track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
     ):
-        """A track prepared for simulation (:class:`bayesid.models.context.TrackContext`): step inputs,
-        protocol windows (``window_s``; None = whole run), window-start states by the start rule
-        ``start`` (lead-in ``leadin_s``), or the state ``s0`` (12,) at the first sample."""
+        """A track prepared for simulation: step inputs, protocol windows, window-start states.
+
+        Parameters
+        ----------
+        track : Track
+            The track.
+        window_s : float, optional
+            Protocol window, s; None is one window over the whole run.
+        span_s : float, default 1.0
+            Span of the measured start-state estimate, s (:func:`bayesid.protocol.state_at`).
+        s0 : array_like, shape (12,), optional
+            The state at the first sample, replacing the estimated start state.
+        start : {"measured", "fitted"}, default "measured"
+            The (resolved) start rule of the window-start states.
+        leadin_s : float, default 0.0
+            Lead-in of the fitted start rule, s.
+
+        Returns
+        -------
+        TrackContext
+            The prepared track (:class:`bayesid.models.context.TrackContext`).
+        """
 
     def simulate(
         self, ctx, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
     ) -> np.ndarray:
-        """(B, n_samples, 12) predicted measurements (STATE_NAMES order, NaN in a diverged
-        window) for (B, n_params) parameter vectors ``P``; ``nuisance`` (B, n_nuisance);
-        ``starts`` (B, W, 6) start-state offsets of the fitted start rule; ``samples`` scored or
-        lead."""
+        """Predicted measurements of parameter vectors on a prepared track.
+
+        Parameters
+        ----------
+        ctx : TrackContext
+            The prepared track (:meth:`context`).
+        P : array_like, shape (B, n_params)
+            Parameter vectors.
+        nuisance : array_like, shape (B, n_nuisance), optional
+            Per-track parameters of this track (default zeros).
+        measured_start : bool, default True
+            The window-start states are measurements, mapped through the effects' sensor models
+            (False: they are model states already).
+        starts : array_like, shape (B, W, 6), optional
+            Start-state offsets of the fitted start rule, one row per window.
+        samples : {"scored", "lead"}, default "scored"
+            The scored samples or the lead-in samples that estimate the start states.
+
+        Returns
+        -------
+        ndarray, shape (B, n_samples, 12)
+            Predicted measurements (STATE_NAMES order, NaN in a diverged window).
+        """
 
     def seed(self, tracks):
-        """An equation-error start of the fit, (p (n_params,), summary dict), or None when the
-        family has none."""
+        """An equation-error start of the fit.
+
+        Parameters
+        ----------
+        tracks : list of Track
+            The training tracks.
+
+        Returns
+        -------
+        tuple or None
+            ``(p, summary)``: the start ``p`` (n_params,) and a summary dict; None when the
+            family has no seed.
+        """
 
     def missing_forces(self, fitres, track):
-        """Inverse dynamics: (motion dict, F (n, 3) missing X, Y, N in N and N m, inputs) of the
-        fitted model on a track."""
+        """Inverse dynamics of the fitted model on a track: the forces it misses.
+
+        Parameters
+        ----------
+        fitres : FitResult
+            A fit of this model.
+        track : Track
+            The track.
+
+        Returns
+        -------
+        motion : dict
+            The smoothed measured motion (``t``, ``u``, ``v``, ``r``, ...).
+        F : ndarray, shape (n, 3)
+            Missing X, Y (N) and N (N m) at the motion's samples.
+        inputs : ndarray
+            The logged inputs at the track's samples, one column per input.
+        """
 
     def signature_columns(self, motion, inputs, track, seeds=None) -> dict:
-        """{effect name: [(n, 3) columns]}: the force-space shape each effect of the catalogue
-        leaves in the missing forces (for the sparse-regression support); ``seeds`` from the
-        diagnosis (e.g. a wave frequency)."""
+        """The force-space shape each effect of the catalogue leaves in the missing forces (for
+        the sparse-regression support).
+
+        Parameters
+        ----------
+        motion : dict
+            The smoothed motion of :meth:`missing_forces`.
+        inputs : ndarray
+            The logged inputs of :meth:`missing_forces`.
+        track : Track
+            The track.
+        seeds : dict, optional
+            Seeds of the diagnosis (e.g. a wave frequency).
+
+        Returns
+        -------
+        dict
+            ``{effect name: [columns (n, 3)]}``.
+        """
 
     def where_samples(self, track, ctx, S) -> dict:
-        """Extra per-sample region variables of the *where* analysis (may be empty)."""
+        """Extra per-sample region variables of the *where* analysis (may be empty).
+
+        Parameters
+        ----------
+        track : Track
+            The track.
+        ctx : TrackContext
+            The prepared track.
+        S : ndarray, shape (B, n_samples, 12)
+            Predicted states of :meth:`simulate`.
+
+        Returns
+        -------
+        dict
+            ``{region variable: values (n_samples,)}``.
+        """
 
     def regions(self) -> dict:
-        """{region variable: bin edges} of the *where* analysis."""
+        """Bins of the *where* analysis.
+
+        Returns
+        -------
+        dict
+            ``{region variable: bin edges}``.
+        """
 
 
 class ParameterLayout:
     """The parameter vector both families share: ``[theta_free (n_theta), q_1, ..., q_E]`` with
-    ``q_e`` the parameters of effect ``e`` (in the units of their names). A subclass sets
-    ``theta0``, ``n_theta``, ``n_q``, ``effects`` and ``vehicle``."""
+    ``q_e`` the parameters of effect ``e`` (in the units of their names).
+
+    A mixin without a constructor: a subclass sets ``theta0``, ``n_theta``, ``n_q``, ``effects``
+    and ``vehicle``.
+    """
 
     @property
     def n_params(self) -> int:
@@ -122,14 +290,37 @@ class ParameterLayout:
         return self.n_theta + sum(self.n_q)
 
     def start(self, theta=None) -> np.ndarray:
-        """(n_params,) start of a fit: ``theta`` (default ``theta0``) and each effect's
-        :meth:`~bayesid.models.effects.Effect.start_values` for this vehicle."""
+        """Start of a fit: ``theta`` and each effect's
+        :meth:`~bayesid.models.effects.Effect.start_values` for this vehicle.
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_theta,), optional
+            Free coefficients; default ``theta0``.
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            The parameter vector.
+        """
         th = self.theta0 if theta is None else np.asarray(theta, float)
         return np.concatenate([th] + [e.start_values(self.vehicle) for e in self.effects])
 
     def split_params(self, P):
-        """(B, n_params) parameter vectors -> (theta (B, n_theta) free coefficients, [q_e (B,
-        n_q_e) per effect, in the model's effect order])."""
+        """Split parameter vectors into the free coefficients and the effects' parameters.
+
+        Parameters
+        ----------
+        P : array_like, shape (B, n_params) or (n_params,)
+            Parameter vectors.
+
+        Returns
+        -------
+        theta : ndarray, shape (B, n_theta)
+            The free coefficients.
+        qs : list of ndarray
+            ``q_e`` of shape (B, n_q_e) per effect, in the model's effect order.
+        """
         P = np.atleast_2d(np.asarray(P, float))
         th = P[:, : self.n_theta]
         qs, i = [], self.n_theta

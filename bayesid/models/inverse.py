@@ -50,9 +50,25 @@ _PLANE = [0, 1, 5]  # u, v, r rows/columns of the 6x6 mass matrix
 
 
 def horizontal_terms(equation: str) -> list[str]:
-    """Term-library names of one horizontal equation (``"X"``, ``"Y"`` or ``"N"``), table order:
-    the listed terms only, so a SINDy library does not grow with the products a process happened
-    to read before (:func:`bayesid.data.terms.names_where`)."""
+    """Term-library names of one horizontal equation, in table order: the listed terms only, so
+    a SINDy library does not grow with the products a process happened to read before
+    (:func:`bayesid.data.terms.names_where`).
+
+    Parameters
+    ----------
+    equation : {"X", "Y", "N"}
+        The equation.
+
+    Returns
+    -------
+    list of str
+        The term names.
+
+    Raises
+    ------
+    ValueError
+        For another equation.
+    """
     if equation not in EQUATIONS:
         raise ValueError(f"equation must be one of {EQUATIONS}, got {equation!r}")
     return terms.names_where(group=equation, horizontal=True, listed=True)
@@ -64,6 +80,27 @@ def horizontal_terms(equation: str) -> list[str]:
 
 
 def require_column(track: Track, name: str, why: str) -> np.ndarray:
+    """A column of a track that must be present and gap-free.
+
+    Parameters
+    ----------
+    track : Track
+        The track.
+    name : str
+        The column.
+    why : str
+        What needs it, named in the message.
+
+    Returns
+    -------
+    ndarray, shape (n_samples,)
+        The column.
+
+    Raises
+    ------
+    ValueError
+        Naming the track and column when it is absent or has a NaN (with its first sample).
+    """
     if name not in track:
         raise ValueError(f"track {track.name!r} has no column {name!r} ({why}); columns: {['t', *track.data]}")
     col = track[name]
@@ -103,7 +140,20 @@ def _smooth_diff(x: np.ndarray, t: np.ndarray, window: int, polyorder: int):
 
 
 def motion_filter(x: np.ndarray, motion: dict) -> np.ndarray:
-    """The smoothing the motion went through (``passes`` Savitzky-Golay passes), along axis 0."""
+    """The smoothing the motion went through (``passes`` Savitzky-Golay passes), along axis 0.
+
+    Parameters
+    ----------
+    x : array_like, shape (n, ...)
+        Signals at the motion's samples.
+    motion : dict
+        The motion of :func:`estimate_motion` (its ``smoother`` is read; none: no smoothing).
+
+    Returns
+    -------
+    ndarray
+        The smoothed signals, of the shape of ``x``.
+    """
     sm = motion.get("smoother")
     if sm is None:
         return np.asarray(x, dtype=float)
@@ -122,6 +172,19 @@ def held_inputs(inputs: np.ndarray, hold: str) -> list[np.ndarray]:
     ``(f(state_k, in_k-1) + f(state_k, in_k)) / 2`` (averaging f, not the input, keeps nonlinear
     terms such as ``dr**2`` right across a rudder reversal). ``"sample"``: the stored value is
     the (continuous) signal at t_k; used as is.
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (n, k)
+        The inputs stored at the samples.
+    hold : {"zoh", "sample"}
+        How they are to be read.
+
+    Returns
+    -------
+    list of ndarray
+        ``[inputs]`` for ``"sample"``; ``[previous, inputs]`` (the value held before and after
+        each sample time, the first sample repeated) for ``"zoh"``.
     """
     if hold == "sample":
         return [inputs]
@@ -156,7 +219,7 @@ def estimate_motion(
     moment). The rudder angle (if the track has ``delta_r``) is returned smoothed the same way,
     with its derivative (the rudder rate).
 
-    Window choice (defaults measured on NPS AUV II at 10 Hz; see the report of issue 4):
+    Window choice (defaults measured on NPS AUV II at 10 Hz):
     ``window_s = 1.0`` s for measured velocities -- short against the ~3 s yaw time constant;
     ``window_s = 8.0`` s from positions -- with 0.2 m / 0.2 deg noise the accelerations (a
     second smoothed derivative of the positions) are the noisiest quantity and set this choice:
@@ -174,11 +237,11 @@ def estimate_motion(
         ``v`` (m/s), ``r`` (rad/s) optional; ``delta_r`` (rad) optional.
     window_s : float, optional
         Savitzky-Golay window, s. Default 1.0 (measured velocities) or 8.0 (positions).
-    polyorder : int
-        Savitzky-Golay polynomial order (default 3).
+    polyorder : int, default 3
+        Savitzky-Golay polynomial order.
     use_velocities : bool, optional
         Force a route; default: measured velocities if u, v and r are all present.
-    input_hold : ``"zoh"`` (default) or ``"sample"``
+    input_hold : {"zoh", "sample"}, default "zoh"
         How the input columns are to be read: ``"zoh"`` -- the value stored at sample k is held
         over [t_k, t_k+1) (the simulator's convention), so the value in effect at t_k for a
         central derivative is the mean of samples k-1 and k; ``"sample"`` -- the value at t_k
@@ -272,6 +335,25 @@ def estimate_motion(
 
 
 def motion_arrays(motion: dict, keys=("u", "v", "r", "u_dot", "v_dot", "r_dot")):
+    """Arrays of a motion dict, checked.
+
+    Parameters
+    ----------
+    motion : dict
+        The motion of :func:`estimate_motion`.
+    keys : sequence of str, default ("u", "v", "r", "u_dot", "v_dot", "r_dot")
+        The entries wanted.
+
+    Returns
+    -------
+    list of ndarray
+        The entries as float arrays (n,), in ``keys`` order.
+
+    Raises
+    ------
+    ValueError
+        A missing key, or an entry that is not 1-D of the common length.
+    """
     out = []
     n = None
     for k in keys:
@@ -286,8 +368,25 @@ def motion_arrays(motion: dict, keys=("u", "v", "r", "u_dot", "v_dot", "r_dot"))
 
 
 def known_values(known, vehicle) -> dict:
-    """``known`` as {name: prime value}: a mapping is taken as is, a sequence of names takes the
-    vehicle's values. Raises ValueError naming a name that is not a horizontal library term."""
+    """Values of the terms taken as known.
+
+    Parameters
+    ----------
+    known : sequence of str or dict
+        Names (they take the vehicle's values) or ``{name: prime value}`` (taken as is).
+    vehicle : Vehicle
+        The vehicle.
+
+    Returns
+    -------
+    dict
+        ``{name: prime value}``.
+
+    Raises
+    ------
+    ValueError
+        Naming a name that is not a horizontal library term.
+    """
     vals = dict(known) if isinstance(known, dict) else {k: None for k in known}
     for k in vals:
         if k not in terms.INDEX or not terms.term(k).horizontal:
@@ -329,17 +428,19 @@ def force_targets(motion: dict, vehicle, inputs=None, known=()) -> np.ndarray:
 
     Parameters
     ----------
-    motion : dict from :func:`estimate_motion` (u, v, r, u_dot, v_dot, r_dot; (n,) each).
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (mass, inertia, rG; rho and L for ``known``).
-    inputs : (n, 4) array, optional
+    motion : dict
+        From :func:`estimate_motion` (u, v, r, u_dot, v_dot, r_dot; (n,) each).
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle` (mass, inertia, rG; rho and L for ``known``).
+    inputs : ndarray, shape (n, 4), optional
         ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm); needed only for ``known`` force terms.
-    known : sequence of str or dict
+    known : sequence of str or dict, default ()
         Horizontal library terms taken as known: names (the vehicle's prime values) or
         ``{name: prime value}``.
 
     Returns
     -------
-    ndarray (n, 3)
+    ndarray, shape (n, 3)
         X (N), Y (N), N (N m).
 
     Raises
@@ -365,6 +466,25 @@ def force_targets(motion: dict, vehicle, inputs=None, known=()) -> np.ndarray:
 
 
 def inputs_array(inputs, n: int) -> np.ndarray:
+    """Inputs checked for the library columns.
+
+    Parameters
+    ----------
+    inputs : array_like, shape (n, 4)
+        ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm).
+    n : int
+        The number of samples expected.
+
+    Returns
+    -------
+    ndarray, shape (n, 4)
+        The inputs as floats.
+
+    Raises
+    ------
+    ValueError
+        Inputs missing (None), of another shape, or not finite (naming the channel and sample).
+    """
     if inputs is None:
         raise ValueError("inputs (n, 4) are needed: delta_r (rad) and n (rpm) enter the rudder and propulsion terms")
     a = np.asarray(inputs, dtype=float)
@@ -381,11 +501,28 @@ _INPUT_FACTORS = {"dr", "ds", "db", "prop", "eps"}
 
 
 def library_columns(names, motion: dict, inputs, vehicle) -> np.ndarray:
-    """Columns (n, len(names)) of library terms (force and acceleration) at the motion.
+    """Columns of library terms (force and acceleration) at the motion.
 
     Force terms use the simulator's features at (u, v, r) and the inputs in effect at the sample
     times (see ``motion["input_hold"]``); a column with an input factor (rudder, propeller) is
-    then passed through the motion's smoothing (``motion["smoother"]``)."""
+    then passed through the motion's smoothing (``motion["smoother"]``).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Horizontal library terms.
+    motion : dict
+        From :func:`estimate_motion`.
+    inputs : array_like, shape (n, 4)
+        The inputs at the motion's samples; needed when ``names`` has force terms.
+    vehicle : Vehicle
+        The vehicle (rho, L and the propulsion of the features).
+
+    Returns
+    -------
+    ndarray, shape (n, len(names))
+        The columns, N or N m per unit prime coefficient.
+    """
     u, v, r, ud, vd, rd = motion_arrays(motion)
     n = u.size
     out = np.empty((n, len(names)))
@@ -417,8 +554,23 @@ def library_columns(names, motion: dict, inputs, vehicle) -> np.ndarray:
 
 
 def track_inputs(track: Track) -> np.ndarray:
-    """(n_samples, 4) inputs ``delta_r, delta_s, delta_b, n`` of a track (rad, rpm), absent
-    columns 0. Raises ValueError naming the track when ``delta_r`` or ``n`` is missing."""
+    """Inputs ``delta_r, delta_s, delta_b, n`` of a track (rad, rpm), absent columns 0.
+
+    Parameters
+    ----------
+    track : Track
+        The track; it needs gap-free ``delta_r`` and ``n``.
+
+    Returns
+    -------
+    ndarray, shape (n_samples, 4)
+        The inputs.
+
+    Raises
+    ------
+    ValueError
+        Naming the track when ``delta_r`` or ``n`` is missing or has a NaN.
+    """
     for c, why in (("delta_r", "rudder terms"), ("n", "propulsion term Cd0 (rpm)")):
         require_column(track, c, why)
     return track.inputs(fill=0.0)

@@ -22,7 +22,20 @@ from .simulate import Manoeuvre, Simulator
 
 
 def steady_state(vehicle, rpm: float | None = None) -> np.ndarray:
-    """Straight, level state at the steady speed for ``rpm`` (default: nominal), (12,)."""
+    """Straight, level state at the steady speed for a propeller speed.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+
+    Returns
+    -------
+    ndarray, shape (12,)
+        The state (only ``u`` non-zero).
+    """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     s = np.zeros(12)
     s[6] = vehicle.steady_speed(rpm)
@@ -124,6 +137,31 @@ def spiral(
     then the rudder is stepped to each angle of ``rudder_steps_deg`` in turn, holding each for an
     equal share of the remaining time (57 s each for the defaults). Each step tightens the turn,
     so the track is an inward spiral. Rudder steps are instantaneous (zero-order hold).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle (start state and control limits).
+    dt : float, default 0.1
+        Integration step, s.
+    duration : float, default 600.0
+        Length of the run, s; a whole number of steps.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    t_straight : float, default 30.0
+        Straight approach, s.
+    rudder_steps_deg : sequence of float, default (2, 4, ..., 20)
+        The rudder angles in turn, deg.
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``"spiral"``.
+
+    Raises
+    ------
+    ValueError
+        A duration that is not a whole number of steps, or inputs beyond the vehicle's limits.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     n = _grid(duration, dt)
@@ -164,7 +202,33 @@ def turning_circle(
     rpm: float | None = None,
     t_execute: float = 10.0,
 ) -> Manoeuvre:
-    """Turning circle: straight approach, then the rudder stepped to ``rudder_deg`` and held."""
+    """Turning circle: straight approach, then the rudder stepped to ``rudder_deg`` and held.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle (start state and control limits).
+    rudder_deg : float, default 20.0
+        Rudder angle, deg.
+    dt : float, default 0.1
+        Integration step, s.
+    duration : float, default 150.0
+        Length of the run, s; a whole number of steps.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    t_execute : float, default 10.0
+        Time of the rudder step, s.
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``turnp20`` / ``turnm20`` style after the rudder angle.
+
+    Raises
+    ------
+    ValueError
+        A duration that is not a whole number of steps, or inputs beyond the vehicle's limits.
+    """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     n = _grid(duration, dt)
     inputs = np.zeros((n, 4))
@@ -208,12 +272,37 @@ def zigzag(
 
     Parameters
     ----------
-    rudder_rate_deg_s : rudder rate limit; 0 = instantaneous reversal (NPS AUV II has no
-        published rate; its 0.1 s actuator time constant makes reversals nearly instantaneous).
+    vehicle : Vehicle
+        The vehicle, the "truth" of the closed loop (6-DOF).
+    rudder_deg : float, default 10.0
+        Rudder angle, deg.
+    heading_deg : float, optional
+        Heading change that reverses the rudder, deg; default ``rudder_deg``.
+    dt : float, default 0.1
+        Integration step, s.
+    duration : float, default 120.0
+        Length of the run, s; a whole number of steps.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    t_execute : float, default 10.0
+        Time of the first rudder command, s.
+    first_sign : int, default 1
+        Sign of the first rudder command (the name gets an ``m`` suffix for -1).
+    rudder_rate_deg_s : float, default 0.0
+        Rudder rate limit, deg/s; 0 = instantaneous reversal (NPS AUV II has no published rate;
+        its 0.1 s actuator time constant makes reversals nearly instantaneous).
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``zigzag10_10`` style; ``parameters`` records the switch times.
 
     Raises
     ------
-    RuntimeError if the closed-loop simulation diverges.
+    RuntimeError
+        If the closed-loop simulation diverges.
+    ValueError
+        A duration that is not a whole number of steps, or inputs beyond the vehicle's limits.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     heading_deg = rudder_deg if heading_deg is None else heading_deg
@@ -265,7 +354,24 @@ def zigzag(
 
 
 def straight(vehicle, dt: float = 0.1, duration: float = 60.0, rpm: float | None = None) -> Manoeuvre:
-    """Straight run at constant propeller speed, zero control deflections."""
+    """Straight run at constant propeller speed, zero control deflections.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    dt : float, default 0.1
+        Integration step, s.
+    duration : float, default 60.0
+        Length of the run, s; a whole number of steps.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``"straight"``.
+    """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     n = _grid(duration, dt)
     inputs = np.zeros((n, 4))
@@ -297,7 +403,35 @@ def pull_out(
     for a near-steady turn (NPS AUV II, 20 deg, 60 s: yaw rate within ~2 % of its steady value); at
     ``t_execute + t_hold`` returned to 0 (instantaneous step) and held to ``duration`` s. Afterwards
     the yaw rate decays to zero if the vehicle is directionally stable and to a residual rate if not
-    (ITTC: run to both sides; call twice with opposite signs). Name ``pull_outp20`` / ``pull_outm20``.
+    (ITTC: run to both sides; call twice with opposite signs).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    rudder_deg : float, default 20.0
+        Rudder angle of the turn, deg.
+    t_execute : float, default 10.0
+        Time of the rudder step, s.
+    t_hold : float, default 60.0
+        How long the rudder is held, s.
+    duration : float, default 180.0
+        Length of the run, s.
+    dt : float, default 0.1
+        Integration step, s.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``pull_outp20`` / ``pull_outm20``.
+
+    Raises
+    ------
+    ValueError
+        Times that are not whole numbers of steps or not ``0 <= t_execute <= t_execute + t_hold <
+        duration``; inputs beyond the vehicle's limits.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     n = _grid(duration, dt)
@@ -365,9 +499,41 @@ def reverse_spiral(
     hold (``steady_rudder_deg``, ``steady_yaw_rate_deg_s``) and whether the rudder saturated there.
     Yaw rates needing more rudder than the limit are not held (NPS AUV II: |r| < ~4.5 deg/s).
 
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle, the "truth" of the closed loop (6-DOF).
+    yaw_rates_deg_s : sequence of float, default (4, 3, 2, 1, 0.5, 0, -0.5, -1, -2, -3, -4)
+        Target yaw rates in turn, deg/s (positive = starboard turn).
+    hold_s : float, default 30.0
+        How long each target is held, s.
+    dt : float, default 0.1
+        Integration step, s.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    t_straight : float, default 10.0
+        Straight approach, s.
+    kp : float, default 4.0
+        Proportional gain, rad rudder per rad/s (s).
+    ki : float, default 2.0
+        Integral gain, rad rudder per rad.
+    rudder_rate_deg_s : float, default 0.0
+        Rudder rate limit, deg/s (0 = instantaneous).
+    rudder_max_deg : float, optional
+        Saturation of the rudder, deg, in (0, the vehicle's limit]; default the limit.
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``"reverse_spiral"``; ``parameters`` as above.
+
     Raises
     ------
-    RuntimeError if the closed-loop simulation diverges.
+    RuntimeError
+        If the closed-loop simulation diverges.
+    ValueError
+        No targets, a rudder limit outside (0, the vehicle's limit], times that are not whole
+        numbers of steps.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     rates = [float(x) for x in yaw_rates_deg_s]
@@ -469,6 +635,33 @@ def speed_steps(
     Source: reasoning -- ITTC 7.5-04-02-01 has stopping (2.2.7/2.2.8) and accelerating-turning
     (2.2.12) tests but no graded speed-step run; steps excite X'prop/eps and the u-dependence of
     all terms, which constant-rpm manoeuvres leave confounded. |rpm| <= the vehicle's rpm limit.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    rpm_steps : sequence of float, default (1000, 500, 1000, 1500)
+        Propeller speeds in turn, rpm.
+    hold_s : float, default 80.0
+        How long each is held, s.
+    rudder_deg : float, default 0.0
+        Rudder angle from the first step on, deg.
+    dt : float, default 0.1
+        Integration step, s.
+    rpm : float, optional
+        Propeller speed of the start, rpm; default the nominal.
+    t_straight : float, default 10.0
+        Straight approach, s.
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``"speed_steps"``.
+
+    Raises
+    ------
+    ValueError
+        No steps, times that are not whole numbers of steps, inputs beyond the vehicle's limits.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     steps = [float(x) for x in rpm_steps]
@@ -507,8 +700,19 @@ def speed_steps(
 
 
 def schroeder_phases(n: int) -> np.ndarray:
-    """Schroeder (1970) low-peak-factor phases for ``n`` equal-amplitude components (rad):
-    ``phi_k = -pi k (k - 1) / n``, k = 1..n."""
+    """Schroeder (1970) low-peak-factor phases of equal-amplitude components:
+    ``phi_k = -pi k (k - 1) / n``, k = 1..n.
+
+    Parameters
+    ----------
+    n : int
+        Number of components.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The phases, rad.
+    """
     k = np.arange(1, n + 1)
     return -math.pi * k * (k - 1) / n
 
@@ -538,6 +742,40 @@ def multisine(
     Default band 0.005-0.2 Hz brackets the NPS AUV II yaw corner (~0.05 Hz; Nomoto T ~ 3 s).
     Source: reasoning (system-identification input design; Schroeder 1970, IEEE Trans. Inf.
     Theory 16(1):85-89). Frequencies must lie in (0, 1/(2 dt)).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    amplitude_deg : float, default 10.0
+        Peak rudder angle over the run, deg.
+    frequencies_hz : sequence of float, default (0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2)
+        Frequencies of the sines, Hz.
+    phases_rad : sequence of float, optional
+        Their phases, rad; default Schroeder phases.
+    duration : float, default 300.0
+        Length of the run, s.
+    dt : float, default 0.1
+        Integration step, s.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    t_execute : float, default 10.0
+        Start of the signal, s.
+    weights : sequence of float, optional
+        Relative amplitudes ``w_k``; default 1 each.
+    name : str, default "multisine"
+        Name of the manoeuvre.
+
+    Returns
+    -------
+    Manoeuvre
+        The manoeuvre; ``parameters`` records the phases, weights and component amplitude.
+
+    Raises
+    ------
+    ValueError
+        Frequencies outside (0, 1/(2 dt)), phases or weights of another length or not finite,
+        negative or all-zero weights, ``t_execute`` outside the run, inputs beyond the limits.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     f = np.asarray(frequencies_hz, dtype=float).ravel()
@@ -611,6 +849,40 @@ def prbs(
     period and the switch times, so the sequence is reproducible without the generator.
     Source: reasoning (random binary test signal of system identification; ``min_hold_s`` sets the
     band, ~ up to 1/(2 min_hold_s) Hz; 5 s suits NPS AUV II's ~3 s yaw time constant).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    amplitude_deg : float, default 10.0
+        Rudder level, deg.
+    min_hold_s : float, default 5.0
+        Clock period, s; at least one step.
+    duration : float, default 300.0
+        Length of the run, s.
+    rng : numpy.random.Generator
+        All randomness (required, despite the None default).
+    dt : float, default 0.1
+        Integration step, s.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    t_execute : float, default 10.0
+        Start of the sequence, s.
+    p_switch : float, default 0.5
+        Probability of a sign flip per clock tick, in [0, 1].
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``"prbs"``.
+
+    Raises
+    ------
+    TypeError
+        When ``rng`` is not a ``numpy.random.Generator``.
+    ValueError
+        ``p_switch`` outside [0, 1], ``min_hold_s`` below a step, ``t_execute`` outside the run,
+        inputs beyond the limits.
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError("prbs: rng must be a numpy.random.Generator (randomness only through it)")
@@ -677,11 +949,40 @@ def vertical_zigzag(
     ``delta_s`` changes theta with the sign of M'ds (NPS AUV II: nose down, diving first). Runs the
     closed loop on the given vehicle (the same kernel as :func:`zigzag`, with input 1 triggered on
     state 4) and returns the plane history it applied. 6-DOF only (``mode="horizontal"`` rejects
-    non-zero planes). ``plane_rate_deg_s``: plane rate limit, 0 = instantaneous.
+    non-zero planes).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle, the "truth" of the closed loop (6-DOF).
+    planes_deg : float, default 10.0
+        Stern-plane angle, deg.
+    pitch_deg : float, optional
+        Pitch change that reverses the planes, deg; default ``planes_deg``.
+    dt : float, default 0.1
+        Integration step, s.
+    duration : float, default 120.0
+        Length of the run, s.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    t_execute : float, default 10.0
+        Time of the first plane command, s.
+    first_sign : int, default 1
+        Sign of the first command (the name gets an ``m`` suffix for -1).
+    plane_rate_deg_s : float, default 0.0
+        Plane rate limit, deg/s; 0 = instantaneous.
+
+    Returns
+    -------
+    Manoeuvre
+        Named ``vertical_zigzag10_10`` style; ``parameters`` records the switch times.
 
     Raises
     ------
-    RuntimeError if the closed-loop simulation diverges.
+    RuntimeError
+        If the closed-loop simulation diverges.
+    ValueError
+        A duration that is not a whole number of steps, or inputs beyond the vehicle's limits.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     pitch_deg = planes_deg if pitch_deg is None else pitch_deg
@@ -750,6 +1051,22 @@ def library(vehicle, dt: float = 0.1, rpm: float | None = None, seed: int = 0) -
     the reverse-spiral targets and gains suit NPS AUV II at its nominal 1500 rpm. The generators'
     own names ``turnp20``, ``turnm20``, ``pull_outp20`` are replaced by the keys. The vertical
     zigzag has non-zero stern planes: simulate it with ``mode="6dof"``.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle, the "truth" of the closed-loop manoeuvres.
+    dt : float, default 0.1
+        Integration step, s.
+    rpm : float, optional
+        Propeller speed, rpm; default the nominal.
+    seed : int, default 0
+        Seed of the PRBS generator.
+
+    Returns
+    -------
+    dict
+        ``{name: Manoeuvre}`` in the order above.
     """
     out = [
         ("spiral", spiral(vehicle, dt=dt, rpm=rpm)),

@@ -49,14 +49,36 @@ _OK, _NONFINITE, _OUT_OF_BOUNDS = 0, 1, 2
 
 
 def skew(a) -> np.ndarray:
-    """Skew-symmetric matrix S(a) (3, 3) with ``S(a) b = a x b`` (Fossen 1994, Eq. 2.9)."""
+    """Skew-symmetric matrix S(a) with ``S(a) b = a x b`` (Fossen 1994, Eq. 2.9).
+
+    Parameters
+    ----------
+    a : array_like, shape (3,)
+        The vector.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        S(a).
+    """
     a1, a2, a3 = a
     return np.array([[0.0, -a3, a2], [a3, 0.0, -a1], [-a2, a1, 0.0]])
 
 
 def rotation_matrix(phi: float, theta: float, psi: float) -> np.ndarray:
-    """Body-to-earth rotation R(Theta) (3, 3) for zyx Euler angles (rad):
-    ``R = R_z(psi) R_y(theta) R_x(phi)`` (Fossen 1994, Eq. 2.18)."""
+    """Body-to-earth rotation R(Theta) for zyx Euler angles:
+    ``R = R_z(psi) R_y(theta) R_x(phi)`` (Fossen 1994, Eq. 2.18).
+
+    Parameters
+    ----------
+    phi, theta, psi : float
+        Roll, pitch and yaw angles, rad.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        R(Theta).
+    """
     cf, sf = math.cos(phi), math.sin(phi)
     ct, st = math.cos(theta), math.sin(theta)
     cp, sp = math.cos(psi), math.sin(psi)
@@ -67,19 +89,41 @@ def rotation_matrix(phi: float, theta: float, psi: float) -> np.ndarray:
 
 
 def euler_rate_matrix(phi: float, theta: float) -> np.ndarray:
-    """T(Theta) (3, 3) with ``(phi, theta, psi)_dot = T (p, q, r)`` (Fossen 1994, Eq. 2.28).
-    Singular at theta = +-90 deg."""
+    """T(Theta) with ``(phi, theta, psi)_dot = T (p, q, r)`` (Fossen 1994, Eq. 2.28).
+    Singular at theta = +-90 deg.
+
+    Parameters
+    ----------
+    phi, theta : float
+        Roll and pitch angles, rad.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        T(Theta).
+    """
     cf, sf = math.cos(phi), math.sin(phi)
     ct, tt = math.cos(theta), math.tan(theta)
     return np.array([[1.0, sf * tt, cf * tt], [0.0, cf, -sf], [0.0, sf / ct, cf / ct]])
 
 
 def coriolis_rigid_body(M_RB: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Rigid-body Coriolis/centripetal matrix C_RB(nu) (6, 6), SI.
+    """Rigid-body Coriolis/centripetal matrix C_RB(nu), SI.
 
     ``C_RB = [[0, -S(M11 nu1 + M12 nu2)], [-S(M11 nu1 + M12 nu2), -S(M21 nu1 + M22 nu2)]]``
-    (Fossen 1994, Eq. 2.102; Fossen 2011, Theorem 3.2), with ``M_RB`` (6, 6) the rigid-body mass
-    matrix about the body origin and ``nu = (u, v, w, p, q, r)``. Skew-symmetric for symmetric M_RB.
+    (Fossen 1994, Eq. 2.102; Fossen 2011, Theorem 3.2). Skew-symmetric for symmetric M_RB.
+
+    Parameters
+    ----------
+    M_RB : ndarray, shape (6, 6)
+        The rigid-body mass matrix about the body origin.
+    nu : ndarray, shape (6,)
+        ``(u, v, w, p, q, r)``, m/s and rad/s.
+
+    Returns
+    -------
+    ndarray, shape (6, 6)
+        C_RB(nu).
     """
     nu1, nu2 = nu[:3], nu[3:]
     a = M_RB[:3, :3] @ nu1 + M_RB[:3, 3:] @ nu2
@@ -97,13 +141,27 @@ def coriolis_rigid_body(M_RB: np.ndarray, nu: np.ndarray) -> np.ndarray:
 
 
 def propulsion_eps(u: np.ndarray, n_rpm: np.ndarray, vehicle) -> np.ndarray:
-    """Propulsion function eps(eta) (n,), Healey & Lienard (1993) as in equations.md "Propulsion".
+    """Propulsion function eps(eta), Healey & Lienard (1993) as in equations.md "Propulsion".
 
     ``eta = u_c/u`` with ``u_c = uc_per_omega * n * 2 pi / 60`` and ``u`` floored to
     ``|u| >= U_FLOOR`` (sign kept, u = 0 counts as positive);
     ``eps = -1 + sign(n)/sign(u) * (sqrt(|C_T| + 1) - 1)/(sqrt(C_T1 + 1) - 1)``,
     ``C_T = CT_coeff L^2 eta|eta|/2``, ``C_T1 = CT_coeff L^2/2``. The ``|C_T|`` keeps the root real
     under reverse thrust (the sign ratio carries the direction); n = 0 counts as positive.
+
+    Parameters
+    ----------
+    u : array_like, shape (n,)
+        Surge speed, m/s.
+    n_rpm : array_like, shape (n,)
+        Propeller speed, rpm.
+    vehicle : Vehicle
+        The vehicle (propulsion constants and L).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        eps(eta).
     """
     u = np.asarray(u, dtype=float)
     n_rad = np.asarray(n_rpm, dtype=float) * (2.0 * np.pi / 60.0)
@@ -117,16 +175,24 @@ def propulsion_eps(u: np.ndarray, n_rpm: np.ndarray, vehicle) -> np.ndarray:
 
 
 def reference_features(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.ndarray:
-    """Term-library features (n, terms.N_FEATURES) in the order of ``terms.FEATURES``.
-
-    Parameters
-    ----------
-    states : (n, 12) ``x, y, z, phi, theta, psi, u, v, w, p, q, r`` (m, rad, m/s, rad/s).
-    inputs : (n, 4) ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm).
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (propulsion constants and L).
+    """Term-library features in the order of ``terms.FEATURES``.
 
     ``prop = u_c|u_c| - u|u|`` (m^2/s^2) with ``u_c = uc_per_omega * n * 2 pi/60``;
     ``eps`` from :func:`propulsion_eps`.
+
+    Parameters
+    ----------
+    states : array_like, shape (n, 12)
+        ``x, y, z, phi, theta, psi, u, v, w, p, q, r`` (m, rad, m/s, rad/s).
+    inputs : array_like, shape (n, 4)
+        ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm).
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle` (propulsion constants and L).
+
+    Returns
+    -------
+    ndarray, shape (n, N_FEATURES)
+        The features.
     """
     states = np.atleast_2d(np.asarray(states, dtype=float))
     inputs = np.atleast_2d(np.asarray(inputs, dtype=float))
@@ -165,17 +231,22 @@ class ReferenceModel:
 
     Parameters
     ----------
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle`.
-    coefficients : dict name -> prime value overriding some of the vehicle's coefficients.
-    mode : ``"6dof"`` or ``"horizontal"``. Horizontal: only the terms that act in the horizontal
-        plane (``Term.horizontal``, as the compiled simulator) and only the (u, v, r) rows of
-        ``M nu_dot = tau``; w, p, q accelerations are zero. Overriding a coefficient that does not
-        act in the horizontal plane therefore has no effect in that mode.
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle`.
+    coefficients : dict, optional
+        ``{name: prime value}`` overriding some of the vehicle's coefficients.
+    mode : {"6dof", "horizontal"}, default "6dof"
+        Horizontal: only the terms that act in the horizontal plane (``Term.horizontal``, as the
+        compiled simulator) and only the (u, v, r) rows of ``M nu_dot = tau``; w, p, q
+        accelerations are zero. Overriding a coefficient that does not act in the horizontal
+        plane therefore has no effect in that mode.
 
     Raises
     ------
-    UnknownCoefficientError : a name in ``coefficients`` not in the term library.
-    ValueError : a bad mode or a non-finite coefficient.
+    UnknownCoefficientError
+        A name in ``coefficients`` not in the term library.
+    ValueError
+        A bad mode or a non-finite coefficient.
     """
 
     def __init__(self, vehicle, coefficients: dict | None = None, mode: str = "6dof"):
@@ -197,7 +268,20 @@ class ReferenceModel:
     # -- right-hand side pieces, each (n, 6) in X, Y, Z, K, M, N order -------------------------
 
     def hydrodynamic_force(self, states: np.ndarray, inputs: np.ndarray) -> np.ndarray:
-        """Force of the term library, (n, 6) N and N m: ``Phi(states, inputs) @ C'`` per dof."""
+        """Force of the term library: ``Phi(states, inputs) @ C'`` per dof.
+
+        Parameters
+        ----------
+        states : ndarray, shape (n, 12)
+            States (SI).
+        inputs : ndarray, shape (n, 4)
+            Inputs (rad, rpm).
+
+        Returns
+        -------
+        ndarray, shape (n, 6)
+            X, Y, Z, K, M, N (N, N m).
+        """
         veh = self.vehicle
         Phi = terms.regressors(reference_features(states, inputs, veh), self.force_names, veh.rho, veh.L)
         tau = np.zeros((Phi.shape[0], 6))
@@ -207,9 +291,20 @@ class ReferenceModel:
         return tau
 
     def hydrostatic_force(self, states: np.ndarray) -> np.ndarray:
-        """Weight and buoyancy in body axes, (n, 6): ``f_G = R^T (0, 0, W)``,
-        ``f_B = -R^T (0, 0, B)``, moments ``r_G x f_G + r_B x f_B`` (Fossen 1994, Eq. 2.162 with
-        the sign of a right-hand-side force; equals equations.md "Hydrostatics")."""
+        """Weight and buoyancy in body axes: ``f_G = R^T (0, 0, W)``, ``f_B = -R^T (0, 0, B)``,
+        moments ``r_G x f_G + r_B x f_B`` (Fossen 1994, Eq. 2.162 with the sign of a
+        right-hand-side force; equals equations.md "Hydrostatics").
+
+        Parameters
+        ----------
+        states : ndarray, shape (n, 12)
+            States (SI).
+
+        Returns
+        -------
+        ndarray, shape (n, 6)
+            X, Y, Z, K, M, N (N, N m).
+        """
         veh = self.vehicle
         out = np.zeros((states.shape[0], 6))
         for i, s in enumerate(states):
@@ -221,22 +316,54 @@ class ReferenceModel:
         return out
 
     def crossflow_force(self, states: np.ndarray) -> np.ndarray:
-        """Strip-sum cross-flow drag (n, 6) when ``vehicle.crossflow_model == "integral"``, else 0
-        (:func:`bayesid.models.crossflow.crossflow_forces`)."""
+        """Strip-sum cross-flow drag when ``vehicle.crossflow_model == "integral"``, else 0
+        (:func:`bayesid.models.crossflow.crossflow_forces`).
+
+        Parameters
+        ----------
+        states : ndarray, shape (n, 12)
+            States (SI).
+
+        Returns
+        -------
+        ndarray, shape (n, 6)
+            X, Y, Z, K, M, N (N, N m).
+        """
         if self.vehicle.crossflow_model == "integral":
             return crossflow_forces(states, self.vehicle)
         return np.zeros((states.shape[0], 6))
 
     def coriolis_force(self, states: np.ndarray) -> np.ndarray:
-        """Rigid-body Coriolis/centripetal force ``C_RB(nu) nu`` (n, 6) (left-hand side sign)."""
+        """Rigid-body Coriolis/centripetal force ``C_RB(nu) nu`` (left-hand side sign).
+
+        Parameters
+        ----------
+        states : ndarray, shape (n, 12)
+            States (SI).
+
+        Returns
+        -------
+        ndarray, shape (n, 6)
+            The force, N and N m.
+        """
         return np.array([coriolis_rigid_body(self.M_RB, s[6:]) @ s[6:] for s in states])
 
     def generalized_force(self, states, inputs) -> np.ndarray:
-        """``tau = tau_hydro + tau_hydrostatic + tau_crossflow - C_RB(nu) nu``, (n, 6) SI: the
-        right-hand side of ``M nu_dot = tau``. All six rows are returned in both modes (in the
-        horizontal mode only horizontal-plane terms enter ``tau_hydro``).
+        """``tau = tau_hydro + tau_hydrostatic + tau_crossflow - C_RB(nu) nu``: the right-hand
+        side of ``M nu_dot = tau``. All six rows are returned in both modes (in the horizontal
+        mode only horizontal-plane terms enter ``tau_hydro``).
 
-        states (n, 12) or (12,), inputs (n, 4) or (4,).
+        Parameters
+        ----------
+        states : array_like, shape (n, 12) or (12,)
+            States (SI).
+        inputs : array_like, shape (n, 4) or (4,)
+            Inputs (rad, rpm).
+
+        Returns
+        -------
+        ndarray, shape (n, 6)
+            tau, SI.
         """
         states = np.atleast_2d(np.asarray(states, dtype=float))
         inputs = np.atleast_2d(np.asarray(inputs, dtype=float))
@@ -248,8 +375,21 @@ class ReferenceModel:
         )
 
     def acceleration(self, states, inputs) -> np.ndarray:
-        """``nu_dot`` (n, 6) from ``M nu_dot = tau`` (6-DOF) or from its (u, v, r) block with
-        ``w_dot = p_dot = q_dot = 0`` (horizontal). Singular M gives NaN."""
+        """``nu_dot`` from ``M nu_dot = tau`` (6-DOF) or from its (u, v, r) block with
+        ``w_dot = p_dot = q_dot = 0`` (horizontal). Singular M gives NaN.
+
+        Parameters
+        ----------
+        states : array_like, shape (n, 12) or (12,)
+            States (SI).
+        inputs : array_like, shape (n, 4) or (4,)
+            Inputs (rad, rpm).
+
+        Returns
+        -------
+        ndarray, shape (n, 6)
+            The accelerations, m/s^2 and rad/s^2.
+        """
         tau = self.generalized_force(states, inputs)
         nu_dot = np.zeros_like(tau)
         for i, t in enumerate(tau):
@@ -263,9 +403,22 @@ class ReferenceModel:
         return nu_dot
 
     def rhs(self, states, inputs) -> np.ndarray:
-        """State derivative (n, 12): ``(x, y, z)_dot = R(Theta) (u, v, w)``,
+        """State derivative: ``(x, y, z)_dot = R(Theta) (u, v, w)``,
         ``(phi, theta, psi)_dot = T(Theta) (p, q, r)`` (Fossen 1994, Eq. 2.18/2.28) and ``nu_dot``
-        from :meth:`acceleration`. states (n, 12) or (12,), inputs (n, 4) or (4,)."""
+        from :meth:`acceleration`.
+
+        Parameters
+        ----------
+        states : array_like, shape (n, 12) or (12,)
+            States (SI).
+        inputs : array_like, shape (n, 4) or (4,)
+            Inputs (rad, rpm).
+
+        Returns
+        -------
+        ndarray, shape (n, 12)
+            d states / dt.
+        """
         states = np.atleast_2d(np.asarray(states, dtype=float))
         out = np.empty_like(states)
         for i, s in enumerate(states):
@@ -305,27 +458,38 @@ def simulate_reference(
 
     Parameters
     ----------
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle`.   manoeuvre : :class:`~bayesid.models.simulate.Manoeuvre`.
-    mode : ``"6dof"`` or ``"horizontal"`` (see :class:`ReferenceModel`).
-    coefficients : dict name -> prime value overriding some vehicle coefficients.
-    sample_every : store every k-th grid point; must divide ``manoeuvre.n_steps``.
-    rtol, atol : solve_ivp tolerances (state units: m, rad, m/s, rad/s).
-    method : solve_ivp method (``"DOP853"``, the anchor; ``"RK45"`` at rtol 1e-8 is the fair speed
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle`.
+    manoeuvre : Manoeuvre
+        The :class:`~bayesid.models.simulate.Manoeuvre`.
+    mode : {"6dof", "horizontal"}, default "6dof"
+        See :class:`ReferenceModel`.
+    coefficients : dict, optional
+        ``{name: prime value}`` overriding some vehicle coefficients.
+    sample_every : int, default 1
+        Store every k-th grid point; must divide ``manoeuvre.n_steps``.
+    rtol, atol : float, default 1e-10
+        solve_ivp tolerances (state units: m, rad, m/s, rad/s).
+    method : str, default "DOP853"
+        solve_ivp method (``"DOP853"``, the anchor; ``"RK45"`` at rtol 1e-8 is the fair speed
         reference of ``benchmarks/simulate.py``).
 
     Returns
     -------
-    :class:`~bayesid.models.simulate.SimResult` with B = 1: ``states`` (1, n_samples, 12). ``status`` is 0,
-    or 1 if solve_ivp failed or the state went non-finite, or 2 if the state left the physical
-    bounds (the kernel's: |u|,|v|,|w|, |p|,|q|,|r|, |theta| > 85 deg); ``fail_step`` is the grid
-    step during which the bound was crossed (status 2) or the last grid step reached (status 1),
-    else -1; the samples after it are NaN.
+    SimResult
+        B = 1: ``states`` (1, n_samples, 12). ``status`` is 0, or 1 if solve_ivp failed or the
+        state went non-finite, or 2 if the state left the physical bounds (the kernel's:
+        |u|,|v|,|w|, |p|,|q|,|r|, |theta| > 85 deg); ``fail_step`` is the grid step during which
+        the bound was crossed (status 2) or the last grid step reached (status 1), else -1; the
+        samples after it are NaN.
 
     Raises
     ------
-    UnknownCoefficientError : a name in ``coefficients`` not in the term library.
-    ValueError : bad mode or ``sample_every``; horizontal mode with non-zero w, p, q, phi or theta
-        in the initial state.
+    UnknownCoefficientError
+        A name in ``coefficients`` not in the term library.
+    ValueError
+        Bad mode or ``sample_every``; horizontal mode with non-zero w, p, q, phi or theta in the
+        initial state.
     """
     model = ReferenceModel(vehicle, coefficients, mode)
     s0 = np.asarray(manoeuvre.initial_state, dtype=float).copy()

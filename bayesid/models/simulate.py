@@ -26,14 +26,26 @@ _PLANE = [0, 1, 5]  # u, v, r rows/columns of the mass matrix
 class Manoeuvre:
     """Input time history on the integration grid.
 
-    Attributes
+    Parameters
     ----------
-    name : short id, e.g. ``"spiral"``.
-    dt : integration step (s); input k is held over [k*dt, (k+1)*dt).
-    inputs : (n_steps, 4) ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm).
-    initial_state : (12,) state at t = 0.
-    description : the exact sequence in words (for reports).
-    parameters : the generator's parameters (JSON-serialisable).
+    name : str
+        Short id, e.g. ``"spiral"``.
+    dt : float
+        Integration step, s; input k is held over [k*dt, (k+1)*dt).
+    inputs : array_like, shape (n_steps, 4)
+        ``delta_r, delta_s, delta_b`` (rad), ``n`` (rpm); finite.
+    initial_state : array_like, shape (12,)
+        State at t = 0; finite.
+    description : str, default ""
+        The exact sequence in words (for reports).
+    parameters : dict
+        The generator's parameters (JSON-serialisable).
+
+    Raises
+    ------
+    ValueError
+        Inputs of another shape or not finite (naming channel and step), an initial state that
+        is not 12 finite numbers, a non-positive step.
     """
 
     name: str
@@ -63,6 +75,7 @@ class Manoeuvre:
 
     @property
     def n_steps(self) -> int:
+        """Number of integration steps (rows of ``inputs``)."""
         return self.inputs.shape[0]
 
     @property
@@ -72,6 +85,7 @@ class Manoeuvre:
 
     @property
     def duration(self) -> float:
+        """Length of the manoeuvre, s."""
         return self.n_steps * self.dt
 
 
@@ -79,11 +93,20 @@ class Manoeuvre:
 class SimResult:
     """Output of one batched simulation.
 
-    Attributes
+    Parameters
     ----------
-    t : (n_samples,) s.   states : (B, n_samples, 12), NaN after a divergence.
-    inputs : (n_samples, 4) the input applied from each sample time on.
-    status : (B,) 0 ok, 1 non-finite, 2 out of physical bounds.   fail_step : (B,) or -1.
+    t : ndarray, shape (n_samples,)
+        Sample times, s.
+    states : ndarray, shape (B, n_samples, 12)
+        States, NaN after a divergence.
+    inputs : ndarray, shape (n_samples, 4)
+        The input applied from each sample time on.
+    status : ndarray of int64, shape (B,)
+        0 ok, 1 non-finite, 2 out of physical bounds.
+    fail_step : ndarray of int64, shape (B,)
+        First diverged step of each track, or -1.
+    name : str, default ""
+        The manoeuvre's name.
     """
 
     t: np.ndarray
@@ -99,7 +122,20 @@ class SimResult:
         return self.status != dynamics.OK
 
     def track(self, b: int = 0, name: str | None = None) -> Track:
-        """Track b as a :class:`~bayesid.data.track.Track` (all 12 states and the 4 inputs)."""
+        """One simulated track as a :class:`~bayesid.data.track.Track`.
+
+        Parameters
+        ----------
+        b : int, default 0
+            Index of the track in the batch.
+        name : str, optional
+            Track name; default the manoeuvre's.
+
+        Returns
+        -------
+        Track
+            All 12 states and the 4 inputs.
+        """
         data = {n: self.states[b, :, i].copy() for i, n in enumerate(STATE_NAMES)}
         data.update({n: self.inputs[:, j].copy() for j, n in enumerate(INPUT_NAMES)})
         return Track(self.t.copy(), data, name=name if name is not None else self.name)
@@ -108,24 +144,34 @@ class SimResult:
 class Simulator:
     """Prepared simulation of one manoeuvre for a vehicle with some coefficients free.
 
+    Attributes ``n_tracks`` and ``sim_seconds`` count the work done (for the SQP monitor).
+
     Parameters
     ----------
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (its coefficients are the fixed values).
-    manoeuvre : :class:`Manoeuvre`.
-    free : names of the coefficients that :meth:`run` sets per track (SNAME names).
-    mode : ``"6dof"`` or ``"horizontal"`` (paper Sec. 4: only surge, sway, yaw evolve).
-    sample_every : store every k-th integration step.
-    kernel : ``"generated"`` (default: a right-hand side generated for this model's active terms,
-        :mod:`bayesid.models.codegen`) or ``"interpreted"`` (the term-table loop of
-        :mod:`bayesid.models.dynamics`, the baseline and test oracle). Same equations, results
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle`; its coefficients are the fixed values.
+    manoeuvre : Manoeuvre
+        The manoeuvre simulated.
+    free : sequence of str, default ()
+        Names of the coefficients that :meth:`run` sets per track (SNAME names).
+    mode : {"6dof", "horizontal"}, default "6dof"
+        ``"horizontal"``: paper Sec. 4, only surge, sway, yaw evolve.
+    sample_every : int, default 1
+        Store every k-th integration step; must divide the number of steps.
+    kernel : {"generated", "interpreted"}, default "generated"
+        ``"generated"``: a right-hand side generated for this model's active terms
+        (:mod:`bayesid.models.codegen`); ``"interpreted"``: the term-table loop of
+        :mod:`bayesid.models.dynamics`, the baseline and test oracle. Same equations, results
         equal to round-off.
 
     Raises
     ------
-    UnknownCoefficientError : a free name not in the term library.
-    ValueError : bad mode or kernel; horizontal mode with non-zero w, p, q, phi or theta initially.
-
-    Attributes ``n_tracks`` and ``sim_seconds`` count the work done (for the SQP monitor).
+    UnknownCoefficientError
+        A free name not in the term library.
+    ValueError
+        Bad mode or kernel; a free name given twice; ``sample_every`` not dividing the steps;
+        horizontal mode with non-zero w, p, q, phi or theta initially, a free coefficient outside
+        the horizontal plane, or stern or bow planes moving.
     """
 
     def __init__(
@@ -208,8 +254,23 @@ class Simulator:
         return self._kernel
 
     def coefficient_matrix(self, theta_free=None) -> np.ndarray:
-        """Full prime coefficient vectors (B, n_terms): the vehicle's values with the free ones
-        replaced by ``theta_free`` (B, P) or (P,)."""
+        """Full prime coefficient vectors: the vehicle's values with the free ones replaced.
+
+        Parameters
+        ----------
+        theta_free : array_like, shape (B, P) or (P,), optional
+            Values of the free coefficients; None (or no free coefficients) keeps the vehicle's.
+
+        Returns
+        -------
+        ndarray, shape (B, n_terms)
+            The coefficient vectors (B = 1 without ``theta_free``).
+
+        Raises
+        ------
+        ValueError
+            When ``theta_free`` has another number of columns than free coefficients.
+        """
         if theta_free is None or len(self.free) == 0:
             return self.base[None, :].copy()
         th = np.atleast_2d(np.asarray(theta_free, dtype=float))
@@ -220,17 +281,40 @@ class Simulator:
         return C
 
     def mass_matrices(self, C: np.ndarray) -> np.ndarray:
-        """(B, 6, 6) mass matrices ``M_RB - M_A`` for the prime coefficient vectors C (B, n_terms)."""
+        """Mass matrices ``M_RB - M_A`` of prime coefficient vectors.
+
+        Parameters
+        ----------
+        C : ndarray, shape (B, n_terms)
+            Prime coefficient vectors (:meth:`coefficient_matrix`).
+
+        Returns
+        -------
+        ndarray, shape (B, 6, 6)
+            The mass matrices, SI.
+        """
         M = np.repeat(self._M0[None], C.shape[0], axis=0)
         for (idx, t), sc in zip(self._am, self._am_scale):
             M[:, t.dof, t.accel] -= sc * C[:, idx]
         return M
 
     def inverse_mass_matrices(self, C: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
-        """(B, 6, 6) inverse mass matrices (restricted to u, v, r in horizontal mode), of
-        :meth:`mass_matrices` of C unless the matrices ``M`` (B, 6, 6) are given.
+        """Inverse mass matrices (restricted to u, v, r in horizontal mode).
 
-        A singular mass matrix gives NaN entries, which the kernel flags as a divergence."""
+        A singular mass matrix gives NaN entries, which the kernel flags as a divergence.
+
+        Parameters
+        ----------
+        C : ndarray, shape (B, n_terms)
+            Prime coefficient vectors.
+        M : ndarray, shape (B, 6, 6), optional
+            The mass matrices; default :meth:`mass_matrices` of ``C``.
+
+        Returns
+        -------
+        ndarray, shape (B, 6, 6)
+            The inverses (zero outside the u, v, r block in horizontal mode).
+        """
         if M is None:
             M = self.mass_matrices(C)
         B = M.shape[0]
@@ -246,15 +330,39 @@ class Simulator:
         return Minv
 
     def kernel_arrays(self, theta_free=None) -> tuple[np.ndarray, np.ndarray]:
-        """What the compiled kernels take per track: dimensional force-term coefficients
-        (B, n_force_terms) and inverse mass matrices (B, 6, 6)."""
+        """What the compiled kernels take per track.
+
+        Parameters
+        ----------
+        theta_free : array_like, shape (B, P) or (P,), optional
+            Values of the free coefficients (:meth:`coefficient_matrix`).
+
+        Returns
+        -------
+        tcoef : ndarray, shape (B, n_force_terms)
+            Dimensional force-term coefficients.
+        Minv : ndarray, shape (B, 6, 6)
+            Inverse mass matrices.
+        """
         C = self.coefficient_matrix(theta_free)
         return np.ascontiguousarray(C[:, self.force_idx] * self.tscale), self.inverse_mass_matrices(C)
 
     def run(self, theta_free=None, initial_states=None) -> SimResult:
-        """Simulate one track per row of ``theta_free`` (B, P) -- or the vehicle as is.
+        """Simulate one track per row of ``theta_free`` -- or the vehicle as is.
 
         Never raises on divergence: diverged tracks are flagged in ``status`` and NaN-filled.
+
+        Parameters
+        ----------
+        theta_free : array_like, shape (B, P) or (P,), optional
+            Values of the free coefficients; None simulates the vehicle as is (B = 1).
+        initial_states : array_like, shape (B, 12) or (12,), optional
+            Initial states; default the manoeuvre's.
+
+        Returns
+        -------
+        SimResult
+            The B tracks.
         """
         tcoef, Minv = self.kernel_arrays(theta_free)
         B = tcoef.shape[0]
@@ -268,7 +376,7 @@ class Simulator:
         fail = np.empty(B, dtype=np.int64)
         tic = time.perf_counter()
         # No more threads than tracks: an idle worker has nothing to do (with the OpenMP layer
-        # it even busy-waited and stole CPU from a single track; bayesid selects workqueue).
+        # it even busy-waits and steals CPU from a single track; bayesid selects workqueue).
         use_package_threading_layer()
         n_threads = numba.get_num_threads()
         numba.set_num_threads(max(1, min(B, numba.config.NUMBA_NUM_THREADS)))
@@ -304,5 +412,22 @@ def _safe_inv(M: np.ndarray) -> np.ndarray:
 
 
 def simulate(vehicle, manoeuvre: Manoeuvre, mode: str = "6dof", sample_every: int = 1) -> SimResult:
-    """Simulate the vehicle as it is (B = 1). See :class:`Simulator`."""
+    """Simulate the vehicle as it is (B = 1). See :class:`Simulator`.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle.
+    manoeuvre : Manoeuvre
+        The manoeuvre.
+    mode : {"6dof", "horizontal"}, default "6dof"
+        Degrees of freedom.
+    sample_every : int, default 1
+        Store every k-th integration step.
+
+    Returns
+    -------
+    SimResult
+        The one track.
+    """
     return Simulator(vehicle, manoeuvre, (), mode, sample_every).run()

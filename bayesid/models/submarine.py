@@ -26,21 +26,36 @@ from .simulate import Manoeuvre, Simulator
 class EffectModel(ParameterLayout):
     """The base model plus a list of effects, simulated over a track's protocol windows.
 
-    Parameters
-    ----------
-    vehicle : :class:`~bayesid.data.vehicle.Vehicle` (nominal coefficients, prime form).
-    free : names of the coefficients the fit changes (SNAME; unknown names raise).
-    effects : effect names (see :data:`~bayesid.models.effects.CATALOGUE`), applied in this order.
-    mode : ``"horizontal"`` or ``"6dof"`` (an effect with ``mode="6dof"`` forces 6-DOF).
-    dt : integration step (s).
-    kernel : ``"generated"`` (default) or ``"interpreted"``: the compiled kernel kind
-        (:class:`bayesid.models.simulate.Simulator`, :mod:`bayesid.models.codegen`).
-
     The parameter vector of one model is ``[theta_free (P), q_1, ..., q_E]`` with ``q_e`` the
     effect parameters in the units of their names; per-track nuisance parameters
     (``n_nuisance``) are passed separately.
 
     Implements :class:`bayesid.models.interface.SimulationModel` (the submarine family).
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The :class:`~bayesid.data.vehicle.Vehicle` (nominal coefficients, prime form).
+    free : sequence of str, default ()
+        Names of the coefficients the fit changes (SNAME; unknown names raise).
+    effects : sequence of str or Effect, default ()
+        Effect names (see :data:`~bayesid.models.effects.CATALOGUE`) or effects, applied in this
+        order.
+    mode : {"horizontal", "6dof"}, default "horizontal"
+        Degrees of freedom (an effect with ``mode="6dof"`` forces 6-DOF).
+    dt : float, default 0.5
+        Integration step, s.
+    kernel : {"generated", "interpreted"}, default "generated"
+        The compiled kernel kind (:class:`bayesid.models.simulate.Simulator`,
+        :mod:`bayesid.models.codegen`).
+
+    Raises
+    ------
+    ValueError
+        An effect listed twice, an unknown effect, the crossflow effect for a vehicle without
+        ``[crossflow]`` data, or any error of :class:`~bayesid.models.simulate.Simulator`.
+    UnknownCoefficientError
+        A free name not in the term library.
     """
 
     DEFAULT_DT = 0.5
@@ -50,27 +65,99 @@ class EffectModel(ParameterLayout):
 
     @classmethod
     def for_vehicle(cls, vehicle, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal"):
-        """The model of :func:`bayesid.models.build_model` (``free`` None: none)."""
+        """The model of :func:`bayesid.models.build_model`.
+
+        Parameters
+        ----------
+        vehicle : Vehicle
+            The vehicle.
+        free : sequence of str, optional
+            The free coefficients (None: none).
+        effects : sequence of str or Effect, default ()
+            The effects.
+        dt : float, default DEFAULT_DT
+            Integration step, s.
+        mode : {"horizontal", "6dof"}, default "horizontal"
+            Degrees of freedom.
+
+        Returns
+        -------
+        EffectModel
+            The model.
+        """
         return cls(vehicle, free or (), effects, mode=mode, dt=dt)
 
     @staticmethod
     def default_fit_window(scoring_window_s):
-        """A submarine's training fits use the scoring window (None: the whole run)."""
+        """A submarine's training fits use the scoring window.
+
+        Parameters
+        ----------
+        scoring_window_s : float or None
+            The protocol's scoring window, s (None: the whole run).
+
+        Returns
+        -------
+        float or None
+            ``scoring_window_s``.
+        """
         return scoring_window_s
 
     @classmethod
     def default_free(cls, vehicle) -> list:
+        """The coefficients freed when the user names none.
+
+        Parameters
+        ----------
+        vehicle : Vehicle
+            The vehicle (unused: the list is the family's).
+
+        Returns
+        -------
+        list of str
+            :attr:`DEFAULT_FREE`.
+        """
         return list(cls.DEFAULT_FREE)
 
     @staticmethod
     def check_free(vehicle, names, option: str = "free") -> None:
-        """KeyError naming ``option`` and an unknown coefficient name."""
+        """Check a free list against the term library.
+
+        Parameters
+        ----------
+        vehicle : Vehicle
+            The vehicle (unused: every vehicle accepts the whole library).
+        names : iterable of str
+            The coefficient names.
+        option : str, default "free"
+            The option the names come from, named in the message.
+
+        Raises
+        ------
+        UnknownCoefficientError
+            A KeyError naming ``option`` and the unknown coefficient name.
+        """
         terms.check_names(names, option)
 
     @staticmethod
     def get_effect(name):
-        """A catalogue effect by name (:func:`~bayesid.models.effects.get`); an
-        :class:`~bayesid.models.effects.Effect` passes through."""
+        """A catalogue effect by name (:func:`~bayesid.models.effects.get`).
+
+        Parameters
+        ----------
+        name : str or Effect
+            A catalogue name; an :class:`~bayesid.models.effects.Effect` passes through.
+
+        Returns
+        -------
+        Effect
+            The effect.
+
+        Raises
+        ------
+        ValueError
+            Naming an unknown effect.
+        """
         return name if isinstance(name, Effect) else get(name)
 
     def __init__(
@@ -96,22 +183,54 @@ class EffectModel(ParameterLayout):
         self.K = max(1, sum(e.exo_columns for e in self.effects))
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds of the parameter vector: coefficients unbounded, effects as catalogued."""
+        """Bounds of the parameter vector: coefficients unbounded, effects as catalogued.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (n_params,)
+            Lower and upper bounds (+-inf for the coefficients).
+        """
         lo = [np.full(self.n_theta, -np.inf)] + [np.asarray(e.lo, float) for e in self.effects]
         hi = [np.full(self.n_theta, np.inf)] + [np.asarray(e.hi, float) for e in self.effects]
         return np.concatenate(lo), np.concatenate(hi)
 
     def scales(self) -> np.ndarray:
+        """Typical sizes of the parameters: the nominal coefficients' magnitudes (at least 1e-3)
+        and the effects' catalogued scales.
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            The typical sizes.
+        """
         th = np.maximum(np.abs(self.theta0), 1e-3)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
     def context(
         self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
     ) -> TrackContext:
-        """Prepare a track (inputs, windows, window-start states). ``s0`` (12,) replaces the
-        measured start state (world generation); otherwise the start rule ``start``
-        (:data:`bayesid.protocol.START_RULES`, resolved: ``"measured"`` or ``"fitted"``, with a
-        lead-in of ``leadin_s`` seconds) gives it."""
+        """Prepare a track (inputs, windows, window-start states).
+
+        Parameters
+        ----------
+        track : Track
+            The track.
+        window_s : float, optional
+            Protocol window, s; None is one window over the whole run.
+        span_s : float, default 1.0
+            Span of the measured start-state estimate, s.
+        s0 : array_like, shape (12,), optional
+            Replaces the measured start state (world generation).
+        start : {"measured", "fitted"}, default "measured"
+            Otherwise the start rule gives it (:data:`bayesid.protocol.START_RULES`, resolved).
+        leadin_s : float, default 0.0
+            Lead-in of the fitted rule, s.
+
+        Returns
+        -------
+        TrackContext
+            The prepared track.
+        """
         return TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
 
     def simulate(
@@ -121,19 +240,26 @@ class EffectModel(ParameterLayout):
 
         Parameters
         ----------
-        P : (B, n_params) or (n_params,) parameter vectors.
-        nuisance : (B, n_nuisance) per-track parameters of this track (default zeros).
-        measured_start : map the window-start states through the effects' sensor models
-            (False: ``ctx.s_meas`` are already model states, e.g. the true initial state).
-        starts : (B, W, 6) offsets added to the start state of every window (segment) in the
-            measured frame, components :data:`~bayesid.models.context.START_INDEX` (x, y, psi, u,
-            v, r); the fitted start rule (:mod:`bayesid.estimation.shooting`). Default none.
-        samples : ``"scored"`` (the window samples) or ``"lead"`` (the samples that estimate the
-            start states, ``ctx.lead``).
+        ctx : TrackContext
+            The prepared track (:meth:`context`).
+        P : array_like, shape (B, n_params) or (n_params,)
+            Parameter vectors.
+        nuisance : array_like, shape (B, n_nuisance), optional
+            Per-track parameters of this track (default zeros).
+        measured_start : bool, default True
+            Map the window-start states through the effects' sensor models (False:
+            ``ctx.s_meas`` are already model states, e.g. the true initial state).
+        starts : array_like, shape (B, W, 6), optional
+            Offsets added to the start state of every window (segment) in the measured frame,
+            components :data:`~bayesid.models.context.START_INDEX` (x, y, psi, u, v, r); the
+            fitted start rule (:mod:`bayesid.estimation.shooting`). Default none.
+        samples : {"scored", "lead"}, default "scored"
+            The window samples, or the samples that estimate the start states (``ctx.lead``).
 
         Returns
         -------
-        (B, n_samples, 12) states as the sensors would report them (NaN in a diverged window).
+        ndarray, shape (B, n_samples, 12)
+            States as the sensors would report them (NaN in a diverged window).
         """
         th, qs = self.split_params(P)
         B = th.shape[0]
@@ -192,14 +318,41 @@ class EffectModel(ParameterLayout):
 
     # -- what the analysis layer asks of a model ----------------------------------------------
     def seed(self, tracks):
-        """No equation-error seed: a submarine fit starts at the nominal coefficients."""
+        """No equation-error seed: a submarine fit starts at the nominal coefficients.
+
+        Parameters
+        ----------
+        tracks : list of Track
+            The training tracks (unused).
+
+        Returns
+        -------
+        None
+            Always.
+        """
         return None
 
     def missing_forces(self, fitres, track: Track):
-        """Missing X, Y, N (N, N m) over time: rigid-body inverse dynamics of the smoothed
-        measured motion minus the fitted model's hydrodynamic forces (Savitzky-Golay smoothed
-        differentiation, :func:`bayesid.models.inverse.estimate_motion`). Returns (motion dict, F (n, 3),
-        inputs (n, 4))."""
+        """Missing X, Y, N over time: rigid-body inverse dynamics of the smoothed measured motion
+        minus the fitted model's hydrodynamic forces (Savitzky-Golay smoothed differentiation,
+        :func:`bayesid.models.inverse.estimate_motion`).
+
+        Parameters
+        ----------
+        fitres : FitResult
+            A fit of this model (its coefficients are used when the model has free ones).
+        track : Track
+            The track.
+
+        Returns
+        -------
+        motion : dict
+            The smoothed motion (:func:`~bayesid.models.inverse.estimate_motion`).
+        F : ndarray, shape (n, 3)
+            Missing X, Y (N) and N (N m).
+        inputs : ndarray, shape (n_samples, 4)
+            The logged inputs (:func:`~bayesid.models.inverse.track_inputs`).
+        """
         veh = self.vehicle.with_coefficients(fitres.coefficients()) if self.free else self.vehicle
         motion = inverse.estimate_motion(track)
         inputs = inverse.track_inputs(track)
@@ -213,10 +366,27 @@ class EffectModel(ParameterLayout):
         return motion, F, inputs
 
     def signature_columns(self, motion, inputs, track: Track, seeds=None, effects=None) -> dict:
-        """Force-space signatures {effect: [(n, 3) columns of X, Y, N]} of ``effects`` (default
-        the catalogue) that leave one (:meth:`~bayesid.models.effects.Effect.force_signature`),
-        from the smoothed motion and the logged inputs (n, 4); ``seeds`` of the diagnosis (the
-        waves' frequency)."""
+        """Force-space signatures of the effects that leave one
+        (:meth:`~bayesid.models.effects.Effect.force_signature`).
+
+        Parameters
+        ----------
+        motion : dict
+            The smoothed motion of :meth:`missing_forces`.
+        inputs : ndarray, shape (n_samples, 4)
+            The logged inputs at the track's samples.
+        track : Track
+            The track.
+        seeds : dict, optional
+            Seeds of the diagnosis (``"waves"``: the waves' frequency first).
+        effects : iterable of Effect, optional
+            The effects; default the catalogue.
+
+        Returns
+        -------
+        dict
+            ``{effect: [columns (n, 3) of X, Y, N]}``.
+        """
         t = motion["t"]
         dr = np.interp(t, track.t, inputs[:, 0])
         rpm = np.interp(t, track.t, inputs[:, 3])
@@ -237,11 +407,32 @@ class EffectModel(ParameterLayout):
         return signature_dict(self.CATALOGUE.values() if effects is None else effects, m)
 
     def where_samples(self, track: Track, ctx, S) -> dict:
-        """No extra region variables for a submarine."""
+        """No extra region variables for a submarine.
+
+        Parameters
+        ----------
+        track : Track
+            The track (unused).
+        ctx : TrackContext
+            The prepared track (unused).
+        S : ndarray
+            Predicted states (unused).
+
+        Returns
+        -------
+        dict
+            Empty.
+        """
         return {}
 
     def regions(self) -> dict:
-        """Operating-region bins of the *where* analysis (:data:`REGIONS`)."""
+        """Operating-region bins of the *where* analysis.
+
+        Returns
+        -------
+        dict
+            :data:`REGIONS`, ``{region variable: bin edges}``.
+        """
         return REGIONS
 
 

@@ -34,9 +34,25 @@ WORLD_NOISE = {
 
 
 def draw_parameters(name: str, level: int, rng: np.random.Generator) -> dict:
-    """Parameters of effect ``name`` at benchmark level 0, 1 or 2
-    (:attr:`~bayesid.models.effects.Effect.magnitudes`). The current's direction (towards, from north) is drawn uniformly from ``rng``; draw once
-    per case and pass the result to every :func:`world_track` of that case."""
+    """Parameters of an effect at a benchmark level (:attr:`~bayesid.models.effects.Effect.magnitudes`).
+
+    The current's direction (towards, from north) is drawn uniformly from ``rng``; draw once per
+    case and pass the result to every :func:`world_track` of that case.
+
+    Parameters
+    ----------
+    name : str
+        Catalogue name of the effect.
+    level : {0, 1, 2}
+        Benchmark level.
+    rng : numpy.random.Generator
+        Draws the current's direction.
+
+    Returns
+    -------
+    dict
+        ``{param: value}`` (a current as north and east components, m/s).
+    """
     e = get(name)
     pv = dict(e.magnitudes[level])
     if name == "current":
@@ -62,25 +78,47 @@ def world_track(
 
     Parameters
     ----------
-    vehicle : the true vehicle (its coefficients are the truth).
-    manoeuvre : inputs on its grid (the logged commands) and the true initial state.
-    effects : {effect name or :class:`~bayesid.models.effects.Effect`: {param: value}} (missing
-        parameters take their ``start`` value; see :func:`draw_parameters` for the benchmark
-        levels; an Effect object outside the catalogue makes a world that no candidate models).
-    rng : all randomness (noise; wave phase and current direction if not given).
-    noise : {channel: sd} (default :data:`WORLD_NOISE`); every state is recorded.
-    sample_every : record every k-th integration step (default 1: a 10 Hz log at the
-        manoeuvre's 0.1 s step; the inputs are logged at the same rate, and a coarser log
-        misplaces every rudder step by up to one sample interval).   dt : integration step
-        (default the manoeuvre's).   nuisance : per-track parameters (default: drawn, e.g. a random phase).
-    hold_inputs : the vehicle is driven by the logged inputs: each command is held over its log
-        interval (an autopilot that runs at the log rate), so a coarse log records the inputs
-        exactly. Without it a 5 Hz log of a 10 Hz zigzag misplaces each rudder reversal by up to
-        0.1 s, which alone costs the true model 0.4-1 m over 60 s windows.
+    vehicle : Vehicle
+        The true vehicle (its coefficients are the truth).
+    manoeuvre : Manoeuvre
+        Inputs on its grid (the logged commands) and the true initial state.
+    effects : dict
+        ``{effect name or Effect: {param: value}}`` (missing parameters take their ``start``
+        value; see :func:`draw_parameters` for the benchmark levels; an
+        :class:`~bayesid.models.effects.Effect` object outside the catalogue makes a world that
+        no candidate models).
+    rng : numpy.random.Generator
+        All randomness (noise; wave phase and current direction if not given).
+    noise : dict, optional
+        ``{channel: sd}`` (SI; default :data:`WORLD_NOISE`); every state is recorded.
+    sample_every : int, default 1
+        Record every k-th integration step (1: a 10 Hz log at the manoeuvre's 0.1 s step; the
+        inputs are logged at the same rate, and a coarser log misplaces every rudder step by up
+        to one sample interval).
+    dt : float, optional
+        Integration step, s (default the manoeuvre's).
+    nuisance : array_like, optional
+        Per-track parameters (default: drawn, e.g. a random phase).
+    name : str, optional
+        Track name; default the manoeuvre's.
+    hold_inputs : bool, default False
+        The vehicle is driven by the logged inputs: each command is held over its log interval
+        (an autopilot that runs at the log rate), so a coarse log records the inputs exactly.
+        Without it a 5 Hz log of a 10 Hz zigzag misplaces each rudder reversal by up to 0.1 s,
+        which alone costs the true model 0.4-1 m over 60 s windows.
 
     Returns
     -------
-    Track with the 12 states (noisy), the 4 logged inputs, ``meta["truth"]`` = the effects.
+    Track
+        The 12 states (noisy), the 4 logged inputs, and ``meta["truth"]`` = the effects'
+        parameters (and the nuisances).
+
+    Raises
+    ------
+    ValueError
+        An unknown parameter of an effect.
+    RuntimeError
+        When the world simulation diverges.
     """
     dt = manoeuvre.dt if dt is None else dt
     eff, qrow, truth = [], [], {}

@@ -34,9 +34,23 @@ __all__ = [
 
 @dataclass
 class Stage:
-    """A model of the greedy rounds: the model, its fit on the training tracks, its training and
-    held-out scores (:func:`~bayesid.estimation.windows.scores`), its held-out nuisances and its
-    per-window held-out RMS position errors (:func:`~bayesid.estimation.windows.window_rms`)."""
+    """A model of the greedy rounds.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fit : FitResult
+        Its fit on the training tracks.
+    train : dict
+        Its training scores (:func:`~bayesid.estimation.windows.scores`).
+    held : dict
+        Its held-out scores.
+    nuisance : list of ndarray or None
+        Its held-out nuisances.
+    windows : ndarray
+        Its per-window held-out RMS position errors (:func:`~bayesid.estimation.windows.window_rms`).
+    """
 
     model: object
     fit: FitResult
@@ -47,15 +61,44 @@ class Stage:
 
 
 def effect_offset(model, effect) -> int:
-    """Index of ``effect``'s first parameter in the model's parameter vector."""
+    """Index of an effect's first parameter in the model's parameter vector.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model (it contains the effect).
+    effect : Effect
+        The effect.
+
+    Returns
+    -------
+    int
+        The index.
+    """
     k = [e.name for e in model.effects].index(effect.name)
     return model.n_theta + sum(model.n_q[:k])
 
 
 def candidate_starts(effect, model, base_theta, seeds: dict) -> list:
-    """Start vectors [(p0, nuisance0 or None)] of a candidate fit of ``model`` (which contains
-    ``effect``): from ``base_theta`` and from the nominal coefficients, each with the effect's
-    own starts and its seed ``seeds.get(effect.name)``."""
+    """Start vectors of a candidate fit: from ``base_theta`` and from the nominal coefficients,
+    each with the effect's own starts and its seed.
+
+    Parameters
+    ----------
+    effect : Effect
+        The candidate effect.
+    model : SimulationModel
+        The candidate model (it contains ``effect``).
+    base_theta : ndarray
+        The reference fit's free coefficients.
+    seeds : dict
+        ``{effect name: seed}`` (:meth:`~bayesid.models.effects.Effect.diagnosis_seed`).
+
+    Returns
+    -------
+    list of tuple
+        ``(p0, nuisance0 or None)`` per start.
+    """
     out = []
     for th in (base_theta, None):
         p = model.start(th)
@@ -65,8 +108,22 @@ def candidate_starts(effect, model, base_theta, seeds: dict) -> list:
 
 
 def extended_nuisance(model, ref_model, ref_fit):
-    """The reference fit's per-track nuisances padded with zeros for ``model``'s extra ones
-    (None when ``model`` has none)."""
+    """The reference fit's per-track nuisances padded with zeros for the model's extra ones.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The extended model.
+    ref_model : SimulationModel
+        The model it extends.
+    ref_fit : FitResult
+        The reference fit.
+
+    Returns
+    -------
+    list of ndarray or None
+        Per track, the nuisances (None when ``model`` has none).
+    """
     if not model.n_nuisance:
         return None
     return [
@@ -76,9 +133,25 @@ def extended_nuisance(model, ref_model, ref_fit):
 
 
 def nested_start(effect, model, ref_model, ref_fit):
-    """(p0, nuisance0) of ``model`` (= ``ref_model`` plus ``effect`` appended last) at the
-    reference fit's optimum with the effect at its ``neutral`` value, where the model reproduces
-    the reference model; None when the effect does not nest it."""
+    """The start of the extended model at the reference fit's optimum with the effect at its
+    ``neutral`` value, where the model reproduces the reference model.
+
+    Parameters
+    ----------
+    effect : Effect
+        The effect appended last.
+    model : SimulationModel
+        ``ref_model`` plus ``effect``.
+    ref_model : SimulationModel
+        The model it extends.
+    ref_fit : FitResult
+        The reference fit.
+
+    Returns
+    -------
+    tuple or None
+        ``(p0, nuisance0)``; None when the effect does not nest the reference model.
+    """
     if effect.neutral is None:
         return None
     return np.concatenate([ref_fit.p, np.asarray(effect.neutral, float)]), extended_nuisance(model, ref_model, ref_fit)
@@ -88,7 +161,7 @@ def nested_start(effect, model, ref_model, ref_fit):
 class CandidateFit:
     """One candidate of a diagnosis round: a task of :func:`fit_candidate`.
 
-    Attributes
+    Parameters
     ----------
     effect : Effect
         The candidate effect.
@@ -107,7 +180,7 @@ class CandidateFit:
         ``{effect name: seed}`` of the candidates that have one.
     max_nfev : int
         Least-squares iterations of each fit.
-    label : str or None
+    label : str, optional
         Progress-bar label of the fits (tqdm on stderr), None for no bar.
     """
 
@@ -185,10 +258,29 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
 
 
 def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> dict:
-    """The ranking's record of a fitted candidate against the model it extends: held-out and
-    training RMS position error (m), training ΔBIC, share of the reference's excess over the
-    floor it removes (``excess_removed``) and of the base model's (``share_of_excess``), held-out
-    shrinkage, its parameters, heading RMS (deg), the paired window test's p-value, cost."""
+    """The ranking's record of a fitted candidate against the model it extends.
+
+    Parameters
+    ----------
+    effect : Effect
+        The candidate effect.
+    st : Stage
+        The fitted candidate.
+    ref : Stage
+        The model it extends.
+    floor_rms : float
+        The noise floor's RMS position error, m.
+    excess0 : float
+        The base model's excess over the floor, m.
+
+    Returns
+    -------
+    dict
+        Held-out and training RMS position error (m), training ΔBIC, share of the reference's
+        excess over the floor it removes (``excess_removed``) and of the base model's
+        (``share_of_excess``), held-out shrinkage, its parameters, heading RMS (deg), the paired
+        window test's p-value, cost (``nfev``, ``fit_seconds``).
+    """
     excess = ref.held["rms_position_m"] - floor_rms
     gain = ref.held["rms_position_m"] - st.held["rms_position_m"]
     return {

@@ -28,25 +28,63 @@ class Diagnosis:
     """The result of :func:`diagnose`. Every field but ``base`` and ``after`` is JSON-able
     (:meth:`to_dict`, the ``diagnosis.json`` document).
 
-    Attributes
+    Parameters
     ----------
-    verdict : ``"none"``, ``"unexplained"`` or the effects added joined by ``+`` (with
+    verdict : str
+        ``"none"``, ``"unexplained"`` or the effects added joined by ``+`` (with
         ``+unexplained`` when a significant remainder is left).
-    cause : the effect that closes the gap, or None.   effects_added : in the order added.
-    contributors : every effect that passed the contributor test (added or not), with its share,
-        p-value, ΔBIC and parameters.   remainder : what is left (RMS m, fraction, significant).
-    ranking : round 1's candidates, best first.   rounds : every round's.
-    gap_before, gap_after : scores of the base model and of the model with every effect added.
-    heldout_shrinkage : 1 - after / before held-out RMS position error.
-    noise_floor : the perfect model's scores.   gap_ratio : before / floor.
-    significant_gap : bool.   where : :func:`~bayesid.analysis.gap.where.where`'s dict.
-    sindy_support : {effect: inclusion probability} (or ``error``).
-    noise_sd, fit_sd : {channel: sd} of the data and of the fits' weights (SI).
-    base_fit, after_fit : coefficients (and effect parameters) of the two models.
-    train_tracks, heldout_tracks : names.   settings, thresholds : what was run.
-    seconds : wall time.
-    base, after : the two models as :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
+    effects_added : list of str
+        The effects added, in the order added.
+    cause : str or None
+        The effect that closes the gap, or None.
+    contributors : list of dict
+        Every effect that passed the contributor test (added or not), with its share, p-value,
+        ΔBIC and parameters.
+    remainder : dict
+        What is left (RMS m, fraction, significant).
+    ranking : list of dict
+        Round 1's candidates, best first.
+    rounds : list
+        Every round's candidates.
+    gap_before : dict
+        Scores of the base model.
+    gap_after : dict
+        Scores of the model with every effect added.
+    heldout_shrinkage : float
+        1 - after / before held-out RMS position error.
+    noise_floor : dict
+        The perfect model's scores.
+    gap_ratio : float
+        Before / floor.
+    significant_gap : bool
+        Whether the gap is significant.
+    where : dict
+        The summary of :func:`~bayesid.analysis.gap.where.where`.
+    sindy_support : dict
+        ``{effect: inclusion probability}`` (or ``error``).
+    noise_sd : dict
+        ``{channel: sd}`` of the data (SI).
+    fit_sd : dict
+        ``{channel: sd}`` of the fits' weights (SI).
+    base_fit : dict
+        Coefficients (and effect parameters) of the base model.
+    after_fit : dict
+        Those of the model with every effect added.
+    train_tracks : list of str
+        Names of the training tracks.
+    heldout_tracks : list of str
+        Names of the held-out tracks.
+    settings : dict
+        What was run.
+    thresholds : dict
+        The verdict's thresholds.
+    seconds : float
+        Wall time.
+    base : Stage, optional
+        The base model as a :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
         scores, nuisances) for plots; not in :meth:`to_dict`.
+    after : Stage, optional
+        The model with every effect added, likewise.
     """
 
     verdict: str
@@ -77,7 +115,13 @@ class Diagnosis:
     after: Stage = field(repr=False, default=None)
 
     def to_dict(self) -> dict:
-        """The JSON-able fields, in order (the models are left out)."""
+        """The JSON-able fields, in order (the models are left out).
+
+        Returns
+        -------
+        dict
+            ``{field: value}``.
+        """
         return {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("base", "after")}
 
 
@@ -85,33 +129,34 @@ class Diagnosis:
 class DiagnoseOptions:
     """What a gap diagnosis fits and compares (:func:`diagnose`).
 
-    Attributes
+    Parameters
     ----------
-    candidates : tuple or None
+    candidates : tuple, optional
         Effects, as names of the model family's ``CATALOGUE`` or
-        :class:`~bayesid.models.effects.Effect` objects (None: the whole catalogue).
-    window_s : float or None
+        :class:`~bayesid.models.effects.Effect` objects (None: the whole catalogue); any
+        sequence is stored as a tuple.
+    window_s : float or None, default 60.0
         The protocol window (s) of the held-out scores; None: the whole run.
-    fit_window_s : float or None
+    fit_window_s : float, optional
         The window of the multiple-shooting fits on the training tracks; None: the family's
         ``default_fit_window(window_s)`` (ship :data:`bayesid.models.ship.FIT_WINDOW_S`,
         submarine ``window_s``).
-    dt : float or None
+    dt : float, optional
         The model step (s); None: the family's ``DEFAULT_DT``.
-    mode : str
+    mode : str, default "horizontal"
         The submarine equations (``"horizontal"``, ``"6dof"``, ...).
-    max_nfev : int
+    max_nfev : int, default 60
         Least-squares iterations of each fit.
-    max_effects : int
+    max_effects : int, default 2
         Greedy rounds (after a contributor, try the others on top of it; a cause ends the search).
-    weighting : str or None
+    weighting : str, optional
         Channel weights of the fits (:func:`~bayesid.estimation.windows.fit_weighted`); None: the
         family's. The base fit sets the weights; every candidate is fitted with the same weights,
         so their costs and BICs compare.
-    start : str
+    start : str, default "auto"
         The window start-state rule (:data:`bayesid.protocol.START_RULES`), the same for every
         model compared, the training fits and the noise floor.
-    leadin_s : float or None
+    leadin_s : float, optional
         The lead-in of the fitted rule on the held-out tracks (s); None:
         :func:`bayesid.protocol.start_settings`.
     """
@@ -180,13 +225,13 @@ def diagnose(
         The training tracks.
     heldout : list of Track
         The held-out tracks (disjoint from ``train``).
-    options : DiagnoseOptions
+    options : DiagnoseOptions, default DiagnoseOptions()
         Candidates, windows, step, iterations, greedy rounds, weighting and start rule.
-    thresholds : Thresholds
+    thresholds : Thresholds, default Thresholds()
         The verdict's thresholds (:class:`~bayesid.analysis.gap.verdict.Thresholds`).
     rng : numpy.random.Generator, optional
         Noise-floor simulation and the bootstrap of the signature regression (default seed 0).
-    runner : Runner
+    runner : Runner, default Runner()
         Where the candidates of a round are fitted and where progress messages go
         (:class:`bayesid.tasks.Runner`); with a progress reporter, every fit in this process
         shows a progress bar. The candidates are independent and each fit is deterministic, so
@@ -195,6 +240,7 @@ def diagnose(
     Returns
     -------
     Diagnosis
+        The verdict, the ranking of every round, the scores before and after and the evidence.
 
     Raises
     ------
@@ -320,9 +366,34 @@ def diagnose(
 def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant, th, max_effects, runner) -> dict:
     """The candidate rounds of :func:`diagnose`: each round fits every effect not yet chosen on
     top of the chosen ones (as tasks), ranks them on the held-out windows and adds the best cause
-    (which ends the search) or the best contributor. ``fit_args`` = (channel weights, seeds,
-    iterations). Returns ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles`` and ``after``
-    (the last stage)."""
+    (which ends the search) or the best contributor.
+
+    Parameters
+    ----------
+    setup : _Setup
+        What every model of the diagnosis shares.
+    cand_effects : list of Effect
+        The candidates.
+    base_stage : Stage
+        The base model.
+    fit_args : tuple
+        ``(channel weights, seeds, iterations)``.
+    floor : dict
+        The noise floor's scores.
+    significant : bool
+        Whether the gap is significant.
+    th : Thresholds
+        The verdict's thresholds.
+    max_effects : int
+        Greedy rounds.
+    runner : Runner
+        Runs the candidates of a round as tasks.
+
+    Returns
+    -------
+    dict
+        ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles`` and ``after`` (the last stage).
+    """
     sd_fit, seeds, max_nfev = fit_args
     say = runner.say
     band = th.none_ratio * floor["rms_position_m"]

@@ -18,15 +18,27 @@ __all__ = ["signature_regression"]
 def signature_regression(F_list, cols_list, rng, n_models: int = 50, threshold: float = 0.1) -> dict:
     """Ensemble STLSQ of the missing forces on the effect signatures.
 
+    Columns and target are RMS-normalised per equation; an effect's inclusion probability is the
+    largest over its columns and equations.
+
     Parameters
     ----------
-    F_list : per track (n, 3) missing X, Y, N (N, N m).
-    cols_list : per track {effect: [(n, 3) columns]} (the same effects and columns per track).
-    rng : numpy Generator of the bootstrap.   n_models : ensemble size.
-    threshold : STLSQ threshold on the RMS-normalised coefficients.
+    F_list : list of ndarray
+        Per track the (n, 3) missing X, Y, N (N, N m).
+    cols_list : list of dict
+        Per track ``{effect: [columns (n, 3)]}`` (the same effects and columns per track).
+    rng : numpy.random.Generator
+        Seeds the bootstrap.
+    n_models : int, default 50
+        Ensemble size.
+    threshold : float, default 0.1
+        STLSQ threshold on the RMS-normalised coefficients.
 
-    Columns and target are RMS-normalised per equation; an effect's inclusion probability is the
-    largest over its columns and equations. Returns {effect: probability}."""
+    Returns
+    -------
+    dict
+        ``{effect: inclusion probability}``.
+    """
     effects = list(cols_list[0])
     prob = {e: 0.0 for e in effects}
     for eq in range(3):

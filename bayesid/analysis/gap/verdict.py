@@ -33,10 +33,19 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Thresholds:
-    """The verdict's thresholds: ``none_ratio`` (significant gap: held-out error above this
-    multiple of the floor; the floor band), ``explain_fraction`` (share of the excess a cause
-    removes), ``bic_threshold`` (largest training ΔBIC of an accepted effect) and ``partial_p``
-    (level of the paired window test of a contributor)."""
+    """The verdict's thresholds.
+
+    Parameters
+    ----------
+    none_ratio : float, default 1.5
+        Significant gap: held-out error above this multiple of the floor (the floor band).
+    explain_fraction : float, default 0.5
+        Share of the excess a cause removes.
+    bic_threshold : float, default -10.0
+        Largest training ΔBIC of an accepted effect.
+    partial_p : float, default 0.01
+        Level of the paired window test of a contributor.
+    """
 
     none_ratio: float = 1.5
     explain_fraction: float = 0.5
@@ -44,6 +53,13 @@ class Thresholds:
     partial_p: float = 0.01
 
     def as_dict(self) -> dict:
+        """The thresholds as a JSON-able dict.
+
+        Returns
+        -------
+        dict
+            ``{name: value}`` of the four thresholds.
+        """
         return {
             "none_ratio": self.none_ratio,
             "explain_fraction": self.explain_fraction,
@@ -55,10 +71,31 @@ class Thresholds:
 def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
     """The protocol's error for a perfect model at the measured noise level: simulate the fitted
     model on each held-out track's inputs from its first measured state (as the start rule
-    estimates it), add Gaussian noise of sd ``sd`` ({channel: sd}, SI) to every channel,
-    ``n_rep`` times, and re-run the protocol with the same model.
+    estimates it), add Gaussian noise to every channel, ``n_rep`` times, and re-run the
+    protocol with the same model.
 
-    Returns the pooled scores (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks."""
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fit simulated (its ``p``).
+    ctxs : list of TrackContext
+        The held-out tracks, prepared with the protocol's windows and start rule.
+    tracks : list of Track
+        The held-out tracks (their inputs and columns).
+    sd : dict
+        ``{channel: sd}`` of the added noise, SI.
+    rng : numpy.random.Generator
+        Draws the noise.
+    n_rep : int, default 2
+        Noisy copies per track.
+
+    Returns
+    -------
+    dict
+        The pooled scores (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks.
+    """
     errs = []
     for ctx, tr in zip(ctxs, tracks):
         s_first = ctx.s_meas[0].copy()
@@ -82,7 +119,20 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
 
 def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
     """One-sided p-value that the per-window errors ``after`` are smaller than ``before``
-    (Wilcoxon signed-rank test on the paired windows; 1.0 with fewer than 6 pairs)."""
+    (Wilcoxon signed-rank test on the paired windows).
+
+    Parameters
+    ----------
+    before : ndarray, shape (n_windows,)
+        Per-window errors of the reference model.
+    after : ndarray, shape (n_windows,)
+        Per-window errors of the candidate, the same windows.
+
+    Returns
+    -------
+    float
+        The p-value; 1.0 with fewer than 6 pairs (finite and different).
+    """
     ok = np.isfinite(before) & np.isfinite(after) & (before != after)
     if ok.sum() < 6:
         return 1.0
@@ -90,7 +140,21 @@ def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
 
 
 def gap_summary(train: dict, held: dict) -> dict:
-    """The JSON summary of a model's training and held-out scores (:func:`~bayesid.estimation.windows.scores`)."""
+    """The JSON summary of a model's training and held-out scores.
+
+    Parameters
+    ----------
+    train : dict
+        Scores on the training tracks (:func:`~bayesid.estimation.windows.scores`).
+    held : dict
+        Scores on the held-out tracks.
+
+    Returns
+    -------
+    dict
+        ``train_rms_m``, ``heldout_rms_m``, ``heldout_max_m``, ``heading_rms_deg``,
+        ``train_heading_rms_deg``, the log-likelihoods and ``heldout_rms_by_channel``.
+    """
     return {
         "train_rms_m": train["rms_position_m"],
         "heldout_rms_m": held["rms_position_m"],
@@ -104,8 +168,25 @@ def gap_summary(train: dict, held: dict) -> dict:
 
 
 def is_cause(r: dict, significant: bool, band: float, th: Thresholds) -> bool:
-    """The effect closes the gap: held-out error inside the noise-floor band, at least
-    ``explain_fraction`` of the excess removed, ΔBIC at most ``bic_threshold``."""
+    """Whether the effect closes the gap: held-out error inside the noise-floor band, at least
+    ``explain_fraction`` of the excess removed, ΔBIC at most ``bic_threshold``.
+
+    Parameters
+    ----------
+    r : dict
+        A ranked candidate (``heldout_rms_m``, ``excess_removed``, ``delta_bic``).
+    significant : bool
+        Whether the gap is significant.
+    band : float
+        The floor band, m.
+    th : Thresholds
+        The thresholds.
+
+    Returns
+    -------
+    bool
+        True for a cause.
+    """
     return bool(
         significant
         and r["heldout_rms_m"] <= band
@@ -115,9 +196,25 @@ def is_cause(r: dict, significant: bool, band: float, th: Thresholds) -> bool:
 
 
 def is_contributor(r: dict, significant: bool, th: Thresholds) -> bool:
-    """The effect improves the held-out windows without closing the gap: paired window test
-    p < ``partial_p`` (or at least ``explain_fraction`` of the excess removed, where too few
-    windows make the test powerless), ΔBIC at most ``bic_threshold``, positive shrinkage."""
+    """Whether the effect improves the held-out windows without closing the gap: paired window
+    test p < ``partial_p`` (or at least ``explain_fraction`` of the excess removed, where too
+    few windows make the test powerless), ΔBIC at most ``bic_threshold``, positive shrinkage.
+
+    Parameters
+    ----------
+    r : dict
+        A ranked candidate (``delta_bic``, ``heldout_shrinkage``, ``window_p_value``,
+        ``excess_removed``).
+    significant : bool
+        Whether the gap is significant.
+    th : Thresholds
+        The thresholds.
+
+    Returns
+    -------
+    bool
+        True for a contributor.
+    """
     return bool(
         significant
         and r["delta_bic"] <= th.bic_threshold
@@ -127,7 +224,19 @@ def is_contributor(r: dict, significant: bool, th: Thresholds) -> bool:
 
 
 def assign_roles(results: list, significant: bool, band: float, th: Thresholds) -> None:
-    """Set every ranked candidate's ``role`` (``"cause"``, ``"contributor"`` or None) in place."""
+    """Set every ranked candidate's ``role`` (``"cause"``, ``"contributor"`` or None) in place.
+
+    Parameters
+    ----------
+    results : list of dict
+        The ranked candidates.
+    significant : bool
+        Whether the gap is significant.
+    band : float
+        The floor band, m.
+    th : Thresholds
+        The thresholds.
+    """
     for r in results:
         r["role"] = (
             "cause"
@@ -139,7 +248,21 @@ def assign_roles(results: list, significant: bool, band: float, th: Thresholds) 
 
 
 def contribution(r: dict, added: bool) -> dict:
-    """The report's record of a contributor (added to the model or not)."""
+    """The report's record of a contributor.
+
+    Parameters
+    ----------
+    r : dict
+        The ranked candidate.
+    added : bool
+        Whether it was added to the model.
+
+    Returns
+    -------
+    dict
+        ``effect``, ``added``, ``share_of_excess``, ``heldout_rms_m``, ``window_p_value``,
+        ``delta_bic``, ``parameters``.
+    """
     return {
         "effect": r["effect"],
         "added": added,
@@ -152,8 +275,23 @@ def contribution(r: dict, added: bool) -> dict:
 
 
 def verdict_of(significant: bool, chosen: list, remainder_significant: bool) -> str:
-    """``"none"`` (no significant gap), else the effects added joined by ``+`` with
-    ``+unexplained`` when the remainder is still significant, or ``"unexplained"``."""
+    """The verdict string.
+
+    Parameters
+    ----------
+    significant : bool
+        Whether the gap is significant.
+    chosen : list of str
+        The effects added, in order.
+    remainder_significant : bool
+        Whether the remainder is still significant.
+
+    Returns
+    -------
+    str
+        ``"none"`` (no significant gap), else the effects added joined by ``+`` with
+        ``+unexplained`` when the remainder is still significant, or ``"unexplained"``.
+    """
     if not significant:
         return "none"
     return "+".join(chosen + (["unexplained"] if remainder_significant else [])) or "unexplained"

@@ -17,7 +17,22 @@ __all__ = ["where", "ljung_box", "window_xy"]
 
 
 def ljung_box(x, lags: int = 10) -> tuple[float, float]:
-    """Ljung-Box Q statistic and p-value of a series (Ljung & Box 1978, Biometrika 65(2))."""
+    """Ljung-Box Q statistic and p-value of a series (Ljung & Box 1978, Biometrika 65(2)).
+
+    Parameters
+    ----------
+    x : array_like
+        The series (non-finite values dropped, mean removed).
+    lags : int, default 10
+        Lags of the statistic.
+
+    Returns
+    -------
+    q : float
+        The Q statistic (NaN for a series too short or all zero).
+    p_value : float
+        Its chi-squared p-value (NaN likewise).
+    """
     x = np.asarray(x, float)
     x = x[np.isfinite(x)] - np.nanmean(x)
     n = x.size
@@ -37,11 +52,34 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
     cross-correlation with the rudder and its rate, and (ships with a measured wind) the
     correlation with the apparent-wind signature.
 
-    ``nuisance``: per-track nuisances of *these* tracks (None: the model has none; a fit's own
-    nuisances belong to its training tracks and are never used here).
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fitted base model.
+    ctxs : list of TrackContext
+        The tracks, prepared with the protocol's windows and start rule.
+    tracks : list of Track
+        The same tracks.
+    sd : dict
+        ``{channel: noise sd}``, SI.
+    floor_by_channel : dict, optional
+        ``{channel: RMS of the noise floor}``, SI.
+    nuisance : list of ndarray, optional
+        Per-track nuisances of *these* tracks (None: the model has none; a fit's own nuisances
+        belong to its training tracks and are never used here).
 
-    Returns (JSON-able dict, (F list (n, 3) per track, [(motion, inputs, track)]) or None when
-    inverse dynamics failed -- the error is then in the dict under ``forces``)."""
+    Returns
+    -------
+    summary : dict
+        JSON-able: ``channels``, ``dominant_channel``, ``regions``, ``dominant_region``,
+        ``phases``, ``forces``, ``spectrum``, ``whiteness``, ``input_correlation`` (and
+        ``wind_correlation`` for ships with a measured wind).
+    forces : tuple or None
+        ``(F list (n, 3) per track, [(motion, inputs, track)])``, or None when inverse dynamics
+        failed -- the error is then in the summary under ``forces``.
+    """
     out = {
         "channels": {},
         "regions": {},
@@ -214,8 +252,33 @@ def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | 
 
 
 def window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin_s=0.0):
-    """(measured (n, 2), predicted (n + W - 1, 2)) x, y of a track's protocol windows under a
-    fitted model (``nu``: its per-track nuisance), NaN rows separating the windows (for plots)."""
+    """Measured and predicted x, y of a track's protocol windows under a fitted model, NaN rows
+    separating the windows (for plots).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fit (its ``p``).
+    track : Track
+        The track.
+    window_s : float or None
+        Protocol window, s.
+    nu : ndarray, optional
+        The track's nuisances.
+    start : str, default "measured"
+        The (resolved) start rule.
+    leadin_s : float, default 0.0
+        Lead-in of the fitted rule, s.
+
+    Returns
+    -------
+    measured : ndarray, shape (n, 2)
+        The measured x, y.
+    predicted : ndarray, shape (n + W - 1, 2)
+        The predicted x, y.
+    """
     ctx = model.context(track, window_s, start=start, leadin_s=leadin_s)
     S = shooting.simulate(model, ctx, fitres.p[None], None if nu is None else nu[None])[0]
     xy = S[:, :2].copy()

@@ -45,7 +45,7 @@ the rudder sees the reverse free stream and, with the propeller ahead, its slips
 the rudder angle at which the rudder gives no normal force going straight ahead. It absorbs the
 port/starboard asymmetry of a single propeller's slipstream (its swirl at the rudder) and a
 rudder zero offset with one parameter -- our simplification; the MMG standard instead uses
-different ``gamma_R`` for ``beta_R < 0`` and ``> 0``, which did not improve the KVLCC2 zigzags.
+different ``gamma_R`` for ``beta_R < 0`` and ``> 0``, which does not improve the KVLCC2 zigzags.
 
 Wind (Fujiwara, Ueno & Nimura 1998 -- the Fourier form, truncated to seven coefficients)::
 
@@ -57,7 +57,7 @@ Wind (Fujiwara, Ueno & Nimura 1998 -- the Fourier form, truncated to seven coeff
 starboard), from the measured true wind (track columns ``wind_speed``, ``wind_dir``) and the
 ship's velocity over ground. The yaw moment keeps Fujiwara's three sine harmonics: with two, its
 peak off the quarter (wind from 110-140 deg, where a tanker's aft superstructure dominates) is
-tied to the bow-quarter peak; on the Esso validation split the third harmonic took the held-out
+tied to the bow-quarter peak; on the Esso validation split the third harmonic takes the held-out
 60 s error from 0.754 m to 0.740 m (studies/real_ships.py, with the wind, 40 evaluations).
 
 Added mass (:func:`~bayesid.models.ship.fileformat.empirical_added_mass`): ``my``, ``Jz`` from

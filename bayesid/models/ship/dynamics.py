@@ -130,11 +130,27 @@ def _rhs(s, dlt, n, wn, we, cn, ce, p, gx, gw, F, ds):
 def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status):
     """RK4 of B parameter vectors over W windows, each restarting from its own state.
 
-    s0 (B, W, 6); starts (W+1,) step indices (last = n); inputs (B, n, 2) rudder (rad, + to
-    port) and propeller (rps), held over each step; wind (n, 2) true wind velocity towards
-    (north/x, east/y) m/s, held over each step; cur (B, 2) current (m/s, earth frame);
-    prm (B, NP); out (B, n + W, 6) states at the window's step points (window w occupies rows
-    starts[w] + w ... starts[w+1] + w); status (B, W) 0 ok, 1 diverged (rest of window NaN).
+    Parameters
+    ----------
+    s0 : ndarray, shape (B, W, 6)
+        State at each window start.
+    starts : ndarray of int64, shape (W + 1,)
+        Step index of each window start (last = n).
+    inputs : ndarray, shape (B, n, 2)
+        Rudder (rad, + to port) and propeller (rps), held over each step.
+    wind : ndarray, shape (n, 2)
+        True wind velocity towards (north/x, east/y), m/s, held over each step.
+    cur : ndarray, shape (B, 2)
+        Current, m/s, earth frame.
+    prm : ndarray, shape (B, NP)
+        Kernel parameter vectors (:mod:`bayesid.models.ship.layout`).
+    dt : float
+        Step, s.
+    out : ndarray, shape (B, n + W, 6)
+        Output: states at the window's step points (window w occupies rows
+        ``starts[w] + w ... starts[w+1] + w``).
+    status : ndarray of int64, shape (B, W)
+        Output: 0 ok, 1 diverged (rest of window NaN).
     """
     B, W = s0.shape[0], s0.shape[1]
     gx, gw = GAUSS_X, GAUSS_W
@@ -182,8 +198,23 @@ def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status):
 
 @nb.njit(cache=True)
 def accelerations(states, inputs, wind, cur, prm, out):
-    """Model accelerations (u', v', r') at given states: states (N, 6), inputs (N, 2) rudder
-    (rad) and rps, wind (N, 2), cur (2,), prm (NP,) -> out (N, 3)."""
+    """Model accelerations (u', v', r') at given states.
+
+    Parameters
+    ----------
+    states : ndarray, shape (N, 6)
+        States (x, y, psi, u, v, r).
+    inputs : ndarray, shape (N, 2)
+        Rudder (rad) and propeller (rps).
+    wind : ndarray, shape (N, 2)
+        True wind velocity towards (north/x, east/y), m/s.
+    cur : ndarray, shape (2,)
+        Current, m/s, earth frame.
+    prm : ndarray, shape (NP,)
+        Kernel parameter vector.
+    out : ndarray, shape (N, 3)
+        Output: the accelerations, m/s^2 and rad/s^2.
+    """
     F = np.empty(3)
     ds = np.empty(6)
     for i in range(states.shape[0]):
@@ -197,7 +228,15 @@ def accelerations(states, inputs, wind, cur, prm, out):
 
 @nb.njit(cache=True)
 def forces(states, inputs, wind, cur, prm, out):
-    """External forces (X, Y, N) at given states, as :func:`accelerations`: out (N, 3)."""
+    """External forces (X, Y, N) at given states.
+
+    Parameters
+    ----------
+    states, inputs, wind, cur, prm : ndarray
+        As in :func:`accelerations`.
+    out : ndarray, shape (N, 3)
+        Output: X, Y (N) and N (N m).
+    """
     F = np.empty(3)
     for i in range(states.shape[0]):
         _forces(states[i], inputs[i, 0], inputs[i, 1], wind[i, 0], wind[i, 1], cur[0], cur[1], prm, GAUSS_X, GAUSS_W, F)
@@ -205,7 +244,18 @@ def forces(states, inputs, wind, cur, prm, out):
 
 
 def mass_matrix(prm: np.ndarray) -> np.ndarray:
-    """(3, 3) generalised mass of the MMG equations (rigid body plus added mass), kg and kg m^2."""
+    """Generalised mass of the MMG equations (rigid body plus added mass).
+
+    Parameters
+    ----------
+    prm : ndarray, shape (NP,)
+        Kernel parameter vector.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        The mass matrix of (u', v', r'), kg and kg m^2.
+    """
     L, d, m, xG, rho, kzz = prm[0], prm[2], prm[3], prm[4], prm[5], prm[6]
     o = len(PARTICULARS)
     q2 = 0.5 * rho * L * L * d
@@ -215,9 +265,21 @@ def mass_matrix(prm: np.ndarray) -> np.ndarray:
 
 
 def wind_components(track: Track, t: np.ndarray) -> np.ndarray:
-    """(len(t), 2) true-wind velocity towards (x/north, y/east), m/s, interpolated at ``t`` from
-    the track's ``wind_speed`` and ``wind_dir`` (direction the wind comes FROM); zeros when the
-    track has no wind columns."""
+    """True-wind velocity of a track, interpolated at given times.
+
+    Parameters
+    ----------
+    track : Track
+        The track; its ``wind_speed`` and ``wind_dir`` (direction the wind comes FROM) are read.
+    t : ndarray
+        Times, s.
+
+    Returns
+    -------
+    ndarray, shape (len(t), 2)
+        Velocity towards (x/north, y/east), m/s; zeros when the track has no wind columns (or
+        no finite value in them).
+    """
     if "wind_speed" not in track or "wind_dir" not in track:
         return np.zeros((t.size, 2))
     sp = np.asarray(track["wind_speed"], float)
@@ -230,8 +292,26 @@ def wind_components(track: Track, t: np.ndarray) -> np.ndarray:
 
 
 def apparent_wind(track: Track, u, v, psi, t=None) -> tuple[np.ndarray, np.ndarray]:
-    """Apparent wind speed (m/s) and angle off the bow it comes from (rad, + from starboard) for
-    body velocities ``u, v`` and heading ``psi`` at times ``t`` (default the track's)."""
+    """Apparent wind of a ship moving through the track's true wind.
+
+    Parameters
+    ----------
+    track : Track
+        The track (its wind columns, :func:`wind_components`).
+    u, v : array_like
+        Body velocities, m/s, at the times ``t``.
+    psi : array_like
+        Heading, rad, at the times ``t``.
+    t : ndarray, optional
+        Times, s; default the track's.
+
+    Returns
+    -------
+    speed : ndarray
+        Apparent wind speed, m/s.
+    angle : ndarray
+        Angle off the bow the wind comes from, rad (+ from starboard).
+    """
     t = track.t if t is None else t
     w = wind_components(track, t)
     c, s = np.cos(psi), np.sin(psi)

@@ -14,7 +14,22 @@ from .layout import COEFFICIENT_INDEX, WIND
 
 class ShipWind(Effect):
     """Wind loads from the measured true wind: the seven wind coefficients of the Fourier form
-    are the effect's parameters (kernel parameters of the MMG model)."""
+    are the effect's parameters (kernel parameters of the MMG model).
+
+    Parameters
+    ----------
+    name, params : str, tuple of str
+        Catalogue key and parameter names (the fields of :class:`~bayesid.models.effects.Effect`;
+        the instance of :data:`SHIP_CATALOGUE` sets them all).
+    lo, hi, start, scale : tuple of float
+        Bounds, start values and typical sizes of the parameters.
+    magnitudes, source, description : tuple of dict, str, str
+        Benchmark levels, the reasoning behind the values, a one-line description.
+    n_nuisance, nuisance_lo, nuisance_hi : int, float, float
+        Per-track parameters and their bounds.
+    mode, input_effect, exo_columns, signature, neutral, needs_columns : object
+        The other fields of :class:`~bayesid.models.effects.Effect`.
+    """
 
     def kernel(self, kp, q):
         kp["prm"][:, [COEFFICIENT_INDEX[k] for k in WIND]] = q
@@ -43,7 +58,22 @@ class ShipWind(Effect):
 
 class ShipCurrent(Effect):
     """Uniform current (earth frame) in the MMG kernel: the hull moves through the water, the
-    track over ground."""
+    track over ground.
+
+    Parameters
+    ----------
+    name, params : str, tuple of str
+        Catalogue key and parameter names (the fields of :class:`~bayesid.models.effects.Effect`;
+        the instance of :data:`SHIP_CATALOGUE` sets them all).
+    lo, hi, start, scale : tuple of float
+        Bounds, start values and typical sizes of the parameters.
+    magnitudes, source, description : tuple of dict, str, str
+        Benchmark levels, the reasoning behind the values, a one-line description.
+    n_nuisance, nuisance_lo, nuisance_hi : int, float, float
+        Per-track parameters and their bounds.
+    mode, input_effect, exo_columns, signature, neutral, needs_columns : object
+        The other fields of :class:`~bayesid.models.effects.Effect`.
+    """
 
     def kernel(self, kp, q):
         kp["cur"] = np.ascontiguousarray(q)
@@ -66,7 +96,22 @@ class ShipCurrent(Effect):
 
 class ShipDelay(Effect):
     """Pure time delay of the logged rudder and propeller (the MMG kernel's inputs averaged over
-    the delayed step)."""
+    the delayed step).
+
+    Parameters
+    ----------
+    name, params : str, tuple of str
+        Catalogue key and parameter names (the fields of :class:`~bayesid.models.effects.Effect`;
+        the instance of :data:`SHIP_CATALOGUE` sets them all).
+    lo, hi, start, scale : tuple of float
+        Bounds, start values and typical sizes of the parameters.
+    magnitudes, source, description : tuple of dict, str, str
+        Benchmark levels, the reasoning behind the values, a one-line description.
+    n_nuisance, nuisance_lo, nuisance_hi : int, float, float
+        Per-track parameters and their bounds.
+    mode, input_effect, exo_columns, signature, neutral, needs_columns : object
+        The other fields of :class:`~bayesid.models.effects.Effect`.
+    """
 
     def kernel(self, kp, q):
         kp["delay"] = q[:, 0]
@@ -132,8 +177,24 @@ SHIP_CATALOGUE = {
 
 
 def get_effect(name) -> Effect:
-    """A ship catalogue effect by name; an :class:`~bayesid.models.effects.Effect` passes through.
-    ValueError naming an unknown one."""
+    """A ship catalogue effect by name.
+
+    Parameters
+    ----------
+    name : str or Effect
+        A key of :data:`SHIP_CATALOGUE`; an :class:`~bayesid.models.effects.Effect` passes
+        through.
+
+    Returns
+    -------
+    Effect
+        The effect.
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown effect.
+    """
     if isinstance(name, Effect):
         return name
     try:

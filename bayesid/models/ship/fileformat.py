@@ -28,9 +28,31 @@ class ShipFileError(VehicleFileError):
 class Ship:
     """A surface ship: particulars (SI) and MMG prime coefficients.
 
-    ``coefficients`` holds every name of :data:`~bayesid.models.ship.layout.COEFFICIENTS` (added masses estimated when the
-    file gives none; wind coefficients 0 unless a ``[wind]`` section gives start values, kept in
-    ``wind_start``). ``free`` is the default list of coefficients a fit changes.
+    Parameters
+    ----------
+    id : str
+        Ship id (the packaged file's stem, or the file's ``[vehicle] id``).
+    particulars : dict
+        ``{name: value}`` of every name of :data:`~bayesid.models.ship.layout.PARTICULARS` (SI,
+        ratios as noted there).
+    coefficients : dict
+        ``{name: prime value}`` of every name of :data:`~bayesid.models.ship.layout.COEFFICIENTS`
+        (added masses estimated when the file gives none; wind coefficients 0).
+    wind_start : dict
+        Start values of the wind coefficients, from a ``[wind]`` section (the wind effect starts
+        from these).
+    free : list of str
+        The default list of coefficients a fit changes (``[fit] free``).
+    description : str, default ""
+        The file's description.
+    source : str, default ""
+        The file the ship was loaded from ("" when built in code).
+    kind : str, default "ship3dof"
+        The vehicle kind.
+    prior : dict
+        ``{name: (mean, sd)}`` Gaussian priors of the file's ``[prior]`` section.
+    prior_source : str, default ""
+        The ``[prior]`` section's source text.
     """
 
     id: str
@@ -61,9 +83,26 @@ class Ship:
     def track_warnings(self, track, name: str, body_speed, ground_speed) -> list[str]:
         """Plausibility warnings of a track for this ship (:func:`bayesid.data.validate.check_track`):
         stern/bow planes, depth or pitch that vary (a submarine's track), and a median speed
-        (m/s, ``body_speed`` else ``ground_speed``) above Froude number 0.25 for a full form
+        (``body_speed`` else ``ground_speed``) above Froude number 0.25 for a full form
         (Cb >= 0.7: tankers and bulk carriers meet a wall of wave resistance near Fn 0.2) or 0.45
-        for finer displacement hulls."""
+        for finer displacement hulls.
+
+        Parameters
+        ----------
+        track : Track
+            The track.
+        name : str
+            The file named in messages.
+        body_speed : float or None
+            Median speed through the water from ``u, v``, m/s.
+        ground_speed : float or None
+            Median speed over ground from the positions, m/s.
+
+        Returns
+        -------
+        list of str
+            The warnings (empty when nothing looks odd).
+        """
         warn = []
         planes = [
             k
@@ -89,18 +128,48 @@ class Ship:
 
     @property
     def L(self) -> float:
+        """Length between perpendiculars, m (``particulars["L"]``)."""
         return float(self.particulars["L"])
 
     @property
     def rho(self) -> float:
+        """Water density, kg/m^3 (``particulars["rho"]``)."""
         return float(self.particulars["rho"])
 
     def params(self, coefficients: dict | None = None) -> np.ndarray:
-        """(NP,) kernel parameter vector (particulars, then coefficients)."""
+        """Kernel parameter vector (particulars, then coefficients).
+
+        Parameters
+        ----------
+        coefficients : dict, optional
+            ``{name: prime value}`` replacing some of the ship's coefficients.
+
+        Returns
+        -------
+        ndarray, shape (NP,)
+            The parameter vector (:mod:`~bayesid.models.ship.layout` order).
+        """
         c = dict(self.coefficients, **(coefficients or {}))
         return np.array([float(self.particulars[k]) for k in PARTICULARS] + [float(c[k]) for k in COEFFICIENTS])
 
     def with_coefficients(self, values: dict) -> Ship:
+        """Copy with some coefficients replaced.
+
+        Parameters
+        ----------
+        values : dict
+            ``{name: prime value}``, names of :data:`~bayesid.models.ship.layout.COEFFICIENTS`.
+
+        Returns
+        -------
+        Ship
+            The modified copy (its dicts and lists copied).
+
+        Raises
+        ------
+        KeyError
+            Naming an unknown coefficient.
+        """
         for k in values:
             if k not in COEFFICIENTS:
                 raise KeyError(f"unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
@@ -115,7 +184,7 @@ class Ship:
 
 
 def empirical_added_mass(p: dict) -> dict:
-    """Added masses from the particulars, MMG prime form: ``{"mx", "my", "Jz"}``.
+    """Added masses from the particulars, MMG prime form.
 
     ``my``, ``Jz``: Clarke, Gedling & Hine (1983), Trans. RINA 125, regressions
     ``-Y'vdot / (pi (T/L)^2) = 1 + 0.16 Cb B/T - 5.1 (B/L)^2`` and
@@ -123,6 +192,16 @@ def empirical_added_mass(p: dict) -> dict:
     and ``0.5 rho L^5``; times ``L/d`` for the MMG primes). ``mx = 2.7 rho V^(5/3) / L^2`` with the
     displaced volume ``V = m / rho`` (Soeding 1982). For KVLCC2 this gives my' 0.244, Jz' 0.0126
     (MMG-published 0.223, 0.011; Yasukawa & Yoshimura 2015, Table 3).
+
+    Parameters
+    ----------
+    p : dict
+        The particulars (``L``, ``B``, ``d``, ``Cb``, ``rho``, ``mass_kg`` are read).
+
+    Returns
+    -------
+    dict
+        ``{"mx", "my", "Jz"}``, MMG prime form.
     """
     L, B, d, Cb, rho, m = (float(p[k]) for k in ("L", "B", "d", "Cb", "rho", "mass_kg"))
     k = math.pi * (d / L) ** 2
@@ -134,6 +213,13 @@ def empirical_added_mass(p: dict) -> dict:
 
 
 def packaged_ships() -> list[str]:
+    """Ids of the ship files shipped with the package.
+
+    Returns
+    -------
+    list of str
+        The ids (file stems) of the packaged files with ``kind = "ship3dof"``, sorted.
+    """
     root = resources.files("bayesid") / "vehicles"
     out = []
     for p in root.iterdir():
@@ -145,7 +231,18 @@ def packaged_ships() -> list[str]:
 
 
 def is_ship_file(path_or_id) -> bool:
-    """True when the vehicle file (path or packaged id) declares ``kind = "ship3dof"``."""
+    """Whether a vehicle file is a ship file.
+
+    Parameters
+    ----------
+    path_or_id : str or Path
+        A path to a TOML file, or the id of a packaged vehicle.
+
+    Returns
+    -------
+    bool
+        True when the file declares ``kind = "ship3dof"`` (False for a file that cannot be read).
+    """
     try:
         p = _resolve(path_or_id)
         with open(p, "rb") as fh:
@@ -170,13 +267,26 @@ def _resolve(path_or_id) -> Path:
 
 def load_ship(path_or_id) -> Ship:
     """Load a ship vehicle file (TOML with ``[vehicle] kind = "ship3dof"``, ``[particulars]``,
-    ``[coefficients]``, optional ``[wind]`` and ``[fit] free``).
+    ``[coefficients]``, optional ``[wind]``, ``[fit] free`` and ``[prior]``).
+
+    Parameters
+    ----------
+    path_or_id : str or Path
+        A path to a TOML file, or the id of a packaged ship.
+
+    Returns
+    -------
+    Ship
+        The ship.
 
     Raises
     ------
-    FileNotFoundError : no such file or packaged id.
-    ShipFileError : missing section or particular, non-finite value, unknown coefficient name
-        (the message names the file, section and key).
+    FileNotFoundError
+        No such file or packaged id.
+    ShipFileError
+        Missing section or particular, non-finite or non-positive value, unknown key or
+        coefficient name, a kind other than ``"ship3dof"`` (the message names the file, section
+        and key).
     """
     p = _resolve(path_or_id)
     try:

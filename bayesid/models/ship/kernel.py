@@ -26,7 +26,7 @@ stage with wind (``sin``/``cos`` of the heading, the wake ``exp``, the rudder an
   ``uR^2`` before its square root (one square root less on the propeller-rudder chain);
 * the wind block is skipped per parameter row without windage (``AT > 0 or AL > 0`` false,
   ``prm[:, 14]``, ``prm[:, 15]``), a branch taken the same way through the window (a second
-  kernel without the wind block was no faster on such rows and doubled the compile time);
+  kernel without the wind block is no faster on such rows and doubles the compile time);
 * ``error_model="numpy"``: a zero determinant of the mass matrix gives a non-finite state and
   status 1 where the interpreted kernel raises ZeroDivisionError.
 
@@ -36,9 +36,9 @@ predictions", J. Mar. Sci. Technol. 20:37-52, with the cross-flow, propeller, ru
 Fujiwara wind terms as documented in :mod:`bayesid.models.ship`), term for term; the
 rearrangements above change the rounding, not the model. Not bit-identical: over 3000 steps
 the states differ from the interpreted kernel's by at most about 1e-15 of each channel's
-largest magnitude (``tests/test_shipgen.py`` asserts 1e-10; status and NaN layout identical).
+largest magnitude (status and NaN layout identical).
 Bit-identical is not reachable at this speed: the interpreted kernel spends 40 % of its time in
-libm, and a generated kernel that kept its calls and operation order (bit-identical) was 1.4
+libm, and a generated kernel that keeps its calls and operation order (bit-identical) is 1.4
 times faster with wind, 1.5 without.
 
 Lanes: a thread advances :data:`LANES` parameter rows of the same window together, their
@@ -488,8 +488,23 @@ import numpy as np
 
 
 def source(lanes: int = LANES) -> str:
-    """Python source of the generated ship kernel module (``simulate_windows``) with ``lanes``
-    parameter rows per thread."""
+    """Python source of the generated ship kernel module (``simulate_windows``).
+
+    Parameters
+    ----------
+    lanes : int, default LANES
+        Parameter rows per thread, at least 1.
+
+    Returns
+    -------
+    str
+        The module's source.
+
+    Raises
+    ------
+    ValueError
+        For ``lanes`` < 1.
+    """
     if lanes < 1:
         raise ValueError(f"lanes must be >= 1, got {lanes}")
     return _HEADER.format(lanes=lanes) + _kernel_source(lanes)
@@ -499,9 +514,19 @@ _MODULES: dict[int, object] = {}
 
 
 def generated(lanes: int = LANES):
-    """The generated kernel module with ``lanes`` rows per thread
-    (:func:`bayesid.models.codegen.load_module`; kept per lane count, as building and hashing the
-    source costs about 11 ms)."""
+    """The generated kernel module (:func:`bayesid.models.codegen.load_module`; kept per lane
+    count, as building and hashing the source costs about 11 ms).
+
+    Parameters
+    ----------
+    lanes : int, default LANES
+        Parameter rows per thread.
+
+    Returns
+    -------
+    module
+        The module, with its ``simulate_windows`` driver.
+    """
     mod = _MODULES.get(lanes)
     if mod is None:
         mod = _MODULES[lanes] = load_module(source(lanes), "bayesid_shipkernel")
@@ -510,16 +535,53 @@ def generated(lanes: int = LANES):
 
 def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status, lanes: int = LANES):
     """The generated kernel with the arguments and results of
-    :func:`bayesid.models.ship.dynamics.simulate_windows`: s0 (B, W, 6) window-start states; starts (W+1,) step indices; inputs (B, n, 2) rudder (rad)
-    and propeller (rps); wind (n, 2) true wind (m/s, towards north, east); cur (B, 2) current
-    (m/s); prm (B, NP); dt (s); out (B, n + W, 6) and status (B, W) filled in place; ``lanes``
-    parameter rows per thread."""
+    :func:`bayesid.models.ship.dynamics.simulate_windows`.
+
+    Parameters
+    ----------
+    s0 : ndarray, shape (B, W, 6)
+        Window-start states.
+    starts : ndarray of int64, shape (W + 1,)
+        Step indices of the window starts.
+    inputs : ndarray, shape (B, n, 2)
+        Rudder (rad) and propeller (rps).
+    wind : ndarray, shape (n, 2)
+        True wind, m/s, towards north, east.
+    cur : ndarray, shape (B, 2)
+        Current, m/s.
+    prm : ndarray, shape (B, NP)
+        Kernel parameter vectors.
+    dt : float
+        Step, s.
+    out : ndarray, shape (B, n + W, 6)
+        Output: the states, filled in place.
+    status : ndarray of int64, shape (B, W)
+        Output: 0 ok, 1 diverged, filled in place.
+    lanes : int, default LANES
+        Parameter rows per thread.
+    """
     generated(lanes).simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status)
 
 
 def kernel(kind: str):
-    """The window driver of ``kind``: ``"generated"`` (this module) or ``"interpreted"``
-    (:func:`bayesid.models.ship.dynamics.simulate_windows`). ValueError naming the option otherwise."""
+    """The window driver of a kernel kind.
+
+    Parameters
+    ----------
+    kind : {"generated", "interpreted"}
+        ``"generated"`` (this module) or ``"interpreted"``
+        (:func:`bayesid.models.ship.dynamics.simulate_windows`).
+
+    Returns
+    -------
+    callable
+        ``simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status)``.
+
+    Raises
+    ------
+    ValueError
+        Naming the option otherwise.
+    """
     use_package_threading_layer()
     if kind == "generated":
         return simulate_windows

@@ -22,10 +22,10 @@ from .seed import equation_error_seed
 
 #: Default multiple-shooting window (s) of ship fits (``bayesid fit``, and ``bayesid diagnose``
 #: whatever its scoring window). Chosen on training-only splits of the real runs
-#: (studies/fit_sensitivity.py, reports/fit_sensitivity/): against the issue-8 baseline's 30 s,
-#: 15 s predicted the held-out 30 s windows better on every split of both ships and the 60 s
-#: windows better on every KVLCC2 split, with the Esso 60 s windows mixed; 60 s fit windows let the
-#: free coefficients chase the few long windows of a zigzag set and predicted far worse.
+#: (studies/fit_sensitivity.py, reports/fit_sensitivity/): against 30 s fit windows, 15 s
+#: predicts the held-out 30 s windows better on every split of both ships and the 60 s windows
+#: better on every KVLCC2 split, with the Esso 60 s windows mixed; 60 s fit windows let the free
+#: coefficients chase the few long windows of a zigzag set and predict far worse.
 FIT_WINDOW_S = 15.0
 #: Physical bounds of the coefficients when fitted (None: unbounded).
 BOUNDS = {
@@ -54,23 +54,31 @@ class ShipModel(ParameterLayout):
     (:mod:`bayesid.estimation.windows`), :mod:`bayesid.estimation.identification` and the gap diagnosis
     (:func:`bayesid.analysis.gap.diagnose`) work on it unchanged.
 
-    Parameters
-    ----------
-    ship : :class:`~bayesid.models.ship.fileformat.Ship`.
-    free : coefficient names the fit changes (default ``ship.free``).
-    effects : names from :data:`~bayesid.models.ship.effects.SHIP_CATALOGUE`.   dt : integration step (s).
-    kernel : ``"generated"`` (default; :mod:`bayesid.models.ship.kernel`, 3.5 times faster with wind,
-        2.8 without, agreeing to round-off) or ``"interpreted"``
-        (:func:`~bayesid.models.ship.dynamics.simulate_windows`, the baseline and test oracle)
-        simulates the windows.
-
     Parameter vector: ``[theta_free, q_1, ..., q_E]``; the wind effect's parameters are the seven
     wind coefficients (started at ``ship.wind_start``).
 
+    Parameters
+    ----------
+    ship : Ship
+        The :class:`~bayesid.models.ship.fileformat.Ship`.
+    free : sequence of str, optional
+        Coefficient names the fit changes (default ``ship.free``).
+    effects : sequence of str or Effect, default ()
+        Names from :data:`~bayesid.models.ship.effects.SHIP_CATALOGUE`, or effects.
+    dt : float, default 0.2
+        Integration step, s.
+    kernel : {"generated", "interpreted"}, default "generated"
+        What simulates the windows: ``"generated"`` (:mod:`bayesid.models.ship.kernel`, 3.5
+        times faster with wind, 2.8 without, agreeing to round-off) or ``"interpreted"``
+        (:func:`~bayesid.models.ship.dynamics.simulate_windows`, the baseline and test oracle).
+
     Raises
     ------
-    KeyError : a free name that is not a ship coefficient (named).   ValueError : unknown effect
-    or kernel (named).
+    KeyError
+        A free name that is not a ship coefficient (named).
+    ValueError
+        Unknown effect or kernel (named), or wind coefficients listed as free with the wind
+        effect.
     """
 
     mode = "horizontal"
@@ -83,22 +91,78 @@ class ShipModel(ParameterLayout):
 
     @classmethod
     def for_vehicle(cls, ship, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal"):
-        """The model of :func:`bayesid.models.build_model` (3-DOF: ``mode`` is the horizontal plane)."""
+        """The model of :func:`bayesid.models.build_model`.
+
+        Parameters
+        ----------
+        ship : Ship
+            The ship.
+        free : sequence of str, optional
+            The free coefficients; default ``ship.free``.
+        effects : sequence of str or Effect, default ()
+            The effects.
+        dt : float, default DEFAULT_DT
+            Integration step, s.
+        mode : str, default "horizontal"
+            Ignored: the ship model is 3-DOF, the horizontal plane.
+
+        Returns
+        -------
+        ShipModel
+            The model.
+        """
         return cls(ship, free, effects, dt=dt)
 
     @staticmethod
     def default_fit_window(scoring_window_s):
-        """A ship's training fits use :data:`FIT_WINDOW_S` whatever the scoring window."""
+        """A ship's training fits use :data:`FIT_WINDOW_S` whatever the scoring window.
+
+        Parameters
+        ----------
+        scoring_window_s : float or None
+            The protocol's scoring window, s (unused).
+
+        Returns
+        -------
+        float
+            :data:`FIT_WINDOW_S`.
+        """
         return FIT_WINDOW_S
 
     @staticmethod
     def default_free(ship) -> list:
-        """The ship file's ``[fit] free``."""
+        """The ship file's ``[fit] free``.
+
+        Parameters
+        ----------
+        ship : Ship
+            The ship.
+
+        Returns
+        -------
+        list of str
+            A copy of ``ship.free``.
+        """
         return list(ship.free)
 
     @staticmethod
     def check_free(ship, names, option: str = "free") -> None:
-        """KeyError naming ``option`` and a name that is not a ship coefficient."""
+        """Check a free list against the ship's coefficients.
+
+        Parameters
+        ----------
+        ship : Ship
+            The ship (unused: every ship has the same coefficients).
+        names : iterable of str
+            The coefficient names.
+        option : str, default "free"
+            The option the names come from, named in the message.
+
+        Raises
+        ------
+        KeyError
+            Naming ``option`` and a name that is not a ship coefficient.
+        """
         for k in names:
             if k not in COEFFICIENTS:
                 raise KeyError(f"{option}: unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
@@ -124,6 +188,14 @@ class ShipModel(ParameterLayout):
         self._ifree = np.array([COEFFICIENT_INDEX[k] for k in self.free], dtype=np.int64)
 
     def bounds(self):
+        """Bounds of the parameter vector: the coefficients' :data:`BOUNDS` (unbounded when not
+        listed), the effects' as catalogued.
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (n_params,)
+            Lower and upper bounds.
+        """
         lo = [BOUNDS.get(k, (-np.inf, np.inf))[0] for k in self.free]
         hi = [BOUNDS.get(k, (-np.inf, np.inf))[1] for k in self.free]
         for e in self.effects:
@@ -132,6 +204,14 @@ class ShipModel(ParameterLayout):
         return np.array(lo, float), np.array(hi, float)
 
     def scales(self) -> np.ndarray:
+        """Typical sizes of the parameters: the nominal coefficients' magnitudes (at least 0.01)
+        and the effects' catalogued scales.
+
+        Returns
+        -------
+        ndarray, shape (n_params,)
+            The typical sizes.
+        """
         th = np.maximum(np.abs(self.theta0), 0.01)
         return np.concatenate([th] + [np.asarray(e.scale, float) for e in self.effects])
 
@@ -139,8 +219,29 @@ class ShipModel(ParameterLayout):
         self, track: Track, window_s=None, span_s: float = 1.0, s0=None, start: str = "measured", leadin_s: float = 0.0
     ):
         """Windows, start states and step inputs of a track (see
-        :class:`bayesid.models.context.TrackContext`; ``start``, ``leadin_s``: the start rule), plus the
-        wind averaged over each step."""
+        :class:`bayesid.models.context.TrackContext`), plus the wind averaged over each step.
+
+        Parameters
+        ----------
+        track : Track
+            The track.
+        window_s : float, optional
+            Protocol window, s; None is one window over the whole run.
+        span_s : float, default 1.0
+            Span of the measured start-state estimate, s.
+        s0 : array_like, shape (12,), optional
+            Replaces the measured start state.
+        start : {"measured", "fitted"}, default "measured"
+            The start rule.
+        leadin_s : float, default 0.0
+            Lead-in of the fitted rule, s.
+
+        Returns
+        -------
+        TrackContext
+            The prepared track, with ``wind`` (n_steps, 2): the true wind towards north and east
+            (m/s) averaged over each step.
+        """
         ctx = TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
         # wind held over a step: the mean of the interpolated wind at 5 points in the step
         tt = ctx.t_grid[:-1, None] + self.dt * (np.arange(5)[None, :] + 0.5) / 5
@@ -149,7 +250,22 @@ class ShipModel(ParameterLayout):
         return ctx
 
     def kernel_params(self, P) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """(B, NP) parameter vectors, (B, 2) currents and (B,) delays (None) of parameter rows."""
+        """The kernel's arrays of parameter rows.
+
+        Parameters
+        ----------
+        P : array_like, shape (B, n_params)
+            Parameter vectors of the model.
+
+        Returns
+        -------
+        prm : ndarray, shape (B, NP)
+            Kernel parameter vectors.
+        cur : ndarray, shape (B, 2)
+            Currents, m/s.
+        delay : ndarray, shape (B,), or None
+            Input delays, s (None without the delay effect).
+        """
         th, qs = self.split_params(P)
         B = th.shape[0]
         prm = np.repeat(self.prm0[None], B, axis=0)
@@ -163,10 +279,30 @@ class ShipModel(ParameterLayout):
     def simulate(
         self, ctx, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
     ) -> np.ndarray:
-        """Predicted measurements at the track's scored samples: (B, n_samples, 12) in
-        :data:`~bayesid.data.track.STATE_NAMES` order (u, v over ground; NaN in a diverged window).
-        ``starts`` (B, W, 6) offsets of the window-start states and ``samples`` as in
-        :meth:`bayesid.models.submarine.EffectModel.simulate`."""
+        """Predicted measurements at the track's scored samples.
+
+        Parameters
+        ----------
+        ctx : TrackContext
+            The prepared track (:meth:`context`).
+        P : array_like, shape (B, n_params)
+            Parameter vectors.
+        nuisance : array_like, optional
+            Unused (a ship model has no per-track parameters).
+        measured_start : bool, default True
+            The window-start velocities are measured over ground: the current is removed.
+        starts : array_like, shape (B, W, 6), optional
+            Offsets of the window-start states, as in
+            :meth:`bayesid.models.submarine.EffectModel.simulate`.
+        samples : {"scored", "lead"}, default "scored"
+            As in :meth:`bayesid.models.submarine.EffectModel.simulate`.
+
+        Returns
+        -------
+        ndarray, shape (B, n_samples, 12)
+            In :data:`~bayesid.data.track.STATE_NAMES` order (u, v over ground; NaN in a
+            diverged window).
+        """
         prm, cur, delay = self.kernel_params(P)
         B = prm.shape[0]
         U = ctx.step_inputs[None] if delay is None else ctx.average_inputs(np.asarray(delay, float))
@@ -224,9 +360,26 @@ class ShipModel(ParameterLayout):
         return motion, states, np.column_stack([dr, nrps]), wind_components(track, t), acc
 
     def missing_forces(self, fitres, track: Track):
-        """Missing X, Y, N (N, N m) over time: the generalised mass times the smoothed measured
-        accelerations minus the fitted model's (inverse dynamics; :func:`bayesid.models.inverse.estimate_motion`).
-        Returns (motion, F (n, 3), inputs (n, 2))."""
+        """Missing X, Y, N over time: the generalised mass times the smoothed measured
+        accelerations minus the fitted model's (inverse dynamics;
+        :func:`bayesid.models.inverse.estimate_motion`).
+
+        Parameters
+        ----------
+        fitres : FitResult
+            A fit of this model (its ``p`` is read).
+        track : Track
+            The track.
+
+        Returns
+        -------
+        motion : dict
+            The smoothed motion.
+        F : ndarray, shape (n, 3)
+            Missing X, Y (N) and N (N m).
+        inputs : ndarray, shape (n, 2)
+            Rudder (rad) and propeller (rps) at the motion's samples.
+        """
         motion, states, inp, wind, acc = self._motion(track)
         prm, cur, _ = self.kernel_params(fitres.p[None])
         a_model = np.empty_like(acc)
@@ -242,12 +395,42 @@ class ShipModel(ParameterLayout):
         return motion, (acc - a_model) @ M.T, inp
 
     def seed(self, tracks):
-        """The equation-error seed (:func:`~bayesid.models.ship.seed.equation_error_seed`): (p, summary)."""
+        """The equation-error seed (:func:`~bayesid.models.ship.seed.equation_error_seed`).
+
+        Parameters
+        ----------
+        tracks : sequence of Track
+            The training tracks.
+
+        Returns
+        -------
+        tuple
+            ``(p, summary)``: the start (n_params,) and the seed's summary dict.
+        """
         return equation_error_seed(self, tracks)
 
     def signature_columns(self, motion, inputs, track: Track, seeds=None, effects=None) -> dict:
-        """Force-space signatures {effect: [(n, 3) columns]} of ``effects`` (default the ship
-        catalogue) that leave one (:meth:`~bayesid.models.effects.Effect.force_signature`)."""
+        """Force-space signatures of the effects that leave one
+        (:meth:`~bayesid.models.effects.Effect.force_signature`).
+
+        Parameters
+        ----------
+        motion : dict
+            The smoothed motion of :meth:`missing_forces`.
+        inputs : ndarray, shape (n, 2)
+            Rudder and propeller at the motion's samples.
+        track : Track
+            The track.
+        seeds : dict, optional
+            Seeds of the diagnosis (unused by the ship effects).
+        effects : iterable of Effect, optional
+            The effects; default the ship catalogue.
+
+        Returns
+        -------
+        dict
+            ``{effect: [columns (n, 3)]}``.
+        """
         t = motion["t"]
         m = {
             "t": t,
@@ -262,14 +445,36 @@ class ShipModel(ParameterLayout):
         return signature_dict(SHIP_CATALOGUE.values() if effects is None else effects, m)
 
     def where_samples(self, track: Track, ctx, S):
-        """Extra per-sample region variables of the *where* analysis: the apparent wind."""
+        """Extra per-sample region variables of the *where* analysis: the apparent wind.
+
+        Parameters
+        ----------
+        track : Track
+            The track (no wind columns: no variables).
+        ctx : TrackContext
+            The prepared track.
+        S : ndarray, shape (B, n_samples, 12)
+            Predicted states; the first row's u, v, psi are used.
+
+        Returns
+        -------
+        dict
+            ``apparent_wind_speed_mps`` and ``apparent_wind_angle_deg`` per scored sample, or
+            empty.
+        """
         if "wind_speed" not in track:
             return {}
         va, g = apparent_wind(track, S[0, :, 6], S[0, :, 7], S[0, :, 5], ctx.ts)
         return {"apparent_wind_speed_mps": va, "apparent_wind_angle_deg": np.degrees(np.abs(wrap(g)))}
 
     def regions(self) -> dict:
-        """Operating-region bins of the *where* analysis for this ship (scaled by its speed range)."""
+        """Operating-region bins of the *where* analysis for this ship (scaled by its speed range).
+
+        Returns
+        -------
+        dict
+            ``{region variable: bin edges}``.
+        """
         return {
             "drift_angle_deg": [-180, -30, -10, -3, 3, 10, 30, 180],
             "yaw_rate_deg_s": [-60, -3, -1, -0.3, 0.3, 1, 3, 60],

@@ -24,10 +24,21 @@ def equation_error_seed(model, tracks, names=None) -> tuple[np.ndarray, dict]:
     each equation is weighted by the inverse RMS of its left-hand side, and a small ridge
     (1e-6 of the normal matrix's trace) keeps unexcited directions at their start values.
 
+    Parameters
+    ----------
+    model : ShipModel
+        The model (its start, scales and bounds).
+    tracks : sequence of Track
+        The training tracks.
+    names : sequence of str, optional
+        The parameters regressed; default those of :data:`LINEAR` in the model.
+
     Returns
     -------
-    p (n_params,) the model's start vector with the regressed entries replaced, and a summary
-    dict (``names``, ``n_samples``, ``r2`` per equation).
+    p : ndarray, shape (n_params,)
+        The model's start vector with the regressed entries replaced (clipped to the bounds).
+    summary : dict
+        ``names`` (the parameters regressed), ``n_samples``, ``r2`` per equation (X, Y, N).
     """
     p0 = model.start()
     lin = (
