@@ -99,8 +99,8 @@ MIN_WINDOW_FRACTION = 0.5
 EXTRAPOLATION_NOTE = (
     "no training run was of this manoeuvre kind, so no left-out error of it was ever measured: its bands "
     "borrow the scores of the other indices and are not calibrated (on synthetic tracks a zigzag-trained "
-    "model's 90 % bands held under half of the turning circles' tactical diameters and windows: "
-    "tests/test_calibration.py); train on at least one run of each manoeuvre you predict"
+    "model's 90 % bands held under half of the turning circles' tactical diameters and windows); train on "
+    "at least one run of each manoeuvre you predict"
 )
 #: The index nonconformity score, in words (written with every calibration).
 INDEX_SCORE = "|measured - predicted| / sqrt(sd^2 + (kappa * predicted)^2)"
