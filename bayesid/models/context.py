@@ -276,7 +276,16 @@ class TrackContext:
         if model.mode == "horizontal":
             self.s_meas[:, [2, 3, 4, 8, 9, 10]] = 0.0
         self.lead = self._lead_samples(track, t) if self.start == "fitted" else None
-        # inputs: cumulative integral of the zero-order-held record (exact averages)
+        self._tk, self._ck = self._input_integral(track, t)
+        self.substeps = int(substeps)
+        self.step_inputs = self.average_inputs(np.zeros(1))[0]
+
+    @staticmethod
+    def _input_integral(track: Track, t) -> tuple:
+        """(knot times, cumulative integral (n + 2, 4)) of the zero-order-held inputs, padded
+        beyond both ends: averages over any interval are exact differences of it. Missing samples
+        are forward-filled; ValueError for a missing ``delta_r`` or ``n`` column or an input
+        without any value."""
         missing = [k for k in ("delta_r", "n") if k not in track]
         if missing:
             raise ValueError(f"track {track.name!r} has no input column(s) {missing}")
@@ -295,10 +304,7 @@ class TrackContext:
         pad = 1e5
         dts = np.diff(t)
         cum = np.concatenate([[0.0 * U[0]], np.cumsum(U[:-1] * dts[:, None], axis=0)])
-        self._tk = np.concatenate([[t[0] - pad], t, [t[-1] + pad]])
-        self._ck = np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad])
-        self.substeps = int(substeps)
-        self.step_inputs = self.average_inputs(np.zeros(1))[0]
+        return np.concatenate([[t[0] - pad], t, [t[-1] + pad]]), np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad])
 
     @property
     def n_virtual(self) -> int:
