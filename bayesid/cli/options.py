@@ -167,52 +167,145 @@ def split_names(text, option: str = "") -> list:
 
 
 def add_vehicle(parser, help: str, **kwargs) -> None:
-    """``--vehicle``: a packaged vehicle id or a vehicle file (``required`` or ``default`` in kwargs)."""
+    """``--vehicle``: a packaged vehicle id or a vehicle file (``required`` or ``default`` in kwargs).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    help : str
+        The option's help text.
+    **kwargs
+        ``required=True`` or a ``default`` (and any other arguments of ``add_argument``).
+    """
     parser.add_argument("--vehicle", help=help, **kwargs)
 
 
 def add_free(parser, help: str) -> None:
-    """``--free``: comma-separated free coefficients (empty: the vehicle's)."""
+    """``--free``: comma-separated free coefficients (empty: the vehicle's).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    help : str
+        The option's help text.
+    """
     parser.add_argument("--free", default="", help=help)
 
 
 def add_effects(parser, help: str) -> None:
-    """``--effects``: comma-separated effects in the model."""
+    """``--effects``: comma-separated effects in the model.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    help : str
+        The option's help text.
+    """
     parser.add_argument("--effects", default="", help=help)
 
 
 def add_tracks(parser, option: str, help: str) -> None:
-    """A list of Track CSVs (``--train``, ``--heldout``, ``--track``), at least one."""
+    """A list of Track CSVs (``--train``, ``--heldout``, ``--track``), at least one.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    option : str
+        The option (``"--train"``, ``"--heldout"`` or ``"--track"``); required, it takes one or
+        more CSV paths.
+    help : str
+        The option's help text.
+    """
     parser.add_argument(option, nargs="+", required=True, metavar="CSV", help=help)
 
 
 def add_window(parser, *checks, default=60.0, help: str = "protocol window, s (<= 0: whole run)") -> None:
-    """``--window``: the protocol window, s (finite, and passing ``checks``, those of :func:`number`)."""
+    """``--window``: the protocol window, s (finite, and passing ``checks``, those of :func:`number`).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    *checks : tuple
+        ``(predicate, message)`` pairs the window must pass, as in :func:`number` (none: any finite
+        value).
+    default : float or None, default 60.0
+        The option's default, s.
+    help : str, default "protocol window, s (<= 0: whole run)"
+        The option's help text.
+    """
     add_number(parser, "--window", *checks, default=default, help=help)
 
 
 def add_dt(parser, default, help: str) -> None:
-    """``--dt``: the model's integration step, s (positive)."""
+    """``--dt``: the model's integration step, s (positive).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    default : float or None
+        The option's default, s; ``None`` when the command picks the step itself (its help text
+        says how).
+    help : str
+        The option's help text.
+    """
     add_number(parser, "--dt", POSITIVE, default=default, help=help)
 
 
 def add_max_nfev(parser, help: str) -> None:
-    """``--max-nfev``: least-squares iterations (positive; default 60)."""
+    """``--max-nfev``: least-squares iterations (positive; default 60).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    help : str
+        The option's help text.
+    """
     add_number(parser, "--max-nfev", POSITIVE, kind=int, default=60, help=help)
 
 
 def add_weighting(parser) -> None:
-    """``--weighting``: the channel weights of the fits."""
+    """``--weighting``: the channel weights of the fits.
+
+    The choices are :data:`WEIGHTINGS` (default ``""``: the model's), the help text
+    :data:`WEIGHTING_HELP`.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     parser.add_argument("--weighting", choices=WEIGHTINGS, default="", help=WEIGHTING_HELP)
 
 
 def add_start(parser) -> None:
-    """``--start``: the window start rule."""
+    """``--start``: the window start rule.
+
+    The choices are :data:`bayesid.protocol.START_RULES` (default ``auto``), the help text
+    :data:`START_HELP`.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     parser.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
 
 
 def add_leadin(parser) -> None:
-    """``--leadin``: the lead-in of the fitted start rule, s (>= 0; 0: the protocol's)."""
+    """``--leadin``: the lead-in of the fitted start rule, s (>= 0; 0: the protocol's).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     add_number(
         parser,
         "--leadin",
@@ -224,27 +317,65 @@ def add_leadin(parser) -> None:
 
 
 def add_seed(parser, help: str) -> None:
-    """``--seed``: a random seed (>= 0; default 0)."""
+    """``--seed``: a random seed (>= 0; default 0).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    help : str
+        The option's help text.
+    """
     add_number(parser, "--seed", NON_NEGATIVE, kind=int, default=0, help=help)
 
 
 def add_prior(parser, help: str) -> None:
-    """``--prior``: file (the vehicle file's ``[prior]``) or none."""
+    """``--prior``: file (the vehicle file's ``[prior]``) or none.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    help : str
+        The option's help text.
+    """
     parser.add_argument("--prior", choices=("file", "none"), default="file", help=help)
 
 
 def add_jobs(parser) -> None:
-    """``--jobs`` and ``--scheduler`` (:func:`bayesid.tasks.add_arguments`)."""
+    """``--jobs`` and ``--scheduler`` (:func:`bayesid.tasks.add_arguments`).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     tasks.add_arguments(parser)
 
 
 def add_out(parser, help: str | None = None) -> None:
-    """``--out``: the output folder (or file), required."""
+    """``--out``: the output folder (or file), required.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    help : str, optional
+        The option's help text (none by default).
+    """
     parser.add_argument("--out", required=True, help=help)
 
 
 def add_overwrite(parser) -> None:
-    """``--overwrite``: replace this command's earlier output in ``--out``."""
+    """``--overwrite``: replace this command's earlier output in ``--out``.
+
+    The command's :func:`bayesid.cli.outputs.check_out` acts on it.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     parser.add_argument(
         "--overwrite",
         action="store_true",

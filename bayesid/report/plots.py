@@ -22,7 +22,23 @@ def _save(fig, path):
 
 
 def track_xy(tracks: dict, path, title: str = ""):
-    """X-Y plot of tracks (name -> Track); north up, east right (x north, y east, NED)."""
+    """X-Y plot of tracks (name -> Track); north up, east right (x north, y east, NED).
+
+    Parameters
+    ----------
+    tracks : dict of str to Track
+        Name -> Track: its ``"x"`` and ``"y"`` (m) drawn as a line, its first sample as a dot; a
+        legend when there are several.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The axes' title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     fig, ax = plt.subplots(figsize=(6, 6))
     for name, tr in tracks.items():
         ax.plot(tr["y"], tr["x"], label=name, lw=1.2)
@@ -38,7 +54,23 @@ def track_xy(tracks: dict, path, title: str = ""):
 
 
 def inputs_time(track, path, title: str = ""):
-    """Rudder angle (deg) and propeller speed (rpm) against time."""
+    """Rudder angle (deg) and propeller speed (rpm) against time.
+
+    Parameters
+    ----------
+    track : Track
+        The track: its ``"delta_r"`` (rad, drawn in deg) and ``"n"`` (rpm) against its times ``t``
+        (s), one panel each.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The top panel's title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     fig, ax = plt.subplots(2, 1, figsize=(7, 4), sharex=True)
     ax[0].plot(track.t, np.degrees(track["delta_r"]))
     ax[0].set_ylabel("rudder, deg")
@@ -52,8 +84,26 @@ def inputs_time(track, path, title: str = ""):
 
 
 def position_error(t, errors: dict, path, title: str = ""):
-    """Horizontal position error against time, one panel per entry (name -> (n,) m), like the
-    paper's Fig. 2 (each panel its own scale)."""
+    """Horizontal position error against time, one panel per entry, like the paper's Fig. 2 (each
+    panel its own scale).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times, s.
+    errors : dict of str to ndarray, shape (n,)
+        Name -> horizontal position error, m (drawn in mm; each panel titled with the name and the
+        largest error).
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The figure's title (none when empty).
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     n = len(errors)
     fig, ax = plt.subplots(n, 1, figsize=(7, 2.2 * n), sharex=True, squeeze=False)
     for a, (name, e) in zip(ax[:, 0], errors.items()):
@@ -70,8 +120,30 @@ def position_error(t, errors: dict, path, title: str = ""):
 def coefficient_ratios(names, start, converged, known, path, title: str = "", lower=None, upper=None):
     """Estimated/true ratio per coefficient grouped X | Y | N, like the paper's Figs. 3-5.
 
-    names : all coefficient names to show.   start, converged : name -> ratio for free ones.
-    known : name -> ratio for known (fixed) ones, drawn as crosses.   lower, upper : bound ratios.
+    Parameters
+    ----------
+    names : sequence of str
+        All coefficient names to show, in this order within their group.
+    start : dict of str to float
+        Name -> ratio at the start, for the free ones (open squares).
+    converged : dict of str to float
+        Name -> converged ratio, for the free ones (dots); holds every name of ``start``.
+    known : dict of str to float
+        Name -> ratio for known (fixed) ones, drawn as crosses.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The axes' title.
+    lower : dict of str to float, optional
+        Name -> lower bound ratio; with ``upper``, the bounds of each name in it drawn as a grey
+        bar.
+    upper : dict of str to float, optional
+        Name -> upper bound ratio; holds every name of ``lower``.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
     """
     groups = [g for g in ("X", "Y", "N") if any(terms.term(n).group == g for n in names)]
     order = [n for g in groups for n in names if terms.term(n).group == g]
@@ -115,7 +187,22 @@ def coefficient_ratios(names, start, converged, known, path, title: str = "", lo
 
 
 def convergence(histories: dict, path, title: str = ""):
-    """Cost against iteration (log scale) for several fits (label -> list of costs)."""
+    """Cost against iteration (log scale) for several fits.
+
+    Parameters
+    ----------
+    histories : dict of str to list of float
+        Label -> the fit's cost at each iteration (non-positive costs are not drawn).
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The axes' title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     fig, ax = plt.subplots(figsize=(7, 4))
     for label, costs in histories.items():
         c = np.asarray(costs, dtype=float)
@@ -129,7 +216,23 @@ def convergence(histories: dict, path, title: str = ""):
 
 
 def singular_values(svals: dict, path, title: str = ""):
-    """Normalised singular values of the residual Jacobian at the optimum, per case."""
+    """Normalised singular values of the residual Jacobian at the optimum, per case.
+
+    Parameters
+    ----------
+    svals : dict of str to array_like
+        Case label -> the singular values, largest first; drawn divided by the first (log scale)
+        against their index, from 1.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The axes' title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     fig, ax = plt.subplots(figsize=(7, 4))
     for label, s in svals.items():
         s = np.asarray(s, dtype=float)
@@ -145,7 +248,27 @@ def singular_values(svals: dict, path, title: str = ""):
 def walker_traces(chains: np.ndarray, names, show, path, burn: int = 0, truth: dict | None = None, title: str = ""):
     """Trace of every walker for the coefficients ``show``; colour = ensemble.
 
-    chains : (n_ensembles, n_steps, n_walkers, P) prime values.   burn : steps shaded as burn-in.
+    Parameters
+    ----------
+    chains : ndarray, shape (n_ensembles, n_steps, n_walkers, P)
+        The walkers' positions, prime values (every ``max(1, n_steps // 1500)``-th step drawn).
+    names : sequence of str
+        The P coefficient names, in the order of the last axis of ``chains``.
+    show : sequence of str
+        The coefficients drawn, one panel each.
+    path : str or Path
+        The PNG written.
+    burn : int, default 0
+        Steps shaded as burn-in (0: none).
+    truth : dict of str to float, optional
+        Name -> true value, a dashed line.
+    title : str, default ""
+        The figure's title (none when empty).
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
     """
     E, N, W, _ = chains.shape
     colors = plt.cm.tab10(np.arange(E) % 10)
@@ -171,8 +294,23 @@ def walker_traces(chains: np.ndarray, names, show, path, burn: int = 0, truth: d
 def rank_histograms(draws: dict, path, title: str = ""):
     """Rank plots (Vehtari et al. 2021, Sec. 4.1) with each ensemble's pooled draws as one chain.
 
-    draws : name -> (n_ensembles, n_draws) array. Uniform bars in every row = the ensembles
+    One row per coefficient: the ranks of all its draws together, in 20 bins, as one bar per
+    ensemble, and a line at the uniform expectation. Uniform bars in every row = the ensembles
     sample the same distribution.
+
+    Parameters
+    ----------
+    draws : dict of str to ndarray, shape (n_ensembles, n_draws)
+        Name -> the draws, one row per ensemble.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The figure's title (none when empty).
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
     """
     from scipy.stats import rankdata
 
@@ -201,7 +339,31 @@ def pair_scatter(
 ):
     """2-D posterior scatter for each (a, b) of ``pairs``; truth as a star, prior box dashed.
 
-    samples (N, P) prime values; bounds name -> (lo, hi) for uniform priors.
+    Each panel is a hexbin density of the draws (every ``max(1, N // 20000)``-th one), titled with
+    the pair's correlation coefficient r.
+
+    Parameters
+    ----------
+    samples : ndarray, shape (N, P)
+        Posterior draws, prime values.
+    names : sequence of str
+        The P coefficient names, in the column order of ``samples``.
+    pairs : sequence of (str, str)
+        The pairs (a, b), one panel each: a along x, b along y.
+    path : str or Path
+        The PNG written.
+    truth : dict of str to float, optional
+        Name -> true value (a red star); holds every name of ``pairs``.
+    bounds : dict of str to (float, float), optional
+        Name -> (lo, hi) for uniform priors; the box is drawn where both names of a pair have
+        bounds.
+    title : str, default ""
+        The figure's title (none when empty).
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
     """
     k = len(pairs)
     fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.4), squeeze=False)
@@ -226,7 +388,24 @@ def pair_scatter(
 
 
 def correlation_heatmap(C: np.ndarray, names, path, title: str = ""):
-    """Posterior correlation matrix, -1 (blue) to +1 (red)."""
+    """Posterior correlation matrix, -1 (blue) to +1 (red).
+
+    Parameters
+    ----------
+    C : ndarray, shape (P, P)
+        The correlation matrix.
+    names : sequence of str
+        The P coefficient names, labelling its rows and columns.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The axes' title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     P = len(names)
     fig, ax = plt.subplots(figsize=(0.32 * P + 2.5, 0.32 * P + 1.8))
     im = ax.imshow(C, cmap="RdBu_r", vmin=-1, vmax=1)
@@ -244,10 +423,31 @@ def fim_spectra(
     title: str = "",
     ylabel: str = "Cramér–Rao sd along it (relative, 1 = 100 %)",
 ):
-    """Cramér–Rao relative sd ``1/sqrt(lambda)`` of each Fisher-information eigen-direction,
-    per case (label -> eigenvalues), stiffest first; non-positive eigenvalues (exact nulls, at
-    round-off) have no finite sd and are not drawn -- the report gives their count.
-    ``prior_level`` label -> relative prior sd drawn as a dashed line of the same colour."""
+    """Cramér–Rao relative sd ``1/sqrt(lambda)`` of each Fisher-information eigen-direction, per
+    case, stiffest first (log scale).
+
+    Non-positive eigenvalues (exact nulls, at round-off) have no finite sd and are not drawn --
+    the report gives their count.
+
+    Parameters
+    ----------
+    spectra : dict of str to array_like
+        Case label -> the eigenvalues lambda of its Fisher information (any order).
+    path : str or Path
+        The PNG written.
+    prior_level : dict of str to float, optional
+        Label -> relative prior sd, drawn as a dashed line of the same colour as the label's
+        spectrum.
+    title : str, default ""
+        The axes' title.
+    ylabel : str, default "Cramér–Rao sd along it (relative, 1 = 100 %)"
+        The y axis' label.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for i, (label, lam) in enumerate(spectra.items()):
         lam = np.sort(np.asarray(lam, dtype=float))[::-1]
@@ -267,7 +467,23 @@ def marginals_vs_truth(rows: list, path, title: str = ""):
     """Posterior mean and central interval as ratios to truth, per coefficient (grouped X | Y | N),
     with the prior's range (uniform: bounds; normal: +-2 sd) in grey.
 
-    rows : from :func:`bayesid.estimation.posterior.marginal_table` with truth, plus ``prior_lo``/``prior_hi``.
+    An interval is blue when it holds the truth, red when it misses it (the legend calls it the
+    90 % interval).
+
+    Parameters
+    ----------
+    rows : list of dict
+        From :func:`bayesid.estimation.posterior.marginal_table` with truth (``name``, ``mean``,
+        ``lower``, ``upper``, ``truth``, ``covers``), plus ``prior_lo``/``prior_hi``.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The axes' title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
     """
     order = sorted(rows, key=lambda r: "XYN".index(terms.term(r["name"]).group))
     fig, ax = plt.subplots(figsize=(max(7, 0.4 * len(order)), 4))
@@ -293,7 +509,26 @@ def marginals_vs_truth(rows: list, path, title: str = ""):
 
 def inclusion_heatmap(inclusion: dict, path, vehicle=None, title: str = ""):
     """Terms x manoeuvres heatmap of SINDy inclusion probabilities (manoeuvre -> {term: p}).
-    Terms the vehicle model has (non-zero coefficient) are marked with a * in the label."""
+    Terms the vehicle model has (non-zero coefficient) are marked with a * in the label.
+
+    Parameters
+    ----------
+    inclusion : dict of str to dict of str to float
+        Manoeuvre -> {term: inclusion probability}, a column each; the rows are all the terms, in
+        the order they first appear (a term a manoeuvre lacks is blank). Empty: a small figure
+        reading "no horizontal manoeuvre".
+    path : str or Path
+        The PNG written.
+    vehicle : Vehicle, optional
+        The vehicle model whose non-zero ``coefficients`` mark the terms (none: no term marked).
+    title : str, default ""
+        The axes' title; with ``vehicle``, followed by a line "(* = term in the model)".
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     mans = list(inclusion)
     if not mans:
         fig, ax = plt.subplots(figsize=(4, 2))
@@ -312,7 +547,24 @@ def inclusion_heatmap(inclusion: dict, path, vehicle=None, title: str = ""):
 
 
 def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), predict B (columns)"):
-    """Heatmap of RMS position errors (m), log colour scale, values printed."""
+    """Heatmap of RMS position errors (m), log colour scale, values printed.
+
+    Parameters
+    ----------
+    matrix : dict of str to dict of str to float
+        A -> {B: RMS position error, m, of the model identified on A predicting B}: the rows A
+        and columns B (the keys of the first row, which every row has). Non-positive values are
+        left blank.
+    path : str or Path
+        The PNG written.
+    title : str, default "Identify on A (rows), predict B (columns)"
+        The axes' title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     rows = list(matrix)
     cols = list(next(iter(matrix.values())))
     A = np.array([[matrix[a][b] for b in cols] for a in rows], dtype=float)
@@ -345,7 +597,23 @@ def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), pre
 
 
 def design_inputs(manoeuvres: dict, path, title: str = "Rudder inputs: spiral and designed manoeuvres"):
-    """Rudder angle (deg) against time for each manoeuvre (label -> Manoeuvre)."""
+    """Rudder angle (deg) against time for each manoeuvre (label -> Manoeuvre).
+
+    Parameters
+    ----------
+    manoeuvres : dict of str to Manoeuvre
+        Label -> Manoeuvre, one panel each: its rudder input (the first column of ``inputs``, rad,
+        drawn in deg) held over each step ``dt`` (s).
+    path : str or Path
+        The PNG written.
+    title : str, default "Rudder inputs: spiral and designed manoeuvres"
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     fig, axes = plt.subplots(len(manoeuvres), 1, figsize=(8, 1.7 * len(manoeuvres) + 0.6), sharex=True, squeeze=False)
     for a, (label, m) in zip(axes[:, 0], manoeuvres.items()):
         a.step(np.arange(m.n_steps) * m.dt, np.degrees(m.inputs[:, 0]), where="post", lw=0.8)
@@ -358,7 +626,23 @@ def design_inputs(manoeuvres: dict, path, title: str = "Rudder inputs: spiral an
 
 
 def predicted_vs_measured(design: dict, path, title: str = "Designed / spiral: predicted vs measured sd ratio"):
-    """Bars of predicted and measured sd ratios per design criterion (criterion -> dict)."""
+    """Bars of predicted and measured sd ratios per design criterion (criterion -> dict).
+
+    Parameters
+    ----------
+    design : dict of str to dict
+        Criterion -> its ``"predicted_sd_ratio"`` (Fisher) and ``"measured_sd_ratio"`` (repeated
+        fits): the sd ratio designed / spiral, a pair of bars each, with a line at 1.
+    path : str or Path
+        The PNG written.
+    title : str, default "Designed / spiral: predicted vs measured sd ratio"
+        The axes' title.
+
+    Returns
+    -------
+    Path
+        ``path``, the PNG written.
+    """
     keys = list(design)
     x = np.arange(len(keys))
     fig, ax = plt.subplots(figsize=(5, 3.5))
