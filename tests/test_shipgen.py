@@ -15,6 +15,7 @@ from bayesid.models import ship
 from bayesid.models.ship import dynamics as shipdyn
 from bayesid.models.ship import kernel as shipkernel
 from bayesid.models.ship import layout
+from bayesid.models.ship import hullterms  # noqa: F401  (ship.hullterms)
 
 #: agreement of the two kernels, relative to each state channel's largest magnitude
 TOL = 1e-10
@@ -165,3 +166,54 @@ def test_unknown_kernel_is_named():
         ship.ShipModel(ship.load_ship("kvlcc2_7m"), kernel="compiled")
     with pytest.raises(ValueError, match="'compiled'"):
         shipkernel.kernel("compiled")
+
+
+#: extra hull terms of every kind: a constant, a cubic (1/U), rudder powers and |.| forms
+EXTRA_TERMS = {"N0": 0.002, "Y0": -0.003, "Yvvv": -0.6, "Nrrr": -0.02, "Ndrabsdr": 0.01, "Nabsdr": 0.004, "Xabsvdr": 0.01}
+
+
+def test_generated_kernel_with_extra_hull_terms_agrees_with_the_interpreted_one():
+    # the generated kernel specialised to a term set reads each term's coefficient from the row
+    shp = ship.load_ship("kvlcc2_7m").with_coefficients(EXTRA_TERMS)
+    args = _case("kvlcc2_7m", 4)
+    terms = shp.hull_terms
+    tail = ship.hullterms.encode(terms, shp.coefficients)
+    rng = np.random.default_rng(4)
+    prm = np.concatenate([args[5], np.repeat(tail[None], args[5].shape[0], axis=0)], axis=1)
+    cidx = list(ship.hullterms.index(terms).values())
+    prm[:, cidx] *= 1.0 + 0.3 * rng.standard_normal((prm.shape[0], len(cidx)))
+    args[5] = prm
+    ref, st_ref = _run(shipdyn.simulate_windows, args)
+    gen, st_gen = _run(
+        lambda *a: shipkernel.simulate_windows(*a, terms=ship.hullterms.signature(terms)), args
+    )
+    np.testing.assert_array_equal(st_gen, st_ref)
+    scale = np.nanmax(np.abs(ref), axis=(0, 1))
+    assert (np.nan_to_num(np.abs(gen - ref)).max(axis=(0, 1)) / scale < TOL).all()
+    # and the terms change the motion (the kernels do not ignore them)
+    base, _ = _run(shipdyn.simulate_windows, [*args[:5], args[5][:, : layout.NP], args[6]])
+    assert np.nanmax(np.abs(base[..., 5] - ref[..., 5])) > 1e-3
+
+
+def test_extra_hull_terms_in_the_forces_are_the_prime_form_columns():
+    # kernel forces with the terms minus without them = sum of coefficient x hullterms.columns
+    shp0 = ship.load_ship("kvlcc2_7m")
+    shp = shp0.with_coefficients(EXTRA_TERMS)
+    rng = np.random.default_rng(5)
+    n = 40
+    st = np.column_stack([np.zeros((n, 2)), rng.normal(size=n), 0.2 + rng.random(n), 0.1 * rng.normal(size=(n, 2))])
+    inp = np.column_stack([0.3 * rng.normal(size=n), np.full(n, 10.0)])
+    F0, F1 = np.empty((n, 3)), np.empty((n, 3))
+    for prm, F in ((shp0.params(), F0), (shp.params(), F1)):
+        shipdyn.forces(st, inp, np.zeros((n, 2)), np.zeros(2), prm, F)
+    P = shp.particulars
+    C = ship.hullterms.columns(shp.hull_terms, st[:, 3], st[:, 4], st[:, 5], inp[:, 0], P["L"], P["rho"], P["d"])
+    expect = np.zeros((n, 3))
+    for k, t in enumerate(shp.hull_terms):
+        expect[:, t.dof] += EXTRA_TERMS[t.name] * C[:, k]
+    np.testing.assert_allclose(F1 - F0, expect, rtol=1e-10, atol=1e-12 * np.abs(expect).max())
+    # the prime form by hand for two terms: N0 = q L U^2 N0', Yvvv = q v^3 / U Yvvv'
+    q = 0.5 * P["rho"] * P["L"] * P["d"]
+    U = np.hypot(st[:, 3], st[:, 4])
+    np.testing.assert_allclose(C[:, 0], q * P["L"] * U**2)
+    np.testing.assert_allclose(C[:, 2], q * st[:, 4] ** 3 / U)

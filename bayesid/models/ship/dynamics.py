@@ -14,7 +14,8 @@ import numba as nb
 import numpy as np
 
 from ...data.track import Track
-from .layout import GAUSS_W, GAUSS_X, PARTICULARS
+from .hullterms import TERM_WIDTH
+from .layout import GAUSS_W, GAUSS_X, NP, PARTICULARS
 
 
 @nb.njit(cache=True)
@@ -99,6 +100,26 @@ def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
             X += qa * AT * (p[o + 27] * math.cos(g) + p[o + 28] * math.cos(3.0 * g))
             Y += qa * AL * (p[o + 29] * math.sin(g) + p[o + 30] * math.sin(3.0 * g))
             N += qa * AL * L * (p[o + 31] * math.sin(g) + p[o + 32] * math.sin(2.0 * g) + p[o + 33] * math.sin(3.0 * g))
+    # extra hull terms (prime form, bayesid.models.ship.hullterms): TERM_WIDTH numbers each after NP
+    rl = r * L
+    for k in range((p.size - NP) // TERM_WIDTH):
+        j = NP + TERM_WIDTH * k
+        nv = int(p[j + 1] + p[j + 2] + p[j + 3] + p[j + 4])
+        val = p[j + 7] * v ** int(p[j + 1]) * rl ** int(p[j + 2]) * abs(v) ** int(p[j + 3])
+        val *= abs(rl) ** int(p[j + 4]) * dlt ** int(p[j + 5]) * abs(dlt) ** int(p[j + 6])
+        if nv <= 2:
+            val *= U ** (2 - nv)
+        elif U > 1e-9:
+            val /= U
+        else:
+            val = 0.0
+        dof = int(p[j])
+        if dof == 0:
+            X += q * val
+        elif dof == 1:
+            Y += q * val
+        else:
+            N += q * L * val
     F[0] = X
     F[1] = Y
     F[2] = N

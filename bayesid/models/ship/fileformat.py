@@ -17,6 +17,7 @@ import numpy as np
 
 from ...data.priors import parse_prior_section
 from ...data.vehicle import VehicleFileError
+from . import hullterms
 from .layout import COEFFICIENTS, PARTICULARS, WIND
 
 
@@ -37,7 +38,8 @@ class Ship:
         ratios as noted there).
     coefficients : dict
         ``{name: prime value}`` of every name of :data:`~bayesid.models.ship.layout.COEFFICIENTS`
-        (added masses estimated when the file gives none; wind coefficients 0).
+        (added masses estimated when the file gives none; wind coefficients 0), then the extra
+        hull terms the file gives (:mod:`bayesid.models.ship.hullterms`).
     wind_start : dict
         Start values of the wind coefficients, from a ``[wind]`` section (the wind effect starts
         from these).
@@ -136,8 +138,14 @@ class Ship:
         """Water density, kg/m^3 (``particulars["rho"]``)."""
         return float(self.particulars["rho"])
 
+    @property
+    def hull_terms(self) -> tuple:
+        """The extra hull terms among the coefficients (:mod:`bayesid.models.ship.hullterms`)."""
+        return hullterms.extra_terms(self.coefficients)
+
     def params(self, coefficients: dict | None = None) -> np.ndarray:
-        """Kernel parameter vector (particulars, then coefficients).
+        """Kernel parameter vector (particulars, then the listed coefficients, then the extra hull
+        terms, :func:`bayesid.models.ship.hullterms.encode`).
 
         Parameters
         ----------
@@ -146,11 +154,12 @@ class Ship:
 
         Returns
         -------
-        ndarray, shape (NP,)
+        ndarray, shape (NP + TERM_WIDTH * len(hull_terms),)
             The parameter vector (:mod:`~bayesid.models.ship.layout` order).
         """
         c = dict(self.coefficients, **(coefficients or {}))
-        return np.array([float(self.particulars[k]) for k in PARTICULARS] + [float(c[k]) for k in COEFFICIENTS])
+        head = np.array([float(self.particulars[k]) for k in PARTICULARS] + [float(c[k]) for k in COEFFICIENTS])
+        return np.concatenate([head, hullterms.encode(self.hull_terms, c)])
 
     def with_coefficients(self, values: dict) -> Ship:
         """Copy with some coefficients replaced.
@@ -158,7 +167,8 @@ class Ship:
         Parameters
         ----------
         values : dict
-            ``{name: prime value}``, names of :data:`~bayesid.models.ship.layout.COEFFICIENTS`.
+            ``{name: prime value}``, names of :data:`~bayesid.models.ship.layout.COEFFICIENTS` or
+            extra hull terms (:mod:`bayesid.models.ship.hullterms`; a new one is appended).
 
         Returns
         -------
@@ -168,11 +178,10 @@ class Ship:
         Raises
         ------
         KeyError
-            Naming an unknown coefficient.
+            Naming an unknown coefficient (with the closest listed names).
         """
         for k in values:
-            if k not in COEFFICIENTS:
-                raise KeyError(f"unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
+            hullterms.check_name(k)
         return replace(
             self,
             particulars=dict(self.particulars),
@@ -317,24 +326,28 @@ def load_ship(path_or_id) -> Ship:
     coef.update(empirical_added_mass(part))
     for sec in ("coefficients", "wind"):
         for k, v in doc.get(sec, {}).items():
-            if k not in COEFFICIENTS or (sec == "wind") != (k in WIND):
-                raise ShipFileError(
-                    f"{p}: [{sec}] unknown coefficient {k!r}; known: "
-                    f"{', '.join(WIND if sec == 'wind' else [c for c in COEFFICIENTS if c not in WIND])}"
-                )
+            if sec == "wind" and k not in WIND:
+                raise ShipFileError(f"{p}: [wind] unknown coefficient {k!r}; known: {', '.join(WIND)}")
+            if sec == "coefficients" and k in WIND:
+                raise ShipFileError(f"{p}: [coefficients] {k} is a wind coefficient: give it in [wind]")
+            try:
+                hullterms.check_name(k)
+            except hullterms.HullTermError as e:
+                raise ShipFileError(f"{p}: [{sec}] {e}") from None
             coef[k] = num(sec, k, v)
     wind = {k: coef[k] for k in WIND}
     for k in WIND:  # the base model has no wind term; the wind effect starts from these
         coef[k] = 0.0
     free = list(doc.get("fit", {}).get("free", []))
     for k in free:
-        if k not in COEFFICIENTS or k in WIND:
-            raise ShipFileError(f"{p}: [fit] free lists unknown coefficient {k!r}")
+        if k in WIND or k not in coef:
+            hint = "" if k in WIND or not hullterms.is_term(k) else " (an extra hull term: give it in [coefficients])"
+            raise ShipFileError(f"{p}: [fit] free lists unknown coefficient {k!r}{hint}")
     v = doc["vehicle"]
     if v.get("kind") != "ship3dof":
         raise ShipFileError(f'{p}: [vehicle] kind = {v.get("kind")!r}; a ship file has kind = "ship3dof"')
     prior, prior_source = parse_prior_section(
-        doc.get("prior", {}), p, coef, [c for c in COEFFICIENTS if c not in WIND], ShipFileError
+        doc.get("prior", {}), p, coef, [c for c in coef if c not in WIND], ShipFileError
     )
     return Ship(
         str(v.get("id", p.stem)),

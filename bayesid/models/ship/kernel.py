@@ -56,12 +56,14 @@ numba with ``cache=True``, so the compile is paid once per machine.
 
 from __future__ import annotations
 
+import functools
 import re
 
 from ..._numba import use_package_threading_layer
 from ..codegen import load_module
 from . import dynamics
-from .layout import GAUSS_W, GAUSS_X
+from .hullterms import TERM_WIDTH
+from .layout import GAUSS_W, GAUSS_X, NP
 
 KINDS = ("generated", "interpreted")
 #: parameter rows each thread advances together (interleaved; see the module docstring)
@@ -312,14 +314,31 @@ _KEEP = {
     "we",
 }
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
+#: the row constants of the extra hull terms' coefficients
+_TERM_COEF = re.compile(r"cE\d+")
 #: RK4: stage s is evaluated at the state plus _FAC[s] times the previous stage's derivative
 _FAC = {2: "h2", 3: "h2", 4: "dt"}
 
 
-def _rhs_statements(stage: int) -> list[str]:
+def _term_statements(terms) -> list[str]:
+    """The extra hull terms' forces (:mod:`bayesid.models.ship.hullterms`) as statements after the
+    hull block: ``terms`` is a :func:`~bayesid.models.ship.hullterms.signature`, the coefficient
+    of term k is the row constant ``cE{k}``."""
+    feats = ("v", "(r * L)", "abs(v)", "(abs(r) * L)", "dl", "abs(dl)")
+    out = []
+    if any(sum(e[:4]) > 2 for _, e in terms):
+        out.append("iU = 1.0 / U if U > 1e-9 else 0.0")
+    for k, (dof, e) in enumerate(terms):
+        fac = [f for f, n in zip(feats, e) for _ in range(n)]
+        fac += {0: ["U", "U"], 1: ["U"], 2: [], 3: ["iU"]}[sum(e[:4])]
+        out.append(f"{'XYN'[dof]} += {'qL' if dof == 2 else 'q'} * cE{k}" + "".join(f" * {f}" for f in fac))
+    return out
+
+
+def _rhs_statements(stage: int, terms=()) -> list[str]:
     """The right-hand side at RK4 ``stage`` (1..4) as statements on canonical names; the last ones
     assign ``D0``..``D5``, the derivatives of ``x, y, psi, u, v, r``. A statement may span lines
-    (a block)."""
+    (a block). ``terms``: the extra hull terms' signature."""
     # cross-flow sums i0 = sum_k gw_k f(x_k), i1 = sum_k gw_k x_k f(x_k), f(x) = (v + x r)|v + x r|,
     # x_k = h gx_k: the nodes +-x_j (equal weights) in pairs
     gx, gw = GAUSS_X, GAUSS_W
@@ -335,8 +354,9 @@ def _rhs_statements(stage: int) -> list[str]:
             f"i0 += {c!r} * (fp{j} + fm{j})",
             f"i1 += {c!r} * h * {x!r} * (fp{j} - fm{j})",
         ]
-    blocks = [_RHS_HEADING if stage == 1 else _RHS_HEADING_ADD, _RHS_HEAD, _RHS_WIND, _RHS_HULL, _RHS_WIND_ADD]
-    return [s for b in blocks for s in _split(b)] + quad + _split(_RHS_TAIL) + _split(_RHS_ACC)
+    blocks = [_RHS_HEADING if stage == 1 else _RHS_HEADING_ADD, _RHS_HEAD, _RHS_WIND, _RHS_HULL]
+    head = [s for b in blocks for s in _split(b)] + _term_statements(terms) + _split(_RHS_WIND_ADD)
+    return head + quad + _split(_RHS_TAIL) + _split(_RHS_ACC)
 
 
 def _split(block: str) -> list[str]:
@@ -386,16 +406,17 @@ def _stage_name(stage: int, lane: int):
             return special[nm]
         if nm in _STATES:
             return f"{nm}_{lane}" if stage == 1 else f"{nm}_s{stage}_{lane}"
-        if nm in _ROW_NAMES or nm in _STEP_NAMES:
+        if nm in _ROW_NAMES or nm in _STEP_NAMES or _TERM_COEF.fullmatch(nm):
             return f"{nm}_{lane}"
         return f"{nm}_s{stage}_{lane}"
 
     return fn
 
 
-def _kernel_source(lanes: int) -> str:
+def _kernel_source(lanes: int, terms=()) -> str:
     """Source of ``simulate_windows``, the driver over (row group, window) jobs, and of ``_job``,
-    one job with the RK4 step inlined, ``lanes`` rows per job."""
+    one job with the RK4 step inlined, ``lanes`` rows per job; ``terms`` the extra hull terms'
+    signature."""
     K = lanes
     P1, P2 = " " * 4, " " * 8
     body = []
@@ -405,7 +426,8 @@ def _kernel_source(lanes: int) -> str:
             f"live_{lane} = g * {K} + {lane} < B",
             f"p_{lane} = prm[b_{lane}]",
         ]
-    for stmt in _split(_ROW):
+    row = _split(_ROW) + [f"cE{k} = p[{NP + TERM_WIDTH * k + TERM_WIDTH - 1}]" for k in range(len(terms))]
+    for stmt in row:
         for lane in range(K):
             body.append(_rename(stmt, _lane_name(lane)))
     for lane in range(K):
@@ -427,7 +449,7 @@ def _kernel_source(lanes: int) -> str:
                     for i, s in enumerate(_STATES)
                     if i >= 2
                 ]
-        for stmt in _rhs_statements(stage):
+        for stmt in _rhs_statements(stage, terms):
             for lane in range(K):
                 step.append(_rename(stmt, _stage_name(stage, lane)))
     for lane in range(K):
@@ -487,13 +509,17 @@ import numpy as np
 '''
 
 
-def source(lanes: int = LANES) -> str:
+def source(lanes: int = LANES, terms: tuple = ()) -> str:
     """Python source of the generated ship kernel module (``simulate_windows``).
 
     Parameters
     ----------
     lanes : int, default LANES
         Parameter rows per thread, at least 1.
+    terms : tuple, default ()
+        The extra hull terms the kernel evaluates
+        (:func:`bayesid.models.ship.hullterms.signature`); their coefficients are read from the
+        parameter rows.
 
     Returns
     -------
@@ -507,33 +533,37 @@ def source(lanes: int = LANES) -> str:
     """
     if lanes < 1:
         raise ValueError(f"lanes must be >= 1, got {lanes}")
-    return _HEADER.format(lanes=lanes) + _kernel_source(lanes)
+    return _HEADER.format(lanes=lanes) + _kernel_source(lanes, tuple(terms))
 
 
-_MODULES: dict[int, object] = {}
+_MODULES: dict[tuple, object] = {}
 
 
-def generated(lanes: int = LANES):
+def generated(lanes: int = LANES, terms: tuple = ()):
     """The generated kernel module (:func:`bayesid.models.codegen.load_module`; kept per lane
-    count, as building and hashing the source costs about 11 ms).
+    count and term set, as building and hashing the source costs about 11 ms).
 
     Parameters
     ----------
     lanes : int, default LANES
         Parameter rows per thread.
+    terms : tuple, default ()
+        The extra hull terms' signature (:func:`bayesid.models.ship.hullterms.signature`): each
+        term set is its own module, compiled once per machine.
 
     Returns
     -------
     module
         The module, with its ``simulate_windows`` driver.
     """
-    mod = _MODULES.get(lanes)
+    key = (lanes, tuple(terms))
+    mod = _MODULES.get(key)
     if mod is None:
-        mod = _MODULES[lanes] = load_module(source(lanes), "bayesid_shipkernel")
+        mod = _MODULES[key] = load_module(source(lanes, key[1]), "bayesid_shipkernel")
     return mod
 
 
-def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status, lanes: int = LANES):
+def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status, lanes: int = LANES, terms: tuple = ()):
     """The generated kernel with the arguments and results of
     :func:`bayesid.models.ship.dynamics.simulate_windows`.
 
@@ -549,7 +579,7 @@ def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status, lanes:
         True wind, m/s, towards north, east.
     cur : ndarray, shape (B, 2)
         Current, m/s.
-    prm : ndarray, shape (B, NP)
+    prm : ndarray, shape (B, NP + TERM_WIDTH * len(terms))
         Kernel parameter vectors.
     dt : float
         Step, s.
@@ -559,11 +589,13 @@ def simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status, lanes:
         Output: 0 ok, 1 diverged, filled in place.
     lanes : int, default LANES
         Parameter rows per thread.
+    terms : tuple, default ()
+        The extra hull terms' signature (:func:`bayesid.models.ship.hullterms.signature`).
     """
-    generated(lanes).simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status)
+    generated(lanes, terms).simulate_windows(s0, starts, inputs, wind, cur, prm, dt, out, status)
 
 
-def kernel(kind: str):
+def kernel(kind: str, terms: tuple = ()):
     """The window driver of a kernel kind.
 
     Parameters
@@ -571,6 +603,9 @@ def kernel(kind: str):
     kind : {"generated", "interpreted"}
         ``"generated"`` (this module) or ``"interpreted"``
         (:func:`bayesid.models.ship.dynamics.simulate_windows`).
+    terms : tuple, default ()
+        The extra hull terms' signature (:func:`bayesid.models.ship.hullterms.signature`); the
+        interpreted kernel reads them from the parameter rows.
 
     Returns
     -------
@@ -584,7 +619,7 @@ def kernel(kind: str):
     """
     use_package_threading_layer()
     if kind == "generated":
-        return simulate_windows
+        return functools.partial(simulate_windows, terms=tuple(terms)) if terms else simulate_windows
     if kind == "interpreted":
         return dynamics.simulate_windows
     raise ValueError(f"kernel must be one of {KINDS}, got {kind!r}")

@@ -5,6 +5,8 @@ implementation of :class:`bayesid.models.interface.SimulationModel`, with its de
 
 from __future__ import annotations
 
+import difflib
+
 import numpy as np
 
 from ...data.track import Track
@@ -17,7 +19,8 @@ from . import kernel as shipkernel
 from .dynamics import accelerations, apparent_wind, mass_matrix, wind_components
 from .effects import SHIP_CATALOGUE, get_effect
 from .fileformat import Ship
-from .layout import COEFFICIENT_INDEX, COEFFICIENTS, WIND
+from . import hullterms
+from .layout import COEFFICIENT_INDEX, WIND
 from .seed import equation_error_seed
 
 #: Default multiple-shooting window (s) of ship fits (``bayesid fit``, and ``bayesid diagnose``
@@ -46,6 +49,18 @@ BOUNDS = {
     "gR": (0.0, 2.0),
     "dR0": (-0.1, 0.1),
 }
+
+
+def _unknown_message(ship, name: str) -> str:
+    """Why ``name`` is not a coefficient of ``ship``, with the closest names or how to add it."""
+    if hullterms.is_term(name):
+        return (
+            f"{name!r} is an extra hull term that {ship.id} does not have: give it a start value in the "
+            "ship file's [coefficients] (e.g. 0.0) to fit it"
+        )
+    close = difflib.get_close_matches(name, list(ship.coefficients), n=3)
+    hint = f" (did you mean {', '.join(close)}?)" if close else ""
+    return f"unknown ship coefficient {name!r}{hint}"
 
 
 class ShipModel(ParameterLayout):
@@ -152,7 +167,7 @@ class ShipModel(ParameterLayout):
         Parameters
         ----------
         ship : Ship
-            The ship (unused: every ship has the same coefficients).
+            The ship: its listed coefficients and the extra hull terms its file gives.
         names : iterable of str
             The coefficient names.
         option : str, default "free"
@@ -161,11 +176,12 @@ class ShipModel(ParameterLayout):
         Raises
         ------
         KeyError
-            Naming ``option`` and a name that is not a ship coefficient.
+            Naming ``option`` and a name that is not a coefficient of the ship (with the closest
+            names, or how to add an extra hull term).
         """
         for k in names:
-            if k not in COEFFICIENTS:
-                raise KeyError(f"{option}: unknown ship coefficient {k!r}; known: {', '.join(COEFFICIENTS)}")
+            if k not in ship.coefficients:
+                raise KeyError(f"{option}: {_unknown_message(ship, k)}")
 
     def __init__(self, ship: Ship, free=None, effects=(), dt: float = 0.2, kernel: str = "generated"):
         if kernel not in shipkernel.KINDS:
@@ -174,9 +190,7 @@ class ShipModel(ParameterLayout):
         self.vehicle = ship
         self.dt = float(dt)
         self.free = list(ship.free if free is None else free)
-        for k in self.free:
-            if k not in COEFFICIENTS:
-                raise KeyError(f"unknown ship coefficient {k!r} in the free list; known: {', '.join(COEFFICIENTS)}")
+        self.check_free(ship, self.free, "the free list")
         self.effects = [get_effect(e) for e in effects]
         if any(e.name == "wind" for e in self.effects) and any(k in WIND for k in self.free):
             raise ValueError("wind coefficients are the wind effect's parameters; do not list them as free")
@@ -185,7 +199,10 @@ class ShipModel(ParameterLayout):
         self.theta0 = np.array([ship.coefficients[k] for k in self.free])
         self.param_names = self.free + [f"{e.name}.{p}" for e in self.effects for p in e.params]
         self.prm0 = ship.params()
-        self._ifree = np.array([COEFFICIENT_INDEX[k] for k in self.free], dtype=np.int64)
+        self.hull_terms = ship.hull_terms
+        index = {**COEFFICIENT_INDEX, **hullterms.index(self.hull_terms)}
+        self._ifree = np.array([index[k] for k in self.free], dtype=np.int64)
+        self._terms = hullterms.signature(self.hull_terms)
 
     def bounds(self):
         """Bounds of the parameter vector: the coefficients' :data:`BOUNDS` (unbounded when not
@@ -316,7 +333,7 @@ class ShipModel(ParameterLayout):
             s0[..., 4] -= -s * cur[:, None, 0] + c * cur[:, None, 1]
         out = np.empty((B, ctx.n_virtual + ctx.W, 6))
         status = np.empty((B, ctx.W), dtype=np.int64)
-        run = shipkernel.kernel(self.kernel_kind)
+        run = shipkernel.kernel(self.kernel_kind, self._terms)
         run(
             np.ascontiguousarray(s0),
             ctx.starts,
