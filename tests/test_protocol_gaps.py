@@ -132,3 +132,21 @@ def test_auto_start_rule_keeps_the_measured_rule_for_precise_positions():
         sel = tr.t < 1.0 - 1e-9
         slopes.append(np.polyfit(tr.t[sel], tr["x"][sel], 1)[0])
     assert slope_sd(_line(0.05, 10, rng)) == pytest.approx(np.std(slopes), rel=0.25)
+
+
+def test_a_gap_ending_between_model_steps_starts_its_window_on_the_first_sample_after_it(setup):
+    # 10 Hz samples, a 0.5 s model step: the gap ends at a sample 0.1 s after a model step. The
+    # window after it must start at or after that sample (a start 0.1 s before it has no sample
+    # to estimate the causal start state from: it was all zeros, a 50 m error)
+    tr, model, fit = setup
+    sel = (tr.t < 80.0) | (tr.t > 90.05)
+    gapped = _rows(tr, sel, "gapped")
+    ctx = model.context(gapped, 30.0)
+    first_after = gapped.t[gapped.t > 90.0][0]
+    w = int(np.flatnonzero(ctx.t_start > 80.0)[0])
+    assert ctx.t_start[w] >= first_after - 1e-9
+    assert np.all(np.abs(ctx.s_meas[w, [0, 1, 6]]) > 0)  # a measured state, not zeros
+    after = _rows(tr, tr.t > 90.05, "after")
+    sc_gapped = wf.scores(model, fit, [ctx])["rms_position_m"]
+    sc_before = wf.scores(model, fit, [model.context(_rows(tr, tr.t < 80.0, "before"), 30.0)])["rms_position_m"]
+    assert sc_gapped < 3 * max(sc_before, wf.scores(model, fit, [model.context(after, 30.0)])["rms_position_m"])

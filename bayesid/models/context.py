@@ -218,6 +218,8 @@ class TrackContext:
                 if sel.any()
                 else np.zeros(0, np.int64)
             )
+            if st.size:  # a piece's first window starts at or after its first sample (never in the gap before it)
+                st = np.unique(np.maximum(st, int(math.ceil((t[sel][0] - self.t0) / dt - 1e-6))))
             st = st[st < e_piece]
             if st.size == 0:
                 self.skipped_pieces += 1
