@@ -81,7 +81,7 @@ def _scores(model, fitres, tracks, window):
     from bayesid.estimation.prediction import predict
 
     pr = predict(model, fitres.p, tracks, window, start="measured")
-    return pr["pooled"]
+    return pr.pooled
 
 
 def evaluate(name, ship, train, held, candidates, args, out, log):
@@ -188,8 +188,8 @@ def track_figure(models, track, window, path, title):
     from bayesid.report import plots
 
     (bm, bf), (am, af) = models
-    pr_b = predict(bm, bf.p, [track], window, start="measured")["_sim"][track.name]
-    pr_a = predict(am, af.p, [track], window, start="measured")["_sim"][track.name]
+    pr_b = predict(bm, bf.p, [track], window, start="measured").simulated[track.name]
+    pr_a = predict(am, af.p, [track], window, start="measured").simulated[track.name]
     meas, xb = windowed_xy(*pr_b)
     _, xa = windowed_xy(*pr_a)
     return plots.window_tracks(None, meas, xb, xa, path, title=title)
@@ -205,7 +205,7 @@ def literature_baseline(vessel, held, rng):
     p = m.start()
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
-        out[key] = predict(m, p, held, w, start="measured")["pooled"]["rms_position_m"]
+        out[key] = predict(m, p, held, w, start="measured").pooled["rms_position_m"]
     tc = turning_circles(FittedModel(m, p, None), 0, rng, U0, RPS)
     out["turning_circles_35deg"] = {side: v["predicted"] for side, v in tc.items()}
     return out
@@ -266,8 +266,8 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
     for key, w in (("w30", 30.0), ("w60", 60.0)):
         if tracks:  # one protocol pass per window length: pooled over the runs and per run
             pr = predict(am, af.p, tracks, w, start="measured")
-            pooled[key] = pr["pooled"]["rms_position_m"]
-            for name, sc in pr["per_track"].items():
+            pooled[key] = pr.pooled["rms_position_m"]
+            for name, sc in pr.per_track.items():
                 runs[name][key] = sc
     errs = [e["tactical_diameter_rel_error"] for e in runs.values() if e.get("tactical_diameter_rel_error") is not None]
     summary = {
@@ -318,7 +318,7 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
     for h in held:
         tb = turning_band(FittedModel(m, p, cov), h, args.draws, rng, start="measured")
         idx[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(res.calibration, 60.0, pr["windows"], idx)
+    bands = calibrated_bands(res.calibration, 60.0, pr.windows, idx)
     fig = None
     if bands.get("coverage"):
         fig = plots.reliability(
@@ -338,7 +338,7 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
         "free": free,
         "effects": list(effects),
         "prior": res.prior,
-        "heldout_rms_position_m_60s": pr["pooled"]["rms_position_m"],
+        "heldout_rms_position_m_60s": pr.pooled["rms_position_m"],
         "parameter_only": bands["parameter_only"],
         "coverage": bands.get("coverage"),
         "extrapolated": bands.get("extrapolated"),

@@ -112,7 +112,7 @@ def full_window(w: dict, window_s: float) -> bool:
     Parameters
     ----------
     w : dict
-        A window of :func:`bayesid.estimation.prediction.predict` (its ``duration_s``).
+        A window of a :class:`~bayesid.estimation.prediction.Prediction` (its ``duration_s``).
     window_s : float
         The protocol window, s.
 
@@ -221,11 +221,11 @@ def fold_scores(fold: Fold) -> dict:
         pr = predict(rf.model, f.p, [track], fold.window_s, start=fold.start, leadin_s=fold.leadin_s)
         wins += [
             {"run": track.name, "max_position_m": w["max_position_m"], "max_heading_deg": w["max_heading_deg"]}
-            for w in pr["windows"]
+            for w in pr.windows
             if full_window(w, fold.window_s)
         ]
         tb = turning_band(
-            FittedModel(rf.model, f.p, cov), track, fold.n_draws, rng, start=pr["start_rule"], leadin_s=pr["leadin_s"]
+            FittedModel(rf.model, f.p, cov), track, fold.n_draws, rng, start=pr.start_rule, leadin_s=pr.leadin_s
         )
         for key in index_keys(tb["measured"]):
             # NaN (an index the run or the prediction does not reach) is stored as None: a journaled
@@ -703,7 +703,7 @@ def calibrated_bands(
     window_s : float or None
         The prediction's protocol window (s); window bands need the calibration's.
     windows : list of dict
-        :func:`bayesid.estimation.prediction.predict`'s ``windows`` (with ``max_position_m``,
+        ``windows`` of a :class:`~bayesid.estimation.prediction.Prediction` (with ``max_position_m``,
         ``max_heading_deg``).
     indices : dict
         ``{track: turning_band result}`` (:func:`bayesid.estimation.prediction.turning_band`:
