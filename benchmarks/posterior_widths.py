@@ -84,7 +84,7 @@ def main(argv=None) -> int:
             res.fit.p,
             tp.SampleOptions(method="auto", seed=r, max_minutes=3.0),
             importance=tp.ImportanceOptions(n_draws=a.draws),
-            folds=None if a.no_folds else [f["p"] for f in res.calibration["folds"] if "p" in f],
+            folds=None if a.no_folds else res.calibration.fold_optima(),
         )
         d = out.draws
         means.append(d.mean(axis=0))

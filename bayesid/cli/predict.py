@@ -118,7 +118,7 @@ def _predict(args, fitted, doc, tracks, window, out):
     posterior band, and the calibrated bands (``out/figures`` is created on the way)."""
     import numpy as np
 
-    from ..estimation.calibration import calibrated_bands, excitation
+    from ..estimation.calibration import excitation, uncalibrated_bands
     from ..estimation.prediction import FittedModel, predict, turning_band
 
     model, p, cov = fitted
@@ -133,9 +133,10 @@ def _predict(args, fitted, doc, tracks, window, out):
             FittedModel(model, p, cov), tr, args.draws, rng, start=whole.start_rule, leadin_s=whole.leadin_s
         )
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(
-        doc.calibration, window, pr.windows, indices, excitations={t.name: excitation(t) for t in tracks}
-    )
+    if doc.calibration is None:
+        bands = uncalibrated_bands(indices)
+    else:
+        bands = doc.calibration.bands(window, pr.windows, indices, excitations={t.name: excitation(t) for t in tracks})
     return pr, whole, indices, bands
 
 
@@ -144,10 +145,9 @@ def _figures(pr, bands: dict, doc, tracks, window, out) -> None:
     reliability diagram; the simulations are dropped from ``pr`` once drawn."""
     import numpy as np
 
-    from ..estimation.calibration import window_band
     from ..report import plots
 
-    b90 = window_band(doc.calibration, 0.9) if bands.get("windows") else {}
+    b90 = doc.calibration.window_band(0.9) if bands.get("windows") else {}
     for tr in tracks:
         ctx, S = pr.simulated[tr.name]
         k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
