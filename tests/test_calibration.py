@@ -16,7 +16,7 @@ from bayesid.data.track import Track, write_csv
 from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation.calibration import Calibration, conformal_quantile, excitation
 from bayesid.models import manoeuvres as mv
-from bayesid.models.world import world_track
+from bayesid.models.world import LogOptions, world_track
 
 NOISE = {"x": 0.1, "y": 0.1, "psi": math.radians(0.2), "u": 0.01, "v": 0.01, "r": math.radians(0.1)}
 
@@ -145,9 +145,7 @@ def synthetic(tmp_path_factory):
             m,
             {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}},
             rng,
-            noise=NOISE,
-            sample_every=2,
-            hold_inputs=True,
+            LogOptions(noise=NOISE, sample_every=2, hold_inputs=True),
         )
         t = Track(tr.t, dict(tr.data), name=f"{tag}{i}_{m.name}", meta=tr.meta)
         write_csv(t, d / f"{t.name}.csv")
@@ -214,7 +212,7 @@ def test_a_manoeuvre_the_training_runs_lacked_is_flagged_extrapolated_not_counte
             else mv.zigzag(veh, a, dt=0.1, duration=150.0, first_sign=int(rng.choice([-1, 1])))
         )
         cur = {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}}
-        tr = world_track(veh, m, cur, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        tr = world_track(veh, m, cur, rng, LogOptions(noise=NOISE, sample_every=2, hold_inputs=True))
         t = Track(tr.t, dict(tr.data), name=f"{tag}{i}_{m.name}", meta=tr.meta)
         write_csv(t, tmp_path / f"{t.name}.csv")
         return str(tmp_path / f"{t.name}.csv")
