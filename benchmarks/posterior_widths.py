@@ -33,7 +33,7 @@ from bayesid.estimation.options import FitOptions
 from bayesid.estimation.windows import FitProblem
 from bayesid.models import manoeuvres as mv
 from bayesid.models import model_class
-from bayesid.models.world import world_track
+from bayesid.models.world import LogOptions, world_track
 from bayesid.report import git_commit
 
 NOISE = {"x": 0.1, "y": 0.1, "psi": math.radians(0.2), "u": 0.01, "v": 0.01, "r": math.radians(0.1)}
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
             if kind == 0
             else mv.turning_circle(veh, ang, dt=0.1, duration=150.0)
         )
-        tr = world_track(veh, m, CURRENT, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        tr = world_track(veh, m, CURRENT, rng, LogOptions(noise=NOISE, sample_every=2, hold_inputs=True))
         return Track(tr.t, dict(tr.data), name=f"run{i}_{m.name}", meta=tr.meta)
 
     lines = [
@@ -84,7 +84,7 @@ def main(argv=None) -> int:
             res.fit.p,
             tp.SampleOptions(method="auto", seed=r, max_minutes=3.0),
             importance=tp.ImportanceOptions(n_draws=a.draws),
-            folds=None if a.no_folds else [f["p"] for f in res.calibration["folds"] if "p" in f],
+            folds=None if a.no_folds else res.calibration.fold_optima(),
         )
         d = out.draws
         means.append(d.mean(axis=0))

@@ -57,7 +57,7 @@ def _diagnosis_data(seed: int = 11):
     from bayesid.data.track import Track
     from bayesid.data.vehicle import load_vehicle
     from bayesid.models import manoeuvres as mv
-    from bayesid.models.world import world_track
+    from bayesid.models.world import LogOptions, world_track
 
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng(seed)
@@ -77,9 +77,7 @@ def _diagnosis_data(seed: int = 11):
             m,
             {"current": {"current_north_mps": 0.15, "current_east_mps": -0.1}},
             rng,
-            noise=noise,
-            sample_every=2,
-            hold_inputs=True,
+            LogOptions(noise=noise, sample_every=2, hold_inputs=True),
         )
         keep = {k: v for k, v in tr.data.items() if k in ("x", "y", "psi", "delta_r", "delta_s", "delta_b", "n")}
         tracks.append(Track(tr.t + 1000.0 * i, keep, name=f"run{i}_{m.name}", meta=tr.meta))

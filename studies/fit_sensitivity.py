@@ -189,9 +189,9 @@ def run_fit(job: dict) -> dict:
     )
     for key, w in (("w30", 30.0), ("w60", 60.0)):
         pr = predict(res.model, res.fit.p, held, w, start="measured")
-        out[key] = pr["pooled"]["rms_position_m"]
-        out[key + "_heading_deg"] = pr["pooled"]["rms_heading_deg"]
-        out[key + "_per_run"] = {n: v["rms_position_m"] for n, v in pr["per_track"].items()}
+        out[key] = pr.pooled["rms_position_m"]
+        out[key + "_heading_deg"] = pr.pooled["rms_heading_deg"]
+        out[key + "_per_run"] = {n: v["rms_position_m"] for n, v in pr.per_track.items()}
     out["parameters"] = dict(zip(res.model.param_names, map(float, res.fit.p)))
     out["seconds"] = time.perf_counter() - t0
     return out

@@ -81,7 +81,7 @@ def _scores(model, fitres, tracks, window):
     from bayesid.estimation.prediction import predict
 
     pr = predict(model, fitres.p, tracks, window, start="measured")
-    return pr["pooled"]
+    return pr.pooled
 
 
 def evaluate(name, ship, train, held, candidates, args, out, log):
@@ -188,8 +188,8 @@ def track_figure(models, track, window, path, title):
     from bayesid.report import plots
 
     (bm, bf), (am, af) = models
-    pr_b = predict(bm, bf.p, [track], window, start="measured")["_sim"][track.name]
-    pr_a = predict(am, af.p, [track], window, start="measured")["_sim"][track.name]
+    pr_b = predict(bm, bf.p, [track], window, start="measured").simulated[track.name]
+    pr_a = predict(am, af.p, [track], window, start="measured").simulated[track.name]
     meas, xb = windowed_xy(*pr_b)
     _, xa = windowed_xy(*pr_a)
     return plots.window_tracks(None, meas, xb, xa, path, title=title)
@@ -205,7 +205,7 @@ def literature_baseline(vessel, held, rng):
     p = m.start()
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
-        out[key] = predict(m, p, held, w, start="measured")["pooled"]["rms_position_m"]
+        out[key] = predict(m, p, held, w, start="measured").pooled["rms_position_m"]
     tc = turning_circles(FittedModel(m, p, None), 0, rng, U0, RPS)
     out["turning_circles_35deg"] = {side: v["predicted"] for side, v in tc.items()}
     return out
@@ -266,8 +266,8 @@ def marin_runs(am, af, cov, data, draws, rng, figdir):
     for key, w in (("w30", 30.0), ("w60", 60.0)):
         if tracks:  # one protocol pass per window length: pooled over the runs and per run
             pr = predict(am, af.p, tracks, w, start="measured")
-            pooled[key] = pr["pooled"]["rms_position_m"]
-            for name, sc in pr["per_track"].items():
+            pooled[key] = pr.pooled["rms_position_m"]
+            for name, sc in pr.per_track.items():
                 runs[name][key] = sc
     errs = [e["tactical_diameter_rel_error"] for e in runs.values() if e.get("tactical_diameter_rel_error") is not None]
     summary = {
@@ -295,7 +295,7 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
     against what was measured: the posterior draws' own 5-95 % index bands (before) and the
     calibrated bands at 50/80/90/95 % (after). Returns (doc, identify result, reliability figure,
     {"p", "cov"} of the sampled posterior)."""
-    from bayesid.estimation.calibration import calibrated_bands
+    from bayesid.estimation.calibration import uncalibrated_bands
     from bayesid.estimation.identification import identify
     from bayesid.estimation.options import CalibrationOptions, FitOptions
     from bayesid.estimation.prediction import FittedModel, predict, turning_band
@@ -318,7 +318,8 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
     for h in held:
         tb = turning_band(FittedModel(m, p, cov), h, args.draws, rng, start="measured")
         idx[h.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(res.calibration, 60.0, pr["windows"], idx)
+    cal = res.calibration
+    bands = uncalibrated_bands(idx) if cal is None else cal.bands(60.0, pr.windows, idx)
     fig = None
     if bands.get("coverage"):
         fig = plots.reliability(
@@ -331,14 +332,13 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
             bands["parameter_only"],
             title=f"{name}{' (' + label + ')' if label else ''}: held-out runs",
         )
-    cal = res.calibration
     post, idx_s = sampled_posterior(name, label, m, p, res, train, held, prior, args, log)
     doc = {
         "sample": post,
         "free": free,
         "effects": list(effects),
         "prior": res.prior,
-        "heldout_rms_position_m_60s": pr["pooled"]["rms_position_m"],
+        "heldout_rms_position_m_60s": pr.pooled["rms_position_m"],
         "parameter_only": bands["parameter_only"],
         "coverage": bands.get("coverage"),
         "extrapolated": bands.get("extrapolated"),
@@ -353,7 +353,8 @@ def uncertainty(name, vessel, train, held, effects, args, figdir, log, free=None
         "calibration": None
         if cal is None
         else {
-            k: cal[k] for k in ("method", "n_runs", "n_folds", "window_s", "n_draws", "window_scores", "index_scores")
+            k: getattr(cal, k)
+            for k in ("method", "n_runs", "n_folds", "window_s", "n_draws", "window_scores", "index_scores")
         },
         "seconds": time.perf_counter() - t0,
     }
@@ -383,7 +384,7 @@ def sampled_posterior(name, label, model, p, res, train, held, prior, args, log)
             method="importance" if args.quick else "auto", use_prior=prior, seed=args.seed, max_minutes=8.0
         ),
         importance=tp.ImportanceOptions(n_draws=300 if args.quick else 4000),
-        folds=[f["p"] for f in (res.calibration or {}).get("folds", []) if "p" in f],
+        folds=res.calibration.fold_optima() if res.calibration is not None else [],
         runner=Runner(args.jobs, args.scheduler, progress=lambda m: log(f"{name} {label} sample: {m}")),
     )
     ps, cs = post.mode["p"], psd_covariance(np.cov(post.draws, rowvar=False))
@@ -416,7 +417,6 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
     """KVLCC2 from the HSVA zigzags under three priors on the captive-test values: none, the
     vehicle file's Gaussian prior, and the static terms fixed (the paper's Case 2); for each the
     held-out coverage and the predicted 35 deg turning circle with its calibrated 90 % band."""
-    from bayesid.estimation.calibration import index_band
     from bayesid.estimation.prediction import FittedModel, turning_circles
 
     variants = {
@@ -438,7 +438,7 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
                 "band_5_95": c["band_5_95"],
                 "sd": c["sd"],
                 "band_90": {
-                    k: index_band(res.calibration, k, c["predicted"][k], c["sd"][k], 0.9)
+                    k: res.calibration.index_band(k, c["predicted"][k], c["sd"][k], 0.9)
                     if res.calibration is not None and c["sd"].get(k)
                     else None
                     for k in c["predicted"]
@@ -461,7 +461,7 @@ def marin_coverage(res, args, rng):
     with calibrated bands: per run and index the measured value, the prediction, the calibrated
     90 % band and whether it holds; the tactical diameter's relative error. None without files."""
     from bayesid.data import datasets
-    from bayesid.estimation.calibration import calibrated_bands
+    from bayesid.estimation.calibration import uncalibrated_bands
     from bayesid.estimation.prediction import FittedModel, turning_band
 
     paths = datasets.list_runs(Path(args.data), "simman-marin")
@@ -476,7 +476,7 @@ def marin_coverage(res, args, rng):
             continue
         tb = turning_band(FittedModel(res.model, res.fit.p, res.cov), tr, args.draws, rng)
         idx[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(res.calibration, None, [], idx)
+    bands = uncalibrated_bands(idx) if res.calibration is None else res.calibration.bands(None, [], idx)
     td = [
         (r["track"], (r["predicted"] - r["measured"]) / r["measured"])
         for r in bands["indices"]

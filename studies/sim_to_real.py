@@ -235,7 +235,7 @@ def manoeuvre(veh, kind: str, duration: float, dt: float, seed: int):
 def world_tracks(veh, world_veh, truth: dict, cfg: dict, rng, seed: int):
     """The case's training and held-out tracks under its logging configuration."""
     from bayesid.data.track import Track
-    from bayesid.models.world import world_track
+    from bayesid.models.world import LogOptions, world_track
 
     dt = 0.05 if cfg["rate_hz"] == 20 else 0.1
     every = max(1, int(round(1.0 / (cfg["rate_hz"] * dt))))
@@ -253,7 +253,7 @@ def world_tracks(veh, world_veh, truth: dict, cfg: dict, rng, seed: int):
     for i, dur in enumerate(cfg["durations_s"]):
         kind = kinds[i % len(kinds)]
         m = manoeuvre(world_veh, kind, dur, dt, seed + i)
-        tr = world_track(world_veh, m, truth, rng, noise=noise, sample_every=every, hold_inputs=True)
+        tr = world_track(world_veh, m, truth, rng, LogOptions(noise=noise, sample_every=every, hold_inputs=True))
         role = "train" if i < cfg["n_train"] else "heldout"
         out.append(
             Track(tr.t + t, {k: v for k, v in tr.data.items() if k in keep}, name=f"{role}{i}_{kind}", meta=tr.meta)

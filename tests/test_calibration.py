@@ -14,17 +14,9 @@ import pytest
 from bayesid.cli import main
 from bayesid.data.track import Track, write_csv
 from bayesid.data.vehicle import load_vehicle
-from bayesid.estimation.calibration import (
-    calibrated_bands,
-    conformal_quantile,
-    excitation,
-    index_band,
-    index_scores,
-    outside_excitation,
-    window_band,
-)
+from bayesid.estimation.calibration import Calibration, conformal_quantile, excitation
 from bayesid.models import manoeuvres as mv
-from bayesid.models.world import world_track
+from bayesid.models.world import LogOptions, world_track
 
 NOISE = {"x": 0.1, "y": 0.1, "psi": math.radians(0.2), "u": 0.01, "v": 0.01, "r": math.radians(0.1)}
 
@@ -39,9 +31,11 @@ def test_conformal_quantile_is_the_finite_sample_order_statistic():
         conformal_quantile(s, 1.0)
 
 
-def _cal(index_rows=(), window_rows=(), window_s=60.0):
+def _cal(index_rows=(), window_rows=(), window_s=60.0, **fields):
     """A calibration as leave_one_run_out writes it, from fold rows (one fold)."""
-    return {"folds": [{"runs": ["a"], "indices": list(index_rows), "windows": list(window_rows)}], "window_s": window_s}
+    return Calibration(
+        folds=[{"runs": ["a"], "indices": list(index_rows), "windows": list(window_rows)}], window_s=window_s, **fields
+    )
 
 
 def test_index_scores_are_normalised_by_parameter_spread_and_relative_structural_error():
@@ -52,7 +46,7 @@ def test_index_scores_are_normalised_by_parameter_spread_and_relative_structural
         for e in range(1, 11)
     ]
     cal = _cal(first + second + [{"index": "advance_m", "measured": None, "predicted": 3.0, "sd": 1.0}])
-    kappas, scores = index_scores(cal)
+    kappas, scores = cal.normalised_index_scores()
     rel = [0.1] * 3 + [0.02 * e for e in range(1, 11)]
     assert kappas["all"] == pytest.approx(np.median(rel)) and kappas["first_overshoot_deg"] == pytest.approx(0.1)
     kappa = kappas["second_overshoot_deg"]
@@ -62,20 +56,19 @@ def test_index_scores_are_normalised_by_parameter_spread_and_relative_structural
     assert "advance_m" not in scores  # nothing measured: no score
     # a journaled fit stores a non-finite value as text: such a row is left out, not a TypeError
     text = [{"index": "speed_loss", "measured": "nan", "predicted": 0.3, "sd": "nan"}] * 3
-    assert index_scores(_cal(first + second + text)) == (kappas, scores)
-    b = index_band(cal, "first_overshoot_deg", 5.0, 0.5, 0.9)
+    assert _cal(first + second + text).normalised_index_scores() == (kappas, scores)
+    b = cal.index_band("first_overshoot_deg", 5.0, 0.5, 0.9)
     pooled = scores["first_overshoot_deg"] + scores["second_overshoot_deg"]
     assert b["pooled"] and b["n_scores"] == 13 and b["q"] == conformal_quantile(pooled, 0.9)
     assert b["hi"] - 5.0 == pytest.approx(b["q"] * math.hypot(0.5, 0.1 * 5.0))
     # a turning circle from these zigzag scores: pooled, and the band scales with the index's size
-    td = index_band(cal, "tactical_diameter_m", 40.0, 0.0, 0.9)
+    td = cal.index_band("tactical_diameter_m", 40.0, 0.0, 0.9)
     assert td["pooled"] and td["lo"] > 0 and td["hi"] - 40.0 == pytest.approx(td["q"] * kappas["all"] * 40.0)
-    b2 = index_band(cal, "second_overshoot_deg", 10.0, 0.0, 0.9)
+    b2 = cal.index_band("second_overshoot_deg", 10.0, 0.0, 0.9)
     assert not b2["pooled"] and b2["hi"] == pytest.approx(12.0)  # the largest of 10 errors, rescaled
     # a calibration written with the older score (rows with "score", stale index_scores) gets the current one
-    old = _cal([dict(r, score=99.0) for r in first + second])
-    old["index_scores"] = {"second_overshoot_deg": [99.0] * 10}
-    assert index_band(old, "second_overshoot_deg", 10.0, 0.0, 0.9)["hi"] == pytest.approx(b2["hi"])
+    old = _cal([dict(r, score=99.0) for r in first + second], index_scores={"second_overshoot_deg": [99.0] * 10})
+    assert old.index_band("second_overshoot_deg", 10.0, 0.0, 0.9)["hi"] == pytest.approx(b2["hi"])
 
 
 def test_window_bands_hold_jointly_for_position_and_heading():
@@ -88,15 +81,15 @@ def test_window_bands_hold_jointly_for_position_and_heading():
     cal = _cal(window_rows=rows(399))
     fresh = rows(4000)
     for a in (0.5, 0.9):
-        b = window_band(cal, a)
+        b = cal.window_band(a)
         held = np.mean(
             [w["max_position_m"] <= b["max_position_m"] and w["max_heading_deg"] <= b["max_heading_deg"] for w in fresh]
         )
         assert abs(held - a) < 0.04, (a, held)
-    marg = [np.quantile([w[k] for w in cal["folds"][0]["windows"]], 0.5) for k in ("max_position_m", "max_heading_deg")]
+    marg = [np.quantile([w[k] for w in cal.folds[0]["windows"]], 0.5) for k in ("max_position_m", "max_heading_deg")]
     assert np.mean([w["max_position_m"] <= marg[0] and w["max_heading_deg"] <= marg[1] for w in fresh]) < 0.35
     # a prediction with another window length gets no window band, and says why
-    out = calibrated_bands(cal, 30.0, [{"max_position_m": 1.0, "max_heading_deg": 1.0, "duration_s": 30.0}], {})
+    out = cal.bands(30.0, [{"max_position_m": 1.0, "max_heading_deg": 1.0, "duration_s": 30.0}], {})
     assert out["windows"] == [] and "60" in out["window_reason"]
 
 
@@ -110,21 +103,23 @@ def test_runs_driven_outside_the_training_range_are_named():
         return Track(t, d, name=name)
 
     train = [run("a", 10, 2.0), run("b", 35, 3.5)]
-    cal = _cal(window_rows=[{"track": "x", "max_position_m": 1.0, "max_heading_deg": 1.0}] * 20)
-    cal["excitation"] = {tr.name: excitation(tr) for tr in train}
+    cal = _cal(
+        window_rows=[{"track": "x", "max_position_m": 1.0, "max_heading_deg": 1.0}] * 20,
+        excitation={tr.name: excitation(tr) for tr in train},
+    )
     assert excitation(train[0])["rudder_deg"] == pytest.approx(10.0)
     assert excitation(run("c", 20, 3.0, log_r=False))["yaw_rate_deg_s"] == pytest.approx(3.0)  # from psi
-    assert outside_excitation(cal, excitation(run("in", 20, 2.5))) == []
-    why = outside_excitation(cal, excitation(run("small", 5, 0.8)))
+    assert cal.outside_excitation(excitation(run("in", 20, 2.5))) == []
+    why = cal.outside_excitation(excitation(run("small", 5, 0.8)))
     assert len(why) == 2 and why[0].startswith("rudder 5 deg below the training runs' 10-35 deg")
-    assert outside_excitation({}, excitation(run("small", 5, 0.8))) == []  # older calibrations: no claim
+    assert Calibration().outside_excitation(excitation(run("small", 5, 0.8))) == []  # older calibrations: no claim
     w = [{"track": n, "max_position_m": 0.5, "max_heading_deg": 0.5, "duration_s": 60.0} for n in ("in", "small")]
     exc = {"in": excitation(run("in", 20, 2.5)), "small": excitation(run("small", 5, 0.8))}
-    out = calibrated_bands(cal, 60.0, w, {}, excitations=exc)
+    out = cal.bands(60.0, w, {}, excitations=exc)
     assert list(out["outside_range"]) == ["small"]
     # 20 window scores support 90 % (finite band) but not 96 %: those claims are counted as unbounded
     assert out["coverage"]["windows"]["0.9"]["unbounded"] == 0
-    wide = calibrated_bands(cal, 60.0, w, {}, levels=(0.9, 0.96), excitations=exc)
+    wide = cal.bands(60.0, w, {}, levels=(0.9, 0.96), excitations=exc)
     assert wide["coverage"]["windows"]["0.96"] == {"n": 2, "inside": 2, "coverage": 1.0, "unbounded": 2}
     assert out["coverage"]["windows"]["0.9"]["n"] == 2 and out["coverage_in_range"]["windows"]["0.9"]["n"] == 1
 
@@ -150,9 +145,7 @@ def synthetic(tmp_path_factory):
             m,
             {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}},
             rng,
-            noise=NOISE,
-            sample_every=2,
-            hold_inputs=True,
+            LogOptions(noise=NOISE, sample_every=2, hold_inputs=True),
         )
         t = Track(tr.t, dict(tr.data), name=f"{tag}{i}_{m.name}", meta=tr.meta)
         write_csv(t, d / f"{t.name}.csv")
@@ -219,7 +212,7 @@ def test_a_manoeuvre_the_training_runs_lacked_is_flagged_extrapolated_not_counte
             else mv.zigzag(veh, a, dt=0.1, duration=150.0, first_sign=int(rng.choice([-1, 1])))
         )
         cur = {"current": {"current_north_mps": 0.12, "current_east_mps": -0.08}}
-        tr = world_track(veh, m, cur, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        tr = world_track(veh, m, cur, rng, LogOptions(noise=NOISE, sample_every=2, hold_inputs=True))
         t = Track(tr.t, dict(tr.data), name=f"{tag}{i}_{m.name}", meta=tr.meta)
         write_csv(t, tmp_path / f"{t.name}.csv")
         return str(tmp_path / f"{t.name}.csv")

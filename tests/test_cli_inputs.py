@@ -15,7 +15,7 @@ from bayesid import cli
 from bayesid.data.track import write_csv
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import manoeuvres as mv
-from bayesid.models.world import world_track
+from bayesid.models.world import LogOptions, world_track
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -28,7 +28,7 @@ def csvs(tmp_path_factory):
     for i, m in enumerate(
         [mv.zigzag(veh, 20.0, dt=0.1, duration=60.0), mv.zigzag(veh, 10.0, dt=0.1, duration=60.0, first_sign=-1)]
     ):
-        tr = world_track(veh, m, {}, np.random.default_rng(i), sample_every=2, name=f"run{i}")
+        tr = world_track(veh, m, {}, np.random.default_rng(i), LogOptions(sample_every=2), name=f"run{i}")
         write_csv(tr, d / f"run{i}.csv")
         out.append(d / f"run{i}.csv")
     return out

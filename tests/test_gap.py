@@ -22,7 +22,7 @@ from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
 from bayesid.models.context import errors
 from bayesid.models.submarine import EffectModel
-from bayesid.models.world import WORLD_NOISE, draw_parameters, world_track
+from bayesid.models.world import WORLD_NOISE, LogOptions, draw_parameters, world_track
 
 ROOT = Path(__file__).resolve().parents[1]
 FREE = ["Yv", "Nr", "Ndr"]
@@ -89,7 +89,7 @@ def test_protocol_on_the_models_own_track_is_at_the_noise_level(veh):
     """The window protocol with the true model on its own noisy track: the pooled error is the
     noise floor (well under a metre), and the nominal model reproduces a noise-free track."""
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=180.0)
-    clean = world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    clean = world_track(veh, m, {}, np.random.default_rng(0), LogOptions(noise={}))
     model = EffectModel(veh, (), (), dt=0.1)
     ctx = model.context(clean, None)
     e = errors(ctx, model.simulate(ctx, model.start()[None]))
@@ -147,14 +147,18 @@ def test_sensor_lag_filters_the_logged_velocities_and_skews_the_positions(veh):
     from scipy import signal
 
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=90.0)
-    true = world_track(veh, m, {}, np.random.default_rng(0), noise={})
-    lag = world_track(veh, m, {"sensor_lag": {"lag_s": 1.0, "skew_s": 0.0}}, np.random.default_rng(0), noise={})
+    true = world_track(veh, m, {}, np.random.default_rng(0), LogOptions(noise={}))
+    lag = world_track(
+        veh, m, {"sensor_lag": {"lag_s": 1.0, "skew_s": 0.0}}, np.random.default_rng(0), LogOptions(noise={})
+    )
     a = np.exp(-0.1 / 1.0)
     for k in ("u", "v", "r"):
         want, _ = signal.lfilter([1 - a], [1, -a], true[k], zi=[a * true[k][0]])
         assert np.allclose(lag[k], want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max())), k
     assert np.allclose(lag["x"], true["x"]) and np.allclose(lag["psi"], true["psi"])
-    skew = world_track(veh, m, {"sensor_lag": {"lag_s": 0.0, "skew_s": 0.5}}, np.random.default_rng(0), noise={})
+    skew = world_track(
+        veh, m, {"sensor_lag": {"lag_s": 0.0, "skew_s": 0.5}}, np.random.default_rng(0), LogOptions(noise={})
+    )
     late = np.interp(true.t - 0.5, true.t, true["x"])
     sel = true.t > 1.0
     assert np.max(np.abs(skew["x"][sel] - late[sel])) < 0.01
@@ -166,8 +170,8 @@ def test_current_acts_through_the_relative_velocity(veh):
     track drifts by V_c t against the same vehicle without current."""
     m = mv.zigzag(veh, 20.0, dt=0.1, duration=60.0)
     par = {"current_north_mps": 0.2, "current_east_mps": -0.1}
-    tr = world_track(veh, m, {"current": par}, np.random.default_rng(0), noise={})
-    still = world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    tr = world_track(veh, m, {"current": par}, np.random.default_rng(0), LogOptions(noise={}))
+    still = world_track(veh, m, {}, np.random.default_rng(0), LogOptions(noise={}))
     assert tr["x"][-1] - still["x"][-1] == pytest.approx(0.2 * 60.0, abs=1e-9)
     assert tr["y"][-1] - still["y"][-1] == pytest.approx(-0.1 * 60.0, abs=1e-9)
     model = EffectModel(veh, (), ("current",), dt=0.1)
@@ -480,7 +484,7 @@ def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scena
         "thrust": draw_parameters("thrust", 2, np.random.default_rng(0)),
     }
     rng = np.random.default_rng(5)
-    held = [world_track(veh, m, truth, rng, noise={}, name=f"heldout_{m.name}") for m in scenario[1]]
+    held = [world_track(veh, m, truth, rng, LogOptions(noise={}), name=f"heldout_{m.name}") for m in scenario[1]]
     true = s2r.true_model_scores(veh, held, truth, s2r.WINDOW, {"start_rule": "measured", "leadin_s": 0.0})[
         "heldout_rms_m"
     ]

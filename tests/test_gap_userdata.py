@@ -21,7 +21,7 @@ from bayesid.models import effects as ef
 from bayesid.models import manoeuvres as mv
 from bayesid.models.context import START_INDEX
 from bayesid.models.submarine import EffectModel
-from bayesid.models.world import world_track
+from bayesid.models.world import LogOptions, world_track
 from bayesid.tasks import Runner
 
 FREE = ["Yv", "Nr", "Ndr"]
@@ -53,7 +53,7 @@ def user_world(veh, effects, seed, n_train=2, n_held=2, duration=150.0, velocity
     rng = np.random.default_rng(seed)
     out, t = [], t0
     for i, m in enumerate(_manoeuvres(veh, n_train + n_held, duration, seed)):
-        tr = world_track(veh, m, effects, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        tr = world_track(veh, m, effects, rng, LogOptions(noise=NOISE, sample_every=2, hold_inputs=True))
         keep = {k: v for k, v in tr.data.items() if velocity_log or k in LOGGED}
         name = f"{'train' if i < n_train else 'held'}{i}_{m.name}"
         out.append(Track(tr.t + t, keep, name=name, meta=tr.meta))

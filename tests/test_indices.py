@@ -11,7 +11,7 @@ from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation.indices import INDICES, manoeuvre_indices
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Manoeuvre
-from bayesid.models.world import world_track
+from bayesid.models.world import LogOptions, world_track
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,7 +22,7 @@ def veh():
 
 
 def _indices(veh, m):
-    tr = world_track(veh, m, {}, np.random.default_rng(0), noise={})
+    tr = world_track(veh, m, {}, np.random.default_rng(0), LogOptions(noise={}))
     return manoeuvre_indices(tr.t, tr["x"], tr["y"], tr["psi"], tr["delta_r"])
 
 

@@ -20,10 +20,27 @@ def test_a_file_written_before_the_class_loads_and_round_trips(tmp_path):
     model, p, cov, doc = load_model(OLD)
     assert doc.vehicle == "nps_auv2" and list(model.free) == ["Yv", "Nr", "Ndr"]
     assert np.array_equal(p, np.array(raw["p"])) and cov.shape == (3, 3)
-    assert doc.calibration["n_folds"] == 3 and doc.provenance["bayesid_version"] == "0.1.0"
+    assert doc.calibration.n_folds == 3 and doc.provenance["bayesid_version"] == "0.1.0"
     doc.to_json(tmp_path / "again.json")
     assert json.loads((tmp_path / "again.json").read_text()) == raw
+    assert (tmp_path / "again.json").read_text() == OLD.read_text()  # byte for byte
     assert list(json.loads((tmp_path / "again.json").read_text())) == list(raw)  # the same key order
+
+
+def test_the_calibration_section_reads_and_writes_back_unchanged():
+    """Calibration.from_dict reads what to_dict writes, in its key order, and a calibration
+    written before it recorded the excitation and the structural scales (the first format)."""
+    from bayesid.estimation.calibration import Calibration
+
+    raw = json.loads(OLD.read_text())["calibration"]
+    cal = Calibration.from_dict(raw)
+    assert cal.n_folds == 3 and cal.window_s == 60.0 and len(cal.fold_optima()) == 3
+    assert cal.to_dict() == raw and list(cal.to_dict()) == list(raw)
+    first = {k: v for k, v in raw.items() if k not in ("excitation", "index_score", "structural_scale")}
+    old = Calibration.from_dict(first)
+    assert old.excitation is None and old.excitation_range() == {}
+    assert old.to_dict() == first and list(old.to_dict()) == list(first)
+    assert old.normalised_index_scores() == cal.normalised_index_scores()  # recomputed from the folds
 
 
 def test_optional_fields_get_their_defaults(tmp_path):

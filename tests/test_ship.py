@@ -149,10 +149,10 @@ def test_window_protocol_on_the_models_own_track_is_at_the_noise_level():
     pr = predict(m, m.start(), [tr], 30.0)
     # noise 0.01 m: the start-state velocity (from 2 s of noisy positions) errs by a few mm/s,
     # which grows to ~0.1 m over 30 s; without noise the protocol reproduces the track exactly
-    assert pr["pooled"]["rms_position_m"] < 0.2
+    assert pr.pooled["rms_position_m"] < 0.2
     clean = synthetic(m, m.start(), t, zigzag_inputs(t), 10.23, 1.179)
     clean = Track(clean.t, {k: clean[k] for k in ("x", "y", "psi", "r", "delta_r", "n")}, name="clean")
-    assert predict(m, m.start(), [clean], 30.0)["pooled"]["rms_position_m"] < 0.02
+    assert predict(m, m.start(), [clean], 30.0).pooled["rms_position_m"] < 0.02
     ctx = m.context(tr, 30.0)
     # windows never overlap, and start after 2 s of history when velocities are derived
     assert np.all(np.diff(ctx.t_start) == pytest.approx(30.0)) and ctx.t_start[0] >= tr.t[0] + 2.0 - 1e-9

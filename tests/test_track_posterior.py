@@ -16,7 +16,7 @@ from bayesid.data.track import Track, write_csv
 from bayesid.data.vehicle import load_vehicle
 from bayesid.estimation import track_posterior as tp
 from bayesid.models import manoeuvres as mv
-from bayesid.models.world import world_track
+from bayesid.models.world import LogOptions, world_track
 
 NOISE = {"x": 0.1, "y": 0.1, "psi": math.radians(0.2), "u": 0.01, "v": 0.01, "r": math.radians(0.1)}
 
@@ -125,7 +125,7 @@ def two_runs(tmp_path_factory):
     files = []
     for i, (a, sign) in enumerate(((15.0, 1), (20.0, -1))):
         m = mv.zigzag(veh, a, dt=0.1, duration=100.0, first_sign=sign)
-        tr = world_track(veh, m, {}, rng, noise=NOISE, sample_every=2, hold_inputs=True)
+        tr = world_track(veh, m, {}, rng, LogOptions(noise=NOISE, sample_every=2, hold_inputs=True))
         t = Track(tr.t, dict(tr.data), name=f"run{i}", meta=tr.meta)
         write_csv(t, d / f"run{i}.csv")
         files.append(str(d / f"run{i}.csv"))

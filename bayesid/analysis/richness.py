@@ -234,11 +234,10 @@ def design_multisine(
             vehicle,
             amplitude_deg=amplitude_deg,
             frequencies_hz=f,
-            phases_rad=ph,
             duration=duration,
             dt=dt,
-            weights=np.maximum(w, 1e-3),
             name="designed",
+            options=mv.MultisineOptions(phases_rad=ph, weights=np.maximum(w, 1e-3)),
         )
 
     def score(x):

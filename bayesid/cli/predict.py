@@ -73,14 +73,14 @@ def run(args) -> int:
         res = {
             "model": str(args.model),
             "window_s": window,
-            "start_rule": pr["start_rule"],
-            "leadin_s": pr["leadin_s"],
+            "start_rule": pr.start_rule,
+            "leadin_s": pr.leadin_s,
             "warnings": got["_warnings"],
             "input_sha256": got["_sha256"],
-            "pooled": pr["pooled"],
-            "per_track": pr["per_track"],
-            "windows": pr["windows"],
-            "whole_run": {"pooled": whole["pooled"], "per_track": whole["per_track"]},
+            "pooled": pr.pooled,
+            "per_track": pr.per_track,
+            "windows": pr.windows,
+            "whole_run": {"pooled": whole.pooled, "per_track": whole.per_track},
             "indices": indices,
             "n_draws": args.draws,
             "bands": bands,
@@ -118,7 +118,7 @@ def _predict(args, fitted, doc, tracks, window, out):
     posterior band, and the calibrated bands (``out/figures`` is created on the way)."""
     import numpy as np
 
-    from ..estimation.calibration import calibrated_bands, excitation
+    from ..estimation.calibration import excitation, uncalibrated_bands
     from ..estimation.prediction import FittedModel, predict, turning_band
 
     model, p, cov = fitted
@@ -130,26 +130,26 @@ def _predict(args, fitted, doc, tracks, window, out):
     indices = {}
     for tr in tracks:
         tb = turning_band(
-            FittedModel(model, p, cov), tr, args.draws, rng, start=whole["start_rule"], leadin_s=whole["leadin_s"]
+            FittedModel(model, p, cov), tr, args.draws, rng, start=whole.start_rule, leadin_s=whole.leadin_s
         )
         indices[tr.name] = {k: v for k, v in tb.items() if not k.startswith("_")}
-    bands = calibrated_bands(
-        doc.calibration, window, pr["windows"], indices, excitations={t.name: excitation(t) for t in tracks}
-    )
+    if doc.calibration is None:
+        bands = uncalibrated_bands(indices)
+    else:
+        bands = doc.calibration.bands(window, pr.windows, indices, excitations={t.name: excitation(t) for t in tracks})
     return pr, whole, indices, bands
 
 
-def _figures(pr: dict, bands: dict, doc, tracks, window, out) -> None:
-    """Each track's windowed prediction with its 90 % band, and the reliability diagram; the
-    simulations are dropped from ``pr`` once drawn."""
+def _figures(pr, bands: dict, doc, tracks, window, out) -> None:
+    """Each track's windowed prediction (a ``Prediction``) with its 90 % band, and the
+    reliability diagram; the simulations are dropped from ``pr`` once drawn."""
     import numpy as np
 
-    from ..estimation.calibration import window_band
     from ..report import plots
 
-    b90 = window_band(doc.calibration, 0.9) if bands.get("windows") else {}
+    b90 = doc.calibration.window_band(0.9) if bands.get("windows") else {}
     for tr in tracks:
-        ctx, S = pr["_sim"][tr.name]
+        ctx, S = pr.simulated[tr.name]
         k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
         dr = np.asarray(tr["delta_r"], float)[ctx.idx]
         plots.prediction_band(
@@ -166,7 +166,7 @@ def _figures(pr: dict, bands: dict, doc, tracks, window, out) -> None:
                 else ""
             ),
         )
-        del pr["_sim"][tr.name]
+        del pr.simulated[tr.name]
     if bands.get("coverage"):
         groups = {
             g: bands["coverage"][g]
@@ -176,13 +176,13 @@ def _figures(pr: dict, bands: dict, doc, tracks, window, out) -> None:
         plots.reliability(groups, out / "figures" / "reliability.png", bands["parameter_only"])
 
 
-def _summary(pr: dict, bands: dict, window, out) -> str:
+def _summary(pr, bands: dict, window, out) -> str:
     """The line printed at the end: pooled score, coverage of the 90 % bands, runs outside the
     training runs' range or extrapolated."""
     c90 = ((bands.get("coverage") or {}).get("all") or {}).get("0.9") or {}
     ext = (bands.get("extrapolated") or {}).get("runs") or []
     return (
-        f"pooled RMS position {pr['pooled']['rms_position_m']:.3f} m ({window} s windows)"
+        f"pooled RMS position {pr.pooled['rms_position_m']:.3f} m ({window} s windows)"
         + (f"; calibrated 90 % bands hold {c90['inside']} of {c90['n']} claims" if c90.get("n") else "")
         + (f" ({c90['unbounded']} of them unbounded: too few training scores for 90 %)" if c90.get("unbounded") else "")
         + (

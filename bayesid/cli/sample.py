@@ -172,7 +172,7 @@ def _sample(args, model, p, doc, got: dict, model_sha: str, out: Path):
             method=args.method, use_prior=args.prior == "file", seed=args.seed, max_minutes=args.max_minutes
         ),
         importance=tp.ImportanceOptions(n_draws=args.draws, df=args.df),
-        folds=[f["p"] for f in ((doc.calibration or {}).get("folds") or []) if "p" in f],
+        folds=doc.calibration.fold_optima() if doc.calibration is not None else [],
         checkpoint=Checkpoint(out / "chains.h5", identity),
         runner=tasks.Runner(args.jobs, args.scheduler, journal, progress=lambda m: print(f"  {m}", flush=True)),
     )

@@ -30,7 +30,7 @@ from ..models import build_model
 from ..protocol import resolve_start, start_settings
 from ..tasks import Runner
 from . import windows as wf
-from .calibration import leave_one_run_out
+from .calibration import Calibration, leave_one_run_out
 from .fit import FitResult
 from .laplace import ar1_inflation, fit_covariance
 from .multistart import MultistartResult, multistart
@@ -82,8 +82,8 @@ class IdentifyResult:
         ``used``; with a prior per coefficient mean, sd, identified value, z-score with and
         without the prior, posterior sd, and the names the data ``moved`` beyond 1 prior sd and
         ``beyond_3sd``.
-    calibration : dict or None
-        The leave-one-run-out scores (:func:`bayesid.estimation.calibration.leave_one_run_out`).
+    calibration : Calibration or None
+        The leave-one-run-out calibration (:func:`bayesid.estimation.calibration.leave_one_run_out`).
     """
 
     model: object
@@ -101,7 +101,7 @@ class IdentifyResult:
     p0: np.ndarray
     multistart: MultistartResult | None
     prior: dict
-    calibration: dict | None
+    calibration: Calibration | None
 
 
 def identify(

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..models import build_model, load_any_vehicle
 from ..tasks import jsonable
+from .calibration import Calibration
 from .laplace import psd_covariance
 
 __all__ = ["FORMAT", "ModelDocument", "load_model"]
@@ -86,8 +87,9 @@ class ModelDocument:
         The multistart summary, when the fit had extra starts.
     prior : dict, default {"used": False}
         The vehicle file's prior as used (``{"used": False}`` without one).
-    calibration : dict, optional
-        The leave-one-run-out calibration of the predictive bands.
+    calibration : Calibration, optional
+        The leave-one-run-out calibration of the predictive bands (a dict, as the file stores it,
+        is read with :meth:`~bayesid.estimation.calibration.Calibration.from_dict`).
     posterior_source : dict, optional
         Set when ``p`` and ``cov`` come from ``bayesid sample`` (its ``sample.json``, method,
         convergence).
@@ -119,13 +121,15 @@ class ModelDocument:
     fit: dict = field(default_factory=dict)
     multistart: dict | None = None
     prior: dict = field(default_factory=lambda: {"used": False})
-    calibration: dict | None = None
+    calibration: Calibration | None = None
     posterior_source: dict | None = None
     path: Path | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self):
         if self.fit_sd is None:
             self.fit_sd = self.noise_sd
+        if isinstance(self.calibration, dict):
+            self.calibration = Calibration.from_dict(self.calibration)
 
     @classmethod
     def from_identify(cls, result, vehicle_ref: str, train_names, provenance: dict | None = None) -> ModelDocument:
@@ -191,13 +195,14 @@ class ModelDocument:
         -------
         dict
             ``format`` then the fields in their order (``multistart`` and ``posterior_source``
-            only when set; ``path`` never).
+            only when set; ``path`` never; ``calibration`` as
+            :meth:`~bayesid.estimation.calibration.Calibration.to_dict`).
         """
         d = {"format": FORMAT}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if f.name != "path" and not (f.name in ("multistart", "posterior_source") and v is None):
-                d[f.name] = v
+                d[f.name] = v.to_dict() if isinstance(v, Calibration) else v
         return d
 
     def to_json(self, path) -> None:

@@ -28,6 +28,7 @@ __all__ = [
     "approach_condition",
     "BATCH_BYTES",
     "FittedModel",
+    "Prediction",
     "predict",
     "predictive_band",
     "predictive_sd",
@@ -37,7 +38,55 @@ __all__ = [
 ]
 
 
-def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadin_s: float | None = None) -> dict:
+@dataclass(frozen=True)
+class Prediction:
+    """The window protocol's scores of a model on tracks (:func:`predict`).
+
+    Parameters
+    ----------
+    pooled : dict
+        The pooled RMS position / heading errors over every track
+        (:func:`~bayesid.protocol.pooled_scores`).
+    per_track : dict
+        ``{track name: pooled scores}``.
+    windows : list of dict
+        One per scored window: ``track``, ``t_start``, ``duration_s`` (of its scored samples),
+        ``rms_position_m``, ``max_position_m``, ``rms_heading_deg``, ``max_heading_deg``.
+    simulated : dict
+        ``{track name: (ctx, S)}``: the prepared track (:class:`~bayesid.models.context.TrackContext`)
+        and the predicted states at its scored samples, ndarray (n, 12), for plots (not
+        serialised; a caller may drop a track's entry once drawn).
+    start_rule : str
+        The window start rule used (resolved).
+    leadin_s : float or None
+        The lead-in used (s).
+    """
+
+    pooled: dict
+    per_track: dict
+    windows: list
+    simulated: dict
+    start_rule: str
+    leadin_s: float | None
+
+    def to_dict(self) -> dict:
+        """The JSON-able scores (the simulations left out).
+
+        Returns
+        -------
+        dict
+            ``pooled``, ``per_track``, ``windows``, ``start_rule``, ``leadin_s``.
+        """
+        return {
+            "pooled": self.pooled,
+            "per_track": self.per_track,
+            "windows": self.windows,
+            "start_rule": self.start_rule,
+            "leadin_s": self.leadin_s,
+        }
+
+
+def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadin_s: float | None = None) -> Prediction:
     """The protocol on tracks: per window and pooled RMS position / heading errors.
 
     Parameters
@@ -58,11 +107,9 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
 
     Returns
     -------
-    dict
-        ``pooled`` (:func:`~bayesid.protocol.pooled_scores`), ``per_track`` {name: pooled
-        scores}, ``windows`` (list of {track, t_start, duration_s (of its scored samples),
-        rms_position_m, max_position_m, rms_heading_deg, max_heading_deg}), ``_sim`` (per track
-        (ctx, S) for plots), and ``start_rule`` and ``leadin_s``: what was used.
+    Prediction
+        The pooled, per-track and per-window scores, the simulations, and the start rule and
+        lead-in used.
     """
     errs, per_track, windows, sims = [], {}, [], {}
     rule, lead = start_settings(start, tracks, window_s, model.dt, leadin_s)
@@ -91,14 +138,14 @@ def predict(model, p, tracks, window_s: float | None, start: str = "auto", leadi
                     }
                 )
         sims[tr.name] = (ctx, S[0])
-    return {
-        "pooled": pooled_scores(errs),
-        "per_track": per_track,
-        "windows": windows,
-        "_sim": sims,
-        "start_rule": rule,
-        "leadin_s": lead,
-    }
+    return Prediction(
+        pooled=pooled_scores(errs),
+        per_track=per_track,
+        windows=windows,
+        simulated=sims,
+        start_rule=rule,
+        leadin_s=lead,
+    )
 
 
 @dataclass(frozen=True)

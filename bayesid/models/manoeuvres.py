@@ -14,11 +14,93 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from . import dynamics
 from .simulate import Manoeuvre, Simulator
+
+
+@dataclass(frozen=True)
+class ZigzagOptions:
+    """How a zigzag's commands are executed (:func:`zigzag`, :func:`vertical_zigzag`).
+
+    Parameters
+    ----------
+    t_execute : float, default 10.0
+        Time of the first command, s.
+    rate_deg_s : float, default 0.0
+        Rate limit of the control surface (the rudder of :func:`zigzag`, the stern planes of
+        :func:`vertical_zigzag`), deg/s; 0 = instantaneous reversal (NPS AUV II has no published
+        rate; its 0.1 s actuator time constant makes reversals nearly instantaneous).
+    """
+
+    t_execute: float = 10.0
+    rate_deg_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class ReverseSpiralOptions:
+    """The approach and the yaw-rate controller of a reverse spiral (:func:`reverse_spiral`).
+
+    Parameters
+    ----------
+    t_straight : float, default 10.0
+        Straight approach, s.
+    kp : float, default 4.0
+        Proportional gain, rad rudder per rad/s (s).
+    ki : float, default 2.0
+        Integral gain, rad rudder per rad.
+    rudder_rate_deg_s : float, default 0.0
+        Rudder rate limit, deg/s (0 = instantaneous).
+    rudder_max_deg : float, optional
+        Saturation of the rudder, deg, in (0, the vehicle's limit]; default the limit.
+    """
+
+    t_straight: float = 10.0
+    kp: float = 4.0
+    ki: float = 2.0
+    rudder_rate_deg_s: float = 0.0
+    rudder_max_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class MultisineOptions:
+    """A multisine's phases, relative amplitudes and start (:func:`multisine`).
+
+    Parameters
+    ----------
+    phases_rad : sequence of float, optional
+        The phases of the sines, rad; default Schroeder phases (:func:`schroeder_phases`).
+    weights : sequence of float, optional
+        Their relative amplitudes ``w_k``; default 1 each.
+    t_execute : float, default 10.0
+        Start of the signal, s.
+    """
+
+    phases_rad: object = None
+    weights: object = None
+    t_execute: float = 10.0
+
+
+@dataclass(frozen=True)
+class PrbsOptions:
+    """The clock and start of a PRBS (:func:`prbs`).
+
+    Parameters
+    ----------
+    min_hold_s : float, default 5.0
+        Clock period, s; at least one step.
+    p_switch : float, default 0.5
+        Probability of a sign flip per clock tick, in [0, 1].
+    t_execute : float, default 10.0
+        Start of the sequence, s.
+    """
+
+    min_hold_s: float = 5.0
+    p_switch: float = 0.5
+    t_execute: float = 10.0
 
 
 def steady_state(vehicle, rpm: float | None = None) -> np.ndarray:
@@ -254,12 +336,12 @@ def zigzag(
     vehicle,
     rudder_deg: float = 10.0,
     heading_deg: float | None = None,
+    *,
     dt: float = 0.1,
     duration: float = 120.0,
     rpm: float | None = None,
-    t_execute: float = 10.0,
     first_sign: int = 1,
-    rudder_rate_deg_s: float = 0.0,
+    options: ZigzagOptions = ZigzagOptions(),
 ) -> Manoeuvre:
     """Horizontal zigzag (Z-manoeuvre) ``rudder_deg/heading_deg`` triggered on heading.
 
@@ -284,13 +366,11 @@ def zigzag(
         Length of the run, s; a whole number of steps.
     rpm : float, optional
         Propeller speed, rpm; default the nominal.
-    t_execute : float, default 10.0
-        Time of the first rudder command, s.
     first_sign : int, default 1
         Sign of the first rudder command (the name gets an ``m`` suffix for -1).
-    rudder_rate_deg_s : float, default 0.0
-        Rudder rate limit, deg/s; 0 = instantaneous reversal (NPS AUV II has no published rate;
-        its 0.1 s actuator time constant makes reversals nearly instantaneous).
+    options : ZigzagOptions, default ZigzagOptions()
+        The time of the first rudder command (``t_execute``, s) and the rudder rate limit
+        (``rate_deg_s``, deg/s; 0 = instantaneous).
 
     Returns
     -------
@@ -306,6 +386,7 @@ def zigzag(
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     heading_deg = rudder_deg if heading_deg is None else heading_deg
+    t_execute, rudder_rate_deg_s = options.t_execute, options.rate_deg_s
     n = _grid(duration, dt)
     turn_sign = math.copysign(1.0, vehicle.coefficients.get("Ndr", -1.0))
     inputs = _triggered_zigzag(
@@ -470,13 +551,10 @@ def reverse_spiral(
     vehicle,
     yaw_rates_deg_s=(4.0, 3.0, 2.0, 1.0, 0.5, 0.0, -0.5, -1.0, -2.0, -3.0, -4.0),
     hold_s: float = 30.0,
+    *,
     dt: float = 0.1,
     rpm: float | None = None,
-    t_straight: float = 10.0,
-    kp: float = 4.0,
-    ki: float = 2.0,
-    rudder_rate_deg_s: float = 0.0,
-    rudder_max_deg: float | None = None,
+    options: ReverseSpiralOptions = ReverseSpiralOptions(),
 ) -> Manoeuvre:
     """Bech's reverse spiral (ITTC 7.5-04-02-01, Sec. 2.2.5 "Spiral Manoeuvre", reverse form).
 
@@ -511,16 +589,9 @@ def reverse_spiral(
         Integration step, s.
     rpm : float, optional
         Propeller speed, rpm; default the nominal.
-    t_straight : float, default 10.0
-        Straight approach, s.
-    kp : float, default 4.0
-        Proportional gain, rad rudder per rad/s (s).
-    ki : float, default 2.0
-        Integral gain, rad rudder per rad.
-    rudder_rate_deg_s : float, default 0.0
-        Rudder rate limit, deg/s (0 = instantaneous).
-    rudder_max_deg : float, optional
-        Saturation of the rudder, deg, in (0, the vehicle's limit]; default the limit.
+    options : ReverseSpiralOptions, default ReverseSpiralOptions()
+        The straight approach ``t_straight`` (s), the gains ``kp`` and ``ki``, the rudder rate
+        limit ``rudder_rate_deg_s`` and saturation ``rudder_max_deg`` (deg).
 
     Returns
     -------
@@ -536,6 +607,8 @@ def reverse_spiral(
         numbers of steps.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
+    t_straight, kp, ki = options.t_straight, options.kp, options.ki
+    rudder_rate_deg_s, rudder_max_deg = options.rudder_rate_deg_s, options.rudder_max_deg
     rates = [float(x) for x in yaw_rates_deg_s]
     if not rates:
         raise ValueError("reverse spiral: no target yaw rates")
@@ -721,13 +794,12 @@ def multisine(
     vehicle,
     amplitude_deg: float = 10.0,
     frequencies_hz=(0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2),
-    phases_rad=None,
+    *,
     duration: float = 300.0,
     dt: float = 0.1,
     rpm: float | None = None,
-    t_execute: float = 10.0,
-    weights=None,
     name: str = "multisine",
+    options: MultisineOptions = MultisineOptions(),
 ) -> Manoeuvre:
     """Multisine rudder: sum of sines, equal amplitudes (or relative ``weights``, as a
     manoeuvre design chooses them) with (default) Schroeder phases.
@@ -751,20 +823,17 @@ def multisine(
         Peak rudder angle over the run, deg.
     frequencies_hz : sequence of float, default (0.005, 0.01, 0.02, 0.035, 0.05, 0.08, 0.12, 0.2)
         Frequencies of the sines, Hz.
-    phases_rad : sequence of float, optional
-        Their phases, rad; default Schroeder phases.
     duration : float, default 300.0
         Length of the run, s.
     dt : float, default 0.1
         Integration step, s.
     rpm : float, optional
         Propeller speed, rpm; default the nominal.
-    t_execute : float, default 10.0
-        Start of the signal, s.
-    weights : sequence of float, optional
-        Relative amplitudes ``w_k``; default 1 each.
     name : str, default "multisine"
         Name of the manoeuvre.
+    options : MultisineOptions, default MultisineOptions()
+        The phases ``phases_rad`` (default Schroeder), the relative amplitudes ``weights``
+        (default 1 each) and the start of the signal ``t_execute`` (s).
 
     Returns
     -------
@@ -778,6 +847,7 @@ def multisine(
         negative or all-zero weights, ``t_execute`` outside the run, inputs beyond the limits.
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
+    phases_rad, weights, t_execute = options.phases_rad, options.weights, options.t_execute
     f = np.asarray(frequencies_hz, dtype=float).ravel()
     if f.size == 0 or np.any(~np.isfinite(f)) or np.any(f <= 0) or np.any(f >= 0.5 / dt):
         raise ValueError(f"multisine: frequencies must be in (0, {0.5 / dt:g}) Hz, got {f.tolist()}")
@@ -830,13 +900,12 @@ def multisine(
 def prbs(
     vehicle,
     amplitude_deg: float = 10.0,
-    min_hold_s: float = 5.0,
+    *,
     duration: float = 300.0,
     rng: np.random.Generator | None = None,
     dt: float = 0.1,
     rpm: float | None = None,
-    t_execute: float = 10.0,
-    p_switch: float = 0.5,
+    options: PrbsOptions = PrbsOptions(),
 ) -> Manoeuvre:
     """Pseudo-random binary rudder sequence with a minimum hold time.
 
@@ -856,8 +925,6 @@ def prbs(
         The vehicle.
     amplitude_deg : float, default 10.0
         Rudder level, deg.
-    min_hold_s : float, default 5.0
-        Clock period, s; at least one step.
     duration : float, default 300.0
         Length of the run, s.
     rng : numpy.random.Generator
@@ -866,10 +933,9 @@ def prbs(
         Integration step, s.
     rpm : float, optional
         Propeller speed, rpm; default the nominal.
-    t_execute : float, default 10.0
-        Start of the sequence, s.
-    p_switch : float, default 0.5
-        Probability of a sign flip per clock tick, in [0, 1].
+    options : PrbsOptions, default PrbsOptions()
+        The clock period ``min_hold_s`` (s), the switch probability ``p_switch`` and the start
+        of the sequence ``t_execute`` (s).
 
     Returns
     -------
@@ -886,6 +952,7 @@ def prbs(
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError("prbs: rng must be a numpy.random.Generator (randomness only through it)")
+    min_hold_s, p_switch, t_execute = options.min_hold_s, options.p_switch, options.t_execute
     if not 0.0 <= p_switch <= 1.0:
         raise ValueError(f"prbs: p_switch {p_switch} outside [0, 1]")
     rpm = vehicle.nominal_rpm if rpm is None else rpm
@@ -932,12 +999,12 @@ def vertical_zigzag(
     vehicle,
     planes_deg: float = 10.0,
     pitch_deg: float | None = None,
+    *,
     dt: float = 0.1,
     duration: float = 120.0,
     rpm: float | None = None,
-    t_execute: float = 10.0,
     first_sign: int = 1,
-    plane_rate_deg_s: float = 0.0,
+    options: ZigzagOptions = ZigzagOptions(),
 ) -> Manoeuvre:
     """Vertical-plane zigzag ``planes_deg/pitch_deg``: stern planes triggered on pitch angle (6-DOF).
 
@@ -965,12 +1032,11 @@ def vertical_zigzag(
         Length of the run, s.
     rpm : float, optional
         Propeller speed, rpm; default the nominal.
-    t_execute : float, default 10.0
-        Time of the first plane command, s.
     first_sign : int, default 1
         Sign of the first command (the name gets an ``m`` suffix for -1).
-    plane_rate_deg_s : float, default 0.0
-        Plane rate limit, deg/s; 0 = instantaneous.
+    options : ZigzagOptions, default ZigzagOptions()
+        The time of the first plane command (``t_execute``, s) and the plane rate limit
+        (``rate_deg_s``, deg/s; 0 = instantaneous).
 
     Returns
     -------
@@ -986,6 +1052,7 @@ def vertical_zigzag(
     """
     rpm = vehicle.nominal_rpm if rpm is None else rpm
     pitch_deg = planes_deg if pitch_deg is None else pitch_deg
+    t_execute, plane_rate_deg_s = options.t_execute, options.rate_deg_s
     n = _grid(duration, dt)
     pitch_sign = math.copysign(1.0, vehicle.coefficients.get("Mds", -1.0))
     inputs = _triggered_zigzag(
@@ -1085,6 +1152,10 @@ def library(vehicle, dt: float = 0.1, rpm: float | None = None, seed: int = 0) -
 
 
 __all__ = [
+    "ZigzagOptions",
+    "ReverseSpiralOptions",
+    "MultisineOptions",
+    "PrbsOptions",
     "steady_state",
     "spiral",
     "turning_circle",

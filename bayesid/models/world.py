@@ -6,6 +6,7 @@ effect magnitudes (:func:`draw_parameters`) and navigation noise (:data:`WORLD_N
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,6 +32,30 @@ WORLD_NOISE = {
     "q": math.radians(0.1),
     "r": math.radians(0.1),
 }
+
+
+@dataclass(frozen=True)
+class LogOptions:
+    """How a world track is logged (:func:`world_track`).
+
+    Parameters
+    ----------
+    noise : dict, optional
+        ``{channel: sd}`` (SI; default :data:`WORLD_NOISE`); every state is recorded.
+    sample_every : int, default 1
+        Record every k-th integration step (1: a 10 Hz log at the manoeuvre's 0.1 s step; the
+        inputs are logged at the same rate, and a coarser log misplaces every rudder step by up
+        to one sample interval).
+    hold_inputs : bool, default False
+        The vehicle is driven by the logged inputs: each command is held over its log interval
+        (an autopilot that runs at the log rate), so a coarse log records the inputs exactly.
+        Without it a 5 Hz log of a 10 Hz zigzag misplaces each rudder reversal by up to 0.1 s,
+        which alone costs the true model 0.4-1 m over 60 s windows.
+    """
+
+    noise: dict | None = None
+    sample_every: int = 1
+    hold_inputs: bool = False
 
 
 def draw_parameters(name: str, level: int, rng: np.random.Generator) -> dict:
@@ -67,12 +92,11 @@ def world_track(
     manoeuvre: Manoeuvre,
     effects: dict,
     rng: np.random.Generator,
-    noise: dict | None = None,
-    sample_every: int = 1,
+    log: LogOptions = LogOptions(),
+    *,
     dt: float | None = None,
     nuisance=None,
     name: str | None = None,
-    hold_inputs: bool = False,
 ) -> Track:
     """A "measured" track of the vehicle flying ``manoeuvre`` with ``effects`` switched on.
 
@@ -89,23 +113,15 @@ def world_track(
         no candidate models).
     rng : numpy.random.Generator
         All randomness (noise; wave phase and current direction if not given).
-    noise : dict, optional
-        ``{channel: sd}`` (SI; default :data:`WORLD_NOISE`); every state is recorded.
-    sample_every : int, default 1
-        Record every k-th integration step (1: a 10 Hz log at the manoeuvre's 0.1 s step; the
-        inputs are logged at the same rate, and a coarser log misplaces every rudder step by up
-        to one sample interval).
+    log : LogOptions, default LogOptions()
+        The navigation noise, the log's sample interval (every k-th step) and whether the
+        vehicle is driven by the logged inputs.
     dt : float, optional
         Integration step, s (default the manoeuvre's).
     nuisance : array_like, optional
         Per-track parameters (default: drawn, e.g. a random phase).
     name : str, optional
         Track name; default the manoeuvre's.
-    hold_inputs : bool, default False
-        The vehicle is driven by the logged inputs: each command is held over its log interval
-        (an autopilot that runs at the log rate), so a coarse log records the inputs exactly.
-        Without it a 5 Hz log of a 10 Hz zigzag misplaces each rudder reversal by up to 0.1 s,
-        which alone costs the true model 0.4-1 m over 60 s windows.
 
     Returns
     -------
@@ -120,6 +136,7 @@ def world_track(
     RuntimeError
         When the world simulation diverges.
     """
+    noise, sample_every, hold_inputs = log.noise, log.sample_every, log.hold_inputs
     dt = manoeuvre.dt if dt is None else dt
     eff, qrow, truth = [], [], {}
     for en, pv in effects.items():
@@ -140,12 +157,12 @@ def world_track(
         manoeuvre = Manoeuvre(
             manoeuvre.name, manoeuvre.dt, U, manoeuvre.initial_state, manoeuvre.description, manoeuvre.parameters
         )
-    log = Track(
+    logged = Track(
         t,
         {k: np.append(manoeuvre.inputs[:, j], manoeuvre.inputs[-1, j]) for j, k in enumerate(INPUT_NAMES)},
         name=manoeuvre.name,
     )
-    ctx = model.context(log, None, s0=manoeuvre.initial_state)
+    ctx = model.context(logged, None, s0=manoeuvre.initial_state)
     if nuisance is None:
         nuisance = rng.uniform(-math.pi, math.pi, size=max(model.n_nuisance, 1))
     if model.n_nuisance:
@@ -160,8 +177,8 @@ def world_track(
         x = S[keep, i] + rng.normal(0.0, noise.get(k, 0.0), keep.size)
         data[k] = wrap(x) if k == "psi" else x
     for j, k in enumerate(INPUT_NAMES):
-        data[k] = log[k][keep]
+        data[k] = logged[k][keep]
     return Track(t[keep], data, name=name or manoeuvre.name, meta={"truth": truth})
 
 
-__all__ = ["world_track", "draw_parameters", "WORLD_NOISE"]
+__all__ = ["world_track", "LogOptions", "draw_parameters", "WORLD_NOISE"]

@@ -131,33 +131,26 @@ def _weak_direction_lines(doc: dict) -> list:
 def _calibration_lines(doc: dict) -> list:
     """The calibration of the predictive bands (none without one)."""
     lines = []
-    cal = doc.get("calibration")
-    if cal:
-        from ..estimation.calibration import (
-            EXCITATION_MEASURES,
-            LEVELS,
-            conformal_quantile,
-            excitation_range,
-            index_scores,
-            window_band,
-        )
+    if doc.get("calibration"):
+        from ..estimation.calibration import EXCITATION_MEASURES, LEVELS, Calibration, conformal_quantile
 
-        failed = [f for f in cal["folds"] if "error" in f]
-        wb = {a: window_band(cal, a) for a in LEVELS}
-        kappa, scores = index_scores(cal)
+        cal = Calibration.from_dict(doc["calibration"])
+        failed = [f for f in cal.folds or [] if "error" in f]
+        wb = {a: cal.window_band(a) for a in LEVELS}
+        kappa, scores = cal.normalised_index_scores()
         keys = sorted(scores)
         lines += [
             "## Calibration of the predictive bands",
             "",
-            f"{cal['method']}: {cal['n_runs']} runs in {cal['n_folds']} folds"
+            f"{cal.method}: {cal.n_runs} runs in {cal.n_folds} folds"
             + (
                 f" ({len(failed)} failed: " + "; ".join(f"{', '.join(f['runs'])}: {f['error']}" for f in failed) + ")"
                 if failed
                 else ""
             )
-            + f"; {len(cal['window_scores']['max_position_m'])} windows of {cal['window_s']:g} s and "
+            + f"; {len(cal.window_scores['max_position_m'])} windows of {cal.window_s:g} s and "
             f"{sum(len(v) for v in scores.values())} manoeuvre indices scored on the left-out runs "
-            f"({cal['n_draws']} posterior draws per fold). `bayesid predict --window {cal['window_s']:g}` reports "
+            f"({cal.n_draws} posterior draws per fold). `bayesid predict --window {cal.window_s:g}` reports "
             "these bands and their coverage.",
             "",
             md_table(
@@ -184,7 +177,7 @@ def _calibration_lines(doc: dict) -> list:
                     + "; `predict` names a run outside 0.8x-1.25x this range.",
                     "",
                 ]
-                if (xr := excitation_range(cal))
+                if (xr := cal.excitation_range())
                 else []
             ),
             "Index columns: the factor q of the band predicted +- q x sqrt(sd^2 + (kappa x predicted)^2), sd "
