@@ -130,6 +130,13 @@ def _words(text: str) -> set[str]:
     return set(re.findall(r"[a-z0-9]+", str(text).lower()))
 
 
+#: How to make a track declare the vessel it is of (the advice of :func:`check_vessel`).
+_REVESSEL = (
+    "re-convert it with 'bayesid convert --vessel {vid}' (or --vessel your_ship.toml), or edit its "
+    "'# vessel:' line to say {vid}"
+)
+
+
 def track_vessel(track: Track) -> str | None:
     """The vessel a track says it is of: ``meta["vessel"]`` (dataset readers) or the first
     ``vessel: ...`` comment line of its file, else None.
@@ -196,13 +203,13 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
     if others and not said & own:
         raise ValueError(
             f"{name}: the track's vessel line says {declared!r}, which is the packaged vehicle "
-            f"{others[0]!r}, but the vehicle is {vid!r}: use --vehicle {others[0]}, or edit the "
-            "'# vessel:' line if this is intended"
+            f"{others[0]!r}, but the vehicle is {vid!r}. If the track is of {others[0]}, use --vehicle "
+            f"{others[0]}; if it is of {vid}, {_REVESSEL.format(vid=vid)}"
         )
     if not said & own:
         return [
             f"{name}: the track's vessel line says {declared!r}; the vehicle is {vid!r} (no word in common: "
-            "a track of another vessel?)"
+            f"a track of another vessel?); if it is of {vid}, {_REVESSEL.format(vid=vid)}"
         ]
     return []
 
