@@ -67,9 +67,7 @@ def test_convert_vessel_makes_the_track_fit_the_users_ship(myship, tmp_path, cap
     assert rc == 2 and "Traceback" not in msg
     assert str(as_is) in msg and "bayesid convert --vessel coastal_tanker" in msg
     # re-converted with --vessel, it is taken
-    rc, msg = _run(
-        ["convert", "--format", "simman-hsva", HSVA, "--vessel", myship, "--out", tmp_path / "mine"], capsys
-    )
+    rc, msg = _run(["convert", "--format", "simman-hsva", HSVA, "--vessel", myship, "--out", tmp_path / "mine"], capsys)
     assert rc == 0, msg
     mine = tmp_path / "mine" / f"{HSVA.stem}.csv"
     lines = mine.read_text().splitlines()

@@ -58,7 +58,7 @@ def _runs(mask) -> list[tuple[int, int]]:
 
 
 def _rows(track: Track, i: int, j: int) -> str:
-    """"rows a-b" of the file (1-based line numbers) of samples i..j, where the track knows its
+    """The "rows a-b" of the file (1-based line numbers) of samples i..j, where the track knows its
     file's rows (:func:`~bayesid.data.track.read_csv`, no blank lines among the data), else the
     samples' 1-based numbers."""
     first, last = track.meta.get("file_rows", (None, None))
