@@ -25,7 +25,7 @@ layer or closes a circle; the import graph is checked):
   :mod:`~bayesid.models.ship.dynamics` the equations as interpreted kernels,
   :mod:`~bayesid.models.ship.kernel` the generated kernel, :mod:`~bayesid.models.ship.effects`
   its effects, :mod:`~bayesid.models.ship.model` the model, :mod:`~bayesid.models.ship.seed` the
-  equation-error seed).
+  equation-error seed, :mod:`~bayesid.models.ship.trials` its standard manoeuvres).
 * :mod:`bayesid.estimation` -- fitting: :mod:`~bayesid.estimation.fit` (the one fit function
   and result), :mod:`~bayesid.estimation.objective` (the paper's whole-track objective),
   :mod:`~bayesid.estimation.windows` (multiple shooting), :mod:`~bayesid.estimation.shooting`

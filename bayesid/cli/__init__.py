@@ -1,6 +1,7 @@
 """The ``bayesid`` command.
 
     bayesid simulate --vehicle nps_auv2 --manoeuvre zigzag --angle 20 --mode horizontal --out track.csv
+    bayesid simulate --vehicle kvlcc2_7m --manoeuvre zigzag --angle -10 --check 10 --out z10.csv
     bayesid convert --format esso-osaka ../shared/data/real/esso-osaka-frt --out tracks/esso
 
     bayesid diagnose --vehicle nps_auv2 --free Yv,Yr,Nv,Nr,Ydr,Ndr --train A.csv B.csv \\

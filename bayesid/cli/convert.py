@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 import re
+import tomllib
+from pathlib import Path
 
 from ..data import datasets
 from ..data.track import write_csv
@@ -36,7 +38,63 @@ def add_parser(sub) -> None:
         help="simman-marin only: Froude scale lambda from the full-scale files to the model "
         f"(none: {datasets.KVLCC2_SCALE:.5g}, the 7 m KVLCC2 model of kvlcc2_7m; 1 keeps full scale)",
     )
+    c.add_argument(
+        "--vessel",
+        default=None,
+        metavar="ID",
+        help="the vessel the runs are of, written as each CSV's '# vessel:' line (the vehicle id, or a "
+        "vehicle TOML whose [vehicle] id is taken), so that fit / predict / diagnose / sample --vehicle ID "
+        "take them; none: the data set's own vessel",
+    )
     opt.add_overwrite(c)
+
+
+def vessel_name(text: str) -> str:
+    """The vessel named by ``--vessel``: a vehicle TOML's ``[vehicle] id`` (else its file stem),
+    or the text itself (a packaged id or any name).
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    str
+        The name written in the ``# vessel:`` line.
+
+    Raises
+    ------
+    ValueError
+        An empty name, or a ``.toml`` file that does not exist or cannot be read (naming it).
+    """
+    text = str(text).strip()
+    if not text:
+        raise ValueError("--vessel: empty name; give the vehicle id or its TOML file")
+    p = Path(text)
+    if p.suffix.lower() != ".toml":
+        return text
+    try:
+        with open(p, "rb") as fh:
+            doc = tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ValueError(f"--vessel {text}: cannot read the vehicle file ({exc})") from None
+    return str(doc.get("vehicle", {}).get("id") or p.stem)
+
+
+def _set_vessel(track, vessel: str) -> None:
+    """Make ``vessel`` the track's declared vessel (``meta["vessel"]`` and its ``# vessel:`` line),
+    keeping what the data set said in a note."""
+    said = track.meta.get("vessel")
+    comments = [c for c in track.meta.get("comments", []) if not re.match(r"\s*vessel\s*[:=]", str(c), re.I)]
+    at = next((i for i, c in enumerate(comments) if str(c).startswith("source:")), -1) + 1
+    comments.insert(at, f"vessel: {vessel}")
+    if said and said != vessel:
+        note = f"vessel line set by bayesid convert --vessel; the data set says: {said}"
+        comments.append(f"note: {note}")
+        track.meta["notes"] = [*track.meta.get("notes", []), note]
+    track.meta["comments"] = comments
+    track.meta["vessel"] = vessel
 
 
 def run(args) -> int:
@@ -61,7 +119,10 @@ def run(args) -> int:
                 f"--scale applies to --format simman-marin only (the {args.format} files are at model scale)"
             )
         options["scale"] = args.scale
+    vessel = vessel_name(args.vessel) if args.vessel is not None else None
     tracks = [datasets.read_run(p, args.format, **options) for p in sources]
+    for tr in tracks if vessel is not None else ():
+        _set_vessel(tr, vessel)
     try:
         out.mkdir(parents=True, exist_ok=True)
         runs = _write_tracks(sources, tracks, out)
@@ -70,6 +131,7 @@ def run(args) -> int:
         summary = {
             "command": "convert",
             "format": args.format,
+            "vessel": vessel,
             "out": str(out),
             "n_runs": len(runs),
             "runs": runs,

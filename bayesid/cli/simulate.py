@@ -1,16 +1,37 @@
-"""``bayesid simulate``: simulate a manoeuvre of a submarine vehicle file and write a Track CSV."""
+"""``bayesid simulate``: simulate a standard manoeuvre of a vehicle file (a submarine or a surface
+ship), print its ITTC indices and write the track as a Track CSV (the format ``bayesid fit``
+reads)."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 from ..data.track import write_csv
-from ..data.vehicle import load_vehicle
-from ..models import manoeuvres as mv
-from ..models.simulate import MODES, Simulator
+from ..estimation import indices as ix
+from ..models.simulate import MODES
 from . import options as opt
 from .outputs import check_out
 
 #: Longest simulation ``bayesid simulate`` runs (model steps): 1e6 s at 0.1 s.
 MAX_SIMULATE_STEPS = 10_000_000
+#: The manoeuvres (``--manoeuvre``).
+MANOEUVRES = ("spiral", "turn", "zigzag", "pull-out", "straight")
+#: How the indices are printed: (key, label, unit).
+_PRINTED = (
+    ("first_overshoot_deg", "first overshoot", "deg"),
+    ("second_overshoot_deg", "second overshoot", "deg"),
+    ("initial_turning_time_s", "initial turning time", "s"),
+    ("time_to_check_yaw_s", "time to check yaw", "s"),
+    ("period_s", "period", "s"),
+    ("advance_m", "advance", "m"),
+    ("transfer_m", "transfer", "m"),
+    ("tactical_diameter_m", "tactical diameter", "m"),
+    ("steady_turning_diameter_m", "steady turning diameter", "m"),
+    ("speed_loss", "speed loss", ""),
+    ("yaw_rate_at_release_deg_s", "yaw rate at release", "deg/s"),
+    ("residual_yaw_rate_deg_s", "residual yaw rate", "deg/s"),
+)
 
 
 def add_parser(sub) -> None:
@@ -21,16 +42,85 @@ def add_parser(sub) -> None:
     sub : argparse._SubParsersAction
         The subparsers of the ``bayesid`` parser.
     """
-    s = opt.add_subcommand(sub, "simulate", "simulate a manoeuvre and write a Track CSV")
-    opt.add_vehicle(s, "packaged id or TOML path", default="nps_auv2")
-    s.add_argument("--manoeuvre", choices=["spiral", "turn", "zigzag", "straight"], default="spiral")
-    opt.add_number(s, "--angle", default=20.0, help="rudder angle, deg (turn, zigzag)")
-    opt.add_number(s, "--duration", opt.NON_NEGATIVE, default=None, help="s (turn, zigzag, straight)")
+    s = opt.add_subcommand(sub, "simulate", "simulate a manoeuvre, print its ITTC indices and write a Track CSV")
+    opt.add_vehicle(s, "packaged id (nps_auv2, kvlcc2_7m, esso_osaka_3m) or a vehicle TOML", default="nps_auv2")
+    s.add_argument(
+        "--manoeuvre",
+        choices=MANOEUVRES,
+        default="spiral",
+        help="spiral: a submarine's the paper's inward spiral, a ship's the direct/reverse spiral (steady "
+        "yaw rate per rudder angle); turn: turning circle; zigzag: heading-triggered; pull-out: a "
+        "steady turn, then rudder amidships; straight",
+    )
+    opt.add_number(
+        s,
+        "--angle",
+        default=20.0,
+        help="rudder angle, deg, + to port (the package's sign): a negative angle turns, or starts a "
+        "zigzag, to starboard; the largest angle of a ship's spiral",
+    )
+    opt.add_number(
+        s,
+        "--check",
+        opt.POSITIVE,
+        default=None,
+        help="zigzag check heading, deg: the heading change that reverses the rudder (none: --angle's size)",
+    )
+    opt.add_number(
+        s,
+        "--speed",
+        opt.POSITIVE,
+        default=None,
+        help="approach speed, m/s at the file's scale (none: a ship file's [service] speed; a submarine's "
+        "steady speed at --rpm); without --rpm the propeller is set to hold it",
+    )
+    opt.add_number(
+        s,
+        "--rpm",
+        opt.POSITIVE,
+        default=None,
+        help="propeller speed, rpm, constant (none: a submarine's nominal; a ship's [service] rpm, else the "
+        "model's self-propulsion point at --speed)",
+    )
+    opt.add_number(
+        s,
+        "--rudder-rate",
+        opt.NON_NEGATIVE,
+        default=None,
+        help="steering gear rate, deg/s, 0: instantaneous (none: a ship file's [service] rudder_rate_deg_s, "
+        "else 0; submarines: zigzag only)",
+    )
+    opt.add_number(
+        s,
+        "--duration",
+        opt.POSITIVE,
+        default=None,
+        help="length of the run, s (none: submarines 150 s turn, 120 s zigzag, 180 s pull-out, 60 s "
+        "straight; ships 10 s approach and 60 ship-length times L/U, a pull-out 80; not for a spiral)",
+    )
+    opt.add_number(
+        s,
+        "--hold",
+        opt.POSITIVE,
+        default=None,
+        help="ships: time at each spiral step, or at the pull-out's angle, s (none: 20 or 40 ship-length "
+        "times L/U); submarine pull-out: the hold (none: 60 s)",
+    )
     opt.add_dt(s, 0.1, "integration step, s")
-    opt.add_number(s, "--sample", opt.POSITIVE, default=0.1, help="output sample interval, s")
-    s.add_argument("--mode", choices=MODES, default="6dof")
-    s.add_argument("--crossflow", choices=["polynomial", "integral"], default=None)
-    opt.add_out(s)
+    opt.add_number(s, "--sample", opt.POSITIVE, default=0.1, help="output sample interval, s (a multiple of --dt)")
+    s.add_argument(
+        "--mode",
+        choices=MODES,
+        default=None,
+        help="submarines: 6dof or horizontal (surge, sway, yaw only); none: 6dof. A ship's model is 3-DOF (horizontal)",
+    )
+    s.add_argument(
+        "--crossflow",
+        choices=["polynomial", "integral"],
+        default=None,
+        help="submarines: the cross-flow drag form (none: the vehicle file's); ships always integrate it",
+    )
+    opt.add_out(s, "the Track CSV written")
     opt.add_overwrite(s)
 
 
@@ -46,6 +136,12 @@ def run(args) -> int:
     -------
     int
         The exit code (0).
+
+    Raises
+    ------
+    ValueError
+        An option that does not apply to the vehicle or manoeuvre, or a bad value, naming the
+        option; a simulation that diverges.
     """
     check_out(args.out, "simulate", args.overwrite)
     if args.duration is not None and args.duration / args.dt > MAX_SIMULATE_STEPS:
@@ -53,28 +149,114 @@ def run(args) -> int:
             f"--duration {args.duration:g} s at --dt {args.dt:g} s is {args.duration / args.dt:.3g} steps "
             f"(at most {MAX_SIMULATE_STEPS:.0e}); shorten --duration or lengthen --dt"
         )
-    from ..models import ship
-
-    if ship.is_ship_file(args.vehicle):
-        raise ValueError(
-            f"--vehicle {args.vehicle}: a surface ship; 'bayesid simulate' runs submarine vehicle "
-            f"files (nps_auv2 or your own TOML)"
-        )
-    vehicle = load_vehicle(args.vehicle)
-    if args.crossflow:
-        vehicle = vehicle.with_crossflow(args.crossflow)
-    if args.manoeuvre == "spiral":
-        m = mv.spiral(vehicle, dt=args.dt)
-    elif args.manoeuvre == "turn":
-        m = mv.turning_circle(vehicle, args.angle, dt=args.dt, duration=args.duration or 150.0)
-    elif args.manoeuvre == "zigzag":
-        m = mv.zigzag(vehicle, args.angle, dt=args.dt, duration=args.duration or 120.0)
-    else:
-        m = mv.straight(vehicle, dt=args.dt, duration=args.duration or 60.0)
     every = int(round(args.sample / args.dt))
     if every < 1 or abs(args.sample / args.dt - every) > 1e-6:
         raise ValueError(f"--sample {args.sample:g} s is not a whole multiple of --dt {args.dt:g} s")
-    res = Simulator(vehicle, m, mode=args.mode, sample_every=every).run()
+    if args.check is not None and args.manoeuvre != "zigzag":
+        raise ValueError(f"--check applies to --manoeuvre zigzag, not {args.manoeuvre}")
+    from ..models import ship
+
+    if ship.is_ship_file(args.vehicle):
+        track, what = _ship(args, every)
+    else:
+        track, what = _submarine(args, every)
+    _report(track, args.manoeuvre)
+    write_csv(track, args.out)
+    print(f"wrote {args.out}: {track.n_samples} samples ({what})")
+    return 0
+
+
+def _ship(args, every):
+    """Simulate a ship file's manoeuvre; the track (comments set) and a description."""
+    from ..models.ship import load_ship
+    from ..models.ship.trials import propulsion_point, service_condition, simulate_trial
+
+    vessel = load_ship(args.vehicle)
+    if args.mode == "6dof":
+        raise ValueError(f"--mode 6dof: {vessel.id} is a 3-DOF surface ship; leave --mode out or give horizontal")
+    if args.crossflow:
+        raise ValueError(f"--crossflow: applies to submarines; the ship model {vessel.id} integrates its cross-flow")
+    service = service_condition(vessel)
+    speed = args.speed if args.speed is not None else (None if args.rpm is not None else service.get("speed"))
+    rpm = args.rpm if args.rpm is not None else (None if args.speed is not None else service.get("rpm"))
+    if speed is None and rpm is None:
+        raise ValueError(
+            f"--speed: {vessel.id} gives no service speed ([service] speed in {vessel.file_path}); give "
+            "--speed (m/s) or --rpm"
+        )
+    speed, rpm = propulsion_point(vessel, speed, rpm)
+    rate = args.rudder_rate if args.rudder_rate is not None else service.get("rudder_rate_deg_s", 0.0)
+    steps = (args.duration or 0.0) + (args.hold or 0.0) * (25 if args.manoeuvre == "spiral" else 1)
+    if steps / args.dt > MAX_SIMULATE_STEPS:
+        raise ValueError(f"--hold {args.hold:g} s: {steps / args.dt:.3g} steps (at most {MAX_SIMULATE_STEPS:.0e})")
+    if args.manoeuvre == "spiral" and args.duration is not None:
+        raise ValueError("--duration does not apply to a ship's spiral; --hold sets each step's time")
+    trial = simulate_trial(
+        vessel,
+        args.manoeuvre.replace("-", "_"),
+        args.angle,
+        check_deg=args.check,
+        speed=speed,
+        rpm=rpm,
+        dt=args.dt,
+        sample_every=every,
+        duration=args.duration,
+        hold=args.hold,
+        rudder_rate_deg_s=rate,
+    )
+    track = trial.track
+    track.meta["comments"] = [
+        f"bayesid simulate: vehicle {vessel.id}, {trial.description}",
+        f"vessel: {vessel.id}",
+    ]
+    print(f"{vessel.id}: {trial.description}")
+    return track, trial.name
+
+
+def _submarine(args, every):
+    """Simulate a submarine vehicle file's manoeuvre; the track (comments set) and its name."""
+    from ..data.vehicle import load_vehicle
+    from ..models import manoeuvres as mv
+    from ..models.simulate import Simulator
+
+    vehicle = load_vehicle(args.vehicle)
+    if args.crossflow:
+        vehicle = vehicle.with_crossflow(args.crossflow)
+    mode = args.mode or "6dof"
+    rpm = args.rpm
+    if args.speed is not None and rpm is None:
+        rpm = args.speed / vehicle.steady_speed(1.0)  # the steady speed is linear in rpm
+    if args.rudder_rate not in (None, 0.0) and args.manoeuvre != "zigzag":
+        raise ValueError(f"--rudder-rate applies to a submarine's zigzag, not its {args.manoeuvre}")
+    if args.hold is not None and args.manoeuvre != "pull-out":
+        raise ValueError(f"--hold applies to a submarine's pull-out, not its {args.manoeuvre}")
+    if args.manoeuvre == "spiral":
+        m = mv.spiral(vehicle, dt=args.dt, rpm=rpm)
+    elif args.manoeuvre == "turn":
+        m = mv.turning_circle(vehicle, args.angle, dt=args.dt, duration=args.duration or 150.0, rpm=rpm)
+    elif args.manoeuvre == "zigzag":
+        m = mv.zigzag(
+            vehicle,
+            abs(args.angle),
+            args.check,
+            dt=args.dt,
+            duration=args.duration or 120.0,
+            rpm=rpm,
+            first_sign=1 if args.angle >= 0 else -1,
+            rudder_rate_deg_s=args.rudder_rate or 0.0,
+        )
+    elif args.manoeuvre == "pull-out":
+        hold = args.hold or 60.0
+        m = mv.pull_out(
+            vehicle, args.angle, t_hold=hold, duration=args.duration or max(180.0, 10.0 + 2 * hold), dt=args.dt, rpm=rpm
+        )
+    else:
+        m = mv.straight(vehicle, dt=args.dt, duration=args.duration or 60.0, rpm=rpm)
+    if args.speed is not None and args.rpm is not None:  # start at the given speed, not the rpm's
+        s0 = m.initial_state.copy()
+        s0[6] = args.speed
+        m = dataclasses.replace(m, initial_state=s0)
+    res = Simulator(vehicle, m, mode=mode, sample_every=every).run()
     if res.diverged[0]:
         raise ValueError(
             f"the simulation diverged at step {res.fail_step[0]} (t = {res.fail_step[0] * args.dt:g} s): "
@@ -82,9 +264,44 @@ def run(args) -> int:
         )
     track = res.track(0, name=m.name)
     track.meta["comments"] = [
-        f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {args.mode}",
+        f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {mode}",
         f"vessel: {vehicle.id}",
     ]
-    write_csv(track, args.out)
-    print(f"wrote {args.out}: {track.n_samples} samples")
-    return 0
+    return track, m.name
+
+
+def _report(track, manoeuvre: str) -> None:
+    """Print the manoeuvre's indices (ITTC definitions, :mod:`bayesid.estimation.indices`) and
+    add them to the track's comments."""
+    t, delta, r = track.t, track["delta_r"], track["r"]
+    if manoeuvre == "spiral":
+        rows = ix.steady_yaw_rates(t, delta, r)
+        print("steady yaw rate per rudder angle (mean over the last third of each hold; drift: its change there)")
+        print("  rudder deg   yaw rate deg/s   drift deg/s")
+        for row in rows:
+            print(f"  {row['rudder_deg']:10.3g}   {row['yaw_rate_deg_s']:14.4g}   {row['drift_deg_s']:11.2g}")
+        track.meta["comments"].append(
+            "steady yaw rate (rudder deg: deg/s): "
+            + ", ".join(f"{row['rudder_deg']:.3g}: {row['yaw_rate_deg_s']:.4g}" for row in rows)
+        )
+        return
+    if manoeuvre == "pull-out":
+        got = ix.pull_out_rates(t, delta, r)
+        kind = "pull-out"
+    elif manoeuvre in ("turn", "zigzag"):
+        got = ix.manoeuvre_indices(t, track["x"], track["y"], track["psi"], delta)
+        kind = got["kind"]
+    else:
+        return
+    if not got or kind == "other":
+        print(f"no {manoeuvre} indices: {got.get('reason', 'the rudder is never released')}")
+        return
+    print(f"{kind} indices (ITTC 7.5-04-02-01):")
+    shown = []
+    for key, label, unit in _PRINTED:
+        if key in got:
+            value = got[key]
+            text = "n/a" if not math.isfinite(value) else f"{value:.4g}"
+            print(f"  {label:<24} {text} {unit}".rstrip())
+            shown.append(f"{key} {text}")
+    track.meta["comments"].append(f"{kind} indices: " + ", ".join(shown))

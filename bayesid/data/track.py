@@ -588,6 +588,7 @@ def _read_stream(path, f) -> Track:
     names = it = None
     blocks: list[list[np.ndarray]] = []
     block, rows, last = [], [], None
+    first_row = last_row = None  # line numbers of the first and the last data row
 
     def flush():
         nonlocal block, rows, last
@@ -607,6 +608,8 @@ def _read_stream(path, f) -> Track:
                 continue
             block.append(cells)
             rows.append(row)
+            first_row = row if first_row is None else first_row
+            last_row = row
             if len(block) == _CHUNK_ROWS:
                 flush()
         if block:
@@ -625,7 +628,7 @@ def _read_stream(path, f) -> Track:
         {k: c for k, c in zip(names, columns) if k != "t"},
         name=Path(path).stem,
         units=units,
-        meta={"comments": comments},
+        meta={"comments": comments, "file_rows": (first_row, last_row)},
     )
 
 

@@ -18,7 +18,7 @@ import re
 
 import numpy as np
 
-from .track import Track
+from .track import INPUT_NAMES, Track
 
 #: (factor, unit) pairs a speed column is recognised in when its ratio to the ground speed from
 #: the positions is within 15 % of the factor.
@@ -42,6 +42,79 @@ def _ratio(a, b):
     return float(np.median(a[sel] / b[sel])) if sel.sum() >= 5 else None
 
 
+#: A run of empty cells in an input column is a hole when the logged values on either side of it
+#: are more than this many sample intervals apart (the track's or, for an input logged more slowly,
+#: its own median interval; the rule of :func:`bayesid.models.context.continuous_pieces`).
+HOLE_INTERVALS = 5.0
+#: A vessel moving faster than this (m/s, median) with its propeller at 0 rpm in every row gets a
+#: warning: a propeller that was not logged, rather than a ship drifting.
+MOVING_SPEED = 0.1
+
+
+def _runs(mask) -> list[tuple[int, int]]:
+    """(first, last) sample indices of each run of True in ``mask``."""
+    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    return list(zip(np.flatnonzero(d == 1).tolist(), (np.flatnonzero(d == -1) - 1).tolist()))
+
+
+def _rows(track: Track, i: int, j: int) -> str:
+    """The "rows a-b" of the file (1-based line numbers) of samples i..j, where the track knows its
+    file's rows (:func:`~bayesid.data.track.read_csv`, no blank lines among the data), else the
+    samples' 1-based numbers."""
+    first, last = track.meta.get("file_rows", (None, None))
+    if first is not None and last - first + 1 == track.n_samples:
+        return f"rows {first + i}-{first + j}"
+    return f"samples {i + 1}-{j + 1}"
+
+
+def input_gaps(track: Track, where: str | None = None) -> None:
+    """Refuse a hole in a logged input: a run of empty cells in ``delta_r``, ``delta_s``,
+    ``delta_b`` or ``n`` that lasts longer than :data:`HOLE_INTERVALS` sample intervals.
+
+    The models hold an input's last logged value over a few empty cells (a dropped sample, or an
+    input logged more slowly than the positions); over a hole they would fly on a rudder or
+    propeller nobody logged, and the window protocol would quietly leave that stretch out. A
+    command therefore stops and says where the hole is.
+
+    Parameters
+    ----------
+    track : Track
+        The track; its input columns (:data:`~bayesid.data.track.INPUT_NAMES`) are checked.
+    where : str, optional
+        The file named in messages; default the track's name.
+
+    Raises
+    ------
+    ValueError
+        A hole (or a column without any value), naming the file, the column, the rows (1-based
+        line numbers in the file) and the times of its empty cells.
+    """
+    name = where or track.name
+    t = track.t
+    h = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    for col in INPUT_NAMES:
+        if col not in track:
+            continue
+        fin = np.flatnonzero(np.isfinite(track[col]))
+        own = float(np.median(np.diff(t[fin]))) if fin.size > 2 else h
+        limit = HOLE_INTERVALS * max(h, own)
+        # the logged values around each run of empty cells (-1, n: the ends of the track)
+        around = np.r_[-1, fin, t.size]
+        for a, b in zip(around[:-1], around[1:]):
+            if b - a < 2:
+                continue
+            i, j = int(a) + 1, int(b) - 1
+            held = (t[b] if b < t.size else t[-1] + h) - (t[a] if a >= 0 else t[0] - h)
+            if held > limit + 1e-9 or fin.size == 0:
+                whole = " (the whole track)" if i == 0 and j == t.size - 1 else ""
+                raise ValueError(
+                    f"{name}: column '{col}': empty in {_rows(track, i, j)} (t = {t[i]:g} to {t[j]:g} s, "
+                    f"{t[j] - t[i] + h:.3g} s{whole}): no logged {col} to simulate with there (an input may "
+                    f"miss at most {HOLE_INTERVALS:g} sample intervals in a row); fill in the logged "
+                    "values, or split the file at the hole, one track file per piece"
+                )
+
+
 #: The packaged vehicles and the words by which a track's ``# vessel:`` line names them.
 PACKAGED_VESSELS = {"nps_auv2": ("nps", "auv2", "sdv"), "esso_osaka_3m": ("esso",), "kvlcc2_7m": ("kvlcc2",)}
 
@@ -55,6 +128,13 @@ _GENERIC = frozenset(
 def _words(text: str) -> set[str]:
     """Lower-case alphanumeric words of ``text`` ("NPS AUV II" -> {"nps", "auv", "ii"})."""
     return set(re.findall(r"[a-z0-9]+", str(text).lower()))
+
+
+#: How to make a track declare the vessel it is of (the advice of :func:`check_vessel`).
+_REVESSEL = (
+    "re-convert it with 'bayesid convert --vessel {vid}' (or --vessel your_ship.toml), or edit its "
+    "'# vessel:' line to say {vid}"
+)
 
 
 def track_vessel(track: Track) -> str | None:
@@ -123,13 +203,13 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
     if others and not said & own:
         raise ValueError(
             f"{name}: the track's vessel line says {declared!r}, which is the packaged vehicle "
-            f"{others[0]!r}, but the vehicle is {vid!r}: use --vehicle {others[0]}, or edit the "
-            "'# vessel:' line if this is intended"
+            f"{others[0]!r}, but the vehicle is {vid!r}. If the track is of {others[0]}, use --vehicle "
+            f"{others[0]}; if it is of {vid}, {_REVESSEL.format(vid=vid)}"
         )
     if not said & own:
         return [
             f"{name}: the track's vessel line says {declared!r}; the vehicle is {vid!r} (no word in common: "
-            "a track of another vessel?)"
+            f"a track of another vessel?); if it is of {vid}, {_REVESSEL.format(vid=vid)}"
         ]
     return []
 
@@ -156,11 +236,13 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     Raises
     ------
     ValueError
-        A column in the wrong unit, naming file, column and the unit it looks like; or a
+        A column in the wrong unit, naming file, column and the unit it looks like; a hole in
+        a logged input (:func:`input_gaps`); or a
         declared vessel that is another packaged vehicle (:func:`check_vessel`).
     """
     name = where or track.name
     warn = check_vessel(track, vehicle, where)
+    input_gaps(track, name)
     t = track.t
     if t.size < 3:
         return warn
@@ -269,7 +351,14 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     if "n" in track:
         n = np.asarray(track["n"], float)
         n = n[np.isfinite(n)]
-        if n.size and not np.any(n):
+        moving = body if body is not None else ground
+        if n.size and not np.any(n) and moving is not None and moving > MOVING_SPEED:
+            warn.append(
+                f"{name}: column 'n': propeller speed is 0 rpm in every row while the vessel moves at "
+                f"{moving:.3g} m/s (median): a propeller speed that was not logged? The model will see "
+                "no thrust; give the logged rpm (or leave the run out)"
+            )
+        elif n.size and not np.any(n):
             warn.append(f"{name}: column 'n': propeller speed is 0 in every row (drifting or not logged?)")
         elif n.size and nominal_rpm > 0 and np.max(np.abs(n)) < nominal_rpm / 20.0:
             refuse(
@@ -283,9 +372,12 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
 __all__ = [
     "check_track",
     "check_vessel",
+    "input_gaps",
     "track_vessel",
     "SPEED_UNITS",
     "POSITION_UNITS",
     "TIME_UNITS",
     "PACKAGED_VESSELS",
+    "HOLE_INTERVALS",
+    "MOVING_SPEED",
 ]

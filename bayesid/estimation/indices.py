@@ -20,7 +20,15 @@ import math
 
 import numpy as np
 
-__all__ = ["INDICES", "ZIGZAG_TIMING", "index_keys", "manoeuvre_indices", "rudder_orders"]
+__all__ = [
+    "INDICES",
+    "ZIGZAG_TIMING",
+    "index_keys",
+    "manoeuvre_indices",
+    "pull_out_rates",
+    "rudder_orders",
+    "steady_yaw_rates",
+]
 
 
 def _rudder_holds(t, delta, threshold: float, min_hold_s: float):
@@ -337,3 +345,94 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
         )
     out["executes_t_s"] = [float(t[m]) for m in executes]
     return dict(out, kind="zigzag", **_zigzag(t, h, executes))
+
+
+def _constant_rudder(t, delta, min_hold_s: float, tol: float) -> list:
+    """(i_start, i_end, mean angle) of each run of the rudder within ``tol`` (rad) of its first
+    value lasting at least ``min_hold_s``."""
+    runs, i = [], 0
+    while i < delta.size:
+        j = i
+        while j + 1 < delta.size and abs(delta[j + 1] - delta[i]) <= tol:
+            j += 1
+        if t[j] - t[i] >= min_hold_s:
+            runs.append((i, j, float(np.mean(delta[i : j + 1]))))
+        i = j + 1
+    return runs
+
+
+def steady_yaw_rates(t, delta, r, *, min_hold_s: float = 10.0, settled: float = 1.0 / 3.0) -> list:
+    """The steady yaw rate at each rudder angle of a spiral test (ITTC 7.5-04-02-01 Sec. 2.2.4):
+    the mean yaw rate over the last ``settled`` part of each hold of the rudder.
+
+    Parameters
+    ----------
+    t : (n,) array
+        Time (s).
+    delta : (n,) array
+        Rudder angle (rad).
+    r : (n,) array
+        Yaw rate (rad/s).
+    min_hold_s : float, default 10.0
+        Shortest hold of one rudder angle counted (s).
+    settled : float, default 1/3
+        The part of each hold, at its end, averaged.
+
+    Returns
+    -------
+    list of dict
+        Per hold in time order: ``rudder_deg``, ``t_start_s``, ``t_end_s``, ``yaw_rate_deg_s``
+        (the mean) and ``drift_deg_s`` (its change over the part averaged: near 0 when steady).
+    """
+    t, delta, r = (np.asarray(a, float) for a in (t, delta, r))
+    out = []
+    for i, j, angle in _constant_rudder(t, delta, min_hold_s, ORDER_TOLERANCE):
+        k = int(np.searchsorted(t, t[j] - settled * (t[j] - t[i])))
+        seg = r[k : j + 1]
+        out.append(
+            {
+                "rudder_deg": float(np.degrees(angle)),
+                "t_start_s": float(t[i]),
+                "t_end_s": float(t[j]),
+                "yaw_rate_deg_s": float(np.degrees(np.mean(seg))),
+                "drift_deg_s": float(np.degrees(seg[-1] - seg[0])),
+            }
+        )
+    return out
+
+
+def pull_out_rates(t, delta, r) -> dict:
+    """The yaw rates of a pull-out test (ITTC 7.5-04-02-01 Sec. 2.2.6): at the release of the
+    rudder and at the end of the run.
+
+    Parameters
+    ----------
+    t : (n,) array
+        Time (s).
+    delta : (n,) array
+        Rudder angle (rad).
+    r : (n,) array
+        Yaw rate (rad/s).
+
+    Returns
+    -------
+    dict
+        ``release_t_s`` (the rudder leaving its last hold), ``yaw_rate_at_release_deg_s`` (mean
+        over the 5 s before), ``residual_yaw_rate_deg_s`` (mean over the last 5 s: near 0 for a
+        directionally stable ship, the width of its spiral loop otherwise) and
+        ``residual_fraction`` (their ratio); empty without a rudder hold released before the end.
+    """
+    t, delta, r = (np.asarray(a, float) for a in (t, delta, r))
+    holds = _rudder_holds(t, delta, HOLD_ANGLE, HOLD_MIN_S)
+    if not holds or holds[-1][2] >= t.size - 1:
+        return {}
+    j = holds[-1][2] + 1
+    before = r[(t >= t[j] - 5.0) & (t < t[j])]
+    end = r[t >= t[-1] - 5.0]
+    r0, r1 = float(np.mean(before)), float(np.mean(end))
+    return {
+        "release_t_s": float(t[j]),
+        "yaw_rate_at_release_deg_s": math.degrees(r0),
+        "residual_yaw_rate_deg_s": math.degrees(r1),
+        "residual_fraction": r1 / r0 if r0 else float("nan"),
+    }

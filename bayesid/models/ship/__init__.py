@@ -74,8 +74,9 @@ Modules: :mod:`~bayesid.models.ship.fileformat` (the ship file,
 parameter vector), :mod:`~bayesid.models.ship.dynamics` (the equations as interpreted compiled
 kernels; the wind of a track), :mod:`~bayesid.models.ship.kernel` (the generated kernel),
 :mod:`~bayesid.models.ship.effects` (:data:`~bayesid.models.ship.effects.SHIP_CATALOGUE`),
-:mod:`~bayesid.models.ship.model` (:class:`~bayesid.models.ship.model.ShipModel`) and
-:mod:`~bayesid.models.ship.seed` (:func:`~bayesid.models.ship.seed.equation_error_seed`). The
+:mod:`~bayesid.models.ship.model` (:class:`~bayesid.models.ship.model.ShipModel`),
+:mod:`~bayesid.models.ship.seed` (:func:`~bayesid.models.ship.seed.equation_error_seed`) and
+:mod:`~bayesid.models.ship.trials` (standard manoeuvres: turn, zigzag, pull-out, spiral). The
 names a user needs are imported here: ``from bayesid.models.ship import ShipModel, load_ship``.
 """
 
