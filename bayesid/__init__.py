@@ -22,6 +22,7 @@ layer or closes a circle; the import graph is checked):
   submarine model), :mod:`~bayesid.models.world` (synthetic tracks with effects switched on),
   :mod:`~bayesid.models.ship` (the MMG surface ship: :mod:`~bayesid.models.ship.fileformat` the
   ship file, :mod:`~bayesid.models.ship.layout` the kernels' parameter vector,
+  :mod:`~bayesid.models.ship.hullterms` extra hull terms by name,
   :mod:`~bayesid.models.ship.dynamics` the equations as interpreted kernels,
   :mod:`~bayesid.models.ship.kernel` the generated kernel, :mod:`~bayesid.models.ship.effects`
   its effects, :mod:`~bayesid.models.ship.model` the model, :mod:`~bayesid.models.ship.seed` the
@@ -42,15 +43,17 @@ layer or closes a circle; the import graph is checked):
   importance-reweighted Laplace, MCMC refinement; ``bayesid sample``).
 * :mod:`bayesid.analysis` -- what the data say: :mod:`~bayesid.analysis.identifiability`,
   :mod:`~bayesid.analysis.dossier`, :mod:`~bayesid.analysis.richness`,
-  :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis).
+  :mod:`~bayesid.analysis.sindy`, :mod:`~bayesid.analysis.gap` (the gap diagnosis and
+  structure discovery, :mod:`~bayesid.analysis.gap.discovery`).
 * :mod:`bayesid.report` -- what goes out: :mod:`~bayesid.report.study` (study folders, JSON,
   manifests), :mod:`~bayesid.report.markdown` (tables, number format), the report writers
   :mod:`~bayesid.report.diagnosis`, :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.predict`,
-  :mod:`~bayesid.report.sample`, :mod:`~bayesid.report.convert`; :mod:`~bayesid.report.plots`.
+  :mod:`~bayesid.report.sample`, :mod:`~bayesid.report.convert`; :mod:`~bayesid.report.plots`;
+  :mod:`~bayesid.report.vehiclefile` (a vehicle file with discovered terms added).
 * :mod:`bayesid.cases` (the paper's Cases 1-3).
 * :mod:`bayesid.cli` -- the ``bayesid`` command (also ``python -m bayesid.cli``,
   ``bayesid.cli.__main__``): one module per subcommand, :mod:`~bayesid.cli.simulate`,
-  :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`, :mod:`~bayesid.cli.fit`,
+  :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`, :mod:`~bayesid.cli.discover`, :mod:`~bayesid.cli.fit`,
   :mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`; :mod:`~bayesid.cli.options` (options
   shared by the subcommands, checks of numbers), :mod:`~bayesid.cli.inputs` (track files),
   :mod:`~bayesid.cli.outputs` (``--out`` folders), :mod:`~bayesid.cli.provenance`.

@@ -13,9 +13,11 @@ import pytest
 from bayesid.data.track import Track
 from bayesid.models import ship
 from bayesid.models.ship import dynamics as shipdyn
+from bayesid.models.ship import (
+    hullterms,  # noqa: F401  (ship.hullterms)
+    layout,
+)
 from bayesid.models.ship import kernel as shipkernel
-from bayesid.models.ship import layout
-from bayesid.models.ship import hullterms  # noqa: F401  (ship.hullterms)
 
 #: agreement of the two kernels, relative to each state channel's largest magnitude
 TOL = 1e-10
@@ -169,7 +171,15 @@ def test_unknown_kernel_is_named():
 
 
 #: extra hull terms of every kind: a constant, a cubic (1/U), rudder powers and |.| forms
-EXTRA_TERMS = {"N0": 0.002, "Y0": -0.003, "Yvvv": -0.6, "Nrrr": -0.02, "Ndrabsdr": 0.01, "Nabsdr": 0.004, "Xabsvdr": 0.01}
+EXTRA_TERMS = {
+    "N0": 0.002,
+    "Y0": -0.003,
+    "Yvvv": -0.6,
+    "Nrrr": -0.02,
+    "Ndrabsdr": 0.01,
+    "Nabsdr": 0.004,
+    "Xabsvdr": 0.01,
+}
 
 
 def test_generated_kernel_with_extra_hull_terms_agrees_with_the_interpreted_one():
@@ -184,9 +194,7 @@ def test_generated_kernel_with_extra_hull_terms_agrees_with_the_interpreted_one(
     prm[:, cidx] *= 1.0 + 0.3 * rng.standard_normal((prm.shape[0], len(cidx)))
     args[5] = prm
     ref, st_ref = _run(shipdyn.simulate_windows, args)
-    gen, st_gen = _run(
-        lambda *a: shipkernel.simulate_windows(*a, terms=ship.hullterms.signature(terms)), args
-    )
+    gen, st_gen = _run(lambda *a: shipkernel.simulate_windows(*a, terms=ship.hullterms.signature(terms)), args)
     np.testing.assert_array_equal(st_gen, st_ref)
     scale = np.nanmax(np.abs(ref), axis=(0, 1))
     assert (np.nan_to_num(np.abs(gen - ref)).max(axis=(0, 1)) / scale < TOL).all()

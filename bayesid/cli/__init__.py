@@ -9,10 +9,12 @@
 
     bayesid fit --vehicle esso_osaka_3m --train A.csv B.csv --effects wind --out fitdir
     bayesid predict --model fitdir/model.json --track C.csv --window 60 --out pred
+    bayesid discover --model fitdir/model.json --train A.csv B.csv --heldout C.csv --out disc \\
+        --write-vehicle myship_discovered.toml
 
 Each subcommand is a module with ``add_parser(sub)`` (its options) and ``run(args)`` (exit
 code): :mod:`~bayesid.cli.simulate`, :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`,
-:mod:`~bayesid.cli.fit`, :mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`. Shared options
+:mod:`~bayesid.cli.discover`, :mod:`~bayesid.cli.fit`, :mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`. Shared options
 and the checks of numbers are in :mod:`~bayesid.cli.options`, the track files in
 :mod:`~bayesid.cli.inputs`, the output folders in :mod:`~bayesid.cli.outputs` and what produced a
 model in :mod:`~bayesid.cli.provenance`; the reports are written by :mod:`bayesid.report`.
@@ -23,7 +25,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import convert, diagnose, fit, predict, sample, simulate
+from . import convert, diagnose, discover, fit, predict, sample, simulate
 from .options import OptionError
 
 #: The subcommands in the order of ``bayesid --help``.
@@ -31,6 +33,7 @@ COMMANDS = {
     "simulate": simulate,
     "convert": convert,
     "diagnose": diagnose,
+    "discover": discover,
     "fit": fit,
     "predict": predict,
     "sample": sample,

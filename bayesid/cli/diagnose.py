@@ -11,7 +11,7 @@ from .. import tasks
 from ..models.simulate import MODES
 from . import options as opt
 from .inputs import free_list, naming_files, read_tracks
-from .outputs import check_out
+from .outputs import check_out, check_write_vehicle
 
 
 def add_parser(sub) -> None:
@@ -52,6 +52,7 @@ def add_parser(sub) -> None:
     opt.add_max_nfev(d, "least-squares iterations per fit")
     opt.add_seed(d, "random seed (noise-floor simulation, ensemble of the force-signature regression)")
     opt.add_weighting(d)
+    opt.add_discovery(d, default_on=True)
     opt.add_jobs(d)
     opt.add_out(d, "output folder")
     opt.add_overwrite(d)
@@ -70,14 +71,13 @@ def run(args) -> int:
     int
         The exit code (0).
     """
-    import numpy as np
-
-    from ..analysis.gap import DiagnoseOptions, diagnose
+    from ..analysis.gap import DiagnoseOptions
+    from ..analysis.gap.discovery import DiscoveryOptions
     from ..models import load_any_vehicle, model_class
-    from ..report import write_diagnosis
 
     tasks.check_jobs(args.jobs, args.scheduler)
     check_out(args.out, "diagnose", args.overwrite)
+    check_write_vehicle(args.write_vehicle, args.overwrite)
     vehicle = load_any_vehicle(args.vehicle)
     family = model_class(vehicle)
     free = free_list(vehicle, args.free)
@@ -98,17 +98,60 @@ def run(args) -> int:
             weighting=args.weighting or None,
             start=args.start,
             leadin_s=args.leadin if args.leadin > 0 else None,
+            discover=None if args.no_discover else DiscoveryOptions(max_order=args.max_order),
         )
-        runner = tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True))
-        res = diagnose(vehicle, free, train, held, options, rng=np.random.default_rng(args.seed), runner=runner)
-        inputs = {"warnings": got["_warnings"], "input_sha256": got["_sha256"]}
-        write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]), inputs=inputs)
+        run_and_write(args, vehicle, free, got, options)
+    return 0
+
+
+def run_and_write(args, vehicle, free, got: dict, options) -> None:
+    """Run the diagnosis, write its report (and ``--write-vehicle``) and print the verdict.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options (``jobs``, ``scheduler``, ``seed``, ``out``, ``write_vehicle``,
+        ``overwrite``).
+    vehicle : Vehicle or Ship
+        The vehicle.
+    free : list of str
+        The free coefficients.
+    got : dict
+        :func:`~bayesid.cli.inputs.read_tracks` of ``--train`` and ``--heldout``.
+    options : DiagnoseOptions
+        The diagnosis' options.
+    """
+    import numpy as np
+
+    from ..analysis.gap import diagnose
+    from ..report import write_diagnosis
+    from ..report.vehiclefile import write_vehicle_with_terms
+
+    train, held = got["--train"], got["--heldout"]
+    runner = tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True))
+    res = diagnose(vehicle, free, train, held, options, rng=np.random.default_rng(args.seed), runner=runner)
+    inputs = {"warnings": got["_warnings"], "input_sha256": got["_sha256"]}
+    write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]), inputs=inputs)
     print(
         f"verdict: {res.verdict}; held-out RMS {res.gap_before['heldout_rms_m']:.3f} m -> "
         f"{res.gap_after['heldout_rms_m']:.3f} m (noise floor {res.noise_floor['heldout_rms_m']:.3f} m, "
         f"window starts {res.settings['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}"
     )
-    return 0
+    found = res.discovered
+    if found is not None and found.found:
+        print(
+            f"discovered: {', '.join(found.found)}: held-out RMS {found.heldout_rms_before_m:.3f} m -> "
+            f"{found.heldout_rms_after_m:.3f} m"
+        )
+    if args.write_vehicle:
+        if found is None or not found.found:
+            print(f"--write-vehicle: no term was kept, {args.write_vehicle} not written")
+        else:
+            values = {n: found.after_coefficients[n] for n in found.found}
+            note = f"discovered by bayesid ({Path(args.out) / 'diagnosis.json'}); a start value for bayesid fit"
+            src = vehicle.file_path
+            path = write_vehicle_with_terms(src, values, args.write_vehicle, note, args.overwrite)
+            print(f"wrote {path}: {src} with {', '.join(found.found)} added")
 
 
 def _candidates(args, family, tracks) -> list:

@@ -381,3 +381,37 @@ def add_overwrite(parser) -> None:
         action="store_true",
         help="replace what this command wrote before in --out (a non-empty --out is refused otherwise)",
     )
+
+
+def add_discovery(parser, default_on: bool) -> None:
+    """Structure discovery's options: ``--max-order``, ``--write-vehicle`` (and ``--no-discover``
+    where discovery is a stage that may be skipped).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    default_on : bool
+        Discovery is a stage of the subcommand (``--no-discover`` skips it).
+    """
+    if default_on:
+        parser.add_argument(
+            "--no-discover",
+            action="store_true",
+            help="skip structure discovery (the terms the model lacks) when the remainder is significant",
+        )
+    add_number(
+        parser,
+        "--max-order",
+        at_least(1),
+        (lambda v: v <= 3, "{option} must be at most 3, not {value}"),
+        kind=int,
+        default=3,
+        help="highest number of factors of a candidate term (1-3; default 3)",
+    )
+    parser.add_argument(
+        "--write-vehicle",
+        default="",
+        metavar="PATH",
+        help="write the vehicle file with the kept terms added (ready for bayesid fit); default: not written",
+    )

@@ -11,6 +11,7 @@ from pathlib import Path
 #: What each command writes into its --out folder (removed first by --overwrite).
 WRITES = {
     "diagnose": ("diagnosis.json", "report.md", "figures"),
+    "discover": ("diagnosis.json", "report.md", "figures"),
     "fit": ("model.json", "report.md", "figures", "journal.jsonl"),
     "predict": ("predict.json", "report.md", "figures"),
     "sample": (
@@ -30,6 +31,7 @@ WRITES = {
 #: The file that marks a folder as a command's output.
 MAIN_OUTPUT = {
     "diagnose": "diagnosis.json",
+    "discover": "diagnosis.json",
     "fit": "model.json",
     "predict": "predict.json",
     "convert": "convert.json",
@@ -134,3 +136,29 @@ def _clear_own_output(out: Path, command: str) -> None:
             shutil.rmtree(q)
         elif q.exists():
             q.unlink()
+
+
+def check_write_vehicle(path: str, overwrite: bool) -> None:
+    """Check ``--write-vehicle`` before any computation: an existing file is not replaced without
+    ``--overwrite``.
+
+    Parameters
+    ----------
+    path : str
+        The option's value ("" when not given).
+    overwrite : bool
+        ``--overwrite``.
+
+    Raises
+    ------
+    ValueError
+        Naming the option and the file when it exists and ``overwrite`` is False, or when it is a
+        folder.
+    """
+    if not path:
+        return
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"--write-vehicle {path}: is a folder; give a .toml file path")
+    if p.exists() and not overwrite:
+        raise ValueError(f"--write-vehicle {path}: the file exists (give another path, or --overwrite to replace it)")

@@ -169,7 +169,7 @@ def run(args) -> int:
 def _ship(args, every):
     """Simulate a ship file's manoeuvre; the track (comments set) and a description."""
     from ..models.ship import load_ship
-    from ..models.ship.trials import propulsion_point, service_condition, simulate_trial
+    from ..models.ship.trials import TrialOptions, propulsion_point, service_condition, simulate_trial
 
     vessel = load_ship(args.vehicle)
     if args.mode == "6dof":
@@ -198,11 +198,9 @@ def _ship(args, every):
         check_deg=args.check,
         speed=speed,
         rpm=rpm,
-        dt=args.dt,
-        sample_every=every,
-        duration=args.duration,
-        hold=args.hold,
-        rudder_rate_deg_s=rate,
+        options=TrialOptions(
+            dt=args.dt, sample_every=every, duration=args.duration, hold=args.hold, rudder_rate_deg_s=rate
+        ),
     )
     track = trial.track
     track.meta["comments"] = [

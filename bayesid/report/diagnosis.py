@@ -62,8 +62,9 @@ def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | 
     (out / "figures").mkdir(parents=True, exist_ok=True)
     res = dict(diag.to_dict(), **(inputs or {}))
     write_json(out / "diagnosis.json", res)
-    figs = _figures(diag, res, out, heldout)
-    lines = [*_summary_lines(res, command), *_how_far_lines(res), *_which_lines(res), *_where_lines(res)]
+    figs = _figures(diag, res, out, heldout) + _discovery_figures(diag, res, out, heldout)
+    lines = [*_summary_lines(res, command), *_how_far_lines(res), *_which_lines(res)]
+    lines += [*_discovery_lines(res), *_where_lines(res)]
     lines += ["", *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
     (out / "report.md").write_text("\n".join(lines))
 
@@ -115,6 +116,145 @@ def _figures(diag, res: dict, out: Path, heldout: list) -> list:
     return figs
 
 
+def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
+    """Structure discovery's figures: per held-out window the RMS position error before and after
+    the kept terms, and the first held-out track's windows with them."""
+    from ..analysis.gap import window_xy
+    from . import plots
+
+    D = res.get("discovery") or {}
+    found = getattr(diag, "discovered", None)
+    if not D or found is None:
+        return []
+    after, label = D["windows_after_m"], "with " + "+".join(D["found"])
+    if not D["found"]:  # nothing kept: the best refitted term, to show why
+        fitted = [r for r in D["discovered"] if r.get("heldout_windows_after_m")]
+        if not fitted:
+            return []
+        best = min(fitted, key=lambda r: r["heldout_rms_after_m"])
+        after, label = best["heldout_windows_after_m"], f"with {best['term']} (best refitted, not kept)"
+    figs = [
+        plots.window_scatter(
+            D["windows_before_m"],
+            after,
+            out / "figures" / "discovery_windows.png",
+            title="Held-out windows: " + (D["verdict"] or ""),
+            labels=("reference model", label),
+        )
+    ]
+    if found.after is not None and heldout:
+        st = res["settings"]
+        ref = diag.after
+        meas, before = window_xy(
+            ref.model, ref.fit, heldout[0], st["window_s"], start=st["start_rule"], leadin_s=st["leadin_s"]
+        )
+        nu = found.after.nuisance
+        _, after = window_xy(
+            found.after.model,
+            found.after.fit,
+            heldout[0],
+            st["window_s"],
+            None if nu is None else nu[0],
+            start=st["start_rule"],
+            leadin_s=st["leadin_s"],
+        )
+        figs.append(
+            plots.window_tracks(
+                None,
+                meas,
+                before,
+                after,
+                out / "figures" / "discovery_track.png",
+                title=f"{heldout[0].name}: {st['window_s']} s windows",
+                labels=("reference model", "with " + "+".join(D["found"])),
+            )
+        )
+    return figs
+
+
+def _discovery_lines(res: dict) -> list:
+    """The structure-discovery section: every refitted term with its numbers, the missing force
+    per degree of freedom against the best library terms, and what was tried."""
+    D = res.get("discovery") or {}
+    if not D:
+        return []
+    R = D["residuals"]
+    lines = [
+        "## What the model lacks (structure discovery)",
+        "",
+        f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
+        f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
+        f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "
+        f"{len(R['mimicked'])} set aside because a refit of the free coefficients reproduces them. "
+        f"{fmt(R['projected_rms'])} of the training residual's RMS is beyond any refit of the free coefficients; "
+        f"the ensemble's median model explains {fmt(R['explained'])} of that.",
+        "",
+        md_table(
+            [
+                "term",
+                "collinear group",
+                "inclusion p",
+                "group p",
+                "coefficient (prime)",
+                "held-out RMS before -> after (m)",
+                "ΔBIC (train)",
+                "window test p",
+                "kept",
+                "why",
+            ],
+            [
+                [
+                    r["term"],
+                    ", ".join(r["group"][:4]) + (" ..." if len(r["group"]) > 4 else "") or "-",
+                    fmt(r["inclusion_probability"]),
+                    fmt(r["group_inclusion_probability"]),
+                    fmt(r.get("coefficient")),
+                    f"{fmt(r['heldout_rms_before_m'])} -> {fmt(r.get('heldout_rms_after_m'))}",
+                    fmt(r.get("delta_bic"), 4),
+                    fmt(r.get("window_p_value")),
+                    "yes" if r["kept"] else "no",
+                    r["reason"],
+                ]
+                for r in D["discovered"]
+            ],
+        )
+        if D["discovered"]
+        else "No candidate reached the inclusion probability at which it is refitted "
+        f"({D['settings']['min_probability']}).",
+        "",
+        "Method: the training residuals of the output-error fit, linearised in every candidate's "
+        "coefficient, with the directions a refit of the free coefficients can take projected out; a sparse "
+        "regression (pysindy STLSQ, block bootstrap over the fit windows) gives each term an inclusion "
+        "probability; each group of nearly collinear terms is refitted (all coefficients re-identified) "
+        "and kept only if it passes the contributor test on the held-out windows.",
+        "",
+    ]
+    F = R.get("forces") or {}
+    if F and "error" not in F:
+        lines += [
+            md_table(
+                ["DOF", "missing force RMS", "noise RMS", "best terms (inclusion p, share of force variance)"],
+                [
+                    [
+                        g,
+                        fmt(d["rms"]) + (" N m" if g == "N" else " N"),
+                        fmt(d["noise_rms"]),
+                        "; ".join(
+                            f"{t['term']} ({fmt(t['inclusion_probability'])}, {fmt(t['force_r2'])})" for t in d["top"]
+                        ),
+                    ]
+                    for g, d in F.items()
+                ],
+            ),
+            "",
+            "Missing force: inverse dynamics of the training tracks' smoothed motion minus the model's forces, less "
+            "what the same processing gives on the model's own run (its twin); noise RMS: the twin with the data's "
+            "noise. Both low-passed alike.",
+            "",
+        ]
+    return lines
+
+
 def _summary_lines(res: dict, command: str) -> list:
     """Title, command, input warnings, verdict and settings."""
     return [
@@ -123,6 +263,11 @@ def _summary_lines(res: dict, command: str) -> list:
         f"`{command}`" if command else "",
         "",
         *(["**Input warnings:** " + "; ".join(res["warnings"]), ""] if res.get("warnings") else []),
+        *(
+            ["**Warning:** " + res["base_check"]["message"] + ".", ""]
+            if res.get("base_check", {}).get("suspect")
+            else []
+        ),
         f"**Verdict: {res['verdict']}**"
         + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""),
         "",

@@ -742,6 +742,43 @@ def window_tracks(t, measured, before, after, path, title: str = "", labels=("ba
     return _plan_view(fig, ax, title, path)
 
 
+def window_scatter(before, after, path, title: str = "", labels=("reference model", "with the terms")):
+    """Per held-out window, the RMS position error of two models (m), against the line of no
+    change: the points below it are the windows the second model predicts better.
+
+    Parameters
+    ----------
+    before : array_like, shape (W,)
+        The first model's per-window RMS position errors, m.
+    after : array_like, shape (W,)
+        The second model's, m.
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The title.
+    labels : tuple of str, default ("reference model", "with the terms")
+        The axes' model names.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    b, a = np.asarray(before, float), np.asarray(after, float)
+    fig, ax = plt.subplots(figsize=(5, 5))
+    top = float(np.nanmax(np.concatenate([b, a, [1e-3]])) * 1.05)
+    ax.plot([0, top], [0, top], "k--", lw=0.8, label="no change")
+    better = int(np.sum(a < b))
+    ax.plot(b, a, "o", ms=4, color="tab:blue", label=f"{better} of {b.size} windows better")
+    ax.set_xlim(0, top)
+    ax.set_ylim(0, top)
+    ax.set_xlabel(f"{labels[0]}: window RMS position error (m)")
+    ax.set_ylabel(f"{labels[1]}: window RMS position error (m)")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
 def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x verdict (columns)"):
     """Heat map of counts {true: {verdict: n}}."""
     rows = list(confusion)

@@ -18,10 +18,13 @@ import numpy as np
 
 from ...estimation.fit import FitResult
 from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores, window_rms
+from ...models import build_model
 from .verdict import paired_window_test
 
 __all__ = [
+    "Setup",
     "Stage",
+    "score_stage",
     "candidate_starts",
     "effect_offset",
     "nested_start",
@@ -58,6 +61,102 @@ class Stage:
     held: dict
     nuisance: list | None
     windows: np.ndarray
+
+
+@dataclass
+class Setup:
+    """What every model of one diagnosis shares: vehicle, free coefficients, tracks, windows.
+
+    Parameters
+    ----------
+    vehicle : Vehicle or Ship
+        The vehicle (nominal coefficients).
+    free : list of str
+        The free coefficients.
+    train : list of Track
+        The training tracks.
+    heldout : list of Track
+        The held-out tracks.
+    dt : float
+        The model step, s.
+    mode : str
+        The submarine equations (``"horizontal"``, ...).
+    fit_window_s : float or None
+        The training fits' window, s.
+    window_s : float or None
+        The held-out scoring window, s.
+    rule : str
+        The window start rule (:data:`bayesid.protocol.START_RULES`).
+    leadin_s : float or None
+        The lead-in of the fitted rule on the held-out tracks, s.
+    effects : tuple, default ()
+        Effects every model of the diagnosis has (the base model's), before the candidates.
+    """
+
+    vehicle: object
+    free: list
+    train: list
+    heldout: list
+    dt: float
+    mode: str
+    fit_window_s: float | None
+    window_s: float | None
+    rule: str
+    leadin_s: float | None
+    effects: tuple = ()
+
+    def build(self, effects):
+        """The model with the setup's effects, then ``effects``, and its contexts.
+
+        Parameters
+        ----------
+        effects : sequence of Effect or str
+            The effects added to the setup's.
+
+        Returns
+        -------
+        tuple
+            ``(model, training contexts, held-out contexts)``.
+        """
+        m = build_model(self.vehicle, self.free, [*self.effects, *effects], dt=self.dt, mode=self.mode)
+        return (
+            m,
+            [m.context(t, self.fit_window_s, start=self.rule) for t in self.train],
+            [m.context(t, self.window_s, start=self.rule, leadin_s=self.leadin_s) for t in self.heldout],
+        )
+
+
+def score_stage(model, fit: FitResult, ctx_train: list, ctx_held: list, sd_fit: dict) -> Stage:
+    """A fitted model scored on the training and held-out contexts (held-out nuisances fitted with
+    the parameters held).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fit : FitResult
+        Its fit on the training contexts.
+    ctx_train : list of TrackContext
+        The training contexts.
+    ctx_held : list of TrackContext
+        The held-out contexts.
+    sd_fit : dict
+        ``{channel: sd}``, the channel weights of the scores.
+
+    Returns
+    -------
+    Stage
+        The scored model.
+    """
+    nu_h = heldout_nuisance(model, fit, ctx_held, sd_fit) if model.n_nuisance else None
+    return Stage(
+        model,
+        fit,
+        scores(model, fit, ctx_train, sd=sd_fit),
+        scores(model, fit, ctx_held, nu_h, sd=sd_fit),
+        nu_h,
+        window_rms(model, fit, ctx_held, nu_h),
+    )
 
 
 def effect_offset(model, effect) -> int:
@@ -246,15 +345,7 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
             messages.append(f"{effect.name} (nested start) failed: {exc}")
     if best is None:
         return None, messages
-    nu_h = heldout_nuisance(model, best, ctx_held, sd_fit) if model.n_nuisance else None
-    return Stage(
-        model,
-        best,
-        scores(model, best, ctx_train, sd=sd_fit),
-        scores(model, best, ctx_held, nu_h, sd=sd_fit),
-        nu_h,
-        window_rms(model, best, ctx_held, nu_h),
-    ), messages
+    return score_stage(model, best, ctx_train, ctx_held, sd_fit), messages
 
 
 def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> dict:

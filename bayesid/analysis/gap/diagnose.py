@@ -11,16 +11,17 @@ import numpy as np
 from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.windows import FitProblem, check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
-from ...models import build_model, model_class
 from ...models import context as ctxmod
+from ...models import model_class
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError
-from .candidates import CandidateFit, Stage, candidate_row, fit_candidate
+from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
+from .discovery import discover
 from .support import signature_regression
 from .verdict import Thresholds, assign_roles, contribution, gap_summary, noise_floor, verdict_of
 from .where import where
 
-__all__ = ["DiagnoseOptions", "Diagnosis", "diagnose"]
+__all__ = ["DiagnoseOptions", "Diagnosis", "diagnose", "base_fit_check", "BASE_FIT_RATIO"]
 
 
 @dataclass
@@ -80,11 +81,22 @@ class Diagnosis:
         The verdict's thresholds.
     seconds : float
         Wall time.
+    discovery : dict
+        Structure discovery on the model after the effects (:mod:`bayesid.analysis.gap.discovery`;
+        ``discovered`` lists every refitted term), or ``{}`` when it was not run.
+    base_check : dict
+        Whether the base fit can be trusted (:func:`base_fit_check`).
     base : Stage, optional
         The base model as a :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
         scores, nuisances) for plots; not in :meth:`to_dict`.
     after : Stage, optional
         The model with every effect added, likewise.
+    discovered : Discovery, optional
+        Structure discovery's result with its models (:mod:`bayesid.analysis.gap.discovery`);
+        not in :meth:`to_dict`.
+    setup : Setup, optional
+        What every model of the diagnosis shares (vehicle, free coefficients, tracks, windows);
+        not in :meth:`to_dict`.
     """
 
     verdict: str
@@ -111,8 +123,12 @@ class Diagnosis:
     settings: dict
     thresholds: dict
     seconds: float
+    discovery: dict = field(default_factory=dict)
+    base_check: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
     after: Stage = field(repr=False, default=None)
+    discovered: object = field(repr=False, default=None)
+    setup: Setup = field(repr=False, default=None)
 
     def to_dict(self) -> dict:
         """The JSON-able fields, in order (the models are left out).
@@ -122,7 +138,8 @@ class Diagnosis:
         dict
             ``{field: value}``.
         """
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("base", "after")}
+        hidden = ("base", "after", "discovered", "setup")
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name not in hidden}
 
 
 @dataclass(frozen=True)
@@ -159,6 +176,12 @@ class DiagnoseOptions:
     leadin_s : float, optional
         The lead-in of the fitted rule on the held-out tracks (s); None:
         :func:`bayesid.protocol.start_settings`.
+    base_effects : tuple, default ()
+        Effects of the base model (names or objects; e.g. those of a fitted model.json): every
+        model compared has them, the candidates are tried on top.
+    discover : DiscoveryOptions or None, default None
+        Run structure discovery (:func:`bayesid.analysis.gap.discovery.discover`) on the model after
+        the effects when its remainder is significant; None: not run.
     """
 
     candidates: tuple | None = None
@@ -171,35 +194,13 @@ class DiagnoseOptions:
     weighting: str | None = None
     start: str = "auto"
     leadin_s: float | None = None
+    base_effects: tuple = ()
+    discover: object = None
 
     def __post_init__(self):
         if self.candidates is not None and not isinstance(self.candidates, tuple):
             object.__setattr__(self, "candidates", tuple(self.candidates))
-
-
-@dataclass
-class _Setup:
-    """What every model of one diagnosis shares: vehicle, free coefficients, tracks, windows."""
-
-    vehicle: object
-    free: list
-    train: list
-    heldout: list
-    dt: float
-    mode: str
-    fit_window_s: float | None
-    window_s: float | None
-    rule: str
-    leadin_s: float | None
-
-    def build(self, effects):
-        """(model, training contexts, held-out contexts) of the model with ``effects``."""
-        m = build_model(self.vehicle, self.free, effects, dt=self.dt, mode=self.mode)
-        return (
-            m,
-            [m.context(t, self.fit_window_s, start=self.rule) for t in self.train],
-            [m.context(t, self.window_s, start=self.rule, leadin_s=self.leadin_s) for t in self.heldout],
-        )
+        object.__setattr__(self, "base_effects", tuple(self.base_effects))
 
 
 def diagnose(
@@ -267,7 +268,9 @@ def diagnose(
     sd = pooled_noise_sd(train + heldout)
     fw = opt.fit_window_s if opt.fit_window_s is not None else family.default_fit_window(opt.window_s)
     rule, lead = start_settings(opt.start, train + heldout, opt.window_s, dt, opt.leadin_s)
-    setup = _Setup(vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead)
+    base_effects = tuple(family.get_effect(e) for e in opt.base_effects)
+    cand_effects = [e for e in cand_effects if e.name not in {b.name for b in base_effects}]
+    setup = Setup(vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead, base_effects)
     weighting = opt.weighting or family.DEFAULT_WEIGHTING
     base, ctr, cho = setup.build(())
     check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
@@ -276,6 +279,9 @@ def diagnose(
         FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
     )
     b_train, b_held = scores(base, bfit, ctr, sd=sd_fit), scores(base, bfit, cho, sd=sd_fit)
+    check = base_fit_check(base, bfit, setup, sd_fit, b_held)
+    if check["suspect"]:
+        say(check["message"])
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
     # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
     nominal = FitResult.fixed(base, base.start(), len(train), "nominal")
@@ -310,8 +316,22 @@ def diagnose(
         "significant": remainder_sig,
     }
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
+    verdict = verdict_of(significant, chosen, remainder_sig)
+    found = None
+    if opt.discover is not None and remainder_sig:
+        say("structure discovery")
+        found = discover(
+            setup,
+            after,
+            [*base_effects, *(c for c in cand_effects if c.name in chosen)],
+            opt.discover,
+            {"sd_fit": sd_fit, "floor_rms": floor["rms_position_m"], "significant": remainder_sig, "thresholds": th},
+            rng=rng,
+            runner=runner,
+        )
+        verdict += " -> " + found.verdict
     return Diagnosis(
-        verdict=verdict_of(significant, chosen, remainder_sig),
+        verdict=verdict,
         effects_added=chosen,
         cause=next((e for e in chosen if roles[e]["role"] == "cause"), None),
         contributors=contributors,
@@ -346,6 +366,7 @@ def diagnose(
         settings={
             "free": list(free),
             "candidates": [e.name for e in cand_effects],
+            "base_effects": [e.name for e in base_effects],
             "window_s": opt.window_s,
             "fit_window_s": fw,
             "dt": dt,
@@ -355,12 +376,70 @@ def diagnose(
             "max_nfev": opt.max_nfev,
             "max_effects": opt.max_effects,
             "weighting": weighting,
+            "round_seconds": search["seconds"],
         },
         thresholds=th.as_dict(),
         seconds=time.perf_counter() - t_start,
+        discovery=found.to_dict() if found is not None else {},
+        base_check=check,
         base=base_stage,
         after=after,
+        discovered=found,
+        setup=setup,
     )
+
+
+#: Held-out over training RMS position error (same windows, same start rule) above which the base fit
+#: is suspect: a model that generalises predicts held-out runs of the same kind about as well as
+#: its training runs, and a structural miss alone rarely triples the ratio.
+BASE_FIT_RATIO = 3.0
+
+
+def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> dict:
+    """Compare the base fit's held-out error with its error on its own training tracks scored by
+    the held-out protocol (same window, same start rule): a held-out error far above the training
+    error says the fit itself may have failed (a local optimum, window starts that only a bent
+    model reproduces), which would look like a structural miss to the candidates and to discovery.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The base model.
+    fit : FitResult
+        Its fit on the training tracks.
+    setup : Setup
+        The diagnosis' setup (training tracks, window, start rule).
+    sd_fit : dict
+        The channel weights of the scores.
+    held : dict
+        The base fit's held-out scores.
+
+    Returns
+    -------
+    dict
+        ``train_rms_at_window_m``, ``heldout_rms_m``, ``ratio``, ``threshold``
+        (:data:`BASE_FIT_RATIO`), ``suspect`` (bool) and ``message``.
+    """
+    ctx = [model.context(t, setup.window_s, start=setup.rule, leadin_s=setup.leadin_s) for t in setup.train]
+    train = scores(model, fit, ctx, sd=sd_fit)["rms_position_m"]
+    ratio = held["rms_position_m"] / train if train > 0 else float("inf")
+    suspect = bool(ratio > BASE_FIT_RATIO)
+    msg = (
+        f"base fit suspect: its held-out RMS {held['rms_position_m']:.3g} m is {ratio:.1f} x its RMS on its own "
+        f"training tracks under the same protocol ({train:.3g} m): either the fit failed (a local optimum, window "
+        "starts only a bent model reproduces) or the model misses structure the training runs let its "
+        "coefficients absorb; rule out the first (bayesid fit --starts) before reading the verdict"
+        if suspect
+        else f"base fit: held-out / training RMS under the same protocol {ratio:.2f} (<= {BASE_FIT_RATIO:g})"
+    )
+    return {
+        "train_rms_at_window_m": train,
+        "heldout_rms_m": held["rms_position_m"],
+        "ratio": ratio,
+        "threshold": BASE_FIT_RATIO,
+        "suspect": suspect,
+        "message": msg,
+    }
 
 
 def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant, th, max_effects, runner) -> dict:
@@ -370,7 +449,7 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant
 
     Parameters
     ----------
-    setup : _Setup
+    setup : Setup
         What every model of the diagnosis shares.
     cand_effects : list of Effect
         The candidates.
@@ -392,16 +471,18 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant
     Returns
     -------
     dict
-        ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles`` and ``after`` (the last stage).
+        ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles``, ``after`` (the last stage) and
+        ``seconds`` (wall time of each round).
     """
     sd_fit, seeds, max_nfev = fit_args
     say = runner.say
     band = th.none_ratio * floor["rms_position_m"]
     excess0 = base_stage.held["rms_position_m"] - floor["rms_position_m"]
-    ranking, rounds, chosen, roles = [], [], [], {}
+    ranking, rounds, chosen, roles, seconds = [], [], [], {}, []
     current = base_stage
     parallel = runner.scheduler is not None or int(runner.jobs) > 1
     for rnd in range(max(1, int(max_effects))):
+        t_round = time.perf_counter()
         ref = current
         results, stages = [], {}
         todo = [e for e in cand_effects if e.name not in chosen]
@@ -443,6 +524,7 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant
         results.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
         assign_roles(results, significant, band, th)
         rounds.append(results)
+        seconds.append(time.perf_counter() - t_round)
         if rnd == 0:
             ranking = results
         # the best-ranked cause closes the gap; else the best-ranked contributor is added and the
@@ -457,7 +539,14 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant
         current = stages[top["effect"]]
         if current.held["rms_position_m"] <= band:
             break
-    return {"ranking": ranking, "rounds": rounds, "chosen": chosen, "roles": roles, "after": current}
+    return {
+        "ranking": ranking,
+        "rounds": rounds,
+        "chosen": chosen,
+        "roles": roles,
+        "after": current,
+        "seconds": seconds,
+    }
 
 
 def _signature_support(family, cand_effects, base, forces, seeds, rng) -> dict:

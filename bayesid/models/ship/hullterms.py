@@ -146,9 +146,7 @@ def parse(name: str) -> HullTerm:
             if body.startswith(tok, i):
                 break
         else:
-            raise _unknown(
-                name, f"cannot read {body[i:]!r} (after X, Y or N: 0, or factors v r absv absr dr absdr)"
-            )
+            raise _unknown(name, f"cannot read {body[i:]!r} (after X, Y or N: 0, or factors v r absv absr dr absdr)")
         factors.append(feat)
         i += len(tok)
     if not factors:

@@ -242,6 +242,35 @@ def spiral_steps(angle_deg: float) -> list[float]:
     return down + down[::-1][1:]
 
 
+@dataclass(frozen=True)
+class TrialOptions:
+    """How a trial of :func:`simulate_trial` is run and logged.
+
+    Parameters
+    ----------
+    dt : float, default 0.1
+        Integration step, s.
+    sample_every : int, default 1
+        Steps per output sample.
+    duration : float, optional
+        Length of the run after the execute, s (not for a spiral); default
+        :data:`RUN_SHIP_LENGTHS` ship-length times ``L / speed`` (a pull-out: its hold and as
+        long again).
+    hold : float, optional
+        Pull-out: time at the rudder angle; spiral: time at each step, s; default
+        :data:`SPIRAL_HOLD_SHIP_LENGTHS` (spiral) or :data:`RUN_SHIP_LENGTHS` (pull-out) times
+        ``L / speed``.
+    rudder_rate_deg_s : float, default 0.0
+        Steering gear rate, deg/s; 0 moves the rudder at once.
+    """
+
+    dt: float = 0.1
+    sample_every: int = 1
+    duration: float | None = None
+    hold: float | None = None
+    rudder_rate_deg_s: float = 0.0
+
+
 def simulate_trial(
     ship: Ship,
     kind: str,
@@ -250,11 +279,7 @@ def simulate_trial(
     check_deg: float | None = None,
     speed: float,
     rpm: float,
-    dt: float = 0.1,
-    sample_every: int = 1,
-    duration: float | None = None,
-    hold: float | None = None,
-    rudder_rate_deg_s: float = 0.0,
+    options: TrialOptions = TrialOptions(),
 ) -> Trial:
     """Simulate a standard manoeuvre of a ship from a straight approach.
 
@@ -280,20 +305,8 @@ def simulate_trial(
         Approach speed, m/s.
     rpm : float
         Propeller speed, rpm.
-    dt : float, default 0.1
-        Integration step, s.
-    sample_every : int, default 1
-        Steps per output sample.
-    duration : float, optional
-        Length of the run after the execute, s (not for a spiral); default
-        :data:`RUN_SHIP_LENGTHS` ship-length times ``L / speed`` (a pull-out: its hold and as
-        long again).
-    hold : float, optional
-        Pull-out: time at the rudder angle; spiral: time at each step, s; default
-        :data:`SPIRAL_HOLD_SHIP_LENGTHS` (spiral) or :data:`RUN_SHIP_LENGTHS` (pull-out) times
-        ``L / speed``.
-    rudder_rate_deg_s : float, default 0.0
-        Steering gear rate, deg/s; 0 moves the rudder at once.
+    options : TrialOptions, default TrialOptions()
+        Step, logging rate, run length, hold and steering-gear rate.
 
     Returns
     -------
@@ -306,6 +319,8 @@ def simulate_trial(
         Unknown kind; a non-positive speed, step or check heading; a zero angle for a turn,
         zigzag or pull-out; a run that diverges (naming the time).
     """
+    dt, sample_every, duration, hold = options.dt, options.sample_every, options.duration, options.hold
+    rudder_rate_deg_s = options.rudder_rate_deg_s
     if kind not in KINDS:
         raise ValueError(f"unknown ship manoeuvre {kind!r}; known: {', '.join(KINDS)}")
     if not speed > 0 or not dt > 0:
@@ -421,5 +436,6 @@ __all__ = [
     "propulsion_point",
     "service_condition",
     "simulate_trial",
+    "TrialOptions",
     "spiral_steps",
 ]

@@ -1,0 +1,1021 @@
+"""Structure discovery: name the model terms behind an "unexplained" gap, refit with them and
+check them on held-out runs.
+
+The gap diagnosis (:mod:`bayesid.analysis.gap`) can only name effects of its catalogue. This module
+asks the next question, "what term is the model missing?", in four steps:
+
+1. **Where the force is missing.** On the training tracks, the forces the measured motion implies
+   (smoothed motion and rigid-body inverse dynamics, :func:`bayesid.models.inverse.estimate_motion`)
+   minus the fitted model's forces along the measured states (the model's ``missing_forces``), per
+   degree of freedom X, Y, N, with their noise level (the scatter of successive differences).
+2. **Candidate terms.** Every product of the features up to third order the model does not have,
+   named as a vehicle file writes them: for a ship the extra hull terms of
+   :mod:`bayesid.models.ship.hullterms` (``v r |v| |r| dr |dr|`` and the constants ``X0 Y0 N0``, so
+   port/starboard asymmetric forms such as ``N0``, ``Nabsdr``, ``Nvv`` are candidates); for a
+   submarine the products of the term grammar (:func:`bayesid.data.terms.parse`: ``u v r |v| |r| dr``,
+   at most two velocity factors).
+3. **Sparse selection with inclusion probabilities.** Per degree of freedom, the missing force is
+   regressed on the candidates' force columns by sequentially thresholded least squares (pysindy
+   ``STLSQ``; Brunton, Proctor & Kutz 2016) on RMS-normalised columns and target, so terms of
+   different size compete by the share of the missing force they carry; an ensemble over a
+   **block bootstrap** of the samples (blocks of :attr:`DiscoveryOptions.block_s` seconds: the
+   residuals of a track are correlated in time, and resampling single samples would overstate the
+   certainty) gives each term an inclusion probability (Fasel, Kutz, Brunton & Brunton 2022,
+   Ensemble-SINDy, Proc. R. Soc. A 478:20210904). Candidates whose columns are nearly collinear
+   (|cosine| >= :attr:`DiscoveryOptions.group_cos`) form a **group**: the group's inclusion
+   probability is the share of models that select any member, and the group is tested as one
+   candidate (its most probable member), never as a winner picked by chance.
+4. **Confirmed by the output-error fit and held-out runs.** Each candidate is added to the model
+   (start 0: the model it extends, and the regression's value) and ALL free coefficients are
+   re-identified by the same multiple-shooting fit ``bayesid fit`` uses, with the reference
+   fit's channel weights; it is **kept** only if it passes the gap diagnosis's contributor test on
+   the held-out windows (:func:`bayesid.analysis.gap.verdict.is_contributor`: training ΔBIC <= -10,
+   held-out shrinkage > 0, and a one-sided Wilcoxon test of the paired per-window errors
+   p < 0.01 or half the excess over the noise floor removed). Terms that fit the training runs but
+   not the held-out ones are reported as rejected with their numbers. The kept terms are then
+   added together, best first, each further one refitted on top of those added and kept only if
+   it passes the same test against them while the held-out error is still above the floor band.
+
+:func:`discover` runs the whole search from a reference model (the diagnosis's model after its
+catalogue effects, or a base fit of its own) and returns a :class:`Discovery`.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pysindy as ps
+from scipy.ndimage import uniform_filter1d
+from threadpoolctl import threadpool_limits
+
+from ...data import terms as termlib
+from ...data.track import STATE_NAMES, Track
+from ...estimation.laplace import fit_covariance
+from ...estimation.windows import FitProblem, WindowObjective, fit_model, pooled_noise_sd
+from ...models.ship import hullterms
+from ...models.ship.fileformat import Ship
+from ...tasks import Runner, Task, TaskError
+from ..sindy import library_columns
+from .candidates import Setup, Stage, score_stage
+from .verdict import Thresholds, is_contributor, paired_window_test
+
+__all__ = [
+    "DiscoveryOptions",
+    "Discovery",
+    "TermFit",
+    "candidate_terms",
+    "force_residuals",
+    "select_terms",
+    "fit_term",
+    "discover",
+]
+
+_DOFS = ("X", "Y", "N")
+
+
+@dataclass(frozen=True)
+class DiscoveryOptions:
+    """What structure discovery searches and how it decides (:func:`discover`).
+
+    Parameters
+    ----------
+    max_order : int, default 3
+        Highest number of factors of a candidate term (ship; a submarine term has at most two
+        velocity factors by its prime form).
+    dofs : tuple of str, default ("Y", "N")
+        The degrees of freedom searched (``"X"``, ``"Y"``, ``"N"``).
+    n_models : int, default 100
+        Bootstrap models of the ensemble.
+    threshold : float, default 0.1
+        STLSQ threshold on the normalised coefficients: a term must carry this share of the
+        projected output residual's RMS to stay in a model.
+    block_s : float, default 10.0
+        Block length of the block bootstrap, s.
+    min_probability : float, default 0.5
+        Group inclusion probability from which a group is refitted (confirmation).
+    max_candidates : int, default 6
+        At most this many groups are refitted (the most probable).
+    group_cos : float, default 0.95
+        |cosine| of two candidates' force columns from which they form a collinear group.
+    trim_s : float, default 2.0
+        Seconds dropped at either end of each track (smoothing edges).
+    lowpass_s : float, default 2.0
+        Moving-average window applied alike to the missing forces and the columns, s.
+    ridge : float, default 0.01
+        Ridge weight per sample of the normalised regression (collinear columns).
+
+    max_nfev : int, default 60
+        Least-squares iterations of each confirmation fit.
+
+    Raises
+    ------
+    ValueError
+        An option out of range (named).
+    """
+
+    max_order: int = 3
+    dofs: tuple = ("Y", "N")
+    n_models: int = 100
+    threshold: float = 0.1
+    block_s: float = 10.0
+    min_probability: float = 0.5
+    max_candidates: int = 6
+    group_cos: float = 0.95
+    trim_s: float = 2.0
+    lowpass_s: float = 2.0
+    ridge: float = 0.01
+    max_nfev: int = 60
+
+    def __post_init__(self):
+        if not 1 <= int(self.max_order) <= hullterms.MAX_ORDER:
+            raise ValueError(f"max_order must be 1..{hullterms.MAX_ORDER}, got {self.max_order}")
+        bad = [d for d in self.dofs if d not in _DOFS]
+        if bad or not self.dofs:
+            raise ValueError(f"dofs must be a non-empty subset of {_DOFS}, got {self.dofs}")
+        if int(self.n_models) < 2:
+            raise ValueError(f"n_models must be >= 2, got {self.n_models}")
+        if not 0 < self.min_probability <= 1:
+            raise ValueError(f"min_probability must be in (0, 1], got {self.min_probability}")
+        if not 0 < self.group_cos <= 1:
+            raise ValueError(f"group_cos must be in (0, 1], got {self.group_cos}")
+        if not self.threshold >= 0 or not self.block_s > 0 or not self.trim_s >= 0:
+            raise ValueError("threshold and trim_s must be >= 0 and block_s > 0")
+        object.__setattr__(self, "dofs", tuple(self.dofs))
+
+
+@dataclass
+class Discovery:
+    """The result of :func:`discover` (JSON-able through :meth:`to_dict`, the ``discovery`` entry
+    of ``diagnosis.json``).
+
+    Parameters
+    ----------
+    found : list of str
+        The kept terms, in the order added.
+    verdict : str
+        ``"discovered: N0+Nvvv"`` or ``"no term of the library explains it"``.
+    discovered : list of dict
+        Every refitted candidate: ``term``, ``dof``, ``inclusion_probability`` (the term's),
+        ``group_inclusion_probability``, ``group`` (its collinear alternatives),
+        ``regression_coefficient``, ``coefficient`` and ``coefficient_sd`` (prime: the
+        regression's, the refit's and its Laplace sd),
+        ``heldout_rms_before_m``, ``heldout_rms_after_m`` (and per window,
+        ``heldout_windows_after_m``), ``train_rms_before_m``,
+        ``train_rms_after_m``, ``shrinkage``, ``delta_bic``, ``window_p_value``,
+        ``excess_removed``, ``kept`` and ``reason``.
+    inclusion : dict
+        ``{term: inclusion probability}`` of every candidate with a non-zero one, best first.
+    residuals : dict
+        ``forces``: per degree of freedom the missing force's RMS (N or N m), the null's and the
+        best candidates (:func:`force_summary`); ``explained``: the share of the projected
+        output residual's variance the ensemble's median model explains; ``projected_rms``: the
+        share of the training residual's RMS no refit of the free parameters can remove;
+        ``mimicked``: candidates the free parameters reproduce.
+    library_size : int
+        Number of candidate terms.
+    heldout_rms_before_m : float
+        The reference model's held-out RMS position error, m.
+    heldout_rms_after_m : float
+        With every kept term, m.
+    after_coefficients : dict
+        The coefficients of the model with every kept term (prime).
+    windows_before_m : list of float
+        The reference model's RMS position error of each held-out window, m.
+    windows_after_m : list of float
+        With every kept term, m.
+    settings : dict
+        The options and what the reference model was.
+    seconds : float
+        Wall time.
+    after : Stage, optional
+        The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
+    vehicle : Vehicle or Ship, optional
+        The reference vehicle with the kept terms added at their fitted values and the free
+        coefficients at theirs (for ``--write-vehicle``); not in :meth:`to_dict`.
+    """
+
+    found: list
+    verdict: str
+    discovered: list
+    inclusion: dict
+    residuals: dict
+    library_size: int
+    heldout_rms_before_m: float
+    heldout_rms_after_m: float
+    after_coefficients: dict
+    windows_before_m: list
+    windows_after_m: list
+    settings: dict
+    seconds: float
+    after: Stage | None = field(repr=False, default=None)
+    vehicle: object = field(repr=False, default=None)
+
+    def to_dict(self) -> dict:
+        """The JSON-able fields.
+
+        Returns
+        -------
+        dict
+            ``{field: value}`` without ``after`` and ``vehicle``.
+        """
+        return {k: v for k, v in self.__dict__.items() if k not in ("after", "vehicle")}
+
+
+# -- 2. candidate terms ---------------------------------------------------------------------------
+
+
+def _ship_products(max_order: int) -> list[str]:
+    """Names of every product of ``v r dr`` and their |.| forms up to ``max_order`` factors (one
+    name per product: ``|x| |x| = x x``), and the constants, per force letter."""
+    parts = []
+    for a_v in range(max_order + 1):
+        for c_v in (0, 1):
+            for a_r in range(max_order + 1):
+                for c_r in (0, 1):
+                    for a_d in range(max_order + 1):
+                        for c_d in (0, 1):
+                            n = a_v + c_v + a_r + c_r + a_d + c_d
+                            if 1 <= n <= max_order:
+                                parts.append(
+                                    "v" * a_v + "absv" * c_v + "r" * a_r + "absr" * c_r + "dr" * a_d + "absdr" * c_d
+                                )
+    return ["0"] + sorted(parts, key=lambda p: (len(p), p))
+
+
+def _submarine_products() -> list[str]:
+    """Names of the horizontal-plane products of the submarine grammar: at most two velocity
+    factors (u implicit) from ``v r absv absr``, and up to three rudder factors."""
+    vel = ["", "v", "r", "absv", "absr", "vv", "vr", "rr", "vabsv", "vabsr", "rabsv", "rabsr"]
+    return [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
+
+
+def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
+    """The candidate terms a model lacks, named as its vehicle file writes them.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The reference model (a ship's or a submarine's); its vehicle's coefficients (listed,
+        non-zero or free) are not candidates.
+    max_order : int, default 3
+        Highest number of factors (ship).
+    dofs : sequence of str, default ("Y", "N")
+        The force letters searched.
+
+    Returns
+    -------
+    list of str
+        The names, grouped by force letter.
+    """
+    veh = model.vehicle
+    out = []
+    if isinstance(veh, Ship):
+        for g in dofs:
+            for body in _ship_products(max_order):
+                name = g + body
+                if name in veh.coefficients:
+                    continue
+                try:
+                    hullterms.parse(name)
+                except hullterms.HullTermError:
+                    continue  # a listed product
+                out.append(name)
+        return out
+    have = {k for k, v in veh.coefficients.items() if v != 0.0} | set(model.free)
+    for g in dofs:
+        for body in _submarine_products():
+            name = g + body
+            try:
+                t = termlib.parse(name)
+            except termlib.UnknownCoefficientError:
+                continue
+            if t.name not in have and t.horizontal and t.name not in out:
+                out.append(t.name)
+    return out
+
+
+def _columns(model, names: list, motion: dict, inputs) -> np.ndarray:
+    """Force columns (n, K) of candidate terms at unit prime coefficient along the smoothed
+    motion (the rudder smoothed alike, so both sides of the regression share a bandwidth)."""
+    veh = model.vehicle
+    if isinstance(veh, Ship):
+        P = veh.particulars
+        return hullterms.columns(
+            [hullterms.parse(n) for n in names],
+            motion["u"],
+            motion["v"],
+            motion["r"],
+            np.asarray(inputs)[:, 0],
+            P["L"],
+            P["rho"],
+            P["d"],
+        )
+    for n in names:
+        termlib.term(n)  # adds a product to the table
+    return library_columns(list(names), motion, inputs, veh)
+
+
+# -- 1. force residuals ----------------------------------------------------------------------------
+
+
+def twin_track(model, fit, track: Track, noise_sd: dict | None = None, rng=None) -> Track | None:
+    """The fitted model's own run through a track's inputs: one window from the track's start
+    state, the channels the track logs (states from the simulation, every other column as
+    logged), optionally with white noise of the data's sd on the state channels.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fit : FitResult
+        Its fit.
+    track : Track
+        The logged track.
+    noise_sd : dict, optional
+        ``{channel: sd}`` (SI) of the noise added to the simulated channels; None: none.
+    rng : numpy.random.Generator, optional
+        Draws the noise.
+
+    Returns
+    -------
+    Track or None
+        The twin; None when the simulation diverges.
+    """
+    try:
+        ctx = model.context(track, None)
+        S = model.simulate(ctx, fit.p[None])[0]
+    except Exception:  # noqa: BLE001 - no twin
+        return None
+    if not np.isfinite(S).all():
+        return None
+    data = {}
+    for k in track.data:
+        if k in STATE_NAMES:
+            data[k] = S[:, STATE_NAMES.index(k)].copy()
+            sd = (noise_sd or {}).get(k, 0.0)
+            if sd > 0:
+                data[k] += rng.normal(0.0, sd, data[k].size)
+        else:
+            data[k] = np.interp(ctx.ts, track.t, np.asarray(track[k], float))
+    return Track(ctx.ts, data, name=f"{track.name} (model twin)")
+
+
+def _forces_at(model, fit, track, t) -> np.ndarray | None:
+    """The missing forces of a track interpolated at times ``t`` (None if inverse dynamics fails)."""
+    try:
+        m, F, _ = model.missing_forces(fit, track)
+    except Exception:  # noqa: BLE001
+        return None
+    return np.column_stack([np.interp(t, m["t"], F[:, j], left=np.nan, right=np.nan) for j in range(3)])
+
+
+def force_residuals(model, fit, tracks: list, names: list, options=None, rng=None) -> list[dict]:
+    """The missing forces of each track, their null (what noise alone gives), the candidates'
+    columns and the free coefficients' force derivatives at the same samples.
+
+    The null is measured on the fitted model's own run through the track's inputs
+    (:func:`twin_track`): the missing force of the twin with noise of the data's sd minus that of
+    the noiseless twin is the noise as the processing (smoothing, differentiation) passes it. The
+    noiseless twin's own missing force (the processing's bias on an exact model) is subtracted
+    from the track's.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The reference model.
+    fit : FitResult
+        Its fit.
+    tracks : list of Track
+        The (training) tracks.
+    names : list of str
+        The candidate terms (:func:`candidate_terms`).
+    options : DiscoveryOptions, optional
+        ``trim_s`` (default :class:`DiscoveryOptions`).
+    rng : numpy.random.Generator, optional
+        The null's noise (default seed 0).
+
+    Returns
+    -------
+    list of dict
+        Per track: ``t`` (n,), ``F`` (n, 3) missing X, Y (N) and N (N m), ``null`` (n, 3) or
+        None, ``columns`` (n, K), and ``S`` (n, 3, n_theta), the force derivatives of the free
+        coefficients (the model's ``force_sensitivities``; None for a family without them).
+        Tracks whose inverse dynamics fail are left out.
+
+    Raises
+    ------
+    ValueError
+        When no track gives missing forces.
+    """
+    opt = options or DiscoveryOptions()
+    rng = np.random.default_rng(0) if rng is None else rng
+    sd = pooled_noise_sd(tracks, floor=False)
+    out = []
+    for tr in tracks:
+        try:
+            motion, F, inputs = model.missing_forces(fit, tr)
+        except Exception:  # noqa: BLE001 - a track without usable motion adds no rows
+            continue
+        t = np.asarray(motion["t"], float)
+        null = None
+        twin = twin_track(model, fit, tr)
+        F0 = None if twin is None else _forces_at(model, fit, twin, t)
+        if F0 is not None:
+            F = F - F0
+            Fn = _forces_at(model, fit, twin_track(model, fit, tr, sd, rng), t)
+            null = None if Fn is None else Fn - F0
+        C = _columns(model, names, motion, inputs)
+        S = model.force_sensitivities(fit, tr) if hasattr(model, "force_sensitivities") else None
+        keep = (t >= t[0] + opt.trim_s) & (t <= t[-1] - opt.trim_s) & np.isfinite(F).all(1) & np.isfinite(C).all(1)
+        if null is not None:
+            keep &= np.isfinite(null).all(1)
+        if keep.sum() > 10:
+            out.append(
+                {
+                    "t": t[keep],
+                    "F": F[keep],
+                    "null": None if null is None else null[keep],
+                    "columns": C[keep],
+                    "S": None if S is None else S[keep],
+                }
+            )
+    if not out:
+        raise ValueError("no training track gives missing forces (inverse dynamics failed on every track)")
+    return out
+
+
+# -- 3. sparse selection ---------------------------------------------------------------------------
+
+
+def _blocks(rows: list, block_s: float) -> list[np.ndarray]:
+    """Row indices of consecutive blocks of ``block_s`` seconds within each track."""
+    blocks, o = [], 0
+    for r in rows:
+        t = r["t"]
+        k = np.floor((t - t[0]) / block_s).astype(int)
+        for b in np.unique(k):
+            blocks.append(o + np.flatnonzero(k == b))
+        o += t.size
+    return blocks
+
+
+def _lowpass(rows: list, seconds: float) -> list[dict]:
+    """Every array of the rows through the same moving average (both sides of the regression
+    keep one bandwidth)."""
+    if seconds <= 0:
+        return rows
+    out = []
+    for r in rows:
+        k = max(1, int(round(seconds / float(np.median(np.diff(r["t"]))))))
+        out.append(
+            {
+                key: (uniform_filter1d(v, k, axis=0, mode="nearest") if key != "t" and v is not None else v)
+                for key, v in r.items()
+            }
+        )
+    return out
+
+
+def _project(S: np.ndarray | None, *arrays):
+    """The arrays with their component in the span of the columns of ``S`` removed: what a refit
+    of the free coefficients cannot absorb."""
+    if S is None:
+        return arrays
+    sn = np.sqrt(np.mean(S**2, axis=0))
+    live = sn > 0
+    if not live.any():
+        return arrays
+    U, sv, _ = np.linalg.svd(S[:, live] / sn[live], full_matrices=False)
+    Q = U[:, sv > 1e-8 * sv[0]]
+    return tuple(None if a is None else a - Q @ (Q.T @ a) for a in arrays)
+
+
+def _groups(Xn: np.ndarray, cos: float) -> list[list[int]]:
+    """Groups of nearly collinear columns of a normalised library: column j's group is every
+    column whose |cosine| with j is at least ``cos``."""
+    G = np.abs(Xn.T @ Xn) / Xn.shape[0]
+    return [list(np.flatnonzero(G[j] >= cos)) for j in range(Xn.shape[1])]
+
+
+def _ensemble(Xn, yn, blocks, threshold, options, rng) -> np.ndarray:
+    """Block-bootstrap ensemble of ridge STLSQ fits (pysindy): (n_models, K) coefficients.
+
+    STLSQ's ridge problem depends on the rows only through ``X'X`` and ``X'y``: each block's are
+    summed once, a bootstrap replicate sums its blocks', and pysindy fits the K x K problem
+    ``(R, R^-T X'y)`` with ``R'R = X'X`` (the same minimiser; tens of thousands of rows cost
+    nothing more than one pass)."""
+    G = np.stack([Xn[b].T @ Xn[b] for b in blocks])
+    g = np.stack([Xn[b].T @ yn[b] for b in blocks])
+    n = np.array([b.size for b in blocks], float)
+    K = Xn.shape[1]
+    stl = ps.STLSQ(threshold=threshold, alpha=0.0, normalize_columns=False, unbias=False, max_iter=20)
+    xi = np.empty((options.n_models, K))
+    with threadpool_limits(1), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "eliminated all coefficients"
+        for m in range(options.n_models):
+            pick = rng.integers(0, len(blocks), len(blocks))
+            Gm, gm = G[pick].sum(axis=0), g[pick].sum(axis=0)
+            R = np.linalg.cholesky(Gm + 1e-10 * np.trace(Gm) / K * np.eye(K)).T
+            stl.alpha = options.ridge * n[pick].sum()
+            stl.fit(R, np.linalg.solve(R.T, gm))
+            xi[m] = stl.coef_[0]
+    return xi
+
+
+def _augmented(setup: Setup, model, effects, names: list, window_s: float | None):
+    """The reference model with every candidate added at 0 and free, on the interpreted kernel
+    (one model for any number of terms, nothing to compile), and its training contexts over
+    ``window_s`` windows."""
+    veh = setup.vehicle.with_coefficients({n: 0.0 for n in names})
+    free = list(setup.free) + list(names)
+    if isinstance(veh, Ship):
+        m = type(model)(veh, free, list(effects), dt=setup.dt, kernel="interpreted")
+    else:
+        m = type(model)(veh, free, list(effects), mode=setup.mode, dt=setup.dt, kernel="interpreted")
+    return m, [m.context(t, window_s, start=setup.rule) for t in setup.train]
+
+
+def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: dict, window_s=None) -> dict:
+    """The output-error problem of the training tracks, linearised at the reference fit in the
+    candidates' coefficients (all at 0).
+
+    The windows: with measured start states, the fit's own (``setup.fit_window_s``): every
+    restart from a measured state is another experiment, and over few long windows the free
+    coefficients' sensitivities span nearly every candidate's (a synthetic KVLCC2 case with a
+    hidden ``Nabsdr``: named with inclusion 0.97 over 15 s windows, set aside as mimicked over
+    60 s ones). With fitted start states (no velocity log), the held-out protocol's scoring window
+    (``setup.window_s``): over a short window the fitted start states absorb most of any term
+    (the same case without the velocity log: nothing selected over 15 s windows, ``Nabsdr`` with
+    inclusion 0.86 over 60 s ones).
+
+    The weighted window residuals ``r`` and their Jacobian (:class:`bayesid.estimation.windows.
+    WindowObjective`, fitted start states projected out) by the reference's free parameters
+    (coefficients, effect parameters, nuisances) and by each candidate's coefficient. A refit
+    with candidate ``c`` moves the residuals by ``J_c dc`` plus whatever the free parameters can
+    absorb: so the free directions are projected out of ``r`` and of every ``J_c`` (Frisch-Waugh-
+    Lovell), and what a candidate can still explain is the regression of the projected residual
+    on its projected column -- the first Gauss-Newton step of adding it (Rao's score test).
+
+    Parameters
+    ----------
+    setup : Setup
+        The reference model's vehicle, free coefficients, tracks and windows.
+    ref : Stage
+        The fitted reference model.
+    effects : sequence of Effect
+        Its effects.
+    names : list of str
+        The candidates.
+    sd_fit : dict
+        The channel weights of the fit.
+    window_s : float, optional
+        The windows, s; default as above (the whole run when the chosen window is None).
+
+    Returns
+    -------
+    dict
+        ``y`` (n,): minus the projected residuals; ``X`` (n, K): the projected candidate columns;
+        ``size`` (K,): the columns' RMS before the projection; ``blocks``: row indices of each
+        window (the block bootstrap's blocks); ``rms``: the residuals' RMS before the
+        projection.
+    """
+    if window_s is None:
+        window_s = setup.fit_window_s if setup.rule == "measured" else setup.window_s
+    model, ctxs = _augmented(setup, ref.model, effects, names, window_s)
+    n_ref, K = ref.model.n_theta, len(names)
+    p0 = _extended_start(ref, model, [0.0] * K)
+    nu0 = ref.fit.nuisance if model.n_nuisance else None
+    obj = WindowObjective(model, ctxs, sd_fit, p0=p0, nuisance0=nu0)
+    r, J = obj.jacobian(np.asarray(obj.x0, float))
+    cand = np.arange(n_ref, n_ref + K)
+    other = np.setdiff1d(np.arange(J.shape[1]), cand)
+    Jc = J[:, cand]
+    size = np.sqrt(np.mean(Jc**2, axis=0))
+    y, X = _project(J[:, other], -r, Jc)
+    blocks, o = [], 0
+    for ctx, w in zip(ctxs, obj.wts):
+        n_c = sum(1 for c in ctx.channels if c in w)
+        rows = np.arange(n_c * ctx.ts.size).reshape(n_c, ctx.ts.size)
+        for wi in np.unique(ctx.win):
+            blocks.append(o + rows[:, ctx.win == wi].ravel())
+        o += rows.size
+    return {"y": y, "X": X, "size": size, "blocks": blocks, "rms": float(np.sqrt(np.mean(r**2)))}
+
+
+def select_terms(problem: dict, names: list, options: DiscoveryOptions, rng) -> dict:
+    """Ensemble STLSQ of the projected output residuals on the candidates' projected columns
+    (:func:`linearised_problem`), with a block bootstrap over the fit windows.
+
+    Columns left with less than 10 % of their size by the projection are set aside as
+    ``mimicked`` (a refit of the free coefficients produces them); the rest are normalised to unit
+    RMS and the residual to unit RMS, so a coefficient is the share of the residual's RMS the
+    term carries, and ``threshold`` the least share a kept term carries.
+
+    Parameters
+    ----------
+    problem : dict
+        :func:`linearised_problem`.
+    names : list of str
+        The candidates.
+    options : DiscoveryOptions
+        ``n_models``, ``threshold``, ``ridge``, ``group_cos``.
+    rng : numpy.random.Generator
+        Draws the bootstrap blocks.
+
+    Returns
+    -------
+    dict
+        ``inclusion`` ``{term: probability}``, ``group_probability`` ``{term: probability}``,
+        ``groups`` ``{term: [collinear terms]}``, ``coefficient`` ``{term: median prime
+        coefficient over the models that select it}``, ``share`` ``{term: median share of the
+        residual RMS}``, ``mimicked`` (names), ``explained`` (share of the projected residual's
+        variance the median model explains) and ``projected_rms`` (the residual's RMS after the
+        projection / before it).
+    """
+    X, y = problem["X"], problem["y"]
+    rx = np.sqrt(np.mean(X**2, axis=0))
+    live = rx > 0.1 * problem["size"]
+    out = {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}, "share": {}}
+    out["mimicked"] = [n for n, ok, sz in zip(names, live, problem["size"]) if not ok and sz > 0]
+    ry = float(np.sqrt(np.mean(y**2)))
+    out["projected_rms"] = ry / problem["rms"] if problem["rms"] > 0 else 0.0
+    out["explained"] = 0.0
+    idx = np.flatnonzero(live)
+    if ry == 0 or idx.size == 0:
+        return out
+    Xn, yn = X[:, idx] / rx[idx], y / ry
+    xi = _ensemble(Xn, yn, problem["blocks"], options.threshold, options, rng)
+    sel = xi != 0.0
+    groups = _groups(Xn, options.group_cos)
+    med = np.median(xi, axis=0)
+    out["explained"] = float(1 - np.mean((yn - Xn @ med) ** 2))
+    for a, k in enumerate(idx):
+        n = names[k]
+        out["inclusion"][n] = float(sel[:, a].mean())
+        out["group_probability"][n] = float(sel[:, groups[a]].any(axis=1).mean())
+        out["groups"][n] = [names[idx[b]] for b in groups[a] if b != a]
+        nz = xi[sel[:, a], a]
+        out["coefficient"][n] = float(np.median(nz) * ry / rx[k]) if nz.size else 0.0
+        out["share"][n] = float(np.median(np.abs(nz))) if nz.size else 0.0
+    return out
+
+
+def force_summary(rows: list, sel: dict, names: list, options: DiscoveryOptions) -> dict:
+    """The missing force per degree of freedom against the best candidates (for the report).
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`force_residuals`.
+    sel : dict
+        :func:`select_terms`.
+    names : list of str
+        The candidates (columns of the rows).
+    options : DiscoveryOptions
+        ``dofs``, ``lowpass_s``.
+
+    Returns
+    -------
+    dict
+        Per degree of freedom: ``rms`` of the missing force (N or N m, low-passed),
+        ``noise_rms`` (the null's, or None), and ``top``: the five most probable candidates of
+        that degree of freedom with their inclusion probability and the share of the missing
+        force's variance their column explains alone (``force_r2``).
+    """
+    rows = _lowpass(rows, options.lowpass_s)
+    F = np.concatenate([r["F"] for r in rows])
+    C = np.concatenate([r["columns"] for r in rows])
+    nulls = [r["null"] for r in rows]
+    null = np.concatenate(nulls) if all(n is not None for n in nulls) else None
+    out = {}
+    for g in options.dofs:
+        j = _DOFS.index(g)
+        y = F[:, j]
+        top = sorted((n for n in names if n[0] == g), key=lambda n: -sel["inclusion"].get(n, 0.0))[:5]
+        rows_top = []
+        for n in top:
+            c = C[:, names.index(n)]
+            cc = float(c @ c)
+            r2 = float((c @ y) ** 2 / (cc * (y @ y))) if cc > 0 and y @ y > 0 else 0.0
+            rows_top.append({"term": n, "inclusion_probability": sel["inclusion"].get(n, 0.0), "force_r2": r2})
+        out[g] = {
+            "rms": float(np.sqrt(np.mean(y**2))),
+            "noise_rms": None if null is None else float(np.sqrt(np.mean(null[:, j] ** 2))),
+            "top": rows_top,
+        }
+    return out
+
+
+# -- 4. confirmation ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TermFit:
+    """One candidate term of a discovery: a task of :func:`fit_term`.
+
+    Parameters
+    ----------
+    term : str
+        The term's name.
+    start : float
+        Its regression coefficient (prime), the second start of the fit (the first is 0).
+    ref : Stage
+        The model it extends.
+    setup : Setup
+        The reference model's vehicle, free coefficients, tracks and windows.
+    effects : tuple
+        The reference model's effects.
+    sd_fit : dict
+        The reference fit's channel weights.
+    max_nfev : int
+        Least-squares iterations.
+    """
+
+    term: str
+    start: float
+    ref: Stage
+    setup: Setup
+    effects: tuple
+    sd_fit: dict
+    max_nfev: int
+
+
+def _with_terms(setup: Setup, values: dict) -> Setup:
+    """``setup`` with the terms added to its vehicle (at ``values``) and to its free list."""
+    return replace(
+        setup,
+        vehicle=setup.vehicle.with_coefficients(values),
+        free=list(setup.free) + [k for k in values if k not in setup.free],
+    )
+
+
+def _extended_start(ref: Stage, model, values: list) -> np.ndarray:
+    """The reference fit's parameters with the new coefficients inserted after its free ones."""
+    n = ref.model.n_theta
+    return np.concatenate([ref.fit.p[:n], np.asarray(values, float), ref.fit.p[n:]])
+
+
+def fit_term(task: TermFit) -> tuple[Stage | None, list]:
+    """Add a term to the reference model and re-identify every free coefficient (two starts: the
+    term at 0, which reproduces the reference model, and at its regression value); score the best.
+
+    A module-level function of a picklable argument (run as a task, :class:`bayesid.tasks.Runner`).
+
+    Parameters
+    ----------
+    task : TermFit
+        The term and the model it extends.
+
+    Returns
+    -------
+    stage : Stage or None
+        None when every fit failed.
+    messages : list
+        About failed starts (str), and ``("sd", value)``: the term's Laplace sd.
+    """
+    setup = _with_terms(task.setup, {task.term: 0.0})
+    model, ct, ch = setup.build([e for e in task.effects if e not in setup.effects])
+    problem = FitProblem(model, ct, task.sd_fit, max_nfev=task.max_nfev)
+    nu0 = task.ref.fit.nuisance if model.n_nuisance else None
+    best, messages = None, []
+    for c in dict.fromkeys((0.0, float(task.start))):
+        try:
+            f = fit_model(problem, _extended_start(task.ref, model, [c]), nu0)
+        except Exception as exc:  # noqa: BLE001 - a failed start is reported
+            messages.append(f"{task.term} (start {c:.3g}) failed: {exc}")
+            continue
+        if best is None or f.cost < best.cost:
+            best = f
+    if best is None:
+        return None, messages
+    try:  # the term's Laplace sd (AR(1)-inflated, as bayesid fit reports it)
+        cov, _ = fit_covariance(best, ct)
+        messages.append(("sd", float(np.sqrt(max(cov[model.n_theta - 1, model.n_theta - 1], 0.0)))))
+    except Exception:  # noqa: BLE001 - no sd: the row says None
+        pass
+    return score_stage(model, best, ct, ch, task.sd_fit), messages
+
+
+def _row(term: str, st: Stage | None, ref: Stage, sel: dict, floor_rms: float, sd: float | None = None) -> dict:
+    """The ``discovered`` record of a refitted candidate (``sd``: its coefficient's Laplace sd)."""
+    row = {
+        "term": term,
+        "dof": term[0],
+        "inclusion_probability": sel["inclusion"].get(term, 0.0),
+        "group_inclusion_probability": sel["group_probability"].get(term, 0.0),
+        "group": sel["groups"].get(term, []),
+        "regression_coefficient": sel["coefficient"].get(term, 0.0),
+        "heldout_rms_before_m": ref.held["rms_position_m"],
+        "train_rms_before_m": ref.train["rms_position_m"],
+    }
+    if st is None:
+        return {**row, "kept": False, "reason": "every fit failed"}
+    before, after = ref.held["rms_position_m"], st.held["rms_position_m"]
+    excess = before - floor_rms
+    return {
+        **row,
+        "coefficient": st.fit.coefficients()[term],
+        "coefficient_sd": sd,
+        "heldout_rms_after_m": after,
+        "train_rms_after_m": st.train["rms_position_m"],
+        "shrinkage": 1 - after / before,
+        "heldout_shrinkage": 1 - after / before,
+        "delta_bic": st.fit.bic - ref.fit.bic,
+        "window_p_value": paired_window_test(ref.windows, st.windows),
+        "heldout_windows_after_m": [float(x) for x in st.windows],
+        "excess_removed": (before - after) / excess if excess > 0 else 0.0,
+    }
+
+
+def _decide(row: dict, significant: bool, th: Thresholds) -> None:
+    """Set ``kept`` and ``reason`` of a refitted candidate by the contributor test."""
+    if "kept" in row:
+        return
+    row["kept"] = is_contributor(row, significant, th)
+    if row["kept"]:
+        row["reason"] = "improves the held-out windows (contributor test)"
+    elif not significant:
+        row["reason"] = "the gap is not significant: nothing to explain"
+    elif row["delta_bic"] > th.bic_threshold:
+        row["reason"] = f"training ΔBIC {row['delta_bic']:.1f} > {th.bic_threshold:g}"
+    elif row["heldout_shrinkage"] <= 0:
+        row["reason"] = "fits the training runs but not the held-out ones"
+    else:
+        row["reason"] = f"held-out gain not significant (window test p = {row['window_p_value']:.3g})"
+
+
+def _candidates(sel: dict, options: DiscoveryOptions) -> list[str]:
+    """The groups refitted, most probable first (ties: the larger share of the missing force):
+    each group above ``min_probability`` by the member that carries the most of the missing
+    force in the ensemble (inclusion probability x share; the shorter name on ties)."""
+    score = {n: sel["inclusion"][n] * sel["share"][n] for n in sel["inclusion"]}
+    ranked = sorted(sel["group_probability"], key=lambda n: (-sel["group_probability"][n], -score[n]))
+    chosen, covered = [], set()
+    for n in ranked:
+        if sel["group_probability"][n] < options.min_probability or len(chosen) >= options.max_candidates:
+            break
+        if n in covered:
+            continue
+        group = [n, *(m for m in sel["groups"][n] if m not in covered)]
+        best = max(group, key=lambda m: (score.get(m, 0.0), -len(m)))
+        chosen.append(best)
+        covered |= {*group, *sel["groups"].get(best, [])}
+    return chosen
+
+
+def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple):
+    """Add the kept terms together, best first: each further term is refitted on top of those
+    added (all coefficients re-identified) and stays only if it passes the contributor test
+    against them while their held-out error is still above the floor band. ``fit_args``:
+    ``(effects, channel weights, iterations)``; ``floor``: ``(noise floor RMS, thresholds)``."""
+    effects, sd_fit, max_nfev = fit_args
+    floor_rms, th = floor
+    order = sorted(kept, key=lambda n: stages[n].held["rms_position_m"])
+    found, cur, values = [order[0]], stages[order[0]], {order[0]: stages[order[0]].fit.coefficients()[order[0]]}
+    for n in order[1:]:
+        if cur.held["rms_position_m"] <= th.none_ratio * floor_rms:
+            break  # the gap is closed: a further term would fit noise
+        trial = _with_terms(setup, {**values, n: 0.0})
+        model, ct, ch = trial.build([e for e in effects if e not in setup.effects])
+        p0 = _extended_start(ref, model, [*values.values(), 0.0])
+        n_ref = ref.model.n_theta
+        p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
+        try:
+            f = fit_model(FitProblem(model, ct, sd_fit, max_nfev=max_nfev), p0, None)
+        except Exception:  # noqa: BLE001 - the combination is skipped
+            continue
+        st = score_stage(model, f, ct, ch, sd_fit)
+        row = _row(n, st, cur, {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}, floor_rms)
+        if is_contributor(row, True, th):
+            found.append(n)
+            cur = st
+            values = {k: f.coefficients()[k] for k in found}
+    return found, cur
+
+
+def discover(
+    setup: Setup,
+    ref: Stage,
+    effects=(),
+    options: DiscoveryOptions = DiscoveryOptions(),
+    context: dict | None = None,
+    *,
+    rng=None,
+    runner: Runner = Runner(),
+) -> Discovery:
+    """Structure discovery on top of a fitted reference model (see the module docstring).
+
+    Parameters
+    ----------
+    setup : Setup
+        The reference model's vehicle, free coefficients, tracks, windows and start rule
+        (:class:`bayesid.analysis.gap.candidates.Setup`).
+    ref : Stage
+        The reference model, fitted and scored (the diagnosis's model after its catalogue
+        effects, or a base fit).
+    effects : sequence of Effect, default ()
+        The reference model's effects (kept, with their parameters refitted).
+    options : DiscoveryOptions, default DiscoveryOptions()
+        The library, the ensemble and the confirmation fits.
+    context : dict, optional
+        ``sd_fit`` (the reference fit's channel weights; required), ``floor_rms`` (the noise
+        floor's held-out RMS, m; default 0), ``significant`` (whether the reference's gap is
+        significant; default True) and ``thresholds`` (:class:`Thresholds`).
+    rng : numpy.random.Generator, optional
+        The bootstrap (default seed 0).
+    runner : Runner, default Runner()
+        Runs the confirmation fits as tasks; progress messages.
+
+    Returns
+    -------
+    Discovery
+        The kept terms, every refitted candidate with its numbers, the inclusion probabilities
+        and the missing forces per degree of freedom.
+
+    Raises
+    ------
+    ValueError
+        No training track gives missing forces; ``context`` without ``sd_fit``.
+    """
+    t0 = time.perf_counter()
+    ctx = dict(context or {})
+    if "sd_fit" not in ctx:
+        raise ValueError("discover needs context['sd_fit'], the reference fit's channel weights")
+    th = ctx.get("thresholds", Thresholds())
+    floor_rms, significant = float(ctx.get("floor_rms", 0.0)), bool(ctx.get("significant", True))
+    rng = np.random.default_rng(0) if rng is None else rng
+    names = candidate_terms(ref.model, options.max_order, options.dofs)
+    runner.say(f"discovery: {len(names)} candidate terms")
+    problem = linearised_problem(setup, ref, effects, names, ctx["sd_fit"])
+    sel = select_terms(problem, names, options, rng)
+    try:
+        forces = force_summary(
+            force_residuals(ref.model, ref.fit, setup.train, names, options, rng), sel, names, options
+        )
+    except ValueError as exc:  # no inverse dynamics: the output-space selection stands alone
+        forces = {"error": str(exc)}
+    cands = _candidates(sel, options)
+    runner.say(f"discovery: refitting {', '.join(cands) or 'nothing'}")
+    tasks = [
+        Task(
+            n,
+            {"term": n},
+            (TermFit(n, sel["coefficient"][n], ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev),),
+        )
+        for n in cands
+    ]
+    outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
+    discovered, stages = [], {}
+    for n, out in zip(cands, outs):
+        st = None if isinstance(out, TaskError) else out[0]
+        msgs = [str(out)] if isinstance(out, TaskError) else out[1]
+        for m in msgs:
+            if isinstance(m, str):
+                runner.say(f"discovery: {m}")
+        sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
+        row = _row(n, st, ref, sel, floor_rms, sd)
+        _decide(row, significant, th)
+        discovered.append(row)
+        if row["kept"]:
+            stages[n] = st
+    found, after = ([], None)
+    if stages:
+        found, after = _combine(
+            list(stages), stages, ref, setup, (tuple(effects), ctx["sd_fit"], options.max_nfev), (floor_rms, th)
+        )
+    vehicle = None
+    if after is not None:
+        vehicle = setup.vehicle.with_coefficients(after.fit.coefficients())
+    inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
+    return Discovery(
+        found=found,
+        verdict=f"discovered: {'+'.join(found)}" if found else "no term of the library explains it",
+        discovered=discovered,
+        inclusion=inclusion,
+        residuals={
+            "forces": forces,
+            "explained": sel["explained"],
+            "projected_rms": sel["projected_rms"],
+            "mimicked": sel["mimicked"],
+        },
+        library_size=len(names),
+        heldout_rms_before_m=ref.held["rms_position_m"],
+        heldout_rms_after_m=(after or ref).held["rms_position_m"],
+        after_coefficients=(after or ref).fit.coefficients(),
+        windows_before_m=[float(x) for x in ref.windows],
+        windows_after_m=[float(x) for x in (after or ref).windows],
+        settings={
+            **{k: getattr(options, k) for k in options.__dataclass_fields__},
+            "dofs": list(options.dofs),
+            "reference_effects": [getattr(e, "name", str(e)) for e in effects],
+            "free": list(setup.free),
+            "floor_rms_m": floor_rms,
+            "significant": significant,
+        },
+        seconds=time.perf_counter() - t0,
+        after=after,
+        vehicle=vehicle,
+    )

@@ -1,0 +1,80 @@
+"""``bayesid discover``: structure discovery on a fitted model -- the terms the model lacks,
+refitted and checked on held-out tracks (:mod:`bayesid.analysis.gap.discovery`) -- written as
+``diagnosis.json`` (its ``discovery`` entry), ``report.md`` and figures; ``--write-vehicle``
+writes the vehicle file with the kept terms added."""
+
+from __future__ import annotations
+
+from . import options as opt
+from .inputs import naming_files, read_tracks
+from .outputs import check_out, check_write_vehicle
+
+
+def add_parser(sub) -> None:
+    """Declare ``bayesid discover`` and its options.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subparsers of the ``bayesid`` parser.
+    """
+    d = opt.add_subcommand(sub, "discover", "structure discovery: the model terms the data say are missing")
+    d.add_argument("--model", required=True, help="model.json written by bayesid fit (the reference model)")
+    opt.add_tracks(d, "--train", "training Track CSVs (the reference model is refitted on them)")
+    opt.add_tracks(d, "--heldout", "held-out Track CSVs (the kept terms must improve these)")
+    opt.add_window(d)
+    opt.add_start(d)
+    opt.add_leadin(d)
+    opt.add_max_nfev(d, "least-squares iterations per fit")
+    opt.add_seed(d, "random seed (noise floor, bootstrap of the sparse regression)")
+    opt.add_discovery(d, default_on=False)
+    opt.add_jobs(d)
+    opt.add_out(d, "output folder")
+    opt.add_overwrite(d)
+
+
+def run(args) -> int:
+    """Run ``bayesid discover``: refit the model of ``--model`` on ``--train`` (its free
+    coefficients from their fitted values, its effects), score it on ``--heldout`` against the
+    noise floor, and search the term library when the gap is significant.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options.
+
+    Returns
+    -------
+    int
+        The exit code (0).
+    """
+    from .. import tasks
+    from ..analysis.gap import DiagnoseOptions
+    from ..analysis.gap.discovery import DiscoveryOptions
+    from ..estimation.modelfile import ModelDocument
+    from ..models import load_any_vehicle
+    from .diagnose import run_and_write
+
+    tasks.check_jobs(args.jobs, args.scheduler)
+    check_out(args.out, "discover", args.overwrite)
+    check_write_vehicle(args.write_vehicle, args.overwrite)
+    doc = ModelDocument.from_json(args.model)
+    vehicle = load_any_vehicle(doc.vehicle_path())
+    doc.build()  # the document's coefficients and effects fit the vehicle (else a named error)
+    vehicle = vehicle.with_coefficients(dict(zip(doc.free, doc.p[: len(doc.free)])))
+    got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
+    with naming_files(got):
+        options = DiagnoseOptions(
+            candidates=(),
+            base_effects=tuple(doc.effects),
+            window_s=None if args.window <= 0 else args.window,
+            fit_window_s=doc.fit_window_s,
+            dt=doc.dt,
+            max_nfev=args.max_nfev,
+            weighting=doc.weighting,
+            start=args.start,
+            leadin_s=args.leadin if args.leadin > 0 else None,
+            discover=DiscoveryOptions(max_order=args.max_order),
+        )
+        run_and_write(args, vehicle, list(doc.free), got, options)
+    return 0

@@ -1,0 +1,103 @@
+"""Cost of structure discovery against the gap diagnosis' first round (issue 40: discovery adds
+at most the time of the first round on the same data).
+
+Two cases: a synthetic KVLCC2 set (closed-loop zigzags of the packaged model with a hidden
+``Nabsdr`` term, two training and three held-out runs, 10 Hz, noise; ``bayesid.models.ship.trials``)
+and, when ``../shared/data/real`` is present, the HSVA validation split of studies/real_ships.py.
+Each runs one diagnosis with the ship catalogue (no wind) and discovery, and prints the first
+round's wall time, discovery's and their ratio.
+
+    python benchmarks/discovery.py [--data DIR] [--max-nfev N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bayesid.analysis.gap import DiagnoseOptions, diagnose  # noqa: E402
+from bayesid.analysis.gap.discovery import DiscoveryOptions  # noqa: E402
+from bayesid.data.track import Track  # noqa: E402
+from bayesid.models import ship  # noqa: E402
+from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial  # noqa: E402
+
+NOISE = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05), "u": 0.002, "v": 0.002, "r": math.radians(0.02)}
+
+
+def synthetic(rng):
+    """Two training and three held-out zigzags of KVLCC2 with a hidden Nabsdr = 0.002."""
+    kv = ship.load_ship("kvlcc2_7m")
+    truth = kv.with_coefficients({"Nabsdr": 0.002})
+    speed, rpm = propulsion_point(truth, 1.179)
+    tracks = []
+    for angle, check in ((20, 20), (-10, 10), (15, 10), (-25, 5), (10, 5)):
+        tr = simulate_trial(
+            truth, "zigzag", angle, check_deg=check, speed=speed, rpm=rpm, options=TrialOptions(duration=150.0)
+        ).track
+        data = {
+            k: np.asarray(tr[k], float) + rng.normal(0, NOISE.get(k, 0.0), tr.n_samples)
+            for k in ("x", "y", "psi", "u", "v", "r")
+        }
+        data.update(delta_r=tr["delta_r"], n=tr["n"])
+        tracks.append(Track(tr.t, data, name=f"z{angle}_{check}"))
+    return kv, tracks[:2], tracks[2:]
+
+
+def hsva(data: Path):
+    from bayesid.data import datasets
+
+    hold = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
+    runs = [datasets.read_run(p, "simman-hsva") for p in datasets.list_runs(data / "kvlcc2-simman-hsva", "simman-hsva")]
+    held = [t for t in runs if any(t.name.endswith(h) for h in hold)]
+    return ship.load_ship("kvlcc2_7m"), [t for t in runs if t not in held], held
+
+
+def measure(name, kv, train, held, max_nfev):
+    cands = [c for c in ship.SHIP_CATALOGUE if c != "wind"]
+    t0 = time.perf_counter()
+    d = diagnose(
+        kv,
+        kv.free,
+        train,
+        held,
+        DiagnoseOptions(
+            candidates=cands,
+            window_s=60.0,
+            max_nfev=max_nfev,
+            max_effects=1,
+            start="measured",
+            discover=DiscoveryOptions(max_nfev=max_nfev),
+        ),
+    )
+    total = time.perf_counter() - t0
+    first = d.settings["round_seconds"][0]
+    disc = d.discovery.get("seconds", float("nan"))
+    print(
+        f"{name}: first round ({len(cands)} candidates) {first:.1f} s, discovery {disc:.1f} s "
+        f"(ratio {disc / first:.2f}), whole diagnosis {total:.1f} s; verdict {d.verdict}"
+    )
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=str(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
+    ap.add_argument("--max-nfev", type=int, default=40)
+    args = ap.parse_args()
+    measure("synthetic KVLCC2 (hidden Nabsdr)", *synthetic(np.random.default_rng(0)), args.max_nfev)
+    data = Path(args.data)
+    if (data / "kvlcc2-simman-hsva").is_dir():
+        measure("KVLCC2 HSVA validation split", *hsva(data), args.max_nfev)
+    else:
+        print(f"no real data under {data}: the HSVA case is skipped")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
