@@ -156,7 +156,8 @@ class Discovery:
     found : list of str
         The kept terms, in the order added.
     verdict : str
-        ``"discovered: N0+Nvvv"`` or ``"no term of the library explains it"``.
+        ``"discovered: N0+Nvvv"`` (with ``+unexplained`` when the held-out error is still above
+        the floor band with them) or ``"no term of the library explains it"``.
     discovered : list of dict
         Every refitted candidate: ``term``, ``dof``, ``inclusion_probability`` (the term's),
         ``group_inclusion_probability``, ``group`` (its collinear alternatives),
@@ -896,6 +897,14 @@ def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple
     return found, cur
 
 
+def _verdict(found: list, heldout_rms: float, band: float) -> str:
+    """``"discovered: A+B"`` (``+unexplained`` while the held-out error stays above the floor
+    band: the terms explain part of the gap), or ``"no term of the library explains it"``."""
+    if not found:
+        return "no term of the library explains it"
+    return f"discovered: {'+'.join(found)}" + ("+unexplained" if heldout_rms > band else "")
+
+
 def discover(
     setup: Setup,
     ref: Stage,
@@ -992,7 +1001,7 @@ def discover(
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
         found=found,
-        verdict=f"discovered: {'+'.join(found)}" if found else "no term of the library explains it",
+        verdict=_verdict(found, (after or ref).held["rms_position_m"], th.none_ratio * floor_rms),
         discovered=discovered,
         inclusion=inclusion,
         residuals={
