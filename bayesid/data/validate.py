@@ -214,6 +214,45 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
     return []
 
 
+def _check_heading(track: Track, refuse) -> None:
+    """The unit checks of the heading (against the yaw rate r when logged): ``refuse(column,
+    message)`` raises for a heading, yaw rate or clock in the wrong unit."""
+    t = track.t
+    psi = np.asarray(track["psi"], float)
+    fin = psi[np.isfinite(psi)]
+    jumps = np.abs(np.diff(fin))
+    # the heading's rate over the yaw rate r: the clock's unit when the heading is in rad,
+    # the heading's or r's unit otherwise
+    k = None
+    if "r" in track:
+        dpsi = np.gradient(np.unwrap(np.where(np.isfinite(psi), psi, 0.0)), t)
+        k = _ratio(dpsi, track["r"])
+    if k is not None and np.max(np.abs(fin)) <= 2 * math.pi + 0.1:
+        for f, unit in TIME_UNITS:
+            if abs(k / f - 1.0) < 0.15:
+                refuse(
+                    "t",
+                    f"the heading turns {k:.3g} x as fast per time unit as the yaw rate r says: time looks like {unit}",
+                )
+    if k is not None and 20.0 < k < 150.0:
+        refuse("psi", f"its rate is {k:.3g} x the yaw rate r: heading looks like degrees")
+    if k is not None and 1 / 150.0 < k < 1 / 20.0:
+        refuse("r", f"the heading's rate is {k:.3g} x r: yaw rate looks like deg/s")
+    if np.max(np.abs(fin)) > 2 * math.pi + 0.1 and np.max(np.abs(fin)) <= 361.0 and (jumps > 300.0).any():
+        refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} wrapping by 360: heading looks like degrees")
+    if np.median(jumps) > 0.5:
+        refuse("psi", f"it changes by {np.median(jumps):.3g} per sample (median): heading looks like degrees")
+    if np.max(np.abs(fin)) > 2 * math.pi + 0.1:
+        ok = np.isfinite(psi)
+        rate = np.abs(np.diff(psi[ok]) / np.diff(t[ok]))
+        if rate.size and np.percentile(rate, 95) > 1.0:
+            refuse(
+                "psi",
+                f"values up to {np.max(np.abs(fin)):.4g} turning at {np.percentile(rate, 95):.3g} "
+                "units/s (95th percentile; no vessel turns at 1 rad/s): heading looks like degrees",
+            )
+
+
 def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
     """Units and plausibility of a track (module docstring).
 
@@ -289,40 +328,7 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
                     f"u, v: time looks like {unit}",
                 )
     if "psi" in track and np.isfinite(track["psi"]).sum() > 10:
-        psi = np.asarray(track["psi"], float)
-        fin = psi[np.isfinite(psi)]
-        jumps = np.abs(np.diff(fin))
-        # the heading's rate over the yaw rate r: the clock's unit when the heading is in rad,
-        # the heading's or r's unit otherwise
-        k = None
-        if "r" in track:
-            dpsi = np.gradient(np.unwrap(np.where(np.isfinite(psi), psi, 0.0)), t)
-            k = _ratio(dpsi, track["r"])
-        if k is not None and np.max(np.abs(fin)) <= 2 * math.pi + 0.1:
-            for f, unit in TIME_UNITS:
-                if abs(k / f - 1.0) < 0.15:
-                    refuse(
-                        "t",
-                        f"the heading turns {k:.3g} x as fast per time unit as the yaw rate r says: time "
-                        f"looks like {unit}",
-                    )
-        if k is not None and 20.0 < k < 150.0:
-            refuse("psi", f"its rate is {k:.3g} x the yaw rate r: heading looks like degrees")
-        if k is not None and 1 / 150.0 < k < 1 / 20.0:
-            refuse("r", f"the heading's rate is {k:.3g} x r: yaw rate looks like deg/s")
-        if np.max(np.abs(fin)) > 2 * math.pi + 0.1 and np.max(np.abs(fin)) <= 361.0 and (jumps > 300.0).any():
-            refuse("psi", f"values up to {np.max(np.abs(fin)):.4g} wrapping by 360: heading looks like degrees")
-        if np.median(jumps) > 0.5:
-            refuse("psi", f"it changes by {np.median(jumps):.3g} per sample (median): heading looks like degrees")
-        if np.max(np.abs(fin)) > 2 * math.pi + 0.1:
-            ok = np.isfinite(psi)
-            rate = np.abs(np.diff(psi[ok]) / np.diff(t[ok]))
-            if rate.size and np.percentile(rate, 95) > 1.0:
-                refuse(
-                    "psi",
-                    f"values up to {np.max(np.abs(fin)):.4g} turning at {np.percentile(rate, 95):.3g} "
-                    "units/s (95th percentile; no vessel turns at 1 rad/s): heading looks like degrees",
-                )
+        _check_heading(track, refuse)
     if ground is not None and ground > 0.05 and body is not None:
         k = body / ground
         for f, unit in SPEED_UNITS:

@@ -701,6 +701,13 @@ def _catalogue():
             "transponder mounted 0.3-1.5 m from the body origin of a 5.3 m hull.",
             description="sensor bias: heading offset and position-sensor lever arm",
         ),
+        **_catalogue_rest(),
+    }
+
+
+def _catalogue_rest():
+    """The second half of :func:`_catalogue` (sensor lag, cross-flow, thrust, roll, waves)."""
+    return {
         "sensor_lag": SensorLag(
             "sensor_lag",
             ("lag_s", "skew_s"),

@@ -298,23 +298,9 @@ def diagnose(
         setup, cand_effects, base_stage, (sd_fit, seeds, opt.max_nfev), floor, significant, th, opt.max_effects, runner
     )
     after = search["after"]
-    band = th.none_ratio * floor["rms_position_m"]
-    excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
-    remainder_sig = bool(significant and after.held["rms_position_m"] > band)
     chosen, roles, ranking = search["chosen"], search["roles"], search["ranking"]
-    # every effect that improves the held-out windows significantly without closing the gap,
-    # added or not (round 1 alone, or as added in its round)
-    contributors = [contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
-    contributors += [
-        contribution(r, added=False) for r in ranking if r["role"] == "contributor" and r["effect"] not in chosen
-    ]
-    remainder = {
-        "heldout_rms_m": after.held["rms_position_m"],
-        "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
-        if excess0 > 0
-        else 0.0,
-        "significant": remainder_sig,
-    }
+    contributors, remainder = _outcome(search, floor, b_held, significant, th)
+    remainder_sig = remainder["significant"]
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
     verdict = verdict_of(significant, chosen, remainder_sig)
     found = None
@@ -355,29 +341,18 @@ def diagnose(
         base_fit={
             "coefficients": bfit.coefficients(),
             "nominal": dict(zip(base.free, base.theta0.tolist())),
-            "bic": bfit.bic,
-            "n_residuals": bfit.n_residuals,
-            "success": bfit.success,
+            **{k: getattr(bfit, k) for k in ("bic", "n_residuals", "success")},
             "nfev": bfit.n_simulations,
         },
         after_fit={"coefficients": after.fit.coefficients(), "effects": after.fit.effect_parameters()},
         train_tracks=names_t,
         heldout_tracks=names_h,
-        settings={
-            "free": list(free),
-            "candidates": [e.name for e in cand_effects],
-            "base_effects": [e.name for e in base_effects],
-            "window_s": opt.window_s,
-            "fit_window_s": fw,
-            "dt": dt,
-            "mode": opt.mode,
-            "start_rule": rule,
-            "leadin_s": lead,
-            "max_nfev": opt.max_nfev,
-            "max_effects": opt.max_effects,
-            "weighting": weighting,
-            "round_seconds": search["seconds"],
-        },
+        settings=dict(
+            _settings(opt, setup, cand_effects, weighting),
+            free=list(free),
+            dt=dt,
+            round_seconds=search["seconds"],
+        ),
         thresholds=th.as_dict(),
         seconds=time.perf_counter() - t_start,
         discovery=found.to_dict() if found is not None else {},
@@ -387,6 +362,43 @@ def diagnose(
         discovered=found,
         setup=setup,
     )
+
+
+def _outcome(search: dict, floor: dict, b_held: dict, significant: bool, th: Thresholds) -> tuple[list, dict]:
+    """The contributors (every effect that improves the held-out windows significantly without
+    closing the gap, added or not: round 1 alone, or as added in its round) and the remainder."""
+    after, chosen, roles, ranking = search["after"], search["chosen"], search["roles"], search["ranking"]
+    excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
+    contributors = [contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
+    contributors += [
+        contribution(r, added=False) for r in ranking if r["role"] == "contributor" and r["effect"] not in chosen
+    ]
+    remainder = {
+        "heldout_rms_m": after.held["rms_position_m"],
+        "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
+        if excess0 > 0
+        else 0.0,
+        "significant": bool(significant and after.held["rms_position_m"] > th.none_ratio * floor["rms_position_m"]),
+    }
+    return contributors, remainder
+
+
+def _settings(opt: DiagnoseOptions, setup: Setup, cand_effects, weighting: str) -> dict:
+    """What a diagnosis ran, for ``Diagnosis.settings`` (key order as written before)."""
+    return {
+        "free": list(setup.free),
+        "candidates": [e.name for e in cand_effects],
+        "base_effects": [e.name for e in setup.effects],
+        "window_s": opt.window_s,
+        "fit_window_s": setup.fit_window_s,
+        "dt": setup.dt,
+        "mode": opt.mode,
+        "start_rule": setup.rule,
+        "leadin_s": setup.leadin_s,
+        "max_nfev": opt.max_nfev,
+        "max_effects": opt.max_effects,
+        "weighting": weighting,
+    }
 
 
 #: Held-out over training RMS position error (same windows, same start rule) above which the base fit
