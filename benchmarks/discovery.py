@@ -77,7 +77,7 @@ def measure(name, kv, train, held, max_nfev):
         ),
     )
     total = time.perf_counter() - t0
-    first = d.settings["round_seconds"][0]
+    first = d.round_seconds[0]
     disc = d.discovery.get("seconds", float("nan"))
     print(
         f"{name}: first round ({len(cands)} candidates) {first:.1f} s, discovery {disc:.1f} s "

@@ -292,6 +292,7 @@ def test_candidates_fitted_by_two_workers_give_the_serial_diagnosis(veh):
             runner=Runner(jobs=jobs),
         ).to_dict()
         d.pop("seconds")
+        d.pop("round_seconds")
         for rows in [d["ranking"]] + d["rounds"]:
             for r in rows:
                 r.pop("fit_seconds", None)

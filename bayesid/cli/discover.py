@@ -56,7 +56,7 @@ def run(args) -> int:
     from .diagnose import run_and_write
 
     tasks.check_jobs(args.jobs, args.scheduler)
-    check_out(args.out, "discover", args.overwrite)
+    check_out(args.out, "diagnose", args.overwrite)  # the same outputs as bayesid diagnose
     check_write_vehicle(args.write_vehicle, args.overwrite)
     doc = ModelDocument.from_json(args.model)
     vehicle = load_any_vehicle(doc.vehicle_path())

@@ -11,7 +11,6 @@ from pathlib import Path
 #: What each command writes into its --out folder (removed first by --overwrite).
 WRITES = {
     "diagnose": ("diagnosis.json", "report.md", "figures"),
-    "discover": ("diagnosis.json", "report.md", "figures"),
     "fit": ("model.json", "report.md", "figures", "journal.jsonl"),
     "predict": ("predict.json", "report.md", "figures"),
     "sample": (
@@ -31,7 +30,6 @@ WRITES = {
 #: The file that marks a folder as a command's output.
 MAIN_OUTPUT = {
     "diagnose": "diagnosis.json",
-    "discover": "diagnosis.json",
     "fit": "model.json",
     "predict": "predict.json",
     "convert": "convert.json",

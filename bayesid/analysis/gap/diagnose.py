@@ -81,6 +81,8 @@ class Diagnosis:
         The verdict's thresholds.
     seconds : float
         Wall time.
+    round_seconds : list of float
+        Wall time of each candidate round.
     discovery : dict
         Structure discovery on the model after the effects (:mod:`bayesid.analysis.gap.discovery`;
         ``discovered`` lists every refitted term), or ``{}`` when it was not run.
@@ -123,6 +125,7 @@ class Diagnosis:
     settings: dict
     thresholds: dict
     seconds: float
+    round_seconds: list = field(default_factory=list)
     discovery: dict = field(default_factory=dict)
     base_check: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
@@ -347,14 +350,10 @@ def diagnose(
         after_fit={"coefficients": after.fit.coefficients(), "effects": after.fit.effect_parameters()},
         train_tracks=names_t,
         heldout_tracks=names_h,
-        settings=dict(
-            _settings(opt, setup, cand_effects, weighting),
-            free=list(free),
-            dt=dt,
-            round_seconds=search["seconds"],
-        ),
+        settings=dict(_settings(opt, setup, cand_effects, weighting), free=list(free), dt=dt),
         thresholds=th.as_dict(),
         seconds=time.perf_counter() - t_start,
+        round_seconds=search["seconds"],
         discovery=found.to_dict() if found is not None else {},
         base_check=check,
         base=base_stage,
