@@ -11,6 +11,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -235,3 +236,37 @@ def test_discover_command_writes_a_vehicle_file_that_loads_and_fits(tmp_path):
         text=True,
     )
     assert again.returncode == 2 and "the file exists" in again.stderr
+
+
+def test_the_mmg_polynomial_form_of_the_docs_loads_fits_and_predicts(tmp_path):
+    # docs/vessels/kvlcc2_7m_mmg.toml: the captive tests' cubic hull terms instead of the cross-flow
+    # integral; it fits and predicts through the commands like the packaged file
+    from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "vessels" / "kvlcc2_7m_mmg.toml"
+    mmg = ship.load_ship(path)
+    assert mmg.coefficients["Ycf"] == 0.0 and {"Yvvv", "Nrrr"} <= set(mmg.free)
+    assert [t.name for t in mmg.hull_terms] == ["Yvvv", "Yrrr", "Nvvv", "Nrrr"]
+    speed, rpm = propulsion_point(mmg, 1.179)
+    csv = []
+    for angle in (-20, 10):
+        tr = simulate_trial(mmg, "zigzag", angle, speed=speed, rpm=rpm, options=TrialOptions(duration=60.0)).track
+        csv.append(tmp_path / f"z{angle}.csv")
+        write_csv(tr, csv[-1])
+    py = [sys.executable, "-m", "bayesid.cli"]
+    fit = subprocess.run(
+        py + ["fit", "--vehicle", str(path), "--train", str(csv[0]), "--max-nfev", "2", "--out", str(tmp_path / "f")],
+        capture_output=True,
+        text=True,
+    )
+    assert fit.returncode == 0, fit.stderr
+    pred = subprocess.run(
+        py
+        + ["predict", "--model", str(tmp_path / "f" / "model.json"), "--track", str(csv[1]), "--draws", "2"]
+        + ["--out", str(tmp_path / "p")],
+        capture_output=True,
+        text=True,
+    )
+    assert pred.returncode == 0, pred.stderr
+    # the model's own runs: its prediction is near perfect
+    assert json.loads((tmp_path / "p" / "predict.json").read_text())["pooled"]["rms_position_m"] < 0.5
