@@ -9,6 +9,7 @@
 
     bayesid fit --vehicle esso_osaka_3m --train A.csv B.csv --effects wind --out fitdir
     bayesid predict --model fitdir/model.json --track C.csv --window 60 --out pred
+
     bayesid discover --model fitdir/model.json --train A.csv B.csv --heldout C.csv --out disc \\
         --write-vehicle myship_discovered.toml
 
