@@ -71,13 +71,10 @@ def run(args) -> int:
     int
         The exit code (0).
     """
-    from ..analysis.gap import DiagnoseOptions
     from ..analysis.gap.discovery import DiscoveryOptions
     from ..models import load_any_vehicle, model_class
 
-    tasks.check_jobs(args.jobs, args.scheduler)
-    check_out(args.out, "diagnose", args.overwrite)
-    check_write_vehicle(args.write_vehicle, args.overwrite)
+    check_outputs(args)
     vehicle = load_any_vehicle(args.vehicle)
     family = model_class(vehicle)
     free = free_list(vehicle, args.free)
@@ -85,23 +82,59 @@ def run(args) -> int:
     train, held = got["--train"], got["--heldout"]
     with naming_files(got):
         cands = _candidates(args, family, train + held)
-        window = None if args.window <= 0 else args.window
-        dt = args.dt if args.dt is not None else family.DEFAULT_DT
-        options = DiagnoseOptions(
+        options = diagnose_options(
+            args,
             candidates=cands,
-            window_s=window,
             fit_window_s=args.fit_window if args.fit_window else None,
-            dt=dt,
+            dt=args.dt if args.dt is not None else family.DEFAULT_DT,
             mode=args.mode,
-            max_nfev=args.max_nfev,
             max_effects=args.max_effects,
             weighting=args.weighting or None,
-            start=args.start,
-            leadin_s=args.leadin if args.leadin > 0 else None,
             discover=None if args.no_discover else DiscoveryOptions(max_order=args.max_order),
         )
         run_and_write(args, vehicle, free, got, options)
     return 0
+
+
+def check_outputs(args) -> None:
+    """The checks of ``diagnose`` and ``discover`` before any computation: ``--jobs`` /
+    ``--scheduler``, the ``--out`` folder and ``--write-vehicle``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options.
+    """
+    tasks.check_jobs(args.jobs, args.scheduler)
+    check_out(args.out, "diagnose", args.overwrite)
+    check_write_vehicle(args.write_vehicle, args.overwrite)
+
+
+def diagnose_options(args, **fields):
+    """The diagnosis' options from the options ``diagnose`` and ``discover`` share (window, start
+    rule, lead-in, iterations), and ``fields``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options.
+    **fields
+        The other :class:`~bayesid.analysis.gap.DiagnoseOptions` fields.
+
+    Returns
+    -------
+    DiagnoseOptions
+        The options.
+    """
+    from ..analysis.gap import DiagnoseOptions
+
+    return DiagnoseOptions(
+        window_s=None if args.window <= 0 else args.window,
+        max_nfev=args.max_nfev,
+        start=args.start,
+        leadin_s=args.leadin if args.leadin > 0 else None,
+        **fields,
+    )
 
 
 def run_and_write(args, vehicle, free, got: dict, options) -> None:

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from . import options as opt
 from .inputs import naming_files, read_tracks
-from .outputs import check_out, check_write_vehicle
 
 
 def add_parser(sub) -> None:
@@ -48,32 +47,25 @@ def run(args) -> int:
     int
         The exit code (0).
     """
-    from .. import tasks
-    from ..analysis.gap import DiagnoseOptions
     from ..analysis.gap.discovery import DiscoveryOptions
     from ..estimation.modelfile import ModelDocument
     from ..models import load_any_vehicle
-    from .diagnose import run_and_write
+    from .diagnose import check_outputs, diagnose_options, run_and_write
 
-    tasks.check_jobs(args.jobs, args.scheduler)
-    check_out(args.out, "diagnose", args.overwrite)  # the same outputs as bayesid diagnose
-    check_write_vehicle(args.write_vehicle, args.overwrite)
+    check_outputs(args)  # the same outputs as bayesid diagnose
     doc = ModelDocument.from_json(args.model)
     vehicle = load_any_vehicle(doc.vehicle_path())
     doc.build()  # the document's coefficients and effects fit the vehicle (else a named error)
     vehicle = vehicle.with_coefficients(dict(zip(doc.free, doc.p[: len(doc.free)])))
     got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     with naming_files(got):
-        options = DiagnoseOptions(
+        options = diagnose_options(
+            args,
             candidates=(),
             base_effects=tuple(doc.effects),
-            window_s=None if args.window <= 0 else args.window,
             fit_window_s=doc.fit_window_s,
             dt=doc.dt,
-            max_nfev=args.max_nfev,
             weighting=doc.weighting,
-            start=args.start,
-            leadin_s=args.leadin if args.leadin > 0 else None,
             discover=DiscoveryOptions(max_order=args.max_order),
         )
         run_and_write(args, vehicle, list(doc.free), got, options)

@@ -72,7 +72,6 @@ def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | 
 def _figures(diag, res: dict, out: Path, heldout: list) -> list:
     """The diagnosis' figures (ranking, channels, regions, the first held-out track's windows
     before and after the effects added); returns their paths."""
-    from ..analysis.gap import window_xy
     from . import plots
 
     figs = []
@@ -88,38 +87,31 @@ def _figures(diag, res: dict, out: Path, heldout: list) -> list:
     figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
     figs.append(plots.gap_regions(res["where"], out / "figures" / "regions.png"))
     if diag.base is not None and heldout:
-        w = res["settings"]["window_s"]
-        rule, lead = res["settings"]["start_rule"], res["settings"]["leadin_s"]
-        meas, before = window_xy(diag.base.model, diag.base.fit, heldout[0], w, start=rule, leadin_s=lead)
-        after = None
-        if res["effects_added"]:
-            anu = diag.after.nuisance
-            _, after = window_xy(
-                diag.after.model,
-                diag.after.fit,
-                heldout[0],
-                w,
-                None if anu is None else anu[0],
-                start=rule,
-                leadin_s=lead,
-            )
-        figs.append(
-            plots.window_tracks(
-                None,
-                meas,
-                before,
-                after,
-                out / "figures" / "heldout_track.png",
-                title=f"{heldout[0].name}: {w} s windows",
-            )
-        )
+        after = diag.after if res["effects_added"] else None
+        figs.append(_window_figure(diag.base, after, res, heldout[0], out / "figures" / "heldout_track.png"))
     return figs
+
+
+def _window_figure(before, after, res: dict, track, path, labels=("base model", "with top effect")):
+    """The protocol windows of a held-out track predicted by two stages (``after`` may be None)."""
+    from ..analysis.gap import window_xy
+    from . import plots
+
+    st = res["settings"]
+    w, rule, lead = st["window_s"], st["start_rule"], st["leadin_s"]
+    meas, xy_before = window_xy(before.model, before.fit, track, w, start=rule, leadin_s=lead)
+    xy_after = None
+    if after is not None:
+        nu = None if after.nuisance is None else after.nuisance[0]
+        _, xy_after = window_xy(after.model, after.fit, track, w, nu, start=rule, leadin_s=lead)
+    return plots.window_tracks(
+        None, meas, xy_before, xy_after, path, title=f"{track.name}: {w} s windows", labels=labels
+    )
 
 
 def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
     """Structure discovery's figures: per held-out window the RMS position error before and after
     the kept terms, and the first held-out track's windows with them."""
-    from ..analysis.gap import window_xy
     from . import plots
 
     D = res.get("discovery") or {}
@@ -143,32 +135,9 @@ def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
         )
     ]
     if found.after is not None and heldout:
-        st = res["settings"]
-        ref = diag.after
-        meas, before = window_xy(
-            ref.model, ref.fit, heldout[0], st["window_s"], start=st["start_rule"], leadin_s=st["leadin_s"]
-        )
-        nu = found.after.nuisance
-        _, after = window_xy(
-            found.after.model,
-            found.after.fit,
-            heldout[0],
-            st["window_s"],
-            None if nu is None else nu[0],
-            start=st["start_rule"],
-            leadin_s=st["leadin_s"],
-        )
-        figs.append(
-            plots.window_tracks(
-                None,
-                meas,
-                before,
-                after,
-                out / "figures" / "discovery_track.png",
-                title=f"{heldout[0].name}: {st['window_s']} s windows",
-                labels=("reference model", "with " + "+".join(D["found"])),
-            )
-        )
+        path = out / "figures" / "discovery_track.png"
+        labels = ("reference model", "with " + "+".join(D["found"]))
+        figs.append(_window_figure(diag.after, found.after, res, heldout[0], path, labels))
     return figs
 
 
