@@ -241,7 +241,7 @@ def _submarine(args, every):
             duration=args.duration or 120.0,
             rpm=rpm,
             first_sign=1 if args.angle >= 0 else -1,
-            rudder_rate_deg_s=args.rudder_rate or 0.0,
+            options=mv.ZigzagOptions(rate_deg_s=args.rudder_rate or 0.0),
         )
     elif args.manoeuvre == "pull-out":
         hold = args.hold or 60.0
