@@ -1291,7 +1291,6 @@ def write_report(out, R, figs, kfigs, args, mfigs=(), ufigs=()):
         md_table(["run", "index", "measured", "predicted", "band"], zz_rows),
         "",
         *hsva_indices_section(K["hsva_indices_ittc"]),
-        *discovery_section(E, K),
         "'predicted' is the fitted (MAP) model; the draws are clipped to the physical bounds. "
         + (
             f"Coefficients fitted on a bound ({', '.join(K['posterior']['at_bound'])}) are drawn only to "
@@ -1323,6 +1322,7 @@ def write_report(out, R, figs, kfigs, args, mfigs=(), ufigs=()):
         "",
         *[f"![{p.stem}](figures/{p.name})" for p in kfigs],
         "",
+        *discovery_section(E, K),
         *marin_section(K.get("marin_runs"), mfigs),
         *uncertainty_section(R, ufigs),
         "## Where the models miss",
