@@ -52,6 +52,15 @@ def add_parser(sub) -> None:
     opt.add_max_nfev(d, "least-squares iterations per fit")
     opt.add_seed(d, "random seed (noise-floor simulation, ensemble of the force-signature regression)")
     opt.add_weighting(d)
+    opt.add_number(
+        d,
+        "--starts",
+        opt.NON_NEGATIVE,
+        kind=int,
+        default=0,
+        help="extra Latin-hypercube starts of the base fit (the lowest cost is kept; default 0: the default "
+        "start alone)",
+    )
     opt.add_discovery(d, default_on=True)
     opt.add_jobs(d)
     opt.add_out(d, "output folder")
@@ -90,6 +99,7 @@ def run(args) -> int:
             mode=args.mode,
             max_effects=args.max_effects,
             weighting=args.weighting or None,
+            base_starts=args.starts,
             discover=None if args.no_discover else DiscoveryOptions(max_order=args.max_order),
         )
         run_and_write(args, vehicle, free, got, options)

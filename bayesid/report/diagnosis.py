@@ -224,6 +224,18 @@ def _discovery_lines(res: dict) -> list:
     return lines
 
 
+def _multistart_lines(ms: dict | None) -> list:
+    """The base fit's extra starts, when it had any."""
+    if not ms:
+        return []
+    better = "a better optimum, used" if ms["improved"] else "no better optimum"
+    return [
+        f"Base fit from {ms['n_starts']} extra start(s): lowest cost {fmt(ms['best_cost'], 6)} against the default "
+        f"start's {fmt(ms['default_cost'], 6)} ({better}; {ms['distinct_optima']} distinct near-best optima).",
+        "",
+    ]
+
+
 def _summary_lines(res: dict, command: str) -> list:
     """Title, command, input warnings, verdict and settings."""
     return [
@@ -237,6 +249,7 @@ def _summary_lines(res: dict, command: str) -> list:
             if res.get("base_check", {}).get("suspect")
             else []
         ),
+        *_multistart_lines((res.get("base_check") or {}).get("multistart")),
         f"**Verdict: {res['verdict']}**"
         + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""),
         "",

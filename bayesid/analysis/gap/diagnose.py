@@ -10,7 +10,16 @@ import numpy as np
 
 from ...estimation import shooting
 from ...estimation.fit import FitResult
-from ...estimation.windows import FitProblem, check_enough_data, fit_weighted, pooled_noise_sd, scores, window_rms
+from ...estimation.multistart import multistart
+from ...estimation.windows import (
+    FitProblem,
+    check_enough_data,
+    fit_model,
+    fit_weighted,
+    pooled_noise_sd,
+    scores,
+    window_rms,
+)
 from ...models import context as ctxmod
 from ...models import model_class
 from ...protocol import start_settings
@@ -87,7 +96,8 @@ class Diagnosis:
         Structure discovery on the model after the effects (:mod:`bayesid.analysis.gap.discovery`;
         ``discovered`` lists every refitted term), or ``{}`` when it was not run.
     base_check : dict
-        Whether the base fit can be trusted (:func:`base_fit_check`).
+        Whether the base fit can be trusted (:func:`base_fit_check`), with ``multistart``: the
+        extra starts' summary (``DiagnoseOptions.base_starts``), or None.
     base : Stage, optional
         The base model as a :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
         scores, nuisances) for plots; not in :meth:`to_dict`.
@@ -179,6 +189,10 @@ class DiagnoseOptions:
     leadin_s : float, optional
         The lead-in of the fitted rule on the held-out tracks (s); None:
         :func:`bayesid.protocol.start_settings`.
+    base_starts : int, default 0
+        Extra Latin-hypercube starts of the base fit (:func:`bayesid.estimation.multistart.multistart`,
+        with the base fit's channel weights); the best optimum is the base model when it beats the
+        default start's. 0: the default start alone.
     base_effects : tuple, default ()
         Effects of the base model (names or objects; e.g. those of a fitted model.json): every
         model compared has them, the candidates are tried on top.
@@ -197,6 +211,7 @@ class DiagnoseOptions:
     weighting: str | None = None
     start: str = "auto"
     leadin_s: float | None = None
+    base_starts: int = 0
     base_effects: tuple = ()
     discover: object = None
 
@@ -281,6 +296,7 @@ def diagnose(
     bfit, sd_fit = fit_weighted(
         FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
     )
+    bfit, base_ms = _base_multistart(FitProblem(base, ctr, sd_fit, max_nfev=opt.max_nfev), bfit, opt, runner)
     b_train, b_held = scores(base, bfit, ctr, sd=sd_fit), scores(base, bfit, cho, sd=sd_fit)
     check = base_fit_check(base, bfit, setup, sd_fit, b_held)
     if check["suspect"]:
@@ -355,12 +371,34 @@ def diagnose(
         seconds=time.perf_counter() - t_start,
         round_seconds=search["seconds"],
         discovery=found.to_dict() if found is not None else {},
-        base_check=check,
+        base_check=dict(check, multistart=base_ms),
         base=base_stage,
         after=after,
         discovered=found,
         setup=setup,
     )
+
+
+def _base_multistart(problem: FitProblem, bfit: FitResult, opt: DiagnoseOptions, runner: Runner):
+    """The base fit from ``opt.base_starts`` extra starts (seeded apart from the diagnosis' rng,
+    so that a diagnosis without them is unchanged): ``(fit, summary)``, the summary None without
+    starts."""
+    if int(opt.base_starts) < 1:
+        return bfit, None
+    runner.say(f"base fit: {int(opt.base_starts)} extra start(s)")
+    ms = multistart(problem, bfit.p, int(opt.base_starts), np.random.default_rng(20260), runner=runner)
+    best = ms.fits[ms.best]
+    improved = bool(best["cost"] < bfit.cost * (1.0 - 1e-6))
+    summary = {
+        "n_starts": int(opt.base_starts),
+        "default_cost": float(bfit.cost),
+        "best_cost": float(best["cost"]),
+        "improved": improved,
+        "distinct_optima": len(ms.distinct),
+    }
+    if improved:
+        bfit = fit_model(problem, np.asarray(best["p"], float), None)
+    return bfit, summary
 
 
 def _outcome(search: dict, floor: dict, b_held: dict, significant: bool, th: Thresholds) -> tuple[list, dict]:
@@ -439,7 +477,7 @@ def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> dict:
         f"base fit suspect: its held-out RMS {held['rms_position_m']:.3g} m is {ratio:.1f} x its RMS on its own "
         f"training tracks under the same protocol ({train:.3g} m): either the fit failed (a local optimum, window "
         "starts only a bent model reproduces) or the model misses structure the training runs let its "
-        "coefficients absorb; rule out the first (bayesid fit --starts) before reading the verdict"
+        "coefficients absorb; rule out the first (diagnose --starts N) before reading the verdict"
         if suspect
         else f"base fit: held-out / training RMS under the same protocol {ratio:.2f} (<= {BASE_FIT_RATIO:g})"
     )
