@@ -44,7 +44,9 @@ def model_class(vehicle):
     )
 
 
-def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal"):
+def build_model(
+    vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal", kernel: str = "generated"
+):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
     :class:`~bayesid.models.ship.model.ShipModel`, for a submarine
     :class:`~bayesid.models.submarine.EffectModel` in ``mode``.
@@ -62,6 +64,8 @@ def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: s
         Model step, s; default the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
     mode : {"horizontal", "6dof"}, default "horizontal"
         Degrees of freedom of a submarine model (a ship is always 3-DOF).
+    kernel : {"generated", "interpreted"}, default "generated"
+        The compiled kernel kind (the interpreted one takes any set of terms without compiling).
 
     Returns
     -------
@@ -78,7 +82,7 @@ def build_model(vehicle, free=None, effects=(), dt: float | None = None, mode: s
         For a vehicle description of no registered family.
     """
     cls = model_class(vehicle)
-    return cls.for_vehicle(vehicle, free, effects, dt=cls.DEFAULT_DT if dt is None else dt, mode=mode)
+    return cls.for_vehicle(vehicle, free, effects, dt=cls.DEFAULT_DT if dt is None else dt, mode=mode, kernel=kernel)
 
 
 def load_any_vehicle(path_or_id):

@@ -64,7 +64,9 @@ class EffectModel(ParameterLayout):
     DEFAULT_FREE = ("Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr")
 
     @classmethod
-    def for_vehicle(cls, vehicle, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal"):
+    def for_vehicle(
+        cls, vehicle, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal", kernel: str = "generated"
+    ):
         """The model of :func:`bayesid.models.build_model`.
 
         Parameters
@@ -79,13 +81,15 @@ class EffectModel(ParameterLayout):
             Integration step, s.
         mode : {"horizontal", "6dof"}, default "horizontal"
             Degrees of freedom.
+        kernel : {"generated", "interpreted"}, default "generated"
+            The compiled kernel kind.
 
         Returns
         -------
         EffectModel
             The model.
         """
-        return cls(vehicle, free or (), effects, mode=mode, dt=dt)
+        return cls(vehicle, free or (), effects, mode=mode, dt=dt, kernel=kernel)
 
     @staticmethod
     def default_fit_window(scoring_window_s):

@@ -55,6 +55,7 @@ from ...data import terms as termlib
 from ...data.track import STATE_NAMES, Track
 from ...estimation.laplace import fit_covariance
 from ...estimation.windows import FitProblem, WindowObjective, fit_model, pooled_noise_sd
+from ...models import build_model
 from ...models.ship import hullterms
 from ...models.ship.fileformat import Ship
 from ...tasks import Runner, Task, TaskError
@@ -193,9 +194,6 @@ class Discovery:
         Wall time.
     after : Stage, optional
         The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
-    vehicle : Vehicle or Ship, optional
-        The reference vehicle with the kept terms added at their fitted values and the free
-        coefficients at theirs (for ``--write-vehicle``); not in :meth:`to_dict`.
     """
 
     found: list
@@ -212,7 +210,6 @@ class Discovery:
     settings: dict
     seconds: float
     after: Stage | None = field(repr=False, default=None)
-    vehicle: object = field(repr=False, default=None)
 
     def to_dict(self) -> dict:
         """The JSON-able fields.
@@ -220,9 +217,9 @@ class Discovery:
         Returns
         -------
         dict
-            ``{field: value}`` without ``after`` and ``vehicle``.
+            ``{field: value}`` without ``after``.
         """
-        return {k: v for k, v in self.__dict__.items() if k not in ("after", "vehicle")}
+        return {k: v for k, v in self.__dict__.items() if k != "after"}
 
 
 # -- 2. candidate terms ---------------------------------------------------------------------------
@@ -526,16 +523,12 @@ def _ensemble(Xn, yn, blocks, threshold, options, rng) -> np.ndarray:
     return xi
 
 
-def _augmented(setup: Setup, model, effects, names: list, window_s: float | None):
+def _augmented(setup: Setup, effects, names: list, window_s: float | None):
     """The reference model with every candidate added at 0 and free, on the interpreted kernel
     (one model for any number of terms, nothing to compile), and its training contexts over
     ``window_s`` windows."""
     veh = setup.vehicle.with_coefficients({n: 0.0 for n in names})
-    free = list(setup.free) + list(names)
-    if isinstance(veh, Ship):
-        m = type(model)(veh, free, list(effects), dt=setup.dt, kernel="interpreted")
-    else:
-        m = type(model)(veh, free, list(effects), mode=setup.mode, dt=setup.dt, kernel="interpreted")
+    m = build_model(veh, [*setup.free, *names], list(effects), dt=setup.dt, mode=setup.mode, kernel="interpreted")
     return m, [m.context(t, window_s, start=setup.rule) for t in setup.train]
 
 
@@ -585,7 +578,7 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     """
     if window_s is None:
         window_s = setup.fit_window_s if setup.rule == "measured" else setup.window_s
-    model, ctxs = _augmented(setup, ref.model, effects, names, window_s)
+    model, ctxs = _augmented(setup, effects, names, window_s)
     n_ref, K = ref.model.n_theta, len(names)
     p0 = _extended_start(ref, model, [0.0] * K)
     nu0 = ref.fit.nuisance if model.n_nuisance else None
@@ -800,8 +793,10 @@ def fit_term(task: TermFit) -> tuple[Stage | None, list]:
     return score_stage(model, best, ct, ch, task.sd_fit), messages
 
 
-def _row(term: str, st: Stage | None, ref: Stage, sel: dict, floor_rms: float, sd: float | None = None) -> dict:
-    """The ``discovered`` record of a refitted candidate (``sd``: its coefficient's Laplace sd)."""
+def _row(term: str, st: Stage | None, ref: Stage, sel: dict | None, floor_rms: float, sd: float | None = None) -> dict:
+    """The ``discovered`` record of a refitted candidate (``sel``: the selection's numbers, None
+    for a term refitted on top of others; ``sd``: its coefficient's Laplace sd)."""
+    sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
     row = {
         "term": term,
         "dof": term[0],
@@ -889,7 +884,7 @@ def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple
         except Exception:  # noqa: BLE001 - the combination is skipped
             continue
         st = score_stage(model, f, ct, ch, sd_fit)
-        row = _row(n, st, cur, {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}, floor_rms)
+        row = _row(n, st, cur, None, floor_rms)
         if is_contributor(row, True, th):
             found.append(n)
             cur = st
@@ -995,9 +990,6 @@ def discover(
         found, after = _combine(
             list(stages), stages, ref, setup, (tuple(effects), ctx["sd_fit"], options.max_nfev), (floor_rms, th)
         )
-    vehicle = None
-    if after is not None:
-        vehicle = setup.vehicle.with_coefficients(after.fit.coefficients())
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
         found=found,
@@ -1026,5 +1018,4 @@ def discover(
         },
         seconds=time.perf_counter() - t0,
         after=after,
-        vehicle=vehicle,
     )

@@ -105,7 +105,9 @@ class ShipModel(ParameterLayout):
     get_effect = staticmethod(get_effect)
 
     @classmethod
-    def for_vehicle(cls, ship, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal"):
+    def for_vehicle(
+        cls, ship, free=None, effects=(), dt: float = DEFAULT_DT, mode: str = "horizontal", kernel: str = "generated"
+    ):
         """The model of :func:`bayesid.models.build_model`.
 
         Parameters
@@ -120,13 +122,15 @@ class ShipModel(ParameterLayout):
             Integration step, s.
         mode : str, default "horizontal"
             Ignored: the ship model is 3-DOF, the horizontal plane.
+        kernel : {"generated", "interpreted"}, default "generated"
+            The compiled kernel kind.
 
         Returns
         -------
         ShipModel
             The model.
         """
-        return cls(ship, free, effects, dt=dt)
+        return cls(ship, free, effects, dt=dt, kernel=kernel)
 
     @staticmethod
     def default_fit_window(scoring_window_s):
