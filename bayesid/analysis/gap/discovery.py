@@ -371,8 +371,8 @@ def _forces_at(model, fit, track, t) -> np.ndarray | None:
 
 
 def force_residuals(model, fit, tracks: list, names: list, options=None, rng=None) -> list[dict]:
-    """The missing forces of each track, their null (what noise alone gives), the candidates'
-    columns and the free coefficients' force derivatives at the same samples.
+    """The missing forces of each track, their null (what noise alone gives) and the candidates'
+    columns at the same samples.
 
     The null is measured on the fitted model's own run through the track's inputs
     (:func:`twin_track`): the missing force of the twin with noise of the data's sd minus that of
@@ -399,9 +399,7 @@ def force_residuals(model, fit, tracks: list, names: list, options=None, rng=Non
     -------
     list of dict
         Per track: ``t`` (n,), ``F`` (n, 3) missing X, Y (N) and N (N m), ``null`` (n, 3) or
-        None, ``columns`` (n, K), and ``S`` (n, 3, n_theta), the force derivatives of the free
-        coefficients (the model's ``force_sensitivities``; None for a family without them).
-        Tracks whose inverse dynamics fail are left out.
+        None, and ``columns`` (n, K). Tracks whose inverse dynamics fail are left out.
 
     Raises
     ------
@@ -426,7 +424,6 @@ def force_residuals(model, fit, tracks: list, names: list, options=None, rng=Non
             Fn = _forces_at(model, fit, twin_track(model, fit, tr, sd, rng), t)
             null = None if Fn is None else Fn - F0
         C = _columns(model, names, motion, inputs)
-        S = model.force_sensitivities(fit, tr) if hasattr(model, "force_sensitivities") else None
         keep = (t >= t[0] + opt.trim_s) & (t <= t[-1] - opt.trim_s) & np.isfinite(F).all(1) & np.isfinite(C).all(1)
         if null is not None:
             keep &= np.isfinite(null).all(1)
@@ -437,7 +434,6 @@ def force_residuals(model, fit, tracks: list, names: list, options=None, rng=Non
                     "F": F[keep],
                     "null": None if null is None else null[keep],
                     "columns": C[keep],
-                    "S": None if S is None else S[keep],
                 }
             )
     if not out:

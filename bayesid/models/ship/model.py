@@ -17,7 +17,7 @@ from ..effects import signature_dict
 from ..interface import ParameterLayout
 from . import hullterms
 from . import kernel as shipkernel
-from .dynamics import accelerations, apparent_wind, forces, mass_matrix, wind_components
+from .dynamics import accelerations, apparent_wind, mass_matrix, wind_components
 from .effects import SHIP_CATALOGUE, get_effect
 from .fileformat import Ship
 from .layout import COEFFICIENT_INDEX, WIND
@@ -414,40 +414,6 @@ class ShipModel(ParameterLayout):
         )
         M = mass_matrix(prm[0])
         return motion, (acc - a_model) @ M.T, inp
-
-    def force_sensitivities(self, fitres, track: Track, rel_step: float = 1e-6) -> np.ndarray:
-        """Derivatives of the model's external forces with respect to its free coefficients, at the
-        samples and states of :meth:`missing_forces` (central differences): the directions in
-        force space that a refit of the free coefficients can move.
-
-        Parameters
-        ----------
-        fitres : FitResult
-            A fit of this model (its ``p`` is read).
-        track : Track
-            The track.
-        rel_step : float, default 1e-6
-            Step of the differences relative to each coefficient's typical size
-            (:meth:`scales`).
-
-        Returns
-        -------
-        ndarray, shape (n, 3, n_theta)
-            dX, dY (N) and dN (N m) per unit change of each free coefficient (prime).
-        """
-        motion, states, inp, wind, _ = self._motion(track)
-        prm, cur, _ = self.kernel_params(fitres.p[None])
-        n = states.shape[0]
-        out = np.empty((n, 3, self.n_theta))
-        Fp, Fm = np.empty((n, 3)), np.empty((n, 3))
-        args = [np.ascontiguousarray(a) for a in (states, inp, wind, cur[0])]
-        for j, (i, h) in enumerate(zip(self._ifree, rel_step * self.scales()[: self.n_theta])):
-            for sign, F in ((1.0, Fp), (-1.0, Fm)):
-                q = prm[0].copy()
-                q[i] += sign * h
-                forces(*args, q, F)
-            out[:, :, j] = (Fp - Fm) / (2 * h)
-        return out
 
     def seed(self, tracks):
         """The equation-error seed (:func:`~bayesid.models.ship.seed.equation_error_seed`).
