@@ -19,6 +19,7 @@ import pytest
 from bayesid.analysis import gap
 from bayesid.analysis.gap import discovery as dv
 from bayesid.data.track import Track, write_csv
+from bayesid.estimation import shooting
 from bayesid.models import ship
 from bayesid.models.ship import hullterms
 
@@ -175,6 +176,11 @@ def test_a_term_removed_from_the_vehicle_is_named_and_recovered(velocity_log):
     # the base model, bent by the missing term on two runs, predicts the held-out runs several times
     # worse than its own training runs: the base-fit check says so
     assert d.base_check["suspect"] and d.base_check["ratio"] > 3
+    # without the velocity log the window starts are fitted, and checked against the kinematics
+    starts = d.base_check["starts"]
+    assert (starts is None) == velocity_log
+    if starts is not None:
+        assert starts["n_windows"] > 0 and 0 <= starts["fraction_flagged"] <= 1
 
 
 def test_a_control_with_nothing_missing_keeps_no_term():
@@ -285,3 +291,47 @@ def test_the_base_fit_from_extra_starts_is_never_worse_and_says_so():
     assert ms["improved"] == (ms["best_cost"] < ms["default_cost"] * (1 - 1e-6))
     if not ms["improved"]:
         assert many.gap_before == one.gap_before
+
+
+# -- the base fit's window starts -------------------------------------------------------------------
+
+
+def test_kinematic_rates_of_a_steady_turn_are_exact_within_their_sd():
+    # a steady turn of radius 40 m at 1.2 m/s with a 0.1 m/s outward drift, 5 Hz, noisy:
+    # u, v, r from the positions and heading agree with the truth within 3 of their own sd
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 60.0, 0.2) + T0
+    om, u, v = 1.2 / 40.0, 1.2, 0.1
+    psi = om * (t - T0)
+    x = np.cumsum(np.r_[0, np.diff(t)] * (u * np.cos(psi) - v * np.sin(psi)))
+    y = np.cumsum(np.r_[0, np.diff(t)] * (u * np.sin(psi) + v * np.cos(psi)))
+    sd = {"x": 0.05, "y": 0.05, "psi": math.radians(0.1)}
+    tr = Track(
+        t,
+        {"x": x + rng.normal(0, 0.05, t.size), "y": y + rng.normal(0, 0.05, t.size)}
+        | {"psi": psi + rng.normal(0, sd["psi"], t.size)},
+    )
+    k = shooting.kinematic_rates(tr, T0 + 30.0, sd)
+    for name, want in (("u", u), ("v", v), ("r", om)):
+        assert abs(k[name] - want) < 3 * k[name + "_sd"], (name, k)
+    assert k["u_sd"] < 0.05 and k["r_sd"] < math.radians(0.2)
+
+
+def test_window_starts_of_a_model_far_off_contradict_the_kinematics_and_the_right_ones_do_not():
+    # no velocity log, so the window starts are fitted with the model: with the true coefficients
+    # they agree with the tracks' own kinematics (measured: largest |z| 1.8 of 25 windows); with N_r
+    # off by half and N_v by 50 %, the starts that let the model follow the tracks are ones the ship
+    # never had (measured: 64 % of the windows beyond 5 sd)
+    kv, train, held = _runs({}, velocity_log=False)
+    m = ship.ShipModel(kv, dt=0.1)
+    tracks = train + held
+    ctxs = [m.context(t, 30.0, start="fitted", leadin_s=10.0) for t in tracks]
+    sd = {"x": NOISE["x"], "y": NOISE["y"], "psi": NOISE["psi"]}
+    z_right = [abs(r["z"]) for r in shooting.start_consistency(m, m.start(), tracks, ctxs, sd, "held-out")]
+    assert len(z_right) >= 15 and max(z_right) < shooting.START_Z
+    p = m.start().copy()
+    for name, f in (("Nr", 0.5), ("Nv", 1.5)):
+        p[m.free.index(name)] *= f
+    rows = shooting.start_consistency(m, p, tracks, ctxs, sd, "held-out")
+    assert np.mean([abs(r["z"]) > shooting.START_Z for r in rows]) > 0.5
+    assert {"set", "track", "t_s", "component", "fitted", "kinematic", "sd", "z"} <= set(rows[0])

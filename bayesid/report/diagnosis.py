@@ -236,6 +236,15 @@ def _multistart_lines(ms: dict | None) -> list:
     ]
 
 
+def _base_check_lines(check: dict | None) -> list:
+    """The base-fit check (generalisation and window starts): a warning when suspect, else a line."""
+    if not check:
+        return []
+    if check.get("suspect"):
+        return ["**Warning:** " + check["message"] + ".", ""]
+    return ["Base-fit check: " + check["message"] + ".", ""]
+
+
 def _summary_lines(res: dict, command: str) -> list:
     """Title, command, input warnings, verdict and settings."""
     return [
@@ -244,11 +253,7 @@ def _summary_lines(res: dict, command: str) -> list:
         f"`{command}`" if command else "",
         "",
         *(["**Input warnings:** " + "; ".join(res["warnings"]), ""] if res.get("warnings") else []),
-        *(
-            ["**Warning:** " + res["base_check"]["message"] + ".", ""]
-            if res.get("base_check", {}).get("suspect")
-            else []
-        ),
+        *_base_check_lines(res.get("base_check")),
         *_multistart_lines((res.get("base_check") or {}).get("multistart")),
         f"**Verdict: {res['verdict']}**"
         + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""),
