@@ -1024,3 +1024,62 @@ def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, titl
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3, which="both")
     return _save(fig, path)
+
+
+def training_fit(t, measured: dict, simulated: dict, win, path, title: str = ""):
+    """Measured against simulated motion of one training run under a fit's windows: plan view
+    (measured track, each fit window's simulation) and heading against time.
+
+    Parameters
+    ----------
+    t : ndarray (n,)
+        Sample times, s.
+    measured : dict
+        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,).
+    simulated : dict
+        The simulated ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,), each window
+        restarted as the fit scores it.
+    win : ndarray (n,)
+        The window index of each sample (a new line starts where it changes).
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    t, win = np.asarray(t, float), np.asarray(win)
+    cut = np.flatnonzero(np.diff(win) != 0) + 1
+    spans = list(zip(np.insert(cut, 0, 0), np.append(cut, t.size)))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.4]})
+    ax.plot(measured["y"], measured["x"], "k.", ms=1.2, label="measured")
+    for k, (a, b) in enumerate(spans):
+        ax.plot(
+            simulated["y"][a:b],
+            simulated["x"][a:b],
+            "tab:blue",
+            lw=1.0,
+            label="simulated (fit windows)" if not k else None,
+        )
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    psi_m = np.degrees(np.unwrap(measured["psi"]))
+    psi_s = np.degrees(simulated["psi"])
+    psi_s = psi_m + ((psi_s - psi_m + 180.0) % 360.0 - 180.0)  # the simulation on the measured branch
+    ax2.plot(t, psi_m, "k", lw=0.8, label="measured")
+    for k, (a, b) in enumerate(spans):
+        ax2.plot(t[a:b], psi_s[a:b], "tab:blue", lw=1.0, label="simulated (fit windows)" if not k else None)
+    for a, _ in spans[1:]:
+        ax2.axvline(t[a], color="0.7", lw=0.6, ls=":")
+    ax2.set_xlabel("t, s")
+    ax2.set_ylabel("heading, deg")
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
