@@ -104,11 +104,11 @@ def criterion_text(c: dict) -> str:
         The criterion, its value and how it compares with its threshold.
     """
     if c["test"] == "meets":
-        return f"{c['criterion']} {fmt(c['value'])} ({'meets' if c['passed'] else 'does not meet'} {c['threshold']})"
+        return f"{c['criterion']} {fmt(c['value'], 4)} ({'meets' if c['passed'] else 'does not meet'} {c['threshold']})"
     negate = {"<": ">=", "<=": ">", ">=": "<"}
     op = c["test"] if c["passed"] else negate[c["test"]]
-    return f"{c['criterion']} {fmt(c['value'])} {op} {fmt(c['threshold'])}" + (
-        "" if c["passed"] else f" (needs {c['test']} {fmt(c['threshold'])})"
+    return f"{c['criterion']} {fmt(c['value'], 4)} {op} {fmt(c['threshold'], 4)}" + (
+        "" if c["passed"] else f" (needs {c['test']} {fmt(c['threshold'], 4)})"
     )
 
 
@@ -125,8 +125,8 @@ def _criteria_lines(doc: dict) -> list:
                 [
                     [
                         c["criterion"],
-                        fmt(c["value"]),
-                        f"{c['test']} {c['threshold'] if isinstance(c['threshold'], str) else fmt(c['threshold'])}",
+                        fmt(c["value"], 4),
+                        f"{c['test']} {c['threshold'] if isinstance(c['threshold'], str) else fmt(c['threshold'], 4)}",
                         "passed" if c["passed"] else "**failed**",
                     ]
                     for c in crit
@@ -134,6 +134,17 @@ def _criteria_lines(doc: dict) -> list:
             ),
             "",
             ("Failed: " + "; ".join(criterion_text(c) for c in failed) + "." if failed else "Every criterion passed."),
+            "",
+        ]
+    first = doc["verdict"].get("importance_first")
+    if first:
+        from ..estimation.sampling import ESS_BULK_MIN
+        from ..estimation.track_posterior import KHAT_MAX
+
+        lines += [
+            f"MCMC ran because the importance stage that came first (--method auto) was not reliable: Pareto k-hat "
+            f"{fmt(first['k_hat'], 4)} (needs < {fmt(KHAT_MAX, 4)}), importance ESS {fmt(first['ess'], 4)} "
+            f"(needs >= {fmt(ESS_BULK_MIN, 4)}).",
             "",
         ]
     if doc.get("draws_warning"):
