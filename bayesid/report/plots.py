@@ -678,17 +678,54 @@ __all__ = [
 
 
 def gap_ranking(
-    ranking: list, before: float, floor: float, path, title: str = "Candidates: held-out RMS position error"
+    ranking: list,
+    before: float,
+    floor: float,
+    path,
+    title: str = "Candidates: held-out RMS position error",
+    band_ratio: float | None = None,
 ):
-    """Horizontal bars of each candidate's held-out RMS (m) with the base model and noise floor."""
+    """Horizontal bars of each candidate's held-out RMS (m) with the base model, the noise floor
+    and the noise-floor band.
+
+    Parameters
+    ----------
+    ranking : list of dict
+        The ranked candidates: ``effect`` and ``heldout_rms_m`` (m) each.
+    before : float
+        The base model's held-out RMS position error, m.
+    floor : float
+        The noise floor's (a perfect model at the estimated noise), m.
+    path : str or Path
+        The PNG written.
+    title : str
+        The title.
+    band_ratio : float, optional
+        The floor band's upper edge as a multiple of the floor (``Thresholds.none_ratio``): the
+        band from the floor to it is shaded, where a model's error counts as explained.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     names = [r["effect"] for r in ranking]
     vals = [r["heldout_rms_m"] for r in ranking]
-    fig, ax = plt.subplots(figsize=(6, 0.4 * len(names) + 1.5))
-    ax.barh(names[::-1], vals[::-1], color="tab:blue")
-    ax.axvline(before, color="tab:red", ls="--", label=f"base model {before:.2f} m")
-    ax.axvline(floor, color="k", ls=":", label=f"noise floor {floor:.2f} m")
+    fig, ax = plt.subplots(figsize=(6.4, 0.4 * len(names) + 2.0))
+    if band_ratio is not None and np.isfinite(floor):
+        ax.axvspan(
+            floor,
+            band_ratio * floor,
+            color="0.6",
+            alpha=0.35,
+            zorder=0,
+            label=f"noise-floor band {floor:.2f}-{band_ratio * floor:.2f} m (gap explained inside)",
+        )
+    ax.barh(names[::-1], vals[::-1], height=0.6, color="tab:blue", alpha=0.85, zorder=1)
+    ax.axvline(before, color="tab:red", ls="--", zorder=2, label=f"base model {before:.2f} m")
+    ax.axvline(floor, color="k", ls=":", zorder=2, label=f"noise floor {floor:.2f} m")
     ax.set_xlabel("held-out RMS position error, m")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.3), ncol=2)
     ax.set_title(title)
     return _save(fig, path)
 
