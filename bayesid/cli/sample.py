@@ -194,6 +194,7 @@ def _fit_first(args, vehicle, got: dict, out: Path):
     from ..estimation.identification import identify
     from ..estimation.modelfile import ModelDocument, load_model
     from ..estimation.options import FitOptions
+    from ..report.fit import budget_advice, budget_exhausted
 
     print("  fitting first (bayesid fit with its defaults)", flush=True)
     options = FitOptions(
@@ -207,12 +208,20 @@ def _fit_first(args, vehicle, got: dict, out: Path):
         options,
         runner=tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True)),
     )
-    ModelDocument.from_identify(
+    fdoc = ModelDocument.from_identify(
         res,
         vehicle_ref(args.vehicle),
         [t.name for t in got["--train"]],
         provenance=dict(provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]),
-    ).to_json(out / "fit" / "model.json")
+    )
+    fdoc.fit["max_nfev"] = options.max_nfev
+    fdoc.to_json(out / "fit" / "model.json")
+    if budget_exhausted(fdoc.fit):
+        print(
+            f"warning: the fit made first: {budget_advice(fdoc.fit)}; sample has no --max-nfev: run bayesid fit "
+            "with it, then bayesid sample --model",
+            file=sys.stderr,
+        )
     model, p, _cov, doc = load_model(out / "fit" / "model.json")
     model_sha = file_sha256(out / "fit" / "model.json")
     return model, p, doc, model_sha

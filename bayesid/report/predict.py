@@ -85,8 +85,9 @@ def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> Non
     Parameters
     ----------
     doc : dict
-        The ``predict.json`` document: window, start rule, warnings, windowed and whole-run
-        scores, manoeuvre indices, bands.
+        The ``predict.json`` document: window, start rule (and ``start``: how it was resolved),
+        warnings, windowed and whole-run scores, the per-window distribution
+        (``window_distribution``, :func:`window_distribution`), manoeuvre indices, bands.
     out : str or Path
         The folder written to (it exists; the figures are in ``figures/``).
     tracks : list of str
