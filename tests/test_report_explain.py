@@ -282,3 +282,19 @@ def test_diagnose_report_gives_units_and_the_band(csvs, tmp_path, capsys, monkey
         assert " N m" in where.split("Missing forces")[1].splitlines()[0]
     assert "psi " in report and "deg, u " in report  # the channel weights with their units
     assert "(figures/ranking.png)" in report and any("noise-floor band" in lb for lb in labels)
+
+
+def test_mcmc_criteria_name_the_failed_rhat_and_the_tau_rule():
+    from types import SimpleNamespace
+
+    from bayesid.cli.sample import _criteria
+    from bayesid.estimation.sampling import RHAT_MAX
+    from bayesid.report.sample import _criteria_lines
+
+    v = dict(method="mcmc", rhat_max=1.05, ess_bulk_min=900.0, ess_tail_min=800.0, tau_max=20.0)
+    res = SimpleNamespace(verdict=v, mcmc={"result": SimpleNamespace(n_steps=600, reached_tau_rule=False)})
+    crit = _criteria(res)
+    assert [c["passed"] for c in crit] == [False, True, True, False]
+    assert crit[0]["threshold"] == RHAT_MAX and crit[3]["value"] == 30.0
+    text = "\n".join(_criteria_lines({"verdict": v, "verdict_criteria": crit}))
+    assert "Failed: R-hat (max over parameters) 1.05 > 1.01" in text and "does not meet the tau rule" in text

@@ -136,6 +136,7 @@ def _criteria(res) -> list:
     k-hat and importance ESS for the importance stage; R-hat, bulk and tail ESS and the
     autocorrelation-time rule for MCMC (:func:`bayesid.estimation.sampling.diagnostics`)."""
     from ..estimation.sampling import ESS_BULK_MIN, ESS_TAIL_MIN, RHAT_MAX
+    from ..estimation.track_posterior import TRACK_SAMPLER as cfg
 
     v = res.verdict
     if v["method"] == "importance":
@@ -165,7 +166,7 @@ def _criteria(res) -> list:
                 "steps / autocorrelation time",
                 r.n_steps / v["tau_max"] if v["tau_max"] > 0 else None,
                 "meets",
-                "the tau rule",
+                f"the tau rule: >= {cfg.tau_factor:g} tau and >= {cfg.min_steps} steps",
                 bool(r.reached_tau_rule),
             ),
         ]
