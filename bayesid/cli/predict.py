@@ -129,7 +129,14 @@ def _start_note(asked: str, rule: str, tracks) -> dict:
 
     missing = {tr.name: [k for k in ("u", "v", "r") if not logs(tr, k)] for tr in tracks}
     bare = {n: m for n, m in missing.items() if m}
-    listed = "; ".join(f"{n} lacks {', '.join(m)}" for n, m in bare.items())
+    groups = {}
+    for n, m in bare.items():
+        groups.setdefault(", ".join(m), []).append(n)
+
+    def names(ns):
+        return ", ".join(ns[:4]) + (f" and {len(ns) - 4} more" if len(ns) > 4 else "")
+
+    listed = "; ".join(f"{names(ns)} {'lacks' if len(ns) == 1 else 'lack'} {m}" for m, ns in groups.items())
     if asked != "auto":
         reason = f"asked for with --start {asked}" + (" (every track logs u, v and r)" if not bare else f" ({listed})")
     elif not bare:
