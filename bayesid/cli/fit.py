@@ -101,6 +101,7 @@ def run(args) -> int:
     got = read_tracks([("--train", args.train)], vehicle)
     with naming_files(got):
         res, doc = _identify(args, out, vehicle, free, got)
+        doc.fit["max_nfev"] = args.max_nfev
         _write(res, doc, got["--train"], out)
     return 0
 
@@ -161,21 +162,55 @@ def _identify(args, out, vehicle, free, got):
 def _write(res, doc, train, out) -> None:
     """``model.json``, ``report.md`` and, for a multistart fit, its turning circles and figure."""
     from ..report import write_fit_report
+    from ..report.fit import budget_advice, budget_exhausted
 
     circles = None
     if res.multistart is not None:
         circles = _multistart_circles(res, doc, train)
     doc.to_json(out / "model.json")
-    write_fit_report(doc.to_dict(), out, command="bayesid " + " ".join(sys.argv[1:]))
+    figures = _training_figures(res, train, out / "figures")
+    write_fit_report(doc.to_dict(), out, command="bayesid " + " ".join(sys.argv[1:]), training_figures=figures)
     if res.multistart is not None:
         from ..report import plots
 
-        (out / "figures").mkdir(parents=True, exist_ok=True)
         plots.multistart(doc.multistart, circles, out / "figures" / "multistart.png")
     print(
         f"training RMS position {res.train_scores['rms_position_m']:.3f} m over {res.window_s:g} s windows; "
         f"wrote {out / 'model.json'}"
     )
+    if budget_exhausted(doc.fit):
+        print(f"warning: {budget_advice(doc.fit)} (see {out / 'report.md'})", file=sys.stderr)
+
+
+def _training_figures(res, train, figs) -> list:
+    """Measured against simulated track and heading of each training run under the fit's windows
+    and start rule, as its training scores are computed; returns the file names written in
+    ``figs`` (a run without x, y and psi gets none)."""
+    from ..estimation import shooting
+    from ..report import plots
+
+    figs.mkdir(parents=True, exist_ok=True)
+    names = []
+    per_run = res.train_scores.get("per_track_rms_position_m") or {}
+    for tr in train:
+        ctx = res.model.context(tr, res.window_s, start=res.start_rule)
+        if not all(c in ctx.meas for c in ("x", "y", "psi")):
+            continue
+        S = shooting.simulate(res.model, ctx, res.fit.p[None])[0]
+        k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
+        name = f"training_{tr.name}.png"
+        rms = per_run.get(tr.name)
+        plots.training_fit(
+            ctx.ts[::k],
+            {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
+            {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
+            ctx.win[::k],
+            figs / name,
+            title=f"{tr.name}: training fit, {res.window_s:g} s windows"
+            + (f" (RMS position {rms:.3g} m)" if rms is not None else ""),
+        )
+        names.append(name)
+    return names
 
 
 def _multistart_circles(res, doc, train, rudder_deg: float = 35.0, most: int = 6):

@@ -59,6 +59,7 @@ def run(args) -> int:
     """
     from ..estimation.modelfile import load_model
     from ..report import write_json, write_predict_report
+    from ..report.predict import window_distribution
 
     out = check_out(args.out, "predict", args.overwrite)
     model, p, cov, doc = load_model(args.model)
@@ -75,11 +76,13 @@ def run(args) -> int:
             "window_s": window,
             "start_rule": pr.start_rule,
             "leadin_s": pr.leadin_s,
+            "start": _start_note(args.start, pr.start_rule, tracks),
             "warnings": got["_warnings"],
             "input_sha256": got["_sha256"],
             "pooled": pr.pooled,
             "per_track": pr.per_track,
             "windows": pr.windows,
+            "window_distribution": window_distribution(pr.windows),
             "whole_run": {"pooled": whole.pooled, "per_track": whole.per_track},
             "indices": indices,
             "n_draws": args.draws,
@@ -87,7 +90,7 @@ def run(args) -> int:
         }
         write_json(out / "predict.json", res)
         write_predict_report(res, out, [t.name for t in tracks], command=f"bayesid {' '.join(sys.argv[1:])}")
-    print(_summary(pr, bands, window, out))
+    print(_summary(pr, bands, (window, res["window_distribution"]), out))
     return 0
 
 
@@ -111,6 +114,47 @@ def _warn(doc, got: dict, window) -> None:
             )
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
+
+
+def _start_note(asked: str, rule: str, tracks) -> dict:
+    """How the window start rule was resolved (:func:`bayesid.protocol.resolve_start`): the rule
+    asked for, the rule used, the tracks without a velocity log (u, v, r not all logged) and the
+    reason in words."""
+    import numpy as np
+
+    from ..protocol import AUTO_MAX_SLOPE_SD, slope_sd
+
+    def logs(tr, k):
+        return k in tr and bool(np.isfinite(np.asarray(tr[k], float)).any())
+
+    missing = {tr.name: [k for k in ("u", "v", "r") if not logs(tr, k)] for tr in tracks}
+    bare = {n: m for n, m in missing.items() if m}
+    groups = {}
+    for n, m in bare.items():
+        groups.setdefault(", ".join(m), []).append(n)
+
+    def names(ns):
+        return ", ".join(ns[:4]) + (f" and {len(ns) - 4} more" if len(ns) > 4 else "")
+
+    listed = "; ".join(f"{names(ns)} {'lacks' if len(ns) == 1 else 'lack'} {m}" for m, ns in groups.items())
+    if asked != "auto":
+        reason = f"asked for with --start {asked}" + (" (every track logs u, v and r)" if not bare else f" ({listed})")
+    elif not bare:
+        reason = "--start auto: every track logs u, v and r, so the measured velocities start each window"
+    else:
+        sd = {tr.name: slope_sd(tr) for tr in tracks if tr.name in bare}
+        worst = max(sd, key=sd.get)
+        if rule == "measured":
+            reason = (
+                f"--start auto: {listed}, but the positions are precise enough for a 1 s slope estimate of the "
+                f"velocity (standard error at most {sd[worst]:.2g} m/s, {worst}; limit {AUTO_MAX_SLOPE_SD:g} m/s)"
+            )
+        else:
+            reason = (
+                f"--start auto: {listed}, and the positions are too noisy for a 1 s slope estimate of the "
+                f"velocity (standard error {sd[worst]:.2g} m/s on {worst}, above {AUTO_MAX_SLOPE_SD:g} m/s)"
+            )
+    return {"asked": asked, "rule": rule, "without_velocity_log": sorted(bare), "reason": reason}
 
 
 def _predict(args, fitted, doc, tracks, window, out):
@@ -176,13 +220,22 @@ def _figures(pr, bands: dict, doc, tracks, window, out) -> None:
         plots.reliability(groups, out / "figures" / "reliability.png", bands["parameter_only"])
 
 
-def _summary(pr, bands: dict, window, out) -> str:
-    """The line printed at the end: pooled score, coverage of the 90 % bands, runs outside the
-    training runs' range or extrapolated."""
+def _summary(pr, bands: dict, windows: tuple, out) -> str:
+    """The line printed at the end: pooled score and the windows' median and 90th percentile
+    (``windows``: the window length and the per-window distribution), coverage of the 90 % bands,
+    runs outside the training runs' range or extrapolated."""
+    window, dist = windows
     c90 = ((bands.get("coverage") or {}).get("all") or {}).get("0.9") or {}
     ext = (bands.get("extrapolated") or {}).get("runs") or []
+    per = dist.get("rms_position_m")
     return (
         f"pooled RMS position {pr.pooled['rms_position_m']:.3f} m ({window} s windows)"
+        + (
+            f"; per window median {per['median']:.3f} m, 90th percentile {per['p90']:.3f} m over "
+            f"{dist['n_windows']} windows (report.md names the worst)"
+            if per
+            else ""
+        )
         + (f"; calibrated 90 % bands hold {c90['inside']} of {c90['n']} claims" if c90.get("n") else "")
         + (f" ({c90['unbounded']} of them unbounded: too few training scores for 90 %)" if c90.get("unbounded") else "")
         + (

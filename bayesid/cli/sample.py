@@ -104,11 +104,89 @@ def run(args) -> int:
         got = read_tracks([("--train", args.train)], vehicle)
         with naming_files(got):
             model, p, doc, model_sha = _fit_first(args, vehicle, got, out)
+    draws_note = _draws_warning(args.method, args.draws)
+    if draws_note:
+        print(f"warning: {draws_note}", file=sys.stderr)
     with naming_files(got):
         res, rule = _sample(args, model, p, doc, got, model_sha, out)
         sdoc = _document(args, (model, p, doc, model_sha), got, res, rule, out)
+        sdoc["draws_warning"] = draws_note
         _write(args, res, sdoc, (p, doc), model_sha, out)
     return 0
+
+
+def _draws_warning(method: str, draws: int) -> str | None:
+    """The warning when ``--draws`` cannot reach the importance stage's ESS criterion at all (its
+    ESS is at most the number of draws); None when it can, or for MCMC (whose ESS is over the
+    chains, not the draws kept)."""
+    from ..estimation.sampling import ESS_BULK_MIN
+
+    if method == "mcmc" or draws >= ESS_BULK_MIN:
+        return None
+    return (
+        f"--draws {draws} cannot reach the ESS criterion (ESS >= {ESS_BULK_MIN:.0f}): an importance ESS is at most "
+        f"the number of draws, so the importance stage is never judged reliable"
+        + ("; --method auto goes on to MCMC" if method == "auto" else "")
+        + f"; give --draws {ESS_BULK_MIN:.0f} or more (a few times more when the weights are uneven)"
+    )
+
+
+def _criteria(res) -> list:
+    """The tests of the sampler's verdict, each with its value, threshold and result: Pareto
+    k-hat and importance ESS for the importance stage; R-hat, bulk and tail ESS and the
+    autocorrelation-time rule for MCMC (:func:`bayesid.estimation.sampling.diagnostics`)."""
+    from ..estimation.sampling import ESS_BULK_MIN, ESS_TAIL_MIN, RHAT_MAX
+    from ..estimation.track_posterior import TRACK_SAMPLER as cfg
+
+    v = res.verdict
+    if v["method"] == "importance":
+        rows = [
+            ("Pareto k-hat", v["k_hat"], "<", v["k_hat_max"], v["k_hat"] < v["k_hat_max"]),
+            ("importance ESS", v["ess"], ">=", v["ess_min"], v["ess"] >= v["ess_min"]),
+        ]
+    else:
+        r = res.mcmc["result"]
+        rows = [
+            ("R-hat (max over parameters)", v["rhat_max"], "<=", RHAT_MAX, v["rhat_max"] <= RHAT_MAX),
+            (
+                "bulk ESS (min over parameters)",
+                v["ess_bulk_min"],
+                ">=",
+                ESS_BULK_MIN,
+                v["ess_bulk_min"] >= ESS_BULK_MIN,
+            ),
+            (
+                "tail ESS (min over parameters)",
+                v["ess_tail_min"],
+                ">=",
+                ESS_TAIL_MIN,
+                v["ess_tail_min"] >= ESS_TAIL_MIN,
+            ),
+            (
+                "steps / autocorrelation time",
+                r.n_steps / v["tau_max"] if v["tau_max"] > 0 else None,
+                "meets",
+                f"the tau rule: >= {cfg.tau_factor:g} tau and >= {cfg.min_steps} steps",
+                bool(r.reached_tau_rule),
+            ),
+        ]
+    return [
+        {"criterion": n, "value": None if x is None else float(x), "test": op, "threshold": th, "passed": bool(ok)}
+        for n, x, op, th, ok in rows
+    ]
+
+
+def _flat_prior_status(dos: dict) -> None:
+    """Relabel, in place, the dossier's coefficients without a Gaussian prior: "determined"
+    relative to a flat prior only says the bounds are wide. Their status becomes ``flat prior``,
+    ``sd_ratio`` None when the bounds are open (a ratio to an infinite sd), and ``relative_sd``
+    (posterior sd / |posterior mean|) is added to every coefficient."""
+    for c in dos["coefficients"].values():
+        c["relative_sd"] = c["sd"] / abs(c["mean"]) if c["mean"] else None
+        if c["prior"] != "normal":
+            c["status"] = "flat prior"
+            if c["prior_sd"] is None:
+                c["sd_ratio"] = None
 
 
 def _fit_first(args, vehicle, got: dict, out: Path):
@@ -117,6 +195,7 @@ def _fit_first(args, vehicle, got: dict, out: Path):
     from ..estimation.identification import identify
     from ..estimation.modelfile import ModelDocument, load_model
     from ..estimation.options import FitOptions
+    from ..report.fit import budget_advice, budget_exhausted
 
     print("  fitting first (bayesid fit with its defaults)", flush=True)
     options = FitOptions(
@@ -130,12 +209,20 @@ def _fit_first(args, vehicle, got: dict, out: Path):
         options,
         runner=tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True)),
     )
-    ModelDocument.from_identify(
+    fdoc = ModelDocument.from_identify(
         res,
         vehicle_ref(args.vehicle),
         [t.name for t in got["--train"]],
         provenance=dict(provenance(vehicle, got["_sha256"]), warnings=got["_warnings"]),
-    ).to_json(out / "fit" / "model.json")
+    )
+    fdoc.fit["max_nfev"] = options.max_nfev
+    fdoc.to_json(out / "fit" / "model.json")
+    if budget_exhausted(fdoc.fit):
+        print(
+            f"warning: the fit made first: {budget_advice(fdoc.fit)}; sample has no --max-nfev: run bayesid fit "
+            "with it, then bayesid sample --model",
+            file=sys.stderr,
+        )
     model, p, _cov, doc = load_model(out / "fit" / "model.json")
     model_sha = file_sha256(out / "fit" / "model.json")
     return model, p, doc, model_sha
@@ -219,6 +306,7 @@ def _document(args, fitted: tuple, got: dict, res, rule: str, out: Path) -> dict
         prior,
         draws,
     )
+    _flat_prior_status(dos)
     q05, q95 = np.quantile(draws, [0.05, 0.95], axis=0)
     em = _error_model(res)
     label = {
@@ -249,6 +337,7 @@ def _document(args, fitted: tuple, got: dict, res, rule: str, out: Path) -> dict
             f"{6 * res.n_windows} dimensions)"
         ),
         "verdict": res.verdict,
+        "verdict_criteria": _criteria(res),
         "cost": {
             "seconds_per_evaluation": res.seconds_per_evaluation,
             "n_windows": res.n_windows,
@@ -290,6 +379,7 @@ def _write(args, res, sdoc: dict, fitted: tuple, model_sha: str, out: Path) -> N
     from .. import __version__
     from ..estimation import track_posterior as tp
     from ..report import write_json, write_sample_report
+    from ..report.sample import criterion_text
 
     idata = tp.inference_data(
         res, {"bayesid_version": __version__, "seed": args.seed, "method": res.method, "model_sha256": model_sha}
@@ -302,7 +392,14 @@ def _write(args, res, sdoc: dict, fitted: tuple, model_sha: str, out: Path) -> N
     _posterior_model(res, doc, out).to_json(out / "posterior_model.json")
     write_json(out / "sample.json", sdoc)
     write_sample_report(sdoc, out, command=sdoc["provenance"]["command"])
-    print(f"{res.verdict['text']} wrote {out / 'sample.json'}")
+    failed = [c for c in sdoc["verdict_criteria"] if not c["passed"]]
+    print(
+        f"{res.verdict['text']}"
+        + (f" Failed: {'; '.join(criterion_text(c) for c in failed)}." if failed else "")
+        + f" wrote {out / 'sample.json'}"
+    )
+    if sdoc["draws_warning"]:
+        print(f"warning: {sdoc['draws_warning']}", file=sys.stderr)
 
 
 def _figures(res, dos: dict, p, figs: Path) -> None:

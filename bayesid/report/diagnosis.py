@@ -3,10 +3,43 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from .markdown import fmt, md_table
 from .study import write_json
+
+#: Report units of the protocol's channels: (factor from SI, unit).
+CHANNEL_UNITS = {
+    **{c: (1.0, "m") for c in ("x", "y", "z", "position")},
+    **{c: (180.0 / math.pi, "deg") for c in ("phi", "theta", "psi")},
+    **{c: (1.0, "m/s") for c in ("u", "v", "w")},
+    **{c: (180.0 / math.pi, "deg/s") for c in ("p", "q", "r")},
+}
+#: Units of the missing forces and moments.
+FORCE_UNITS = {"X": "N", "Y": "N", "Z": "N", "K": "N m", "M": "N m", "N": "N m"}
+
+
+def channel_value(channel: str, value) -> str:
+    """A channel's SI value in report units, with its unit (``psi 0.00336`` rad -> ``0.193 deg``).
+
+    Parameters
+    ----------
+    channel : str
+        The channel (a state name or ``position``).
+    value : float or None
+        Its value in SI (m, rad, m/s, rad/s).
+
+    Returns
+    -------
+    str
+        The value converted and formatted with its unit (``-`` for None; an unknown channel
+        unconverted, without a unit).
+    """
+    if value is None:
+        return "-"
+    f, unit = CHANNEL_UNITS.get(channel, (1.0, ""))
+    return f"{fmt(f * float(value))} {unit}".rstrip()
 
 
 def attribution_lines(res: dict) -> list[str]:
@@ -82,6 +115,7 @@ def _figures(diag, res: dict, out: Path, heldout: list) -> list:
                 res["gap_before"]["heldout_rms_m"],
                 res["noise_floor"]["heldout_rms_m"],
                 out / "figures" / "ranking.png",
+                band_ratio=res["thresholds"]["none_ratio"],
             )
         )
     figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
@@ -207,7 +241,7 @@ def _discovery_lines(res: dict) -> list:
                     [
                         g,
                         fmt(d["rms"]) + (" N m" if g == "N" else " N"),
-                        fmt(d["noise_rms"]),
+                        fmt(d["noise_rms"]) + (" N m" if g == "N" else " N"),
                         "; ".join(
                             f"{t['term']} ({fmt(t['inclusion_probability'])}, {fmt(t['force_r2'])})" for t in d["top"]
                         ),
@@ -261,7 +295,7 @@ def _summary_lines(res: dict, command: str) -> list:
         f"Training tracks: {', '.join(res['train_tracks'])}; held-out: {', '.join(res['heldout_tracks'])}. "
         f"Free coefficients: {', '.join(res['settings']['free']) or 'none'}. Protocol windows: "
         f"{res['settings']['window_s']} s; model step {res['settings']['dt']} s; channel weights of the fits: "
-        f"{res['settings'].get('weighting', 'noise')} sds ({', '.join(f'{k} {fmt(v)}' for k, v in res.get('fit_sd', {}).items())}).",
+        f"{res['settings'].get('weighting', 'noise')} sds ({', '.join(f'{k} {channel_value(k, v)}' for k, v in res.get('fit_sd', {}).items())}).",
         "",
     ]
 
@@ -295,12 +329,14 @@ def _how_far_lines(res: dict) -> list:
                 for label, g in (("base model", gb), ("with " + ("+".join(res["effects_added"]) or "nothing"), ga))
             ],
         ),
+        "",
         "Log-likelihood: Gaussian at the fits' channel sds, samples treated as independent (a "
         "before/after comparison on the same samples, not a calibrated likelihood).",
         "",
-        f"Held-out shrinkage {fmt(res['heldout_shrinkage'])}; noise floor (perfect model at the "
-        f"estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
-        f"{fmt(res['gap_ratio'])} (significant above {res['thresholds']['none_ratio']}).",
+        f"Held-out shrinkage {fmt(res['heldout_shrinkage'])} (fraction of the base model's held-out RMS removed); "
+        f"noise floor (perfect model at the estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
+        f"{fmt(res['gap_ratio'])} (held-out RMS / noise floor, dimensionless; significant above "
+        f"{res['thresholds']['none_ratio']}).",
         "",
     ]
 
@@ -312,7 +348,15 @@ def _which_lines(res: dict) -> list:
         "## Which",
         "",
         md_table(
-            ["effect", "held-out RMS (m)", "excess removed", "window test p", "ΔBIC (train)", "role", "parameters"],
+            [
+                "effect",
+                "held-out RMS (m)",
+                "excess removed (fraction)",
+                "window test p",
+                "ΔBIC (train)",
+                "role",
+                "parameters (unit in the name)",
+            ],
             [
                 [
                     r["effect"],
@@ -329,6 +373,7 @@ def _which_lines(res: dict) -> list:
         "",
         *attribution_lines(res),
         "",
+        *_bic_heldout_lines(res),
         f"Rules: an effect is the cause if, added, the held-out error falls within "
         f"{res['thresholds']['none_ratio']} x the floor, it removes >= {res['thresholds']['explain_fraction']} "
         f"of the excess and its ΔBIC <= {res['thresholds']['bic_threshold']}; a contributor improves the "
@@ -350,6 +395,38 @@ def _which_lines(res: dict) -> list:
     ]
 
 
+def _bic_heldout_lines(res: dict) -> list:
+    """A sentence for each candidate on which the training ΔBIC and the held-out windows disagree:
+    strongly favoured by BIC (ΔBIC at most the threshold) without a held-out gain, or a held-out
+    gain (positive shrinkage and the window test or the excess removed) that BIC does not support."""
+    th = res["thresholds"]
+    lines = []
+    for r in res["ranking"]:
+        p = r.get("window_p_value")
+        gain = r["heldout_shrinkage"] > 0 and (
+            (p is not None and p < th["partial_p"]) or r["excess_removed"] >= th["explain_fraction"]
+        )
+        favoured = r["delta_bic"] <= th["bic_threshold"]
+        shrink = r["heldout_shrinkage"]
+        ref = r["heldout_rms_m"] / (1.0 - shrink) if shrink != 1 else None
+        held = f"held-out RMS {fmt(ref)} m -> {fmt(r['heldout_rms_m'])} m, window test p = {fmt(p)}"
+        if favoured and not gain:
+            lines.append(
+                f"- **BIC and held-out disagree on {r['effect']}**: training ΔBIC {fmt(r['delta_bic'], 4)} favours it "
+                f"strongly, but it brings no held-out gain ({held}). The training runs' improvement does not carry "
+                "over to unseen runs: its parameters fit something particular to the training runs (overfitting, "
+                "or an effect that differs from run to run), so it is not added."
+            )
+        elif gain and not favoured:
+            lines.append(
+                f"- **BIC and held-out disagree on {r['effect']}**: it improves the held-out windows ({held}), but "
+                f"training ΔBIC {fmt(r['delta_bic'], 4)} does not support it (needs <= {th['bic_threshold']}): the "
+                "training runs alone do not pay for its parameters. More or richer training runs would decide; it is "
+                "not added on this evidence."
+            )
+    return lines + ([""] if lines else [])
+
+
 def _where_lines(res: dict) -> list:
     """The "Where" section: channels, dominant region, phases, missing forces, wind dependence
     and the residuals' spectra."""
@@ -357,9 +434,15 @@ def _where_lines(res: dict) -> list:
         "## Where",
         "",
         md_table(
-            ["channel", "RMS", "noise sd", "floor RMS", "ratio"],
+            ["channel", "RMS", "noise sd", "floor RMS", "RMS / floor RMS"],
             [
-                [c, fmt(d.get("rms")), fmt(d.get("noise_sd")), fmt(d.get("floor_rms")), fmt(d.get("excess_ratio"))]
+                [
+                    c,
+                    channel_value(c, d.get("rms")),
+                    channel_value(c, d.get("noise_sd")),
+                    channel_value(c, d.get("floor_rms")),
+                    fmt(d.get("excess_ratio")),
+                ]
                 for c, d in res["where"]["channels"].items()
             ],
         ),
@@ -382,7 +465,11 @@ def _where_lines(res: dict) -> list:
         lines += [
             "Missing forces (RMS, inverse dynamics of the first held-out track's smoothed motion minus "
             "the fitted model): "
-            + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["forces"].items() if not isinstance(v, str)),
+            + ", ".join(
+                f"{k} {fmt(v)} {FORCE_UNITS.get(k, '')}".rstrip()
+                for k, v in res["where"]["forces"].items()
+                if not isinstance(v, str)
+            ),
             "",
         ]
     if res["where"].get("wind_correlation"):

@@ -8,10 +8,56 @@ import numpy as np
 
 from .markdown import fmt, md_table
 
+#: Distance from the prior mean (in prior sds) beyond which a coefficient is flagged "far".
+FAR_FROM_PRIOR = 3.0
+#: How the solvers say they stopped at their budget (scipy's least_squares, SLSQP).
+_BUDGET_MESSAGES = ("maximum number of function evaluations", "iteration limit reached")
 
-def write_fit_report(doc: dict, out, command: str = "") -> None:
-    """Write ``report.md`` of ``bayesid fit``: the identified coefficients with their Laplace sds, the
-    priors, the weakly determined directions, the calibration of the predictive bands and the multistart.
+
+def budget_exhausted(fit: dict) -> bool:
+    """Whether a fit stopped because its optimiser budget (``--max-nfev``) ran out.
+
+    Parameters
+    ----------
+    fit : dict
+        The ``fit`` entry of a model document: ``success`` and the solver's ``message``.
+
+    Returns
+    -------
+    bool
+        True when the solver did not converge and its message says the budget ran out.
+    """
+    msg = str(fit.get("message", "")).lower()
+    return not fit.get("success", True) and any(m in msg for m in _BUDGET_MESSAGES)
+
+
+def budget_advice(fit: dict) -> str:
+    """The sentence a fit whose budget ran out prints and writes: what happened and what to do.
+
+    Parameters
+    ----------
+    fit : dict
+        The ``fit`` entry of a model document (``max_nfev`` when the command recorded it).
+
+    Returns
+    -------
+    str
+        One sentence, without markup.
+    """
+    n = fit.get("max_nfev")
+    budget = f"--max-nfev {n}" if n else "--max-nfev"
+    more = f"--max-nfev {2 * int(n)}" if n else "a larger --max-nfev"
+    return (
+        f"the optimiser stopped at its budget ({budget} least-squares iterations) before converging: the estimate "
+        "is where it stopped, not an optimum, and its sds and scores describe that point; rerun with "
+        f"{more} (or more) until the fit ends on a convergence test"
+    )
+
+
+def write_fit_report(doc: dict, out, command: str = "", training_figures: list | None = None) -> None:
+    """Write ``report.md`` of ``bayesid fit``: the identified coefficients beside the vehicle file's
+    values and the priors, their Laplace sds, the weakly determined directions, the training fit's
+    figures, the calibration of the predictive bands and the multistart.
 
     Parameters
     ----------
@@ -21,12 +67,11 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
         The folder written to (it exists).
     command : str
         The command line, quoted at the top of the report (none when empty).
+    training_figures : list of str, optional
+        File names in ``out/figures`` of the training fit's figures (measured against simulated
+        track and heading per training run), linked from the report.
     """
     out = Path(out)
-    rows = [
-        [n, fmt(s0, 4), fmt(p, 4), fmt(sd, 3)]
-        for n, s0, p, sd in zip(doc["param_names"], doc["start"], doc["p"], doc["sd"])
-    ]
     ts = doc["train_scores"]
     warn = (doc.get("provenance") or {}).get("warnings") or []
     lines = [
@@ -45,18 +90,95 @@ def write_fit_report(doc: dict, out, command: str = "") -> None:
         f"Training RMS position error {fmt(ts['rms_position_m'])} m, heading {fmt(ts['rms_heading_deg'])} deg "
         f"({doc['fit_window_s']} s windows). Fit: {doc['fit']['nfev']} evaluations, {doc['fit']['message']}",
         "",
-        "Posterior: Laplace approximation, residual variance x AR(1) inflation "
-        f"{fmt(doc['posterior']['ar1_inflation'])}; Jacobian condition number "
-        f"{fmt(doc['posterior']['condition_number'])}.",
+        *([f"**Budget ran out**: {budget_advice(doc['fit'])}.", ""] if budget_exhausted(doc["fit"]) else []),
+        _ar1_sentence(doc["posterior"]),
         "",
-        md_table(["parameter", "start", "identified", "sd (Laplace)"], rows),
-        "",
+        *_coefficient_lines(doc),
+        *_training_figure_lines(training_figures),
     ]
     lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)
     (out / "report.md").write_text("\n".join(lines))
+
+
+def _ar1_sentence(post: dict) -> str:
+    """The Laplace posterior and its AR(1) inflation in words
+    (:func:`bayesid.estimation.laplace.ar1_inflation`)."""
+    infl = post["ar1_inflation"]
+    return (
+        "Posterior: Laplace approximation (Gauss-Newton covariance at the optimum, scaled by the residual "
+        f"variance) x AR(1) inflation {fmt(infl)}; Jacobian condition number {fmt(post['condition_number'])}. "
+        "The inflation is there because the simulation errors of neighbouring samples in a window are correlated: "
+        "n such samples carry the evidence of only about n (1 - rho) / (1 + rho) independent ones (rho their median "
+        "lag-1 autocorrelation; capped so that every window counts as at least one), so the covariance is multiplied "
+        f"by (1 + rho) / (1 - rho) = {fmt(infl)} and every sd widened by its square root, {fmt(float(infl) ** 0.5)} x."
+    )
+
+
+def _coefficient_lines(doc: dict) -> list:
+    """The table of each parameter's vehicle-file value, prior, estimate and Laplace sd, the
+    distance of the estimate from its prior in prior sds, coefficients far from their prior
+    flagged."""
+    file_values = (doc.get("provenance") or {}).get("vehicle_coefficients") or {}
+    pr = doc.get("prior") or {}
+    pc = pr.get("coefficients") or {} if pr.get("used") else {}
+    rows, far = [], []
+    for n, p, sd in zip(doc["param_names"], doc["p"], doc["sd"]):
+        c = pc.get(n)
+        z = None if c is None else c["z"]
+        if z is not None and abs(z) > FAR_FROM_PRIOR:
+            far.append(f"{n} ({fmt(z, 2)} prior sd)")
+        rows.append(
+            [
+                n,
+                fmt(file_values.get(n), 4),
+                f"N({fmt(c['mean'], 4)}, {fmt(c['sd'], 3)})" if c is not None else "none",
+                fmt(p, 4),
+                fmt(sd, 3),
+                "-" if z is None else (f"**{fmt(z, 2)} (far)**" if abs(z) > FAR_FROM_PRIOR else fmt(z, 2)),
+            ]
+        )
+    seed = doc.get("seed") or {}
+    lines = [
+        md_table(
+            ["parameter", "vehicle file", "prior N(mean, sd)", "identified", "sd (Laplace)", "from prior (prior sd)"],
+            rows,
+        ),
+        "",
+        "The fit started from "
+        + ("the equation-error seed, not the file's values" if seed.get("used") else "the vehicle file's values")
+        + "; 'from prior': (identified - prior mean) / prior sd"
+        + (
+            f". **Far from their prior** (more than {FAR_FROM_PRIOR:g} prior sd): {', '.join(far)}: the data pull "
+            "these away from the prior's values; check the prior, or the model the data are fitted with."
+            if far
+            else (
+                f"; none is more than {FAR_FROM_PRIOR:g} prior sd from its prior."
+                if pc
+                else ". No prior in this fit (--prior none, or no [prior] section for these coefficients in the "
+                "vehicle file): the data alone set the estimates."
+            )
+        ),
+        "",
+    ]
+    return lines
+
+
+def _training_figure_lines(figures: list | None) -> list:
+    """Links to the training fit's figures (none without them)."""
+    if not figures:
+        return []
+    return [
+        "## Training fit",
+        "",
+        "Measured against simulated track and heading of each training run, restarted at every fit window as the "
+        "fit scores it (multiple shooting):",
+        "",
+        *[f"![{Path(f).stem}](figures/{f})" for f in figures],
+        "",
+    ]
 
 
 def _prior_lines(doc: dict) -> list:

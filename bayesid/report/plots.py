@@ -678,17 +678,54 @@ __all__ = [
 
 
 def gap_ranking(
-    ranking: list, before: float, floor: float, path, title: str = "Candidates: held-out RMS position error"
+    ranking: list,
+    before: float,
+    floor: float,
+    path,
+    title: str = "Candidates: held-out RMS position error",
+    band_ratio: float | None = None,
 ):
-    """Horizontal bars of each candidate's held-out RMS (m) with the base model and noise floor."""
+    """Horizontal bars of each candidate's held-out RMS (m) with the base model, the noise floor
+    and the noise-floor band.
+
+    Parameters
+    ----------
+    ranking : list of dict
+        The ranked candidates: ``effect`` and ``heldout_rms_m`` (m) each.
+    before : float
+        The base model's held-out RMS position error, m.
+    floor : float
+        The noise floor's (a perfect model at the estimated noise), m.
+    path : str or Path
+        The PNG written.
+    title : str
+        The title.
+    band_ratio : float, optional
+        The floor band's upper edge as a multiple of the floor (``Thresholds.none_ratio``): the
+        band from the floor to it is shaded, where a model's error counts as explained.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     names = [r["effect"] for r in ranking]
     vals = [r["heldout_rms_m"] for r in ranking]
-    fig, ax = plt.subplots(figsize=(6, 0.4 * len(names) + 1.5))
-    ax.barh(names[::-1], vals[::-1], color="tab:blue")
-    ax.axvline(before, color="tab:red", ls="--", label=f"base model {before:.2f} m")
-    ax.axvline(floor, color="k", ls=":", label=f"noise floor {floor:.2f} m")
+    fig, ax = plt.subplots(figsize=(6.4, 0.4 * len(names) + 2.0))
+    if band_ratio is not None and np.isfinite(floor):
+        ax.axvspan(
+            floor,
+            band_ratio * floor,
+            color="0.6",
+            alpha=0.35,
+            zorder=0,
+            label=f"noise-floor band {floor:.2f}-{band_ratio * floor:.2f} m (gap explained inside)",
+        )
+    ax.barh(names[::-1], vals[::-1], height=0.6, color="tab:blue", alpha=0.85, zorder=1)
+    ax.axvline(before, color="tab:red", ls="--", zorder=2, label=f"base model {before:.2f} m")
+    ax.axvline(floor, color="k", ls=":", zorder=2, label=f"noise floor {floor:.2f} m")
     ax.set_xlabel("held-out RMS position error, m")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.3), ncol=2)
     ax.set_title(title)
     return _save(fig, path)
 
@@ -1023,4 +1060,63 @@ def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, titl
     ax.set_title((title + ": " if title else "") + f"Pareto k-hat {k_hat:.2f}, ESS {ess:.0f} of {w.size}", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3, which="both")
+    return _save(fig, path)
+
+
+def training_fit(t, measured: dict, simulated: dict, win, path, title: str = ""):
+    """Measured against simulated motion of one training run under a fit's windows: plan view
+    (measured track, each fit window's simulation) and heading against time.
+
+    Parameters
+    ----------
+    t : ndarray (n,)
+        Sample times, s.
+    measured : dict
+        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,).
+    simulated : dict
+        The simulated ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,), each window
+        restarted as the fit scores it.
+    win : ndarray (n,)
+        The window index of each sample (a new line starts where it changes).
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    t, win = np.asarray(t, float), np.asarray(win)
+    cut = np.flatnonzero(np.diff(win) != 0) + 1
+    spans = list(zip(np.insert(cut, 0, 0), np.append(cut, t.size)))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.4]})
+    ax.plot(measured["y"], measured["x"], "k.", ms=1.2, label="measured")
+    for k, (a, b) in enumerate(spans):
+        ax.plot(
+            simulated["y"][a:b],
+            simulated["x"][a:b],
+            "tab:blue",
+            lw=1.0,
+            label="simulated (fit windows)" if not k else None,
+        )
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    psi_m = np.degrees(np.unwrap(measured["psi"]))
+    psi_s = np.degrees(simulated["psi"])
+    psi_s = psi_m + ((psi_s - psi_m + 180.0) % 360.0 - 180.0)  # the simulation on the measured branch
+    ax2.plot(t, psi_m, "k", lw=0.8, label="measured")
+    for k, (a, b) in enumerate(spans):
+        ax2.plot(t[a:b], psi_s[a:b], "tab:blue", lw=1.0, label="simulated (fit windows)" if not k else None)
+    for a, _ in spans[1:]:
+        ax2.axvline(t[a], color="0.7", lw=0.6, ls=":")
+    ax2.set_xlabel("t, s")
+    ax2.set_ylabel("heading, deg")
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
     return _save(fig, path)

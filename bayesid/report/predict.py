@@ -5,7 +5,78 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from .markdown import fmt, md_table
+
+#: Windows named as the worst in the per-window error distribution.
+WORST_WINDOWS = 3
+
+
+def window_distribution(windows: list, worst: int = WORST_WINDOWS) -> dict:
+    """The distribution of the per-window errors of a protocol prediction, beside its pooled RMS.
+
+    The pooled RMS weighs every sample alike, so a few windows with large errors can make it
+    worse while most windows are better: the median and 90th percentile of the windows' RMS
+    position errors, and the share of the pooled squared error the worst windows carry, show it.
+
+    Parameters
+    ----------
+    windows : list of dict
+        One per scored window, as :class:`bayesid.estimation.prediction.Prediction` gives them:
+        ``track``, ``t_start`` (s), ``duration_s`` (s), ``rms_position_m`` and ``max_position_m``
+        (m), ``rms_heading_deg`` (deg or None).
+    worst : int, default :data:`WORST_WINDOWS`
+        How many of the worst windows (largest RMS position error) are named.
+
+    Returns
+    -------
+    dict
+        ``n_windows``; ``rms_position_m`` and ``max_position_m``, each ``{"median", "p90",
+        "max"}`` over the windows (m; None without windows); ``rms_heading_deg`` likewise (deg;
+        None without heading); ``worst``: the ``worst`` windows, largest RMS position error
+        first (``track``, ``t_start``, ``rms_position_m``, ``max_position_m``,
+        ``rms_heading_deg``, ``share_of_pooled_squared_error``: the window's share of the pooled
+        mean square position error, windows weighted by their scored duration);
+        ``worst_share_of_pooled_squared_error``: theirs together.
+    """
+
+    def stats(key):
+        v = np.array([w[key] for w in windows if w.get(key) is not None], float)
+        v = v[np.isfinite(v)]
+        if not v.size:
+            return None
+        return {"median": float(np.median(v)), "p90": float(np.quantile(v, 0.9)), "max": float(v.max())}
+
+    # a window's weight in the pooled mean square: its scored samples, i.e. its duration
+    dur = np.array([max(w["duration_s"], 0.0) for w in windows], float)
+    ms = np.array([w["rms_position_m"] for w in windows], float) ** 2
+    ok = np.isfinite(ms)
+    total = float(np.sum(dur[ok] * ms[ok]))
+    order = sorted((k for k in range(len(windows)) if ok[k]), key=lambda k: -windows[k]["rms_position_m"])[
+        : max(int(worst), 0)
+    ]
+    named = [
+        {
+            "track": windows[k]["track"],
+            "t_start": windows[k]["t_start"],
+            "rms_position_m": windows[k]["rms_position_m"],
+            "max_position_m": windows[k]["max_position_m"],
+            "rms_heading_deg": windows[k].get("rms_heading_deg"),
+            "share_of_pooled_squared_error": float(dur[k] * ms[k] / total) if total > 0 else None,
+        }
+        for k in order
+    ]
+    return {
+        "n_windows": len(windows),
+        "rms_position_m": stats("rms_position_m"),
+        "max_position_m": stats("max_position_m"),
+        "rms_heading_deg": stats("rms_heading_deg"),
+        "worst": named,
+        "worst_share_of_pooled_squared_error": (
+            float(sum(w["share_of_pooled_squared_error"] for w in named)) if total > 0 and named else None
+        ),
+    }
 
 
 def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> None:
@@ -14,8 +85,9 @@ def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> Non
     Parameters
     ----------
     doc : dict
-        The ``predict.json`` document: window, start rule, warnings, windowed and whole-run
-        scores, manoeuvre indices, bands.
+        The ``predict.json`` document: window, start rule (and ``start``: how it was resolved),
+        warnings, windowed and whole-run scores, the per-window distribution
+        (``window_distribution``, :func:`window_distribution`), manoeuvre indices, bands.
     out : str or Path
         The folder written to (it exists; the figures are in ``figures/``).
     tracks : list of str
@@ -23,7 +95,7 @@ def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> Non
     command : str
         The command line, quoted at the top of the report (none when empty).
     """
-    window, whole = doc["window_s"], doc["whole_run"]
+    whole = doc["whole_run"]
     rows = [
         [
             n,
@@ -39,24 +111,75 @@ def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> Non
         "",
         f"`{command}`" if command else "",
         "",
-        f"Windows of {window} s restart from "
-        + (
-            "the measured (causal) state"
-            if doc["start_rule"] == "measured"
-            else f"a state fitted with the model over the {doc['leadin_s']:g} s before each window (no velocity log)"
-        )
-        + "; whole run = one open-loop simulation from the first state.",
+        _start_sentence(doc),
         "",
         md_table(["track", "RMS position (m)", "max (m)", "heading RMS (deg)", "whole-run RMS (m)"], rows),
         "",
         f"Pooled: {fmt(doc['pooled']['rms_position_m'])} m, heading {fmt(doc['pooled']['rms_heading_deg'])} deg; "
         f"whole run {fmt(whole['pooled']['rms_position_m'])} m.",
         "",
+        *_distribution_lines(doc.get("window_distribution")),
     ]
     lines += [f"- **Warning**: {w}" for w in doc["warnings"]] + ([""] if doc["warnings"] else [])
     lines += _index_lines(doc["indices"])
     lines += ["", *_band_lines(doc["bands"], doc["n_draws"]), *[f"![{t}](figures/{t}.png)" for t in tracks], ""]
     (Path(out) / "report.md").write_text("\n".join(lines))
+
+
+def _start_sentence(doc: dict) -> str:
+    """How each window starts, with the rule as it was resolved and why (``doc["start"]``;
+    a document without it gets the rule alone)."""
+    note = doc.get("start") or {}
+    if doc["start_rule"] == "measured":
+        how = "the measured (causal) state"
+    else:
+        how = f"a state fitted with the model over the {fmt(doc['leadin_s'])} s before each window"
+    return (
+        f"Windows of {doc['window_s']} s restart from {how}; whole run = one open-loop simulation from the first "
+        "state." + (f" Start rule **{doc['start_rule']}**: {note['reason']}." if note.get("reason") else "")
+    )
+
+
+def _distribution_lines(dist: dict | None) -> list:
+    """The per-window error distribution beside the pooled scores, the worst windows named
+    (none without ``window_distribution`` or windows)."""
+    if not dist or not dist["n_windows"] or dist["rms_position_m"] is None:
+        return []
+    r, m, h = dist["rms_position_m"], dist["max_position_m"], dist.get("rms_heading_deg")
+    rows = [
+        ["RMS position (m)", fmt(r["median"]), fmt(r["p90"]), fmt(r["max"])],
+        ["max position (m)", fmt(m["median"]), fmt(m["p90"]), fmt(m["max"])],
+    ]
+    if h is not None:
+        rows.append(["RMS heading (deg)", fmt(h["median"]), fmt(h["p90"]), fmt(h["max"])])
+    share = dist.get("worst_share_of_pooled_squared_error")
+    worst = dist["worst"]
+    return [
+        f"### Per-window errors ({dist['n_windows']} windows)",
+        "",
+        md_table(["per window", "median", "90th percentile", "worst"], rows),
+        "",
+        "Worst windows: "
+        + "; ".join(
+            f"{w['track']} from t = {fmt(w['t_start'])} s (RMS {fmt(w['rms_position_m'])} m, max "
+            f"{fmt(w['max_position_m'])} m)"
+            for w in worst
+        )
+        + (
+            f". These {len(worst)} of {dist['n_windows']} windows carry {fmt(100 * share)} % of the pooled squared "
+            "position error (windows weighted by their scored duration)"
+            if share is not None
+            else ""
+        )
+        + (
+            ": the pooled RMS weighs every sample alike, so a few bad windows dominate it and can make a model look "
+            "worse while most of its windows are better; compare two models window by window, not by pooled RMS "
+            "alone."
+            if share is not None and share > 2.0 * len(worst) / dist["n_windows"]
+            else "."
+        ),
+        "",
+    ]
 
 
 def _index_lines(indices: dict) -> list:

@@ -35,6 +35,7 @@ def write_sample_report(doc: dict, out, command: str = "") -> None:
         "",
         f"Method: **{doc['method_label']}** (requested: {doc['method_requested']}). {v['text']}",
         "",
+        *_criteria_lines(doc),
         f"Cost: one evaluation of the objective takes {1e3 * doc['cost']['seconds_per_evaluation']:.1f} ms per "
         f"parameter row; stages (s): " + ", ".join(f"{k} {fmt(s, 3)}" for k, s in doc["cost"]["seconds"].items()) + ".",
         "",
@@ -88,34 +89,114 @@ def write_sample_report(doc: dict, out, command: str = "") -> None:
     (out / "report.md").write_text("\n".join(lines))
 
 
+def criterion_text(c: dict) -> str:
+    """One test of the sampler's verdict in words, e.g. ``importance ESS 281 < 400 (needs >= 400)``.
+
+    Parameters
+    ----------
+    c : dict
+        An entry of ``verdict_criteria`` in ``sample.json``: ``criterion``, ``value``, ``test``
+        (``"<"``, ``"<="``, ``">="`` or ``"meets"``), ``threshold`` and ``passed``.
+
+    Returns
+    -------
+    str
+        The criterion, its value and how it compares with its threshold.
+    """
+    if c["test"] == "meets":
+        return f"{c['criterion']} {fmt(c['value'], 4)} ({'meets' if c['passed'] else 'does not meet'} {c['threshold']})"
+    negate = {"<": ">=", "<=": ">", ">=": "<"}
+    op = c["test"] if c["passed"] else negate[c["test"]]
+    return f"{c['criterion']} {fmt(c['value'], 4)} {op} {fmt(c['threshold'], 4)}" + (
+        "" if c["passed"] else f" (needs {c['test']} {fmt(c['threshold'], 4)})"
+    )
+
+
+def _criteria_lines(doc: dict) -> list:
+    """The verdict's tests as a table, the failed ones named, and the warning when ``--draws``
+    cannot reach the ESS criterion (none for a document without them)."""
+    crit = doc.get("verdict_criteria") or []
+    lines = []
+    if crit:
+        failed = [c for c in crit if not c["passed"]]
+        lines += [
+            md_table(
+                ["criterion", "value", "needs", "result"],
+                [
+                    [
+                        c["criterion"],
+                        fmt(c["value"], 4),
+                        f"{c['test']} {c['threshold'] if isinstance(c['threshold'], str) else fmt(c['threshold'], 4)}",
+                        "passed" if c["passed"] else "**failed**",
+                    ]
+                    for c in crit
+                ],
+            ),
+            "",
+            ("Failed: " + "; ".join(criterion_text(c) for c in failed) + "." if failed else "Every criterion passed."),
+            "",
+        ]
+    first = doc["verdict"].get("importance_first")
+    if first:
+        from ..estimation.sampling import ESS_BULK_MIN
+        from ..estimation.track_posterior import KHAT_MAX
+
+        lines += [
+            f"MCMC ran because the importance stage that came first (--method auto) was not reliable: Pareto k-hat "
+            f"{fmt(first['k_hat'], 4)} (needs < {fmt(KHAT_MAX, 4)}), importance ESS {fmt(first['ess'], 4)} "
+            f"(needs >= {fmt(ESS_BULK_MIN, 4)}).",
+            "",
+        ]
+    if doc.get("draws_warning"):
+        lines += [f"**Warning**: {doc['draws_warning']}.", ""]
+    return lines
+
+
 def _coefficient_lines(doc: dict) -> list:
     """Prior, fit and posterior of each coefficient, and its status."""
     dos = doc["dossier"]
+    coef = dos["coefficients"]
+    flat = [n for n, c in coef.items() if c["prior"] != "normal"]
     return [
         "## Coefficients: prior, fit, posterior",
         "",
         f"Status: *determined* when the posterior sd is below {doc['thresholds']['determined']} x the prior sd, "
-        f"*at prior* above {doc['thresholds']['at_prior']} x; z: posterior mean against a Gaussian prior, in prior sds.",
+        f"*at prior* above {doc['thresholds']['at_prior']} x; z: posterior mean against a Gaussian prior, in prior sds."
+        + (
+            f" {', '.join(flat)}: *flat prior* (uniform in the model's bounds, or flat where they are open: no "
+            "proper prior to judge against); a ratio to it would only say how wide the bounds are, so no status is "
+            "given: read their posterior sd in absolute terms and as a share of the posterior mean (relative sd)."
+            if flat
+            else ""
+        ),
         "",
         md_table(
-            ["parameter", "prior", "fit", "posterior mean", "sd", "5-95 %", "sd / prior sd", "z", "status"],
+            [
+                "parameter",
+                "prior",
+                "fit",
+                "posterior mean",
+                "sd",
+                "5-95 %",
+                "relative sd (sd / abs. mean)",
+                "sd / prior sd",
+                "z",
+                "status",
+            ],
             [
                 [
                     n,
-                    (
-                        f"N({fmt(c['prior_mean'])}, {fmt(c['prior_sd'])})"
-                        if c["prior"] == "normal"
-                        else "uniform in bounds"
-                    ),
+                    (f"N({fmt(c['prior_mean'])}, {fmt(c['prior_sd'])})" if c["prior"] == "normal" else _flat_label(c)),
                     fmt(doc["fit_estimate"][n]),
                     fmt(c["mean"]),
                     fmt(c["sd"]),
                     f"{fmt(doc['marginals'][n]['q05'])} - {fmt(doc['marginals'][n]['q95'])}",
-                    fmt(c["sd_ratio"], 2),
+                    fmt(c["sd"] / abs(c["mean"]), 2) if c["mean"] else "-",
+                    fmt(c["sd_ratio"], 2) if c["prior"] == "normal" else "-",
                     fmt(c["z"], 2) if c["z"] is not None else "",
-                    c["status"],
+                    c["status"] if c["prior"] == "normal" else "flat prior",
                 ]
-                for n, c in dos["coefficients"].items()
+                for n, c in coef.items()
             ],
         ),
         "",
@@ -123,6 +204,11 @@ def _coefficient_lines(doc: dict) -> list:
         f"{', '.join(dos['moved_beyond_3sd']) or 'none'}.",
         "",
     ]
+
+
+def _flat_label(c: dict) -> str:
+    """How a coefficient without a Gaussian prior is labelled: uniform in finite bounds, or flat."""
+    return "uniform in bounds" if c.get("prior_sd") is not None else "flat (open bounds)"
 
 
 def _determined_lines(doc: dict) -> list:
