@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .imo import predict_imo_lines
 from .markdown import fmt, md_table
 
 
@@ -55,6 +56,7 @@ def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> Non
     ]
     lines += [f"- **Warning**: {w}" for w in doc["warnings"]] + ([""] if doc["warnings"] else [])
     lines += _index_lines(doc["indices"])
+    lines += predict_imo_lines(doc)  # ships: the IMO criteria, measured and predicted
     lines += ["", *_band_lines(doc["bands"], doc["n_draws"]), *[f"![{t}](figures/{t}.png)" for t in tracks], ""]
     (Path(out) / "report.md").write_text("\n".join(lines))
 
