@@ -36,6 +36,7 @@ layer or closes a circle; the import graph is checked):
   :mod:`~bayesid.estimation.identification` (identification on long runs),
   :mod:`~bayesid.estimation.prediction` (window protocol and whole-run predictions),
   :mod:`~bayesid.estimation.indices` (manoeuvre indices),
+  :mod:`~bayesid.estimation.imo` (the IMO MSC.137(76) criteria at full scale),
   :mod:`~bayesid.estimation.modelfile` (``model.json``: ModelDocument),
   :mod:`~bayesid.estimation.multistart` (many starts of one fit),
   :mod:`~bayesid.estimation.calibration` (predictive bands calibrated leave one run out),
@@ -48,7 +49,8 @@ layer or closes a circle; the import graph is checked):
 * :mod:`bayesid.report` -- what goes out: :mod:`~bayesid.report.study` (study folders, JSON,
   manifests), :mod:`~bayesid.report.markdown` (tables, number format), the report writers
   :mod:`~bayesid.report.diagnosis`, :mod:`~bayesid.report.fit`, :mod:`~bayesid.report.predict`,
-  :mod:`~bayesid.report.sample`, :mod:`~bayesid.report.convert`; :mod:`~bayesid.report.plots`;
+  :mod:`~bayesid.report.sample`, :mod:`~bayesid.report.convert`; :mod:`~bayesid.report.imo` (the
+  IMO criteria table of the fit and predict reports of ships); :mod:`~bayesid.report.plots`;
   :mod:`~bayesid.report.vehiclefile` (a vehicle file with discovered terms added).
 * :mod:`bayesid.cases` (the paper's Cases 1-3).
 * :mod:`bayesid.cli` -- the ``bayesid`` command (also ``python -m bayesid.cli``,

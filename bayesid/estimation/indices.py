@@ -1,6 +1,7 @@
 """Standard manoeuvre indices of a track, by the ITTC and IMO definitions: zigzag overshoots from
 the check heading, initial turning time, time to check yaw and period; turning-circle advance,
-transfer, tactical diameter, steady turning diameter and speed loss.
+transfer, tactical diameter, steady turning diameter and speed loss; the distance to turn 10 deg
+with the first rudder order (IMO's initial turning ability).
 
 Sources: ITTC Recommended Procedure 7.5-04-02-01 (2017), "Full Scale Manoeuvring Trials", Sec.
 2.2.1 (turning circle) and 2.2.2 (zigzag); IMO Resolution MSC.137(76), "Standards for ship
@@ -19,9 +20,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 __all__ = [
     "INDICES",
+    "INITIAL_TURN_DEG",
     "ZIGZAG_TIMING",
     "index_keys",
     "manoeuvre_indices",
@@ -51,6 +54,10 @@ def _rudder_holds(t, delta, threshold: float, min_hold_s: float):
             runs.append((int(side[i]), int(i), int(j), peak))
     return runs
 
+
+#: The heading change (deg) of IMO's initial turning ability: the distance travelled with the first
+#: rudder order until the heading has changed by this much (MSC.137(76) Sec. 5.3.2).
+INITIAL_TURN_DEG = 10.0
 
 #: The indices of each manoeuvre kind that a model predicts from the recorded rudder (what is
 #: predicted, banded and calibrated). The zigzag's ``initial_turning_time_s`` and ``period_s`` are
@@ -211,6 +218,30 @@ def _approach_speed(t, speed, i0: int) -> float:
     return med if med > 0 and (hi - lo) <= APPROACH_SPREAD * med else float("nan")
 
 
+def _first_order(t, x, y, h, i0: int, hold, end: int) -> dict:
+    """What the first rudder order did, for a turn and a zigzag alike: the rudder angle held
+    (``rudder_deg``, signed, + port), the speed over ground at the execute (``execute_speed_m_s``:
+    the median over the 10 s before it to 1 s after, the test speed V of IMO MSC.137(76) Sec.
+    4.2.1 read from the run) and the distance travelled along the track from the execute until
+    the heading has changed by :data:`INITIAL_TURN_DEG` with the first order still in force, i.e.
+    by sample ``end`` (the end of a turn's hold; one sample past a zigzag's second execute, the
+    order to reverse being given where the heading got there) (``initial_turning_distance_m``,
+    MSC.137(76) Sec. 5.3.2; MSC/Circ.1053 reads it from the 10/10 zigzag; NaN when the heading
+    does not get there)."""
+    side, _, _, peak = hold
+    speed = _speed(t, x, y)
+    near = (t >= t[i0] - 10.0) & (t <= t[i0] + 1.0) & np.isfinite(speed)
+    f = _crossing(h, i0, end, math.radians(INITIAL_TURN_DEG))
+    # the path length as the integral of the speed (centred differences over about 1 s), which
+    # position noise does not inflate as a sum of sample-to-sample steps would
+    path = cumulative_trapezoid(np.nan_to_num(speed), t, initial=0.0)
+    return {
+        "rudder_deg": float(np.degrees(side * peak)),
+        "execute_speed_m_s": float(np.median(speed[near])) if near.any() else float("nan"),
+        "initial_turning_distance_m": _at(path, f) - float(path[i0]) if f is not None else float("nan"),
+    }
+
+
 def _turning(t, x, y, psi, h, i0: int, hold) -> dict:
     """The turning-circle indices of one rudder hold from the execute ``i0`` (ITTC
     7.5-04-02-01 Sec. 2.2.1, IMO MSC.137(76) Sec. 2.3-2.4)."""
@@ -286,6 +317,12 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
       ``period_s`` (2nd to 4th execute: one cycle, NaN with fewer executes); also
       ``check_heading_deg`` (the heading change at each later execute) and ``executes_t_s``
       (every execute);
+    * both: ``rudder_deg`` (the first hold's rudder angle, + port), ``execute_speed_m_s`` (the
+      speed over ground at the first execute: the test speed) and ``initial_turning_distance_m``
+      (the distance travelled from the first execute until the heading has changed by
+      :data:`INITIAL_TURN_DEG` with the first rudder order still held, IMO MSC.137(76) Sec.
+      5.3.2; NaN when it does not get there). :mod:`bayesid.estimation.imo` reads the IMO
+      criteria from these;
     * otherwise ``"other"`` with the ``reason``, and no index.
 
     Parameters
@@ -305,8 +342,9 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
     -------
     dict
         ``kind`` (``"turning"``, ``"zigzag"``, ``"other"``), ``execute_t_s`` (the first execute)
-        and the indices of :data:`INDICES` for the kind (a zigzag also :data:`ZIGZAG_TIMING`), or
-        ``reason``.
+        and the indices of :data:`INDICES` for the kind (a zigzag also :data:`ZIGZAG_TIMING`)
+        with the first order's ``rudder_deg``, ``execute_speed_m_s`` and
+        ``initial_turning_distance_m``, or ``reason``.
     """
     t, x, y, delta = (np.asarray(a, float) for a in (t, x, y, delta))
     psi = np.unwrap(np.asarray(psi, float))
@@ -327,7 +365,12 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
                 reason=f"one rudder hold, but the heading changed only {turned:.0f} deg "
                 "while it was held (a turning circle needs 90)",
             )
-        return dict(out, kind="turning", **_turning(t, x, y, psi, h, i0, holds[0]))
+        return dict(
+            out,
+            kind="turning",
+            **_turning(t, x, y, psi, h, i0, holds[0]),
+            **_first_order(t, x, y, h, i0, holds[0], holds[0][2]),
+        )
     first = holds[0][3]
     similar = all(0.5 * first <= p <= 2.0 * first for _, _, _, p in holds)
     span = float(np.degrees(np.max(np.abs(h[i0:]))))
@@ -344,7 +387,8 @@ def manoeuvre_indices(t, x, y, psi, delta) -> dict:
             "heading within 90 deg; a turning circle one hold)",
         )
     out["executes_t_s"] = [float(t[m]) for m in executes]
-    return dict(out, kind="zigzag", **_zigzag(t, h, executes))
+    end = min(holds[0][2], executes[1] + 1)
+    return dict(out, kind="zigzag", **_zigzag(t, h, executes), **_first_order(t, x, y, h, i0, holds[0], end))
 
 
 def _constant_rudder(t, delta, min_hold_s: float, tol: float) -> list:

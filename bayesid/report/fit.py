@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .imo import fit_imo_lines
 from .markdown import fmt, md_table
 
 #: Distance from the prior mean (in prior sds) beyond which a coefficient is flagged "far".
@@ -97,6 +98,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         *_training_figure_lines(training_figures),
     ]
     lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
+    lines += fit_imo_lines(doc)  # ships: the IMO criteria of the training runs
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .imo import predict_imo_lines
 from .markdown import fmt, md_table
 
 #: Windows named as the worst in the per-window error distribution.
@@ -122,6 +123,7 @@ def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> Non
     ]
     lines += [f"- **Warning**: {w}" for w in doc["warnings"]] + ([""] if doc["warnings"] else [])
     lines += _index_lines(doc["indices"])
+    lines += predict_imo_lines(doc)  # ships: the IMO criteria, measured and predicted
     lines += ["", *_band_lines(doc["bands"], doc["n_draws"]), *[f"![{t}](figures/{t}.png)" for t in tracks], ""]
     (Path(out) / "report.md").write_text("\n".join(lines))
 

@@ -55,6 +55,10 @@ class Ship:
         ``{name: (mean, sd)}`` Gaussian priors of the file's ``[prior]`` section.
     prior_source : str, default ""
         The ``[prior]`` section's source text.
+    scale : float, optional
+        The model scale lambda, full-scale length / ``L`` (``[particulars] scale``; 1 for a
+        full-scale file; None when the file does not say): Froude scaling to full scale for
+        the IMO criteria (:mod:`bayesid.estimation.imo`). Not a kernel parameter.
     """
 
     id: str
@@ -68,6 +72,7 @@ class Ship:
     #: {name: (mean, sd)} Gaussian priors of the file's ``[prior]`` section, and their source
     prior: dict = field(default_factory=dict)
     prior_source: str = ""
+    scale: float | None = None
 
     @property
     def file_path(self) -> str:
@@ -274,9 +279,22 @@ def _resolve(path_or_id) -> Path:
     return p
 
 
+def _scale(p, v) -> float | None:
+    """The ``[particulars] scale`` of file ``p`` (None when not given), checked."""
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise ShipFileError(
+            f"{p}: [particulars] scale = {v!r} must be a positive finite number (the model scale: "
+            "full-scale length / L; 1 for a full-scale file)"
+        )
+    return float(v)
+
+
 def load_ship(path_or_id) -> Ship:
-    """Load a ship vehicle file (TOML with ``[vehicle] kind = "ship3dof"``, ``[particulars]``,
-    ``[coefficients]``, optional ``[wind]``, ``[fit] free`` and ``[prior]``).
+    """Load a ship vehicle file (TOML with ``[vehicle] kind = "ship3dof"``, ``[particulars]``
+    (with an optional ``scale``: the model scale), ``[coefficients]``, optional ``[wind]``,
+    ``[fit] free`` and ``[prior]``).
 
     Parameters
     ----------
@@ -293,9 +311,9 @@ def load_ship(path_or_id) -> Ship:
     FileNotFoundError
         No such file or packaged id.
     ShipFileError
-        Missing section or particular, non-finite or non-positive value, unknown key or
-        coefficient name, a kind other than ``"ship3dof"`` (the message names the file, section
-        and key).
+        Missing section or particular, non-finite or non-positive value (``[particulars] scale``
+        included, when given), unknown key or coefficient name, a kind other than ``"ship3dof"``
+        (the message names the file, section and key).
     """
     p = _resolve(path_or_id)
     try:
@@ -312,14 +330,15 @@ def load_ship(path_or_id) -> Ship:
             raise ShipFileError(f"{p}: [{sec}] {k} = {v!r} is not a finite number")
         return float(v)
 
-    part = {}
+    part, given = {}, dict(doc["particulars"])
+    scale = _scale(p, given.pop("scale", None))
     for k in PARTICULARS:
-        if k not in doc["particulars"]:
+        if k not in given:
             raise ShipFileError(f"{p}: missing [particulars] {k}")
-        part[k] = num("particulars", k, doc["particulars"][k])
+        part[k] = num("particulars", k, given[k])
         if k in ("L", "B", "d", "mass_kg", "rho", "Cb", "D_prop", "A_rudder", "kzz") and not part[k] > 0:
             raise ShipFileError(f"{p}: [particulars] {k} = {part[k]!r} must be positive")
-    unknown = set(doc["particulars"]) - set(PARTICULARS)
+    unknown = set(given) - set(PARTICULARS)
     if unknown:
         raise ShipFileError(f"{p}: [particulars] unknown key(s) {sorted(unknown)}; known: {', '.join(PARTICULARS)}")
     coef = {k: 0.0 for k in COEFFICIENTS}
@@ -359,6 +378,7 @@ def load_ship(path_or_id) -> Ship:
         str(p),
         prior=prior,
         prior_source=prior_source,
+        scale=scale,
     )
 
 
