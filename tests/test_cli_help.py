@@ -84,8 +84,16 @@ def test_a_window_option_has_one_meaning():
     "argv, dest, new",
     [
         (["predict", "--model", "m.json", "--track", "a.csv", "--out", "o"], "window", "--score-window"),
-        (["diagnose", "--vehicle", "v", "--train", "a.csv", "--heldout", "b.csv", "--out", "o"], "window", "--score-window"),
-        (["discover", "--model", "m.json", "--train", "a.csv", "--heldout", "b.csv", "--out", "o"], "window", "--score-window"),
+        (
+            ["diagnose", "--vehicle", "v", "--train", "a.csv", "--heldout", "b.csv", "--out", "o"],
+            "window",
+            "--score-window",
+        ),
+        (
+            ["discover", "--model", "m.json", "--train", "a.csv", "--heldout", "b.csv", "--out", "o"],
+            "window",
+            "--score-window",
+        ),
         (["fit", "--vehicle", "v", "--train", "a.csv", "--out", "o"], "window", "--fit-window"),
     ],
 )
