@@ -43,6 +43,17 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     ``(required)`` instead of ``(default: None)``, a flag ``(default: off)``, an option whose default
     is ``None`` or empty ``(default: none)`` / ``(default: empty)`` (its help text says what that
     means), and a text that already places ``%(default)s`` is left as it is.
+
+    Parameters
+    ----------
+    prog : str
+        The program name, as for :class:`argparse.HelpFormatter`.
+    indent_increment : int, default 2
+        As for :class:`argparse.HelpFormatter`.
+    max_help_position : int, default 24
+        As for :class:`argparse.HelpFormatter`.
+    width : int, optional
+        As for :class:`argparse.HelpFormatter` (default: the terminal's).
     """
 
     def _get_help_string(self, action):
@@ -63,6 +74,17 @@ class DeprecatedAlias(argparse.Action):
     ``dest`` and prints a one-line deprecation note on stderr.
 
     Declared with ``help=argparse.SUPPRESS`` and ``new="--new-name"`` (see :func:`add_score_window`).
+
+    Parameters
+    ----------
+    option_strings : list of str
+        The old spelling (``["--window"]``).
+    dest : str
+        The new option's ``dest``.
+    new : str
+        The new option, named in the note (``"--score-window"``).
+    **kwargs
+        Other arguments of :class:`argparse.Action` (``type``, ``default``, ``help``).
     """
 
     def __init__(self, option_strings, dest, new: str, **kwargs):
