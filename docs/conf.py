@@ -35,6 +35,7 @@ extensions = [
     "sphinx.ext.viewcode",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
+    "sphinxarg.ext",  # sphinx-argparse: the command reference (cli.rst) generated from the parsers
 ]
 
 exclude_patterns = ["_build", "examples/README.rst"]
@@ -48,7 +49,23 @@ html_theme_options = {
     "header_links_before_dropdown": 7,
 }
 # The user guide pages are single pages: no left sidebar; the API reference keeps it.
-html_sidebars = {page: [] for page in ("index", "getting_started", "vessel", "gap", "posterior", "performance")}
+html_sidebars = {
+    page: []
+    for page in (
+        "index",
+        "getting_started",
+        "install",
+        "quickstart",
+        "vessel",
+        "reading_reports",
+        "gap",
+        "posterior",
+        "performance",
+        "formats",
+        "faq",
+        "architecture",
+    )
+}
 html_static_path: list[str] = []
 
 # ---- docstrings --------------------------------------------------------------------------------

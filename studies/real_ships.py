@@ -978,7 +978,7 @@ def uncertainty_section(R, ufigs) -> list[str]:
     return [
         "## Honest uncertainty: calibrated predictive bands",
         "",
-        "The path a user takes (`bayesid fit`, then `bayesid predict --window 60`): identify on the training runs "
+        "The path a user takes (`bayesid fit`, then `bayesid predict --score-window 60`): identify on the training runs "
         "of the validation split (the vehicle file's captive-test priors for KVLCC2 unless stated), calibrate the "
         "bands leave one training run out (refits without each run, scored on it: `bayesid.estimation.calibration`), "
         "predict the held-out runs. *Before*: the 5-95 % band of the posterior draws alone (parameter uncertainty, "

@@ -162,7 +162,7 @@ def synthetic(tmp_path_factory):
                 str(d / "fit" / "model.json"),
                 "--track",
                 *held,
-                "--window",
+                "--score-window",
                 "60",
                 "--out",
                 str(d / "pred"),
@@ -221,7 +221,7 @@ def test_a_manoeuvre_the_training_runs_lacked_is_flagged_extrapolated_not_counte
     held = [world("tc", i, True) for i in range(6)] + [world("zz", i, False) for i in range(3)]
     fit = ["fit", "--vehicle", "nps_auv2", "--train", *train, "--max-nfev", "15", "--out", str(tmp_path / "fit")]
     assert main(fit) == 0
-    pred = ["predict", "--model", str(tmp_path / "fit" / "model.json"), "--track", *held, "--window", "60"]
+    pred = ["predict", "--model", str(tmp_path / "fit" / "model.json"), "--track", *held, "--score-window", "60"]
     assert main([*pred, "--out", str(tmp_path / "pred")]) == 0
     B = json.loads((tmp_path / "pred" / "predict.json").read_text())["bands"]
     ext = B["extrapolated"]

@@ -51,7 +51,7 @@ def _diag(train, held, out, *extra):
         *train,
         "--heldout",
         *held,
-        "--window",
+        "--score-window",
         "30",
         "--candidates",
         "thrust",
@@ -128,7 +128,7 @@ def test_fit_records_provenance_and_predict_refuses_a_changed_vehicle(csvs, tmp_
             "Nr",
             "--train",
             csvs[0],
-            "--window",
+            "--fit-window",
             "30",
             "--max-nfev",
             "3",
@@ -141,7 +141,17 @@ def test_fit_records_provenance_and_predict_refuses_a_changed_vehicle(csvs, tmp_
     prov = json.loads((tmp_path / "fit" / "model.json").read_text())["provenance"]
     assert prov["bayesid_version"] and len(prov["vehicle_sha256"]) == 64 and "Yv" in prov["vehicle_coefficients"]
     assert list(prov["input_sha256"]) == [str(csvs[0])]
-    pred = ["predict", "--model", tmp_path / "fit" / "model.json", "--track", csvs[1], "--window", "30", "--draws", "0"]
+    pred = [
+        "predict",
+        "--model",
+        tmp_path / "fit" / "model.json",
+        "--track",
+        csvs[1],
+        "--score-window",
+        "30",
+        "--draws",
+        "0",
+    ]
     assert _run(pred + ["--out", tmp_path / "p0"], capsys)[0] == 0
     veh_file.write_text(veh_file.read_text().replace("Yv = -1.0e-1", "Yv = -1.2e-1"))
     rc, msg = _run(pred + ["--out", tmp_path / "p1"], capsys)
@@ -261,7 +271,7 @@ def test_the_wind_effect_without_wind_columns_is_refused(csvs, tmp_path, capsys)
         (["--max-nfev", "-5"], "--max-nfev"),
         (["--max-effects", "0"], "--max-effects"),
         (["--leadin", "-1"], "--leadin"),
-        (["--window", "nan"], "--window"),
+        (["--score-window", "nan"], "--score-window"),
         (["--fit-window", "inf"], "--fit-window"),
     ],
 )
@@ -363,7 +373,7 @@ def test_another_export_of_one_log_is_refused_and_a_training_file_is_flagged(csv
             "Nr",
             "--train",
             csvs[0],
-            "--window",
+            "--fit-window",
             "30",
             "--max-nfev",
             "2",
@@ -383,7 +393,7 @@ def test_another_export_of_one_log_is_refused_and_a_training_file_is_flagged(csv
             csvs[0],
             "--draws",
             "0",
-            "--window",
+            "--score-window",
             "30",
             "--out",
             tmp_path / "p",

@@ -347,7 +347,7 @@ def test_bayesid_diagnose_writes_the_contract(veh, scenario, tmp_path):
             *paths[:2],
             "--heldout",
             paths[2],
-            "--window",
+            "--score-window",
             "60",
             "--candidates",
             "actuator,current",

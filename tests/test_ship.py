@@ -260,7 +260,7 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
 
 
 def test_ship_fits_use_the_ship_fit_window_whatever_the_scoring_window():
-    """``bayesid diagnose --window 60`` on a ship scores 60 s windows but fits over
+    """``bayesid diagnose --score-window 60`` on a ship scores 60 s windows but fits over
     ``ship.FIT_WINDOW_S`` (15 s) ones, and so does ``identify`` without a window; an
     explicit fit window wins."""
     from bayesid.analysis import gap
@@ -349,7 +349,7 @@ def test_fit_predict_diagnose_commands_on_two_converted_runs(tmp_path):
             str(tmp_path / "fit" / "model.json"),
             "--track",
             str(b),
-            "--window",
+            "--score-window",
             "30",
             "--draws",
             "3",
@@ -373,7 +373,7 @@ def test_fit_predict_diagnose_commands_on_two_converted_runs(tmp_path):
             str(a),
             "--heldout",
             str(b),
-            "--window",
+            "--score-window",
             "30",
             "--candidates",
             "delay",

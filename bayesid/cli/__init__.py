@@ -4,11 +4,12 @@
     bayesid simulate --vehicle kvlcc2_7m --manoeuvre zigzag --angle -10 --check 10 --out z10.csv
     bayesid convert --format esso-osaka ../shared/data/real/esso-osaka-frt --out tracks/esso
 
-    bayesid diagnose --vehicle nps_auv2 --free Yv,Yr,Nv,Nr,Ydr,Ndr --train A.csv B.csv \\
-        --heldout C.csv --window 60 --out diag
-
     bayesid fit --vehicle esso_osaka_3m --train A.csv B.csv --effects wind --out fitdir
-    bayesid predict --model fitdir/model.json --track C.csv --window 60 --out pred
+    bayesid predict --model fitdir/model.json --track C.csv --score-window 60 --out pred
+    bayesid sample --model fitdir/model.json --train A.csv B.csv --out post
+
+    bayesid diagnose --vehicle nps_auv2 --free Yv,Yr,Nv,Nr,Ydr,Ndr --train A.csv B.csv \\
+        --heldout C.csv --score-window 60 --out diag
 
     bayesid discover --model fitdir/model.json --train A.csv B.csv --heldout C.csv --out disc \\
         --write-vehicle myship_discovered.toml
@@ -27,18 +28,45 @@ import argparse
 import sys
 
 from . import convert, diagnose, discover, fit, predict, sample, simulate
-from .options import OptionError
+from .options import HelpFormatter, OptionError
 
-#: The subcommands in the order of ``bayesid --help``.
+#: The subcommands in the order of ``bayesid --help``: the order of use, then the tools around it.
 COMMANDS = {
-    "simulate": simulate,
-    "convert": convert,
-    "diagnose": diagnose,
-    "discover": discover,
     "fit": fit,
     "predict": predict,
     "sample": sample,
+    "diagnose": diagnose,
+    "discover": discover,
+    "simulate": simulate,
+    "convert": convert,
 }
+
+#: ``bayesid --help``'s text above the commands.
+DESCRIPTION = """\
+Identify the hydrodynamic coefficients of a ship, submarine or AUV from its tracks (Track CSVs)
+and say how well each one is determined.
+
+Order of use:  fit -> predict -> sample -> diagnose
+  fit       vehicle file + training tracks -> model.json (the identified coefficients)
+  predict   model.json + other tracks -> errors over scoring windows, manoeuvre indices, bands
+  sample    model.json + training tracks -> posterior of the coefficients, identifiability
+  diagnose  vehicle file + training and held-out tracks -> what the model misses, and why
+Around it: discover (model terms the data say are missing), simulate (a standard manoeuvre
+of a vehicle file -> a Track CSV), convert (third-party data files -> Track CSVs).
+"""
+
+#: ``bayesid --help``'s text below the commands.
+EPILOG = """\
+Each command's options and defaults: bayesid COMMAND --help.
+Documentation: docs/ in the source tree (quickstart, reading your report, command reference
+docs/cli.rst, FAQ); build it with
+  pip install -e '.[docs]' && python -m sphinx -b html docs docs/_build/html
+and open docs/_build/html/index.html.
+"""
+
+
+class _TopFormatter(argparse.RawDescriptionHelpFormatter, HelpFormatter):
+    """The description and epilog as written, the options with their defaults."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,11 +81,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     ap = argparse.ArgumentParser(
         prog="bayesid",
-        description="hydrodynamic coefficient identification",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=_TopFormatter,
     )
     ap.add_argument("--version", action="version", version=f"bayesid {__version__}")
-    sub = ap.add_subparsers(dest="command", required=True)
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND", title="commands")
     for module in COMMANDS.values():
         module.add_parser(sub)
     return ap

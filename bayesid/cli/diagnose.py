@@ -27,16 +27,21 @@ def add_parser(sub) -> None:
     opt.add_free(d, "comma-separated free coefficients (empty: the vehicle's; submarines Yv,Yr,Nv,Nr,Ydr,Ndr)")
     opt.add_tracks(d, "--train", "training Track CSVs")
     opt.add_tracks(d, "--heldout", "held-out Track CSVs")
-    opt.add_window(d)
+    opt.add_score_window(d)
     opt.add_dt(d, None, "model integration step, s (none: 0.5; ships 0.2)")
-    opt.add_number(
+    opt.add_fit_window(
         d,
-        "--fit-window",
         opt.NON_NEGATIVE,
         default=0.0,
-        help="window of the training fits, s (0: 15 for a ship, --window for a submarine)",
+        help="fit window: the multiple-shooting window of the training fits, s (0: 15 for a ship, "
+        "--score-window for a submarine)",
     )
-    d.add_argument("--mode", choices=MODES, default="horizontal")
+    d.add_argument(
+        "--mode",
+        choices=MODES,
+        default="horizontal",
+        help="submarines: horizontal (surge, sway, yaw) or 6dof equations; a ship's model is 3-DOF",
+    )
     d.add_argument("--candidates", default="", help="comma-separated effects (empty: the whole catalogue)")
     d.add_argument("--exclude", default="", help="comma-separated effects left out of the candidates")
     opt.add_number(
@@ -58,8 +63,7 @@ def add_parser(sub) -> None:
         opt.NON_NEGATIVE,
         kind=int,
         default=0,
-        help="extra Latin-hypercube starts of the base fit (the lowest cost is kept; default 0: the default "
-        "start alone)",
+        help="extra Latin-hypercube starts of the base fit (the lowest cost is kept; 0: the default start alone)",
     )
     opt.add_discovery(d, default_on=True)
     opt.add_jobs(d)

@@ -21,7 +21,7 @@ def add_parser(sub) -> None:
     d.add_argument("--model", required=True, help="model.json written by bayesid fit (the reference model)")
     opt.add_tracks(d, "--train", "training Track CSVs (the reference model is refitted on them)")
     opt.add_tracks(d, "--heldout", "held-out Track CSVs (the kept terms must improve these)")
-    opt.add_window(d)
+    opt.add_score_window(d)
     opt.add_start(d)
     opt.add_leadin(d)
     opt.add_max_nfev(d, "least-squares iterations per fit")

@@ -25,11 +25,14 @@ def add_parser(sub) -> None:
     opt.add_tracks(f, "--train", "training Track CSVs")
     opt.add_free(f, "comma-separated free coefficients (empty: the vehicle's)")
     opt.add_effects(f, "comma-separated effects in the model (ships: wind, current, delay)")
-    opt.add_window(
+    opt.add_fit_window(
         f,
         (lambda v: v > 0, "{option} must be a positive number of seconds, not {value:g}"),
         default=None,
-        help="multiple-shooting window, s (none: 15 for a ship, bayesid.models.ship.FIT_WINDOW_S; 30 for a submarine)",
+        help="fit window: the multiple-shooting window of the fit, s (none: 15 for a ship, "
+        "bayesid.models.ship.FIT_WINDOW_S; 30 for a submarine)",
+        dest="window",
+        alias=True,
     )
     opt.add_dt(f, None, "model step, s (none: 0.2 ships, 0.5 submarines)")
     opt.add_max_nfev(f, "least-squares iterations")
@@ -64,7 +67,7 @@ def add_parser(sub) -> None:
         "--calibration-window",
         (lambda v: v > 0, "{option} must be positive, not {value:g}"),
         default=60.0,
-        help="protocol window (s) of the calibrated window bands (predict --window must match)",
+        help="scoring window (s) of the calibrated window bands (predict --score-window must match)",
     )
     opt.add_number(
         f, "--calibration-draws", opt.at_least(3), kind=int, default=40, help="posterior draws per calibration fold"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 
 from .. import protocol, tasks
 
@@ -26,12 +27,80 @@ WEIGHTINGS = ("", "noise", "residual")
 #: The help text of ``--weighting``.
 WEIGHTING_HELP = (
     "channel weights of the fits: noise sds, or the residual RMS of a first fit (two-step "
-    "feasible GLS); default residual for ships, noise for submarines"
+    "feasible GLS); empty: residual for ships, noise for submarines"
+)
+#: The help text of ``--score-window``.
+SCORE_WINDOW_HELP = (
+    "scoring window, s: the tracks are predicted and scored over non-overlapping windows of this "
+    "length, each started by the --start rule (<= 0: the whole run)"
 )
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """The subcommands' help: each option's text followed by its default.
+
+    As argparse's :class:`~argparse.ArgumentDefaultsHelpFormatter`, but a required option says
+    ``(required)`` instead of ``(default: None)``, a flag ``(default: off)``, an option whose default
+    is ``None`` or empty ``(default: none)`` / ``(default: empty)`` (its help text says what that
+    means), and a text that already places ``%(default)s`` is left as it is.
+
+    Parameters
+    ----------
+    prog : str
+        The program name, as for :class:`argparse.HelpFormatter`.
+    indent_increment : int, default 2
+        As for :class:`argparse.HelpFormatter`.
+    max_help_position : int, default 24
+        As for :class:`argparse.HelpFormatter`.
+    width : int, optional
+        As for :class:`argparse.HelpFormatter` (default: the terminal's).
+    """
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if "%(default)" in text or not action.option_strings or action.default is argparse.SUPPRESS:
+            return text
+        if action.required:
+            return f"{text} (required)"
+        if action.nargs == 0:
+            return f"{text} (default: {'on' if action.default else 'off'})"
+        if action.default is None or action.default == "":
+            return f"{text} (default: {'none' if action.default is None else 'empty'})"
+        return f"{text} (default: %(default)s)"
+
+
+class DeprecatedAlias(argparse.Action):
+    """An option's old spelling, hidden from the help: it stores its value under the new option's
+    ``dest`` and prints a one-line deprecation note on stderr.
+
+    Declared with ``help=argparse.SUPPRESS`` and ``new="--new-name"`` (see :func:`add_score_window`).
+
+    Parameters
+    ----------
+    option_strings : list of str
+        The old spelling (``["--window"]``).
+    dest : str
+        The new option's ``dest``.
+    new : str
+        The new option, named in the note (``"--score-window"``).
+    **kwargs
+        Other arguments of :class:`argparse.Action` (``type``, ``default``, ``help``).
+    """
+
+    def __init__(self, option_strings, dest, new: str, **kwargs):
+        super().__init__(option_strings, dest, **kwargs)
+        self.new = new
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(
+            f"note: {parser.prog} {option_string} is deprecated, use {self.new} (same meaning)",
+            file=sys.stderr,
+        )
+        setattr(namespace, self.dest, values)
+
+
 def add_subcommand(sub, name: str, help: str) -> argparse.ArgumentParser:
-    """A subcommand's parser, its help showing each option's default.
+    """A subcommand's parser, its help showing each option's default (:class:`HelpFormatter`).
 
     Parameters
     ----------
@@ -47,7 +116,7 @@ def add_subcommand(sub, name: str, help: str) -> argparse.ArgumentParser:
     argparse.ArgumentParser
         The subcommand's parser.
     """
-    return sub.add_parser(name, formatter_class=argparse.ArgumentDefaultsHelpFormatter, help=help)
+    return sub.add_parser(name, formatter_class=HelpFormatter, help=help, description=help)
 
 
 class OptionError(Exception):
@@ -223,22 +292,55 @@ def add_tracks(parser, option: str, help: str) -> None:
     parser.add_argument(option, nargs="+", required=True, metavar="CSV", help=help)
 
 
-def add_window(parser, *checks, default=60.0, help: str = "protocol window, s (<= 0: whole run)") -> None:
-    """``--window``: the protocol window, s (finite, and passing ``checks``, those of :func:`number`).
+def add_score_window(parser) -> None:
+    """``--score-window``: the protocol's scoring window, s (finite; <= 0: the whole run; default 60).
+
+    Stored as ``args.window``. The old spelling ``--window`` still works, hidden, with a
+    deprecation note (:class:`DeprecatedAlias`): it meant the fit window in ``bayesid fit``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
+    add_number(parser, "--score-window", dest="window", default=60.0, metavar="SECONDS", help=SCORE_WINDOW_HELP)
+    _add_alias(parser, "--window", "--score-window", "window")
+
+
+def add_fit_window(parser, *checks, default, help: str, dest: str = "fit_window", alias: bool = False) -> None:
+    """``--fit-window``: the window of the training fits (multiple shooting), s.
 
     Parameters
     ----------
     parser : argparse.ArgumentParser
         The subcommand's parser.
     *checks : tuple
-        ``(predicate, message)`` pairs the window must pass, as in :func:`number` (none: any finite
-        value).
-    default : float or None, default 60.0
+        ``(predicate, message)`` pairs the window must pass, as in :func:`number`.
+    default : float or None
         The option's default, s.
-    help : str, default "protocol window, s (<= 0: whole run)"
+    help : str
         The option's help text.
+    dest : str, default "fit_window"
+        The attribute of the parsed arguments that holds it.
+    alias : bool, default False
+        Also take the old spelling ``--window``, hidden, with a deprecation note
+        (:class:`DeprecatedAlias`; ``bayesid fit`` called its fit window so).
     """
-    add_number(parser, "--window", *checks, default=default, help=help)
+    add_number(parser, "--fit-window", *checks, dest=dest, default=default, metavar="SECONDS", help=help)
+    if alias:
+        _add_alias(parser, "--window", "--fit-window", dest, *checks)
+
+
+def _add_alias(parser, old: str, new: str, dest: str, *checks) -> None:
+    parser.add_argument(
+        old,
+        type=number(old, float, *checks),
+        dest=dest,
+        action=DeprecatedAlias,
+        new=new,
+        default=argparse.SUPPRESS,
+        help=argparse.SUPPRESS,
+    )
 
 
 def add_dt(parser, default, help: str) -> None:
@@ -312,7 +414,7 @@ def add_leadin(parser) -> None:
         NON_NEGATIVE,
         default=0.0,
         help=f"lead-in of the fitted start rule, s (0: {protocol.LEADIN_S:g} s or "
-        f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most --window)",
+        f"{protocol.LEADIN_SAMPLES} samples of the slowest log, at most the scoring window)",
     )
 
 
@@ -407,11 +509,11 @@ def add_discovery(parser, default_on: bool) -> None:
         (lambda v: v <= 3, "{option} must be at most 3, not {value}"),
         kind=int,
         default=3,
-        help="highest number of factors of a candidate term (1-3; default 3)",
+        help="highest number of factors of a candidate term (1-3)",
     )
     parser.add_argument(
         "--write-vehicle",
         default="",
         metavar="PATH",
-        help="write the vehicle file with the kept terms added (ready for bayesid fit); default: not written",
+        help="write the vehicle file with the kept terms added (ready for bayesid fit); empty: not written",
     )

@@ -23,7 +23,7 @@ def add_parser(sub) -> None:
     pp = opt.add_subcommand(sub, "predict", "score a fitted model on tracks with the window protocol")
     pp.add_argument("--model", required=True, help="model.json written by bayesid fit")
     opt.add_tracks(pp, "--track", "Track CSVs")
-    opt.add_window(pp)
+    opt.add_score_window(pp)
     opt.add_number(
         pp,
         "--draws",

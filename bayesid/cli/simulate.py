@@ -112,7 +112,7 @@ def add_parser(sub) -> None:
         "--mode",
         choices=MODES,
         default=None,
-        help="submarines: 6dof or horizontal (surge, sway, yaw only); none: 6dof. A ship's model is 3-DOF (horizontal)",
+        help="submarines: 6dof or horizontal (surge, sway, yaw only); none: 6dof; a ship's model is 3-DOF (horizontal)",
     )
     s.add_argument(
         "--crossflow",

@@ -886,7 +886,7 @@ class Calibration:
         else:
             out["window_reason"] = (
                 f"windows of {window_s} s: the calibration is for {self.window_s} s "
-                "windows; predict with that --window for calibrated window bands"
+                "windows; predict with that --score-window for calibrated window bands"
             )
         for row in rows_i:
             for a in levels:

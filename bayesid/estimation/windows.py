@@ -856,5 +856,5 @@ def check_enough_data(model, ctxs, window_s: float) -> None:
     if span < window_s:
         raise ValueError(
             f"training {names} last {span:.3g} s in all, less than one {window_s:g} s fit "
-            "window; give longer tracks or a shorter --window"
+            "window; give longer tracks or a shorter --fit-window"
         )

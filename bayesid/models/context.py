@@ -193,7 +193,7 @@ class TrackContext:
         self.t_mid = self.t_grid[:-1] + 0.5 * dt
         if window_s is not None and abs(window_s / dt - round(window_s / dt)) > 1e-6:
             raise ValueError(
-                f"window {window_s:g} s (--window) is not a whole multiple of the model step {dt:g} s (--dt)"
+                f"window {window_s:g} s (--fit-window or --score-window) is not a whole multiple of the model step {dt:g} s (--dt)"
             )
         leadin_s = float(leadin_s) if self.start == "fitted" else 0.0
         if leadin_s < 0 or abs(leadin_s / dt - round(leadin_s / dt)) > 1e-6:

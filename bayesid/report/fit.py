@@ -274,7 +274,7 @@ def _calibration_lines(doc: dict) -> list:
             )
             + f"; {len(cal.window_scores['max_position_m'])} windows of {cal.window_s:g} s and "
             f"{sum(len(v) for v in scores.values())} manoeuvre indices scored on the left-out runs "
-            f"({cal.n_draws} posterior draws per fold). `bayesid predict --window {cal.window_s:g}` reports "
+            f"({cal.n_draws} posterior draws per fold). `bayesid predict --score-window {cal.window_s:g}` reports "
             "these bands and their coverage.",
             "",
             md_table(
