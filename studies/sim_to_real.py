@@ -267,14 +267,13 @@ def window_for(cfg: dict) -> float:
     return float(min(WINDOW, 10 * math.floor(min(cfg["durations_s"][cfg["n_train"] :]) / 20)))
 
 
-def run_case(case: dict, seed: int, quick: bool) -> dict:
-    """Generate the case's world tracks, diagnose them, return truth + diagnosis (JSON-able)."""
-    from bayesid.analysis.gap import DiagnoseOptions, diagnose
+def case_data(case: dict, seed: int, quick: bool) -> tuple[dict, list, list]:
+    """The case's world: nominal and world vehicles, logging configuration, the effects' truth
+    (``truth``: JSON-able; ``objs``: what the world simulates) and the training and held-out
+    tracks (also what ``studies/base_fit_check.py`` fits)."""
     from bayesid.data.vehicle import load_vehicle
-    from bayesid.models import effects as ef
     from bayesid.models.world import draw_parameters
 
-    tic = time.perf_counter()
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng([seed, zlib.crc32(case["id"].encode())])
     cfg = logging_config(case, rng, quick)
@@ -289,6 +288,17 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
             truth[e] = draw_parameters(e, k, rng)
             objs[e] = truth[e]
     train, held = world_tracks(veh, world_veh, objs, cfg, rng, seed)
+    return {"vehicle": veh, "world_vehicle": world_veh, "logging": cfg, "truth": truth, "objs": objs}, train, held
+
+
+def run_case(case: dict, seed: int, quick: bool) -> dict:
+    """Generate the case's world tracks, diagnose them, return truth + diagnosis (JSON-able)."""
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
+    from bayesid.models import effects as ef
+
+    tic = time.perf_counter()
+    world, train, held = case_data(case, seed, quick)
+    veh, world_veh, cfg, truth, objs = (world[k] for k in ("vehicle", "world_vehicle", "logging", "truth", "objs"))
     cands = [c for c in ef.CATALOGUE if c not in case["exclude"]]
     window = window_for(cfg)
     res = diagnose(
