@@ -65,6 +65,14 @@ def add_parser(sub) -> None:
         default=0,
         help="extra Latin-hypercube starts of the base fit (the lowest cost is kept; 0: the default start alone)",
     )
+    d.add_argument(
+        "--train-starts",
+        choices=("fitted", "kinematic", "auto"),
+        default="fitted",
+        help="without a velocity log, the training fits' window starts: fitted with the model, held at the "
+        "tracks' kinematics, or auto (held when the base-fit check finds the fitted ones inconsistent and "
+        "the held ones predict the training tracks better)",
+    )
     opt.add_discovery(d, default_on=True)
     opt.add_jobs(d)
     opt.add_out(d, "output folder")
@@ -104,6 +112,7 @@ def run(args) -> int:
             max_effects=args.max_effects,
             weighting=args.weighting or None,
             base_starts=args.starts,
+            train_starts=args.train_starts,
             discover=None if args.no_discover else DiscoveryOptions(max_order=args.max_order),
         )
         run_and_write(args, vehicle, free, got, options)

@@ -389,11 +389,48 @@ def start_consistency(model, p, tracks, ctxs, sd: dict, label: str = "") -> list
     return rows
 
 
+def kinematic_contexts(model, tracks, window_s, sd: dict) -> list:
+    """Training contexts whose window starts are held at the tracks' own kinematics: u, v, r
+    from :func:`kinematic_rates` (a centred fit: it uses samples after the start, which a
+    training fit may, a held-out score may not), x, y, psi as the measured rule gives them.
+
+    The alternative to fitted starts when a model far off would bend them
+    (:func:`start_consistency`): held starts cannot absorb what the model lacks, so the
+    coefficients must explain the motion.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    tracks : list of Track
+        The training tracks.
+    window_s : float or None
+        The fit window, s.
+    sd : dict
+        Noise sd of ``x``/``y`` (m) and ``psi`` (rad).
+
+    Returns
+    -------
+    list of TrackContext
+        Contexts of the measured rule with their start states' u, v, r (``s_meas``) replaced
+        where the kinematics give a finite value.
+    """
+    ctxs = [model.context(t, window_s, start="measured") for t in tracks]
+    for c, t in zip(ctxs, tracks):
+        for w in range(c.W):
+            ref = kinematic_rates(t, float(c.t_start[w]), sd)
+            for j, k in ((6, "u"), (7, "v"), (11, "r")):
+                if np.isfinite(ref[k]):
+                    c.s_meas[w, j] = ref[k]
+    return ctxs
+
+
 __all__ = [
     "START_INDEX",
     "START_STEP",
     "START_Z",
     "fit_starts",
+    "kinematic_contexts",
     "kinematic_rates",
     "start_consistency",
     "simulate",

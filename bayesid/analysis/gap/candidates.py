@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores, window_rms
 from ...models import build_model
@@ -91,6 +92,12 @@ class Setup:
         The lead-in of the fitted rule on the held-out tracks, s.
     effects : tuple, default ()
         Effects every model of the diagnosis has (the base model's), before the candidates.
+    train_starts : {"fitted", "kinematic"}, default "fitted"
+        Under the fitted rule, how the training fits get their window starts: fitted with the
+        model, or held at the tracks' own kinematics
+        (:func:`bayesid.estimation.shooting.kinematic_contexts`, with ``kinematic_sd``).
+    kinematic_sd : dict, optional
+        ``{channel: noise sd}`` (SI) of x, y, psi for the kinematic starts.
     """
 
     vehicle: object
@@ -104,6 +111,8 @@ class Setup:
     rule: str
     leadin_s: float | None
     effects: tuple = ()
+    train_starts: str = "fitted"
+    kinematic_sd: dict | None = None
 
     def build(self, effects):
         """The model with the setup's effects, then ``effects``, and its contexts.
@@ -119,9 +128,13 @@ class Setup:
             ``(model, training contexts, held-out contexts)``.
         """
         m = build_model(self.vehicle, self.free, [*self.effects, *effects], dt=self.dt, mode=self.mode)
+        if self.rule == "fitted" and self.train_starts == "kinematic":
+            train = shooting.kinematic_contexts(m, self.train, self.fit_window_s, self.kinematic_sd)
+        else:
+            train = [m.context(t, self.fit_window_s, start=self.rule) for t in self.train]
         return (
             m,
-            [m.context(t, self.fit_window_s, start=self.rule) for t in self.train],
+            train,
             [m.context(t, self.window_s, start=self.rule, leadin_s=self.leadin_s) for t in self.heldout],
         )
 

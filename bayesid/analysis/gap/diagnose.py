@@ -4,7 +4,7 @@ candidates, verdict, support (the rules: :mod:`bayesid.analysis.gap`)."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -155,6 +155,10 @@ class Diagnosis:
         return {f.name: getattr(self, f.name) for f in fields(self) if f.name not in hidden}
 
 
+#: How the training fits of a diagnosis get their window starts (:class:`DiagnoseOptions`).
+TRAIN_STARTS = ("fitted", "kinematic", "auto")
+
+
 @dataclass(frozen=True)
 class DiagnoseOptions:
     """What a gap diagnosis fits and compares (:func:`diagnose`).
@@ -199,6 +203,13 @@ class DiagnoseOptions:
     discover : DiscoveryOptions or None, default None
         Run structure discovery (:func:`bayesid.analysis.gap.discovery.discover`) on the model after
         the effects when its remainder is significant; None: not run.
+    train_starts : {"fitted", "kinematic", "auto"}, default "fitted"
+        Under the fitted start rule, the training fits' window starts: fitted with the model,
+        held at the tracks' kinematics (:func:`bayesid.estimation.shooting.kinematic_contexts`),
+        or ``"auto"``: fitted, unless the base-fit check finds them inconsistent with the
+        kinematics, in which case the base model is refitted with held starts and the setup
+        whose base fit predicts its own training tracks better under the held-out protocol is
+        used for every fit of the diagnosis (``base_check["train_starts"]``).
     """
 
     candidates: tuple | None = None
@@ -214,8 +225,11 @@ class DiagnoseOptions:
     base_starts: int = 0
     base_effects: tuple = ()
     discover: object = None
+    train_starts: str = "fitted"
 
     def __post_init__(self):
+        if self.train_starts not in TRAIN_STARTS:
+            raise ValueError(f"train_starts must be one of {', '.join(TRAIN_STARTS)}, not {self.train_starts!r}")
         if self.candidates is not None and not isinstance(self.candidates, tuple):
             object.__setattr__(self, "candidates", tuple(self.candidates))
         object.__setattr__(self, "base_effects", tuple(self.base_effects))
@@ -288,17 +302,29 @@ def diagnose(
     rule, lead = start_settings(opt.start, train + heldout, opt.window_s, dt, opt.leadin_s)
     base_effects = tuple(family.get_effect(e) for e in opt.base_effects)
     cand_effects = [e for e in cand_effects if e.name not in {b.name for b in base_effects}]
-    setup = Setup(vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead, base_effects)
+    setup = Setup(
+        vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead, base_effects,
+        train_starts="kinematic" if opt.train_starts == "kinematic" else "fitted", kinematic_sd=sd,
+    )  # fmt: skip
     weighting = opt.weighting or family.DEFAULT_WEIGHTING
     base, ctr, cho = setup.build(())
     check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
-    say("base fit")
-    bfit, sd_fit = fit_weighted(
-        FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
-    )
-    bfit, base_ms = _base_multistart(FitProblem(base, ctr, sd_fit, max_nfev=opt.max_nfev), bfit, opt, runner)
-    b_train, b_held = scores(base, bfit, ctr, sd=sd_fit), scores(base, bfit, cho, sd=sd_fit)
-    check = base_fit_check(base, bfit, setup, sd_fit, b_held)
+    b = _base_stage(setup, sd, weighting, opt, runner)
+    if opt.train_starts == "auto" and (b["check"].get("starts") or {}).get("suspect"):
+        say("base fit: window starts inconsistent with the kinematics; refit with starts held at them")
+        alt = _base_stage(replace(setup, train_starts="kinematic"), sd, weighting, opt, runner)
+        use = alt["check"]["train_rms_at_window_m"] < b["check"]["train_rms_at_window_m"]
+        summary = {
+            "fitted_train_rms_at_window_m": b["check"]["train_rms_at_window_m"],
+            "kinematic_train_rms_at_window_m": alt["check"]["train_rms_at_window_m"],
+            "used": "kinematic" if use else "fitted",
+        }
+        if use:
+            setup, b = alt["setup"], alt
+        b["check"]["train_starts"] = summary
+    base, ctr, cho, bfit, sd_fit, base_ms = (b[k] for k in ("model", "ctr", "cho", "fit", "sd_fit", "multistart"))
+    b_train, b_held, check = b["train"], b["held"], b["check"]
+    setup = b["setup"]
     if check["suspect"]:
         say(check["message"])
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
@@ -379,6 +405,30 @@ def diagnose(
     )
 
 
+def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> dict:
+    """The base model of ``setup`` fitted (with its extra starts), scored and checked: ``{setup,
+    model, ctr, cho, fit, sd_fit, multistart, train, held, check}``."""
+    base, ctr, cho = setup.build(())
+    runner.say("base fit" + (" (window starts held at the kinematics)" if setup.train_starts == "kinematic" else ""))
+    bfit, sd_fit = fit_weighted(
+        FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
+    )
+    bfit, base_ms = _base_multistart(FitProblem(base, ctr, sd_fit, max_nfev=opt.max_nfev), bfit, opt, runner)
+    held = scores(base, bfit, cho, sd=sd_fit)
+    return {
+        "setup": setup,
+        "model": base,
+        "ctr": ctr,
+        "cho": cho,
+        "fit": bfit,
+        "sd_fit": sd_fit,
+        "multistart": base_ms,
+        "train": scores(base, bfit, ctr, sd=sd_fit),
+        "held": held,
+        "check": base_fit_check(base, bfit, setup, sd_fit, held),
+    }
+
+
 def _base_multistart(problem: FitProblem, bfit: FitResult, opt: DiagnoseOptions, runner: Runner):
     """The base fit from ``opt.base_starts`` extra starts (seeded apart from the diagnosis' rng,
     so that a diagnosis without them is unchanged): ``(fit, summary)``, the summary None without
@@ -435,6 +485,7 @@ def _settings(opt: DiagnoseOptions, setup: Setup, cand_effects, weighting: str) 
         "max_nfev": opt.max_nfev,
         "max_effects": opt.max_effects,
         "weighting": weighting,
+        **({"train_starts": opt.train_starts} if opt.train_starts != "fitted" else {}),
     }
 
 
