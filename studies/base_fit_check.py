@@ -155,6 +155,9 @@ def summarise(rows: list[dict]) -> dict:
         "n_auto_within_target": sum(x <= TARGET_RATIO for x in auto),
         "n_auto_kinematic": sum(r["auto"]["used"] == "kinematic" for r in rows),
         "n_controls_auto_kinematic": sum(r["auto"]["used"] == "kinematic" for r in controls),
+        "n_auto_better": sum(r["auto"]["heldout_rms_m"] < 0.9 * r["base_heldout_rms_m"] for r in rows),
+        "n_auto_worse": sum(r["auto"]["heldout_rms_m"] > 1.1 * r["base_heldout_rms_m"] for r in rows),
+        "worst_auto_factor": max((r["auto"]["heldout_rms_m"] / r["base_heldout_rms_m"] for r in rows), default=None),
         "n_cases": len(rows),
         "n_hidden": len(hidden),
         "n_controls": len(controls),
@@ -232,7 +235,11 @@ def write_report(out: Path, s: dict, rows: list[dict], command: str) -> None:
         f"{s['n_hidden_suspect']} of {s['n_hidden']} hidden-effect fits suspect; in "
         f"{s['n_hidden_starts_flagged']} of them because their window starts contradict the tracks' kinematics. "
         f"With `--train-starts auto` the held starts were used in {s['n_auto_kinematic']} case(s) "
-        f"({s['n_controls_auto_kinematic']} of them controls).",
+        f"({s['n_controls_auto_kinematic']} of them controls): the held-out error fell by more than 10 % in "
+        f"{s['n_auto_better']} and rose by more than 10 % in {s['n_auto_worse']} (at worst x "
+        f"{fmt(s['worst_auto_factor'])}). Its choice is made on the training runs alone (which fit predicts "
+        "them better under the held-out protocol), and that choice is not always the one the held-out runs "
+        "would make: `auto` is an option, not the default.",
         "",
         "## Cases",
         "",
