@@ -416,6 +416,29 @@ def parse(name: str) -> Term:
     return t
 
 
+def listed_name(name: str) -> str | None:
+    """The listed name of the product a grammar name stands for (``Nuu`` -> ``Nprop``), or None
+    when the product is not listed.
+
+    Parameters
+    ----------
+    name : str
+        A name of the grammar of :func:`parse`.
+
+    Returns
+    -------
+    str or None
+        The listed name.
+
+    Raises
+    ------
+    UnknownCoefficientError
+        When the grammar cannot read ``name``.
+    """
+    key = _product_key(_read(name))
+    return next((t.name for t in TERMS[: len(LISTED)] if _product_key(t) == key), None)
+
+
 def term(name: str) -> Term:
     """Look up a term by SNAME name; a product not in the table yet is read from its name
     (:func:`parse`) and added at the end of the table (:data:`TERMS`, :data:`NAMES`,

@@ -245,9 +245,10 @@ def _ship_products(max_order: int) -> list[str]:
 
 def _submarine_products() -> list[str]:
     """Names of the horizontal-plane products of the submarine grammar: at most two velocity
-    factors (u implicit) from ``v r absv absr``, and up to three rudder factors."""
+    factors (u implicit) from ``v r absv absr``, and up to three rudder factors; ``uu`` is the
+    constant force or moment at the approach speed (prime form: u^2)."""
     vel = ["", "v", "r", "absv", "absr", "vv", "vr", "rr", "vabsv", "vabsr", "rabsv", "rabsr"]
-    return [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
+    return ["uu"] + [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
 
 
 def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
@@ -287,7 +288,7 @@ def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
         for body in _submarine_products():
             name = g + body
             try:
-                t = termlib.parse(name)
+                t = termlib.parse(termlib.listed_name(name) or name)  # Nuu is listed as Nprop
             except termlib.UnknownCoefficientError:
                 continue
             if t.name not in have and t.horizontal and t.name not in out:
