@@ -61,8 +61,8 @@ else:
         "kvlcc2-simman-hsva/). Steps 2-6 are not run on this build and their outputs are not shown."
     )
 
-# the same package as these pages document (a checkout, or the installed one)
-env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(bayesid.__file__).parents[1]), os.environ.get("PYTHONPATH", "")]))
+package_root = str(Path(bayesid.__file__).parents[1])  # the commands run the bayesid these pages document
+env = dict(os.environ, PYTHONPATH=os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]))
 env.update(PYTHONUNBUFFERED="1", TQDM_DISABLE="1", MPLBACKEND="Agg")
 PROGRESS = re.compile(r"\d+%\|")  # a tqdm frame
 
@@ -123,7 +123,10 @@ def show_figures(folder: str) -> None:
 # rate). A 10/10 zigzag first to starboard (``--angle`` is + to port) prints its indices by the
 # ITTC definitions (:doc:`../indices`); this step needs no measured data.
 
-run("bayesid simulate --vehicle kvlcc2_7m --manoeuvre zigzag --angle -10 --check 10 --out sim_z10_10.csv", needs_data=False)
+run(
+    "bayesid simulate --vehicle kvlcc2_7m --manoeuvre zigzag --angle -10 --check 10 --out sim_z10_10.csv",
+    needs_data=False,
+)
 
 sim = read_csv("sim_z10_10.csv")
 fig, ax = plt.subplots(figsize=(8, 3.2))
@@ -241,7 +244,9 @@ if have_data:
     )
     print(f"{'track':<28} {'start (s)':>9} {'RMS (m)':>8} {'max (m)':>8} {'heading RMS (deg)':>18}")
     for w in sorted(windows, key=lambda w: -w["rms_position_m"]):
-        print(f"{w['track']:<28} {w['t_start']:9.1f} {w['rms_position_m']:8.3f} {w['max_position_m']:8.3f} {w['rms_heading_deg']:18.2f}")
+        print(
+            f"{w['track']:<28} {w['t_start']:9.1f} {w['rms_position_m']:8.3f} {w['max_position_m']:8.3f} {w['rms_heading_deg']:18.2f}"
+        )
 else:
     print("(not computed: the HSVA runs are absent on this build)")
 
