@@ -28,6 +28,7 @@ that the whole page builds in a few minutes; drop them for a real study (the def
 ``bayesid fit --help`` and the like).
 """
 
+import html
 import json
 import os
 import re
@@ -50,16 +51,29 @@ real = Path(os.environ.get("BAYESID_REAL_DATA", here.parents[1] / ".." / "shared
 hsva = real / "kvlcc2-simman-hsva"
 have_data = hsva.is_dir() and any(hsva.glob("HSVA_CPMC_KVLCC2_Z_*.dat"))
 
-work = Path(tempfile.mkdtemp(prefix="bayesid_ship_tutorial_"))
-os.chdir(work)  # the commands below run in this empty folder, as a user's would
+work = Path(tempfile.mkdtemp(prefix="bayesid_ship_tutorial_"))  # an empty folder: the commands run in it
 if have_data:
-    os.symlink(hsva.resolve(), "kvlcc2-simman-hsva", target_is_directory=True)
-    print(f"HSVA runs found in {hsva}: steps 2-6 run on them.")
+    os.symlink(hsva.resolve(), work / "kvlcc2-simman-hsva", target_is_directory=True)
+    status = f"HSVA runs found in {hsva}: steps 2-6 ran on them when this page was built."
 else:
-    print(
-        f"HSVA runs NOT FOUND (looked in {hsva}; set BAYESID_REAL_DATA to the folder holding "
-        "kvlcc2-simman-hsva/). Steps 2-6 are not run on this build and their outputs are not shown."
+    status = (
+        f"HSVA runs NOT FOUND when this page was built (looked in {hsva}; set BAYESID_REAL_DATA to the "
+        "folder holding kvlcc2-simman-hsva/). Steps 2-6 were not run and their outputs are not shown."
     )
+
+
+class Banner(str):
+    """The data status as a box on the built page (the gallery shows an expression's HTML)."""
+
+    def _repr_html_(self) -> str:
+        kind, title = ("note", "Data present") if have_data else ("warning", "Data absent")
+        return f'<div class="admonition {kind}"><p class="admonition-title">{title}</p><p>{html.escape(self)}</p></div>'
+
+
+Banner(status)
+
+# %%
+# The two helpers below run a command line as typed and show the files it wrote.
 
 package_root = str(Path(bayesid.__file__).parents[1])  # the commands run the bayesid these pages document
 env = dict(os.environ, PYTHONPATH=os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]))
@@ -78,7 +92,7 @@ def run(command: str, *, needs_data: bool = True) -> None:
         print("(not run: the HSVA runs are absent on this build)")
         return
     proc = subprocess.run(
-        [sys.executable, "-m", "bayesid.cli", *args[1:]], env=env, capture_output=True, text=True, check=False
+        [sys.executable, "-m", "bayesid.cli", *args[1:]], env=env, cwd=work, capture_output=True, text=True, check=False
     )
     merged = proc.stdout + proc.stderr  # stderr holds progress bars, warnings and errors
     for line in merged.splitlines():
@@ -91,16 +105,16 @@ def run(command: str, *, needs_data: bool = True) -> None:
 
 def cat(path: str) -> None:
     """Print a file a command wrote, as ``cat`` would."""
-    if not Path(path).exists():
+    if not (work / path).exists():
         print(f"(no {path}: the HSVA runs are absent on this build)" if not have_data else f"(no {path})")
         return
     print(f"$ cat {path}")
-    print(Path(path).read_text())
+    print((work / path).read_text())
 
 
 def show_figures(folder: str) -> None:
     """Show every PNG a command wrote into ``folder``, at its own size, labelled with its path."""
-    pngs = sorted(Path(folder).glob("*.png"))
+    pngs = sorted((work / folder).glob("*.png"))
     if not pngs:
         print(f"no figures in {folder}" + ("" if have_data else " (the HSVA runs are absent on this build)"))
     for png in pngs:
@@ -110,7 +124,7 @@ def show_figures(folder: str) -> None:
         ax = fig.add_axes((0, 0, 1, h / (h + 30)))
         ax.imshow(img)
         ax.set_axis_off()
-        fig.text(0.01, 1 - 15 / (h + 30), str(png), fontsize=9, va="center", family="monospace")
+        fig.text(0.01, 1 - 15 / (h + 30), str(png.relative_to(work)), fontsize=9, va="center", family="monospace")
 
 
 # %%
@@ -128,7 +142,7 @@ run(
     needs_data=False,
 )
 
-sim = read_csv("sim_z10_10.csv")
+sim = read_csv(work / "sim_z10_10.csv")
 fig, ax = plt.subplots(figsize=(8, 3.2))
 ax.plot(sim.t, np.degrees(np.unwrap(sim["psi"])), "k", lw=1.2, label="heading (deg)")
 ax.plot(sim.t, np.degrees(sim["delta_r"]), "tab:blue", lw=1.0, label="rudder (deg, + port)")
@@ -156,7 +170,7 @@ cat("tracks/convert.md")
 # then the header row and the samples.
 
 if have_data:
-    lines = Path("tracks/HSVA_CPMC_KVLCC2_Z_10_10_S.csv").read_text().splitlines()
+    lines = (work / "tracks/HSVA_CPMC_KVLCC2_Z_10_10_S.csv").read_text().splitlines()
     print("$ head -n 16 tracks/HSVA_CPMC_KVLCC2_Z_10_10_S.csv")
     print("\n".join(lines[:16]))
 else:
@@ -168,7 +182,7 @@ else:
 # coefficients alone do not reproduce this hull's free-running zigzag, which is what the fit is for.
 
 if have_data:
-    meas = read_csv("tracks/HSVA_CPMC_KVLCC2_Z_10_10_S.csv")
+    meas = read_csv(work / "tracks/HSVA_CPMC_KVLCC2_Z_10_10_S.csv")
     fig, ax = plt.subplots(figsize=(8, 3.2))
     for trk, style, label in ((meas, "k", "measured (HSVA Z_10_10_S)"), (sim, "tab:red", "simulated (step 1)")):
         t0 = manoeuvre_indices(trk.t, trk["x"], trk["y"], trk["psi"], trk["delta_r"])["executes_t_s"][0]
@@ -235,8 +249,8 @@ show_figures("pred/figures")
 # window (``windows``); here they are sorted, worst first.
 
 if have_data:
-    windows = json.loads(Path("pred/predict.json").read_text())["windows"]
-    pooled = json.loads(Path("pred/predict.json").read_text())["pooled"]["rms_position_m"]
+    windows = json.loads((work / "pred/predict.json").read_text())["windows"]
+    pooled = json.loads((work / "pred/predict.json").read_text())["pooled"]["rms_position_m"]
     err = np.array([w["rms_position_m"] for w in windows])
     print(
         f"{len(err)} windows; RMS position error per window (m): median {np.median(err):.3g}, "
@@ -302,5 +316,4 @@ show_figures("diag/figures")
 # * :doc:`../gap`: the diagnosis in full, with structure discovery;
 # * :doc:`../posterior`: reading the posterior and the identifiability dossier.
 
-os.chdir(here)
 shutil.rmtree(work, ignore_errors=True)

@@ -32,10 +32,9 @@ import numpy as np
 import bayesid
 
 here = Path(__file__).resolve().parent if "__file__" in globals() else Path.cwd()  # the gallery runs in docs/examples
-work = Path(tempfile.mkdtemp(prefix="bayesid_walkthrough_"))
+work = Path(tempfile.mkdtemp(prefix="bayesid_walkthrough_"))  # a fresh folder: the commands run in it
 shutil.copy(here / "remus100.toml", work)
 shutil.copy(here.parent / "walkthrough" / "make_logs.py", work)
-os.chdir(work)  # a fresh folder holding remus100.toml and make_logs.py, as on the guide page
 
 package_root = str(Path(bayesid.__file__).parents[1])  # the commands run the bayesid these pages document
 env = dict(os.environ, PYTHONPATH=os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]))
@@ -51,7 +50,7 @@ def run(command: str) -> None:
         shown = re.sub(r" (--\S+)", r" \\\n      \1", shown)
     print(f"$ {shown}")
     exe = [sys.executable, "-m", "bayesid.cli"] if args[0] == "bayesid" else [sys.executable]
-    proc = subprocess.run([*exe, *args[1:]], env=env, capture_output=True, text=True, check=False)
+    proc = subprocess.run([*exe, *args[1:]], cwd=work, env=env, capture_output=True, text=True, check=False)
     for line in (proc.stdout + proc.stderr).splitlines():  # stderr: progress bars, warnings, errors
         kept = [part for part in line.split("\r") if not PROGRESS.search(part)]
         if kept or not line:
@@ -75,9 +74,9 @@ def claim(holds: bool, text: str) -> None:
 # remus100.toml > remus100_as_printed.toml`` on the guide page), two 10-degree manoeuvres to fit
 # on and two 15-degree ones held out, then the logs.
 
-text = Path("remus100.toml").read_text()
-Path("remus100_as_printed.toml").write_text(re.sub(r"(?m)^Yvabsv = .*$", "Yvabsv = -1.438006e+00", text))
-Path("sim").mkdir()
+text = (work / "remus100.toml").read_text()
+(work / "remus100_as_printed.toml").write_text(re.sub(r"(?m)^Yvabsv = .*$", "Yvabsv = -1.438006e+00", text))
+(work / "sim").mkdir()
 for a in (10, 15):
     run(
         f"bayesid simulate --vehicle remus100_as_printed.toml --manoeuvre zigzag --angle {a} --duration 120 --mode horizontal --out sim/zigzag_{a}.csv"
@@ -104,10 +103,10 @@ run(
 
 def prime(path: str, name: str) -> float:
     """A coefficient's prime value in a vehicle file."""
-    return float(re.search(rf"(?m)^{name}\s*=\s*(\S+)", Path(path).read_text()).group(1))
+    return float(re.search(rf"(?m)^{name}\s*=\s*(\S+)", (work / path).read_text()).group(1))
 
 
-model = json.loads(Path("fit/model.json").read_text())
+model = json.loads((work / "fit/model.json").read_text())
 est = dict(zip(model["param_names"], model["p"], strict=True))
 sd = dict(zip(model["param_names"], model["sd"], strict=True))
 print(f"{'coefficient':<11} {'file':>11} {'tracks made with':>17} {'identified':>11} {'sd':>9}")
@@ -133,7 +132,7 @@ for w in (5, 10, 30):
         f"bayesid fit --vehicle remus100_as_printed.toml --train logs/zigzag_10.csv logs/turn_10.csv "
         f"--free Yvabsv --window {w} --start fitted --dt 0.1 --out true_w{w}"
     )
-    train_rms[w] = json.loads(Path(f"true_w{w}/model.json").read_text())["train_scores"]["rms_position_m"]
+    train_rms[w] = json.loads((work / f"true_w{w}/model.json").read_text())["train_scores"]["rms_position_m"]
 claim(train_rms[5] < train_rms[10] < train_rms[30], "at the true coefficients the error grows with the window")
 
 # %%
@@ -143,8 +142,8 @@ claim(train_rms[5] < train_rms[10] < train_rms[30], "at the true coefficients th
 run(
     "bayesid predict --model fit/model.json --track logs/zigzag_15.csv logs/turn_-15.csv --window 5 --start fitted --out pred"
 )
-print(Path("pred/report.md").read_text())
-pred = json.loads(Path("pred/predict.json").read_text())
+print((work / "pred/report.md").read_text())
+pred = json.loads((work / "pred/predict.json").read_text())
 claim(
     pred["whole_run"]["pooled"]["rms_position_m"] > 10 * pred["pooled"]["rms_position_m"],
     "one open-loop simulation of a whole run drifts far further than the windows",
@@ -159,7 +158,7 @@ run(
     "--heldout logs/zigzag_15.csv logs/turn_-15.csv --window 5 --dt 0.1 --start fitted "
     "--exclude crossflow --out diag"
 )
-diag = json.loads(Path("diag/diagnosis.json").read_text())
+diag = json.loads((work / "diag/diagnosis.json").read_text())
 claim(diag["verdict"] == "none", "the verdict is none, although Yvabsv is ten times too small in the file")
 
 # %%
@@ -187,7 +186,7 @@ run(
 # (over all samples) and the median over the windows:
 
 label = {"pred": "8 free (fit)", "pred6": "6 free (diagnosis base)", "pred_true": "true coefficients"}
-res = {k: json.loads(Path(f"{k}/predict.json").read_text()) for k in label}
+res = {k: json.loads((work / f"{k}/predict.json").read_text()) for k in label}
 win = {k: r["windows"] for k, r in res.items()}
 keys = [(w["track"], w["t_start"]) for w in win["pred"]]
 for k in label:
@@ -235,5 +234,4 @@ fig.tight_layout()
 # diagnosis verdict together with the fit: ``none`` says that the model needs no further effect
 # to predict these windows within the noise, not that the coefficients it holds fixed are right.
 
-os.chdir(here)
 shutil.rmtree(work, ignore_errors=True)
