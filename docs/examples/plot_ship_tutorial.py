@@ -178,8 +178,8 @@ else:
 
 # %%
 # The measured 10/10 zigzag to starboard against the packaged model's simulation of step 1,
-# both from the first rudder execute (detected from the rudder leaving its hold): the captive-test
-# coefficients alone do not reproduce this hull's free-running zigzag, which is what the fit is for.
+# both from the first rudder execute (detected from the rudder leaving its hold): how far the
+# captive-test coefficients alone are from this hull's free-running zigzag, the gap the fit closes.
 
 if have_data:
     meas = read_csv(work / "tracks/HSVA_CPMC_KVLCC2_Z_10_10_S.csv")
@@ -202,9 +202,9 @@ else:
 #
 # Training runs: the 10/10 zigzag to starboard, the 20/10 to port, the 10/5 and the 35/5. The
 # other zigzags stay unseen until step 4. ``bayesid fit`` frees the coefficients listed in the
-# file's ``[fit] free`` (hull, propeller wake, rudder), seeds them by an equation-error regression
-# (``--help`` lists the options), keeps the file's captive-test ``[prior]`` (a maximum-a-posteriori fit: ``--prior none`` fits the data alone) and
-# fits by multiple shooting: the tracks are cut into short windows, each simulated from the
+# file's ``[fit] free`` (hull, propeller wake, rudder), seeds them by an equation-error
+# regression, keeps the file's captive-test ``[prior]`` (a maximum-a-posteriori fit; ``--prior
+# none`` fits the data alone) and fits by multiple shooting: the tracks are cut into short windows, each simulated from the
 # measured state at its start. With three or more training runs it also calibrates the
 # predictive bands by leaving one run out at a time (``--calibration none`` skips that).
 # ``--max-nfev 20`` keeps this page quick; a study uses the default.
@@ -290,10 +290,9 @@ show_figures("post/figures")
 # ---------------------------------
 #
 # ``bayesid diagnose`` fits the base model on the training runs, refits it with each effect of
-# the ship catalogue added (it prints the candidates it tries: wind only when the tracks log
-# the wind), scores all of them on the held-out runs against the
-# noise floor (what a perfect model would score at the estimated sensor noise), and gives a
-# verdict: an effect that is the *cause*, *contributors*, ``unexplained`` for a significant
+# the ship catalogue added (it prints the candidates it tries: wind only when the tracks log the
+# wind), scores all of them on the held-out runs against the noise floor (what a perfect model
+# would score at the estimated sensor noise), and gives a verdict: an effect that is the *cause*, *contributors*, ``unexplained`` for a significant
 # remainder no candidate explains, or ``none``. ``--no-discover`` skips the search for missing
 # model terms (structure discovery, :doc:`../gap`) to keep this page quick; ``--max-nfev 10``
 # likewise.
@@ -302,8 +301,7 @@ run(f"bayesid diagnose --vehicle kvlcc2_7m --train {TRAIN} --heldout {HELDOUT} -
 cat("diag/report.md")
 
 # %%
-# The figures ``diagnose`` wrote: the ranking of the effects against the noise floor, the error
-# per channel, where (in which regions of the motion) the error grows, and a held-out track.
+# The figures ``diagnose`` wrote: the ranking of the effects, the error per channel, where (in which regions of the motion) the error grows, and a held-out track.
 
 show_figures("diag/figures")
 
