@@ -18,7 +18,10 @@ Method
 - Cases: every catalogue effect at its three magnitudes (``Effect.magnitudes``), no-effect
   controls, open-set cases (a catalogue effect removed from the candidate list, or an effect
   outside the catalogue: a rudder that stalls beyond 13.5 deg, a constant yaw-moment bias), and
-  pairs of simultaneous effects. The diagnosis sees only the tracks, the nominal vehicle and
+  pairs of simultaneous effects, and structural cases for structure discovery (issue 40: the
+  constant yaw moment and the stalling rudder again, and the vehicle's ``Nabsvr`` removed from the
+  model the diagnosis gets; the diagnosis runs with discovery and is scored by the term it keeps).
+  The diagnosis sees only the tracks, the nominal vehicle and
   the free-coefficient names; window starts follow its ``auto`` rule (fitted with the model when
   u, v, r are not logged).
 - Verdict rules: ``bayesid.analysis.gap`` (cause within 1.5 x the noise floor, contributors, remainder;
@@ -160,6 +163,7 @@ def case_list(quick: bool) -> list[dict]:
         for e in ("stall", "yaw_bias")
         for j in range(2)
     ]
+    cases += structural_cases()
     cases += [
         {
             "id": "two_current+actuator",
@@ -184,6 +188,35 @@ def case_list(quick: bool) -> list[dict]:
         },
     ]
     return cases
+
+
+#: Structural cases (issue 40): what is hidden, what the diagnosis' vehicle lacks, and the library
+#: terms that name it (the hidden term, or for the stall a cubic rudder term of either force).
+STRUCTURAL = (
+    ("yaw_bias", ["yaw_bias"], [0], [], ["Nprop"]),
+    ("stall", ["stall"], [0], [], ["Ndrdrdr", "Ydrdrdr"]),
+    ("removed_Nabsvr", [], [], ["Nabsvr"], ["Nabsvr"]),
+)
+
+
+def structural_cases() -> list[dict]:
+    """Hidden structure for structure discovery (diagnosis with discovery): a constant yaw moment,
+    a stalling rudder (both outside the catalogue) and a term of the vehicle removed from the
+    model the diagnosis gets; each with and without the velocity log."""
+    return [
+        {
+            "id": f"structural_{name}_{j}",
+            "truth": truth,
+            "levels": levels,
+            "exclude": [],
+            "velocity_log": j == 0,
+            "discover": True,
+            "remove": remove,
+            "expected_terms": expected,
+        }
+        for name, truth, levels, remove, expected in STRUCTURAL
+        for j in range(2)
+    ]
 
 
 def logging_config(case: dict, rng: np.random.Generator, quick: bool) -> dict:
@@ -294,6 +327,7 @@ def case_data(case: dict, seed: int, quick: bool) -> tuple[dict, list, list]:
 def run_case(case: dict, seed: int, quick: bool) -> dict:
     """Generate the case's world tracks, diagnose them, return truth + diagnosis (JSON-able)."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
+    from bayesid.analysis.gap.discovery import DiscoveryOptions
     from bayesid.models import effects as ef
 
     tic = time.perf_counter()
@@ -301,12 +335,13 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     veh, world_veh, cfg, truth, objs = (world[k] for k in ("vehicle", "world_vehicle", "logging", "truth", "objs"))
     cands = [c for c in ef.CATALOGUE if c not in case["exclude"]]
     window = window_for(cfg)
+    found = DiscoveryOptions() if case.get("discover") else None
     res = diagnose(
-        veh,
+        veh.with_coefficients({k: 0.0 for k in case["remove"]}) if case.get("remove") else veh,
         FREE,
         train,
         held,
-        DiagnoseOptions(candidates=cands, window_s=window, dt=DT, max_nfev=15 if quick else 40),
+        DiagnoseOptions(candidates=cands, window_s=window, dt=DT, max_nfev=15 if quick else 40, discover=found),
         rng=np.random.default_rng(seed),
     ).to_dict()
     res["where"].pop("regions", None)  # keep results.json small; the summary stays
@@ -363,6 +398,8 @@ def kind_of(r: dict) -> str:
     c = r["case"]
     from bayesid.models import effects as ef
 
+    if c.get("discover"):
+        return "structural"
     if c["exclude"]:
         return "openset"
     if not c["truth"]:
@@ -395,12 +432,46 @@ def group_scores(rs: list[dict]) -> dict:
     }
 
 
+def structural_scores(rs: list[dict]) -> dict:
+    """What structure discovery named on the structural cases: a case is *named* when a kept term
+    is one of its expected terms or has one in its collinear group; *clear* when the diagnosis'
+    remainder was significant (only there does discovery run)."""
+    rows = []
+    for r in rs:
+        d = r["diagnosis"]
+        found = d.get("discovery") or {}
+        kept = [t for t in found.get("discovered", []) if t["kept"]]
+        expected = set(r["case"]["expected_terms"])
+        hit = [t for t in kept if expected & {t["term"], *t.get("group", [])}]
+        rows.append(
+            {
+                "id": r["case"]["id"],
+                "hidden": r["case"]["truth"] or [f"{k} removed" for k in r["case"]["remove"]],
+                "expected_terms": sorted(expected),
+                "velocity_log": r["logging"]["velocity_log"],
+                "verdict": d["verdict"],
+                "clear": bool(found),
+                "kept": [t["term"] for t in kept],
+                "named": bool(hit),
+                "group_inclusion_probability": hit[0].get("group_inclusion_probability") if hit else None,
+                "heldout_rms_before_m": found.get("heldout_rms_before_m"),
+                "heldout_rms_after_m": found.get("heldout_rms_after_m"),
+                "true_model_heldout_rms_m": r["oracle"]["heldout_rms_m"],
+            }
+        )
+    clear = [x for x in rows if x["clear"]]
+    rate, n = _rate(x["named"] for x in clear)
+    return {"structural": rows, "structural_named_rate": rate, "n_structural_clear": n}
+
+
 def summarise(results: list[dict]) -> dict:
     """Confusion matrix, the issue's metrics overall and per logging configuration."""
-    confusion, by = {}, {"single": [], "control": [], "openset": [], "outside": [], "pair": []}
+    confusion, by = {}, {"single": [], "control": [], "openset": [], "outside": [], "pair": [], "structural": []}
     for r in results:
         k = kind_of(r)
         by[k].append(r)
+        if k == "structural":
+            continue  # scored by what discovery names (structural_scores)
         label = (
             "none"
             if k == "control"
@@ -457,6 +528,7 @@ def summarise(results: list[dict]) -> dict:
         "open_set_where_channel_rate": _rate(
             r["diagnosis"]["where"]["dominant_channel"] in EXPECTED_CHANNEL[r["case"]["truth"][0]] for r in open_vis
         )[0],
+        **structural_scores(by["structural"]),
         "pairs": [
             {
                 "truth": r["case"]["truth"],
@@ -583,6 +655,47 @@ def main():
         f"{summ['without_velocity_log']['top1_accuracy']}), shrinkage ratio {o['shrinkage_ratio_to_true_model']}, "
         f"false alarms {summ['false_alarm_rate']}, open set {summ['open_set_no_bare_name_rate']}"
     )
+
+
+def structural_lines(s: dict) -> list[str]:
+    """The structural cases' section: what discovery named (issue 40)."""
+    from bayesid.report import fmt, md_table
+
+    rows = s.get("structural") or []
+    if not rows:
+        return []
+    table = [
+        [
+            x["id"],
+            ", ".join(x["hidden"]),
+            "yes" if x["velocity_log"] else "no",
+            x["verdict"],
+            ", ".join(x["kept"]) or "-",
+            "yes" if x["named"] else ("no" if x["clear"] else "not clear"),
+            fmt(x["group_inclusion_probability"]),
+            f"{fmt(x['heldout_rms_before_m'])} -> {fmt(x['heldout_rms_after_m'])}" if x["clear"] else "-",
+            fmt(x["true_model_heldout_rms_m"]),
+        ]
+        for x in rows
+    ]
+    return [
+        "## Structural cases: structure discovery",
+        "",
+        "Hidden structure outside the catalogue (a constant yaw moment, a rudder that stalls beyond 13.5 deg) "
+        "or a term of the vehicle removed from the model the diagnosis gets; the diagnosis runs with structure "
+        "discovery (`bayesid.analysis.gap.discovery`). *Named*: a kept term is one of "
+        + "; ".join(f"{x['id']}: {', '.join(x['expected_terms'])}" for x in rows[::2])
+        + " (or has one in its collinear group); *not clear*: the remainder after the catalogue effects was not "
+        "significant, so discovery did not run. Held-out RMS (m) before and after the kept terms.",
+        "",
+        f"Named in {fmt(s['structural_named_rate'])} of {s['n_structural_clear']} clear cases.",
+        "",
+        md_table(
+            ["case", "hidden", "velocity log", "verdict", "kept", "named", "group inclusion", "held-out", "true"],
+            table,
+        ),
+        "",
+    ]
 
 
 def write_report(out: Path, s: dict, args) -> None:
@@ -737,6 +850,7 @@ def write_report(out: Path, s: dict, args) -> None:
         "![confusion](figures/confusion.png)",
         "",
         *findings,
+        *structural_lines(s),
         "## Cases",
         "",
         "Held-out RMS position error under the protocol (windows restarting from the measured state, or from a "
