@@ -354,7 +354,7 @@ def diagnose(
         found = discover(
             setup,
             after,
-            [*base_effects, *(c for c in cand_effects if c.name in chosen)],
+            list(after.model.effects),  # in the model's own order (its parameter vector's)
             opt.discover,
             {"sd_fit": sd_fit, "floor_rms": floor["rms_position_m"], "significant": remainder_sig, "thresholds": th},
             rng=rng,

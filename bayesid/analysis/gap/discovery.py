@@ -578,7 +578,7 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     model, ctxs = _augmented(setup, effects, names, window_s)
     n_ref, K = ref.model.n_theta, len(names)
     p0 = _extended_start(ref, model, [0.0] * K)
-    nu0 = ref.fit.nuisance if model.n_nuisance else None
+    nu0 = _nuisance_start(ref, model)
     obj = WindowObjective(model, ctxs, sd_fit, p0=p0, nuisance0=nu0)
     r, J = obj.jacobian(np.asarray(obj.x0, float))
     cand = np.arange(n_ref, n_ref + K)
@@ -744,9 +744,27 @@ def _with_terms(setup: Setup, values: dict) -> Setup:
 
 
 def _extended_start(ref: Stage, model, values: list) -> np.ndarray:
-    """The reference fit's parameters with the new coefficients inserted after its free ones."""
-    n = ref.model.n_theta
-    return np.concatenate([ref.fit.p[:n], np.asarray(values, float), ref.fit.p[n:]])
+    """The reference fit's parameters in ``model``'s order, matched by name (so the effects may
+    come in another order than the reference model's), with the coefficients the reference
+    lacks (the new terms, in ``model``'s order) at ``values``."""
+    known = dict(zip(ref.model.param_names, ref.fit.p))
+    new = iter(np.asarray(values, float))
+    return np.array([known[n] if n in known else next(new) for n in model.param_names], float)
+
+
+def _nuisance_start(ref: Stage, model):
+    """The reference fit's per-track nuisances rearranged to ``model``'s effect order (matched by
+    effect name), or None when ``model`` has none."""
+    if not model.n_nuisance:
+        return None
+    out = []
+    for nu in ref.fit.nuisance:
+        parts, off = {}, 0
+        for e in ref.model.effects:
+            parts[e.name] = np.asarray(nu[off : off + e.n_nuisance], float)
+            off += e.n_nuisance
+        out.append(np.concatenate([parts[e.name] for e in model.effects if e.n_nuisance]))
+    return out
 
 
 def fit_term(task: TermFit) -> tuple[Stage | None, list]:
@@ -770,7 +788,7 @@ def fit_term(task: TermFit) -> tuple[Stage | None, list]:
     setup = _with_terms(task.setup, {task.term: 0.0})
     model, ct, ch = setup.build([e for e in task.effects if e not in setup.effects])
     problem = FitProblem(model, ct, task.sd_fit, max_nfev=task.max_nfev)
-    nu0 = task.ref.fit.nuisance if model.n_nuisance else None
+    nu0 = _nuisance_start(task.ref, model)
     best, messages = None, []
     for c in dict.fromkeys((0.0, float(task.start))):
         try:
