@@ -1120,3 +1120,196 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "")
     ax2.legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
     return _save(fig, path)
+
+
+#: The gid of each mark :func:`mark_indices` draws, prefixed to the index it shows.
+MARK_GID = "ittc:"
+
+
+def _heading_deg(psi) -> np.ndarray:
+    """Heading (deg) as the figures draw it: the unwrapped heading in degrees."""
+    return np.degrees(np.unwrap(np.asarray(psi, float)))
+
+
+def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
+    """The executes, check headings, first and second overshoots and the initial turning time of
+    a zigzag on a heading (deg) against time axis (see :func:`mark_indices`)."""
+    color, label, slot = style
+    ex = [float(v) for v in ind["executes_t_s"]][:4]  # the 1st to 4th: those the indices are read from
+    at = [min(int(np.searchsorted(t, v)), t.size - 1) for v in ex]  # the executes are sample times
+    psi0 = float(hdeg[at[0]])
+    for k, te in enumerate(ex):
+        ax.axvline(te, color=color, lw=0.7, ls=":", label=f"{label}executes" if not k else None, gid=f"{MARK_GID}execute")
+    for k, check in enumerate(ind.get("check_heading_deg", [])[: len(ex) - 1]):
+        end = ex[k + 2] if k + 2 < len(ex) else float(t[-1])
+        ax.plot(
+            [ex[k + 1], end],
+            [psi0 + check] * 2,
+            color=color,
+            lw=0.8,
+            ls="--",
+            label=f"{label}check headings" if not k else None,
+            gid=f"{MARK_GID}check_heading",
+        )
+    for k, name in ((1, "first"), (2, "second")):
+        value = ind.get(f"{name}_overshoot_deg", float("nan"))
+        if k >= len(at) or not np.isfinite(value):
+            continue
+        m, end = at[k], at[k + 1] if k + 1 < len(at) else t.size - 1
+        going = np.sign(hdeg[m] - hdeg[at[k - 1]]) or 1.0  # as manoeuvre_indices measures it
+        j = m + int(np.argmax(going * (hdeg[m : end + 1] - hdeg[m])))
+        ax.plot(t[j], hdeg[j], "v" if going < 0 else "^", color=color, ms=5, gid=f"{MARK_GID}{name}_overshoot_peak")
+        ax.annotate(
+            "",
+            xy=(t[j], hdeg[m] + going * value),
+            xytext=(t[j], hdeg[m]),
+            arrowprops={"arrowstyle": "<->", "color": color, "lw": 0.8},
+            gid=f"{MARK_GID}{name}_overshoot",
+        )
+        ax.annotate(
+            f"{name} overshoot\n{value:.1f} deg",
+            xy=(t[j], hdeg[m] + going * value / 2),
+            xytext=(5, -12 * slot),
+            textcoords="offset points",
+            fontsize=7,
+            color=color,
+            va="center",
+            gid=f"{MARK_GID}{name}_overshoot_text",
+        )
+    ttime = ind.get("initial_turning_time_s", float("nan"))
+    if len(ex) > 1 and np.isfinite(ttime):
+        ax.annotate(
+            "",
+            xy=(ex[1], psi0),
+            xytext=(ex[0], psi0),
+            arrowprops={"arrowstyle": "<->", "color": color, "lw": 0.8},
+            gid=f"{MARK_GID}initial_turning_time",
+        )
+        ax.annotate(
+            f"initial turning time {ttime:.1f} s",
+            xy=(ex[0], psi0),
+            xytext=(0, -10 - 10 * slot),
+            textcoords="offset points",
+            fontsize=7,
+            color=color,
+            gid=f"{MARK_GID}initial_turning_time_text",
+        )
+
+
+def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
+    """The advance, transfer and tactical diameter of a turning circle on a plan view (y east
+    across, x north up; see :func:`mark_indices`)."""
+    from ..estimation.indices import _at, _crossing  # the indices' own interpolation, not a twin
+
+    t, x, y, psi = run
+    color, label, slot = style
+    i0 = min(int(np.searchsorted(t, ind["execute_t_s"])), t.size - 1)
+    h = np.unwrap(psi) - np.unwrap(psi)[i0]
+    c, s = np.cos(psi[i0]), np.sin(psi[i0])
+    x0, y0 = float(x[i0]), float(y[i0])
+    marks, spans = [(x0, y0)], []
+    for ang, key in ((np.pi / 2, "advance_m"), (np.pi, "tactical_diameter_m")):
+        f = _crossing(h, i0, t.size - 1, ang)
+        if f is None or not np.isfinite(ind.get(key, float("nan"))):
+            continue
+        px, py = _at(x, f), _at(y, f)
+        along = c * (px - x0) + s * (py - y0)
+        foot = (x0 + along * c, y0 + along * s)  # on the original course, abeam the point
+        marks.append((px, py))
+        if key == "advance_m":
+            ax.plot([y0, foot[1]], [x0, foot[0]], color=color, lw=0.6, ls="--", gid=f"{MARK_GID}original_course")
+            spans += [("advance", (x0, y0), foot), ("transfer", foot, (px, py))]
+            # the advance's value on the side of the course away from the turn (y is across the page)
+            away = -np.sign(c * (-s * (px - x0) + c * (py - y0))) or -1.0
+        else:
+            spans.append(("tactical_diameter", foot, (px, py)))
+    for name, a, b in spans:
+        left = name == "advance" and away < 0
+        ax.annotate(
+            "",
+            xy=(b[1], b[0]),
+            xytext=(a[1], a[0]),
+            arrowprops={"arrowstyle": "<->", "color": color, "lw": 0.8},
+            gid=f"{MARK_GID}{name}",
+        )
+        ax.annotate(
+            f"{name.replace('_', ' ')}\n{ind[name + '_m']:.1f} m",
+            xy=((a[1] + b[1]) / 2, (a[0] + b[0]) / 2),
+            xytext=(-4 if left else 4, 4 - 14 * slot),
+            textcoords="offset points",
+            fontsize=7,
+            color=color,
+            ha="right" if left else "left",
+            gid=f"{MARK_GID}{name}_text",
+        )
+    mx, my = np.array(marks).T
+    ax.plot(my, mx, "o", color=color, ms=3.5, label=f"{label}execute, 90 and 180 deg turned", gid=f"{MARK_GID}points")
+
+
+def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", label="", slot=0):
+    """Mark a run's ITTC manoeuvre indices on existing axes: a zigzag's on its heading history,
+    a turning circle's on its plan view.
+
+    The indices are those of :func:`bayesid.estimation.indices.manoeuvre_indices` (ITTC
+    Recommended Procedure 7.5-04-02-01, Sec. 2.2.1-2.2.2; IMO MSC.137(76)), drawn where they are
+    measured:
+
+    * **zigzag**, on ``ax_heading`` (heading in deg, the unwrapped ``run["psi"]``, against time):
+      each execute (a dotted vertical line), the check heading after each later execute (a dashed
+      horizontal line from it to the next execute), the first and second overshoot (a triangle at
+      the heading's extreme and a double arrow from the check heading to it, labelled with the
+      value in deg) and the initial turning time (a double arrow from the 1st to the 2nd execute
+      at the original course, labelled in s);
+    * **turning circle**, on ``ax_plan`` (y east across, x north up, as the package's plan views):
+      the execute and the track where the heading has changed by 90 and 180 deg (dots), the
+      original course (dashed), the advance along it, the transfer and the tactical diameter
+      normal to it (double arrows labelled with the value in m);
+    * any other run: nothing.
+
+    Every artist carries a gid :data:`MARK_GID` + the index it shows (``"ittc:first_overshoot"``,
+    ``"ittc:advance"``, ...).
+
+    Parameters
+    ----------
+    ax_plan : matplotlib.axes.Axes or None
+        The plan view the run's ``y``, ``x`` are drawn on; None: no turning marks.
+    ax_heading : matplotlib.axes.Axes or None
+        The heading (deg, ``np.degrees(np.unwrap(psi))``) against time (s) axis; None: no
+        zigzag marks. A heading offset by a constant (a heading change) marks the same indices
+        when ``run["psi"]`` is offset by it too.
+    t : array_like, shape (n,)
+        Sample times, s.
+    run : mapping
+        ``"x"``, ``"y"`` (m), ``"psi"`` and ``"delta_r"`` (rad), arrays (n,): a Track or a dict.
+    indices : dict, optional
+        The run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result (computed from
+        ``run`` when not given).
+    color : str, default "tab:red"
+        The marks' colour.
+    label : str, default ""
+        Prefix of the marks' legend entries (e.g. ``"measured: "``).
+    slot : int, default 0
+        The text row: 0 for the first run marked on these axes, 1 for a second, so that the
+        values of two runs do not overlap.
+
+    Returns
+    -------
+    dict
+        The indices marked (``kind`` ``"other"``: none drawn).
+
+    Raises
+    ------
+    KeyError
+        ``run`` lacks one of ``"x"``, ``"y"``, ``"psi"``, ``"delta_r"``.
+    """
+    from ..estimation.indices import manoeuvre_indices
+
+    t = np.asarray(t, float)
+    x, y, psi, delta = (np.asarray(run[c], float) for c in ("x", "y", "psi", "delta_r"))
+    ind = manoeuvre_indices(t, x, y, psi, delta) if indices is None else indices
+    style = (color, label, slot)
+    if ind.get("kind") == "zigzag" and ax_heading is not None and ind.get("executes_t_s"):
+        _mark_zigzag(ax_heading, t, _heading_deg(psi), ind, style)
+    elif ind.get("kind") == "turning" and ax_plan is not None:
+        _mark_turn(ax_plan, (t, x, y, np.unwrap(psi)), ind, style)
+    return ind
