@@ -3,6 +3,7 @@ results already computed and writes one PNG."""
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -768,14 +769,20 @@ def _plan_view(fig, ax, title, path):
     return _save(fig, path)
 
 
-def window_tracks(t, measured, before, after, path, title: str = "", labels=("base model", "with top effect")):
+def window_tracks(
+    t, measured, before, after, path, title: str = "", labels=("base model", "with top effect"), run=None
+):
     """Measured track and the protocol's windowed predictions before and after the top effect:
-    arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions."""
+    arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions; ``run``
+    (optional, a Track or a mapping with ``"t"``, ``"x"``, ``"y"``, ``"psi"``, ``"delta_r"``: the
+    measured run) has its turning-circle indices marked (:func:`mark_indices`; ``t`` is not used)."""
     fig, ax = plt.subplots(figsize=(6, 6))
     ax.plot(measured[:, 1], measured[:, 0], "k.", ms=1.5, label="measured")
     ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label=labels[0])
     if after is not None:
         ax.plot(after[:, 1], after[:, 0], "tab:blue", lw=1.0, label=labels[1])
+    if run is not None:
+        mark_indices(ax, None, run["t"], run, color="0.35", label="measured: ")
     return _plan_view(fig, ax, title, path)
 
 
@@ -925,7 +932,8 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, l
     """Time histories of a windowed prediction with its calibrated band: plan view (measured
     track, predicted windows, a circle of the band's position radius round each window's end:
     the band the track must stay within), heading (prediction +- the band's heading error,
-    shaded) and rudder angle.
+    shaded) and rudder angle. A zigzag's or turn's ITTC indices are marked (:func:`mark_indices`):
+    the measured run's in red, and a whole-run prediction's (one window) in purple.
 
     Parameters
     ----------
@@ -1001,6 +1009,11 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, l
                 alpha=0.2,
                 label=f"{100 * level:g} % band" if k == 0 else None,
             )
+    mark_indices(ax, ax2, t, dict(measured, psi=np.radians(psi_m)), label="measured: ")
+    if cut.size == 0:  # one simulation of the whole run: its own indices, from the same rudder
+        run = {"x": predicted["x"], "y": predicted["y"], "psi": np.radians(psi_p), "delta_r": rudder}
+        mark_indices(ax, ax2, t, run, color="tab:purple", label="predicted: ", slot=1)
+    ax.legend(fontsize=7)
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
@@ -1065,14 +1078,16 @@ def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, titl
 
 def training_fit(t, measured: dict, simulated: dict, win, path, title: str = ""):
     """Measured against simulated motion of one training run under a fit's windows: plan view
-    (measured track, each fit window's simulation) and heading against time.
+    (measured track, each fit window's simulation) and heading against time, with the measured
+    run's ITTC indices marked.
 
     Parameters
     ----------
     t : ndarray (n,)
         Sample times, s.
     measured : dict
-        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,).
+        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,); with its rudder angle
+        ``"delta_r"`` (rad) a zigzag's or turn's ITTC indices are marked (:func:`mark_indices`).
     simulated : dict
         The simulated ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,), each window
         restarted as the fit scores it.
@@ -1114,6 +1129,9 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "")
         ax2.plot(t[a:b], psi_s[a:b], "tab:blue", lw=1.0, label="simulated (fit windows)" if not k else None)
     for a, _ in spans[1:]:
         ax2.axvline(t[a], color="0.7", lw=0.6, ls=":")
+    if "delta_r" in measured:
+        mark_indices(ax, ax2, t, dict(measured, psi=np.radians(psi_m)), label="measured: ")
+        ax.legend(fontsize=7)
     ax2.set_xlabel("t, s")
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
@@ -1135,13 +1153,16 @@ def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
     """The executes, check headings, first and second overshoots and the initial turning time of
     a zigzag on a heading (deg) against time axis (see :func:`mark_indices`)."""
     color, label, slot = style
-    ex = [float(v) for v in ind["executes_t_s"]][:4]  # the 1st to 4th: those the indices are read from
+    every = [float(v) for v in ind["executes_t_s"]]
+    ex = every[:4]  # the 1st to 4th: those the indices are read from
     at = [min(int(np.searchsorted(t, v)), t.size - 1) for v in ex]  # the executes are sample times
     psi0 = float(hdeg[at[0]])
     for k, te in enumerate(ex):
-        ax.axvline(te, color=color, lw=0.7, ls=":", label=f"{label}executes" if not k else None, gid=f"{MARK_GID}execute")
+        ax.axvline(
+            te, color=color, lw=0.7, ls=":", label=f"{label}executes" if not k else None, gid=f"{MARK_GID}execute"
+        )
     for k, check in enumerate(ind.get("check_heading_deg", [])[: len(ex) - 1]):
-        end = ex[k + 2] if k + 2 < len(ex) else float(t[-1])
+        end = every[k + 2] if k + 2 < len(every) else float(t[-1])
         ax.plot(
             [ex[k + 1], end],
             [psi0 + check] * 2,
@@ -1304,8 +1325,10 @@ def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", 
     """
     from ..estimation.indices import manoeuvre_indices
 
-    t = np.asarray(t, float)
-    x, y, psi, delta = (np.asarray(run[c], float) for c in ("x", "y", "psi", "delta_r"))
+    cols = np.vstack([np.asarray(t, float)] + [np.asarray(run[c], float) for c in ("x", "y", "psi", "delta_r")])
+    t, x, y, psi, delta = cols[:, np.all(np.isfinite(cols), axis=0)]  # a measured run's gaps dropped
+    if t.size < 3:
+        return {"kind": "other", "reason": "fewer than 3 samples with x, y, psi and delta_r"}
     ind = manoeuvre_indices(t, x, y, psi, delta) if indices is None else indices
     style = (color, label, slot)
     if ind.get("kind") == "zigzag" and ax_heading is not None and ind.get("executes_t_s"):
@@ -1313,3 +1336,48 @@ def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", 
     elif ind.get("kind") == "turning" and ax_plan is not None:
         _mark_turn(ax_plan, (t, x, y, np.unwrap(psi)), ind, style)
     return ind
+
+
+def simulated_run(track, path, title: str = "", indices=None):
+    """A simulated (or measured) run: plan view, heading and rudder angle against time, with a
+    zigzag's or turn's ITTC indices marked (:func:`mark_indices`).
+
+    Parameters
+    ----------
+    track : Track
+        The run: ``"x"``, ``"y"`` (m), ``"psi"`` and ``"delta_r"`` (rad) against its times ``t`` (s).
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The figure's title.
+    indices : dict, optional
+        The run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result (computed when not
+        given).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    fig = plt.figure(figsize=(11, 5.5))
+    ax = fig.add_subplot(1, 2, 1)
+    ax.plot(track["y"], track["x"], "k", lw=1.0, label="track")
+    ax.plot(track["y"][0], track["x"][0], "k.", ms=6)
+    ax2 = fig.add_subplot(2, 2, 2)
+    ax2.plot(track.t, _heading_deg(track["psi"]), "k", lw=1.0, label="heading")
+    mark_indices(ax, ax2, track.t, track, indices=indices)
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax2.set_ylabel("heading, deg")
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=7)
+    ax3 = fig.add_subplot(2, 2, 4, sharex=ax2)
+    ax3.plot(track.t, np.degrees(track["delta_r"]), "tab:green", lw=0.8)
+    ax3.set_ylabel("rudder, deg (+ port)")
+    ax3.set_xlabel("t, s")
+    ax3.grid(alpha=0.3)
+    fig.suptitle(textwrap.fill(title, 130), fontsize=9)
+    return _save(fig, path)
