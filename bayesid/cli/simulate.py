@@ -132,7 +132,7 @@ def add_parser(sub) -> None:
     s.add_argument(
         "--no-figure",
         action="store_true",
-        help="write no .png figure beside the CSV (default: write it, the indices marked)",
+        help="write no .png figure beside the CSV (without it the figure is written, the indices marked)",
     )
     opt.add_overwrite(s)
 

@@ -1220,8 +1220,6 @@ def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
 def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
     """The advance, transfer and tactical diameter of a turning circle on a plan view (y east
     across, x north up; see :func:`mark_indices`)."""
-    from ..estimation.indices import _at, _crossing  # the indices' own interpolation, not a twin
-
     t, x, y, psi = run
     color, label, slot = style
     i0 = min(int(np.searchsorted(t, ind["execute_t_s"])), t.size - 1)
@@ -1230,10 +1228,14 @@ def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
     x0, y0 = float(x[i0]), float(y[i0])
     marks, spans = [(x0, y0)], []
     for ang, key in ((np.pi / 2, "advance_m"), (np.pi, "tactical_diameter_m")):
-        f = _crossing(h, i0, t.size - 1, ang)
-        if f is None or not np.isfinite(ind.get(key, float("nan"))):
+        after = np.flatnonzero(np.abs(h[i0:]) >= ang)
+        if not after.size or not np.isfinite(ind.get(key, float("nan"))):
             continue
-        px, py = _at(x, f), _at(y, f)
+        # the point where the heading change first reaches ang, linear between samples, as
+        # manoeuvre_indices interpolates the advance, transfer and tactical diameter
+        j = i0 + int(after[0])
+        w = 0.0 if j == i0 else (ang - abs(h[j - 1])) / (abs(h[j]) - abs(h[j - 1]))
+        px, py = x[j - 1] + w * (x[j] - x[j - 1]), y[j - 1] + w * (y[j] - y[j - 1])
         along = c * (px - x0) + s * (py - y0)
         foot = (x0 + along * c, y0 + along * s)  # on the original course, abeam the point
         marks.append((px, py))
