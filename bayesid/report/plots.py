@@ -1157,7 +1157,7 @@ def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
     ex = every[:4]  # the 1st to 4th: those the indices are read from
     at = [min(int(np.searchsorted(t, v)), t.size - 1) for v in ex]  # the executes are sample times
     psi0 = float(hdeg[at[0]])
-    for k, te in enumerate(ex):
+    for k, te in enumerate(ex if not slot else []):  # a second run on the same rudder: the same executes
         ax.axvline(
             te, color=color, lw=0.7, ls=":", label=f"{label}executes" if not k else None, gid=f"{MARK_GID}execute"
         )
@@ -1190,7 +1190,7 @@ def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
         ax.annotate(
             f"{name} overshoot\n{value:.1f} deg",
             xy=(t[j], hdeg[m] + going * value / 2),
-            xytext=(5, -12 * slot),
+            xytext=(5, -22 * slot),
             textcoords="offset points",
             fontsize=7,
             color=color,
@@ -1198,7 +1198,7 @@ def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
             gid=f"{MARK_GID}{name}_overshoot_text",
         )
     ttime = ind.get("initial_turning_time_s", float("nan"))
-    if len(ex) > 1 and np.isfinite(ttime):
+    if len(ex) > 1 and np.isfinite(ttime) and not slot:
         ax.annotate(
             "",
             xy=(ex[1], psi0),
@@ -1313,7 +1313,8 @@ def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", 
         Prefix of the marks' legend entries (e.g. ``"measured: "``).
     slot : int, default 0
         The text row: 0 for the first run marked on these axes, 1 for a second, so that the
-        values of two runs do not overlap.
+        values of two runs do not overlap. A zigzag's executes and initial turning time are drawn
+        for slot 0 only: a second run (a prediction from the same rudder record) has the same.
 
     Returns
     -------
