@@ -187,8 +187,11 @@ def _write(res, doc, train, out) -> None:
 
 def _training_figures(res, train, figs) -> list:
     """Measured against simulated track and heading of each training run under the fit's windows
-    and start rule, as its training scores are computed; returns the file names written in
+    and start rule, as its training scores are computed, a zigzag's or turn's ITTC indices marked
+    on the measured run; returns the file names written in
     ``figs`` (a run without x, y and psi gets none)."""
+    import numpy as np
+
     from ..estimation import shooting
     from ..report import plots
 
@@ -205,7 +208,10 @@ def _training_figures(res, train, figs) -> list:
         rms = per_run.get(tr.name)
         plots.training_fit(
             ctx.ts[::k],
-            {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
+            dict(
+                {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
+                **({"delta_r": np.asarray(tr["delta_r"], float)[ctx.idx][::k]} if "delta_r" in tr.data else {}),
+            ),
             {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
             ctx.win[::k],
             figs / name,

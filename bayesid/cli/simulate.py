@@ -1,11 +1,15 @@
 """``bayesid simulate``: simulate a standard manoeuvre of a vehicle file (a submarine or a surface
 ship), print its ITTC indices and write the track as a Track CSV (the format ``bayesid fit``
-reads)."""
+reads), with a JSON summary (vehicle, settings, indices, version, command line) and a figure with
+the indices marked beside it."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import sys
+from pathlib import Path
 
 from ..data.track import write_csv
 from ..estimation import indices as ix
@@ -120,8 +124,51 @@ def add_parser(sub) -> None:
         default=None,
         help="submarines: the cross-flow drag form (none: the vehicle file's); ships always integrate it",
     )
-    opt.add_out(s, "the Track CSV written")
+    opt.add_out(
+        s,
+        "the Track CSV written; beside it, with its suffix replaced, the summary .json (vehicle, settings, "
+        "indices, version, command line) and the figure .png",
+    )
+    s.add_argument(
+        "--no-figure",
+        action="store_true",
+        help="write no .png figure beside the CSV (without it the figure is written, the indices marked)",
+    )
     opt.add_overwrite(s)
+
+
+def output_paths(out, figure: bool = True) -> dict:
+    """The files ``bayesid simulate --out OUT`` writes: the CSV itself, and beside it the JSON
+    summary and (``figure``) the PNG, named as ``OUT`` with its suffix replaced (one ``--out`` names
+    every output, as in the other commands, and ``--overwrite`` covers them all).
+
+    Parameters
+    ----------
+    out : str or Path
+        The ``--out`` value.
+    figure : bool, default True
+        Whether the figure is written (not with ``--no-figure``).
+
+    Returns
+    -------
+    dict
+        ``"csv"``, ``"json"`` and, with ``figure``, ``"png"``: Paths.
+
+    Raises
+    ------
+    ValueError
+        ``--out`` ends in ``.json`` or ``.png``: the CSV and a summary would share a name.
+    """
+    out = Path(out)
+    if out.suffix.lower() in (".json", ".png"):
+        raise ValueError(
+            f"--out {out}: the summary and figure are written beside the CSV as {out.stem}.json and "
+            f"{out.stem}.png; give the CSV another suffix (e.g. {out.stem}.csv)"
+        )
+    paths = {"csv": out, "json": out.with_suffix(".json")}
+    if figure:
+        paths["png"] = out.with_suffix(".png")
+    return paths
 
 
 def run(args) -> int:
@@ -143,7 +190,14 @@ def run(args) -> int:
         An option that does not apply to the vehicle or manoeuvre, or a bad value, naming the
         option; a simulation that diverges.
     """
+    paths = output_paths(args.out, not args.no_figure)
     check_out(args.out, "simulate", args.overwrite)
+    for what, path in paths.items():  # refused when it exists, as the CSV always was
+        if what != "csv" and (path.is_dir() or (path.exists() and not args.overwrite)):
+            raise ValueError(
+                f"--out {args.out}: {path} (the {what.upper()} written beside the CSV) "
+                + ("is a folder" if path.is_dir() else "exists; pass --overwrite to replace it")
+            )
     if args.duration is not None and args.duration / args.dt > MAX_SIMULATE_STEPS:
         raise ValueError(
             f"--duration {args.duration:g} s at --dt {args.dt:g} s is {args.duration / args.dt:.3g} steps "
@@ -157,13 +211,53 @@ def run(args) -> int:
     from ..models import ship
 
     if ship.is_ship_file(args.vehicle):
-        track, what = _ship(args, every)
+        track, settings = _ship(args, every)
     else:
-        track, what = _submarine(args, every)
-    _report(track, args.manoeuvre)
-    write_csv(track, args.out)
-    print(f"wrote {args.out}: {track.n_samples} samples ({what})")
+        track, settings = _submarine(args, every)
+    indices = _report(track, args.manoeuvre)
+    paths["csv"].parent.mkdir(parents=True, exist_ok=True)  # checked writable by check_out
+    write_csv(track, paths["csv"])
+    print(f"wrote {paths['csv']}: {track.n_samples} samples ({settings['run']})")
+    _write_summary(args, settings, indices, paths)
+    if "png" in paths:
+        from ..report import plots
+
+        plots.simulated_run(
+            track,
+            paths["png"],
+            title=f"{settings['vehicle']['id']}: {settings['description']}",
+            indices=indices.get("_raw"),
+        )
+        print(f"wrote {paths['png']}")
     return 0
+
+
+def _write_summary(args, settings: dict, indices: dict, paths: dict) -> None:
+    """The JSON summary of a simulation: the bayesid version, the command line, the vehicle, the
+    manoeuvre's settings (the options as given and the speed, rpm and rudder rate resolved), the
+    indices as printed (value at full precision, NaN as null) and the files written."""
+    from .. import __version__
+
+    doc = {
+        "bayesid_version": __version__,
+        "command": "bayesid " + " ".join(sys.argv[1:]),
+        "vehicle": settings["vehicle"],
+        "manoeuvre": dict(
+            {k: v for k, v in settings.items() if k not in ("vehicle", "run")},
+            name=args.manoeuvre,
+            run=settings["run"],
+            angle_deg=args.angle,
+            check_deg=args.check,
+            duration_s=args.duration,
+            hold_s=args.hold,
+            dt_s=args.dt,
+            sample_s=args.sample,
+        ),
+        "indices": {k: v for k, v in indices.items() if k != "_raw"},
+        "files": {k: str(v) for k, v in paths.items() if k != "json"},
+    }
+    paths["json"].write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    print(f"wrote {paths['json']}")
 
 
 def _ship(args, every):
@@ -208,7 +302,14 @@ def _ship(args, every):
         f"vessel: {vessel.id}",
     ]
     print(f"{vessel.id}: {trial.description}")
-    return track, trial.name
+    return track, {
+        "vehicle": {"id": vessel.id, "family": "surface ship", "file": str(vessel.file_path)},
+        "run": trial.name,
+        "description": trial.description,
+        "speed_m_s": float(speed),
+        "rpm": float(rpm),
+        "rudder_rate_deg_s": float(rate),
+    }
 
 
 def _submarine(args, every):
@@ -265,13 +366,30 @@ def _submarine(args, every):
         f"bayesid simulate: vehicle {vehicle.id}, {m.description}, mode {mode}",
         f"vessel: {vehicle.id}",
     ]
-    return track, m.name
+    return track, {
+        "vehicle": {"id": vehicle.id, "family": "submarine", "file": vehicle.path or str(args.vehicle)},
+        "run": m.name,
+        "description": m.description,
+        "mode": mode,
+        "crossflow": args.crossflow,
+        "rpm": None if rpm is None else float(rpm),
+        "rudder_rate_deg_s": float(args.rudder_rate or 0.0),
+    }
 
 
-def _report(track, manoeuvre: str) -> None:
-    """Print the manoeuvre's indices (ITTC definitions, :mod:`bayesid.estimation.indices`) and
-    add them to the track's comments."""
+def _finite(value):
+    """A float for JSON: NaN and infinities as None (null)."""
+    return float(value) if math.isfinite(value) else None
+
+
+def _report(track, manoeuvre: str) -> dict:
+    """Print the manoeuvre's indices (ITTC definitions, :mod:`bayesid.estimation.indices`), add
+    them to the track's comments and return them for the JSON summary: ``kind``, ``standard`` and
+    ``values``: per printed index its ``name``, ``value`` (SI units and degrees, full precision, null when not
+    reached) and ``unit``; a spiral's ``steady_yaw_rates``; ``reason`` when there are none;
+    ``_raw`` the :func:`~bayesid.estimation.indices.manoeuvre_indices` result of a turn or zigzag."""
     t, delta, r = track.t, track["delta_r"], track["r"]
+    standard = "ITTC 7.5-04-02-01 (2017) Sec. 2.2"
     if manoeuvre == "spiral":
         rows = ix.steady_yaw_rates(t, delta, r)
         print("steady yaw rate per rudder angle (mean over the last third of each hold; drift: its change there)")
@@ -282,24 +400,35 @@ def _report(track, manoeuvre: str) -> None:
             "steady yaw rate (rudder deg: deg/s): "
             + ", ".join(f"{row['rudder_deg']:.3g}: {row['yaw_rate_deg_s']:.4g}" for row in rows)
         )
-        return
+        return {
+            "kind": "spiral",
+            "standard": standard + ".4",
+            "steady_yaw_rates": [{k: _finite(v) for k, v in row.items()} for row in rows],
+        }
+    raw = None
     if manoeuvre == "pull-out":
         got = ix.pull_out_rates(t, delta, r)
         kind = "pull-out"
     elif manoeuvre in ("turn", "zigzag"):
-        got = ix.manoeuvre_indices(t, track["x"], track["y"], track["psi"], delta)
+        got = raw = ix.manoeuvre_indices(t, track["x"], track["y"], track["psi"], delta)
         kind = got["kind"]
     else:
-        return
+        return {"kind": "straight", "reason": "a straight run has no manoeuvre indices"}
     if not got or kind == "other":
-        print(f"no {manoeuvre} indices: {got.get('reason', 'the rudder is never released')}")
-        return
+        reason = got.get("reason", "the rudder is never released")
+        print(f"no {manoeuvre} indices: {reason}")
+        return {"kind": "other", "reason": reason, "_raw": raw}
     print(f"{kind} indices (ITTC 7.5-04-02-01):")
-    shown = []
+    shown, values = [], {}
     for key, label, unit in _PRINTED:
         if key in got:
             value = got[key]
             text = "n/a" if not math.isfinite(value) else f"{value:.4g}"
             print(f"  {label:<24} {text} {unit}".rstrip())
             shown.append(f"{key} {text}")
+            values[key] = {"name": label, "value": _finite(value), "unit": unit}
     track.meta["comments"].append(f"{kind} indices: " + ", ".join(shown))
+    extra = (
+        {"executes_t_s": got["executes_t_s"], "check_heading_deg": got["check_heading_deg"]} if kind == "zigzag" else {}
+    )
+    return dict({"kind": kind, "standard": standard, "values": values}, **extra, _raw=raw)

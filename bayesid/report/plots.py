@@ -3,6 +3,7 @@ results already computed and writes one PNG."""
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -768,14 +769,20 @@ def _plan_view(fig, ax, title, path):
     return _save(fig, path)
 
 
-def window_tracks(t, measured, before, after, path, title: str = "", labels=("base model", "with top effect")):
+def window_tracks(
+    t, measured, before, after, path, title: str = "", labels=("base model", "with top effect"), run=None
+):
     """Measured track and the protocol's windowed predictions before and after the top effect:
-    arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions."""
+    arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions; ``run``
+    (optional, a Track or a mapping with ``"t"``, ``"x"``, ``"y"``, ``"psi"``, ``"delta_r"``: the
+    measured run) has its turning-circle indices marked (:func:`mark_indices`; ``t`` is not used)."""
     fig, ax = plt.subplots(figsize=(6, 6))
     ax.plot(measured[:, 1], measured[:, 0], "k.", ms=1.5, label="measured")
     ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label=labels[0])
     if after is not None:
         ax.plot(after[:, 1], after[:, 0], "tab:blue", lw=1.0, label=labels[1])
+    if run is not None:
+        mark_indices(ax, None, run["t"], run, color="0.35", label="measured: ")
     return _plan_view(fig, ax, title, path)
 
 
@@ -925,7 +932,8 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, l
     """Time histories of a windowed prediction with its calibrated band: plan view (measured
     track, predicted windows, a circle of the band's position radius round each window's end:
     the band the track must stay within), heading (prediction +- the band's heading error,
-    shaded) and rudder angle.
+    shaded) and rudder angle. A zigzag's or turn's ITTC indices are marked (:func:`mark_indices`):
+    the measured run's in red, and a whole-run prediction's (one window) in purple.
 
     Parameters
     ----------
@@ -1001,6 +1009,11 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, l
                 alpha=0.2,
                 label=f"{100 * level:g} % band" if k == 0 else None,
             )
+    mark_indices(ax, ax2, t, dict(measured, psi=np.radians(psi_m)), label="measured: ")
+    if cut.size == 0:  # one simulation of the whole run: its own indices, from the same rudder
+        run = {"x": predicted["x"], "y": predicted["y"], "psi": np.radians(psi_p), "delta_r": rudder}
+        mark_indices(ax, ax2, t, run, color="tab:purple", label="predicted: ", slot=1)
+    ax.legend(fontsize=7)
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
@@ -1065,14 +1078,16 @@ def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, titl
 
 def training_fit(t, measured: dict, simulated: dict, win, path, title: str = ""):
     """Measured against simulated motion of one training run under a fit's windows: plan view
-    (measured track, each fit window's simulation) and heading against time.
+    (measured track, each fit window's simulation) and heading against time, with the measured
+    run's ITTC indices marked.
 
     Parameters
     ----------
     t : ndarray (n,)
         Sample times, s.
     measured : dict
-        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,).
+        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,); with its rudder angle
+        ``"delta_r"`` (rad) a zigzag's or turn's ITTC indices are marked (:func:`mark_indices`).
     simulated : dict
         The simulated ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,), each window
         restarted as the fit scores it.
@@ -1114,9 +1129,258 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "")
         ax2.plot(t[a:b], psi_s[a:b], "tab:blue", lw=1.0, label="simulated (fit windows)" if not k else None)
     for a, _ in spans[1:]:
         ax2.axvline(t[a], color="0.7", lw=0.6, ls=":")
+    if "delta_r" in measured:
+        mark_indices(ax, ax2, t, dict(measured, psi=np.radians(psi_m)), label="measured: ")
+        ax.legend(fontsize=7)
     ax2.set_xlabel("t, s")
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+#: The gid of each mark :func:`mark_indices` draws, prefixed to the index it shows.
+MARK_GID = "ittc:"
+
+
+def _heading_deg(psi) -> np.ndarray:
+    """Heading (deg) as the figures draw it: the unwrapped heading in degrees."""
+    return np.degrees(np.unwrap(np.asarray(psi, float)))
+
+
+def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
+    """The executes, check headings, first and second overshoots and the initial turning time of
+    a zigzag on a heading (deg) against time axis (see :func:`mark_indices`)."""
+    color, label, slot = style
+    every = [float(v) for v in ind["executes_t_s"]]
+    ex = every[:4]  # the 1st to 4th: those the indices are read from
+    at = [min(int(np.searchsorted(t, v)), t.size - 1) for v in ex]  # the executes are sample times
+    psi0 = float(hdeg[at[0]])
+    for k, te in enumerate(ex if not slot else []):  # a second run on the same rudder: the same executes
+        ax.axvline(
+            te, color=color, lw=0.7, ls=":", label=f"{label}executes" if not k else None, gid=f"{MARK_GID}execute"
+        )
+    for k, check in enumerate(ind.get("check_heading_deg", [])[: len(ex) - 1]):
+        end = every[k + 2] if k + 2 < len(every) else float(t[-1])
+        ax.plot(
+            [ex[k + 1], end],
+            [psi0 + check] * 2,
+            color=color,
+            lw=0.8,
+            ls="--",
+            label=f"{label}check headings" if not k else None,
+            gid=f"{MARK_GID}check_heading",
+        )
+    for k, name in ((1, "first"), (2, "second")):
+        value = ind.get(f"{name}_overshoot_deg", float("nan"))
+        if k >= len(at) or not np.isfinite(value):
+            continue
+        m, end = at[k], at[k + 1] if k + 1 < len(at) else t.size - 1
+        going = np.sign(hdeg[m] - hdeg[at[k - 1]]) or 1.0  # as manoeuvre_indices measures it
+        j = m + int(np.argmax(going * (hdeg[m : end + 1] - hdeg[m])))
+        ax.plot(t[j], hdeg[j], "v" if going < 0 else "^", color=color, ms=5, gid=f"{MARK_GID}{name}_overshoot_peak")
+        ax.annotate(
+            "",
+            xy=(t[j], hdeg[m] + going * value),
+            xytext=(t[j], hdeg[m]),
+            arrowprops={"arrowstyle": "<->", "color": color, "lw": 0.8},
+            gid=f"{MARK_GID}{name}_overshoot",
+        )
+        ax.annotate(
+            f"{name} overshoot\n{value:.1f} deg",
+            xy=(t[j], hdeg[m] + going * value / 2),
+            xytext=(5, -22 * slot),
+            textcoords="offset points",
+            fontsize=7,
+            color=color,
+            va="center",
+            gid=f"{MARK_GID}{name}_overshoot_text",
+        )
+    ttime = ind.get("initial_turning_time_s", float("nan"))
+    if len(ex) > 1 and np.isfinite(ttime) and not slot:
+        ax.annotate(
+            "",
+            xy=(ex[1], psi0),
+            xytext=(ex[0], psi0),
+            arrowprops={"arrowstyle": "<->", "color": color, "lw": 0.8},
+            gid=f"{MARK_GID}initial_turning_time",
+        )
+        ax.annotate(
+            f"initial turning time {ttime:.1f} s",
+            xy=(ex[0], psi0),
+            xytext=(0, -10 - 10 * slot),
+            textcoords="offset points",
+            fontsize=7,
+            color=color,
+            gid=f"{MARK_GID}initial_turning_time_text",
+        )
+
+
+def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
+    """The advance, transfer and tactical diameter of a turning circle on a plan view (y east
+    across, x north up; see :func:`mark_indices`)."""
+    t, x, y, psi = run
+    color, label, slot = style
+    i0 = min(int(np.searchsorted(t, ind["execute_t_s"])), t.size - 1)
+    h = np.unwrap(psi) - np.unwrap(psi)[i0]
+    c, s = np.cos(psi[i0]), np.sin(psi[i0])
+    x0, y0 = float(x[i0]), float(y[i0])
+    marks, spans = [(x0, y0)], []
+    for ang, key in ((np.pi / 2, "advance_m"), (np.pi, "tactical_diameter_m")):
+        after = np.flatnonzero(np.abs(h[i0:]) >= ang)
+        if not after.size or not np.isfinite(ind.get(key, float("nan"))):
+            continue
+        # the point where the heading change first reaches ang, linear between samples, as
+        # manoeuvre_indices interpolates the advance, transfer and tactical diameter
+        j = i0 + int(after[0])
+        w = 0.0 if j == i0 else (ang - abs(h[j - 1])) / (abs(h[j]) - abs(h[j - 1]))
+        px, py = x[j - 1] + w * (x[j] - x[j - 1]), y[j - 1] + w * (y[j] - y[j - 1])
+        along = c * (px - x0) + s * (py - y0)
+        foot = (x0 + along * c, y0 + along * s)  # on the original course, abeam the point
+        marks.append((px, py))
+        if key == "advance_m":
+            ax.plot([y0, foot[1]], [x0, foot[0]], color=color, lw=0.6, ls="--", gid=f"{MARK_GID}original_course")
+            spans += [("advance", (x0, y0), foot), ("transfer", foot, (px, py))]
+            # the advance's value on the side of the course away from the turn (y is across the page)
+            away = -np.sign(c * (-s * (px - x0) + c * (py - y0))) or -1.0
+        else:
+            spans.append(("tactical_diameter", foot, (px, py)))
+    for name, a, b in spans:
+        left = name == "advance" and away < 0
+        ax.annotate(
+            "",
+            xy=(b[1], b[0]),
+            xytext=(a[1], a[0]),
+            arrowprops={"arrowstyle": "<->", "color": color, "lw": 0.8},
+            gid=f"{MARK_GID}{name}",
+        )
+        ax.annotate(
+            f"{name.replace('_', ' ')}\n{ind[name + '_m']:.1f} m",
+            xy=((a[1] + b[1]) / 2, (a[0] + b[0]) / 2),
+            xytext=(-4 if left else 4, 4 - 14 * slot),
+            textcoords="offset points",
+            fontsize=7,
+            color=color,
+            ha="right" if left else "left",
+            gid=f"{MARK_GID}{name}_text",
+        )
+    mx, my = np.array(marks).T
+    ax.plot(my, mx, "o", color=color, ms=3.5, label=f"{label}execute, 90 and 180 deg turned", gid=f"{MARK_GID}points")
+
+
+def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", label="", slot=0):
+    """Mark a run's ITTC manoeuvre indices on existing axes: a zigzag's on its heading history,
+    a turning circle's on its plan view.
+
+    The indices are those of :func:`bayesid.estimation.indices.manoeuvre_indices` (ITTC
+    Recommended Procedure 7.5-04-02-01, Sec. 2.2.1-2.2.2; IMO MSC.137(76)), drawn where they are
+    measured:
+
+    * **zigzag**, on ``ax_heading`` (heading in deg, the unwrapped ``run["psi"]``, against time):
+      each execute (a dotted vertical line), the check heading after each later execute (a dashed
+      horizontal line from it to the next execute), the first and second overshoot (a triangle at
+      the heading's extreme and a double arrow from the check heading to it, labelled with the
+      value in deg) and the initial turning time (a double arrow from the 1st to the 2nd execute
+      at the original course, labelled in s);
+    * **turning circle**, on ``ax_plan`` (y east across, x north up, as the package's plan views):
+      the execute and the track where the heading has changed by 90 and 180 deg (dots), the
+      original course (dashed), the advance along it, the transfer and the tactical diameter
+      normal to it (double arrows labelled with the value in m);
+    * any other run: nothing.
+
+    Every artist carries a gid :data:`MARK_GID` + the index it shows (``"ittc:first_overshoot"``,
+    ``"ittc:advance"``, ...).
+
+    Parameters
+    ----------
+    ax_plan : matplotlib.axes.Axes or None
+        The plan view the run's ``y``, ``x`` are drawn on; None: no turning marks.
+    ax_heading : matplotlib.axes.Axes or None
+        The heading (deg, ``np.degrees(np.unwrap(psi))``) against time (s) axis; None: no
+        zigzag marks. A heading offset by a constant (a heading change) marks the same indices
+        when ``run["psi"]`` is offset by it too.
+    t : array_like, shape (n,)
+        Sample times, s.
+    run : mapping
+        ``"x"``, ``"y"`` (m), ``"psi"`` and ``"delta_r"`` (rad), arrays (n,): a Track or a dict.
+    indices : dict, optional
+        The run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result (computed from
+        ``run`` when not given).
+    color : str, default "tab:red"
+        The marks' colour.
+    label : str, default ""
+        Prefix of the marks' legend entries (e.g. ``"measured: "``).
+    slot : int, default 0
+        The text row: 0 for the first run marked on these axes, 1 for a second, so that the
+        values of two runs do not overlap. A zigzag's executes and initial turning time are drawn
+        for slot 0 only: a second run (a prediction from the same rudder record) has the same.
+
+    Returns
+    -------
+    dict
+        The indices marked (``kind`` ``"other"``: none drawn).
+
+    Raises
+    ------
+    KeyError
+        ``run`` lacks one of ``"x"``, ``"y"``, ``"psi"``, ``"delta_r"``.
+    """
+    from ..estimation.indices import manoeuvre_indices
+
+    cols = np.vstack([np.asarray(t, float)] + [np.asarray(run[c], float) for c in ("x", "y", "psi", "delta_r")])
+    t, x, y, psi, delta = cols[:, np.all(np.isfinite(cols), axis=0)]  # a measured run's gaps dropped
+    if t.size < 3:
+        return {"kind": "other", "reason": "fewer than 3 samples with x, y, psi and delta_r"}
+    ind = manoeuvre_indices(t, x, y, psi, delta) if indices is None else indices
+    style = (color, label, slot)
+    if ind.get("kind") == "zigzag" and ax_heading is not None and ind.get("executes_t_s"):
+        _mark_zigzag(ax_heading, t, _heading_deg(psi), ind, style)
+    elif ind.get("kind") == "turning" and ax_plan is not None:
+        _mark_turn(ax_plan, (t, x, y, np.unwrap(psi)), ind, style)
+    return ind
+
+
+def simulated_run(track, path, title: str = "", indices=None):
+    """A simulated (or measured) run: plan view, heading and rudder angle against time, with a
+    zigzag's or turn's ITTC indices marked (:func:`mark_indices`).
+
+    Parameters
+    ----------
+    track : Track
+        The run: ``"x"``, ``"y"`` (m), ``"psi"`` and ``"delta_r"`` (rad) against its times ``t`` (s).
+    path : str or Path
+        The PNG written.
+    title : str, default ""
+        The figure's title.
+    indices : dict, optional
+        The run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result (computed when not
+        given).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    fig = plt.figure(figsize=(11, 5.5))
+    ax = fig.add_subplot(1, 2, 1)
+    ax.plot(track["y"], track["x"], "k", lw=1.0, label="track")
+    ax.plot(track["y"][0], track["x"][0], "k.", ms=6)
+    ax2 = fig.add_subplot(2, 2, 2)
+    ax2.plot(track.t, _heading_deg(track["psi"]), "k", lw=1.0, label="heading")
+    mark_indices(ax, ax2, track.t, track, indices=indices)
+    ax.set_xlabel("y (east), m")
+    ax.set_ylabel("x (north), m")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax2.set_ylabel("heading, deg")
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=7)
+    ax3 = fig.add_subplot(2, 2, 4, sharex=ax2)
+    ax3.plot(track.t, np.degrees(track["delta_r"]), "tab:green", lw=0.8)
+    ax3.set_ylabel("rudder, deg (+ port)")
+    ax3.set_xlabel("t, s")
+    ax3.grid(alpha=0.3)
+    fig.suptitle(textwrap.fill(title, 130), fontsize=9)
     return _save(fig, path)

@@ -26,6 +26,7 @@ import numpy as np
 from bayesid.estimation.indices import manoeuvre_indices
 from bayesid.models.ship import load_ship
 from bayesid.models.ship.trials import TrialOptions, propulsion_point, service_condition, simulate_trial
+from bayesid.report.plots import mark_indices
 
 ship = load_ship("kvlcc2_7m")
 service = service_condition(ship)
@@ -33,46 +34,21 @@ speed, rpm = propulsion_point(ship, service["speed"])
 options = TrialOptions(rudder_rate_deg_s=service["rudder_rate_deg_s"])
 
 # %%
-# The 10/10 zigzag (first to starboard: a negative rudder angle)
+# The 10/10 zigzag (first to starboard: a negative rudder angle). The heading is drawn as the
+# change from the original course, so the run is given to
+# :func:`bayesid.report.plots.mark_indices` with its heading offset the same way (the indices do
+# not change: they are heading differences).
 zz = simulate_trial(ship, "zigzag", -10.0, check_deg=10.0, speed=speed, rpm=rpm, options=options).track
 ind = manoeuvre_indices(zz.t, zz["x"], zz["y"], zz["psi"], zz["delta_r"])
-t, psi = zz.t, np.degrees(np.unwrap(zz["psi"]))
-psi0 = float(np.interp(ind["executes_t_s"][0], t, psi))
-heading = psi - psi0
+psi = np.unwrap(zz["psi"])
+change = psi - float(np.interp(ind["executes_t_s"][0], zz.t, psi))
 fig, ax = plt.subplots(figsize=(8, 4))
-ax.plot(t, heading, "k", lw=1.2, label="heading change (deg)")
-ax.plot(t, np.degrees(zz["delta_r"]), "tab:blue", lw=1.0, label="rudder (deg, + port)")
+ax.plot(zz.t, np.degrees(change), "k", lw=1.2, label="heading change (deg)")
+ax.plot(zz.t, np.degrees(zz["delta_r"]), "tab:blue", lw=1.0, label="rudder (deg, + port)")
+run = {"x": zz["x"], "y": zz["y"], "psi": change, "delta_r": zz["delta_r"]}
+mark_indices(None, ax, zz.t, run, indices=ind)
 ex = ind["executes_t_s"]
-for k, te in enumerate(ex[:4]):
-    ax.axvline(te, color="0.6", lw=0.8, ls=":")
-    ax.text(te, 23 - 2.5 * k, f" execute {k + 1}", fontsize=7, va="top", color="0.3")
-for k, name in ((1, "first"), (2, "second")):
-    check = float(np.interp(ex[k], t, heading))
-    seg = (t >= ex[k]) & (t <= (ex[k + 1] if k + 1 < len(ex) else t[-1]))
-    j = np.flatnonzero(seg)[np.argmax(np.abs(heading[seg]))]
-    ax.plot([ex[k], t[j]], [check, check], "tab:red", lw=0.8)
-    ax.annotate(
-        "",
-        xy=(t[j], heading[j]),
-        xytext=(t[j], check),
-        arrowprops={"arrowstyle": "<->", "color": "tab:red"},
-    )
-    ax.text(
-        t[j] + 1,
-        (check + heading[j]) / 2,
-        f"{name} overshoot\n{ind[f'{name}_overshoot_deg']:.1f} deg",
-        fontsize=7,
-        color="tab:red",
-    )
-ax.annotate(
-    "",
-    xy=(ex[1], -17),
-    xytext=(ex[0], -17),
-    arrowprops={"arrowstyle": "<->", "color": "tab:green"},
-)
-ax.text(ex[0], -19.5, f"initial turning time {ind['initial_turning_time_s']:.1f} s", fontsize=7, color="tab:green")
-ax.set_xlim(0, ex[3] + 25 if len(ex) > 3 else t[-1])
-ax.set_ylim(-22, 24)
+ax.set_xlim(0, ex[3] + 25 if len(ex) > 3 else zz.t[-1])
 ax.set_xlabel("t (s)")
 ax.set_title(
     f"KVLCC2 model, 10/10 zigzag: period {ind['period_s']:.1f} s, time to check yaw {ind['time_to_check_yaw_s']:.1f} s",
@@ -84,47 +60,10 @@ fig.tight_layout()
 # %%
 # The 35 deg turning circle to starboard
 tc = simulate_trial(ship, "turn", -35.0, speed=speed, rpm=rpm, options=options).track
-ti = manoeuvre_indices(tc.t, tc["x"], tc["y"], tc["psi"], tc["delta_r"])
 fig, ax = plt.subplots(figsize=(6, 6))
 ax.plot(tc["y"], tc["x"], "k", lw=1.0, label="track (midship)")
-k0 = int(np.searchsorted(tc.t, 10.0))  # the execute (trials.T_EXECUTE)
-x0, y0 = tc["x"][k0], tc["y"][k0]
-turned = np.degrees(np.abs(np.unwrap(tc["psi"]) - np.unwrap(tc["psi"])[k0]))
-k90, k180 = int(np.argmax(turned >= 90.0)), int(np.argmax(turned >= 180.0))
-ax.plot(y0, x0, "ko", ms=4)
-ax.plot([y0, y0], [x0, tc["x"][k90] + 3], "0.6", lw=0.8, ls="--")  # the original course
-
-
-def span(a, b, color, text, where):
-    """A double arrow from a to b (y, x) labelled with text near ``where``."""
-    ax.annotate("", xy=b, xytext=a, arrowprops={"arrowstyle": "<->", "color": color})
-    ax.text(*where, text, fontsize=8, color=color, ha="center")
-
-
-span(
-    (y0 - 1.5, x0),
-    (y0 - 1.5, tc["x"][k90]),
-    "tab:blue",
-    f"advance\n{ti['advance_m']:.1f} m",
-    (y0 - 5, (x0 + tc["x"][k90]) / 2),
-)
-span(
-    (y0, tc["x"][k90]),
-    (tc["y"][k90], tc["x"][k90]),
-    "tab:green",
-    f"transfer {ti['transfer_m']:.1f} m",
-    ((y0 + tc["y"][k90]) / 2, tc["x"][k90] + 0.8),
-)
-span(
-    (y0, tc["x"][k180]),
-    (tc["y"][k180], tc["x"][k180]),
-    "tab:red",
-    f"tactical diameter {ti['tactical_diameter_m']:.1f} m",
-    ((y0 + tc["y"][k180]) / 2, tc["x"][k180] - 2.2),
-)
-ax.plot(tc["y"][[k90, k180]], tc["x"][[k90, k180]], "o", color="tab:red", ms=3)
-ax.set_xlim(y0 - 9, None)
-ax.set_aspect("equal")
+ti = mark_indices(ax, None, tc.t, tc)
+ax.set_aspect("equal", adjustable="datalim")
 ax.set_xlabel("y (east), m")
 ax.set_ylabel("x (north), m")
 ax.set_title(
