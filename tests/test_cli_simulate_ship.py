@@ -216,5 +216,5 @@ def test_every_option_shows_its_help_and_default(capsys):
     for option in ("--duration", "--hold", "--dt", "--sample", "--mode", "--crossflow", "--out", "--overwrite"):
         assert option in shown
     for option, entry in shown.items():
-        if option != "--help":
-            assert "(default:" in entry and len(entry) > len(option) + 30, entry
+        if option != "--help":  # a default, or "(required)" for an option without one
+            assert ("(default:" in entry or "(required)" in entry) and len(entry) > len(option) + 30, entry
