@@ -400,3 +400,14 @@ def test_a_refit_starts_from_the_reference_whatever_the_order_of_its_effects():
     assert dict(zip(model.param_names, start)) == dict(zip(ref_model.param_names, p)) | {"Nvv": 0.25}
     got = dv._nuisance_start(ref, model)
     assert [g.tolist() for g in got] == [n.tolist() for n in nu]  # waves holds every nuisance
+
+
+def test_a_refit_that_ends_above_its_reference_is_called_a_failed_fit_not_a_rejection():
+    row = {"delta_bic": 8.0e7, "refit_failed": True, "heldout_shrinkage": -0.1, "window_p_value": 0.4}
+    row |= {"excess_removed": -0.1, "shrinkage": -0.1}
+    dv._decide(row, True, gap.Thresholds())
+    assert not row["kept"] and "failed fit" in row["reason"]
+    ok = dict(row, refit_failed=False)
+    ok.pop("kept"), ok.pop("reason")
+    dv._decide(ok, True, gap.Thresholds())
+    assert "ΔBIC" in ok["reason"]

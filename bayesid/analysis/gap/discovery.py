@@ -835,6 +835,8 @@ def _row(term: str, st: Stage | None, ref: Stage, sel: dict | None, floor_rms: f
         "shrinkage": 1 - after / before,
         "heldout_shrinkage": 1 - after / before,
         "delta_bic": st.fit.bic - ref.fit.bic,
+        # the refit starts at the reference (the term at 0): ending above it is a failed fit
+        "refit_failed": bool(st.fit.cost > ref.fit.cost * (1.0 + 1e-6)),
         "window_p_value": paired_window_test(ref.windows, st.windows),
         "heldout_windows_after_m": [float(x) for x in st.windows],
         "excess_removed": (before - after) / excess if excess > 0 else 0.0,
@@ -850,6 +852,11 @@ def _decide(row: dict, significant: bool, th: Thresholds) -> None:
         row["reason"] = "improves the held-out windows (contributor test)"
     elif not significant:
         row["reason"] = "the gap is not significant: nothing to explain"
+    elif row.get("refit_failed"):
+        row["reason"] = (
+            "the refit ended above its reference on the training runs: a failed fit, not evidence against "
+            "the term (with fitted window starts, see the base-fit check)"
+        )
     elif row["delta_bic"] > th.bic_threshold:
         row["reason"] = f"training ΔBIC {row['delta_bic']:.1f} > {th.bic_threshold:g}"
     elif row["heldout_shrinkage"] <= 0:
