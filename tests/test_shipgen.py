@@ -102,7 +102,7 @@ def test_diverging_rows_get_the_same_status_and_nan_layout():
         prm[
             b, [layout.PARTICULAR_INDEX["A_front"], layout.PARTICULAR_INDEX["A_lateral"], layout.PARTICULAR_INDEX["xG"]]
         ] = 0.0
-        prm[b, [layout.COEFFICIENT_INDEX[k] for k in ("Xvv", "Ycf", "Ncf", "gR")]] = 0.0
+        prm[b, [layout.COEFFICIENT_INDEX[k] for k in ("Xvv", "Ycf", "Ncf", "gR", "gRm")]] = 0.0
         prm[b, layout.COEFFICIENT_INDEX[name]] = 0.005
         inputs[b] = 0.0
         s0[b, :, 3:] = 0.0

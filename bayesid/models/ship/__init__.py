@@ -35,17 +35,22 @@ Rudder (MMG, eqs. 13-23; delta_MMG = dR0 - delta_r: the package's rudder is posi
 
     FN = 0.5 rho AR f_alpha UR (uR sin(delta) - vR cos(delta))     (= 0.5 rho AR f UR^2 sin(alpha_R))
     uR = eps sqrt(eta (uP (1 - kappa) + kappa sqrt(uP^2 + 8 KT n^2 D^2 / pi))^2 + (1 - eta) uP^2)
-    vR = -gR (v + lR L r),   XR = -(1 - tR) FN sin(delta),
+    vR = -gamma_R (v + lR L r),   XR = -(1 - tR) FN sin(delta),
     YR = -(1 + aH) FN cos(delta),   NR = -(xR + aH xH) L FN cos(delta),
 
-with ``f_alpha = 6.13 lambda / (lambda + 2.25)`` (Fujii's formula, MMG eq. 22). The inflow is
+with ``f_alpha = 6.13 lambda / (lambda + 2.25)`` (Fujii's formula, MMG eq. 22) and the
+flow-straightening coefficient ``gamma_R = gR`` for ``beta_R >= 0`` (``v + lR L r <= 0``: the stern
+moving to port, as in a turn to starboard), ``gRm`` for ``beta_R < 0`` (MMG ``v_R = U gamma_R
+beta_R``, ``beta_R = beta - l'_R r'``, a value for each sign; ``gRm`` is ``gR`` unless the ship
+file gives it, :data:`~bayesid.models.ship.layout.FOLLOWS`). The inflow is
 written in velocities (not ``J``), so it stays finite at ``u -> 0``; going astern (``uP < 0``)
 the rudder sees the reverse free stream and, with the propeller ahead, its slipstream.
 ``dR0`` (rad, package convention; 0 unless a file or a fit sets it) is the neutral rudder angle:
 the rudder angle at which the rudder gives no normal force going straight ahead. It absorbs the
 port/starboard asymmetry of a single propeller's slipstream (its swirl at the rudder) and a
-rudder zero offset with one parameter -- our simplification; the MMG standard instead uses
-different ``gamma_R`` for ``beta_R < 0`` and ``> 0``, which does not improve the KVLCC2 zigzags.
+rudder zero offset with one parameter -- our simplification; the MMG standard's own
+port/starboard asymmetry is the two-sided ``gamma_R`` (``gR``, ``gRm``), which acts in the turn
+(through ``beta_R``) rather than at zero rudder.
 
 Wind (Fujiwara, Ueno & Nimura 1998 -- the Fourier form, truncated to seven coefficients)::
 

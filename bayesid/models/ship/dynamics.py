@@ -78,7 +78,10 @@ def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
         uR = eps * uP
     else:
         uR = uP
-    vR = -gR * (v + lR * L * r)
+    # flow straightening: gR for beta_R >= 0 (lateral inflow at the rudder to port, v + lR L r <= 0),
+    # gRm for beta_R < 0 (layout.FOLLOWS: equal unless the ship file gives gRm)
+    wR = v + lR * L * r
+    vR = -(gR if wR <= 0.0 else p[o + 35]) * wR
     UR = math.sqrt(uR * uR + vR * vR)
     fa = 6.13 * lam / (lam + 2.25)
     dm = p[o + 34] - dlt

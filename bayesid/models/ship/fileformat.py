@@ -18,7 +18,7 @@ import numpy as np
 from ...data.priors import parse_prior_section
 from ...data.vehicle import VehicleFileError
 from . import hullterms
-from .layout import COEFFICIENTS, PARTICULARS, WIND
+from .layout import COEFFICIENTS, FOLLOWS, PARTICULARS, WIND
 
 
 class ShipFileError(VehicleFileError):
@@ -38,8 +38,10 @@ class Ship:
         ratios as noted there).
     coefficients : dict
         ``{name: prime value}`` of every name of :data:`~bayesid.models.ship.layout.COEFFICIENTS`
-        (added masses estimated when the file gives none; wind coefficients 0), then the extra
-        hull terms the file gives (:mod:`bayesid.models.ship.hullterms`).
+        (added masses estimated when the file gives none; wind coefficients 0; a coefficient of
+        :data:`~bayesid.models.ship.layout.FOLLOWS` the file does not give has the value of the
+        one it follows), then the extra hull terms the file gives
+        (:mod:`bayesid.models.ship.hullterms`).
     wind_start : dict
         Start values of the wind coefficients, from a ``[wind]`` section (the wind effect starts
         from these).
@@ -59,6 +61,12 @@ class Ship:
         The model scale lambda, full-scale length / ``L`` (``[particulars] scale``; 1 for a
         full-scale file; None when the file does not say): Froude scaling to full scale for
         the IMO criteria (:mod:`bayesid.estimation.imo`). Not a kernel parameter.
+    follows : dict
+        ``{name: name}``: the coefficients of :data:`~bayesid.models.ship.layout.FOLLOWS` the file
+        does not give, tied to the one they follow (``{"gRm": "gR"}``: one gamma_R for both
+        sides). The kernel parameters and :meth:`with_coefficients` keep them equal; giving one a
+        value (in the file, :meth:`with_coefficients` or a fit with it free) unties it. A
+        coefficient of ``FOLLOWS`` missing from ``coefficients`` follows too.
     """
 
     id: str
@@ -73,6 +81,7 @@ class Ship:
     prior: dict = field(default_factory=dict)
     prior_source: str = ""
     scale: float | None = None
+    follows: dict = field(default_factory=dict)
 
     @property
     def file_path(self) -> str:
@@ -144,6 +153,12 @@ class Ship:
         return float(self.particulars["rho"])
 
     @property
+    def tied(self) -> dict:
+        """``{name: name}``: the coefficients that follow another (:attr:`follows`, and those of
+        :data:`~bayesid.models.ship.layout.FOLLOWS` missing from ``coefficients``)."""
+        return {k: src for k, src in FOLLOWS.items() if k in self.follows or k not in self.coefficients}
+
+    @property
     def hull_terms(self) -> tuple:
         """The extra hull terms among the coefficients (:mod:`bayesid.models.ship.hullterms`)."""
         return hullterms.extra_terms(self.coefficients)
@@ -162,7 +177,9 @@ class Ship:
         ndarray, shape (NP + TERM_WIDTH * len(hull_terms),)
             The parameter vector (:mod:`~bayesid.models.ship.layout` order).
         """
-        c = dict(self.coefficients, **(coefficients or {}))
+        over = coefficients or {}
+        c = dict(self.coefficients, **over)
+        c.update({k: c[src] for k, src in self.tied.items() if k not in over})
         head = np.array([float(self.particulars[k]) for k in PARTICULARS] + [float(c[k]) for k in COEFFICIENTS])
         return np.concatenate([head, hullterms.encode(self.hull_terms, c)])
 
@@ -178,7 +195,8 @@ class Ship:
         Returns
         -------
         Ship
-            The modified copy (its dicts and lists copied).
+            The modified copy (its dicts and lists copied). A tied coefficient (:attr:`follows`)
+            given here is untied; one not given takes the new value of the one it follows.
 
         Raises
         ------
@@ -187,13 +205,17 @@ class Ship:
         """
         for k in values:
             hullterms.check_name(k)
+        follows = {k: src for k, src in self.tied.items() if k not in values}
+        coef = dict(self.coefficients, **values)
+        coef.update({k: coef[src] for k, src in follows.items()})
         return replace(
             self,
             particulars=dict(self.particulars),
-            coefficients=dict(self.coefficients, **values),
+            coefficients=coef,
             wind_start=dict(self.wind_start),
             free=list(self.free),
             prior=dict(self.prior),
+            follows=follows,
         )
 
 
@@ -312,8 +334,8 @@ def load_ship(path_or_id) -> Ship:
         No such file or packaged id.
     ShipFileError
         Missing section or particular, non-finite or non-positive value (``[particulars] scale``
-        included, when given), unknown key or coefficient name, a kind other than ``"ship3dof"``
-        (the message names the file, section and key).
+        included, when given), a negative ``gR`` or ``gRm``, unknown key or coefficient name, a
+        kind other than ``"ship3dof"`` (the message names the file, section and key).
     """
     p = _resolve(path_or_id)
     try:
@@ -354,6 +376,14 @@ def load_ship(path_or_id) -> Ship:
             except hullterms.HullTermError as e:
                 raise ShipFileError(f"{p}: [{sec}] {e}") from None
             coef[k] = num(sec, k, v)
+    follows = {k: src for k, src in FOLLOWS.items() if k not in doc["coefficients"]}
+    coef.update({k: coef[src] for k, src in follows.items()})
+    for k in ("gR", "gRm"):  # gamma_R: the inflow angle at the rudder over the geometric one
+        if not coef[k] >= 0.0:
+            raise ShipFileError(
+                f"{p}: [coefficients] {k} = {coef[k]!r} must be >= 0 (the rudder's flow-straightening "
+                "coefficient gamma_R)"
+            )
     wind = {k: coef[k] for k in WIND}
     for k in WIND:  # the base model has no wind term; the wind effect starts from these
         coef[k] = 0.0
@@ -379,6 +409,7 @@ def load_ship(path_or_id) -> Ship:
         prior=prior,
         prior_source=prior_source,
         scale=scale,
+        follows=follows,
     )
 
 

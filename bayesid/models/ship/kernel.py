@@ -125,6 +125,7 @@ Cn1 = p[51]
 Cn2 = p[52]
 Cn3 = p[53]
 dR0 = p[54]
+gRm = p[55]
 q = 0.5 * rho * L * d
 qL = q * L
 h = 0.5 * L
@@ -139,6 +140,7 @@ eps2 = eps * eps
 ck = eps * math.sqrt(eta) * kap
 omseta = 1.0 - math.sqrt(eta)
 mgR = -gR
+mgRm = -gRm
 lRL = lR * L
 cFN = 0.5 * rho * AR * (6.13 * lam / (lam + 2.25))
 omtR = 1.0 - tR
@@ -244,12 +246,14 @@ if Ut > 1e-9:
 i0 = 0.0
 i1 = 0.0"""
 
-# Cross-flow drag, propeller thrust (KT(J), astern -Ka) and rudder normal force (MMG eqs. 9-23).
+# Cross-flow drag, propeller thrust (KT(J), astern -Ka) and rudder normal force (MMG eqs. 9-23;
+# flow straightening gR for beta_R >= 0, i.e. wR = v + lR L r <= 0, gRm otherwise).
 _RHS_TAIL = """\
 Y -= cY * i0
 N -= cN * i1
 uP = (1.0 - wP0 * ewP) * u
-vR = mgR * (v + lRL * r)
+wR = v + lRL * r
+vR = (mgR if wR <= 0.0 else mgRm) * wR
 if npos:
     J = min(max(uP * inD, -0.5), 1.2)
     KT = k0 + k1 * J + k2 * J * J

@@ -68,7 +68,14 @@ COEFFICIENTS = (
     "Cn2",
     "Cn3",
     "dR0",
+    "gRm",
 )
+#: Coefficients that equal another one unless given (a ship file's ``[coefficients]``, a fit or
+#: :meth:`~bayesid.models.ship.fileformat.Ship.with_coefficients`): ``gRm``, the rudder's
+#: flow-straightening coefficient gamma_R for ``beta_R < 0``, is ``gR`` (``beta_R >= 0``), so a
+#: ship file without it has one gamma_R for both sides (Yasukawa & Yoshimura 2015, eqs. 13-23 and
+#: Tables 3-5, give two for KVLCC2). Appended last: the other coefficients keep their positions.
+FOLLOWS = {"gRm": "gR"}
 WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3")
 NP = len(PARTICULARS) + len(COEFFICIENTS)
 #: Position of each particular in the parameter vector.
@@ -83,4 +90,14 @@ COEFFICIENT_INDEX = {n: len(PARTICULARS) + i for i, n in enumerate(COEFFICIENTS)
 GAUSS_X, GAUSS_W = np.polynomial.legendre.leggauss(16)
 
 
-__all__ = ["PARTICULARS", "COEFFICIENTS", "WIND", "NP", "PARTICULAR_INDEX", "COEFFICIENT_INDEX", "GAUSS_X", "GAUSS_W"]
+__all__ = [
+    "PARTICULARS",
+    "COEFFICIENTS",
+    "FOLLOWS",
+    "WIND",
+    "NP",
+    "PARTICULAR_INDEX",
+    "COEFFICIENT_INDEX",
+    "GAUSS_X",
+    "GAUSS_W",
+]

@@ -47,6 +47,7 @@ BOUNDS = {
     "kappa": (0.0, 1.0),
     "lR": (-2.0, 0.5),
     "gR": (0.0, 2.0),
+    "gRm": (0.0, 2.0),
     "dR0": (-0.1, 0.1),
 }
 
@@ -206,6 +207,12 @@ class ShipModel(ParameterLayout):
         self.hull_terms = ship.hull_terms
         index = {**COEFFICIENT_INDEX, **hullterms.index(self.hull_terms)}
         self._ifree = np.array([index[k] for k in self.free], dtype=np.int64)
+        # a tied coefficient (Ship.tied: gRm without its own value) follows a free one row by row
+        tied = [
+            (index[k], self.free.index(src)) for k, src in ship.tied.items() if k not in self.free and src in self.free
+        ]
+        self._itied = np.array([i for i, _ in tied], dtype=np.int64)
+        self._jtied = np.array([j for _, j in tied], dtype=np.int64)
         self._terms = hullterms.signature(self.hull_terms)
 
     def bounds(self):
@@ -292,6 +299,7 @@ class ShipModel(ParameterLayout):
         prm = np.repeat(self.prm0[None], B, axis=0)
         if self.n_theta:
             prm[:, self._ifree] = th
+            prm[:, self._itied] = th[:, self._jtied]
         kp = {"prm": prm, "cur": np.zeros((B, 2)), "delay": None}
         for e, q in zip(self.effects, qs):
             e.kernel(kp, q)
