@@ -452,6 +452,9 @@ def structural_scores(rs: list[dict]) -> dict:
                 "verdict": d["verdict"],
                 "clear": bool(found),
                 "kept": [t["term"] for t in kept],
+                "effects_added": d["effects_added"],
+                "n_refitted": len(found.get("discovered", [])),
+                "n_refits_failed": sum(bool(t.get("refit_failed")) for t in found.get("discovered", [])),
                 "named": bool(hit),
                 "group_inclusion_probability": hit[0].get("group_inclusion_probability") if hit else None,
                 "heldout_rms_before_m": found.get("heldout_rms_before_m"),
@@ -670,6 +673,8 @@ def structural_lines(s: dict) -> list[str]:
             ", ".join(x["hidden"]),
             "yes" if x["velocity_log"] else "no",
             x["verdict"],
+            ", ".join(x["effects_added"]) or "-",
+            f"{x['n_refitted']} ({x['n_refits_failed']} failed)" if x["clear"] else "-",
             ", ".join(x["kept"]) or "-",
             "yes" if x["named"] else ("no" if x["clear"] else "not clear"),
             fmt(x["group_inclusion_probability"]),
@@ -688,10 +693,26 @@ def structural_lines(s: dict) -> list[str]:
         + " (or has one in its collinear group); *not clear*: the remainder after the catalogue effects was not "
         "significant, so discovery did not run. Held-out RMS (m) before and after the kept terms.",
         "",
-        f"Named in {fmt(s['structural_named_rate'])} of {s['n_structural_clear']} clear cases.",
+        f"Named in {fmt(s['structural_named_rate'])} of {s['n_structural_clear']} clear cases. Discovery runs on the "
+        "model after the catalogue effects the greedy rounds added (*catalogue effects first*): where those mimic "
+        "the hidden structure in part, what is left for the library is what they did not absorb. *Terms "
+        "refitted*: the library terms confirmed by a refit, and how many of those refits ended above their "
+        "reference on the training runs (a failed fit: with fitted window starts, see the base-fit check).",
         "",
         md_table(
-            ["case", "hidden", "velocity log", "verdict", "kept", "named", "group inclusion", "held-out", "true"],
+            [
+                "case",
+                "hidden",
+                "velocity log",
+                "verdict",
+                "catalogue effects first",
+                "terms refitted",
+                "kept",
+                "named",
+                "group inclusion",
+                "held-out",
+                "true",
+            ],
             table,
         ),
         "",
