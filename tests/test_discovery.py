@@ -245,9 +245,9 @@ def test_discover_command_writes_a_vehicle_file_that_loads_and_fits(tmp_path):
     assert again.returncode == 2 and "the file exists" in again.stderr
 
 
-def test_the_mmg_polynomial_form_of_the_docs_loads_fits_and_predicts(tmp_path):
+def test_the_mmg_polynomial_form_of_the_docs_loads_fits_predicts_and_samples(tmp_path):
     # docs/vessels/kvlcc2_7m_mmg.toml: the captive tests' cubic hull terms instead of the cross-flow
-    # integral; it fits and predicts through the commands like the packaged file
+    # integral; it fits, predicts and samples through the commands like the packaged file
     from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
 
     path = Path(__file__).resolve().parents[1] / "docs" / "vessels" / "kvlcc2_7m_mmg.toml"
@@ -277,6 +277,17 @@ def test_the_mmg_polynomial_form_of_the_docs_loads_fits_and_predicts(tmp_path):
     assert pred.returncode == 0, pred.stderr
     # the model's own runs: its prediction is near perfect
     assert json.loads((tmp_path / "p" / "predict.json").read_text())["pooled"]["rms_position_m"] < 0.5
+    # and it samples (issue 38: both hull forms fit, predict and sample)
+    smp = subprocess.run(
+        py
+        + ["sample", "--model", str(tmp_path / "f" / "model.json"), "--train", str(csv[0])]
+        + ["--method", "importance", "--draws", "200", "--out", str(tmp_path / "s")],
+        capture_output=True,
+        text=True,
+    )
+    assert smp.returncode == 0, smp.stderr
+    doc = json.loads((tmp_path / "s" / "sample.json").read_text())
+    assert {"Yvvv", "Nrrr"} <= set(doc["marginals"])
 
 
 def test_the_base_fit_from_extra_starts_is_never_worse_and_says_so():
