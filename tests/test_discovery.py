@@ -387,6 +387,9 @@ def test_auto_train_starts_refits_with_held_starts_when_the_check_fires_and_keep
     assert ts["used"] == "fitted"
     assert ts["fitted_train_rms_at_window_m"] < ts["kinematic_train_rms_at_window_m"]
     assert d.setup.train_starts == "fitted"
+    from bayesid.report.diagnosis import _base_check_lines
+
+    assert "uses **fitted** starts" in "\n".join(_base_check_lines(d.base_check))
 
 
 def test_a_refit_starts_from_the_reference_whatever_the_order_of_its_effects():

@@ -274,9 +274,22 @@ def _base_check_lines(check: dict | None) -> list:
     """The base-fit check (generalisation and window starts): a warning when suspect, else a line."""
     if not check:
         return []
+    ts = check.get("train_starts")
+    switch = (
+        [
+            "Training window starts (`--train-starts auto`): the fitted starts contradicted the tracks' kinematics, "
+            "so the base model was refitted with them held at the kinematics; on its own training runs under the "
+            f"held-out protocol it predicts {fmt(ts['fitted_train_rms_at_window_m'])} m with fitted starts and "
+            f"{fmt(ts['kinematic_train_rms_at_window_m'])} m with held ones: every fit of this diagnosis uses "
+            f"**{ts['used']}** starts.",
+            "",
+        ]
+        if ts
+        else []
+    )
     if check.get("suspect"):
-        return ["**Warning:** " + check["message"] + ".", ""]
-    return ["Base-fit check: " + check["message"] + ".", ""]
+        return [*switch, "**Warning:** " + check["message"] + ".", ""]
+    return [*switch, "Base-fit check: " + check["message"] + ".", ""]
 
 
 def _summary_lines(res: dict, command: str) -> list:
