@@ -327,6 +327,12 @@ def test_kinematic_rates_of_a_steady_turn_are_exact_within_their_sd():
     for name, want in (("u", u), ("v", v), ("r", om)):
         assert abs(k[name] - want) < 3 * k[name + "_sd"], (name, k)
     assert k["u_sd"] < 0.05 and k["r_sd"] < math.radians(0.2)
+    # a heading logged wrapped to +-pi through the turn: the same rates, and the track is not touched
+    wrapped = Track(t, {"x": tr["x"], "y": tr["y"], "psi": np.angle(np.exp(1j * (tr["psi"] + 2.5)))})
+    logged = wrapped["psi"].copy()
+    kw = shooting.kinematic_rates(wrapped, T0 + 30.0, sd)
+    assert np.array_equal(wrapped["psi"], logged)
+    assert np.ptp(logged) > 6.0 and kw["r"] == pytest.approx(k["r"], rel=1e-9)
 
 
 def test_window_starts_of_a_model_far_off_contradict_the_kinematics_and_the_right_ones_do_not():

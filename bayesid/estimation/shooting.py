@@ -304,7 +304,7 @@ def kinematic_rates(track, t_a: float, sd: dict, half_spans_s=KINEMATIC_HALF_SPA
     """
     t = np.asarray(track.t, float)
     h = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    cols = {k: np.asarray(track[k], float) for k in ("x", "y", "psi")}
+    cols = {k: np.array(track[k], float) for k in ("x", "y", "psi")}  # copies: the track is not touched
     ok = np.isfinite(cols["psi"])
     cols["psi"][ok] = np.unwrap(cols["psi"][ok])
     est = []
