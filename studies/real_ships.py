@@ -766,7 +766,7 @@ def discovery_section(E, K) -> list[str]:
         ]
         lines += [
             f"KVLCC2 refitted on all 13 HSVA zigzags with {', '.join(ref['terms'])} (coefficient "
-            f"{', '.join(fmt(v) for v in ref['with']['coefficients'].values())}) and without: the 10/10 and 20/10 "
+            f"{', '.join(fmt(ref['with']['coefficients'][t]) for t in ref['terms'])}) and without: the 10/10 and 20/10 "
             "overshoots, measured / predicted without / with the term / with gamma_R per side instead (deg, ITTC "
             "definitions):",
             "",
