@@ -67,25 +67,10 @@ def cases(quick: bool) -> list[dict]:
     return [c for c in out if c["id"] in ("control_1", "crossflow_L2", "outside_yaw_bias_1")] if quick else out
 
 
-def kinematic_contexts(model, tracks, window_s, sd):
-    """Training contexts whose window starts are held at the tracks' kinematics (u, v, r from
-    :func:`~bayesid.estimation.shooting.kinematic_rates`, x, y, psi as the measured rule gives
-    them): the context's documented start states ``s_meas`` are set before any fit uses them."""
-    from bayesid.estimation import shooting
-
-    ctxs = [model.context(t, window_s, start="measured") for t in tracks]
-    for c, t in zip(ctxs, tracks):
-        for w in range(c.W):
-            ref = shooting.kinematic_rates(t, float(c.t_start[w]), sd)
-            for j, k in ((6, "u"), (7, "v"), (11, "r")):
-                if np.isfinite(ref[k]):
-                    c.s_meas[w, j] = ref[k]
-    return ctxs
-
-
 def run_case(case: dict, seed: int, quick: bool) -> dict:
     """The base fit and its check, the two independent fits, the true model (JSON-able)."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
+    from bayesid.estimation import shooting
     from bayesid.estimation.windows import FitProblem, fit_model, scores
 
     tic = time.perf_counter()
@@ -104,7 +89,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     base, ctr, cho = d.setup.build(())
     truth_p = np.array([wv.coefficients[k] for k in s2r.FREE])
     f_truth = fit_model(FitProblem(base, ctr, d.fit_sd, max_nfev=nfev), truth_p, None)
-    ckin = kinematic_contexts(base, train, d.setup.fit_window_s, d.fit_sd)
+    ckin = shooting.kinematic_contexts(base, train, d.setup.fit_window_s, d.fit_sd)
     f_kin = fit_model(FitProblem(base, ckin, d.fit_sd, max_nfev=nfev), None, None)
     held_of = {k: scores(base, f, cho)["rms_position_m"] for k, f in (("truth_start", f_truth), ("kinematic", f_kin))}
     oracle = s2r.true_model_scores(wv, held, world["objs"], window, d.settings)

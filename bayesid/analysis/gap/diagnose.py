@@ -307,8 +307,6 @@ def diagnose(
         train_starts="kinematic" if opt.train_starts == "kinematic" else "fitted", kinematic_sd=sd,
     )  # fmt: skip
     weighting = opt.weighting or family.DEFAULT_WEIGHTING
-    base, ctr, cho = setup.build(())
-    check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
     b = _base_stage(setup, sd, weighting, opt, runner)
     if opt.train_starts == "auto" and (b["check"].get("starts") or {}).get("suspect"):
         say("base fit: window starts inconsistent with the kinematics; refit with starts held at them")
@@ -320,7 +318,7 @@ def diagnose(
             "used": "kinematic" if use else "fitted",
         }
         if use:
-            setup, b = alt["setup"], alt
+            b = alt
         b["check"]["train_starts"] = summary
     base, ctr, cho, bfit, sd_fit, base_ms = (b[k] for k in ("model", "ctr", "cho", "fit", "sd_fit", "multistart"))
     b_train, b_held, check = b["train"], b["held"], b["check"]
@@ -407,8 +405,10 @@ def diagnose(
 
 def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> dict:
     """The base model of ``setup`` fitted (with its extra starts), scored and checked: ``{setup,
-    model, ctr, cho, fit, sd_fit, multistart, train, held, check}``."""
+    model, ctr, cho, fit, sd_fit, multistart, train, held, check}`` (ValueError: too little data)."""
     base, ctr, cho = setup.build(())
+    fw = setup.fit_window_s
+    check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
     runner.say("base fit" + (" (window starts held at the kinematics)" if setup.train_starts == "kinematic" else ""))
     bfit, sd_fit = fit_weighted(
         FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
@@ -603,7 +603,7 @@ def start_check(model, fit, setup: Setup, sd_fit: dict) -> dict:
     units = {"u": "m/s", "v": "m/s", "r": "deg/s"}
     if worst:
         w = worst[0]
-        f = 57.29577951308232 if w["component"] == "r" else 1.0
+        f = np.degrees(1.0) if w["component"] == "r" else 1.0
         eg = (
             f"worst: {w['set']} track {w['track']} at {w['t_s']:.1f} s, fitted {w['component']} "
             f"{w['fitted'] * f:.3g} {units[w['component']]} against {w['kinematic'] * f:.3g} +- {w['sd'] * f:.2g} "
