@@ -551,7 +551,7 @@ def write_report(out, res, args, target_info):
             f"### {k}",
             "",
             f"- Fisher information condition number {fmt(v['fim_condition_number'])}; smallest/largest eigenvalue "
-            f"{fmt(d['lam_ratio_min'])}. Sloppiest direction: `{v['sloppiest_label']}`.",
+            f"{fmt(d['lam_ratio_min'])}. " + _sloppiest_sentence(v, d),
             f"- Widest posterior axis: `{d['posterior_axis_widest']}` "
             f"({fmt(d['angle_sloppiest_vs_widest_posterior_axis_deg'])} deg from the sloppiest Fisher direction); "
             f"narrowest: `{d['posterior_axis_narrowest']}` "
@@ -565,7 +565,7 @@ def write_report(out, res, args, target_info):
                 fmt(r["cramer_rao_sd"]),
                 fmt(r["posterior_sd"]),
                 fmt(r["prior_sd"]),
-                "yes" if r["determined"] else "no",
+                "round-off" if r.get("round_off") else ("yes" if r["determined"] else "no"),
             ]
             for r in d["directions"]
         ]
@@ -680,6 +680,22 @@ def answers(res, target_info) -> list:
         "",
     ]
     return L
+
+
+def _sloppiest_sentence(v: dict, d: dict) -> str:
+    """The sloppiest Fisher direction, or, when the smallest eigenvalues are at round-off level,
+    the round-off null space they span: its individual eigenvectors are any basis of it (the last
+    bits of a simulation pick one), so only the subspace is reported as a result."""
+    k = d["n_round_off_eigenvalues"]
+    if not k:
+        return f"Sloppiest direction: `{v['sloppiest_label']}`."
+    part = ", ".join(f"{n} {w:.2f}" for n, w in d["round_off_participation"].items())
+    return (
+        f"The {k} sloppiest directions are at round-off level: the {k}-dimensional null space they span "
+        f"is reproducible, while its individual eigenvectors (rows marked round-off below) are any "
+        f"basis of it and change with the last bits of the simulation. How much each coefficient lies in "
+        f"that space (1 = wholly, sum = {k}): {part}."
+    )
 
 
 def main():

@@ -83,3 +83,27 @@ def test_noise_vector_names_missing_channel(case1_zigzag):
     _, _, _, pb = case1_zigzag
     with pytest.raises(KeyError, match="psi"):
         pb.noise_vector(dict(x=1, y=1, z=1, phi=1, theta=1))
+
+
+def test_round_off_null_space_is_reported_by_its_projector_not_by_its_arbitrary_eigenvectors():
+    # a 3-dimensional exact null space of a 6-parameter Fisher information, seen through two
+    # slightly different round-off perturbations: the eigenvectors inside the null space rotate
+    # between the two, the projector's diagonal does not
+    rng = np.random.default_rng(3)
+    names = [f"c{k}" for k in range(6)]
+    Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    null = Q[:, :3]
+    F0 = Q[:, 3:] @ np.diag([1.0, 1e3, 1e6]) @ Q[:, 3:].T
+    out = []
+    for seed in (1, 2):
+        E = np.random.default_rng(seed).normal(size=(6, 6)) * 1e-4
+        dirs = ida.eigen_directions(F0 + E @ E.T, names)
+        W = np.column_stack([d.vector for d in dirs[:3]])
+        out.append((W, ida.subspace_participation(W, names, threshold=0.0)))
+    (W1, p1), (W2, p2) = out
+    assert abs(abs(W1[:, 0] @ W2[:, 0]) - 1.0) > 1e-3  # the first null eigenvector is not reproducible
+    expected = np.sum(null**2, axis=1)
+    np.testing.assert_allclose([p1[n] for n in names], expected, atol=1e-6)
+    np.testing.assert_allclose([p2[n] for n in names], expected, atol=1e-6)
+    assert abs(sum(p1.values()) - 3.0) < 1e-10
+    assert list(p1) == sorted(p1, key=p1.get, reverse=True)  # largest first

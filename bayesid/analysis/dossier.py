@@ -69,7 +69,11 @@ def dossier(
         sloppiest first) and ``sloppiest`` (a :class:`~bayesid.analysis.identifiability.Direction`)
         for further use, and JSON-able tables: ``directions``, ``fim_condition_number``,
         ``lam_ratio_min``, ``collinearity``, ``relative_influence``, ``structural_nulls``,
-        ``structural_null_fim_angles_deg``, ``n_round_off_eigenvalues``, the angles between the
+        ``structural_null_fim_angles_deg``, ``n_round_off_eigenvalues``,
+        ``round_off_participation`` (how much each coefficient takes part in the round-off null
+        space, the diagonal of its projector: basis-free, unlike the individual round-off
+        directions, which any rotation replaces; each row of ``directions`` says whether it is
+        ``round_off``), the angles between the
         extreme Fisher directions and posterior axes, and the posterior's widest and narrowest
         axes.
     """
@@ -85,6 +89,7 @@ def dossier(
     prior_along = np.sqrt((W**2).T @ psd_rel**2)
     post_along = direction_draws(samples, W, theta_hat).std(axis=0, ddof=1)
     cr = np.where(lam > 0, 1.0 / np.sqrt(np.clip(lam, 1e-300, None)), np.inf)
+    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1]))  # eigenvalues at round-off level
     rows = []
     for k, d in enumerate(dirs):
         rows.append(
@@ -95,12 +100,12 @@ def dossier(
                 posterior_sd=float(post_along[k]),
                 prior_sd=float(prior_along[k]),
                 determined=bool(cr[k] < determined * prior_along[k]),
+                round_off=bool(k < k_round),
                 weights=d.weights(0.1),
             )
         )
     # structural (exact) nulls of the sampled set, each checked by moving 2 % along it
     full, causes = identifiability.structural_null_space(names, vehicle)
-    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1]))  # eigenvalues at round-off level
     nulls = []
     if full.shape[1]:
         base = np.asarray(truth, float)
@@ -140,6 +145,7 @@ def dossier(
         structural_nulls=nulls,
         structural_null_fim_angles_deg=null_angles,
         n_round_off_eigenvalues=k_round,
+        round_off_participation=identifiability.subspace_participation(W[:, :k_round], names),
         angle_sloppiest_vs_widest_posterior_axis_deg=angle_sloppy,
         angle_stiffest_vs_narrowest_posterior_axis_deg=angle_stiff,
         posterior_axis_widest=identifiability.Direction(float(ev[-1]), EV[:, -1], names).label(),

@@ -153,6 +153,34 @@ def eigen_directions(F: np.ndarray, names) -> list[Direction]:
     return out
 
 
+def subspace_participation(V: np.ndarray, names, threshold: float = 0.05) -> dict:
+    """How much each coefficient takes part in a subspace: the diagonal of its orthogonal projector.
+
+    Within a subspace whose eigenvalues are all at round-off level, the individual eigenvectors
+    are not determined (any rotation of them is as good, and the last bits of a simulation pick
+    one); the projector ``V V^T`` is. Its diagonal is 1 for a coefficient that lies wholly in the
+    subspace, 0 for one orthogonal to it, and sums to the subspace's dimension.
+
+    Parameters
+    ----------
+    V : ndarray, shape (P, K)
+        Orthonormal columns spanning the subspace.
+    names : sequence of str
+        The P coefficient names.
+    threshold : float, default 0.05
+        Participations below this are left out.
+
+    Returns
+    -------
+    dict
+        ``{name: participation}``, largest first (empty when K is 0).
+    """
+    V = np.asarray(V, float)
+    d = np.sum(V * V, axis=1) if V.size else np.zeros(len(names))
+    order = np.argsort(-d, kind="stable")
+    return {names[j]: float(d[j]) for j in order if d[j] >= threshold}
+
+
 def condition_number(F: np.ndarray) -> float:
     """Ratio of the largest to the smallest eigenvalue of F.
 
