@@ -6,7 +6,8 @@ Method
 ------
 - Ship cases: the packaged KVLCC2 model with a hidden extra hull term (``Nabsdr``: a yaw moment in
   ``|delta|``, port/starboard asymmetric; ``N0``: a constant yaw moment; ``Nrrr``: cubic yaw
-  damping), closed-loop zigzags of ``bayesid.models.ship.trials`` (two training runs, three
+  damping; ``gRm``: the rudder's flow-straightening coefficient gamma_R for beta_R < 0 at 0.3
+  while the model ties it to ``gR`` 0.5, a tied coefficient the library unties), closed-loop zigzags of ``bayesid.models.ship.trials`` (two training runs, three
   held-out runs of other angles, 150 s after the execute, 10 Hz, 1 cm / 0.05 deg noise and
   2 mm/s, 0.02 deg/s on the velocity log), with and without the velocity log.
 - Submarine cases: NPS AUV II with a hidden ``Nvv`` (yaw moment in v^2), the user-shaped tracks of
@@ -48,6 +49,8 @@ CASES = [
     {"name": "ship N0, velocity log", "family": "ship", "hidden": {"N0": 0.001}, "velocity_log": True},
     {"name": "ship N0, no velocity log", "family": "ship", "hidden": {"N0": 0.001}, "velocity_log": False},
     {"name": "ship Nrrr, velocity log", "family": "ship", "hidden": {"Nrrr": -0.03}, "velocity_log": True},
+    {"name": "ship gRm 0.3 (gR 0.5), velocity log", "family": "ship", "hidden": {"gRm": 0.3}, "velocity_log": True},
+    {"name": "ship gRm 0.3 (gR 0.5), no velocity log", "family": "ship", "hidden": {"gRm": 0.3}, "velocity_log": False},
     {"name": "ship control, velocity log", "family": "ship", "hidden": {}, "velocity_log": True},
     {"name": "ship control, no velocity log", "family": "ship", "hidden": {}, "velocity_log": False},
     {"name": "ship rudder clock skew 1 s", "family": "ship", "hidden": {}, "velocity_log": True, "nonforce": "skew"},
@@ -62,7 +65,7 @@ CASES = [
     {"name": "submarine Nvv, no velocity log", "family": "submarine", "hidden": {"Nvv": 0.01}, "velocity_log": False},
     {"name": "submarine control, no velocity log", "family": "submarine", "hidden": {}, "velocity_log": False},
 ]
-QUICK = (0, 5)
+QUICK = (0, 7)
 
 
 def ship_tracks(hidden: dict, velocity_log: bool, rng, duration: float):

@@ -431,3 +431,26 @@ def test_a_refit_that_ends_above_its_reference_is_called_a_failed_fit_not_a_reje
     ok.pop("kept"), ok.pop("reason")
     dv._decide(ok, True, gap.Thresholds())
     assert "ΔBIC" in ok["reason"]
+
+
+def test_a_tied_coefficient_is_a_candidate_untied_and_named(tmp_path):
+    # the truth's rudder has gamma_R 0.5 for beta_R >= 0 and 0.3 below (MMG gamma_R per side); the
+    # model has one gamma_R for both (gRm follows gR): untying gRm is the family's physical
+    # candidate, and discovery names it, refits it near the truth and writes it to a vehicle file
+    # (without the velocity log, on two training runs, gR, dR0 and the fitted window starts mimic
+    # it: measured, it is set aside as mimicked)
+    kv, train, held = _runs({"gRm": 0.3})
+    assert "gRm" in dv.candidate_terms(ship.ShipModel(kv, free=kv.free))
+    assert "gRm" not in dv.candidate_terms(ship.ShipModel(kv, free=[*kv.free, "gRm"]))
+    d = _diagnose(kv, train, held)
+    D = d.discovery
+    row = next(r for r in D["discovered"] if r["term"] == "gRm")
+    assert row["kept"] and row["dof"] == "XYN" and row["group_inclusion_probability"] >= 0.9, row
+    assert abs(row["coefficient"] / 0.3 - 1) < 0.2
+    assert D["found"][0] == "gRm" and D["heldout_rms_after_m"] < 0.5 * D["heldout_rms_before_m"]
+    src = ship.fileformat._resolve("kvlcc2_7m")
+    from bayesid.report.vehiclefile import write_vehicle_with_terms
+
+    out = write_vehicle_with_terms(src, {"gRm": row["coefficient"]}, tmp_path / "kv.toml", "discovered")
+    kv2 = ship.load_ship(out)
+    assert "gRm" not in kv2.tied and "gRm" in kv2.free and kv2.coefficients["gRm"] == row["coefficient"]

@@ -13,7 +13,9 @@ asks the next question, "what term is the model missing?", in four steps:
    :mod:`bayesid.models.ship.hullterms` (``v r |v| |r| dr |dr|`` and the constants ``X0 Y0 N0``, so
    port/starboard asymmetric forms such as ``N0``, ``Nabsdr``, ``Nvv`` are candidates); for a
    submarine the products of the term grammar (:func:`bayesid.data.terms.parse`: ``u v r |v| |r| dr``,
-   at most two velocity factors).
+   at most two velocity factors); a ship's tied coefficients (:func:`untied_candidates`: ``gRm``, gamma_R for
+   beta_R < 0, which follows ``gR`` unless the ship file gives it), untied at the value they
+   follow.
 3. **Sparse selection with inclusion probabilities.** Per degree of freedom, the missing force is
    regressed on the candidates' force columns by sequentially thresholded least squares (pysindy
    ``STLSQ``; Brunton, Proctor & Kutz 2016) on RMS-normalised columns and target, so terms of
@@ -68,6 +70,8 @@ __all__ = [
     "Discovery",
     "TermFit",
     "candidate_terms",
+    "untied_candidates",
+    "reference_values",
     "force_residuals",
     "select_terms",
     "fit_term",
@@ -267,7 +271,8 @@ def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
     Returns
     -------
     list of str
-        The names, grouped by force letter.
+        The names, grouped by force letter; a ship's tied coefficients last
+        (:func:`untied_candidates`).
     """
     veh = model.vehicle
     out = []
@@ -282,7 +287,7 @@ def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
                 except hullterms.HullTermError:
                     continue  # a listed product
                 out.append(name)
-        return out
+        return out + untied_candidates(model, dofs)
     have = {k for k, v in veh.coefficients.items() if v != 0.0} | set(model.free)
     for g in dofs:
         for body in _submarine_products():
@@ -294,6 +299,56 @@ def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
             if t.name not in have and t.horizontal and t.name not in out:
                 out.append(t.name)
     return out
+
+
+def untied_candidates(model, dofs=("Y", "N")) -> list[str]:
+    """The family's physical candidates the model has a parameter for: its tied coefficients.
+
+    A ship file that gives one ``gR`` states a hypothesis, one flow-straightening coefficient
+    gamma_R for both signs of the rudder's inflow angle (MMG, Yasukawa & Yoshimura 2015, eq. 23;
+    their Table 3 gives two for KVLCC2); ``gRm`` (beta_R < 0) then follows ``gR``
+    (:data:`bayesid.models.ship.layout.FOLLOWS`). Untying it, with the value it follows as its
+    start, is a candidate like a missing term: a port/starboard asymmetry of the rudder force,
+    acting in X, Y and N at once.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The reference model.
+    dofs : sequence of str, default ("Y", "N")
+        The force letters searched: the rudder force's candidates need Y or N.
+
+    Returns
+    -------
+    list of str
+        The tied coefficients that are not free (empty for a submarine).
+    """
+    veh = model.vehicle
+    if not isinstance(veh, Ship) or not {"Y", "N"} & set(dofs):
+        return []
+    return [k for k in veh.tied if k not in model.free]
+
+
+def reference_values(ref: Stage, names: list) -> dict:
+    """Each candidate's value in the reference model: 0 for a term it lacks; for a tied
+    coefficient the value of the one it follows (the reference fit's, when that one is free).
+
+    Parameters
+    ----------
+    ref : Stage
+        The fitted reference model.
+    names : list of str
+        The candidates.
+
+    Returns
+    -------
+    dict
+        ``{name: prime value}``.
+    """
+    veh = ref.model.vehicle
+    tied = veh.tied if isinstance(veh, Ship) else {}
+    fitted = ref.fit.coefficients()
+    return {n: float(fitted.get(tied[n], veh.coefficients.get(tied[n], 0.0))) if n in tied else 0.0 for n in names}
 
 
 def _columns(model, names: list, motion: dict, inputs) -> np.ndarray:
@@ -520,12 +575,12 @@ def _ensemble(Xn, yn, blocks, threshold, options, rng) -> np.ndarray:
     return xi
 
 
-def _augmented(setup: Setup, effects, names: list, window_s: float | None):
-    """The reference model with every candidate added at 0 and free, on the interpreted kernel
-    (one model for any number of terms, nothing to compile), and its training contexts over
-    ``window_s`` windows."""
-    veh = setup.vehicle.with_coefficients({n: 0.0 for n in names})
-    m = build_model(veh, [*setup.free, *names], list(effects), dt=setup.dt, mode=setup.mode, kernel="interpreted")
+def _augmented(setup: Setup, effects, values: dict, window_s: float | None):
+    """The reference model with every candidate added at its reference value (0 for a term) and
+    free, on the interpreted kernel (one model for any number of terms, nothing to compile), and
+    its training contexts over ``window_s`` windows."""
+    veh = setup.vehicle.with_coefficients(values)
+    m = build_model(veh, [*setup.free, *values], list(effects), dt=setup.dt, mode=setup.mode, kernel="interpreted")
     return m, [m.context(t, window_s, start=setup.rule) for t in setup.train]
 
 
@@ -541,6 +596,9 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     (``setup.window_s``): over a short window the fitted start states absorb most of any term
     (the same case without the velocity log: nothing selected over 15 s windows, ``Nabsdr`` with
     inclusion 0.86 over 60 s ones).
+
+    A tied coefficient among the candidates (:func:`untied_candidates`) is untied at the value it
+    follows, and the column of the one it followed is the reference's (both sides).
 
     The weighted window residuals ``r`` and their Jacobian (:class:`bayesid.estimation.windows.
     WindowObjective`, fitted start states projected out) by the reference's free parameters
@@ -575,12 +633,19 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     """
     if window_s is None:
         window_s = setup.fit_window_s if setup.rule == "measured" else setup.window_s
-    model, ctxs = _augmented(setup, effects, names, window_s)
+    values = reference_values(ref, names)
+    model, ctxs = _augmented(setup, effects, values, window_s)
     n_ref, K = ref.model.n_theta, len(names)
-    p0 = _extended_start(ref, model, [0.0] * K)
+    p0 = _extended_start(ref, model, list(values.values()))
     nu0 = _nuisance_start(ref, model)
     obj = WindowObjective(model, ctxs, sd_fit, p0=p0, nuisance0=nu0)
     r, J = obj.jacobian(np.asarray(obj.x0, float))
+    # an untied coefficient takes its side from the one it followed: the reference's column of
+    # that one is the sum of both (so the free directions projected out are the reference's own)
+    tied = ref.model.vehicle.tied if isinstance(ref.model.vehicle, Ship) else {}
+    for n in names:
+        if n in tied and tied[n] in model.param_names:
+            J[:, model.param_names.index(tied[n])] += J[:, model.param_names.index(n)]
     cand = np.arange(n_ref, n_ref + K)
     other = np.setdiff1d(np.arange(J.shape[1]), cand)
     Jc = J[:, cand]
@@ -712,7 +777,8 @@ class TermFit:
     term : str
         The term's name.
     start : float
-        Its regression coefficient (prime), the second start of the fit (the first is 0).
+        Its regression coefficient (prime): the second start of the fit is the reference value
+        plus this (the first is the reference value).
     ref : Stage
         The model it extends.
     setup : Setup
@@ -723,6 +789,9 @@ class TermFit:
         The reference fit's channel weights.
     max_nfev : int
         Least-squares iterations.
+    initial : float, default 0.0
+        The term's value in the reference model (:func:`reference_values`: 0 for a missing term,
+        the followed value for a tied coefficient).
     """
 
     term: str
@@ -732,6 +801,7 @@ class TermFit:
     effects: tuple
     sd_fit: dict
     max_nfev: int
+    initial: float = 0.0
 
 
 def _with_terms(setup: Setup, values: dict) -> Setup:
@@ -768,8 +838,13 @@ def _nuisance_start(ref: Stage, model):
 
 
 def fit_term(task: TermFit) -> tuple[Stage | None, list]:
-    """Add a term to the reference model and re-identify every free coefficient (two starts: the
-    term at 0, which reproduces the reference model, and at its regression value); score the best.
+    """Add a term to the reference model and re-identify every free coefficient; score the fit.
+
+    The fit starts at the reference plus the term's regression value (the linearised problem's
+    step, :func:`select_terms`). Only when that fit fails or ends above the reference's cost does
+    a second one start at the reference itself (the term at its reference value, which reproduces
+    the reference model), and the lower of the two is kept: one fit per term where the step is
+    good, as the first round's candidates get one.
 
     A module-level function of a picklable argument (run as a task, :class:`bayesid.tasks.Runner`).
 
@@ -785,12 +860,14 @@ def fit_term(task: TermFit) -> tuple[Stage | None, list]:
     messages : list
         About failed starts (str), and ``("sd", value)``: the term's Laplace sd.
     """
-    setup = _with_terms(task.setup, {task.term: 0.0})
+    setup = _with_terms(task.setup, {task.term: task.initial})
     model, ct, ch = setup.build([e for e in task.effects if e not in setup.effects])
     problem = FitProblem(model, ct, task.sd_fit, max_nfev=task.max_nfev)
     nu0 = _nuisance_start(task.ref, model)
     best, messages = None, []
-    for c in dict.fromkeys((0.0, float(task.start))):
+    for c in dict.fromkeys((task.initial + float(task.start), task.initial)):
+        if best is not None and best.cost <= task.ref.fit.cost * (1.0 + 1e-6):
+            break  # the step's fit is at least as good as the reference: no second start
         try:
             f = fit_model(problem, _extended_start(task.ref, model, [c]), nu0)
         except Exception as exc:  # noqa: BLE001 - a failed start is reported
@@ -814,7 +891,7 @@ def _row(term: str, st: Stage | None, ref: Stage, sel: dict | None, floor_rms: f
     sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
     row = {
         "term": term,
-        "dof": term[0],
+        "dof": "XYN" if term in getattr(ref.model.vehicle, "tied", {}) else term[0],
         "inclusion_probability": sel["inclusion"].get(term, 0.0),
         "group_inclusion_probability": sel["group_probability"].get(term, 0.0),
         "group": sel["groups"].get(term, []),
@@ -884,11 +961,12 @@ def _candidates(sel: dict, options: DiscoveryOptions) -> list[str]:
     return chosen
 
 
-def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple):
+def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple, initial: dict):
     """Add the kept terms together, best first: each further term is refitted on top of those
     added (all coefficients re-identified) and stays only if it passes the contributor test
     against them while their held-out error is still above the floor band. ``fit_args``:
-    ``(effects, channel weights, iterations)``; ``floor``: ``(noise floor RMS, thresholds)``."""
+    ``(effects, channel weights, iterations)``; ``floor``: ``(noise floor RMS, thresholds)``;
+    ``initial``: each term's value in the reference (:func:`reference_values`)."""
     effects, sd_fit, max_nfev = fit_args
     floor_rms, th = floor
     order = sorted(kept, key=lambda n: stages[n].held["rms_position_m"])
@@ -896,9 +974,9 @@ def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple
     for n in order[1:]:
         if cur.held["rms_position_m"] <= th.none_ratio * floor_rms:
             break  # the gap is closed: a further term would fit noise
-        trial = _with_terms(setup, {**values, n: 0.0})
+        trial = _with_terms(setup, {**values, n: initial[n]})
         model, ct, ch = trial.build([e for e in effects if e not in setup.effects])
-        p0 = _extended_start(ref, model, [*values.values(), 0.0])
+        p0 = _extended_start(ref, model, [*values.values(), initial[n]])
         n_ref = ref.model.n_theta
         p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
         try:
@@ -977,19 +1055,26 @@ def discover(
     runner.say(f"discovery: {len(names)} candidate terms")
     problem = linearised_problem(setup, ref, effects, names, ctx["sd_fit"])
     sel = select_terms(problem, names, options, rng)
+    untied = untied_candidates(ref.model, options.dofs)
+    terms = [n for n in names if n not in untied]  # those with force columns
     try:
         forces = force_summary(
-            force_residuals(ref.model, ref.fit, setup.train, names, options, rng), sel, names, options
+            force_residuals(ref.model, ref.fit, setup.train, terms, options, rng), sel, terms, options
         )
     except ValueError as exc:  # no inverse dynamics: the output-space selection stands alone
         forces = {"error": str(exc)}
     cands = _candidates(sel, options)
+    initial = reference_values(ref, cands)
     runner.say(f"discovery: refitting {', '.join(cands) or 'nothing'}")
     tasks = [
         Task(
             n,
             {"term": n},
-            (TermFit(n, sel["coefficient"][n], ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev),),
+            (
+                TermFit(
+                    n, sel["coefficient"][n], ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev, initial[n]
+                ),
+            ),
         )
         for n in cands
     ]
@@ -1010,7 +1095,13 @@ def discover(
     found, after = ([], None)
     if stages:
         found, after = _combine(
-            list(stages), stages, ref, setup, (tuple(effects), ctx["sd_fit"], options.max_nfev), (floor_rms, th)
+            list(stages),
+            stages,
+            ref,
+            setup,
+            (tuple(effects), ctx["sd_fit"], options.max_nfev),
+            (floor_rms, th),
+            initial,
         )
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
