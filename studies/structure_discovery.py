@@ -49,8 +49,6 @@ CASES = [
     {"name": "ship N0, velocity log", "family": "ship", "hidden": {"N0": 0.001}, "velocity_log": True},
     {"name": "ship N0, no velocity log", "family": "ship", "hidden": {"N0": 0.001}, "velocity_log": False},
     {"name": "ship Nrrr, velocity log", "family": "ship", "hidden": {"Nrrr": -0.03}, "velocity_log": True},
-    {"name": "ship gRm 0.3 (gR 0.5), velocity log", "family": "ship", "hidden": {"gRm": 0.3}, "velocity_log": True},
-    {"name": "ship gRm 0.3 (gR 0.5), no velocity log", "family": "ship", "hidden": {"gRm": 0.3}, "velocity_log": False},
     {"name": "ship control, velocity log", "family": "ship", "hidden": {}, "velocity_log": True},
     {"name": "ship control, no velocity log", "family": "ship", "hidden": {}, "velocity_log": False},
     {"name": "ship rudder clock skew 1 s", "family": "ship", "hidden": {}, "velocity_log": True, "nonforce": "skew"},
@@ -64,8 +62,10 @@ CASES = [
     {"name": "submarine Nvv, velocity log", "family": "submarine", "hidden": {"Nvv": 0.01}, "velocity_log": True},
     {"name": "submarine Nvv, no velocity log", "family": "submarine", "hidden": {"Nvv": 0.01}, "velocity_log": False},
     {"name": "submarine control, no velocity log", "family": "submarine", "hidden": {}, "velocity_log": False},
+    {"name": "ship gRm 0.3 (gR 0.5), velocity log", "family": "ship", "hidden": {"gRm": 0.3}, "velocity_log": True},
+    {"name": "ship gRm 0.3 (gR 0.5), no velocity log", "family": "ship", "hidden": {"gRm": 0.3}, "velocity_log": False},
 ]
-QUICK = (0, 7)
+QUICK = (0, 5)
 
 
 def ship_tracks(hidden: dict, velocity_log: bool, rng, duration: float):

@@ -106,6 +106,11 @@ class FitResult:
         The channels fitted (model fits).
     n_starts : int, default 0
         Number of window start states fitted (model fits).
+    window_starts : list, optional
+        Per track, the (W, 6) fitted window start offsets at the optimum (None for a track with
+        measured starts; model fits with fitted starts): a refit of the same windows warm-starts
+        from them (:func:`bayesid.estimation.windows.fit_model`), because from a cold start the
+        start-state problem of a model bent to follow its tracks can settle in another optimum.
     """
 
     method: str
@@ -134,6 +139,7 @@ class FitResult:
     nuisance: list = field(default_factory=list)
     channels: tuple | None = None
     n_starts: int = 0
+    window_starts: list | None = None
 
     @classmethod
     def fixed(cls, model, p, n_tracks: int, message: str = "fixed", nuisance=None) -> FitResult:

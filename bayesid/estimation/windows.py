@@ -241,6 +241,32 @@ class WindowObjective:
         self.lead_in = any(c.start == "fitted" and c.lead_steps > 0 for c in self.ctxs)
         self._last = {"x": None, "starts": [None] * T, "jd": [None] * T}
 
+    def warm_start(self, starts) -> None:
+        """Start the window start-state fits from given offsets instead of the measured guess.
+
+        Parameters
+        ----------
+        starts : list
+            Per track (W, 6) offsets, or None (cold for that track): a previous fit's
+            ``window_starts`` on the same windows.
+
+        Raises
+        ------
+        ValueError
+            A track's offsets whose shape is not its context's (W, 6) (track named).
+        """
+        if len(starts) != self.T:
+            raise ValueError(f"warm start for {len(starts)} tracks, the objective has {self.T}")
+        for i, (ctx, s) in enumerate(zip(self.ctxs, starts)):
+            if s is None or ctx.start != "fitted":
+                continue
+            s = np.asarray(s, float)
+            if s.shape != (ctx.W, 6):
+                raise ValueError(
+                    f"track {ctx.name!r}: warm-start offsets of shape {s.shape}, its windows need ({ctx.W}, 6)"
+                )
+            self._last["starts"][i] = s[None]
+
     def split_rows(self, X):
         """Split rows of the objective's variables into parameters and nuisances.
 
@@ -391,8 +417,14 @@ class WindowObjective:
             ``model``, ``p``, per-track ``nuisance``, ``channels``, ``n_starts`` and ``k``
             (parameters, nuisances and window start states).
         """
-        P, nus = self.split_rows(np.asarray(x, float)[None])
+        x = np.asarray(x, float)
+        P, nus = self.split_rows(x[None])
         nuisance = [np.array(v[0]) if v is not None else np.zeros(0) for v in nus]
+        starts = None
+        if self.vp and x.size:  # the start states at x (the last evaluation's, or fitted now)
+            if self._last["x"] is None or not np.array_equal(self._last["x"], x):
+                self.residuals(x)
+            starts = [None if s is None else np.array(s[0]) for s in self._last["starts"]]
         return {
             "model": self.model,
             "p": np.array(P[0]),
@@ -400,6 +432,7 @@ class WindowObjective:
             "channels": self.channels,
             "n_starts": self.n_starts,
             "k": self.model.n_params + sum(len(v) for v in nuisance) + self.n_starts,
+            "window_starts": starts,
         }
 
 
@@ -532,6 +565,7 @@ def fit_model(
     *,
     fit_nuisance_only: bool = False,
     bar: str | None = None,
+    starts0=None,
 ) -> FitResult:
     """Least-squares fit of a model's parameters (and per-track nuisances) to tracks: the
     :class:`WindowObjective` minimised by :func:`bayesid.estimation.fit.fit` (trust-region
@@ -552,20 +586,27 @@ def fit_model(
         Keep ``p0`` fixed and fit only the nuisances (held-out tracks).
     bar : str, optional
         A label to show a progress bar (tqdm, on stderr) of the evaluations with it.
+    starts0 : list, optional
+        Per track the (W, 6) window start offsets to warm-start from (a previous fit's
+        ``window_starts`` on the same windows, :meth:`WindowObjective.warm_start`): a refit from
+        another fit's optimum then starts at that fit's cost.
 
     Returns
     -------
     FitResult
         ``p``, ``nuisance``, ``cost`` the noise-scaled SSR, ``k``, ``bic``, ``n_simulations``,
-        ``jac``.
+        ``jac``, ``window_starts``.
 
     Raises
     ------
     ValueError
-        An unknown channel or a track that measures none of the channels.
+        An unknown channel or a track that measures none of the channels; ``starts0`` that do
+        not fit the windows.
     """
     model, ctxs, sd, max_nfev = problem.model, problem.ctxs, problem.sd, problem.max_nfev
     ob = WindowObjective(model, ctxs, sd, p0, nuisance0, fit_nuisance_only, problem.channels, problem.prior)
+    if starts0 is not None:
+        ob.warm_start(starts0)
     if ob.x0.size == 0:
         r = ob.residuals(ob.x0)[0]
         res = FitResult(

@@ -639,6 +639,9 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     p0 = _extended_start(ref, model, list(values.values()))
     nu0 = _nuisance_start(ref, model)
     obj = WindowObjective(model, ctxs, sd_fit, p0=p0, nuisance0=nu0)
+    starts = _warm_starts(ref.fit, ctxs)
+    if starts is not None:
+        obj.warm_start(starts)
     r, J = obj.jacobian(np.asarray(obj.x0, float))
     # an untied coefficient takes its side from the one it followed: the reference's column of
     # that one is the sum of both (so the free directions projected out are the reference's own)
@@ -822,6 +825,20 @@ def _extended_start(ref: Stage, model, values: list) -> np.ndarray:
     return np.array([known[n] if n in known else next(new) for n in model.param_names], float)
 
 
+def _warm_starts(fit, ctxs) -> list | None:
+    """A fit's window start offsets when they fit ``ctxs``'s windows (same tracks, same windows),
+    else None: a model evaluated at another fit's parameters with cold start states can land in
+    another optimum of the start-state problem (a base fit bent to follow its tracks: cost 8.6e7
+    cold against 1.9e4 at the fit's own starts, sim_to_real's constant-yaw-moment case)."""
+    starts = getattr(fit, "window_starts", None)
+    if starts is None or len(starts) != len(ctxs):
+        return None
+    for s, c in zip(starts, ctxs):
+        if (s is None) != (c.start != "fitted") or (s is not None and np.shape(s) != (c.W, 6)):
+            return None
+    return starts
+
+
 def _nuisance_start(ref: Stage, model):
     """The reference fit's per-track nuisances rearranged to ``model``'s effect order (matched by
     effect name), or None when ``model`` has none."""
@@ -869,7 +886,7 @@ def fit_term(task: TermFit) -> tuple[Stage | None, list]:
         if best is not None and best.cost <= task.ref.fit.cost * (1.0 + 1e-6):
             break  # the step's fit is at least as good as the reference: no second start
         try:
-            f = fit_model(problem, _extended_start(task.ref, model, [c]), nu0)
+            f = fit_model(problem, _extended_start(task.ref, model, [c]), nu0, starts0=_warm_starts(task.ref.fit, ct))
         except Exception as exc:  # noqa: BLE001 - a failed start is reported
             messages.append(f"{task.term} (start {c:.3g}) failed: {exc}")
             continue
@@ -980,7 +997,12 @@ def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple
         n_ref = ref.model.n_theta
         p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
         try:
-            f = fit_model(FitProblem(model, ct, sd_fit, max_nfev=max_nfev), p0, None)
+            f = fit_model(
+                FitProblem(model, ct, sd_fit, max_nfev=max_nfev),
+                p0,
+                _nuisance_start(cur, model),
+                starts0=_warm_starts(cur.fit, ct),
+            )
         except Exception:  # noqa: BLE001 - the combination is skipped
             continue
         st = score_stage(model, f, ct, ch, sd_fit)
