@@ -779,13 +779,14 @@ def discovery_section(E, K) -> list[str]:
             f"{fmt(E_['with'].get('second_overshoot_deg', {}).get('max_abs_error_deg'))} deg (target 2.5). "
             "Predicted 35 deg turning circles without -> with: " + "; ".join(tc) + ".",
             "",
-            *_gamma_r_lines(ref),
+            *_gamma_r_lines(ref, K.get("discovery") or {}),
         ]
     return lines
 
 
-def _gamma_r_lines(ref: dict) -> list[str]:
-    """The all-13 refit with the rudder's flow-straightening coefficient fitted per side."""
+def _gamma_r_lines(ref: dict, D: dict) -> list[str]:
+    """The all-13 refit with the rudder's flow-straightening coefficient fitted per side, and what
+    discovery made of the same candidate on the validation split (``D``)."""
     from bayesid.report import fmt
 
     g = ref.get("gamma_r_per_side")
@@ -806,9 +807,33 @@ def _gamma_r_lines(ref: dict) -> list[str]:
         f"{fmt(e.get('second_overshoot_deg', {}).get('max_abs_error_deg'))} deg (mean "
         f"{fmt(e0.get('second_overshoot_deg', {}).get('mean_abs_error_deg'))} -> "
         f"{fmt(e.get('second_overshoot_deg', {}).get('mean_abs_error_deg'))} deg). It is a refit on the training "
-        "runs, not a held-out test, and it is not in discovery's library (which adds terms, not freed parameters).",
+        f"runs, not a held-out test. {_untied_sentence(D)}",
         "",
     ]
+
+
+def _untied_sentence(D: dict) -> str:
+    """What discovery's held-out test made of gRm (the tied coefficient it unties) on the split."""
+    from bayesid.report import fmt
+
+    if not D:
+        return "Discovery did not run on the validation split."
+    row = next((r for r in D.get("discovered", []) if r["term"] == "gRm"), None)
+    p = D.get("inclusion", {}).get("gRm", 0.0)
+    if "gRm" in D.get("residuals", {}).get("mimicked", []):
+        return "Discovery's library holds the same candidate (gRm untied from gR); on the validation split the free coefficients mimic it."
+    if row is None:
+        return (
+            "Discovery's library holds the same candidate (gRm untied from gR); on the validation split its inclusion "
+            f"probability is {fmt(p)}, below the {fmt(D.get('settings', {}).get('min_probability'))} from which a "
+            "candidate is refitted and tested on the held-out runs."
+        )
+    return (
+        f"Discovery's library holds the same candidate (gRm untied from gR): on the validation split, inclusion "
+        f"probability {fmt(p)}, refitted gRm {fmt(row.get('coefficient'))}, held-out 60 s RMS "
+        f"{fmt(row['heldout_rms_before_m'])} -> {fmt(row.get('heldout_rms_after_m'))} m: "
+        + ("kept." if row["kept"] else f"not kept ({row['reason']}).")
+    )
 
 
 def hsva_indices(fitted, tracks, train_names) -> dict:

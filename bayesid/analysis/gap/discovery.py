@@ -28,9 +28,9 @@ asks the next question, "what term is the model missing?", in four steps:
    probability is the share of models that select any member, and the group is tested as one
    candidate (its most probable member), never as a winner picked by chance.
 4. **Confirmed by the output-error fit and held-out runs.** Each candidate is added to the model
-   (start 0: the model it extends, and the regression's value) and ALL free coefficients are
-   re-identified by the same multiple-shooting fit ``bayesid fit`` uses, with the reference
-   fit's channel weights; it is **kept** only if it passes the gap diagnosis's contributor test on
+   (start: the reference fit, its window start states included, plus the regression's step; the
+   reference itself when that fit ends worse) and ALL free coefficients are re-identified by the
+   same multiple-shooting fit ``bayesid fit`` uses, with the reference fit's channel weights; it is **kept** only if it passes the gap diagnosis's contributor test on
    the held-out windows (:func:`bayesid.analysis.gap.verdict.is_contributor`: training ΔBIC <= -10,
    held-out shrinkage > 0, and a one-sided Wilcoxon test of the paired per-window errors
    p < 0.01 or half the excess over the noise floor removed). Terms that fit the training runs but
