@@ -206,3 +206,24 @@ def test_simulate_no_figure_writes_none(tmp_path, capsys):
     assert (tmp_path / "s.json").is_file() and not (tmp_path / "s.png").exists()
     assert cli.main([*args, "--out", str(tmp_path / "s.json")]) == 2
     assert "another suffix" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("zoom_out", [1.0, 4.0])
+def test_turn_labels_do_not_overlap_on_a_large_or_a_small_circle(trials, zoom_out):
+    # a turning circle small on its page (the Esso held-out turn in a 45 m wide plan view) had its
+    # transfer and tactical-diameter labels on top of each other
+    _, tc = trials
+    fig, ax = plt.subplots(figsize=(6, 6))
+    ax.plot(tc["y"], tc["x"])
+    ax.set_aspect("equal")
+    mark_indices(ax, None, tc.t, tc)
+    cy, cx, half = np.mean(tc["y"]), np.mean(tc["x"]), zoom_out * np.ptp(tc["x"])
+    ax.set_xlim(cy - half, cy + half)
+    ax.set_ylim(cx - half, cx + half)
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    boxes = [_gid(ax, f"{n}_text")[0].get_window_extent(r) for n in ("advance", "transfer", "tactical_diameter")]
+    for i in range(3):
+        for j in range(i + 1, 3):
+            assert not boxes[i].overlaps(boxes[j]), (i, j)
+    plt.close(fig)

@@ -1247,7 +1247,14 @@ def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
         else:
             spans.append(("tactical_diameter", foot, (px, py)))
     for name, a, b in spans:
-        left = name == "advance" and away < 0
+        # labels apart however small the circle is on its page: the advance and the transfer at
+        # the advance's end (the transfer's foot on the original course), on the side away from
+        # the turn, the advance below that point and the transfer above; the tactical diameter
+        # beyond its far end, outside the circle
+        if name == "tactical_diameter":
+            left, at, up = b[1] < a[1], b, True
+        else:
+            left, at, up = away < 0, (b if name == "advance" else a), name == "transfer"
         ax.annotate(
             "",
             xy=(b[1], b[0]),
@@ -1257,12 +1264,13 @@ def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
         )
         ax.annotate(
             f"{name.replace('_', ' ')}\n{ind[name + '_m']:.1f} m",
-            xy=((a[1] + b[1]) / 2, (a[0] + b[0]) / 2),
-            xytext=(-4 if left else 4, 4 - 14 * slot),
+            xy=(at[1], at[0]),
+            xytext=(-4 if left else 4, (3 if up else -3) - 30 * slot),
             textcoords="offset points",
             fontsize=7,
             color=color,
             ha="right" if left else "left",
+            va="bottom" if up else "top",
             gid=f"{MARK_GID}{name}_text",
         )
     mx, my = np.array(marks).T
