@@ -67,7 +67,7 @@ ax.set_aspect("equal", adjustable="datalim")
 ax.set_xlabel("y (east), m")
 ax.set_ylabel("x (north), m")
 ax.set_title(
-    f"KVLCC2 model, 35 deg turn to starboard (90 and 180 deg of heading change marked);\n"
+    "KVLCC2 model, 35 deg turn to starboard\n(90 and 180 deg of heading change marked);\n"
     f"steady turning diameter {ti['steady_turning_diameter_m']:.1f} m",
     fontsize=9,
 )
