@@ -665,11 +665,16 @@ def discovery_refit(kv, tracks, discovery: dict, args, log) -> dict | None:
     out = {"terms": kept}
     # the physical candidate the ship model has a parameter for: gamma_R per side (gRm for beta_R < 0,
     # Yasukawa & Yoshimura 2015), fitted on its own instead of following gR
-    for label, veh, free in (
+    variants = [
         ("without", kv, tuple(kv.free)),
         ("with", kv.with_coefficients(kept), tuple(kv.free) + tuple(kept)),
         ("gamma_r_per_side", kv, tuple(kv.free) + ("gRm",)),
-    ):
+    ]
+    if "gRm" not in kept:  # both: the discovered terms and gamma_R per side
+        variants.append(
+            ("with_and_gamma_r_per_side", kv.with_coefficients(kept), tuple(kv.free) + tuple(kept) + ("gRm",))
+        )
+    for label, veh, free in variants:
         log(f"kvlcc2: all 13 zigzags, fit {label} the discovered terms")
         res = identify(veh, tracks, FitOptions(free=free, dt=0.2, max_nfev=args.max_nfev, start="measured"))
         fitted = FittedModel(res.model, res.fit.p, res.cov)
@@ -681,7 +686,7 @@ def discovery_refit(kv, tracks, discovery: dict, args, log) -> dict | None:
             "turning_circles_35deg": {side: c["predicted"] for side, c in circles.items()},
         }
     errs = {}
-    for label in ("without", "with", "gamma_r_per_side"):
+    for label, *_ in variants:
         e = {}
         for n, d in out[label]["indices"].items():
             if any(z in n for z in ("Z_10_10", "Z_20_10")):
@@ -808,6 +813,25 @@ def _gamma_r_lines(ref: dict, D: dict) -> list[str]:
         f"{fmt(e0.get('second_overshoot_deg', {}).get('mean_abs_error_deg'))} -> "
         f"{fmt(e.get('second_overshoot_deg', {}).get('mean_abs_error_deg'))} deg). It is a refit on the training "
         f"runs, not a held-out test. {_untied_sentence(D)}",
+        "",
+        *_both_lines(ref),
+    ]
+
+
+def _both_lines(ref: dict) -> list[str]:
+    """The all-13 refit with the discovered terms and gamma_R per side together."""
+    from bayesid.report import fmt
+
+    e = ref["overshoot_errors_10_10_and_20_10"].get("with_and_gamma_r_per_side")
+    if not e:
+        return []
+    c = ref["with_and_gamma_r_per_side"]["coefficients"]
+    return [
+        f"With both, the discovered {', '.join(ref['terms'])} and gamma_R per side (gR {fmt(c.get('gR'))}, gRm "
+        f"{fmt(c.get('gRm'))}): largest absolute error, first overshoot "
+        f"{fmt(e.get('first_overshoot_deg', {}).get('max_abs_error_deg'))} deg (target 1), second "
+        f"{fmt(e.get('second_overshoot_deg', {}).get('max_abs_error_deg'))} deg (target 2.5; mean "
+        f"{fmt(e.get('second_overshoot_deg', {}).get('mean_abs_error_deg'))} deg). Also a refit on the training runs.",
         "",
     ]
 
