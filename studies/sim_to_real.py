@@ -20,7 +20,8 @@ Method
   outside the catalogue: a rudder that stalls beyond 13.5 deg, a constant yaw-moment bias), and
   pairs of simultaneous effects, and structural cases for structure discovery (issue 40: the
   constant yaw moment and the stalling rudder again, and the vehicle's ``Nabsvr`` removed from the
-  model the diagnosis gets; the diagnosis runs with discovery and is scored by the term it keeps).
+  model the diagnosis gets; the diagnosis runs with discovery and is scored by the term it keeps;
+  the three without the velocity log run once more with ``--train-starts auto`` on the same tracks).
   The diagnosis sees only the tracks, the nominal vehicle and
   the free-coefficient names; window starts follow its ``auto`` rule (fitted with the model when
   u, v, r are not logged).
