@@ -111,3 +111,32 @@ def test_one_free_coefficient_gets_a_posterior_document_and_a_dossier():
     doc = ModelDocument(**{k: v for k, v in one.items() if k != "format"})
     post = doc.with_posterior(draws.mean(axis=0), np.cov(draws, rowvar=False), {"method": "importance"})
     assert np.array(post.cov).shape == (1, 1) and post.sd[0] == pytest.approx(0.1, rel=0.1)
+
+
+def test_sample_dossier_marks_a_round_off_null_space_and_reports_it_by_coefficient():
+    """Two coefficients the tracks see only through their sum (the Jacobian's columns equal): the
+    Fisher information has one eigenvalue at round-off level; the dossier marks that direction
+    round-off and gives the space by its projector's diagonal (0.5 each), and the sample report
+    says so."""
+    from bayesid.analysis.dossier import data_dossier
+    from bayesid.report.sample import _round_off_lines
+
+    class FlatPrior:
+        gaussian = np.array([False, False, False])
+
+        def marginal_mean(self):
+            return np.full(3, np.nan)
+
+        def marginal_sd(self):
+            return np.full(3, np.inf)
+
+    rng = np.random.default_rng(1)
+    J = rng.normal(size=(50, 3))
+    J[:, 1] = J[:, 0]
+    draws = rng.normal(0.5, 0.1, size=(400, 3))
+    d = data_dossier(["Yv", "Yr", "Nr"], J.T @ J, J, np.ones(3), FlatPrior(), draws)
+    assert d["n_round_off_eigenvalues"] == 1
+    assert [r["round_off"] for r in d["directions"]] == [True, False, False]
+    assert d["round_off_participation"] == pytest.approx({"Yv": 0.5, "Yr": 0.5}, abs=1e-9)
+    assert "1 Fisher eigenvalue(s) are at round-off level" in "\n".join(_round_off_lines(d))
+    json.dumps(d)

@@ -224,7 +224,11 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
     dict
         JSON-able: ``fisher_eigenvalues`` (scaled units, sloppiest first),
         ``fim_condition_number``, ``directions`` (each: label, eigenvalue, Cramer-Rao sd,
-        posterior and prior sd along it, in scales), ``sloppy`` (the ``top`` sloppiest),
+        posterior and prior sd along it, in scales, and ``round_off``: its eigenvalue below
+        :data:`ROUND_OFF` x the largest, so that the direction is any vector of the round-off
+        null space), ``sloppy`` (the ``top`` sloppiest), ``n_round_off_eigenvalues`` and
+        ``round_off_participation`` (that space by its projector's diagonal,
+        :func:`~bayesid.analysis.identifiability.subspace_participation`),
         ``collinearity`` (Brun et al. 2001 index of the most collinear pairs and triples),
         ``coefficients`` (per name: posterior mean, sd, prior mean and sd, ``sd_ratio``, ``z`` of
         the posterior mean against a Gaussian prior, ``status``: ``determined`` (ratio <
@@ -243,6 +247,8 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
     post_along = post_along.std(axis=0, ddof=1)
     with np.errstate(invalid="ignore"):
         prior_along = np.sqrt((W**2).T @ (psd / D) ** 2)
+    lam = np.array([d.eigenvalue for d in dirs])
+    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1])) if lam.size else 0  # round-off level
     rows = []
     for k, d in enumerate(dirs):
         rows.append(
@@ -252,6 +258,7 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
                 cramer_rao_sd=d.sd_relative,
                 posterior_sd=float(post_along[k]),
                 prior_sd=float(prior_along[k]),
+                round_off=bool(k < k_round),
                 weights=d.weights(0.1),
             )
         )
@@ -284,6 +291,8 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
         fim_condition_number=identifiability.condition_number(Fs),
         directions=rows,
         sloppy=rows[:top],
+        n_round_off_eigenvalues=k_round,
+        round_off_participation=identifiability.subspace_participation(W[:, :k_round], names),
         collinearity=identifiability.collinearity_table(R, names, sizes=(2, 3), top=top),
         coefficients=coef,
         moved=moved,

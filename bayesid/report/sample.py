@@ -211,6 +211,21 @@ def _flat_label(c: dict) -> str:
     return "uniform in bounds" if c.get("prior_sd") is not None else "flat (open bounds)"
 
 
+def _round_off_lines(dos: dict) -> list:
+    """The round-off null space of the tracks' Fisher information, when it has one: its rows are
+    any basis of it, so the space is given by how much each coefficient lies in it."""
+    k = dos.get("n_round_off_eigenvalues") or 0
+    if not k:
+        return []
+    part = ", ".join(f"{n} {w:.2f}" for n, w in dos["round_off_participation"].items())
+    return [
+        f"{k} Fisher eigenvalue(s) are at round-off level: the tracks say nothing about the {k}-dimensional space "
+        "they span, and the rows marked round-off are any basis of it. How much each coefficient lies in that "
+        f"space (1 = wholly, sum = {k}): {part}.",
+        "",
+    ]
+
+
 def _determined_lines(doc: dict) -> list:
     """What the tracks determine: sloppy directions, collinear subsets, correlations, the figures
     and the files."""
@@ -225,11 +240,17 @@ def _determined_lines(doc: dict) -> list:
         md_table(
             ["direction", "Cramér-Rao sd", "posterior sd", "prior sd"],
             [
-                [r["direction"], fmt(r["cramer_rao_sd"]), fmt(r["posterior_sd"]), fmt(r["prior_sd"])]
+                [
+                    r["direction"] + (" (round-off)" if r.get("round_off") else ""),
+                    fmt(r["cramer_rao_sd"]),
+                    fmt(r["posterior_sd"]),
+                    fmt(r["prior_sd"]),
+                ]
                 for r in dos["sloppy"]
             ],
         ),
         "",
+        *_round_off_lines(dos),
         "Most collinear subsets (collinearity index, Brun et al. 2001; above 10-15: not separately identifiable):",
         "",
         md_table(
