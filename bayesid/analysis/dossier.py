@@ -22,6 +22,14 @@ AT_PRIOR = 0.9
 ROUND_OFF = 1e-15
 
 
+def _round_off(lam: np.ndarray, W: np.ndarray, names) -> tuple[int, dict]:
+    """The number of Fisher eigenvalues (ascending ``lam``) at round-off level, below
+    :data:`ROUND_OFF` x the largest, and the null space they span by its projector's diagonal
+    (:func:`~bayesid.analysis.identifiability.subspace_participation`)."""
+    k = int(np.sum(lam <= ROUND_OFF * lam[-1])) if lam.size else 0
+    return k, identifiability.subspace_participation(W[:, :k], names)
+
+
 def dossier(
     problem,
     theta_hat,
@@ -89,7 +97,7 @@ def dossier(
     prior_along = np.sqrt((W**2).T @ psd_rel**2)
     post_along = direction_draws(samples, W, theta_hat).std(axis=0, ddof=1)
     cr = np.where(lam > 0, 1.0 / np.sqrt(np.clip(lam, 1e-300, None)), np.inf)
-    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1]))  # eigenvalues at round-off level
+    k_round, participation = _round_off(lam, W, names)
     rows = []
     for k, d in enumerate(dirs):
         rows.append(
@@ -145,7 +153,7 @@ def dossier(
         structural_nulls=nulls,
         structural_null_fim_angles_deg=null_angles,
         n_round_off_eigenvalues=k_round,
-        round_off_participation=identifiability.subspace_participation(W[:, :k_round], names),
+        round_off_participation=participation,
         angle_sloppiest_vs_widest_posterior_axis_deg=angle_sloppy,
         angle_stiffest_vs_narrowest_posterior_axis_deg=angle_stiff,
         posterior_axis_widest=identifiability.Direction(float(ev[-1]), EV[:, -1], names).label(),
@@ -248,7 +256,7 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
     with np.errstate(invalid="ignore"):
         prior_along = np.sqrt((W**2).T @ (psd / D) ** 2)
     lam = np.array([d.eigenvalue for d in dirs])
-    k_round = int(np.sum(lam <= ROUND_OFF * lam[-1])) if lam.size else 0  # round-off level
+    k_round, participation = _round_off(lam, W, names)
     rows = []
     for k, d in enumerate(dirs):
         rows.append(
@@ -292,7 +300,7 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
         directions=rows,
         sloppy=rows[:top],
         n_round_off_eigenvalues=k_round,
-        round_off_participation=identifiability.subspace_participation(W[:, :k_round], names),
+        round_off_participation=participation,
         collinearity=identifiability.collinearity_table(R, names, sizes=(2, 3), top=top),
         coefficients=coef,
         moved=moved,

@@ -329,6 +329,11 @@ def untied_candidates(model, dofs=("Y", "N")) -> list[str]:
     return [k for k in veh.tied if k not in model.free]
 
 
+def _tied(vehicle) -> dict:
+    """``{tied coefficient: the one it follows}`` of a ship (:attr:`Ship.tied`); empty otherwise."""
+    return vehicle.tied if isinstance(vehicle, Ship) else {}
+
+
 def reference_values(ref: Stage, names: list) -> dict:
     """Each candidate's value in the reference model: 0 for a term it lacks; for a tied
     coefficient the value of the one it follows (the reference fit's, when that one is free).
@@ -346,7 +351,7 @@ def reference_values(ref: Stage, names: list) -> dict:
         ``{name: prime value}``.
     """
     veh = ref.model.vehicle
-    tied = veh.tied if isinstance(veh, Ship) else {}
+    tied = _tied(veh)
     fitted = ref.fit.coefficients()
     return {n: float(fitted.get(tied[n], veh.coefficients.get(tied[n], 0.0))) if n in tied else 0.0 for n in names}
 
@@ -645,7 +650,7 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     r, J = obj.jacobian(np.asarray(obj.x0, float))
     # an untied coefficient takes its side from the one it followed: the reference's column of
     # that one is the sum of both (so the free directions projected out are the reference's own)
-    tied = ref.model.vehicle.tied if isinstance(ref.model.vehicle, Ship) else {}
+    tied = _tied(ref.model.vehicle)
     for n in names:
         if n in tied and tied[n] in model.param_names:
             J[:, model.param_names.index(tied[n])] += J[:, model.param_names.index(n)]
@@ -908,7 +913,7 @@ def _row(term: str, st: Stage | None, ref: Stage, sel: dict | None, floor_rms: f
     sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
     row = {
         "term": term,
-        "dof": "XYN" if term in getattr(ref.model.vehicle, "tied", {}) else term[0],
+        "dof": "XYN" if term in _tied(ref.model.vehicle) else term[0],
         "inclusion_probability": sel["inclusion"].get(term, 0.0),
         "group_inclusion_probability": sel["group_probability"].get(term, 0.0),
         "group": sel["groups"].get(term, []),
