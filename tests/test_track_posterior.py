@@ -229,3 +229,22 @@ def test_the_jackknife_factor_measures_the_scatter_between_runs():
     assert tp.jackknife_factor(bad, cov)["factor"] < 3 * max(f["factor"], 1.0)
     few = tp.jackknife_factor(np.ones((2, 3)), cov)
     assert few["n_folds"] == 2 and few["factor"] == 1.0  # too few folds: no factor
+
+
+def test_sample_stops_mcmc_at_its_step_budget_and_repeats_it_exactly(two_runs):
+    # --max-steps: a budget in steps, unlike --max-minutes the same on any machine; twice the same chains
+    import arviz as az
+
+    d, files = two_runs
+    runs = []
+    for k in range(2):
+        out = d / f"s_steps{k}"
+        assert _sample(d, files, out, "--method", "mcmc", "--max-steps", "30") == 0
+        doc = json.loads((out / "sample.json").read_text())
+        assert (
+            doc["method"] == "mcmc" and "30 steps" in doc["verdict"]["text"] and "max_steps" in doc["verdict"]["text"]
+        )
+        runs.append(az.from_netcdf(out / "posterior.nc"))
+    for n in runs[0].posterior.data_vars:
+        np.testing.assert_array_equal(runs[0].posterior[n].values, runs[1].posterior[n].values)
+    assert _sample(d, files, d / "s_bad", "--max-steps", "0") == 2  # named, exit code 2

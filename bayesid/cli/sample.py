@@ -57,6 +57,15 @@ def add_parser(sub) -> None:
     positive = (lambda v: v > 0, "{option} must be positive, not {value:g}")
     opt.add_number(sm, "--df", positive, default=5.0, help="degrees of freedom of the Student-t proposal")
     opt.add_number(sm, "--max-minutes", positive, default=20.0, help="wall budget of the whole run incl. MCMC, min")
+    opt.add_number(
+        sm,
+        "--max-steps",
+        (lambda v: v >= 1, "{option} must be at least 1, not {value:g}"),
+        kind=int,
+        default=None,
+        help="step budget of the MCMC refinement, steps per walker (reproducible on any machine, unlike "
+        "--max-minutes); default: until converged",
+    )
     opt.add_seed(sm, "random seed of every draw")
     opt.add_prior(
         sm, "file: Gaussian priors of the vehicle file's [prior] section; none: uniform in the model's bounds"
@@ -256,7 +265,11 @@ def _sample(args, model, p, doc, got: dict, model_sha: str, out: Path):
         problem,
         p,
         tp.SampleOptions(
-            method=args.method, use_prior=args.prior == "file", seed=args.seed, max_minutes=args.max_minutes
+            method=args.method,
+            use_prior=args.prior == "file",
+            seed=args.seed,
+            max_minutes=args.max_minutes,
+            max_steps=args.max_steps,
         ),
         importance=tp.ImportanceOptions(n_draws=args.draws, df=args.df),
         folds=doc.calibration.fold_optima() if doc.calibration is not None else [],

@@ -780,6 +780,10 @@ class SampleOptions:
         The one seed of every random draw (proposal, resampling, noise scales, ensembles).
     max_minutes : float, default 20.0
         Wall budget of the MCMC refinement (from the start of the sampling).
+    max_steps : int, optional
+        Step budget of the MCMC refinement (steps per walker); None: that of
+        :data:`TRACK_SAMPLER`. A run that stops on it gives the same chains on any machine from
+        the same seed; one that stops on ``max_minutes`` depends on the machine's speed.
 
     Raises
     ------
@@ -791,12 +795,15 @@ class SampleOptions:
     use_prior: bool = True
     seed: int = 0
     max_minutes: float = 20.0
+    max_steps: int | None = None
 
     def __post_init__(self):
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, not {self.method!r}")
         if not self.max_minutes > 0:
             raise ValueError(f"max_minutes must be positive, not {self.max_minutes}")
+        if self.max_steps is not None and not int(self.max_steps) >= 1:
+            raise ValueError(f"max_steps must be a positive number of steps, not {self.max_steps}")
 
 
 METHODS = ("auto", "importance", "mcmc")
@@ -1087,8 +1094,18 @@ def sample_tracks(
     if options.method == "mcmc" or (options.method == "auto" and not verdict["converged"]):
         t = time.perf_counter()
         budget = max(60.0, 60.0 * options.max_minutes - (time.perf_counter() - t0))
-        say(f"MCMC: {sampler.n_ensembles} emcee ensembles until converged or {budget / 60:.1f} min")
-        cfg = dataclasses.replace(sampler, max_wall_s=budget, progress=runner.progress is not None)
+        say(
+            f"MCMC: {sampler.n_ensembles} emcee ensembles until converged, "
+            f"{sampler.max_steps if options.max_steps is None else int(options.max_steps)} steps or {budget / 60:.1f} min"
+        )
+        steps = sampler.max_steps if options.max_steps is None else int(options.max_steps)
+        cfg = dataclasses.replace(
+            sampler,
+            max_wall_s=budget,
+            min_steps=min(sampler.min_steps, steps),
+            max_steps=steps,
+            progress=runner.progress is not None,
+        )
         mc = _mcmc(post, mode, cfg, np.random.default_rng(seeds[3]), checkpoint, runner)
         secs["mcmc"] = time.perf_counter() - t
         diag = mc["diagnostics"]
