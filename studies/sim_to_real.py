@@ -445,14 +445,17 @@ def group_scores(rs: list[dict]) -> dict:
 
 
 def structural_scores(rs: list[dict]) -> dict:
-    """What structure discovery named on the structural cases: a case is *named* when a kept term
-    is one of its expected terms or has one in its collinear group; *clear* when the diagnosis'
-    remainder was significant (only there does discovery run)."""
+    """What structure discovery named on the structural cases: a case is *named* when a term of
+    the verdict (kept, and in the model discovery ends with) is one of its expected terms or has
+    one in its collinear group; *clear* when the verdict has a discovery: beside round 1 when its
+    terms took the round, or after the rounds on a significant remainder (a catalogue effect that
+    closes the gap and is not beaten leaves nothing for the library)."""
     rows = []
     for r in rs:
         d = r["diagnosis"]
         found = d.get("discovery") or {}
-        kept = [t for t in found.get("discovered", []) if t["kept"]]
+        first = d.get("discovery_first") or {}
+        kept = [t for t in found.get("discovered", []) if t["kept"] and t["term"] in found.get("found", [])]
         expected = set(r["case"]["expected_terms"])
         hit = [t for t in kept if expected & {t["term"], *t.get("group", [])}]
         rows.append(
@@ -467,6 +470,11 @@ def structural_scores(rs: list[dict]) -> dict:
                 "clear": bool(found),
                 "kept": [t["term"] for t in kept],
                 "effects_added": d["effects_added"],
+                "first_round": (
+                    {k: first[k] for k in ("found", "heldout_rms_m", "effect", "effect_heldout_rms_m", "took_round")}
+                    if first
+                    else None
+                ),
                 "n_refitted": len(found.get("discovered", [])),
                 "n_refits_failed": sum(bool(t.get("refit_failed")) for t in found.get("discovered", [])),
                 "named": bool(hit),
@@ -682,6 +690,17 @@ def main():
     )
 
 
+def _first_round_cell(f: dict | None) -> str:
+    """A structural row's discovery beside round 1: terms and held-out m against the effect's."""
+    from bayesid.report import fmt
+
+    if not f:
+        return "-"
+    terms = "+".join(f["found"]) or "no term"
+    who = "terms" if f["took_round"] else f["effect"]
+    return f"{terms} {fmt(f['heldout_rms_m'])} vs {f['effect']} {fmt(f['effect_heldout_rms_m'])}: {who}"
+
+
 def structural_lines(s: dict) -> list[str]:
     """The structural cases' section: what discovery named (issue 40)."""
     from bayesid.report import fmt, md_table
@@ -697,6 +716,7 @@ def structural_lines(s: dict) -> list[str]:
             x.get("train_starts", "fitted")
             + (f" ({x['train_starts_used']} used)" if x.get("train_starts_used") else ""),
             x["verdict"],
+            _first_round_cell(x.get("first_round")),
             ", ".join(x["effects_added"]) or "-",
             f"{x['n_refitted']} ({x['n_refits_failed']} failed)" if x["clear"] else "-",
             ", ".join(x["kept"]) or "-",
@@ -712,18 +732,21 @@ def structural_lines(s: dict) -> list[str]:
         "",
         "Hidden structure outside the catalogue (a constant yaw moment, a rudder that stalls beyond 13.5 deg) "
         "or a term of the vehicle removed from the model the diagnosis gets; the diagnosis runs with structure "
-        "discovery (`bayesid.analysis.gap.discovery`). *Named*: a kept term is one of "
+        "discovery (`bayesid.analysis.gap.discovery`). *Named*: a term of the verdict is one of "
         + "; ".join(f"structural_{name}: {', '.join(expected)}" for name, *_, expected in STRUCTURAL)
-        + " (or has one in its collinear group); *not clear*: the remainder after the catalogue effects was not "
-        "significant, so discovery did not run. Held-out RMS (m) before and after the kept terms.",
+        + " (or has one in its collinear group); *not clear*: a catalogue effect closed the gap (and discovery's "
+        "terms beside round 1, if any, did not beat it), so the verdict has no discovery. Held-out RMS (m) "
+        "before and after the kept terms.",
         "",
         f"Named in {fmt(s['structural_named_rate'])} of {s['n_structural_clear']} clear cases with the default "
         f"training window starts (fitted), and in {fmt(s.get('structural_named_rate_auto'))} of "
         f"{s.get('n_structural_clear_auto', 0)} clear cases of the same tracks without the log with `--train-starts "
         "auto` (the base fit refitted with window starts held at the kinematics when the start check flags them "
-        "and the held starts predict the training runs better). Discovery runs on the "
-        "model after the catalogue effects the greedy rounds added (*catalogue effects first*): where those mimic "
-        "the hidden structure in part, what is left for the library is what they did not absorb. *Terms "
+        "and the held starts predict the training runs better). *Beside round 1*: when round 1 has a catalogue "
+        "effect to add, discovery also runs on the base model, and its kept terms take the round when they beat "
+        "that effect on the held-out windows (`discovery_beside_round_one`; terms held-out m vs effect held-out m, "
+        "and who took the round); the catalogue effects are then tried on top of them. Otherwise discovery runs "
+        "on the model after the effects the greedy rounds added. *Kept*: the terms of the verdict. *Terms "
         "refitted*: the library terms confirmed by a refit, and how many of those refits ended above their "
         "reference on the training runs (a failed fit: with fitted window starts, see the base-fit check).",
         "",
@@ -734,7 +757,8 @@ def structural_lines(s: dict) -> list[str]:
                 "velocity log",
                 "training window starts",
                 "verdict",
-                "catalogue effects first",
+                "beside round 1",
+                "catalogue effects",
                 "terms refitted",
                 "kept",
                 "named",

@@ -476,3 +476,44 @@ def test_a_refit_warm_starts_from_the_window_starts_of_the_fit_it_extends():
         fit_model(FitProblem(m, ctxs, sd, max_nfev=1), f.p, starts0=[s[:-1] for s in f.window_starts])
     # measured starts have none to keep
     assert fit_model(FitProblem(m, [m.context(t, 30.0) for t in train], sd, max_nfev=1)).window_starts is None
+
+
+def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it():
+    # an NPS AUV II whose model lacks its constant yaw moment (Nprop; the world has 5e-4): waves and a
+    # sensor bias each absorb part of it, and round 1 alone would add waves (held-out 15.6 -> 4.0 m,
+    # measured). Discovery beside round 1, on the base model, keeps Nprop and takes the round, so the
+    # verdict names the term first and the effects are tried on top of it
+    from bayesid.data.vehicle import load_vehicle
+    from bayesid.models import manoeuvres as mv
+    from bayesid.models.world import world_track
+
+    veh = load_vehicle("nps_auv2")
+    world = veh.with_coefficients({"Nprop": 5e-4})
+    rng = np.random.default_rng(5)
+    runs = {
+        "train": [mv.zigzag(veh, 20.0, dt=0.1, duration=150.0), mv.prbs(veh, 15.0, duration=150.0, rng=rng)],
+        "held": [
+            mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1),
+            mv.prbs(veh, 10.0, duration=150.0, rng=np.random.default_rng(2)),
+        ],
+    }
+    train, held = ([world_track(world, m, {}, rng, name=f"{k}_{i}") for i, m in enumerate(v)] for k, v in runs.items())
+    options = gap.DiagnoseOptions(
+        candidates=("sensor_bias", "waves", "crossflow"), window_s=60.0, max_nfev=40, discover=dv.DiscoveryOptions()
+    )
+    d = gap.diagnose(veh, ["Yv", "Nr", "Ndr"], train, held, options, rng=np.random.default_rng(0))
+    F = d.discovery_first
+    assert F["effect"] == d.ranking[0]["effect"] and F["effect_role"] in ("cause", "contributor")
+    assert F["took_round"] and F["found"] == ["Nprop"] == d.discovery["found"]
+    assert F["heldout_rms_m"] < F["effect_heldout_rms_m"]
+    assert d.verdict.startswith("discovered: Nprop"), d.verdict
+    assert d.discovery["settings"]["reference_effects"] == []  # found on the base model
+    # the model after the rounds has the term, fitted near the world's value
+    assert d.after_fit["coefficients"]["Nprop"] == pytest.approx(5e-4, rel=0.2)
+    assert d.gap_after["heldout_rms_m"] <= F["heldout_rms_m"] + 1e-12
+    json.dumps(d.to_dict())
+    # the same data with discovery only after the rounds: waves is added first
+    late = gap.diagnose(
+        veh, ["Yv", "Nr", "Ndr"], train, held, dataclasses.replace(options, discover=None), rng=np.random.default_rng(0)
+    )
+    assert late.effects_added[:1] == [F["effect"]] and late.discovery_first == {}

@@ -203,7 +203,9 @@ def run_and_write(args, vehicle, free, got: dict, options) -> None:
         if found is None or not found.found:
             print(f"--write-vehicle: no term was kept, {args.write_vehicle} not written")
         else:
-            values = {n: found.after_coefficients[n] for n in found.found}
+            # the final model's values (the effects may have been fitted on top of the terms)
+            final = res.after_fit["coefficients"]
+            values = {n: final.get(n, found.after_coefficients[n]) for n in found.found}
             note = f"discovered by bayesid ({Path(args.out) / 'diagnosis.json'}); a start value for bayesid fit"
             src = vehicle.file_path
             path = write_vehicle_with_terms(src, values, args.write_vehicle, note, args.overwrite)

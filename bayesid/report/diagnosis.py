@@ -121,9 +121,41 @@ def _figures(diag, res: dict, out: Path, heldout: list) -> list:
     figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
     figs.append(plots.gap_regions(res["where"], out / "figures" / "regions.png"))
     if diag.base is not None and heldout:
-        after = diag.after if res["effects_added"] else None
+        after = diag.after if _added(res) else None
         figs.append(_window_figure(diag.base, after, res, heldout[0], out / "figures" / "heldout_track.png"))
     return figs
+
+
+def _added(res: dict) -> list:
+    """What the model after the rounds has on top of the base model, in the order added: the
+    discovered terms when they took round 1 (``discovery_first``), then the effects."""
+    first = res.get("discovery_first") or {}
+    return [*(first["found"] if first.get("took_round") else []), *res["effects_added"]]
+
+
+def _first_round_lines(res: dict) -> list:
+    """Discovery beside round 1: its terms on the base model against round 1's best effect."""
+    F = res.get("discovery_first") or {}
+    if not F:
+        return []
+    terms = "+".join(F["found"]) or "no term"
+    test = (
+        f"as a {F['role']}; paired window test against the effect p = {fmt(F['window_p_value'])}, "
+        f"{fmt(F['share_of_effect_excess'])} of its excess over the floor removed"
+        if F["window_p_value"] is not None
+        else "no term kept"
+    )
+    return [
+        f"Beside round 1, discovery on the base model kept {terms} (held-out {fmt(F['heldout_rms_m'])} m, {test}) "
+        f"against round 1's {F['effect_role']} **{F['effect']}** ({fmt(F['effect_heldout_rms_m'])} m), ranked "
+        "by the rounds' rule (a cause first, then the lower held-out RMS): "
+        + (
+            "the terms took round 1 and the effects were tried on top of them; the discovery below is that one."
+            if F["took_round"]
+            else "the effect took round 1; the discovery below ran after the rounds."
+        ),
+        "",
+    ]
 
 
 def _window_figure(before, after, res: dict, track, path, labels=("base model", "with top effect")):
@@ -171,7 +203,7 @@ def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
     if found.after is not None and heldout:
         path = out / "figures" / "discovery_track.png"
         labels = ("reference model", "with " + "+".join(D["found"]))
-        figs.append(_window_figure(diag.after, found.after, res, heldout[0], path, labels))
+        figs.append(_window_figure(found.reference or diag.after, found.after, res, heldout[0], path, labels))
     return figs
 
 
@@ -185,6 +217,7 @@ def _discovery_lines(res: dict) -> list:
     lines = [
         "## What the model lacks (structure discovery)",
         "",
+        *_first_round_lines(res),
         f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
         f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
         f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "
@@ -339,7 +372,7 @@ def _how_far_lines(res: dict) -> list:
                     fmt(g.get("train_log_likelihood"), 5),
                     fmt(g.get("heldout_log_likelihood"), 5),
                 ]
-                for label, g in (("base model", gb), ("with " + ("+".join(res["effects_added"]) or "nothing"), ga))
+                for label, g in (("base model", gb), ("with " + ("+".join(_added(res)) or "nothing"), ga))
             ],
         ),
         "",

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, fields, replace
+from functools import partial
 
 import numpy as np
 
@@ -25,12 +26,29 @@ from ...models import model_class
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
-from .discovery import discover
+from .discovery import Discovery, discover, with_terms
 from .support import signature_regression
-from .verdict import Thresholds, assign_roles, contribution, gap_summary, noise_floor, verdict_of
+from .verdict import (
+    Thresholds,
+    assign_roles,
+    contribution,
+    gap_summary,
+    is_cause,
+    noise_floor,
+    paired_window_test,
+    verdict_of,
+)
 from .where import where
 
-__all__ = ["DiagnoseOptions", "Diagnosis", "diagnose", "base_fit_check", "BASE_FIT_RATIO"]
+__all__ = [
+    "DiagnoseOptions",
+    "Diagnosis",
+    "FirstRound",
+    "diagnose",
+    "discovery_beside_round_one",
+    "base_fit_check",
+    "BASE_FIT_RATIO",
+]
 
 
 @dataclass
@@ -93,8 +111,13 @@ class Diagnosis:
     round_seconds : list of float
         Wall time of each candidate round.
     discovery : dict
-        Structure discovery on the model after the effects (:mod:`bayesid.analysis.gap.discovery`;
-        ``discovered`` lists every refitted term), or ``{}`` when it was not run.
+        Structure discovery (:mod:`bayesid.analysis.gap.discovery`; ``discovered`` lists every
+        refitted term) on the model after the effects, or on the base model when its terms took
+        round 1 (``discovery_first``); ``{}`` when it was not run.
+    discovery_first : dict
+        Discovery beside round 1 (:func:`discovery_beside_round_one`): whether discovery's terms
+        on the base model beat round 1's best catalogue effect, with both held-out RMS and the
+        paired window test; ``{}`` when round 1 had no effect to add or discovery was not run.
     base_check : dict
         Whether the base fit can be trusted (:func:`base_fit_check`), with ``multistart``: the
         extra starts' summary (``DiagnoseOptions.base_starts``), or None.
@@ -137,6 +160,7 @@ class Diagnosis:
     seconds: float
     round_seconds: list = field(default_factory=list)
     discovery: dict = field(default_factory=dict)
+    discovery_first: dict = field(default_factory=dict)
     base_check: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
     after: Stage = field(repr=False, default=None)
@@ -201,8 +225,11 @@ class DiagnoseOptions:
         Effects of the base model (names or objects; e.g. those of a fitted model.json): every
         model compared has them, the candidates are tried on top.
     discover : DiscoveryOptions or None, default None
-        Run structure discovery (:func:`bayesid.analysis.gap.discovery.discover`) on the model after
-        the effects when its remainder is significant; None: not run.
+        Run structure discovery (:func:`bayesid.analysis.gap.discovery.discover`): beside round 1
+        on the base model when round 1 has an effect to add (the model with its terms is one more
+        candidate of the round; when it ranks first, the effects are tried on top of it:
+        :func:`discovery_beside_round_one`), else on the model after the effects when its
+        remainder is significant; None: not run.
     train_starts : {"fitted", "kinematic", "auto"}, default "fitted"
         Under the fitted start rule, the training fits' window starts: fitted with the model,
         held at the tracks' kinematics (:func:`bayesid.estimation.shooting.kinematic_contexts`),
@@ -337,28 +364,55 @@ def diagnose(
     seeds = _seeds(cand_effects, base, bfit, ctr, train)
     significant = bool(b_held["rms_position_m"] > th.none_ratio * floor["rms_position_m"])
     base_stage = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
+    disc_context = {"sd_fit": sd_fit, "floor_rms": floor["rms_position_m"], "thresholds": th}
+    beside = None
+    if opt.discover is not None and significant:
+        # its own stream, spawned without drawing from rng: a diagnosis where round 1 adds
+        # nothing gets the same numbers as before this stage existed
+        beside = partial(
+            discovery_beside_round_one,
+            setup,
+            base_stage,
+            options=opt.discover,
+            context=disc_context,
+            rng=rng.spawn(1)[0],
+            runner=runner,
+        )
     search = _greedy_rounds(
-        setup, cand_effects, base_stage, (sd_fit, seeds, opt.max_nfev), floor, significant, th, opt.max_effects, runner
+        setup,
+        cand_effects,
+        base_stage,
+        (sd_fit, seeds, opt.max_nfev),
+        (floor, significant, th),
+        opt.max_effects,
+        runner,
+        beside=beside,
     )
     after = search["after"]
     chosen, roles, ranking = search["chosen"], search["roles"], search["ranking"]
     contributors, remainder = _outcome(search, floor, b_held, significant, th)
     remainder_sig = remainder["significant"]
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
-    verdict = verdict_of(significant, chosen, remainder_sig)
-    found = None
-    if opt.discover is not None and remainder_sig:
-        say("structure discovery")
-        found = discover(
-            setup,
-            after,
-            list(after.model.effects),  # in the model's own order (its parameter vector's)
-            opt.discover,
-            {"sd_fit": sd_fit, "floor_rms": floor["rms_position_m"], "significant": remainder_sig, "thresholds": th},
-            rng=rng,
-            runner=runner,
-        )
-        verdict += " -> " + found.verdict
+    first = search["discovery_first"]
+    found = first.discovery if first is not None and first.took_round else None
+    if found is not None:  # discovery's terms came first, the effects on top of them
+        verdict = f"discovered: {'+'.join(found.found)}"
+        verdict += (" -> " + verdict_of(True, chosen, remainder_sig)) if chosen else ""
+        verdict += "+unexplained" if remainder_sig and not chosen else ""
+    else:
+        verdict = verdict_of(significant, chosen, remainder_sig)
+        if opt.discover is not None and remainder_sig:
+            say("structure discovery")
+            found = discover(
+                setup,
+                after,
+                list(after.model.effects),  # in the model's own order (its parameter vector's)
+                opt.discover,
+                dict(disc_context, significant=remainder_sig),
+                rng=rng,
+                runner=runner,
+            )
+            verdict += " -> " + found.verdict
     return Diagnosis(
         verdict=verdict,
         effects_added=chosen,
@@ -395,6 +449,7 @@ def diagnose(
         seconds=time.perf_counter() - t_start,
         round_seconds=search["seconds"],
         discovery=found.to_dict() if found is not None else {},
+        discovery_first=first.summary if first is not None else {},
         base_check=dict(check, multistart=base_ms),
         base=base_stage,
         after=after,
@@ -632,10 +687,12 @@ def start_check(model, fit, setup: Setup, sd_fit: dict) -> dict:
     }
 
 
-def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant, th, max_effects, runner) -> dict:
+def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects, runner, beside=None) -> dict:
     """The candidate rounds of :func:`diagnose`: each round fits every effect not yet chosen on
     top of the chosen ones (as tasks), ranks them on the held-out windows and adds the best cause
-    (which ends the search) or the best contributor.
+    (which ends the search) or the best contributor. With ``beside``, discovery's terms compete
+    in round 1 (:func:`discovery_beside_round_one`): when they take it, the later rounds try the
+    effects on top of them.
 
     Parameters
     ----------
@@ -647,24 +704,26 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant
         The base model.
     fit_args : tuple
         ``(channel weights, seeds, iterations)``.
-    floor : dict
-        The noise floor's scores.
-    significant : bool
-        Whether the gap is significant.
-    th : Thresholds
-        The verdict's thresholds.
+    judge : tuple
+        ``(floor, significant, thresholds)``: the noise floor's scores, whether the gap is
+        significant and the verdict's thresholds.
     max_effects : int
         Greedy rounds.
     runner : Runner
         Runs the candidates of a round as tasks.
+    beside : callable, optional
+        ``beside(results, stages) -> FirstRound or None``, called after round 1.
 
     Returns
     -------
     dict
-        ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles``, ``after`` (the last stage) and
-        ``seconds`` (wall time of each round).
+        ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles``, ``after`` (the last stage),
+        ``seconds`` (wall time of each round) and ``discovery_first`` (:class:`FirstRound` or
+        None).
     """
     sd_fit, seeds, max_nfev = fit_args
+    floor, significant, th = judge
+    first = None
     say = runner.say
     band = th.none_ratio * floor["rms_position_m"]
     excess0 = base_stage.held["rms_position_m"] - floor["rms_position_m"]
@@ -717,11 +776,14 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant
         seconds.append(time.perf_counter() - t_round)
         if rnd == 0:
             ranking = results
-        # the best-ranked cause closes the gap; else the best-ranked contributor is added and the
-        # next round looks for what explains the rest
-        top = next((r for r in results if r["role"] == "cause"), None) or next(
-            (r for r in results if r["role"] == "contributor"), None
-        )
+        top = _best_effect(results)
+        if rnd == 0 and beside is not None:
+            first = beside(results, stages)
+            if first is not None and first.took_round:  # the effects are tried on top of its terms
+                setup, current = first.setup, first.discovery.after
+                if current.held["rms_position_m"] <= band:
+                    break
+                continue
         if top is None:
             break
         chosen.append(top["effect"])
@@ -736,7 +798,130 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, floor, significant
         "roles": roles,
         "after": current,
         "seconds": seconds,
+        "discovery_first": first,
     }
+
+
+def _best_effect(results: list) -> dict | None:
+    """The effect a round adds: the best-ranked cause (it closes the gap), else the best-ranked
+    contributor (the next round looks for what explains the rest), else None."""
+    return next((r for r in results if r["role"] == "cause"), None) or next(
+        (r for r in results if r["role"] == "contributor"), None
+    )
+
+
+@dataclass
+class FirstRound:
+    """Discovery beside round 1 (:func:`discovery_beside_round_one`).
+
+    Parameters
+    ----------
+    discovery : Discovery
+        Structure discovery on the base model.
+    took_round : bool
+        Whether its terms took round 1 from the catalogue's best effect.
+    setup : Setup or None
+        The diagnosis' setup with the kept terms added (free, at their fitted values) when they
+        took the round, else None.
+    summary : dict
+        The JSON-able comparison (``Diagnosis.discovery_first``).
+    """
+
+    discovery: Discovery
+    took_round: bool
+    setup: Setup | None
+    summary: dict
+
+
+def discovery_beside_round_one(
+    setup: Setup, base: Stage, results: list, stages: dict, *, options, context: dict, rng, runner: Runner
+) -> FirstRound | None:
+    """Let structure discovery compete with the catalogue in round 1 of a diagnosis.
+
+    An effect of the catalogue that partly mimics a missing term is added first by the greedy
+    rounds, and the term is then hard to find on top of it (sim_to_real's constant yaw moment:
+    waves absorbs part of it). So discovery also runs on the base model
+    (:func:`bayesid.analysis.gap.discovery.discover`), and the model with its kept terms is one
+    more candidate of round 1, with a role by the same rules
+    (:func:`~bayesid.analysis.gap.verdict.is_cause`; its terms passed the contributor test when
+    they were kept) and ranked by the round's own rule: the best-ranked cause, else the
+    best-ranked contributor, by held-out RMS. When it ranks first, its terms take the round.
+    When round 1 has no effect to add, nothing is run here: discovery after the rounds starts
+    from the same base model.
+
+    The summary also gives the paired window test of the terms' model against the effect's and
+    the share of the effect's excess over the floor the terms remove; the decision does not use
+    them (the rounds compare their candidates by held-out RMS too).
+
+    Parameters
+    ----------
+    setup : Setup
+        The diagnosis' setup.
+    base : Stage
+        The base model, fitted and scored.
+    results : list of dict
+        Round 1's ranked candidates (with their roles).
+    stages : dict
+        ``{effect name: Stage}`` of round 1's fitted candidates.
+    options : DiscoveryOptions
+        Discovery's options.
+    context : dict
+        ``sd_fit``, ``floor_rms`` and ``thresholds`` (:func:`~bayesid.analysis.gap.discovery.discover`).
+    rng : numpy.random.Generator
+        The bootstrap.
+    runner : Runner
+        Runs the refits; progress messages.
+
+    Returns
+    -------
+    FirstRound or None
+        None when round 1 has no effect to add.
+    """
+    top = _best_effect(results)
+    if top is None:
+        return None
+    th = context.get("thresholds", Thresholds())
+    runner.say(f"structure discovery beside round 1 (on the base model, against {top['effect']})")
+    found = discover(
+        setup, base, list(base.model.effects), options, dict(context, significant=True), rng=rng, runner=runner
+    )
+    rival = stages[top["effect"]]
+    p, share, role = None, None, None
+    if found.found:
+        floor_rms = float(context.get("floor_rms", 0.0))
+        before, after = rival.held["rms_position_m"], found.after.held["rms_position_m"]
+        p = paired_window_test(rival.windows, found.after.windows)
+        share = (before - after) / (before - floor_rms) if before > floor_rms else 0.0
+        excess0 = base.held["rms_position_m"] - floor_rms
+        row = {
+            "heldout_rms_m": after,
+            "excess_removed": (base.held["rms_position_m"] - after) / excess0 if excess0 > 0 else 0.0,
+            "delta_bic": found.after.fit.bic - base.fit.bic,
+        }
+        role = "cause" if is_cause(row, True, th.none_ratio * floor_rms, th) else "contributor"
+        rows = [*results, {"effect": None, "heldout_rms_m": after, "role": role}]
+        rows.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
+    took = role is not None and _best_effect(rows)["effect"] is None
+    summary = {
+        "found": list(found.found),
+        "verdict": found.verdict,
+        "heldout_rms_m": found.heldout_rms_after_m,
+        "effect": top["effect"],
+        "effect_role": top["role"],
+        "effect_heldout_rms_m": rival.held["rms_position_m"],
+        "role": role,
+        "window_p_value": p,
+        "share_of_effect_excess": share,
+        "took_round": took,
+        "seconds": found.seconds,
+    }
+    if not took:  # the kept terms' numbers; the discovery in the report is the one after the rounds
+        summary["discovered"] = [
+            {k: r.get(k) for k in ("term", "heldout_rms_after_m", "shrinkage", "delta_bic", "kept")}
+            for r in found.discovered
+        ]
+    terms = {n: found.after_coefficients[n] for n in found.found}
+    return FirstRound(found, took, with_terms(setup, terms) if took else None, summary)
 
 
 def _signature_support(family, cand_effects, base, forces, seeds, rng) -> dict:

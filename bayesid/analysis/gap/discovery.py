@@ -75,6 +75,7 @@ __all__ = [
     "force_residuals",
     "select_terms",
     "fit_term",
+    "with_terms",
     "discover",
 ]
 
@@ -198,6 +199,8 @@ class Discovery:
         Wall time.
     after : Stage, optional
         The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
+    reference : Stage, optional
+        The model the terms were added to; not in :meth:`to_dict`.
     """
 
     found: list
@@ -214,6 +217,7 @@ class Discovery:
     settings: dict
     seconds: float
     after: Stage | None = field(repr=False, default=None)
+    reference: Stage | None = field(repr=False, default=None)
 
     def to_dict(self) -> dict:
         """The JSON-able fields.
@@ -221,9 +225,9 @@ class Discovery:
         Returns
         -------
         dict
-            ``{field: value}`` without ``after``.
+            ``{field: value}`` without ``after`` and ``reference``.
         """
-        return {k: v for k, v in self.__dict__.items() if k != "after"}
+        return {k: v for k, v in self.__dict__.items() if k not in ("after", "reference")}
 
 
 # -- 2. candidate terms ---------------------------------------------------------------------------
@@ -812,8 +816,23 @@ class TermFit:
     initial: float = 0.0
 
 
-def _with_terms(setup: Setup, values: dict) -> Setup:
-    """``setup`` with the terms added to its vehicle (at ``values``) and to its free list."""
+def with_terms(setup: Setup, values: dict) -> Setup:
+    """A setup with terms added to its vehicle and to its free coefficients.
+
+    Parameters
+    ----------
+    setup : Setup
+        The setup (:class:`bayesid.analysis.gap.candidates.Setup`).
+    values : dict
+        ``{term: value}``, prime (names as a vehicle file writes them); terms already free keep
+        their place in the free list.
+
+    Returns
+    -------
+    Setup
+        A copy whose vehicle has the terms at ``values`` and whose free list ends with the new
+        ones, in ``values``' order.
+    """
     return replace(
         setup,
         vehicle=setup.vehicle.with_coefficients(values),
@@ -882,7 +901,7 @@ def fit_term(task: TermFit) -> tuple[Stage | None, list]:
     messages : list
         About failed starts (str), and ``("sd", value)``: the term's Laplace sd.
     """
-    setup = _with_terms(task.setup, {task.term: task.initial})
+    setup = with_terms(task.setup, {task.term: task.initial})
     model, ct, ch = setup.build([e for e in task.effects if e not in setup.effects])
     problem = FitProblem(model, ct, task.sd_fit, max_nfev=task.max_nfev)
     nu0 = _nuisance_start(task.ref, model)
@@ -996,7 +1015,7 @@ def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple
     for n in order[1:]:
         if cur.held["rms_position_m"] <= th.none_ratio * floor_rms:
             break  # the gap is closed: a further term would fit noise
-        trial = _with_terms(setup, {**values, n: initial[n]})
+        trial = with_terms(setup, {**values, n: initial[n]})
         model, ct, ch = trial.build([e for e in effects if e not in setup.effects])
         p0 = _extended_start(ref, model, [*values.values(), initial[n]])
         n_ref = ref.model.n_theta
@@ -1158,4 +1177,5 @@ def discover(
         },
         seconds=time.perf_counter() - t0,
         after=after,
+        reference=ref,
     )
