@@ -708,6 +708,8 @@ def structural_lines(s: dict) -> list[str]:
     rows = s.get("structural") or []
     if not rows:
         return []
+    n_named = sum(x["named"] for x in rows if x["clear"] and x.get("train_starts", "fitted") == "fitted")
+    n_named_auto = sum(x["named"] for x in rows if x["clear"] and x.get("train_starts") == "auto")
     table = [
         [
             x["id"],
@@ -738,15 +740,18 @@ def structural_lines(s: dict) -> list[str]:
         "terms beside round 1, if any, did not beat it), so the verdict has no discovery. Held-out RMS (m) "
         "before and after the kept terms.",
         "",
-        f"Named in {fmt(s['structural_named_rate'])} of {s['n_structural_clear']} clear cases with the default "
-        f"training window starts (fitted), and in {fmt(s.get('structural_named_rate_auto'))} of "
+        f"Named in {n_named} of {s['n_structural_clear']} clear cases with the default "
+        f"training window starts (fitted), and in {n_named_auto} of "
         f"{s.get('n_structural_clear_auto', 0)} clear cases of the same tracks without the log with `--train-starts "
         "auto` (the base fit refitted with window starts held at the kinematics when the start check flags them "
         "and the held starts predict the training runs better). *Beside round 1*: when round 1 has a catalogue "
-        "effect to add, discovery also runs on the base model, and its kept terms take the round when they beat "
-        "that effect on the held-out windows (`discovery_beside_round_one`; terms held-out m vs effect held-out m, "
-        "and who took the round); the catalogue effects are then tried on top of them. Otherwise discovery runs "
-        "on the model after the effects the greedy rounds added. *Kept*: the terms of the verdict. *Terms "
+        "effect to add, discovery also runs on the base model, and the model with its kept terms is one more "
+        "candidate of the round, ranked by the rounds' rule (a cause first, then the lower held-out RMS; "
+        "`discovery_beside_round_one`; the cell gives the terms' held-out m against the effect's and who took the "
+        "round); when the terms take it, the catalogue effects are tried on top of them. Otherwise discovery runs "
+        "on the model after the effects the greedy rounds added. The library's constant yaw moment, `Nprop`, is "
+        "in prime form (a moment in u^2), while the hidden yaw moment is constant in N m: on tracks whose speed "
+        "varies no term of the library represents it exactly. *Kept*: the terms of the verdict. *Terms "
         "refitted*: the library terms confirmed by a refit, and how many of those refits ended above their "
         "reference on the training runs (a failed fit: with fitted window starts, see the base-fit check).",
         "",
