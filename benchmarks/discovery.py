@@ -1,10 +1,12 @@
 """Cost of structure discovery against the gap diagnosis' first round (issue 40: discovery adds
 at most the time of the first round on the same data).
 
-Two cases: a synthetic KVLCC2 set (closed-loop zigzags of the packaged model with a hidden
-``Nabsdr`` term, two training and three held-out runs, 10 Hz, noise; ``bayesid.models.ship.trials``)
-and, when ``../shared/data/real`` is present, the HSVA validation split of studies/real_ships.py.
-Each runs one diagnosis with the ship catalogue (no wind) and discovery, and prints the first
+Three cases: a synthetic KVLCC2 set (closed-loop zigzags of the packaged model with a hidden
+``Nabsdr`` term, two training and three held-out runs, 10 Hz, noise; ``bayesid.models.ship.trials``),
+a synthetic NPS AUV II set whose round 1 has an effect to add (discovery runs beside it) and,
+when ``../shared/data/real`` is present, the HSVA validation split of studies/real_ships.py.
+Each runs one diagnosis (one round) with the ship catalogue less wind (submarine: sensor_bias, waves,
+crossflow) and discovery, and prints the first
 round's wall time, discovery's (beside round 1 and after the rounds, when it ran twice) and their
 ratio.
 
@@ -51,6 +53,25 @@ def synthetic(rng):
     return kv, tracks[:2], tracks[2:]
 
 
+def submarine(rng):
+    """NPS AUV II whose model lacks its constant yaw moment (``Nprop`` 5e-4 in the world): waves
+    and a sensor bias absorb part of it, so round 1 has an effect to add and discovery runs beside
+    it (the case of tests/test_discovery.py)."""
+    from bayesid.data.vehicle import load_vehicle
+    from bayesid.models import manoeuvres as mv
+    from bayesid.models.world import world_track
+
+    veh = load_vehicle("nps_auv2")
+    world = veh.with_coefficients({"Nprop": 5e-4})
+    train = [mv.zigzag(veh, 20.0, dt=0.1, duration=150.0), mv.prbs(veh, 15.0, duration=150.0, rng=rng)]
+    held = [
+        mv.zigzag(veh, 10.0, dt=0.1, duration=150.0, first_sign=-1),
+        mv.prbs(veh, 10.0, duration=150.0, rng=np.random.default_rng(2)),
+    ]
+    tracks = [world_track(world, m, {}, rng, name=f"run{i}") for i, m in enumerate(train + held)]
+    return veh, ["Yv", "Nr", "Ndr"], tracks[:2], tracks[2:]
+
+
 def hsva(data: Path):
     from bayesid.data import datasets
 
@@ -60,12 +81,12 @@ def hsva(data: Path):
     return ship.load_ship("kvlcc2_7m"), [t for t in runs if t not in held], held
 
 
-def measure(name, kv, train, held, max_nfev):
-    cands = [c for c in ship.SHIP_CATALOGUE if c != "wind"]
+def measure(name, kv, train, held, max_nfev, free=None, cands=None):
+    cands = cands or [c for c in ship.SHIP_CATALOGUE if c != "wind"]
     t0 = time.perf_counter()
     d = diagnose(
         kv,
-        kv.free,
+        kv.free if free is None else free,
         train,
         held,
         DiagnoseOptions(
@@ -95,6 +116,9 @@ def main() -> int:
     ap.add_argument("--max-nfev", type=int, default=40)
     args = ap.parse_args()
     measure("synthetic KVLCC2 (hidden Nabsdr)", *synthetic(np.random.default_rng(0)), args.max_nfev)
+    veh, free, train, held = submarine(np.random.default_rng(5))
+    cands = ["sensor_bias", "waves", "crossflow"]
+    measure("synthetic NPS AUV II (hidden Nprop)", veh, train, held, args.max_nfev, free, cands)
     data = Path(args.data)
     if (data / "kvlcc2-simman-hsva").is_dir():
         measure("KVLCC2 HSVA validation split", *hsva(data), args.max_nfev)
