@@ -137,6 +137,7 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
         "where": {k: res["where"][k] for k in ("dominant_channel", "dominant_region", "channels") if k in res["where"]},
         "wind_correlation": res["where"].get("wind_correlation"),
         "discovery": res.get("discovery") or {},
+        "discovery_first": res.get("discovery_first") or {},
     }
     # The scores use the best-ranked candidate even when the rules did not attribute it, so the
     # protocol table always shows what adding the top effect does (verdict says if it counts).
@@ -706,19 +707,53 @@ def discovery_refit(kv, tracks, discovery: dict, args, log) -> dict | None:
     return out
 
 
+def _first_round_lines(name: str, F: dict) -> list[str]:
+    """Report lines: discovery beside round 1 (on the base model, against round 1's effect)."""
+    from bayesid.report import fmt
+
+    if not F:
+        return []
+    if F["found"]:
+        what = f"kept {'+'.join(F['found'])} (held-out 60 s RMS {fmt(F['heldout_rms_m'])} m)"
+    else:
+        fitted = [r for r in F.get("discovered", []) if r.get("heldout_rms_after_m") is not None]
+        best = min(fitted, key=lambda r: r["heldout_rms_after_m"]) if fitted else None
+        what = "kept no term" + (
+            f" (best refitted: {best['term']}, held-out {fmt(best['heldout_rms_after_m'])} m from "
+            f"{fmt(F['heldout_rms_m'])} m, not kept)"
+            if best
+            else ""
+        )
+    who = "the terms took round 1" if F["took_round"] else f"{F['effect']} took round 1"
+    return [
+        f"{name}, beside round 1: discovery on the base model {what}, against round 1's {F['effect_role']} "
+        f"{F['effect']} ({fmt(F['effect_heldout_rms_m'])} m): {who}.",
+        "",
+    ]
+
+
 def discovery_section(E, K) -> list[str]:
     """Report lines: structure discovery on both validation splits and the KVLCC2 refit on all
     13 zigzags."""
     from bayesid.report import fmt, md_table
 
     lines = ["## What the models lack: structure discovery", ""]
-    for name, d in (("Esso Osaka (after the effects added)", E), ("KVLCC2", K)):
+    for name, d in (("Esso Osaka", E), ("KVLCC2", K)):
+        lines += _first_round_lines(name, d.get("discovery_first") or {})
         D = d.get("discovery") or {}
         if not D:
-            lines += [f"{name}: discovery not run (the remainder after the effects is not significant).", ""]
+            lines += [
+                f"{name}: discovery after the rounds not run (the remainder after the effects is not significant).",
+                "",
+            ]
             continue
+        ref = (
+            ", after the effects added"
+            if d.get("effects_added") and not d.get("discovery_first", {}).get("took_round")
+            else ""
+        )
         lines += [
-            f"{name}: **{D['verdict']}**; held-out 60 s RMS {fmt(D['heldout_rms_before_m'])} m -> "
+            f"{name}{ref}: **{D['verdict']}**; held-out 60 s RMS {fmt(D['heldout_rms_before_m'])} m -> "
             f"{fmt(D['heldout_rms_after_m'])} m ({fmt(1 - D['heldout_rms_after_m'] / D['heldout_rms_before_m'])} "
             f"shrinkage); {D['library_size']} candidate terms, {len(D['residuals']['mimicked'])} mimicked by the free "
             "coefficients.",
