@@ -77,7 +77,8 @@ class Diagnosis:
     gap_before : dict
         Scores of the base model.
     gap_after : dict
-        Scores of the model with every effect added.
+        Scores of the model after the rounds: every effect added (and discovery's terms when
+        they took round 1, ``discovery_first``).
     heldout_shrinkage : float
         1 - after / before held-out RMS position error.
     noise_floor : dict
@@ -97,7 +98,7 @@ class Diagnosis:
     base_fit : dict
         Coefficients (and effect parameters) of the base model.
     after_fit : dict
-        Those of the model with every effect added.
+        Those of the model after the rounds (as ``gap_after``).
     train_tracks : list of str
         Names of the training tracks.
     heldout_tracks : list of str
@@ -125,7 +126,7 @@ class Diagnosis:
         The base model as a :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
         scores, nuisances) for plots; not in :meth:`to_dict`.
     after : Stage, optional
-        The model with every effect added, likewise.
+        The model after the rounds (as ``gap_after``), likewise.
     discovered : Discovery, optional
         Structure discovery's result with its models (:mod:`bayesid.analysis.gap.discovery`);
         not in :meth:`to_dict`.
