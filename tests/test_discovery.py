@@ -478,7 +478,7 @@ def test_a_refit_warm_starts_from_the_window_starts_of_the_fit_it_extends():
     assert fit_model(FitProblem(m, [m.context(t, 30.0) for t in train], sd, max_nfev=1)).window_starts is None
 
 
-def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it():
+def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it(tmp_path):
     # an NPS AUV II whose model lacks its constant yaw moment (Nprop; the world has 5e-4): waves and a
     # sensor bias each absorb part of it, and round 1 alone would add waves (held-out 15.6 -> 4.0 m,
     # measured). Discovery beside round 1, on the base model, keeps Nprop and takes the round, so the
@@ -512,6 +512,12 @@ def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it():
     assert d.after_fit["coefficients"]["Nprop"] == pytest.approx(5e-4, rel=0.2)
     assert d.gap_after["heldout_rms_m"] <= F["heldout_rms_m"] + 1e-12
     json.dumps(d.to_dict())
+    from bayesid.report import write_diagnosis
+
+    write_diagnosis(d, tmp_path, held)
+    report = (tmp_path / "report.md").read_text()
+    assert "the terms took round 1" in report and "| with Nprop" in report
+    assert (tmp_path / "figures" / "discovery_track.png").is_file()
     # the same data with discovery only after the rounds: waves is added first
     late = gap.diagnose(
         veh, ["Yv", "Nr", "Ndr"], train, held, dataclasses.replace(options, discover=None), rng=np.random.default_rng(0)

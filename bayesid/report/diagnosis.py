@@ -138,15 +138,16 @@ def _first_round_lines(res: dict) -> list:
     F = res.get("discovery_first") or {}
     if not F:
         return []
-    terms = "+".join(F["found"]) or "no term"
-    test = (
-        f"as a {F['role']}; paired window test against the effect p = {fmt(F['window_p_value'])}, "
-        f"{fmt(F['share_of_effect_excess'])} of its excess over the floor removed"
-        if F["window_p_value"] is not None
-        else "no term kept"
-    )
+    if F["found"]:
+        kept = (
+            f"{'+'.join(F['found'])} (held-out {fmt(F['heldout_rms_m'])} m, as a {F['role']}; paired window test "
+            f"against the effect p = {fmt(F['window_p_value'])}, {fmt(F['share_of_effect_excess'])} of its excess "
+            "over the floor removed)"
+        )
+    else:
+        kept = f"no term (the base model's held-out {fmt(F['heldout_rms_m'])} m)"
     return [
-        f"Beside round 1, discovery on the base model kept {terms} (held-out {fmt(F['heldout_rms_m'])} m, {test}) "
+        f"Beside round 1, discovery on the base model kept {kept} "
         f"against round 1's {F['effect_role']} **{F['effect']}** ({fmt(F['effect_heldout_rms_m'])} m), ranked "
         "by the rounds' rule (a cause first, then the lower held-out RMS): "
         + (
