@@ -523,3 +523,19 @@ def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it(tmp_pat
         veh, ["Yv", "Nr", "Ndr"], train, held, dataclasses.replace(options, discover=None), rng=np.random.default_rng(0)
     )
     assert late.effects_added[:1] == [F["effect"]] and late.discovery_first == {}
+
+
+def test_write_vehicle_replaces_a_coefficient_the_file_gives_at_zero(tmp_path):
+    # a submarine file lists Nprop = 0.0: a discovered Nprop replaces that value in place (the old one in
+    # the comment), a new term is inserted, and the file loads with both
+    from bayesid.data.terms import parse
+    from bayesid.data.vehicle import load_vehicle
+    from bayesid.report.vehiclefile import write_vehicle_with_terms
+
+    src = load_vehicle("nps_auv2").file_path
+    parse("Nvabsr")  # a product of the grammar the file does not list
+    out = write_vehicle_with_terms(src, {"Nprop": 4e-4, "Nvabsr": -0.01}, tmp_path / "v.toml", "discovered")
+    text = out.read_text()
+    assert text.count("Nprop =") == 1 and "Nprop = 0.0004  # discovered (was 0.0)" in text
+    veh = load_vehicle(out)
+    assert veh.coefficients["Nprop"] == 4e-4 and veh.coefficients["Nvabsr"] == -0.01

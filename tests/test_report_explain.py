@@ -228,10 +228,13 @@ def test_a_sentence_where_bic_and_the_heldout_windows_disagree():
             _ranked("delay", 0.40, 0.2, 0.001, 4.0, 0.3),  # held-out yes, BIC no
             _ranked("current", 0.40, 0.2, 0.001, -50.0, 0.3),  # both agree
             _ranked("wind", 0.52, -0.08, 0.9, 3.0, -0.4),  # both agree (no)
+            _ranked("waves", 0.30, 0.4, 0.05, -900.0, 0.4),  # BIC yes, a held-out gain that is not significant
         ],
     }
     text = "\n".join(_bic_heldout_lines(res))
     assert "disagree on thrust" in text and "no held-out gain" in text and "0.481 m -> 0.52 m" in text
+    waves = next(ln for ln in text.splitlines() if "disagree on waves" in ln)
+    assert "held-out gain is not significant" in waves and "no held-out gain" not in waves
     assert "disagree on delay" in text and "does not support it" in text
     assert "disagree on current" not in text and "disagree on wind" not in text
 

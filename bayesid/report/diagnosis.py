@@ -460,9 +460,12 @@ def _bic_heldout_lines(res: dict) -> list:
         if favoured and not gain:
             lines.append(
                 f"- **BIC and held-out disagree on {r['effect']}**: training ΔBIC {fmt(r['delta_bic'], 4)} favours it "
-                f"strongly, but it brings no held-out gain ({held}). The training runs' improvement does not carry "
-                "over to unseen runs: its parameters fit something particular to the training runs (overfitting, "
-                "or an effect that differs from run to run), so it is not added."
+                f"strongly, but "
+                + ("its held-out gain is not significant" if shrink > 0 else "it brings no held-out gain")
+                + f" ({held}; needs p < {th['partial_p']} or {th['explain_fraction']} of the excess removed). The "
+                "training runs' improvement does not carry over to unseen runs reliably: its parameters fit something "
+                "particular to the training runs (overfitting, or an effect that differs from run to run), so it is "
+                "not added."
             )
         elif gain and not favoured:
             lines.append(

@@ -1,8 +1,8 @@
 """A vehicle file with discovered terms added (``bayesid diagnose --write-vehicle``,
 ``bayesid discover --write-vehicle``): the source file's text, unchanged, with each kept term
 inserted at the top of ``[coefficients]`` (its refitted value, a comment saying where it comes
-from) and appended to a ship file's ``[fit] free`` list, so ``bayesid fit`` re-identifies it with
-the others."""
+from; a term the section already gives, at 0, gets its value replaced in place) and appended to
+a ship file's ``[fit] free`` list, so ``bayesid fit`` re-identifies it with the others."""
 
 from __future__ import annotations
 
@@ -17,6 +17,10 @@ _FREE = re.compile(r"^(free\s*=\s*\[)([^\]]*)(\])", re.M)
 def vehicle_with_terms(source_text: str, terms: dict, note: str) -> str:
     """The text of a vehicle file with terms added.
 
+    A term the file's ``[coefficients]`` already gives (a listed coefficient at 0, such as a
+    submarine's ``Nprop``) gets its value replaced in place, the old value kept in the comment;
+    the others are inserted at the top of the section.
+
     Parameters
     ----------
     source_text : str
@@ -24,7 +28,7 @@ def vehicle_with_terms(source_text: str, terms: dict, note: str) -> str:
     terms : dict
         ``{name: prime value}`` of the terms to add.
     note : str
-        The comment written after each added line.
+        The comment written after each added or replaced line.
 
     Returns
     -------
@@ -34,17 +38,21 @@ def vehicle_with_terms(source_text: str, terms: dict, note: str) -> str:
     Raises
     ------
     ValueError
-        When the source has no ``[coefficients]`` section, or already gives one of the terms.
+        When the source has no ``[coefficients]`` section.
     """
     lines = source_text.splitlines()
     try:
         at = next(i for i, ln in enumerate(lines) if ln.strip() == "[coefficients]")
     except StopIteration:
         raise ValueError("the vehicle file has no [coefficients] section") from None
-    for name in terms:
-        if re.search(rf"^\s*{re.escape(name)}\s*=", source_text, re.M):
-            raise ValueError(f"the vehicle file already gives {name}")
-    added = [f"{name} = {value!r}  # {note}" for name, value in terms.items()]
+    end = next((i for i in range(at + 1, len(lines)) if lines[i].lstrip().startswith("[")), len(lines))
+    new = dict(terms)
+    for i in range(at + 1, end):
+        m = re.match(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*([^#]*?)\s*(#.*)?$", lines[i])
+        if m is not None and m.group(1) in new:
+            name = m.group(1)
+            lines[i] = f"{name} = {new.pop(name)!r}  # {note} (was {m.group(2)})"
+    added = [f"{name} = {value!r}  # {note}" for name, value in new.items()]
     text = "\n".join(lines[: at + 1] + added + lines[at + 1 :]) + "\n"
     m = _FREE.search(text)
     if m is not None:  # a ship file's [fit] free: the new terms are fitted too
