@@ -1094,11 +1094,8 @@ def sample_tracks(
     if options.method == "mcmc" or (options.method == "auto" and not verdict["converged"]):
         t = time.perf_counter()
         budget = max(60.0, 60.0 * options.max_minutes - (time.perf_counter() - t0))
-        say(
-            f"MCMC: {sampler.n_ensembles} emcee ensembles until converged, "
-            f"{sampler.max_steps if options.max_steps is None else int(options.max_steps)} steps or {budget / 60:.1f} min"
-        )
         steps = sampler.max_steps if options.max_steps is None else int(options.max_steps)
+        say(f"MCMC: {sampler.n_ensembles} emcee ensembles until converged, {steps} steps or {budget / 60:.1f} min")
         cfg = dataclasses.replace(
             sampler,
             max_wall_s=budget,

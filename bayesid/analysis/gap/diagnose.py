@@ -398,8 +398,9 @@ def diagnose(
     found = first.discovery if first is not None and first.took_round else None
     if found is not None:  # discovery's terms came first, the effects on top of them
         verdict = f"discovered: {'+'.join(found.found)}"
-        verdict += (" -> " + verdict_of(True, chosen, remainder_sig)) if chosen else ""
-        verdict += "+unexplained" if remainder_sig and not chosen else ""
+        verdict += (
+            (" -> " + verdict_of(True, chosen, remainder_sig)) if chosen else ("+unexplained" if remainder_sig else "")
+        )
     else:
         verdict = verdict_of(significant, chosen, remainder_sig)
         if opt.discover is not None and remainder_sig:
