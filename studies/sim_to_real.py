@@ -194,7 +194,7 @@ def case_list(quick: bool) -> list[dict]:
 #: Structural cases (issue 40): what is hidden, what the diagnosis' vehicle lacks, and the library
 #: terms that name it (the hidden term, or for the stall a cubic rudder term of either force).
 STRUCTURAL = (
-    ("yaw_bias", ["yaw_bias"], [0], [], ["Nprop"]),
+    ("yaw_bias", ["yaw_bias"], [0], [], ["Nconst"]),
     ("stall", ["stall"], [0], [], ["Ndrdrdr", "Ydrdrdr"]),
     ("removed_Nabsvr", [], [], ["Nabsvr"], ["Nabsvr"]),
 )
@@ -749,9 +749,9 @@ def structural_lines(s: dict) -> list[str]:
         "candidate of the round, ranked by the rounds' rule (a cause first, then the lower held-out RMS; "
         "`discovery_beside_round_one`; the cell gives the terms' held-out m against the effect's and who took the "
         "round); when the terms take it, the catalogue effects are tried on top of them. Otherwise discovery runs "
-        "on the model after the effects the greedy rounds added. The library's constant yaw moment, `Nprop`, is "
-        "in prime form (a moment in u^2), while the hidden yaw moment is constant in N m: on tracks whose speed "
-        "varies no term of the library represents it exactly. *Kept*: the terms of the verdict. *Terms "
+        "on the model after the effects the greedy rounds added. The hidden yaw moment is constant in N m; the "
+        "library has two constant yaw moments, `Nconst` (the same at every speed: the hidden one) and `Nprop` (in "
+        "u^2, a propeller's), which these tracks, between about 1 and 2 m/s, tell apart. *Kept*: the terms of the verdict. *Terms "
         "refitted*: the library terms confirmed by a refit, and how many of those refits ended above their "
         "reference on the training runs (a failed fit: with fitted window starts, see the base-fit check).",
         "",

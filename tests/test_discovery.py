@@ -525,6 +525,50 @@ def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it(tmp_pat
     assert late.effects_added[:1] == [F["effect"]] and late.discovery_first == {}
 
 
+def test_a_constant_moment_outside_the_model_is_named_as_constant_not_as_growing_with_speed():
+    # the world has a yaw moment of 150 N m at every speed (a body-frame force outside the term table, so
+    # the world does not share the model's Nconst code), on runs between about 1 and 2 m/s (a speed-step
+    # run trains): discovery names Nconst, not Nprop (a moment in u^2), at its value 150 / (0.5 rho L^3)
+    from bayesid.data.vehicle import load_vehicle
+    from bayesid.models import effects as ef
+    from bayesid.models import manoeuvres as mv
+    from bayesid.models.world import LogOptions, world_track
+
+    class YawMoment(ef.Effect):
+        def exo(self, ctx, inputs, q, nu):
+            coef = np.zeros((q.shape[0], 1, 6))
+            coef[:, 0, 5] = q[:, 0]
+            return np.ones((q.shape[0], ctx.n_steps, 1)), coef
+
+    hidden = YawMoment("yaw_moment", ("N_Nm",), (-1e4,), (1e4,), (0.0,), (10.0,), exo_columns=1)
+    veh = load_vehicle("nps_auv2")
+    rng = np.random.default_rng(4)
+    runs = {
+        "train": [mv.speed_steps(veh, (1000.0, 700.0, 1400.0), hold_s=60.0, rudder_deg=8.0), mv.zigzag(veh, 20.0)],
+        "held": [
+            mv.zigzag(veh, 10.0, duration=150.0, first_sign=-1),
+            mv.prbs(veh, 15.0, duration=150.0, rng=np.random.default_rng(2)),
+            mv.speed_steps(veh, (1300.0, 800.0), hold_s=70.0, rudder_deg=-6.0),
+        ],
+    }
+    log = LogOptions(noise={k: v for k, v in NOISE.items()})
+    train, held = (
+        [world_track(veh, m, {hidden: {"N_Nm": 150.0}}, rng, log, name=f"{k}_{i}") for i, m in enumerate(v)]
+        for k, v in runs.items()
+    )
+    speeds = np.concatenate([t["u"] for t in train])
+    assert speeds.min() < 1.3 and speeds.max() > 1.8  # the speed changes: u^2 by a factor of 2 or more
+    options = gap.DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=40, discover=dv.DiscoveryOptions())
+    d = gap.diagnose(veh, ["Yv", "Nr", "Ndr"], train, held, options, rng=np.random.default_rng(0))
+    D = d.discovery
+    assert D["found"] == ["Nconst"], (d.verdict, D["found"])
+    # measured: 23.2 -> 0.171 m held out against a noise floor of 0.049 m, so "+unexplained" follows
+    assert d.verdict.startswith("unexplained -> discovered: Nconst"), d.verdict
+    row = next(r for r in D["discovered"] if r["term"] == "Nconst")
+    assert row["coefficient"] == pytest.approx(150.0 / (0.5 * veh.rho * veh.L**3), rel=0.2)
+    assert D["heldout_rms_after_m"] < 0.5 * D["heldout_rms_before_m"]
+
+
 def test_write_vehicle_replaces_a_coefficient_the_file_gives_at_zero(tmp_path):
     # a submarine file lists Nprop = 0.0: a discovered Nprop replaces that value in place (the old one in
     # the comment), a new term is inserted, and the file loads with both

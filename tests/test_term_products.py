@@ -185,6 +185,8 @@ def test_the_grammar_reads_every_listed_name_as_listed(name):
         ("Mwabsq", "M", ("w", "|q|"), 4, "rotary", False),
         ("Ndrdrdr", "N", ("u", "u", "dr", "dr", "dr"), 3, "static", True),
         ("Mq_eps", "M", ("u", "q", "eps"), 4, "rotary", False),  # listed: same rule
+        ("Nconst", "N", (), 3, "static", True),  # the same at every speed: no factor at all
+        ("Yconst", "Y", (), 2, "static", True),
     ],
 )
 def test_new_products_load_with_their_factors_and_power_of_L(name, group, factors, k, category, horizontal):
@@ -278,6 +280,27 @@ def test_a_new_product_acts_in_both_kernels(nps, kernel):
     feats[0, terms.F_INDEX["v"]], feats[0, terms.F_INDEX["|r|"]] = 0.3, 0.05
     phi = terms.regressors(feats, ["Nvabsr"], nps.rho, nps.L)
     assert phi[0, 0] == pytest.approx(0.5 * nps.rho * nps.L**4 * 0.3 * 0.05)
+
+
+@pytest.mark.parametrize("kernel", ["generated", "interpreted"])
+def test_a_constant_moment_is_the_same_at_every_speed(nps, kernel):
+    """Nconst is 0.5 rho L^3 Nconst N m at any speed, where Nprop (u^2) grows with the speed; it acts
+    identically in both kernels, and the two constants are not spellings of each other."""
+    assert terms.listed_name("Nconst") is None and terms.listed_name("Nuu") == "Nprop"
+    feats = np.zeros((3, terms.N_FEATURES))
+    feats[:, terms.F_INDEX["1"]] = 1.0
+    feats[:, terms.F_INDEX["u"]] = [0.5, 1.0, 2.0]
+    phi = terms.regressors(feats, ["Nconst", "Nprop"], nps.rho, nps.L)
+    np.testing.assert_allclose(phi[:, 0], 0.5 * nps.rho * nps.L**3)
+    np.testing.assert_allclose(phi[:, 1], 0.5 * nps.rho * nps.L**3 * np.array([0.25, 1.0, 4.0]))
+    m = mv.zigzag(nps, 20.0, duration=40.0)
+    res = Simulator(nps, m, free=["Nconst"], mode="horizontal", kernel=kernel).run([[0.0], [0.002]])
+    np.testing.assert_array_equal(res.states[0], Simulator(nps, m, mode="horizontal", kernel=kernel).run().states[0])
+    assert np.max(np.abs(res.states[1, :, :2] - res.states[0, :, :2])) > 0.1  # metres
+    other = Simulator(
+        nps, m, free=["Nconst"], mode="horizontal", kernel="interpreted" if kernel == "generated" else "generated"
+    ).run([[0.002]])
+    np.testing.assert_allclose(other.states[0], res.states[1], rtol=0, atol=1e-9)
 
 
 def test_a_pickled_vehicle_keeps_its_new_products_in_a_fresh_process(nps):

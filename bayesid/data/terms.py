@@ -308,6 +308,8 @@ _TOKENS = (
     ("r", "r"),
 )
 _VELOCITY_FACTORS = {"u", "v", "w", "p", "q", "r", "|u|", "|v|", "|w|", "|p|", "|q|", "|r|"}
+#: The name body of a constant force or moment, the same at every speed (``Nconst``; see :func:`parse`).
+CONSTANT = "const"
 _ACCEL_NAME = re.compile(r"([XYZKMN])([uvwpqr])dot")
 _LOCK = threading.Lock()
 
@@ -329,6 +331,8 @@ def _read(name: str) -> Term:
     if _ACCEL_NAME.fullmatch(name):
         return _A(name)
     body, eps = name[1:], False
+    if body == CONSTANT:  # no factor, not even the implicit u's: a force the same at every speed
+        return Term(name, DOFS.index(name[0]), (), -1, 1)
     if body.endswith("_eps"):
         body, eps = body[:-4], True
     factors, i = [], 0
@@ -379,7 +383,12 @@ def parse(name: str) -> Term:
     * the power of L follows from the factors (:attr:`Term.L_power`); a term with ``db`` has
       multiplicity 2 (one coefficient per bow plane, one ``delta_b`` input), except the listed
       ``Xdbdb``;
-    * ``Cd0``, ``Kprop`` and ``Nprop`` are listed names outside this grammar.
+    * ``Cd0``, ``Kprop`` and ``Nprop`` are listed names outside this grammar;
+    * the force letter and ``const`` (``Nconst``, ``Yconst``) is a force or moment that is the same
+      at every speed (a product of no factor, not even the implicit ``u``): dimensionally
+      ``0.5 rho L**k * C'`` times (1 m/s)**2, with k as for any force term (2 for a force, 3 for
+      a moment). Its value is the prime coefficient of the u^2 form (``Nprop``, ``Nuu``) that
+      gives the same force at u = 1 m/s; the two differ where the speed changes.
 
     A listed name returns its listed term. Two spellings of a product that is not listed
     (``Nvabsr``, ``Nabsrv``) are two terms: give a vehicle one of them.

@@ -13,7 +13,8 @@ asks the next question, "what term is the model missing?", in four steps:
    :mod:`bayesid.models.ship.hullterms` (``v r |v| |r| dr |dr|`` and the constants ``X0 Y0 N0``, so
    port/starboard asymmetric forms such as ``N0``, ``Nabsdr``, ``Nvv`` are candidates); for a
    submarine the products of the term grammar (:func:`bayesid.data.terms.parse`: ``u v r |v| |r| dr``,
-   at most two velocity factors); a ship's tied coefficients (:func:`untied_candidates`: ``gRm``, gamma_R for
+   at most two velocity factors, and the constants ``Nprop``/``Yuu`` in u^2 and ``Nconst``/``Yconst``
+   the same at every speed); a ship's tied coefficients (:func:`untied_candidates`: ``gRm``, gamma_R for
    beta_R < 0, which follows ``gR`` unless the ship file gives it), untied at the value they
    follow.
 3. **Sparse selection with inclusion probabilities.** Per degree of freedom, the missing force is
@@ -253,10 +254,11 @@ def _ship_products(max_order: int) -> list[str]:
 
 def _submarine_products() -> list[str]:
     """Names of the horizontal-plane products of the submarine grammar: at most two velocity
-    factors (u implicit) from ``v r absv absr``, and up to three rudder factors; ``uu`` is the
-    constant force or moment at the approach speed (prime form: u^2)."""
+    factors (u implicit) from ``v r absv absr``, and up to three rudder factors; the constant
+    force or moment twice: ``uu`` in prime form (u^2, e.g. a propeller's), ``const`` the same at
+    every speed (:data:`bayesid.data.terms.CONSTANT`)."""
     vel = ["", "v", "r", "absv", "absr", "vv", "vr", "rr", "vabsv", "vabsr", "rabsv", "rabsr"]
-    return ["uu"] + [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
+    return ["uu", termlib.CONSTANT] + [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
 
 
 def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
