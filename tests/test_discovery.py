@@ -193,6 +193,28 @@ def test_a_control_with_nothing_missing_keeps_no_term():
     assert not d.base_check["suspect"] and d.base_check["ratio"] < 3
 
 
+def test_the_start_check_judges_training_windows_on_their_own():
+    # shaped like sim_to_real's constant-yaw-moment case without the log: one training run among four
+    # held out, whose fit needs window starts up to 218 sd from the kinematics (a yaw rate of -2.08
+    # rad/s, measured) in 3 of 30 windows, all training ones. Pooled that is 3 of 30, not above 0.1;
+    # judged on its own, the training set is suspect, and the message says which set
+    from bayesid.analysis.gap.diagnose import START_FRACTION, summarise_starts
+
+    def row(kind, i, z):
+        return {"set": kind, "track": f"{kind}{i}", "t_s": 10.0 * i, "component": "r", "fitted": z * 0.01,
+                "kinematic": 0.0, "sd": 0.01, "z": z}  # fmt: skip
+
+    rows = [row("training", i, z) for i, z in enumerate([-218.0, 18.0, -5.3, 1, 1, 0.5, 2, 1, 0, 1])]
+    rows += [row("held-out", i, 1.0) for i in range(20)]
+    out = summarise_starts(rows)
+    assert out["fraction_flagged"] == 0.1 == START_FRACTION  # pooled: not above the threshold
+    assert out["by_set"]["training"] == {"n_windows": 10, "n_flagged": 3, "fraction_flagged": 0.3}
+    assert out["suspect"] and out["message"].startswith("3 of 10 training fitted window starts")
+    assert out["worst"][0]["z"] == -218.0
+    ok = summarise_starts([row("training", i, 1.0) for i in range(10)] + rows[10:])
+    assert not ok["suspect"] and ok["n_flagged"] == 0
+
+
 # -- the command line -----------------------------------------------------------------------------
 
 
