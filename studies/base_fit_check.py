@@ -161,6 +161,13 @@ def summarise(rows: list[dict]) -> dict:
     }
 
 
+def starts_cell(starts: dict | None) -> str:
+    """Flagged window starts of the training and the held-out windows (the check judges each set)."""
+    if not starts:
+        return "-"
+    return ", ".join(f"{b['n_flagged']} / {b['n_windows']}" for b in starts["by_set"].values())
+
+
 def write_report(out: Path, s: dict, rows: list[dict], command: str) -> None:
     from bayesid.report import fmt, md_table
 
@@ -176,7 +183,7 @@ def write_report(out: Path, s: dict, rows: list[dict], command: str) -> None:
             f"{fmt(r['auto']['heldout_rms_m'])} ({r['auto']['used']})",
             fmt(r["true_model_heldout_rms_m"]),
             fmt(r["check"]["ratio"]),
-            f"{r['starts']['n_flagged']} / {r['starts']['n_windows']}" if r["starts"] else "-",
+            starts_cell(r["starts"]),
             "suspect" if r["check"]["suspect"] else "ok",
         ]
         for r in rows
@@ -236,7 +243,8 @@ def write_report(out: Path, s: dict, rows: list[dict], command: str) -> None:
         "kinematics when the check finds the fitted ones inconsistent, kept if it predicts its own training tracks "
         "better under the held-out protocol); *true*: the true model (world coefficients and the hidden effect); *check ratio*: "
         "the base fit's held-out / training RMS under the same protocol; *starts flagged*: window starts more "
-        "than 5 sd from the kinematics.",
+        "than 5 sd from the kinematics, of the training windows and of the held-out windows (more than 10 % of "
+        "either makes the check suspect).",
         "",
         md_table(
             [
