@@ -146,8 +146,17 @@ def _first_round_lines(res: dict) -> list:
         )
     else:
         kept = f"no term (the base model's held-out {fmt(F['heldout_rms_m'])} m)"
+    on = "the base model"
+    if F.get("train_starts") == "kinematic":
+        on = "the base model refitted with its training window starts held at the kinematics"
+    other = F.get("other_starts")
+    if other:  # the start check flagged the fitted starts: discovery ran on both base fits
+        kept += (
+            f"; on the base model with {'fitted' if other['train_starts'] == 'fitted' else 'held'} window starts it "
+            f"kept {'+'.join(other['found']) or 'no term'} (held-out {fmt(other['heldout_rms_m'])} m)"
+        )
     return [
-        f"Beside round 1, discovery on the base model kept {kept} "
+        f"Beside round 1, discovery on {on} kept {kept} "
         f"against round 1's {F['effect_role']} **{F['effect']}** ({fmt(F['effect_heldout_rms_m'])} m), ranked "
         "by the rounds' rule (a cause first, then the lower held-out RMS): "
         + (
@@ -208,6 +217,23 @@ def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
     return figs
 
 
+def _held_starts_lines(settings: dict) -> list:
+    """Discovery after the rounds on both base fits (fitted training window starts flagged by the
+    start check): which one the section shows, and what the other kept."""
+    other = settings.get("other_starts")
+    if not other:
+        return []
+    held = settings.get("train_starts") == "kinematic"
+    return [
+        "The base fit's training window starts contradict the kinematics, so discovery also searched the base "
+        "model refitted with them held; "
+        + ("the held starts' search" if held else "the fitted starts' search")
+        + f" is shown below (the other kept {'+'.join(other['found']) or 'no term'}, held-out "
+        f"{fmt(other['heldout_rms_m'])} m). Read the coefficients of such a fit as start values for `bayesid fit`.",
+        "",
+    ]
+
+
 def _discovery_lines(res: dict) -> list:
     """The structure-discovery section: every refitted term with its numbers, the missing force
     per degree of freedom against the best library terms, and what was tried."""
@@ -219,6 +245,7 @@ def _discovery_lines(res: dict) -> list:
         "## What the model lacks (structure discovery)",
         "",
         *_first_round_lines(res),
+        *_held_starts_lines(D.get("settings", {})),
         f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
         f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
         f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, fields, replace
-from functools import partial
+from functools import cache, partial
 
 import numpy as np
 
@@ -336,6 +336,7 @@ def diagnose(
     )  # fmt: skip
     weighting = opt.weighting or family.DEFAULT_WEIGHTING
     b = _base_stage(setup, sd, weighting, opt, runner)
+    alt = None
     if opt.train_starts == "auto" and (b["check"].get("starts") or {}).get("suspect"):
         say("base fit: window starts inconsistent with the kinematics; refit with starts held at them")
         alt = _base_stage(replace(setup, train_starts="kinematic"), sd, weighting, opt, runner)
@@ -366,7 +367,11 @@ def diagnose(
     significant = bool(b_held["rms_position_m"] > th.none_ratio * floor["rms_position_m"])
     base_stage = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
     disc_context = {"sd_fit": sd_fit, "floor_rms": floor["rms_position_m"], "thresholds": th}
-    beside = None
+    beside, held = None, None
+    if opt.discover is not None and setup.train_starts == "fitted" and (check.get("starts") or {}).get("suspect"):
+        # fitted training starts that contradict the kinematics absorb part of what the model lacks:
+        # discovery on the base model also searches the base refitted with them held (computed once)
+        held = cache(partial(_held_start_base, alt, setup, (sd, weighting, opt, runner)))
     if opt.discover is not None and significant:
         # its own stream, spawned without drawing from rng: a diagnosis where round 1 adds
         # nothing gets the same numbers as before this stage existed
@@ -378,6 +383,7 @@ def diagnose(
             context=disc_context,
             rng=rng.spawn(1)[0],
             runner=runner,
+            held_starts=held,
         )
     search = _greedy_rounds(
         setup,
@@ -414,6 +420,8 @@ def diagnose(
                 rng=rng,
                 runner=runner,
             )
+            if held is not None and not chosen:  # on the base model: the one with held starts too
+                found = _better_with_held_starts(found, held, opt.discover, disc_context, rng, runner)
             verdict += " -> " + found.verdict
     return Diagnosis(
         verdict=verdict,
@@ -484,6 +492,43 @@ def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, ru
         "held": held,
         "check": base_fit_check(base, bfit, setup, sd_fit, held),
     }
+
+
+def _better_with_held_starts(found, held, options, context: dict, rng, runner: Runner):
+    """Discovery on the base model refitted with its training window starts held at the
+    kinematics (``held() -> (setup, Stage, sd_fit)``) beside ``found`` (the search on the base fit
+    with fitted starts): the one with kept terms and the lower held-out RMS, with
+    ``train_starts`` and ``other_starts`` (the other search's terms and held-out RMS) recorded in
+    its settings."""
+    runner.say("structure discovery on the base model with window starts held at the kinematics")
+    setup_k, base_k, sd_k = held()
+    found_k = discover(
+        setup_k,
+        base_k,
+        list(base_k.model.effects),
+        options,
+        dict(context, significant=True, sd_fit=sd_k),
+        rng=rng.spawn(1)[0],
+        runner=runner,
+    )
+    better = bool(found_k.found) and (not found.found or found_k.heldout_rms_after_m < found.heldout_rms_after_m)
+    use, other = (found_k, found) if better else (found, found_k)
+    use.settings["train_starts"] = "kinematic" if better else "fitted"
+    use.settings["other_starts"] = {
+        "train_starts": "fitted" if better else "kinematic",
+        "found": list(other.found),
+        "heldout_rms_m": other.heldout_rms_after_m,
+    }
+    return use
+
+
+def _held_start_base(done: dict | None, setup: Setup, fit_args: tuple) -> tuple:
+    """The base model refitted with its training window starts held at the kinematics, for
+    discovery beside round 1: ``(setup, Stage, sd_fit)``; ``done`` is that base stage when
+    ``--train-starts auto`` already fitted it (and kept the fitted starts)."""
+    k = done if done is not None else _base_stage(replace(setup, train_starts="kinematic"), *fit_args)
+    model, fit = k["model"], k["fit"]
+    return k["setup"], Stage(model, fit, k["train"], k["held"], None, window_rms(model, fit, k["cho"])), k["sd_fit"]
 
 
 def _base_multistart(problem: FitProblem, bfit: FitResult, opt: DiagnoseOptions, runner: Runner):
@@ -869,7 +914,16 @@ class FirstRound:
 
 
 def discovery_beside_round_one(
-    setup: Setup, base: Stage, results: list, stages: dict, *, options, context: dict, rng, runner: Runner
+    setup: Setup,
+    base: Stage,
+    results: list,
+    stages: dict,
+    *,
+    options,
+    context: dict,
+    rng,
+    runner: Runner,
+    held_starts=None,
 ) -> FirstRound | None:
     """Let structure discovery compete with the catalogue in round 1 of a diagnosis.
 
@@ -883,6 +937,13 @@ def discovery_beside_round_one(
     best-ranked contributor, by held-out RMS. When it ranks first, its terms take the round.
     When round 1 has no effect to add, nothing is run here: discovery after the rounds starts
     from the same base model.
+
+    With ``held_starts`` (the diagnosis gives it when the start check finds the base fit's
+    fitted training window starts inconsistent with the tracks' kinematics), discovery also runs
+    on the base model refitted with those starts held at the kinematics: fitted starts absorb part
+    of what the model lacks (a constant yaw moment turns a window's start yaw rate), so the
+    missing force is hidden from the search. Of the two, the model with kept terms and the lower
+    held-out RMS is the candidate; when it takes the round, the later rounds keep its starts.
 
     The summary also gives the paired window test of the terms' model against the effect's and
     the share of the effect's excess over the floor the terms remove; the decision does not use
@@ -906,6 +967,9 @@ def discovery_beside_round_one(
         The bootstrap.
     runner : Runner
         Runs the refits; progress messages.
+    held_starts : callable, optional
+        ``held_starts() -> (Setup, Stage, sd_fit)``: the base model refitted with its training
+        window starts held at the kinematics, its setup and its channel weights.
 
     Returns
     -------
@@ -915,11 +979,31 @@ def discovery_beside_round_one(
     top = _best_effect(results)
     if top is None:
         return None
+    tic = time.perf_counter()
     th = context.get("thresholds", Thresholds())
     runner.say(f"structure discovery beside round 1 (on the base model, against {top['effect']})")
     found = discover(
         setup, base, list(base.model.effects), options, dict(context, significant=True), rng=rng, runner=runner
     )
+    starts, other = "fitted", None
+    if held_starts is not None:
+        runner.say("structure discovery beside round 1 on the base model with window starts held at the kinematics")
+        setup_k, base_k, sd_k = held_starts()
+        found_k = discover(
+            setup_k,
+            base_k,
+            list(base_k.model.effects),
+            options,
+            dict(context, significant=True, sd_fit=sd_k),
+            rng=rng.spawn(1)[0],
+            runner=runner,
+        )
+        better = found_k.found and (not found.found or found_k.heldout_rms_after_m < found.heldout_rms_after_m)
+        other = {"train_starts": "fitted" if better else "kinematic"}
+        other.update({"found": list((found if better else found_k).found)})
+        other["heldout_rms_m"] = (found if better else found_k).heldout_rms_after_m
+        if better:
+            starts, found, setup = "kinematic", found_k, setup_k
     rival = stages[top["effect"]]
     p, share, role = None, None, None
     if found.found:
@@ -948,8 +1032,11 @@ def discovery_beside_round_one(
         "window_p_value": p,
         "share_of_effect_excess": share,
         "took_round": took,
-        "seconds": found.seconds,
+        "seconds": time.perf_counter() - tic,
+        "train_starts": starts,
     }
+    if other is not None:  # the search on the other base fit's starts
+        summary["other_starts"] = other
     if not took:  # the kept terms' numbers; the discovery in the report is the one after the rounds
         summary["discovered"] = [
             {k: r.get(k) for k in ("term", "heldout_rms_after_m", "shrinkage", "delta_bic", "kept")}
