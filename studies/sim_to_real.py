@@ -466,6 +466,13 @@ def structural_scores(rs: list[dict]) -> dict:
                 "velocity_log": r["logging"]["velocity_log"],
                 "train_starts": r["case"].get("train_starts", "fitted"),
                 "train_starts_used": (d.get("base_check", {}).get("train_starts") or {}).get("used"),
+                # the base fit discovery searched: held starts when the start check flagged the fitted ones
+                # and that search did better (beside round 1, or after rounds without effects)
+                "discovery_starts": (
+                    first.get("train_starts")
+                    if first.get("took_round")
+                    else found.get("settings", {}).get("train_starts")
+                ),
                 "verdict": d["verdict"],
                 "clear": bool(found),
                 "kept": [t["term"] for t in kept],
@@ -716,7 +723,8 @@ def structural_lines(s: dict) -> list[str]:
             ", ".join(x["hidden"]),
             "yes" if x["velocity_log"] else "no",
             x.get("train_starts", "fitted")
-            + (f" ({x['train_starts_used']} used)" if x.get("train_starts_used") else ""),
+            + (f" ({x['train_starts_used']} used)" if x.get("train_starts_used") else "")
+            + ("; discovery on held starts" if x.get("discovery_starts") == "kinematic" else ""),
             x["verdict"],
             _first_round_cell(x.get("first_round")),
             ", ".join(x["effects_added"]) or "-",
@@ -749,7 +757,10 @@ def structural_lines(s: dict) -> list[str]:
         "candidate of the round, ranked by the rounds' rule (a cause first, then the lower held-out RMS; "
         "`discovery_beside_round_one`; the cell gives the terms' held-out m against the effect's and who took the "
         "round); when the terms take it, the catalogue effects are tried on top of them. Otherwise discovery runs "
-        "on the model after the effects the greedy rounds added. The hidden yaw moment is constant in N m; the "
+        "on the model after the effects the greedy rounds added. Without the log, when the start check flags the "
+        "base fit's training window starts, discovery on the base model also searches the base refitted with them "
+        "held at the kinematics (fitted starts absorb part of a missing force) and uses the better search by "
+        "held-out RMS (*discovery on held starts*). The hidden yaw moment is constant in N m; the "
         "library has two constant yaw moments, `Nconst` (the same at every speed: the hidden one) and `Nprop` (in "
         "u^2, a propeller's), which these tracks, between about 1 and 2 m/s, tell apart. *Kept*: the terms of the verdict. *Terms "
         "refitted*: the library terms confirmed by a refit, and how many of those refits ended above their "
