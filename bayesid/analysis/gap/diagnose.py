@@ -421,7 +421,7 @@ def diagnose(
                 runner=runner,
             )
             if held is not None and not chosen:  # on the base model: the one with held starts too
-                found = _better_with_held_starts(found, held, opt.discover, disc_context, rng, runner)
+                found, _ = _better_with_held_starts(found, held, opt.discover, disc_context, rng, runner)
             verdict += " -> " + found.verdict
     return Diagnosis(
         verdict=verdict,
@@ -494,12 +494,12 @@ def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, ru
     }
 
 
-def _better_with_held_starts(found, held, options, context: dict, rng, runner: Runner):
+def _better_with_held_starts(found, held, options, context: dict, rng, runner: Runner) -> tuple:
     """Discovery on the base model refitted with its training window starts held at the
     kinematics (``held() -> (setup, Stage, sd_fit)``) beside ``found`` (the search on the base fit
-    with fitted starts): the one with kept terms and the lower held-out RMS, with
-    ``train_starts`` and ``other_starts`` (the other search's terms and held-out RMS) recorded in
-    its settings."""
+    with fitted starts): ``(discovery, (setup, Stage) or None)``, the search with kept terms and
+    the lower held-out RMS, with ``train_starts`` and ``other_starts`` (the other search's terms
+    and held-out RMS) recorded in its settings, and the held-start base when that one is used."""
     runner.say("structure discovery on the base model with window starts held at the kinematics")
     setup_k, base_k, sd_k = held()
     found_k = discover(
@@ -519,7 +519,7 @@ def _better_with_held_starts(found, held, options, context: dict, rng, runner: R
         "found": list(other.found),
         "heldout_rms_m": other.heldout_rms_after_m,
     }
-    return use
+    return use, ((setup_k, base_k) if better else None)
 
 
 def _held_start_base(done: dict | None, setup: Setup, fit_args: tuple) -> tuple:
@@ -985,25 +985,11 @@ def discovery_beside_round_one(
     found = discover(
         setup, base, list(base.model.effects), options, dict(context, significant=True), rng=rng, runner=runner
     )
-    starts, other = "fitted", None
+    own = base  # the base fit the kept terms were found on (its BIC is theirs to beat)
     if held_starts is not None:
-        runner.say("structure discovery beside round 1 on the base model with window starts held at the kinematics")
-        setup_k, base_k, sd_k = held_starts()
-        found_k = discover(
-            setup_k,
-            base_k,
-            list(base_k.model.effects),
-            options,
-            dict(context, significant=True, sd_fit=sd_k),
-            rng=rng.spawn(1)[0],
-            runner=runner,
-        )
-        better = found_k.found and (not found.found or found_k.heldout_rms_after_m < found.heldout_rms_after_m)
-        other = {"train_starts": "fitted" if better else "kinematic"}
-        other.update({"found": list((found if better else found_k).found)})
-        other["heldout_rms_m"] = (found if better else found_k).heldout_rms_after_m
-        if better:
-            starts, found, setup = "kinematic", found_k, setup_k
+        found, held = _better_with_held_starts(found, held_starts, options, context, rng, runner)
+        if held is not None:
+            setup, own = held
     rival = stages[top["effect"]]
     p, share, role = None, None, None
     if found.found:
@@ -1015,7 +1001,7 @@ def discovery_beside_round_one(
         row = {
             "heldout_rms_m": after,
             "excess_removed": (base.held["rms_position_m"] - after) / excess0 if excess0 > 0 else 0.0,
-            "delta_bic": found.after.fit.bic - base.fit.bic,
+            "delta_bic": found.after.fit.bic - own.fit.bic,
         }
         role = "cause" if is_cause(row, True, th.none_ratio * floor_rms, th) else "contributor"
         rows = [*results, {"effect": None, "heldout_rms_m": after, "role": role}]
@@ -1033,10 +1019,10 @@ def discovery_beside_round_one(
         "share_of_effect_excess": share,
         "took_round": took,
         "seconds": time.perf_counter() - tic,
-        "train_starts": starts,
+        "train_starts": found.settings.get("train_starts", "fitted"),
     }
-    if other is not None:  # the search on the other base fit's starts
-        summary["other_starts"] = other
+    if "other_starts" in found.settings:  # the search on the other base fit's starts
+        summary["other_starts"] = found.settings["other_starts"]
     if not took:  # the kept terms' numbers; the discovery in the report is the one after the rounds
         summary["discovered"] = [
             {k: r.get(k) for k in ("term", "heldout_rms_after_m", "shrinkage", "delta_bic", "kept")}
