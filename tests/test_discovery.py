@@ -547,14 +547,10 @@ def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it(tmp_pat
     assert late.effects_added[:1] == [F["effect"]] and late.discovery_first == {}
 
 
-def test_a_constant_moment_outside_the_model_is_named_as_constant_not_as_growing_with_speed():
-    # the world has a yaw moment of 150 N m at every speed (a body-frame force outside the term table, so
-    # the world does not share the model's Nconst code), on runs between about 1 and 2 m/s (a speed-step
-    # run trains): discovery names Nconst, not Nprop (a moment in u^2), at its value 150 / (0.5 rho L^3)
-    from bayesid.data.vehicle import load_vehicle
+def _yaw_moment():
+    """A constant body-frame yaw moment (parameter ``N_Nm``, N m) outside the term table, so a world
+    with it does not share the model's ``Nconst`` code."""
     from bayesid.models import effects as ef
-    from bayesid.models import manoeuvres as mv
-    from bayesid.models.world import LogOptions, world_track
 
     class YawMoment(ef.Effect):
         def exo(self, ctx, inputs, q, nu):
@@ -562,7 +558,18 @@ def test_a_constant_moment_outside_the_model_is_named_as_constant_not_as_growing
             coef[:, 0, 5] = q[:, 0]
             return np.ones((q.shape[0], ctx.n_steps, 1)), coef
 
-    hidden = YawMoment("yaw_moment", ("N_Nm",), (-1e4,), (1e4,), (0.0,), (10.0,), exo_columns=1)
+    return YawMoment("yaw_moment", ("N_Nm",), (-1e4,), (1e4,), (0.0,), (10.0,), exo_columns=1)
+
+
+def test_a_constant_moment_outside_the_model_is_named_as_constant_not_as_growing_with_speed():
+    # the world has a yaw moment of 150 N m at every speed (a body-frame force outside the term table, so
+    # the world does not share the model's Nconst code), on runs between about 1 and 2 m/s (a speed-step
+    # run trains): discovery names Nconst, not Nprop (a moment in u^2), at its value 150 / (0.5 rho L^3)
+    from bayesid.data.vehicle import load_vehicle
+    from bayesid.models import manoeuvres as mv
+    from bayesid.models.world import LogOptions, world_track
+
+    hidden = _yaw_moment()
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng(4)
     runs = {
@@ -597,17 +604,10 @@ def _constant_moment_runs_without_log():
     """NPS AUV II with a constant -120 N m yaw moment outside the term table (the model lacks it):
     two training runs and three held out, no velocity log, 5 Hz, clocks from 0, 100 and 200 s."""
     from bayesid.data.vehicle import load_vehicle
-    from bayesid.models import effects as ef
     from bayesid.models import manoeuvres as mv
     from bayesid.models.world import LogOptions, world_track
 
-    class YawMoment(ef.Effect):
-        def exo(self, ctx, inputs, q, nu):
-            coef = np.zeros((q.shape[0], 1, 6))
-            coef[:, 0, 5] = q[:, 0]
-            return np.ones((q.shape[0], ctx.n_steps, 1)), coef
-
-    hidden = YawMoment("yaw_moment", ("N_Nm",), (-1e4,), (1e4,), (0.0,), (10.0,), exo_columns=1)
+    hidden = _yaw_moment()
     veh = load_vehicle("nps_auv2")
     rng = np.random.default_rng(23)
     runs = {
