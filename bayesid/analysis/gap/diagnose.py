@@ -380,10 +380,9 @@ def diagnose(
             setup,
             base_stage,
             options=opt.discover,
-            context=disc_context,
+            context=dict(disc_context, held_starts=held),
             rng=rng.spawn(1)[0],
             runner=runner,
-            held_starts=held,
         )
     search = _greedy_rounds(
         setup,
@@ -923,7 +922,6 @@ def discovery_beside_round_one(
     context: dict,
     rng,
     runner: Runner,
-    held_starts=None,
 ) -> FirstRound | None:
     """Let structure discovery compete with the catalogue in round 1 of a diagnosis.
 
@@ -938,7 +936,7 @@ def discovery_beside_round_one(
     When round 1 has no effect to add, nothing is run here: discovery after the rounds starts
     from the same base model.
 
-    With ``held_starts`` (the diagnosis gives it when the start check finds the base fit's
+    With ``context["held_starts"]`` (the diagnosis gives it when the start check finds the base fit's
     fitted training window starts inconsistent with the tracks' kinematics), discovery also runs
     on the base model refitted with those starts held at the kinematics: fitted starts absorb part
     of what the model lacks (a constant yaw moment turns a window's start yaw rate), so the
@@ -962,14 +960,14 @@ def discovery_beside_round_one(
     options : DiscoveryOptions
         Discovery's options.
     context : dict
-        ``sd_fit``, ``floor_rms`` and ``thresholds`` (:func:`~bayesid.analysis.gap.discovery.discover`).
+        ``sd_fit``, ``floor_rms`` and ``thresholds`` (:func:`~bayesid.analysis.gap.discovery.discover`),
+        and optionally ``held_starts``: a callable ``() -> (Setup, Stage, sd_fit)``, the base model
+        refitted with its training window starts held at the kinematics, its setup and its channel
+        weights.
     rng : numpy.random.Generator
         The bootstrap.
     runner : Runner
         Runs the refits; progress messages.
-    held_starts : callable, optional
-        ``held_starts() -> (Setup, Stage, sd_fit)``: the base model refitted with its training
-        window starts held at the kinematics, its setup and its channel weights.
 
     Returns
     -------
@@ -980,6 +978,8 @@ def discovery_beside_round_one(
     if top is None:
         return None
     tic = time.perf_counter()
+    context = dict(context)
+    held_starts = context.pop("held_starts", None)
     th = context.get("thresholds", Thresholds())
     runner.say(f"structure discovery beside round 1 (on the base model, against {top['effect']})")
     found = discover(
