@@ -760,7 +760,7 @@ def structural_lines(s: dict) -> list[str]:
         "on the model after the effects the greedy rounds added. Without the log, when the start check flags the "
         "base fit's training window starts, discovery on the base model also searches the base refitted with them "
         "held at the kinematics (fitted starts absorb part of a missing force) and uses the better search by "
-        "held-out RMS (*discovery on held starts*). The hidden yaw moment is constant in N m; the "
+        "held-out RMS (*discovery on held starts*; the *held-out* column's before is then that base fit's, which can be far above the fitted base's: its starts no longer absorb what the model lacks). The hidden yaw moment is constant in N m; the "
         "library has two constant yaw moments, `Nconst` (the same at every speed: the hidden one) and `Nprop` (in "
         "u^2, a propeller's), which these tracks, between about 1 and 2 m/s, tell apart. *Kept*: the terms of the verdict. *Terms "
         "refitted*: the library terms confirmed by a refit, and how many of those refits ended above their "
