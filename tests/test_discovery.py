@@ -637,7 +637,7 @@ def _assert_constant_moment_group(d, found):
     assert "Nconst" in [row["term"], *row["group"]] and row["group_inclusion_probability"] >= 0.9, row
 
 
-def test_discovery_beside_round_one_also_searches_the_base_fit_with_held_window_starts():
+def test_discovery_beside_round_one_also_searches_the_base_fit_with_held_window_starts(tmp_path):
     # the base fit's fitted window starts absorb the constant moment (the start check flags them),
     # discovery on that base keeps nothing, and sensor_bias would take round 1. Discovery on the base
     # refitted with its starts held at the kinematics finds the moment's group and takes the round
@@ -654,6 +654,12 @@ def test_discovery_beside_round_one_also_searches_the_base_fit_with_held_window_
     assert F["heldout_rms_m"] < F["effect_heldout_rms_m"] and F["heldout_rms_m"] < F["other_starts"]["heldout_rms_m"]
     assert d.verdict.startswith("discovered: "), d.verdict
     _assert_constant_moment_group(d, F["found"])
+    from bayesid.report import write_diagnosis
+
+    write_diagnosis(d, tmp_path, held)
+    report = (tmp_path / "report.md").read_text()
+    assert "discovery on the base model refitted with its training window starts held" in report
+    assert "also searched the base model" not in report  # said once, in the round-1 sentence
 
 
 def test_discovery_after_rounds_without_effects_also_searches_the_base_fit_with_held_window_starts(tmp_path):

@@ -245,7 +245,8 @@ def _discovery_lines(res: dict) -> list:
         "## What the model lacks (structure discovery)",
         "",
         *_first_round_lines(res),
-        *_held_starts_lines(D.get("settings", {})),
+        # after the rounds; beside round 1 the sentence above says it
+        *([] if (res.get("discovery_first") or {}).get("took_round") else _held_starts_lines(D.get("settings", {}))),
         f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
         f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
         f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "
