@@ -169,6 +169,9 @@ def test_a_term_removed_from_the_vehicle_is_named_and_recovered(velocity_log):
         assert row["coefficient"] > 0
         assert abs(row["coefficient"] / 0.002 - 1) < (0.35 if velocity_log else 0.2)
     assert D["heldout_rms_after_m"] < 0.7 * D["heldout_rms_before_m"]
+    # the diagnosis scores the model with the kept terms (the CLI's verdict line and "How far" use it)
+    assert d.gap_discovered["heldout_rms_m"] == pytest.approx(D["heldout_rms_after_m"], rel=1e-12)
+    assert d.gap_discovered["train_rms_m"] < d.gap_before["train_rms_m"]
     assert all(
         set(r) >= {"term", "dof", "inclusion_probability", "shrinkage", "delta_bic", "kept", "group"}
         for r in D["discovered"]
@@ -675,7 +678,12 @@ def test_discovery_after_rounds_without_effects_also_searches_the_base_fit_with_
     from bayesid.report import write_diagnosis
 
     write_diagnosis(d, tmp_path, held)
-    assert "also searched the base model refitted with them held" in (tmp_path / "report.md").read_text()
+    text = (tmp_path / "report.md").read_text()
+    assert "also searched the base model refitted with them held" in text
+    # "How far" has the model with the discovered terms beside the base model and the one without them
+    found = "+".join(d.discovery["found"])
+    assert f"| with {found} ({found} discovered) | " in text
+    assert d.gap_discovered["heldout_rms_m"] == pytest.approx(d.discovery["heldout_rms_after_m"], rel=1e-12)
 
 
 def test_write_vehicle_replaces_a_coefficient_the_file_gives_at_zero(tmp_path):

@@ -188,9 +188,10 @@ def run_and_write(args, vehicle, free, got: dict, options) -> None:
     res = diagnose(vehicle, free, train, held, options, rng=np.random.default_rng(args.seed), runner=runner)
     inputs = {"warnings": got["_warnings"], "input_sha256": got["_sha256"]}
     write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]), inputs=inputs)
+    last = res.gap_discovered or res.gap_after  # the model the verdict names, discovered terms included
     print(
         f"verdict: {res.verdict}; held-out RMS {res.gap_before['heldout_rms_m']:.3f} m -> "
-        f"{res.gap_after['heldout_rms_m']:.3f} m (noise floor {res.noise_floor['heldout_rms_m']:.3f} m, "
+        f"{last['heldout_rms_m']:.3f} m (noise floor {res.noise_floor['heldout_rms_m']:.3f} m, "
         f"window starts {res.settings['start_rule']}); wrote {Path(args.out) / 'diagnosis.json'}"
     )
     found = res.discovered

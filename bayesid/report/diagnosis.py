@@ -376,8 +376,16 @@ def _summary_lines(res: dict, command: str) -> list:
 
 
 def _how_far_lines(res: dict) -> list:
-    """The "How far" section: base model against the model with the effects added."""
-    gb, ga = res["gap_before"], res["gap_after"]
+    """The "How far" section: base model against the model with the effects added (and with
+    the terms discovery kept after the rounds, when it kept any)."""
+    gb, ga, gd = res["gap_before"], res["gap_after"], res.get("gap_discovered") or {}
+    added = _added(res)
+    rows = [("base model", gb), ("with " + ("+".join(added) or "nothing"), ga)]
+    found, shrink = (res.get("discovery") or {}).get("found") or [], []
+    if gd and found:
+        rows.append((f"with {'+'.join([*added, *found])} ({'+'.join(found)} discovered)", gd))
+        gain = 1 - gd["heldout_rms_m"] / gb["heldout_rms_m"]
+        shrink = [f"With the discovered terms: held-out shrinkage {fmt(gain)}.", ""]
     return [
         "## How far",
         "",
@@ -401,7 +409,7 @@ def _how_far_lines(res: dict) -> list:
                     fmt(g.get("train_log_likelihood"), 5),
                     fmt(g.get("heldout_log_likelihood"), 5),
                 ]
-                for label, g in (("base model", gb), ("with " + ("+".join(_added(res)) or "nothing"), ga))
+                for label, g in rows
             ],
         ),
         "",
@@ -413,6 +421,7 @@ def _how_far_lines(res: dict) -> list:
         f"{fmt(res['gap_ratio'])} (held-out RMS / noise floor, dimensionless; significant above "
         f"{res['thresholds']['none_ratio']}).",
         "",
+        *shrink,
     ]
 
 

@@ -119,6 +119,10 @@ class Diagnosis:
         Discovery beside round 1 (:func:`discovery_beside_round_one`): whether discovery's terms
         on the base model beat round 1's best catalogue effect, with both held-out RMS and the
         paired window test; ``{}`` when round 1 had no effect to add or discovery was not run.
+    gap_discovered : dict
+        Scores of the model with the terms discovery kept after the rounds (as ``gap_before``;
+        ``gap_after`` is the model without them); ``{}`` when discovery kept none there or its
+        terms took round 1 (``gap_after`` then has them).
     base_check : dict
         Whether the base fit can be trusted (:func:`base_fit_check`), with ``multistart``: the
         extra starts' summary (``DiagnoseOptions.base_starts``), or None.
@@ -162,6 +166,7 @@ class Diagnosis:
     round_seconds: list = field(default_factory=list)
     discovery: dict = field(default_factory=dict)
     discovery_first: dict = field(default_factory=dict)
+    gap_discovered: dict = field(default_factory=dict)
     base_check: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
     after: Stage = field(repr=False, default=None)
@@ -400,6 +405,7 @@ def diagnose(
     remainder_sig = remainder["significant"]
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
     first = search["discovery_first"]
+    gap_discovered = {}
     found = first.discovery if first is not None and first.took_round else None
     if found is not None:  # discovery's terms came first, the effects on top of them
         verdict = f"discovered: {'+'.join(found.found)}"
@@ -422,6 +428,8 @@ def diagnose(
             if held is not None and not chosen:  # on the base model: the one with held starts too
                 found, _ = _better_with_held_starts(found, held, opt.discover, disc_context, rng, runner)
             verdict += " -> " + found.verdict
+            if found.after is not None:
+                gap_discovered = gap_summary(found.after.train, found.after.held)
     return Diagnosis(
         verdict=verdict,
         effects_added=chosen,
@@ -459,6 +467,7 @@ def diagnose(
         round_seconds=search["seconds"],
         discovery=found.to_dict() if found is not None else {},
         discovery_first=first.summary if first is not None else {},
+        gap_discovered=gap_discovered,
         base_check=dict(check, multistart=base_ms),
         base=base_stage,
         after=after,
