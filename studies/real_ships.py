@@ -64,7 +64,7 @@ KVLCC2_HOLD = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
 #: KVLCC2 7 m model's approach speed (m/s) and propeller speed (rev/s) of the predicted turning circles
 U0, RPS = 1.179, 10.23
 #: The rudder-hull interaction parameters of the MMG model that the KVLCC2 file holds at their
-#: captive-test values (Yasukawa & Yoshimura 2015, eqs. 23-25): freed in one all-13 refit
+#: captive-test values (Yasukawa & Yoshimura 2015, eqs. 13-23; bayesid.models.ship): freed in one all-13 refit
 INTERACTION = ("tR", "aH", "xH", "kappa", "lR")
 #: Step budget (steps per walker) of the static-prior MCMC refinement of each split
 MCMC_STEPS = 2500
