@@ -19,10 +19,12 @@ layer or closes a circle; the import graph is checked):
   :mod:`~bayesid.models.inverse` (smoothed motion, inverse dynamics),
   :mod:`~bayesid.models.effects` (the effect catalogue), :mod:`~bayesid.models.context` (the
   track context: windows, start states, step inputs), :mod:`~bayesid.models.submarine` (the
-  submarine model), :mod:`~bayesid.models.world` (synthetic tracks with effects switched on),
+  submarine model and its term library), :mod:`~bayesid.models.library` (TermLibrary: the
+  candidate terms a vessel family offers structure discovery), :mod:`~bayesid.models.world` (synthetic tracks with effects switched on),
   :mod:`~bayesid.models.ship` (the MMG surface ship: :mod:`~bayesid.models.ship.fileformat` the
   ship file, :mod:`~bayesid.models.ship.layout` the kernels' parameter vector,
   :mod:`~bayesid.models.ship.hullterms` extra hull terms by name,
+  :mod:`~bayesid.models.ship.library` its term library,
   :mod:`~bayesid.models.ship.dynamics` the equations as interpreted kernels,
   :mod:`~bayesid.models.ship.kernel` the generated kernel, :mod:`~bayesid.models.ship.effects`
   its effects, :mod:`~bayesid.models.ship.model` the model, :mod:`~bayesid.models.ship.seed` the

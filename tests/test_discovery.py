@@ -481,6 +481,26 @@ def test_a_tied_coefficient_is_a_candidate_untied_and_named(tmp_path):
     assert "gRm" not in kv2.tied and "gRm" in kv2.free and kv2.coefficients["gRm"] == row["coefficient"]
 
 
+def test_the_family_supplies_the_library_and_a_family_without_one_gets_a_clear_error():
+    from bayesid.data.vehicle import load_vehicle
+    from bayesid.models import build_model
+    from bayesid.models.library import NoTermLibraryError, TermLibrary
+
+    kv = ship.load_ship("kvlcc2_7m")
+    sub = load_vehicle("nps_auv2")
+    ms, mu = ship.ShipModel(kv, free=kv.free), build_model(sub, ["Yv", "Nr"])
+    # each family names its candidates in its own grammar: |dr| is a ship factor, u^2 a submarine's
+    assert "Nabsdr" in dv.candidate_terms(ms) and "Nprop" not in dv.candidate_terms(ms)
+    assert "Nprop" in dv.candidate_terms(mu) and "Nabsdr" not in dv.candidate_terms(mu)
+    assert isinstance(ms.term_library(), TermLibrary) and isinstance(mu.term_library(), TermLibrary)
+
+    class ThirdFamily:  # a vessel family registered without a term library
+        vehicle, free = kv, []
+
+    with pytest.raises(NoTermLibraryError, match="ThirdFamily family offers no candidate term library"):
+        dv.candidate_terms(ThirdFamily())
+
+
 def test_a_refit_warm_starts_from_the_window_starts_of_the_fit_it_extends():
     # a fit with fitted window starts keeps them (FitResult.window_starts); a refit of the same windows
     # from its optimum and its starts begins at its cost. Cold, the start-state problem of a model far

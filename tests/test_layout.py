@@ -149,6 +149,24 @@ def test_no_module_imports_another_modules_private_name():
     assert not bad, "\n".join(bad)
 
 
+def test_the_analysis_layer_never_asks_which_kind_of_vessel():
+    """The layers above the models work with the model: no import of a family's package (its term
+    library, kernels, file format) and no isinstance check against a family's vehicle type."""
+    bad = []
+    for f, parts in _modules():
+        if len(parts) < 2 or parts[1] != "analysis":
+            continue
+        for mod, names, line in _imports(f, parts):
+            if mod[:3] == ["bayesid", "models", "ship"] or (mod == ["bayesid", "models"] and "ship" in names):
+                bad.append(f"{f.relative_to(ROOT)}:{line} imports {'.'.join(mod)}")
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "isinstance":
+                kinds = ast.unparse(node.args[1]) if len(node.args) > 1 else ""
+                if any(k in kinds for k in ("Ship", "Vehicle")):
+                    bad.append(f"{f.relative_to(ROOT)}:{node.lineno} isinstance(..., {kinds})")
+    assert not bad, "\n".join(bad)
+
+
 def architecture_map() -> str:
     """The package map of ``docs/architecture.rst``: the text of its "The map" section."""
     text = (ROOT / "docs" / "architecture.rst").read_text()

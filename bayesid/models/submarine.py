@@ -20,6 +20,7 @@ from . import inverse
 from .context import TrackContext, sample_rows, start_states
 from .effects import CATALOGUE, Effect, get, signature_dict
 from .interface import ParameterLayout
+from .library import MAX_ORDER, TermLibrary
 from .simulate import Manoeuvre, Simulator
 
 
@@ -439,6 +440,61 @@ class EffectModel(ParameterLayout):
         """
         return REGIONS
 
+    def term_library(self) -> SubmarineTerms:
+        """The submarine family's candidate terms for structure discovery.
+
+        Returns
+        -------
+        SubmarineTerms
+        """
+        return SubmarineTerms(self.vehicle)
+
+
+class SubmarineTerms(TermLibrary):
+    """The horizontal-plane products of the submarine term grammar (:func:`bayesid.data.terms.parse`,
+    Gertler & Hagen 1967 prime form): at most two velocity factors (``u`` implicit) from ``v r
+    absv absr`` and up to three rudder factors; the constant force or moment twice, ``uu`` in
+    prime form (u^2, e.g. a propeller's) and ``const`` the same at every speed
+    (:data:`bayesid.data.terms.CONSTANT`). A product the table lists under another spelling
+    (``Nuu`` is ``Nprop``) takes the listed name.
+
+    Parameters
+    ----------
+    vehicle : Vehicle
+        The vehicle (:class:`bayesid.data.vehicle.Vehicle`).
+    """
+
+    family = "submarine"
+
+    @staticmethod
+    def products() -> list[str]:
+        """The name bodies, e.g. ``"vabsr"``, ``"vvdr"``, ``"uu"``."""
+        vel = ["", "v", "r", "absv", "absr", "vv", "vr", "rr", "vabsv", "vabsr", "rabsv", "rabsr"]
+        return ["uu", terms.CONSTANT] + [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
+
+    def candidates(self, model, max_order: int = MAX_ORDER, dofs=("Y", "N")) -> list[str]:
+        """See :meth:`TermLibrary.candidates` (``max_order`` does not limit the submarine
+        grammar's products)."""
+        have = {k for k, v in self.vehicle.coefficients.items() if v != 0.0} | set(model.free)
+        out = []
+        for g in dofs:
+            for body in self.products():
+                name = g + body
+                try:
+                    t = terms.parse(terms.listed_name(name) or name)  # Nuu is listed as Nprop
+                except terms.UnknownCoefficientError:
+                    continue
+                if t.name not in have and t.horizontal and t.name not in out:
+                    out.append(t.name)
+        return out
+
+    def columns(self, names, motion: dict, inputs) -> np.ndarray:
+        """See :meth:`TermLibrary.columns` (:func:`bayesid.models.inverse.library_columns`: the
+        simulator's features, so the columns are the kernel's forces)."""
+        for n in names:
+            terms.term(n)  # adds a product to the table
+        return inverse.library_columns(list(names), motion, inputs, self.vehicle)
+
 
 #: Operating-region bins of a submarine's *where* analysis (NPS AUV II speeds and rates).
 REGIONS = {
@@ -450,4 +506,4 @@ REGIONS = {
 EffectModel.CATALOGUE = CATALOGUE
 
 
-__all__ = ["EffectModel", "REGIONS"]
+__all__ = ["EffectModel", "REGIONS", "SubmarineTerms"]

@@ -8,15 +8,14 @@ asks the next question, "what term is the model missing?", in four steps:
    (smoothed motion and rigid-body inverse dynamics, :func:`bayesid.models.inverse.estimate_motion`)
    minus the fitted model's forces along the measured states (the model's ``missing_forces``), per
    degree of freedom X, Y, N, with their noise level (the scatter of successive differences).
-2. **Candidate terms.** Every product of the features up to third order the model does not have,
-   named as a vehicle file writes them: for a ship the extra hull terms of
-   :mod:`bayesid.models.ship.hullterms` (``v r |v| |r| dr |dr|`` and the constants ``X0 Y0 N0``, so
-   port/starboard asymmetric forms such as ``N0``, ``Nabsdr``, ``Nvv`` are candidates); for a
-   submarine the products of the term grammar (:func:`bayesid.data.terms.parse`: ``u v r |v| |r| dr``,
-   at most two velocity factors, and the constants ``Nprop``/``Yuu`` in u^2 and ``Nconst``/``Yconst``
-   the same at every speed); a ship's tied coefficients (:func:`untied_candidates`: ``gRm``, gamma_R for
-   beta_R < 0, which follows ``gR`` unless the ship file gives it), untied at the value they
-   follow.
+2. **Candidate terms.** The terms the model lacks from its family's term library
+   (:func:`bayesid.models.library.term_library`: the model answers, discovery never asks which
+   kind of vessel it has), named as a vehicle file writes them: for a ship the extra hull terms of
+   :mod:`bayesid.models.ship.hullterms` (products of ``v r |v| |r| dr |dr|`` up to third order and
+   the constants ``X0 Y0 N0``, so port/starboard asymmetric forms such as ``N0``, ``Nabsdr``,
+   ``Nvv`` are candidates) and its tied coefficients (``gRm``, gamma_R for beta_R < 0), untied at
+   the value they follow; for a submarine the products of the term grammar
+   (:class:`bayesid.models.submarine.SubmarineTerms`).
 3. **Sparse selection with inclusion probabilities.** Per degree of freedom, the missing force is
    regressed on the candidates' force columns by sequentially thresholded least squares (pysindy
    ``STLSQ``; Brunton, Proctor & Kutz 2016) on RMS-normalised columns and target, so terms of
@@ -54,15 +53,12 @@ import pysindy as ps
 from scipy.ndimage import uniform_filter1d
 from threadpoolctl import threadpool_limits
 
-from ...data import terms as termlib
 from ...data.track import STATE_NAMES, Track
 from ...estimation.laplace import fit_covariance
 from ...estimation.windows import FitProblem, WindowObjective, fit_model, pooled_noise_sd
 from ...models import build_model
-from ...models.ship import hullterms
-from ...models.ship.fileformat import Ship
+from ...models.library import MAX_ORDER, term_library
 from ...tasks import Runner, Task, TaskError
-from ..sindy import library_columns
 from .candidates import Setup, Stage, score_stage
 from .verdict import Thresholds, is_contributor, paired_window_test
 
@@ -137,8 +133,8 @@ class DiscoveryOptions:
     max_nfev: int = 60
 
     def __post_init__(self):
-        if not 1 <= int(self.max_order) <= hullterms.MAX_ORDER:
-            raise ValueError(f"max_order must be 1..{hullterms.MAX_ORDER}, got {self.max_order}")
+        if not 1 <= int(self.max_order) <= MAX_ORDER:
+            raise ValueError(f"max_order must be 1..{MAX_ORDER}, got {self.max_order}")
         bad = [d for d in self.dofs if d not in _DOFS]
         if bad or not self.dofs:
             raise ValueError(f"dofs must be a non-empty subset of {_DOFS}, got {self.dofs}")
@@ -234,110 +230,56 @@ class Discovery:
 # -- 2. candidate terms ---------------------------------------------------------------------------
 
 
-def _ship_products(max_order: int) -> list[str]:
-    """Names of every product of ``v r dr`` and their |.| forms up to ``max_order`` factors (one
-    name per product: ``|x| |x| = x x``), and the constants, per force letter."""
-    parts = []
-    for a_v in range(max_order + 1):
-        for c_v in (0, 1):
-            for a_r in range(max_order + 1):
-                for c_r in (0, 1):
-                    for a_d in range(max_order + 1):
-                        for c_d in (0, 1):
-                            n = a_v + c_v + a_r + c_r + a_d + c_d
-                            if 1 <= n <= max_order:
-                                parts.append(
-                                    "v" * a_v + "absv" * c_v + "r" * a_r + "absr" * c_r + "dr" * a_d + "absdr" * c_d
-                                )
-    return ["0"] + sorted(parts, key=lambda p: (len(p), p))
-
-
-def _submarine_products() -> list[str]:
-    """Names of the horizontal-plane products of the submarine grammar: at most two velocity
-    factors (u implicit) from ``v r absv absr``, and up to three rudder factors; the constant
-    force or moment twice: ``uu`` in prime form (u^2, e.g. a propeller's), ``const`` the same at
-    every speed (:data:`bayesid.data.terms.CONSTANT`)."""
-    vel = ["", "v", "r", "absv", "absr", "vv", "vr", "rr", "vabsv", "vabsr", "rabsv", "rabsr"]
-    return ["uu", termlib.CONSTANT] + [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
-
-
-def candidate_terms(model, max_order: int = 3, dofs=("Y", "N")) -> list[str]:
-    """The candidate terms a model lacks, named as its vehicle file writes them.
+def candidate_terms(model, max_order: int = MAX_ORDER, dofs=("Y", "N")) -> list[str]:
+    """The candidate terms a model lacks, named as its vehicle file writes them: its family's
+    term library (:func:`bayesid.models.library.term_library`).
 
     Parameters
     ----------
     model : SimulationModel
-        The reference model (a ship's or a submarine's); its vehicle's coefficients (listed,
-        non-zero or free) are not candidates.
+        The reference model; its vehicle's coefficients (listed, non-zero or free) are not
+        candidates.
     max_order : int, default 3
-        Highest number of factors (ship).
+        Highest number of motion factors.
     dofs : sequence of str, default ("Y", "N")
         The force letters searched.
 
     Returns
     -------
     list of str
-        The names, grouped by force letter; a ship's tied coefficients last
+        The names, grouped by force letter; the family's tied coefficients last
         (:func:`untied_candidates`).
+
+    Raises
+    ------
+    NoTermLibraryError
+        When the model's family offers no term library.
     """
-    veh = model.vehicle
-    out = []
-    if isinstance(veh, Ship):
-        for g in dofs:
-            for body in _ship_products(max_order):
-                name = g + body
-                if name in veh.coefficients:
-                    continue
-                try:
-                    hullterms.parse(name)
-                except hullterms.HullTermError:
-                    continue  # a listed product
-                out.append(name)
-        return out + untied_candidates(model, dofs)
-    have = {k for k, v in veh.coefficients.items() if v != 0.0} | set(model.free)
-    for g in dofs:
-        for body in _submarine_products():
-            name = g + body
-            try:
-                t = termlib.parse(termlib.listed_name(name) or name)  # Nuu is listed as Nprop
-            except termlib.UnknownCoefficientError:
-                continue
-            if t.name not in have and t.horizontal and t.name not in out:
-                out.append(t.name)
-    return out
+    return term_library(model).candidates(model, max_order, dofs)
 
 
 def untied_candidates(model, dofs=("Y", "N")) -> list[str]:
-    """The family's physical candidates the model has a parameter for: its tied coefficients.
-
-    A ship file that gives one ``gR`` states a hypothesis, one flow-straightening coefficient
-    gamma_R for both signs of the rudder's inflow angle (MMG, Yasukawa & Yoshimura 2015, eq. 23;
-    their Table 3 gives two for KVLCC2); ``gRm`` (beta_R < 0) then follows ``gR``
-    (:data:`bayesid.models.ship.layout.FOLLOWS`). Untying it, with the value it follows as its
-    start, is a candidate like a missing term: a port/starboard asymmetry of the rudder force,
-    acting in X, Y and N at once.
+    """The family's physical candidates the model has a parameter for: its tied coefficients that
+    are not free (:meth:`bayesid.models.library.TermLibrary.untied`; a ship's ``gRm``, gamma_R
+    for beta_R < 0, following ``gR``; none for a submarine).
 
     Parameters
     ----------
     model : SimulationModel
         The reference model.
     dofs : sequence of str, default ("Y", "N")
-        The force letters searched: the rudder force's candidates need Y or N.
+        The force letters searched.
 
     Returns
     -------
     list of str
-        The tied coefficients that are not free (empty for a submarine).
+
+    Raises
+    ------
+    NoTermLibraryError
+        When the model's family offers no term library.
     """
-    veh = model.vehicle
-    if not isinstance(veh, Ship) or not {"Y", "N"} & set(dofs):
-        return []
-    return [k for k in veh.tied if k not in model.free]
-
-
-def _tied(vehicle) -> dict:
-    """``{tied coefficient: the one it follows}`` of a ship (:attr:`Ship.tied`); empty otherwise."""
-    return vehicle.tied if isinstance(vehicle, Ship) else {}
+    return term_library(model).untied(model, dofs)
 
 
 def reference_values(ref: Stage, names: list) -> dict:
@@ -357,30 +299,9 @@ def reference_values(ref: Stage, names: list) -> dict:
         ``{name: prime value}``.
     """
     veh = ref.model.vehicle
-    tied = _tied(veh)
+    tied = term_library(ref.model).tied
     fitted = ref.fit.coefficients()
     return {n: float(fitted.get(tied[n], veh.coefficients.get(tied[n], 0.0))) if n in tied else 0.0 for n in names}
-
-
-def _columns(model, names: list, motion: dict, inputs) -> np.ndarray:
-    """Force columns (n, K) of candidate terms at unit prime coefficient along the smoothed
-    motion (the rudder smoothed alike, so both sides of the regression share a bandwidth)."""
-    veh = model.vehicle
-    if isinstance(veh, Ship):
-        P = veh.particulars
-        return hullterms.columns(
-            [hullterms.parse(n) for n in names],
-            motion["u"],
-            motion["v"],
-            motion["r"],
-            np.asarray(inputs)[:, 0],
-            P["L"],
-            P["rho"],
-            P["d"],
-        )
-    for n in names:
-        termlib.term(n)  # adds a product to the table
-    return library_columns(list(names), motion, inputs, veh)
 
 
 # -- 1. force residuals ----------------------------------------------------------------------------
@@ -490,7 +411,7 @@ def force_residuals(model, fit, tracks: list, names: list, options=None, rng=Non
             F = F - F0
             Fn = _forces_at(model, fit, twin_track(model, fit, tr, sd, rng), t)
             null = None if Fn is None else Fn - F0
-        C = _columns(model, names, motion, inputs)
+        C = term_library(model).columns(names, motion, inputs)
         keep = (t >= t[0] + opt.trim_s) & (t <= t[-1] - opt.trim_s) & np.isfinite(F).all(1) & np.isfinite(C).all(1)
         if null is not None:
             keep &= np.isfinite(null).all(1)
@@ -656,7 +577,7 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     r, J = obj.jacobian(np.asarray(obj.x0, float))
     # an untied coefficient takes its side from the one it followed: the reference's column of
     # that one is the sum of both (so the free directions projected out are the reference's own)
-    tied = _tied(ref.model.vehicle)
+    tied = term_library(ref.model).tied
     for n in names:
         if n in tied and tied[n] in model.param_names:
             J[:, model.param_names.index(tied[n])] += J[:, model.param_names.index(n)]
@@ -934,7 +855,7 @@ def _row(term: str, st: Stage | None, ref: Stage, sel: dict | None, floor_rms: f
     sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
     row = {
         "term": term,
-        "dof": "XYN" if term in _tied(ref.model.vehicle) else term[0],
+        "dof": term_library(ref.model).dof(term),
         "inclusion_probability": sel["inclusion"].get(term, 0.0),
         "group_inclusion_probability": sel["group_probability"].get(term, 0.0),
         "group": sel["groups"].get(term, []),

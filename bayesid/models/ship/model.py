@@ -21,6 +21,7 @@ from .dynamics import accelerations, apparent_wind, mass_matrix, wind_components
 from .effects import SHIP_CATALOGUE, get_effect
 from .fileformat import Ship
 from .layout import COEFFICIENT_INDEX, WIND
+from .library import ShipTerms
 from .seed import equation_error_seed
 
 #: Default multiple-shooting window (s) of ship fits (``bayesid fit``, and ``bayesid diagnose``
@@ -512,6 +513,15 @@ class ShipModel(ParameterLayout):
             "apparent_wind_speed_mps": [0, 1, 2, 4, 20],
             "apparent_wind_angle_deg": [0, 30, 60, 120, 150, 180.01],
         }
+
+    def term_library(self) -> ShipTerms:
+        """The ship family's candidate terms for structure discovery.
+
+        Returns
+        -------
+        ShipTerms
+        """
+        return ShipTerms(self.vehicle)
 
 
 __all__ = ["ShipModel", "FIT_WINDOW_S", "BOUNDS"]

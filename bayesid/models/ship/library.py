@@ -1,0 +1,72 @@
+"""The ship family's candidate term library for structure discovery: the extra hull terms of
+:mod:`bayesid.models.ship.hullterms` and the ship file's tied coefficients
+(:class:`bayesid.models.library.TermLibrary`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..library import TermLibrary, motion_products
+from . import hullterms
+
+
+class ShipTerms(TermLibrary):
+    """Every product of ``v r |v| |r| dr |dr|`` of one to three factors the ship lacks, and the
+    constants ``X0 Y0 N0``, in MMG prime form (``0.5 rho L d U^2 C' f'_1 ... f'_k``, Yasukawa &
+    Yoshimura 2015, Sec. 2.2, eqs. 6-8; :mod:`bayesid.models.ship.hullterms`), so port/starboard
+    asymmetric forms (``N0``, ``Nabsdr``, ``Nvv``) are candidates; and the ship file's tied
+    coefficients (``gRm``, gamma_R for beta_R < 0, which follows ``gR`` unless the file gives it).
+
+    Parameters
+    ----------
+    vehicle : Ship
+        The ship (:class:`bayesid.models.ship.fileformat.Ship`).
+    """
+
+    family = "ship"
+
+    @property
+    def tied(self) -> dict:
+        """``{tied coefficient: the one it follows}`` (:attr:`Ship.tied`)."""
+        return self.vehicle.tied
+
+    def candidates(self, model, max_order: int = hullterms.MAX_ORDER, dofs=("Y", "N")) -> list[str]:
+        """See :meth:`TermLibrary.candidates`; a listed coefficient's product (``Yrvv`` is
+        ``Yvvr``) is not a candidate."""
+        out = []
+        for g in dofs:
+            for body in ["0", *motion_products(max_order)]:
+                name = g + body
+                if name in self.vehicle.coefficients:
+                    continue
+                try:
+                    hullterms.parse(name)
+                except hullterms.HullTermError:
+                    continue  # a listed product
+                out.append(name)
+        return out + self.untied(model, dofs)
+
+    def untied(self, model, dofs=("Y", "N")) -> list[str]:
+        """A ship file that gives one ``gR`` states a hypothesis, one flow-straightening
+        coefficient gamma_R for both signs of the rudder's inflow angle (MMG eq. 23; Yasukawa &
+        Yoshimura's Table 3 gives two for KVLCC2). Untying it, with the value it follows as its
+        start, is a candidate like a missing term: a port/starboard asymmetry of the rudder
+        force, acting in X, Y and N at once (it needs Y or N among ``dofs``)."""
+        if not {"Y", "N"} & set(dofs):
+            return []
+        return [k for k in self.tied if k not in model.free]
+
+    def columns(self, names, motion: dict, inputs) -> np.ndarray:
+        """See :meth:`TermLibrary.columns` (:func:`hullterms.columns`)."""
+        P = self.vehicle.particulars
+        return hullterms.columns(
+            [hullterms.parse(n) for n in names],
+            motion["u"],
+            motion["v"],
+            motion["r"],
+            np.asarray(inputs)[:, 0],
+            P["L"],
+            P["rho"],
+            P["d"],
+        )
