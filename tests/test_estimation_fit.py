@@ -72,8 +72,8 @@ def test_problem_rejects_zero_reference(short_problem):
 
 
 def test_unknown_free_coefficient_is_named(nps):
-    with pytest.raises(KeyError, match="Nrrr"):  # cubic: no prime product (Nrr is r*r, a term)
-        Simulator(nps, mv.straight(nps, duration=10.0), free=["Nrrr"])
+    with pytest.raises(KeyError, match="Nrrrr"):  # quartic: no prime product (Nrrr is r^3/U, a term)
+        Simulator(nps, mv.straight(nps, duration=10.0), free=["Nrrrr"])
 
 
 def test_one_fit_function_serves_both_objectives(short_problem, nps):

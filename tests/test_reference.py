@@ -269,8 +269,8 @@ def test_sample_every(nps):
 
 def test_errors(nps):
     m = mv.straight(nps, dt=0.1, duration=1.0)
-    with pytest.raises(terms.UnknownCoefficientError, match="Yvvv"):  # cubic: no prime product
-        simulate_reference(nps, m, coefficients={"Yvvv": 1.0})
+    with pytest.raises(terms.UnknownCoefficientError, match="Yvvvv"):  # quartic: no prime product
+        simulate_reference(nps, m, coefficients={"Yvvvv": 1.0})
     with pytest.raises(ValueError, match="mode"):
         simulate_reference(nps, m, mode="vertical")
     s0 = m.initial_state.copy()

@@ -220,7 +220,7 @@ def test_Kpabsp_loads():
     [
         ("Yvabvs", r"unknown coefficient 'Yvabvs': cannot read 'abvs'.*did you mean Yvabsv"),
         ("Nvabsx", r"cannot read 'absx'.*did you mean Nvabsv"),
-        ("Yvvv", r"3 velocity factors.*did you mean"),
+        ("Yvvvv", r"4 velocity factors; a prime-form term has at most 3"),
         ("Xuabsu", r"\|u\| is not a feature"),
         ("Xdrdrdrdr", r"6 factors .*at most 5"),
         ("Qv", r"force letter"),

@@ -56,8 +56,8 @@ def test_bad_vehicle_file_names_the_key(tmp_path, old, new, match):
 
 
 def test_with_coefficients_rejects_bad_input(nps):
-    with pytest.raises(terms.UnknownCoefficientError, match="Yvvv"):  # cubic: no prime product
-        nps.with_coefficients({"Yvvv": 1.0})
+    with pytest.raises(terms.UnknownCoefficientError, match="Yvvvv"):  # quartic: no prime product
+        nps.with_coefficients({"Yvvvv": 1.0})
     with pytest.raises(ValueError, match="Nr"):
         nps.with_coefficients({"Nr": float("nan")})
 

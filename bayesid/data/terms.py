@@ -12,8 +12,13 @@ Conventions (Gertler & Hagen 1967; Feldman 1979; the prime system of ``shared/re
 * Names are SNAME: the force letter, then the motion variables of the product (``Yv`` multiplies
   u*v with the implicit u, ``Ydr`` multiplies u**2*delta_r, ``Yvabsv`` multiplies v*|v|,
   ``Nabsvr`` multiplies |v|*r, ``_eps`` terms also multiply the propulsion function eps(eta)).
+* The prime form makes every force term quadratic in speed. A term of three velocity factors is
+  divided by the speed through the water ``U = sqrt(u**2 + v**2 + w**2)`` (the feature ``1/U``):
+  ``Nvvr`` multiplies v*v*r/U, ``Yvvv`` v**3/U, ``Nvabsvr`` v*|v|*r/U (Gertler & Hagen 1967;
+  Feldman 1979; Fossen 2011, Handbook of Marine Craft Hydrodynamics, cubic cross-flow terms).
 * The power of L is not typed in: it follows from the factors (prime rule). A force term has
-  ``k = 2 + (number of rate factors p, q, r)``, a moment term one more; an acceleration term has
+  ``k = 2 + (number of rate factors p, q, r)``, a moment term one more (``1/U`` is no rate:
+  ``Nvvr`` has k = 4, ``Yrrr`` k = 5); an acceleration term has
   ``k = 3`` for a linear and ``k = 4`` for an angular acceleration, a moment one more.
 * Any product of the features below is a term, not only the names listed in :data:`LISTED`:
   ``Nvabsr`` (N from v|r|), ``Yrabsv`` (Y from r|v|), ``Yq`` (Y from u*q) are read from their
@@ -43,15 +48,20 @@ VELOCITIES = ("u", "v", "w", "p", "q", "r")
 
 # Feature vector evaluated once per right-hand-side call; a term is a product of features.
 # The order is shared with the compiled kernel (bayesid.models.dynamics); change both together.
+# "1/U" is 1/max(U, U_MIN_EPS) with U = sqrt(u^2 + v^2 + w^2), the speed through the water: the
+# prime form of a term of three velocity factors (see parse()).
 FEATURES = ("1", "u", "v", "w", "p", "q", "r", "dr", "ds", "db", "eps", "|v|", "|r|", "prop", "|w|", "|q|", "|p|")
+FEATURES += ("1/U",)  # appended: the indices above are those of the kernels
 F_INDEX = {name: i for i, name in enumerate(FEATURES)}
 N_FEATURES = len(FEATURES)
 MAX_FACTORS = 5
+#: Most velocity factors of a force term; the third one brings the factor 1/U (see parse()).
+MAX_VELOCITY_FACTORS = 3
 
 _RATES = {"p", "q", "r", "|p|", "|r|", "|q|"}
 _LINEAR = {"u", "v", "w", "|v|", "|w|"}
 # Factors of the horizontal-plane model (w = p = q = 0, no stern or bow planes, no eps(eta)).
-_PLANE_FACTORS = {"u", "v", "r", "dr", "|v|", "|r|", "prop"}
+_PLANE_FACTORS = {"u", "v", "r", "dr", "|v|", "|r|", "prop", "1/U"}
 
 TERM_KINDS = ("force", "added_mass")
 CATEGORIES = ("static", "rotary", "added_mass")
@@ -353,15 +363,17 @@ def _read(name: str) -> Term:
     if not factors:
         raise _unknown(name, "no factor after the force letter")
     n_vel = sum(f in _VELOCITY_FACTORS for f in factors)
-    if n_vel > 2:
+    if n_vel > MAX_VELOCITY_FACTORS:
         raise _unknown(
             name,
-            f"{n_vel} velocity factors; a prime-form term has at most two "
-            "(a cubic term needs 1/U, which no feature gives)",
+            f"{n_vel} velocity factors; a prime-form term has at most {MAX_VELOCITY_FACTORS} "
+            "(the third divided by the speed U; a fourth would need 1/U**2, which no feature gives)",
         )
-    factors = ["u"] * (2 - n_vel) + factors + (["eps"] if eps else [])
+    inv_speed = ["1/U"] * max(n_vel - 2, 0)  # prime form: quadratic in speed
+    factors = ["u"] * max(2 - n_vel, 0) + factors + inv_speed + (["eps"] if eps else [])
     if len(factors) > MAX_FACTORS:
-        raise _unknown(name, f"{len(factors)} factors ({' '.join(factors)}); at most {MAX_FACTORS}")
+        counted = " (1/U of the third velocity factor counts as one)" if inv_speed else ""
+        raise _unknown(name, f"{len(factors)} factors ({' '.join(factors)}); at most {MAX_FACTORS}{counted}")
     return Term(name, DOFS.index(name[0]), tuple(factors), -1, 2 if "db" in factors else 1)
 
 
@@ -377,9 +389,17 @@ def parse(name: str) -> Term:
       rudder, stern-plane and bow-plane angles -- and optionally ``_eps`` for the propulsion
       function eps(eta);
     * the prime form makes every force term quadratic in the velocities (a rate counts as one
-      velocity over L): the missing velocity factors are ``u``, put first. ``Yv`` is u*v, ``Ydr``
-      u*u*dr, ``Nvabsr`` v*|r|, ``Xqds_eps`` u*q*ds*eps. Three or more velocity factors have no
-      prime form the kernels can evaluate (it needs 1/U) and are refused;
+      velocity over L; the rudder, stern-plane and bow-plane angles are no velocities): the
+      missing velocity factors are ``u``, put first. ``Yv`` is u*v, ``Ydr`` u*u*dr, ``Nvabsr``
+      v*|r|, ``Xqds_eps`` u*q*ds*eps;
+    * a term of three velocity factors is divided by the speed through the water
+      ``U = sqrt(u**2 + v**2 + w**2)`` (the feature ``1/U``, put after the named factors and
+      before ``eps``; Gertler & Hagen 1967, Feldman 1979, Fossen 2011 cubic cross-flow terms):
+      ``Nvvr`` is v*v*r/U (``N = 0.5 rho L**4 N'vvr v**2 r / U``), ``Yrrr`` r*r*r/U, ``Nvabsvr``
+      v*|v|*r/U, ``Yvvvdr`` v*v*v*dr/U. The guard ``U >= U_MIN_EPS`` (1e-3 m/s, as for eps(eta))
+      keeps the feature finite at rest. Four or more velocity factors are refused (they would need
+      1/U**2), and so is a third-order name whose factors with ``1/U`` exceed :data:`MAX_FACTORS`
+      (``Nvvrdrdr``: v v r dr dr 1/U);
     * the power of L follows from the factors (:attr:`Term.L_power`); a term with ``db`` has
       multiplicity 2 (one coefficient per bow plane, one ``delta_b`` input), except the listed
       ``Xdbdb``;
@@ -407,9 +427,10 @@ def parse(name: str) -> Term:
     ------
     UnknownCoefficientError
         The name is not a product of the features (:data:`FEATURES`; ``|u|`` is not a
-        feature), has more than :data:`MAX_FACTORS` factors or more than two velocity
-        factors, or is another spelling of a listed product (``Yabsvv`` for ``Yvabsv``); the
-        message says which, and suggests the closest names of the table.
+        feature), has more than :data:`MAX_FACTORS` factors (``1/U`` included) or more than
+        :data:`MAX_VELOCITY_FACTORS` velocity factors, or is another spelling of a listed product
+        (``Yabsvv`` for ``Yvabsv``); the message says which, and suggests the closest names of the
+        table.
     """
     i = INDEX.get(name)
     if i is not None and i < len(LISTED):

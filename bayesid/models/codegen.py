@@ -88,6 +88,7 @@ _FEATURE_VAR = {
     "|w|": "abs(w)",
     "|q|": "abs(q)",
     "|p|": "abs(p)",
+    "1/U": "iU",
 }
 _STATES = ("x", "y", "z", "ph", "th", "ps", "u", "v", "w", "p", "q", "r")
 _PLANE_STATES = (0, 1, 5, 6, 7, 11)  # x, y, psi, u, v, r
@@ -146,6 +147,10 @@ def _rhs_statements(force_names, mode: str) -> list[str]:
         a("eps = -1.0 + (sn * su) * (math.sqrt(abs(ct) + 1.0) - 1.0) / epsden")
     if "prop" in used:
         a("prop = uc * abs(uc) - u * abs(u)")
+    if "1/U" in used:
+        # 1/U of bayesid.models.dynamics.features, U = sqrt(u^2 + v^2 + w^2) floored at U_MIN_EPS
+        a("spd = math.sqrt(u * u + v * v + w * w)")
+        a("iU = 1.0 / (spd if spd > U_MIN_EPS else U_MIN_EPS)")
     S += _hydro_sums(force_names, mode)
     if not planar:
         # Hydrostatics (Fossen 1994 pp. 45-46; equations.md "Hydrostatics"); they vanish at

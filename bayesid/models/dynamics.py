@@ -36,9 +36,11 @@ N_VP = 25
 OK, NONFINITE, OUT_OF_BOUNDS = 0, 1, 2
 
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
-U_MIN_EPS = 1e-3  # |u| floor (m/s) in eta = u_c/u; eps(eta) is undefined at u = 0
+# |u| floor (m/s) in eta = u_c/u (eps(eta) is undefined at u = 0), and floor of the speed U in the
+# feature 1/U (the prime form of a term of three velocity factors, bayesid.data.terms.parse).
+U_MIN_EPS = 1e-3
 
-assert F_INDEX["|p|"] == 16 and N_FEATURES == 17  # kernel below hard-codes this order
+assert F_INDEX["|p|"] == 16 and F_INDEX["1/U"] == 17 and N_FEATURES == 18  # kernel below hard-codes this order
 
 
 def vehicle_params(vehicle, crossflow_integral: bool | None = None) -> np.ndarray:
@@ -124,7 +126,8 @@ def features(s, uin, vp, f):
     vp : ndarray, shape (N_VP,)
         Vehicle parameters (:func:`vehicle_params`).
     f : ndarray, shape (N_FEATURES,)
-        Output: the features, in :data:`bayesid.data.terms.FEATURES` order (written in place).
+        Output: the features, in :data:`bayesid.data.terms.FEATURES` order (written in place);
+        ``1/U`` is ``1 / max(U, U_MIN_EPS)`` with ``U = sqrt(u^2 + v^2 + w^2)`` (m/s).
     """
     u, v, w, p, q, r = s[6], s[7], s[8], s[9], s[10], s[11]
     n_rad = uin[3] * RPM_TO_RAD_S
@@ -147,6 +150,8 @@ def features(s, uin, vp, f):
     f[14] = abs(w)
     f[15] = abs(q)
     f[16] = abs(p)
+    spd = math.sqrt(u * u + v * v + w * w)
+    f[17] = 1.0 / (spd if spd > U_MIN_EPS else U_MIN_EPS)
 
 
 @nb.njit(cache=True)

@@ -32,7 +32,8 @@ from ..data import terms
 from .crossflow import crossflow_forces
 from .simulate import MODES, Manoeuvre, SimResult
 
-#: |u| floor (m/s) inside eta = u_c/u (eps(eta) is undefined at u = 0); same value as the kernel.
+#: |u| floor (m/s) inside eta = u_c/u (eps(eta) is undefined at u = 0), and floor of the speed
+#: U in the feature 1/U; same value as the kernel.
 U_FLOOR = 1e-3
 #: Indices of surge, sway and yaw in nu (and of u, v, r in the mass matrix).
 PLANE = [0, 1, 5]
@@ -178,7 +179,9 @@ def reference_features(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.nd
     """Term-library features in the order of ``terms.FEATURES``.
 
     ``prop = u_c|u_c| - u|u|`` (m^2/s^2) with ``u_c = uc_per_omega * n * 2 pi/60``;
-    ``eps`` from :func:`propulsion_eps`.
+    ``eps`` from :func:`propulsion_eps`; ``1/U`` (s/m) the inverse of the speed through the water
+    ``U = |(u, v, w)|``, floored at ``U_FLOOR`` (the prime form of a term of three velocity
+    factors, :func:`bayesid.data.terms.parse`).
 
     Parameters
     ----------
@@ -217,6 +220,7 @@ def reference_features(states: np.ndarray, inputs: np.ndarray, vehicle) -> np.nd
         "|w|": np.abs(w),
         "|q|": np.abs(q),
         "|p|": np.abs(p),
+        "1/U": 1.0 / np.maximum(np.linalg.norm(states[:, 6:9], axis=1), U_FLOOR),
     }
     return np.column_stack([columns[name] for name in terms.FEATURES])
 
