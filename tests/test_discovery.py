@@ -247,7 +247,10 @@ def test_discover_command_writes_a_vehicle_file_that_loads_and_fits(tmp_path):
     )
     assert res.returncode == 0, res.stderr
     doc = json.loads((out / "diagnosis.json").read_text())
-    kept = [r["term"] for r in doc["discovery"]["discovered"] if r["kept"]]
+    # the final model's terms: the top-level list's kept items (discovery's own rows say "passed alone")
+    kept = [r["term"] for r in doc["discovered"] if r["kept"]]
+    assert kept == doc["discovery"]["found"]
+    assert all(r["kept"] for r in doc["discovery"]["discovered"] if r["term"] in kept)
     assert kept and "discovered:" in doc["verdict"] and "## What the model lacks" in (out / "report.md").read_text()
     assert (out / "figures" / "discovery_windows.png").is_file()
     written = ship.load_ship(veh)

@@ -97,7 +97,7 @@ def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | 
     write_json(out / "diagnosis.json", res)
     figs = _figures(diag, res, out, heldout) + _discovery_figures(diag, res, out, heldout)
     lines = [*_summary_lines(res, command), *_how_far_lines(res), *_which_lines(res)]
-    lines += [*_discovery_lines(res), *_where_lines(res)]
+    lines += [*_discovery_lines(res), *_alternatives_lines(res), *_design_lines(res), *_where_lines(res)]
     lines += ["", *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
     (out / "report.md").write_text("\n".join(lines))
 
@@ -214,7 +214,96 @@ def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
         path = out / "figures" / "discovery_track.png"
         labels = ("reference model", "with " + "+".join(D["found"]))
         figs.append(_window_figure(found.reference or diag.after, found.after, res, heldout[0], path, labels))
+    if res.get("design"):
+        ax = plots.plot_alternatives(res["design"][0])
+        path = out / "figures" / "design_top.png"
+        ax.figure.savefig(path, dpi=120, bbox_inches="tight")
+        plots.plt.close(ax.figure)
+        figs.append(path)
     return figs
+
+
+def _alternatives_lines(res: dict) -> list:
+    """Which structures the runs cannot separate from each kept term, and whether the held-out
+    test reached beyond the training manoeuvres."""
+    kept = [d for d in res.get("discovered") or [] if d["kept"]]
+    if not kept:
+        return []
+    kinds = res.get("manoeuvre_kinds") or {}
+    lines = ["## Which term, really (alternatives the runs cannot separate)", ""]
+    for d in kept:
+        if d["separable"]:
+            lines.append(
+                f"- **{d['term']}**: every other refitted term predicts the held-out windows significantly worse "
+                "(paired window test): the runs separate it."
+            )
+        else:
+            alts = "; ".join(
+                f"{a['term']} (held-out {fmt(a['heldout_rms_m'])} m, window test p = {fmt(a['window_p_value'])})"
+                for a in d["alternatives"]
+            )
+            lines.append(
+                f"- **{d['term']}** (held-out {fmt(d['heldout_rms_m'])} m) is not separable on these runs from: {alts}. "
+                "Each passes the kept test alone and its held-out windows are not significantly worse: the runs say "
+                f"a force of one of these forms is missing in {'/'.join(sorted({d['dof'], *(a['term'][0] for a in d['alternatives'])}))}, "
+                "not which."
+            )
+    if kinds:
+        tr, he = sorted(set(kinds.get("train", []))), sorted(set(kinds.get("heldout", [])))
+        lines += ["", f"Training runs: {', '.join(tr) or '-'}; held-out runs: {', '.join(he) or '-'}."]
+        if kept[0].get("tested_only_within_training_manoeuvres"):
+            lines.append(
+                "The held-out runs are of the training runs' kinds only: the discovered terms are **tested only within "
+                "the training manoeuvres**; a manoeuvre of another kind may reject them (see the designed runs below)."
+            )
+    return [*lines, ""]
+
+
+def _design_lines(res: dict) -> list:
+    """The runs that would separate the alternatives, best first."""
+    rows = res.get("design") or []
+    if not rows:
+        return []
+    return [
+        "## The run that would separate them",
+        "",
+        md_table(
+            [
+                "run",
+                "side",
+                "rudder (deg)",
+                "check (deg)",
+                "rpm",
+                "duration (s)",
+                "separation (nats)",
+                "worst pair",
+                "max position difference (m)",
+            ],
+            [
+                [
+                    r["kind"].replace("_", " "),
+                    r["side"],
+                    fmt(r["rudder_deg"]),
+                    fmt(r["check_deg"]),
+                    fmt(r["rpm"]),
+                    fmt(r["duration_s"]),
+                    fmt(r["separation"]),
+                    r["worst_pair"],
+                    fmt(r["max_position_difference_m"]),
+                ]
+                for r in rows
+            ],
+        ),
+        "",
+        "Separation: the symmetric Kullback-Leibler (J) divergence between two alternatives' Gaussian predictive "
+        "distributions of x, y and heading (measurement noise of the training runs plus the spread over parameter "
+        "draws from each refit's Laplace covariance), summed over samples 1 s apart of the protocol windows, each "
+        "window started from the kept term's model; the run's value is its worst pair's (Box & Hill 1967, "
+        "Technometrics 9:57-71, with equal prior probabilities). It is the expected log Bayes factor for the right "
+        "one of a pair: above about 5 nats a run of that kind would separate them. Add the top run to `--heldout` "
+        "(or `--train`) and diagnose again.",
+        "",
+    ]
 
 
 def _held_starts_lines(settings: dict) -> list:

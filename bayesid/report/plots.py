@@ -675,6 +675,7 @@ __all__ = [
     "correlation_heatmap",
     "fim_spectra",
     "marginals_vs_truth",
+    "plot_alternatives",
 ]
 
 
@@ -1392,3 +1393,33 @@ def simulated_run(track, path, title: str = "", indices=None):
     ax3.grid(alpha=0.3)
     fig.suptitle(textwrap.fill(title, 130), fontsize=9)
     return _save(fig, path)
+
+
+def plot_alternatives(row: dict, ax=None):
+    """The alternatives' predicted tracks of one designed run (earth frame: x north, y east,
+    plotted y against x), over the diagnosis's protocol windows started from the kept term's
+    model.
+
+    Parameters
+    ----------
+    row : dict
+        A row of ``Diagnosis.design`` with ``predicted`` (``{label: {"t", "x", "y", "psi"}}``),
+        ``name`` and ``separation``.
+    ax : matplotlib.axes.Axes, optional
+        Drawn onto (default: new axes).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes.
+    """
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 5))
+    for i, (label, p) in enumerate(row["predicted"].items()):
+        ax.plot(p["y"], p["x"], ".", ms=2, label=f"with {label}" + (" (kept)" if i == 0 else ""))
+    ax.set_xlabel("y, east (m)")
+    ax.set_ylabel("x, north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{row['name']}: separation {row['separation']:.3g} nats ({row['worst_pair']})", fontsize=9)
+    ax.legend(fontsize=8)
+    return ax

@@ -26,6 +26,7 @@ from ...models import model_class
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
+from .design import design, manoeuvre_kind
 from .discovery import Discovery, discover, with_terms
 from .support import signature_regression
 from .verdict import (
@@ -126,6 +127,15 @@ class Diagnosis:
     base_check : dict
         Whether the base fit can be trusted (:func:`base_fit_check`), with ``multistart``: the
         extra starts' summary (``DiagnoseOptions.base_starts``), or None.
+    design : list of dict
+        The runs that would separate the first kept term with alternatives from them, best first
+        (:func:`bayesid.analysis.gap.design.design`; the predicted tracks only in the first);
+        empty when every kept term is separable or discovery was not run.
+    manoeuvre_kinds : dict
+        ``{"train": [...], "heldout": [...]}``: the standard manoeuvre each run resembles
+        (:func:`bayesid.analysis.gap.design.manoeuvre_kind`); when the held-out kinds are all
+        among the training kinds, every item of ``discovered`` has
+        ``tested_only_within_training_manoeuvres: true``.
     base : Stage, optional
         The base model as a :class:`~bayesid.analysis.gap.candidates.Stage` (model, fit,
         scores, nuisances) for plots; not in :meth:`to_dict`.
@@ -133,7 +143,10 @@ class Diagnosis:
         The model after the rounds (as ``gap_after``), likewise.
     discovered : Discovery, optional
         Structure discovery's result with its models (:mod:`bayesid.analysis.gap.discovery`);
-        not in :meth:`to_dict`.
+        in :meth:`to_dict` as the top-level ``discovered`` list
+        (:meth:`~bayesid.analysis.gap.discovery.Discovery.terms`: every refitted term, the final
+        model's with ``kept: true``, each kept one with the ``alternatives`` the runs cannot
+        separate from it).
     setup : Setup, optional
         What every model of the diagnosis shares (vehicle, free coefficients, tracks, windows);
         not in :meth:`to_dict`.
@@ -168,6 +181,8 @@ class Diagnosis:
     discovery_first: dict = field(default_factory=dict)
     gap_discovered: dict = field(default_factory=dict)
     base_check: dict = field(default_factory=dict)
+    design: list = field(default_factory=list)
+    manoeuvre_kinds: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
     after: Stage = field(repr=False, default=None)
     discovered: object = field(repr=False, default=None)
@@ -182,7 +197,13 @@ class Diagnosis:
             ``{field: value}``.
         """
         hidden = ("base", "after", "discovered", "setup")
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name not in hidden}
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in hidden}
+        # issue 40's contract: the terms at the top level, the final model's with kept: true
+        out["discovered"] = self.discovered.terms() if self.discovered is not None else []
+        within = set(self.manoeuvre_kinds.get("heldout", [])) <= set(self.manoeuvre_kinds.get("train", []))
+        for item in out["discovered"]:  # a held-out test of the same kinds says nothing of the others
+            item["tested_only_within_training_manoeuvres"] = bool(self.manoeuvre_kinds) and within
+        return out
 
 
 #: How the training fits of a diagnosis get their window starts (:class:`DiagnoseOptions`).
@@ -259,6 +280,7 @@ class DiagnoseOptions:
     base_effects: tuple = ()
     discover: object = None
     train_starts: str = "fitted"
+    design: object = None
 
     def __post_init__(self):
         if self.train_starts not in TRAIN_STARTS:
@@ -307,6 +329,11 @@ def diagnose(
     -------
     Diagnosis
         The verdict, the ranking of every round, the scores before and after and the evidence.
+
+    design : DesignOptions or None, default None
+        When discovery keeps a term that the runs cannot separate from its alternatives, rank
+        the standard manoeuvres by how well each would separate them
+        (:func:`bayesid.analysis.gap.design.design`); None: not.
 
     Raises
     ------
@@ -408,7 +435,7 @@ def diagnose(
     gap_discovered = {}
     found = first.discovery if first is not None and first.took_round else None
     if found is not None:  # discovery's terms came first, the effects on top of them
-        verdict = f"discovered: {'+'.join(found.found)}"
+        verdict = found.verdict.replace("+unexplained", "")
         verdict += (
             (" -> " + verdict_of(True, chosen, remainder_sig)) if chosen else ("+unexplained" if remainder_sig else "")
         )
@@ -469,11 +496,28 @@ def diagnose(
         discovery_first=first.summary if first is not None else {},
         gap_discovered=gap_discovered,
         base_check=dict(check, multistart=base_ms),
+        design=_design(found, setup, opt.design, runner),
+        manoeuvre_kinds={"train": [manoeuvre_kind(t) for t in train], "heldout": [manoeuvre_kind(t) for t in heldout]},
         base=base_stage,
         after=after,
         discovered=found,
         setup=setup,
     )
+
+
+def _design(found, setup: Setup, options, runner: Runner) -> list:
+    """The runs that separate the first kept term with alternatives from them
+    (:func:`bayesid.analysis.gap.design.design`), for ``Diagnosis.design``: ``[]`` without
+    discovery, design options or alternatives."""
+    if found is None or options is None:
+        return []
+    for k in found.found:
+        alts = [a["term"] for a in found.alternatives.get(k, []) if a["term"] in found.stages]
+        if alts and k in found.stages:
+            runner.say(f"design: the run that separates {k} from {', '.join(alts)}")
+            rows = design({n: found.stages[n] for n in (k, *alts)}, setup, options)
+            return [r if i == 0 else {key: v for key, v in r.items() if key != "predicted"} for i, r in enumerate(rows)]
+    return []
 
 
 def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> dict:

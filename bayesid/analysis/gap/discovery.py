@@ -71,6 +71,8 @@ __all__ = [
     "reference_values",
     "force_residuals",
     "select_terms",
+    "score_test",
+    "alternatives",
     "fit_term",
     "with_terms",
     "discover",
@@ -112,6 +114,14 @@ class DiscoveryOptions:
 
     max_nfev : int, default 60
         Least-squares iterations of each confirmation fit.
+    n_alternatives : int, default 0
+        Further candidates refitted beside the selected ones: up to twice this many terms the
+        ensemble selects (inclusion >= ``min_probability``) that a collinear group member stood
+        for, and per searched degree of freedom this many best by the score test of the
+        linearised problem (the share of the projected residual one column explains alone),
+        whatever their group and inclusion probability: the structures the runs may not
+        separate from the selected term (:func:`alternatives`). 0 (the default until the test
+        suite's budget is re-measured with it): none; 2 is the setting measured.
 
     Raises
     ------
@@ -131,6 +141,7 @@ class DiscoveryOptions:
     lowpass_s: float = 2.0
     ridge: float = 0.01
     max_nfev: int = 60
+    n_alternatives: int = 0
 
     def __post_init__(self):
         if not 1 <= int(self.max_order) <= MAX_ORDER:
@@ -144,6 +155,8 @@ class DiscoveryOptions:
             raise ValueError(f"min_probability must be in (0, 1], got {self.min_probability}")
         if not 0 < self.group_cos <= 1:
             raise ValueError(f"group_cos must be in (0, 1], got {self.group_cos}")
+        if int(self.n_alternatives) < 0:
+            raise ValueError(f"n_alternatives must be >= 0, got {self.n_alternatives}")
         if not self.threshold >= 0 or not self.block_s > 0 or not self.trim_s >= 0:
             raise ValueError("threshold and trim_s must be >= 0 and block_s > 0")
         object.__setattr__(self, "dofs", tuple(self.dofs))
@@ -194,10 +207,18 @@ class Discovery:
         The options and what the reference model was.
     seconds : float
         Wall time.
+    alternatives : dict
+        ``{kept term: [{"term", "heldout_rms_m", "window_p_value"}, ...]}``: every other
+        refitted term that passes the kept test alone and whose held-out windows are not
+        significantly worse than the kept term's (:func:`alternatives`); empty lists where the
+        runs separate the kept term from every other.
     after : Stage, optional
         The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
     reference : Stage, optional
         The model the terms were added to; not in :meth:`to_dict`.
+    stages : dict, optional
+        ``{term: Stage}`` of every refitted term that passed the kept test alone (the kept terms'
+        and their alternatives' single-term models); not in :meth:`to_dict`.
     """
 
     found: list
@@ -213,8 +234,10 @@ class Discovery:
     windows_after_m: list
     settings: dict
     seconds: float
+    alternatives: dict = field(default_factory=dict)
     after: Stage | None = field(repr=False, default=None)
     reference: Stage | None = field(repr=False, default=None)
+    stages: dict = field(repr=False, default_factory=dict)
 
     def to_dict(self) -> dict:
         """The JSON-able fields.
@@ -222,9 +245,53 @@ class Discovery:
         Returns
         -------
         dict
-            ``{field: value}`` without ``after`` and ``reference``.
+            ``{field: value}`` without ``after``, ``reference`` and ``stages``.
         """
-        return {k: v for k, v in self.__dict__.items() if k not in ("after", "reference")}
+        return {k: v for k, v in self.__dict__.items() if k not in ("after", "reference", "stages")}
+
+    def terms(self) -> list[dict]:
+        """The top-level ``discovered`` list of ``diagnosis.json``: one item per refitted term.
+
+        Returns
+        -------
+        list of dict
+            ``term``, ``dof``, ``kept`` (True for the final model's terms, :attr:`found`),
+            ``reason`` (why a term is not in the final model: it failed the kept test, or it
+            passed alone but not on top of the terms added before it), ``coefficient`` and
+            ``coefficient_sd`` (prime, its single-term refit), ``heldout_rms_m``,
+            ``window_p_value`` (against the reference model), ``inclusion_probability``,
+            ``refitted_as`` (``"selected"`` by the ensemble or ``"alternative"`` by the score
+            test), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty) and
+            ``separable`` (kept terms: no alternative survives; others: None).
+        """
+        out = []
+        for row in self.discovered:
+            t = row["term"]
+            kept = t in self.found
+            if kept:
+                reason = "in the final model"
+            elif row.get("kept"):
+                reason = "passed the kept test alone but not on top of " + "+".join(self.found)
+            else:
+                reason = row.get("reason", "")
+            alts = list(self.alternatives.get(t, [])) if kept else []
+            out.append(
+                {
+                    "term": t,
+                    "dof": row["dof"],
+                    "kept": kept,
+                    "reason": reason,
+                    "coefficient": row.get("coefficient"),
+                    "coefficient_sd": row.get("coefficient_sd"),
+                    "heldout_rms_m": row.get("heldout_rms_after_m"),
+                    "window_p_value": row.get("window_p_value"),
+                    "inclusion_probability": row["inclusion_probability"],
+                    "refitted_as": row.get("refitted_as", "selected"),
+                    "alternatives": alts,
+                    "separable": (not alts) if kept else None,
+                }
+            )
+        return out
 
 
 # -- 2. candidate terms ---------------------------------------------------------------------------
@@ -925,6 +992,114 @@ def _candidates(sel: dict, options: DiscoveryOptions) -> list[str]:
     return chosen
 
 
+def score_test(problem: dict, names: list) -> dict:
+    """The share of the projected output residual each candidate's projected column explains
+    alone (the squared cosine of the two: Rao's score statistic over the residual's sum of
+    squares, the first Gauss-Newton step of adding that term alone).
+
+    Parameters
+    ----------
+    problem : dict
+        :func:`linearised_problem`.
+    names : list of str
+        The candidates (its columns).
+
+    Returns
+    -------
+    dict
+        ``{term: share in [0, 1]}``.
+    """
+    X, y = problem["X"], problem["y"]
+    yy = float(y @ y)
+    xx = np.einsum("ij,ij->j", X, X)
+    xy = X.T @ y
+    ok = (xx > 0) & (yy > 0)
+    r2 = np.where(ok, xy**2 / np.where(ok, xx * yy, 1.0), 0.0)
+    return {n: float(v) for n, v in zip(names, r2)}
+
+
+def _alternative_pool(r2: dict, sel: dict, chosen: list, options: DiscoveryOptions) -> list[str]:
+    """Candidates refitted beside the selected ones (none when nothing is selected): first the
+    terms the ensemble itself selects (inclusion probability >= ``min_probability``) that were
+    not refitted because a collinear group member stood for them (at most ``2 n_alternatives``,
+    most probable first: a hidden ``Nvvr`` with inclusion 0.99 was otherwise represented by
+    ``Nabsvrabsr``); then per searched degree of freedom the ``n_alternatives`` best by the score
+    test (:func:`score_test`) that explain at least half the share the best selected one does,
+    whatever their group."""
+    if not chosen or options.n_alternatives <= 0:
+        return []
+    mimicked = set(sel["mimicked"])
+    probable = sorted(
+        (n for n, p in sel["inclusion"].items() if p >= options.min_probability and n not in chosen),
+        key=lambda n: (-sel["inclusion"][n], len(n), n),
+    )
+    out = probable[: 2 * options.n_alternatives]
+    floor = 0.5 * max(r2.get(n, 0.0) for n in chosen)
+    for g in options.dofs:
+        ranked = sorted(
+            (n for n in r2 if n[0] == g and n not in chosen and n not in mimicked and n not in out and r2[n] >= floor),
+            key=lambda n: (-r2[n], len(n), n),
+        )
+        out += ranked[: options.n_alternatives]
+    return out
+
+
+def alternatives(found: list, rows: list, stages: dict, th: Thresholds) -> dict:
+    """The structures the held-out runs cannot separate from each kept term.
+
+    A refitted term ``a`` that passes the kept test alone is an alternative to a kept term ``k``
+    when the held-out windows of ``k``'s single-term refit are not significantly better than
+    ``a``'s: the one-sided paired window test (:func:`paired_window_test`, Wilcoxon signed
+    rank) of ``k`` against ``a`` gives p >= ``th.partial_p``, the level of the kept test itself.
+    This is the output-error counterpart of a collinear group: two terms whose refitted models
+    predict the held-out runs equally well, whatever their columns' cosine (Box & Hill 1967,
+    "Discrimination among mechanistic models", Technometrics 9:57-71: models that fit the data
+    equally are discriminated only by a run where their predictions differ).
+
+    Parameters
+    ----------
+    found : list of str
+        The kept terms of the final model.
+    rows : list of dict
+        Every refitted candidate (``term``, ``kept``, ``heldout_rms_after_m``).
+    stages : dict
+        ``{term: Stage}`` of the single-term refits that passed the kept test.
+    th : Thresholds
+        ``partial_p``.
+
+    Returns
+    -------
+    dict
+        ``{kept term: [{"term", "heldout_rms_m", "window_p_value"}, ...]}``, the alternatives
+        best first (lowest held-out RMS).
+    """
+    out = {}
+    for k in found:
+        if k not in stages:
+            out[k] = []
+            continue
+        alts = []
+        for r in rows:
+            a = r["term"]
+            if a == k or a in found or not r.get("kept") or a not in stages:
+                continue
+            p = paired_window_test(np.asarray(stages[a].windows), np.asarray(stages[k].windows))
+            if p >= th.partial_p:
+                alts.append({"term": a, "heldout_rms_m": r["heldout_rms_after_m"], "window_p_value": p})
+        out[k] = sorted(alts, key=lambda d: d["heldout_rms_m"])
+    return out
+
+
+def _named_alternatives(found: list, alts: dict) -> list[str]:
+    """The kept terms as the verdict names them: ``Yvvdr (not separable from Nvvr, Yvdrdr on
+    these runs)``."""
+    out = []
+    for k in found:
+        others = [a["term"] for a in alts.get(k, [])]
+        out.append(f"{k} (not separable from {', '.join(others)} on these runs)" if others else k)
+    return out
+
+
 def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple, initial: dict):
     """Add the kept terms together, best first: each further term is refitted on top of those
     added (all coefficients re-identified) and stays only if it passes the contributor test
@@ -961,12 +1136,15 @@ def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple
     return found, cur
 
 
-def _verdict(found: list, heldout_rms: float, band: float) -> str:
+def _verdict(found: list, heldout_rms: float, band: float, alts: dict | None = None) -> str:
     """``"discovered: A+B"`` (``+unexplained`` while the held-out error stays above the floor
-    band: the terms explain part of the gap), or ``"no term of the library explains it"``."""
+    band: the terms explain part of the gap), or ``"no term of the library explains it"``; a
+    kept term with alternatives the runs cannot separate from it is named with them
+    (:func:`_named_alternatives`)."""
     if not found:
         return "no term of the library explains it"
-    return f"discovered: {'+'.join(found)}" + ("+unexplained" if heldout_rms > band else "")
+    names = _named_alternatives(found, alts or {})
+    return f"discovered: {'+'.join(names)}" + ("+unexplained" if heldout_rms > band else "")
 
 
 def discover(
@@ -1033,23 +1211,34 @@ def discover(
     except ValueError as exc:  # no inverse dynamics: the output-space selection stands alone
         forces = {"error": str(exc)}
     cands = _candidates(sel, options)
-    initial = reference_values(ref, cands)
+    pool = _alternative_pool(score_test(problem, names), sel, cands, options)
+    refit = [*cands, *pool]
+    initial = reference_values(ref, refit)
     runner.say(f"discovery: refitting {', '.join(cands) or 'nothing'}")
+    if pool:
+        runner.say(f"discovery: and the alternatives {', '.join(pool)}")
     tasks = [
         Task(
             n,
             {"term": n},
             (
                 TermFit(
-                    n, sel["coefficient"][n], ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev, initial[n]
+                    n,
+                    sel["coefficient"].get(n, 0.0),
+                    ref,
+                    setup,
+                    tuple(effects),
+                    ctx["sd_fit"],
+                    options.max_nfev,
+                    initial[n],
                 ),
             ),
         )
-        for n in cands
+        for n in refit
     ]
     outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
     discovered, stages = [], {}
-    for n, out in zip(cands, outs):
+    for n, out in zip(refit, outs):
         st = None if isinstance(out, TaskError) else out[0]
         msgs = [str(out)] if isinstance(out, TaskError) else out[1]
         for m in msgs:
@@ -1057,6 +1246,7 @@ def discover(
                 runner.say(f"discovery: {m}")
         sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
         row = _row(n, st, ref, sel, floor_rms, sd)
+        row["refitted_as"] = "alternative" if n in pool else "selected"
         _decide(row, significant, th)
         discovered.append(row)
         if row["kept"]:
@@ -1072,10 +1262,11 @@ def discover(
             (floor_rms, th),
             initial,
         )
+    alts = alternatives(found, discovered, stages, th)
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
         found=found,
-        verdict=_verdict(found, (after or ref).held["rms_position_m"], th.none_ratio * floor_rms),
+        verdict=_verdict(found, (after or ref).held["rms_position_m"], th.none_ratio * floor_rms, alts),
         discovered=discovered,
         inclusion=inclusion,
         residuals={
@@ -1099,6 +1290,8 @@ def discover(
             "significant": significant,
         },
         seconds=time.perf_counter() - t0,
+        alternatives=alts,
         after=after,
         reference=ref,
+        stages=stages,
     )

@@ -1,0 +1,516 @@
+"""The run that separates model structures the data cannot: rank standard manoeuvres by how far
+apart the alternatives' predictions of them lie, against measurement noise and parameter
+uncertainty.
+
+Structure discovery (:mod:`bayesid.analysis.gap.discovery`) may keep a term whose alternatives
+(other terms, other degrees of freedom) predict the held-out runs as well
+(:func:`~bayesid.analysis.gap.discovery.alternatives`). Which run would tell them apart? For each
+manoeuvre of a menu (:func:`menu`: turning circles both sides at the largest and at half the
+rudder, pull-outs, zigzags of other angles both sides, a spiral's rudder steps, a speed change,
+a pseudo-random rudder sequence), all from the training runs' approach condition and within
+their rudder rate:
+
+1. the input sequence is fixed by the kept term's model (a zigzag's rudder switches where that
+   model's heading crosses the check angle; the other runs are open-loop schedules);
+2. every alternative's model (each a single-term refit, :attr:`Discovery.stages`) predicts the
+   run over the diagnosis's protocol windows, each window started from the kept model's state,
+   as the held-out runs are scored;
+3. its Gaussian predictive distribution per sample and channel (x, y, psi) has the variance of the
+   measurement noise (the training runs' noise sd) plus the spread of the predictions over
+   parameter draws from the refit's Laplace covariance
+   (:func:`bayesid.estimation.laplace.fit_covariance`);
+4. two alternatives ``i, j`` are separated by the symmetric Kullback-Leibler (J) divergence of
+   their predictive distributions, summed over samples one ``sample_s`` apart::
+
+       J_ij = 1/2 sum_t,c [ (s_i^2 - s_j^2)^2 / (s_i^2 s_j^2) + (mu_i - mu_j)^2 (1/s_i^2 + 1/s_j^2) ]
+
+   which is Box & Hill's criterion for discriminating between rival models with equal prior
+   probabilities (Box & Hill 1967, "Discrimination among mechanistic models", Technometrics
+   9:57-71, Sec. 3; the mean term alone is Hunter & Reiner's 1965 criterion). It is the expected
+   log Bayes factor in favour of the right model of the two, in nats, if one of them is right:
+   5 nats is a Bayes factor of about 150;
+5. a run separates the set only as well as its worst pair: runs are ranked by the smallest
+   pairwise divergence, and each row says which pair that is.
+
+Samples of one track are correlated beyond the measurement noise (the models' own errors persist
+over a window); the sum over samples ``sample_s`` apart, not every logged sample, keeps the
+divergence from growing with the log rate. It ranks runs; it is not a coverage claim.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...data.track import STATE_NAMES, Track
+from ...estimation.laplace import fit_covariance
+from ...estimation.windows import pooled_noise_sd
+
+__all__ = [
+    "DesignOptions",
+    "ManoeuvreRun",
+    "approach_condition",
+    "manoeuvre_kind",
+    "menu",
+    "predictive",
+    "separation",
+    "design",
+]
+
+_CHANNELS = ("x", "y", "psi")
+
+
+@dataclass(frozen=True)
+class DesignOptions:
+    """What :func:`design` simulates and how it scores.
+
+    Parameters
+    ----------
+    max_rudder_deg : float, default 35.0
+        The largest rudder angle of the menu (the standard turning circle's), deg.
+    sample_s : float, default 1.0
+        Spacing of the samples the divergence sums over, s.
+    n_draws : int, default 8
+        Parameter draws per alternative for its predictive spread (0: noise only).
+    duration_s : float, optional
+        Length of each run, s (default: the training runs' median length, at least 90 s).
+    seed : int, default 0
+        The draws and the pseudo-random rudder sequence.
+
+    Raises
+    ------
+    ValueError
+        An option out of range (named).
+    """
+
+    max_rudder_deg: float = 35.0
+    sample_s: float = 1.0
+    n_draws: int = 8
+    duration_s: float | None = None
+    seed: int = 0
+
+    def __post_init__(self):
+        if not 0 < self.max_rudder_deg <= 90:
+            raise ValueError(f"max_rudder_deg must be in (0, 90], got {self.max_rudder_deg}")
+        if not self.sample_s > 0:
+            raise ValueError(f"sample_s must be > 0, got {self.sample_s}")
+        if int(self.n_draws) < 0:
+            raise ValueError(f"n_draws must be >= 0, got {self.n_draws}")
+        if self.duration_s is not None and not self.duration_s > 0:
+            raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+
+
+@dataclass(frozen=True)
+class ManoeuvreRun:
+    """One run of the menu.
+
+    Parameters
+    ----------
+    kind : str
+        ``"turning_circle"``, ``"pull_out"``, ``"zigzag"``, ``"spiral_steps"``,
+        ``"speed_change"`` or ``"prbs"``.
+    rudder_deg : float
+        Rudder angle (zigzag, turn, pull-out; the steps' largest; the PRBS amplitude), deg.
+    check_deg : float or None
+        A zigzag's check heading change, deg.
+    side : str
+        ``"port"`` or ``"starboard"`` (the first rudder's; ``"-"`` for a speed change).
+    rpm : float
+        Propeller rpm after the execute.
+    duration_s : float
+        Length, s.
+    """
+
+    kind: str
+    rudder_deg: float
+    check_deg: float | None
+    side: str
+    rpm: float
+    duration_s: float
+
+    @property
+    def name(self) -> str:
+        """A short label, e.g. ``zigzag 20/20 port``."""
+        if self.kind == "zigzag":
+            return f"zigzag {self.rudder_deg:g}/{self.check_deg:g} {self.side}"
+        if self.kind == "speed_change":
+            return f"speed change to {self.rpm:.0f} rpm"
+        return f"{self.kind.replace('_', ' ')} {self.rudder_deg:g} deg {self.side}"
+
+
+def approach_condition(tracks: list) -> dict:
+    """The approach condition of the training runs: median speed and rpm over each run's first
+    5 s, the rudder rate (the 95th percentile of |d delta_r / dt| over the runs, at least
+    1 deg/s) and the median run length.
+
+    Parameters
+    ----------
+    tracks : list of Track
+        The training runs (``delta_r``, ``n``; ``u`` or ``x, y`` for the speed).
+
+    Returns
+    -------
+    dict
+        ``u`` (m/s), ``rpm``, ``rudder_rate`` (rad/s), ``duration_s``.
+    """
+    us, ns, rates, lens = [], [], [], []
+    for tr in tracks:
+        t = np.asarray(tr.t, float)
+        first = t <= t[0] + 5.0
+        if "u" in tr and np.isfinite(np.asarray(tr["u"], float)[first]).any():
+            us.append(float(np.nanmedian(np.asarray(tr["u"], float)[first])))
+        elif "x" in tr and "y" in tr:
+            x, y = np.asarray(tr["x"], float)[first], np.asarray(tr["y"], float)[first]
+            ok = np.isfinite(x) & np.isfinite(y)
+            if ok.sum() > 2:
+                us.append(float(np.hypot(*np.polyfit(t[first][ok], np.column_stack([x[ok], y[ok]]), 1)[0])))
+        ns.append(float(np.nanmedian(np.asarray(tr["n"], float)[first])))
+        d = np.asarray(tr["delta_r"], float)
+        ok = np.isfinite(d)
+        if ok.sum() > 2:
+            rates.append(np.abs(np.diff(d[ok]) / np.diff(t[ok])))
+        lens.append(t[-1] - t[0])
+    rate = float(np.percentile(np.concatenate(rates), 95)) if rates else math.radians(5.0)
+    return {
+        "u": float(np.median(us)) if us else 1.0,
+        "rpm": float(np.median(ns)),
+        "rudder_rate": max(rate, math.radians(1.0)),
+        "duration_s": float(np.median(lens)),
+    }
+
+
+def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
+    """The standard manoeuvre a logged run most resembles, read from its rudder alone:
+    ``"zigzag"`` (two or more reversals of a held rudder), ``"turning_circle"`` (one side, held to
+    the end), ``"pull_out"`` (one side, then back to midships), ``"straight"`` (never beyond
+    ``hold_deg``) or ``"other"`` (e.g. a pseudo-random sequence).
+
+    Parameters
+    ----------
+    track : Track
+        A run with ``delta_r`` (rad).
+    hold_deg : float, default 2.0
+        Rudder angles within this of midships count as midships, deg.
+
+    Returns
+    -------
+    str
+    """
+    d = np.asarray(track["delta_r"], float)
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return "other"
+    lim = math.radians(hold_deg)
+    side = np.sign(np.where(np.abs(d) > lim, d, 0.0))
+    held = side[side != 0]
+    if held.size == 0:
+        return "straight"
+    reversals = int(np.count_nonzero(np.diff(held) != 0))
+    big = np.abs(d[np.abs(d) > lim])
+    steady = float(np.std(big) / np.mean(big)) < 0.25  # one rudder angle, as a standard run holds
+    if reversals >= 2 and steady:
+        return "zigzag"
+    if reversals == 0 and steady:
+        return "turning_circle" if side[-1] != 0 else "pull_out"
+    return "other"
+
+
+def menu(approach: dict, options: DesignOptions = DesignOptions()) -> list[ManoeuvreRun]:
+    """The standard manoeuvres :func:`design` compares (module docstring).
+
+    Parameters
+    ----------
+    approach : dict
+        :func:`approach_condition`.
+    options : DesignOptions, default DesignOptions()
+        ``max_rudder_deg``, ``duration_s``.
+
+    Returns
+    -------
+    list of ManoeuvreRun
+    """
+    big = float(options.max_rudder_deg)
+    D = float(options.duration_s or max(90.0, approach["duration_s"]))
+    rpm = approach["rpm"]
+    runs = []
+    for side in ("port", "starboard"):
+        runs += [
+            ManoeuvreRun("turning_circle", big, None, side, rpm, D),
+            ManoeuvreRun("turning_circle", round(big / 2), None, side, rpm, D),
+            ManoeuvreRun("pull_out", 20.0, None, side, rpm, D),
+        ]
+        runs += [ManoeuvreRun("zigzag", a, a, side, rpm, D) for a in (10.0, 20.0, big)]
+    runs += [
+        ManoeuvreRun("spiral_steps", round(big * 0.7), None, "port", rpm, D),
+        ManoeuvreRun("speed_change", 0.0, None, "-", 0.6 * rpm, D),
+        ManoeuvreRun("prbs", round(big / 2), None, "port", rpm, D),
+    ]
+    return runs
+
+
+def _ramp(t: np.ndarray, orders: list, rate: float) -> np.ndarray:
+    """A rudder angle that moves at ``rate`` (rad/s) to each ordered angle from its time on
+    (``orders``: ``[(time s, angle rad), ...]``, in time order), from 0: piecewise linear
+    between the orders' breakpoints."""
+    knots_t, knots_v = [float(t[0])], [0.0]
+    for i, (t_o, target) in enumerate(orders):
+        t_next = orders[i + 1][0] if i + 1 < len(orders) else float(t[-1]) + 1.0
+        t_o = max(float(t_o), knots_t[-1])
+        v0 = float(np.interp(t_o, knots_t, knots_v)) if t_o <= knots_t[-1] else knots_v[-1]
+        knots_t.append(t_o)
+        knots_v.append(v0)
+        t_reach = t_o + abs(target - v0) / rate
+        if t_reach <= t_next:
+            knots_t.append(t_reach)
+            knots_v.append(float(target))
+        else:  # the next order comes before the rudder gets there
+            knots_t.append(t_next)
+            knots_v.append(v0 + np.sign(target - v0) * rate * (t_next - t_o))
+    return np.interp(t, knots_t, knots_v)
+
+
+def _inputs(run: ManoeuvreRun, approach: dict, t: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
+    """The open-loop rudder (rad) and rpm of a run (a zigzag's first order only; :func:`_zigzag`
+    adds the switches). Port is a positive rudder angle (the package's convention)."""
+    sgn = 1.0 if run.side == "port" else -1.0
+    a = math.radians(run.rudder_deg) * sgn
+    t0, D = 5.0, run.duration_s
+    n = np.full_like(t, approach["rpm"])
+    if run.kind in ("turning_circle", "zigzag"):
+        orders = [(t0, a)]
+    elif run.kind == "pull_out":
+        orders = [(t0, a), (t0 + 0.45 * D, 0.0)]
+    elif run.kind == "spiral_steps":
+        steps = np.linspace(1.0, -1.0, 5) * a
+        orders = [(t0 + i * (D - t0) / steps.size, float(s)) for i, s in enumerate(steps)]
+    elif run.kind == "speed_change":
+        orders, n = [], np.where(t >= t0, run.rpm, approach["rpm"])
+    else:  # prbs: a pseudo-random sign every hold time, the hold a tenth of the run
+        hold = max(D / 10.0, 5.0)
+        times = np.arange(t0, D, hold)
+        orders = [(float(s), a * float(rng.choice((-1.0, 1.0)))) for s in times]
+    return _ramp(t, orders, approach["rudder_rate"]), n
+
+
+def _track(t, delta, n, approach: dict) -> Track:
+    """An input-only track from the approach state (states as placeholders: the simulation
+    starts from ``s0``)."""
+    z = np.zeros_like(t)
+    return Track(t, {"x": z, "y": z, "psi": z, "u": z + approach["u"], "v": z, "r": z, "delta_r": delta, "n": n})
+
+
+def _simulate_whole(stage, track: Track, approach: dict) -> Track | None:
+    """A model's run through a track's inputs from the approach state (one window): the track of
+    its states at the model's steps, or None when it diverges."""
+    s0 = np.zeros(12)
+    s0[6] = approach["u"]
+    ctx = stage.model.context(track, None, s0=s0)
+    S = stage.model.simulate(ctx, stage.fit.p[None], measured_start=False)[0]
+    if not np.isfinite(S).all():
+        return None
+    data = {k: S[:, STATE_NAMES.index(k)] for k in ("x", "y", "psi", "u", "v", "r")}
+    data.update(delta_r=np.interp(ctx.ts, track.t, track["delta_r"]), n=np.interp(ctx.ts, track.t, track["n"]))
+    return Track(np.asarray(ctx.ts, float), data)
+
+
+def _zigzag(stage, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> np.ndarray:
+    """A zigzag's rudder as ``stage``'s model steers it: the rudder is reversed each time the
+    heading change from the approach passes the check angle on the rudder's side (the sign of
+    the heading change a rudder gives is read from the model's first response)."""
+    a = math.radians(run.rudder_deg) * (1.0 if run.side == "port" else -1.0)
+    check = math.radians(run.check_deg)
+    orders = [(5.0, a)]
+    n = np.full_like(t, approach["rpm"])
+    turn = None
+    for _ in range(12):
+        delta = _ramp(t, orders, approach["rudder_rate"])
+        sim = _simulate_whole(stage, _track(t, delta, n, approach), approach)
+        if sim is None:
+            break
+        h = np.unwrap(np.asarray(sim["psi"], float))
+        h = np.interp(t, sim.t, h - h[0])
+        if turn is None:  # which way a positive rudder turns this model
+            late = h[t > 5.0]
+            turn = float(np.sign(late[np.argmax(np.abs(late))])) * np.sign(a) or 1.0
+        t_last, target = orders[-1]
+        want = turn * np.sign(target) * check
+        after = np.flatnonzero((t > t_last) & (np.sign(want) * (h - want) >= 0))
+        if after.size == 0:
+            break
+        orders.append((float(t[after[0]]), -target))
+    return _ramp(t, orders, approach["rudder_rate"])
+
+
+def _draws(stage, ctxs, n_draws: int, rng) -> np.ndarray:
+    """Parameter vectors of a fit: its estimate and ``n_draws`` draws from its Laplace
+    covariance (the estimate alone when the covariance fails)."""
+    p = np.asarray(stage.fit.p, float)
+    if n_draws <= 0:
+        return p[None]
+    try:
+        cov, _ = fit_covariance(stage.fit, ctxs)
+    except Exception:  # noqa: BLE001 - no covariance: the estimate alone
+        return p[None]
+    k = stage.model.n_theta
+    P = np.repeat(p[None], n_draws + 1, axis=0)
+    C = 0.5 * (cov[:k, :k] + cov[:k, :k].T)
+    P[1:, :k] = rng.multivariate_normal(p[:k], C, size=n_draws, method="eigh")
+    return P
+
+
+def predictive(stage, P: np.ndarray, reference: Track, window_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A model's Gaussian predictive distribution of a run over the protocol windows started
+    from ``reference``'s states: per scored sample the mean and variance over the parameter
+    vectors ``P`` of x, y (m) and psi (rad).
+
+    Parameters
+    ----------
+    stage : Stage
+        The model and its fit.
+    P : ndarray, shape (B, n_params)
+        Parameter vectors (the estimate first).
+    reference : Track
+        The run whose states start the windows.
+    window_s : float or None
+        The protocol window, s.
+
+    Returns
+    -------
+    t : ndarray, shape (n,)
+        Sample times, s.
+    mean : ndarray, shape (n, 3)
+    var : ndarray, shape (n, 3)
+        NaN where a window diverged.
+    """
+    ctx = stage.model.context(reference, window_s)
+    S = stage.model.simulate(ctx, P)
+    cols = [STATE_NAMES.index(c) for c in _CHANNELS]
+    Y = S[:, :, cols]
+    psi0 = Y[0, :, 2]
+    Y[:, :, 2] = psi0 + np.angle(np.exp(1j * (Y[:, :, 2] - psi0)))  # heading draws about the estimate's
+    t = np.asarray(ctx.ts, float)
+    return t, Y[0], Y.var(axis=0) if Y.shape[0] > 1 else np.zeros_like(Y[0])
+
+
+def separation(a: tuple, b: tuple, noise_var: np.ndarray, sample_s: float) -> float:
+    """The J divergence (nats) of two predictive distributions (module docstring, step 4),
+    summed over samples ``sample_s`` apart.
+
+    Parameters
+    ----------
+    a, b : tuple
+        ``(t, mean, var)`` of :func:`predictive`, on the same samples.
+    noise_var : ndarray, shape (3,)
+        Measurement noise variance of x, y (m^2), psi (rad^2).
+    sample_s : float
+        Spacing of the samples summed, s.
+
+    Returns
+    -------
+    float
+        The divergence; NaN when no sample is finite in both.
+    """
+    t, ma, va = a
+    _, mb, vb = b
+    keep = np.zeros(t.size, bool)
+    last = -np.inf
+    for i, ti in enumerate(t):
+        if ti - last >= sample_s - 1e-9:
+            keep[i], last = True, ti
+    sa, sb = noise_var + va[keep], noise_var + vb[keep]
+    dm = ma[keep] - mb[keep]
+    dm[:, 2] = np.angle(np.exp(1j * dm[:, 2]))
+    terms = 0.5 * ((sa - sb) ** 2 / (sa * sb) + dm**2 * (1 / sa + 1 / sb))
+    ok = np.isfinite(terms).all(axis=1)
+    return float(terms[ok].sum()) if ok.any() else float("nan")
+
+
+def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None) -> list[dict]:
+    """Rank the menu's runs by how well they separate alternative model structures (module
+    docstring).
+
+    Parameters
+    ----------
+    stages : dict
+        ``{label: Stage}``: the kept term's single-term model first, then its alternatives (at
+        least two).
+    setup : Setup
+        The diagnosis's tracks and windows (:class:`bayesid.analysis.gap.candidates.Setup`); its
+        training runs give the approach condition and the noise.
+    options : DesignOptions, default DesignOptions()
+    rng : numpy.random.Generator, optional
+        Parameter draws and the PRBS (default: ``options.seed``).
+
+    Returns
+    -------
+    list of dict
+        Best first: ``kind``, ``rudder_deg``, ``check_deg``, ``side``, ``rpm``, ``duration_s``,
+        ``name``, ``separation`` (the smallest pairwise divergence, nats), ``worst_pair``,
+        ``pairs`` (``{"A vs B": divergence}``), ``max_position_difference_m`` (largest distance
+        between two alternatives' predicted positions at one sample) and ``predicted``
+        (``{label: {"t", "x", "y", "psi"}}``, the estimates' predictions over the windows, for
+        the figure).
+
+    Raises
+    ------
+    ValueError
+        Fewer than two stages.
+    """
+    if len(stages) < 2:
+        raise ValueError(f"design needs at least two alternative models, got {len(stages)}")
+    rng = np.random.default_rng(options.seed) if rng is None else rng
+    labels = list(stages)
+    best = stages[labels[0]]
+    approach = approach_condition(setup.train)
+    sd = pooled_noise_sd(setup.train)
+    noise_var = np.array([sd.get(c, 0.0) ** 2 for c in _CHANNELS]) + 1e-12
+    ctxs = {k: [st.model.context(tr, setup.fit_window_s) for tr in setup.train] for k, st in stages.items()}
+    draws = {k: _draws(st, ctxs[k], options.n_draws, rng) for k, st in stages.items()}
+    out = []
+    for run in menu(approach, options):
+        t = np.arange(0.0, run.duration_s, min(0.1, best.model.dt))
+        delta, n = _inputs(run, approach, t, rng)
+        if run.kind == "zigzag":
+            delta = _zigzag(best, run, approach, t)
+        ref = _simulate_whole(best, _track(t, delta, n, approach), approach)
+        if ref is None:
+            continue
+        pred = {k: predictive(st, draws[k], ref, setup.window_s) for k, st in stages.items()}
+        pairs = {}
+        for i, a in enumerate(labels):
+            for b in labels[i + 1 :]:
+                pairs[f"{a} vs {b}"] = separation(pred[a], pred[b], noise_var, options.sample_s)
+        finite = {k: v for k, v in pairs.items() if np.isfinite(v)}
+        if not finite:
+            continue
+        worst = min(finite, key=finite.get)
+        pos = np.stack([p[1][:, :2] for p in pred.values()])
+        gap = np.sqrt(((pos[:, None] - pos[None]) ** 2).sum(axis=-1)).max(axis=(0, 1))
+        out.append(
+            {
+                "kind": run.kind,
+                "rudder_deg": run.rudder_deg,
+                "check_deg": run.check_deg,
+                "side": run.side,
+                "rpm": run.rpm,
+                "duration_s": run.duration_s,
+                "name": run.name,
+                "separation": finite[worst],
+                "worst_pair": worst,
+                "pairs": pairs,
+                "max_position_difference_m": float(np.nanmax(gap)),
+                "predicted": {
+                    k: {
+                        "t": p[0][:: max(1, int(round(1.0 / best.model.dt)))].tolist(),
+                        **{
+                            c: p[1][:: max(1, int(round(1.0 / best.model.dt))), j].tolist()
+                            for j, c in enumerate(_CHANNELS)
+                        },
+                    }
+                    for k, p in pred.items()
+                },
+            }
+        )
+    return sorted(out, key=lambda r: -r["separation"])

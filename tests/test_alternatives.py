@@ -1,0 +1,131 @@
+"""Structural identifiability (issue 49): which terms the runs cannot separate from a kept term
+(alternatives by the paired window test), the run that would separate them (the J divergence of
+the alternatives' predictive distributions, Box & Hill 1967), and the manoeuvre kinds a
+held-out test covers."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from bayesid.analysis.gap import design as dz
+from bayesid.analysis.gap import discovery as dv
+from bayesid.analysis.gap.candidates import Setup, Stage
+from bayesid.analysis.gap.verdict import Thresholds
+from bayesid.data.track import Track
+from bayesid.models import ship
+
+
+def _stage(windows):
+    return Stage(None, None, {}, {}, None, np.asarray(windows, float))
+
+
+def test_a_term_whose_windows_are_as_good_is_an_alternative_and_a_worse_one_is_not():
+    rng = np.random.default_rng(0)
+    best = 0.3 + 0.05 * rng.random(20)
+    rows = [
+        {"term": "Nvvr", "kept": True, "heldout_rms_after_m": 0.31},
+        {"term": "Yvvdr", "kept": True, "heldout_rms_after_m": 0.32},  # as good, window by window
+        {"term": "Nrrdr", "kept": True, "heldout_rms_after_m": 0.60},  # passes alone, clearly worse
+        {"term": "Nabsv", "kept": False, "heldout_rms_after_m": 0.31},  # failed the kept test
+    ]
+    stages = {
+        "Nvvr": _stage(best),
+        "Yvvdr": _stage(best + 0.002 * rng.standard_normal(20)),
+        "Nrrdr": _stage(best + 0.3),
+    }
+    alts = dv.alternatives(["Nvvr"], rows, stages, Thresholds())
+    assert [a["term"] for a in alts["Nvvr"]] == ["Yvvdr"]
+    assert alts["Nvvr"][0]["window_p_value"] >= Thresholds().partial_p
+    v = dv._verdict(["Nvvr"], 0.31, 0.5, alts)
+    assert v == "discovered: Nvvr (not separable from Yvvdr on these runs)"
+    assert dv._verdict(["Nvvr"], 0.31, 0.5, {"Nvvr": []}) == "discovered: Nvvr"  # alone only when none survives
+
+
+def test_the_top_level_discovered_list_marks_the_final_terms_and_their_alternatives():
+    rows = [
+        {"term": "Nvvr", "dof": "N", "kept": True, "inclusion_probability": 0.4, "heldout_rms_after_m": 0.31},
+        {"term": "Yvvdr", "dof": "Y", "kept": True, "inclusion_probability": 0.9, "heldout_rms_after_m": 0.32},
+        {"term": "Nrrdr", "dof": "N", "kept": False, "reason": "why not", "inclusion_probability": 0.8},
+    ]
+    alt = [{"term": "Yvvdr", "heldout_rms_m": 0.32, "window_p_value": 0.4}]
+    D = dv.Discovery(["Nvvr"], "", rows, {}, {}, 3, 1.0, 0.31, {}, [], [], {}, 0.0, alternatives={"Nvvr": alt})
+    items = {d["term"]: d for d in D.terms()}
+    assert items["Nvvr"]["kept"] and items["Nvvr"]["separable"] is False and items["Nvvr"]["alternatives"] == alt
+    assert not items["Yvvdr"]["kept"] and "not on top of Nvvr" in items["Yvvdr"]["reason"]
+    assert not items["Nrrdr"]["kept"] and items["Nrrdr"]["reason"] == "why not"
+    assert items["Nrrdr"]["separable"] is None
+
+
+def test_the_j_divergence_is_zero_for_one_model_and_grows_with_the_mean_difference():
+    t = np.arange(0.0, 10.0, 0.5)
+    m = np.zeros((t.size, 3))
+    v = np.zeros((t.size, 3))
+    nv = np.array([0.01, 0.01, 1e-4])
+    assert dz.separation((t, m, v), (t, m, v), nv, 1.0) == 0.0
+    m2 = m.copy()
+    m2[:, 0] = 0.1  # 1 sd of x noise at every kept sample (10 of them, 1 s apart)
+    assert dz.separation((t, m, v), (t, m2, v), nv, 1.0) == pytest.approx(10 * 0.5 * 0.01 * (2 / 0.01))
+    # parameter uncertainty on both sides widens both predictive distributions: less separation
+    wide = dz.separation((t, m, v + 0.01), (t, m2, v + 0.01), nv, 1.0)
+    assert 0 < wide < dz.separation((t, m, v), (t, m2, v), nv, 1.0)
+
+
+@pytest.mark.parametrize(
+    "kind, make",
+    [
+        ("zigzag", lambda t: math.radians(20) * np.sign(np.sin(2 * np.pi * t / 40)) * (t > 5)),
+        ("turning_circle", lambda t: math.radians(35) * (t > 5)),
+        ("pull_out", lambda t: math.radians(20) * ((t > 5) & (t < 60))),
+        ("straight", lambda t: 0.0 * t),
+        ("other", lambda t: math.radians(5) * np.sin(t / 3) + math.radians(10) * np.sin(t / 11)),
+    ],
+)
+def test_the_manoeuvre_kind_of_a_run_is_read_from_its_rudder(kind, make):
+    t = np.arange(0.0, 150.0, 0.5)
+    assert dz.manoeuvre_kind(Track(t, {"x": 0 * t, "delta_r": make(t)})) == kind
+
+
+def test_the_designed_runs_separate_two_structures_and_none_separates_a_model_from_itself():
+    # two KVLCC2 models that differ by an asymmetric yaw moment: a constant one (N0) against one in
+    # |rudder| (Nabsdr); the same zigzag split cannot tell the two apart everywhere, a turn can
+    kv = ship.load_ship("kvlcc2_7m")
+    stages = {}
+    for name, value in (("N0", 0.0008), ("Nabsdr", 0.0016), ("N0 again", 0.0008)):
+        term = name.split()[0]
+        m = ship.ShipModel(kv.with_coefficients({term: value}), free=[term], dt=0.2)
+        stages[name] = Stage(m, SimpleNamespace(p=m.start()), {}, {}, None, np.zeros(0))
+    t = np.arange(0.0, 120.0, 0.5)
+    z = 0 * t
+    noise = np.random.default_rng(1).normal
+    train = [
+        Track(
+            t,
+            {
+                "x": 1.179 * t + noise(0, 0.01, t.size),
+                "y": noise(0, 0.01, t.size),
+                "psi": noise(0, math.radians(0.05), t.size),
+                "u": z + 1.179,
+                "delta_r": math.radians(20) * np.sign(np.sin(t / 7)),
+                "n": z + 10.23 * 60,
+            },
+        )
+    ]
+    setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
+    rows = dz.design(stages, setup, dz.DesignOptions(n_draws=0, duration_s=120.0))
+    assert rows and rows == sorted(rows, key=lambda r: -r["separation"])
+    kinds = {r["kind"] for r in rows}
+    assert {"turning_circle", "zigzag", "pull_out"} <= kinds
+    for r in rows:  # the worst pair is always the model against itself
+        assert r["worst_pair"] == "N0 vs N0 again" and r["separation"] == pytest.approx(0.0, abs=1e-9)
+        assert r["pairs"]["N0 vs Nabsdr"] >= 0.0
+    best_pair = max(rows, key=lambda r: r["pairs"]["N0 vs Nabsdr"])
+    assert best_pair["pairs"]["N0 vs Nabsdr"] > 5.0, best_pair
+    # a constant moment acts at zero rudder, a moment in |rudder| does not: a run without rudder
+    # (the speed change) tells them apart, as much as the run that separates them best
+    straight = next(r for r in rows if r["kind"] == "speed_change")
+    assert straight["pairs"]["N0 vs Nabsdr"] > 5.0
+    assert set(rows[0]["predicted"]) == set(stages)
