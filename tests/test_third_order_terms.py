@@ -217,3 +217,34 @@ def test_a_short_fit_recovers_the_third_order_coefficient(nps):
     assert res.theta[0] == pytest.approx(VALUES["Nvvr"], rel=1e-4)
     assert res.theta[1] == pytest.approx(nps.coefficients["Nr"], rel=1e-4)
     assert res.cost < 1e-8 * res.start_cost
+
+
+# ---------------------------------------------------------------------------------------------
+# The submarine term library offers them (issue 49: every product of up to three motion factors)
+# ---------------------------------------------------------------------------------------------
+
+
+def test_the_submarine_library_offers_every_product_of_three_motion_factors_once():
+    from bayesid.models import build_model
+    from bayesid.models.library import motion_products, term_library
+
+    vehicle = load_vehicle("nps_auv2")
+    model = build_model(vehicle, ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"])
+    cands = term_library(model).candidates(model)
+    products = {}
+    for name in cands:
+        t = terms.parse(name)
+        key = (t.dof, tuple(sorted(t.factors)))
+        assert key not in products, f"{name} and {products[key]} are one product"
+        products[key] = name
+    listed = {
+        (terms.parse(k).dof, tuple(sorted(terms.parse(k).factors)))
+        for k, v in vehicle.coefficients.items()
+        if v != 0.0 and k[0] in "YN"
+    }
+    for g in "YN":
+        for body in motion_products(3, rudder_abs=False):
+            t = terms.parse(terms.listed_name(g + body) or g + body)
+            key = (t.dof, tuple(sorted(t.factors)))
+            assert key in products or key in listed, f"{g + body} is neither listed nor a candidate"
+    assert {"Nvvr", "Yrrr", "Nvrr", "Yvvr"} <= set(cands)

@@ -108,6 +108,7 @@ class TermLibrary:
         Returns
         -------
         list of str
+            Candidate names, grouped by force letter, the untied coefficients last.
         """
         raise NotImplementedError
 
@@ -124,6 +125,7 @@ class TermLibrary:
         Returns
         -------
         list of str
+            The tied coefficients not free in ``model``.
         """
         return []
 
@@ -158,6 +160,7 @@ class TermLibrary:
         Returns
         -------
         str
+            ``"X"``, ``"Y"``, ``"N"`` or ``"XYN"``.
         """
         return "XYN" if name in self.tied else name[0]
 
@@ -173,6 +176,7 @@ def term_library(model) -> TermLibrary:
     Returns
     -------
     TermLibrary
+        The family's library, bound to the model's vehicle.
 
     Raises
     ------

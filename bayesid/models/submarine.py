@@ -20,7 +20,7 @@ from . import inverse
 from .context import TrackContext, sample_rows, start_states
 from .effects import CATALOGUE, Effect, get, signature_dict
 from .interface import ParameterLayout
-from .library import MAX_ORDER, TermLibrary
+from .library import MAX_ORDER, TermLibrary, motion_products
 from .simulate import Manoeuvre, Simulator
 
 
@@ -446,14 +446,17 @@ class EffectModel(ParameterLayout):
         Returns
         -------
         SubmarineTerms
+            The library bound to this model's vehicle.
         """
         return SubmarineTerms(self.vehicle)
 
 
 class SubmarineTerms(TermLibrary):
     """The horizontal-plane products of the submarine term grammar (:func:`bayesid.data.terms.parse`,
-    Gertler & Hagen 1967 prime form): at most two velocity factors (``u`` implicit) from ``v r
-    absv absr`` and up to three rudder factors; the constant force or moment twice, ``uu`` in
+    Gertler & Hagen 1967 prime form): every product of up to three motion factors from ``v r
+    absv absr dr`` (``u`` implicit; three velocity factors carry ``1/U``, so the term stays of
+    second order in speed), and the grammar's products of up to two velocity factors with up to
+    three rudder factors; the constant force or moment twice, ``uu`` in
     prime form (u^2, e.g. a propeller's) and ``const`` the same at every speed
     (:data:`bayesid.data.terms.CONSTANT`). A product the table lists under another spelling
     (``Nuu`` is ``Nprop``) takes the listed name.
@@ -468,15 +471,39 @@ class SubmarineTerms(TermLibrary):
 
     @staticmethod
     def products() -> list[str]:
-        """The name bodies, e.g. ``"vabsr"``, ``"vvdr"``, ``"uu"``."""
+        """The name bodies of the grammar's horizontal-plane products.
+
+        Returns
+        -------
+        list of str
+            E.g. ``"vabsr"``, ``"vvdr"``, ``"uu"``.
+        """
         vel = ["", "v", "r", "absv", "absr", "vv", "vr", "rr", "vabsv", "vabsr", "rabsv", "rabsr"]
-        return ["uu", terms.CONSTANT] + [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
+        out = ["uu", terms.CONSTANT] + [a + "dr" * k for a in vel for k in range(4) if a + "dr" * k]
+        # every product of up to three motion factors (issue 49), e.g. v^2 r: in prime form
+        # 0.5 rho L^4 N'vvr v^2 r / U (:data:`bayesid.data.terms.MAX_VELOCITY_FACTORS`)
+        return out + [b for b in motion_products(MAX_ORDER, rudder_abs=False) if b not in out]
 
     def candidates(self, model, max_order: int = MAX_ORDER, dofs=("Y", "N")) -> list[str]:
         """See :meth:`TermLibrary.candidates` (``max_order`` does not limit the submarine
-        grammar's products)."""
+        grammar's products).
+
+        Parameters
+        ----------
+        model : SimulationModel
+            The reference model; its vehicle's coefficients are not candidates.
+        max_order : int, default 3
+            Highest number of motion factors.
+        dofs : sequence of str, default ("Y", "N")
+            The force letters searched.
+
+        Returns
+        -------
+        list of str
+            Candidate names, grouped by force letter, the untied coefficients last.
+        """
         have = {k for k, v in self.vehicle.coefficients.items() if v != 0.0} | set(model.free)
-        out = []
+        out, products = [], {self._product(n) for n in have} - {None}
         for g in dofs:
             for body in self.products():
                 name = g + body
@@ -484,13 +511,39 @@ class SubmarineTerms(TermLibrary):
                     t = terms.parse(terms.listed_name(name) or name)  # Nuu is listed as Nprop
                 except terms.UnknownCoefficientError:
                     continue
-                if t.name not in have and t.horizontal and t.name not in out:
+                key = self._product(t.name)  # one name per product (r|v| = |v|r)
+                if t.name not in have and t.horizontal and key not in products:
                     out.append(t.name)
+                    products.add(key)
         return out
+
+    @staticmethod
+    def _product(name: str):
+        """``(dof, accel, sorted factors)`` of a coefficient of the grammar, None for another."""
+        try:
+            t = terms.parse(name)
+        except terms.UnknownCoefficientError:
+            return None
+        return (t.dof, t.accel, tuple(sorted(t.factors)))
 
     def columns(self, names, motion: dict, inputs) -> np.ndarray:
         """See :meth:`TermLibrary.columns` (:func:`bayesid.models.inverse.library_columns`: the
-        simulator's features, so the columns are the kernel's forces)."""
+        simulator's features, so the columns are the kernel's forces).
+
+        Parameters
+        ----------
+        names : sequence of str
+            Terms of :meth:`candidates` (not the untied coefficients).
+        motion : dict
+            Smoothed motion: ``u v r`` (n,), m/s and rad/s.
+        inputs : array_like, shape (n, 4)
+            The inputs at the motion's samples (``delta_r`` rad first).
+
+        Returns
+        -------
+        ndarray, shape (n, len(names))
+            N or N m per unit prime coefficient.
+        """
         for n in names:
             terms.term(n)  # adds a product to the table
         return inverse.library_columns(list(names), motion, inputs, self.vehicle)

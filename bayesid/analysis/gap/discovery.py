@@ -340,6 +340,7 @@ def untied_candidates(model, dofs=("Y", "N")) -> list[str]:
     Returns
     -------
     list of str
+        The tied coefficients to untie.
 
     Raises
     ------

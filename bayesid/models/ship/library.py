@@ -33,7 +33,22 @@ class ShipTerms(TermLibrary):
 
     def candidates(self, model, max_order: int = hullterms.MAX_ORDER, dofs=("Y", "N")) -> list[str]:
         """See :meth:`TermLibrary.candidates`; a listed coefficient's product (``Yrvv`` is
-        ``Yvvr``) is not a candidate."""
+        ``Yvvr``) is not a candidate.
+
+        Parameters
+        ----------
+        model : SimulationModel
+            The reference model; its vehicle's coefficients are not candidates.
+        max_order : int, default 3
+            Highest number of motion factors.
+        dofs : sequence of str, default ("Y", "N")
+            The force letters searched.
+
+        Returns
+        -------
+        list of str
+            Candidate names, grouped by force letter, the untied coefficients last.
+        """
         out = []
         for g in dofs:
             for body in ["0", *motion_products(max_order)]:
@@ -52,13 +67,42 @@ class ShipTerms(TermLibrary):
         coefficient gamma_R for both signs of the rudder's inflow angle (MMG eq. 23; Yasukawa &
         Yoshimura's Table 3 gives two for KVLCC2). Untying it, with the value it follows as its
         start, is a candidate like a missing term: a port/starboard asymmetry of the rudder
-        force, acting in X, Y and N at once (it needs Y or N among ``dofs``)."""
+        force, acting in X, Y and N at once (it needs Y or N among ``dofs``).
+
+        Parameters
+        ----------
+        model : SimulationModel
+            The reference model.
+        dofs : sequence of str, default ("Y", "N")
+            The force letters searched.
+
+        Returns
+        -------
+        list of str
+            The tied coefficients not free in ``model`` (empty when ``dofs`` has neither Y nor N).
+        """
         if not {"Y", "N"} & set(dofs):
             return []
         return [k for k in self.tied if k not in model.free]
 
     def columns(self, names, motion: dict, inputs) -> np.ndarray:
-        """See :meth:`TermLibrary.columns` (:func:`hullterms.columns`)."""
+        """Force columns of terms at unit prime coefficient along a motion
+        (:func:`hullterms.columns`, MMG prime form).
+
+        Parameters
+        ----------
+        names : sequence of str
+            Terms of :meth:`candidates` (not the untied coefficients).
+        motion : dict
+            Smoothed motion: ``u v r`` (n,), m/s and rad/s.
+        inputs : array_like, shape (n, 4)
+            The inputs at the motion's samples (``delta_r`` rad first).
+
+        Returns
+        -------
+        ndarray, shape (n, len(names))
+            N or N m per unit prime coefficient.
+        """
         P = self.vehicle.particulars
         return hullterms.columns(
             [hullterms.parse(n) for n in names],

@@ -520,6 +520,7 @@ class ShipModel(ParameterLayout):
         Returns
         -------
         ShipTerms
+            The library bound to this model's vehicle.
         """
         return ShipTerms(self.vehicle)
 
