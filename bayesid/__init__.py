@@ -57,8 +57,9 @@ layer or closes a circle; the import graph is checked):
 * :mod:`bayesid.cases` (the paper's Cases 1-3).
 * :mod:`bayesid.cli` -- the ``bayesid`` command (also ``python -m bayesid``, ``bayesid.__main__``,
   and ``python -m bayesid.cli``, ``bayesid.cli.__main__``): one module per subcommand, :mod:`~bayesid.cli.simulate`,
-  :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`, :mod:`~bayesid.cli.discover`, :mod:`~bayesid.cli.fit`,
-  :mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`; :mod:`~bayesid.cli.options` (options
+  :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`, :mod:`~bayesid.cli.discover`,
+  :mod:`~bayesid.cli.design`, :mod:`~bayesid.cli.fit`, :mod:`~bayesid.cli.predict`,
+  :mod:`~bayesid.cli.sample`; :mod:`~bayesid.cli.options` (options
   shared by the subcommands, checks of numbers), :mod:`~bayesid.cli.inputs` (track files),
   :mod:`~bayesid.cli.outputs` (``--out`` folders), :mod:`~bayesid.cli.provenance`.
 * :mod:`bayesid.tasks` -- under every layer: many independent tasks run serially, on joblib

@@ -129,3 +129,113 @@ def test_the_designed_runs_separate_two_structures_and_none_separates_a_model_fr
     straight = next(r for r in rows if r["kind"] == "speed_change")
     assert straight["pairs"]["N0 vs Nabsdr"] > 5.0
     assert set(rows[0]["predicted"]) == set(stages)
+
+
+def _n0_against_nabsdr():
+    """Two KVLCC2 structures (a constant yaw moment, one in |rudder|), the first the truth, and a
+    zigzag-like training run."""
+    kv = ship.load_ship("kvlcc2_7m")
+    stages = {}
+    for name, value in (("N0", 0.0008), ("Nabsdr", 0.0016)):
+        m = ship.ShipModel(kv.with_coefficients({name: value}), free=[name], dt=0.2)
+        stages[name] = Stage(m, SimpleNamespace(p=m.start()), {}, {}, None, np.zeros(0))
+    t = np.arange(0.0, 120.0, 0.5)
+    z = 0 * t
+    train = [
+        Track(
+            t,
+            {
+                "x": 1.179 * t,
+                "y": z,
+                "psi": z,
+                "u": z + 1.179,
+                "delta_r": math.radians(20) * np.sign(np.sin(t / 7)),
+                "n": z + 613.8,
+            },
+        )
+    ]
+    setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
+    return stages, setup
+
+
+def _window_rms(stage, run, window_s):
+    t, mean, _ = dz.predictive(stage, np.asarray(stage.fit.p)[None], run, window_s)
+    dx = mean[:, 0] - np.interp(t, run.t, run["x"])
+    dy = mean[:, 1] - np.interp(t, run.t, run["y"])
+    return float(np.sqrt(np.nanmean(dx**2 + dy**2)))
+
+
+def test_the_top_designed_run_flown_by_the_truth_rejects_the_wrong_structure():
+    stages, setup = _n0_against_nabsdr()
+    rows = dz.design(stages, setup, dz.DesignOptions(n_draws=0, duration_s=120.0))
+    top, last = rows[0], rows[-1]
+    assert top["separation"] > 5.0 and top["inputs"]["t"][0] == 0.0
+    approach = dz.approach_condition(setup.train)
+    truth = stages["N0"]
+    errors = {}
+    for row in (top, last):
+        u = row["inputs"]
+        run = dz.simulate_run(
+            truth.model, truth.fit.p, dz.input_track(u["t"], u["delta_r"], u["n"], approach), approach
+        )
+        assert run is not None
+        errors[row["name"]] = {k: _window_rms(st, run, setup.window_s) for k, st in stages.items()}
+    # the truth predicts its own run; the other structure misses the top run by far more than
+    # the training noise (1 cm), and by more than on the run ranked last
+    assert errors[top["name"]]["N0"] < 0.005  # interpolation between the model's steps
+    assert errors[top["name"]]["Nabsdr"] > 0.2, errors
+    assert errors[top["name"]]["Nabsdr"] > errors[last["name"]]["Nabsdr"]
+
+
+def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
+    from bayesid.report.diagnosis import _design_lines, _write_design_runs
+
+    rows = [
+        {"name": "zigzag 20/20 port", "inputs": {"t": [0.0, 0.1], "delta_r": [0.0, 0.01], "n": [600.0, 600.0]}},
+        {"name": "pull out 20 deg port"},
+    ]
+    _write_design_runs(rows, tmp_path)
+    path = tmp_path / "design_runs" / "1_zigzag_20_20_port.csv"
+    data = np.loadtxt(path, delimiter=",", comments="#")
+    assert data.shape == (2, 3) and data[1, 1] == pytest.approx(0.01)
+    assert not (tmp_path / "design_runs" / "2_pull_out_20_deg_port.csv").exists()
+    rows[1].update(kind="pull_out", side="port", rudder_deg=20, check_deg=None, rpm=600, duration_s=90)
+    rows[1].update(separation=3.0, worst_pair="A vs B", max_position_difference_m=1.0)
+    rows[0].update(rows[1] | {"name": rows[0]["name"], "inputs_csv": "design_runs/1_zigzag_20_20_port.csv"})
+    assert "`design_runs/1_zigzag_20_20_port.csv`" in "\n".join(_design_lines({"design": rows}))
+
+
+@pytest.mark.parametrize("argv", [["--alternatives", "0"], ["--no-design"], ["--alternatives", "-1"]])
+def test_design_refuses_options_that_leave_nothing_to_design(argv, tmp_path, capsys):
+    from bayesid import cli
+
+    code = cli.main(
+        ["design", "--model", str(tmp_path / "m.json"), "--train", "a.csv", "--heldout", "b.csv"]
+        + argv
+        + ["--out", str(tmp_path / "o")]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and ("--alternatives" in err or "--no-design" in err), err
+
+
+def test_each_alternative_predicts_the_standard_manoeuvres_the_training_runs_lack():
+    stages, setup = _n0_against_nabsdr()
+    runs = dz.standard_predictions(stages, setup, dz.DesignOptions(n_draws=0, duration_s=200.0))
+    names = [r["name"] for r in runs]
+    assert names == [
+        "turning circle 35 deg port",
+        "turning circle 35 deg starboard",
+        "zigzag 10/10 port",
+        "zigzag 20/20 port",
+    ]
+    turns = [r for r in runs if r["kind"] == "turning_circle"]
+    assert all(not r["in_training_kinds"] for r in turns)  # the training run is a zigzag
+    assert all(r["in_training_kinds"] for r in runs if r["kind"] == "zigzag")
+    for r in runs:
+        assert set(r["models"]) == {"N0", "Nabsdr"}
+        for m in r["models"].values():
+            for v in m.values():
+                assert np.isfinite(v["value"]) and v["low"] == v["value"] == v["high"]  # no draws
+    # a constant yaw moment turns the ship one way: its port and starboard circles differ
+    td = {r["side"]: r["models"]["N0"]["tactical_diameter_m"]["value"] for r in turns}
+    assert abs(td["port"] - td["starboard"]) > 0.01 * td["port"], td

@@ -13,10 +13,12 @@
 
     bayesid discover --model fitdir/model.json --train A.csv B.csv --heldout C.csv --out disc \\
         --write-vehicle myship_discovered.toml
+    bayesid design --model fitdir/model.json --train A.csv B.csv --heldout C.csv --out des
 
 Each subcommand is a module with ``add_parser(sub)`` (its options) and ``run(args)`` (exit
 code): :mod:`~bayesid.cli.simulate`, :mod:`~bayesid.cli.convert`, :mod:`~bayesid.cli.diagnose`,
-:mod:`~bayesid.cli.discover`, :mod:`~bayesid.cli.fit`, :mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`. Shared options
+:mod:`~bayesid.cli.discover`, :mod:`~bayesid.cli.design`, :mod:`~bayesid.cli.fit`,
+:mod:`~bayesid.cli.predict`, :mod:`~bayesid.cli.sample`. Shared options
 and the checks of numbers are in :mod:`~bayesid.cli.options`, the track files in
 :mod:`~bayesid.cli.inputs`, the output folders in :mod:`~bayesid.cli.outputs` and what produced a
 model in :mod:`~bayesid.cli.provenance`; the reports are written by :mod:`bayesid.report`.
@@ -27,7 +29,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import convert, diagnose, discover, fit, predict, sample, simulate
+from . import convert, design, diagnose, discover, fit, predict, sample, simulate
 from .options import HelpFormatter, OptionError
 
 #: The subcommands in the order of ``bayesid --help``: the order of use, then the tools around it.
@@ -37,6 +39,7 @@ COMMANDS = {
     "sample": sample,
     "diagnose": diagnose,
     "discover": discover,
+    "design": design,
     "simulate": simulate,
     "convert": convert,
 }
@@ -51,8 +54,9 @@ Order of use:  fit -> predict -> sample -> diagnose
   predict   model.json + other tracks -> errors over scoring windows, manoeuvre indices, bands
   sample    model.json + training tracks -> posterior of the coefficients, identifiability
   diagnose  vehicle file + training and held-out tracks -> what the model misses, and why
-Around it: discover (model terms the data say are missing), simulate (a standard manoeuvre
-of a vehicle file -> a Track CSV), convert (third-party data files -> Track CSVs).
+Around it: discover (model terms the data say are missing), design (the run that tells
+apart the terms the runs cannot), simulate (a standard manoeuvre of a vehicle file -> a
+Track CSV), convert (third-party data files -> Track CSVs).
 """
 
 #: ``bayesid --help``'s text below the commands.

@@ -92,7 +92,6 @@ def run(args) -> int:
     int
         The exit code (0).
     """
-    from ..analysis.gap.discovery import DiscoveryOptions
     from ..models import load_any_vehicle, model_class
 
     check_outputs(args)
@@ -103,6 +102,7 @@ def run(args) -> int:
     train, held = got["--train"], got["--heldout"]
     with naming_files(got):
         cands = _candidates(args, family, train + held)
+        found, design = opt.discovery_options(args)
         options = diagnose_options(
             args,
             candidates=cands,
@@ -113,7 +113,8 @@ def run(args) -> int:
             weighting=args.weighting or None,
             base_starts=args.starts,
             train_starts=args.train_starts,
-            discover=None if args.no_discover else DiscoveryOptions(max_order=args.max_order),
+            discover=None if args.no_discover else found,
+            design=None if args.no_discover else design,
         )
         run_and_write(args, vehicle, free, got, options)
     return 0
@@ -160,7 +161,7 @@ def diagnose_options(args, **fields):
     )
 
 
-def run_and_write(args, vehicle, free, got: dict, options) -> None:
+def run_and_write(args, vehicle, free, got: dict, options):
     """Run the diagnosis, write its report (and ``--write-vehicle``) and print the verdict.
 
     Parameters
@@ -176,6 +177,11 @@ def run_and_write(args, vehicle, free, got: dict, options) -> None:
         :func:`~bayesid.cli.inputs.read_tracks` of ``--train`` and ``--heldout``.
     options : DiagnoseOptions
         The diagnosis' options.
+
+    Returns
+    -------
+    Diagnosis
+        The diagnosis written.
     """
     import numpy as np
 
@@ -211,6 +217,7 @@ def run_and_write(args, vehicle, free, got: dict, options) -> None:
             src = vehicle.file_path
             path = write_vehicle_with_terms(src, values, args.write_vehicle, note, args.overwrite)
             print(f"wrote {path}: {src} with {', '.join(found.found)} added")
+    return res
 
 
 def _candidates(args, family, tracks) -> list:

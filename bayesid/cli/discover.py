@@ -17,7 +17,17 @@ def add_parser(sub) -> None:
     sub : argparse._SubParsersAction
         The subparsers of the ``bayesid`` parser.
     """
-    d = opt.add_subcommand(sub, "discover", "structure discovery: the model terms the data say are missing")
+    add_options(opt.add_subcommand(sub, "discover", "structure discovery: the model terms the data say are missing"))
+
+
+def add_options(d) -> None:
+    """The options ``discover`` and ``design`` share.
+
+    Parameters
+    ----------
+    d : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     d.add_argument("--model", required=True, help="model.json written by bayesid fit (the reference model)")
     opt.add_tracks(d, "--train", "training Track CSVs (the reference model is refitted on them)")
     opt.add_tracks(d, "--heldout", "held-out Track CSVs (the kept terms must improve these)")
@@ -47,7 +57,23 @@ def run(args) -> int:
     int
         The exit code (0).
     """
-    from ..analysis.gap.discovery import DiscoveryOptions
+    discover(args)
+    return 0
+
+
+def discover(args):
+    """``bayesid discover``'s work (the report written); also ``bayesid design``'s.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options.
+
+    Returns
+    -------
+    Diagnosis
+        The diagnosis written.
+    """
     from ..estimation.modelfile import ModelDocument
     from ..models import load_any_vehicle
     from .diagnose import check_outputs, diagnose_options, run_and_write
@@ -58,6 +84,7 @@ def run(args) -> int:
     doc.build()  # the document's coefficients and effects fit the vehicle (else a named error)
     vehicle = vehicle.with_coefficients(dict(zip(doc.free, doc.p[: len(doc.free)])))
     got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
+    found, design = opt.discovery_options(args)
     with naming_files(got):
         options = diagnose_options(
             args,
@@ -66,7 +93,7 @@ def run(args) -> int:
             fit_window_s=doc.fit_window_s,
             dt=doc.dt,
             weighting=doc.weighting,
-            discover=DiscoveryOptions(max_order=args.max_order),
+            discover=found,
+            design=design,
         )
-        run_and_write(args, vehicle, list(doc.free), got, options)
-    return 0
+        return run_and_write(args, vehicle, list(doc.free), got, options)

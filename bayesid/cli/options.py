@@ -485,9 +485,31 @@ def add_overwrite(parser) -> None:
     )
 
 
+def discovery_options(args):
+    """The discovery and design options of ``--max-order``, ``--alternatives``, ``--no-design``
+    and ``--seed``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options.
+
+    Returns
+    -------
+    tuple
+        ``(DiscoveryOptions, DesignOptions or None)``: no design without alternatives.
+    """
+    from ..analysis.gap.design import DesignOptions
+    from ..analysis.gap.discovery import DiscoveryOptions
+
+    found = DiscoveryOptions(max_order=args.max_order, n_alternatives=args.alternatives)
+    off = args.no_design or args.alternatives == 0
+    return found, None if off else DesignOptions(seed=args.seed)
+
+
 def add_discovery(parser, default_on: bool) -> None:
-    """Structure discovery's options: ``--max-order``, ``--write-vehicle`` (and ``--no-discover``
-    where discovery is a stage that may be skipped).
+    """Structure discovery's options: ``--max-order``, ``--alternatives``, ``--no-design``,
+    ``--write-vehicle`` (and ``--no-discover`` where discovery is a stage that may be skipped).
 
     Parameters
     ----------
@@ -510,6 +532,21 @@ def add_discovery(parser, default_on: bool) -> None:
         kind=int,
         default=3,
         help="highest number of factors of a candidate term (1-3)",
+    )
+    add_number(
+        parser,
+        "--alternatives",
+        at_least(0),
+        kind=int,
+        default=2,
+        help="refit this many further candidates per degree of freedom (score test) and those a selected "
+        "term's collinear group stood for, and name every one the held-out runs cannot separate from a kept "
+        "term (0: name the selected terms alone)",
+    )
+    parser.add_argument(
+        "--no-design",
+        action="store_true",
+        help="do not rank the standard runs that would separate a kept term from its alternatives",
     )
     parser.add_argument(
         "--write-vehicle",

@@ -94,10 +94,18 @@ def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | 
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     res = dict(diag.to_dict(), **(inputs or {}))
+    _write_design_runs(res.get("design") or [], out)
+    # the designed runs' input schedules are in their CSV files, not repeated in the JSON
+    res["design"] = [
+        {k: v for k, v in r.items() if k != "inputs"}
+        | ({"inputs_csv": _design_run_name(i, r)} if r.get("inputs") else {})
+        for i, r in enumerate(res.get("design") or [], 1)
+    ]
     write_json(out / "diagnosis.json", res)
     figs = _figures(diag, res, out, heldout) + _discovery_figures(diag, res, out, heldout)
     lines = [*_summary_lines(res, command), *_how_far_lines(res), *_which_lines(res)]
-    lines += [*_discovery_lines(res), *_alternatives_lines(res), *_design_lines(res), *_where_lines(res)]
+    lines += [*_discovery_lines(res), *_alternatives_lines(res), *_predictions_lines(res), *_design_lines(res)]
+    lines += _where_lines(res)
     lines += ["", *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
     (out / "report.md").write_text("\n".join(lines))
 
@@ -239,7 +247,8 @@ def _alternatives_lines(res: dict) -> list:
             )
         else:
             alts = "; ".join(
-                f"{a['term']} (held-out {fmt(a['heldout_rms_m'])} m, window test p = {fmt(a['window_p_value'])})"
+                f"{a['term']} = {fmt(a.get('coefficient'))} (held-out {fmt(a['heldout_rms_m'])} m, window test "
+                f"p = {fmt(a['window_p_value'])}{_widest_run(d, a)})"
                 for a in d["alternatives"]
             )
             lines.append(
@@ -257,6 +266,45 @@ def _alternatives_lines(res: dict) -> list:
                 "the training manoeuvres**; a manoeuvre of another kind may reject them (see the designed runs below)."
             )
     return [*lines, ""]
+
+
+def _predictions_lines(res: dict) -> list:
+    """The standard manoeuvres as the base model and each alternative predict them."""
+    runs = res.get("predictions") or []
+    if not runs:
+        return []
+    models = list(runs[0]["models"])
+    rows = []
+    for run in runs:
+        for index in next(iter(run["models"].values())):
+            cells = []
+            for m in models:
+                v = run["models"][m][index]
+                cells.append(f"{fmt(v['value'])} [{fmt(v['low'])}, {fmt(v['high'])}]")
+            where = "yes" if run["in_training_kinds"] else "**no**"
+            rows.append([run["name"], where, index.replace("_", " "), *cells])
+    return [
+        "## The standard manoeuvres as each alternative predicts them",
+        "",
+        md_table(["run", "kind in the training runs", "index", *models], rows),
+        "",
+        "Free runs from the training runs' approach condition (each model steers its own zigzag). Brackets: the "
+        "5-95 % range over the estimate and parameter draws from each refit's Laplace covariance -- parameter "
+        "uncertainty only, not a calibrated band: where no run of the kind exists it cannot be checked. Where the "
+        "alternatives' values part, the runs they were chosen on do not say which is right.",
+        "",
+    ]
+
+
+def _widest_run(kept: dict, alt: dict) -> str:
+    """``, most apart on run R: 0.31 against 0.12 m``: the held-out run on which an alternative's
+    position RMS differs most from the kept term's (empty without per-run scores)."""
+    a, k = alt.get("heldout_rms_by_run_m") or {}, kept.get("heldout_rms_by_run_m") or {}
+    runs = [r for r in a if r in k and a[r] is not None and k[r] is not None]
+    if not runs:
+        return ""
+    r = max(runs, key=lambda n: abs(math.log(max(a[n], 1e-12) / max(k[n], 1e-12))))
+    return f"; most apart on {r}: {fmt(a[r])} against {fmt(k[r])} m"
 
 
 def _design_lines(res: dict) -> list:
@@ -296,14 +344,50 @@ def _design_lines(res: dict) -> list:
         ),
         "",
         "Separation: the symmetric Kullback-Leibler (J) divergence between two alternatives' Gaussian predictive "
-        "distributions of x, y and heading (measurement noise of the training runs plus the spread over parameter "
-        "draws from each refit's Laplace covariance), summed over samples 1 s apart of the protocol windows, each "
-        "window started from the kept term's model; the run's value is its worst pair's (Box & Hill 1967, "
-        "Technometrics 9:57-71, with equal prior probabilities). It is the expected log Bayes factor for the right "
-        "one of a pair: above about 5 nats a run of that kind would separate them. Add the top run to `--heldout` "
+        "distributions of x, y and heading (the measurement noise of the training runs, or the alternatives' "
+        "largest held-out error when larger, plus the spread over parameter draws from each refit's Laplace "
+        "covariance), summed over samples 1 s apart of the protocol windows, each window started from the kept "
+        "term's model; the run's value is its worst pair's (Box & Hill 1967, Technometrics 9:57-71, with equal "
+        "prior probabilities). It is the expected log Bayes factor for the right one of a pair if the samples' "
+        "errors were independent; they are correlated within a window, so read it as a ranking, and check it as "
+        "studies/closing_the_loop.py does: add the top run to `--heldout` "
         "(or `--train`) and diagnose again.",
         "",
+        *(
+            f"- Input schedule of run {i} ({r['name']}): `{r['inputs_csv']}`"
+            for i, r in enumerate(rows, 1)
+            if r.get("inputs_csv")
+        ),
+        "",
     ]
+
+
+def _design_run_name(rank: int, row: dict) -> str:
+    """The file name of a designed run's input schedule, e.g. ``design_runs/1_zigzag_20_20_port.csv``."""
+    slug = "".join(c if c.isalnum() else "_" for c in row["name"]).strip("_")
+    return f"design_runs/{rank}_{'_'.join(filter(None, slug.split('_')))}.csv"
+
+
+def _write_design_runs(rows: list, out: Path) -> None:
+    """The input schedules of the top designed runs as CSV (``t`` s, ``delta_r`` rad, ``n`` rpm),
+    for a user to steer the run, or to simulate it from a vehicle file."""
+    import numpy as np
+
+    for i, r in enumerate(rows, 1):
+        if not r.get("inputs"):
+            continue
+        path = out / _design_run_name(i, r)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        u = r["inputs"]
+        np.savetxt(
+            path,
+            np.column_stack([u["t"], u["delta_r"], u["n"]]),
+            delimiter=",",
+            header=f"designed run {i}: {r['name']} (rudder + to port, rad; zigzag switches as the kept model steers)\n"
+            "t,delta_r,n",
+            comments="# ",
+            fmt="%.6g",
+        )
 
 
 def _held_starts_lines(settings: dict) -> list:

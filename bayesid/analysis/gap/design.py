@@ -16,8 +16,10 @@ their rudder rate:
    run over the diagnosis's protocol windows, each window started from the kept model's state,
    as the held-out runs are scored;
 3. its Gaussian predictive distribution per sample and channel (x, y, psi) has the variance of the
-   measurement noise (the training runs' noise sd) plus the spread of the predictions over
-   parameter draws from the refit's Laplace covariance
+   error a prediction makes over a protocol window -- the measurement noise (the training runs'
+   noise sd), or the largest held-out RMS of the alternatives when that is larger (their model
+   error; one value for all, so that a difference of held-out error alone is no separation) --
+   plus the spread of the predictions over parameter draws from the refit's Laplace covariance
    (:func:`bayesid.estimation.laplace.fit_covariance`);
 4. two alternatives ``i, j`` are separated by the symmetric Kullback-Leibler (J) divergence of
    their predictive distributions, summed over samples one ``sample_s`` apart::
@@ -54,8 +56,13 @@ __all__ = [
     "approach_condition",
     "manoeuvre_kind",
     "menu",
+    "run_inputs",
+    "input_track",
+    "simulate_run",
     "predictive",
     "separation",
+    "STANDARD_RUNS",
+    "standard_predictions",
     "design",
 ]
 
@@ -197,6 +204,7 @@ def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
     Returns
     -------
     str
+        ``"zigzag"``, ``"turning_circle"``, ``"pull_out"``, ``"straight"`` or ``"other"``.
     """
     d = np.asarray(track["delta_r"], float)
     d = d[np.isfinite(d)]
@@ -230,6 +238,7 @@ def menu(approach: dict, options: DesignOptions = DesignOptions()) -> list[Manoe
     Returns
     -------
     list of ManoeuvreRun
+        The candidate runs, each with its inputs and a description.
     """
     big = float(options.max_rudder_deg)
     D = float(options.duration_s or max(90.0, approach["duration_s"]))
@@ -304,15 +313,62 @@ def _track(t, delta, n, approach: dict) -> Track:
 def _simulate_whole(stage, track: Track, approach: dict) -> Track | None:
     """A model's run through a track's inputs from the approach state (one window): the track of
     its states at the model's steps, or None when it diverges."""
+    return simulate_run(stage.model, stage.fit.p, track, approach)
+
+
+def simulate_run(model, p, inputs: Track, approach: dict) -> Track | None:
+    """A model's run through an input schedule from the approach state, in one window (no
+    restarts): e.g. a designed run flown by a vehicle file's truth, for a synthetic check.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model (:func:`bayesid.models.build_model`).
+    p : array_like, shape (n_params,)
+        Its parameter vector (e.g. ``model.start()``).
+    inputs : Track
+        The inputs ``delta_r`` (rad) and ``n`` (rpm) on its times (its states are not read).
+    approach : dict
+        :func:`approach_condition`: the run starts straight ahead at ``u`` m/s.
+
+    Returns
+    -------
+    Track or None
+        ``x y psi u v r`` (m, rad, m/s, rad/s) and the inputs at the model's steps from the
+        inputs' first time; None when the run diverges.
+    """
+    track = inputs
     s0 = np.zeros(12)
     s0[6] = approach["u"]
-    ctx = stage.model.context(track, None, s0=s0)
-    S = stage.model.simulate(ctx, stage.fit.p[None], measured_start=False)[0]
+    ctx = model.context(track, None, s0=s0)
+    S = model.simulate(ctx, np.asarray(p, float)[None], measured_start=False)[0]
     if not np.isfinite(S).all():
         return None
     data = {k: S[:, STATE_NAMES.index(k)] for k in ("x", "y", "psi", "u", "v", "r")}
     data.update(delta_r=np.interp(ctx.ts, track.t, track["delta_r"]), n=np.interp(ctx.ts, track.t, track["n"]))
     return Track(np.asarray(ctx.ts, float), data)
+
+
+def input_track(t, delta_r, n, approach: dict) -> Track:
+    """An input-only track for :func:`simulate_run` (the states are placeholders).
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Times, s.
+    delta_r : array_like, shape (n,)
+        Rudder angle, rad.
+    n : array_like, shape (n,)
+        Propeller speed, rpm.
+    approach : dict
+        :func:`approach_condition`.
+
+    Returns
+    -------
+    Track
+        The inputs on ``t``.
+    """
+    return _track(np.asarray(t, float), np.asarray(delta_r, float), np.asarray(n, float), approach)
 
 
 def _zigzag(stage, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> np.ndarray:
@@ -341,6 +397,39 @@ def _zigzag(stage, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> np.ndarr
             break
         orders.append((float(t[after[0]]), -target))
     return _ramp(t, orders, approach["rudder_rate"])
+
+
+def run_inputs(stage, run: ManoeuvreRun, approach: dict, rng=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The input schedule of a menu run, from the approach condition: the rudder moves at the
+    approach's rudder rate; a zigzag's rudder is reversed where ``stage``'s model's heading
+    passes the check angle (a user steers the real run by its own heading instead).
+
+    Parameters
+    ----------
+    stage : Stage
+        The model that steers a zigzag (the kept term's).
+    run : ManoeuvreRun
+        The run (:func:`menu`).
+    approach : dict
+        :func:`approach_condition`.
+    rng : numpy.random.Generator, optional
+        The pseudo-random rudder sequence's signs (default: seed 0).
+
+    Returns
+    -------
+    t : ndarray, shape (n,)
+        Times from the start of the run, s (0.1 s or the model's step, whichever is smaller).
+    delta_r : ndarray, shape (n,)
+        Rudder angle, rad (+ to port, the package's convention).
+    n : ndarray, shape (n,)
+        Propeller speed, rpm.
+    """
+    rng = np.random.default_rng(0) if rng is None else rng
+    t = np.arange(0.0, run.duration_s, min(0.1, stage.model.dt))
+    delta, n = _inputs(run, approach, t, rng)
+    if run.kind == "zigzag":
+        delta = _zigzag(stage, run, approach, t)
+    return t, delta, n
 
 
 def _draws(stage, ctxs, n_draws: int, rng) -> np.ndarray:
@@ -381,8 +470,9 @@ def predictive(stage, P: np.ndarray, reference: Track, window_s) -> tuple[np.nda
     t : ndarray, shape (n,)
         Sample times, s.
     mean : ndarray, shape (n, 3)
+        Predictive mean of ``x y psi`` (m, m, rad).
     var : ndarray, shape (n, 3)
-        NaN where a window diverged.
+        Predictive variance (parameter draws plus noise); NaN where a window diverged.
     """
     ctx = stage.model.context(reference, window_s)
     S = stage.model.simulate(ctx, P)
@@ -427,6 +517,104 @@ def separation(a: tuple, b: tuple, noise_var: np.ndarray, sample_s: float) -> fl
     return float(terms[ok].sum()) if ok.any() else float("nan")
 
 
+#: The standard manoeuvres :func:`standard_predictions` predicts: (kind, rudder deg or None for
+#: the menu's largest, check deg, side), with the indices of :mod:`bayesid.estimation.indices`.
+STANDARD_RUNS = (
+    ("turning_circle", None, None, "port"),
+    ("turning_circle", None, None, "starboard"),
+    ("zigzag", 10.0, 10.0, "port"),
+    ("zigzag", 20.0, 20.0, "port"),
+)
+STANDARD_INDICES = {
+    "turning_circle": ("advance_m", "transfer_m", "tactical_diameter_m"),
+    "zigzag": ("first_overshoot_deg", "second_overshoot_deg"),
+}
+
+
+def _free_run_indices(stage, p, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> dict:
+    """The indices of one model's free run (its own zigzag switches), NaN where it diverges."""
+    from types import SimpleNamespace
+
+    from ...estimation.indices import manoeuvre_indices
+
+    st = SimpleNamespace(model=stage.model, fit=SimpleNamespace(p=p))
+    delta, n = _inputs(run, approach, t, None)
+    if run.kind == "zigzag":
+        delta = _zigzag(st, run, approach, t)
+    sim = simulate_run(stage.model, p, _track(t, delta, n, approach), approach)
+    keys = STANDARD_INDICES[run.kind]
+    if sim is None:
+        return dict.fromkeys(keys, float("nan"))
+    got = manoeuvre_indices(sim.t, sim["x"], sim["y"], sim["psi"], sim["delta_r"])
+    return {k: float(got.get(k, float("nan"))) for k in keys}
+
+
+def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None) -> list[dict]:
+    """Each model's free-running predictions of the standard manoeuvres (:data:`STANDARD_RUNS`:
+    turning circles at the menu's largest rudder both ways, zigzags 10/10 and 20/20), from the
+    training runs' approach condition, with the spread over parameter draws: where the
+    alternatives part, beyond the runs they were chosen and tested on.
+
+    The spread is the 5-95 % range of the index over the estimate and ``options.n_draws`` draws
+    from each refit's Laplace covariance: parameter uncertainty only, not a calibrated band (no
+    run of the kind may exist to check it on; ``in_training_kinds`` says whether one does).
+
+    Parameters
+    ----------
+    stages : dict
+        ``{label: Stage}``: e.g. the base model, the kept term's and its alternatives' refits.
+    setup : Setup
+        The diagnosis's tracks (the approach condition; the training runs' kinds).
+    options : DesignOptions, default DesignOptions()
+        ``max_rudder_deg``, ``duration_s``, ``n_draws``, ``seed``.
+    rng : numpy.random.Generator, optional
+        The parameter draws (default: ``options.seed``).
+
+    Returns
+    -------
+    list of dict
+        One per run: ``name``, ``kind``, ``rudder_deg``, ``check_deg``, ``side``,
+        ``in_training_kinds`` (bool) and ``models``: ``{label: {index: {"value", "low",
+        "high"}}}`` (advance, transfer and tactical diameter in m; overshoots in deg).
+    """
+    rng = np.random.default_rng(options.seed) if rng is None else rng
+    approach = approach_condition(setup.train)
+    kinds = {manoeuvre_kind(tr) for tr in setup.train}
+    D = float(options.duration_s or max(150.0, approach["duration_s"]))
+    draws = {}
+    for k, st in stages.items():
+        ctxs = [st.model.context(tr, setup.fit_window_s) for tr in setup.train]
+        draws[k] = _draws(st, ctxs, options.n_draws, rng)
+    out = []
+    for kind, rudder, check, side in STANDARD_RUNS:
+        a = float(options.max_rudder_deg) if rudder is None else rudder
+        run = ManoeuvreRun(kind, a, check, side, approach["rpm"], D)
+        models = {}
+        for k, st in stages.items():
+            t = np.arange(0.0, D, min(0.1, st.model.dt))
+            vals = [_free_run_indices(st, p, run, approach, t) for p in draws[k]]
+            models[k] = {
+                i: {
+                    "value": vals[0][i],
+                    "low": float(np.nanpercentile([v[i] for v in vals], 5)) if len(vals) > 1 else vals[0][i],
+                    "high": float(np.nanpercentile([v[i] for v in vals], 95)) if len(vals) > 1 else vals[0][i],
+                }
+                for i in STANDARD_INDICES[kind]
+            }
+        out.append(
+            {
+                "name": run.name,
+                "kind": kind,
+                "rudder_deg": a,
+                "check_deg": check,
+                "side": side,
+                "in_training_kinds": kind in kinds,
+                "models": models,
+            }
+        )
+    return out
+
+
 def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None) -> list[dict]:
     """Rank the menu's runs by how well they separate alternative model structures (module
     docstring).
@@ -440,6 +628,7 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         The diagnosis's tracks and windows (:class:`bayesid.analysis.gap.candidates.Setup`); its
         training runs give the approach condition and the noise.
     options : DesignOptions, default DesignOptions()
+        The menu's limits, the number of parameter draws and the seed.
     rng : numpy.random.Generator, optional
         Parameter draws and the PRBS (default: ``options.seed``).
 
@@ -449,7 +638,8 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         Best first: ``kind``, ``rudder_deg``, ``check_deg``, ``side``, ``rpm``, ``duration_s``,
         ``name``, ``separation`` (the smallest pairwise divergence, nats), ``worst_pair``,
         ``pairs`` (``{"A vs B": divergence}``), ``max_position_difference_m`` (largest distance
-        between two alternatives' predicted positions at one sample) and ``predicted``
+        between two alternatives' predicted positions at one sample), ``inputs`` (``{"t" s,
+        "delta_r" rad, "n" rpm}``: the run's input schedule, :func:`run_inputs`) and ``predicted``
         (``{label: {"t", "x", "y", "psi"}}``, the estimates' predictions over the windows, for
         the figure).
 
@@ -466,14 +656,16 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
     approach = approach_condition(setup.train)
     sd = pooled_noise_sd(setup.train)
     noise_var = np.array([sd.get(c, 0.0) ** 2 for c in _CHANNELS]) + 1e-12
+    # the error a prediction makes beyond the parameters' spread: the measurement noise, or the
+    # largest held-out RMS of the alternatives when larger (their model error), one variance for
+    # every alternative, so that a difference of held-out error alone is not a separation
+    held = [[(st.held or {}).get("rms", {}).get(c, 0.0) for c in _CHANNELS] for st in stages.values()]
+    noise_var = np.maximum(noise_var, np.nanmax(np.square(np.asarray(held, float)), axis=0))
     ctxs = {k: [st.model.context(tr, setup.fit_window_s) for tr in setup.train] for k, st in stages.items()}
     draws = {k: _draws(st, ctxs[k], options.n_draws, rng) for k, st in stages.items()}
     out = []
     for run in menu(approach, options):
-        t = np.arange(0.0, run.duration_s, min(0.1, best.model.dt))
-        delta, n = _inputs(run, approach, t, rng)
-        if run.kind == "zigzag":
-            delta = _zigzag(best, run, approach, t)
+        t, delta, n = run_inputs(best, run, approach, rng)
         ref = _simulate_whole(best, _track(t, delta, n, approach), approach)
         if ref is None:
             continue
@@ -486,6 +678,8 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         if not finite:
             continue
         worst = min(finite, key=finite.get)
+        t_pred = next(iter(pred.values()))[0]
+        each_s = np.r_[True, np.diff(np.floor(t_pred + 1e-9)) > 0]  # the figure's samples: one a second
         pos = np.stack([p[1][:, :2] for p in pred.values()])
         gap = np.sqrt(((pos[:, None] - pos[None]) ** 2).sum(axis=-1)).max(axis=(0, 1))
         out.append(
@@ -501,14 +695,9 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
                 "worst_pair": worst,
                 "pairs": pairs,
                 "max_position_difference_m": float(np.nanmax(gap)),
+                "inputs": {"t": t.tolist(), "delta_r": delta.tolist(), "n": n.tolist()},
                 "predicted": {
-                    k: {
-                        "t": p[0][:: max(1, int(round(1.0 / best.model.dt)))].tolist(),
-                        **{
-                            c: p[1][:: max(1, int(round(1.0 / best.model.dt))), j].tolist()
-                            for j, c in enumerate(_CHANNELS)
-                        },
-                    }
+                    k: {"t": p[0][each_s].tolist(), **{c: p[1][each_s, j].tolist() for j, c in enumerate(_CHANNELS)}}
                     for k, p in pred.items()
                 },
             }

@@ -26,7 +26,7 @@ from ...models import model_class
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
-from .design import design, manoeuvre_kind
+from .design import design, manoeuvre_kind, standard_predictions
 from .discovery import Discovery, discover, with_terms
 from .support import signature_regression
 from .verdict import (
@@ -129,8 +129,14 @@ class Diagnosis:
         extra starts' summary (``DiagnoseOptions.base_starts``), or None.
     design : list of dict
         The runs that would separate the first kept term with alternatives from them, best first
-        (:func:`bayesid.analysis.gap.design.design`; the predicted tracks only in the first);
+        (:func:`bayesid.analysis.gap.design.design`; the predicted tracks only in the first,
+        the input schedules in the first three);
         empty when every kept term is separable or discovery was not run.
+    predictions : list of dict
+        The standard manoeuvres (35 deg turning circles both ways, zigzags 10/10 and 20/20) as the
+        base model, the first kept term with alternatives and each alternative predict them, with
+        the spread over parameter draws
+        (:func:`bayesid.analysis.gap.design.standard_predictions`); empty with ``design``.
     manoeuvre_kinds : dict
         ``{"train": [...], "heldout": [...]}``: the standard manoeuvre each run resembles
         (:func:`bayesid.analysis.gap.design.manoeuvre_kind`); when the held-out kinds are all
@@ -182,6 +188,7 @@ class Diagnosis:
     gap_discovered: dict = field(default_factory=dict)
     base_check: dict = field(default_factory=dict)
     design: list = field(default_factory=list)
+    predictions: list = field(default_factory=list)
     manoeuvre_kinds: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
     after: Stage = field(repr=False, default=None)
@@ -264,6 +271,9 @@ class DiagnoseOptions:
         kinematics, in which case the base model is refitted with held starts and the setup
         whose base fit predicts its own training tracks better under the held-out protocol is
         used for every fit of the diagnosis (``base_check["train_starts"]``).
+    design : DesignOptions or None, default None
+        When given (and discovery names alternatives it cannot separate from a kept term), rank
+        the standard runs that would separate them (:func:`bayesid.analysis.gap.design.design`).
     """
 
     candidates: tuple | None = None
@@ -457,6 +467,7 @@ def diagnose(
             verdict += " -> " + found.verdict
             if found.after is not None:
                 gap_discovered = gap_summary(found.after.train, found.after.held)
+    designed, predictions = _design(found, setup, opt.design, runner)
     return Diagnosis(
         verdict=verdict,
         effects_added=chosen,
@@ -496,7 +507,8 @@ def diagnose(
         discovery_first=first.summary if first is not None else {},
         gap_discovered=gap_discovered,
         base_check=dict(check, multistart=base_ms),
-        design=_design(found, setup, opt.design, runner),
+        design=designed,
+        predictions=predictions,
         manoeuvre_kinds={"train": [manoeuvre_kind(t) for t in train], "heldout": [manoeuvre_kind(t) for t in heldout]},
         base=base_stage,
         after=after,
@@ -505,19 +517,26 @@ def diagnose(
     )
 
 
-def _design(found, setup: Setup, options, runner: Runner) -> list:
+def _design(found, setup: Setup, options, runner: Runner) -> tuple[list, list]:
     """The runs that separate the first kept term with alternatives from them
-    (:func:`bayesid.analysis.gap.design.design`), for ``Diagnosis.design``: ``[]`` without
-    discovery, design options or alternatives."""
+    (:func:`bayesid.analysis.gap.design.design`), and the standard manoeuvres as the base model,
+    that term and its alternatives predict them
+    (:func:`bayesid.analysis.gap.design.standard_predictions`), for ``Diagnosis.design`` and
+    ``Diagnosis.predictions``: ``([], [])`` without discovery, design options or alternatives."""
     if found is None or options is None:
-        return []
+        return [], []
     for k in found.found:
         alts = [a["term"] for a in found.alternatives.get(k, []) if a["term"] in found.stages]
         if alts and k in found.stages:
             runner.say(f"design: the run that separates {k} from {', '.join(alts)}")
             rows = design({n: found.stages[n] for n in (k, *alts)}, setup, options)
-            return [r if i == 0 else {key: v for key, v in r.items() if key != "predicted"} for i, r in enumerate(rows)]
-    return []
+            # the predicted tracks for the top run's figure, the input schedules of the top three
+            drop = [set(), {"predicted"}, {"predicted"}] + [{"predicted", "inputs"}] * len(rows)
+            rows = [{key: v for key, v in r.items() if key not in drop[i]} for i, r in enumerate(rows)]
+            runner.say("design: the standard manoeuvres as the base model and each alternative predict them")
+            models = {"base model": found.reference, **{n: found.stages[n] for n in (k, *alts)}}
+            return rows, standard_predictions(models, setup, options)
+    return [], []
 
 
 def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> dict:

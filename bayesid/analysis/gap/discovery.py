@@ -261,8 +261,10 @@ class Discovery:
             ``coefficient_sd`` (prime, its single-term refit), ``heldout_rms_m``,
             ``window_p_value`` (against the reference model), ``inclusion_probability``,
             ``refitted_as`` (``"selected"`` by the ensemble or ``"alternative"`` by the score
-            test), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty) and
-            ``separable`` (kept terms: no alternative survives; others: None).
+            test), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
+            ``separable`` (kept terms: no alternative survives; others: None) and
+            ``heldout_rms_by_run_m`` (kept terms: ``{held-out run: position RMS, m}`` of the
+            single-term refit; others: empty).
         """
         out = []
         for row in self.discovered:
@@ -289,6 +291,7 @@ class Discovery:
                     "refitted_as": row.get("refitted_as", "selected"),
                     "alternatives": alts,
                     "separable": (not alts) if kept else None,
+                    "heldout_rms_by_run_m": _by_run(self.stages[t]) if kept and t in self.stages else {},
                 }
             )
         return out
@@ -1071,8 +1074,10 @@ def alternatives(found: list, rows: list, stages: dict, th: Thresholds) -> dict:
     Returns
     -------
     dict
-        ``{kept term: [{"term", "heldout_rms_m", "window_p_value"}, ...]}``, the alternatives
-        best first (lowest held-out RMS).
+        ``{kept term: [{"term", "coefficient", "heldout_rms_m", "window_p_value",
+        "heldout_rms_by_run_m"}, ...]}``, the alternatives best first (lowest held-out RMS);
+        ``heldout_rms_by_run_m`` is ``{held-out run: position RMS, m}``, so that a run on which
+        two alternatives differ shows even when the pooled windows cannot separate them.
     """
     out = {}
     for k in found:
@@ -1086,9 +1091,22 @@ def alternatives(found: list, rows: list, stages: dict, th: Thresholds) -> dict:
                 continue
             p = paired_window_test(np.asarray(stages[a].windows), np.asarray(stages[k].windows))
             if p >= th.partial_p:
-                alts.append({"term": a, "heldout_rms_m": r["heldout_rms_after_m"], "window_p_value": p})
+                alts.append(
+                    {
+                        "term": a,
+                        "coefficient": r.get("coefficient"),
+                        "heldout_rms_m": r["heldout_rms_after_m"],
+                        "window_p_value": p,
+                        "heldout_rms_by_run_m": _by_run(stages[a]),
+                    }
+                )
         out[k] = sorted(alts, key=lambda d: d["heldout_rms_m"])
     return out
+
+
+def _by_run(stage) -> dict:
+    """``{held-out run: position RMS, m}`` of a refit."""
+    return dict((getattr(stage, "held", None) or {}).get("per_track_rms_position_m", {}))
 
 
 def _named_alternatives(found: list, alts: dict) -> list[str]:
