@@ -30,16 +30,22 @@ def test_a_term_whose_windows_are_as_good_is_an_alternative_and_a_worse_one_is_n
         {"term": "Nvvr", "kept": True, "heldout_rms_after_m": 0.31},
         {"term": "Yvvdr", "kept": True, "heldout_rms_after_m": 0.32},  # as good, window by window
         {"term": "Nrrdr", "kept": True, "heldout_rms_after_m": 0.60},  # passes alone, clearly worse
-        {"term": "Nabsv", "kept": False, "heldout_rms_after_m": 0.31},  # failed the kept test
+        {"term": "Nabsv", "kept": False, "heldout_rms_after_m": 0.31},  # failed the kept test, no refit
+        {"term": "Nvrr", "kept": False, "heldout_rms_after_m": 0.305},  # failed it, but predicts as well
+        {"term": "Yrrr", "kept": False, "heldout_rms_after_m": 0.33},  # failed it, and predicts worse
     ]
     stages = {
         "Nvvr": _stage(best),
         "Yvvdr": _stage(best + 0.002 * rng.standard_normal(20)),
         "Nrrdr": _stage(best + 0.3),
+        "Nvrr": _stage(best - 0.002 * rng.standard_normal(20)),
+        "Yrrr": _stage(best + 0.002 * rng.standard_normal(20)),
     }
     alts = dv.alternatives(["Nvvr"], rows, stages, Thresholds())
-    assert [a["term"] for a in alts["Nvvr"]] == ["Yvvdr"]
-    assert alts["Nvvr"][0]["window_p_value"] >= Thresholds().partial_p
+    assert [a["term"] for a in alts["Nvvr"]] == ["Nvrr", "Yvvdr"]
+    assert [a["passed_kept_test"] for a in alts["Nvvr"]] == [False, True]
+    assert all(a["window_p_value"] >= Thresholds().partial_p for a in alts["Nvvr"])
+    alts = {"Nvvr": [a for a in alts["Nvvr"] if a["term"] == "Yvvdr"]}
     v = dv._verdict(["Nvvr"], 0.31, 0.5, alts)
     assert v == "discovered: Nvvr (not separable from Yvvdr on these runs)"
     assert dv._verdict(["Nvvr"], 0.31, 0.5, {"Nvvr": []}) == "discovered: Nvvr"  # alone only when none survives
@@ -236,6 +242,35 @@ def test_each_alternative_predicts_the_standard_manoeuvres_the_training_runs_lac
         for m in r["models"].values():
             for v in m.values():
                 assert np.isfinite(v["value"]) and v["low"] == v["value"] == v["high"]  # no draws
+                assert v["n_finite"] == v["n"] == 1
     # a constant yaw moment turns the ship one way: its port and starboard circles differ
     td = {r["side"]: r["models"]["N0"]["tactical_diameter_m"]["value"] for r in turns}
     assert abs(td["port"] - td["starboard"]) > 0.01 * td["port"], td
+
+
+def test_a_kept_term_that_predicts_a_run_of_another_kind_worse_is_flagged():
+    from bayesid.analysis.gap.diagnose import Diagnosis
+
+    reference = SimpleNamespace(held={"per_track_rms_position_m": {"z1": 0.5, "turn": 0.3, "z2": 0.6}})
+    diag = SimpleNamespace(
+        discovered=SimpleNamespace(reference=reference),
+        heldout_tracks=["z1", "turn", "z2"],
+        manoeuvre_kinds={"train": ["zigzag", "zigzag"], "heldout": ["zigzag", "turning_circle", "zigzag"]},
+    )
+    # better on the zigzags it was chosen on, worse on the turn
+    item = {"term": "Nvdrabsdr", "heldout_rms_by_run_m": {"z1": 0.2, "turn": 0.45, "z2": 0.25}}
+    flagged = Diagnosis._worse_on_other_kinds(diag, item)
+    assert flagged == [{"run": "turn", "kind": "turning_circle", "rms_m": 0.45, "reference_rms_m": 0.3}]
+    item["heldout_rms_by_run_m"]["turn"] = 0.25
+    assert Diagnosis._worse_on_other_kinds(diag, item) == []
+
+
+def test_an_index_whose_estimate_diverged_says_so_and_counts_the_draws_that_did_not():
+    from bayesid.report.diagnosis import _index_cell
+
+    v = dz._spread([np.nan, 20.0, 21.0, np.nan])
+    assert np.isnan(v["value"]) and (v["n_finite"], v["n"]) == (2, 4) and 20.0 <= v["low"] <= v["high"] <= 21.0
+    cell = _index_cell(v)
+    assert cell.startswith("estimate: diverged") and "(2 of 4 runs)" in cell
+    assert _index_cell(dz._spread([np.nan, np.nan])) == "diverged or not reached"
+    assert _index_cell(dz._spread([12.0, 11.0, 13.0])).startswith("12 [")

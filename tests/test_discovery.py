@@ -271,6 +271,25 @@ def test_discover_command_writes_a_vehicle_file_that_loads_and_fits(tmp_path):
         text=True,
     )
     assert again.returncode == 2 and "the file exists" in again.stderr
+    # bayesid design: the same search, the ranked runs in design.json (empty when no kept term
+    # has alternatives, which it says), the input schedules named there as files that exist
+    des = subprocess.run(
+        py
+        + ["design", "--model", str(tmp_path / "fit" / "model.json"), "--train", *tr_csv, "--heldout", *ho_csv]
+        + ["--max-nfev", "20", "--out", str(tmp_path / "des")],
+        capture_output=True,
+        text=True,
+    )
+    assert des.returncode == 0, des.stderr
+    got = json.loads((tmp_path / "des" / "design.json").read_text())
+    assert {"design", "discovered", "criterion", "version", "command", "seed"} <= set(got)
+    if got["design"]:
+        assert "runs that would separate" in des.stdout
+        assert got["design"] == sorted(got["design"], key=lambda r: -r["separation"])
+        for r in got["design"][:3]:
+            assert (tmp_path / "des" / r["inputs_csv"]).is_file()
+    else:
+        assert "nothing to design" in des.stdout
 
 
 def test_the_mmg_polynomial_form_of_the_docs_loads_fits_predicts_and_samples(tmp_path):

@@ -13,6 +13,7 @@
 
     bayesid discover --model fitdir/model.json --train A.csv B.csv --heldout C.csv --out disc \\
         --write-vehicle myship_discovered.toml
+
     bayesid design --model fitdir/model.json --train A.csv B.csv --heldout C.csv --out des
 
 Each subcommand is a module with ``add_parser(sub)`` (its options) and ``run(args)`` (exit

@@ -242,20 +242,30 @@ def _alternatives_lines(res: dict) -> list:
     for d in kept:
         if d["separable"]:
             lines.append(
-                f"- **{d['term']}**: every other refitted term predicts the held-out windows significantly worse "
-                "(paired window test): the runs separate it."
+                f"- **{d['term']}**: every other refitted term either predicts the held-out windows significantly "
+                "worse (paired window test) or predicts them worse and did not pass the kept test: among the "
+                "refitted terms, the runs separate it."
             )
         else:
             alts = "; ".join(
                 f"{a['term']} = {fmt(a.get('coefficient'))} (held-out {fmt(a['heldout_rms_m'])} m, window test "
-                f"p = {fmt(a['window_p_value'])}{_widest_run(d, a)})"
+                f"p = {fmt(a['window_p_value'])}{_widest_run(d, a)}"
+                f"{'' if a.get('passed_kept_test', True) else '; its own gain did not pass the kept test'})"
                 for a in d["alternatives"]
             )
             lines.append(
                 f"- **{d['term']}** (held-out {fmt(d['heldout_rms_m'])} m) is not separable on these runs from: {alts}. "
-                "Each passes the kept test alone and its held-out windows are not significantly worse: the runs say "
+                "Each predicts the held-out windows not significantly worse (and passes the kept test alone, or "
+                "predicts them at least as well): the runs say "
                 f"a force of one of these forms is missing in {'/'.join(sorted({d['dof'], *(a['term'][0] for a in d['alternatives'])}))}, "
                 "not which."
+            )
+    for d in kept:
+        for w in d.get("worse_on_other_kinds") or []:
+            lines.append(
+                f"- **Warning**: with {d['term']} the held-out run {w['run']} (a {w['kind'].replace('_', ' ')}, a kind "
+                f"the training runs lack) is predicted worse than by the reference model: {fmt(w['rms_m'])} against "
+                f"{fmt(w['reference_rms_m'])} m. The term does not carry to that kind of run."
             )
     if kinds:
         tr, he = sorted(set(kinds.get("train", []))), sorted(set(kinds.get("heldout", [])))
@@ -279,8 +289,7 @@ def _predictions_lines(res: dict) -> list:
         for index in next(iter(run["models"].values())):
             cells = []
             for m in models:
-                v = run["models"][m][index]
-                cells.append(f"{fmt(v['value'])} [{fmt(v['low'])}, {fmt(v['high'])}]")
+                cells.append(_index_cell(run["models"][m][index]))
             where = "yes" if run["in_training_kinds"] else "**no**"
             rows.append([run["name"], where, index.replace("_", " "), *cells])
     return [
@@ -289,11 +298,21 @@ def _predictions_lines(res: dict) -> list:
         md_table(["run", "kind in the training runs", "index", *models], rows),
         "",
         "Free runs from the training runs' approach condition (each model steers its own zigzag). Brackets: the "
-        "5-95 % range over the estimate and parameter draws from each refit's Laplace covariance -- parameter "
+        "5-95 % range over the estimate and parameter draws from each refit's Laplace covariance (over the runs that "
+        "did not diverge, counted when some did) -- parameter "
         "uncertainty only, not a calibrated band: where no run of the kind exists it cannot be checked. Where the "
         "alternatives' values part, the runs they were chosen on do not say which is right.",
         "",
     ]
+
+
+def _index_cell(v: dict) -> str:
+    """``12.3 [11.9, 12.8]``; ``diverged`` or ``not reached`` kept visible with the draws that did."""
+    n, ok = v.get("n", 1), v.get("n_finite", 1)
+    if not ok:
+        return "diverged or not reached"
+    span = f"[{fmt(v['low'])}, {fmt(v['high'])}]" + (f" ({ok} of {n} runs)" if ok < n else "")
+    return f"{fmt(v['value'])} {span}" if math.isfinite(v["value"]) else f"estimate: diverged or not reached; {span}"
 
 
 def _widest_run(kept: dict, alt: dict) -> str:

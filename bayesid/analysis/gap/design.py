@@ -549,6 +549,16 @@ def _free_run_indices(stage, p, run: ManoeuvreRun, approach: dict, t: np.ndarray
     return {k: float(got.get(k, float("nan"))) for k in keys}
 
 
+def _spread(values: list) -> dict:
+    """An index over the estimate (first) and the draws: ``value`` (the estimate's; NaN when its
+    run diverged or never got there), ``low`` / ``high`` (5-95 % over the finite ones) and how many
+    of ``n`` were finite."""
+    v = np.asarray(values, float)
+    ok = v[np.isfinite(v)]
+    low, high = (float(np.percentile(ok, 5)), float(np.percentile(ok, 95))) if ok.size else (np.nan, np.nan)
+    return {"value": float(v[0]), "low": low, "high": high, "n_finite": int(ok.size), "n": int(v.size)}
+
+
 def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None) -> list[dict]:
     """Each model's free-running predictions of the standard manoeuvres (:data:`STANDARD_RUNS`:
     turning circles at the menu's largest rudder both ways, zigzags 10/10 and 20/20), from the
@@ -575,7 +585,9 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
     list of dict
         One per run: ``name``, ``kind``, ``rudder_deg``, ``check_deg``, ``side``,
         ``in_training_kinds`` (bool) and ``models``: ``{label: {index: {"value", "low",
-        "high"}}}`` (advance, transfer and tactical diameter in m; overshoots in deg).
+        "high", "n_finite", "n"}}}`` (advance, transfer and tactical diameter in m; overshoots in
+        deg; ``value`` NaN when the estimate's run diverged or never reached the index, the range
+        over the ``n_finite`` of ``n`` runs that did).
     """
     rng = np.random.default_rng(options.seed) if rng is None else rng
     approach = approach_condition(setup.train)
@@ -593,14 +605,7 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
         for k, st in stages.items():
             t = np.arange(0.0, D, min(0.1, st.model.dt))
             vals = [_free_run_indices(st, p, run, approach, t) for p in draws[k]]
-            models[k] = {
-                i: {
-                    "value": vals[0][i],
-                    "low": float(np.nanpercentile([v[i] for v in vals], 5)) if len(vals) > 1 else vals[0][i],
-                    "high": float(np.nanpercentile([v[i] for v in vals], 95)) if len(vals) > 1 else vals[0][i],
-                }
-                for i in STANDARD_INDICES[kind]
-            }
+            models[k] = {i: _spread([v[i] for v in vals]) for i in STANDARD_INDICES[kind]}
         out.append(
             {
                 "name": run.name,

@@ -210,6 +210,23 @@ class Diagnosis:
         within = set(self.manoeuvre_kinds.get("heldout", [])) <= set(self.manoeuvre_kinds.get("train", []))
         for item in out["discovered"]:  # a held-out test of the same kinds says nothing of the others
             item["tested_only_within_training_manoeuvres"] = bool(self.manoeuvre_kinds) and within
+            item["worse_on_other_kinds"] = self._worse_on_other_kinds(item) if item["kept"] else []
+        return out
+
+    def _worse_on_other_kinds(self, item: dict) -> list:
+        """The held-out runs of a kind the training runs lack on which a kept term's single-term
+        refit predicts worse than the reference model: ``[{"run", "kind", "rms_m",
+        "reference_rms_m"}]`` (a term chosen on one kind of run that does not carry to another)."""
+        ref = getattr(getattr(self.discovered, "reference", None), "held", None) or {}
+        base = ref.get("per_track_rms_position_m", {})
+        mine = item.get("heldout_rms_by_run_m") or {}
+        train = set(self.manoeuvre_kinds.get("train", []))
+        out = []
+        for run, kind in zip(self.heldout_tracks, self.manoeuvre_kinds.get("heldout", [])):
+            if kind in train or run not in mine or run not in base:
+                continue
+            if mine[run] > base[run]:
+                out.append({"run": run, "kind": kind, "rms_m": mine[run], "reference_rms_m": base[run]})
         return out
 
 

@@ -217,8 +217,8 @@ class Discovery:
     reference : Stage, optional
         The model the terms were added to; not in :meth:`to_dict`.
     stages : dict, optional
-        ``{term: Stage}`` of every refitted term that passed the kept test alone (the kept terms'
-        and their alternatives' single-term models); not in :meth:`to_dict`.
+        ``{term: Stage}`` of every refitted term's single-term model (the kept terms' and their
+        alternatives' among them); not in :meth:`to_dict`.
     """
 
     found: list
@@ -1051,10 +1051,13 @@ def _alternative_pool(r2: dict, sel: dict, chosen: list, options: DiscoveryOptio
 def alternatives(found: list, rows: list, stages: dict, th: Thresholds) -> dict:
     """The structures the held-out runs cannot separate from each kept term.
 
-    A refitted term ``a`` that passes the kept test alone is an alternative to a kept term ``k``
-    when the held-out windows of ``k``'s single-term refit are not significantly better than
-    ``a``'s: the one-sided paired window test (:func:`paired_window_test`, Wilcoxon signed
-    rank) of ``k`` against ``a`` gives p >= ``th.partial_p``, the level of the kept test itself.
+    A refitted term ``a`` that passes the kept test alone, or whose held-out RMS is no larger
+    than ``k``'s (it predicts the held-out runs as well, though its gain over the reference model
+    did not reach the kept test's level: the runs cannot say ``k`` is the better one), is an
+    alternative to a kept term ``k`` when the held-out windows of ``k``'s single-term refit are
+    not significantly better than ``a``'s: the one-sided paired window test
+    (:func:`paired_window_test`, Wilcoxon signed rank) of ``k`` against ``a`` gives p >=
+    ``th.partial_p``, the level of the kept test itself.
     This is the output-error counterpart of a collinear group: two terms whose refitted models
     predict the held-out runs equally well, whatever their columns' cosine (Box & Hill 1967,
     "Discrimination among mechanistic models", Technometrics 9:57-71: models that fit the data
@@ -1067,7 +1070,7 @@ def alternatives(found: list, rows: list, stages: dict, th: Thresholds) -> dict:
     rows : list of dict
         Every refitted candidate (``term``, ``kept``, ``heldout_rms_after_m``).
     stages : dict
-        ``{term: Stage}`` of the single-term refits that passed the kept test.
+        ``{term: Stage}`` of the single-term refits (every refit that converged).
     th : Thresholds
         ``partial_p``.
 
@@ -1085,15 +1088,19 @@ def alternatives(found: list, rows: list, stages: dict, th: Thresholds) -> dict:
             out[k] = []
             continue
         alts = []
+        k_rms = next((r.get("heldout_rms_after_m") for r in rows if r["term"] == k), None) or np.inf
         for r in rows:
             a = r["term"]
-            if a == k or a in found or not r.get("kept") or a not in stages:
+            if a == k or a in found or a not in stages:
+                continue
+            if not r.get("kept") and not (r.get("heldout_rms_after_m") or np.inf) <= k_rms:
                 continue
             p = paired_window_test(np.asarray(stages[a].windows), np.asarray(stages[k].windows))
             if p >= th.partial_p:
                 alts.append(
                     {
                         "term": a,
+                        "passed_kept_test": bool(r.get("kept")),
                         "coefficient": r.get("coefficient"),
                         "heldout_rms_m": r["heldout_rms_after_m"],
                         "window_p_value": p,
@@ -1256,7 +1263,7 @@ def discover(
         for n in refit
     ]
     outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
-    discovered, stages = [], {}
+    discovered, stages, fitted = [], {}, {}
     for n, out in zip(refit, outs):
         st = None if isinstance(out, TaskError) else out[0]
         msgs = [str(out)] if isinstance(out, TaskError) else out[1]
@@ -1268,6 +1275,8 @@ def discover(
         row["refitted_as"] = "alternative" if n in pool else "selected"
         _decide(row, significant, th)
         discovered.append(row)
+        if st is not None:
+            fitted[n] = st
         if row["kept"]:
             stages[n] = st
     found, after = ([], None)
@@ -1281,7 +1290,7 @@ def discover(
             (floor_rms, th),
             initial,
         )
-    alts = alternatives(found, discovered, stages, th)
+    alts = alternatives(found, discovered, fitted, th)
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
         found=found,
@@ -1312,5 +1321,5 @@ def discover(
         alternatives=alts,
         after=after,
         reference=ref,
-        stages=stages,
+        stages=fitted,
     )
