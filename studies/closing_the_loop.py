@@ -1,0 +1,346 @@
+"""Closing the loop: a hidden term -> the terms the runs cannot separate from it -> the run that
+would separate them, flown by the truth -> the diagnosis again with that run held out.
+
+Method
+------
+- Data: the synthetic cases of ``studies/structure_discovery.py`` (same generators, noise and
+  log rates: KVLCC2 zigzags at 10 Hz, NPS AUV II user-shaped runs at 5 Hz; two training and
+  three held-out runs: a hidden term of the family's library, a control with nothing hidden, a
+  rudder clock skew or backlash), and NPS AUV II with a hidden third-order hull term (``Nvvr``
+  -0.3, a yaw moment in v^2 r / U) or a cubic rudder moment (``Ndrdrdr`` 0.03, against ``Ndr``),
+  each with and without the velocity log; every case ``--repeats`` times (2) with other noise.
+- Round 1: the gap diagnosis with discovery naming the alternatives the held-out runs cannot
+  separate from a kept term (``DiscoveryOptions.n_alternatives = 2``: the terms a selected
+  term's collinear group stood for, and per degree of freedom the two best by the score test)
+  and the design of the separating run (``DiagnoseOptions.design``: 15 standard runs from the
+  training runs' approach condition, ranked by the smallest pairwise J divergence of the
+  alternatives' predictive distributions, Box & Hill 1967).
+- The loop: the top designed run's input schedule (a zigzag's switches as the kept model steers)
+  flown by the truth (the vehicle file with the hidden term, :func:`simulate_run`), logged at the
+  case's rate with its noise (and without u, v, r when the case has no velocity log), added to
+  the held-out runs.
+- Round 2: the same diagnosis with that run held out.
+- Scores: whether the hidden term is kept, alone or with alternatives, in each round; a *wrong
+  term alone* is a kept term other than the hidden one named without alternatives (the issue's
+  target: never); a control or a non-force case is *clean* when no term is kept. A hidden-term
+  case is *clear* when the base model's held-out gap is significant.
+
+Each case is checkpointed in ``cases/``; a re-run resumes (``--fresh`` starts over).
+
+    python studies/closing_the_loop.py [--quick] [--out DIR] [--seed N] [--repeats N] [--fresh]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from studies import structure_discovery as sd  # noqa: E402
+
+CASES = [
+    *sd.CASES,
+    {"name": "submarine Nvvr, velocity log", "family": "submarine", "hidden": {"Nvvr": -0.3}, "velocity_log": True},
+    {"name": "submarine Nvvr, no velocity log", "family": "submarine", "hidden": {"Nvvr": -0.3}, "velocity_log": False},
+    {
+        "name": "submarine Ndrdrdr, velocity log",
+        "family": "submarine",
+        "hidden": {"Ndrdrdr": 0.03},
+        "velocity_log": True,
+    },
+    {
+        "name": "submarine Ndrdrdr, no velocity log",
+        "family": "submarine",
+        "hidden": {"Ndrdrdr": 0.03},
+        "velocity_log": False,
+    },
+]
+QUICK = (9, 14)
+SUB_NOISE = {"x": 0.2, "y": 0.2, "psi": math.radians(0.2), "u": 0.02, "v": 0.02, "r": math.radians(0.1)}
+#: log interval of each family's runs, s (studies/structure_discovery.py)
+LOG_S = {"ship": 0.1, "submarine": 0.2}
+
+
+def case_data(case: dict, seed: int, quick: bool):
+    """The case's vehicle, free coefficients, training and held-out runs."""
+    duration = 100.0 if quick else 150.0
+    if case["family"] == "ship":
+        veh, free, train, held = sd.ship_tracks(
+            case["hidden"], case["velocity_log"], np.random.default_rng(seed), duration
+        )
+    else:
+        veh, free, train, held = sd.submarine_tracks(case["hidden"], case["velocity_log"], seed, duration)
+    if case.get("nonforce"):
+        train, held = sd.nonforce(train, case["nonforce"]), sd.nonforce(held, case["nonforce"])
+    return veh, free, train, held
+
+
+def fly(case: dict, vehicle, free: list, row: dict, approach: dict, rng, t0: float):
+    """The designed run ``row`` flown by the truth: logged at the case's rate with its noise."""
+    from bayesid.analysis.gap.design import input_track, simulate_run
+    from bayesid.data.track import Track
+    from bayesid.models import build_model
+
+    truth = vehicle.with_coefficients(case["hidden"]) if case["hidden"] else vehicle
+    model = build_model(truth, free)
+    u = row["inputs"]
+    sim = simulate_run(model, model.start(), input_track(u["t"], u["delta_r"], u["n"], approach), approach)
+    if sim is None:
+        return None
+    t = np.arange(0.0, float(sim.t[-1]) + 1e-9, LOG_S[case["family"]])
+    noise = sd.SHIP_NOISE if case["family"] == "ship" else SUB_NOISE
+    keep = ("x", "y", "psi", "u", "v", "r") if case["velocity_log"] else ("x", "y", "psi")
+    data = {}
+    for k in keep:
+        clean = np.interp(t, sim.t, np.unwrap(np.asarray(sim[k], float)) if k == "psi" else sim[k])
+        data[k] = clean + rng.normal(0.0, noise[k], t.size)
+    data.update(delta_r=np.interp(t, sim.t, sim["delta_r"]), n=np.interp(t, sim.t, sim["n"]))
+    run = Track(t + t0, data, name="designed_" + "".join(c if c.isalnum() else "_" for c in row["name"]))
+    return sd.nonforce([run], case["nonforce"])[0] if case.get("nonforce") else run
+
+
+def _round(d, hidden: str | None, run: str | None = None) -> dict:
+    """What a diagnosis says of the hidden term (None: nothing hidden); with ``run`` (a held-out
+    run's name), every single-term refit's position RMS on that run."""
+    items = d.to_dict()["discovered"]
+    kept = [i for i in items if i["kept"]]
+    alts = {i["term"]: [a["term"] for a in i["alternatives"]] for i in kept}
+    in_set = hidden is not None and any(hidden == i["term"] or hidden in alts[i["term"]] for i in kept)
+    return {
+        "verdict": d.verdict,
+        "significant_gap": d.significant_gap,
+        "heldout_rms_base_m": d.gap_before["heldout_rms_m"],
+        "noise_floor_m": d.noise_floor["heldout_rms_m"],
+        "heldout_rms_after_m": (d.discovery or {}).get("heldout_rms_after_m"),
+        "kept": [i["term"] for i in kept],
+        "alternatives": alts,
+        "coefficients": {i["term"]: i.get("coefficient") for i in kept},
+        "alternative_rms_m": {
+            i["term"]: {a["term"]: a["heldout_rms_m"] for a in i["alternatives"]} | {i["term"]: i["heldout_rms_m"]}
+            for i in kept
+        },
+        "hidden_kept_or_alternative": in_set,
+        "hidden_kept_alone": hidden is not None and [i["term"] for i in kept] == [hidden] and not alts[hidden],
+        "wrong_term_alone": any(i["term"] != hidden and not alts[i["term"]] for i in kept),
+        "manoeuvre_kinds": d.manoeuvre_kinds,
+        "run_rms_m": None
+        if run is None or d.discovered is None
+        else {k: st.held.get("per_track_rms_position_m", {}).get(run) for k, st in (d.discovered.stages or {}).items()},
+    }
+
+
+def run_case(case: dict, seed: int, quick: bool) -> dict:
+    """Both rounds of one case."""
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
+    from bayesid.analysis.gap.design import DesignOptions, approach_condition
+    from bayesid.analysis.gap.discovery import DiscoveryOptions
+
+    t_start = time.perf_counter()
+    veh, free, train, held = case_data(case, seed, quick)
+    nfev = 10 if quick else 40
+    options = DiagnoseOptions(
+        candidates=(),
+        window_s=60.0 if case["family"] == "ship" else 30.0,
+        max_nfev=nfev,
+        discover=DiscoveryOptions(max_nfev=nfev, n_alternatives=2),
+        design=DesignOptions(seed=seed),
+    )
+    hidden = next(iter(case["hidden"]), None)
+    d1 = diagnose(veh, free, train, held, options, rng=np.random.default_rng(seed))
+    first = _round(d1, hidden)
+    out = {
+        "case": case["name"],
+        "family": case["family"],
+        "hidden": case["hidden"],
+        "velocity_log": case["velocity_log"],
+        "nonforce": case.get("nonforce"),
+        "seed": seed,
+        "round1": first,
+        "design": [{k: v for k, v in r.items() if k not in ("predicted", "inputs")} for r in d1.design],
+        "round2": None,
+        "designed_run": None,
+    }
+    if d1.design:
+        top = d1.design[0]
+        clock = max(float(t.t[-1]) for t in train + held) + 100.0
+        run = fly(case, veh, free, top, approach_condition(train), np.random.default_rng(seed + 1), clock)
+        if run is not None:
+            out["designed_run"] = {"name": top["name"], "separation": top["separation"], "samples": run.n_samples}
+            d2 = diagnose(veh, free, train, [*held, run], options, rng=np.random.default_rng(seed))
+            out["round2"] = _round(d2, hidden, run.name)
+    out["seconds"] = time.perf_counter() - t_start
+    return out
+
+
+def _terms(r: dict) -> str:
+    if r is None:
+        return "-"
+    if not r["kept"]:
+        return "none kept"
+    return "; ".join(
+        f"{k}" + (f" (or {', '.join(r['alternatives'][k])})" if r["alternatives"][k] else " alone") for k in r["kept"]
+    )
+
+
+def _on_run(r: dict) -> str:
+    """Round 1's kept term and alternatives, each refitted in round 2, scored on the designed run."""
+    if not r["round2"] or not r["round2"].get("run_rms_m"):
+        return "-"
+    rms = r["round2"]["run_rms_m"]
+    names = [t for k in r["round1"]["kept"] for t in (k, *r["round1"]["alternatives"][k])]
+    return ", ".join(f"{t} {rms[t]:.3g}" if rms.get(t) is not None else f"{t} -" for t in names)
+
+
+#: A designed run sets an alternative apart when its refit's position RMS on that run exceeds the
+#: kept term's by this factor (a reading of the per-run scores, not a test).
+SET_APART = 1.5
+
+
+def _apart(r: dict) -> tuple[list, list]:
+    """(round-1 alternatives the designed run sets apart, those scored on it)."""
+    rms = (r["round2"] or {}).get("run_rms_m") or {}
+    scored = []
+    for k in r["round1"]["kept"]:
+        if rms.get(k) is None:
+            continue
+        scored += [(a, rms[a] / rms[k]) for a in r["round1"]["alternatives"][k] if rms.get(a) is not None]
+    return [a for a, q in scored if q > SET_APART], [a for a, _ in scored]
+
+
+def _still(r: dict) -> int:
+    """How many of the round-1 alternatives the designed run sets apart are alternatives in round 2."""
+    apart = _apart(r)[0]
+    later = {a for alts in r["round2"]["alternatives"].values() for a in alts} | set(r["round2"]["kept"])
+    return sum(a in later for a in apart)
+
+
+def write_report(out: Path, rows: list, args) -> dict:
+    from bayesid.report import fmt, md_table
+
+    hidden = [r for r in rows if r["hidden"]]
+    clear = [r for r in hidden if r["round1"]["significant_gap"]]
+    looped = [r for r in clear if r["round2"] is not None]
+    controls = [r for r in rows if not r["hidden"]]
+    summary = {
+        "cases": len(rows),
+        "hidden_cases": len(hidden),
+        "clear_cases": len(clear),
+        "controls_and_nonforce": len(controls),
+        "controls_and_nonforce_clean": sum(not r["round1"]["kept"] for r in controls),
+        "controls_and_nonforce_clean_after_loop": sum(not (r["round2"] or r["round1"])["kept"] for r in controls),
+        "round1_hidden_kept_or_alternative": sum(r["round1"]["hidden_kept_or_alternative"] for r in clear),
+        "round1_wrong_term_alone": sum(r["round1"]["wrong_term_alone"] for r in clear),
+        "round1_hidden_alone": sum(r["round1"]["hidden_kept_alone"] for r in clear),
+        "looped": len(looped),
+        "round2_hidden_alone": sum(r["round2"]["hidden_kept_alone"] for r in looped),
+        "round2_wrong_term_alone": sum(r["round2"]["wrong_term_alone"] for r in looped),
+        # does the designed run itself set the alternatives apart? an alternative of round 1 whose
+        # refit misses the designed run by more than SET_APART x the round-1 kept term's refit
+        "round1_alternatives_on_designed_run": sum(len(_apart(r)[1]) for r in looped),
+        "round1_alternatives_set_apart_by_designed_run": sum(len(_apart(r)[0]) for r in looped),
+        "round1_alternatives_still_alternatives_in_round2": sum(_still(r) for r in looped),
+    }
+    table = [
+        [
+            r["case"],
+            f"{fmt(r['round1']['heldout_rms_base_m'])} / {fmt(r['round1']['noise_floor_m'])}",
+            _terms(r["round1"]),
+            "-" if not r["designed_run"] else f"{r['designed_run']['name']} ({fmt(r['designed_run']['separation'])})",
+            _on_run(r),
+            _terms(r["round2"]),
+            fmt(r["round2"]["heldout_rms_after_m"]) if r["round2"] else "-",
+            fmt(r["seconds"]),
+        ]
+        for r in rows
+    ]
+    text = [
+        "# Closing the loop: alternatives, the designed run, and the diagnosis with it",
+        "",
+        "**Quick run** (smoke test)." if args.quick else "Full run.",
+        "",
+        __doc__.split("Method\n------\n")[1].split("\n    python")[0],
+        "",
+        f"Controls and non-force effects with no term kept: {summary['controls_and_nonforce_clean']} of "
+        f"{summary['controls_and_nonforce']} (after their loop, where a term was kept and a run designed: "
+        f"{summary['controls_and_nonforce_clean_after_loop']}). "
+        f"Clear hidden-term cases (significant held-out gap): {summary['clear_cases']} of {summary['hidden_cases']}. Round 1: the "
+        f"hidden term kept or among the alternatives in {summary['round1_hidden_kept_or_alternative']} of "
+        f"{summary['clear_cases']}, kept alone in {summary['round1_hidden_alone']}, a wrong term reported alone in "
+        f"{summary['round1_wrong_term_alone']}. With the designed run held out ({summary['looped']} cases had one): "
+        f"the hidden term kept alone in {summary['round2_hidden_alone']} of {summary['looped']}, a wrong term "
+        f"alone in {summary['round2_wrong_term_alone']}.",
+        "",
+        f"Does the designed run itself set the alternatives apart? Of the {summary['round1_alternatives_on_designed_run']} "
+        f"round-1 alternatives scored on it, {summary['round1_alternatives_set_apart_by_designed_run']} miss it by more "
+        f"than {SET_APART} x the round-1 kept term's refit; {summary['round1_alternatives_still_alternatives_in_round2']} "
+        "of those are still named as alternatives (or kept) in round 2. The alternatives are decided by the one-sided "
+        "paired window test over all held-out windows at p < 0.01 (Wilcoxon signed rank): the designed run adds a few "
+        "windows (one per window length of its duration) to windows on which the alternatives tie, and a rank test "
+        "needs nearly every window to favour the kept term. Where the designed run sets an "
+        "alternative apart and round 2 still names it, the test, not the design, is what falls short.",
+        "",
+        md_table(
+            [
+                "case",
+                "held-out RMS base / floor (m)",
+                "round 1: kept (alternatives)",
+                "designed run (separation, nats)",
+                "position RMS on the designed run (m)",
+                "round 2: kept (alternatives)",
+                "round 2 held-out RMS (m)",
+                "s",
+            ],
+            table,
+        ),
+        "",
+        "Every round's verdict, coefficients, the alternatives' held-out RMS and the ranked runs are in results.json.",
+        "",
+    ]
+    (out / "report.md").write_text("\n".join(text))
+    return summary
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="two cases, short runs, few iterations (a smoke test)")
+    ap.add_argument("--out", default="reports/closing_the_loop")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--repeats", type=int, default=2, help="runs of each case with other noise (default 2)")
+    ap.add_argument("--fresh", action="store_true", help="ignore the checkpointed cases and start over")
+    args = ap.parse_args()
+    from bayesid.report import write_json, write_manifest
+
+    out = Path(args.out)
+    (out / "cases").mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
+    cases = [CASES[i] for i in QUICK] if args.quick else CASES
+    repeats = 1 if args.quick else max(1, args.repeats)
+    rows = []
+    for i, case in enumerate(c for c in cases for _ in range(repeats)):
+        slug = "".join(c if c.isalnum() else "_" for c in case["name"])
+        path = out / "cases" / f"{slug}_{i % repeats}.json"
+        if path.is_file() and not args.fresh:
+            rows.append(json.loads(path.read_text()))
+            print(f"{case['name']}: from {path}", flush=True)
+            continue
+        r = run_case(case, args.seed + i, args.quick)
+        r["repeat"] = i % repeats
+        write_json(path, r)
+        print(f"{r['case']}: {_terms(r['round1'])} -> {_terms(r['round2'])} ({r['seconds']:.0f} s)", flush=True)
+        rows.append(r)
+    summary = write_report(out, rows, args)
+    write_json(out / "results.json", {"summary": summary, "cases": rows, "quick": bool(args.quick)})
+    write_manifest(out, seed=args.seed, quick=args.quick, t_start=t_start)
+    print(summary)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
