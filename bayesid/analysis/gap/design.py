@@ -337,15 +337,14 @@ def simulate_run(model, p, inputs: Track, approach: dict) -> Track | None:
         ``x y psi u v r`` (m, rad, m/s, rad/s) and the inputs at the model's steps from the
         inputs' first time; None when the run diverges.
     """
-    track = inputs
     s0 = np.zeros(12)
     s0[6] = approach["u"]
-    ctx = model.context(track, None, s0=s0)
+    ctx = model.context(inputs, None, s0=s0)
     S = model.simulate(ctx, np.asarray(p, float)[None], measured_start=False)[0]
     if not np.isfinite(S).all():
         return None
     data = {k: S[:, STATE_NAMES.index(k)] for k in ("x", "y", "psi", "u", "v", "r")}
-    data.update(delta_r=np.interp(ctx.ts, track.t, track["delta_r"]), n=np.interp(ctx.ts, track.t, track["n"]))
+    data.update(delta_r=np.interp(ctx.ts, inputs.t, inputs["delta_r"]), n=np.interp(ctx.ts, inputs.t, inputs["n"]))
     return Track(np.asarray(ctx.ts, float), data)
 
 
