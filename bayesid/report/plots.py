@@ -1,18 +1,17 @@
-"""Figures for reports (matplotlib, Agg backend). No algorithm lives here: every function takes
-results already computed and writes one PNG."""
+"""Figures for reports (matplotlib). No algorithm lives here: every function takes results
+already computed and writes one PNG (``plot_alternatives`` takes and returns axes). The module
+does not choose a backend: matplotlib picks a non-interactive one where there is no display, and
+a notebook keeps its own."""
 
 from __future__ import annotations
 
 import textwrap
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..data import terms  # noqa: E402
+from ..data import terms
 
 
 def _save(fig, path):
@@ -676,6 +675,21 @@ __all__ = [
     "fim_spectra",
     "marginals_vs_truth",
     "plot_alternatives",
+    "confusion_matrix",
+    "gap_channels",
+    "gap_ranking",
+    "gap_regions",
+    "importance_weights",
+    "mark_indices",
+    "multistart",
+    "prediction_band",
+    "prior_posterior_marginals",
+    "reliability",
+    "simulated_run",
+    "training_fit",
+    "turning_band",
+    "window_scatter",
+    "window_tracks",
 ]
 
 
@@ -733,7 +747,22 @@ def gap_ranking(
 
 
 def gap_channels(where: dict, path, title: str = "Where: residual RMS / noise-floor RMS per channel"):
-    """Bar chart of each channel's excess ratio (base model, held-out tracks)."""
+    """Bar chart of each channel's excess ratio (base model, held-out tracks).
+
+    Parameters
+    ----------
+    where : dict
+        The diagnosis's *where* result (``channels``: per channel the excess ratio).
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     ch = {k: v["excess_ratio"] for k, v in where["channels"].items() if v.get("excess_ratio")}
     fig, ax = plt.subplots(figsize=(5, 3))
     ax.bar(list(ch), list(ch.values()), color="tab:orange")
@@ -744,7 +773,22 @@ def gap_channels(where: dict, path, title: str = "Where: residual RMS / noise-fl
 
 
 def gap_regions(where: dict, path, title: str = "Where: error growth by operating region"):
-    """Mean position-error growth rate (m/s) per bin of each operating-region variable."""
+    """Mean position-error growth rate (m/s) per bin of each operating-region variable.
+
+    Parameters
+    ----------
+    where : dict
+        The diagnosis's *where* result (``regions``: per variable the bins and growth rates).
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     regs = where["regions"]
     fig, axes = plt.subplots(1, len(regs), figsize=(3.2 * len(regs), 3))
     for ax, (name, rows) in zip(np.atleast_1d(axes), regs.items()):
@@ -776,7 +820,32 @@ def window_tracks(
     """Measured track and the protocol's windowed predictions before and after the top effect:
     arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions; ``run``
     (optional, a Track or a mapping with ``"t"``, ``"x"``, ``"y"``, ``"psi"``, ``"delta_r"``: the
-    measured run) has its turning-circle indices marked (:func:`mark_indices`; ``t`` is not used)."""
+    measured run) has its turning-circle indices marked (:func:`mark_indices`; ``t`` is not used).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times, s (not used).
+    measured : ndarray, shape (n, 2)
+        Measured x, y, m.
+    before : ndarray, shape (n, 2)
+        The windowed predictions of the base model (NaN separates windows), m.
+    after : ndarray, shape (n, 2)
+        The windowed predictions with the top effect, m.
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+    labels : tuple of str
+        Names of the two predictions.
+    run : Track or mapping, optional
+        The measured run, whose turning-circle indices are marked.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     fig, ax = plt.subplots(figsize=(6, 6))
     ax.plot(measured[:, 1], measured[:, 0], "k.", ms=1.5, label="measured")
     ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label=labels[0])
@@ -825,7 +894,22 @@ def window_scatter(before, after, path, title: str = "", labels=("reference mode
 
 
 def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x verdict (columns)"):
-    """Heat map of counts {true: {verdict: n}}."""
+    """Heat map of counts {true: {verdict: n}}.
+
+    Parameters
+    ----------
+    confusion : dict
+        ``{true effect: {verdict: count}}``.
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     rows = list(confusion)
     cols = sorted({v for d in confusion.values() for v in d}, key=lambda c: (c in ("none", "unexplained"), c))
     M = np.array([[confusion[r].get(c, 0) for c in cols] for r in rows])
@@ -845,7 +929,23 @@ def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x v
 
 def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circles (posterior draws)"):
     """Turning-circle tracks {label: (n_draws + 1, n, 12) states}: the identified model (first
-    row, solid) and posterior draws (thin)."""
+    row, solid) and posterior draws (thin).
+
+    Parameters
+    ----------
+    sims : dict
+        ``{label: ndarray (n_draws + 1, n, 12)}``: states of the identified model (first row)
+        and posterior draws.
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     fig, ax = plt.subplots(figsize=(6, 6))
     for i, (label, S) in enumerate(sims.items()):
         col = plt.cm.tab10(i % 10)
@@ -858,7 +958,24 @@ def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circle
 def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
     """Left: the waterfall of a multistart fit, final costs sorted (relative to the best, log
     scale; the dashed line is the near-best tolerance). Right, when ``circles`` is given: the
-    predicted turning circles [(label, x, y)] of the distinct near-best optima, plan view."""
+    predicted turning circles [(label, x, y)] of the distinct near-best optima, plan view.
+
+    Parameters
+    ----------
+    summary : dict
+        The multistart summary (final costs, the near-best tolerance).
+    circles : list of tuple or None
+        ``[(label, x, y)]``: predicted turning circles of the distinct near-best optima, m.
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     costs = np.asarray(summary["sorted_costs"], float)
     best = costs[0]
     rel = np.where(np.isfinite(costs), costs / best - 1 if best > 0 else costs - best, np.nan)
@@ -901,7 +1018,24 @@ def reliability(
     """Reliability diagram: for each group of claims (``coverage``: {group: {level: {"coverage",
     "n"}}}), the fraction of measured values inside the band against the band's nominal level;
     the diagonal is perfect calibration. ``parameter_only`` ({"nominal", "coverage", "n"}) adds
-    the posterior draws' own band as one point for comparison."""
+    the posterior draws' own band as one point for comparison.
+
+    Parameters
+    ----------
+    coverage : dict
+        ``{group: {level: {"coverage", "n"}}}``: held-out coverage of each group's bands.
+    path : str or Path
+        The PNG to write.
+    parameter_only : dict, optional
+        ``{"nominal", "coverage", "n"}`` of the posterior draws' own band.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     fig, ax = plt.subplots(figsize=(5.5, 5))
     ax.plot([0, 1], [0, 1], "k--", lw=0.8, label="perfectly calibrated")
     for (group, cov), mk in zip(coverage.items(), "osd^"):
@@ -1031,7 +1165,28 @@ def prior_posterior_marginals(draws: np.ndarray, names, prior: dict, path, mark:
     (a Gaussian's curve; a bounded uniform's level, drawn when it is not much wider than the
     posterior), ``mark`` {name: value} a vertical line (e.g. the fit's estimate).
 
-    prior : {name: {"kind": "normal", "mean", "sd"} or {"kind": "uniform", "lower", "upper"}}."""
+    prior : {name: {"kind": "normal", "mean", "sd"} or {"kind": "uniform", "lower", "upper"}}.
+
+    Parameters
+    ----------
+    draws : ndarray, shape (N, P)
+        Posterior draws.
+    names : sequence of str
+        The P parameter names.
+    prior : dict
+        ``{name: {"kind": "normal", "mean", "sd"} or {"kind": "uniform", "lower", "upper"}}``.
+    path : str or Path
+        The PNG to write.
+    mark : dict, optional
+        ``{name: value}`` drawn as a vertical line.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     P = len(names)
     nc = min(6, P)
     nr = -(-P // nc)
@@ -1064,7 +1219,26 @@ def prior_posterior_marginals(draws: np.ndarray, names, prior: dict, path, mark:
 
 def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, title: str = ""):
     """Sorted normalised importance weights (largest first, log scale) with the Pareto k-hat and
-    the importance ESS: a few draws carrying most of the weight is what k-hat >= 0.7 flags."""
+    the importance ESS: a few draws carrying most of the weight is what k-hat >= 0.7 flags.
+
+    Parameters
+    ----------
+    weights : ndarray, shape (N,)
+        Normalised importance weights.
+    k_hat : float
+        The Pareto k-hat of the weights.
+    ess : float
+        The importance-sampling effective sample size.
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     w = np.sort(np.asarray(weights, float))[::-1]
     fig, ax = plt.subplots(figsize=(6, 3.4))
     ax.semilogy(np.arange(1, w.size + 1), np.clip(w, 1e-300, None), lw=1)
