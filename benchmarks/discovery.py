@@ -8,7 +8,8 @@ when ``../shared/data/real`` is present, the HSVA validation split of studies/re
 Each runs one diagnosis (one round) with the ship catalogue less wind (submarine: sensor_bias, waves,
 crossflow) and discovery, and prints the first
 round's wall time, discovery's (beside round 1 and after the rounds, when it ran twice) and their
-ratio.
+ratio; then the same diagnosis with the alternatives named and the separating runs designed
+(issue 49: they add at most the time of one round) and what they add.
 
     python benchmarks/discovery.py [--data DIR] [--max-nfev N]
 """
@@ -26,6 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bayesid.analysis.gap import DiagnoseOptions, diagnose  # noqa: E402
+from bayesid.analysis.gap.design import DesignOptions  # noqa: E402
 from bayesid.analysis.gap.discovery import DiscoveryOptions  # noqa: E402
 from bayesid.data.track import Track  # noqa: E402
 from bayesid.models import ship  # noqa: E402
@@ -81,8 +83,7 @@ def hsva(data: Path):
     return ship.load_ship("kvlcc2_7m"), [t for t in runs if t not in held], held
 
 
-def measure(name, kv, train, held, max_nfev, free=None, cands=None):
-    cands = cands or [c for c in ship.SHIP_CATALOGUE if c != "wind"]
+def _diagnose(kv, free, train, held, cands, max_nfev, alternatives: bool):
     t0 = time.perf_counter()
     d = diagnose(
         kv,
@@ -95,10 +96,16 @@ def measure(name, kv, train, held, max_nfev, free=None, cands=None):
             max_nfev=max_nfev,
             max_effects=1,
             start="measured",
-            discover=DiscoveryOptions(max_nfev=max_nfev),
+            discover=DiscoveryOptions(max_nfev=max_nfev, n_alternatives=2 if alternatives else 0),
+            design=DesignOptions() if alternatives else None,
         ),
     )
-    total = time.perf_counter() - t0
+    return d, time.perf_counter() - t0
+
+
+def measure(name, kv, train, held, max_nfev, free=None, cands=None):
+    cands = cands or [c for c in ship.SHIP_CATALOGUE if c != "wind"]
+    d, total = _diagnose(kv, free, train, held, cands, max_nfev, False)
     first = d.round_seconds[0]
     # discovery beside round 1 (when round 1 has an effect to add) and after the rounds: both count
     beside = d.discovery_first
@@ -107,6 +114,14 @@ def measure(name, kv, train, held, max_nfev, free=None, cands=None):
     print(
         f"{name}: first round ({len(cands)} candidates) {first:.1f} s, discovery {disc:.1f} s "
         f"{ran}(ratio {disc / first:.2f}), whole diagnosis {total:.1f} s; verdict {d.verdict}"
+    )
+    # issue 49: the alternatives and the design add at most the time of one diagnosis round
+    d2, total2 = _diagnose(kv, free, train, held, cands, max_nfev, True)
+    extra = total2 - total
+    print(
+        f"{name}, with alternatives and design: whole diagnosis {total2:.1f} s, {extra:+.1f} s "
+        f"(ratio to the first round {extra / d2.round_seconds[0]:.2f}; {len(d2.design)} runs ranked); "
+        f"verdict {d2.verdict}"
     )
 
 
