@@ -17,7 +17,11 @@ Missing values are empty fields (NaN in memory).  A header may carry a unit
 annotation, ``psi [rad]`` or ``x (m)``; for the columns above it must be the
 unit listed in :data:`UNITS`, for other columns any unit is kept in
 ``Track.units``.  Lines starting with ``#`` before the header are comments,
-kept in ``Track.meta["comments"]``.  Floats are written with ``repr`` so that
+kept in ``Track.meta["comments"]``.  A comment ``# rudder positive: starboard``
+declares a log in the other rudder sign convention (+ = to starboard, as in MMG
+papers): ``delta_r`` is negated on reading into the package's (SNAME: + = to
+port) and the comment rewritten to ``rudder positive: port (...)``, so that a
+written copy is not negated twice.  Floats are written with ``repr`` so that
 :func:`write_csv` followed by :func:`read_csv` reproduces every value
 bit-for-bit.
 """
@@ -439,7 +443,9 @@ def _parse_header(path, cells, row):
                 units[name] = unit
         names.append(name)
     if "t" not in names:
-        raise format_error(path, f"no 't' column (columns: {names})", row=row, column="t")
+        sep = next((c for c in (";", "\t", "|") if len(names) == 1 and c in names[0]), None)
+        hint = f": the header looks {sep!r}-separated; track files are comma-separated" if sep else ""
+        raise format_error(path, f"no 't' column (columns: {names}){hint}", row=row, column="t")
     if not any(k in STATE_NAMES for k in names):
         raise format_error(
             path, f"no state column; need at least one of {list(STATE_NAMES)} (columns: {names})", row=row
@@ -623,13 +629,41 @@ def _read_stream(path, f) -> Track:
         raise format_error(path, "no data rows after the header", row=n_before + 1)
     columns = [np.concatenate(parts) for parts in zip(*blocks)]
     del blocks
+    data = {k: c for k, c in zip(names, columns) if k != "t"}
+    comments = _rudder_convention(path, comments, data, n_before)
     return Track(
         columns[it],
-        {k: c for k, c in zip(names, columns) if k != "t"},
+        data,
         name=Path(path).stem,
         units=units,
         meta={"comments": comments, "file_rows": (first_row, last_row)},
     )
+
+
+_RUDDER_LINE = re.compile(r"\s*rudder\s+positive\s*[:=]\s*(\S*)(.*)", re.IGNORECASE)
+
+
+def _rudder_convention(path, comments: list, data: dict, n_comments: int) -> list:
+    """Apply a ``# rudder positive: port|starboard`` comment (module docstring): with
+    ``starboard``, negate ``data["delta_r"]`` in place and return the comments with that line
+    rewritten; raise a format error naming the row for any other word."""
+    out = list(comments)
+    for i, c in enumerate(comments):
+        m = _RUDDER_LINE.match(str(c))
+        if not m:
+            continue
+        word = m.group(1).lower().strip(",;.")
+        if word == "port":
+            return out
+        if word != "starboard":
+            raise format_error(
+                path, f"'# rudder positive:' must say port or starboard, not {m.group(1)!r}", row=i + 1
+            )
+        if "delta_r" in data:
+            data["delta_r"] = 0.0 - data["delta_r"]
+        out[i] = "rudder positive: port (delta_r negated on reading; the file's + was to starboard)"
+        return out
+    return out
 
 
 def _format(value: float) -> str:

@@ -253,6 +253,95 @@ def _check_heading(track: Track, refuse) -> None:
             )
 
 
+#: Rudder sign evidence (|t| of the rudder's gain in the yaw-rate regression, the samples'
+#: correlation discounted, :func:`rudder_response`) above which a rudder that turns the vessel the
+#: other way is refused, and above which (down to 3) it is a warning.
+RUDDER_SIGN_T = 6.0
+#: Smallest rudder spread (rad, sd) for the sign check to say anything.
+RUDDER_SPREAD = math.radians(1.0)
+
+
+def rudder_response(track: Track, smooth_s: float = 2.0) -> dict | None:
+    """Which way the rudder turns the vessel in a track: the gain ``b`` of the rudder angle in a
+    first-order yaw-rate regression ``dr/dt = a r + b delta_r + c`` (Nomoto 1957; the heading
+    smoothed and differentiated by a Savitzky-Golay filter over ``smooth_s``).
+
+    In the package's convention (SNAME: a positive rudder angle, trailing edge to port, turns the
+    vessel to port, ``r < 0``) ``b`` is negative; a log in the MMG papers' convention (+ =
+    starboard) gives a positive ``b``.
+
+    Parameters
+    ----------
+    track : Track
+        A track with ``psi`` (rad) and ``delta_r`` (rad).
+    smooth_s : float, default 2.0
+        The filter's span, s (at least 7 samples).
+
+    Returns
+    -------
+    dict or None
+        ``b`` (1/s^2), ``t`` (its t statistic, discounted for the samples' correlation: one
+        independent sample per ``smooth_s``) and ``n`` (samples); None without a heading and
+        rudder, with fewer than 30 finite samples or a rudder spread below
+        :data:`RUDDER_SPREAD`.
+    """
+    from scipy.signal import savgol_filter
+
+    if "psi" not in track or "delta_r" not in track:
+        return None
+    t = np.asarray(track.t, float)
+    psi, dr = np.asarray(track["psi"], float), np.asarray(track["delta_r"], float)
+    ok = np.isfinite(psi) & np.isfinite(dr)
+    if ok.sum() < 30 or np.std(dr[ok]) < RUDDER_SPREAD:
+        return None
+    h = float(np.median(np.diff(t[ok])))
+    if not h > 0:
+        return None
+    grid = np.arange(t[ok][0], t[ok][-1], h)
+    if grid.size < 30:
+        return None
+    psi_g = np.interp(grid, t[ok], np.unwrap(psi[ok]))
+    dr_g = np.interp(grid, t[ok], dr[ok])
+    w = max(7, int(round(smooth_s / h)) | 1)
+    if w >= grid.size:
+        return None
+    r = savgol_filter(psi_g, w, 3, deriv=1, delta=h)
+    rdot = savgol_filter(psi_g, w, 3, deriv=2, delta=h)
+    n_eff = max(grid.size * h / max(smooth_s, w * h), 4.0)
+    b, tb = _gain(np.column_stack([r, dr_g, np.ones_like(r)]), rdot, grid.size / n_eff)
+    k, tk = _gain(np.column_stack([dr_g, np.ones_like(r)]), r, grid.size / n_eff, at=0)
+    return {"b": b, "t": tb, "K": k, "t_K": tk, "n": int(grid.size)}
+
+
+def _gain(X: np.ndarray, y: np.ndarray, inflation: float, at: int = 1) -> tuple[float, float]:
+    """Least-squares coefficient ``at`` of ``y ~ X`` and its t statistic with the variance
+    multiplied by ``inflation`` (correlated samples)."""
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    res = y - X @ coef
+    cov = np.linalg.pinv(X.T @ X) * float(res @ res) / max(len(y) - X.shape[1], 1)
+    se = math.sqrt(max(cov[at, at] * inflation, 1e-300))
+    return float(coef[at]), float(coef[at] / se)
+
+
+def _check_rudder_sign(track: Track, refuse, warn: list, name: str) -> None:
+    """Refuse (or warn about) a rudder that turns the vessel the other way than the package's
+    convention says (:func:`rudder_response`): both the yaw-rate gain and the steady gain
+    positive, their t statistics summing to more than :data:`RUDDER_SIGN_T` (3 for a warning)."""
+    resp = rudder_response(track)
+    if resp is None or not (resp["t"] > 0 and resp["t_K"] > 0):
+        return
+    msg = (
+        f"a positive rudder angle turns the vessel to starboard in this run (yaw-rate gain t = {resp['t']:.1f}, "
+        f"steady turn-rate gain t = {resp['t_K']:.1f}), while the package's convention is + = to port (SNAME); "
+        "if the log uses + = to starboard (MMG papers), put the line '# rudder positive: starboard' before its "
+        "header (delta_r is then negated on reading)"
+    )
+    if resp["t"] + resp["t_K"] > RUDDER_SIGN_T:
+        refuse("delta_r", msg)
+    if resp["t"] + resp["t_K"] > 3.0:
+        warn.append(f"{name}: column 'delta_r': {msg}")
+
+
 def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
     """Units and plausibility of a track (module docstring).
 
@@ -275,7 +364,8 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     Raises
     ------
     ValueError
-        A column in the wrong unit, naming file, column and the unit it looks like; a hole in
+        A column in the wrong unit, naming file, column and the unit it looks like; a rudder
+        that turns the vessel against the sign convention (:func:`rudder_response`); a hole in
         a logged input (:func:`input_gaps`); or a
         declared vessel that is another packaged vehicle (:func:`check_vessel`).
     """
@@ -298,6 +388,7 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             m = float(np.nanmax(np.abs(track[col]))) if np.isfinite(track[col]).any() else 0.0
             if m > math.pi / 2 + 1e-6:
                 refuse(col, f"values up to {m:.4g} cannot be a control-surface angle in rad; it looks like degrees")
+    _check_rudder_sign(track, refuse, warn, name)
     ground = None
     if "x" in track and "y" in track:
         # over a 5 s baseline, so that position noise does not pass for speed
@@ -378,6 +469,9 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
 __all__ = [
     "check_track",
     "check_vessel",
+    "rudder_response",
+    "RUDDER_SIGN_T",
+    "RUDDER_SPREAD",
     "input_gaps",
     "track_vessel",
     "SPEED_UNITS",
