@@ -41,14 +41,73 @@ def test_a_term_whose_windows_are_as_good_is_an_alternative_and_a_worse_one_is_n
         "Nvrr": _stage(best - 0.002 * rng.standard_normal(20)),
         "Yrrr": _stage(best + 0.002 * rng.standard_normal(20)),
     }
-    alts = dv.alternatives(["Nvvr"], rows, stages, Thresholds())
+    compared = dv.compare_structures(["Nvvr"], rows, stages, Thresholds())
+    alts = dv.alternatives(compared)
     assert [a["term"] for a in alts["Nvvr"]] == ["Nvrr", "Yvvdr"]
+    assert [a["term"] for a in dv.separated(compared)["Nvvr"]] == ["Nrrdr"]
     assert [a["passed_kept_test"] for a in alts["Nvvr"]] == [False, True]
     assert all(a["window_p_value"] >= Thresholds().partial_p for a in alts["Nvvr"])
     alts = {"Nvvr": [a for a in alts["Nvvr"] if a["term"] == "Yvvdr"]}
     v = dv._verdict(["Nvvr"], 0.31, 0.5, alts)
     assert v == "discovered: Nvvr (not separable from Yvvdr on these runs)"
     assert dv._verdict(["Nvvr"], 0.31, 0.5, {"Nvvr": []}) == "discovered: Nvvr"  # alone only when none survives
+
+
+def _two_structures(rng, designed):
+    """Window errors of a kept term and a competitor: equal on 3 held-out runs of 5 windows, and
+    on a designed run of 3 windows the competitor ``designed`` times worse."""
+    kept = 0.4 * np.exp(0.15 * rng.standard_normal(18))
+    other = kept * np.exp(0.03 * rng.standard_normal(18))
+    other[15:] = kept[15:] * designed
+    runs = np.repeat(np.arange(4), [5, 5, 5, 3])
+    return kept, other, runs
+
+
+def test_one_designed_run_separates_two_structures_that_the_pooled_window_test_cannot():
+    rng = np.random.default_rng(3)
+    kept, other, runs = _two_structures(rng, 2.0)
+    assert dv.paired_window_test(other, kept) > 0.01  # 3 windows of 18: the pooled ranks do not move
+    res = dv.run_separation_test(kept, other, runs)
+    assert res["p_second_worse"] < 0.01 and res["run_second_worse"] == 3
+    assert res["ratio_by_run"][3] == pytest.approx(2.0)
+    assert res["p_first_worse"] > 0.5
+    rows = [
+        {"term": "Nvvr", "kept": True, "heldout_rms_after_m": 0.40},
+        {"term": "Nvabsvabsr", "kept": True, "heldout_rms_after_m": 0.45},
+    ]
+    stages = {"Nvvr": _stage(kept), "Nvabsvabsr": _stage(other)}
+    names = ["zz1", "zz2", "tc", "designed"]
+    entry = dv.compare_structures(["Nvvr"], rows, stages, Thresholds(), runs, names)["Nvvr"][0]
+    assert entry["separable"] and entry["separating_run"] == "designed"
+    assert entry["run_error_ratio"] == pytest.approx(2.0)
+    assert dv.compare_structures(["Nvvr"], rows, stages, Thresholds())["Nvvr"][0]["separable"] is False
+
+
+@pytest.mark.parametrize("designed", [1.0, 1.05])
+def test_a_run_where_two_structures_agree_within_the_margin_separates_nothing(designed):
+    hits = 0
+    for seed in range(200):
+        kept, other, runs = _two_structures(np.random.default_rng(seed), designed)
+        hits += dv.run_separation_test(kept, other, runs)["p_second_worse"] < 0.01
+    assert hits <= 4  # the level (1 %), with room for sampling
+
+
+def test_a_competitor_better_on_some_run_stays_an_alternative():
+    rng = np.random.default_rng(4)
+    kept, other, runs = _two_structures(rng, 2.0)
+    other[:5] = kept[:5] / 2.0  # better on the first run, worse on the designed one
+    rows = [
+        {"term": "Nvvr", "kept": True, "heldout_rms_after_m": 0.40},
+        {"term": "Yvvdr", "kept": True, "heldout_rms_after_m": 0.45},
+    ]
+    stages = {"Nvvr": _stage(kept), "Yvvdr": _stage(other)}
+    compared = dv.compare_structures(["Nvvr"], rows, stages, Thresholds(), runs)
+    assert [a["term"] for a in dv.alternatives(compared)["Nvvr"]] == ["Yvvdr"]
+
+
+def test_the_run_test_refuses_arrays_of_different_lengths():
+    with pytest.raises(ValueError, match="differ in length"):
+        dv.run_separation_test(np.ones(5), np.ones(5), np.zeros(4, int))
 
 
 def test_the_top_level_discovered_list_marks_the_final_terms_and_their_alternatives():

@@ -243,8 +243,8 @@ def _alternatives_lines(res: dict) -> list:
         if d["separable"]:
             lines.append(
                 f"- **{d['term']}**: every other refitted term either predicts the held-out windows significantly "
-                "worse (paired window test) or predicts them worse and did not pass the kept test: among the "
-                "refitted terms, the runs separate it."
+                "worse (paired window test over all windows, or on one run) or predicts them worse and did not pass "
+                "the kept test: among the refitted terms, the runs separate it."
             )
         else:
             alts = "; ".join(
@@ -259,6 +259,10 @@ def _alternatives_lines(res: dict) -> list:
                 "predicts them at least as well): the runs say "
                 f"a force of one of these forms is missing in {'/'.join(sorted({d['dof'], *(a['term'][0] for a in d['alternatives'])}))}, "
                 "not which."
+            )
+        if d.get("separated"):
+            lines.append(
+                f"  The runs separate {d['term']} from: " + "; ".join(_separated_cell(a) for a in d["separated"]) + "."
             )
     for d in kept:
         for w in d.get("worse_on_other_kinds") or []:
@@ -313,6 +317,18 @@ def _index_cell(v: dict) -> str:
         return "diverged or not reached"
     span = f"[{fmt(v['low'])}, {fmt(v['high'])}]" + (f" ({ok} of {n} runs)" if ok < n else "")
     return f"{fmt(v['value'])} {span}" if math.isfinite(v["value"]) else f"estimate: diverged or not reached; {span}"
+
+
+def _separated_cell(a: dict) -> str:
+    """``Nvvr (held-out 0.64 m; on run R 1.8x the kept term's window errors, run test p = 0.001)``."""
+    if a.get("run_p_value") is not None and a["run_p_value"] < a["window_p_value"]:
+        how = (
+            f"on {a['separating_run']} {fmt(a['run_error_ratio'])}x the kept term's window errors, run test "
+            f"p = {fmt(a['run_p_value'])}"
+        )
+    else:
+        how = f"window test p = {fmt(a['window_p_value'])}"
+    return f"{a['term']} (held-out {fmt(a['heldout_rms_m'])} m; {how})"
 
 
 def _widest_run(kept: dict, alt: dict) -> str:

@@ -60,7 +60,7 @@ from ...models import build_model
 from ...models.library import MAX_ORDER, term_library
 from ...tasks import Runner, Task, TaskError
 from .candidates import Setup, Stage, score_stage
-from .verdict import Thresholds, is_contributor, paired_window_test
+from .verdict import Thresholds, is_contributor, paired_window_test, run_separation_test
 
 __all__ = [
     "DiscoveryOptions",
@@ -208,10 +208,13 @@ class Discovery:
     seconds : float
         Wall time.
     alternatives : dict
-        ``{kept term: [{"term", "heldout_rms_m", "window_p_value"}, ...]}``: every other
-        refitted term that passes the kept test alone and whose held-out windows are not
-        significantly worse than the kept term's (:func:`alternatives`); empty lists where the
-        runs separate the kept term from every other.
+        ``{kept term: [{"term", "heldout_rms_m", "window_p_value", "run_p_value", ...}, ...]}``:
+        every competing refitted term the held-out runs cannot separate from the kept term
+        (:func:`compare_structures`); empty lists where the runs separate the kept term from
+        every other.
+    separated : dict
+        ``{kept term: [...]}``, the same entries for the competing terms the runs separate, with
+        the run that separates each (``separating_run``, ``run_error_ratio``).
     after : Stage, optional
         The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
     reference : Stage, optional
@@ -235,6 +238,7 @@ class Discovery:
     settings: dict
     seconds: float
     alternatives: dict = field(default_factory=dict)
+    separated: dict = field(default_factory=dict)
     after: Stage | None = field(repr=False, default=None)
     reference: Stage | None = field(repr=False, default=None)
     stages: dict = field(repr=False, default_factory=dict)
@@ -262,7 +266,7 @@ class Discovery:
             ``window_p_value`` (against the reference model), ``inclusion_probability``,
             ``refitted_as`` (``"selected"`` by the ensemble or ``"alternative"`` by the score
             test), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
-            ``separable`` (kept terms: no alternative survives; others: None) and
+            ``separated`` (kept terms: :attr:`separated`; others: empty), ``separable`` (kept terms: no alternative survives; others: None) and
             ``heldout_rms_by_run_m`` (kept terms: ``{held-out run: position RMS, m}`` of the
             single-term refit; others: empty).
         """
@@ -290,6 +294,7 @@ class Discovery:
                     "inclusion_probability": row["inclusion_probability"],
                     "refitted_as": row.get("refitted_as", "selected"),
                     "alternatives": alts,
+                    "separated": list(self.separated.get(t, [])) if kept else [],
                     "separable": (not alts) if kept else None,
                     "heldout_rms_by_run_m": _by_run(self.stages[t]) if kept and t in self.stages else {},
                 }
@@ -1048,67 +1053,163 @@ def _alternative_pool(r2: dict, sel: dict, chosen: list, options: DiscoveryOptio
     return out
 
 
-def alternatives(found: list, rows: list, stages: dict, th: Thresholds) -> dict:
-    """The structures the held-out runs cannot separate from each kept term.
+def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, runs=None, run_names=None) -> dict:
+    """Every refitted term that competes with a kept term, and whether the held-out runs separate
+    the two.
 
-    A refitted term ``a`` that passes the kept test alone, or whose held-out RMS is no larger
-    than ``k``'s (it predicts the held-out runs as well, though its gain over the reference model
-    did not reach the kept test's level: the runs cannot say ``k`` is the better one), is an
-    alternative to a kept term ``k`` when the held-out windows of ``k``'s single-term refit are
-    not significantly better than ``a``'s: the one-sided paired window test
-    (:func:`paired_window_test`, Wilcoxon signed rank) of ``k`` against ``a`` gives p >=
-    ``th.partial_p``, the level of the kept test itself.
-    This is the output-error counterpart of a collinear group: two terms whose refitted models
-    predict the held-out runs equally well, whatever their columns' cosine (Box & Hill 1967,
-    "Discrimination among mechanistic models", Technometrics 9:57-71: models that fit the data
-    equally are discriminated only by a run where their predictions differ).
+    A refitted term ``a`` competes with a kept term ``k`` when it passes the kept test alone, or
+    when its held-out RMS is no larger than ``k``'s (it predicts the held-out runs as well, though
+    its gain over the reference model did not reach the kept test's level). The runs *separate*
+    ``k`` from ``a`` when ``k``'s held-out windows are significantly better than ``a``'s, by
+    either of two tests at the kept test's level ``th.partial_p``:
+
+    - pooled over every held-out window: the one-sided paired window test
+      (:func:`paired_window_test`, Wilcoxon signed rank), the test that keeps a term;
+    - run by run (when ``runs`` is given): some run on which ``a``'s window errors exceed
+      ``k``'s by more than ``th.separation_margin`` and none on which ``k``'s exceed ``a``'s
+      (:func:`~bayesid.analysis.gap.verdict.run_separation_test`, Bonferroni over the runs): a
+      single designed run of a few windows separates two structures that agree on every
+      other run, which the pooled rank test cannot see.
+
+    Otherwise ``a`` is an *alternative*: the output-error counterpart of a collinear group, two
+    terms whose refitted models predict the held-out runs equally well, whatever their columns'
+    cosine (Box & Hill 1967, "Discrimination among mechanistic models", Technometrics 9:57-71:
+    models that fit the data equally are discriminated only by a run where their predictions
+    differ).
 
     Parameters
     ----------
     found : list of str
         The kept terms of the final model.
     rows : list of dict
-        Every refitted candidate (``term``, ``kept``, ``heldout_rms_after_m``).
+        Every refitted candidate (``term``, ``kept``, ``heldout_rms_after_m``, ``coefficient``).
     stages : dict
         ``{term: Stage}`` of the single-term refits (every refit that converged).
     th : Thresholds
-        ``partial_p``.
+        ``partial_p`` and ``separation_margin``.
+    runs : ndarray of int, shape (n_windows,), optional
+        The held-out run of each window of the stages' ``windows``; without it only the pooled
+        test is used.
+    run_names : list of str, optional
+        The held-out runs' names, indexed by ``runs``.
 
     Returns
     -------
     dict
-        ``{kept term: [{"term", "coefficient", "heldout_rms_m", "window_p_value",
-        "heldout_rms_by_run_m"}, ...]}``, the alternatives best first (lowest held-out RMS);
-        ``heldout_rms_by_run_m`` is ``{held-out run: position RMS, m}``, so that a run on which
-        two alternatives differ shows even when the pooled windows cannot separate them.
+        ``{kept term: [{"term", "passed_kept_test", "coefficient", "heldout_rms_m",
+        "window_p_value", "run_p_value", "separating_run", "run_error_ratio", "separable",
+        "heldout_rms_by_run_m"}, ...]}``, best first (lowest held-out RMS). ``window_p_value``:
+        the pooled test's p; ``run_p_value``: the run test's (None without ``runs``);
+        ``separating_run`` and ``run_error_ratio``: the run with the strongest evidence that
+        ``a`` is worse and its geometric-mean error ratio ``a / k``; ``heldout_rms_by_run_m``
+        ``{held-out run: position RMS, m}``.
     """
     out = {}
     for k in found:
+        out[k] = []
         if k not in stages:
-            out[k] = []
             continue
-        alts = []
         k_rms = next((r.get("heldout_rms_after_m") for r in rows if r["term"] == k), None) or np.inf
+        kw = np.asarray(stages[k].windows)
         for r in rows:
             a = r["term"]
             if a == k or a in found or a not in stages:
                 continue
             if not r.get("kept") and not (r.get("heldout_rms_after_m") or np.inf) <= k_rms:
                 continue
-            p = paired_window_test(np.asarray(stages[a].windows), np.asarray(stages[k].windows))
-            if p >= th.partial_p:
-                alts.append(
-                    {
-                        "term": a,
-                        "passed_kept_test": bool(r.get("kept")),
-                        "coefficient": r.get("coefficient"),
-                        "heldout_rms_m": r["heldout_rms_after_m"],
-                        "window_p_value": p,
-                        "heldout_rms_by_run_m": _by_run(stages[a]),
-                    }
-                )
-        out[k] = sorted(alts, key=lambda d: d["heldout_rms_m"])
+            aw = np.asarray(stages[a].windows)
+            p = paired_window_test(aw, kw)
+            run = {"p_second_worse": None, "p_first_worse": 1.0, "run_second_worse": None, "ratio_by_run": {}}
+            if runs is not None and len(runs) == len(kw) == len(aw):
+                run = run_separation_test(kw, aw, np.asarray(runs), th.separation_margin)
+            i = run["run_second_worse"]
+            by_run = run["ratio_by_run"]
+            separated = p < th.partial_p or (
+                run["p_second_worse"] is not None
+                and run["p_second_worse"] < th.partial_p
+                and run["p_first_worse"] >= th.partial_p
+            )
+            out[k].append(
+                {
+                    "term": a,
+                    "passed_kept_test": bool(r.get("kept")),
+                    "coefficient": r.get("coefficient"),
+                    "heldout_rms_m": r["heldout_rms_after_m"],
+                    "window_p_value": p,
+                    "run_p_value": run["p_second_worse"],
+                    "separating_run": None if i is None else _run_name(run_names, i),
+                    "run_error_ratio": by_run.get(i) if i is not None else None,
+                    "separable": bool(separated),
+                    "heldout_rms_by_run_m": _by_run(stages[a]),
+                }
+            )
+        out[k].sort(key=lambda d: d["heldout_rms_m"])
     return out
+
+
+def _run_name(names, i: int) -> str:
+    """The name of held-out run ``i`` (its index when unnamed)."""
+    return str(names[i]) if names is not None and 0 <= i < len(names) else str(i)
+
+
+def alternatives(compared: dict) -> dict:
+    """The structures the held-out runs cannot separate from each kept term.
+
+    Parameters
+    ----------
+    compared : dict
+        :func:`compare_structures`.
+
+    Returns
+    -------
+    dict
+        ``{kept term: [entry, ...]}``, the entries of ``compared`` with ``separable`` False,
+        without that key; an empty list where the runs separate the kept term from every other.
+    """
+    return {
+        k: [{n: v for n, v in e.items() if n != "separable"} for e in es if not e["separable"]]
+        for k, es in compared.items()
+    }
+
+
+def separated(compared: dict) -> dict:
+    """The competing structures the held-out runs separate from each kept term.
+
+    Parameters
+    ----------
+    compared : dict
+        :func:`compare_structures`.
+
+    Returns
+    -------
+    dict
+        ``{kept term: [entry, ...]}``, the entries of ``compared`` with ``separable`` True,
+        without that key.
+    """
+    return {
+        k: [{n: v for n, v in e.items() if n != "separable"} for e in es if e["separable"]]
+        for k, es in compared.items()
+    }
+
+
+def window_runs(setup: Setup, model) -> tuple[np.ndarray, list]:
+    """The held-out run of each protocol window, in the order of a stage's ``windows``.
+
+    Parameters
+    ----------
+    setup : Setup
+        The held-out tracks, window and start rule.
+    model : SimulationModel
+        Any model of the setup (the windows do not depend on the parameters).
+
+    Returns
+    -------
+    tuple
+        ``(runs, names)``: ``runs`` ndarray of int, shape (n_windows,), the index of each
+        window's track; ``names`` the held-out tracks' names.
+    """
+    ctxs = [model.context(t, setup.window_s, start=setup.rule, leadin_s=setup.leadin_s) for t in setup.heldout]
+    return np.repeat(np.arange(len(ctxs)), [c.W for c in ctxs]), [c.name for c in ctxs]
 
 
 def _by_run(stage) -> dict:
@@ -1216,6 +1317,24 @@ def discover(
     ------
     ValueError
         No training track gives missing forces; ``context`` without ``sd_fit``.
+
+    Examples
+    --------
+    Discovery usually runs inside :func:`bayesid.analysis.gap.diagnose.diagnose`
+    (``DiagnoseOptions(discover=DiscoveryOptions())``, as ``bayesid discover`` runs it). Here it
+    searches again, with other options (the yaw moment alone), on the base model of a diagnosis
+    without candidates:
+
+    >>> import bayesid
+    >>> vehicle = bayesid.load_any_vehicle("nps_auv2")
+    >>> train = [bayesid.read_csv(f) for f in ("z10.csv", "z20.csv")]
+    >>> heldout = [bayesid.read_csv("t15.csv")]
+    >>> free = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
+    >>> d = bayesid.diagnose(vehicle, free, train, heldout, bayesid.DiagnoseOptions(window_s=30.0, candidates=()))
+    >>> context = {"sd_fit": d.fit_sd, "floor_rms": d.noise_floor["heldout_rms_m"], "significant": d.significant_gap}
+    >>> options = bayesid.DiscoveryOptions(dofs=("N",))
+    >>> found = bayesid.discover(d.setup, d.base, d.base.model.effects, options, context)
+    >>> found.found, found.verdict  # doctest: +SKIP
     """
     t0 = time.perf_counter()
     ctx = dict(context or {})
@@ -1290,7 +1409,9 @@ def discover(
             (floor_rms, th),
             initial,
         )
-    alts = alternatives(found, discovered, fitted, th)
+    runs, run_names = window_runs(setup, ref.model)
+    compared = compare_structures(found, discovered, fitted, th, runs, run_names)
+    alts = alternatives(compared)
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
         found=found,
@@ -1319,6 +1440,7 @@ def discover(
         },
         seconds=time.perf_counter() - t0,
         alternatives=alts,
+        separated=separated(compared),
         after=after,
         reference=ref,
         stages=fitted,

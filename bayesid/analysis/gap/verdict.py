@@ -24,6 +24,7 @@ __all__ = [
     "Thresholds",
     "noise_floor",
     "paired_window_test",
+    "run_separation_test",
     "gap_summary",
     "assign_roles",
     "contribution",
@@ -45,12 +46,16 @@ class Thresholds:
         Largest training ΔBIC of an accepted effect.
     partial_p : float, default 0.01
         Level of the paired window test of a contributor.
+    separation_margin : float, default 0.1
+        Relative excess of one model's window errors over another's on a run below which the
+        run does not count as separating them (:func:`run_separation_test`).
     """
 
     none_ratio: float = 1.5
     explain_fraction: float = 0.5
     bic_threshold: float = -10.0
     partial_p: float = 0.01
+    separation_margin: float = 0.1
 
     def as_dict(self) -> dict:
         """The thresholds as a JSON-able dict.
@@ -58,13 +63,14 @@ class Thresholds:
         Returns
         -------
         dict
-            ``{name: value}`` of the four thresholds.
+            ``{name: value}`` of the thresholds.
         """
         return {
             "none_ratio": self.none_ratio,
             "explain_fraction": self.explain_fraction,
             "bic_threshold": self.bic_threshold,
             "partial_p": self.partial_p,
+            "separation_margin": self.separation_margin,
         }
 
 
@@ -137,6 +143,72 @@ def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
     if ok.sum() < 6:
         return 1.0
     return float(stats.wilcoxon(before[ok], after[ok], alternative="greater").pvalue)
+
+
+def run_separation_test(first: np.ndarray, second: np.ndarray, runs: np.ndarray, margin: float = 0.1) -> dict:
+    """Whether some run tells two models apart: one-sided tests, run by run, that the second
+    model's window errors exceed the first's by more than ``margin`` (and the converse).
+
+    The pooled window test (:func:`paired_window_test`) asks whether one model is better over
+    all held-out windows; two structures are told apart as soon as one run separates them (Box &
+    Hill 1967, Technometrics 9:57: a run where the predictions differ), and a run of a few
+    windows added to many on which two models agree does not move a pooled rank test. Here the
+    log ratios ``d = log(second / first)`` of the paired windows are grouped by run; each run's
+    mean is tested against ``log(1 + margin)`` with a t statistic whose variance is the
+    within-run variance pooled over the runs (a one-way layout; windows restart from the
+    measured state, so the windows of a run are taken as independent), one-sided, and the
+    smallest p over the runs is multiplied by the number of runs (Bonferroni).
+
+    Parameters
+    ----------
+    first, second : ndarray, shape (n_windows,)
+        Per-window errors of the two models, the same windows (m).
+    runs : ndarray of int, shape (n_windows,)
+        The run of each window.
+    margin : float, default 0.1
+        The relative excess below which a run does not separate the models.
+
+    Returns
+    -------
+    dict
+        ``p_second_worse`` and ``p_first_worse`` (Bonferroni-adjusted, 1.0 when untestable),
+        ``run_second_worse`` and ``run_first_worse`` (the index of the run of the smallest
+        p, or None), ``ratio_by_run`` (``{run: geometric-mean error ratio second / first}``)
+        and ``df`` (degrees of freedom of the pooled variance).
+
+    Raises
+    ------
+    ValueError
+        Arrays of different lengths.
+    """
+    first, second, runs = np.asarray(first, float), np.asarray(second, float), np.asarray(runs)
+    if not first.shape == second.shape == runs.shape:
+        raise ValueError(f"window errors and runs differ in length: {first.shape}, {second.shape}, {runs.shape}")
+    ok = np.isfinite(first) & np.isfinite(second) & (first > 0) & (second > 0)
+    d, g = np.log(second[ok] / first[ok]), runs[ok]
+    groups = [d[g == r] for r in np.unique(g)]
+    labels = list(np.unique(g))
+    df = int(sum(x.size - 1 for x in groups))
+    out = {
+        "p_second_worse": 1.0,
+        "p_first_worse": 1.0,
+        "run_second_worse": None,
+        "run_first_worse": None,
+        "ratio_by_run": {int(r): float(np.exp(x.mean())) for r, x in zip(labels, groups)},
+        "df": df,
+    }
+    if df < 2:
+        return out
+    sd = float(np.sqrt(sum(((x - x.mean()) ** 2).sum() for x in groups) / df))
+    sd = max(sd, 1e-12)
+    step = np.log1p(margin)
+    for sign, key in ((1.0, "second_worse"), (-1.0, "first_worse")):
+        t = np.array([(sign * x.mean() - step) / (sd / np.sqrt(x.size)) for x in groups])
+        p = stats.t.sf(t, df)
+        i = int(np.argmin(p))
+        out[f"p_{key}"] = float(min(1.0, p[i] * len(groups)))
+        out[f"run_{key}"] = int(labels[i])
+    return out
 
 
 def gap_summary(train: dict, held: dict) -> dict:
