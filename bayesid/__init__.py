@@ -1,6 +1,21 @@
 """bayesid: identify the hydrodynamic coefficients of manoeuvring vessels from their tracks,
 with honest uncertainty.
 
+The names a study needs are importable from the package itself (``import bayesid``;
+:data:`__all__` lists them): tracks and vehicles (:class:`~bayesid.data.track.Track`,
+:func:`~bayesid.data.track.read_csv`, :func:`~bayesid.data.track.write_csv`,
+:func:`~bayesid.models.load_any_vehicle`, :func:`~bayesid.models.build_model`), the fit
+(:func:`~bayesid.estimation.identification.identify`, :class:`~bayesid.estimation.options.FitOptions`),
+the window protocol's predictions (:func:`~bayesid.estimation.prediction.predict`), the posterior
+(:func:`~bayesid.estimation.track_posterior.sample_tracks`,
+:class:`~bayesid.estimation.track_posterior.SampleOptions`,
+:class:`~bayesid.estimation.windows.FitProblem`), the gap diagnosis and structure discovery
+(:func:`~bayesid.analysis.gap.diagnose.diagnose`, :class:`~bayesid.analysis.gap.diagnose.DiagnoseOptions`,
+:func:`~bayesid.analysis.gap.discovery.discover`,
+:class:`~bayesid.analysis.gap.discovery.DiscoveryOptions`) and :class:`~bayesid.tasks.Runner`.
+Each is imported from the module that defines it at its first use, so ``import bayesid`` stays
+cheap (no numba, no model module).
+
 The layout follows the data flow; each layer imports only the ones before it (no import runs up a
 layer or closes a circle; the import graph is checked):
 
@@ -68,4 +83,43 @@ layer or closes a circle; the import graph is checked):
   layer, selected where the package first starts numba's threads.
 """
 
+import importlib as _importlib
+
 __version__ = "0.1.0"
+
+#: name -> the module that defines it, imported at the name's first use (PEP 562)
+_EXPORTS = {
+    "Track": "bayesid.data.track",
+    "read_csv": "bayesid.data.track",
+    "write_csv": "bayesid.data.track",
+    "load_any_vehicle": "bayesid.models",
+    "build_model": "bayesid.models",
+    "FitOptions": "bayesid.estimation.options",
+    "identify": "bayesid.estimation.identification",
+    "predict": "bayesid.estimation.prediction",
+    "FitProblem": "bayesid.estimation.windows",
+    "SampleOptions": "bayesid.estimation.track_posterior",
+    "sample_tracks": "bayesid.estimation.track_posterior",
+    "DiagnoseOptions": "bayesid.analysis.gap.diagnose",
+    "diagnose": "bayesid.analysis.gap.diagnose",
+    "DiscoveryOptions": "bayesid.analysis.gap.discovery",
+    "discover": "bayesid.analysis.gap.discovery",
+    "Runner": "bayesid.tasks",
+}
+
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name: str):
+    """A name of :data:`__all__`, imported from its module at first use (then cached here)."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(_importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The module's names with those of :data:`__all__` not yet imported."""
+    return sorted({*globals(), *__all__})

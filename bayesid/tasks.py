@@ -34,14 +34,25 @@ object, to the last digit.
 Errors. A task that raises does not stop the others: it comes back as a :class:`TaskError`
 holding its key, parameters and the worker's traceback; it is not journaled, so a re-run tries it
 again.
+
+Messages. What a step says while it runs goes through :meth:`Runner.say`: with
+``Runner(progress=True)`` each message is an INFO record of the ``bayesid.tasks`` logger (the
+package's loggers are ``logging.getLogger("bayesid")`` and its children; the library adds no
+handler, the ``bayesid`` command puts one on stderr), with a callable it is passed to it. A runner
+that reports progress also shows a tqdm bar on stderr over the tasks of a labelled run
+(:meth:`Runner.run`), in this process as each result comes back, whichever way the tasks run.
+The ``bayesid`` logger set above INFO (``bayesid -q``) silences both. Finished and resumed
+tasks are DEBUG records (``bayesid -v``), a lost worker a WARNING.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import math
 import os
+import sys
 import threading
 import time
 import traceback
@@ -68,6 +79,8 @@ __all__ = [
 
 #: Format version of a journal file's header.
 JOURNAL_VERSION = 1
+
+_log = logging.getLogger(__name__)
 
 #: Help texts of the two options every command and study with many tasks takes.
 JOBS_HELP = "worker processes for independent tasks (joblib, loky backend); 1 runs them in this process"
@@ -494,6 +507,21 @@ def _dask_client(scheduler: str):
         raise ValueError(f"--scheduler {val}: cannot connect ({exc})") from None
 
 
+def _quiet() -> bool:
+    """Whether the package's progress is turned off: the ``bayesid`` logger (or a child of it on
+    the way to ``bayesid.tasks``) set above INFO (``bayesid -q``), or logging disabled at INFO.
+    The root logger does not count: a program that configured no logging and asked a runner for
+    progress keeps its bars."""
+    if logging.root.manager.disable >= logging.INFO:
+        return True
+    lg = _log
+    while lg is not None and (lg.name == "bayesid" or lg.name.startswith("bayesid.")):
+        if lg.level != logging.NOTSET:
+            return lg.level > logging.INFO
+        lg = lg.parent
+    return False
+
+
 @dataclass(frozen=True)
 class Runner:
     """How a step runs its independent tasks, and where it reports its progress: the one object
@@ -508,9 +536,13 @@ class Runner:
         ``"local:N"`` or a Dask scheduler address (:func:`run_tasks`).
     journal : Journal, optional
         The resumable record of finished tasks of the run.
-    progress : callable, optional
-        ``progress(message)`` receives the step's progress messages; when it is set, long loops
-        also show tqdm bars. None: silent.
+    progress : bool or callable, optional
+        Where the step's progress messages go (:meth:`say`): True, INFO records of the
+        ``bayesid.tasks`` logger (the ``bayesid`` command shows them on stderr; a program sees
+        them once it configures logging, ``logging.basicConfig(level=logging.INFO)``); a
+        callable, ``progress(message)`` (a study that writes its own lines). When it is set,
+        long loops also show tqdm bars on stderr. None: silent. The ``bayesid`` logger set above
+        INFO (``bayesid -q``) silences messages and bars alike.
 
     Raises
     ------
@@ -521,24 +553,33 @@ class Runner:
     jobs: int = 1
     scheduler: str | None = None
     journal: Journal | None = None
-    progress: Callable[[str], None] | None = None
+    progress: Callable[[str], None] | bool | None = None
 
     def __post_init__(self):
         check_jobs(self.jobs, self.scheduler)
 
+    def _reports(self) -> bool:
+        return self.progress is not None and self.progress is not False and not _quiet()
+
     def say(self, message: str) -> None:
-        """Pass a progress message on (nothing when the runner is silent).
+        """Report a progress message: an INFO record of the ``bayesid.tasks`` logger, or the
+        runner's callable's (nothing when the runner is silent or the ``bayesid`` logger is set
+        above INFO).
 
         Parameters
         ----------
         message : str
             The message.
         """
-        if self.progress is not None:
+        if not self._reports():
+            return
+        if callable(self.progress):
             self.progress(message)
+        else:
+            _log.info(message)
 
     def bar(self, label: str) -> str | None:
-        """The label of a progress bar.
+        """The label of a progress bar (tqdm, on stderr).
 
         Parameters
         ----------
@@ -548,9 +589,10 @@ class Runner:
         Returns
         -------
         str or None
-            ``label``, or None when the runner is silent.
+            ``label``, or None when the runner reports no progress (silent, or the ``bayesid``
+            logger set above INFO).
         """
-        return label if self.progress is not None else None
+        return label if self._reports() else None
 
     def where(self) -> str:
         """Where the tasks run, for messages.
@@ -572,7 +614,8 @@ class Runner:
         tasks : sequence of Task
             The tasks.
         label : str, optional
-            Label of the progress bar (shown when the runner reports progress).
+            Label of a tqdm bar over the tasks on stderr, shown when the runner reports progress
+            (:meth:`bar`) and some task is not journaled yet.
         on_done : callable, optional
             ``on_done(task, result_or_TaskError, seconds)`` as each new task finishes.
 
@@ -609,7 +652,8 @@ def run_tasks(
         Dask scheduler address ``tcp://HOST:PORT``: the tasks run on Dask through joblib's Dask
         backend, ``jobs`` then ignored); its ``journal`` of the run: finished tasks are skipped
         and their stored results returned, every newly finished task is appended before the
-        next result is taken. Its progress reporter is not used here (``bar`` labels a bar).
+        next result is taken. Its progress reporter is not used here: ``bar`` labels a bar
+        (:meth:`Runner.run` passes its label when the runner reports progress).
     threads : int, optional
         Numba threads per task (default: cores // local workers; on an external cluster numba's
         own default).
@@ -620,7 +664,9 @@ def run_tasks(
         Times the remaining tasks are resubmitted after a worker process died (a killed or
         crashed worker fails every task it held; they run again).
     bar : str, optional
-        Label of a tqdm progress bar over the tasks (None: no bar).
+        Label of a tqdm progress bar over the tasks on stderr, advanced in this process as each
+        result comes back (serially, from joblib's workers or from Dask's), starting at the
+        journaled count; None, or nothing left to run: no bar.
 
     Returns
     -------
@@ -647,20 +693,23 @@ def run_tasks(
             out[i] = rec["result"]
         else:
             todo.append(i)
-    bar = None
+    if len(todo) < len(tasks):
+        _log.debug("%d of %d tasks from the journal %s", len(tasks) - len(todo), len(tasks), journal.path)
     label, bar = bar, None
     if label is not None and todo:
-        from tqdm.auto import tqdm
+        from tqdm import tqdm
 
-        bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=label, unit="task")
+        bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=label, unit="task", file=sys.stderr)
 
     def finish(i, status, payload, extra):
         t = tasks[i]
         if status == "ok":
             res = journal.add(t, payload, extra)["result"] if journal is not None else payload
             secs = extra
+            _log.debug("task %s done in %.2f s", t.key, secs)
         else:
             res, secs = TaskError(t.key, t.params, payload, extra), float("nan")
+            _log.debug("task %s failed: %s", t.key, payload)
         out[i] = res
         if bar is not None:
             bar.update(1)
@@ -712,6 +761,11 @@ def _run_parallel(fn, tasks, todo, jobs, scheduler, threads, finish, retries) ->
                 return
             except lost as exc:
                 pending = [i for i in pending if i not in done]
+                _log.warning(
+                    "a worker was lost (%s); %s",
+                    type(exc).__name__,
+                    f"{len(pending)} task(s) run again" if attempt < int(retries) else "its tasks fail",
+                )
                 if attempt == int(retries):
                     for i in pending:
                         finish(i, "error", f"worker lost ({type(exc).__name__}: {exc})", "")

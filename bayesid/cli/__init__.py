@@ -23,11 +23,17 @@ code): :mod:`~bayesid.cli.simulate`, :mod:`~bayesid.cli.convert`, :mod:`~bayesid
 and the checks of numbers are in :mod:`~bayesid.cli.options`, the track files in
 :mod:`~bayesid.cli.inputs`, the output folders in :mod:`~bayesid.cli.outputs` and what produced a
 model in :mod:`~bayesid.cli.provenance`; the reports are written by :mod:`bayesid.report`.
+
+What the package says goes through the ``bayesid`` logger; :func:`main` puts the one handler on
+it, on stderr, for the command's run: progress (INFO) by default, ``-q`` warnings and errors only
+(no progress bars either), ``-v`` debug records too.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import sys
 
 from . import convert, design, diagnose, discover, fit, predict, sample, simulate
@@ -91,6 +97,9 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=_TopFormatter,
     )
     ap.add_argument("--version", action="version", version=f"bayesid {__version__}")
+    talk = ap.add_mutually_exclusive_group()
+    talk.add_argument("-q", "--quiet", action="store_true", help="warnings and errors only: no progress lines or bars")
+    talk.add_argument("-v", "--verbose", action="store_true", help="debug messages too (each finished task)")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND", title="commands")
     for module in COMMANDS.values():
         module.add_parser(sub)
@@ -116,8 +125,60 @@ def main(argv=None) -> int:
     except OptionError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    level = logging.WARNING if args.quiet else logging.DEBUG if args.verbose else logging.INFO
+    with _messages(level):
+        try:
+            return COMMANDS[args.command].run(args)
+        except (ValueError, KeyError, FileNotFoundError) as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+
+
+class _Stderr(logging.StreamHandler):
+    """A handler on the ``sys.stderr`` of the moment (one replaced after it was made, as by
+    pytest's capture, included) that clears a running tqdm bar for its line and redraws it after
+    (a line written into a bar garbles both)."""
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value):
+        pass
+
+    def emit(self, record):
+        from tqdm import tqdm
+
+        with tqdm.external_write_mode(file=sys.stderr):
+            super().emit(record)
+
+
+class _Lines(logging.Formatter):
+    """The package's records as the command's lines: progress (INFO) indented under the command's
+    own, ``warning: ...`` and ``error: ...`` as the command writes them, ``debug: [logger] ...``."""
+
+    def format(self, record):
+        text = super().format(record)
+        if record.levelno == logging.INFO:
+            return f"  {text}"
+        if record.levelno < logging.INFO:
+            return f"debug: [{record.name}] {text}"
+        return f"{record.levelname.lower()}: {text}"
+
+
+@contextlib.contextmanager
+def _messages(level: int):
+    """The ``bayesid`` logger at ``level`` with the command's stderr handler, for one run (the
+    logger is left as it was: ``main`` may be called again in the same process)."""
+    logger = logging.getLogger("bayesid")
+    handler = _Stderr()
+    handler.setFormatter(_Lines())
+    old = logger.level
+    logger.setLevel(level)
+    logger.addHandler(handler)
     try:
-        return COMMANDS[args.command].run(args)
-    except (ValueError, KeyError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old)

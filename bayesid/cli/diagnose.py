@@ -190,7 +190,7 @@ def run_and_write(args, vehicle, free, got: dict, options):
     from ..report.vehiclefile import write_vehicle_with_terms
 
     train, held = got["--train"], got["--heldout"]
-    runner = tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True))
+    runner = tasks.Runner(args.jobs, args.scheduler, progress=_progress)
     res = diagnose(vehicle, free, train, held, options, rng=np.random.default_rng(args.seed), runner=runner)
     inputs = {"warnings": got["_warnings"], "input_sha256": got["_sha256"]}
     write_diagnosis(res, args.out, held, command="bayesid " + " ".join(sys.argv[1:]), inputs=inputs)
@@ -220,18 +220,25 @@ def run_and_write(args, vehicle, free, got: dict, options):
     return res
 
 
-def _candidates(args, family, tracks) -> list:
-    """The candidate effects: ``--candidates``, or the catalogue less the effects whose columns
-    not every track has (said); less ``--exclude`` (ValueError for one not among them)."""
-    cands = list(family.CATALOGUE) if not args.candidates else opt.split_names(args.candidates, "--candidates")
-    if not args.candidates:
-        for name in list(cands):
-            need = family.CATALOGUE[name].needs_columns
-            if not all(c in t for t in tracks for c in need):
-                cands.remove(name)
-                print(f"  no {', '.join(need)} columns in every track: the {name} candidate is left out")
+def _candidates(args, family, tracks) -> list | None:
+    """The candidate effects: ``--candidates``, or None without ``--exclude``: the catalogue less
+    the effects whose columns not every track has, left to :func:`~bayesid.analysis.gap.diagnose`
+    (which says them); less ``--exclude`` (ValueError for one not among them)."""
+    from ..analysis.gap.diagnose import catalogue_candidates
+
+    if not args.candidates and not args.exclude:
+        return None
+    if args.candidates:
+        cands = opt.split_names(args.candidates, "--candidates")
+    else:  # the catalogue as diagnose() takes it, said as its progress is
+        cands = catalogue_candidates(family, tracks, tasks.Runner(progress=_progress))
     for c in opt.split_names(args.exclude, "--exclude"):
         if c not in cands:
             raise ValueError(f"--exclude {c}: not among the candidates {cands}")
         cands.remove(c)
     return cands
+
+
+def _progress(message: str) -> None:
+    """Print a progress message of the diagnosis, indented under the command's own lines."""
+    print(f"  {message}", flush=True)

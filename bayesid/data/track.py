@@ -656,9 +656,7 @@ def _rudder_convention(path, comments: list, data: dict, n_comments: int) -> lis
         if word == "port":
             return out
         if word != "starboard":
-            raise format_error(
-                path, f"'# rudder positive:' must say port or starboard, not {m.group(1)!r}", row=i + 1
-            )
+            raise format_error(path, f"'# rudder positive:' must say port or starboard, not {m.group(1)!r}", row=i + 1)
         if "delta_r" in data:
             data["delta_r"] = 0.0 - data["delta_r"]
         out[i] = "rudder positive: port (delta_r negated on reading; the file's + was to starboard)"

@@ -150,6 +150,21 @@ def identify(
         (:func:`bayesid.estimation.windows.check_enough_data`).
     KeyError
         An unknown coefficient name.
+
+    Examples
+    --------
+    Six linear sway and yaw coefficients of NPS AUV II fitted on two zigzags (track files written
+    by ``bayesid simulate``, as in the quickstart, or your own logs):
+
+    >>> import bayesid
+    >>> vehicle = bayesid.load_any_vehicle("nps_auv2")
+    >>> train = [bayesid.read_csv(f) for f in ("z10.csv", "z20.csv")]
+    >>> options = bayesid.FitOptions(free=("Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"), dt=0.1)
+    >>> res = bayesid.identify(vehicle, train, options)
+    >>> res.model.param_names
+    ['Yv', 'Yr', 'Nv', 'Nr', 'Ydr', 'Ndr']
+    >>> for name, value, sd in zip(res.model.param_names, res.fit.p, res.cov.diagonal() ** 0.5):
+    ...     print(f"{name:4s} {value:+.5f} +- {sd:.5f}")  # doctest: +SKIP
     """
     if not train:
         raise ValueError("identify needs at least one training track")

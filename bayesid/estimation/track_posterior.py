@@ -1062,6 +1062,23 @@ def sample_tracks(
     ------
     ValueError
         An unreadable or foreign checkpoint or journal; too few finite draws.
+
+    Examples
+    --------
+    The posterior of the coefficients :func:`~bayesid.estimation.identification.identify` fitted,
+    given its training tracks, as ``bayesid sample`` computes it (``method="auto"``, the default,
+    refines by MCMC when the importance stage is not reliable):
+
+    >>> import bayesid
+    >>> vehicle = bayesid.load_any_vehicle("nps_auv2")
+    >>> train = [bayesid.read_csv(f) for f in ("z10.csv", "z20.csv")]
+    >>> res = bayesid.identify(vehicle, train, bayesid.FitOptions(free=("Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"), dt=0.1))
+    >>> ctxs = [res.model.context(t, res.window_s, start=res.start_rule) for t in train]
+    >>> problem = bayesid.FitProblem(res.model, ctxs, res.fit_sd, res.channels)
+    >>> post = bayesid.sample_tracks(problem, res.fit.p, bayesid.SampleOptions(method="importance"))
+    >>> post.method, post.draws.shape
+    ('importance', (4000, 6))
+    >>> print(post.verdict["text"])  # doctest: +SKIP
     """
     import time
 
@@ -1101,7 +1118,7 @@ def sample_tracks(
             max_wall_s=budget,
             min_steps=min(sampler.min_steps, steps),
             max_steps=steps,
-            progress=runner.progress is not None,
+            progress=runner.bar("mcmc") is not None,
         )
         mc = _mcmc(post, mode, cfg, np.random.default_rng(seeds[3]), checkpoint, runner)
         secs["mcmc"] = time.perf_counter() - t

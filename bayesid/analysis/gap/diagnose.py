@@ -45,6 +45,7 @@ __all__ = [
     "DiagnoseOptions",
     "Diagnosis",
     "FirstRound",
+    "catalogue_candidates",
     "diagnose",
     "discovery_beside_round_one",
     "base_fit_check",
@@ -242,8 +243,9 @@ class DiagnoseOptions:
     ----------
     candidates : tuple, optional
         Effects, as names of the model family's ``CATALOGUE`` or
-        :class:`~bayesid.models.effects.Effect` objects (None: the whole catalogue); any
-        sequence is stored as a tuple.
+        :class:`~bayesid.models.effects.Effect` objects; any sequence is stored as a tuple.
+        None: the whole catalogue less the effects whose columns (``needs_columns``, e.g. the
+        measured wind) not every track has (:func:`catalogue_candidates`).
     window_s : float or None, default 60.0
         The protocol window (s) of the held-out scores; None: the whole run.
     fit_window_s : float, optional
@@ -317,6 +319,36 @@ class DiagnoseOptions:
         object.__setattr__(self, "base_effects", tuple(self.base_effects))
 
 
+def catalogue_candidates(family, tracks: list, runner: Runner = Runner()) -> list[str]:
+    """The effects of a model family's catalogue that the tracks can inform: those whose
+    columns (``needs_columns``, e.g. the measured wind) every track has. The candidates of
+    :func:`diagnose` when ``DiagnoseOptions.candidates`` is None (and of ``bayesid diagnose``
+    without ``--candidates``).
+
+    Parameters
+    ----------
+    family : type
+        The model class (:func:`bayesid.models.model_class`), with its ``CATALOGUE``.
+    tracks : list of Track
+        Every track of the diagnosis (training and held-out).
+    runner : Runner, default Runner()
+        Receives one message per effect left out, naming it and the columns it needs.
+
+    Returns
+    -------
+    list of str
+        The catalogue's names, in its order, less those left out.
+    """
+    names = []
+    for name, effect in family.CATALOGUE.items():
+        need = effect.needs_columns
+        if all(c in t for t in tracks for c in need):
+            names.append(name)
+        else:
+            runner.say(f"no {', '.join(need)} columns in every track: the {name} candidate is left out")
+    return names
+
+
 def diagnose(
     vehicle,
     free,
@@ -368,6 +400,28 @@ def diagnose(
         Empty or overlapping track sets; an unknown effect (named); too little data.
     KeyError
         An unknown coefficient (named).
+
+    Examples
+    --------
+    The gap of NPS AUV II's model fitted on two zigzags, judged on a held-out turning circle
+    (track files written by ``bayesid simulate``, as in the quickstart, or your own logs), with
+    every effect of the catalogue as a candidate, two fits at a time, progress printed:
+
+    >>> import bayesid
+    >>> vehicle = bayesid.load_any_vehicle("nps_auv2")
+    >>> train = [bayesid.read_csv(f) for f in ("z10.csv", "z20.csv")]
+    >>> heldout = [bayesid.read_csv("t15.csv")]
+    >>> free = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
+    >>> runner = bayesid.Runner(jobs=2, progress=print)
+    >>> d = bayesid.diagnose(vehicle, free, train, heldout, bayesid.DiagnoseOptions(window_s=30.0), runner=runner)
+    >>> d.verdict, [r["effect"] for r in d.ranking]  # doctest: +SKIP
+
+    Structure discovery alone (the model terms the tracks say are missing), as ``bayesid
+    discover`` runs it: no catalogue effect, discovery when the gap is significant:
+
+    >>> options = bayesid.DiagnoseOptions(window_s=30.0, candidates=(), discover=bayesid.DiscoveryOptions())
+    >>> d = bayesid.diagnose(vehicle, free, train, heldout, options)
+    >>> [t["term"] for t in d.to_dict()["discovered"] if t["kept"]]  # doctest: +SKIP
     """
     t_start = time.perf_counter()
     opt, th = options, thresholds
@@ -380,9 +434,8 @@ def diagnose(
         raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
     family = model_class(vehicle)
     dt = family.DEFAULT_DT if opt.dt is None else opt.dt
-    cand_effects = [
-        family.get_effect(c) for c in (list(family.CATALOGUE) if opt.candidates is None else opt.candidates)
-    ]
+    names = catalogue_candidates(family, train + heldout, runner) if opt.candidates is None else opt.candidates
+    cand_effects = [family.get_effect(c) for c in names]
     say = runner.say
     sd = pooled_noise_sd(train + heldout)
     fw = opt.fit_window_s if opt.fit_window_s is not None else family.default_fit_window(opt.window_s)
