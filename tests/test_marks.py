@@ -64,21 +64,24 @@ def test_zigzag_marks_sit_on_the_executes_check_headings_and_overshoots(trials):
     for line, te, ch in zip(checks, ind["executes_t_s"][1:], ind["check_heading_deg"]):
         assert line.get_xdata()[0] == pytest.approx(te)
         np.testing.assert_allclose(line.get_ydata(), psi0 + ch, atol=1e-9)
-    # the overshoots: an arrow from the check heading to the heading's extreme, labelled with the value
+    # the overshoots: an arrow from the check heading to the heading's extreme, labelled with the
+    # value. The figure draws them at the samples, the indices read them between samples (issue
+    # 50): they agree to what the heading moves in a sample (0.1 s here), not to round-off.
+    dt = float(zz.t[1] - zz.t[0])
     for k, name in ((1, "first"), (2, "second")):
         (arrow,) = _gid(ax, f"{name}_overshoot")
         a, b = _arrow(arrow)
         check = psi0 + ind["check_heading_deg"][k - 1]
         value = ind[f"{name}_overshoot_deg"]
-        assert a[1] == pytest.approx(check, abs=1e-9)
+        assert a[1] == pytest.approx(check, abs=0.05)
         assert abs(b[1] - a[1]) == pytest.approx(value, abs=1e-9)
-        assert ind["executes_t_s"][k] < a[0] < ind["executes_t_s"][k + 1]
+        assert ind["executes_t_s"][k] <= a[0] < ind["executes_t_s"][k + 1]
         # the arrow ends on the heading history, at its extreme beyond the check heading
-        assert float(np.interp(b[0], zz.t, heading)) == pytest.approx(b[1], abs=1e-9)
+        assert float(np.interp(b[0], zz.t, heading)) == pytest.approx(b[1], abs=0.05)
         (text,) = _gid(ax, f"{name}_overshoot_text")
         assert text.get_text() == f"{name} overshoot\n{value:.1f} deg"
     (peak,) = _gid(ax, "first_overshoot_peak")
-    assert peak.get_xdata()[0] - ind["executes_t_s"][1] == pytest.approx(ind["time_to_check_yaw_s"], abs=1e-9)
+    assert peak.get_xdata()[0] - ind["executes_t_s"][1] == pytest.approx(ind["time_to_check_yaw_s"], abs=dt)
     (span,) = _gid(ax, "initial_turning_time")
     a, b = _arrow(span)
     assert b[0] - a[0] == pytest.approx(ind["initial_turning_time_s"])
@@ -100,12 +103,13 @@ def test_turn_marks_advance_transfer_and_tactical_diameter_on_the_plan_view(tria
     # plan view: (y, x); the advance runs from the execute along the original course
     np.testing.assert_allclose(ea, [tc["y"][i0], tc["x"][i0]], atol=1e-9)
     d = eb - ea
-    assert np.hypot(*d) == pytest.approx(ind["advance_m"], rel=1e-9)
+    # drawn from the samples (linear between them), read from local fits: to 1e-3 (issue 50)
+    assert np.hypot(*d) == pytest.approx(ind["advance_m"], rel=1e-3)
     np.testing.assert_allclose(d / np.hypot(*d), [np.sin(psi0), np.cos(psi0)], atol=1e-9)
     for name in ("transfer", "tactical_diameter"):
         (ann,) = _gid(ax, name)
         a, b = _arrow(ann)
-        assert np.hypot(*(b - a)) == pytest.approx(ind[f"{name}_m"], rel=1e-9)
+        assert np.hypot(*(b - a)) == pytest.approx(ind[f"{name}_m"], rel=1e-3)
         # normal to the original course, ending on the track
         assert np.dot(b - a, [np.sin(psi0), np.cos(psi0)]) == pytest.approx(0.0, abs=1e-9)
         assert np.min(np.hypot(tc["y"] - b[0], tc["x"] - b[1])) < 0.2

@@ -214,7 +214,8 @@ def run(args) -> int:
         track, settings = _ship(args, every)
     else:
         track, settings = _submarine(args, every)
-    indices = _report(track, args.manoeuvre)
+    check = (args.check if args.check is not None else abs(args.angle)) if args.manoeuvre == "zigzag" else None
+    indices = _report(track, args.manoeuvre, check)
     paths["csv"].parent.mkdir(parents=True, exist_ok=True)  # checked writable by check_out
     write_csv(track, paths["csv"])
     print(f"wrote {paths['csv']}: {track.n_samples} samples ({settings['run']})")
@@ -382,16 +383,21 @@ def _finite(value):
     return float(value) if math.isfinite(value) else None
 
 
-def _report(track, manoeuvre: str) -> dict:
+def _report(track, manoeuvre: str, check_deg: float | None = None) -> dict:
     """Print the manoeuvre's indices (ITTC definitions, :mod:`bayesid.estimation.indices`), add
     them to the track's comments and return them for the JSON summary: ``kind``, ``standard`` and
     ``values``: per printed index its ``name``, ``value`` (SI units and degrees, full precision, null when not
-    reached) and ``unit``; a spiral's ``steady_yaw_rates``; ``reason`` when there are none;
-    ``_raw`` the :func:`~bayesid.estimation.indices.manoeuvre_indices` result of a turn or zigzag."""
+    reached), ``sd`` (its measurement uncertainty, where the index has one) and ``unit``; a zigzag's
+    executes, check headings (and their sds), the times its heading reached the nominal check angle
+    ``check_deg`` and the times of its extremes; a spiral's ``steady_yaw_rates``; ``reason`` when
+    there are none; ``_raw`` the :func:`~bayesid.estimation.indices.manoeuvre_indices` result of a
+    turn or zigzag."""
     t, delta, r = track.t, track["delta_r"], track["r"]
     standard = "ITTC 7.5-04-02-01 (2017) Sec. 2.2"
     if manoeuvre == "spiral":
-        rows = ix.steady_yaw_rates(t, delta, r)
+        # the straight approach before the first step (rudder amidships from the first sample)
+        # is no step of the spiral, however long it is held
+        rows = [row for row in ix.steady_yaw_rates(t, delta, r) if row["t_start_s"] > t[0] or row["rudder_deg"] != 0]
         print("steady yaw rate per rudder angle (mean over the last third of each hold; drift: its change there)")
         print("  rudder deg   yaw rate deg/s   drift deg/s")
         for row in rows:
@@ -410,7 +416,7 @@ def _report(track, manoeuvre: str) -> dict:
         got = ix.pull_out_rates(t, delta, r)
         kind = "pull-out"
     elif manoeuvre in ("turn", "zigzag"):
-        got = raw = ix.manoeuvre_indices(t, track["x"], track["y"], track["psi"], delta)
+        got = raw = ix.manoeuvre_indices(t, track["x"], track["y"], track["psi"], delta, check_deg=check_deg)
         kind = got["kind"]
     else:
         return {"kind": "straight", "reason": "a straight run has no manoeuvre indices"}
@@ -422,13 +428,15 @@ def _report(track, manoeuvre: str) -> dict:
     shown, values = [], {}
     for key, label, unit in _PRINTED:
         if key in got:
-            value = got[key]
+            value, sd = got[key], got.get(key + "_sd")
             text = "n/a" if not math.isfinite(value) else f"{value:.4g}"
-            print(f"  {label:<24} {text} {unit}".rstrip())
+            spread = f"  (sd {sd:.2g})" if sd is not None and math.isfinite(value) and math.isfinite(sd) else ""
+            print(f"  {label:<24} {text} {unit}".rstrip() + spread)
             shown.append(f"{key} {text}")
             values[key] = {"name": label, "value": _finite(value), "unit": unit}
+            if sd is not None:
+                values[key]["sd"] = _finite(sd)
     track.meta["comments"].append(f"{kind} indices: " + ", ".join(shown))
-    extra = (
-        {"executes_t_s": got["executes_t_s"], "check_heading_deg": got["check_heading_deg"]} if kind == "zigzag" else {}
-    )
+    zigzag = ("executes_t_s", "executes_t_s_sd", "check_heading_deg", "check_heading_deg_sd", "check_crossing_t_s")
+    extra = {k: [_finite(v) for v in got[k]] for k in (*zigzag, "overshoot_t_s") if kind == "zigzag" and k in got}
     return dict({"kind": kind, "standard": standard, "values": values}, **extra, _raw=raw)

@@ -134,7 +134,13 @@ def _run(s0, prm, dt, rps, order, check, turn_sign, rate, every, states, rudder)
     ``check > 0`` a zigzag: from the first non-zero order on, the order is reversed each time the
     heading change from the execute heading reaches ``check`` (rad) the way it turns. Samples
     every ``every`` steps into ``states`` (m, 6) and ``rudder`` (m,); returns the last step done
-    (``n`` when the run did not diverge)."""
+    (``n`` when the run did not diverge).
+
+    The rudder logged at a sample is the one applied over the step that starts there, and the
+    angle it is at then: a gear of finite rate applies the angle it has reached and moves on
+    towards the order over the step (an order given at a step shows as the rudder leaving its
+    angle from that step's sample on, as on a log of a real rudder); an instantaneous rudder is
+    at the order from its step on."""
     n = order.size
     s = s0.copy()
     st = np.empty((1, 6))
@@ -161,13 +167,15 @@ def _run(s0, prm, dt, rps, order, check, turn_sign, rate, every, states, rudder)
         else:
             cmd = order[k]
         if rate > 0.0:
+            applied = delta
             delta += min(max(cmd - delta, -rate * dt), rate * dt)
         else:
             delta = cmd
+            applied = delta
         if k % every == 0:
             states[k // every] = s
-            rudder[k // every] = delta
-        u2[0, 0] = delta
+            rudder[k // every] = applied
+        u2[0, 0] = applied
         u2[0, 1] = rps
         for stage in range(4):
             a = 0.0 if stage == 0 else (0.5 * dt if stage < 3 else dt)
@@ -202,7 +210,8 @@ class Trial:
     ----------
     track : Track
         The run: ``t``, ``x``, ``y``, ``psi``, ``u``, ``v``, ``r``, ``delta_r`` (the rudder as
-        it moved) and ``n`` (rpm); ``meta["comments"]`` describe it.
+        it moved: the angle at each sample time, applied from it on) and ``n`` (rpm);
+        ``meta["comments"]`` describe it.
     name : str
         ``turn35``, ``zigzag10_10``, ``pull_out20``, ``spiral20`` style (``m`` for a negative
         angle).
