@@ -70,7 +70,7 @@ def run(args) -> int:
     _warn(doc, got, window)
     with naming_files(got):
         pr, whole, indices, bands = _predict(args, (model, p, cov), doc, tracks, window, out)
-        _figures(pr, bands, doc, tracks, window, out)
+        _figures(pr, bands, indices, doc, tracks, window, out)
         res = {
             "model": str(args.model),
             "window_s": window,
@@ -184,21 +184,24 @@ def _predict(args, fitted, doc, tracks, window, out):
     return pr, whole, indices, bands
 
 
-def _figures(pr, bands: dict, doc, tracks, window, out) -> None:
-    """Each track's windowed prediction (a ``Prediction``) with its 90 % band, and the
-    reliability diagram; the simulations are dropped from ``pr`` once drawn."""
+def _figures(pr, bands: dict, indices: dict, doc, tracks, window, out) -> None:
+    """Each track's windowed prediction (a ``Prediction``) with its 90 % band and its manoeuvre
+    indices as ``predict.json`` gives them (``indices``), and the reliability diagram; the
+    simulations are dropped from ``pr`` once drawn."""
     import numpy as np
 
     from ..report import plots
 
-    b90 = doc.calibration.window_band(0.9) if bands.get("windows") else {}
+    level = 0.9
+    b90 = dict(doc.calibration.window_band(level), level=level) if bands.get("windows") else {}
     for tr in tracks:
         ctx, S = pr.simulated[tr.name]
         k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
-        dr = np.asarray(tr["delta_r"], float)[ctx.idx]
+        km = max(1, tr.n_samples // 100000)
         plots.prediction_band(
             ctx.ts[::k],
-            {"x": ctx.meas["x"][::k], "y": ctx.meas["y"][::k], "psi": ctx.meas["psi"][::k], "delta_r": dr[::k]},
+            # the whole measured run, lead-in included: the indices are read from all of it
+            {c: np.asarray(tr[c], float)[::km] for c in ("t", "x", "y", "psi", "delta_r")},
             {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
             ctx.win[::k],
             b90,
@@ -209,6 +212,7 @@ def _figures(pr, bands: dict, doc, tracks, window, out) -> None:
                 if tr.name in (bands.get("extrapolated") or {}).get("runs", [])
                 else ""
             ),
+            indices=indices.get(tr.name),
         )
         del pr.simulated[tr.name]
     if bands.get("coverage"):

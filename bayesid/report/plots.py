@@ -1063,7 +1063,7 @@ def reliability(
     return _save(fig, path)
 
 
-def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, level: float = 0.9, title: str = ""):
+def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, title: str = "", *, indices=None):
     """Time histories of a windowed prediction with its calibrated band: plan view (measured
     track, predicted windows, a circle of the band's position radius round each window's end:
     the band the track must stay within), heading (prediction +- the band's heading error,
@@ -1073,29 +1073,40 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, l
     Parameters
     ----------
     t : ndarray (n,)
-        Sample times, s.
-    measured : dict
-        The measured ``"x"``, ``"y"`` (m), ``"psi"`` and rudder angle ``"delta_r"`` (rad), arrays (n,).
+        Sample times of the prediction, s.
+    measured : mapping
+        The measured ``"x"``, ``"y"`` (m), ``"psi"`` and rudder angle ``"delta_r"`` (rad): arrays
+        (n,) at ``t``, or with their own times ``"t"`` (s), arrays (m,): the whole run (a Track),
+        lead-in included, so that an execute before the first window is on the figure.
     predicted : dict
         The predicted ``"x"``, ``"y"``, ``"psi"``, arrays (n,).
     win : ndarray (n,)
         The window index of each sample.
     band : dict
-        The band at ``level``: ``"max_position_m"`` and ``"max_heading_deg"`` (deg); an absent or
-        non-finite value is not drawn.
+        The band: ``"max_position_m"`` and ``"max_heading_deg"`` (deg), an absent or non-finite
+        value not drawn; ``"level"``, its nominal level in the legend (default 0.9).
     path : str or Path
         The PNG written.
-    level : float
-        The band's nominal level, in the legend.
     title : str
         The plan view's title.
+    indices : dict, optional
+        The indices the report shows for the run, marked as they are: ``"measured"`` and
+        ``"predicted"``, each a :func:`~bayesid.estimation.indices.manoeuvre_indices` result (a
+        track's entry of ``predict.json``'s ``indices``, from
+        :func:`~bayesid.estimation.prediction.turning_band`). Either absent: read from the whole
+        measured run, and from the whole-run prediction (with the measured samples before its
+        first one, which its start state is read from or fitted to).
 
     Returns
     -------
     Path
         ``path``.
     """
-    radius_m, heading_deg, rudder = band.get("max_position_m"), band.get("max_heading_deg"), measured["delta_r"]
+    t = np.asarray(t, float)
+    tm, hm = _measured_heading(t, measured)
+    level = band.get("level", 0.9)
+    radius_m, heading_deg = band.get("max_position_m"), band.get("max_heading_deg")
+    rudder = np.asarray(measured["delta_r"], float)
     fig = plt.figure(figsize=(11, 6.5))
     ax = fig.add_subplot(1, 2, 1)
     ax.plot(measured["y"], measured["x"], "k.", ms=1.2, label="measured")
@@ -1129,10 +1140,10 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, l
     ax.legend(fontsize=7)
     ax.set_title(title, fontsize=9)
     ax2 = fig.add_subplot(2, 2, 2)
-    psi_m = np.degrees(np.unwrap(measured["psi"]))
+    psi_m = _at(t, tm, hm) if tm is not t else hm
     psi_p = np.degrees(predicted["psi"])
     psi_p = psi_m + ((psi_p - psi_m + 180.0) % 360.0 - 180.0)  # the prediction on the measured branch
-    ax2.plot(t, psi_m, "k", lw=0.8, label="measured")
+    ax2.plot(tm, hm, "k", lw=0.8, label="measured")
     for k, (a, b) in enumerate(zip(np.insert(cut, 0, 0), np.append(cut, t.size))):
         ax2.plot(t[a:b], psi_p[a:b], "tab:blue", lw=1.0, label="prediction" if k == 0 else None)
         if heading_deg is not None and np.isfinite(heading_deg):
@@ -1144,20 +1155,54 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, l
                 alpha=0.2,
                 label=f"{100 * level:g} % band" if k == 0 else None,
             )
-    mark_indices(ax, ax2, t, dict(measured, psi=np.radians(psi_m)), label="measured: ")
-    if cut.size == 0:  # one simulation of the whole run: its own indices, from the same rudder
-        run = {"x": predicted["x"], "y": predicted["y"], "psi": np.radians(psi_p), "delta_r": rudder}
-        mark_indices(ax, ax2, t, run, color="tab:purple", label="predicted: ", slot=1)
+    shown = indices or {}
+    run = {"x": measured["x"], "y": measured["y"], "psi": np.radians(hm), "delta_r": rudder}
+    mark_indices(ax, ax2, tm, run, indices=shown.get("measured"), label="measured: ")
+    if cut.size == 0:  # one simulation of the whole run: its indices, from the same rudder
+        # before its first sample the prediction is the measured run: its start state is read
+        # from (or fitted to) those samples, and the execute may lie among them
+        before = tm < t[0] - 1e-9 * max(1.0, abs(t[0]))
+        run = {
+            "x": np.r_[np.asarray(measured["x"], float)[before], predicted["x"]],
+            "y": np.r_[np.asarray(measured["y"], float)[before], predicted["y"]],
+            "psi": np.radians(np.r_[hm[before], psi_p]),
+            "delta_r": np.r_[rudder[before], _at(t, tm, rudder) if tm is not t else rudder],
+        }
+        mark_indices(
+            ax,
+            ax2,
+            np.r_[tm[before], t],
+            run,
+            indices=shown.get("predicted"),
+            color="tab:purple",
+            label="predicted: ",
+            slot=1,
+        )
     ax.legend(fontsize=7)
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
     ax3 = fig.add_subplot(2, 2, 4, sharex=ax2)
-    ax3.plot(t, np.degrees(rudder), "tab:green", lw=0.8)
+    ax3.plot(tm, np.degrees(rudder), "tab:green", lw=0.8)
     ax3.set_ylabel("rudder, deg")
     ax3.set_xlabel("t, s")
     ax3.grid(alpha=0.3)
     return _save(fig, path)
+
+
+def _measured_heading(t, measured) -> tuple:
+    """(times (s), heading (deg, :func:`_heading_deg`)) of a figure's measured run: its own
+    ``"t"`` when it has one (the whole run), else ``t`` itself."""
+    tm = np.asarray(measured["t"], float) if "t" in measured else t
+    return tm, _heading_deg(measured["psi"])
+
+
+def _at(t, tm, v) -> np.ndarray:
+    """``v`` (at times ``tm``) at times ``t``, linear between its finite samples (exact at a
+    sample: the figures' runs are subsets of one record)."""
+    v = np.asarray(v, float)
+    ok = np.isfinite(v)
+    return np.interp(t, tm[ok], v[ok]) if ok.any() else np.full(np.shape(t), np.nan)
 
 
 def prior_posterior_marginals(draws: np.ndarray, names, prior: dict, path, mark: dict | None = None, title: str = ""):
@@ -1251,7 +1296,7 @@ def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, titl
     return _save(fig, path)
 
 
-def training_fit(t, measured: dict, simulated: dict, win, path, title: str = ""):
+def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "", *, indices=None):
     """Measured against simulated motion of one training run under a fit's windows: plan view
     (measured track, each fit window's simulation) and heading against time, with the measured
     run's ITTC indices marked.
@@ -1259,10 +1304,12 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "")
     Parameters
     ----------
     t : ndarray (n,)
-        Sample times, s.
-    measured : dict
-        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,); with its rudder angle
-        ``"delta_r"`` (rad) a zigzag's or turn's ITTC indices are marked (:func:`mark_indices`).
+        Sample times of the simulation, s.
+    measured : mapping
+        The measured ``"x"``, ``"y"`` (m) and ``"psi"`` (rad): arrays (n,) at ``t``, or with their
+        own times ``"t"`` (s), arrays (m,): the whole run (a Track), lead-in included; with its
+        rudder angle ``"delta_r"`` (rad) a zigzag's or turn's ITTC indices are marked
+        (:func:`mark_indices`).
     simulated : dict
         The simulated ``"x"``, ``"y"`` (m) and ``"psi"`` (rad), arrays (n,), each window
         restarted as the fit scores it.
@@ -1272,6 +1319,9 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "")
         The PNG written.
     title : str, default ""
         The figure's title.
+    indices : dict, optional
+        The measured run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result as the
+        report shows it (read from ``measured`` when not given).
 
     Returns
     -------
@@ -1279,6 +1329,7 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "")
         ``path``.
     """
     t, win = np.asarray(t, float), np.asarray(win)
+    tm, hm = _measured_heading(t, measured)
     cut = np.flatnonzero(np.diff(win) != 0) + 1
     spans = list(zip(np.insert(cut, 0, 0), np.append(cut, t.size)))
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.4]})
@@ -1296,16 +1347,17 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    psi_m = np.degrees(np.unwrap(measured["psi"]))
+    psi_m = _at(t, tm, hm) if tm is not t else hm
     psi_s = np.degrees(simulated["psi"])
     psi_s = psi_m + ((psi_s - psi_m + 180.0) % 360.0 - 180.0)  # the simulation on the measured branch
-    ax2.plot(t, psi_m, "k", lw=0.8, label="measured")
+    ax2.plot(tm, hm, "k", lw=0.8, label="measured")
     for k, (a, b) in enumerate(spans):
         ax2.plot(t[a:b], psi_s[a:b], "tab:blue", lw=1.0, label="simulated (fit windows)" if not k else None)
     for a, _ in spans[1:]:
         ax2.axvline(t[a], color="0.7", lw=0.6, ls=":")
     if "delta_r" in measured:
-        mark_indices(ax, ax2, t, dict(measured, psi=np.radians(psi_m)), label="measured: ")
+        run = {"x": measured["x"], "y": measured["y"], "psi": np.radians(hm), "delta_r": measured["delta_r"]}
+        mark_indices(ax, ax2, tm, run, indices=indices, label="measured: ")
         ax.legend(fontsize=7)
     ax2.set_xlabel("t, s")
     ax2.set_ylabel("heading, deg")
@@ -1320,23 +1372,29 @@ MARK_GID = "ittc:"
 
 
 def _heading_deg(psi) -> np.ndarray:
-    """Heading (deg) as the figures draw it: the unwrapped heading in degrees."""
-    return np.degrees(np.unwrap(np.asarray(psi, float)))
+    """Heading (deg) as the figures draw it: the unwrapped heading in degrees (unwrapped across
+    a gap of missing samples, which stay NaN)."""
+    psi = np.asarray(psi, float)
+    ok = np.isfinite(psi)
+    out = np.full(psi.shape, np.nan)
+    out[ok] = np.degrees(np.unwrap(psi[ok]))
+    return out
 
 
 def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
     """The executes, check headings, first and second overshoots and the initial turning time of
-    a zigzag on a heading (deg) against time axis (see :func:`mark_indices`)."""
+    a zigzag on a heading (deg) against time axis, where ``ind`` reads them: between samples (see
+    :func:`mark_indices`)."""
     color, label, slot = style
     every = [float(v) for v in ind["executes_t_s"]]
     ex = every[:4]  # the 1st to 4th: those the indices are read from
-    at = [min(int(np.searchsorted(t, v)), t.size - 1) for v in ex]  # the executes are sample times
-    psi0 = float(hdeg[at[0]])
+    psi0 = float(np.interp(ex[0], t, hdeg))  # the original course: the heading at the 1st execute
     for k, te in enumerate(ex if not slot else []):  # a second run on the same rudder: the same executes
         ax.axvline(
             te, color=color, lw=0.7, ls=":", label=f"{label}executes" if not k else None, gid=f"{MARK_GID}execute"
         )
-    for k, check in enumerate(ind.get("check_heading_deg", [])[: len(ex) - 1]):
+    checks = [float(v) for v in ind.get("check_heading_deg", [])][: len(ex) - 1]
+    for k, check in enumerate(checks):
         end = every[k + 2] if k + 2 < len(every) else float(t[-1])
         ax.plot(
             [ex[k + 1], end],
@@ -1347,24 +1405,27 @@ def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
             label=f"{label}check headings" if not k else None,
             gid=f"{MARK_GID}check_heading",
         )
-    for k, name in ((1, "first"), (2, "second")):
+    peaks = [float(v) for v in ind.get("overshoot_t_s", [])]
+    for k, name in enumerate(("first", "second")):
         value = ind.get(f"{name}_overshoot_deg", float("nan"))
-        if k >= len(at) or not np.isfinite(value):
+        if k >= min(len(peaks), len(checks)) or not (np.isfinite(value) and np.isfinite(peaks[k])):
             continue
-        m, end = at[k], at[k + 1] if k + 1 < len(at) else t.size - 1
-        going = np.sign(hdeg[m] - hdeg[at[k - 1]]) or 1.0  # as manoeuvre_indices measures it
-        j = m + int(np.argmax(going * (hdeg[m : end + 1] - hdeg[m])))
-        ax.plot(t[j], hdeg[j], "v" if going < 0 else "^", color=color, ms=5, gid=f"{MARK_GID}{name}_overshoot_peak")
+        # the extreme lies beyond the check heading the way the heading turned to it from the
+        # execute before, as manoeuvre_indices measures it
+        going = np.sign(checks[k] - (checks[k - 1] if k else 0.0)) or 1.0
+        tp, check = peaks[k], psi0 + checks[k]
+        peak = check + going * value
+        ax.plot(tp, peak, "v" if going < 0 else "^", color=color, ms=5, gid=f"{MARK_GID}{name}_overshoot_peak")
         ax.annotate(
             "",
-            xy=(t[j], hdeg[m] + going * value),
-            xytext=(t[j], hdeg[m]),
+            xy=(tp, peak),
+            xytext=(tp, check),
             arrowprops={"arrowstyle": "<->", "color": color, "lw": 0.8},
             gid=f"{MARK_GID}{name}_overshoot",
         )
         ax.annotate(
             f"{name} overshoot\n{value:.1f} deg",
-            xy=(t[j], hdeg[m] + going * value / 2),
+            xy=(tp, check + going * value / 2),
             xytext=(5, -22 * slot),
             textcoords="offset points",
             fontsize=7,
@@ -1394,33 +1455,37 @@ def _mark_zigzag(ax, t, hdeg, ind: dict, style: tuple) -> None:
 
 def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
     """The advance, transfer and tactical diameter of a turning circle on a plan view (y east
-    across, x north up; see :func:`mark_indices`)."""
+    across, x north up), as long as ``ind`` reads them (see :func:`mark_indices`)."""
     t, x, y, psi = run
     color, label, slot = style
-    i0 = min(int(np.searchsorted(t, ind["execute_t_s"])), t.size - 1)
-    h = np.unwrap(psi) - np.unwrap(psi)[i0]
-    c, s = np.cos(psi[i0]), np.sin(psi[i0])
-    x0, y0 = float(x[i0]), float(y[i0])
+    te = float(ind["execute_t_s"])
+    x0, y0, p0 = (float(np.interp(te, t, v)) for v in (x, y, psi))  # at the execute, between samples
+    c, s = np.cos(p0), np.sin(p0)
+    h = psi - p0
+    i0 = max(int(np.searchsorted(t, te)) - 1, 0)
+    # the side of the turn: + across the original course (to starboard) for a heading increasing
+    side = float(np.sign(h[i0 + int(np.argmax(np.abs(h[i0:])))])) or 1.0
+
+    def on_course(along, across):  # (x, y) of the point along and across the original course
+        return (x0 + along * c - across * s, y0 + along * s + across * c)
+
     marks, spans = [(x0, y0)], []
-    for ang, key in ((np.pi / 2, "advance_m"), (np.pi, "tactical_diameter_m")):
-        after = np.flatnonzero(np.abs(h[i0:]) >= ang)
-        if not after.size or not np.isfinite(ind.get(key, float("nan"))):
-            continue
-        # the point where the heading change first reaches ang, linear between samples, as
-        # manoeuvre_indices interpolates the advance, transfer and tactical diameter
+    if np.isfinite(ind.get("advance_m", float("nan"))):
+        foot, point = on_course(ind["advance_m"], 0.0), on_course(ind["advance_m"], side * ind["transfer_m"])
+        marks.append(point)
+        ax.plot([y0, foot[1]], [x0, foot[0]], color=color, lw=0.6, ls="--", gid=f"{MARK_GID}original_course")
+        spans += [("advance", (x0, y0), foot), ("transfer", foot, point)]
+    after = np.flatnonzero(np.abs(h[i0:]) >= np.pi)
+    if after.size and np.isfinite(ind.get("tactical_diameter_m", float("nan"))):
+        # abeam the track where the heading change first reaches 180 deg (linear between samples)
         j = i0 + int(after[0])
-        w = 0.0 if j == i0 else (ang - abs(h[j - 1])) / (abs(h[j]) - abs(h[j - 1]))
-        px, py = x[j - 1] + w * (x[j] - x[j - 1]), y[j - 1] + w * (y[j] - y[j - 1])
-        along = c * (px - x0) + s * (py - y0)
-        foot = (x0 + along * c, y0 + along * s)  # on the original course, abeam the point
-        marks.append((px, py))
-        if key == "advance_m":
-            ax.plot([y0, foot[1]], [x0, foot[0]], color=color, lw=0.6, ls="--", gid=f"{MARK_GID}original_course")
-            spans += [("advance", (x0, y0), foot), ("transfer", foot, (px, py))]
-            # the advance's value on the side of the course away from the turn (y is across the page)
-            away = -np.sign(c * (-s * (px - x0) + c * (py - y0))) or -1.0
-        else:
-            spans.append(("tactical_diameter", foot, (px, py)))
+        w = 0.0 if j == i0 else (np.pi - abs(h[j - 1])) / (abs(h[j]) - abs(h[j - 1]))
+        along = c * (x[j - 1] + w * (x[j] - x[j - 1]) - x0) + s * (y[j - 1] + w * (y[j] - y[j - 1]) - y0)
+        point = on_course(along, side * ind["tactical_diameter_m"])
+        marks.append(point)
+        spans.append(("tactical_diameter", on_course(along, 0.0), point))
+    # the advance's value on the side of the course away from the turn (y is across the page)
+    away = -np.sign(c * side) or -1.0
     for name, a, b in spans:
         # labels apart however small the circle is on its page: the advance and the transfer at
         # the advance's end (the transfer's foot on the original course), on the side away from
@@ -1440,7 +1505,8 @@ def _mark_turn(ax, run: tuple, ind: dict, style: tuple) -> None:
         ax.annotate(
             f"{name.replace('_', ' ')}\n{ind[name + '_m']:.1f} m",
             xy=(at[1], at[0]),
-            xytext=(-4 if left else 4, (3 if up else -3) - 30 * slot),
+            # a second run's values a row lower: a run's advance and transfer stack about 40 pt
+            xytext=(-4 if left else 4, (3 if up else -3) - 44 * slot),
             textcoords="offset points",
             fontsize=7,
             color=color,
@@ -1457,19 +1523,23 @@ def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", 
     a turning circle's on its plan view.
 
     The indices are those of :func:`bayesid.estimation.indices.manoeuvre_indices` (ITTC
-    Recommended Procedure 7.5-04-02-01, Sec. 2.2.1-2.2.2; IMO MSC.137(76)), drawn where they are
-    measured:
+    Recommended Procedure 7.5-04-02-01, Sec. 2.2.1-2.2.2; IMO MSC.137(76)), drawn as they are
+    read, between samples: every time, angle and distance marked is the index's value, placed
+    from the run's heading (zigzag) or position and heading (turn) at the first execute, linear
+    between samples (``run`` must hold it):
 
     * **zigzag**, on ``ax_heading`` (heading in deg, the unwrapped ``run["psi"]``, against time):
       each execute (a dotted vertical line), the check heading after each later execute (a dashed
-      horizontal line from it to the next execute), the first and second overshoot (a triangle at
-      the heading's extreme and a double arrow from the check heading to it, labelled with the
-      value in deg) and the initial turning time (a double arrow from the 1st to the 2nd execute
-      at the original course, labelled in s);
+      horizontal line from it to the next execute, at the original course + ``check_heading_deg``),
+      the first and second overshoot (a triangle at the heading's extreme, at ``overshoot_t_s``,
+      and a double arrow from the check heading to it, labelled with the value in deg) and the
+      initial turning time (a double arrow from the 1st to the 2nd execute at the original
+      course, labelled in s);
     * **turning circle**, on ``ax_plan`` (y east across, x north up, as the package's plan views):
-      the execute and the track where the heading has changed by 90 and 180 deg (dots), the
-      original course (dashed), the advance along it, the transfer and the tactical diameter
-      normal to it (double arrows labelled with the value in m);
+      the execute, the point the advance and transfer give (90 deg turned) and the tactical
+      diameter's, abeam where the track has turned 180 deg (dots), the original course (dashed),
+      the advance along it, the transfer and the tactical diameter normal to it (double arrows
+      labelled with the value in m);
     * any other run: nothing.
 
     Every artist carries a gid :data:`MARK_GID` + the index it shows (``"ittc:first_overshoot"``,
@@ -1488,8 +1558,8 @@ def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", 
     run : mapping
         ``"x"``, ``"y"`` (m), ``"psi"`` and ``"delta_r"`` (rad), arrays (n,): a Track or a dict.
     indices : dict, optional
-        The run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result (computed from
-        ``run`` when not given).
+        The run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result, as a report shows
+        it (computed from ``run`` when not given: pass the whole run, approach included).
     color : str, default "tab:red"
         The marks' colour.
     label : str, default ""
