@@ -442,6 +442,77 @@ def _held_starts_lines(settings: dict) -> list:
     ]
 
 
+def _cosine(c: float) -> str:
+    """A column cosine truncated to three decimals: 0.9998 reads ``0.999``, never ``1``."""
+    return f"{math.floor(abs(c) * 1000) / 1000:.3f}"
+
+
+def _mimicked_text(R: dict, free, shown: int = 5) -> str:
+    """The sentences on the candidates set aside as mimicked (``R``: ``discovery.residuals``): the
+    ``shown`` most likely stand-ins (``mimicked_by``'s order) named with their *mimic*, the free
+    parameter whose column is closest to theirs, how far the fit moved it, and how to test them
+    (refit with the mimic held).
+
+    A mimicked term can be the missing one: a constant yaw moment hidden in synthetic runs was
+    absorbed by the neutral rudder angle ``dR0`` (issue 50), and only a refit with ``dR0`` held
+    lets discovery see ``N0``. Without ``mimicked_by`` (an older ``diagnosis.json``) the count
+    alone.
+
+    Parameters
+    ----------
+    R : dict
+        ``mimicked`` (names) and optionally ``mimicked_by`` (``{term: {"parameter", "cosine",
+        "span_cosine"[, "shift", "shift_effect"]}}``, most likely stand-ins first;
+        :func:`bayesid.analysis.gap.discovery.select_terms`).
+    free : sequence of str
+        The reference model's free coefficients (a mimic among them is held by leaving it out of
+        ``--free``).
+    shown : int, default 5
+        Most terms named.
+
+    Returns
+    -------
+    str
+        One or more sentences, each ending with ``". "``.
+    """
+    n = len(R["mimicked"])
+    head = f"{n} set aside because a refit of the free coefficients reproduces them"
+    by = R.get("mimicked_by") or {}
+    if not by:
+        return head + ". "
+    groups: dict = {}
+    for t in list(by)[:shown]:
+        groups.setdefault(by[t]["parameter"], []).append(t)
+    out = [
+        head + " (*mimicked*). One of them can still be the missing term, hidden by the refit in its *mimic*, the "
+        "free parameter whose column (the training residuals' sensitivity to it) is closest to the term's; the "
+        "likeliest first (the mimic's move from its start along the term's column): "
+    ]
+    for p, terms in groups.items():
+        names = terms[0] if len(terms) == 1 else ", ".join(terms[:-1]) + " and " + terms[-1]
+        cos = ", ".join(_cosine(by[t]["cosine"]) for t in terms)
+        part = min(by[t]["cosine"] for t in terms) < 0.9  # a combination of free parameters mimics it
+        if part:
+            cos += "; with all the free parameters together " + ", ".join(_cosine(by[t]["span_cosine"]) for t in terms)
+        m = by[terms[0]]
+        moved = (
+            f"; the fit moved {p} from its start by {fmt(m['shift'])}, {fmt(m['shift_effect'], 2)} times the "
+            "training residual's RMS"
+            if "shift" in m
+            else ""
+        )
+        s = f"{names} {'is' if len(terms) == 1 else 'are'} mimicked by {p} (column cosine {cos}{moved})"
+        if p in free and not part:
+            s += f": refit with {p} held (`--free` without {p}) to test {'it' if len(terms) == 1 else 'them'}"
+        out.append(s + ". ")
+    if len(by) > sum(map(len, groups.values())):
+        out.append(
+            f"The other {len(by) - sum(map(len, groups.values()))} with theirs: "
+            "`discovery.residuals.mimicked_by` in diagnosis.json. "
+        )
+    return "".join(out)
+
+
 def _discovery_lines(res: dict) -> list:
     """The structure-discovery section: every refitted term with its numbers, the missing force
     per degree of freedom against the best library terms, and what was tried."""
@@ -458,8 +529,8 @@ def _discovery_lines(res: dict) -> list:
         f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
         f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
         f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "
-        f"{len(R['mimicked'])} set aside because a refit of the free coefficients reproduces them. "
-        f"{fmt(R['projected_rms'])} of the training residual's RMS is beyond any refit of the free coefficients; "
+        + _mimicked_text(R, D["settings"].get("free", []))
+        + f"{fmt(R['projected_rms'])} of the training residual's RMS is beyond any refit of the free coefficients; "
         f"the ensemble's median model explains {fmt(R['explained'])} of that.",
         "",
         md_table(

@@ -190,7 +190,8 @@ class Discovery:
         best candidates (:func:`force_summary`); ``explained``: the share of the projected
         output residual's variance the ensemble's median model explains; ``projected_rms``: the
         share of the training residual's RMS no refit of the free parameters can remove;
-        ``mimicked``: candidates the free parameters reproduce.
+        ``mimicked``: candidates the free parameters reproduce; ``mimicked_by``: each of them with
+        the free parameter whose column is closest to its own (:func:`select_terms`).
     library_size : int
         Number of candidate terms.
     heldout_rms_before_m : float
@@ -551,6 +552,53 @@ def _project(S: np.ndarray | None, *arrays):
     return tuple(None if a is None else a - Q @ (Q.T @ a) for a in arrays)
 
 
+def _mimics(S: np.ndarray, free: list, C: np.ndarray, names: list, shift=None, rms: float = 0.0) -> dict:
+    """Per candidate, its *mimic*: the free parameter whose column is closest to the candidate's,
+    the one a refit moves most to reproduce the term alone (a constant yaw moment ``N0`` and the
+    neutral rudder angle ``dR0``, whose column is nearly the rudder's constant yaw moment).
+
+    Parameters
+    ----------
+    S : ndarray, shape (n, P)
+        The free parameters' columns (sensitivities of the weighted residuals).
+    free : list of str
+        Their names (P,).
+    C : ndarray, shape (n, K)
+        The candidates' columns.
+    names : list of str
+        The candidates (K,).
+    shift : ndarray, shape (P,), optional
+        How far the fit moved each free parameter from its start (the vehicle file's value).
+    rms : float, default 0
+        The residuals' RMS at the fit (with ``shift``).
+
+    Returns
+    -------
+    dict
+        ``{candidate: {"parameter": its mimic, "cosine": |cosine| of the two columns}}``, with
+        ``shift`` (the mimic's) and ``shift_effect`` (``|shift|`` times the RMS of the mimic's
+        column over ``rms``: how much the refit's move of the mimic changes the training
+        residuals, linearised, in their RMS) when ``shift`` is given and ``rms`` > 0; a candidate
+        with a zero column, or no free parameter with a non-zero one, is left out.
+    """
+    sn, cn = np.linalg.norm(S, axis=0), np.linalg.norm(C, axis=0)
+    live = np.flatnonzero(sn > 0)
+    if live.size == 0:
+        return {}
+    cos = np.abs(C.T @ S[:, live]) / np.maximum(cn[:, None], 1e-300) / sn[live]
+    out = {}
+    for k, n in enumerate(names):
+        if cn[k] == 0:
+            continue
+        b = int(np.argmax(cos[k]))
+        j = live[b]
+        out[n] = {"parameter": free[j], "cosine": float(min(cos[k, b], 1.0))}
+        if shift is not None and rms > 0:
+            out[n]["shift"] = float(shift[j])
+            out[n]["shift_effect"] = float(abs(shift[j]) * sn[j] / np.sqrt(S.shape[0]) / rms)
+    return out
+
+
 def _groups(Xn: np.ndarray, cos: float) -> list[list[int]]:
     """Groups of nearly collinear columns of a normalised library: column j's group is every
     column whose |cosine| with j is at least ``cos``."""
@@ -637,7 +685,9 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
         ``y`` (n,): minus the projected residuals; ``X`` (n, K): the projected candidate columns;
         ``size`` (K,): the columns' RMS before the projection; ``blocks``: row indices of each
         window (the block bootstrap's blocks); ``rms``: the residuals' RMS before the
-        projection.
+        projection; ``mimics``: ``{candidate: {"parameter", "cosine", "shift",
+        "shift_effect"}}``, the free parameter whose column is closest to the candidate's and how
+        far the fit moved it (:func:`_mimics`).
     """
     if window_s is None:
         window_s = setup.fit_window_s if setup.rule == "measured" else setup.window_s
@@ -662,6 +712,10 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
     Jc = J[:, cand]
     size = np.sqrt(np.mean(Jc**2, axis=0))
     y, X = _project(J[:, other], -r, Jc)
+    # how far the fit moved each parameter from its start (the vehicle file's coefficients, the
+    # effects' starts, nuisances 0): a mimic moved far may stand in for a missing term
+    start = np.concatenate([model.start(), np.zeros(J.shape[1] - model.n_params)])
+    shift, rms = np.asarray(obj.x0, float) - start, float(np.sqrt(np.mean(r**2)))
     blocks, o = [], 0
     for ctx, w in zip(ctxs, obj.wts):
         n_c = sum(1 for c in ctx.channels if c in w)
@@ -669,7 +723,14 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
         for wi in np.unique(ctx.win):
             blocks.append(o + rows[:, ctx.win == wi].ravel())
         o += rows.size
-    return {"y": y, "X": X, "size": size, "blocks": blocks, "rms": float(np.sqrt(np.mean(r**2)))}
+    return {
+        "y": y,
+        "X": X,
+        "size": size,
+        "blocks": blocks,
+        "rms": rms,
+        "mimics": _mimics(J[:, other], [obj.names[j] for j in other], Jc, names, shift[other], rms),
+    }
 
 
 def select_terms(problem: dict, names: list, options: DiscoveryOptions, rng) -> dict:
@@ -698,15 +759,21 @@ def select_terms(problem: dict, names: list, options: DiscoveryOptions, rng) -> 
         ``inclusion`` ``{term: probability}``, ``group_probability`` ``{term: probability}``,
         ``groups`` ``{term: [collinear terms]}``, ``coefficient`` ``{term: median prime
         coefficient over the models that select it}``, ``share`` ``{term: median share of the
-        residual RMS}``, ``mimicked`` (names), ``explained`` (share of the projected residual's
-        variance the median model explains) and ``projected_rms`` (the residual's RMS after the
-        projection / before it).
+        residual RMS}``, ``mimicked`` (names), ``mimicked_by`` (``{mimicked term: {"parameter":
+        its mimic, the free parameter whose column is closest to the term's, "cosine": |cosine|
+        of the two, "shift": how far the fit moved the mimic from its start, "shift_effect": that
+        move's change of the training residuals over their RMS, "span_cosine": the term's
+        column's cosine with the span of all the free parameters'}}``, by ``shift_effect`` times
+        ``cosine``, largest first; empty without ``problem["mimics"]``), ``explained`` (share of
+        the projected residual's variance the median model explains) and ``projected_rms`` (the
+        residual's RMS after the projection / before it).
     """
     X, y = problem["X"], problem["y"]
     rx = np.sqrt(np.mean(X**2, axis=0))
     live = rx > 0.1 * problem["size"]
     out = {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}, "share": {}}
     out["mimicked"] = [n for n, ok, sz in zip(names, live, problem["size"]) if not ok and sz > 0]
+    out["mimicked_by"] = _mimicked_by(out["mimicked"], problem, rx, names)
     ry = float(np.sqrt(np.mean(y**2)))
     out["projected_rms"] = ry / problem["rms"] if problem["rms"] > 0 else 0.0
     out["explained"] = 0.0
@@ -728,6 +795,25 @@ def select_terms(problem: dict, names: list, options: DiscoveryOptions, rng) -> 
         out["coefficient"][n] = float(np.median(nz) * ry / rx[k]) if nz.size else 0.0
         out["share"][n] = float(np.median(np.abs(nz))) if nz.size else 0.0
     return out
+
+
+def _mimicked_by(mimicked: list, problem: dict, rx: np.ndarray, names: list) -> dict:
+    """The mimicked candidates with their mimics (``problem["mimics"]``) and ``span_cosine``
+    (the term's column's cosine with the span of every free parameter's, from the share the
+    projection leaves), most likely stand-ins first: by ``shift_effect`` times ``cosine`` (the
+    refit's move of the mimic along the term's column), or by ``cosine`` without shifts."""
+    mimics = problem.get("mimics") or {}
+    out = {}
+    for n in sorted((n for n in mimicked if n in mimics), key=lambda n: -_stand_in(mimics[n])):
+        k = names.index(n)
+        left = float(rx[k] / problem["size"][k])
+        out[n] = {**mimics[n], "span_cosine": float(np.sqrt(max(0.0, 1.0 - left**2)))}
+    return out
+
+
+def _stand_in(m: dict) -> float:
+    """How likely a mimicked term's mimic stands in for it: its move along the term's column."""
+    return m["cosine"] * m.get("shift_effect", 1.0)
 
 
 def force_summary(rows: list, sel: dict, names: list, options: DiscoveryOptions) -> dict:
@@ -1423,6 +1509,7 @@ def discover(
             "explained": sel["explained"],
             "projected_rms": sel["projected_rms"],
             "mimicked": sel["mimicked"],
+            "mimicked_by": sel["mimicked_by"],
         },
         library_size=len(names),
         heldout_rms_before_m=ref.held["rms_position_m"],

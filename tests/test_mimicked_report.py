@@ -1,0 +1,137 @@
+"""Reports that explain (issue 50): a candidate set aside as mimicked is named with its mimic, the
+free parameter whose column is closest to its own, and how to test it (a constant yaw moment
+``N0`` hidden in synthetic runs and absorbed by the neutral rudder angle ``dR0``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bayesid.analysis.gap import discovery as dv
+from bayesid.report.diagnosis import _discovery_lines
+
+
+def _report(residuals: dict, free=("Nv", "Nr", "Nvvr", "dR0")) -> str:
+    """The discovery section's text for a hand-built ``discovery`` entry of ``diagnosis.json``."""
+    D = {
+        "verdict": "no term of the library explains it",
+        "heldout_rms_before_m": 0.5,
+        "heldout_rms_after_m": 0.5,
+        "library_size": 119,
+        "settings": {"max_order": 3, "dofs": ["Y", "N"], "free": list(free), "min_probability": 0.5},
+        "residuals": {"forces": {}, "explained": 0.1, "projected_rms": 0.4, **residuals},
+        "discovered": [],
+    }
+    return "\n".join(_discovery_lines({"discovery": D}))
+
+
+def _by(parameter, cosine, shift_effect, span=0.999):
+    return {"parameter": parameter, "cosine": cosine, "shift": 0.07, "shift_effect": shift_effect, "span_cosine": span}
+
+
+def test_the_report_names_a_mimicked_term_with_its_mimic_and_how_to_test_it():
+    # 45 mimicked; N0 first by the stand-in order although higher-order terms are more collinear
+    # with theirs; only the five first are named
+    others = [f"Nterm{i}" for i in range(44)]
+    by = {"N0": _by("dR0", 0.9912, 4.5)}
+    by.update({t: _by("Nvvr", 0.9998 - 1e-4 * i, 1.2) for i, t in enumerate(others)})
+    text = _report({"mimicked": [*others, "N0"], "mimicked_by": by})
+    assert "45 set aside because a refit of the free coefficients reproduces them (*mimicked*)" in text
+    assert "N0 is mimicked by dR0 (column cosine 0.991; the fit moved dR0 from its start by 0.07, 4.5 times" in text
+    assert "refit with dR0 held (`--free` without dR0) to test it." in text
+    # next come four of Nvvr's (cosine truncated: 0.9998 reads 0.999, never 1), then the rest by count
+    assert "Nterm0, Nterm1, Nterm2 and Nterm3 are mimicked by Nvvr (column cosine 0.999, 0.999, 0.999, 0.999;" in text
+    assert "to test them" in text and "Nterm4" not in text
+    assert "The other 40 with theirs: `discovery.residuals.mimicked_by` in diagnosis.json." in text
+    assert text.index("N0 is mimicked") < text.index("Nterm0")
+
+
+def test_a_mimic_that_is_not_a_free_coefficient_or_mimics_only_in_part_gets_no_hold_advice():
+    by = {
+        "Nvv": _by("track0.waves.nuisance0", 0.97, 2.0),
+        "Nrrr": {"parameter": "Nr", "cosine": 0.62, "span_cosine": 0.998},  # a combination mimics it
+    }
+    text = _report({"mimicked": ["Nrrr", "Nvv"], "mimicked_by": by})
+    assert "Nvv is mimicked by track0.waves.nuisance0 (column cosine 0.970; the fit moved" in text
+    assert "Nrrr is mimicked by Nr (column cosine 0.620; with all the free parameters together 0.998)." in text
+    assert "to test it" not in text and "`--free` without" not in text
+
+
+def test_an_older_diagnosis_without_mimics_keeps_its_sentence():
+    text = _report({"mimicked": ["N0", "Nvvv"]})
+    assert "2 set aside because a refit of the free coefficients reproduces them. 0.4 of the training" in text
+
+
+def test_select_terms_attributes_a_constant_column_to_the_free_coefficient_it_is_collinear_with():
+    # free columns: Nr (a wave), dR0 (nearly constant: a rudder offset's yaw moment), Yv (noise);
+    # candidates: N0 (constant, within the free span but for 1 %), Nvvv (nearly Nr) and Nx (free)
+    rng = np.random.default_rng(3)
+    n = 4000
+    t = np.linspace(0.0, 200.0, n)
+    S = np.column_stack([np.sin(0.3 * t), 1.0 + 0.1 * np.sin(0.05 * t), rng.normal(size=n)])
+    C = np.column_stack(
+        [np.ones(n) + 0.01 * rng.normal(size=n), np.sin(0.3 * t) + 0.05 * np.cos(0.3 * t), rng.normal(size=n)]
+    )
+    names = ["N0", "Nvvv", "Nx"]
+    r = 0.5 * C[:, 2] + 0.1 * rng.normal(size=n)
+    # the fit moved dR0 far and Nr a little: dR0 is the likelier stand-in, though N0's column is the
+    # less collinear with its mimic's
+    shift = np.array([0.001, 0.05, 0.0])
+    rms = float(np.sqrt(np.mean(r**2)))
+    y, X = dv._project(S, -r, C)
+    problem = {
+        "y": y,
+        "X": X,
+        "size": np.sqrt(np.mean(C**2, axis=0)),
+        "blocks": np.array_split(np.arange(n), 40),
+        "rms": rms,
+        "mimics": dv._mimics(S, ["Nr", "dR0", "Yv"], C, names, shift, rms),
+    }
+    sel = dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(1))
+    assert sel["mimicked"] == ["N0", "Nvvv"]
+    assert list(sel["mimicked_by"]) == ["N0", "Nvvv"]
+    m = sel["mimicked_by"]["N0"]
+    assert m["parameter"] == "dR0" and 0.99 < m["cosine"] < sel["mimicked_by"]["Nvvv"]["cosine"]
+    assert m["span_cosine"] > 0.995 and m["shift"] == 0.05
+    assert math.isclose(m["shift_effect"], 0.05 * np.sqrt(np.mean(S[:, 1] ** 2)) / rms)
+    assert sel["mimicked_by"]["Nvvv"]["parameter"] == "Nr"
+    assert "Nx" not in sel["mimicked_by"]
+    # without the mimics (a hand-built problem) nothing is attributed, the rest as before
+    del problem["mimics"]
+    assert (
+        dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(1))["mimicked_by"] == {}
+    )
+
+
+def test_a_hidden_constant_yaw_moment_is_attributed_to_the_neutral_rudder_angle():
+    # KVLCC2 zigzags with a constant yaw moment N0 hidden, no velocity log (the case of issue 50):
+    # the fit moves dR0 more than any other free parameter, and N0's mimic is dR0
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
+    from bayesid.data.track import Track
+    from bayesid.models import ship
+    from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
+
+    kv = ship.load_ship("kvlcc2_7m")
+    truth = kv.with_coefficients({"N0": 0.003})
+    speed, rpm = propulsion_point(truth, 1.179)
+    rng = np.random.default_rng(2030)
+    noise = {"x": 0.01, "y": 0.01, "psi": math.radians(0.05)}
+    runs, clock = [], 7200.0
+    for angle, check in ((20, 20), (-10, 10), (15, 10), (-25, 5)):
+        tr = simulate_trial(
+            truth, "zigzag", angle, check_deg=check, speed=speed, rpm=rpm, options=TrialOptions(duration=100.0)
+        ).track
+        data = {k: np.asarray(tr[k], float) + rng.normal(0, sd, tr.n_samples) for k, sd in noise.items()}
+        data.update(delta_r=np.asarray(tr["delta_r"], float), n=np.asarray(tr["n"], float))
+        runs.append(Track(tr.t + clock, data, name=f"z{angle}_{check}"))
+        clock += tr.t[-1] + 60.0
+    options = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=None)
+    d = diagnose(kv, list(kv.free), runs[:2], runs[2:], options, rng=np.random.default_rng(0))
+    names = dv.candidate_terms(d.base.model, dv.MAX_ORDER, ("Y", "N"))
+    problem = dv.linearised_problem(d.setup, d.base, (), names, d.fit_sd)
+    m = problem["mimics"]["N0"]
+    assert m["parameter"] == "dR0" and m["cosine"] > 0.95 and m["shift"] > 0
+    assert m["shift_effect"] == max(v["shift_effect"] for v in problem["mimics"].values())
+    sel = dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(0))
+    assert "N0" in sel["mimicked"] and next(iter(sel["mimicked_by"])) == "N0"
