@@ -1252,10 +1252,7 @@ def alternatives(compared: dict) -> dict:
         ``{kept term: [entry, ...]}``, the entries of ``compared`` with ``separable`` False,
         without that key; an empty list where the runs separate the kept term from every other.
     """
-    return {
-        k: [{n: v for n, v in e.items() if n != "separable"} for e in es if not e["separable"]]
-        for k, es in compared.items()
-    }
+    return _split(compared, separable=False)
 
 
 def separated(compared: dict) -> dict:
@@ -1272,8 +1269,13 @@ def separated(compared: dict) -> dict:
         ``{kept term: [entry, ...]}``, the entries of ``compared`` with ``separable`` True,
         without that key.
     """
+    return _split(compared, separable=True)
+
+
+def _split(compared: dict, separable: bool) -> dict:
+    """The entries of :func:`compare_structures` whose ``separable`` is ``separable``, without it."""
     return {
-        k: [{n: v for n, v in e.items() if n != "separable"} for e in es if e["separable"]]
+        k: [{n: v for n, v in e.items() if n != "separable"} for e in es if e["separable"] is separable]
         for k, es in compared.items()
     }
 
