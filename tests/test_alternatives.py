@@ -139,6 +139,14 @@ def test_the_j_divergence_is_zero_for_one_model_and_grows_with_the_mean_differen
     assert 0 < wide < dz.separation((t, m, v), (t, m2, v), nv, 1.0)
 
 
+def _rate_limited(order: np.ndarray, rate: float, dt: float) -> np.ndarray:
+    """A rudder that follows ``order`` at most ``rate`` (rad/s), sampled every ``dt`` s."""
+    out = np.zeros_like(order)
+    for i in range(1, order.size):
+        out[i] = out[i - 1] + np.clip(order[i] - out[i - 1], -rate * dt, rate * dt)
+    return out
+
+
 @pytest.mark.parametrize(
     "kind, make",
     [
@@ -147,6 +155,10 @@ def test_the_j_divergence_is_zero_for_one_model_and_grows_with_the_mean_differen
         ("pull_out", lambda t: math.radians(20) * ((t > 5) & (t < 60))),
         ("straight", lambda t: 0.0 * t),
         ("other", lambda t: math.radians(5) * np.sin(t / 3) + math.radians(10) * np.sin(t / 11)),
+        # a 35 deg zigzag of a slow gear (10 deg/s): a fifth of the rudder-over samples on the ramps
+        ("zigzag", lambda t: _rate_limited(np.radians(35) * np.sign(np.sin(2 * np.pi * t / 60)), np.radians(10), 0.5)),
+        # a turn after 40 s of course keeping with +-3 deg corrections (not the reversals of a zigzag)
+        ("turning_circle", lambda t: math.radians(3) * np.sign(np.sin(t)) * (t < 40) + math.radians(35) * (t > 45)),
     ],
 )
 def test_the_manoeuvre_kind_of_a_run_is_read_from_its_rudder(kind, make):
@@ -333,3 +345,35 @@ def test_an_index_whose_estimate_diverged_says_so_and_counts_the_draws_that_did_
     assert cell.startswith("estimate: diverged") and "(2 of 4 runs)" in cell
     assert _index_cell(dz._spread([np.nan, np.nan])) == "diverged or not reached"
     assert _index_cell(dz._spread([12.0, 11.0, 13.0])).startswith("12 [")
+
+
+def _zigzag_track(name, side=1.0):
+    t = np.arange(0.0, 150.0, 0.5)
+    return Track(t, {"x": 0 * t, "delta_r": side * math.radians(20) * np.sign(np.sin(2 * np.pi * t / 40))}, name=name)
+
+
+@pytest.mark.parametrize("held_kind, designed", [("zigzag", True), ("turning_circle", False)])
+def test_a_term_kept_alone_and_tested_only_on_zigzags_gets_a_run_of_another_kind(monkeypatch, held_kind, designed):
+    """KVLCC2 HSVA: Nvdrabsdr kept alone, every held-out run a zigzag like the training runs; the
+    design ranks the runs that would test it against the model without it. A held-out run of
+    another kind already tests it: no design."""
+    import importlib
+
+    from bayesid.tasks import Runner
+
+    dg = importlib.import_module("bayesid.analysis.gap.diagnose")
+    calls = []
+    monkeypatch.setattr(dg, "design", lambda stages, setup, options: calls.append(list(stages)) or [{"name": "r"}])
+    monkeypatch.setattr(dg, "standard_predictions", lambda models, setup, options: list(models))
+    t = np.arange(0.0, 150.0, 0.5)
+    held = _zigzag_track("h") if held_kind == "zigzag" else Track(t, {"x": 0 * t, "delta_r": 0.6 * (t > 5)}, name="h")
+    setup = SimpleNamespace(train=[_zigzag_track("a"), _zigzag_track("b", -1.0)], heldout=[held])
+    found = SimpleNamespace(
+        found=["Nvdrabsdr"], alternatives={"Nvdrabsdr": []}, stages={"Nvdrabsdr": "stage"}, reference="ref"
+    )
+    rows, predictions = dg._design(found, setup, object(), Runner())
+    if designed:
+        assert calls == [["Nvdrabsdr", dg.WITHOUT_TERMS]]
+        assert predictions == ["base model", "Nvdrabsdr"]
+    else:
+        assert calls == [] and rows == []

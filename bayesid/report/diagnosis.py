@@ -347,9 +347,23 @@ def _design_lines(res: dict) -> list:
     rows = res.get("design") or []
     if not rows:
         return []
+    from ..analysis.gap.diagnose import WITHOUT_TERMS
+
+    against_base = any(WITHOUT_TERMS in (r.get("worst_pair") or "") for r in rows)
+    head = (
+        [
+            "## The run that would test it beyond the training manoeuvres",
+            "",
+            f"No refitted term competes with the kept term on these runs, but they are all of the training runs' "
+            f"kinds: the runs below are ranked by how far the kept term's model and the model without it "
+            f"(`{WITHOUT_TERMS}`) part on them, a run where the term would be tested, not only fitted.",
+            "",
+        ]
+        if against_base
+        else ["## The run that would separate them", ""]
+    )
     return [
-        "## The run that would separate them",
-        "",
+        *head,
         md_table(
             [
                 "run",

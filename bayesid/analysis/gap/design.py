@@ -215,9 +215,15 @@ def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
     held = side[side != 0]
     if held.size == 0:
         return "straight"
-    reversals = int(np.count_nonzero(np.diff(held) != 0))
     big = np.abs(d[np.abs(d) > lim])
-    steady = float(np.std(big) / np.mean(big)) < 0.25  # one rudder angle, as a standard run holds
+    # one rudder angle held, as a standard run holds it: most rudder-over samples within 15 % of
+    # the held angle (the 90th percentile; a 35/5 zigzag of a slow gear spends a fifth ramping)
+    held_angle = float(np.percentile(big, 90))
+    steady = float(np.mean(np.abs(big - held_angle) < 0.15 * held_angle)) >= 0.6
+    # reversals of the held rudder (beyond half the held angle): the small corrections that keep
+    # the approach course are not reversals of a zigzag
+    over = side[np.abs(d) > max(lim, 0.5 * held_angle)]
+    reversals = int(np.count_nonzero(np.diff(over) != 0))
     if reversals >= 2 and steady:
         return "zigzag"
     if reversals == 0 and steady:

@@ -587,25 +587,41 @@ def diagnose(
     )
 
 
+#: The label of the model without the discovered terms in a design against it
+WITHOUT_TERMS = "without the term"
+
+
 def _design(found, setup: Setup, options, runner: Runner) -> tuple[list, list]:
     """The runs that separate the first kept term with alternatives from them
     (:func:`bayesid.analysis.gap.design.design`), and the standard manoeuvres as the base model,
     that term and its alternatives predict them
     (:func:`bayesid.analysis.gap.design.standard_predictions`), for ``Diagnosis.design`` and
-    ``Diagnosis.predictions``: ``([], [])`` without discovery, design options or alternatives."""
+    ``Diagnosis.predictions``. A kept term the runs separate from every other, whose held-out
+    runs are all of the training runs' kinds (tested only within the training manoeuvres), is
+    designed against the model without it (:data:`WITHOUT_TERMS`): the run of another kind
+    that would test it. ``([], [])`` without discovery, design options or a kept term."""
     if found is None or options is None:
         return [], []
+    within = {manoeuvre_kind(t) for t in setup.heldout} <= {manoeuvre_kind(t) for t in setup.train}
     for k in found.found:
+        if k not in found.stages:
+            continue
         alts = [a["term"] for a in found.alternatives.get(k, []) if a["term"] in found.stages]
-        if alts and k in found.stages:
+        if alts:
             runner.say(f"design: the run that separates {k} from {', '.join(alts)}")
-            rows = design({n: found.stages[n] for n in (k, *alts)}, setup, options)
-            # the predicted tracks for the top run's figure, the input schedules of the top three
-            drop = [set(), {"predicted"}, {"predicted"}] + [{"predicted", "inputs"}] * len(rows)
-            rows = [{key: v for key, v in r.items() if key not in drop[i]} for i, r in enumerate(rows)]
-            runner.say("design: the standard manoeuvres as the base model and each alternative predict them")
-            models = {"base model": found.reference, **{n: found.stages[n] for n in (k, *alts)}}
-            return rows, standard_predictions(models, setup, options)
+            stages = {n: found.stages[n] for n in (k, *alts)}
+        elif within and found.reference is not None:
+            runner.say(f"design: the run of another kind that would test {k} (against the model without it)")
+            stages = {k: found.stages[k], WITHOUT_TERMS: found.reference}
+        else:
+            continue
+        rows = design(stages, setup, options)
+        # the predicted tracks for the top run's figure, the input schedules of the top three
+        drop = [set(), {"predicted"}, {"predicted"}] + [{"predicted", "inputs"}] * len(rows)
+        rows = [{key: v for key, v in r.items() if key not in drop[i]} for i, r in enumerate(rows)]
+        runner.say("design: the standard manoeuvres as the base model and each alternative predict them")
+        models = {"base model": found.reference, **{n: st for n, st in stages.items() if n != WITHOUT_TERMS}}
+        return rows, standard_predictions(models, setup, options)
     return [], []
 
 
