@@ -208,10 +208,12 @@ def _training_figures(res, train, figs) -> list:
         rms = per_run.get(tr.name)
         plots.training_fit(
             ctx.ts[::k],
-            dict(
-                {c: ctx.meas[c][::k] for c in ("x", "y", "psi")},
-                **({"delta_r": np.asarray(tr["delta_r"], float)[ctx.idx][::k]} if "delta_r" in tr.data else {}),
-            ),
+            # the whole run, lead-in included, so that its indices are read as the tables read them
+            {
+                c: np.asarray(tr.t if c == "t" else tr[c], float)[::k]
+                for c in ("t", "x", "y", "psi", "delta_r")
+                if c == "t" or c in tr.data
+            },
             {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
             ctx.win[::k],
             figs / name,
