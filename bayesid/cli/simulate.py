@@ -261,12 +261,30 @@ def _write_summary(args, settings: dict, indices: dict, paths: dict) -> None:
     print(f"wrote {paths['json']}")
 
 
+#: The manoeuvres whose rudder order is ``--angle`` (a spiral's largest step for a ship; a
+#: submarine's spiral is the paper's, at its own angles).
+_ANGLE_MANOEUVRES = {"ship": ("spiral", "turn", "zigzag", "pull-out"), "submarine": ("turn", "zigzag", "pull-out")}
+
+
+def _check_angle(args, family: str, vessel_id: str, limit_deg: float | None) -> None:
+    """Refuse an ``--angle`` beyond the vessel's rudder limit (``[limits] rudder_max_deg`` of its
+    file; None: no limit) for a manoeuvre that orders it, naming the option and the limit."""
+    if limit_deg is None or args.manoeuvre not in _ANGLE_MANOEUVRES[family]:
+        return
+    if abs(args.angle) > limit_deg + 1e-9:
+        raise ValueError(
+            f"--angle {args.angle:g}: beyond the rudder limit of {vessel_id} ({limit_deg:g} deg, [limits] "
+            "rudder_max_deg of its file)"
+        )
+
+
 def _ship(args, every):
     """Simulate a ship file's manoeuvre; the track (comments set) and a description."""
     from ..models.ship import load_ship
     from ..models.ship.trials import TrialOptions, propulsion_point, service_condition, simulate_trial
 
     vessel = load_ship(args.vehicle)
+    _check_angle(args, "ship", vessel.id, vessel.rudder_max_deg)
     if args.mode == "6dof":
         raise ValueError(f"--mode 6dof: {vessel.id} is a 3-DOF surface ship; leave --mode out or give horizontal")
     if args.crossflow:
@@ -320,6 +338,7 @@ def _submarine(args, every):
     from ..models.simulate import Simulator
 
     vehicle = load_vehicle(args.vehicle)
+    _check_angle(args, "submarine", vehicle.id, math.degrees(vehicle.limits.rudder_max))
     if args.crossflow:
         vehicle = vehicle.with_crossflow(args.crossflow)
     mode = args.mode or "6dof"

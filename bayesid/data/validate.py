@@ -342,6 +342,43 @@ def _check_rudder_sign(track: Track, refuse, warn: list, name: str) -> None:
         warn.append(f"{name}: column 'delta_r': {msg}")
 
 
+#: A track's ``|delta_r|`` may pass the vehicle's rudder limit by this much (deg) without a warning
+#: (a rudder sensor's offset and noise; the Esso Osaka runs stop at 35.3 deg against a 35 deg gear).
+RUDDER_LIMIT_MARGIN_DEG = 1.0
+
+
+def _rudder_limit_deg(vehicle) -> float | None:
+    """The vehicle's largest rudder angle, deg: a submarine's ``limits.rudder_max``, a ship's
+    ``rudder_max_deg`` (None: its file has no ``[limits]``), None without a vehicle."""
+    limits = getattr(vehicle, "limits", None)
+    if limits is not None:
+        return math.degrees(limits.rudder_max)
+    return getattr(vehicle, "rudder_max_deg", None)
+
+
+def _check_rudder_limit(track: Track, vehicle, name: str) -> list[str]:
+    """A warning when the track's ``|delta_r|`` passes the vehicle's rudder limit
+    (:func:`_rudder_limit_deg`) by more than :data:`RUDDER_LIMIT_MARGIN_DEG`: not a refusal, since
+    a log may hold a steering gear's overshoot, but a track of another vessel, or a rudder in
+    another scale, shows the same way."""
+    limit = _rudder_limit_deg(vehicle)
+    if limit is None or "delta_r" not in track:
+        return []
+    deg = np.degrees(np.abs(np.asarray(track["delta_r"], float)))
+    over = np.flatnonzero(np.nan_to_num(deg, nan=0.0) > limit + RUDDER_LIMIT_MARGIN_DEG)
+    if not over.size:
+        return []
+    t, k = track.t, over[np.argmax(deg[over])]
+    file = getattr(vehicle, "file_path", "")
+    source = f"[limits] rudder_max_deg of {file}" if file else "[limits] rudder_max_deg"
+    return [
+        f"{name}: column 'delta_r': |delta_r| reaches {deg[k]:.3g} deg ({math.radians(deg[k]):.4g} rad, "
+        f"t = {t[k]:g} s), beyond the rudder limit of {vehicle.id} ({limit:g} deg, {source}) in {over.size} "
+        f"sample(s) from t = {t[over[0]]:g} to {t[over[-1]]:g} s: a steering gear overshoot, or a track of "
+        "another vessel?"
+    ]
+
+
 def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
     """Units and plausibility of a track (module docstring).
 
@@ -350,9 +387,10 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     track : Track
         The track to check.
     vehicle : Vehicle or Ship, optional
-        The vessel description it will be fitted to (its declared vessel, nominal rpm and its
-        own plausibility checks, :meth:`~bayesid.data.vehicle.Vehicle.track_warnings`); None
-        skips those checks.
+        The vessel description it will be fitted to (its declared vessel, nominal rpm, rudder
+        limit (a warning when ``|delta_r|`` passes it by more than
+        :data:`RUDDER_LIMIT_MARGIN_DEG`) and its own plausibility checks,
+        :meth:`~bayesid.data.vehicle.Vehicle.track_warnings`); None skips those checks.
     where : str, optional
         The file named in messages; default the track's name.
 
@@ -389,6 +427,7 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             if m > math.pi / 2 + 1e-6:
                 refuse(col, f"values up to {m:.4g} cannot be a control-surface angle in rad; it looks like degrees")
     _check_rudder_sign(track, refuse, warn, name)
+    warn += _check_rudder_limit(track, vehicle, name)
     ground = None
     if "x" in track and "y" in track:
         # over a 5 s baseline, so that position noise does not pass for speed
@@ -472,6 +511,7 @@ __all__ = [
     "rudder_response",
     "RUDDER_SIGN_T",
     "RUDDER_SPREAD",
+    "RUDDER_LIMIT_MARGIN_DEG",
     "input_gaps",
     "track_vessel",
     "SPEED_UNITS",

@@ -1,6 +1,6 @@
 """The ship file: a TOML vehicle file with ``[vehicle] kind = "ship3dof"``, ``[particulars]``,
-``[coefficients]``, optional ``[wind]``, ``[fit] free`` and ``[prior]`` sections, read into a
-:class:`Ship` by :func:`load_ship`; :func:`is_ship_file` tells a ship file from a submarine's.
+``[coefficients]``, optional ``[wind]``, ``[limits]``, ``[fit] free`` and ``[prior]`` sections, read
+into a :class:`Ship` by :func:`load_ship`; :func:`is_ship_file` tells a ship file from a submarine's.
 Added masses the file does not give are estimated from the particulars
 (:func:`empirical_added_mass`).
 """
@@ -67,6 +67,10 @@ class Ship:
         sides). The kernel parameters and :meth:`with_coefficients` keep them equal; giving one a
         value (in the file, :meth:`with_coefficients` or a fit with it free) unties it. A
         coefficient of ``FOLLOWS`` missing from ``coefficients`` follows too.
+    rudder_max_deg : float, optional
+        The steering gear's largest rudder angle either side, deg (``[limits] rudder_max_deg``;
+        None when the file gives none: no limit). ``bayesid simulate`` refuses a rudder order
+        beyond it, :func:`bayesid.data.validate.check_track` warns of a track beyond it.
     """
 
     id: str
@@ -82,6 +86,7 @@ class Ship:
     prior_source: str = ""
     scale: float | None = None
     follows: dict = field(default_factory=dict)
+    rudder_max_deg: float | None = None
 
     @property
     def file_path(self) -> str:
@@ -313,10 +318,34 @@ def _scale(p, v) -> float | None:
     return float(v)
 
 
+#: The keys of a ship file's optional ``[limits]`` section: the steering gear's largest rudder
+#: angle, deg (its rate is the approach's ``[service] rudder_rate_deg_s``).
+LIMIT_KEYS = ("rudder_max_deg",)
+
+
+def _rudder_max(p, sec) -> float | None:
+    """The ``[limits] rudder_max_deg`` of file ``p`` (None when not given), checked."""
+    if not isinstance(sec, dict):
+        raise ShipFileError(f"{p}: limits = {sec!r} must be a section [limits] (rudder_max_deg = ...)")
+    for k in sec:
+        if k not in LIMIT_KEYS:
+            hint = "; the steering gear's rate is [service] rudder_rate_deg_s" if k == "rudder_rate_deg_s" else ""
+            raise ShipFileError(f"{p}: [limits] unknown key {k!r}; known: {', '.join(LIMIT_KEYS)}{hint}")
+    v = sec.get("rudder_max_deg")
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 < v <= 90:
+        raise ShipFileError(
+            f"{p}: [limits] rudder_max_deg = {v!r} must be a number of degrees in (0, 90] (the steering "
+            "gear's largest rudder angle either side)"
+        )
+    return float(v)
+
+
 def load_ship(path_or_id) -> Ship:
     """Load a ship vehicle file (TOML with ``[vehicle] kind = "ship3dof"``, ``[particulars]``
     (with an optional ``scale``: the model scale), ``[coefficients]``, optional ``[wind]``,
-    ``[fit] free`` and ``[prior]``).
+    ``[limits]`` (``rudder_max_deg``), ``[fit] free`` and ``[prior]``).
 
     Parameters
     ----------
@@ -334,8 +363,9 @@ def load_ship(path_or_id) -> Ship:
         No such file or packaged id.
     ShipFileError
         Missing section or particular, non-finite or non-positive value (``[particulars] scale``
-        included, when given), a negative ``gR`` or ``gRm``, unknown key or coefficient name, a
-        kind other than ``"ship3dof"`` (the message names the file, section and key).
+        included, when given), a negative ``gR`` or ``gRm``, a ``[limits] rudder_max_deg`` outside
+        (0, 90] deg, unknown key or coefficient name, a kind other than ``"ship3dof"`` (the message
+        names the file, section and key).
     """
     p = _resolve(path_or_id)
     try:
@@ -354,6 +384,7 @@ def load_ship(path_or_id) -> Ship:
 
     part, given = {}, dict(doc["particulars"])
     scale = _scale(p, given.pop("scale", None))
+    rudder_max_deg = _rudder_max(p, doc.get("limits", {}))
     for k in PARTICULARS:
         if k not in given:
             raise ShipFileError(f"{p}: missing [particulars] {k}")
@@ -410,7 +441,8 @@ def load_ship(path_or_id) -> Ship:
         prior_source=prior_source,
         scale=scale,
         follows=follows,
+        rudder_max_deg=rudder_max_deg,
     )
 
 
-__all__ = ["Ship", "ShipFileError", "load_ship", "is_ship_file", "packaged_ships", "empirical_added_mass"]
+__all__ = ["Ship", "ShipFileError", "load_ship", "is_ship_file", "packaged_ships", "empirical_added_mass", "LIMIT_KEYS"]
