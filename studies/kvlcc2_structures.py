@@ -265,8 +265,9 @@ def write_report(out: Path, res: dict, args) -> None:
         lines += ["No term kept on this split: there is nothing to tell apart.", ""]
     if D.get("design"):
         lines += [
-            "The runs that would separate them best (J divergence of the alternatives' predictive "
-            "distributions, nats; the smallest over the pairs):",
+            "The runs that would separate them best (J divergence of the models' predictive distributions, nats; "
+            "the smallest over the pairs; with no alternative, the kept term's model against the model without it, "
+            "the run of another kind that would test the term):",
             "",
             md_table(
                 ["rank", "run", "separation (nats)", "worst pair"],

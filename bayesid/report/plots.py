@@ -1660,7 +1660,13 @@ def plot_alternatives(row: dict, ax=None):
     if ax is None:
         _, ax = plt.subplots(figsize=(6, 5))
     for i, (label, p) in enumerate(row["predicted"].items()):
-        ax.plot(p["y"], p["x"], ".", ms=2, label=f"with {label}" + (" (kept)" if i == 0 else ""))
+        ax.plot(
+            p["y"],
+            p["x"],
+            ".",
+            ms=2,
+            label=(label if label.startswith("without") else f"with {label}") + (" (kept)" if i == 0 else ""),
+        )
     ax.set_xlabel("y, east (m)")
     ax.set_ylabel("x, north (m)")
     ax.set_aspect("equal", adjustable="datalim")
