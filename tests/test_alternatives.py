@@ -105,6 +105,56 @@ def test_a_competitor_better_on_some_run_stays_an_alternative():
     assert [a["term"] for a in dv.alternatives(compared)["Nvvr"]] == ["Yvvdr"]
 
 
+@pytest.mark.parametrize("turn_ratio, kept", [(1.5, False), (1.0, True)])
+def test_a_term_that_makes_one_held_out_run_worse_does_not_carry_and_is_not_kept(turn_ratio, kept):
+    """Issue 49 (KVLCC2): a term that improves four zigzags' windows by a third passes the
+    pooled window test, but if it predicts a held-out turning circle worse than the model
+    without it, it is not kept, and the reason names the run."""
+    rng = np.random.default_rng(7)
+    ref = 0.6 * np.exp(0.15 * rng.standard_normal(28))
+    term = ref * np.exp(0.05 * rng.standard_normal(28))
+    term[:24] *= 0.67  # four zigzags of six windows each
+    term[24:] *= turn_ratio  # the turning circle's four windows
+    runs = np.repeat(np.arange(5), [6, 6, 6, 6, 4])
+    names = ["z1", "z2", "z3", "z4", "turn35"]
+    worst = dv._worst_run(_stage(ref), _stage(term), (runs, names), 0.1)
+    row = {
+        "delta_bic": -50.0,
+        "heldout_shrinkage": 0.2,
+        "window_p_value": dv.paired_window_test(ref, term),
+        "excess_removed": 0.3,
+        "worst_run": worst,
+    }
+    assert row["window_p_value"] < Thresholds().partial_p  # the pooled test alone would keep it
+    dv._decide(row, True, Thresholds())
+    assert row["kept"] is kept
+    if not kept:
+        assert worst["run"] == "turn35" and worst["error_ratio"] > 1.3
+        assert "turn35" in row["reason"] and "does not carry" in row["reason"]
+    assert dv._worst_run(_stage(ref), _stage(term), None, 0.1) is None  # without the runs' layout
+
+
+def test_a_kept_term_a_held_out_run_shows_worse_than_another_goes_after_it():
+    """The pooled held-out RMS favours the surrogate (it ties on three runs and is a little
+    better there), but the designed run shows it twice as far off: the hidden term goes first."""
+    rng = np.random.default_rng(3)
+    kept, other, runs = _two_structures(rng, 2.0)  # "other" worse on the designed run only
+    kept[15:], other[15:] = kept[15:] / 5.0, other[15:] / 5.0  # a run the models predict well
+    other[:15] *= 0.97  # within the margin elsewhere
+    ms = lambda w: Stage(None, None, {}, {"rms_position_m": float(np.sqrt(np.mean(w**2)))}, None, w)  # noqa: E731
+    stages = {"Nvabsvabsr": ms(other), "Nvvr": ms(kept)}
+    assert stages["Nvabsvabsr"].held["rms_position_m"] < stages["Nvvr"].held["rms_position_m"]
+    names = ["z1", "z2", "z3", "designed"]
+    assert dv.dominance_order(["Nvabsvabsr", "Nvvr"], stages, Thresholds(), (runs, names)) == ["Nvvr", "Nvabsvabsr"]
+    # without the runs' layout, or with runs that never separate them: by held-out RMS
+    by_rms = sorted(stages, key=lambda n: stages[n].held["rms_position_m"])
+    assert dv.dominance_order(["Nvvr", "Nvabsvabsr"], stages, Thresholds()) == by_rms
+    tie = {"A": ms(kept), "B": ms(kept * np.exp(0.01 * rng.standard_normal(kept.size)))}
+    assert dv.dominance_order(["B", "A"], tie, Thresholds(), (runs, names)) == sorted(
+        tie, key=lambda n: tie[n].held["rms_position_m"]
+    )
+
+
 def test_the_run_test_refuses_arrays_of_different_lengths():
     with pytest.raises(ValueError, match="differ in length"):
         dv.run_separation_test(np.ones(5), np.ones(5), np.zeros(4, int))
@@ -196,8 +246,10 @@ def test_the_designed_runs_separate_two_structures_and_none_separates_a_model_fr
     assert rows and rows == sorted(rows, key=lambda r: -r["separation"])
     kinds = {r["kind"] for r in rows}
     assert {"turning_circle", "zigzag", "pull_out"} <= kinds
-    for r in rows:  # the worst pair is always the model against itself
-        assert r["worst_pair"] == "N0 vs N0 again" and r["separation"] == pytest.approx(0.0, abs=1e-9)
+    for r in rows:  # no run separates the model from itself: not separable by the menu, not ranked on
+        assert r["pairs"]["N0 vs N0 again"] == pytest.approx(0.0, abs=1e-9)
+        assert set(r["menu_inseparable"]) == {"N0 vs N0 again"}
+        assert r["worst_pair"] in ("N0 vs Nabsdr", "Nabsdr vs N0 again") and r["separation"] > 0.0
         assert r["pairs"]["N0 vs Nabsdr"] >= 0.0
     best_pair = max(rows, key=lambda r: r["pairs"]["N0 vs Nabsdr"])
     assert best_pair["pairs"]["N0 vs Nabsdr"] > 5.0, best_pair
@@ -206,6 +258,25 @@ def test_the_designed_runs_separate_two_structures_and_none_separates_a_model_fr
     straight = next(r for r in rows if r["kind"] == "speed_change")
     assert straight["pairs"]["N0 vs Nabsdr"] > 5.0
     assert set(rows[0]["predicted"]) == set(stages)
+
+
+def test_runs_are_ranked_on_the_pairs_some_run_separates_and_the_others_are_named():
+    rows = [
+        {"name": "turn", "pairs": {"A vs B": 900.0, "A vs C": 4.0, "B vs C": 800.0}},
+        {"name": "zigzag", "pairs": {"A vs B": 50.0, "A vs C": 6.0, "B vs C": 60.0}},
+        {"name": "pull-out", "pairs": {"A vs B": 300.0, "A vs C": 1.0, "B vs C": float("nan")}},
+    ]
+    for r in rows:
+        r["separation"], r["worst_pair"] = min((v, k) for k, v in r["pairs"].items() if np.isfinite(v))
+    ranked = dz.rank_by_separable_pairs(rows, 20.0)
+    assert [r["name"] for r in ranked] == ["turn", "pull-out", "zigzag"]
+    assert ranked[0]["worst_pair"] == "B vs C" and ranked[0]["separation"] == 800.0
+    assert ranked[1]["worst_pair"] == "A vs B"  # B vs C not simulated on it
+    assert all(r["menu_inseparable"] == {"A vs C": {"best_run": "zigzag", "separation": 6.0}} for r in ranked)
+    # nothing separable: ranked on every pair, each named
+    ranked = dz.rank_by_separable_pairs(rows, 1e4)
+    assert set(ranked[0]["menu_inseparable"]) == {"A vs B", "A vs C", "B vs C"}
+    assert ranked[0]["name"] == "zigzag" and ranked[0]["separation"] == 6.0
 
 
 def _n0_against_nabsdr():
@@ -279,7 +350,11 @@ def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
     rows[1].update(kind="pull_out", side="port", rudder_deg=20, check_deg=None, rpm=600, duration_s=90)
     rows[1].update(separation=3.0, worst_pair="A vs B", max_position_difference_m=1.0)
     rows[0].update(rows[1] | {"name": rows[0]["name"], "inputs_csv": "design_runs/1_zigzag_20_20_port.csv"})
-    assert "`design_runs/1_zigzag_20_20_port.csv`" in "\n".join(_design_lines({"design": rows}))
+    text = "\n".join(_design_lines({"design": rows}))
+    assert "`design_runs/1_zigzag_20_20_port.csv`" in text and "Not separable" not in text
+    rows[0]["menu_inseparable"] = {"Nvvr vs Nvabsvabsr": {"best_run": "zigzag 20/20 port", "separation": 6.8}}
+    text = "\n".join(_design_lines({"design": rows}))
+    assert "**Not separable by the standard manoeuvres**: no run of the menu separates Nvvr from Nvabsvabsr" in text
 
 
 @pytest.mark.parametrize("argv", [["--alternatives", "0"], ["--no-design"], ["--alternatives", "-1"]])

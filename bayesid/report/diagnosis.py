@@ -402,11 +402,29 @@ def _design_lines(res: dict) -> list:
         "studies/closing_the_loop.py does: add the top run to `--heldout` "
         "(or `--train`) and diagnose again.",
         "",
+        *_inseparable_lines(rows),
         *(
             f"- Input schedule of run {i} ({r['name']}): `{r['inputs_csv']}`"
             for i, r in enumerate(rows, 1)
             if r.get("inputs_csv")
         ),
+        "",
+    ]
+
+
+def _inseparable_lines(rows: list) -> list:
+    """The pairs of alternatives that no run of the design's menu separates."""
+    pairs = (rows[0].get("menu_inseparable") or {}) if rows else {}
+    if not pairs:
+        return []
+    items = "; ".join(
+        f"{p.replace(' vs ', ' from ')} (best {fmt(v['separation'])} nats, {v['best_run']})" for p, v in pairs.items()
+    )
+    return [
+        f"**Not separable by the standard manoeuvres**: no run of the menu separates {items}, below the "
+        "design's threshold on every run. Those terms make the same force history in every standard run; the runs "
+        "above are ranked by the other pairs, and the runs you could add will not tell these apart. Keep them as "
+        "one finding (the force they share), or design a run outside the menu that makes their columns differ.",
         "",
     ]
 

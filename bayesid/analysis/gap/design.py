@@ -32,7 +32,10 @@ their rudder rate:
    log Bayes factor in favour of the right model of the two, in nats, if one of them is right:
    5 nats is a Bayes factor of about 150;
 5. a run separates the set only as well as its worst pair: runs are ranked by the smallest
-   pairwise divergence, and each row says which pair that is.
+   pairwise divergence, and each row says which pair that is; a pair that no run of the menu
+   separates (below ``DesignOptions.min_separation`` on every run) is reported as not separable
+   by the standard manoeuvres and the runs are ranked by the other pairs
+   (:func:`rank_by_separable_pairs`).
 
 Samples of one track are correlated beyond the measurement noise (the models' own errors persist
 over a window); the sum over samples ``sample_s`` apart, not every logged sample, keeps the
@@ -64,9 +67,15 @@ __all__ = [
     "STANDARD_RUNS",
     "standard_predictions",
     "design",
+    "rank_by_separable_pairs",
 ]
 
 _CHANNELS = ("x", "y", "psi")
+#: A designed run lasts at least this many protocol windows (when ``DesignOptions.duration_s`` is
+#: not given): the run-by-run separation test
+#: (:func:`bayesid.analysis.gap.verdict.run_separation_test`) has no power on a run of one or two
+#: windows.
+RUN_WINDOWS = 3
 
 
 @dataclass(frozen=True)
@@ -82,9 +91,15 @@ class DesignOptions:
     n_draws : int, default 8
         Parameter draws per alternative for its predictive spread (0: noise only).
     duration_s : float, optional
-        Length of each run, s (default: the training runs' median length, at least 90 s).
+        Length of each run, s (default: the training runs' median length, at least 90 s and, in
+        :func:`design`, at least :data:`RUN_WINDOWS` protocol windows).
     seed : int, default 0
         The draws and the pseudo-random rudder sequence.
+    min_separation : float, default 20.0
+        A pair of alternatives no run of the menu separates by more than this (nats) is *not
+        separable by the standard manoeuvres*: it is reported (``menu_inseparable``) and does not
+        rank the runs, which are ranked by the other pairs (the divergence sums correlated
+        samples, so this is a ranking threshold, not a Bayes factor).
 
     Raises
     ------
@@ -97,6 +112,7 @@ class DesignOptions:
     n_draws: int = 8
     duration_s: float | None = None
     seed: int = 0
+    min_separation: float = 20.0
 
     def __post_init__(self):
         if not 0 < self.max_rudder_deg <= 90:
@@ -107,6 +123,8 @@ class DesignOptions:
             raise ValueError(f"n_draws must be >= 0, got {self.n_draws}")
         if self.duration_s is not None and not self.duration_s > 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        if not self.min_separation >= 0:
+            raise ValueError(f"min_separation must be >= 0, got {self.min_separation}")
 
 
 @dataclass(frozen=True)
@@ -646,8 +664,11 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
     -------
     list of dict
         Best first: ``kind``, ``rudder_deg``, ``check_deg``, ``side``, ``rpm``, ``duration_s``,
-        ``name``, ``separation`` (the smallest pairwise divergence, nats), ``worst_pair``,
-        ``pairs`` (``{"A vs B": divergence}``), ``max_position_difference_m`` (largest distance
+        ``name``, ``separation`` (the smallest pairwise divergence, nats, over the pairs some
+        run of the menu separates: :func:`rank_by_separable_pairs`), ``worst_pair``,
+        ``pairs`` (``{"A vs B": divergence}``), ``menu_inseparable`` (``{"A vs B": {"best_run",
+        "separation"}}``: the pairs no run of the menu separates by more than
+        ``options.min_separation``, the same on every row), ``max_position_difference_m`` (largest distance
         between two alternatives' predicted positions at one sample), ``inputs`` (``{"t" s,
         "delta_r" rad, "n" rpm}``: the run's input schedule, :func:`run_inputs`) and ``predicted``
         (``{label: {"t", "x", "y", "psi"}}``, the estimates' predictions over the windows, for
@@ -664,6 +685,8 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
     labels = list(stages)
     best = stages[labels[0]]
     approach = approach_condition(setup.train)
+    if options.duration_s is None and setup.window_s:  # enough windows for the run test to see it
+        approach = {**approach, "duration_s": max(approach["duration_s"], RUN_WINDOWS * float(setup.window_s))}
     sd = pooled_noise_sd(setup.train)
     noise_var = np.array([sd.get(c, 0.0) ** 2 for c in _CHANNELS]) + 1e-12
     # the error a prediction makes beyond the parameters' spread: the measurement noise, or the
@@ -712,4 +735,42 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
                 },
             }
         )
-    return sorted(out, key=lambda r: -r["separation"])
+    return rank_by_separable_pairs(out, options.min_separation)
+
+
+def rank_by_separable_pairs(rows: list, min_separation: float) -> list:
+    """Rank designed runs by their worst pair among the pairs some run separates.
+
+    A pair of alternatives whose divergence stays below ``min_separation`` on every run of the
+    menu cannot be told apart by any of the standard manoeuvres (their terms make the same force
+    history in all of them, e.g. ``v^2 r`` and ``v |v| |r|`` where ``v r < 0`` throughout); ranking
+    the runs by it would rank them by noise. Such pairs are listed in every row's
+    ``menu_inseparable`` and the runs are ranked by the smallest divergence of the other pairs
+    (all pairs when none is separable).
+
+    Parameters
+    ----------
+    rows : list of dict
+        Designed runs, each with ``pairs`` (``{"A vs B": divergence, nats}``).
+    min_separation : float
+        The divergence (nats) a pair's best run must exceed to count as separable.
+
+    Returns
+    -------
+    list of dict
+        The rows, best first, each with ``separation``, ``worst_pair`` and ``menu_inseparable``
+        (``{pair: {"best_run", "separation"}}``) set.
+    """
+    best: dict = {}
+    for r in rows:
+        for pair, v in r["pairs"].items():
+            if np.isfinite(v) and (pair not in best or v > best[pair][1]):
+                best[pair] = (r["name"], float(v))
+    inseparable = {k: {"best_run": b[0], "separation": b[1]} for k, b in best.items() if b[1] < min_separation}
+    ranked = [k for k in best if k not in inseparable] or list(best)
+    for r in rows:
+        finite = {k: r["pairs"][k] for k in ranked if np.isfinite(r["pairs"].get(k, np.nan))}
+        worst = min(finite, key=finite.get) if finite else r["worst_pair"]
+        r["separation"], r["worst_pair"] = (float(finite[worst]) if finite else r["separation"]), worst
+        r["menu_inseparable"] = inseparable
+    return sorted(rows, key=lambda r: -r["separation"])

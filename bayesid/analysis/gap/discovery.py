@@ -33,9 +33,13 @@ asks the next question, "what term is the model missing?", in four steps:
    same multiple-shooting fit ``bayesid fit`` uses, with the reference fit's channel weights; it is **kept** only if it passes the gap diagnosis's contributor test on
    the held-out windows (:func:`bayesid.analysis.gap.verdict.is_contributor`: training ΔBIC <= -10,
    held-out shrinkage > 0, and a one-sided Wilcoxon test of the paired per-window errors
-   p < 0.01 or half the excess over the noise floor removed). Terms that fit the training runs but
+   p < 0.01 or half the excess over the noise floor removed) and predicts no held-out run
+   significantly worse than the reference model (the run test of
+   :func:`bayesid.analysis.gap.verdict.run_separation_test`, same level: a term chosen on one
+   kind of run that makes another kind worse does not carry). Terms that fit the training runs but
    not the held-out ones are reported as rejected with their numbers. The kept terms are then
-   added together, best first, each further one refitted on top of those added and kept only if
+   added together, best first (a term some held-out run shows worse than another kept term after
+   it: :func:`dominance_order`), each further one refitted on top of those added and kept only if
    it passes the same test against them while the held-out error is still above the floor band.
 
 :func:`discover` runs the whole search from a reference model (the diagnosis's model after its
@@ -73,6 +77,10 @@ __all__ = [
     "select_terms",
     "score_test",
     "alternatives",
+    "compare_structures",
+    "separated",
+    "window_runs",
+    "dominance_order",
     "fit_term",
     "with_terms",
     "discover",
@@ -182,7 +190,8 @@ class Discovery:
         ``heldout_rms_before_m``, ``heldout_rms_after_m`` (and per window,
         ``heldout_windows_after_m``), ``train_rms_before_m``,
         ``train_rms_after_m``, ``shrinkage``, ``delta_bic``, ``window_p_value``,
-        ``excess_removed``, ``kept`` and ``reason``.
+        ``excess_removed``, ``worst_run`` (the held-out run the refit predicts worst against
+        the reference: ``run``, ``error_ratio``, ``p_value``), ``kept`` and ``reason``.
     inclusion : dict
         ``{term: inclusion probability}`` of every candidate with a non-zero one, best first.
     residuals : dict
@@ -1011,9 +1020,20 @@ def fit_term(task: TermFit) -> tuple[Stage | None, list]:
     return score_stage(model, best, ct, ch, task.sd_fit), messages
 
 
-def _row(term: str, st: Stage | None, ref: Stage, sel: dict | None, floor_rms: float, sd: float | None = None) -> dict:
+def _row(
+    term: str,
+    st: Stage | None,
+    ref: Stage,
+    sel: dict | None,
+    floor_rms: float,
+    sd: float | None = None,
+    runs: tuple | None = None,
+    margin: float = 0.1,
+) -> dict:
     """The ``discovered`` record of a refitted candidate (``sel``: the selection's numbers, None
-    for a term refitted on top of others; ``sd``: its coefficient's Laplace sd)."""
+    for a term refitted on top of others; ``sd``: its coefficient's Laplace sd; ``runs``:
+    ``(run of each held-out window, run names)`` of :func:`window_runs`, for the run test of
+    :func:`_worst_run` at the relative ``margin``)."""
     sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
     row = {
         "term": term,
@@ -1043,16 +1063,52 @@ def _row(term: str, st: Stage | None, ref: Stage, sel: dict | None, floor_rms: f
         "window_p_value": paired_window_test(ref.windows, st.windows),
         "heldout_windows_after_m": [float(x) for x in st.windows],
         "excess_removed": (before - after) / excess if excess > 0 else 0.0,
+        "worst_run": _worst_run(ref, st, runs, margin),
     }
+
+
+def _worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict | None:
+    """The held-out run on which a refit predicts worst against its reference model: ``{"run",
+    "error_ratio", "p_value"}`` of the run test (:func:`run_separation_test` with the reference
+    first: the refit's window errors above the reference's by more than ``margin`` on one run,
+    Bonferroni over the runs), None without the runs' layout. A term that passes the pooled
+    window test while one run's windows are significantly worse does not carry to that run."""
+    if runs is None:
+        return None
+    idx, names = runs
+    a, b = np.asarray(ref.windows, float), np.asarray(st.windows, float)
+    if not (a.shape == b.shape == np.shape(idx)):
+        return None
+    res = run_separation_test(a, b, np.asarray(idx), margin)
+    i = res["run_second_worse"]
+    if i is None:
+        return None
+    return {"run": _run_name(names, i), "error_ratio": res["ratio_by_run"].get(i), "p_value": res["p_second_worse"]}
+
+
+def _passes(row: dict, significant: bool, th: Thresholds) -> bool:
+    """The kept test: the contributor test (:func:`is_contributor`) and no held-out run
+    predicted significantly worse than by the reference model (:func:`_worst_run` at
+    ``th.partial_p``)."""
+    worst = row.get("worst_run") or {}
+    harms = worst.get("p_value") is not None and worst["p_value"] < th.partial_p
+    return is_contributor(row, significant, th) and not harms
 
 
 def _decide(row: dict, significant: bool, th: Thresholds) -> None:
     """Set ``kept`` and ``reason`` of a refitted candidate by the contributor test."""
     if "kept" in row:
         return
-    row["kept"] = is_contributor(row, significant, th)
+    row["kept"] = _passes(row, significant, th)
+    worst = row.get("worst_run") or {}
     if row["kept"]:
         row["reason"] = "improves the held-out windows (contributor test)"
+    elif is_contributor(row, significant, th):
+        row["reason"] = (
+            f"improves the held-out windows overall but predicts run {worst['run']} worse than the model "
+            f"without it (window errors x{worst['error_ratio']:.2f}, run test p = {worst['p_value']:.2g}): "
+            "it does not carry to that run"
+        )
     elif not significant:
         row["reason"] = "the gap is not significant: nothing to explain"
     elif row.get("refit_failed"):
@@ -1183,11 +1239,13 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
     -------
     dict
         ``{kept term: [{"term", "passed_kept_test", "coefficient", "heldout_rms_m",
-        "window_p_value", "run_p_value", "separating_run", "run_error_ratio", "separable",
-        "heldout_rms_by_run_m"}, ...]}``, best first (lowest held-out RMS). ``window_p_value``:
+        "window_p_value", "run_p_value", "separating_run", "run_error_ratio", "kept_worse_run",
+        "kept_worse_run_p_value", "separable", "heldout_rms_by_run_m"}, ...]}``, best first (lowest held-out RMS). ``window_p_value``:
         the pooled test's p; ``run_p_value``: the run test's (None without ``runs``);
         ``separating_run`` and ``run_error_ratio``: the run with the strongest evidence that
-        ``a`` is worse and its geometric-mean error ratio ``a / k``; ``heldout_rms_by_run_m``
+        ``a`` is worse and its geometric-mean error ratio ``a / k``; ``kept_worse_run`` and
+        ``kept_worse_run_p_value``: the converse (a run on which ``k`` is significantly worse
+        than ``a``, or None; its p); ``heldout_rms_by_run_m``
         ``{held-out run: position RMS, m}``.
     """
     out = {}
@@ -1205,7 +1263,13 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
                 continue
             aw = np.asarray(stages[a].windows)
             p = paired_window_test(aw, kw)
-            run = {"p_second_worse": None, "p_first_worse": 1.0, "run_second_worse": None, "ratio_by_run": {}}
+            run = {
+                "p_second_worse": None,
+                "p_first_worse": 1.0,
+                "run_second_worse": None,
+                "run_first_worse": None,
+                "ratio_by_run": {},
+            }
             if runs is not None and len(runs) == len(kw) == len(aw):
                 run = run_separation_test(kw, aw, np.asarray(runs), th.separation_margin)
             i = run["run_second_worse"]
@@ -1225,6 +1289,10 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
                     "run_p_value": run["p_second_worse"],
                     "separating_run": None if i is None else _run_name(run_names, i),
                     "run_error_ratio": by_run.get(i) if i is not None else None,
+                    "kept_worse_run": None
+                    if run["run_first_worse"] is None or run["p_first_worse"] >= th.partial_p
+                    else _run_name(run_names, run["run_first_worse"]),
+                    "kept_worse_run_p_value": run["p_first_worse"] if runs is not None else None,
                     "separable": bool(separated),
                     "heldout_rms_by_run_m": _by_run(stages[a]),
                 }
@@ -1315,15 +1383,61 @@ def _named_alternatives(found: list, alts: dict) -> list[str]:
     return out
 
 
+def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None = None) -> list:
+    """The kept terms, best first: a term the held-out runs show to be worse than another kept
+    term comes after it, the rest by held-out position RMS.
+
+    Term ``a`` *dominates* ``b`` when some held-out run predicts ``b`` significantly worse than
+    ``a`` and none predicts ``a`` significantly worse than ``b`` (the run-by-run test of
+    :func:`compare_structures`, :func:`~bayesid.analysis.gap.verdict.run_separation_test`, at
+    ``th.partial_p`` with ``th.separation_margin``). The pooled held-out RMS alone would put
+    first a term that ties on many runs and loses clearly on one, such as a designed run added
+    to separate it from the hidden term.
+
+    Parameters
+    ----------
+    kept : list of str
+        Terms that passed the kept test alone.
+    stages : dict
+        ``{term: Stage}``, each with ``held["rms_position_m"]`` and per-window ``windows``.
+    th : Thresholds
+        ``partial_p`` and ``separation_margin``.
+    runs : tuple, optional
+        ``(run of each held-out window, run names)`` (:func:`window_runs`); without it the
+        order is by held-out RMS.
+
+    Returns
+    -------
+    list of str
+        The terms ordered by (number of kept terms that dominate it, held-out RMS).
+    """
+    beaten = dict.fromkeys(kept, 0)
+    if runs is not None:
+        idx = np.asarray(runs[0])
+        for i, a in enumerate(kept):
+            for b in kept[i + 1 :]:
+                wa, wb = np.asarray(stages[a].windows, float), np.asarray(stages[b].windows, float)
+                if not wa.shape == wb.shape == idx.shape:
+                    continue
+                res = run_separation_test(wa, wb, idx, th.separation_margin)
+                b_worse, a_worse = res["p_second_worse"] < th.partial_p, res["p_first_worse"] < th.partial_p
+                if b_worse and not a_worse:
+                    beaten[b] += 1
+                elif a_worse and not b_worse:
+                    beaten[a] += 1
+    return sorted(kept, key=lambda n: (beaten[n], stages[n].held["rms_position_m"]))
+
+
 def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple, initial: dict):
-    """Add the kept terms together, best first: each further term is refitted on top of those
-    added (all coefficients re-identified) and stays only if it passes the contributor test
-    against them while their held-out error is still above the floor band. ``fit_args``:
-    ``(effects, channel weights, iterations)``; ``floor``: ``(noise floor RMS, thresholds)``;
-    ``initial``: each term's value in the reference (:func:`reference_values`)."""
+    """Add the kept terms together, best first (:func:`dominance_order`): each further term is refitted on top of those
+    added (all coefficients re-identified) and stays only if it passes the kept test
+    (:func:`_passes`) against them while their held-out error is still above the floor band.
+    ``fit_args``: ``(effects, channel weights, iterations)``; ``floor``: ``(noise floor RMS,
+    thresholds, runs)`` with ``runs`` as :func:`window_runs` returns it; ``initial``: each term's
+    value in the reference (:func:`reference_values`)."""
     effects, sd_fit, max_nfev = fit_args
-    floor_rms, th = floor
-    order = sorted(kept, key=lambda n: stages[n].held["rms_position_m"])
+    floor_rms, th, runs = floor
+    order = dominance_order(kept, stages, th, runs)
     found, cur, values = [order[0]], stages[order[0]], {order[0]: stages[order[0]].fit.coefficients()[order[0]]}
     for n in order[1:]:
         if cur.held["rms_position_m"] <= th.none_ratio * floor_rms:
@@ -1343,8 +1457,8 @@ def _combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple
         except Exception:  # noqa: BLE001 - the combination is skipped
             continue
         st = score_stage(model, f, ct, ch, sd_fit)
-        row = _row(n, st, cur, None, floor_rms)
-        if is_contributor(row, True, th):
+        row = _row(n, st, cur, None, floor_rms, runs=runs, margin=th.separation_margin)
+        if _passes(row, True, th):
             found.append(n)
             cur = st
             values = {k: f.coefficients()[k] for k in found}
@@ -1470,6 +1584,7 @@ def discover(
         for n in refit
     ]
     outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
+    runs, run_names = window_runs(setup, ref.model)
     discovered, stages, fitted = [], {}, {}
     for n, out in zip(refit, outs):
         st = None if isinstance(out, TaskError) else out[0]
@@ -1478,7 +1593,7 @@ def discover(
             if isinstance(m, str):
                 runner.say(f"discovery: {m}")
         sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
-        row = _row(n, st, ref, sel, floor_rms, sd)
+        row = _row(n, st, ref, sel, floor_rms, sd, (runs, run_names), th.separation_margin)
         row["refitted_as"] = "alternative" if n in pool else "selected"
         _decide(row, significant, th)
         discovered.append(row)
@@ -1494,10 +1609,9 @@ def discover(
             ref,
             setup,
             (tuple(effects), ctx["sd_fit"], options.max_nfev),
-            (floor_rms, th),
+            (floor_rms, th, (runs, run_names)),
             initial,
         )
-    runs, run_names = window_runs(setup, ref.model)
     compared = compare_structures(found, discovered, fitted, th, runs, run_names)
     alts = alternatives(compared)
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
