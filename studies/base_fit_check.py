@@ -269,6 +269,9 @@ def write_report(out: Path, s: dict, rows: list[dict], command: str) -> None:
 
 
 def main() -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     from bayesid.report import prepare_out, write_json, write_manifest
 

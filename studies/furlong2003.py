@@ -115,6 +115,9 @@ def case_json(case, res, true_cost):
 
 
 def main():
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     t_start = time.perf_counter()
     out = prepare_out(args.out)

@@ -395,6 +395,9 @@ def write_report(out: Path, res: dict, args) -> None:
 
 
 def main() -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     if args.render:  # the report again from the run's results.json (figures and numbers unchanged)
         import json

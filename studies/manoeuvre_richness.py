@@ -141,6 +141,9 @@ def monte_carlo_sd(vehicle, m, case, theta_true, n, rng, quick, w, jobs=1, sched
 
 
 def main():
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     t_start = time.perf_counter()
     out = prepare_out(args.out)

@@ -699,6 +699,9 @@ def _sloppiest_sentence(v: dict, d: dict) -> str:
 
 
 def main():
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     t_start = time.perf_counter()
     out = prepare_out(args.out)

@@ -518,6 +518,9 @@ def marin_coverage(res, args, rng):
 
 
 def main() -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from bayesid.data import datasets

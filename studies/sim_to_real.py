@@ -607,6 +607,9 @@ def summarise(results: list[dict]) -> dict:
 
 
 def main():
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     from bayesid.report import plots, prepare_out, write_json, write_manifest
 

@@ -302,6 +302,9 @@ def write_report(out: Path, rows: list, args) -> dict:
 
 
 def main() -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")  # the study writes its figures, it never shows them
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two cases, short runs, few iterations (a smoke test)")
     ap.add_argument("--out", default="reports/structure_discovery")

@@ -120,6 +120,9 @@ def main(argv=None) -> int:
         The exit code: 0, or 2 after an error message on stderr (``error: ...``) for a bad
         input. argparse's own usage errors, ``--help`` and ``--version`` exit through SystemExit.
     """
+    import matplotlib
+
+    matplotlib.use("Agg")  # the commands write their figures, they never show them
     try:
         args = build_parser().parse_args(argv)
     except OptionError as e:

@@ -1,17 +1,64 @@
-"""Figures for reports (matplotlib). No algorithm lives here: every function takes results
-already computed and writes one PNG (``plot_alternatives`` takes and returns axes). The module
-does not choose a backend: matplotlib picks a non-interactive one where there is no display, and
-a notebook keeps its own."""
+"""Figures for reports (matplotlib). No algorithm lives here: every figure function takes
+results already computed, draws them onto the axes it is given (``ax=``, or ``axes=`` for a
+figure of several panels, in the shape its docstring gives) or onto a new figure, and returns
+those axes. Given a ``path`` (the argument after the data, as the reports and the study scripts
+pass it), it writes the figure there as a PNG, closes it and returns the path instead.
+
+The posterior figures (:func:`walker_traces`, :func:`rank_histograms`, :func:`pair_scatter`) are
+ArviZ's (``az.plot_trace``, ``az.plot_rank``, ``az.plot_pair``) on the draws they are given.
+
+The module never chooses a backend (no ``matplotlib.use``): the program that runs it does (where
+it does not, matplotlib picks a non-interactive one when there is no display), and a notebook
+keeps its own."""
 
 from __future__ import annotations
 
+import math
 import textwrap
+import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
 from ..data import terms
+
+__all__ = [
+    "track_xy",
+    "inputs_time",
+    "position_error",
+    "coefficient_ratios",
+    "convergence",
+    "singular_values",
+    "walker_traces",
+    "rank_histograms",
+    "pair_scatter",
+    "correlation_heatmap",
+    "fim_spectra",
+    "marginals_vs_truth",
+    "inclusion_heatmap",
+    "cross_prediction",
+    "design_inputs",
+    "predicted_vs_measured",
+    "gap_ranking",
+    "gap_channels",
+    "gap_regions",
+    "window_tracks",
+    "window_scatter",
+    "confusion_matrix",
+    "turning_band",
+    "multistart",
+    "reliability",
+    "prediction_band",
+    "prior_posterior_marginals",
+    "importance_weights",
+    "training_fit",
+    "MARK_GID",
+    "mark_indices",
+    "simulated_run",
+    "plot_alternatives",
+]
 
 
 def _save(fig, path):
@@ -21,7 +68,57 @@ def _save(fig, path):
     return Path(path)
 
 
-def track_xy(tracks: dict, path, title: str = ""):
+def _done(fig, axes, path):
+    """What a figure function returns: ``axes`` when no ``path``; else ``fig`` written to ``path``
+    (:func:`_save`: closed) and the path."""
+    return axes if path is None else _save(fig, path)
+
+
+def _axes(ax, figsize):
+    """(figure, axes) to draw on: ``ax`` and its figure, or a new figure of ``figsize`` (in)."""
+    if ax is None:
+        return plt.subplots(figsize=figsize)
+    return ax.figure, ax
+
+
+def _panels(axes, shape, make, name):
+    """(figure, ndarray of Axes of ``shape``) to draw on: ``axes`` (any array-like of as many
+    Axes, of one figure), or the ones ``make()`` returns with their figure.
+
+    Raises
+    ------
+    ValueError
+        ``axes`` holds another number of Axes than ``shape`` asks.
+    """
+    if axes is None:
+        fig, made = make()
+        return fig, np.asarray(made, dtype=object).reshape(shape)
+    given = np.asarray(axes, dtype=object)
+    if given.size != math.prod(shape):
+        raise ValueError(
+            f"{name} draws on axes of shape {shape}: {math.prod(shape)} Axes, got {given.size} "
+            f"(shape {given.shape}); pass axes=None for a new figure"
+        )
+    return given.flat[0].figure, given.reshape(shape)
+
+
+@contextmanager
+def _arviz():
+    """ArviZ, imported at first use (it takes ~2 s), quiet about what the figures' users cannot act
+    on: its import-time notice of a coming refactor, its use of a matplotlib call deprecated in
+    3.11, more chains than draws (the walkers are the chains) and a trace of one draw (the
+    burn-in's steps are drawn beside it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        warnings.filterwarnings("ignore", "Passing a dict or None as alias_mapping", DeprecationWarning)
+        warnings.filterwarnings("ignore", "More chains", UserWarning)
+        warnings.filterwarnings("ignore", "Attempting to set identical low and high xlims", UserWarning)
+        import arviz as az
+
+        yield az
+
+
+def track_xy(tracks: dict, path=None, title: str = "", *, ax=None):
     """X-Y plot of tracks (name -> Track); north up, east right (x north, y east, NED).
 
     Parameters
@@ -29,17 +126,19 @@ def track_xy(tracks: dict, path, title: str = ""):
     tracks : dict of str to Track
         Name -> Track: its ``"x"`` and ``"y"`` (m) drawn as a line, its first sample as a dot; a
         legend when there are several.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The axes' title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = _axes(ax, (6, 6))
     for name, tr in tracks.items():
         ax.plot(tr["y"], tr["x"], label=name, lw=1.2)
         ax.plot(tr["y"][0], tr["x"][0], "k.", ms=6)
@@ -50,10 +149,10 @@ def track_xy(tracks: dict, path, title: str = ""):
     if len(tracks) > 1:
         ax.legend(fontsize=8)
     ax.set_title(title)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def inputs_time(track, path, title: str = ""):
+def inputs_time(track, path=None, title: str = "", *, axes=None):
     """Rudder angle (deg) and propeller speed (rpm) against time.
 
     Parameters
@@ -61,17 +160,19 @@ def inputs_time(track, path, title: str = ""):
     track : Track
         The track: its ``"delta_r"`` (rad, drawn in deg) and ``"n"`` (rpm) against its times ``t``
         (s), one panel each.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The top panel's title.
+    axes : array_like of matplotlib.axes.Axes, shape (2,), optional
+        The rudder and the propeller panels (default: a new figure of two panels sharing x).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (2,); with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(2, 1, figsize=(7, 4), sharex=True)
+    fig, ax = _panels(axes, (2,), lambda: plt.subplots(2, 1, figsize=(7, 4), sharex=True), "inputs_time")
     ax[0].plot(track.t, np.degrees(track["delta_r"]))
     ax[0].set_ylabel("rudder, deg")
     ax[1].plot(track.t, track["n"])
@@ -80,10 +181,10 @@ def inputs_time(track, path, title: str = ""):
     for a in ax:
         a.grid(alpha=0.3)
     ax[0].set_title(title)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def position_error(t, errors: dict, path, title: str = ""):
+def position_error(t, errors: dict, path=None, title: str = "", *, axes=None):
     """Horizontal position error against time, one panel per entry, like the paper's Fig. 2 (each
     panel its own scale).
 
@@ -94,30 +195,34 @@ def position_error(t, errors: dict, path, title: str = ""):
     errors : dict of str to ndarray, shape (n,)
         Name -> horizontal position error, m (drawn in mm; each panel titled with the name and the
         largest error).
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The figure's title (none when empty).
+    axes : array_like of matplotlib.axes.Axes, shape (len(errors),), optional
+        One panel per entry of ``errors`` (default: a new figure of panels sharing x).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (len(errors),); with ``path``, ``path`` (the PNG written).
     """
     n = len(errors)
-    fig, ax = plt.subplots(n, 1, figsize=(7, 2.2 * n), sharex=True, squeeze=False)
-    for a, (name, e) in zip(ax[:, 0], errors.items()):
+    fig, ax = _panels(
+        axes, (n,), lambda: plt.subplots(n, 1, figsize=(7, 2.2 * n), sharex=True, squeeze=False), "position_error"
+    )
+    for a, (name, e) in zip(ax, errors.items()):
         a.plot(t, e * 1e3)
         a.set_ylabel("error, mm")
         a.set_title(f"{name}: max {np.nanmax(e) * 1e3:.3g} mm", fontsize=9)
         a.grid(alpha=0.3)
-    ax[-1, 0].set_xlabel("time, s")
+    ax[-1].set_xlabel("time, s")
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def coefficient_ratios(names, start, converged, known, path, title: str = "", lower=None, upper=None):
+def coefficient_ratios(names, start, converged, known, path=None, title: str = "", lower=None, upper=None, *, ax=None):
     """Estimated/true ratio per coefficient grouped X | Y | N, like the paper's Figs. 3-5.
 
     Parameters
@@ -130,8 +235,8 @@ def coefficient_ratios(names, start, converged, known, path, title: str = "", lo
         Name -> converged ratio, for the free ones (dots); holds every name of ``start``.
     known : dict of str to float
         Name -> ratio for known (fixed) ones, drawn as crosses.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The axes' title.
     lower : dict of str to float, optional
@@ -139,16 +244,18 @@ def coefficient_ratios(names, start, converged, known, path, title: str = "", lo
         bar.
     upper : dict of str to float, optional
         Name -> upper bound ratio; holds every name of ``lower``.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     groups = [g for g in ("X", "Y", "N") if any(terms.term(n).group == g for n in names)]
     order = [n for g in groups for n in names if terms.term(n).group == g]
     xs = np.arange(len(order))
-    fig, ax = plt.subplots(figsize=(max(7, 0.38 * len(order)), 4))
+    fig, ax = _axes(ax, (max(7, 0.38 * len(order)), 4))
     for i, n in enumerate(order):
         if lower and n in lower:
             ax.plot([i, i], [lower[n], upper[n]], color="0.8", lw=3, zorder=0)
@@ -183,27 +290,29 @@ def coefficient_ratios(names, start, converged, known, path, title: str = "", lo
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(title, pad=16)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def convergence(histories: dict, path, title: str = ""):
+def convergence(histories: dict, path=None, title: str = "", *, ax=None):
     """Cost against iteration (log scale) for several fits.
 
     Parameters
     ----------
     histories : dict of str to list of float
         Label -> the fit's cost at each iteration (non-positive costs are not drawn).
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The axes' title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = _axes(ax, (7, 4))
     for label, costs in histories.items():
         c = np.asarray(costs, dtype=float)
         ax.semilogy(np.arange(c.size), np.where(c > 0, c, np.nan), label=label, lw=1.2)
@@ -212,10 +321,10 @@ def convergence(histories: dict, path, title: str = ""):
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     ax.set_title(title)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def singular_values(svals: dict, path, title: str = ""):
+def singular_values(svals: dict, path=None, title: str = "", *, ax=None):
     """Normalised singular values of the residual Jacobian at the optimum, per case.
 
     Parameters
@@ -223,17 +332,19 @@ def singular_values(svals: dict, path, title: str = ""):
     svals : dict of str to array_like
         Case label -> the singular values, largest first; drawn divided by the first (log scale)
         against their index, from 1.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The axes' title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = _axes(ax, (7, 4))
     for label, s in svals.items():
         s = np.asarray(s, dtype=float)
         ax.semilogy(np.arange(1, s.size + 1), s / s[0], "o-", label=label, ms=4)
@@ -242,11 +353,24 @@ def singular_values(svals: dict, path, title: str = ""):
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     ax.set_title(title)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def walker_traces(chains: np.ndarray, names, show, path, burn: int = 0, truth: dict | None = None, title: str = ""):
-    """Trace of every walker for the coefficients ``show``; colour = ensemble.
+def walker_traces(
+    chains: np.ndarray,
+    names,
+    show,
+    path=None,
+    burn: int = 0,
+    truth: dict | None = None,
+    title: str = "",
+    *,
+    axes=None,
+):
+    """Trace of every walker for the coefficients ``show`` (colour = ensemble) and the density of
+    their draws after burn-in: ArviZ's ``plot_trace`` with each walker as one chain.
+
+    The steps before ``burn`` are drawn in the trace too (shaded), not in the density.
 
     Parameters
     ----------
@@ -255,89 +379,127 @@ def walker_traces(chains: np.ndarray, names, show, path, burn: int = 0, truth: d
     names : sequence of str
         The P coefficient names, in the order of the last axis of ``chains``.
     show : sequence of str
-        The coefficients drawn, one panel each.
-    path : str or Path
-        The PNG written.
+        The coefficients drawn, one row of panels each.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     burn : int, default 0
-        Steps shaded as burn-in (0: none).
+        Steps shaded as burn-in and left out of the density (0: none).
     truth : dict of str to float, optional
         Name -> true value, a dashed line.
     title : str, default ""
         The figure's title (none when empty).
+    axes : array_like of matplotlib.axes.Axes, shape (len(show), 2), optional
+        Per coefficient, the density (left) and the trace (right) panel, as ``az.plot_trace``
+        takes them (default: a new figure, the traces three times as wide as the densities).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (len(show), 2); with ``path``, ``path`` (the PNG written).
     """
     E, N, W, _ = chains.shape
+    k = len(show)
+    fig, axes = _panels(
+        axes,
+        (k, 2),
+        lambda: plt.subplots(k, 2, figsize=(10, 1.5 * k + 0.6), squeeze=False, gridspec_kw={"width_ratios": [1, 3]}),
+        "walker_traces",
+    )
+    steps = np.arange(0, N, max(1, N // 1500))
+    x = chains[:, steps][..., [list(names).index(n) for n in show]]  # (E, steps, W, k)
+    kept = steps >= burn if np.any(steps >= burn) else np.ones(steps.size, bool)
+    walkers = x[:, kept].transpose(0, 2, 1, 3).reshape(E * W, kept.sum(), k)  # chain e * W + w
     colors = plt.cm.tab10(np.arange(E) % 10)
-    fig, axes = plt.subplots(len(show), 1, figsize=(8, 1.5 * len(show) + 0.6), sharex=True, squeeze=False)
-    step = np.arange(N)
-    stride = max(1, N // 1500)
-    for a, n in zip(axes[:, 0], show):
-        j = list(names).index(n)
-        for e in range(E):
-            a.plot(step[::stride], chains[e, ::stride, :, j], color=colors[e], lw=0.3, alpha=0.25)
-        if truth and n in truth:
-            a.axhline(truth[n], color="k", lw=1.0, ls="--")
+    with _arviz() as az:
+        idata = az.from_dict(posterior={n: walkers[..., i] for i, n in enumerate(show)}, coords={"draw": steps[kept]})
+        az.plot_trace(
+            idata,
+            var_names=list(show),
+            combined=True,
+            chain_prop={"color": [*np.repeat(colors, W, axis=0), "k"]},  # the last: the combined density
+            trace_kwargs={"linewidth": 0.3, "alpha": 0.25},
+            axes=axes,
+        )
+    early = np.flatnonzero(~kept)
+    if early.size:  # the burn-in's traces, joined to the first step kept
+        early = np.append(early, early[-1] + 1) if early[-1] + 1 < steps.size else early
+    for i, n in enumerate(show):
+        a = axes[i, 1]
+        for e in range(E if early.size else 0):
+            a.plot(steps[early], x[e, early, :, i], color=colors[e], lw=0.3, alpha=0.25)
         if burn:
             a.axvspan(0, burn, color="0.85", zorder=0)
-        a.set_ylabel(n, fontsize=8)
-        a.tick_params(labelsize=7)
-    axes[-1, 0].set_xlabel("step (grey: burn-in; dashed: truth; colour: ensemble)")
+        if truth and n in truth:
+            a.axhline(truth[n], color="k", lw=1.0, ls="--")
+            axes[i, 0].axvline(truth[n], color="k", lw=1.0, ls="--")
+        a.set_xlim(0, steps[-1])
+    axes[-1, 0].set_xlabel("after burn-in, all walkers", fontsize=8)
+    axes[-1, 1].set_xlabel("step (grey: burn-in; dashed: truth; colour: ensemble)")
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
-def rank_histograms(draws: dict, path, title: str = ""):
-    """Rank plots (Vehtari et al. 2021, Sec. 4.1) with each ensemble's pooled draws as one chain.
+def rank_histograms(draws: dict, path=None, title: str = "", *, axes=None):
+    """Rank plots (Vehtari et al. 2021, Sec. 4.1) with each ensemble's pooled draws as one chain:
+    ArviZ's ``plot_rank``.
 
-    One row per coefficient: the ranks of all its draws together, in 20 bins, as one bar per
-    ensemble, and a line at the uniform expectation. Uniform bars in every row = the ensembles
-    sample the same distribution.
+    One panel per coefficient: the ranks of all its draws together, in 20 bins, as one row of
+    bars per ensemble, each with a dashed line at the uniform expectation. Uniform bars in every
+    row = the ensembles sample the same distribution.
 
     Parameters
     ----------
     draws : dict of str to ndarray, shape (n_ensembles, n_draws)
         Name -> the draws, one row per ensemble.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The figure's title (none when empty).
+    axes : array_like of matplotlib.axes.Axes, shape (len(draws),), optional
+        One panel per coefficient (default: a new figure of panels one above the other).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (len(draws),); with ``path``, ``path`` (the PNG written).
     """
-    from scipy.stats import rankdata
-
     names = list(draws)
-    fig, axes = plt.subplots(len(names), 1, figsize=(6, 1.2 * len(names) + 0.6), squeeze=False)
-    for a, n in zip(axes[:, 0], names):
-        x = np.asarray(draws[n])
-        E, D = x.shape
-        r = rankdata(x.ravel()).reshape(E, D)
-        bins = np.linspace(0, E * D, 21)
-        for e in range(E):
-            h, _ = np.histogram(r[e], bins=bins)
-            a.bar(np.arange(20) + e / (E + 1), h, width=1 / (E + 1), align="edge", alpha=0.8)
-        a.axhline(D / 20, color="k", lw=0.8)
-        a.set_ylabel(n, fontsize=8)
-        a.set_yticks([])
-        a.set_xticks([])
-    axes[-1, 0].set_xlabel("rank bin (20 bins; line: uniform expectation; colours: ensembles)")
+    k = len(names)
+    E = np.shape(draws[names[0]])[0] if names else 1
+    fig, axes = _panels(
+        axes,
+        (k,),
+        lambda: plt.subplots(k, 1, figsize=(6, (0.8 + 0.25 * E) * k + 0.6), squeeze=False),
+        "rank_histograms",
+    )
+    with _arviz() as az:
+        idata = az.from_dict(posterior={n: np.asarray(draws[n]) for n in names})
+        az.plot_rank(idata, var_names=names, bins=20, kind="bars", ax=axes)
+    for a in axes:  # ArviZ's labels sized for its own figure
+        a.set_title(a.get_title(), fontsize=9)
+        a.set_xlabel("")
+        a.set_ylabel("ensemble", fontsize=8)
+        a.tick_params(labelsize=7)
+    axes[-1].set_xlabel("rank of the draws (all ensembles; dashed: uniform expectation)", fontsize=9)
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
 def pair_scatter(
-    samples: np.ndarray, names, pairs, path, truth: dict | None = None, bounds: dict | None = None, title: str = ""
+    samples: np.ndarray,
+    names,
+    pairs,
+    path=None,
+    truth: dict | None = None,
+    bounds: dict | None = None,
+    title: str = "",
+    *,
+    axes=None,
 ):
-    """2-D posterior scatter for each (a, b) of ``pairs``; truth as a star, prior box dashed.
+    """2-D posterior density for each (a, b) of ``pairs``, ArviZ's ``plot_pair``; truth as a star,
+    prior box dashed.
 
     Each panel is a hexbin density of the draws (every ``max(1, N // 20000)``-th one), titled with
     the pair's correlation coefficient r.
@@ -350,44 +512,57 @@ def pair_scatter(
         The P coefficient names, in the column order of ``samples``.
     pairs : sequence of (str, str)
         The pairs (a, b), one panel each: a along x, b along y.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     truth : dict of str to float, optional
-        Name -> true value (a red star); holds every name of ``pairs``.
+        Name -> true value (a red star, where both names of a pair have one).
     bounds : dict of str to (float, float), optional
         Name -> (lo, hi) for uniform priors; the box is drawn where both names of a pair have
         bounds.
     title : str, default ""
         The figure's title (none when empty).
+    axes : array_like of matplotlib.axes.Axes, shape (len(pairs),), optional
+        One panel per pair (default: a new figure of a row of panels).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (len(pairs),); with ``path``, ``path`` (the PNG written).
     """
     k = len(pairs)
-    fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.4), squeeze=False)
+    fig, axes = _panels(axes, (k,), lambda: plt.subplots(1, k, figsize=(3.4 * k, 3.4), squeeze=False), "pair_scatter")
     idx = {n: i for i, n in enumerate(names)}
     sub = samples[:: max(1, samples.shape[0] // 20000)]
-    for a, (p, q) in zip(axes[0], pairs):
-        x, y = sub[:, idx[p]], sub[:, idx[q]]
-        a.hexbin(x, y, gridsize=40, cmap="Blues", mincnt=1)
+    shown = dict.fromkeys(n for pair in pairs for n in pair)
+    star = {"marker": "*", "color": "tab:red", "markersize": 11, "markeredgecolor": "k"}
+    with _arviz() as az:
+        idata = az.from_dict(posterior={n: sub[None, :, idx[n]] for n in shown})  # one chain
+        for a, (p, q) in zip(axes, pairs):
+            az.plot_pair(
+                idata,
+                var_names=[p, q],
+                kind="hexbin",
+                gridsize=40,
+                hexbin_kwargs={"cmap": "Blues"},
+                reference_values={p: truth[p], q: truth[q]} if truth and p in truth and q in truth else None,
+                reference_values_kwargs=star,
+                ax=a,
+            )
+    for a, (p, q) in zip(axes, pairs):
         if bounds and p in bounds and q in bounds:
             (x0, x1), (y0, y1) = bounds[p], bounds[q]
             a.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], "k--", lw=0.7)
-        if truth:
-            a.plot(truth[p], truth[q], "*", color="tab:red", ms=11, mec="k")
-        r = np.corrcoef(x, y)[0, 1]
+        r = np.corrcoef(sub[:, idx[p]], sub[:, idx[q]])[0, 1]
         a.set_title(f"{p}–{q}: r = {r:+.3f}", fontsize=9)
         a.set_xlabel(p, fontsize=8)
         a.set_ylabel(q, fontsize=8)
         a.tick_params(labelsize=7)
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
-def correlation_heatmap(C: np.ndarray, names, path, title: str = ""):
+def correlation_heatmap(C: np.ndarray, names, path=None, title: str = "", *, ax=None):
     """Posterior correlation matrix, -1 (blue) to +1 (red).
 
     Parameters
@@ -396,32 +571,36 @@ def correlation_heatmap(C: np.ndarray, names, path, title: str = ""):
         The correlation matrix.
     names : sequence of str
         The P coefficient names, labelling its rows and columns.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The axes' title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     P = len(names)
-    fig, ax = plt.subplots(figsize=(0.32 * P + 2.5, 0.32 * P + 1.8))
+    fig, ax = _axes(ax, (0.32 * P + 2.5, 0.32 * P + 1.8))
     im = ax.imshow(C, cmap="RdBu_r", vmin=-1, vmax=1)
     ax.set_xticks(range(P), names, rotation=90, fontsize=7)
     ax.set_yticks(range(P), names, fontsize=7)
     fig.colorbar(im, ax=ax, shrink=0.8, label="correlation")
     ax.set_title(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
 def fim_spectra(
     spectra: dict,
-    path,
+    path=None,
     prior_level: dict | None = None,
     title: str = "",
     ylabel: str = "Cramér–Rao sd along it (relative, 1 = 100 %)",
+    *,
+    ax=None,
 ):
     """Cramér–Rao relative sd ``1/sqrt(lambda)`` of each Fisher-information eigen-direction, per
     case, stiffest first (log scale).
@@ -433,8 +612,8 @@ def fim_spectra(
     ----------
     spectra : dict of str to array_like
         Case label -> the eigenvalues lambda of its Fisher information (any order).
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     prior_level : dict of str to float, optional
         Label -> relative prior sd, drawn as a dashed line of the same colour as the label's
         spectrum.
@@ -442,13 +621,15 @@ def fim_spectra(
         The axes' title.
     ylabel : str, default "Cramér–Rao sd along it (relative, 1 = 100 %)"
         The y axis' label.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(figsize=(7, 4.2))
+    fig, ax = _axes(ax, (7, 4.2))
     for i, (label, lam) in enumerate(spectra.items()):
         lam = np.sort(np.asarray(lam, dtype=float))[::-1]
         sd = np.where(lam > 0, 1.0 / np.sqrt(np.clip(lam, 1e-300, None)), np.nan)
@@ -460,10 +641,10 @@ def fim_spectra(
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     ax.set_title(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def marginals_vs_truth(rows: list, path, title: str = ""):
+def marginals_vs_truth(rows: list, path=None, title: str = "", *, ax=None):
     """Posterior mean and central interval as ratios to truth, per coefficient (grouped X | Y | N),
     with the prior's range (uniform: bounds; normal: +-2 sd) in grey.
 
@@ -475,18 +656,20 @@ def marginals_vs_truth(rows: list, path, title: str = ""):
     rows : list of dict
         From :func:`bayesid.estimation.posterior.marginal_table` with truth (``name``, ``mean``,
         ``lower``, ``upper``, ``truth``, ``covers``), plus ``prior_lo``/``prior_hi``.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The axes' title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     order = sorted(rows, key=lambda r: "XYN".index(terms.term(r["name"]).group))
-    fig, ax = plt.subplots(figsize=(max(7, 0.4 * len(order)), 4))
+    fig, ax = _axes(ax, (max(7, 0.4 * len(order)), 4))
     for i, r in enumerate(order):
         t = r["truth"]
         lo, hi = sorted((r["prior_lo"] / t, r["prior_hi"] / t))
@@ -504,10 +687,10 @@ def marginals_vs_truth(rows: list, path, title: str = ""):
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def inclusion_heatmap(inclusion: dict, path, vehicle=None, title: str = ""):
+def inclusion_heatmap(inclusion: dict, path=None, vehicle=None, title: str = "", *, ax=None):
     """Terms x manoeuvres heatmap of SINDy inclusion probabilities (manoeuvre -> {term: p}).
     Terms the vehicle model has (non-zero coefficient) are marked with a * in the label.
 
@@ -517,36 +700,38 @@ def inclusion_heatmap(inclusion: dict, path, vehicle=None, title: str = ""):
         Manoeuvre -> {term: inclusion probability}, a column each; the rows are all the terms, in
         the order they first appear (a term a manoeuvre lacks is blank). Empty: a small figure
         reading "no horizontal manoeuvre".
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     vehicle : Vehicle, optional
         The vehicle model whose non-zero ``coefficients`` mark the terms (none: no term marked).
     title : str, default ""
         The axes' title; with ``vehicle``, followed by a line "(* = term in the model)".
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     mans = list(inclusion)
     if not mans:
-        fig, ax = plt.subplots(figsize=(4, 2))
-        ax.text(0.5, 0.5, "no horizontal manoeuvre", ha="center")
-        return _save(fig, path)
+        fig, ax = _axes(ax, (4, 2))
+        ax.text(0.5, 0.5, "no horizontal manoeuvre", ha="center", transform=ax.transAxes)
+        return _done(fig, ax, path)
     names = list(dict.fromkeys(t for m in mans for t in inclusion[m]))
     A = np.array([[inclusion[m].get(t, np.nan) for m in mans] for t in names])
-    fig, ax = plt.subplots(figsize=(0.7 * len(mans) + 3, 0.22 * len(names) + 1.5))
+    fig, ax = _axes(ax, (0.7 * len(mans) + 3, 0.22 * len(names) + 1.5))
     im = ax.imshow(A, cmap="viridis", vmin=0, vmax=1, aspect="auto")
     labels = [t + (" *" if vehicle is not None and vehicle.coefficients.get(t, 0.0) != 0.0 else "") for t in names]
     ax.set_yticks(range(len(names)), labels, fontsize=6)
     ax.set_xticks(range(len(mans)), mans, rotation=60, fontsize=7, ha="right")
     fig.colorbar(im, ax=ax, shrink=0.6, label="inclusion probability")
     ax.set_title(title + ("\n(* = term in the model)" if vehicle is not None else ""), fontsize=9)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), predict B (columns)"):
+def cross_prediction(matrix: dict, path=None, title: str = "Identify on A (rows), predict B (columns)", *, ax=None):
     """Heatmap of RMS position errors (m), log colour scale, values printed.
 
     Parameters
@@ -555,20 +740,22 @@ def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), pre
         A -> {B: RMS position error, m, of the model identified on A predicting B}: the rows A
         and columns B (the keys of the first row, which every row has). Non-positive values are
         left blank.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default "Identify on A (rows), predict B (columns)"
         The axes' title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     rows = list(matrix)
     cols = list(next(iter(matrix.values())))
     A = np.array([[matrix[a][b] for b in cols] for a in rows], dtype=float)
-    fig, ax = plt.subplots(figsize=(0.8 * len(cols) + 3, 0.45 * len(rows) + 1.8))
+    fig, ax = _axes(ax, (0.8 * len(cols) + 3, 0.45 * len(rows) + 1.8))
     from matplotlib.colors import LogNorm
 
     pos = A[np.isfinite(A) & (A > 0)]
@@ -593,10 +780,12 @@ def cross_prediction(matrix: dict, path, title: str = "Identify on A (rows), pre
     ax.set_yticks(range(len(rows)), rows, fontsize=7)
     fig.colorbar(im, ax=ax, shrink=0.8, label="RMS position error, m")
     ax.set_title(title, fontsize=9)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def design_inputs(manoeuvres: dict, path, title: str = "Rudder inputs: spiral and designed manoeuvres"):
+def design_inputs(
+    manoeuvres: dict, path=None, title: str = "Rudder inputs: spiral and designed manoeuvres", *, axes=None
+):
     """Rudder angle (deg) against time for each manoeuvre (label -> Manoeuvre).
 
     Parameters
@@ -604,28 +793,35 @@ def design_inputs(manoeuvres: dict, path, title: str = "Rudder inputs: spiral an
     manoeuvres : dict of str to Manoeuvre
         Label -> Manoeuvre, one panel each: its rudder input (the first column of ``inputs``, rad,
         drawn in deg) held over each step ``dt`` (s).
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default "Rudder inputs: spiral and designed manoeuvres"
         The figure's title.
+    axes : array_like of matplotlib.axes.Axes, shape (len(manoeuvres),), optional
+        One panel per manoeuvre (default: a new figure of panels sharing x).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (len(manoeuvres),); with ``path``, ``path`` (the PNG written).
     """
-    fig, axes = plt.subplots(len(manoeuvres), 1, figsize=(8, 1.7 * len(manoeuvres) + 0.6), sharex=True, squeeze=False)
-    for a, (label, m) in zip(axes[:, 0], manoeuvres.items()):
+    k = len(manoeuvres)
+    fig, axes = _panels(
+        axes, (k,), lambda: plt.subplots(k, 1, figsize=(8, 1.7 * k + 0.6), sharex=True, squeeze=False), "design_inputs"
+    )
+    for a, (label, m) in zip(axes, manoeuvres.items()):
         a.step(np.arange(m.n_steps) * m.dt, np.degrees(m.inputs[:, 0]), where="post", lw=0.8)
         a.set_ylabel("rudder, deg", fontsize=8)
         a.set_title(label, fontsize=8)
         a.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("time, s")
+    axes[-1].set_xlabel("time, s")
     fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
-def predicted_vs_measured(design: dict, path, title: str = "Designed / spiral: predicted vs measured sd ratio"):
+def predicted_vs_measured(
+    design: dict, path=None, title: str = "Designed / spiral: predicted vs measured sd ratio", *, ax=None
+):
     """Bars of predicted and measured sd ratios per design criterion (criterion -> dict).
 
     Parameters
@@ -633,19 +829,21 @@ def predicted_vs_measured(design: dict, path, title: str = "Designed / spiral: p
     design : dict of str to dict
         Criterion -> its ``"predicted_sd_ratio"`` (Fisher) and ``"measured_sd_ratio"`` (repeated
         fits): the sd ratio designed / spiral, a pair of bars each, with a line at 1.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default "Designed / spiral: predicted vs measured sd ratio"
         The axes' title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``, the PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     keys = list(design)
     x = np.arange(len(keys))
-    fig, ax = plt.subplots(figsize=(5, 3.5))
+    fig, ax = _axes(ax, (5, 3.5))
     ax.bar(x - 0.18, [design[k]["predicted_sd_ratio"] for k in keys], 0.36, label="predicted (Fisher)")
     ax.bar(x + 0.18, [design[k]["measured_sd_ratio"] for k in keys], 0.36, label="measured (repeated fits)")
     ax.axhline(1.0, color="k", lw=0.8)
@@ -654,52 +852,18 @@ def predicted_vs_measured(design: dict, path, title: str = "Designed / spiral: p
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(title, fontsize=9)
-    return _save(fig, path)
-
-
-__all__ = [
-    "inclusion_heatmap",
-    "cross_prediction",
-    "design_inputs",
-    "predicted_vs_measured",
-    "track_xy",
-    "inputs_time",
-    "position_error",
-    "coefficient_ratios",
-    "convergence",
-    "singular_values",
-    "walker_traces",
-    "rank_histograms",
-    "pair_scatter",
-    "correlation_heatmap",
-    "fim_spectra",
-    "marginals_vs_truth",
-    "plot_alternatives",
-    "confusion_matrix",
-    "gap_channels",
-    "gap_ranking",
-    "gap_regions",
-    "importance_weights",
-    "mark_indices",
-    "multistart",
-    "prediction_band",
-    "prior_posterior_marginals",
-    "reliability",
-    "simulated_run",
-    "training_fit",
-    "turning_band",
-    "window_scatter",
-    "window_tracks",
-]
+    return _done(fig, ax, path)
 
 
 def gap_ranking(
     ranking: list,
     before: float,
     floor: float,
-    path,
+    path=None,
     title: str = "Candidates: held-out RMS position error",
     band_ratio: float | None = None,
+    *,
+    ax=None,
 ):
     """Horizontal bars of each candidate's held-out RMS (m) with the base model, the noise floor
     and the noise-floor band.
@@ -712,22 +876,24 @@ def gap_ranking(
         The base model's held-out RMS position error, m.
     floor : float
         The noise floor's (a perfect model at the estimated noise), m.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The title.
     band_ratio : float, optional
         The floor band's upper edge as a multiple of the floor (``Thresholds.none_ratio``): the
         band from the floor to it is shaded, where a model's error counts as explained.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        ``path``.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     names = [r["effect"] for r in ranking]
     vals = [r["heldout_rms_m"] for r in ranking]
-    fig, ax = plt.subplots(figsize=(6.4, 0.4 * len(names) + 2.0))
+    fig, ax = _axes(ax, (6.4, 0.4 * len(names) + 2.0))
     if band_ratio is not None and np.isfinite(floor):
         ax.axvspan(
             floor,
@@ -743,79 +909,93 @@ def gap_ranking(
     ax.set_xlabel("held-out RMS position error, m")
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.3), ncol=2)
     ax.set_title(title)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def gap_channels(where: dict, path, title: str = "Where: residual RMS / noise-floor RMS per channel"):
+def gap_channels(where: dict, path=None, title: str = "Where: residual RMS / noise-floor RMS per channel", *, ax=None):
     """Bar chart of each channel's excess ratio (base model, held-out tracks).
 
     Parameters
     ----------
     where : dict
         The diagnosis's *where* result (``channels``: per channel the excess ratio).
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The figure's title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        The PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     ch = {k: v["excess_ratio"] for k, v in where["channels"].items() if v.get("excess_ratio")}
-    fig, ax = plt.subplots(figsize=(5, 3))
+    fig, ax = _axes(ax, (5, 3))
     ax.bar(list(ch), list(ch.values()), color="tab:orange")
     ax.axhline(1.0, color="k", ls=":")
     ax.set_ylabel("RMS / floor RMS")
     ax.set_title(title)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def gap_regions(where: dict, path, title: str = "Where: error growth by operating region"):
+def gap_regions(where: dict, path=None, title: str = "Where: error growth by operating region", *, axes=None):
     """Mean position-error growth rate (m/s) per bin of each operating-region variable.
 
     Parameters
     ----------
     where : dict
         The diagnosis's *where* result (``regions``: per variable the bins and growth rates).
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The figure's title.
+    axes : array_like of matplotlib.axes.Axes, shape (len(where["regions"]),), optional
+        One panel per operating-region variable (default: a new figure of a row of panels).
 
     Returns
     -------
-    Path
-        The PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (len(where["regions"]),); with ``path``, ``path`` (the PNG
+        written).
     """
     regs = where["regions"]
-    fig, axes = plt.subplots(1, len(regs), figsize=(3.2 * len(regs), 3))
-    for ax, (name, rows) in zip(np.atleast_1d(axes), regs.items()):
+    k = len(regs)
+    fig, axes = _panels(axes, (k,), lambda: plt.subplots(1, k, figsize=(3.2 * k, 3)), "gap_regions")
+    for ax, (name, rows) in zip(axes, regs.items()):
         labels = [f"{r['bin'][0]:g}..{r['bin'][1]:g}" for r in rows]
         vals = [r["mean_error_growth_mps"] or 0.0 for r in rows]
         ax.bar(range(len(rows)), vals, color="tab:green")
         ax.set_xticks(range(len(rows)))
         ax.set_xticklabels(labels, rotation=45, fontsize=7)
         ax.set_title(name, fontsize=9)
-    np.atleast_1d(axes)[0].set_ylabel("mean |d error/dt|, m/s")
+    axes[0].set_ylabel("mean |d error/dt|, m/s")
     fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
-def _plan_view(fig, ax, title, path):
-    """Finish a plan-view (x north up, y east right) track plot and save it."""
+def _plan_view(ax, title):
+    """Finish a plan-view (x north up, y east right) track plot."""
     ax.set_xlabel("y (east), m")
     ax.set_ylabel("x (north), m")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(title)
-    return _save(fig, path)
 
 
 def window_tracks(
-    t, measured, before, after, path, title: str = "", labels=("base model", "with top effect"), run=None
+    t,
+    measured,
+    before,
+    after,
+    path=None,
+    title: str = "",
+    labels=("base model", "with top effect"),
+    run=None,
+    *,
+    ax=None,
 ):
     """Measured track and the protocol's windowed predictions before and after the top effect:
     arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions; ``run``
@@ -832,31 +1012,34 @@ def window_tracks(
         The windowed predictions of the base model (NaN separates windows), m.
     after : ndarray, shape (n, 2)
         The windowed predictions with the top effect, m.
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The figure's title.
     labels : tuple of str
         Names of the two predictions.
     run : Track or mapping, optional
         The measured run, whose turning-circle indices are marked.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        The PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = _axes(ax, (6, 6))
     ax.plot(measured[:, 1], measured[:, 0], "k.", ms=1.5, label="measured")
     ax.plot(before[:, 1], before[:, 0], "tab:red", lw=1.0, label=labels[0])
     if after is not None:
         ax.plot(after[:, 1], after[:, 0], "tab:blue", lw=1.0, label=labels[1])
     if run is not None:
         mark_indices(ax, None, run["t"], run, color="0.35", label="measured: ")
-    return _plan_view(fig, ax, title, path)
+    _plan_view(ax, title)
+    return _done(fig, ax, path)
 
 
-def window_scatter(before, after, path, title: str = "", labels=("reference model", "with the terms")):
+def window_scatter(before, after, path=None, title: str = "", labels=("reference model", "with the terms"), *, ax=None):
     """Per held-out window, the RMS position error of two models (m), against the line of no
     change: the points below it are the windows the second model predicts better.
 
@@ -866,20 +1049,22 @@ def window_scatter(before, after, path, title: str = "", labels=("reference mode
         The first model's per-window RMS position errors, m.
     after : array_like, shape (W,)
         The second model's, m.
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The title.
     labels : tuple of str, default ("reference model", "with the terms")
         The axes' model names.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        The written file.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     b, a = np.asarray(before, float), np.asarray(after, float)
-    fig, ax = plt.subplots(figsize=(5, 5))
+    fig, ax = _axes(ax, (5, 5))
     top = float(np.nanmax(np.concatenate([b, a, [1e-3]])) * 1.05)
     ax.plot([0, top], [0, top], "k--", lw=0.8, label="no change")
     better = int(np.sum(a < b))
@@ -890,30 +1075,32 @@ def window_scatter(before, after, path, title: str = "", labels=("reference mode
     ax.set_ylabel(f"{labels[1]}: window RMS position error (m)")
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x verdict (columns)"):
+def confusion_matrix(confusion: dict, path=None, title: str = "True effect (rows) x verdict (columns)", *, ax=None):
     """Heat map of counts {true: {verdict: n}}.
 
     Parameters
     ----------
     confusion : dict
         ``{true effect: {verdict: count}}``.
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The figure's title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        The PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     rows = list(confusion)
     cols = sorted({v for d in confusion.values() for v in d}, key=lambda c: (c in ("none", "unexplained"), c))
     M = np.array([[confusion[r].get(c, 0) for c in cols] for r in rows])
-    fig, ax = plt.subplots(figsize=(0.6 * len(cols) + 3, 0.45 * len(rows) + 2))
+    fig, ax = _axes(ax, (0.6 * len(cols) + 3, 0.45 * len(rows) + 2))
     ax.imshow(M, cmap="Blues")
     for i in range(len(rows)):
         for j in range(len(cols)):
@@ -924,10 +1111,10 @@ def confusion_matrix(confusion: dict, path, title: str = "True effect (rows) x v
     ax.set_yticks(range(len(rows)))
     ax.set_yticklabels(rows, fontsize=8)
     ax.set_title(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circles (posterior draws)"):
+def turning_band(sims: dict, path=None, title: str = "Predicted 35 deg turning circles (posterior draws)", *, ax=None):
     """Turning-circle tracks {label: (n_draws + 1, n, 12) states}: the identified model (first
     row, solid) and posterior draws (thin).
 
@@ -936,26 +1123,29 @@ def turning_band(sims: dict, path, title: str = "Predicted 35 deg turning circle
     sims : dict
         ``{label: ndarray (n_draws + 1, n, 12)}``: states of the identified model (first row)
         and posterior draws.
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The figure's title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        The PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(figsize=(6, 6))
+    fig, ax = _axes(ax, (6, 6))
     for i, (label, S) in enumerate(sims.items()):
         col = plt.cm.tab10(i % 10)
         for s in S[1:]:
             ax.plot(s[:, 1], s[:, 0], color=col, lw=0.4, alpha=0.3)
         ax.plot(S[0, :, 1], S[0, :, 0], color=col, lw=1.5, label=label)
-    return _plan_view(fig, ax, title, path)
+    _plan_view(ax, title)
+    return _done(fig, ax, path)
 
 
-def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
+def multistart(summary: dict, circles, path=None, title: str = "Multistart fit", *, axes=None):
     """Left: the waterfall of a multistart fit, final costs sorted (relative to the best, log
     scale; the dashed line is the near-best tolerance). Right, when ``circles`` is given: the
     predicted turning circles [(label, x, y)] of the distinct near-best optima, plan view.
@@ -966,21 +1156,27 @@ def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
         The multistart summary (final costs, the near-best tolerance).
     circles : list of tuple or None
         ``[(label, x, y)]``: predicted turning circles of the distinct near-best optima, m.
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The figure's title.
+    axes : array_like of matplotlib.axes.Axes, shape (2,) with ``circles``, else (1,), optional
+        The waterfall and the turning circles' panels (default: a new figure of a row of panels).
 
     Returns
     -------
-    Path
-        The PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (2,) with ``circles``, else (1,); with ``path``, ``path`` (the PNG
+        written).
     """
     costs = np.asarray(summary["sorted_costs"], float)
     best = costs[0]
     rel = np.where(np.isfinite(costs), costs / best - 1 if best > 0 else costs - best, np.nan)
-    fig, axes = plt.subplots(1, 2 if circles else 1, figsize=(11 if circles else 5.5, 4.8), squeeze=False)
-    ax = axes[0, 0]
+    k = 2 if circles else 1
+    fig, axes = _panels(
+        axes, (k,), lambda: plt.subplots(1, k, figsize=(11 if circles else 5.5, 4.8), squeeze=False), "multistart"
+    )
+    ax = axes[0]
     floor = max(1e-8, summary["cost_tolerance"] * 1e-3)
     ax.semilogy(np.arange(1, costs.size + 1), np.maximum(rel, floor), "o-", ms=4)
     ax.axhline(
@@ -996,7 +1192,7 @@ def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     if circles:
-        ax = axes[0, 1]
+        ax = axes[1]
         for label, x, y in circles:
             ax.plot(y, x, lw=1.2, label=label)
         ax.set_xlabel("y (east), m")
@@ -1006,14 +1202,16 @@ def multistart(summary: dict, circles, path, title: str = "Multistart fit"):
         ax.legend(fontsize=7)
         ax.set_title("35 deg turning circles of the near-best optima", fontsize=9)
     fig.suptitle(title)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
 def reliability(
     coverage: dict,
-    path,
+    path=None,
     parameter_only: dict | None = None,
     title: str = "Predictive bands: nominal vs empirical coverage",
+    *,
+    ax=None,
 ):
     """Reliability diagram: for each group of claims (``coverage``: {group: {level: {"coverage",
     "n"}}}), the fraction of measured values inside the band against the band's nominal level;
@@ -1024,19 +1222,21 @@ def reliability(
     ----------
     coverage : dict
         ``{group: {level: {"coverage", "n"}}}``: held-out coverage of each group's bands.
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     parameter_only : dict, optional
         ``{"nominal", "coverage", "n"}`` of the posterior draws' own band.
     title : str
         The figure's title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        The PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    fig, ax = plt.subplots(figsize=(5.5, 5))
+    fig, ax = _axes(ax, (5.5, 5))
     ax.plot([0, 1], [0, 1], "k--", lw=0.8, label="perfectly calibrated")
     for (group, cov), mk in zip(coverage.items(), "osd^"):
         lv = sorted(float(a) for a, v in cov.items() if v.get("coverage") is not None)
@@ -1060,10 +1260,12 @@ def reliability(
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
     ax.set_title(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, title: str = "", *, indices=None):
+def prediction_band(
+    t, measured: dict, predicted: dict, win, band: dict, path=None, title: str = "", *, indices=None, axes=None
+):
     """Time histories of a windowed prediction with its calibrated band: plan view (measured
     track, predicted windows, a circle of the band's position radius round each window's end:
     the band the track must stay within), heading (prediction +- the band's heading error,
@@ -1085,8 +1287,8 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, t
     band : dict
         The band: ``"max_position_m"`` and ``"max_heading_deg"`` (deg), an absent or non-finite
         value not drawn; ``"level"``, its nominal level in the legend (default 0.9).
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The plan view's title.
     indices : dict, optional
@@ -1096,19 +1298,22 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, t
         :func:`~bayesid.estimation.prediction.turning_band`). Either absent: read from the whole
         measured run, and from the whole-run prediction (with the measured samples before its
         first one, which its start state is read from or fitted to).
+    axes : array_like of matplotlib.axes.Axes, shape (3,), optional
+        The plan view, the heading and the rudder angle panels (default: a new figure, the plan
+        view left, the heading above the rudder angle right, sharing x).
 
     Returns
     -------
-    Path
-        ``path``.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (3,); with ``path``, ``path`` (the PNG written).
     """
     t = np.asarray(t, float)
     tm, hm = _measured_heading(t, measured)
     level = band.get("level", 0.9)
     radius_m, heading_deg = band.get("max_position_m"), band.get("max_heading_deg")
     rudder = np.asarray(measured["delta_r"], float)
-    fig = plt.figure(figsize=(11, 6.5))
-    ax = fig.add_subplot(1, 2, 1)
+    fig, axes = _panels(axes, (3,), lambda: _plan_heading_rudder((11, 6.5)), "prediction_band")
+    ax, ax2, ax3 = axes
     ax.plot(measured["y"], measured["x"], "k.", ms=1.2, label="measured")
     cut = np.flatnonzero(np.diff(win) != 0) + 1
     ends = np.append(cut - 1, t.size - 1)
@@ -1139,7 +1344,6 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, t
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     ax.set_title(title, fontsize=9)
-    ax2 = fig.add_subplot(2, 2, 2)
     psi_m = _at(t, tm, hm) if tm is not t else hm
     psi_p = np.degrees(predicted["psi"])
     psi_p = psi_m + ((psi_p - psi_m + 180.0) % 360.0 - 180.0)  # the prediction on the measured branch
@@ -1182,12 +1386,20 @@ def prediction_band(t, measured: dict, predicted: dict, win, band: dict, path, t
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
-    ax3 = fig.add_subplot(2, 2, 4, sharex=ax2)
     ax3.plot(tm, np.degrees(rudder), "tab:green", lw=0.8)
     ax3.set_ylabel("rudder, deg")
     ax3.set_xlabel("t, s")
     ax3.grid(alpha=0.3)
-    return _save(fig, path)
+    return _done(fig, axes, path)
+
+
+def _plan_heading_rudder(figsize):
+    """(figure, [plan view, heading, rudder angle]): a new figure of ``figsize`` (in), the plan
+    view left, the heading above the rudder angle right, sharing x."""
+    fig = plt.figure(figsize=figsize)
+    ax = fig.add_subplot(1, 2, 1)
+    ax2 = fig.add_subplot(2, 2, 2)
+    return fig, [ax, ax2, fig.add_subplot(2, 2, 4, sharex=ax2)]
 
 
 def _measured_heading(t, measured) -> tuple:
@@ -1205,7 +1417,9 @@ def _at(t, tm, v) -> np.ndarray:
     return np.interp(t, tm[ok], v[ok]) if ok.any() else np.full(np.shape(t), np.nan)
 
 
-def prior_posterior_marginals(draws: np.ndarray, names, prior: dict, path, mark: dict | None = None, title: str = ""):
+def prior_posterior_marginals(
+    draws: np.ndarray, names, prior: dict, path=None, mark: dict | None = None, title: str = "", *, axes=None
+):
     """One panel per parameter: histogram of the posterior draws (N, P) and the prior's density
     (a Gaussian's curve; a bounded uniform's level, drawn when it is not much wider than the
     posterior), ``mark`` {name: value} a vertical line (e.g. the fit's estimate).
@@ -1220,24 +1434,34 @@ def prior_posterior_marginals(draws: np.ndarray, names, prior: dict, path, mark:
         The P parameter names.
     prior : dict
         ``{name: {"kind": "normal", "mean", "sd"} or {"kind": "uniform", "lower", "upper"}}``.
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     mark : dict, optional
         ``{name: value}`` drawn as a vertical line.
     title : str
         The figure's title.
+    axes : array_like of matplotlib.axes.Axes, optional
+        At least P axes, of any shape: one panel per parameter in row-major order, those left
+        over turned off (default: a new figure of ``min(6, P)`` columns).
 
     Returns
     -------
-    Path
-        The PNG written.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, of the shape given (default: (rows, ``min(6, P)``)); with ``path``,
+        ``path`` (the PNG written).
     """
     P = len(names)
     nc = min(6, P)
     nr = -(-P // nc)
-    fig, axes = plt.subplots(nr, nc, figsize=(2.2 * nc, 1.8 * nr + 0.6), squeeze=False)
+    if axes is None:
+        fig, axes = plt.subplots(nr, nc, figsize=(2.2 * nc, 1.8 * nr + 0.6), squeeze=False)
+    else:
+        axes = np.asarray(axes, dtype=object)
+        if axes.size < P:
+            raise ValueError(f"prior_posterior_marginals draws {P} panels: got {axes.size} Axes")
+        fig = axes.flat[0].figure
     for j, n in enumerate(names):
-        a = axes[j // nc, j % nc]
+        a = axes.flat[j]
         x = draws[:, j]
         lo, hi = np.quantile(x, [0.001, 0.999])
         pr = prior.get(n, {})
@@ -1256,13 +1480,13 @@ def prior_posterior_marginals(draws: np.ndarray, names, prior: dict, path, mark:
         a.set_title(n, fontsize=8)
         a.tick_params(labelsize=6)
         a.set_yticks([])
-    for j in range(P, nr * nc):
-        axes[j // nc, j % nc].axis("off")
+    for a in axes.flat[P:]:
+        a.axis("off")
     fig.suptitle((title + "\n" if title else "") + "posterior (bars), prior (dashed), fit estimate (red)", fontsize=9)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
-def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, title: str = ""):
+def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path=None, title: str = "", *, ax=None):
     """Sorted normalised importance weights (largest first, log scale) with the Pareto k-hat and
     the importance ESS: a few draws carrying most of the weight is what k-hat >= 0.7 flags.
 
@@ -1274,18 +1498,20 @@ def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, titl
         The Pareto k-hat of the weights.
     ess : float
         The importance-sampling effective sample size.
-    path : str or Path
-        The PNG to write.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str
         The figure's title.
+    ax : matplotlib.axes.Axes, optional
+        The axes drawn on (default: new axes on a new figure).
 
     Returns
     -------
-    Path
-        The PNG written.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     w = np.sort(np.asarray(weights, float))[::-1]
-    fig, ax = plt.subplots(figsize=(6, 3.4))
+    fig, ax = _axes(ax, (6, 3.4))
     ax.semilogy(np.arange(1, w.size + 1), np.clip(w, 1e-300, None), lw=1)
     ax.axhline(1.0 / w.size, color="k", ls="--", lw=0.8, label="equal weights")
     ax.set_xlabel("draw (sorted by weight)")
@@ -1293,10 +1519,10 @@ def importance_weights(weights: np.ndarray, k_hat: float, ess: float, path, titl
     ax.set_title((title + ": " if title else "") + f"Pareto k-hat {k_hat:.2f}, ESS {ess:.0f} of {w.size}", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3, which="both")
-    return _save(fig, path)
+    return _done(fig, ax, path)
 
 
-def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "", *, indices=None):
+def training_fit(t, measured: dict, simulated: dict, win, path=None, title: str = "", *, indices=None, axes=None):
     """Measured against simulated motion of one training run under a fit's windows: plan view
     (measured track, each fit window's simulation) and heading against time, with the measured
     run's ITTC indices marked.
@@ -1315,24 +1541,32 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "",
         restarted as the fit scores it.
     win : ndarray (n,)
         The window index of each sample (a new line starts where it changes).
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The figure's title.
     indices : dict, optional
         The measured run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result as the
         report shows it (read from ``measured`` when not given).
+    axes : array_like of matplotlib.axes.Axes, shape (2,), optional
+        The plan view and the heading panels (default: a new figure of the two side by side).
 
     Returns
     -------
-    Path
-        ``path``.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (2,); with ``path``, ``path`` (the PNG written).
     """
     t, win = np.asarray(t, float), np.asarray(win)
     tm, hm = _measured_heading(t, measured)
     cut = np.flatnonzero(np.diff(win) != 0) + 1
     spans = list(zip(np.insert(cut, 0, 0), np.append(cut, t.size)))
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.4]})
+    fig, axes = _panels(
+        axes,
+        (2,),
+        lambda: plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.4]}),
+        "training_fit",
+    )
+    ax, ax2 = axes
     ax.plot(measured["y"], measured["x"], "k.", ms=1.2, label="measured")
     for k, (a, b) in enumerate(spans):
         ax.plot(
@@ -1364,7 +1598,7 @@ def training_fit(t, measured: dict, simulated: dict, win, path, title: str = "",
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
 #: The gid of each mark :func:`mark_indices` draws, prefixed to the index it shows.
@@ -1594,7 +1828,7 @@ def mark_indices(ax_plan, ax_heading, t, run, *, indices=None, color="tab:red", 
     return ind
 
 
-def simulated_run(track, path, title: str = "", indices=None):
+def simulated_run(track, path=None, title: str = "", indices=None, *, axes=None):
     """A simulated (or measured) run: plan view, heading and rudder angle against time, with a
     zigzag's or turn's ITTC indices marked (:func:`mark_indices`).
 
@@ -1602,24 +1836,26 @@ def simulated_run(track, path, title: str = "", indices=None):
     ----------
     track : Track
         The run: ``"x"``, ``"y"`` (m), ``"psi"`` and ``"delta_r"`` (rad) against its times ``t`` (s).
-    path : str or Path
-        The PNG written.
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The figure's title.
     indices : dict, optional
         The run's :func:`~bayesid.estimation.indices.manoeuvre_indices` result (computed when not
         given).
+    axes : array_like of matplotlib.axes.Axes, shape (3,), optional
+        The plan view, the heading and the rudder angle panels (default: a new figure, the plan
+        view left, the heading above the rudder angle right, sharing x).
 
     Returns
     -------
-    Path
-        ``path``.
+    ndarray of matplotlib.axes.Axes or Path
+        The axes drawn on, shape (3,); with ``path``, ``path`` (the PNG written).
     """
-    fig = plt.figure(figsize=(11, 5.5))
-    ax = fig.add_subplot(1, 2, 1)
+    fig, axes = _panels(axes, (3,), lambda: _plan_heading_rudder((11, 5.5)), "simulated_run")
+    ax, ax2, ax3 = axes
     ax.plot(track["y"], track["x"], "k", lw=1.0, label="track")
     ax.plot(track["y"][0], track["x"][0], "k.", ms=6)
-    ax2 = fig.add_subplot(2, 2, 2)
     ax2.plot(track.t, _heading_deg(track["psi"]), "k", lw=1.0, label="heading")
     mark_indices(ax, ax2, track.t, track, indices=indices)
     ax.set_xlabel("y (east), m")
@@ -1630,16 +1866,15 @@ def simulated_run(track, path, title: str = "", indices=None):
     ax2.set_ylabel("heading, deg")
     ax2.grid(alpha=0.3)
     ax2.legend(fontsize=7)
-    ax3 = fig.add_subplot(2, 2, 4, sharex=ax2)
     ax3.plot(track.t, np.degrees(track["delta_r"]), "tab:green", lw=0.8)
     ax3.set_ylabel("rudder, deg (+ port)")
     ax3.set_xlabel("t, s")
     ax3.grid(alpha=0.3)
     fig.suptitle(textwrap.fill(title, 130), fontsize=9)
-    return _save(fig, path)
+    return _done(fig, axes, path)
 
 
-def plot_alternatives(row: dict, ax=None):
+def plot_alternatives(row: dict, ax=None, *, path=None):
     """The alternatives' predicted tracks of one designed run (earth frame: x north, y east,
     plotted y against x), over the diagnosis's protocol windows started from the kept term's
     model.
@@ -1650,15 +1885,16 @@ def plot_alternatives(row: dict, ax=None):
         A row of ``Diagnosis.design`` with ``predicted`` (``{label: {"t", "x", "y", "psi"}}``),
         ``name`` and ``separation``.
     ax : matplotlib.axes.Axes, optional
-        Drawn onto (default: new axes).
+        The axes drawn on (default: new axes on a new figure).
+    path : str or Path, optional
+        The PNG written, the figure then closed (default: none written, the axes returned).
 
     Returns
     -------
-    matplotlib.axes.Axes
-        The axes.
+    matplotlib.axes.Axes or Path
+        The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6, 5))
+    fig, ax = _axes(ax, (6, 5))
     for i, (label, p) in enumerate(row["predicted"].items()):
         ax.plot(
             p["y"],
@@ -1672,4 +1908,4 @@ def plot_alternatives(row: dict, ax=None):
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(f"{row['name']}: separation {row['separation']:.3g} nats ({row['worst_pair']})", fontsize=9)
     ax.legend(fontsize=8)
-    return ax
+    return _done(fig, ax, path)
