@@ -36,6 +36,8 @@ noisy for a 1 s slope estimate of the velocity (:func:`resolve_start`), else ``"
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from dataclasses import MISSING, dataclass, fields
 
 import numpy as np
 
@@ -431,7 +433,117 @@ def _unwrap_finite(y):
     return out
 
 
-def pooled_scores(errors: list[dict]) -> dict:
+@dataclass(frozen=True, eq=False)
+class Scores(Mapping):
+    """The protocol's scores of a model on a set of tracks: a frozen record that also reads as the
+    JSON dict it writes (``scores["rms_position_m"]``, ``dict(scores)``), as scipy's
+    ``OptimizeResult`` does.
+
+    Parameters
+    ----------
+    rms : dict
+        ``{channel: RMS error}`` over every window's samples, SI (``x``, ``y`` m, ``psi`` rad,
+        ``u``, ``v`` m/s, ``r`` rad/s; the channels scored).
+    rms_position_m : float
+        sqrt of the mean of ex^2 + ey^2, m (NaN without ``x``, ``y``).
+    max_position_m : float
+        The largest horizontal position error, m.
+    rms_heading_deg : float
+        Heading RMS, deg (NaN without ``psi``).
+    n_samples : int
+        Samples of ``x`` scored.
+    per_track_rms_position_m : dict, optional
+        ``{track name: position RMS, m}`` (:func:`bayesid.estimation.windows.scores`).
+    log_likelihood : float, optional
+        Gaussian log-likelihood of the errors at given sds, nats
+        (:func:`bayesid.estimation.windows.scores`).
+
+    Notes
+    -----
+    The optional fields are left out of :meth:`to_dict` (and of the mapping) when None, so the
+    JSON is the dict :func:`pooled_scores` returned before it was a record.
+    """
+
+    rms: dict
+    rms_position_m: float
+    max_position_m: float
+    rms_heading_deg: float
+    n_samples: int
+    per_track_rms_position_m: dict | None = None
+    log_likelihood: float | None = None
+
+    def to_dict(self) -> dict:
+        """The scores as JSON-able dict, in the field order (None optional fields left out).
+
+        Returns
+        -------
+        dict
+            ``rms``, ``rms_position_m``, ``max_position_m``, ``rms_heading_deg``,
+            ``n_samples`` [, ``per_track_rms_position_m``][, ``log_likelihood``].
+        """
+        return {k: (dict(v) if isinstance(v, dict) else v) for k, v in self._items()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> Scores:
+        """The record of a dict :meth:`to_dict` wrote (e.g. read back from a JSON file).
+
+        Parameters
+        ----------
+        d : Mapping
+            The scores' keys.
+
+        Returns
+        -------
+        Scores
+            The record.
+
+        Raises
+        ------
+        ValueError
+            A key the record does not have, or a required one missing (named).
+        """
+        names = [f.name for f in fields(cls)]
+        unknown = [k for k in d if k not in names]
+        if unknown:
+            raise ValueError(f"scores: unknown key(s) {unknown} (known: {names})")
+        missing = [f.name for f in fields(cls) if f.default is MISSING and f.name not in d]
+        if missing:
+            raise ValueError(f"scores: missing key(s) {missing}")
+        return cls(**{k: _number(v) for k, v in d.items()})
+
+    def _items(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if v is not None or f.default is MISSING:
+                yield f.name, v
+
+    def __getitem__(self, key: str):
+        if key in self._keys():
+            return getattr(self, key)
+        raise KeyError(key)
+
+    def _keys(self) -> tuple:
+        return tuple(k for k, _ in self._items())
+
+    def __iter__(self):
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        return len(self._keys())
+
+    def __repr__(self) -> str:
+        return f"Scores({', '.join(f'{k}={v!r}' for k, v in self._items())})"
+
+
+def _number(v):
+    """``v`` with the strings strict JSON writes for non-finite floats (``"nan"``, ``"inf"``,
+    ``"-inf"``) read back as floats, in dicts too."""
+    if isinstance(v, dict):
+        return {k: _number(x) for k, x in v.items()}
+    return float(v) if isinstance(v, str) else v
+
+
+def pooled_scores(errors: list[dict]) -> Scores:
     """Pool per-sample errors of many windows/tracks into the protocol's scores.
 
     Parameters
@@ -442,7 +554,7 @@ def pooled_scores(errors: list[dict]) -> dict:
 
     Returns
     -------
-    dict
+    Scores
         ``rms_position_m`` (sqrt of the mean of ex^2 + ey^2; NaN without ``x``, ``y``),
         ``max_position_m``, ``rms_heading_deg`` (NaN without ``psi``), ``rms`` (``{channel:
         RMS}``, SI) and ``n_samples`` (of ``x``).
@@ -452,16 +564,18 @@ def pooled_scores(errors: list[dict]) -> dict:
         for k, v in e.items():
             cat.setdefault(k, []).append(np.asarray(v, float))
     cat = {k: np.concatenate(v) for k, v in cat.items()}
-    out = {"rms": {k: float(np.sqrt(np.nanmean(v**2))) if v.size else float("nan") for k, v in cat.items()}}
+    rms = {k: float(np.sqrt(np.nanmean(v**2))) if v.size else float("nan") for k, v in cat.items()}
+    pos = mx = float("nan")
     if "x" in cat and "y" in cat and cat["x"].size:
         d2 = cat["x"] ** 2 + cat["y"] ** 2
-        out["rms_position_m"] = float(np.sqrt(np.nanmean(d2)))
-        out["max_position_m"] = float(np.sqrt(np.nanmax(d2)))
-    else:
-        out["rms_position_m"] = out["max_position_m"] = float("nan")
-    out["rms_heading_deg"] = float(np.degrees(out["rms"]["psi"])) if "psi" in out["rms"] else float("nan")
-    out["n_samples"] = int(cat["x"].size) if "x" in cat else 0
-    return out
+        pos, mx = float(np.sqrt(np.nanmean(d2))), float(np.sqrt(np.nanmax(d2)))
+    return Scores(
+        rms=rms,
+        rms_position_m=pos,
+        max_position_m=mx,
+        rms_heading_deg=float(np.degrees(rms["psi"])) if "psi" in rms else float("nan"),
+        n_samples=int(cat["x"].size) if "x" in cat else 0,
+    )
 
 
 __all__ = [
@@ -477,5 +591,6 @@ __all__ = [
     "resolve_start",
     "start_settings",
     "LEADIN_SAMPLES",
+    "Scores",
     "pooled_scores",
 ]

@@ -56,7 +56,7 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -144,7 +144,7 @@ def jsonable(x):
     object
         The JSON-able copy (other objects pass through unchanged).
     """
-    if isinstance(x, dict):
+    if isinstance(x, Mapping):  # dicts and the records that read as one (protocol.Scores)
         return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [jsonable(v) for v in x]

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models import context as ctxmod
-from ..protocol import CHANNELS, estimate_noise, pooled_scores
+from ..protocol import CHANNELS, Scores, estimate_noise, pooled_scores
 from . import shooting
 from .fit import FitResult, SolverOptions, fit
 from .shooting import PENALTY
@@ -758,7 +758,7 @@ def fit_weighted(
     return fit_model(dataclasses.replace(first, sd=sd2), f.p, nuisance, bar=lab("residual weights")), sd2
 
 
-def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None) -> dict:
+def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None) -> Scores:
     """Protocol scores of a fitted model on tracks (pooled over windows and tracks).
 
     With ``sd`` ({channel: sd}, SI) also ``log_likelihood`` (nats): the Gaussian log-density
@@ -784,9 +784,9 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
 
     Returns
     -------
-    dict
-        :func:`bayesid.protocol.pooled_scores` plus ``per_track_rms_position_m``
-        (``{track name: m}``) and, with ``sd``, ``log_likelihood``.
+    Scores
+        :func:`bayesid.protocol.pooled_scores` with ``per_track_rms_position_m`` (``{track
+        name: m}``) and, with ``sd``, ``log_likelihood``.
     """
     errs, per_track = [], {}
     ll = 0.0
@@ -802,11 +802,9 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
                     continue
                 v = v[np.isfinite(v)]
                 ll += float(-0.5 * np.sum((v / sd[c]) ** 2) - v.size * math.log(sd[c] * math.sqrt(2 * math.pi)))
-    out = pooled_scores(errs)
-    out["per_track_rms_position_m"] = per_track
-    if sd is not None:
-        out["log_likelihood"] = ll
-    return out
+    return dataclasses.replace(
+        pooled_scores(errs), per_track_rms_position_m=per_track, log_likelihood=ll if sd is not None else None
+    )
 
 
 def window_rms(model, fitres: FitResult, ctxs, nuisance=None) -> np.ndarray:

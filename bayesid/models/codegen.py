@@ -351,71 +351,79 @@ def _check_source(idx, lane: int, pad: str) -> str:
     )
 
 
-def _drivers_source(mode: str, lanes: int) -> str:
-    """Source of the two drivers (the batch over coefficient vectors and the windows), each
-    thread advancing ``lanes`` tracks together through :func:`_step`."""
-    idx = list(_PLANE_STATES if mode == "horizontal" else range(12))
-    K = lanes
-    P12 = "        "
-    P16 = P12 + "    "
+_P12 = "        "
+_P16 = _P12 + "    "
 
-    def per_lane(fmt, pad):
-        return "\n".join(pad + fmt.format(l=l) for l in range(K))
 
-    def step_call(inp, ext):
+class _LaneCode:
+    """Source fragments shared by the two drivers: ``lanes`` tracks advanced together per thread
+    through :func:`_step`, over the states of ``mode``."""
+
+    def __init__(self, mode: str, lanes: int):
+        self.mode, self.K = mode, lanes
+        self.idx = list(_PLANE_STATES if mode == "horizontal" else range(12))
+        self.any_live = " or ".join(f"live_{l}" for l in range(lanes))
+
+    def step_call(self, inp: str, ext: str) -> str:
+        """The call of ``_step`` advancing every lane one step (``inp``, ``ext``: the inputs'
+        and the external forces' expressions, formatted with the lane ``l`` and index ``j``)."""
         args = []
-        for l in range(K):
-            args += [f"{_STATES[i]}_{l}" for i in idx]
+        for l in range(self.K):
+            args += [f"{_STATES[i]}_{l}" for i in self.idx]
             args += [inp.format(l=l, j=j) for j in range(4)] + [ext.format(l=l, j=j) for j in range(6)]
             args += [f"c_{l}", f"M_{l}", f"vp_{l}"]
-        lhs = ", ".join(f"{_STATES[i]}_{l}" for l in range(K) for i in idx)
+        lhs = ", ".join(f"{_STATES[i]}_{l}" for l in range(self.K) for i in self.idx)
         return f"({lhs},) = _step({', '.join(args)}, dt, xs, ws)"
 
-    def reset(l, src, pad):  # a finished lane restarts from its start state (finite, ignored)
-        return "\n".join(f"{pad}{_STATES[i]}_{l} = {src.format(l=l, i=i)}" for i in idx)
+    def reset(self, l: int, src: str, pad: str) -> str:
+        """A finished lane restarts from its start state (finite, ignored)."""
+        return "\n".join(f"{pad}{_STATES[i]}_{l} = {src.format(l=l, i=i)}" for i in self.idx)
 
-    # -- batch over coefficient vectors --------------------------------------------------------
-    load_b = "\n".join(f"{P12}{_STATES[i]}_{l} = s0[b_{l}, {i}]" for l in range(K) for i in idx)
-
-    def lane_setup(l, vp_row, extra, status_lines, rows, start):
+    def lane_setup(self, l, vp_row, extra, status_lines, rows, start) -> str:
         """Per lane before the steps: its row ``b_l`` (the last row again for a padding lane),
         coefficients, inverse mass matrix, parameters; a live lane's outputs start as ``start``."""
+        K = self.K
         return (
-            f"{P12}b_{l} = min(g * {K} + {l}, B - 1)\n"
-            f"{P12}live_{l} = g * {K} + {l} < B\n"
-            f"{P12}c_{l} = tcoef[b_{l}]\n"
-            f"{P12}M_{l} = Minv[b_{l}]\n"
-            f"{P12}vp_{l} = {vp_row.format(l=l)}\n"
-            + "".join(f"{P12}{line.format(l=l)}\n" for line in extra)
-            + f"{P12}vmax_{l}, wmax_{l}, thmax_{l} = vp_{l}[VP_VMAX], vp_{l}[VP_WMAX], vp_{l}[VP_THMAX]\n"
-            f"{P12}if live_{l}:\n"
-            + "".join(f"{P16}{line.format(l=l)}\n" for line in status_lines)
-            + f"{P16}for j in range({rows}):\n"
-            f"{P16}    for i in range(12):\n"
-            f"{P16}        out[b_{l}, j, i] = {start.format(l=l)}"
+            f"{_P12}b_{l} = min(g * {K} + {l}, B - 1)\n"
+            f"{_P12}live_{l} = g * {K} + {l} < B\n"
+            f"{_P12}c_{l} = tcoef[b_{l}]\n"
+            f"{_P12}M_{l} = Minv[b_{l}]\n"
+            f"{_P12}vp_{l} = {vp_row.format(l=l)}\n"
+            + "".join(f"{_P12}{line.format(l=l)}\n" for line in extra)
+            + f"{_P12}vmax_{l}, wmax_{l}, thmax_{l} = vp_{l}[VP_VMAX], vp_{l}[VP_WMAX], vp_{l}[VP_THMAX]\n"
+            f"{_P12}if live_{l}:\n"
+            + "".join(f"{_P16}{line.format(l=l)}\n" for line in status_lines)
+            + f"{_P16}for j in range({rows}):\n"
+            f"{_P16}    for i in range(12):\n"
+            f"{_P16}        out[b_{l}, j, i] = {start.format(l=l)}"
         )
 
-    lanes_b = "\n".join(
-        lane_setup(l, "vp", [], ["status[b_{l}] = OK", "fail_step[b_{l}] = -1"], "n_out", "s0[b_{l}, i]")
-        for l in range(K)
-    )
-
-    def after_step(l, flagged, nan_rows, start, store):
+    def after_step(self, l, flagged, nan_rows, start, store) -> str:
         """Per lane after a step: check, on divergence record it, NaN-fill ``nan_rows`` and
         restart the lane from ``start``; else store the state under ``store``."""
         return (
-            f"{P16}if live_{l}:\n" + _check_source(idx, l, P16 + "    ") + "\n"
-            f"{P16}    if flag_{l} != OK:\n"
-            + "".join(f"{P16}        {line.format(l=l)}\n" for line in flagged)
-            + f"{P16}        for j in range({nan_rows}):\n"
-            f"{P16}            for i in range(12):\n"
-            f"{P16}                out[b_{l}, j, i] = np.nan\n"
-            f"{P16}        live_{l} = False\n" + reset(l, start, P16 + "        ") + "\n"
-            f"{P16}    {store}:\n" + "\n".join(f"{P16}        out[b_{l}, row, {i}] = {_STATES[i]}_{l}" for i in idx)
+            f"{_P16}if live_{l}:\n" + _check_source(self.idx, l, _P16 + "    ") + "\n"
+            f"{_P16}    if flag_{l} != OK:\n"
+            + "".join(f"{_P16}        {line.format(l=l)}\n" for line in flagged)
+            + f"{_P16}        for j in range({nan_rows}):\n"
+            f"{_P16}            for i in range(12):\n"
+            f"{_P16}                out[b_{l}, j, i] = np.nan\n"
+            f"{_P16}        live_{l} = False\n" + self.reset(l, start, _P16 + "        ") + "\n"
+            f"{_P16}    {store}:\n"
+            + "\n".join(f"{_P16}        out[b_{l}, row, {i}] = {_STATES[i]}_{l}" for i in self.idx)
         )
 
+
+def _batch_source(h: _LaneCode) -> str:
+    """Source of the driver over a batch of coefficient vectors (one track)."""
+    K, idx = h.K, h.idx
+    load_b = "\n".join(f"{_P12}{_STATES[i]}_{l} = s0[b_{l}, {i}]" for l in range(K) for i in idx)
+    lanes_b = "\n".join(
+        h.lane_setup(l, "vp", [], ["status[b_{l}] = OK", "fail_step[b_{l}] = -1"], "n_out", "s0[b_{l}, i]")
+        for l in range(K)
+    )
     after_b = [
-        after_step(
+        h.after_step(
             l,
             ["status[b_{l}] = flag_{l}", "fail_step[b_{l}] = k"],
             "(k + 1 + sample_every - 1) // sample_every, n_out",
@@ -424,11 +432,10 @@ def _drivers_source(mode: str, lanes: int) -> str:
         )
         for l in range(K)
     ]
-    any_live = " or ".join(f"live_{l}" for l in range(K))
-    batch = f'''
+    return f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
 def simulate_batch(s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step):
-    """As bayesid.models.dynamics.simulate_batch (generated: {mode}, {K} lane(s) per thread)."""
+    """As bayesid.models.dynamics.simulate_batch (generated: {h.mode}, {K} lane(s) per thread)."""
     B = s0.shape[0]
     n_steps = inputs.shape[0]
     n_out = out.shape[1]
@@ -436,38 +443,42 @@ def simulate_batch(s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, s
 {lanes_b}
 {load_b}
         for k in range(n_steps):
-            {step_call("inputs[k, {j}]", "0.0")}
+            {h.step_call("inputs[k, {j}]", "0.0")}
             store = (k + 1) % sample_every == 0
             row = (k + 1) // sample_every
 {chr(10).join(after_b)}
-            if not ({any_live}):
+            if not ({h.any_live}):
                 break
 '''
-    # -- windows of one record -----------------------------------------------------------------
-    load_w = "\n".join(f"{P12}{_STATES[i]}_{l} = s0[b_{l}, w, {i}]" for l in range(K) for i in idx)
+
+
+def _windows_source(h: _LaneCode) -> str:
+    """Source of the driver over the windows of one record (multiple shooting)."""
+    K, idx = h.K, h.idx
+    load_w = "\n".join(f"{_P12}{_STATES[i]}_{l} = s0[b_{l}, w, {i}]" for l in range(K) for i in idx)
     lanes_w = "\n".join(
-        lane_setup(
+        h.lane_setup(
             l, "vp_all[b_{l}]", ["E_{l} = ecoef[b_{l}]"], ["status[b_{l}, w] = OK"], "row0, row1 + 1", "s0[b_{l}, w, i]"
         )
         for l in range(K)
     )
     ext_w = (
-        "\n".join(f"{P16}x{i}_{l} = 0.0" for l in range(K) for i in range(6))
+        "\n".join(f"{_P16}x{i}_{l} = 0.0" for l in range(K) for i in range(6))
         + "\n"
-        + f"{P16}for j in range(Kx):\n"
+        + f"{_P16}for j in range(Kx):\n"
         + "\n".join(
-            f"{P16}    g{l} = exo[b_{l}, k, j]\n"
-            + "\n".join(f"{P16}    x{i}_{l} += g{l} * E_{l}[j, {i}]" for i in range(6))
+            f"{_P16}    g{l} = exo[b_{l}, k, j]\n"
+            + "\n".join(f"{_P16}    x{i}_{l} += g{l} * E_{l}[j, {i}]" for i in range(6))
             for l in range(K)
         )
     )
     after_w = [
-        after_step(l, ["status[b_{l}, w] = flag_{l}"], "row, row1 + 1", "s0[b_{l}, w, {i}]", "else") for l in range(K)
+        h.after_step(l, ["status[b_{l}, w] = flag_{l}"], "row, row1 + 1", "s0[b_{l}, w, {i}]", "else") for l in range(K)
     ]
-    windows = f'''
+    return f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
 def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp_all, tcoef, Minv, xs, ws, out, status):
-    """As bayesid.models.dynamics.simulate_windows (generated: {mode}, {K} lane(s) per thread)."""
+    """As bayesid.models.dynamics.simulate_windows (generated: {h.mode}, {K} lane(s) per thread)."""
     B = s0.shape[0]
     W = starts.shape[0] - 1
     Kx = exo.shape[2]
@@ -482,13 +493,19 @@ def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp_all, tcoef, Minv, xs
         row = row0
         for k in range(starts[w], starts[w + 1]):
 {ext_w}
-            {step_call("inputs[b_{l}, k, {j}]", "x{j}_{l}")}
+            {h.step_call("inputs[b_{l}, k, {j}]", "x{j}_{l}")}
             row += 1
 {chr(10).join(after_w)}
-            if not ({any_live}):
+            if not ({h.any_live}):
                 break
 '''
-    return batch + windows
+
+
+def _drivers_source(mode: str, lanes: int) -> str:
+    """Source of the two drivers (the batch over coefficient vectors and the windows), each
+    thread advancing ``lanes`` tracks together through :func:`_step`."""
+    h = _LaneCode(mode, lanes)
+    return _batch_source(h) + _windows_source(h)
 
 
 _HEADER = '''"""Generated by bayesid.models.codegen for {n} active force terms, mode {mode}, {lanes} lane(s). Do not edit.

@@ -426,41 +426,11 @@ def diagnose(
     t_start = time.perf_counter()
     opt, th = options, thresholds
     rng = np.random.default_rng(0) if rng is None else rng
-    if not train or not heldout:
-        raise ValueError("diagnose needs at least one training and one held-out track")
-    names_t, names_h = [t.name for t in train], [t.name for t in heldout]
-    overlap = set(names_t) & set(names_h)
-    if overlap or any(a is b for a in train for b in heldout):
-        raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
-    family = model_class(vehicle)
-    dt = family.DEFAULT_DT if opt.dt is None else opt.dt
-    names = catalogue_candidates(family, train + heldout, runner) if opt.candidates is None else opt.candidates
-    cand_effects = [family.get_effect(c) for c in names]
+    family, setup, cand_effects, sd = _diagnosis_setup(vehicle, free, train, heldout, opt, runner)
+    names_t, names_h, dt = [t.name for t in train], [t.name for t in heldout], setup.dt
     say = runner.say
-    sd = pooled_noise_sd(train + heldout)
-    fw = opt.fit_window_s if opt.fit_window_s is not None else family.default_fit_window(opt.window_s)
-    rule, lead = start_settings(opt.start, train + heldout, opt.window_s, dt, opt.leadin_s)
-    base_effects = tuple(family.get_effect(e) for e in opt.base_effects)
-    cand_effects = [e for e in cand_effects if e.name not in {b.name for b in base_effects}]
-    setup = Setup(
-        vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead, base_effects,
-        train_starts="kinematic" if opt.train_starts == "kinematic" else "fitted", kinematic_sd=sd,
-    )  # fmt: skip
     weighting = opt.weighting or family.DEFAULT_WEIGHTING
-    b = _base_stage(setup, sd, weighting, opt, runner)
-    alt = None
-    if opt.train_starts == "auto" and (b["check"].get("starts") or {}).get("suspect"):
-        say("base fit: window starts inconsistent with the kinematics; refit with starts held at them")
-        alt = _base_stage(replace(setup, train_starts="kinematic"), sd, weighting, opt, runner)
-        use = alt["check"]["train_rms_at_window_m"] < b["check"]["train_rms_at_window_m"]
-        summary = {
-            "fitted_train_rms_at_window_m": b["check"]["train_rms_at_window_m"],
-            "kinematic_train_rms_at_window_m": alt["check"]["train_rms_at_window_m"],
-            "used": "kinematic" if use else "fitted",
-        }
-        if use:
-            b = alt
-        b["check"]["train_starts"] = summary
+    b, alt = _checked_base(setup, sd, weighting, opt, runner)
     base, ctr, cho, bfit, sd_fit, base_ms = (b[k] for k in ("model", "ctr", "cho", "fit", "sd_fit", "multistart"))
     b_train, b_held, check = b["train"], b["held"], b["check"]
     setup = b["setup"]
@@ -512,31 +482,9 @@ def diagnose(
     remainder_sig = remainder["significant"]
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
     first = search["discovery_first"]
-    gap_discovered = {}
-    found = first.discovery if first is not None and first.took_round else None
-    if found is not None:  # discovery's terms came first, the effects on top of them
-        verdict = found.verdict.replace("+unexplained", "")
-        verdict += (
-            (" -> " + verdict_of(True, chosen, remainder_sig)) if chosen else ("+unexplained" if remainder_sig else "")
-        )
-    else:
-        verdict = verdict_of(significant, chosen, remainder_sig)
-        if opt.discover is not None and remainder_sig:
-            say("structure discovery")
-            found = discover(
-                setup,
-                after,
-                list(after.model.effects),  # in the model's own order (its parameter vector's)
-                opt.discover,
-                dict(disc_context, significant=remainder_sig),
-                rng=rng,
-                runner=runner,
-            )
-            if held is not None and not chosen:  # on the base model: the one with held starts too
-                found, _ = _better_with_held_starts(found, held, opt.discover, disc_context, rng, runner)
-            verdict += " -> " + found.verdict
-            if found.after is not None:
-                gap_discovered = gap_summary(found.after.train, found.after.held)
+    verdict, found, gap_discovered = _discovery_after_rounds(
+        search, significant, remainder_sig, (setup, opt, disc_context, held), rng, runner
+    )
     designed, predictions = _design(found, setup, opt.design, runner)
     return Diagnosis(
         verdict=verdict,
@@ -585,6 +533,94 @@ def diagnose(
         discovered=found,
         setup=setup,
     )
+
+
+def _diagnosis_setup(vehicle, free, train: list, heldout: list, opt: DiagnoseOptions, runner: Runner) -> tuple:
+    """The tracks checked and what every model of the diagnosis shares: ``(family, Setup, the
+    candidate effects, the pooled noise sd)``.
+
+    Raises
+    ------
+    ValueError
+        No training or held-out track, or tracks in both; an unknown effect (named).
+    """
+    if not train or not heldout:
+        raise ValueError("diagnose needs at least one training and one held-out track")
+    names_t, names_h = [t.name for t in train], [t.name for t in heldout]
+    overlap = set(names_t) & set(names_h)
+    if overlap or any(a is b for a in train for b in heldout):
+        raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
+    family = model_class(vehicle)
+    dt = family.DEFAULT_DT if opt.dt is None else opt.dt
+    names = catalogue_candidates(family, train + heldout, runner) if opt.candidates is None else opt.candidates
+    cand_effects = [family.get_effect(c) for c in names]
+    sd = pooled_noise_sd(train + heldout)
+    fw = opt.fit_window_s if opt.fit_window_s is not None else family.default_fit_window(opt.window_s)
+    rule, lead = start_settings(opt.start, train + heldout, opt.window_s, dt, opt.leadin_s)
+    base_effects = tuple(family.get_effect(e) for e in opt.base_effects)
+    cand_effects = [e for e in cand_effects if e.name not in {b.name for b in base_effects}]
+    setup = Setup(
+        vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead, base_effects,
+        train_starts="kinematic" if opt.train_starts == "kinematic" else "fitted", kinematic_sd=sd,
+    )  # fmt: skip
+    return family, setup, cand_effects, sd
+
+
+def _checked_base(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> tuple:
+    """The base model fitted and checked (:func:`_base_stage`), and under ``train_starts="auto"``
+    refitted with window starts held at the kinematics when the check finds the fitted ones
+    inconsistent with them: ``(the base stage used, the held-start one or None)``; the used
+    one's ``check["train_starts"]`` says which and why."""
+    b = _base_stage(setup, sd, weighting, opt, runner)
+    alt = None
+    if opt.train_starts == "auto" and (b["check"].get("starts") or {}).get("suspect"):
+        runner.say("base fit: window starts inconsistent with the kinematics; refit with starts held at them")
+        alt = _base_stage(replace(setup, train_starts="kinematic"), sd, weighting, opt, runner)
+        use = alt["check"]["train_rms_at_window_m"] < b["check"]["train_rms_at_window_m"]
+        summary = {
+            "fitted_train_rms_at_window_m": b["check"]["train_rms_at_window_m"],
+            "kinematic_train_rms_at_window_m": alt["check"]["train_rms_at_window_m"],
+            "used": "kinematic" if use else "fitted",
+        }
+        if use:
+            b = alt
+        b["check"]["train_starts"] = summary
+    return b, alt
+
+
+def _discovery_after_rounds(search: dict, significant: bool, remainder_sig: bool, ctx: tuple, rng, runner) -> tuple:
+    """The verdict after the greedy rounds and the discovery that goes with it: ``(verdict,
+    Discovery or None, gap summary with the discovered terms)``. Discovery's terms came first
+    when its model took round 1 (the effects on top of them); otherwise discovery runs on the
+    model after the effects while its remainder is significant (on the base model: with held
+    window starts too). ``ctx``: ``(Setup, DiagnoseOptions, discovery context, held-start base
+    or None)``."""
+    setup, opt, disc_context, held = ctx
+    after, chosen, first = search["after"], search["chosen"], search["discovery_first"]
+    found = first.discovery if first is not None and first.took_round else None
+    if found is not None:  # discovery's terms came first, the effects on top of them
+        verdict = found.verdict.replace("+unexplained", "")
+        verdict += (
+            (" -> " + verdict_of(True, chosen, remainder_sig)) if chosen else ("+unexplained" if remainder_sig else "")
+        )
+        return verdict, found, {}
+    verdict = verdict_of(significant, chosen, remainder_sig)
+    if opt.discover is None or not remainder_sig:
+        return verdict, None, {}
+    runner.say("structure discovery")
+    found = discover(
+        setup,
+        after,
+        list(after.model.effects),  # in the model's own order (its parameter vector's)
+        opt.discover,
+        dict(disc_context, significant=remainder_sig),
+        rng=rng,
+        runner=runner,
+    )
+    if held is not None and not chosen:  # on the base model: the one with held starts too
+        found, _ = _better_with_held_starts(found, held, opt.discover, disc_context, rng, runner)
+    gap = gap_summary(found.after.train, found.after.held) if found.after is not None else {}
+    return verdict + " -> " + found.verdict, found, gap
 
 
 #: The label of the model without the discovered terms in a design against it
