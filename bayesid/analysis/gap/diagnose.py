@@ -4,7 +4,7 @@ candidates, verdict, support (the rules: :mod:`bayesid.analysis.gap`)."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 from functools import cache, partial
 
 import numpy as np
@@ -195,6 +195,9 @@ class Diagnosis:
     after: Stage = field(repr=False, default=None)
     discovered: object = field(repr=False, default=None)
     setup: Setup = field(repr=False, default=None)
+    discovered_terms: list | None = field(repr=False, default=None)
+
+    _HIDDEN = ("base", "after", "discovered", "setup", "discovered_terms")
 
     def to_dict(self) -> dict:
         """The JSON-able fields, in order (the models are left out).
@@ -202,17 +205,51 @@ class Diagnosis:
         Returns
         -------
         dict
-            ``{field: value}``.
+            ``{field: value}``, and ``discovered``: the top-level list of discovered terms.
         """
-        hidden = ("base", "after", "discovered", "setup")
-        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in hidden}
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in self._HIDDEN}
+        if self.discovered is None:  # read back from JSON: the list as it was written
+            out["discovered"] = [dict(i) for i in self.discovered_terms or []]
+            return out
         # issue 40's contract: the terms at the top level, the final model's with kept: true
-        out["discovered"] = self.discovered.terms() if self.discovered is not None else []
+        out["discovered"] = self.discovered.terms()
         within = set(self.manoeuvre_kinds.get("heldout", [])) <= set(self.manoeuvre_kinds.get("train", []))
         for item in out["discovered"]:  # a held-out test of the same kinds says nothing of the others
             item["tested_only_within_training_manoeuvres"] = bool(self.manoeuvre_kinds) and within
             item["worse_on_other_kinds"] = self._worse_on_other_kinds(item) if item["kept"] else []
         return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Diagnosis:
+        """The diagnosis read back from its JSON (``diagnosis.json``, or :meth:`to_dict`): every
+        JSON field, without the models (``base``, ``after``, ``discovered``, ``setup`` are None;
+        the top-level ``discovered`` list is kept as written and :meth:`to_dict` writes it
+        again).
+
+        Parameters
+        ----------
+        d : dict
+            The JSON object.
+
+        Returns
+        -------
+        Diagnosis
+            The diagnosis; ``Diagnosis.from_dict(x).to_dict() == x``.
+
+        Raises
+        ------
+        ValueError
+            A key the diagnosis does not have, or a required one missing (named).
+        """
+        names = {f.name for f in fields(cls) if f.name not in cls._HIDDEN}
+        unknown = sorted(set(d) - names - {"discovered"})
+        if unknown:
+            raise ValueError(f"diagnosis: unknown key(s) {unknown}")
+        missing = sorted(f.name for f in fields(cls) if f.name in names and f.default is MISSING and f.name not in d)
+        missing = [n for n in missing if next(f for f in fields(cls) if f.name == n).default_factory is MISSING]
+        if missing:
+            raise ValueError(f"diagnosis: missing key(s) {missing}")
+        return cls(**{k: v for k, v in d.items() if k in names}, discovered_terms=list(d.get("discovered") or []))
 
     def _worse_on_other_kinds(self, item: dict) -> list:
         """The held-out runs of a kind the training runs lack on which a kept term's single-term
