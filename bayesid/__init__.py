@@ -12,7 +12,7 @@ the window protocol's predictions (:func:`~bayesid.estimation.prediction.predict
 :class:`~bayesid.estimation.windows.FitProblem`), the gap diagnosis and structure discovery
 (:func:`~bayesid.analysis.gap.diagnose.diagnose`, :class:`~bayesid.analysis.gap.diagnose.DiagnoseOptions`,
 :func:`~bayesid.analysis.gap.discovery.discover`,
-:class:`~bayesid.analysis.gap.discovery.DiscoveryOptions`) and :class:`~bayesid.tasks.Runner`.
+:class:`~bayesid.analysis.gap.discovery.options.DiscoveryOptions`) and :class:`~bayesid.tasks.Runner`.
 Each is imported from the module that defines it at its first use, so ``import bayesid`` stays
 cheap (no numba, no model module).
 

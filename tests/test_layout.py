@@ -60,6 +60,30 @@ def test_each_layer_imports_only_the_layers_before_it():
     assert not bad, "\n".join(bad)
 
 
+#: structure discovery's modules by concept, each importing only those before it (the package, the
+#: orchestration, last)
+DISCOVERY = ["options", "library", "forces", "selection", "confirmation", "__init__"]
+
+
+def test_structure_discovery_modules_import_only_the_concepts_before_them():
+    pkg = ["bayesid", "analysis", "gap", "discovery"]
+    found, bad = set(), []
+    for f, parts in _modules():
+        if parts[:4] != pkg:
+            continue
+        me = f.stem
+        found.add(me)
+        assert me in DISCOVERY, f"{f.relative_to(ROOT)}: a new module of structure discovery, place it in DISCOVERY"
+        for mod, names, line in _imports(f, parts):
+            if mod[:4] != pkg:
+                continue
+            used = mod[4:5] or [n for n in names if n in DISCOVERY] or ["__init__"]
+            if any(DISCOVERY.index(u) >= DISCOVERY.index(me) for u in used):
+                bad.append(f"{f.relative_to(ROOT)}:{line} imports {'.'.join(mod)} {names}")
+    assert found == set(DISCOVERY)
+    assert not bad, "\n".join(bad)
+
+
 def import_graph(modules) -> dict:
     """{module: set of package modules it imports} of ``[(path, parts)]``: ``from pkg import name``
     counts as an import of ``pkg.name`` when that is a module, else of ``pkg``."""

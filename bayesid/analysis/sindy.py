@@ -14,7 +14,9 @@ Pipeline (horizontal plane: surge X, sway Y, yaw N; w = p = q = 0, no planes):
 4. :func:`inclusion_probabilities` -- ensemble SINDy (Fasel et al. 2022): STLSQ (Brunton, Proctor
    & Kutz 2016) on bootstrap resamples of the samples, one regression per equation over that
    equation's candidates; the inclusion probability of a term is the fraction of bootstrap models
-   in which its coefficient survives the threshold.
+   in which its coefficient survives the threshold. The bootstrap over single samples is
+   :func:`ensemble_stlsq`; :func:`block_ensemble_stlsq` resamples blocks of samples (structure
+   discovery's, :mod:`bayesid.analysis.gap.discovery`); both fit the same STLSQ.
 5. :func:`compare_with_model` -- included terms versus the vehicle's non-zero coefficients.
 
 Sources: S. L. Brunton, J. L. Proctor, J. N. Kutz (2016), Discovering governing equations from
@@ -224,6 +226,21 @@ def legacy_seed(rng: np.random.Generator):
         np.random.set_state(saved)
 
 
+def _stlsq(threshold: float, alpha: float = 0.0, unbias: bool = True) -> ps.STLSQ:
+    """pysindy ``STLSQ`` on already normalised columns, 20 iterations: the one sparse regression
+    of both ensembles."""
+    return ps.STLSQ(threshold=threshold, alpha=alpha, normalize_columns=False, unbias=unbias, max_iter=20)
+
+
+@contextlib.contextmanager
+def _quiet_one_thread():
+    """BLAS on one thread (the ensembles run inside parallel tasks) and STLSQ's warnings
+    ("eliminated all coefficients", convergence) silenced."""
+    with threadpool_limits(1), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
 def ensemble_stlsq(
     Xn: np.ndarray, yn: np.ndarray, rng: np.random.Generator, threshold: float, alpha: float = 0.0, n_models: int = 100
 ) -> np.ndarray:
@@ -232,6 +249,9 @@ def ensemble_stlsq(
     ``EnsembleOptimizer`` with bagging (Fasel, Kutz, Brunton & Brunton 2022, Proc. R. Soc. A
     478), on already normalised columns ``Xn`` (n, K) and target ``yn`` (n,); the bootstrap is
     seeded from ``rng`` (:func:`legacy_seed`), BLAS on one thread.
+
+    Bagging resamples single rows, as if they were independent; for rows correlated in time
+    (windows of a track) see :func:`block_ensemble_stlsq`.
 
     Parameters
     ----------
@@ -253,12 +273,72 @@ def ensemble_stlsq(
     ndarray, shape (n_models, K)
         Coefficients; the inclusion probability of a column is the share of non-zero rows.
     """
-    stl = ps.STLSQ(threshold=float(threshold), alpha=float(alpha), normalize_columns=False, unbias=True, max_iter=20)
+    stl = _stlsq(float(threshold), float(alpha), unbias=True)
     ens = ps.EnsembleOptimizer(stl, bagging=True, n_models=int(n_models), replace=True)
-    with legacy_seed(rng), threadpool_limits(1), warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # STLSQ "eliminated all coefficients", convergence
+    with legacy_seed(rng), _quiet_one_thread():
         ens.fit(Xn, yn)
     return np.array(ens.coef_list)[:, 0, :]
+
+
+def block_ensemble_stlsq(
+    Xn: np.ndarray,
+    yn: np.ndarray,
+    blocks: list,
+    rng: np.random.Generator,
+    threshold: float,
+    ridge: float = 0.0,
+    n_models: int = 100,
+) -> np.ndarray:
+    """Ensemble sequentially thresholded least squares over a **block bootstrap** of the rows:
+    pysindy ``STLSQ`` (Brunton, Proctor & Kutz 2016, PNAS 113(15); no unbiasing, 20 iterations,
+    ridge) fitted to ``n_models`` resamples, each drawing as many blocks as there are, with
+    replacement (Ensemble-SINDy's bagging, Fasel, Kutz, Brunton & Brunton 2022, Proc. R. Soc. A
+    478:20210904, with blocks instead of single rows: rows correlated in time, such as the
+    samples of one window of a track, resampled one by one would overstate the certainty).
+
+    STLSQ's ridge problem depends on the rows only through ``X'X`` and ``X'y``: each block's are
+    summed once, a replicate sums its blocks', and STLSQ fits the K x K problem
+    ``(R, R^-T X'y)`` with ``R'R = X'X`` (the same minimiser; tens of thousands of rows cost
+    nothing more than one pass). BLAS runs on one thread.
+
+    Parameters
+    ----------
+    Xn : ndarray, shape (n, K)
+        Normalised columns.
+    yn : ndarray, shape (n,)
+        Normalised target.
+    blocks : list of ndarray of int
+        Row indices of each block (B blocks).
+    rng : numpy.random.Generator
+        Draws the blocks of each replicate: ``rng.integers(0, B, B)`` per model, in model order.
+    threshold : float
+        STLSQ threshold on the normalised coefficients.
+    ridge : float, default 0.0
+        Ridge weight per row: a replicate's STLSQ ridge ``alpha`` is ``ridge`` times its number of
+        rows.
+    n_models : int, default 100
+        Bootstrap models.
+
+    Returns
+    -------
+    ndarray, shape (n_models, K)
+        Coefficients; the inclusion probability of a column is the share of non-zero rows.
+    """
+    G = np.stack([Xn[b].T @ Xn[b] for b in blocks])
+    g = np.stack([Xn[b].T @ yn[b] for b in blocks])
+    n = np.array([b.size for b in blocks], float)
+    K = Xn.shape[1]
+    stl = _stlsq(threshold, 0.0, unbias=False)
+    xi = np.empty((n_models, K))
+    with _quiet_one_thread():
+        for m in range(n_models):
+            pick = rng.integers(0, len(blocks), len(blocks))
+            Gm, gm = G[pick].sum(axis=0), g[pick].sum(axis=0)
+            R = np.linalg.cholesky(Gm + 1e-10 * np.trace(Gm) / K * np.eye(K)).T
+            stl.alpha = ridge * n[pick].sum()
+            stl.fit(R, np.linalg.solve(R.T, gm))
+            xi[m] = stl.coef_[0]
+    return xi
 
 
 def _collinearity(Xn: np.ndarray) -> tuple[float, np.ndarray]:
@@ -534,5 +614,7 @@ __all__ = [
     "force_targets",
     "candidate_library",
     "inclusion_probabilities",
+    "ensemble_stlsq",
+    "block_ensemble_stlsq",
     "compare_with_model",
 ]

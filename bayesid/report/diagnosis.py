@@ -495,7 +495,7 @@ def _mimicked_text(R: dict, free, shown: int = 5) -> str:
     R : dict
         ``mimicked`` (names) and optionally ``mimicked_by`` (``{term: {"parameter", "cosine",
         "span_cosine"[, "shift", "shift_effect"]}}``, most likely stand-ins first;
-        :func:`bayesid.analysis.gap.discovery.select_terms`).
+        :func:`bayesid.analysis.gap.discovery.selection.select_terms`).
     free : sequence of str
         The reference model's free coefficients (a mimic among them is held by leaving it out of
         ``--free``).

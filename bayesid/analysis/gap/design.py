@@ -4,7 +4,7 @@ uncertainty.
 
 Structure discovery (:mod:`bayesid.analysis.gap.discovery`) may keep a term whose alternatives
 (other terms, other degrees of freedom) predict the held-out runs as well
-(:func:`~bayesid.analysis.gap.discovery.alternatives`). Which run would tell them apart? For each
+(:func:`~bayesid.analysis.gap.discovery.confirmation.alternatives`). Which run would tell them apart? For each
 manoeuvre of a menu (:func:`menu`: turning circles both sides at the largest and at half the
 rudder, pull-outs, zigzags of other angles both sides, a spiral's rudder steps, a speed change,
 a pseudo-random rudder sequence), all from the training runs' approach condition and within

@@ -157,6 +157,9 @@ class Diagnosis:
     setup : Setup, optional
         What every model of the diagnosis shares (vehicle, free coefficients, tracks, windows);
         not in :meth:`to_dict`.
+    discovered_terms : list, optional
+        The top-level ``discovered`` list of a diagnosis read back from its JSON
+        (:meth:`from_dict`; ``discovered`` is then None); :meth:`to_dict` writes it as read.
     """
 
     verdict: str

@@ -1,0 +1,498 @@
+"""Structure discovery: name the model terms behind an "unexplained" gap, refit with them and
+check them on held-out runs.
+
+The gap diagnosis (:mod:`bayesid.analysis.gap`) can only name effects of its catalogue. This package
+asks the next question, "what term is the model missing?", in four steps:
+
+1. **Where the force is missing.** On the training tracks, the forces the measured motion implies
+   (smoothed motion and rigid-body inverse dynamics, :func:`bayesid.models.inverse.estimate_motion`)
+   minus the fitted model's forces along the measured states (the model's ``missing_forces``), per
+   degree of freedom X, Y, N, with their noise level (the scatter of successive differences).
+2. **Candidate terms.** The terms the model lacks from its family's term library
+   (:func:`bayesid.models.library.term_library`: the model answers, discovery never asks which
+   kind of vessel it has), named as a vehicle file writes them: for a ship the extra hull terms of
+   :mod:`bayesid.models.ship.hullterms` (products of ``v r |v| |r| dr |dr|`` up to third order and
+   the constants ``X0 Y0 N0``, so port/starboard asymmetric forms such as ``N0``, ``Nabsdr``,
+   ``Nvv`` are candidates) and its tied coefficients (``gRm``, gamma_R for beta_R < 0), untied at
+   the value they follow; for a submarine the products of the term grammar
+   (:class:`bayesid.models.submarine.SubmarineTerms`).
+3. **Sparse selection with inclusion probabilities.** Per degree of freedom, the missing force is
+   regressed on the candidates' force columns by sequentially thresholded least squares (pysindy
+   ``STLSQ``; Brunton, Proctor & Kutz 2016) on RMS-normalised columns and target, so terms of
+   different size compete by the share of the missing force they carry; an ensemble over a
+   **block bootstrap** of the samples (blocks of :attr:`~.options.DiscoveryOptions.block_s` seconds: the
+   residuals of a track are correlated in time, and resampling single samples would overstate the
+   certainty) gives each term an inclusion probability (Fasel, Kutz, Brunton & Brunton 2022,
+   Ensemble-SINDy, Proc. R. Soc. A 478:20210904). Candidates whose columns are nearly collinear
+   (|cosine| >= :attr:`~.options.DiscoveryOptions.group_cos`) form a **group**: the group's inclusion
+   probability is the share of models that select any member, and the group is tested as one
+   candidate (its most probable member), never as a winner picked by chance.
+4. **Confirmed by the output-error fit and held-out runs.** Each candidate is added to the model
+   (start: the reference fit, its window start states included, plus the regression's step; the
+   reference itself when that fit ends worse) and ALL free coefficients are re-identified by the
+   same multiple-shooting fit ``bayesid fit`` uses, with the reference fit's channel weights; it is **kept** only if it passes the gap diagnosis's contributor test on
+   the held-out windows (:func:`bayesid.analysis.gap.verdict.is_contributor`: training ΔBIC <= -10,
+   held-out shrinkage > 0, and a one-sided Wilcoxon test of the paired per-window errors
+   p < 0.01 or half the excess over the noise floor removed) and predicts no held-out run
+   significantly worse than the reference model (the run test of
+   :func:`bayesid.analysis.gap.verdict.run_separation_test`, same level: a term chosen on one
+   kind of run that makes another kind worse does not carry). Terms that fit the training runs but
+   not the held-out ones are reported as rejected with their numbers. The kept terms are then
+   added together, best first (a term some held-out run shows worse than another kept term after
+   it: :func:`~.confirmation.dominance_order`), each further one refitted on top of those added and kept only if
+   it passes the same test against them while the held-out error is still above the floor band.
+
+:func:`discover` runs the whole search from a reference model (the diagnosis's model after its
+catalogue effects, or a base fit of its own) and returns a :class:`Discovery`.
+
+The package is split by concept: :mod:`.options` (:class:`~.options.DiscoveryOptions`),
+:mod:`.library` (the candidate terms and the models they extend; step 2), :mod:`.forces` (the
+missing forces; step 1), :mod:`.selection` (the linearised problem and the ensemble; step 3, with
+the block-bootstrap ensemble STLSQ of :func:`bayesid.analysis.sindy.block_ensemble_stlsq`),
+:mod:`.confirmation` (the refits and the held-out tests; step 4) and this orchestration.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ....models.library import MAX_ORDER as MAX_ORDER
+from ....tasks import Runner, Task, TaskError
+from ..candidates import Setup, Stage
+from ..verdict import Thresholds
+from ..verdict import is_contributor as is_contributor
+from ..verdict import paired_window_test as paired_window_test
+from ..verdict import run_separation_test as run_separation_test
+from .confirmation import (
+    TermFit,
+    alternatives,
+    combine,
+    compare_structures,
+    decide,
+    dominance_order,
+    fit_term,
+    heldout_rms_by_run,
+    refit_row,
+    separated,
+    window_runs,
+    worst_run,
+)
+from .forces import force_residuals, force_summary
+from .forces import twin_track as twin_track
+from .library import (
+    augmented_model,
+    candidate_terms,
+    extended_start,
+    nuisance_start,
+    reference_values,
+    untied_candidates,
+    warm_starts,
+    with_terms,
+)
+from .options import DOFS, DiscoveryOptions
+from .selection import (
+    alternative_pool,
+    linearised_problem,
+    mimics,
+    project_out,
+    refit_candidates,
+    score_test,
+    select_terms,
+)
+
+__all__ = [
+    "DiscoveryOptions",
+    "Discovery",
+    "TermFit",
+    "candidate_terms",
+    "untied_candidates",
+    "reference_values",
+    "force_residuals",
+    "select_terms",
+    "score_test",
+    "alternatives",
+    "compare_structures",
+    "separated",
+    "window_runs",
+    "dominance_order",
+    "fit_term",
+    "with_terms",
+    "discover",
+]
+
+# the helpers' names before the package was split by concept (private in one module then)
+_DOFS = DOFS
+_augmented = augmented_model
+_extended_start = extended_start
+_warm_starts = warm_starts
+_nuisance_start = nuisance_start
+_project = project_out
+_mimics = mimics
+_candidates = refit_candidates
+_alternative_pool = alternative_pool
+_row = refit_row
+_worst_run = worst_run
+_decide = decide
+_combine = combine
+_by_run = heldout_rms_by_run
+
+
+@dataclass
+class Discovery:
+    """The result of :func:`discover` (JSON-able through :meth:`to_dict`, the ``discovery`` entry
+    of ``diagnosis.json``).
+
+    Parameters
+    ----------
+    found : list of str
+        The kept terms, in the order added.
+    verdict : str
+        ``"discovered: N0+Nvvv"`` (with ``+unexplained`` when the held-out error is still above
+        the floor band with them) or ``"no term of the library explains it"`` (naming the
+        likeliest term hidden in a free coefficient, when one is: ``, unless N0 is hidden in dR0
+        (refit with dR0 held to test it)``).
+    discovered : list of dict
+        Every refitted candidate: ``term``, ``dof``, ``inclusion_probability`` (the term's),
+        ``group_inclusion_probability``, ``group`` (its collinear alternatives),
+        ``regression_coefficient``, ``coefficient`` and ``coefficient_sd`` (prime: the
+        regression's, the refit's and its Laplace sd),
+        ``heldout_rms_before_m``, ``heldout_rms_after_m`` (and per window,
+        ``heldout_windows_after_m``), ``train_rms_before_m``,
+        ``train_rms_after_m``, ``shrinkage``, ``delta_bic``, ``window_p_value``,
+        ``excess_removed``, ``worst_run`` (the held-out run the refit predicts worst against
+        the reference: ``run``, ``error_ratio``, ``p_value``), ``kept`` and ``reason``.
+    inclusion : dict
+        ``{term: inclusion probability}`` of every candidate with a non-zero one, best first.
+    residuals : dict
+        ``forces``: per degree of freedom the missing force's RMS (N or N m), the null's and the
+        best candidates (:func:`~.forces.force_summary`); ``explained``: the share of the projected
+        output residual's variance the ensemble's median model explains; ``projected_rms``: the
+        share of the training residual's RMS no refit of the free parameters can remove;
+        ``mimicked``: candidates the free parameters reproduce; ``mimicked_by``: each of them with
+        the free parameter whose column is closest to its own (:func:`~.selection.select_terms`).
+    library_size : int
+        Number of candidate terms.
+    heldout_rms_before_m : float
+        The reference model's held-out RMS position error, m.
+    heldout_rms_after_m : float
+        With every kept term, m.
+    after_coefficients : dict
+        The coefficients of the model with every kept term (prime).
+    windows_before_m : list of float
+        The reference model's RMS position error of each held-out window, m.
+    windows_after_m : list of float
+        With every kept term, m.
+    settings : dict
+        The options and what the reference model was.
+    seconds : float
+        Wall time.
+    alternatives : dict
+        ``{kept term: [{"term", "heldout_rms_m", "window_p_value", "run_p_value", ...}, ...]}``:
+        every competing refitted term the held-out runs cannot separate from the kept term
+        (:func:`~.confirmation.compare_structures`); empty lists where the runs separate the kept term from
+        every other.
+    separated : dict
+        ``{kept term: [...]}``, the same entries for the competing terms the runs separate, with
+        the run that separates each (``separating_run``, ``run_error_ratio``).
+    after : Stage, optional
+        The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
+    reference : Stage, optional
+        The model the terms were added to; not in :meth:`to_dict`.
+    stages : dict, optional
+        ``{term: Stage}`` of every refitted term's single-term model (the kept terms' and their
+        alternatives' among them); not in :meth:`to_dict`.
+    """
+
+    found: list
+    verdict: str
+    discovered: list
+    inclusion: dict
+    residuals: dict
+    library_size: int
+    heldout_rms_before_m: float
+    heldout_rms_after_m: float
+    after_coefficients: dict
+    windows_before_m: list
+    windows_after_m: list
+    settings: dict
+    seconds: float
+    alternatives: dict = field(default_factory=dict)
+    separated: dict = field(default_factory=dict)
+    after: Stage | None = field(repr=False, default=None)
+    reference: Stage | None = field(repr=False, default=None)
+    stages: dict = field(repr=False, default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """The JSON-able fields.
+
+        Returns
+        -------
+        dict
+            ``{field: value}`` without ``after``, ``reference`` and ``stages``.
+        """
+        return {k: v for k, v in self.__dict__.items() if k not in ("after", "reference", "stages")}
+
+    def terms(self) -> list[dict]:
+        """The top-level ``discovered`` list of ``diagnosis.json``: one item per refitted term.
+
+        Returns
+        -------
+        list of dict
+            ``term``, ``dof``, ``kept`` (True for the final model's terms, :attr:`found`),
+            ``reason`` (why a term is not in the final model: it failed the kept test, or it
+            passed alone but not on top of the terms added before it), ``coefficient`` and
+            ``coefficient_sd`` (prime, its single-term refit), ``heldout_rms_m``,
+            ``window_p_value`` (against the reference model), ``inclusion_probability``,
+            ``refitted_as`` (``"selected"`` by the ensemble or ``"alternative"`` by the score
+            test), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
+            ``separated`` (kept terms: :attr:`separated`; others: empty), ``separable`` (kept terms: no alternative survives; others: None) and
+            ``heldout_rms_by_run_m`` (kept terms: ``{held-out run: position RMS, m}`` of the
+            single-term refit; others: empty).
+        """
+        out = []
+        for row in self.discovered:
+            t = row["term"]
+            kept = t in self.found
+            if kept:
+                reason = "in the final model"
+            elif row.get("kept"):
+                reason = "passed the kept test alone but not on top of " + "+".join(self.found)
+            else:
+                reason = row.get("reason", "")
+            alts = list(self.alternatives.get(t, [])) if kept else []
+            out.append(
+                {
+                    "term": t,
+                    "dof": row["dof"],
+                    "kept": kept,
+                    "reason": reason,
+                    "coefficient": row.get("coefficient"),
+                    "coefficient_sd": row.get("coefficient_sd"),
+                    "heldout_rms_m": row.get("heldout_rms_after_m"),
+                    "window_p_value": row.get("window_p_value"),
+                    "inclusion_probability": row["inclusion_probability"],
+                    "refitted_as": row.get("refitted_as", "selected"),
+                    "alternatives": alts,
+                    "separated": list(self.separated.get(t, [])) if kept else [],
+                    "separable": (not alts) if kept else None,
+                    "heldout_rms_by_run_m": heldout_rms_by_run(self.stages[t]) if kept and t in self.stages else {},
+                }
+            )
+        return out
+
+
+def _named_alternatives(found: list, alts: dict) -> list[str]:
+    """The kept terms as the verdict names them: ``Yvvdr (not separable from Nvvr, Yvdrdr on
+    these runs)``."""
+    out = []
+    for k in found:
+        others = [a["term"] for a in alts.get(k, [])]
+        out.append(f"{k} (not separable from {', '.join(others)} on these runs)" if others else k)
+    return out
+
+
+def _verdict(found: list, heldout_rms: float, band: float, alts: dict | None = None, mimicked: tuple = ({}, ())) -> str:
+    """``"discovered: A+B"`` (``+unexplained`` while the held-out error stays above the floor
+    band: the terms explain part of the gap), or ``"no term of the library explains it"``; a
+    kept term with alternatives the runs cannot separate from it is named with them
+    (:func:`_named_alternatives`). With nothing kept, the likeliest mimicked term whose mimic is
+    a free coefficient closely collinear with it (column cosine >= 0.9) that the fit moved along
+    the term's column by at least the training residual's RMS (``mimicked``: ``(mimicked_by,
+    free)``, :func:`~.selection.select_terms`) is named with the test: ``no term of the library explains it, unless
+    N0 is hidden in dR0 (refit with dR0 held to test it)``."""
+    if not found:
+        by, free = mimicked
+        hidden = [
+            (t, m["parameter"])
+            for t, m in by.items()
+            if m.get("parameter") in free and m["cosine"] >= 0.9 and (m.get("shift_effect") or 0.0) >= 1.0
+        ]
+        if hidden:
+            t, p = hidden[0]
+            return f"no term of the library explains it, unless {t} is hidden in {p} (refit with {p} held to test it)"
+        return "no term of the library explains it"
+    names = _named_alternatives(found, alts or {})
+    return f"discovered: {'+'.join(names)}" + ("+unexplained" if heldout_rms > band else "")
+
+
+def discover(
+    setup: Setup,
+    ref: Stage,
+    effects=(),
+    options: DiscoveryOptions = DiscoveryOptions(),
+    context: dict | None = None,
+    *,
+    rng=None,
+    runner: Runner = Runner(),
+) -> Discovery:
+    """Structure discovery on top of a fitted reference model (see the module docstring).
+
+    Parameters
+    ----------
+    setup : Setup
+        The reference model's vehicle, free coefficients, tracks, windows and start rule
+        (:class:`bayesid.analysis.gap.candidates.Setup`).
+    ref : Stage
+        The reference model, fitted and scored (the diagnosis's model after its catalogue
+        effects, or a base fit).
+    effects : sequence of Effect, default ()
+        The reference model's effects (kept, with their parameters refitted).
+    options : DiscoveryOptions, default DiscoveryOptions()
+        The library, the ensemble and the confirmation fits.
+    context : dict, optional
+        ``sd_fit`` (the reference fit's channel weights; required), ``floor_rms`` (the noise
+        floor's held-out RMS, m; default 0), ``significant`` (whether the reference's gap is
+        significant; default True) and ``thresholds`` (:class:`Thresholds`).
+    rng : numpy.random.Generator, optional
+        The bootstrap (default seed 0).
+    runner : Runner, default Runner()
+        Runs the confirmation fits as tasks; progress messages.
+
+    Returns
+    -------
+    Discovery
+        The kept terms, every refitted candidate with its numbers, the inclusion probabilities
+        and the missing forces per degree of freedom.
+
+    Raises
+    ------
+    ValueError
+        No training track gives missing forces; ``context`` without ``sd_fit``.
+
+    Examples
+    --------
+    Discovery usually runs inside :func:`bayesid.analysis.gap.diagnose.diagnose`
+    (``DiagnoseOptions(discover=DiscoveryOptions())``, as ``bayesid discover`` runs it). Here it
+    searches again, with other options (the yaw moment alone), on the base model of a diagnosis
+    without candidates:
+
+    >>> import bayesid
+    >>> vehicle = bayesid.load_any_vehicle("nps_auv2")
+    >>> train = [bayesid.read_csv(f) for f in ("z10.csv", "z20.csv")]
+    >>> heldout = [bayesid.read_csv("t15.csv")]
+    >>> free = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
+    >>> d = bayesid.diagnose(vehicle, free, train, heldout, bayesid.DiagnoseOptions(window_s=30.0, candidates=()))
+    >>> context = {"sd_fit": d.fit_sd, "floor_rms": d.noise_floor["heldout_rms_m"], "significant": d.significant_gap}
+    >>> options = bayesid.DiscoveryOptions(dofs=("N",))
+    >>> found = bayesid.discover(d.setup, d.base, d.base.model.effects, options, context)
+    >>> found.found, found.verdict  # doctest: +SKIP
+    """
+    t0 = time.perf_counter()
+    ctx = dict(context or {})
+    if "sd_fit" not in ctx:
+        raise ValueError("discover needs context['sd_fit'], the reference fit's channel weights")
+    th = ctx.get("thresholds", Thresholds())
+    floor_rms, significant = float(ctx.get("floor_rms", 0.0)), bool(ctx.get("significant", True))
+    rng = np.random.default_rng(0) if rng is None else rng
+    names = candidate_terms(ref.model, options.max_order, options.dofs)
+    runner.say(f"discovery: {len(names)} candidate terms")
+    problem = linearised_problem(setup, ref, effects, names, ctx["sd_fit"])
+    sel = select_terms(problem, names, options, rng)
+    untied = untied_candidates(ref.model, options.dofs)
+    terms = [n for n in names if n not in untied]  # those with force columns
+    try:
+        forces = force_summary(
+            force_residuals(ref.model, ref.fit, setup.train, terms, options, rng), sel, terms, options
+        )
+    except ValueError as exc:  # no inverse dynamics: the output-space selection stands alone
+        forces = {"error": str(exc)}
+    cands = refit_candidates(sel, options)
+    pool = alternative_pool(score_test(problem, names), sel, cands, options)
+    refit = [*cands, *pool]
+    initial = reference_values(ref, refit)
+    runner.say(f"discovery: refitting {', '.join(cands) or 'nothing'}")
+    if pool:
+        runner.say(f"discovery: and the alternatives {', '.join(pool)}")
+    tasks = [
+        Task(
+            n,
+            {"term": n},
+            (
+                TermFit(
+                    n,
+                    sel["coefficient"].get(n, 0.0),
+                    ref,
+                    setup,
+                    tuple(effects),
+                    ctx["sd_fit"],
+                    options.max_nfev,
+                    initial[n],
+                ),
+            ),
+        )
+        for n in refit
+    ]
+    outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
+    runs, run_names = window_runs(setup, ref.model)
+    discovered, stages, fitted = [], {}, {}
+    for n, out in zip(refit, outs):
+        st = None if isinstance(out, TaskError) else out[0]
+        msgs = [str(out)] if isinstance(out, TaskError) else out[1]
+        for m in msgs:
+            if isinstance(m, str):
+                runner.say(f"discovery: {m}")
+        sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
+        row = refit_row(n, st, ref, sel, floor_rms, sd, (runs, run_names), th.separation_margin)
+        row["refitted_as"] = "alternative" if n in pool else "selected"
+        decide(row, significant, th)
+        discovered.append(row)
+        if st is not None:
+            fitted[n] = st
+        if row["kept"]:
+            stages[n] = st
+    found, after = ([], None)
+    if stages:
+        found, after = combine(
+            list(stages),
+            stages,
+            ref,
+            setup,
+            (tuple(effects), ctx["sd_fit"], options.max_nfev),
+            (floor_rms, th, (runs, run_names)),
+            initial,
+        )
+    compared = compare_structures(found, discovered, fitted, th, runs, run_names)
+    alts = alternatives(compared)
+    inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
+    return Discovery(
+        found=found,
+        verdict=_verdict(
+            found,
+            (after or ref).held["rms_position_m"],
+            th.none_ratio * floor_rms,
+            alts,
+            (sel["mimicked_by"], tuple(setup.free)),
+        ),
+        discovered=discovered,
+        inclusion=inclusion,
+        residuals={
+            "forces": forces,
+            "explained": sel["explained"],
+            "projected_rms": sel["projected_rms"],
+            "mimicked": sel["mimicked"],
+            "mimicked_by": sel["mimicked_by"],
+        },
+        library_size=len(names),
+        heldout_rms_before_m=ref.held["rms_position_m"],
+        heldout_rms_after_m=(after or ref).held["rms_position_m"],
+        after_coefficients=(after or ref).fit.coefficients(),
+        windows_before_m=[float(x) for x in ref.windows],
+        windows_after_m=[float(x) for x in (after or ref).windows],
+        settings={
+            **{k: getattr(options, k) for k in options.__dataclass_fields__},
+            "dofs": list(options.dofs),
+            "reference_effects": [getattr(e, "name", str(e)) for e in effects],
+            "free": list(setup.free),
+            "floor_rms_m": floor_rms,
+            "significant": significant,
+        },
+        seconds=time.perf_counter() - t0,
+        alternatives=alts,
+        separated=separated(compared),
+        after=after,
+        reference=ref,
+        stages=fitted,
+    )

@@ -1,0 +1,571 @@
+"""Confirmation of the selected terms by the output-error fit and the held-out runs: each term
+refitted with every free coefficient (:class:`TermFit`, :func:`fit_term`), its record and the
+kept test (:func:`refit_row`, :func:`worst_run`, :func:`decide`), the kept terms added together
+best first (:func:`dominance_order`, :func:`combine`) and the competing structures the held-out
+runs can or cannot separate from each kept term (:func:`compare_structures`,
+:func:`alternatives`, :func:`separated`, :func:`window_runs`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ....estimation.laplace import fit_covariance
+from ....estimation.windows import FitProblem, fit_model
+from ....models.library import term_library
+from ..candidates import Setup, Stage, score_stage
+from ..verdict import Thresholds, is_contributor, paired_window_test, run_separation_test
+from .library import extended_start, nuisance_start, warm_starts, with_terms
+
+__all__ = [
+    "TermFit",
+    "fit_term",
+    "refit_row",
+    "worst_run",
+    "decide",
+    "combine",
+    "dominance_order",
+    "compare_structures",
+    "alternatives",
+    "separated",
+    "window_runs",
+    "heldout_rms_by_run",
+]
+
+
+@dataclass(frozen=True)
+class TermFit:
+    """One candidate term of a discovery: a task of :func:`fit_term`.
+
+    Parameters
+    ----------
+    term : str
+        The term's name.
+    start : float
+        Its regression coefficient (prime): the second start of the fit is the reference value
+        plus this (the first is the reference value).
+    ref : Stage
+        The model it extends.
+    setup : Setup
+        The reference model's vehicle, free coefficients, tracks and windows.
+    effects : tuple
+        The reference model's effects.
+    sd_fit : dict
+        The reference fit's channel weights.
+    max_nfev : int
+        Least-squares iterations.
+    initial : float, default 0.0
+        The term's value in the reference model (:func:`~.library.reference_values`: 0 for a missing term,
+        the followed value for a tied coefficient).
+    """
+
+    term: str
+    start: float
+    ref: Stage
+    setup: Setup
+    effects: tuple
+    sd_fit: dict
+    max_nfev: int
+    initial: float = 0.0
+
+
+def fit_term(task: TermFit) -> tuple[Stage | None, list]:
+    """Add a term to the reference model and re-identify every free coefficient; score the fit.
+
+    The fit starts at the reference plus the term's regression value (the linearised problem's
+    step, :func:`~.selection.select_terms`). Only when that fit fails or ends above the reference's cost does
+    a second one start at the reference itself (the term at its reference value, which reproduces
+    the reference model), and the lower of the two is kept: one fit per term where the step is
+    good, as the first round's candidates get one.
+
+    A module-level function of a picklable argument (run as a task, :class:`bayesid.tasks.Runner`).
+
+    Parameters
+    ----------
+    task : TermFit
+        The term and the model it extends.
+
+    Returns
+    -------
+    stage : Stage or None
+        None when every fit failed.
+    messages : list
+        About failed starts (str), and ``("sd", value)``: the term's Laplace sd.
+    """
+    setup = with_terms(task.setup, {task.term: task.initial})
+    model, ct, ch = setup.build([e for e in task.effects if e not in setup.effects])
+    problem = FitProblem(model, ct, task.sd_fit, max_nfev=task.max_nfev)
+    nu0 = nuisance_start(task.ref, model)
+    best, messages = None, []
+    for c in dict.fromkeys((task.initial + float(task.start), task.initial)):
+        if best is not None and best.cost <= task.ref.fit.cost * (1.0 + 1e-6):
+            break  # the step's fit is at least as good as the reference: no second start
+        try:
+            f = fit_model(problem, extended_start(task.ref, model, [c]), nu0, starts0=warm_starts(task.ref.fit, ct))
+        except Exception as exc:  # noqa: BLE001 - a failed start is reported
+            messages.append(f"{task.term} (start {c:.3g}) failed: {exc}")
+            continue
+        if best is None or f.cost < best.cost:
+            best = f
+    if best is None:
+        return None, messages
+    try:  # the term's Laplace sd (AR(1)-inflated, as bayesid fit reports it)
+        cov, _ = fit_covariance(best, ct)
+        messages.append(("sd", float(np.sqrt(max(cov[model.n_theta - 1, model.n_theta - 1], 0.0)))))
+    except Exception:  # noqa: BLE001 - no sd: the row says None
+        pass
+    return score_stage(model, best, ct, ch, task.sd_fit), messages
+
+
+def refit_row(
+    term: str,
+    st: Stage | None,
+    ref: Stage,
+    sel: dict | None,
+    floor_rms: float,
+    sd: float | None = None,
+    runs: tuple | None = None,
+    margin: float = 0.1,
+) -> dict:
+    """The ``discovered`` record of a refitted candidate.
+
+    Parameters
+    ----------
+    term : str
+        The term.
+    st : Stage or None
+        Its refit (None: every fit failed).
+    ref : Stage
+        The model it extends.
+    sel : dict or None
+        The selection's numbers (:func:`~.selection.select_terms`); None for a term refitted on
+        top of others.
+    floor_rms : float
+        The noise floor's held-out RMS, m.
+    sd : float, optional
+        The term's coefficient's Laplace sd.
+    runs : tuple, optional
+        ``(run of each held-out window, run names)`` of :func:`window_runs`, for the run test of
+        :func:`worst_run`.
+    margin : float, default 0.1
+        The run test's relative margin.
+
+    Returns
+    -------
+    dict
+        The row of :attr:`bayesid.analysis.gap.discovery.Discovery.discovered` (without
+        ``kept`` and ``reason`` unless every fit failed: :func:`decide` sets them).
+    """
+    sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
+    row = {
+        "term": term,
+        "dof": term_library(ref.model).dof(term),
+        "inclusion_probability": sel["inclusion"].get(term, 0.0),
+        "group_inclusion_probability": sel["group_probability"].get(term, 0.0),
+        "group": sel["groups"].get(term, []),
+        "regression_coefficient": sel["coefficient"].get(term, 0.0),
+        "heldout_rms_before_m": ref.held["rms_position_m"],
+        "train_rms_before_m": ref.train["rms_position_m"],
+    }
+    if st is None:
+        return {**row, "kept": False, "reason": "every fit failed"}
+    before, after = ref.held["rms_position_m"], st.held["rms_position_m"]
+    excess = before - floor_rms
+    return {
+        **row,
+        "coefficient": st.fit.coefficients()[term],
+        "coefficient_sd": sd,
+        "heldout_rms_after_m": after,
+        "train_rms_after_m": st.train["rms_position_m"],
+        "shrinkage": 1 - after / before,
+        "heldout_shrinkage": 1 - after / before,
+        "delta_bic": st.fit.bic - ref.fit.bic,
+        # the refit starts at the reference (the term at 0): ending above it is a failed fit
+        "refit_failed": bool(st.fit.cost > ref.fit.cost * (1.0 + 1e-6)),
+        "window_p_value": paired_window_test(ref.windows, st.windows),
+        "heldout_windows_after_m": [float(x) for x in st.windows],
+        "excess_removed": (before - after) / excess if excess > 0 else 0.0,
+        "worst_run": worst_run(ref, st, runs, margin),
+    }
+
+
+def worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict | None:
+    """The held-out run on which a refit predicts worst against its reference model: ``{"run",
+    "error_ratio", "p_value"}`` of the run test (:func:`run_separation_test` with the reference
+    first: the refit's window errors above the reference's by more than ``margin`` on one run,
+    Bonferroni over the runs), None without the runs' layout. A term that passes the pooled
+    window test while one run's windows are significantly worse does not carry to that run.
+
+    Parameters
+    ----------
+    ref : Stage
+        The reference model, scored per held-out window (``windows``).
+    st : Stage
+        The refit, scored on the same windows.
+    runs : tuple or None
+        ``(run of each held-out window, run names)`` (:func:`window_runs`).
+    margin : float
+        The run test's relative margin.
+
+    Returns
+    -------
+    dict or None
+        ``{"run", "error_ratio", "p_value"}``; None without ``runs``, when the windows do not
+        match them, or when no run is worse.
+    """
+    if runs is None:
+        return None
+    idx, names = runs
+    a, b = np.asarray(ref.windows, float), np.asarray(st.windows, float)
+    if not (a.shape == b.shape == np.shape(idx)):
+        return None
+    res = run_separation_test(a, b, np.asarray(idx), margin)
+    i = res["run_second_worse"]
+    if i is None:
+        return None
+    return {"run": _run_name(names, i), "error_ratio": res["ratio_by_run"].get(i), "p_value": res["p_second_worse"]}
+
+
+def _passes(row: dict, significant: bool, th: Thresholds) -> bool:
+    """The kept test: the contributor test (:func:`is_contributor`) and no held-out run
+    predicted significantly worse than by the reference model (:func:`worst_run` at
+    ``th.partial_p``)."""
+    worst = row.get("worst_run") or {}
+    harms = worst.get("p_value") is not None and worst["p_value"] < th.partial_p
+    return is_contributor(row, significant, th) and not harms
+
+
+def decide(row: dict, significant: bool, th: Thresholds) -> None:
+    """Set ``kept`` and ``reason`` of a refitted candidate by the kept test: the contributor test
+    (:func:`~bayesid.analysis.gap.verdict.is_contributor`) and no held-out run predicted
+    significantly worse than by the reference model (:func:`worst_run` at ``th.partial_p``). A row
+    that has ``kept`` already is left as it is.
+
+    Parameters
+    ----------
+    row : dict
+        :func:`refit_row`; updated in place.
+    significant : bool
+        Whether the reference model's gap is significant.
+    th : Thresholds
+        The test's thresholds.
+    """
+    if "kept" in row:
+        return
+    row["kept"] = _passes(row, significant, th)
+    worst = row.get("worst_run") or {}
+    if row["kept"]:
+        row["reason"] = "improves the held-out windows (contributor test)"
+    elif is_contributor(row, significant, th):
+        row["reason"] = (
+            f"improves the held-out windows overall but predicts run {worst['run']} worse than the model "
+            f"without it (window errors x{worst['error_ratio']:.2f}, run test p = {worst['p_value']:.2g}): "
+            "it does not carry to that run"
+        )
+    elif not significant:
+        row["reason"] = "the gap is not significant: nothing to explain"
+    elif row.get("refit_failed"):
+        row["reason"] = (
+            "the refit ended above its reference on the training runs: a failed fit, not evidence against "
+            "the term (with fitted window starts, see the base-fit check)"
+        )
+    elif row["delta_bic"] > th.bic_threshold:
+        row["reason"] = f"training ΔBIC {row['delta_bic']:.1f} > {th.bic_threshold:g}"
+    elif row["heldout_shrinkage"] <= 0:
+        row["reason"] = "fits the training runs but not the held-out ones"
+    else:
+        row["reason"] = f"held-out gain not significant (window test p = {row['window_p_value']:.3g})"
+
+
+def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple, initial: dict):
+    """Add the kept terms together, best first (:func:`dominance_order`): each further term is refitted on top of those
+    added (all coefficients re-identified) and stays only if it passes the kept test
+    (:func:`decide`) against them while their held-out error is still above the floor band.
+
+    Parameters
+    ----------
+    kept : list of str
+        The terms that passed the kept test alone (at least one).
+    stages : dict
+        ``{term: Stage}`` of their single-term refits.
+    ref : Stage
+        The reference model.
+    setup : Setup
+        The reference model's setup.
+    fit_args : tuple
+        ``(effects, channel weights, iterations)`` of the fits.
+    floor : tuple
+        ``(noise floor RMS, thresholds, runs)`` with ``runs`` as :func:`window_runs` returns it.
+    initial : dict
+        Each term's value in the reference (:func:`~.library.reference_values`).
+
+    Returns
+    -------
+    found : list of str
+        The terms of the final model, in the order added.
+    after : Stage
+        The model with all of them.
+    """
+    effects, sd_fit, max_nfev = fit_args
+    floor_rms, th, runs = floor
+    order = dominance_order(kept, stages, th, runs)
+    found, cur, values = [order[0]], stages[order[0]], {order[0]: stages[order[0]].fit.coefficients()[order[0]]}
+    for n in order[1:]:
+        if cur.held["rms_position_m"] <= th.none_ratio * floor_rms:
+            break  # the gap is closed: a further term would fit noise
+        trial = with_terms(setup, {**values, n: initial[n]})
+        model, ct, ch = trial.build([e for e in effects if e not in setup.effects])
+        p0 = extended_start(ref, model, [*values.values(), initial[n]])
+        n_ref = ref.model.n_theta
+        p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
+        try:
+            f = fit_model(
+                FitProblem(model, ct, sd_fit, max_nfev=max_nfev),
+                p0,
+                nuisance_start(cur, model),
+                starts0=warm_starts(cur.fit, ct),
+            )
+        except Exception:  # noqa: BLE001 - the combination is skipped
+            continue
+        st = score_stage(model, f, ct, ch, sd_fit)
+        row = refit_row(n, st, cur, None, floor_rms, runs=runs, margin=th.separation_margin)
+        if _passes(row, True, th):
+            found.append(n)
+            cur = st
+            values = {k: f.coefficients()[k] for k in found}
+    return found, cur
+
+
+def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None = None) -> list:
+    """The kept terms, best first: a term the held-out runs show to be worse than another kept
+    term comes after it, the rest by held-out position RMS.
+
+    Term ``a`` *dominates* ``b`` when some held-out run predicts ``b`` significantly worse than
+    ``a`` and none predicts ``a`` significantly worse than ``b`` (the run-by-run test of
+    :func:`compare_structures`, :func:`~bayesid.analysis.gap.verdict.run_separation_test`, at
+    ``th.partial_p`` with ``th.separation_margin``). The pooled held-out RMS alone would put
+    first a term that ties on many runs and loses clearly on one, such as a designed run added
+    to separate it from the hidden term.
+
+    Parameters
+    ----------
+    kept : list of str
+        Terms that passed the kept test alone.
+    stages : dict
+        ``{term: Stage}``, each with ``held["rms_position_m"]`` and per-window ``windows``.
+    th : Thresholds
+        ``partial_p`` and ``separation_margin``.
+    runs : tuple, optional
+        ``(run of each held-out window, run names)`` (:func:`window_runs`); without it the
+        order is by held-out RMS.
+
+    Returns
+    -------
+    list of str
+        The terms ordered by (number of kept terms that dominate it, held-out RMS).
+    """
+    beaten = dict.fromkeys(kept, 0)
+    if runs is not None:
+        idx = np.asarray(runs[0])
+        for i, a in enumerate(kept):
+            for b in kept[i + 1 :]:
+                wa, wb = np.asarray(stages[a].windows, float), np.asarray(stages[b].windows, float)
+                if not wa.shape == wb.shape == idx.shape:
+                    continue
+                res = run_separation_test(wa, wb, idx, th.separation_margin)
+                b_worse, a_worse = res["p_second_worse"] < th.partial_p, res["p_first_worse"] < th.partial_p
+                if b_worse and not a_worse:
+                    beaten[b] += 1
+                elif a_worse and not b_worse:
+                    beaten[a] += 1
+    return sorted(kept, key=lambda n: (beaten[n], stages[n].held["rms_position_m"]))
+
+
+def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, runs=None, run_names=None) -> dict:
+    """Every refitted term that competes with a kept term, and whether the held-out runs separate
+    the two.
+
+    A refitted term ``a`` competes with a kept term ``k`` when it passes the kept test alone, or
+    when its held-out RMS is no larger than ``k``'s (it predicts the held-out runs as well, though
+    its gain over the reference model did not reach the kept test's level). The runs *separate*
+    ``k`` from ``a`` when ``k``'s held-out windows are significantly better than ``a``'s, by
+    either of two tests at the kept test's level ``th.partial_p``:
+
+    - pooled over every held-out window: the one-sided paired window test
+      (:func:`paired_window_test`, Wilcoxon signed rank), the test that keeps a term;
+    - run by run (when ``runs`` is given): some run on which ``a``'s window errors exceed
+      ``k``'s by more than ``th.separation_margin`` and none on which ``k``'s exceed ``a``'s
+      (:func:`~bayesid.analysis.gap.verdict.run_separation_test`, Bonferroni over the runs): a
+      single designed run of a few windows separates two structures that agree on every
+      other run, which the pooled rank test cannot see.
+
+    Otherwise ``a`` is an *alternative*: the output-error counterpart of a collinear group, two
+    terms whose refitted models predict the held-out runs equally well, whatever their columns'
+    cosine (Box & Hill 1967, "Discrimination among mechanistic models", Technometrics 9:57-71:
+    models that fit the data equally are discriminated only by a run where their predictions
+    differ).
+
+    Parameters
+    ----------
+    found : list of str
+        The kept terms of the final model.
+    rows : list of dict
+        Every refitted candidate (``term``, ``kept``, ``heldout_rms_after_m``, ``coefficient``).
+    stages : dict
+        ``{term: Stage}`` of the single-term refits (every refit that converged).
+    th : Thresholds
+        ``partial_p`` and ``separation_margin``.
+    runs : ndarray of int, shape (n_windows,), optional
+        The held-out run of each window of the stages' ``windows``; without it only the pooled
+        test is used.
+    run_names : list of str, optional
+        The held-out runs' names, indexed by ``runs``.
+
+    Returns
+    -------
+    dict
+        ``{kept term: [{"term", "passed_kept_test", "coefficient", "heldout_rms_m",
+        "window_p_value", "run_p_value", "separating_run", "run_error_ratio", "kept_worse_run",
+        "kept_worse_run_p_value", "separable", "heldout_rms_by_run_m"}, ...]}``, best first (lowest held-out RMS). ``window_p_value``:
+        the pooled test's p; ``run_p_value``: the run test's (None without ``runs``);
+        ``separating_run`` and ``run_error_ratio``: the run with the strongest evidence that
+        ``a`` is worse and its geometric-mean error ratio ``a / k``; ``kept_worse_run`` and
+        ``kept_worse_run_p_value``: the converse (a run on which ``k`` is significantly worse
+        than ``a``, or None; its p); ``heldout_rms_by_run_m``
+        ``{held-out run: position RMS, m}``.
+    """
+    out = {}
+    for k in found:
+        out[k] = []
+        if k not in stages:
+            continue
+        k_rms = next((r.get("heldout_rms_after_m") for r in rows if r["term"] == k), None) or np.inf
+        kw = np.asarray(stages[k].windows)
+        for r in rows:
+            a = r["term"]
+            if a == k or a in found or a not in stages:
+                continue
+            if not r.get("kept") and not (r.get("heldout_rms_after_m") or np.inf) <= k_rms:
+                continue
+            aw = np.asarray(stages[a].windows)
+            p = paired_window_test(aw, kw)
+            run = {
+                "p_second_worse": None,
+                "p_first_worse": 1.0,
+                "run_second_worse": None,
+                "run_first_worse": None,
+                "ratio_by_run": {},
+            }
+            if runs is not None and len(runs) == len(kw) == len(aw):
+                run = run_separation_test(kw, aw, np.asarray(runs), th.separation_margin)
+            i = run["run_second_worse"]
+            by_run = run["ratio_by_run"]
+            separated = p < th.partial_p or (
+                run["p_second_worse"] is not None
+                and run["p_second_worse"] < th.partial_p
+                and run["p_first_worse"] >= th.partial_p
+            )
+            out[k].append(
+                {
+                    "term": a,
+                    "passed_kept_test": bool(r.get("kept")),
+                    "coefficient": r.get("coefficient"),
+                    "heldout_rms_m": r["heldout_rms_after_m"],
+                    "window_p_value": p,
+                    "run_p_value": run["p_second_worse"],
+                    "separating_run": None if i is None else _run_name(run_names, i),
+                    "run_error_ratio": by_run.get(i) if i is not None else None,
+                    "kept_worse_run": None
+                    if run["run_first_worse"] is None or run["p_first_worse"] >= th.partial_p
+                    else _run_name(run_names, run["run_first_worse"]),
+                    "kept_worse_run_p_value": run["p_first_worse"] if runs is not None else None,
+                    "separable": bool(separated),
+                    "heldout_rms_by_run_m": heldout_rms_by_run(stages[a]),
+                }
+            )
+        out[k].sort(key=lambda d: d["heldout_rms_m"])
+    return out
+
+
+def _run_name(names, i: int) -> str:
+    """The name of held-out run ``i`` (its index when unnamed)."""
+    return str(names[i]) if names is not None and 0 <= i < len(names) else str(i)
+
+
+def alternatives(compared: dict) -> dict:
+    """The structures the held-out runs cannot separate from each kept term.
+
+    Parameters
+    ----------
+    compared : dict
+        :func:`compare_structures`.
+
+    Returns
+    -------
+    dict
+        ``{kept term: [entry, ...]}``, the entries of ``compared`` with ``separable`` False,
+        without that key; an empty list where the runs separate the kept term from every other.
+    """
+    return _split(compared, separable=False)
+
+
+def separated(compared: dict) -> dict:
+    """The competing structures the held-out runs separate from each kept term.
+
+    Parameters
+    ----------
+    compared : dict
+        :func:`compare_structures`.
+
+    Returns
+    -------
+    dict
+        ``{kept term: [entry, ...]}``, the entries of ``compared`` with ``separable`` True,
+        without that key.
+    """
+    return _split(compared, separable=True)
+
+
+def _split(compared: dict, separable: bool) -> dict:
+    """The entries of :func:`compare_structures` whose ``separable`` is ``separable``, without it."""
+    return {
+        k: [{n: v for n, v in e.items() if n != "separable"} for e in es if e["separable"] is separable]
+        for k, es in compared.items()
+    }
+
+
+def window_runs(setup: Setup, model) -> tuple[np.ndarray, list]:
+    """The held-out run of each protocol window, in the order of a stage's ``windows``.
+
+    Parameters
+    ----------
+    setup : Setup
+        The held-out tracks, window and start rule.
+    model : SimulationModel
+        Any model of the setup (the windows do not depend on the parameters).
+
+    Returns
+    -------
+    tuple
+        ``(runs, names)``: ``runs`` ndarray of int, shape (n_windows,), the index of each
+        window's track; ``names`` the held-out tracks' names.
+    """
+    ctxs = [model.context(t, setup.window_s, start=setup.rule, leadin_s=setup.leadin_s) for t in setup.heldout]
+    return np.repeat(np.arange(len(ctxs)), [c.W for c in ctxs]), [c.name for c in ctxs]
+
+
+def heldout_rms_by_run(stage) -> dict:
+    """``{held-out run: position RMS, m}`` of a refit.
+
+    Parameters
+    ----------
+    stage : Stage
+        The refit (its ``held["per_track_rms_position_m"]``).
+
+    Returns
+    -------
+    dict
+        ``{held-out run: position RMS, m}``; empty when the stage has no held-out scores.
+    """
+    return dict((getattr(stage, "held", None) or {}).get("per_track_rms_position_m", {}))
