@@ -31,10 +31,26 @@ Per data set:
 5. run :func:`importance_laplace` for real with ``--draws`` (1000) draws on one worker and report its
    wall time, Pareto k-hat and ESS.
 
-    python benchmarks/sample.py [--quick] [--sets kvlcc2,esso] [--max-nfev 30] [--draws 1000]
-                                [--repeats 5] [--data DIR] [--out reports/benchmark_sample.txt]
+    python benchmarks/sample.py [--quick] [--sets kvlcc2,esso|synthetic] [--max-nfev 30] [--draws 1000]
+                                [--draws-log 400] [--budget-minutes 2] [--repeats 5] [--data DIR]
+                                [--out reports/benchmark_sample.txt]
 
-``--quick``: 3 runs per data set, ``max_nfev`` 4, 200 draws, 2 repeats, and no report file unless
+6. with and without a velocity log (issue 50), on the same runs: where every run logs u, v and r,
+   the importance stage's wall time per draw (:func:`importance_laplace`, ``--draws-log`` draws,
+   chunks of 16, one worker) with the measured start rule, and with the velocity columns dropped
+   (start states fitted) on the old path (every draw's start states fitted from the measured
+   guess, ``SampleOptions(start_profile="full")``) and on the new one (from the mode's
+   linearisation, :class:`~bayesid.estimation.track_posterior.StartLinearisation`), with the
+   ratios, the largest log-posterior difference between the two paths near the mode and both
+   paths' k-hat and ESS; then ``sample_tracks`` under ``--budget-minutes`` (2) without the
+   velocity log on both paths: wall time and what the budget cut.
+
+Without the real data, step 6 runs on synthetic runs (``--sets synthetic``, the default then):
+four KVLCC2 7 m manoeuvres (10/10 and 20/20 zigzags, a 35 deg turn, a 20 deg pull-out) simulated
+with ``bayesid simulate`` at 5 Hz, with noise (x, y 2 cm; psi 0.1 deg; u, v 5 mm/s; r 0.05 deg/s).
+
+``--quick``: 3 runs per data set, ``max_nfev`` 4, 200 draws, 2 repeats, 100 draws per path in
+step 6 and no budget run (unless ``--budget-minutes`` is given), and no report file unless
 ``--out`` is given. Times are ``time.perf_counter`` wall clock with numba's default threads (all
 cores); compile time is excluded (one warm-up evaluation first). The last lines are
 machine-readable ``key value`` pairs.
@@ -43,7 +59,7 @@ machine-readable ``key value`` pairs.
 from __future__ import annotations
 
 import argparse
-import inspect
+import math
 import os
 import platform
 import sys
@@ -53,13 +69,13 @@ from pathlib import Path
 
 import numpy as np
 
-from bayesid.estimation.track_posterior import importance_laplace
+from bayesid.estimation.track_posterior import ImportanceOptions
 
 ROOT = Path(__file__).resolve().parent.parent
 
 BATCHES = (1, 8, 16, 32, 64)
 IS_DRAWS = 4000  # bayesid sample --draws default
-IS_CHUNK = inspect.signature(importance_laplace).parameters["chunk"].default  # its chunk of rows
+IS_CHUNK = ImportanceOptions().chunk  # importance_laplace's chunk of rows
 TAUS = (100, 500, 2000)
 TAU_FACTOR = 50
 MIN_STEPS = 500  # sample_tracks' SamplerConfig(min_steps=500)
@@ -69,6 +85,18 @@ SETS = {
     "kvlcc2": ("KVLCC2 HSVA", "kvlcc2-simman-hsva", "simman-hsva", "kvlcc2_7m", []),
     "esso": ("Esso Osaka", "esso-osaka-frt", "esso-osaka", "esso_osaka_3m", ["wind"]),
 }
+#: The synthetic runs of step 6 without the real data: (manoeuvre, angle in deg).
+SYNTHETIC = (("zigzag", "10"), ("zigzag", "-20"), ("turn", "35"), ("pull-out", "-20"))
+#: Their noise sds (SI).
+SYNTHETIC_NOISE = {
+    "x": 0.02,
+    "y": 0.02,
+    "psi": math.radians(0.1),
+    "u": 0.005,
+    "v": 0.005,
+    "r": math.radians(0.05),
+}
+VELOCITY = ("u", "v", "r")
 
 
 def _header(args) -> list[str]:
@@ -86,7 +114,7 @@ def _header(args) -> list[str]:
             return "-"
 
     return [
-        f"# benchmarks/sample.py: cost of bayesid sample's posterior objective on real data{' (QUICK)' if args.quick else ''}",
+        f"# benchmarks/sample.py: cost of bayesid sample's posterior objective on real data (synthetic runs without it){' (QUICK)' if args.quick else ''}",
         f"# machine {platform.node()} ({platform.machine()}, {os.cpu_count()} cores), {platform.platform()}",
         f"# date {time.strftime('%Y-%m-%d %H:%M:%S %Z')}, git commit {git_commit()}",
         f"# python {platform.python_version()}, numpy {ver('numpy')}, numba {ver('numba')} "
@@ -332,28 +360,187 @@ def bench_set(key, args, data, say, keys):
     }
 
 
+def synthetic_tracks(folder: Path, seed: int) -> list:
+    """The runs of :data:`SYNTHETIC`: ``bayesid simulate`` of KVLCC2 7 m at 5 Hz, with
+    :data:`SYNTHETIC_NOISE` added (velocities logged: step 6 drops them)."""
+    from bayesid.cli import main as cli
+    from bayesid.data.track import Track, read_csv
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for i, (kind, angle) in enumerate(SYNTHETIC):
+        f = folder / f"run{i}.csv"
+        args = ["simulate", "--vehicle", "kvlcc2_7m", "--manoeuvre", kind, "--angle", angle, "--sample", "0.2"]
+        if cli([*args, "--no-figure", "--overwrite", "--out", str(f)]) != 0:
+            raise RuntimeError(f"bayesid simulate {kind} {angle} failed")
+        tr = read_csv(f)
+        data = {k: np.asarray(tr[k], float) for k in ("x", "y", "psi", "u", "v", "r", "delta_r", "n")}
+        for k, sd in SYNTHETIC_NOISE.items():
+            data[k] = data[k] + rng.normal(0.0, sd, tr.t.size)
+        out.append(Track(tr.t, data, name=f"{kind}{angle}", meta=tr.meta))
+    return out
+
+
+def without_velocity(tracks) -> list:
+    """The same runs with the u, v, r columns dropped (as logged without a velocity log)."""
+    from bayesid.data.track import Track
+
+    return [
+        Track(t.t, {k: v for k, v in t.data.items() if k not in VELOCITY}, name=t.name, meta=t.meta) for t in tracks
+    ]
+
+
+def _importance_cost(post, mode, n, seed):
+    """importance_laplace's wall time per draw and its result (one worker, chunks of 16)."""
+    from bayesid.estimation import track_posterior as tp
+
+    t = time.perf_counter()
+    imp = tp.importance_laplace(
+        post, mode["p"], mode["cov"], np.random.default_rng(seed), tp.ImportanceOptions(n_draws=n)
+    )
+    return (time.perf_counter() - t) / imp["done"], imp
+
+
+def bench_velocity_log(key, label, vehicle_id, effects, tracks, args, say, keys):
+    """Step 6: the importance stage with and without a velocity log, old and new path, and the
+    budget run without one."""
+    from bayesid.estimation import track_posterior as tp
+    from bayesid.estimation.identification import identify
+    from bayesid.estimation.options import FitOptions
+    from bayesid.estimation.windows import FitProblem
+    from bayesid.models import load_any_vehicle
+
+    bare = without_velocity(tracks)
+    dur = sum(float(tr.t[-1] - tr.t[0]) for tr in tracks)
+    say("")
+    say(
+        f"== {label}: the importance stage with and without a velocity log ({len(tracks)} runs, {dur:.0f} s, "
+        f"{1 / float(np.median(np.diff(tracks[0].t))):.0f} Hz) =="
+    )
+    t = time.perf_counter()
+    vehicle = load_any_vehicle(vehicle_id)
+    res = identify(vehicle, bare, FitOptions(effects=effects, max_nfev=args.max_nfev, prior=True), calibration=None)
+    say(f"  fit without the velocity log (start rule {res.start_rule}): {time.perf_counter() - t:.1f} s")
+    model, p0 = res.model, np.asarray(res.fit.p, float)
+    # the same scored channels and weights both ways: the velocities only give the start states
+    channels = tuple(c for c in ("x", "y", "psi") if c in res.fit_sd)
+    posts, imps, times = {}, {}, {}
+    for name, runs, rule in (("log", tracks, "measured"), ("no_log", bare, "fitted")):
+        problem = FitProblem(model, [model.context(tr, res.window_s, start=rule) for tr in runs], res.fit_sd, channels)
+        post = tp._track_posterior(problem, p0, True, lambda m: None)[0]
+        post.evaluate(p0[None])  # warm-up: compiled kernels loaded
+        mode = tp.posterior_mode(post, p0)
+        imps[(name, "full")] = _importance_cost(post, mode, args.draws_log, args.seed)[1]
+        posts[(name, "full")] = (post, None)
+        if rule == "fitted":
+            t = time.perf_counter()
+            lin = post.linearise_starts(mode["p"], mode["cov"])
+            lin_s = time.perf_counter() - t
+            imps[(name, "linearised")] = _importance_cost(post, mode, args.draws_log, args.seed)[1]
+            posts[(name, "linearised")] = (post, lin)
+            full, fast = imps[(name, "full")], imps[(name, "linearised")]
+            near = full["log_prob"] > full["log_prob"].max() - 30.0
+            dlp = fast["log_prob"] - full["log_prob"]
+            say(
+                f"  linearisation at the mode: {lin_s:.2f} s; {lin.stats['simulated'] / lin.stats['rows']:.2f} "
+                f"simulations per draw, {lin.stats['fallback']} of {lin.stats['rows']} draws fitted fully; log posterior "
+                f"minus the full profile's within 30 nats of the best draw: mean {dlp[near].mean():+.4f}, "
+                f"{dlp[near].min():+.4f} to {dlp[near].max():+.4f} ({int(near.sum())} draws)"
+            )
+            keys[f"{key}_linearised_dlp_near_max_abs"] = float(np.max(np.abs(dlp[near])))
+            keys[f"{key}_linearised_dlp_near_mean"] = float(dlp[near].mean())
+            keys[f"{key}_linearised_simulations_per_draw"] = lin.stats["simulated"] / lin.stats["rows"]
+            keys[f"{key}_linearised_fallback_share"] = lin.stats["fallback"] / lin.stats["rows"]
+    # the timing: the same 64 proposal draws in chunks of 16 on each path, the paths in turn for
+    # --repeats rounds (a passing load hits them alike); the median round
+    rows = imps[("no_log", "full")]["draws"][:64]
+    for _ in range(max(args.repeats, 1)):
+        for k, (post, lin) in posts.items():
+            post.linear = lin
+            t = time.perf_counter()
+            for i in range(0, rows.shape[0], IS_CHUNK):
+                post.evaluate(rows[i : i + IS_CHUNK])
+            times.setdefault(k, []).append((time.perf_counter() - t) / rows.shape[0])
+    sec = {k: float(np.median(v)) for k, v in times.items()}
+    base = sec[("log", "full")]
+    say(
+        f"  per draw: median of {max(args.repeats, 1)} rounds over {rows.shape[0]} proposal draws in chunks of "
+        f"{IS_CHUNK}; k-hat and ESS of importance_laplace with {args.draws_log} draws"
+    )
+    say(f"  {'importance stage':40s} {'ms/draw':>9s} {'/ log':>7s} {'k-hat':>6s} {'ESS':>7s}")
+    for (name, path), imp in imps.items():
+        what = "velocity log (measured starts)" if name == "log" else f"no velocity log, {path} profile"
+        s_ = sec[(name, path)]
+        say(f"  {what:40s} {1e3 * s_:9.2f} {s_ / base:7.2f} {imp['k_hat']:6.2f} {imp['ess']:7.0f}")
+        tag = "log" if name == "log" else f"no_log_{path}"
+        keys[f"{key}_is_ms_per_draw_{tag}"] = 1e3 * s_
+        keys[f"{key}_is_khat_{tag}"] = imp["k_hat"]
+        keys[f"{key}_is_ess_{tag}"] = imp["ess"]
+    keys[f"{key}_no_log_full_over_log"] = sec[("no_log", "full")] / base
+    keys[f"{key}_no_log_linearised_over_log"] = sec[("no_log", "linearised")] / base
+    keys[f"{key}_linearised_speedup"] = sec[("no_log", "full")] / sec[("no_log", "linearised")]
+    if args.budget_minutes:
+        problem = FitProblem(
+            model, [model.context(tr, res.window_s, start="fitted") for tr in bare], res.fit_sd, channels
+        )
+        for path in ("full", "linearised"):
+            t = time.perf_counter()
+            out = tp.sample_tracks(problem, p0, tp.SampleOptions(max_minutes=args.budget_minutes, start_profile=path))
+            wall = time.perf_counter() - t
+            cut = [k for k, v in out.budget["stages"].items() if v["cut"]]
+            st = ", ".join(
+                f"{k} {v['done']}/{v['planned']} {v['unit']} {v['seconds']:.0f} s"
+                for k, v in out.budget["stages"].items()
+            )
+            say(
+                f"  sample_tracks --max-minutes {args.budget_minutes:g} without the velocity log, {path} profile: "
+                f"{wall:.0f} s wall, method {out.method}, cut: {', '.join(cut) or 'nothing'} ({st}); {out.verdict['text']}"
+            )
+            keys[f"{key}_budget{args.budget_minutes:g}_wall_s_{path}"] = wall
+            keys[f"{key}_budget{args.budget_minutes:g}_importance_done_{path}"] = out.budget["stages"]["importance"][
+                "done"
+            ]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="3 runs per set, few iterations: a smoke test")
-    ap.add_argument("--sets", default="kvlcc2,esso", help="comma-separated: kvlcc2, esso")
+    ap.add_argument(
+        "--sets",
+        default=None,
+        help="comma-separated: kvlcc2, esso (real data), synthetic (step 6 only); default kvlcc2,esso, or "
+        "synthetic without the real data",
+    )
     ap.add_argument("--max-nfev", type=int, default=30, help="cap on the fit's least-squares iterations")
     ap.add_argument("--draws", type=int, default=1000, help="draws of the real importance_laplace run")
+    ap.add_argument("--draws-log", type=int, default=400, help="draws per path of step 6 (velocity log or not)")
+    ap.add_argument(
+        "--budget-minutes",
+        type=float,
+        default=None,
+        help="step 6's sample_tracks budget, min (default 2; none with --quick; 0: no budget run)",
+    )
     ap.add_argument("--repeats", type=int, default=5, help="timed calls per batch size (median)")
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--data", default=str(ROOT / ".." / "shared" / "data" / "real"))
     ap.add_argument("--out", default=None, help="report file (default reports/benchmark_sample.txt; none with --quick)")
     args = ap.parse_args()
-    sets = [s for s in args.sets.split(",") if s]
-    bad = [s for s in sets if s not in SETS]
-    if bad:
-        ap.error(f"--sets: unknown {', '.join(bad)} (choose from {', '.join(SETS)})")
     data = Path(args.data)
-    missing = [SETS[s][1] for s in sets if not (data / SETS[s][1]).is_dir()]
+    real = [s for s in SETS if (data / SETS[s][1]).is_dir()]
+    sets = [s for s in (args.sets or (",".join(SETS) if real else "synthetic")).split(",") if s]
+    bad = [s for s in sets if s not in SETS and s != "synthetic"]
+    if bad:
+        ap.error(f"--sets: unknown {', '.join(bad)} (choose from {', '.join(SETS)}, synthetic)")
+    missing = [SETS[s][1] for s in sets if s in SETS and s not in real]
     if missing:
         print(f"real data not found ({', '.join(str(data / m) for m in missing)}): nothing to benchmark")
         return 0
     if args.quick:
         args.max_nfev, args.draws, args.repeats = min(args.max_nfev, 4), min(args.draws, 200), min(args.repeats, 2)
+        args.draws_log = min(args.draws_log, 100)
+    if args.budget_minutes is None:
+        args.budget_minutes = 0.0 if args.quick else 2.0
+    args.draws_log = max(args.draws_log, 100)
     out = args.out or (None if args.quick else str(ROOT / "reports" / "benchmark_sample.txt"))
 
     lines: list[str] = []
@@ -368,9 +555,22 @@ def main() -> int:
     keys: dict = {}
     summ = {}
     for s in sets:
+        if s == "synthetic":
+            import tempfile
+
+            with tempfile.TemporaryDirectory() as tmp:
+                runs = synthetic_tracks(Path(tmp), args.seed)
+            bench_velocity_log("synthetic", "KVLCC2 7 m, synthetic runs", "kvlcc2_7m", [], runs, args, say, keys)
+            continue
         summ[s] = bench_set(s, args, data, say, keys)
-    say("")
-    say(f"== verdict ({BUDGET_MIN:g}-minute budget of bayesid sample, this {os.cpu_count()}-core machine) ==")
+        runs = _tracks(data, s, args.quick)
+        if all(k in tr for tr in runs for k in VELOCITY):
+            bench_velocity_log(s, SETS[s][0], SETS[s][3], SETS[s][4], runs, args, say, keys)
+        else:
+            say(f"  (no velocity log in every run of {SETS[s][0]}: the with/without comparison is skipped)")
+    if summ:
+        say("")
+        say(f"== verdict ({BUDGET_MIN:g}-minute budget of bayesid sample, this {os.cpu_count()}-core machine) ==")
     for s, r in summ.items():
         say(
             f"  {SETS[s][0]}: importance sampling ({IS_DRAWS} draws, all simulated) {fmt_time(r['is_s'])}: fits; "

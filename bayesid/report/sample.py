@@ -39,6 +39,7 @@ def write_sample_report(doc: dict, out, command: str = "") -> None:
         f"Cost: one evaluation of the objective takes {1e3 * doc['cost']['seconds_per_evaluation']:.1f} ms per "
         f"parameter row; stages (s): " + ", ".join(f"{k} {fmt(s, 3)}" for k, s in doc["cost"]["seconds"].items()) + ".",
         "",
+        *budget_lines(doc.get("budget")),
         "## Error model",
         "",
         "Per channel, the integrated autocorrelation time of the errors within a window (Geyer's initial "
@@ -87,6 +88,60 @@ def write_sample_report(doc: dict, out, command: str = "") -> None:
         *_determined_lines(doc),
     ]
     (out / "report.md").write_text("\n".join(lines))
+
+
+#: How each stage of the sampling is named in the report.
+STAGE_NAMES = {
+    "mode": "posterior mode and Laplace covariance",
+    "importance": "importance draws",
+    "mcmc": "MCMC",
+    "noise_scales": "noise scales of the kept MCMC draws",
+}
+
+
+def budget_lines(budget: dict | None) -> list:
+    """The wall budget and what it cut, stage by stage (none for a document without one).
+
+    Parameters
+    ----------
+    budget : dict or None
+        ``sample.json``'s ``budget``: ``max_minutes``, ``seconds`` and ``stages``, each
+        ``{"unit", "planned", "done", "seconds", "estimate_s", "cut"}``.
+
+    Returns
+    -------
+    list of str
+        Markdown lines: a sentence and a table, and a blank line.
+    """
+    if not budget or not budget.get("stages"):
+        return []
+    st = budget["stages"]
+    cut = [STAGE_NAMES.get(k, k) for k, v in st.items() if v["cut"]]
+    head = (
+        f"Budget: {fmt(budget['max_minutes'])} min for the whole sampling (`--max-minutes`); it took "
+        f"{fmt(budget['seconds'], 3)} s. "
+        + (
+            f"**The budget cut: {', '.join(cut)}** (the result uses what those stages had done)."
+            if cut
+            else "Nothing was cut."
+        )
+    )
+    rows = [
+        [
+            STAGE_NAMES.get(k, k),
+            f"{v['done']} of {'up to ' if v['unit'] == 'steps' else ''}{v['planned']} {v['unit']}",
+            fmt(v["seconds"], 3),
+            "-" if v.get("estimate_s") is None else fmt(v["estimate_s"], 3),
+            "**cut**" if v["cut"] else "complete",
+        ]
+        for k, v in st.items()
+    ]
+    return [
+        head,
+        "",
+        md_table(["stage", "done", "seconds", "estimated for all (s)", "budget"], rows),
+        "",
+    ]
 
 
 def criterion_text(c: dict) -> str:
