@@ -265,7 +265,8 @@ def _miss_row(r: dict, window_s: float) -> list:
         for a in rd["alternatives"][k]:
             if rms.get(a) is not None and rms.get(k):
                 ratios.append(f"{a}/{k} {fmt(rms[a] / rms[k])}")
-    windows = int(run["samples"] * LOG_S[r["family"]] // window_s) if run else 0
+    # the protocol's windows from the first sample, the last one shorter
+    windows = math.ceil((run["samples"] - 1) * LOG_S[r["family"]] / window_s - 1e-9) if run else 0
     insep = ", ".join(_menu_inseparable(r)) or "none"
     return [
         f"{r['case']} ({r['repeat']})",
@@ -353,6 +354,19 @@ def write_report(out: Path, rows: list, args) -> dict:
         "round1_alternatives_on_designed_run": sum(len(_apart(r)[1]) for r in looped),
         "round1_alternatives_set_apart_by_designed_run": sum(len(_apart(r)[0]) for r in looped),
         "round1_alternatives_still_alternatives_in_round2": sum(_still(r) for r in looped),
+        # the loop after a round 1 that named alternatives, and after one that kept the hidden term alone
+        # (a run of another kind designed against the model without it)
+        "looped_with_alternatives": sum(not r["round1"]["hidden_kept_alone"] for r in looped),
+        "round2_hidden_alone_after_alternatives": sum(
+            r["round2"]["hidden_kept_alone"] for r in looped if not r["round1"]["hidden_kept_alone"]
+        ),
+        "round2_train_hidden_alone_after_alternatives": sum(
+            (r.get("round2_train") or {}).get("hidden_kept_alone", False)
+            for r in looped
+            if not r["round1"]["hidden_kept_alone"]
+        ),
+        "looped_kept_alone": sum(r["round1"]["hidden_kept_alone"] for r in looped),
+        "round2_still_alone": sum(r["round2"]["hidden_kept_alone"] for r in looped if r["round1"]["hidden_kept_alone"]),
         "round2_resolved_up_to_menu": sum(_resolved_up_to_menu(r, "round2") for r in looped),
         "round2_train_resolved_up_to_menu": sum(_resolved_up_to_menu(r, "round2_train") for r in looped),
         "cases_with_menu_inseparable_pairs": sum(bool(_menu_inseparable(r)) for r in looped),
@@ -422,6 +436,13 @@ def write_report(out: Path, rows: list, args) -> dict:
             ],
             table,
         ),
+        "",
+        f"Of the {summary['looped']} looped cases, {summary['looped_with_alternatives']} had round-1 alternatives "
+        f"(the loop's purpose): the hidden term kept alone after it in {summary['round2_hidden_alone_after_alternatives']} "
+        f"with the designed run held out and {summary['round2_train_hidden_alone_after_alternatives']} with it in "
+        f"training. The other {summary['looped_kept_alone']} kept the hidden term alone in round 1, tested only within "
+        "the training manoeuvres, and got a run of another kind designed against the model without it: the hidden "
+        f"term stayed alone in {summary['round2_still_alone']} of them.",
         "",
         "The most the standard manoeuvres can say: a round ends *resolved up to the menu* when it keeps one term, "
         "the hidden term is that term or one of its alternatives, and every other term named there is one that no "
