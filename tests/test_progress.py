@@ -132,3 +132,26 @@ def test_fit_starts_shows_its_bar_and_quiet_hides_it(zigzag, tmp_path, capsys):
     a, b = (json.loads((tmp_path / d / "model.json").read_text()) for d in "ab")
     assert a["p"] == b["p"] and a["multistart"]["sorted_costs"] == b["multistart"]["sorted_costs"]
     assert logging.getLogger("bayesid").level == logging.NOTSET
+
+
+def test_sample_and_diagnose_show_their_bars_and_quiet_hides_them(zigzag, tmp_path, capsys):
+    """Issue 51: the task layer's bar shows in ``bayesid sample`` (the importance draws) and
+    ``bayesid diagnose`` (each candidate's fit of round 1); ``-q`` hides both."""
+    held = tmp_path / "z10.csv"
+    argv = ["simulate", "--vehicle", "nps_auv2", "--mode", "horizontal", "--manoeuvre", "zigzag", "--angle", "10"]
+    assert cli.main([*argv, "--duration", "60", "--sample", "0.5", "--out", str(held)]) == 0
+    fit = ["fit", "--vehicle", "nps_auv2", "--train", str(zigzag), "--free", "Yv,Nr,Ndr", "--max-nfev", "5"]
+    assert cli.main([*fit, "--out", str(tmp_path / "fit")]) == 0
+    sample = ["sample", "--model", str(tmp_path / "fit" / "model.json"), "--train", str(zigzag)]
+    sample += ["--method", "importance", "--draws", "100", "--max-minutes", "1"]
+    diag = ["diagnose", "--vehicle", "nps_auv2", "--train", str(zigzag), "--heldout", str(held), "--free", "Yv,Nr"]
+    diag += ["--candidates", "thrust", "--max-nfev", "3", "--no-design"]
+    capsys.readouterr()
+    assert cli.main([*sample, "--out", str(tmp_path / "s")]) == 0
+    assert "importance draws: 100%" in capsys.readouterr().err
+    assert cli.main([*diag, "--out", str(tmp_path / "d")]) == 0
+    err = capsys.readouterr().err
+    assert "round 1: thrust" in err and "%|" in err
+    assert cli.main(["-q", *sample, "--out", str(tmp_path / "s2")]) == 0
+    assert cli.main(["-q", *diag, "--out", str(tmp_path / "d2")]) == 0
+    assert "%|" not in capsys.readouterr().err
