@@ -267,9 +267,10 @@ def _alternatives_lines(res: dict) -> list:
     for d in kept:
         for w in d.get("worse_on_other_kinds") or []:
             lines.append(
-                f"- **Warning**: with {d['term']} the held-out run {w['run']} (a {w['kind'].replace('_', ' ')}, a kind "
-                f"the training runs lack) is predicted worse than by the reference model: {fmt(w['rms_m'])} against "
-                f"{fmt(w['reference_rms_m'])} m. The term does not carry to that kind of run."
+                f"- **Warning**: with {d['term']} the held-out run {w['run']} (of kind {w['kind'].replace('_', ' ')}, "
+                f"which the training runs lack) is predicted worse than by the reference model: {fmt(w['rms_m'])} "
+                f"against {fmt(w['reference_rms_m'])} m (x{fmt(w['rms_m'] / w['reference_rms_m'])}; not significantly "
+                "on its windows, or the term would not have been kept). The term may not carry to that kind of run."
             )
     if kinds:
         tr, he = sorted(set(kinds.get("train", []))), sorted(set(kinds.get("heldout", [])))

@@ -256,17 +256,22 @@ class Diagnosis:
 
     def _worse_on_other_kinds(self, item: dict) -> list:
         """The held-out runs of a kind the training runs lack on which a kept term's single-term
-        refit predicts worse than the reference model: ``[{"run", "kind", "rms_m",
-        "reference_rms_m"}]`` (a term chosen on one kind of run that does not carry to another)."""
+        refit predicts worse than the reference model by more than the separation margin
+        (``thresholds["separation_margin"]``, 10 %; a smaller excess is within what refits of
+        equally good structures differ by): ``[{"run", "kind", "rms_m", "reference_rms_m"}]``
+        (a term chosen on one kind of run that does not carry to another)."""
         ref = getattr(getattr(self.discovered, "reference", None), "held", None) or {}
         base = ref.get("per_track_rms_position_m", {})
         mine = item.get("heldout_rms_by_run_m") or {}
         train = set(self.manoeuvre_kinds.get("train", []))
+        margin = float(
+            (getattr(self, "thresholds", None) or {}).get("separation_margin", Thresholds().separation_margin)
+        )
         out = []
         for run, kind in zip(self.heldout_tracks, self.manoeuvre_kinds.get("heldout", [])):
             if kind in train or run not in mine or run not in base:
                 continue
-            if mine[run] > base[run]:
+            if mine[run] > base[run] * (1.0 + margin):
                 out.append({"run": run, "kind": kind, "rms_m": mine[run], "reference_rms_m": base[run]})
         return out
 
