@@ -170,8 +170,10 @@ def main():
             r["known_ratio"],
             figs / f"fig{3 + i}_coefficients_{k}.png",
             f"{k.replace('case', 'Case ')}: estimated / true (SLSQP)",
-            lower={n: case.lower[n] / case.true[n] for n in case.free},
-            upper={n: case.upper[n] / case.true[n] for n in case.free},
+            bounds=(
+                {n: case.lower[n] / case.true[n] for n in case.free},
+                {n: case.upper[n] / case.true[n] for n in case.free},
+            ),
         )
     plots.convergence(
         {

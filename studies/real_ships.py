@@ -206,7 +206,7 @@ def track_figure(models, track, window, path, title):
     pr_a = predict(am, af.p, [track], window, start="measured").simulated[track.name]
     meas, xb = windowed_xy(*pr_b)
     _, xa = windowed_xy(*pr_a)
-    return plots.window_tracks(None, meas, xb, xa, path, title=title, run=track)
+    return plots.window_tracks(meas, xb, xa, path, title=title, run=track)
 
 
 def literature_baseline(vessel, held, rng):

@@ -97,7 +97,8 @@ def test_prediction_band_reads_the_whole_run_when_given_no_indices(tmp_path, sav
     later = tr.t >= 12.0
     measured = {c: tr[c] for c in ("t", "x", "y", "psi", "delta_r")}
     predicted = {c: tr[c][later] for c in ("x", "y", "psi")}
-    plots.prediction_band(tr.t[later], measured, predicted, np.zeros(later.sum(), int), {}, tmp_path / "b.png")
+    predicted.update(t=tr.t[later], win=np.zeros(later.sum(), int))
+    plots.prediction_band(measured, predicted, {}, tmp_path / "b.png")
     labels = _labels(saved["b.png"])
     for run in ("measured", "predicted"):
         for name in TURN:

@@ -161,8 +161,8 @@ def test_report_figures_mark_the_measured_run(trials, tmp_path):
     try:
         plots.mark_indices = spy
         plots.training_fit(zz.t, meas, meas, win, tmp_path / "a.png")
-        plots.prediction_band(zz.t, meas, meas, win, {}, tmp_path / "b.png")
-        plots.window_tracks(None, np.c_[tc["x"], tc["y"]], np.c_[tc["x"], tc["y"]], None, tmp_path / "c.png", run=tc)
+        plots.prediction_band(meas, {**meas, "t": zz.t, "win": win}, {}, tmp_path / "b.png")
+        plots.window_tracks(np.c_[tc["x"], tc["y"]], np.c_[tc["x"], tc["y"]], None, tmp_path / "c.png", run=tc)
     finally:
         plots.mark_indices = real
     # training fit and prediction: the measured zigzag; the whole-run prediction too; the window tracks' turn

@@ -70,7 +70,7 @@ def _cases() -> dict:
         "position_error": ((t, {"a": 0.01 * t, "b": 0.02 * t}), {"title": "errors"}, (2,)),
         "coefficient_ratios": (
             (NAMES, {"Yv": 0.9, "Nr": 1.2}, {"Yv": 1.0, "Nr": 1.05}, {"Xvr": 1.0, "Yr": 1.0, "Nv": 1.0}),
-            {"lower": {"Yv": 0.5}, "upper": {"Yv": 1.5}},
+            {"bounds": ({"Yv": 0.5}, {"Yv": 1.5})},
             None,
         ),
         "convergence": (({"fit": [10.0, 5.0, 2.0, 1.0]},), {}, None),
@@ -109,7 +109,7 @@ def _cases() -> dict:
         ),
         "gap_channels": ((where,), {}, None),
         "gap_regions": ((where,), {}, (2,)),
-        "window_tracks": ((None, xy, xy + 1.0, xy - 1.0), {"run": track}, None),
+        "window_tracks": ((xy, xy + 1.0, xy - 1.0), {"run": track}, None),
         "window_scatter": (([0.2, 0.3, 0.4], [0.1, 0.35, 0.3]), {}, None),
         "confusion_matrix": (({"a": {"a": 3, "none": 1}, "b": {"b": 2}},), {}, None),
         "turning_band": (({"a": S},), {}, None),
@@ -120,7 +120,7 @@ def _cases() -> dict:
             None,
         ),
         "prediction_band": (
-            (t, measured, predicted, win, {"max_position_m": 1.0, "max_heading_deg": 2.0}),
+            (measured, {**predicted, "t": t, "win": win}, {"max_position_m": 1.0, "max_heading_deg": 2.0}),
             {"title": "band"},
             (3,),
         ),

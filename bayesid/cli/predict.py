@@ -199,11 +199,9 @@ def _figures(pr, bands: dict, indices: dict, doc, tracks, window, out) -> None:
         k = max(1, ctx.ts.size // 100000)  # a figure needs no more than 1e5 points a line
         km = max(1, tr.n_samples // 100000)
         plots.prediction_band(
-            ctx.ts[::k],
             # the whole measured run, lead-in included: the indices are read from all of it
             {c: np.asarray(tr[c], float)[::km] for c in ("t", "x", "y", "psi", "delta_r")},
-            {"x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
-            ctx.win[::k],
+            {"t": ctx.ts[::k], "win": ctx.win[::k], "x": S[::k, 0], "y": S[::k, 1], "psi": S[::k, 5]},
             b90,
             out / "figures" / f"{tr.name}.png",
             title=f"{tr.name}: {window or 'whole-run'} s windows, identified model"

@@ -188,9 +188,7 @@ def _window_figure(before, after, res: dict, track, path, labels=("base model", 
     if after is not None:
         nu = None if after.nuisance is None else after.nuisance[0]
         _, xy_after = window_xy(after.model, after.fit, track, w, nu, start=rule, leadin_s=lead)
-    return plots.window_tracks(
-        None, meas, xy_before, xy_after, path, title=f"{track.name}: {w} s windows", labels=labels
-    )
+    return plots.window_tracks(meas, xy_before, xy_after, path, title=f"{track.name}: {w} s windows", labels=labels)
 
 
 def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:

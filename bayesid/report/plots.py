@@ -222,7 +222,7 @@ def position_error(t, errors: dict, path=None, title: str = "", *, axes=None):
     return _done(fig, ax, path)
 
 
-def coefficient_ratios(names, start, converged, known, path=None, title: str = "", lower=None, upper=None, *, ax=None):
+def coefficient_ratios(names, start, converged, known, path=None, title: str = "", bounds=None, *, ax=None):
     """Estimated/true ratio per coefficient grouped X | Y | N, like the paper's Figs. 3-5.
 
     Parameters
@@ -239,11 +239,9 @@ def coefficient_ratios(names, start, converged, known, path=None, title: str = "
         The PNG written, the figure then closed (default: none written, the axes returned).
     title : str, default ""
         The axes' title.
-    lower : dict of str to float, optional
-        Name -> lower bound ratio; with ``upper``, the bounds of each name in it drawn as a grey
-        bar.
-    upper : dict of str to float, optional
-        Name -> upper bound ratio; holds every name of ``lower``.
+    bounds : tuple of two dicts of str to float, optional
+        ``(lower, upper)``: name -> lower and upper bound ratio (``upper`` holds every name of
+        ``lower``); the bounds of each name in them drawn as a grey bar.
     ax : matplotlib.axes.Axes, optional
         The axes drawn on (default: new axes on a new figure).
 
@@ -252,6 +250,7 @@ def coefficient_ratios(names, start, converged, known, path=None, title: str = "
     matplotlib.axes.Axes or Path
         The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
+    lower, upper = bounds if bounds is not None else (None, None)
     groups = [g for g in ("X", "Y", "N") if any(terms.term(n).group == g for n in names)]
     order = [n for g in groups for n in names if terms.term(n).group == g]
     xs = np.arange(len(order))
@@ -986,7 +985,6 @@ def _plan_view(ax, title):
 
 
 def window_tracks(
-    t,
     measured,
     before,
     after,
@@ -1000,12 +998,10 @@ def window_tracks(
     """Measured track and the protocol's windowed predictions before and after the top effect:
     arrays (n, 2) of x, y (NaN separates windows); ``labels`` name the two predictions; ``run``
     (optional, a Track or a mapping with ``"t"``, ``"x"``, ``"y"``, ``"psi"``, ``"delta_r"``: the
-    measured run) has its turning-circle indices marked (:func:`mark_indices`; ``t`` is not used).
+    measured run) has its turning-circle indices marked (:func:`mark_indices`).
 
     Parameters
     ----------
-    t : ndarray, shape (n,)
-        Sample times, s (not used).
     measured : ndarray, shape (n, 2)
         Measured x, y, m.
     before : ndarray, shape (n, 2)
@@ -1264,7 +1260,7 @@ def reliability(
 
 
 def prediction_band(
-    t, measured: dict, predicted: dict, win, band: dict, path=None, title: str = "", *, indices=None, axes=None
+    measured: dict, predicted: dict, band: dict, path=None, title: str = "", *, indices=None, axes=None
 ):
     """Time histories of a windowed prediction with its calibrated band: plan view (measured
     track, predicted windows, a circle of the band's position radius round each window's end:
@@ -1274,16 +1270,14 @@ def prediction_band(
 
     Parameters
     ----------
-    t : ndarray (n,)
-        Sample times of the prediction, s.
     measured : mapping
         The measured ``"x"``, ``"y"`` (m), ``"psi"`` and rudder angle ``"delta_r"`` (rad): arrays
-        (n,) at ``t``, or with their own times ``"t"`` (s), arrays (m,): the whole run (a Track),
-        lead-in included, so that an execute before the first window is on the figure.
+        (n,) at the prediction's times, or with their own times ``"t"`` (s), arrays (m,): the
+        whole run (a Track), lead-in included, so that an execute before the first window is on
+        the figure.
     predicted : dict
-        The predicted ``"x"``, ``"y"``, ``"psi"``, arrays (n,).
-    win : ndarray (n,)
-        The window index of each sample.
+        The prediction: ``"t"`` (s), ``"win"`` (the window index of each sample) and the
+        predicted ``"x"``, ``"y"``, ``"psi"``, arrays (n,).
     band : dict
         The band: ``"max_position_m"`` and ``"max_heading_deg"`` (deg), an absent or non-finite
         value not drawn; ``"level"``, its nominal level in the legend (default 0.9).
@@ -1307,7 +1301,7 @@ def prediction_band(
     ndarray of matplotlib.axes.Axes or Path
         The axes drawn on, shape (3,); with ``path``, ``path`` (the PNG written).
     """
-    t = np.asarray(t, float)
+    t, win = np.asarray(predicted["t"], float), np.asarray(predicted["win"])
     tm, hm = _measured_heading(t, measured)
     level = band.get("level", 0.9)
     radius_m, heading_deg = band.get("max_position_m"), band.get("max_heading_deg")
