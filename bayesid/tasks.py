@@ -72,6 +72,7 @@ __all__ = [
     "check_jobs",
     "digest",
     "jsonable",
+    "record_fields",
     "add_arguments",
     "parse_checked",
     "JOURNAL_VERSION",
@@ -127,6 +128,48 @@ def parse_checked(parser, argv=None):
     except ValueError as exc:
         parser.error(str(exc))
     return args
+
+
+def record_fields(record: type, d: Mapping, what: str, skip=(), extra=()) -> dict:
+    """The constructor arguments of dataclass ``record`` read from its JSON object ``d``: every key a
+    field of ``record`` (but those in ``skip``, written only by the code), checked.
+
+    Parameters
+    ----------
+    record : type
+        A dataclass.
+    d : Mapping
+        The JSON object (``record.to_dict()`` as written).
+    what : str
+        The record's name in messages (``"diagnosis"``).
+    skip : sequence of str
+        Fields not in the JSON (models, caches); they keep their defaults.
+    extra : sequence of str
+        Keys of the JSON that are not fields (derived ones), ignored.
+
+    Returns
+    -------
+    dict
+        ``{field: value}`` for ``record(**...)``.
+
+    Raises
+    ------
+    ValueError
+        A key that is no field of ``record`` (nor in ``extra``), or a field without a default missing,
+        named.
+    """
+    import dataclasses
+
+    fs = [f for f in dataclasses.fields(record) if f.name not in skip]
+    names = {f.name for f in fs}
+    unknown = sorted(set(d) - names - set(extra))
+    if unknown:
+        raise ValueError(f"{what}: unknown key(s) {unknown}")
+    required = [f.name for f in fs if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    missing = sorted(n for n in required if n not in d)
+    if missing:
+        raise ValueError(f"{what}: missing key(s) {missing}")
+    return {k: v for k, v in d.items() if k in names}
 
 
 def jsonable(x):

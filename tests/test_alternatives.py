@@ -455,3 +455,22 @@ def test_a_term_kept_alone_and_tested_only_on_zigzags_gets_a_run_of_another_kind
         assert predictions == ["base model", "Nvdrabsdr"]
     else:
         assert calls == [] and rows == []
+
+
+def test_a_discovery_reads_back_from_its_json():
+    """Issue 51: ``Discovery.from_dict`` of the ``discovery`` entry of diagnosis.json gives the
+    result whose JSON is that entry; a misspelt key is named."""
+    import json
+
+    from bayesid.tasks import jsonable
+
+    rows = [{"term": "Nvvr", "dof": "N", "kept": True, "heldout_rms_after_m": 0.31, "worst_run": None}]
+    alt = [{"term": "Yvvdr", "heldout_rms_m": 0.32, "window_p_value": 0.4, "kept_worse_run": None}]
+    D = dv.Discovery(["Nvvr"], "discovered: Nvvr", rows, {"Nvvr": 0.9}, {}, 3, 1.0, 0.31, {}, [1.0], [0.3], {}, 0.5)
+    D.alternatives = {"Nvvr": alt}
+    text = json.dumps(jsonable(D.to_dict()), allow_nan=False)
+    back = dv.Discovery.from_dict(json.loads(text))
+    assert back.found == ["Nvvr"] and back.alternatives == {"Nvvr": alt} and back.stages == {}
+    assert json.dumps(jsonable(back.to_dict()), allow_nan=False) == text
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['fund'\]"):
+        dv.Discovery.from_dict({**json.loads(text), "fund": []})

@@ -4,7 +4,7 @@ candidates, verdict, support (the rules: :mod:`bayesid.analysis.gap`)."""
 from __future__ import annotations
 
 import time
-from dataclasses import MISSING, dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cache, partial
 
 import numpy as np
@@ -24,7 +24,7 @@ from ...estimation.windows import (
 from ...models import context as ctxmod
 from ...models import model_class
 from ...protocol import start_settings
-from ...tasks import Runner, Task, TaskError
+from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
 from .design import design, manoeuvre_kind, standard_predictions
 from .discovery import Discovery, discover, with_terms
@@ -244,15 +244,8 @@ class Diagnosis:
         ValueError
             A key the diagnosis does not have, or a required one missing (named).
         """
-        names = {f.name for f in fields(cls) if f.name not in cls._HIDDEN}
-        unknown = sorted(set(d) - names - {"discovered"})
-        if unknown:
-            raise ValueError(f"diagnosis: unknown key(s) {unknown}")
-        missing = sorted(f.name for f in fields(cls) if f.name in names and f.default is MISSING and f.name not in d)
-        missing = [n for n in missing if next(f for f in fields(cls) if f.name == n).default_factory is MISSING]
-        if missing:
-            raise ValueError(f"diagnosis: missing key(s) {missing}")
-        return cls(**{k: v for k, v in d.items() if k in names}, discovered_terms=list(d.get("discovered") or []))
+        args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
+        return cls(**args, discovered_terms=list(d.get("discovered") or []))
 
     def _worse_on_other_kinds(self, item: dict) -> list:
         """The held-out runs of a kind the training runs lack on which a kept term's single-term

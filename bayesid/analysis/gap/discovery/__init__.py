@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ....models.library import MAX_ORDER as MAX_ORDER
-from ....tasks import Runner, Task, TaskError
+from ....tasks import Runner, Task, TaskError, record_fields
 from ..candidates import Setup, Stage
 from ..verdict import Thresholds
 from ..verdict import is_contributor as is_contributor
@@ -232,6 +232,28 @@ class Discovery:
             ``{field: value}`` without ``after``, ``reference`` and ``stages``.
         """
         return {k: v for k, v in self.__dict__.items() if k not in ("after", "reference", "stages")}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Discovery:
+        """The result read back from its JSON (``diagnosis.json``'s ``discovery``, or
+        :meth:`to_dict`), without the models (``after``, ``reference``, ``stages`` empty).
+
+        Parameters
+        ----------
+        d : dict
+            The JSON object.
+
+        Returns
+        -------
+        Discovery
+            ``Discovery.from_dict(x).to_dict() == x``.
+
+        Raises
+        ------
+        ValueError
+            A key the result does not have, or a required one missing (named).
+        """
+        return cls(**record_fields(cls, d, "discovery", skip=("after", "reference", "stages")))
 
     def terms(self) -> list[dict]:
         """The top-level ``discovered`` list of ``diagnosis.json``: one item per refitted term.
