@@ -237,3 +237,31 @@ def test_a_manoeuvre_the_training_runs_lacked_is_flagged_extrapolated_not_counte
     xw = ext["coverage"]["windows"]["0.9"]
     assert xw["n"] >= 12 and xw["coverage"] < 0.5, xw
     assert "Extrapolated, not calibrated" in (tmp_path / "pred" / "report.md").read_text()
+
+
+def test_the_report_says_which_folds_are_extrapolations_and_what_data_would_help():
+    """Issue 50: with one training run of each kind every leave-one-run-out fold predicts a kind
+    the refit never saw; the fit report says so, names the kinds, and says what to add."""
+    from bayesid.report.fit import _extrapolation_fold_lines
+
+    rng = np.random.default_rng(1)
+    wins = [{"max_position_m": a, "max_heading_deg": 1.0} for a in rng.gamma(2, 0.5, 5)]
+    kinds = {"z10": "zigzag", "t35": "turning_circle", "p20": "pull_out", "z20": "zigzag"}
+    folds = [{"runs": [r], "indices": [], "windows": wins} for r in kinds]
+    cal = Calibration(folds=folds, window_s=60.0, kinds=kinds, n_folds=4)
+    ext = cal.extrapolation_folds()
+    assert [f["runs"] for f in ext] == [["t35"], ["p20"]]  # the zigzags have each other
+    assert [f["kinds"] for f in ext] == [["turning_circle"], ["pull_out"]]
+    wb = {a: cal.window_band(a) for a in (0.5, 0.9, 0.95)}
+    text = " ".join(_extrapolation_fold_lines(cal, wb))
+    assert "**2 of 4 folds are extrapolations**" in text and "pull out (1 run), turning circle (1 run)" in text
+    assert "A second run of each of these kinds" in text
+    assert "Unbounded window bands at 0.95 (needs at least 19 left-out windows): the folds scored 20" not in text
+    assert "0.95 (needs at least 19" not in text  # 20 windows: bounded
+    # a file of an older version has no kinds: nothing said; round trip through JSON keeps them
+    assert Calibration(folds=folds, window_s=60.0).extrapolation_folds() == []
+    assert Calibration.from_dict(json.loads(json.dumps(cal.to_dict()))).kinds == kinds
+    few = Calibration(folds=[{"runs": ["z10"], "indices": [], "windows": wins[:3]}], window_s=60.0, kinds=kinds)
+    text = " ".join(_extrapolation_fold_lines(few, {a: few.window_band(a) for a in (0.9, 0.95)}))
+    assert "Unbounded window bands at 0.9 (needs at least 9 left-out windows), 0.95 (needs at least 19" in text
+    assert "the folds scored 3" in text

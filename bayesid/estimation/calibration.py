@@ -53,7 +53,7 @@ import numpy as np
 
 from ..tasks import Runner, Task, TaskError
 from . import windows as wf
-from .indices import index_keys
+from .indices import index_keys, manoeuvre_kind
 from .laplace import fit_covariance
 from .options import CalibrationOptions
 from .prediction import FittedModel, predict, turning_band
@@ -333,6 +333,7 @@ def leave_one_run_out(
         index_score=INDEX_SCORE,
         structural_scale=kappa,
         index_scores=scores,
+        kinds={t.name: manoeuvre_kind(t) for t in train},
     )
 
 
@@ -570,6 +571,9 @@ class Calibration:
         ``{index or "all": kappa}`` at the time of writing (:func:`structural_scale`).
     index_scores : dict, optional
         ``{index: normalised scores}`` at the time of writing.
+    kinds : dict, optional
+        ``{run: manoeuvre kind}`` of the training runs
+        (:func:`~bayesid.estimation.indices.manoeuvre_kind`, read from the rudder).
     """
 
     method: str | None = None
@@ -584,6 +588,7 @@ class Calibration:
     index_score: str | None = None
     structural_scale: dict | None = None
     index_scores: dict | None = None
+    kinds: dict | None = None
 
     @classmethod
     def from_dict(cls, d: dict) -> Calibration:
@@ -612,6 +617,28 @@ class Calibration:
             The fields in their order, those that are None left out.
         """
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name) is not None}
+
+    def extrapolation_folds(self) -> list:
+        """The folds whose left-out runs include a manoeuvre kind none of the fold's training runs
+        has: their scores measure the error of predicting a new kind of manoeuvre, wider than a
+        prediction within the training kinds (with one run of each kind, every fold is one).
+
+        Returns
+        -------
+        list of dict
+            ``[{"runs", "kinds"}]``: the fold's left-out runs and the kinds the others lack; empty
+            without ``kinds`` (a file written by an older version) or folds.
+        """
+        if not self.kinds or not self.folds:
+            return []
+        out = []
+        for f in self.folds:
+            left = [r for r in f["runs"] if r in self.kinds]
+            others = {k for r, k in self.kinds.items() if r not in f["runs"]}
+            new = sorted({self.kinds[r] for r in left} - others)
+            if new:
+                out.append({"runs": list(f["runs"]), "kinds": new})
+        return out
 
     def fold_optima(self) -> list:
         """The optima of the refits (their ``p``).

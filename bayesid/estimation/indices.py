@@ -39,6 +39,7 @@ __all__ = [
     "ZIGZAG_TIMING",
     "index_keys",
     "manoeuvre_indices",
+    "manoeuvre_kind",
     "pull_out_rates",
     "rudder_orders",
     "steady_yaw_rates",
@@ -829,3 +830,46 @@ def pull_out_rates(t, delta, r) -> dict:
         "residual_yaw_rate_deg_s": math.degrees(r1),
         "residual_fraction": r1 / r0 if r0 else float("nan"),
     }
+
+
+def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
+    """The standard manoeuvre a logged run most resembles, read from its rudder alone:
+    ``"zigzag"`` (two or more reversals of a held rudder), ``"turning_circle"`` (one side, held to
+    the end), ``"pull_out"`` (one side, then back to midships), ``"straight"`` (never beyond
+    ``hold_deg``) or ``"other"`` (e.g. a pseudo-random sequence).
+
+    Parameters
+    ----------
+    track : Track
+        A run with ``delta_r`` (rad).
+    hold_deg : float, default 2.0
+        Rudder angles within this of midships count as midships, deg.
+
+    Returns
+    -------
+    str
+        ``"zigzag"``, ``"turning_circle"``, ``"pull_out"``, ``"straight"`` or ``"other"``.
+    """
+    d = np.asarray(track["delta_r"], float)
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return "other"
+    lim = math.radians(hold_deg)
+    side = np.sign(np.where(np.abs(d) > lim, d, 0.0))
+    held = side[side != 0]
+    if held.size == 0:
+        return "straight"
+    big = np.abs(d[np.abs(d) > lim])
+    # one rudder angle held, as a standard run holds it: most rudder-over samples within 15 % of
+    # the held angle (the 90th percentile; a 35/5 zigzag of a slow gear spends a fifth ramping)
+    held_angle = float(np.percentile(big, 90))
+    steady = float(np.mean(np.abs(big - held_angle) < 0.15 * held_angle)) >= 0.6
+    # reversals of the held rudder (beyond half the held angle): the small corrections that keep
+    # the approach course are not reversals of a zigzag
+    over = side[np.abs(d) > max(lim, 0.5 * held_angle)]
+    reversals = int(np.count_nonzero(np.diff(over) != 0))
+    if reversals >= 2 and steady:
+        return "zigzag"
+    if reversals == 0 and steady:
+        return "turning_circle" if side[-1] != 0 else "pull_out"
+    return "other"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -313,8 +314,40 @@ def _calibration_lines(doc: dict) -> list:
             "training run had, e.g. a turning circle from zigzags, is flagged extrapolated and not counted as "
             "calibrated).",
             "",
+            *_extrapolation_fold_lines(cal, wb),
         ]
     return lines
+
+
+def _extrapolation_fold_lines(cal, wb: dict) -> list:
+    """What the calibration's folds are: how many leave out the only run of a manoeuvre kind (their
+    scores are those of predicting a new kind), and what data would make the bands usable."""
+    ext = cal.extrapolation_folds()
+    infinite = [a for a, b in wb.items() if not np.isfinite(b.get("max_position_m", np.inf))]
+    if not ext and not infinite:
+        return []
+    out = []
+    if ext:
+        lone = sorted({k for f in ext for k in f["kinds"]})
+        counts = {k: sum(v == k for v in cal.kinds.values()) for k in lone}
+        out.append(
+            f"**{len(ext)} of {len(cal.folds)} folds are extrapolations**: each leaves out the only training run of "
+            + ", ".join(f"{k.replace('_', ' ')} ({counts[k]} run{'s' if counts[k] != 1 else ''})" for k in lone)
+            + ", so its scores are the errors of predicting a kind of manoeuvre the refit never saw. The bands "
+            "above hold those errors: for predictions within the training kinds they are wider than they need be. "
+            "A second run of each of these kinds in training makes every fold a prediction within its kinds."
+        )
+    if infinite:
+        n = wb[infinite[0]].get("n_scores", 0)
+        # the fewest scores with a finite conformal quantile: ceil((n + 1) a) <= n
+        need = {a: next(n for n in range(1, 10**6) if math.ceil((n + 1) * a) <= n) for a in infinite}
+        out.append(
+            "Unbounded window bands at "
+            + ", ".join(f"{a:g} (needs at least {need[a]} left-out windows)" for a in infinite)
+            + f": the folds scored {n}. More or longer training runs (windows of {cal.window_s:g} s each) give "
+            "the scores."
+        )
+    return [" ".join(out), ""]
 
 
 def _multistart_lines(ms: dict) -> list:

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...data.track import STATE_NAMES, Track
+from ...estimation.indices import manoeuvre_kind as manoeuvre_kind  # its home since the calibration reads it
 from ...estimation.laplace import fit_covariance
 from ...estimation.windows import pooled_noise_sd
 
@@ -57,7 +58,6 @@ __all__ = [
     "DesignOptions",
     "ManoeuvreRun",
     "approach_condition",
-    "manoeuvre_kind",
     "menu",
     "run_inputs",
     "input_track",
@@ -204,49 +204,6 @@ def approach_condition(tracks: list) -> dict:
         "rudder_rate": max(rate, math.radians(1.0)),
         "duration_s": float(np.median(lens)),
     }
-
-
-def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
-    """The standard manoeuvre a logged run most resembles, read from its rudder alone:
-    ``"zigzag"`` (two or more reversals of a held rudder), ``"turning_circle"`` (one side, held to
-    the end), ``"pull_out"`` (one side, then back to midships), ``"straight"`` (never beyond
-    ``hold_deg``) or ``"other"`` (e.g. a pseudo-random sequence).
-
-    Parameters
-    ----------
-    track : Track
-        A run with ``delta_r`` (rad).
-    hold_deg : float, default 2.0
-        Rudder angles within this of midships count as midships, deg.
-
-    Returns
-    -------
-    str
-        ``"zigzag"``, ``"turning_circle"``, ``"pull_out"``, ``"straight"`` or ``"other"``.
-    """
-    d = np.asarray(track["delta_r"], float)
-    d = d[np.isfinite(d)]
-    if d.size == 0:
-        return "other"
-    lim = math.radians(hold_deg)
-    side = np.sign(np.where(np.abs(d) > lim, d, 0.0))
-    held = side[side != 0]
-    if held.size == 0:
-        return "straight"
-    big = np.abs(d[np.abs(d) > lim])
-    # one rudder angle held, as a standard run holds it: most rudder-over samples within 15 % of
-    # the held angle (the 90th percentile; a 35/5 zigzag of a slow gear spends a fifth ramping)
-    held_angle = float(np.percentile(big, 90))
-    steady = float(np.mean(np.abs(big - held_angle) < 0.15 * held_angle)) >= 0.6
-    # reversals of the held rudder (beyond half the held angle): the small corrections that keep
-    # the approach course are not reversals of a zigzag
-    over = side[np.abs(d) > max(lim, 0.5 * held_angle)]
-    reversals = int(np.count_nonzero(np.diff(over) != 0))
-    if reversals >= 2 and steady:
-        return "zigzag"
-    if reversals == 0 and steady:
-        return "turning_circle" if side[-1] != 0 else "pull_out"
-    return "other"
 
 
 def menu(approach: dict, options: DesignOptions = DesignOptions()) -> list[ManoeuvreRun]:

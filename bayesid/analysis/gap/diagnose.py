@@ -11,6 +11,7 @@ import numpy as np
 
 from ...estimation import shooting
 from ...estimation.fit import FitResult
+from ...estimation.indices import manoeuvre_kind
 from ...estimation.multistart import multistart
 from ...estimation.windows import (
     FitProblem,
@@ -26,7 +27,7 @@ from ...models import model_class
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
-from .design import design, manoeuvre_kind, standard_predictions
+from .design import design, standard_predictions
 from .discovery import Discovery, discover, with_terms
 from .support import signature_regression
 from .verdict import (
@@ -140,7 +141,7 @@ class Diagnosis:
         (:func:`bayesid.analysis.gap.design.standard_predictions`); empty with ``design``.
     manoeuvre_kinds : dict
         ``{"train": [...], "heldout": [...]}``: the standard manoeuvre each run resembles
-        (:func:`bayesid.analysis.gap.design.manoeuvre_kind`); when the held-out kinds are all
+        (:func:`bayesid.estimation.indices.manoeuvre_kind`); when the held-out kinds are all
         among the training kinds, every item of ``discovered`` has
         ``tested_only_within_training_manoeuvres: true``.
     base : Stage, optional
