@@ -53,6 +53,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -1280,8 +1281,6 @@ def importance_laplace(
         Fewer than 1 % of the proposal inside the bounds, a chunk task failed (named), or fewer
         than 10 draws with a finite posterior (after a cut: naming the budget).
     """
-    import time
-
     from scipy.stats import multivariate_t
 
     t0 = time.perf_counter()
@@ -1390,8 +1389,6 @@ def _run_in_waves(tasks, n_draws: int, runner: Runner, t0: float, limits) -> tup
     ``limits`` = (``max_seconds``, ``soft_seconds``, ``passes(results)``; docstring of
     :func:`importance_laplace`): the results of the tasks run (a prefix) and the seconds of one
     chunk on one worker (the first chunk's, averaged with each wave's pace)."""
-    import time
-
     max_seconds, soft_seconds, passes = limits
     limit = max_seconds if soft_seconds is None else soft_seconds
 
@@ -1710,23 +1707,17 @@ class _Budget:
     each stage took (``secs``) and did (``stages``, :func:`_stage`)."""
 
     seconds: float
-    t0: float = dataclasses.field(default_factory=lambda: _now())
+    t0: float = dataclasses.field(default_factory=time.perf_counter)
     secs: dict = dataclasses.field(default_factory=dict)
     stages: dict = dataclasses.field(default_factory=dict)
 
     def elapsed(self) -> float:
         """Seconds since the start."""
-        return _now() - self.t0
+        return time.perf_counter() - self.t0
 
     def left(self) -> float:
         """Seconds of the budget left (negative when overrun)."""
         return self.seconds - self.elapsed()
-
-
-def _now() -> float:
-    import time
-
-    return time.perf_counter()
 
 
 def _importance_stage(post, mode: dict, opts: tuple, seed, clock: _Budget, runner: Runner, row_s: float) -> tuple:
@@ -1734,7 +1725,7 @@ def _importance_stage(post, mode: dict, opts: tuple, seed, clock: _Budget, runne
     (``opts``: ``(SampleOptions, ImportanceOptions)``): ``(result, verdict, seconds per row)``."""
     options, importance = opts
     say, budget_s, secs, stages = runner.say, clock.seconds, clock.secs, clock.stages
-    t = _now()
+    t = time.perf_counter()
     limit = max(0.0, clock.left())
     soft = IMPORTANCE_SHARE_AUTO * limit if options.method == "auto" else None
     say(
@@ -1753,7 +1744,7 @@ def _importance_stage(post, mode: dict, opts: tuple, seed, clock: _Budget, runne
         max_seconds=limit,
         soft_seconds=soft,
     )
-    secs["importance"] = _now() - t
+    secs["importance"] = time.perf_counter() - t
     row_s = imp["seconds_per_draw"] or row_s
     stages["importance"] = _stage(
         "draws",
@@ -1781,7 +1772,7 @@ def _mcmc_stage(post, mode: dict, opts: tuple, seed, clock: _Budget, runner: Run
     say, budget_s, secs, stages = runner.say, clock.seconds, clock.secs, clock.stages
     P = len(post.names)
     mc = None
-    t = _now()
+    t = time.perf_counter()
     steps = sampler.max_steps if options.max_steps is None else int(options.max_steps)
     W, E = sampler.walkers(P), sampler.n_ensembles
     step_s = E * W * row_s  # one step of every walker of every ensemble
@@ -1817,7 +1808,7 @@ def _mcmc_stage(post, mode: dict, opts: tuple, seed, clock: _Budget, runner: Run
             progress=runner.bar("mcmc") is not None,
         )
         mc = _mcmc(post, mode, cfg, np.random.default_rng(seed), checkpoint, runner)
-        secs["mcmc"] = _now() - t
+        secs["mcmc"] = time.perf_counter() - t
         r = mc["result"]
         stages["mcmc"] = _stage(
             "steps", steps, int(r.n_steps), secs["mcmc"], steps * step_s, r.stop_reason == "max_wall_s"
@@ -1844,7 +1835,7 @@ def _kept_draws(
         idx = resample(imp["weights"], n_draws, rng)
         draws, lp, ssr = imp["draws"][idx], imp["log_prob"][idx], imp["ssr"][idx]
     else:
-        t = _now()
+        t = time.perf_counter()
         res = mc["result"]
         flat = res.chains[:, mc["burn"] :].reshape(-1, len(post.names))
         keep = np.unique(np.linspace(0, flat.shape[0] - 1, min(n_draws, flat.shape[0])).astype(int))
@@ -1862,7 +1853,7 @@ def _kept_draws(
             done = sub.size
             say(f"noise scales from {done} of the {keep.size} kept draws: the budget is spent")
         stages["noise_scales"] = _stage(
-            "draws", int(keep.size), int(done), _now() - t, keep.size * row_s, done < keep.size
+            "draws", int(keep.size), int(done), time.perf_counter() - t, keep.size * row_s, done < keep.size
         )
     return draws, lp, ssr
 
@@ -1888,8 +1879,6 @@ def _workers(runner: Runner) -> int:
 def _row_seconds(post: TrackPosterior, mode: dict, n: int = 8) -> float:
     """Seconds per row of :meth:`TrackPosterior.evaluate` on ``n`` rows of the Laplace
     approximation around the mode (a generator of its own: no draw of the run changes)."""
-    import time
-
     rng = np.random.default_rng(20260)
     X = rng.multivariate_normal(mode["p"], mode["cov"], size=n, method="eigh")
     X = np.clip(X, post.prior.lo, post.prior.hi)
@@ -1902,8 +1891,6 @@ def _track_posterior(problem, p0, use_prior: bool, say) -> tuple:
     """(:class:`TrackPosterior` of the fit's objective at ``p0`` with its error model and prior,
     seconds of one evaluation per parameter row, seconds of one row's simulation with its start
     states given: what a least-squares Jacobian column costs)."""
-    import time
-
     model, ctxs = problem.model, problem.ctxs
     ob = wf.WindowObjective(model, ctxs, problem.sd, p0, channels=problem.channels)
     nuisance = np.zeros(0)
