@@ -22,8 +22,12 @@ Method
 - Round 2: the same diagnosis with that run held out; and once more with that run added to the
   training runs instead (the held-out runs as in round 1), the other way a user adds it. A term
   is kept only if no held-out run is predicted significantly worse than without it (the kept
-  test's run check); a designed run lasts at least three protocol windows; pairs of alternatives
-  that no run of the menu separates (below 20 nats on every run) do not rank the runs.
+  test's run check); a designed run lasts at least three protocol windows, and the three best
+  are lengthened (to at most eight) to the windows the run test needs to see the kept term
+  apart from each alternative with 80 % power (``design.run_test_windows``, from the expected
+  window error ratio and the scatter of the ratios within the held-out runs); pairs of
+  alternatives that no run of the menu separates (below 20 nats on every run) do not rank the
+  runs.
 - Scores: whether the hidden term is kept, alone or with alternatives, in each round; a *wrong
   term alone* is a kept term other than the hidden one named without alternatives (the issue's
   target: never); a control or a non-force case is *clean* when no term is kept. A hidden-term
@@ -177,7 +181,13 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
         clock = max(float(t.t[-1]) for t in train + held) + 100.0
         run = fly(case, veh, free, top, approach_condition(train), np.random.default_rng(seed + 1), clock)
         if run is not None:
-            out["designed_run"] = {"name": top["name"], "separation": top["separation"], "samples": run.n_samples}
+            out["designed_run"] = {
+                "name": top["name"],
+                "separation": top["separation"],
+                "samples": run.n_samples,
+                "duration_s": top["duration_s"],
+                "run_test": top.get("run_test"),
+            }
             d2 = diagnose(veh, free, train, [*held, run], options, rng=np.random.default_rng(seed))
             out["round2"] = _round(d2, hidden, run.name)
             # the other way a user adds the run: to the training runs (the refits then have to fit it)
@@ -379,7 +389,10 @@ def write_report(out: Path, rows: list, args) -> dict:
             r["case"],
             f"{fmt(r['round1']['heldout_rms_base_m'])} / {fmt(r['round1']['noise_floor_m'])}",
             _terms(r["round1"]),
-            "-" if not r["designed_run"] else f"{r['designed_run']['name']} ({fmt(r['designed_run']['separation'])})",
+            "-"
+            if not r["designed_run"]
+            else f"{r['designed_run']['name']}, {r['designed_run'].get('duration_s', float('nan')):.0f} s "
+            f"({fmt(r['designed_run']['separation'])})",
             _on_run(r),
             _terms(r["round2"]),
             fmt(r["round2"]["heldout_rms_after_m"]) if r["round2"] else "-",
@@ -427,7 +440,7 @@ def write_report(out: Path, rows: list, args) -> dict:
                 "case",
                 "held-out RMS base / floor (m)",
                 "round 1: kept (alternatives)",
-                "designed run (separation, nats)",
+                "designed run, length (separation, nats)",
                 "position RMS on the designed run (m)",
                 "round 2: kept (alternatives)",
                 "round 2 held-out RMS (m)",
@@ -504,6 +517,12 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--repeats", type=int, default=2, help="runs of each case with other noise (default 2)")
     ap.add_argument("--fresh", action="store_true", help="ignore the checkpointed cases and start over")
+    ap.add_argument(
+        "--case",
+        default=None,
+        help="only the cases whose name contains this text, with the seeds they have in the full run (a look at "
+        "one case; write it to another --out)",
+    )
     args = ap.parse_args()
     from bayesid.report import write_json, write_manifest
 
@@ -514,6 +533,8 @@ def main() -> int:
     repeats = 1 if args.quick else max(1, args.repeats)
     rows = []
     for i, case in enumerate(c for c in cases for _ in range(repeats)):
+        if args.case is not None and args.case not in case["name"]:
+            continue
         slug = "".join(c if c.isalnum() else "_" for c in case["name"])
         path = out / "cases" / f"{slug}_{i % repeats}.json"
         if path.is_file() and not args.fresh:

@@ -35,7 +35,14 @@ their rudder rate:
    pairwise divergence, and each row says which pair that is; a pair that no run of the menu
    separates (below ``DesignOptions.min_separation`` on every run) is reported as not separable
    by the standard manoeuvres and the runs are ranked by the other pairs
-   (:func:`rank_by_separable_pairs`).
+   (:func:`rank_by_separable_pairs`);
+6. the diagnosis decides with the run-by-run separation test
+   (:func:`bayesid.analysis.gap.verdict.run_separation_test`), whose power grows with the
+   run's windows: for the best runs, the expected window error ratio of the kept term and each
+   alternative if either is right (:func:`expected_window_log_ratio`) and the scatter of window
+   ratios within the held-out runs (:func:`window_log_sd`) give the windows the test needs
+   (:func:`run_test_windows`), and such a run is lengthened to them (at most
+   ``DesignOptions.max_windows``) and scored again.
 
 Samples of one track are correlated beyond the measurement noise (the models' own errors persist
 over a window); the sum over samples ``sample_s`` apart, not every logged sample, keeps the
@@ -68,6 +75,9 @@ __all__ = [
     "standard_predictions",
     "design",
     "rank_by_separable_pairs",
+    "expected_window_log_ratio",
+    "run_test_windows",
+    "window_log_sd",
 ]
 
 _CHANNELS = ("x", "y", "psi")
@@ -100,6 +110,13 @@ class DesignOptions:
         separable by the standard manoeuvres*: it is reported (``menu_inseparable``) and does not
         rank the runs, which are ranked by the other pairs (the divergence sums correlated
         samples, so this is a ranking threshold, not a Bayes factor).
+    max_windows : int, default 8
+        The longest designed run the sizing for the run test proposes, in protocol windows
+        (:func:`run_test_windows`; only when ``duration_s`` is not given).
+    power : float, default 0.8
+        The power the sizing asks of the run-by-run separation test.
+    sized_rows : int, default 3
+        How many of the best-ranked runs are sized.
 
     Raises
     ------
@@ -113,6 +130,9 @@ class DesignOptions:
     duration_s: float | None = None
     seed: int = 0
     min_separation: float = 20.0
+    max_windows: int = 8
+    power: float = 0.8
+    sized_rows: int = 3
 
     def __post_init__(self):
         if not 0 < self.max_rudder_deg <= 90:
@@ -125,6 +145,12 @@ class DesignOptions:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
         if not self.min_separation >= 0:
             raise ValueError(f"min_separation must be >= 0, got {self.min_separation}")
+        if int(self.max_windows) < 1:
+            raise ValueError(f"max_windows must be >= 1, got {self.max_windows}")
+        if not 0 < self.power < 1:
+            raise ValueError(f"power must be in (0, 1), got {self.power}")
+        if int(self.sized_rows) < 0:
+            raise ValueError(f"sized_rows must be >= 0, got {self.sized_rows}")
 
 
 @dataclass(frozen=True)
@@ -600,9 +626,9 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
     return out
 
 
-def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None) -> list[dict]:
+def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None, thresholds=None) -> list[dict]:
     """Rank the menu's runs by how well they separate alternative model structures (module
-    docstring).
+    docstring), and size the best for the run-by-run separation test (:func:`run_test_windows`).
 
     Parameters
     ----------
@@ -611,11 +637,15 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         least two).
     setup : Setup
         The diagnosis's tracks and windows (:class:`bayesid.analysis.gap.candidates.Setup`); its
-        training runs give the approach condition and the noise.
+        training runs give the approach condition and the noise, its held-out runs the
+        scatter of the window error ratios.
     options : DesignOptions, default DesignOptions()
-        The menu's limits, the number of parameter draws and the seed.
+        The menu's limits, the number of parameter draws, the sizing and the seed.
     rng : numpy.random.Generator, optional
         Parameter draws and the PRBS (default: ``options.seed``).
+    thresholds : Thresholds, optional
+        The run test's margin and level (``separation_margin``, ``partial_p``; default
+        :class:`bayesid.analysis.gap.verdict.Thresholds`).
 
     Returns
     -------
@@ -626,21 +656,26 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         ``pairs`` (``{"A vs B": divergence}``), ``menu_inseparable`` (``{"A vs B": {"best_run",
         "separation"}}``: the pairs no run of the menu separates by more than
         ``options.min_separation``, the same on every row), ``max_position_difference_m`` (largest distance
-        between two alternatives' predicted positions at one sample), ``inputs`` (``{"t" s,
-        "delta_r" rad, "n" rpm}``: the run's input schedule, :func:`run_inputs`) and ``predicted``
-        (``{label: {"t", "x", "y", "psi"}}``, the estimates' predictions over the windows, for
-        the figure).
+        between two alternatives' predicted positions at one sample), ``run_test`` (the run
+        test's outlook on this run: ``windows``, ``log_sd`` (the held-out runs' within-run sd of
+        log window-error ratios, None when too few windows), ``pairs``: ``{"A vs B":
+        {"expected_ratio", "windows_needed"}}`` for the kept term against each alternative, and
+        ``sized_from_s``: the menu's duration when sizing lengthened the run, else None),
+        ``inputs`` (``{"t" s, "delta_r" rad, "n" rpm}``: the run's input schedule,
+        :func:`run_inputs`) and ``predicted`` (``{label: {"t", "x", "y", "psi"}}``, the
+        estimates' predictions over the windows, for the figure).
 
     Raises
     ------
     ValueError
         Fewer than two stages.
     """
+    from .verdict import Thresholds
+
     if len(stages) < 2:
         raise ValueError(f"design needs at least two alternative models, got {len(stages)}")
     rng = np.random.default_rng(options.seed) if rng is None else rng
-    labels = list(stages)
-    best = stages[labels[0]]
+    th = Thresholds() if thresholds is None else thresholds
     approach = approach_condition(setup.train)
     if options.duration_s is None and setup.window_s:  # enough windows for the run test to see it
         approach = {**approach, "duration_s": max(approach["duration_s"], RUN_WINDOWS * float(setup.window_s))}
@@ -652,47 +687,266 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
     held = [[(st.held or {}).get("rms", {}).get(c, 0.0) for c in _CHANNELS] for st in stages.values()]
     noise_var = np.maximum(noise_var, np.nanmax(np.square(np.asarray(held, float)), axis=0))
     ctxs = {k: [st.model.context(tr, setup.fit_window_s) for tr in setup.train] for k, st in stages.items()}
-    draws = {k: _draws(st, ctxs[k], options.n_draws, rng) for k, st in stages.items()}
-    out = []
-    for run in menu(approach, options):
-        t, delta, n = run_inputs(best, run, approach, rng)
-        ref = _simulate_whole(best, _track(t, delta, n, approach), approach)
-        if ref is None:
-            continue
-        pred = {k: predictive(st, draws[k], ref, setup.window_s) for k, st in stages.items()}
-        pairs = {}
-        for i, a in enumerate(labels):
-            for b in labels[i + 1 :]:
-                pairs[f"{a} vs {b}"] = separation(pred[a], pred[b], noise_var, options.sample_s)
-        finite = {k: v for k, v in pairs.items() if np.isfinite(v)}
-        if not finite:
-            continue
-        worst = min(finite, key=finite.get)
-        t_pred = next(iter(pred.values()))[0]
-        each_s = np.r_[True, np.diff(np.floor(t_pred + 1e-9)) > 0]  # the figure's samples: one a second
-        pos = np.stack([p[1][:, :2] for p in pred.values()])
-        gap = np.sqrt(((pos[:, None] - pos[None]) ** 2).sum(axis=-1)).max(axis=(0, 1))
-        out.append(
-            {
-                "kind": run.kind,
-                "rudder_deg": run.rudder_deg,
-                "check_deg": run.check_deg,
-                "side": run.side,
-                "rpm": run.rpm,
-                "duration_s": run.duration_s,
-                "name": run.name,
-                "separation": finite[worst],
-                "worst_pair": worst,
-                "pairs": pairs,
-                "max_position_difference_m": float(np.nanmax(gap)),
-                "inputs": {"t": t.tolist(), "delta_r": delta.tolist(), "n": n.tolist()},
-                "predicted": {
-                    k: {"t": p[0][each_s].tolist(), **{c: p[1][each_s, j].tolist() for j, c in enumerate(_CHANNELS)}}
-                    for k, p in pred.items()
-                },
-            }
+    scoring = _Scoring(
+        stages=stages,
+        approach=approach,
+        noise_var=noise_var,
+        draws={k: _draws(st, ctxs[k], options.n_draws, rng) for k, st in stages.items()},
+        window_s=setup.window_s,
+        sample_s=options.sample_s,
+        log_sd=window_log_sd(stages, setup),
+        n_runs=len(setup.heldout) + 1,
+        margin=th.separation_margin,
+        level=th.partial_p,
+        power=options.power,
+    )
+    out = [r for r in (_evaluate(run, scoring, rng) for run in menu(approach, options)) if r is not None]
+    out = rank_by_separable_pairs(out, options.min_separation)
+    if options.duration_s is None and setup.window_s and options.sized_rows:
+        inseparable = set(out[0]["menu_inseparable"]) if out else set()
+        out[: options.sized_rows] = [
+            _sized(r, scoring, rng, inseparable, options.max_windows) for r in out[: options.sized_rows]
+        ]
+        out = sorted(out, key=lambda r: -r["separation"])
+    return out
+
+
+@dataclass(frozen=True)
+class _Scoring:
+    """What scoring one run of the menu needs (:func:`_evaluate`)."""
+
+    stages: dict
+    approach: dict
+    noise_var: np.ndarray
+    draws: dict
+    window_s: float | None
+    sample_s: float
+    log_sd: float | None
+    n_runs: int
+    margin: float
+    level: float
+    power: float
+
+
+def _evaluate(run: ManoeuvreRun, sc: _Scoring, rng) -> dict | None:
+    """One menu run's row of :func:`design` (before ranking), None when the kept model diverges
+    on it or no pair is finite."""
+    labels = list(sc.stages)
+    best = sc.stages[labels[0]]
+    t, delta, n = run_inputs(best, run, sc.approach, rng)
+    ref = _simulate_whole(best, _track(t, delta, n, sc.approach), sc.approach)
+    if ref is None:
+        return None
+    pred = {k: predictive(st, sc.draws[k], ref, sc.window_s) for k, st in sc.stages.items()}
+    pairs = {}
+    for i, a in enumerate(labels):
+        for b in labels[i + 1 :]:
+            pairs[f"{a} vs {b}"] = separation(pred[a], pred[b], sc.noise_var, sc.sample_s)
+    finite = {k: v for k, v in pairs.items() if np.isfinite(v)}
+    if not finite:
+        return None
+    worst = min(finite, key=finite.get)
+    t_pred = next(iter(pred.values()))[0]
+    each_s = np.r_[True, np.diff(np.floor(t_pred + 1e-9)) > 0]  # the figure's samples: one a second
+    pos = np.stack([p[1][:, :2] for p in pred.values()])
+    gap = np.sqrt(((pos[:, None] - pos[None]) ** 2).sum(axis=-1)).max(axis=(0, 1))
+    win = best.model.context(ref, sc.window_s).win
+    return {
+        "kind": run.kind,
+        "rudder_deg": run.rudder_deg,
+        "check_deg": run.check_deg,
+        "side": run.side,
+        "rpm": run.rpm,
+        "duration_s": run.duration_s,
+        "name": run.name,
+        "separation": finite[worst],
+        "worst_pair": worst,
+        "pairs": pairs,
+        "max_position_difference_m": float(np.nanmax(gap)),
+        "run_test": _run_test_outlook(pred, win, sc),
+        "inputs": {"t": t.tolist(), "delta_r": delta.tolist(), "n": n.tolist()},
+        "predicted": {
+            k: {"t": p[0][each_s].tolist(), **{c: p[1][each_s, j].tolist() for j, c in enumerate(_CHANNELS)}}
+            for k, p in pred.items()
+        },
+    }
+
+
+def _run_test_outlook(pred: dict, win: np.ndarray, sc: _Scoring) -> dict:
+    """The kept term (first label) against each alternative on one run: the expected window
+    error ratio if either model were right and the windows the run test would need
+    (:func:`expected_window_log_ratio`, :func:`run_test_windows`)."""
+    labels = list(pred)
+    pos_var = float(sc.noise_var[0] + sc.noise_var[1])
+    out = {}
+    for b in labels[1:]:
+        m = expected_window_log_ratio(pred[labels[0]][1], pred[b][1], win, pos_var)
+        need = (
+            run_test_windows(m, sc.log_sd, sc.n_runs, margin=sc.margin, level=sc.level, power=sc.power)
+            if sc.log_sd is not None and np.isfinite(m)
+            else None
         )
-    return rank_by_separable_pairs(out, options.min_separation)
+        out[f"{labels[0]} vs {b}"] = {
+            "expected_ratio": float(np.exp(m)) if np.isfinite(m) else None,
+            "windows_needed": need,
+        }
+    return {"windows": int(np.unique(win).size), "log_sd": sc.log_sd, "pairs": out, "sized_from_s": None}
+
+
+def _sized(row: dict, sc: _Scoring, rng, inseparable: set, max_windows: int) -> dict:
+    """``row`` lengthened (up to ``max_windows`` protocol windows) until the run test would see
+    the kept term apart from each alternative it can separate at all, re-simulated at each
+    length (a pull-out's straight leg, say, adds windows that part the models less)."""
+    first = row
+    for _ in range(3):
+        rt = row["run_test"]
+        need = [
+            v["windows_needed"]
+            for k, v in rt["pairs"].items()
+            if k not in inseparable and v["windows_needed"] is not None and np.isfinite(v["windows_needed"])
+        ]
+        target = min(int(max_windows), int(math.ceil(max(need)))) if need else 0
+        if target <= rt["windows"]:
+            break
+        run = ManoeuvreRun(
+            row["kind"], row["rudder_deg"], row["check_deg"], row["side"], row["rpm"], target * float(sc.window_s)
+        )
+        longer = _evaluate(run, sc, rng)
+        if longer is None:
+            break
+        row = longer
+    if row is not first:
+        row["run_test"]["sized_from_s"] = first["duration_s"]
+        row["menu_inseparable"] = first["menu_inseparable"]
+        keep = [k for k in row["pairs"] if k not in inseparable and np.isfinite(row["pairs"][k])]
+        if keep:
+            row["worst_pair"] = min(keep, key=row["pairs"].get)
+            row["separation"] = float(row["pairs"][row["worst_pair"]])
+    return row
+
+
+def expected_window_log_ratio(mean_a: np.ndarray, mean_b: np.ndarray, win: np.ndarray, pos_var: float) -> float:
+    """The mean over a run's protocol windows of the expected log ratio of two models' window
+    position errors, if one of them is right: ``1/2 log(1 + D_w / s^2)`` with ``D_w`` the mean
+    squared distance between their predicted positions over window ``w`` and ``s^2`` the position
+    error variance a right model makes (the design's noise variance of x plus y). The window
+    error is the RMS of :func:`bayesid.estimation.windows.window_rms`: the wrong model's error
+    squared is the right one's plus ``D_w``.
+
+    Parameters
+    ----------
+    mean_a, mean_b : ndarray, shape (n, 3)
+        Predicted ``x y psi`` of the two models at the run's scored samples (m, m, rad).
+    win : ndarray of int, shape (n,)
+        The protocol window of each sample.
+    pos_var : float
+        Position error variance of a right model, m^2 (positive).
+
+    Returns
+    -------
+    float
+        The mean expected log ratio; NaN when no window is finite.
+    """
+    d2 = ((np.asarray(mean_a)[:, :2] - np.asarray(mean_b)[:, :2]) ** 2).sum(axis=1)
+    per = []
+    for w in np.unique(win):
+        v = d2[(win == w) & np.isfinite(d2)]
+        if v.size:
+            per.append(0.5 * math.log1p(float(v.mean()) / pos_var))
+    return float(np.mean(per)) if per else float("nan")
+
+
+def run_test_windows(
+    log_ratio: float, log_sd: float, n_runs: int, *, margin: float = 0.1, level: float = 0.01, power: float = 0.8
+) -> float:
+    """Protocol windows one run needs for the run-by-run separation test
+    (:func:`bayesid.analysis.gap.verdict.run_separation_test`) to find a model whose window
+    errors are ``exp(log_ratio)`` times another's, with the given power: the one-sided test of the
+    run's mean log ratio against ``log(1 + margin)`` at ``level / n_runs`` (Bonferroni), its
+    variance ``log_sd^2 / n``, in the normal approximation::
+
+        n = ((z_{1 - level / n_runs} + z_power) * log_sd / (log_ratio - log(1 + margin)))^2
+
+    (the sample size of a one-sided one-sample test, e.g. Chow, Shao & Wang, "Sample Size
+    Calculations in Clinical Research", 2nd ed., 2008, Sec. 3.1.1).
+
+    Parameters
+    ----------
+    log_ratio : float
+        The expected mean log ratio of the window errors on the run
+        (:func:`expected_window_log_ratio`).
+    log_sd : float
+        The sd of the log ratios of the windows of one run about their run's mean (positive).
+    n_runs : int
+        The runs the test's Bonferroni factor counts (the held-out runs, the designed one
+        included).
+    margin : float, default 0.1
+        The test's margin.
+    level : float, default 0.01
+        The test's level before the Bonferroni factor.
+    power : float, default 0.8
+        The probability of finding the difference.
+
+    Returns
+    -------
+    float
+        The windows needed (at least 2, the fewest the test uses); ``inf`` when the expected
+        ratio does not exceed ``1 + margin``.
+
+    Raises
+    ------
+    ValueError
+        A non-positive ``log_sd`` or ``n_runs``, or ``level`` or ``power`` outside (0, 1).
+    """
+    from scipy import stats
+
+    if not log_sd > 0 or int(n_runs) < 1:
+        raise ValueError(f"log_sd and n_runs must be positive, got {log_sd}, {n_runs}")
+    if not (0 < level < 1 and 0 < power < 1):
+        raise ValueError(f"level and power must be in (0, 1), got {level}, {power}")
+    step = log_ratio - math.log1p(margin)
+    if not step > 0:
+        return float("inf")
+    z = stats.norm.ppf(1.0 - level / int(n_runs)) + stats.norm.ppf(power)
+    return max(2.0, float((z * log_sd / step) ** 2))
+
+
+def window_log_sd(stages: dict, setup) -> float | None:
+    """The scatter of window error ratios within one run: the pooled within-run sd of
+    ``log(e_alternative / e_kept)`` over the held-out windows of every alternative against the
+    kept term (the first stage), each run's windows about that run's mean (the variance
+    :func:`bayesid.analysis.gap.verdict.run_separation_test` uses).
+
+    Parameters
+    ----------
+    stages : dict
+        ``{label: Stage}``, the kept term first; each with its per-window held-out errors
+        (``windows``).
+    setup : Setup
+        The held-out tracks, window and start rule (the run of each window).
+
+    Returns
+    -------
+    float or None
+        The sd; None with fewer than 2 degrees of freedom or windows that do not match the runs.
+    """
+    labels = list(stages)
+    first = stages[labels[0]]
+    ctxs = [first.model.context(t, setup.window_s, start=setup.rule, leadin_s=setup.leadin_s) for t in setup.heldout]
+    runs = np.repeat(np.arange(len(ctxs)), [c.W for c in ctxs])
+    e0 = np.asarray(first.windows, float)
+    ss, df = 0.0, 0
+    for k in labels[1:]:
+        e1 = np.asarray(stages[k].windows, float)
+        if e1.shape != e0.shape or e0.shape != runs.shape:
+            return None
+        ok = np.isfinite(e0) & np.isfinite(e1) & (e0 > 0) & (e1 > 0)
+        d = np.log(e1[ok] / e0[ok])
+        for r in np.unique(runs[ok]):
+            x = d[runs[ok] == r]
+            ss += float(((x - x.mean()) ** 2).sum())
+            df += x.size - 1
+    return float(math.sqrt(ss / df)) if df >= 2 and ss > 0 else None
 
 
 def rank_by_separable_pairs(rows: list, min_separation: float) -> list:
