@@ -155,3 +155,21 @@ def test_sample_and_diagnose_show_their_bars_and_quiet_hides_them(zigzag, tmp_pa
     assert cli.main(["-q", *sample, "--out", str(tmp_path / "s2")]) == 0
     assert cli.main(["-q", *diag, "--out", str(tmp_path / "d2")]) == 0
     assert "%|" not in capsys.readouterr().err
+
+
+def test_the_calibration_folds_show_their_bar_and_quiet_hides_it(zigzag, tmp_path, capsys):
+    """Issue 51: the leave-one-run-out calibration of ``bayesid fit`` shows the task layer's bar."""
+    runs = [str(zigzag)]
+    for angle in ("10", "15"):
+        path = tmp_path / f"z{angle}.csv"
+        argv = ["simulate", "--vehicle", "nps_auv2", "--mode", "horizontal", "--manoeuvre", "zigzag", "--angle", angle]
+        assert cli.main([*argv, "--duration", "60", "--sample", "0.5", "--out", str(path)]) == 0
+        runs.append(str(path))
+    fit = ["fit", "--vehicle", "nps_auv2", "--train", *runs, "--free", "Yv,Nr,Ndr", "--max-nfev", "5"]
+    fit += ["--calibration", "loro", "--calibration-draws", "3"]
+    capsys.readouterr()
+    assert cli.main([*fit, "--out", str(tmp_path / "a")]) == 0
+    cap = capsys.readouterr()
+    assert "calibration: 100%" in cap.err and "3/3" in cap.err
+    assert cli.main(["-q", *fit, "--out", str(tmp_path / "b")]) == 0
+    assert "calibration" not in capsys.readouterr().err
