@@ -77,8 +77,10 @@ def run(args) -> int:
         return 0
     print("runs that would separate the alternatives, best first (separation: nats, worst pair):")
     for i, r in enumerate(rows[:5], 1):
+        sized = (r.get("run_test") or {}).get("sized_from_s")
+        length = f"{r['duration_s']:.0f} s" + (f" (lengthened from {sized:.0f} s for the run test)" if sized else "")
         print(
-            f"  {i}. {r['name']}, {r['duration_s']:.0f} s: {r['separation']:.1f} ({r['worst_pair']}); "
+            f"  {i}. {r['name']}, {length}: {r['separation']:.1f} ({r['worst_pair']}); "
             f"predicted positions up to {r['max_position_difference_m']:.2f} m apart"
         )
     print(
