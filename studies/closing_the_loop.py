@@ -138,6 +138,11 @@ def _round(d, hidden: str | None, run: str | None = None) -> dict:
         "hidden_kept_alone": hidden is not None and [i["term"] for i in kept] == [hidden] and not alts[hidden],
         "wrong_term_alone": any(i["term"] != hidden and not alts[i["term"]] for i in kept),
         "manoeuvre_kinds": d.manoeuvre_kinds,
+        # each single-term refit's training Delta BIC against the model it extends (the same
+        # number of parameters for every alternative: a difference of training fit alone)
+        "train_delta_bic": {
+            row["term"]: row.get("delta_bic") for row in ((d.discovery or {}).get("discovered") or []) if "term" in row
+        },
         "run_rms_m": None
         if run is None or d.discovered is None
         else {k: st.held.get("per_track_rms_position_m", {}).get(run) for k, st in (d.discovered.stages or {}).items()},
