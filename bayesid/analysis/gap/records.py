@@ -1,0 +1,415 @@
+"""The typed records of the gap diagnosis: the noise floor (:class:`NoiseFloor`), a ranked
+candidate effect (:class:`CandidateRow`), what the rounds leave (:class:`Remainder`), the base-fit
+check (:class:`BaseCheck`) and a refitted term of structure discovery (:class:`TermRow`).
+
+Each is a frozen dataclass that also reads as the JSON dict it writes (``row["heldout_rms_m"]``,
+``dict(row)``, ``row.get(...)``), as :class:`bayesid.protocol.Scores` does: :meth:`Record.to_dict`
+gives the ``diagnosis.json`` object key for key and in order, :meth:`Record.from_dict` reads it
+back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import ClassVar
+
+from ...protocol import Scores
+from ...tasks import record_fields
+
+__all__ = ["Record", "NoiseFloor", "CandidateRow", "Remainder", "BaseCheck", "TermRow"]
+
+#: The strings strict JSON writes for non-finite floats (:func:`bayesid.tasks.jsonable`).
+_NON_FINITE = ("nan", "inf", "-inf")
+
+
+class Record(Mapping):
+    """Base of the records: a dataclass that reads as the JSON dict it writes.
+
+    A subclass is a ``@dataclass(frozen=True, eq=False)`` (``eq=False`` keeps the mapping's
+    equality, so a record equals the dict it writes). Its JSON object has a key per field, in
+    field order, but the fields of ``_OPTIONAL`` while they are None; ``_ALIASES`` (``{alias:
+    field}``) are written right after their field, with its value.
+    """
+
+    #: Fields left out of the JSON (and of the mapping) while None.
+    _OPTIONAL: ClassVar[tuple] = ()
+    #: ``{alias: field}``: keys written after their field, with its value.
+    _ALIASES: ClassVar[dict] = {}
+    #: The record's name in messages.
+    _WHAT: ClassVar[str] = "record"
+
+    def _keys(self) -> tuple:
+        out = []
+        for f in fields(self):
+            if f.name in self._OPTIONAL and getattr(self, f.name) is None:
+                continue
+            out.append(f.name)
+            out += [a for a, n in self._ALIASES.items() if n == f.name]
+        return tuple(out)
+
+    def to_dict(self) -> dict:
+        """The record as its JSON object (dicts and lists copied, one level).
+
+        Returns
+        -------
+        dict
+            ``{key: value}`` in the order the diagnosis has always written them.
+        """
+        return {k: _copy(self[k]) for k in self._keys()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping):
+        """The record of a JSON object :meth:`to_dict` wrote (``"nan"``, ``"inf"``, ``"-inf"``
+        in a float field read as floats).
+
+        Parameters
+        ----------
+        d : Mapping
+            The JSON object.
+
+        Returns
+        -------
+        Record
+            The record; ``cls.from_dict(x).to_dict() == x``.
+
+        Raises
+        ------
+        ValueError
+            A key the record does not have, or a required one missing (named).
+        """
+        args = record_fields(cls, d, cls._WHAT, extra=tuple(cls._ALIASES))
+        kinds = {f.name: str(f.type) for f in fields(cls)}
+        return cls(**{k: _float(v) if kinds[k].startswith("float") else v for k, v in args.items()})
+
+    @classmethod
+    def read(cls, d: Mapping):
+        """The record of a JSON object of the record's current shape, else the object as read: a
+        row of an older file (written before a field existed) or a hand-made one stays a dict, so
+        that writing it again gives it back key for key.
+
+        Parameters
+        ----------
+        d : Mapping
+            The JSON object.
+
+        Returns
+        -------
+        Record or dict
+            ``cls.from_dict(d)`` when that writes ``d``'s keys in ``d``'s order, else ``dict(d)``.
+        """
+        try:
+            rec = cls.from_dict(d)
+        except ValueError:
+            return dict(d)
+        return rec if list(rec) == list(d) else dict(d)
+
+    def __getitem__(self, key: str):
+        if key in self._keys():
+            return getattr(self, self._ALIASES.get(key, key))
+        raise KeyError(key)
+
+    def __iter__(self):
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        return len(self._keys())
+
+
+def _copy(v):
+    return dict(v) if isinstance(v, dict) else list(v) if isinstance(v, list) else v
+
+
+def _float(v):
+    return float(v) if isinstance(v, str) and v in _NON_FINITE else v
+
+
+@dataclass(frozen=True, eq=False)
+class NoiseFloor(Record):
+    """The noise floor: the protocol's error of a perfect model at the measured noise level
+    (:func:`bayesid.analysis.gap.verdict.noise_floor`; ``Diagnosis.noise_floor``).
+
+    Parameters
+    ----------
+    heldout_rms_m : float
+        RMS position error on the synthetic held-out tracks, m.
+    heading_rms_deg : float
+        Heading RMS, deg.
+    by_channel : dict
+        ``{channel: RMS error}``, SI (``x``, ``y`` m, ``psi`` rad, ``u``, ``v`` m/s, ``r`` rad/s).
+    """
+
+    heldout_rms_m: float
+    heading_rms_deg: float
+    by_channel: dict
+
+    _WHAT: ClassVar[str] = "noise_floor"
+
+    @classmethod
+    def of(cls, scores: Scores) -> NoiseFloor:
+        """The floor of the protocol's scores of the synthetic tracks.
+
+        Parameters
+        ----------
+        scores : Scores
+            :func:`bayesid.protocol.pooled_scores` of the synthetic held-out tracks.
+
+        Returns
+        -------
+        NoiseFloor
+            Their position RMS, heading RMS and RMS by channel.
+        """
+        return cls(scores["rms_position_m"], scores["rms_heading_deg"], scores["rms"])
+
+
+@dataclass(frozen=True, eq=False)
+class CandidateRow(Record):
+    """A candidate effect fitted on top of the model it extends, as the ranking and the rounds
+    record it (:func:`bayesid.analysis.gap.candidates.candidate_row`; ``Diagnosis.ranking``,
+    ``Diagnosis.rounds``).
+
+    Parameters
+    ----------
+    effect : str
+        The effect's name.
+    heldout_rms_m : float
+        Held-out RMS position error with the effect, m.
+    train_rms_m : float
+        Training RMS position error, m.
+    delta_bic : float
+        Training BIC difference against the model it extends (negative: the effect is favoured).
+    excess_removed : float
+        Share of the extended model's held-out excess over the noise floor the effect removes.
+    share_of_excess : float
+        Share of the base model's excess it removes.
+    heldout_shrinkage : float
+        1 - held-out RMS with the effect / without it.
+    parameters : dict
+        The effect's fitted parameters (unit in the name), and ``per_track_nuisance`` where the
+        effect has per-track ones.
+    heading_rms_deg : float
+        Held-out heading RMS, deg.
+    window_p_value : float
+        One-sided paired window test (Wilcoxon) that the effect's held-out windows are better.
+    nfev : int
+        Simulations of the fit.
+    fit_seconds : float
+        Wall time of the fit, s.
+    role : str or None
+        ``"cause"``, ``"contributor"`` or None, by the verdict's rules
+        (:func:`~bayesid.analysis.gap.verdict.assign_roles`; None until the round is judged).
+    """
+
+    effect: str
+    heldout_rms_m: float
+    train_rms_m: float
+    delta_bic: float
+    excess_removed: float
+    share_of_excess: float
+    heldout_shrinkage: float
+    parameters: dict
+    heading_rms_deg: float
+    window_p_value: float
+    nfev: int
+    fit_seconds: float
+    role: str | None = None
+
+    _WHAT: ClassVar[str] = "candidate"
+
+
+@dataclass(frozen=True, eq=False)
+class Remainder(Record):
+    """What the model after the rounds leaves of the gap (``Diagnosis.remainder``).
+
+    Parameters
+    ----------
+    heldout_rms_m : float
+        Held-out RMS position error after the rounds, m.
+    fraction_of_excess : float
+        Its excess over the noise floor as a share of the base model's (0 when the base model has
+        none).
+    significant : bool
+        Whether the gap was significant and the held-out error is still above the floor band.
+    """
+
+    heldout_rms_m: float
+    fraction_of_excess: float
+    significant: bool
+
+    _WHAT: ClassVar[str] = "remainder"
+
+
+@dataclass(frozen=True, eq=False)
+class BaseCheck(Record):
+    """Whether the base fit can be trusted (:func:`bayesid.analysis.gap.diagnose.base_fit_check`;
+    ``Diagnosis.base_check``).
+
+    Parameters
+    ----------
+    train_rms_at_window_m : float
+        RMS position error on the training tracks under the held-out protocol (same window,
+        same start rule), m.
+    heldout_rms_m : float
+        The base model's held-out RMS position error, m.
+    ratio : float
+        Held-out / training RMS under the same protocol (inf with a zero training error).
+    threshold : float
+        The ratio above which the fit is suspect
+        (:data:`~bayesid.analysis.gap.diagnose.BASE_FIT_RATIO`).
+    starts : dict or None
+        The start check (:func:`~bayesid.analysis.gap.diagnose.start_check`: ``n_windows``,
+        ``n_flagged``, ``fraction_flagged``, ``by_set``, ``worst``, ``suspect``, ``message``, ...);
+        None under the measured start rule.
+    suspect : bool
+        Either test failed.
+    message : str
+        What the check found, and what to rule out first when suspect.
+    train_starts : dict, optional
+        Under ``--train-starts auto`` when the fitted starts were inconsistent:
+        ``fitted_train_rms_at_window_m``, ``kinematic_train_rms_at_window_m`` (m) and ``used``
+        (``"fitted"`` or ``"kinematic"``); left out of the JSON when None.
+    multistart : dict or None
+        The base fit's extra starts (``n_starts``, ``default_cost``, ``best_cost``,
+        ``improved``, ``distinct_optima``); None without extra starts (written as null).
+    """
+
+    train_rms_at_window_m: float
+    heldout_rms_m: float
+    ratio: float
+    threshold: float
+    starts: dict | None
+    suspect: bool
+    message: str
+    train_starts: dict | None = None
+    multistart: dict | None = None
+
+    _OPTIONAL: ClassVar[tuple] = ("train_starts",)
+    _WHAT: ClassVar[str] = "base_check"
+
+
+#: The fields of a :class:`TermRow` that only a refit gives, in order.
+REFIT_FIELDS = (
+    "coefficient",
+    "coefficient_sd",
+    "heldout_rms_after_m",
+    "train_rms_after_m",
+    "shrinkage",
+    "delta_bic",
+    "refit_failed",
+    "window_p_value",
+    "heldout_windows_after_m",
+    "excess_removed",
+    "worst_run",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class TermRow(Record):
+    """A refitted candidate term of structure discovery, with the kept test's decision (an item of
+    ``Discovery.discovered``; :func:`~bayesid.analysis.gap.discovery.confirmation.refit_row`,
+    :func:`~bayesid.analysis.gap.discovery.confirmation.decide`).
+
+    Parameters
+    ----------
+    term : str
+        The term's name, as the vehicle file writes it (``Nabsdr``).
+    dof : str
+        Its force or moment (``X``, ``Y``, ``N``).
+    inclusion_probability : float
+        The ensemble's inclusion probability of the term (0 for a term refitted on top of
+        others).
+    group_inclusion_probability : float
+        That of its collinear group.
+    group : list of str
+        Its collinear alternatives.
+    regression_coefficient : float
+        The linearised regression's coefficient (prime).
+    heldout_rms_before_m : float
+        Held-out RMS position error of the model it extends, m.
+    train_rms_before_m : float
+        Training RMS position error of that model, m.
+    coefficient : float or None
+        The refit's coefficient of the term (prime).
+    coefficient_sd : float or None
+        Its Laplace sd (AR(1)-inflated; None when the covariance failed).
+    heldout_rms_after_m : float or None
+        Held-out RMS position error of the refit, m.
+    train_rms_after_m : float or None
+        Its training RMS position error, m.
+    shrinkage : float or None
+        1 - held-out RMS after / before. Written twice: also as ``heldout_shrinkage`` (an alias,
+        the key the contributor test reads, :func:`~bayesid.analysis.gap.verdict.is_contributor`;
+        ``row["heldout_shrinkage"]`` and ``row.heldout_shrinkage`` give this value).
+    delta_bic : float or None
+        Training BIC difference against the model it extends.
+    refit_failed : bool or None
+        The refit ended above its reference's cost (a failed fit, not evidence against the term).
+    window_p_value : float or None
+        One-sided paired window test (Wilcoxon) that the refit's held-out windows are better.
+    heldout_windows_after_m : list of float or None
+        The refit's RMS position error of each held-out window, m.
+    excess_removed : float or None
+        Share of the reference's excess over the noise floor the term removes.
+    worst_run : dict or None
+        The held-out run the refit predicts worst against the reference (``run``,
+        ``error_ratio``, ``p_value``; :func:`~bayesid.analysis.gap.discovery.confirmation.worst_run`),
+        None when no run is worse.
+    refitted_as : str or None
+        ``"selected"`` by the ensemble or ``"alternative"`` by the score test; None for a term
+        refitted on top of others (left out of the JSON).
+    kept : bool or None
+        Whether it passed the kept test; None until decided (left out of the JSON).
+    reason : str or None
+        Why it was kept or not; None until decided (left out of the JSON).
+
+    Notes
+    -----
+    When every fit of the term failed, the refit's fields (:data:`REFIT_FIELDS`, from
+    ``coefficient`` to ``worst_run``) are None and left out of the JSON, and ``refitted_as`` is
+    written after ``reason`` (the order those rows have always had).
+    """
+
+    term: str
+    dof: str
+    inclusion_probability: float
+    group_inclusion_probability: float
+    group: list
+    regression_coefficient: float
+    heldout_rms_before_m: float
+    train_rms_before_m: float
+    coefficient: float | None = None
+    coefficient_sd: float | None = None
+    heldout_rms_after_m: float | None = None
+    train_rms_after_m: float | None = None
+    shrinkage: float | None = None
+    delta_bic: float | None = None
+    refit_failed: bool | None = None
+    window_p_value: float | None = None
+    heldout_windows_after_m: list | None = None
+    excess_removed: float | None = None
+    worst_run: dict | None = None
+    refitted_as: str | None = None
+    kept: bool | None = None
+    reason: str | None = None
+
+    _OPTIONAL: ClassVar[tuple] = ("refitted_as", "kept", "reason")
+    _ALIASES: ClassVar[dict] = {"heldout_shrinkage": "shrinkage"}
+    _WHAT: ClassVar[str] = "discovered term"
+
+    @property
+    def refitted(self) -> bool:
+        """Whether a fit of the term converged (the refit's fields are set)."""
+        return self.heldout_rms_after_m is not None
+
+    @property
+    def heldout_shrinkage(self) -> float | None:
+        """Alias of :attr:`shrinkage`."""
+        return self.shrinkage
+
+    def _keys(self) -> tuple:
+        keys = super()._keys()
+        if self.refitted:
+            return keys
+        keys = tuple(k for k in keys if k not in REFIT_FIELDS and k not in self._ALIASES)
+        late = tuple(k for k in keys if k == "refitted_as")
+        return tuple(k for k in keys if k != "refitted_as") + late
