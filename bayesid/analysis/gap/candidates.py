@@ -20,6 +20,7 @@ from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores, window_rms
 from ...models import build_model
+from .records import CandidateRow
 from .verdict import paired_window_test
 
 __all__ = [
@@ -361,7 +362,7 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
     return score_stage(model, best, ctx_train, ctx_held, sd_fit), messages
 
 
-def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> dict:
+def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> CandidateRow:
     """The ranking's record of a fitted candidate against the model it extends.
 
     Parameters
@@ -379,25 +380,26 @@ def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: floa
 
     Returns
     -------
-    dict
+    CandidateRow
         Held-out and training RMS position error (m), training ΔBIC, share of the reference's
         excess over the floor it removes (``excess_removed``) and of the base model's
         (``share_of_excess``), held-out shrinkage, its parameters, heading RMS (deg), the paired
-        window test's p-value, cost (``nfev``, ``fit_seconds``).
+        window test's p-value, cost (``nfev``, ``fit_seconds``); ``role`` None (the round's
+        verdict sets it, :func:`~bayesid.analysis.gap.verdict.assign_roles`).
     """
     excess = ref.held["rms_position_m"] - floor_rms
     gain = ref.held["rms_position_m"] - st.held["rms_position_m"]
-    return {
-        "effect": effect.name,
-        "heldout_rms_m": st.held["rms_position_m"],
-        "train_rms_m": st.train["rms_position_m"],
-        "delta_bic": st.fit.bic - ref.fit.bic,
-        "excess_removed": gain / excess if excess > 0 else 0.0,
-        "share_of_excess": gain / excess0 if excess0 > 0 else 0.0,
-        "heldout_shrinkage": 1 - st.held["rms_position_m"] / ref.held["rms_position_m"],
-        "parameters": st.fit.effect_parameters()[effect.name],
-        "heading_rms_deg": st.held["rms_heading_deg"],
-        "window_p_value": paired_window_test(ref.windows, st.windows),
-        "nfev": st.fit.n_simulations,
-        "fit_seconds": st.fit.wall_s,
-    }
+    return CandidateRow(
+        effect=effect.name,
+        heldout_rms_m=st.held["rms_position_m"],
+        train_rms_m=st.train["rms_position_m"],
+        delta_bic=st.fit.bic - ref.fit.bic,
+        excess_removed=gain / excess if excess > 0 else 0.0,
+        share_of_excess=gain / excess0 if excess0 > 0 else 0.0,
+        heldout_shrinkage=1 - st.held["rms_position_m"] / ref.held["rms_position_m"],
+        parameters=st.fit.effect_parameters()[effect.name],
+        heading_rms_deg=st.held["rms_heading_deg"],
+        window_p_value=paired_window_test(ref.windows, st.windows),
+        nfev=st.fit.n_simulations,
+        fit_seconds=st.fit.wall_s,
+    )

@@ -29,6 +29,7 @@ from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
 from .design import design, standard_predictions
 from .discovery import Discovery, discover, with_terms
+from .records import BaseCheck, CandidateRow, NoiseFloor, Record, Remainder
 from .support import signature_regression
 from .verdict import (
     Thresholds,
@@ -71,11 +72,11 @@ class Diagnosis:
     contributors : list of dict
         Every effect that passed the contributor test (added or not), with its share, p-value,
         ΔBIC and parameters.
-    remainder : dict
+    remainder : Remainder
         What is left (RMS m, fraction, significant).
-    ranking : list of dict
+    ranking : list of CandidateRow
         Round 1's candidates, best first.
-    rounds : list
+    rounds : list of list of CandidateRow
         Every round's candidates.
     gap_before : dict
         Scores of the base model.
@@ -84,7 +85,7 @@ class Diagnosis:
         they took round 1, ``discovery_first``).
     heldout_shrinkage : float
         1 - after / before held-out RMS position error.
-    noise_floor : dict
+    noise_floor : NoiseFloor
         The perfect model's scores.
     gap_ratio : float
         Before / floor.
@@ -126,9 +127,10 @@ class Diagnosis:
         Scores of the model with the terms discovery kept after the rounds (as ``gap_before``;
         ``gap_after`` is the model without them); ``{}`` when discovery kept none there or its
         terms took round 1 (``gap_after`` then has them).
-    base_check : dict
+    base_check : BaseCheck
         Whether the base fit can be trusted (:func:`base_fit_check`), with ``multistart``: the
-        extra starts' summary (``DiagnoseOptions.base_starts``), or None.
+        extra starts' summary (``DiagnoseOptions.base_starts``), or None; ``{}`` in a diagnosis
+        read from a JSON file that has no check.
     design : list of dict
         The runs that would separate the first kept term with alternatives from them, best first
         (:func:`bayesid.analysis.gap.design.design`; the predicted tracks only in the first,
@@ -167,13 +169,13 @@ class Diagnosis:
     effects_added: list
     cause: str | None
     contributors: list
-    remainder: dict
+    remainder: Remainder
     ranking: list
     rounds: list
     gap_before: dict
     gap_after: dict
     heldout_shrinkage: float
-    noise_floor: dict
+    noise_floor: NoiseFloor
     gap_ratio: float
     significant_gap: bool
     where: dict
@@ -191,7 +193,7 @@ class Diagnosis:
     discovery: dict = field(default_factory=dict)
     discovery_first: dict = field(default_factory=dict)
     gap_discovered: dict = field(default_factory=dict)
-    base_check: dict = field(default_factory=dict)
+    base_check: BaseCheck | dict = field(default_factory=dict)
     design: list = field(default_factory=list)
     predictions: list = field(default_factory=list)
     manoeuvre_kinds: dict = field(default_factory=dict)
@@ -209,9 +211,10 @@ class Diagnosis:
         Returns
         -------
         dict
-            ``{field: value}``, and ``discovered``: the top-level list of discovered terms.
+            ``{field: value}`` (the records as their JSON objects), and ``discovered``: the
+            top-level list of discovered terms.
         """
-        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in self._HIDDEN}
+        out = {f.name: _plain(getattr(self, f.name)) for f in fields(self) if f.name not in self._HIDDEN}
         if self.discovered is None:  # read back from JSON: the list as it was written
             out["discovered"] = [dict(i) for i in self.discovered_terms or []]
             return out
@@ -246,6 +249,12 @@ class Diagnosis:
             A key the diagnosis does not have, or a required one missing (named).
         """
         args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
+        args["remainder"] = Remainder.from_dict(args["remainder"])
+        args["noise_floor"] = NoiseFloor.from_dict(args["noise_floor"])
+        args["ranking"] = [CandidateRow.from_dict(r) for r in args["ranking"]]
+        args["rounds"] = [[CandidateRow.from_dict(r) for r in rnd] for rnd in args["rounds"]]
+        if args.get("base_check"):
+            args["base_check"] = BaseCheck.from_dict(args["base_check"])
         return cls(**args, discovered_terms=list(d.get("discovered") or []))
 
     def _worse_on_other_kinds(self, item: dict) -> list:
@@ -473,23 +482,23 @@ def diagnose(
     base, ctr, cho, bfit, sd_fit, base_ms = (b[k] for k in ("model", "ctr", "cho", "fit", "sd_fit", "multistart"))
     b_train, b_held, check = b["train"], b["held"], b["check"]
     setup = b["setup"]
-    if check["suspect"]:
-        say(check["message"])
+    if check.suspect:
+        say(check.message)
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
     # the vehicle is; the floor is the smaller of the fitted and the nominal model's.
     nominal = FitResult.fixed(base, base.start(), len(train), "nominal")
     # the noise itself, not the weights' lower bound (a 1 mm carriage track is not 1 cm noise)
     sd_raw = pooled_noise_sd(train + heldout, floor=False)
     floor = min(
-        (noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)), key=lambda d: d["rms_position_m"]
+        (noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)), key=lambda d: d.heldout_rms_m
     )
-    w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor["rms"])
+    w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor.by_channel)
     seeds = _seeds(cand_effects, base, bfit, ctr, train)
-    significant = bool(b_held["rms_position_m"] > th.none_ratio * floor["rms_position_m"])
+    significant = bool(b_held["rms_position_m"] > th.none_ratio * floor.heldout_rms_m)
     base_stage = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
-    disc_context = {"sd_fit": sd_fit, "floor_rms": floor["rms_position_m"], "thresholds": th}
+    disc_context = {"sd_fit": sd_fit, "floor_rms": floor.heldout_rms_m, "thresholds": th}
     beside, held = None, None
-    if opt.discover is not None and setup.train_starts == "fitted" and (check.get("starts") or {}).get("suspect"):
+    if opt.discover is not None and setup.train_starts == "fitted" and (check.starts or {}).get("suspect"):
         # fitted training starts that contradict the kinematics absorb part of what the model lacks:
         # discovery on the base model also searches the base refitted with them held (computed once)
         held = cache(partial(_held_start_base, alt, setup, (sd, weighting, opt, runner)))
@@ -518,7 +527,7 @@ def diagnose(
     after = search["after"]
     chosen, roles, ranking = search["chosen"], search["roles"], search["ranking"]
     contributors, remainder = _outcome(search, floor, b_held, significant, th)
-    remainder_sig = remainder["significant"]
+    remainder_sig = remainder.significant
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
     first = search["discovery_first"]
     verdict, found, gap_discovered = _discovery_after_rounds(
@@ -528,7 +537,7 @@ def diagnose(
     return Diagnosis(
         verdict=verdict,
         effects_added=chosen,
-        cause=next((e for e in chosen if roles[e]["role"] == "cause"), None),
+        cause=next((e for e in chosen if roles[e].role == "cause"), None),
         contributors=contributors,
         remainder=remainder,
         ranking=ranking,
@@ -536,12 +545,8 @@ def diagnose(
         gap_before=gap_summary(b_train, b_held),
         gap_after=gap_summary(after.train, after.held),
         heldout_shrinkage=1 - after.held["rms_position_m"] / b_held["rms_position_m"],
-        noise_floor={
-            "heldout_rms_m": floor["rms_position_m"],
-            "heading_rms_deg": floor["rms_heading_deg"],
-            "by_channel": floor["rms"],
-        },
-        gap_ratio=b_held["rms_position_m"] / floor["rms_position_m"],
+        noise_floor=floor,
+        gap_ratio=b_held["rms_position_m"] / floor.heldout_rms_m,
         significant_gap=significant,
         where=w,
         sindy_support=support,
@@ -563,7 +568,7 @@ def diagnose(
         discovery=found.to_dict() if found is not None else {},
         discovery_first=first.summary if first is not None else {},
         gap_discovered=gap_discovered,
-        base_check=dict(check, multistart=base_ms),
+        base_check=replace(check, multistart=base_ms),
         design=designed,
         predictions=predictions,
         manoeuvre_kinds={"train": [manoeuvre_kind(t) for t in train], "heldout": [manoeuvre_kind(t) for t in heldout]},
@@ -609,21 +614,21 @@ def _checked_base(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, 
     """The base model fitted and checked (:func:`_base_stage`), and under ``train_starts="auto"``
     refitted with window starts held at the kinematics when the check finds the fitted ones
     inconsistent with them: ``(the base stage used, the held-start one or None)``; the used
-    one's ``check["train_starts"]`` says which and why."""
+    one's ``check.train_starts`` says which and why."""
     b = _base_stage(setup, sd, weighting, opt, runner)
     alt = None
-    if opt.train_starts == "auto" and (b["check"].get("starts") or {}).get("suspect"):
+    if opt.train_starts == "auto" and (b["check"].starts or {}).get("suspect"):
         runner.say("base fit: window starts inconsistent with the kinematics; refit with starts held at them")
         alt = _base_stage(replace(setup, train_starts="kinematic"), sd, weighting, opt, runner)
-        use = alt["check"]["train_rms_at_window_m"] < b["check"]["train_rms_at_window_m"]
+        use = alt["check"].train_rms_at_window_m < b["check"].train_rms_at_window_m
         summary = {
-            "fitted_train_rms_at_window_m": b["check"]["train_rms_at_window_m"],
-            "kinematic_train_rms_at_window_m": alt["check"]["train_rms_at_window_m"],
+            "fitted_train_rms_at_window_m": b["check"].train_rms_at_window_m,
+            "kinematic_train_rms_at_window_m": alt["check"].train_rms_at_window_m,
             "used": "kinematic" if use else "fitted",
         }
         if use:
             b = alt
-        b["check"]["train_starts"] = summary
+        b["check"] = replace(b["check"], train_starts=summary)
     return b, alt
 
 
@@ -785,22 +790,24 @@ def _base_multistart(problem: FitProblem, bfit: FitResult, opt: DiagnoseOptions,
     return bfit, summary
 
 
-def _outcome(search: dict, floor: dict, b_held: dict, significant: bool, th: Thresholds) -> tuple[list, dict]:
+def _outcome(
+    search: dict, floor: NoiseFloor, b_held: dict, significant: bool, th: Thresholds
+) -> tuple[list, Remainder]:
     """The contributors (every effect that improves the held-out windows significantly without
     closing the gap, added or not: round 1 alone, or as added in its round) and the remainder."""
     after, chosen, roles, ranking = search["after"], search["chosen"], search["roles"], search["ranking"]
-    excess0 = b_held["rms_position_m"] - floor["rms_position_m"]
-    contributors = [contribution(roles[e], added=True) for e in chosen if roles[e]["role"] == "contributor"]
+    floor_rms = floor.heldout_rms_m
+    excess0 = b_held["rms_position_m"] - floor_rms
+    contributors = [contribution(roles[e], added=True) for e in chosen if roles[e].role == "contributor"]
     contributors += [
-        contribution(r, added=False) for r in ranking if r["role"] == "contributor" and r["effect"] not in chosen
+        contribution(r, added=False) for r in ranking if r.role == "contributor" and r.effect not in chosen
     ]
-    remainder = {
-        "heldout_rms_m": after.held["rms_position_m"],
-        "fraction_of_excess": (after.held["rms_position_m"] - floor["rms_position_m"]) / excess0
-        if excess0 > 0
-        else 0.0,
-        "significant": bool(significant and after.held["rms_position_m"] > th.none_ratio * floor["rms_position_m"]),
-    }
+    held = after.held["rms_position_m"]
+    remainder = Remainder(
+        heldout_rms_m=held,
+        fraction_of_excess=(held - floor_rms) / excess0 if excess0 > 0 else 0.0,
+        significant=bool(significant and held > th.none_ratio * floor_rms),
+    )
     return contributors, remainder
 
 
@@ -829,7 +836,7 @@ def _settings(opt: DiagnoseOptions, setup: Setup, cand_effects, weighting: str) 
 BASE_FIT_RATIO = 3.0
 
 
-def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> dict:
+def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> BaseCheck:
     """Whether the base fit can be trusted, by two tests a structural miss and a failed fit both
     fail (the message says which to rule out first):
 
@@ -860,10 +867,11 @@ def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> dict:
 
     Returns
     -------
-    dict
+    BaseCheck
         ``train_rms_at_window_m``, ``heldout_rms_m``, ``ratio``, ``threshold``
         (:data:`BASE_FIT_RATIO`), ``starts`` (:func:`start_check`, or None under the measured
-        rule), ``suspect`` (bool: either test failed) and ``message``.
+        rule), ``suspect`` (bool: either test failed) and ``message``; ``multistart`` None
+        (:func:`diagnose` sets it).
     """
     ctx = [model.context(t, setup.window_s, start=setup.rule, leadin_s=setup.leadin_s) for t in setup.train]
     train = scores(model, fit, ctx, sd=sd_fit)["rms_position_m"]
@@ -889,15 +897,15 @@ def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> dict:
         msg = f"base fit: held-out / training RMS under the same protocol {ratio:.2f} (<= {BASE_FIT_RATIO:g})"
         if starts is not None:
             msg += f"; {starts['message']}"
-    return {
-        "train_rms_at_window_m": train,
-        "heldout_rms_m": held["rms_position_m"],
-        "ratio": ratio,
-        "threshold": BASE_FIT_RATIO,
-        "starts": starts,
-        "suspect": bool(msgs),
-        "message": msg,
-    }
+    return BaseCheck(
+        train_rms_at_window_m=train,
+        heldout_rms_m=held["rms_position_m"],
+        ratio=ratio,
+        threshold=BASE_FIT_RATIO,
+        starts=starts,
+        suspect=bool(msgs),
+        message=msg,
+    )
 
 
 #: Fraction of window starts flagged by the start check above which the base fit is suspect: a
@@ -1017,7 +1025,7 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
     fit_args : tuple
         ``(channel weights, seeds, iterations)``.
     judge : tuple
-        ``(floor, significant, thresholds)``: the noise floor's scores, whether the gap is
+        ``(floor, significant, thresholds)``: the :class:`NoiseFloor`, whether the gap is
         significant and the verdict's thresholds.
     max_effects : int
         Greedy rounds.
@@ -1029,7 +1037,8 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
     Returns
     -------
     dict
-        ``ranking`` (round 1), ``rounds``, ``chosen``, ``roles``, ``after`` (the last stage),
+        ``ranking`` (round 1, :class:`CandidateRow`), ``rounds``, ``chosen``, ``roles`` (``{effect
+        added: its CandidateRow}``), ``after`` (the last stage),
         ``seconds`` (wall time of each round) and ``discovery_first`` (:class:`FirstRound` or
         None).
     """
@@ -1037,8 +1046,8 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
     floor, significant, th = judge
     first = None
     say = runner.say
-    band = th.none_ratio * floor["rms_position_m"]
-    excess0 = base_stage.held["rms_position_m"] - floor["rms_position_m"]
+    band = th.none_ratio * floor.heldout_rms_m
+    excess0 = base_stage.held["rms_position_m"] - floor.heldout_rms_m
     ranking, rounds, chosen, roles, seconds = [], [], [], {}, []
     current = base_stage
     parallel = runner.scheduler is not None or int(runner.jobs) > 1
@@ -1080,9 +1089,9 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
         for e, out in zip(todo, outs):
             if isinstance(out, TaskError) or out[0] is None:
                 continue
-            results.append(candidate_row(e, out[0], ref, floor["rms_position_m"], excess0))
+            results.append(candidate_row(e, out[0], ref, floor.heldout_rms_m, excess0))
             stages[e.name] = out[0]
-        results.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
+        results.sort(key=lambda d: (not np.isfinite(d.heldout_rms_m), d.heldout_rms_m))
         assign_roles(results, significant, band, th)
         rounds.append(results)
         seconds.append(time.perf_counter() - t_round)
@@ -1098,9 +1107,9 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
                 continue
         if top is None:
             break
-        chosen.append(top["effect"])
-        roles[top["effect"]] = dict(top)
-        current = stages[top["effect"]]
+        chosen.append(top.effect)
+        roles[top.effect] = top
+        current = stages[top.effect]
         if current.held["rms_position_m"] <= band:
             break
     return {
@@ -1301,3 +1310,12 @@ def _seeds(effects, base, bfit, ctxs, train) -> dict:
         if s is not None:
             seeds[e.name] = s
     return seeds
+
+
+def _plain(v):
+    """``v`` as JSON: a record as its object, in lists too."""
+    if isinstance(v, Record):
+        return v.to_dict()
+    if isinstance(v, list):
+        return [_plain(x) for x in v]
+    return v

@@ -10,7 +10,7 @@ Raftery 1995, JASA 90(430)).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import stats
@@ -19,6 +19,7 @@ from ...data.track import STATE_NAMES, Track
 from ...estimation import shooting
 from ...models import context as ctxmod
 from ...protocol import pooled_scores, wrap
+from .records import NoiseFloor
 
 __all__ = [
     "Thresholds",
@@ -74,7 +75,7 @@ class Thresholds:
         }
 
 
-def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
+def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFloor:
     """The protocol's error for a perfect model at the measured noise level: simulate the fitted
     model on each held-out track's inputs from its first measured state (as the start rule
     estimates it), add Gaussian noise to every channel, ``n_rep`` times, and re-run the
@@ -99,8 +100,9 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
 
     Returns
     -------
-    dict
-        The pooled scores (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks.
+    NoiseFloor
+        Position RMS, heading RMS and RMS by channel of the pooled scores
+        (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks.
     """
     errs = []
     for ctx, tr in zip(ctxs, tracks):
@@ -120,7 +122,7 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> dict:
             c2 = model.context(syn, ctx.window_s, start=ctx.start, leadin_s=ctx.leadin_s)
             S2 = shooting.simulate(model, c2, fitres.p[None])
             errs.append({k: v[0] for k, v in ctxmod.errors(c2, S2).items()})
-    return pooled_scores(errs)
+    return NoiseFloor.of(pooled_scores(errs))
 
 
 def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
@@ -296,11 +298,12 @@ def is_contributor(r: dict, significant: bool, th: Thresholds) -> bool:
 
 
 def assign_roles(results: list, significant: bool, band: float, th: Thresholds) -> None:
-    """Set every ranked candidate's ``role`` (``"cause"``, ``"contributor"`` or None) in place.
+    """Set every ranked candidate's ``role`` (``"cause"``, ``"contributor"`` or None) in place:
+    each item of ``results`` is replaced by the record with its role.
 
     Parameters
     ----------
-    results : list of dict
+    results : list of CandidateRow
         The ranked candidates.
     significant : bool
         Whether the gap is significant.
@@ -309,14 +312,15 @@ def assign_roles(results: list, significant: bool, band: float, th: Thresholds) 
     th : Thresholds
         The thresholds.
     """
-    for r in results:
-        r["role"] = (
+    for i, r in enumerate(results):
+        role = (
             "cause"
             if is_cause(r, significant, band, th)
             else "contributor"
             if is_contributor(r, significant, th)
             else None
         )
+        results[i] = replace(r, role=role)
 
 
 def contribution(r: dict, added: bool) -> dict:
