@@ -55,13 +55,14 @@ the block-bootstrap ensemble STLSQ of :func:`bayesid.analysis.sindy.block_ensemb
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ....models.library import MAX_ORDER as MAX_ORDER
 from ....tasks import Runner, Task, TaskError, record_fields
 from ..candidates import Setup, Stage
+from ..records import Record, TermRow
 from ..verdict import Thresholds
 from ..verdict import is_contributor as is_contributor
 from ..verdict import paired_window_test as paired_window_test
@@ -152,16 +153,10 @@ class Discovery:
     verdict : str
         ``"discovered: N0+Nvvv"`` (with ``+unexplained`` when the held-out error is still above
         the floor band with them) or ``"no term of the library explains it"``.
-    discovered : list of dict
-        Every refitted candidate: ``term``, ``dof``, ``inclusion_probability`` (the term's),
-        ``group_inclusion_probability``, ``group`` (its collinear alternatives),
-        ``regression_coefficient``, ``coefficient`` and ``coefficient_sd`` (prime: the
-        regression's, the refit's and its Laplace sd),
-        ``heldout_rms_before_m``, ``heldout_rms_after_m`` (and per window,
-        ``heldout_windows_after_m``), ``train_rms_before_m``,
-        ``train_rms_after_m``, ``shrinkage``, ``delta_bic``, ``window_p_value``,
-        ``excess_removed``, ``worst_run`` (the held-out run the refit predicts worst against
-        the reference: ``run``, ``error_ratio``, ``p_value``), ``kept`` and ``reason``.
+    discovered : list of TermRow
+        Every refitted candidate (:class:`~bayesid.analysis.gap.records.TermRow`, its fields
+        documented there): the selection's numbers, the refit's, the kept test's decision. Read
+        back from a file (:meth:`from_dict`), a row of an older shape stays the dict it was.
     inclusion : dict
         ``{term: inclusion probability}`` of every candidate with a non-zero one, best first.
     residuals : dict
@@ -206,7 +201,7 @@ class Discovery:
 
     found: list
     verdict: str
-    discovered: list
+    discovered: list[TermRow]
     inclusion: dict
     residuals: dict
     library_size: int
@@ -229,14 +224,19 @@ class Discovery:
         Returns
         -------
         dict
-            ``{field: value}`` without ``after``, ``reference`` and ``stages``.
+            ``{field: value}`` without ``after``, ``reference`` and ``stages`` (``discovered``
+            as the rows' JSON objects).
         """
-        return {k: v for k, v in self.__dict__.items() if k not in ("after", "reference", "stages")}
+        out = {k: v for k, v in self.__dict__.items() if k not in ("after", "reference", "stages")}
+        out["discovered"] = [r.to_dict() if isinstance(r, Record) else dict(r) for r in self.discovered]
+        return out
 
     @classmethod
     def from_dict(cls, d: dict) -> Discovery:
         """The result read back from its JSON (``diagnosis.json``'s ``discovery``, or
-        :meth:`to_dict`), without the models (``after``, ``reference``, ``stages`` empty).
+        :meth:`to_dict`), without the models (``after``, ``reference``, ``stages`` empty); the
+        rows of ``discovered`` as :class:`~bayesid.analysis.gap.records.TermRow`
+        (:meth:`~bayesid.analysis.gap.records.Record.read`: a row of an older shape stays a dict).
 
         Parameters
         ----------
@@ -253,7 +253,8 @@ class Discovery:
         ValueError
             A key the result does not have, or a required one missing (named).
         """
-        return cls(**record_fields(cls, d, "discovery", skip=("after", "reference", "stages")))
+        args = record_fields(cls, d, "discovery", skip=("after", "reference", "stages"))
+        return cls(**dict(args, discovered=[TermRow.read(r) for r in args["discovered"]]))
 
     def terms(self) -> list[dict]:
         """The top-level ``discovered`` list of ``diagnosis.json``: one item per refitted term.
@@ -445,12 +446,11 @@ def discover(
                 runner.say(f"discovery: {m}")
         sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
         row = refit_row(n, st, ref, sel, floor_rms, sd, (runs, run_names), th.separation_margin)
-        row["refitted_as"] = "alternative" if n in pool else "selected"
-        decide(row, significant, th)
+        row = decide(replace(row, refitted_as="alternative" if n in pool else "selected"), significant, th)
         discovered.append(row)
         if st is not None:
             fitted[n] = st
-        if row["kept"]:
+        if row.kept:
             stages[n] = st
     found, after = ([], None)
     if stages:

@@ -7,7 +7,7 @@ runs can or cannot separate from each kept term (:func:`compare_structures`,
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -15,6 +15,7 @@ from ....estimation.laplace import fit_covariance
 from ....estimation.windows import FitProblem, fit_model
 from ....models.library import term_library
 from ..candidates import Setup, Stage, score_stage
+from ..records import TermRow
 from ..verdict import Thresholds, is_contributor, paired_window_test, run_separation_test
 from .library import extended_start, nuisance_start, warm_starts, with_terms
 
@@ -127,7 +128,7 @@ def refit_row(
     sd: float | None = None,
     runs: tuple | None = None,
     margin: float = 0.1,
-) -> dict:
+) -> TermRow:
     """The ``discovered`` record of a refitted candidate.
 
     Parameters
@@ -153,41 +154,40 @@ def refit_row(
 
     Returns
     -------
-    dict
+    TermRow
         The row of :attr:`bayesid.analysis.gap.discovery.Discovery.discovered` (without
         ``kept`` and ``reason`` unless every fit failed: :func:`decide` sets them).
     """
     sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
-    row = {
-        "term": term,
-        "dof": term_library(ref.model).dof(term),
-        "inclusion_probability": sel["inclusion"].get(term, 0.0),
-        "group_inclusion_probability": sel["group_probability"].get(term, 0.0),
-        "group": sel["groups"].get(term, []),
-        "regression_coefficient": sel["coefficient"].get(term, 0.0),
-        "heldout_rms_before_m": ref.held["rms_position_m"],
-        "train_rms_before_m": ref.train["rms_position_m"],
-    }
+    row = TermRow(
+        term=term,
+        dof=term_library(ref.model).dof(term),
+        inclusion_probability=sel["inclusion"].get(term, 0.0),
+        group_inclusion_probability=sel["group_probability"].get(term, 0.0),
+        group=sel["groups"].get(term, []),
+        regression_coefficient=sel["coefficient"].get(term, 0.0),
+        heldout_rms_before_m=ref.held["rms_position_m"],
+        train_rms_before_m=ref.train["rms_position_m"],
+    )
     if st is None:
-        return {**row, "kept": False, "reason": "every fit failed"}
+        return replace(row, kept=False, reason="every fit failed")
     before, after = ref.held["rms_position_m"], st.held["rms_position_m"]
     excess = before - floor_rms
-    return {
-        **row,
-        "coefficient": st.fit.coefficients()[term],
-        "coefficient_sd": sd,
-        "heldout_rms_after_m": after,
-        "train_rms_after_m": st.train["rms_position_m"],
-        "shrinkage": 1 - after / before,
-        "heldout_shrinkage": 1 - after / before,
-        "delta_bic": st.fit.bic - ref.fit.bic,
+    return replace(
+        row,
+        coefficient=st.fit.coefficients()[term],
+        coefficient_sd=sd,
+        heldout_rms_after_m=after,
+        train_rms_after_m=st.train["rms_position_m"],
+        shrinkage=1 - after / before,  # also written as heldout_shrinkage (TermRow's alias)
+        delta_bic=st.fit.bic - ref.fit.bic,
         # the refit starts at the reference (the term at 0): ending above it is a failed fit
-        "refit_failed": bool(st.fit.cost > ref.fit.cost * (1.0 + 1e-6)),
-        "window_p_value": paired_window_test(ref.windows, st.windows),
-        "heldout_windows_after_m": [float(x) for x in st.windows],
-        "excess_removed": (before - after) / excess if excess > 0 else 0.0,
-        "worst_run": worst_run(ref, st, runs, margin),
-    }
+        refit_failed=bool(st.fit.cost > ref.fit.cost * (1.0 + 1e-6)),
+        window_p_value=paired_window_test(ref.windows, st.windows),
+        heldout_windows_after_m=[float(x) for x in st.windows],
+        excess_removed=(before - after) / excess if excess > 0 else 0.0,
+        worst_run=worst_run(ref, st, runs, margin),
+    )
 
 
 def worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict | None:
@@ -227,7 +227,7 @@ def worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict 
     return {"run": _run_name(names, i), "error_ratio": res["ratio_by_run"].get(i), "p_value": res["p_second_worse"]}
 
 
-def _passes(row: dict, significant: bool, th: Thresholds) -> bool:
+def _passes(row, significant: bool, th: Thresholds) -> bool:
     """The kept test: the contributor test (:func:`is_contributor`) and no held-out run
     predicted significantly worse than by the reference model (:func:`worst_run` at
     ``th.partial_p``)."""
@@ -236,7 +236,7 @@ def _passes(row: dict, significant: bool, th: Thresholds) -> bool:
     return is_contributor(row, significant, th) and not harms
 
 
-def decide(row: dict, significant: bool, th: Thresholds) -> None:
+def decide(row, significant: bool, th: Thresholds):
     """Set ``kept`` and ``reason`` of a refitted candidate by the kept test: the contributor test
     (:func:`~bayesid.analysis.gap.verdict.is_contributor`) and no held-out run predicted
     significantly worse than by the reference model (:func:`worst_run` at ``th.partial_p``). A row
@@ -244,38 +244,52 @@ def decide(row: dict, significant: bool, th: Thresholds) -> None:
 
     Parameters
     ----------
-    row : dict
-        :func:`refit_row`; updated in place.
+    row : TermRow or dict
+        :func:`refit_row` (a record), or a dict with its keys (updated in place).
     significant : bool
         Whether the reference model's gap is significant.
     th : Thresholds
         The test's thresholds.
+
+    Returns
+    -------
+    TermRow or dict
+        The record with ``kept`` and ``reason`` (a new one: records are frozen), or the dict
+        updated.
     """
     if "kept" in row:
-        return
-    row["kept"] = _passes(row, significant, th)
+        return row
+    kept, reason = _kept_and_reason(row, significant, th)
+    if isinstance(row, TermRow):
+        return replace(row, kept=kept, reason=reason)
+    row["kept"], row["reason"] = kept, reason
+    return row
+
+
+def _kept_and_reason(row, significant: bool, th: Thresholds) -> tuple[bool, str]:
+    """``(kept, reason)`` of the kept test on a refitted candidate (:func:`decide`)."""
+    kept = _passes(row, significant, th)
     worst = row.get("worst_run") or {}
-    if row["kept"]:
-        row["reason"] = "improves the held-out windows (contributor test)"
-    elif is_contributor(row, significant, th):
-        row["reason"] = (
+    if kept:
+        return kept, "improves the held-out windows (contributor test)"
+    if is_contributor(row, significant, th):
+        return kept, (
             f"improves the held-out windows overall but predicts run {worst['run']} worse than the model "
             f"without it (window errors x{worst['error_ratio']:.2f}, run test p = {worst['p_value']:.2g}): "
             "it does not carry to that run"
         )
-    elif not significant:
-        row["reason"] = "the gap is not significant: nothing to explain"
-    elif row.get("refit_failed"):
-        row["reason"] = (
+    if not significant:
+        return kept, "the gap is not significant: nothing to explain"
+    if row.get("refit_failed"):
+        return kept, (
             "the refit ended above its reference on the training runs: a failed fit, not evidence against "
             "the term (with fitted window starts, see the base-fit check)"
         )
-    elif row["delta_bic"] > th.bic_threshold:
-        row["reason"] = f"training ΔBIC {row['delta_bic']:.1f} > {th.bic_threshold:g}"
-    elif row["heldout_shrinkage"] <= 0:
-        row["reason"] = "fits the training runs but not the held-out ones"
-    else:
-        row["reason"] = f"held-out gain not significant (window test p = {row['window_p_value']:.3g})"
+    if row["delta_bic"] > th.bic_threshold:
+        return kept, f"training ΔBIC {row['delta_bic']:.1f} > {th.bic_threshold:g}"
+    if row["heldout_shrinkage"] <= 0:
+        return kept, "fits the training runs but not the held-out ones"
+    return kept, f"held-out gain not significant (window test p = {row['window_p_value']:.3g})"
 
 
 def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple, initial: dict):
