@@ -4,8 +4,10 @@
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
 
+from ..analysis.gap.records import BaseCheck, CandidateRow, NoiseFloor, Remainder, TermRow
 from .markdown import fmt, md_table
 from .study import write_json
 
@@ -48,7 +50,8 @@ def attribution_lines(res: dict) -> list[str]:
     Parameters
     ----------
     res : dict
-        A diagnosis as :meth:`bayesid.analysis.gap.Diagnosis.to_dict` gives it.
+        A diagnosis as :meth:`bayesid.analysis.gap.Diagnosis.to_dict` gives it (its ``remainder``
+        a :class:`~bayesid.analysis.gap.records.Remainder` or its JSON object).
 
     Returns
     -------
@@ -64,14 +67,22 @@ def attribution_lines(res: dict) -> list[str]:
             f"{fmt(c['share_of_excess'])} of the base model's excess (held-out {fmt(c['heldout_rms_m'])} m; "
             f"paired window test p = {fmt(c['window_p_value'])}, ΔBIC {fmt(c['delta_bic'], 4)})."
         )
-    rem = res.get("remainder")
+    rem = _record(Remainder, res.get("remainder"))
     if rem and res["significant_gap"]:
         out.append(
-            f"Remainder: {fmt(rem['fraction_of_excess'])} of the excess over the floor "
-            f"(held-out {fmt(rem['heldout_rms_m'])} m), "
-            + ("still significant: no candidate explains it." if rem["significant"] else "inside the band.")
+            f"Remainder: {fmt(rem.fraction_of_excess)} of the excess over the floor "
+            f"(held-out {fmt(rem.heldout_rms_m)} m), "
+            + ("still significant: no candidate explains it." if rem.significant else "inside the band.")
         )
     return out
+
+
+def _record(kind: type, value):
+    """``value`` as a record of ``kind`` (a record of the diagnosis, or its JSON object read back:
+    :meth:`~bayesid.analysis.gap.records.Record.from_dict`); None for an empty or missing one."""
+    if not value:
+        return None
+    return value if isinstance(value, kind) else kind.from_dict(value)
 
 
 def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | None = None) -> None:
@@ -121,7 +132,7 @@ def _figures(diag, res: dict, out: Path, heldout: list) -> list:
             plots.gap_ranking(
                 res["ranking"],
                 res["gap_before"]["heldout_rms_m"],
-                res["noise_floor"]["heldout_rms_m"],
+                _record(NoiseFloor, res["noise_floor"]).heldout_rms_m,
                 out / "figures" / "ranking.png",
                 band_ratio=res["thresholds"]["none_ratio"],
             )
@@ -202,11 +213,11 @@ def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
         return []
     after, label = D["windows_after_m"], "with " + "+".join(D["found"])
     if not D["found"]:  # nothing kept: the best refitted term, to show why
-        fitted = [r for r in D["discovered"] if r.get("heldout_windows_after_m")]
+        fitted = [r for r in map(partial(_record, TermRow), D["discovered"]) if r.heldout_windows_after_m]
         if not fitted:
             return []
-        best = min(fitted, key=lambda r: r["heldout_rms_after_m"])
-        after, label = best["heldout_windows_after_m"], f"with {best['term']} (best refitted, not kept)"
+        best = min(fitted, key=lambda r: r.heldout_rms_after_m)
+        after, label = best.heldout_windows_after_m, f"with {best.term} (best refitted, not kept)"
     figs = [
         plots.window_scatter(
             D["windows_before_m"],
@@ -579,18 +590,18 @@ def _discovery_lines(res: dict) -> list:
             ],
             [
                 [
-                    r["term"],
-                    ", ".join(r["group"][:4]) + (" ..." if len(r["group"]) > 4 else "") or "-",
-                    fmt(r["inclusion_probability"]),
-                    fmt(r["group_inclusion_probability"]),
-                    fmt(r.get("coefficient")),
-                    f"{fmt(r['heldout_rms_before_m'])} -> {fmt(r.get('heldout_rms_after_m'))}",
-                    fmt(r.get("delta_bic"), 4),
-                    fmt(r.get("window_p_value")),
-                    "yes" if r["kept"] else "no",
-                    r["reason"],
+                    r.term,
+                    ", ".join(r.group[:4]) + (" ..." if len(r.group) > 4 else "") or "-",
+                    fmt(r.inclusion_probability),
+                    fmt(r.group_inclusion_probability),
+                    fmt(r.coefficient),
+                    f"{fmt(r.heldout_rms_before_m)} -> {fmt(r.heldout_rms_after_m)}",
+                    fmt(r.delta_bic, 4),
+                    fmt(r.window_p_value),
+                    "yes" if r.kept else "no",
+                    r.reason,
                 ]
-                for r in D["discovered"]
+                for r in map(partial(_record, TermRow), D["discovered"])
             ],
         )
         if D["discovered"]
@@ -642,11 +653,12 @@ def _multistart_lines(ms: dict | None) -> list:
     ]
 
 
-def _base_check_lines(check: dict | None) -> list:
+def _base_check_lines(check: BaseCheck | dict | None) -> list:
     """The base-fit check (generalisation and window starts): a warning when suspect, else a line."""
+    check = _record(BaseCheck, check)
     if not check:
         return []
-    ts = check.get("train_starts")
+    ts = check.train_starts
     switch = (
         [
             "Training window starts (`--train-starts auto`): the fitted starts contradicted the tracks' kinematics, "
@@ -659,9 +671,9 @@ def _base_check_lines(check: dict | None) -> list:
         if ts
         else []
     )
-    if check.get("suspect"):
-        return [*switch, "**Warning:** " + check["message"] + ".", ""]
-    return [*switch, "Base-fit check: " + check["message"] + ".", ""]
+    if check.suspect:
+        return [*switch, "**Warning:** " + check.message + ".", ""]
+    return [*switch, "Base-fit check: " + check.message + ".", ""]
 
 
 def _summary_lines(res: dict, command: str) -> list:
@@ -673,7 +685,7 @@ def _summary_lines(res: dict, command: str) -> list:
         "",
         *(["**Input warnings:** " + "; ".join(res["warnings"]), ""] if res.get("warnings") else []),
         *_base_check_lines(res.get("base_check")),
-        *_multistart_lines((res.get("base_check") or {}).get("multistart")),
+        *_multistart_lines(getattr(_record(BaseCheck, res.get("base_check")), "multistart", None)),
         f"**Verdict: {res['verdict']}**"
         + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""),
         "",
@@ -727,7 +739,7 @@ def _how_far_lines(res: dict) -> list:
         "before/after comparison on the same samples, not a calibrated likelihood).",
         "",
         f"Held-out shrinkage {fmt(res['heldout_shrinkage'])} (fraction of the base model's held-out RMS removed); "
-        f"noise floor (perfect model at the estimated noise) {fmt(res['noise_floor']['heldout_rms_m'])} m; gap ratio "
+        f"noise floor (perfect model at the estimated noise) {fmt(_record(NoiseFloor, res['noise_floor']).heldout_rms_m)} m; gap ratio "
         f"{fmt(res['gap_ratio'])} (held-out RMS / noise floor, dimensionless; significant above "
         f"{res['thresholds']['none_ratio']}).",
         "",
@@ -753,15 +765,15 @@ def _which_lines(res: dict) -> list:
             ],
             [
                 [
-                    r["effect"],
-                    fmt(r["heldout_rms_m"]),
-                    fmt(r["excess_removed"]),
-                    fmt(r.get("window_p_value")),
-                    fmt(r["delta_bic"], 4),
-                    r.get("role") or "-",
-                    ", ".join(f"{k} {fmt(v)}" for k, v in r["parameters"].items() if k != "per_track_nuisance"),
+                    r.effect,
+                    fmt(r.heldout_rms_m),
+                    fmt(r.excess_removed),
+                    fmt(r.window_p_value),
+                    fmt(r.delta_bic, 4),
+                    r.role or "-",
+                    ", ".join(f"{k} {fmt(v)}" for k, v in r.parameters.items() if k != "per_track_nuisance"),
                 ]
-                for r in res["ranking"]
+                for r in map(partial(_record, CandidateRow), res["ranking"])
             ],
         ),
         "",
@@ -795,18 +807,18 @@ def _bic_heldout_lines(res: dict) -> list:
     gain (positive shrinkage and the window test or the excess removed) that BIC does not support."""
     th = res["thresholds"]
     lines = []
-    for r in res["ranking"]:
-        p = r.get("window_p_value")
-        gain = r["heldout_shrinkage"] > 0 and (
-            (p is not None and p < th["partial_p"]) or r["excess_removed"] >= th["explain_fraction"]
+    for r in map(partial(_record, CandidateRow), res["ranking"]):
+        p = r.window_p_value
+        gain = r.heldout_shrinkage > 0 and (
+            (p is not None and p < th["partial_p"]) or r.excess_removed >= th["explain_fraction"]
         )
-        favoured = r["delta_bic"] <= th["bic_threshold"]
-        shrink = r["heldout_shrinkage"]
-        ref = r["heldout_rms_m"] / (1.0 - shrink) if shrink != 1 else None
-        held = f"held-out RMS {fmt(ref)} m -> {fmt(r['heldout_rms_m'])} m, window test p = {fmt(p)}"
+        favoured = r.delta_bic <= th["bic_threshold"]
+        shrink = r.heldout_shrinkage
+        ref = r.heldout_rms_m / (1.0 - shrink) if shrink != 1 else None
+        held = f"held-out RMS {fmt(ref)} m -> {fmt(r.heldout_rms_m)} m, window test p = {fmt(p)}"
         if favoured and not gain:
             lines.append(
-                f"- **BIC and held-out disagree on {r['effect']}**: training ΔBIC {fmt(r['delta_bic'], 4)} favours it "
+                f"- **BIC and held-out disagree on {r.effect}**: training ΔBIC {fmt(r.delta_bic, 4)} favours it "
                 f"strongly, but "
                 + ("its held-out gain is not significant" if shrink > 0 else "it brings no held-out gain")
                 + f" ({held}; needs p < {th['partial_p']} or {th['explain_fraction']} of the excess removed). The "
@@ -816,8 +828,8 @@ def _bic_heldout_lines(res: dict) -> list:
             )
         elif gain and not favoured:
             lines.append(
-                f"- **BIC and held-out disagree on {r['effect']}**: it improves the held-out windows ({held}), but "
-                f"training ΔBIC {fmt(r['delta_bic'], 4)} does not support it (needs <= {th['bic_threshold']}): the "
+                f"- **BIC and held-out disagree on {r.effect}**: it improves the held-out windows ({held}), but "
+                f"training ΔBIC {fmt(r.delta_bic, 4)} does not support it (needs <= {th['bic_threshold']}): the "
                 "training runs alone do not pay for its parameters. More or richer training runs would decide; it is "
                 "not added on this evidence."
             )
