@@ -44,6 +44,7 @@ def add_parser(sub) -> None:
         "x,y,psi when the logged u, v, r are derived from positions and heading (empty: all measured)",
     )
     opt.add_start(f)
+    opt.add_inputs(f)
     opt.add_number(
         f,
         "--starts",
@@ -129,6 +130,7 @@ def _identify(args, out, vehicle, free, got):
         starts=args.starts,
         random_seed=args.seed,
         prior=args.prior == "file",
+        inputs=args.inputs,
     )
     calibration = None
     if args.calibration == "loro" and len(train) >= 3:

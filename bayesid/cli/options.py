@@ -15,12 +15,18 @@ import math
 import sys
 
 from .. import protocol, tasks
+from ..models.context import INPUT_RECONSTRUCTIONS
 
 #: The window start rules' help text (``--start``).
 START_HELP = (
     "window start states: measured (causal 1 s estimate), fitted (with the model, over a lead-in), "
     "auto (fitted when a track does not log u, v and r and its positions are too noisy for a 1 s "
     "slope estimate of the velocity)"
+)
+#: The help text of ``--inputs``.
+INPUTS_HELP = (
+    "logged inputs between samples: hold (each sample kept until the next), linear (interpolated "
+    "between samples, as a rate-limited rudder moves; for coarse logs, 1-5 Hz, of a moving rudder)"
 )
 #: The choices of ``--weighting`` ("": the model's default).
 WEIGHTINGS = ("", "noise", "residual")
@@ -398,6 +404,20 @@ def add_start(parser) -> None:
         The subcommand's parser.
     """
     parser.add_argument("--start", choices=protocol.START_RULES, default="auto", help=START_HELP)
+
+
+def add_inputs(parser) -> None:
+    """``--inputs``: how the logged inputs are reconstructed between samples.
+
+    The choices are :data:`bayesid.models.context.INPUT_RECONSTRUCTIONS` (default ``hold``),
+    the help text :data:`INPUTS_HELP`.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
+    parser.add_argument("--inputs", choices=INPUT_RECONSTRUCTIONS, default="hold", help=INPUTS_HELP)
 
 
 def add_leadin(parser) -> None:

@@ -9,7 +9,8 @@ manoeuvrability", Sec. 4.2, and MSC/Circ.1053 (explanatory notes).
 
 Pure functions over arrays of a run (time, position, heading, rudder): the measured run and every
 prediction of it are reduced to the same indices by the same code. The rudder *orders* (executes)
-are read from the rudder angle: the first execute is the rudder leaving its approach angle, every
+are read from the rudder angle: the first execute is the rudder leaving its approach angle (a
+turn's: the start of the last ramp into the angle it holds, after any course keeping), every
 later one the rudder leaving its hold; the heading at an order is the check heading the standard
 measures an overshoot from (with a finite rudder rate the ship turns on while the rudder moves, so
 measuring from the heading at which the counter-rudder passes some angle understates it).
@@ -93,6 +94,13 @@ HOLD_MIN_S = 2.0
 #: The rudder has left its hold (or its approach angle) once it is further than this from it (rad),
 #: or four times the rudder signal's noise sd when that is larger.
 ORDER_TOLERANCE = math.radians(0.5)
+#: A turn that follows course keeping (small rudder moves, some beyond HOLD_ANGLE) is read as a
+#: turning circle when the heading stayed within this (deg) of its course at the execute before it.
+APPROACH_HEADING_DEG = 15.0
+#: The ramp into a held angle: the steps (between samples) towards it, back from the hold while
+#: each is at least this fraction of the largest so far (slower course-keeping moves before the
+#: order are not part of it).
+RAMP_STEP = 0.25
 #: The rudder has started to move once it is further than this from its hold (rad), or four
 #: times its noise sd (a steering gear that gathers speed shows this before its ramp).
 DEPARTURE = math.radians(0.05)
@@ -364,6 +372,94 @@ def _ramp_start(t, leg, rate: float, noise: float) -> tuple[float, float]:
     return start, sd
 
 
+def _snap(t, s: float) -> float:
+    """A time within round-off of a sample is that sample's (a simulated order is given at one)."""
+    k = int(np.clip(np.searchsorted(t, s), 1, t.size - 1))
+    k = k if abs(t[k] - s) <= abs(s - t[k - 1]) else k - 1
+    return float(t[k]) if abs(t[k] - s) <= 1e-6 * float(np.median(np.diff(t))) else s
+
+
+def _plateau(t, delta, a: int, b: int, tol: float):
+    """(first, last sample, angle) of the longest run within samples ``[a, b]`` of the rudder
+    within ``tol`` (rad) of one angle lasting at least :data:`HOLD_MIN_S`: the angle a hold holds;
+    None when it holds none (a slow gear's ramp that only touches its angle)."""
+    runs = _constant_rudder(t[a : b + 1], delta[a : b + 1], HOLD_MIN_S, tol)
+    if not runs:
+        return None
+    i, j, angle = max(runs, key=lambda r: t[a + r[1]] - t[a + r[0]])
+    return a + i, a + j, angle
+
+
+def _ramp_back(delta, p: int, lo: int, tol: float, eps: float) -> int:
+    """The last sample before the ramp into the held angle whose first sample is ``p``: back from
+    ``p`` over the samples still within ``tol`` of it, then over the steps towards it while each
+    is more than ``eps`` and at least :data:`RAMP_STEP` of the largest so far, not before ``lo``."""
+    angle, k = float(delta[p]), p
+    while k > lo and abs(delta[k - 1] - angle) <= tol:
+        k -= 1
+    if k <= lo:
+        return k
+    sgn, big = math.copysign(1.0, angle - delta[k - 1]), 0.0
+    while k > lo:
+        step = sgn * float(delta[k] - delta[k - 1])
+        if step <= max(eps, RAMP_STEP * big):
+            break
+        big, k = max(big, step), k - 1
+    return k
+
+
+def _last_ramp(t, delta, hold, lo: int):
+    """The last ramp into a hold's held angle: (j, hold), ``j`` the last sample before it (the
+    execute's: the rudder order is given there) and ``hold`` the hold from the ramp on (side,
+    first sample beyond :data:`HOLD_ANGLE` after ``j``, last sample, peak |delta| from there);
+    the ramp searched back to sample ``lo``. None when the hold holds no angle
+    (:func:`_plateau`)."""
+    side, a, b, _ = hold
+    core = delta[a : b + 1]
+    tol = max(ORDER_TOLERANCE, 4.0 * _noise_sd(core))
+    got = _plateau(t, delta, a, b, tol)
+    if got is None:
+        return None
+    j = _ramp_back(delta, got[0], lo, tol, max(DEPARTURE, 4.0 * _noise_sd(delta[lo : got[0] + 1])))
+    beyond = np.flatnonzero(side * delta[j + 1 : b + 1] > HOLD_ANGLE)
+    a2 = j + 1 + int(beyond[0]) if beyond.size else a
+    return j, (side, a2, b, float(np.max(np.abs(delta[a2 : b + 1]))))
+
+
+def _approach_split(t, delta, hold):
+    """A first hold that :func:`_rudder_holds` merged with the course keeping before it (rudder
+    moves on the same side, the rudder back within :data:`HOLD_ANGLE` between them): (j, hold)
+    of :func:`_last_ramp`, the hold from the last ramp into its held angle on; None for a hold
+    that starts with that ramp, or one that held its angle before a blip of counter-rudder (one
+    order: :func:`_rudder_holds` merges it), or where the held angle is not most of the hold."""
+    side, a, b, _ = hold
+    got = _last_ramp(t, delta, hold, a)
+    if got is None:
+        return None
+    j, new = got
+    if j <= a or not np.any(side * delta[a : j + 1] <= HOLD_ANGLE):
+        return None
+    if t[new[2]] - t[new[1]] < 0.5 * (t[b] - t[a]):  # a course-keeping stretch, not a turn's hold
+        return None
+    tol = max(ORDER_TOLERANCE, 4.0 * _noise_sd(delta[new[1] : new[2] + 1]))
+    angle = float(delta[new[1] : new[2] + 1][np.argmax(np.abs(delta[new[1] : new[2] + 1]))])
+    held_before = _constant_rudder(t[a : j + 1], delta[a : j + 1], HOLD_MIN_S, tol)
+    if any(abs(m - angle) <= tol for _, _, m in held_before):
+        return None
+    return j, new
+
+
+def _order_into(t, delta, j: int, hold) -> tuple[float, float]:
+    """(time, sd) of the order from the rudder angle at sample ``j`` into ``hold``: the start of
+    the ramp (:func:`_ramp_start`; the gear's rate read from this ramp alone, the moves before it
+    being course keeping, not the gear's)."""
+    side, _, b, peak = hold
+    noise = _noise_sd(delta[: j + 1])
+    leg = _leg(t, delta, j, j, float(delta[j]), side * peak, noise, b)
+    s, sd = _ramp_start(t, leg, _gear_rate(t, [leg]), noise)
+    return _snap(t, s), (sd if sd > 1e-9 * float(np.median(np.diff(t))) else 0.0)
+
+
 def rudder_orders(t, delta) -> dict:
     """The rudder orders (executes) of a run, read from its rudder angle.
 
@@ -391,10 +487,16 @@ def rudder_orders(t, delta) -> dict:
     holds = _rudder_holds(t, delta, HOLD_ANGLE, HOLD_MIN_S)
     if not holds:
         return {"holds": [], "executes": [], "execute_t_s": [], "execute_sd_s": [], "rudder_rate_deg_s": math.nan}
+    split = _approach_split(t, delta, holds[0])
     first = holds[0][1]
-    approach = float(np.median(delta[: first + 1])) if first > 0 else float(delta[0])
+    if split is None:
+        approach = float(np.median(delta[: first + 1])) if first > 0 else float(delta[0])
+        i_from, i_to = 0, first
+    else:  # course keeping on the first hold's side before it: the order is the last ramp
+        i_from, holds = split[0], [split[1], *holds[1:]]
+        first, approach, i_to = holds[0][1], float(delta[split[0]]), split[0]
     noise = _noise_sd(delta[: first + 1])
-    legs = [_leg(t, delta, 0, first, approach, holds[0][0] * holds[0][3], noise, holds[0][2])]
+    legs = [_leg(t, delta, i_from, i_to, approach, holds[0][0] * holds[0][3], noise, holds[0][2])]
     for (side, a, b, peak), nxt in zip(holds[:-1], holds[1:]):
         # the held angle is the hold's peak (a hold can be shorter than the ramps into it); the
         # noise sd of the signal near it widens the tolerance around it
@@ -403,12 +505,7 @@ def rudder_orders(t, delta) -> dict:
     rate = _gear_rate(t, legs)
     starts = [(float(t[0]), 0.0) if first == 0 else _ramp_start(t, legs[0], rate, noise)]
     starts += [_ramp_start(t, leg, rate, noise) for leg in legs[1:]]
-    # a time within round-off of a sample is that sample's (a simulated order is given at one)
-    times = []
-    for s, _ in starts:
-        k = int(np.clip(np.searchsorted(t, s), 1, t.size - 1))
-        k = k if abs(t[k] - s) <= abs(s - t[k - 1]) else k - 1
-        times.append(float(t[k]) if abs(t[k] - s) <= 1e-6 * float(np.median(np.diff(t))) else s)
+    times = [_snap(t, s) for s, _ in starts]
     return {
         "holds": holds,
         "executes": [int(np.searchsorted(t, s + 1e-9 * max(1.0, abs(s)), side="right")) - 1 for s in times],
@@ -627,7 +724,10 @@ def manoeuvre_indices(t, x, y, psi, delta, *, check_deg: float | None = None) ->
     scatter of those fits and the uncertainty of the execute times.
 
     * **turning**: one hold (the rudder never reversed) during which the heading changes by at
-      least 90 deg: ``advance_m`` (distance along the original course from the execute to 90 deg
+      least 90 deg, or such a last hold after course keeping with the rudder on both sides (the
+      heading within :data:`APPROACH_HEADING_DEG` of its course at the execute before it); the
+      execute is the start of the last ramp into the held angle, course-keeping moves of the
+      rudder before it on the same side are not the order (ITTC 7.5-04-02-01 Sec. 2.2.1): ``advance_m`` (distance along the original course from the execute to 90 deg
       of heading change), ``transfer_m`` (normal to it, at 90 deg), ``tactical_diameter_m``
       (normal distance at 180 deg); ``steady_turning_diameter_m``
       (least-squares circle through the track from 180 deg of heading change to the end of the
@@ -705,6 +805,17 @@ def manoeuvre_indices(t, x, y, psi, delta, *, check_deg: float | None = None) ->
             **got,
             **_first_order(t, x, y, h, starts[0], sds[0], holds[0], float(t[holds[0][2]]), half),
         )
+    turn = _turn_after_approach(t, psi, delta, holds)
+    if turn is not None:
+        s0, sd0, hold = turn
+        got, h, half = _turning(t, x, y, psi, s0, sd0, hold)
+        return dict(
+            execute_t_s=s0,
+            execute_t_s_sd=sd0,
+            kind="turning",
+            **got,
+            **_first_order(t, x, y, h, s0, sd0, hold, float(t[hold[2]]), half),
+        )
     first = holds[0][3]
     similar = all(0.5 * first <= p <= 2.0 * first for _, _, _, p in holds)
     span = float(np.degrees(np.max(np.abs(h[i0:]))))
@@ -726,6 +837,25 @@ def manoeuvre_indices(t, x, y, psi, delta, *, check_deg: float | None = None) ->
         out["check_crossing_t_s"] = _check_crossings(t, h, starts, math.radians(check_deg), half)
     t_end = float(t[min(holds[0][2], executes[1] + 1)])
     return dict(out, kind="zigzag", **got, **_first_order(t, x, y, h, starts[0], sds[0], holds[0], t_end, half))
+
+
+def _turn_after_approach(t, psi, delta, holds):
+    """A turning circle after course keeping (rudder moves beyond :data:`HOLD_ANGLE` on both
+    sides, read as holds): (execute time, sd, hold) when the last hold's last ramp into its held
+    angle (:func:`_last_ramp`) came with the heading within :data:`APPROACH_HEADING_DEG` of the
+    heading there all along before, and the heading then changed by 90 deg or more while it was
+    held; else None."""
+    got = _last_ramp(t, delta, holds[-1], 0)
+    if got is None:
+        return None
+    j, hold = got
+    _, a, b, _ = hold
+    if np.degrees(np.max(np.abs(psi[: j + 1] - psi[j]))) > APPROACH_HEADING_DEG:
+        return None
+    if np.degrees(np.max(np.abs(psi[a : b + 1] - psi[j]))) < 90.0:
+        return None
+    s0, sd0 = _order_into(t, delta, j, hold)
+    return s0, sd0, hold
 
 
 def _check_crossings(t, h, starts, check: float, half: float) -> list:
@@ -832,10 +962,51 @@ def pull_out_rates(t, delta, r) -> dict:
     }
 
 
+def _side_runs(d, lim: float) -> list:
+    """(side, first, last sample) of each run of ``d`` beyond ``lim`` on one side."""
+    side = np.where(d > lim, 1, np.where(d < -lim, -1, 0))
+    edge = np.flatnonzero(np.diff(side) != 0) + 1
+    return [(int(side[i]), int(i), int(j)) for i, j in zip(np.r_[0, edge], np.r_[edge - 1, side.size - 1]) if side[i]]
+
+
+#: A turn's hold, read from the rudder alone (:func:`manoeuvre_kind`): at least this many times as
+#: long as any other excursion beyond half its angle, with the rudder beyond half its angle for at
+#: most TURN_APPROACH_BIG of the time before it (course keeping, not a zigzag or a PRBS); released
+#: for at most TURN_RELEASE of the hold's length at the end of the record (a trial stopped as the
+#: rudder came back), where a pull-out keeps the rudder amidships for longer.
+TURN_DOMINANCE = 3.0
+TURN_APPROACH_BIG = 0.5
+TURN_RELEASE = 0.2
+
+
+def _turn_kind(t, d, lim: float):
+    """``"turning_circle"`` / ``"pull_out"`` when the run's longest hold is a turn's (see
+    :data:`TURN_DOMINANCE`) after course keeping, else None (and :func:`manoeuvre_kind`'s general
+    rules decide)."""
+    runs = _side_runs(d, lim)
+    s, i, j = max(runs, key=lambda r: t[r[2]] - t[r[1]])
+    dur = float(t[j] - t[i])
+    angle = float(np.percentile(np.abs(d[i : j + 1]), 90))
+    if not dur > 0 or float(np.mean(np.abs(np.abs(d[i : j + 1]) - angle) < 0.15 * angle)) < 0.6:
+        return None
+    others = [t[b] - t[a] for _, a, b in _side_runs(d, 0.5 * angle) if b < i or a > j]
+    if others and dur < TURN_DOMINANCE * max(others):
+        return None
+    if i > 0 and float(np.mean(np.abs(d[:i]) > 0.5 * angle)) > TURN_APPROACH_BIG:
+        return None
+    release = float(t[-1] - t[j])
+    if release <= TURN_RELEASE * dur:
+        return "turning_circle"
+    after = d[j + 1 :]
+    return "pull_out" if float(np.mean(np.abs(after) <= lim)) >= 0.8 else None
+
+
 def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
     """The standard manoeuvre a logged run most resembles, read from its rudder alone:
     ``"zigzag"`` (two or more reversals of a held rudder), ``"turning_circle"`` (one side, held to
-    the end), ``"pull_out"`` (one side, then back to midships), ``"straight"`` (never beyond
+    the end, or a hold that dominates the run after course keeping and lasts to within
+    :data:`TURN_RELEASE` of its length of the end), ``"pull_out"`` (one side, then back to
+    midships), ``"straight"`` (never beyond
     ``hold_deg``) or ``"other"`` (e.g. a pseudo-random sequence).
 
     Parameters
@@ -851,7 +1022,8 @@ def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
         ``"zigzag"``, ``"turning_circle"``, ``"pull_out"``, ``"straight"`` or ``"other"``.
     """
     d = np.asarray(track["delta_r"], float)
-    d = d[np.isfinite(d)]
+    finite = np.isfinite(d)
+    d = d[finite]
     if d.size == 0:
         return "other"
     lim = math.radians(hold_deg)
@@ -859,6 +1031,9 @@ def manoeuvre_kind(track, hold_deg: float = 2.0) -> str:
     held = side[side != 0]
     if held.size == 0:
         return "straight"
+    turn = _turn_kind(np.asarray(track.t, float)[finite], d, lim)
+    if turn is not None:
+        return turn
     big = np.abs(d[np.abs(d) > lim])
     # one rudder angle held, as a standard run holds it: most rudder-over samples within 15 % of
     # the held angle (the 90th percentile; a 35/5 zigzag of a slow gear spends a fifth ramping)

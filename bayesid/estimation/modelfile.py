@@ -2,9 +2,9 @@
 studies read: :class:`ModelDocument` is its only reader and writer.
 
 A document holds what is needed to rebuild the fitted model (vehicle file reference, free
-coefficients, effects, step), the optimum and its Laplace covariance, the fit's weights, scores
-and settings, the prior and calibration summaries, and the provenance of the fit (package
-version, vehicle file hash and values, input hashes).
+coefficients, effects, step, input reconstruction), the optimum and its Laplace covariance, the
+fit's weights, scores and settings, the prior and calibration summaries, and the provenance of
+the fit (package version, vehicle file hash and values, input hashes).
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..models import build_model, load_any_vehicle
+from ..models.context import INPUT_RECONSTRUCTIONS
 from ..tasks import jsonable
 from .calibration import Calibration
 from .laplace import psd_covariance
@@ -75,6 +76,10 @@ class ModelDocument:
         The scored channels (None: every measured one).
     start_rule : str, default "measured"
         The window start rule the fit used.
+    inputs : str, default "hold"
+        How the fit reconstructed the logged inputs between samples
+        (``inputs`` of :class:`bayesid.estimation.options.FitOptions`); the model built from the
+        document does the same (files from before the option: ``"hold"``).
     train_runs : list of str
         The training runs' names.
     train_scores : dict
@@ -115,6 +120,7 @@ class ModelDocument:
     fit_sd: dict | None = None
     fit_channels: list | None = None
     start_rule: str = "measured"
+    inputs: str = "hold"
     train_runs: list = field(default_factory=list)
     train_scores: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
@@ -171,6 +177,7 @@ class ModelDocument:
             fit_sd=result.fit_sd,
             fit_channels=None if result.channels is None else list(result.channels),
             start_rule=result.start_rule,
+            inputs=getattr(m, "inputs", "hold"),
             train_runs=list(train_names),
             train_scores=result.train_scores,
             provenance=provenance or {},
@@ -195,12 +202,14 @@ class ModelDocument:
         -------
         dict
             ``format`` then the fields in their order (``multistart`` and ``posterior_source``
-            only when set; ``path`` never; ``calibration`` as
+            only when set; ``inputs`` only when not ``"hold"``; ``path`` never; ``calibration`` as
             :meth:`~bayesid.estimation.calibration.Calibration.to_dict`).
         """
         d = {"format": FORMAT}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
+            if f.name == "inputs" and v == "hold":
+                continue  # the default, as in every file from before the option
             if f.name != "path" and not (f.name in ("multistart", "posterior_source") and v is None):
                 d[f.name] = v.to_dict() if isinstance(v, Calibration) else v
         return d
@@ -293,15 +302,18 @@ class ModelDocument:
         ------
         ValueError
             Naming the file when the vehicle does not load, the coefficients or effects do not
-            fit it, ``dt`` is not positive, ``p`` is not finite with one value per parameter, or
-            ``cov`` is not a symmetric positive semi-definite matrix of that size.
+            fit it, ``dt`` is not positive, ``inputs`` is unknown, ``p`` is not finite with one
+            value per parameter, or ``cov`` is not a symmetric positive semi-definite matrix of
+            that size.
         """
         path, ref = self.path, self.vehicle_path()
         vehicle = load_any_vehicle(ref)
         if not isinstance(self.dt, (int, float)) or not self.dt > 0:
             raise ValueError(f"{path}: 'dt' must be a positive number of seconds, not {self.dt!r}")
+        if self.inputs not in INPUT_RECONSTRUCTIONS:
+            raise ValueError(f"{path}: 'inputs' must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}")
         try:
-            model = build_model(vehicle, self.free, self.effects, self.dt)
+            model = build_model(vehicle, self.free, self.effects, self.dt, inputs=self.inputs)
         except (KeyError, ValueError) as e:
             raise ValueError(
                 f"{path}: its free coefficients or effects do not fit the vehicle {ref!r}: {e.args[0] if e.args else e}"

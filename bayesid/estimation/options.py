@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from ..models.context import INPUT_RECONSTRUCTIONS
+
 __all__ = ["CalibrationOptions", "FitOptions"]
 
 
@@ -46,11 +48,20 @@ class FitOptions:
         Seed of the multistart starts.
     prior : bool, default True
         Use the vehicle file's ``[prior]`` section when it has one (a MAP fit).
+    inputs : str, default "hold"
+        How the logged inputs (rudder, planes, propeller) are reconstructed between their
+        samples (:data:`bayesid.models.context.INPUT_RECONSTRUCTIONS`): ``"hold"`` keeps each
+        sample until the next (zero-order hold); ``"linear"`` interpolates linearly between
+        samples, as a rate-limited rudder logged at its instantaneous angle moves. With a coarse
+        log (1-5 Hz) of a moving rudder the hold makes the rudder act about half a sample late
+        (issue 50). The model keeps it (``model.inputs``), so prediction and sampling of the
+        fitted model read the inputs as the fit did.
 
     Raises
     ------
     ValueError
-        ``max_nfev`` below 1, negative ``starts``, a non-positive ``window_s`` or ``dt``.
+        ``max_nfev`` below 1, negative ``starts``, a non-positive ``window_s`` or ``dt``, an
+        unknown ``inputs``.
     """
 
     free: tuple | None = None
@@ -65,6 +76,7 @@ class FitOptions:
     starts: int = 0
     random_seed: int = 0
     prior: bool = True
+    inputs: str = "hold"
 
     def __post_init__(self):
         for name in ("free", "effects", "channels"):
@@ -79,6 +91,10 @@ class FitOptions:
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"FitOptions.{name} must be positive, not {v}")
+        if self.inputs not in INPUT_RECONSTRUCTIONS:
+            raise ValueError(
+                f"FitOptions.inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}"
+            )
 
     def to_dict(self) -> dict:
         """The options as a JSON-able dict (a run's identity).

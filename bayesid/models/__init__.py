@@ -8,6 +8,7 @@ the command line) works with the model it returns.
 from __future__ import annotations
 
 from ..data.vehicle import Vehicle, load_vehicle
+from .context import INPUT_RECONSTRUCTIONS
 from .interface import SimulationModel
 from .ship import Ship, ShipModel, is_ship_file, load_ship
 from .submarine import EffectModel
@@ -45,7 +46,13 @@ def model_class(vehicle):
 
 
 def build_model(
-    vehicle, free=None, effects=(), dt: float | None = None, mode: str = "horizontal", kernel: str = "generated"
+    vehicle,
+    free=None,
+    effects=(),
+    dt: float | None = None,
+    mode: str = "horizontal",
+    kernel: str = "generated",
+    inputs: str = "hold",
 ):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
     :class:`~bayesid.models.ship.model.ShipModel`, for a submarine
@@ -66,6 +73,10 @@ def build_model(
         Degrees of freedom of a submarine model (a ship is always 3-DOF).
     kernel : {"generated", "interpreted"}, default "generated"
         The compiled kernel kind (the interpreted one takes any set of terms without compiling).
+    inputs : {"hold", "linear"}, default "hold"
+        How the logged inputs are reconstructed between samples
+        (:data:`bayesid.models.context.INPUT_RECONSTRUCTIONS`); the model's ``inputs``
+        attribute, read by its track contexts.
 
     Returns
     -------
@@ -77,12 +88,16 @@ def build_model(
     KeyError
         For an unknown coefficient (:class:`~bayesid.data.terms.UnknownCoefficientError`).
     ValueError
-        For an unknown effect.
+        For an unknown effect or input reconstruction.
     TypeError
         For a vehicle description of no registered family.
     """
+    if inputs not in INPUT_RECONSTRUCTIONS:
+        raise ValueError(f"inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {inputs!r}")
     cls = model_class(vehicle)
-    return cls.for_vehicle(vehicle, free, effects, dt=cls.DEFAULT_DT if dt is None else dt, mode=mode, kernel=kernel)
+    model = cls.for_vehicle(vehicle, free, effects, dt=cls.DEFAULT_DT if dt is None else dt, mode=mode, kernel=kernel)
+    model.inputs = inputs
+    return model
 
 
 def load_any_vehicle(path_or_id):

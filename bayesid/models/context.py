@@ -21,10 +21,16 @@ from ..data.track import INPUT_NAMES, STATE_NAMES, Track
 from ..protocol import CHANNELS, estimate_noise, state_at, state_guess, window_starts, wrap
 from .effects import Effect
 
-
 # ---------------------------------------------------------------------------------------------
 # Input processing
 # ---------------------------------------------------------------------------------------------
+#: How the logged inputs are reconstructed between their samples: ``"hold"`` keeps each sample
+#: until the next (zero-order hold, the default); ``"linear"`` interpolates linearly between
+#: samples, as a rate-limited rudder logged at its instantaneous angle moves (issue 50: a
+#: 16 deg/s rudder held over a 0.2 s log interval acts half a sample late on average).
+INPUT_RECONSTRUCTIONS = ("hold", "linear")
+
+
 @nb.njit(cache=True)
 def _servo(x, dt, lag, rate):
     """First-order lag behind a rate limit, in place on commands sampled every ``dt``.
@@ -154,24 +160,42 @@ class TrackContext:
     leadin_s : float, default 0.0
         Lead-in of the fitted rule, s, a non-negative multiple of the model step and at most the
         window.
+    inputs : {"hold", "linear"}, optional
+        How the logged inputs are reconstructed between samples (:data:`INPUT_RECONSTRUCTIONS`);
+        None: the model's ``inputs`` attribute, ``"hold"`` when it has none. Kept as
+        ``input_reconstruction``.
 
     Raises
     ------
     ValueError
-        An unknown start rule; a track shorter than one model step, or spanning more than
-        :data:`MAX_GRID_STEPS` steps (names its longest gap), or too short for a window after the
-        lead-in; a window or lead-in that is not a multiple of the step; a lead-in longer than
-        the window; a missing ``delta_r`` or ``n`` column or an input without any value.
+        An unknown start rule or input reconstruction; a track shorter than one model step, or
+        spanning more than :data:`MAX_GRID_STEPS` steps (names its longest gap), or too short for
+        a window after the lead-in; a window or lead-in that is not a multiple of the step; a
+        lead-in longer than the window; a missing ``delta_r`` or ``n`` column or an input without
+        any value.
     """
 
     def __init__(
-        self, model, track: Track, window_s, span_s, s0=None, substeps=10, start="measured", leadin_s: float = 0.0
+        self,
+        model,
+        track: Track,
+        window_s,
+        span_s,
+        s0=None,
+        substeps=10,
+        start="measured",
+        leadin_s: float = 0.0,
+        inputs: str | None = None,
     ):
         dt = model.dt
         t = np.asarray(track.t, float)
         self.model, self.track, self.name = model, track, track.name
         if start not in ("measured", "fitted"):
             raise ValueError(f"start rule must be 'measured' or 'fitted' here, not {start!r}")
+        inputs = getattr(model, "inputs", "hold") if inputs is None else inputs
+        if inputs not in INPUT_RECONSTRUCTIONS:
+            raise ValueError(f"inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {inputs!r}")
+        self.input_reconstruction = inputs
         self.start = "measured" if s0 is not None else start
         self.window_s = window_s
         self.t0 = float(t[0])
@@ -278,35 +302,48 @@ class TrackContext:
         if model.mode == "horizontal":
             self.s_meas[:, [2, 3, 4, 8, 9, 10]] = 0.0
         self.lead = self._lead_samples(track, t) if self.start == "fitted" else None
-        self._tk, self._ck = self._input_integral(track, t)
+        self._tk, self._ck, self._uk = self._input_integral(track, t, inputs)
         self.substeps = int(substeps)
         self.step_inputs = self.average_inputs(np.zeros(1))[0]
 
     @staticmethod
-    def _input_integral(track: Track, t) -> tuple:
-        """(knot times, cumulative integral (n + 2, 4)) of the zero-order-held inputs, padded
-        beyond both ends: averages over any interval are exact differences of it. Missing samples
-        are forward-filled; ValueError for a missing ``delta_r`` or ``n`` column or an input
-        without any value."""
+    def _input_integral(track: Track, t, inputs: str = "hold") -> tuple:
+        """(knot times (n + 2,), cumulative integral (n + 2, 4), input values at the knots
+        (n + 2, 4) or None) of the inputs reconstructed between samples, padded beyond both ends
+        with the first and last sample held: averages over any interval are exact differences of
+        the integral.
+
+        ``"hold"``: the integral is piecewise linear (the knot values alone, None for the input
+        values; missing samples forward-filled). ``"linear"``: the inputs are piecewise linear
+        between the knots, the integral piecewise quadratic (:func:`_linear_integral`; missing
+        samples interpolated between their neighbours). ValueError for a missing ``delta_r`` or
+        ``n`` column or an input without any value."""
         missing = [k for k in ("delta_r", "n") if k not in track]
         if missing:
             raise ValueError(f"track {track.name!r} has no input column(s) {missing}")
         U = track.inputs(fill=0.0)
-        for j in range(4):  # forward-fill missing samples
+        for j in range(4):  # fill missing samples
             col = U[:, j]
             bad = ~np.isfinite(col)
             if bad.all():
                 raise ValueError(f"track {track.name!r}: input {INPUT_NAMES[j]} has no value")
-            if bad.any():
+            if bad.any() and inputs == "linear":
+                col[bad] = np.interp(t[bad], t[~bad], col[~bad])
+            elif bad.any():
                 idx = np.where(~bad, np.arange(col.size), 0)
                 np.maximum.accumulate(idx, out=idx)
                 col[:] = col[idx]
                 if bad[0]:
                     col[: np.argmax(~bad)] = col[np.argmax(~bad)]
         pad = 1e5
+        tk = np.concatenate([[t[0] - pad], t, [t[-1] + pad]])
         dts = np.diff(t)
+        if inputs == "linear":
+            # trapezoids between samples (the integral is 0 at the first sample, as for the hold)
+            cum = np.concatenate([[0.0 * U[0]], np.cumsum(0.5 * (U[1:] + U[:-1]) * dts[:, None], axis=0)])
+            return tk, np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad]), np.vstack([U[:1], U, U[-1:]])
         cum = np.concatenate([[0.0 * U[0]], np.cumsum(U[:-1] * dts[:, None], axis=0)])
-        return np.concatenate([[t[0] - pad], t, [t[-1] + pad]]), np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad])
+        return tk, np.vstack([-U[0] * pad, cum, cum[-1] + U[-1] * pad]), None
 
     @property
     def n_virtual(self) -> int:
@@ -388,6 +425,9 @@ class TrackContext:
         out = np.empty((delay.size, tf.size - 1, 4))
         h = self.model.dt / m
         for b, d in enumerate(delay):
+            if self._uk is not None:
+                out[b] = np.diff(_linear_integral(tf - d, self._tk, self._ck, self._uk), axis=0) / h
+                continue
             for j in range(4):
                 c = np.interp(tf - d, self._tk, self._ck[:, j])
                 out[b, :, j] = np.diff(c) / h
@@ -431,6 +471,33 @@ class TrackContext:
             if type(e).input_map is not Effect.input_map:
                 e.input_map(x, q)
         return x
+
+
+def _linear_integral(tq, tk, ck, uk) -> np.ndarray:
+    """The integral of inputs linear between knots, evaluated exactly at times ``tq``.
+
+    Parameters
+    ----------
+    tq : ndarray, shape (m,)
+        Times, s (clipped to the knots' span).
+    tk : ndarray, shape (n,)
+        Knot times, s, increasing.
+    ck : ndarray, shape (n, k)
+        The integral at the knots.
+    uk : ndarray, shape (n, k)
+        The inputs at the knots.
+
+    Returns
+    -------
+    ndarray, shape (m, k)
+        ``ck[i] + uk[i] s + (uk[i + 1] - uk[i]) s^2 / (2 h_i)`` with ``s = tq - tk[i]`` in the knot
+        interval ``i`` (of length ``h_i``) that holds ``tq``.
+    """
+    tq = np.clip(tq, tk[0], tk[-1])
+    i = np.clip(np.searchsorted(tk, tq, side="right") - 1, 0, tk.size - 2)
+    s = (tq - tk[i])[:, None]
+    slope = (uk[i + 1] - uk[i]) / (tk[i + 1] - tk[i])[:, None]
+    return ck[i] + uk[i] * s + 0.5 * slope * s * s
 
 
 #: State components (STATE_NAMES indices x, y, psi, u, v, r) of a window start that the fitted
@@ -538,6 +605,7 @@ def errors(ctx: TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
 
 __all__ = [
     "TrackContext",
+    "INPUT_RECONSTRUCTIONS",
     "continuous_pieces",
     "MAX_GRID_STEPS",
     "errors",

@@ -55,6 +55,9 @@ class SimulationModel(Protocol):
         Model step, s.
     mode : str
         ``"horizontal"`` or ``"6dof"``.
+    inputs : str, optional
+        How its track contexts reconstruct the logged inputs between samples, ``"hold"`` or
+        ``"linear"`` (set by :func:`bayesid.models.build_model`; a model without it holds them).
     DEFAULT_DT : float
         Class level, the vessel family's: model step (s) when the user gives none.
     DEFAULT_WEIGHTING : str

@@ -83,7 +83,9 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         "",
         *(["**Input warnings:** " + "; ".join(warn), ""] if warn else []),
         f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
-        f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s; "
+        f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s"
+        + ("; inputs interpolated linearly between samples" if doc.get("inputs", "hold") == "linear" else "")
+        + "; "
         f"{len(doc['train_runs'])} training run(s).",
         "",
         f"Equation-error seed: {'used' if doc['seed'].get('used') else 'not used'} "
