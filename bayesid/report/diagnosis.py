@@ -804,21 +804,24 @@ def _which_lines(res: dict) -> list:
 def _bic_heldout_lines(res: dict) -> list:
     """A sentence for each candidate on which the training ΔBIC and the held-out windows disagree:
     strongly favoured by BIC (ΔBIC at most the threshold) without a held-out gain, or a held-out
-    gain (positive shrinkage and the window test or the excess removed) that BIC does not support."""
+    gain (positive shrinkage and the window test or the excess removed) that BIC does not support.
+    Reads the ranking's rows by key: :class:`~bayesid.analysis.gap.records.CandidateRow` records or
+    dicts with the keys used (``effect``, ``heldout_rms_m``, ``heldout_shrinkage``,
+    ``excess_removed``, ``delta_bic``, ``window_p_value``)."""
     th = res["thresholds"]
     lines = []
-    for r in map(partial(_record, CandidateRow), res["ranking"]):
-        p = r.window_p_value
-        gain = r.heldout_shrinkage > 0 and (
-            (p is not None and p < th["partial_p"]) or r.excess_removed >= th["explain_fraction"]
+    for r in res["ranking"]:
+        p = r.get("window_p_value")
+        gain = r["heldout_shrinkage"] > 0 and (
+            (p is not None and p < th["partial_p"]) or r["excess_removed"] >= th["explain_fraction"]
         )
-        favoured = r.delta_bic <= th["bic_threshold"]
-        shrink = r.heldout_shrinkage
-        ref = r.heldout_rms_m / (1.0 - shrink) if shrink != 1 else None
-        held = f"held-out RMS {fmt(ref)} m -> {fmt(r.heldout_rms_m)} m, window test p = {fmt(p)}"
+        favoured = r["delta_bic"] <= th["bic_threshold"]
+        shrink = r["heldout_shrinkage"]
+        ref = r["heldout_rms_m"] / (1.0 - shrink) if shrink != 1 else None
+        held = f"held-out RMS {fmt(ref)} m -> {fmt(r['heldout_rms_m'])} m, window test p = {fmt(p)}"
         if favoured and not gain:
             lines.append(
-                f"- **BIC and held-out disagree on {r.effect}**: training ΔBIC {fmt(r.delta_bic, 4)} favours it "
+                f"- **BIC and held-out disagree on {r['effect']}**: training ΔBIC {fmt(r['delta_bic'], 4)} favours it "
                 f"strongly, but "
                 + ("its held-out gain is not significant" if shrink > 0 else "it brings no held-out gain")
                 + f" ({held}; needs p < {th['partial_p']} or {th['explain_fraction']} of the excess removed). The "
@@ -828,8 +831,8 @@ def _bic_heldout_lines(res: dict) -> list:
             )
         elif gain and not favoured:
             lines.append(
-                f"- **BIC and held-out disagree on {r.effect}**: it improves the held-out windows ({held}), but "
-                f"training ΔBIC {fmt(r.delta_bic, 4)} does not support it (needs <= {th['bic_threshold']}): the "
+                f"- **BIC and held-out disagree on {r['effect']}**: it improves the held-out windows ({held}), but "
+                f"training ΔBIC {fmt(r['delta_bic'], 4)} does not support it (needs <= {th['bic_threshold']}): the "
                 "training runs alone do not pay for its parameters. More or richer training runs would decide; it is "
                 "not added on this evidence."
             )
