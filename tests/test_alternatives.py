@@ -155,6 +155,83 @@ def test_a_kept_term_a_held_out_run_shows_worse_than_another_goes_after_it():
     )
 
 
+def _trained(held, train=None, runs=None):
+    """A single-term refit with per-window held-out errors and, optionally, training errors."""
+    held = np.asarray(held, float)
+    rms = float(np.sqrt(np.mean(held**2)))
+    tw = None if train is None else np.asarray(train, float)
+    return Stage(None, None, {}, {"rms_position_m": rms}, None, held, tw, runs)
+
+
+def _tied_heldout_training_apart(rng, ratio):
+    """Held-out windows (3 zigzags of 5) on which two structures tie, and training windows (2
+    zigzags of 6 and a designed pull-out of 4) on which the second follows the pull-out
+    ``ratio`` times worse."""
+    held = 0.4 * np.exp(0.15 * rng.standard_normal(15))
+    held_b = held * np.exp(0.03 * rng.standard_normal(15))
+    train = 0.2 * np.exp(0.15 * rng.standard_normal(16))
+    train_b = train * np.exp(0.03 * rng.standard_normal(16))
+    train_b[12:] *= ratio
+    truns = np.repeat(np.arange(3), [6, 6, 4])
+    return (held, train), (held_b, train_b), truns
+
+
+def test_the_training_runs_separate_two_structures_the_held_out_runs_tie():
+    """Issue 49 (closing the loop with the designed run in the training runs): the held-out
+    zigzags cannot tell the hidden term from its surrogate, the designed run in training can;
+    the alternative is then separated, by the training runs, and the report says so."""
+    rng = np.random.default_rng(11)
+    (h, t), (hb, tb), truns = _tied_heldout_training_apart(rng, 2.0)
+    runs = np.repeat(np.arange(3), 5)
+    rows = [
+        {"term": "Nabsdr", "kept": True, "heldout_rms_after_m": 0.40},
+        {"term": "Nabsrabsdr", "kept": True, "heldout_rms_after_m": 0.40},
+    ]
+    stages = {"Nabsdr": _trained(h, t, truns), "Nabsrabsdr": _trained(hb, tb, truns)}
+    e = dv.compare_structures(["Nabsdr"], rows, stages, Thresholds(), runs, ["z1", "z2", "z3"])["Nabsdr"][0]
+    assert e["window_p_value"] > 0.01 and (e["run_p_value"] or 1) > 0.01  # the held-out runs tie them
+    assert e["separable"] and e["separated_by"] == "training"
+    assert e["train_separating_run"] == "2" and e["train_error_ratio"] == pytest.approx(2.0, rel=0.05)
+    assert e["train_run_p_value"] < 0.01
+    # the other way round the training runs show the kept term better: not separated, an alternative
+    flip = dv.compare_structures(["Nabsrabsdr"], rows, stages, Thresholds(), runs)["Nabsrabsdr"][0]
+    assert not flip["separable"] and flip["separated_by"] is None
+    # and the kept order follows the training runs where the held-out runs tie
+    assert dv.dominance_order(["Nabsrabsdr", "Nabsdr"], stages, Thresholds(), (runs, ["z1", "z2", "z3"])) == [
+        "Nabsdr",
+        "Nabsrabsdr",
+    ]
+    # without training windows (an older stage) nothing changes: an alternative
+    bare = {k: _trained(v.windows) for k, v in stages.items()}
+    e = dv.compare_structures(["Nabsdr"], rows, bare, Thresholds(), runs)["Nabsdr"][0]
+    assert not e["separable"] and e["train_window_p_value"] is None
+
+
+def test_the_training_runs_do_not_overrule_a_held_out_run_that_favours_the_competitor():
+    rng = np.random.default_rng(12)
+    (h, t), (hb, tb), truns = _tied_heldout_training_apart(rng, 2.0)
+    hb[:5] = h[:5] / 2.0  # the competitor predicts the first held-out run twice as well
+    runs = np.repeat(np.arange(3), 5)
+    rows = [
+        {"term": "Nabsdr", "kept": True, "heldout_rms_after_m": 0.40},
+        {"term": "Nabsrabsdr", "kept": True, "heldout_rms_after_m": 0.40},
+    ]
+    stages = {"Nabsdr": _trained(h, t, truns), "Nabsrabsdr": _trained(hb, tb, truns)}
+    e = dv.compare_structures(["Nabsdr"], rows, stages, Thresholds(), runs)["Nabsdr"][0]
+    assert e["train_run_p_value"] < 0.01  # the training runs alone would separate them
+    assert not e["separable"] and e["kept_worse_run"] == "0"
+
+
+@pytest.mark.parametrize("ratio", [1.0, 1.05])
+def test_training_windows_that_agree_within_the_margin_separate_at_about_the_level(ratio):
+    hits = 0
+    for seed in range(200):
+        (_, t), (_, tb), truns = _tied_heldout_training_apart(np.random.default_rng(seed), ratio)
+        k, o = _trained(np.ones(6), t, truns), _trained(np.ones(6), tb, truns)
+        hits += dv.training_separation(k, o, Thresholds())["separated"]
+    assert hits <= 6  # the pooled and the run-by-run test at 1 % each, with room for sampling
+
+
 def test_the_run_test_refuses_arrays_of_different_lengths():
     with pytest.raises(ValueError, match="differ in length"):
         dv.run_separation_test(np.ones(5), np.ones(5), np.zeros(4, int))

@@ -252,8 +252,9 @@ def _alternatives_lines(res: dict) -> list:
         if d["separable"]:
             lines.append(
                 f"- **{d['term']}**: every other refitted term either predicts the held-out windows significantly "
-                "worse (paired window test over all windows, or on one run) or predicts them worse and did not pass "
-                "the kept test: among the refitted terms, the runs separate it."
+                "worse (paired window test over all windows, or on one run), or follows the training runs "
+                "significantly worse where the held-out runs tie them, or predicts the held-out windows worse and did "
+                "not pass the kept test: among the refitted terms, the runs separate it."
             )
         else:
             alts = "; ".join(
@@ -330,7 +331,20 @@ def _index_cell(v: dict) -> str:
 
 
 def _separated_cell(a: dict) -> str:
-    """``Nvvr (held-out 0.64 m; on run R 1.8x the kept term's window errors, run test p = 0.001)``."""
+    """``Nvvr (held-out 0.64 m; on run R 1.8x the kept term's window errors, run test p = 0.001)``;
+    where only the training runs separate them, their test (``on the training runs: ...``)."""
+    if a.get("separated_by") == "training":
+        if a.get("train_run_p_value") is not None and a["train_run_p_value"] < (a.get("train_window_p_value") or 1):
+            how = (
+                f"on the training run {a['train_separating_run']} {fmt(a['train_error_ratio'])}x the kept term's "
+                f"fitted window errors, run test p = {fmt(a['train_run_p_value'])}"
+            )
+        else:
+            how = f"on the training runs' fitted windows, window test p = {fmt(a['train_window_p_value'])}"
+        return (
+            f"{a['term']} (held-out {fmt(a['heldout_rms_m'])} m, not separated there; {how}: a structure of the "
+            "same size that follows the training runs worse)"
+        )
     if a.get("run_p_value") is not None and a["run_p_value"] < a["window_p_value"]:
         how = (
             f"on {a['separating_run']} {fmt(a['run_error_ratio'])}x the kept term's window errors, run test "

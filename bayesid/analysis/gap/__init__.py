@@ -23,7 +23,9 @@ free coefficients. It
    of all scored channels at the fits' channel sds (:func:`bayesid.estimation.windows.scores`).
 
 The package is split by question: :mod:`.where`, :mod:`.candidates`, :mod:`.verdict` (the rules
-below), :mod:`.support`, and the orchestration :mod:`.diagnose`, which returns a
+below), :mod:`.support`, the typed records the steps pass on and the JSON writes (:mod:`.records`:
+noise floor, candidate rows, remainder, base-fit check, discovered-term rows), and the
+orchestration :mod:`.diagnose`, which returns a
 :class:`~.diagnose.Diagnosis`; the report layer (:func:`bayesid.report.write_diagnosis`) writes it.
 
 Window start states follow the protocol's start rule (:data:`bayesid.protocol.START_RULES`):

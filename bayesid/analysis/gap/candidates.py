@@ -55,6 +55,11 @@ class Stage:
         Its held-out nuisances.
     windows : ndarray
         Its per-window held-out RMS position errors (:func:`~bayesid.estimation.windows.window_rms`).
+    train_windows : ndarray, optional
+        Its per-window RMS position errors on the training tracks' fit windows, m (None where not
+        scored: the base models of the diagnosis).
+    train_runs : ndarray of int, optional
+        The training track of each of ``train_windows``.
     """
 
     model: object
@@ -63,6 +68,8 @@ class Stage:
     held: dict
     nuisance: list | None
     windows: np.ndarray
+    train_windows: np.ndarray | None = None
+    train_runs: np.ndarray | None = None
 
 
 @dataclass
@@ -160,7 +167,7 @@ def score_stage(model, fit: FitResult, ctx_train: list, ctx_held: list, sd_fit: 
     Returns
     -------
     Stage
-        The scored model.
+        The scored model, with its per-window errors on the held-out and the training tracks.
     """
     nu_h = heldout_nuisance(model, fit, ctx_held, sd_fit) if model.n_nuisance else None
     return Stage(
@@ -170,6 +177,8 @@ def score_stage(model, fit: FitResult, ctx_train: list, ctx_held: list, sd_fit: 
         scores(model, fit, ctx_held, nu_h, sd=sd_fit),
         nu_h,
         window_rms(model, fit, ctx_held, nu_h),
+        window_rms(model, fit, ctx_train),
+        np.repeat(np.arange(len(ctx_train)), [c.W for c in ctx_train]),
     )
 
 

@@ -78,6 +78,7 @@ from .confirmation import (
     heldout_rms_by_run,
     refit_row,
     separated,
+    training_separation,
     window_runs,
     worst_run,
 )
@@ -117,6 +118,7 @@ __all__ = [
     "alternatives",
     "compare_structures",
     "separated",
+    "training_separation",
     "window_runs",
     "dominance_order",
     "fit_term",
@@ -184,12 +186,13 @@ class Discovery:
         Wall time.
     alternatives : dict
         ``{kept term: [{"term", "heldout_rms_m", "window_p_value", "run_p_value", ...}, ...]}``:
-        every competing refitted term the held-out runs cannot separate from the kept term
-        (:func:`~.confirmation.compare_structures`); empty lists where the runs separate the kept term from
-        every other.
+        every competing refitted term the runs (held-out, or training where the held-out runs tie
+        them) cannot separate from the kept term (:func:`~.confirmation.compare_structures`);
+        empty lists where the runs separate the kept term from every other.
     separated : dict
         ``{kept term: [...]}``, the same entries for the competing terms the runs separate, with
-        the run that separates each (``separating_run``, ``run_error_ratio``).
+        the run that separates each (``separating_run``, ``run_error_ratio``; where only the
+        training runs do, ``train_separating_run``, ``train_error_ratio``) and ``separated_by``.
     after : Stage, optional
         The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
     reference : Stage, optional

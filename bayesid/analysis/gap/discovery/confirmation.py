@@ -28,6 +28,7 @@ __all__ = [
     "combine",
     "dominance_order",
     "compare_structures",
+    "training_separation",
     "alternatives",
     "separated",
     "window_runs",
@@ -358,9 +359,10 @@ def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None
     Term ``a`` *dominates* ``b`` when some held-out run predicts ``b`` significantly worse than
     ``a`` and none predicts ``a`` significantly worse than ``b`` (the run-by-run test of
     :func:`compare_structures`, :func:`~bayesid.analysis.gap.verdict.run_separation_test`, at
-    ``th.partial_p`` with ``th.separation_margin``). The pooled held-out RMS alone would put
-    first a term that ties on many runs and loses clearly on one, such as a designed run added
-    to separate it from the hidden term.
+    ``th.partial_p`` with ``th.separation_margin``), or, where the held-out runs separate
+    neither way, when the training runs show ``b`` to be worse (:func:`training_separation`).
+    The pooled held-out RMS alone would put first a term that ties on many runs and loses
+    clearly on one, such as a designed run added to separate it from the hidden term.
 
     Parameters
     ----------
@@ -389,6 +391,9 @@ def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None
                     continue
                 res = run_separation_test(wa, wb, idx, th.separation_margin)
                 b_worse, a_worse = res["p_second_worse"] < th.partial_p, res["p_first_worse"] < th.partial_p
+                if not b_worse and not a_worse:  # the held-out runs tie them: do the training runs?
+                    b_worse = training_separation(stages[a], stages[b], th)["separated"]
+                    a_worse = training_separation(stages[b], stages[a], th)["separated"]
                 if b_worse and not a_worse:
                     beaten[b] += 1
                 elif a_worse and not b_worse:
@@ -412,7 +417,17 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
       ``k``'s by more than ``th.separation_margin`` and none on which ``k``'s exceed ``a``'s
       (:func:`~bayesid.analysis.gap.verdict.run_separation_test`, Bonferroni over the runs): a
       single designed run of a few windows separates two structures that agree on every
-      other run, which the pooled rank test cannot see.
+      other run, which the pooled rank test cannot see;
+    - on the training runs, when the held-out runs favour neither (no held-out run on which
+      ``k`` is significantly worse, and ``a``'s held-out windows not significantly better
+      pooled): the run test, pooled and run by run, on the two refits' training windows
+      (:func:`training_separation`). Both refits have the same number of coefficients and were
+      fitted to the same windows, so the one whose fitted model follows those windows
+      significantly worse is the worse structure for them (the likelihood comparison of two
+      models of equal size, Box & Hill 1967), and a designed run a user adds to the training
+      runs separates there, where the held-out runs, of the old kinds, cannot. The window is
+      the unit of both tests, not the sample: simulation errors are correlated within a window,
+      which a comparison of the training log-likelihoods (ΔBIC) ignores.
 
     Otherwise ``a`` is an *alternative*: the output-error counterpart of a collinear group, two
     terms whose refitted models predict the held-out runs equally well, whatever their columns'
@@ -447,7 +462,10 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
         ``a`` is worse and its geometric-mean error ratio ``a / k``; ``kept_worse_run`` and
         ``kept_worse_run_p_value``: the converse (a run on which ``k`` is significantly worse
         than ``a``, or None; its p); ``heldout_rms_by_run_m``
-        ``{held-out run: position RMS, m}``.
+        ``{held-out run: position RMS, m}``; ``train_window_p_value``, ``train_run_p_value``,
+        ``train_separating_run`` and ``train_error_ratio``: the training runs' tests
+        (:func:`training_separation`; None without training windows); ``separated_by``: which
+        data separate them (``"heldout"``, ``"training"`` or None).
     """
     out = {}
     for k in found:
@@ -475,11 +493,15 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
                 run = run_separation_test(kw, aw, np.asarray(runs), th.separation_margin)
             i = run["run_second_worse"]
             by_run = run["ratio_by_run"]
-            separated = p < th.partial_p or (
+            by_heldout = p < th.partial_p or (
                 run["p_second_worse"] is not None
                 and run["p_second_worse"] < th.partial_p
                 and run["p_first_worse"] >= th.partial_p
             )
+            trn = training_separation(stages[k], stages[a], th)
+            heldout_favours_a = run["p_first_worse"] < th.partial_p or paired_window_test(kw, aw) < th.partial_p
+            by_training = not by_heldout and not heldout_favours_a and trn["separated"]
+            separated = by_heldout or by_training
             out[k].append(
                 {
                     "term": a,
@@ -496,9 +518,65 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
                     "kept_worse_run_p_value": run["p_first_worse"] if runs is not None else None,
                     "separable": bool(separated),
                     "heldout_rms_by_run_m": heldout_rms_by_run(stages[a]),
+                    "train_window_p_value": trn["p_window"],
+                    "train_run_p_value": trn["p_run"],
+                    "train_separating_run": trn["run"],
+                    "train_error_ratio": trn["ratio"],
+                    "separated_by": "heldout" if by_heldout else "training" if by_training else None,
                 }
             )
         out[k].sort(key=lambda d: d["heldout_rms_m"])
+    return out
+
+
+def training_separation(kept: Stage, other: Stage, th: Thresholds, names=None) -> dict:
+    """Whether the training runs show ``other`` to be worse than ``kept``: its fitted model
+    follows the training windows significantly worse.
+
+    The refits' per-window training errors (``Stage.train_windows``) are compared as the
+    held-out ones are run by run (:func:`~bayesid.analysis.gap.verdict.run_separation_test`:
+    the mean log error ratio ``log(other / kept)`` tested against ``log(1 + th.separation_margin)``,
+    one-sided, at ``th.partial_p``), once pooled over every training window and once run by
+    run (Bonferroni over the runs); neither may favour ``other`` over ``kept``. Unlike the
+    held-out pooled test (Wilcoxon signed rank, no margin), the pooled training test has the
+    margin: the windows were fitted, and a structure of the same size that follows them a few
+    per cent worse everywhere is not shown wrong by that.
+
+    Parameters
+    ----------
+    kept, other : Stage
+        Two single-term refits on the same training tracks and fit windows.
+    th : Thresholds
+        ``partial_p`` and ``separation_margin``.
+    names : list of str, optional
+        The training runs' names (else their indices).
+
+    Returns
+    -------
+    dict
+        ``separated`` (bool), ``p_window`` and ``p_run`` (the pooled and the run-by-run test's
+        p that ``other`` is worse; None without training windows), ``run`` (the training run of
+        the run test's strongest evidence, or None) and ``ratio`` (its geometric-mean window
+        error ratio ``other / kept``).
+    """
+    kw, aw = getattr(kept, "train_windows", None), getattr(other, "train_windows", None)
+    runs = getattr(kept, "train_runs", None)
+    out = {"separated": False, "p_window": None, "p_run": None, "run": None, "ratio": None}
+    if kw is None or aw is None or runs is None or not len(kw) == len(aw) == len(runs):
+        return out
+    kw, aw, runs = np.asarray(kw, float), np.asarray(aw, float), np.asarray(runs)
+    pooled = run_separation_test(kw, aw, np.zeros(len(runs), int), th.separation_margin)
+    run = run_separation_test(kw, aw, runs, th.separation_margin)
+    i = run["run_second_worse"]
+    worse = pooled["p_second_worse"] < th.partial_p or run["p_second_worse"] < th.partial_p
+    better = pooled["p_first_worse"] < th.partial_p or run["p_first_worse"] < th.partial_p
+    out.update(
+        separated=bool(worse and not better),
+        p_window=float(pooled["p_second_worse"]),
+        p_run=float(run["p_second_worse"]),
+        run=None if i is None else _run_name(names, i),
+        ratio=run["ratio_by_run"].get(i) if i is not None else None,
+    )
     return out
 
 
