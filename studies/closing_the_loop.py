@@ -134,6 +134,11 @@ def _round(d, hidden: str | None, run: str | None = None) -> dict:
             i["term"]: {a["term"]: a["heldout_rms_m"] for a in i["alternatives"]} | {i["term"]: i["heldout_rms_m"]}
             for i in kept
         },
+        # the competitors only the training runs' fit windows set apart (the held-out runs tie them)
+        "separated_by_training": {
+            i["term"]: [a["term"] for a in i.get("separated") or [] if a.get("separated_by") == "training"]
+            for i in kept
+        },
         "hidden_kept_or_alternative": in_set,
         "hidden_kept_alone": hidden is not None and [i["term"] for i in kept] == [hidden] and not alts[hidden],
         "wrong_term_alone": any(i["term"] != hidden and not alts[i["term"]] for i in kept),
@@ -385,6 +390,14 @@ def write_report(out: Path, rows: list, args) -> dict:
         "round2_resolved_up_to_menu": sum(_resolved_up_to_menu(r, "round2") for r in looped),
         "round2_train_resolved_up_to_menu": sum(_resolved_up_to_menu(r, "round2_train") for r in looped),
         "cases_with_menu_inseparable_pairs": sum(bool(_menu_inseparable(r)) for r in looped),
+        # where the training runs separated a competitor the held-out runs tie (by round)
+        **{
+            f"{key}_separated_by_training": sum(
+                any((r.get(key) or {}).get("separated_by_training", {}).values())
+                for r in (clear if key == "round1" else looped)
+            )
+            for key in ("round1", "round2", "round2_train")
+        },
     }
     misses = [r for r in looped if not r["round2"]["hidden_kept_alone"]]
     coupling = sign_coupling()
@@ -435,7 +448,12 @@ def write_report(out: Path, rows: list, args) -> dict:
         "term when the kept term's held-out windows are significantly better (p < 0.01) pooled over all windows "
         "(one-sided Wilcoxon signed rank) or on one run (the run-by-run test of the log error ratios against a 10 % "
         "margin, Bonferroni over the runs, and no run favouring the competitor): a designed run adds only a few "
-        "windows to many on which the alternatives tie, which the pooled rank test alone cannot see. An alternative "
+        "windows to many on which the alternatives tie, which the pooled rank test alone cannot see. Where the "
+        "held-out runs tie the two, the training runs' fit windows may separate them (the same run test with its "
+        "margin, pooled and run by run; both refits add one coefficient): the training runs separated a competitor "
+        f"in {summary['round1_separated_by_training']} round-1 cases, {summary['round2_separated_by_training']} "
+        f"round-2 cases and {summary['round2_train_separated_by_training']} with the designed run in training. "
+        "An alternative "
         "the designed run sets apart by the table's reading but that round 2 still names is one whose refit was "
         "also better than the kept term's on some other held-out run, or whose few windows on the designed run vary "
         "too much for the run test.",
