@@ -209,30 +209,9 @@ def _cell(v: dict) -> str:
     return f"{fmt(v['value'])} [{fmt(lo)}, {fmt(hi)}]"
 
 
-def _length_cell(r: dict) -> str:
-    """``480 (from 180)`` for a designed run lengthened for the run test, else its duration."""
-    from bayesid.report import fmt
-
-    sized = (r.get("run_test") or {}).get("sized_from_s")
-    return f"{fmt(r['duration_s'])} (from {fmt(sized)})" if sized else fmt(r["duration_s"])
-
-
-def _need_cell(r: dict) -> str:
-    """The run test's outlook of a designed run's worst pair: ``x1.19, 40 windows``."""
-    from bayesid.report import fmt
-
-    pairs = (r.get("run_test") or {}).get("pairs") or {}
-    v = pairs.get(r.get("worst_pair")) or (next(iter(pairs.values())) if pairs else None)
-    if not v:
-        return "-"
-    need = v.get("windows_needed")
-    need = float("inf") if need in (None, "inf") else float(need)
-    tail = "within the margin" if not math.isfinite(need) else f"{math.ceil(need)} windows"
-    return f"x{fmt(v['expected_ratio'])}, {tail}"
-
-
 def write_report(out: Path, res: dict, args) -> None:
     from bayesid.report import fmt, md_table
+    from bayesid.report.diagnosis import design_duration_cell, run_test_cell
 
     D = res["diagnosis"]
     S = res["structures"]
@@ -292,19 +271,25 @@ def write_report(out: Path, res: dict, args) -> None:
             "the run of another kind that would test the term):",
             "",
             md_table(
-                ["rank", "run", "length (s)", "separation (nats)", "worst pair", "run test: expected window ratio"],
+                ["rank", "run", "length (s)", "separation (nats)", "worst pair", "run test: windows needed"],
                 [
-                    [i + 1, r["name"], _length_cell(r), fmt(r["separation"]), r.get("worst_pair") or "-", _need_cell(r)]
+                    [
+                        i + 1,
+                        r["name"],
+                        design_duration_cell(r),
+                        fmt(r["separation"]),
+                        r.get("worst_pair") or "-",
+                        run_test_cell(r),
+                    ]
                     for i, r in enumerate(D["design"][:5])
                 ],
             ),
             "",
             "Length: the three best runs are lengthened (to at most eight 60 s windows) towards the windows the "
             "run-by-run test needs to see the pair apart with 80 % power (from the expected window error ratio and "
-            "the scatter of the ratios within the held-out runs). Run test: the expected ratio of the worse model's "
-            "window errors to the other's and the windows needed; *within the margin* where the expected ratio is "
-            "within the test's 10 % margin, so that no length makes the run test separate the pair (the divergence "
-            "may still rank the run).",
+            "the scatter of the ratios within the held-out runs). Windows needed: with the expected ratio of the two "
+            "models' window errors; *within the margin* where that ratio is below the test's 10 % margin, so that no "
+            "length makes the run test separate the pair (the divergence may still rank the run).",
             "",
         ]
     lines += [

@@ -432,6 +432,15 @@ def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
     rows[0]["menu_inseparable"] = {"Nvvr vs Nvabsvabsr": {"best_run": "zigzag 20/20 port", "separation": 6.8}}
     text = "\n".join(_design_lines({"design": rows}))
     assert "**Not separable by the standard manoeuvres**: no run of the menu separates Nvvr from Nvabsvabsr" in text
+    # a run lengthened for the run test says from what, and the windows its hardest separable pair needs
+    rows[0].update(duration_s=480, run_test={"sized_from_s": 180, "pairs": {}})
+    rows[0]["run_test"]["pairs"] = {
+        "K vs A": {"expected_ratio": 1.19, "windows_needed": 40.4},
+        "K vs B": {"expected_ratio": 1.5, "windows_needed": 6.2},
+        "K vs C": {"expected_ratio": 1.05, "windows_needed": "inf"},
+    }
+    row = next(x for x in "\n".join(_design_lines({"design": rows})).splitlines() if x.startswith("| pull out"))
+    assert "| 480 (from 180) |" in row and "| 41 (x1.19, K vs A); 1 of 3 pairs within the margin |" in row
 
 
 @pytest.mark.parametrize("argv", [["--alternatives", "0"], ["--no-design"], ["--alternatives", "-1"]])

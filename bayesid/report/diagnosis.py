@@ -366,6 +366,35 @@ def _widest_run(kept: dict, alt: dict) -> str:
     return f"; most apart on {r}: {fmt(a[r])} against {fmt(k[r])} m"
 
 
+def design_duration_cell(r: dict) -> str:
+    """``480 (from 180)`` for a designed run lengthened for the run test, else its duration."""
+    sized = (r.get("run_test") or {}).get("sized_from_s")
+    return f"{fmt(r['duration_s'])} (from {fmt(sized)})" if sized else fmt(r["duration_s"])
+
+
+def run_test_cell(r: dict) -> str:
+    """The run test's outlook on a designed run, over the pairs of the kept term and an alternative:
+    the most windows any separable pair needs, with its expected window error ratio, and how many
+    pairs lie within the margin (``41 (x1.19); 2 of 3 pairs within the margin``; ``-`` without)."""
+    pairs = (r.get("run_test") or {}).get("pairs") or {}
+    if not pairs:
+        return "-"
+    need = {
+        k: math.inf if v.get("windows_needed") in (None, "inf") else float(v["windows_needed"])
+        for k, v in pairs.items()
+    }
+    finite = [k for k in need if math.isfinite(need[k])]
+    cells = []
+    if finite:
+        k = max(finite, key=need.get)
+        cells.append(f"{math.ceil(need[k])} (x{fmt(pairs[k]['expected_ratio'])}, {k})")
+    if len(need) == 1 and not finite:
+        cells.append(f"within the margin (x{fmt(next(iter(pairs.values()))['expected_ratio'])})")
+    elif len(finite) < len(need):
+        cells.append(f"{len(need) - len(finite)} of {len(need)} pairs within the margin")
+    return "; ".join(cells)
+
+
 def _design_lines(res: dict) -> list:
     """The runs that would separate the alternatives, best first."""
     rows = res.get("design") or []
@@ -399,6 +428,7 @@ def _design_lines(res: dict) -> list:
                 "separation (nats)",
                 "worst pair",
                 "max position difference (m)",
+                "run test: windows needed",
             ],
             [
                 [
@@ -407,14 +437,22 @@ def _design_lines(res: dict) -> list:
                     fmt(r["rudder_deg"]),
                     fmt(r["check_deg"]),
                     fmt(r["rpm"]),
-                    fmt(r["duration_s"]),
+                    design_duration_cell(r),
                     fmt(r["separation"]),
                     r["worst_pair"],
                     fmt(r["max_position_difference_m"]),
+                    run_test_cell(r),
                 ]
                 for r in rows
             ],
         ),
+        "",
+        "Duration: the three best runs are lengthened (to at most eight protocol windows; `from` the menu's length) "
+        "towards the windows the run-by-run test needs to see the kept term apart from each alternative with 80 % "
+        "power. Windows needed: the most any pair of the kept term and an alternative needs, from the expected ratio "
+        "of the two models' window errors on the run and the scatter of the ratios within the held-out runs; a pair "
+        "is *within the margin* where the expected ratio is below the test's 10 % margin, so that no length lets the "
+        "run test separate it (the run may still rank high by the divergence below).",
         "",
         "Separation: the symmetric Kullback-Leibler (J) divergence between two alternatives' Gaussian predictive "
         "distributions of x, y and heading (the measurement noise of the training runs, or the alternatives' "
