@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import kvlcc2_square_wave_track
 
 from bayesid.analysis.gap import design as dz
 from bayesid.analysis.gap import discovery as dv
@@ -364,21 +365,7 @@ def _n0_against_nabsdr():
     for name, value in (("N0", 0.0008), ("Nabsdr", 0.0016)):
         m = ship.ShipModel(kv.with_coefficients({name: value}), free=[name], dt=0.2)
         stages[name] = Stage(m, SimpleNamespace(p=m.start()), {}, {}, None, np.zeros(0))
-    t = np.arange(0.0, 120.0, 0.5)
-    z = 0 * t
-    train = [
-        Track(
-            t,
-            {
-                "x": 1.179 * t,
-                "y": z,
-                "psi": z,
-                "u": z + 1.179,
-                "delta_r": math.radians(20) * np.sign(np.sin(t / 7)),
-                "n": z + 613.8,
-            },
-        )
-    ]
+    train = [kvlcc2_square_wave_track()]
     setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
     return stages, setup
 

@@ -6,6 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import kvlcc2_square_wave_track
 
 from bayesid.analysis.gap import design as dz
 from bayesid.analysis.gap.candidates import Setup, Stage
@@ -81,21 +82,7 @@ def test_the_best_designed_runs_are_lengthened_for_the_run_test():
     # two KVLCC2 structures (a constant yaw moment and one in |rudder|) whose held-out windows
     # scatter: the best runs get the windows the run test needs, at most max_windows
     kv = ship.load_ship("kvlcc2_7m")
-    t = np.arange(0.0, 120.0, 0.5)
-    z = 0 * t
-    train = [
-        Track(
-            t,
-            {
-                "x": 1.179 * t,
-                "y": z,
-                "psi": z,
-                "u": z + 1.179,
-                "delta_r": math.radians(20) * np.sign(np.sin(t / 7)),
-                "n": z + 613.8,
-            },
-        )
-    ]
+    train = [kvlcc2_square_wave_track()]
     stages = {}
     for name, value, windows in (("N0", 0.0008, [0.1, 1.0] * 2), ("Nabsdr", 0.0016, [1.0, 0.1] * 2)):
         m = ship.ShipModel(kv.with_coefficients({name: value}), free=[name], dt=0.2)
