@@ -367,15 +367,38 @@ def _widest_run(kept: dict, alt: dict) -> str:
 
 
 def design_duration_cell(r: dict) -> str:
-    """``480 (from 180)`` for a designed run lengthened for the run test, else its duration."""
+    """The duration cell of a designed run in the report's table.
+
+    Parameters
+    ----------
+    r : dict
+        A row of ``diagnosis.json["design"]`` (``duration_s``; ``run_test.sized_from_s``).
+
+    Returns
+    -------
+    str
+        ``480 (from 180)`` for a run lengthened for the run test, else its duration, s.
+    """
     sized = (r.get("run_test") or {}).get("sized_from_s")
     return f"{fmt(r['duration_s'])} (from {fmt(sized)})" if sized else fmt(r["duration_s"])
 
 
 def run_test_cell(r: dict) -> str:
-    """The run test's outlook on a designed run, over the pairs of the kept term and an alternative:
-    the most windows any separable pair needs, with its expected window error ratio, and how many
-    pairs lie within the margin (``41 (x1.19); 2 of 3 pairs within the margin``; ``-`` without)."""
+    """The run test's outlook on a designed run, over the pairs of the kept term and an alternative.
+
+    Parameters
+    ----------
+    r : dict
+        A row of ``diagnosis.json["design"]`` (``run_test.pairs``: ``expected_ratio``,
+        ``windows_needed``, :func:`bayesid.analysis.gap.design.run_test_windows`).
+
+    Returns
+    -------
+    str
+        The most windows any separable pair needs, with its expected window error ratio and the
+        pair, and how many pairs lie within the test's margin (``41 (x1.19, K vs A); 2 of 3 pairs
+        within the margin``; ``within the margin (x1.08)`` for a single pair; ``-`` without).
+    """
     pairs = (r.get("run_test") or {}).get("pairs") or {}
     if not pairs:
         return "-"
