@@ -156,3 +156,29 @@ def test_the_real_hsva_runs_stay_within_the_limit():
         peaks.append(float(np.nanmax(np.abs(np.degrees(track["delta_r"])))))
         assert not [w for w in check_track(track, ship, p.name) if "rudder limit" in w], p.name
     assert 34.0 < max(peaks) <= ship.rudder_max_deg + 1.0  # the 35/5 zigzag reaches the limit
+
+
+def _zigzag_rudder(rate_deg_s: float, log_s: float, n_reversals: int = 6) -> Track:
+    """A straight-running track whose rudder reverses between +-20 deg at ``rate_deg_s`` every
+    15 s (``inf``: a step), logged every ``log_s`` seconds."""
+    t = np.arange(0.0, 15.0 * n_reversals, log_s)
+    target = 20.0 * np.where((t // 15.0) % 2 == 0, 1.0, -1.0)
+    ramp = np.clip((t % 15.0) * rate_deg_s, 0.0, 40.0) if np.isfinite(rate_deg_s) else np.full_like(t, 40.0)
+    delta = np.where(t < 15.0, 20.0, target - np.sign(target) * (40.0 - ramp))
+    z = 0 * t
+    return Track(t, {"x": t, "y": z, "psi": z, "delta_r": np.radians(delta), "n": z + 600.0}, name="zz")
+
+
+@pytest.mark.parametrize(
+    "rate, log_s, warned",
+    [(16.0, 0.2, True), (16.0, 1.0, True), (16.0, 0.05, False), (16.0, 0.1, False), (np.inf, 0.5, False)],
+)
+def test_a_log_coarse_for_the_rudders_rate_is_warned_about_naming_the_column(rate, log_s, warned):
+    """Issue 50: a 16 deg/s rudder logged at 1-5 Hz moves 3.2-16 deg between samples, and held
+    between them it acts half an interval late; at 10-20 Hz (1.6 and 0.8 deg) nothing is said,
+    nor for a logged step (a simulation's instantaneous rudder is exact at its sample)."""
+    msgs = [w for w in check_track(_zigzag_rudder(rate, log_s), None, "zz.csv") if "between samples" in w]
+    assert bool(msgs) is warned, msgs
+    if warned:
+        assert msgs[0].startswith("zz.csv: column 'delta_r':") and "--inputs linear" in msgs[0]
+        assert f"{16.0 * log_s:.2g} deg between samples" in msgs[0]

@@ -379,6 +379,51 @@ def _check_rudder_limit(track: Track, vehicle, name: str) -> list[str]:
     ]
 
 
+#: A rudder ramp may move this much (deg) between two log samples (the 90th percentile over the
+#: ramps' samples) before the log is too coarse for the rudder's rate. Held between samples (the
+#: fits' default ``--inputs hold``), the model's rudder acts on average half an interval late: on
+#: synthetic zigzags with a 16 deg/s rudder that put coefficients several sds off at 1-5 Hz (3.2
+#: deg and more per sample) and much less at 10-20 Hz (``benchmarks/log_rate_coverage.py``,
+#: ``reports/benchmark_log_rate.txt``). The HSVA KVLCC2 logs move 0.8 deg per sample at 20 Hz.
+RUDDER_STEP_DEG = 2.0
+
+
+def _ramp_steps(d: np.ndarray) -> np.ndarray:
+    """The per-sample changes of ``d`` (deg) inside ramps: runs of at least two consecutive
+    changes of more than 0.05 deg in the same direction. A lone jump is left out: a logged step
+    (a rudder order, or a simulation's instantaneous rudder) is exact at its sample whatever the
+    log rate."""
+    step = np.diff(d)
+    moving = np.isfinite(step) & (np.abs(step) > 0.05)
+    sign = np.sign(step) * moving
+    same_next = np.zeros(step.size, bool)
+    same_next[:-1] = (sign[:-1] != 0) & (sign[:-1] == sign[1:])
+    in_ramp = same_next.copy()
+    in_ramp[1:] |= same_next[:-1]
+    return np.abs(step[in_ramp])
+
+
+def _check_log_rate(track: Track, name: str) -> list[str]:
+    """A warning when the rudder's ramps move more than :data:`RUDDER_STEP_DEG` between samples
+    (:func:`_ramp_steps`): the log is too coarse for the rudder's rate."""
+    if "delta_r" not in track or track.t.size < 4:
+        return []
+    ramps = _ramp_steps(np.degrees(np.asarray(track["delta_r"], float)))
+    if ramps.size < 4:
+        return []
+    p90 = float(np.percentile(ramps, 90))
+    if p90 <= RUDDER_STEP_DEG:
+        return []
+    h = float(np.median(np.diff(track.t)))
+    return [
+        f"{name}: column 'delta_r': the rudder's ramps move {p90:.2g} deg between samples (90th percentile; log "
+        f"interval {h:.3g} s, about {p90 / h:.3g} deg/s): the log is coarse for the rudder's rate. Held between "
+        f"samples (--inputs hold, the default) the model's rudder acts on average {h / 2:.2g} s late, which moved "
+        "fitted coefficients beyond their intervals on synthetic logs at 1-5 Hz (reports/benchmark_log_rate.txt); "
+        "fit with --inputs linear, or log the rudder faster (or the column logs the rudder order, not its angle)"
+    ]
+
+
 def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
     """Units and plausibility of a track (module docstring).
 
@@ -390,7 +435,9 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         The vessel description it will be fitted to (its declared vessel, nominal rpm, rudder
         limit (a warning when ``|delta_r|`` passes it by more than
         :data:`RUDDER_LIMIT_MARGIN_DEG`) and its own plausibility checks,
-        :meth:`~bayesid.data.vehicle.Vehicle.track_warnings`); None skips those checks.
+        :meth:`~bayesid.data.vehicle.Vehicle.track_warnings`); None skips those checks. Whatever
+        the vehicle, a rudder whose ramps move more than :data:`RUDDER_STEP_DEG` between samples
+        is a warning (the log is coarse for the inputs held between samples).
     where : str, optional
         The file named in messages; default the track's name.
 
@@ -428,6 +475,7 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
                 refuse(col, f"values up to {m:.4g} cannot be a control-surface angle in rad; it looks like degrees")
     _check_rudder_sign(track, refuse, warn, name)
     warn += _check_rudder_limit(track, vehicle, name)
+    warn += _check_log_rate(track, name)
     ground = None
     if "x" in track and "y" in track:
         # over a 5 s baseline, so that position noise does not pass for speed
