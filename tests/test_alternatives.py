@@ -194,6 +194,12 @@ def test_the_training_runs_separate_two_structures_the_held_out_runs_tie():
     assert e["separable"] and e["separated_by"] == "training"
     assert e["train_separating_run"] == "2" and e["train_error_ratio"] == pytest.approx(2.0, rel=0.05)
     assert e["train_run_p_value"] < 0.01
+    named = dv.compare_structures(["Nabsdr"], rows, stages, Thresholds(), runs, None, ["z1", "z2", "pull-out"])
+    assert named["Nabsdr"][0]["train_separating_run"] == "pull-out"
+    from bayesid.report.diagnosis import _separated_cell
+
+    cell = _separated_cell(named["Nabsdr"][0])  # the report says which data separated them
+    assert cell.startswith("Nabsrabsdr (held-out 0.4 m, not separated there; on the training run pull-out 1.99x")
     # the other way round the training runs show the kept term better: not separated, an alternative
     flip = dv.compare_structures(["Nabsrabsdr"], rows, stages, Thresholds(), runs)["Nabsrabsdr"][0]
     assert not flip["separable"] and flip["separated_by"] is None

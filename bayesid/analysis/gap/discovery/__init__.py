@@ -466,7 +466,7 @@ def discover(
             (floor_rms, th, (runs, run_names)),
             initial,
         )
-    compared = compare_structures(found, discovered, fitted, th, runs, run_names)
+    compared = compare_structures(found, discovered, fitted, th, runs, run_names, [t.name for t in setup.train])
     alts = alternatives(compared)
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(

@@ -401,7 +401,9 @@ def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None
     return sorted(kept, key=lambda n: (beaten[n], stages[n].held["rms_position_m"]))
 
 
-def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, runs=None, run_names=None) -> dict:
+def compare_structures(
+    found: list, rows: list, stages: dict, th: Thresholds, runs=None, run_names=None, train_names=None
+) -> dict:
     """Every refitted term that competes with a kept term, and whether the held-out runs separate
     the two.
 
@@ -423,8 +425,8 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
       pooled): the run test, pooled and run by run, on the two refits' training windows
       (:func:`training_separation`). Both refits have the same number of coefficients and were
       fitted to the same windows, so the one whose fitted model follows those windows
-      significantly worse is the worse structure for them (the likelihood comparison of two
-      models of equal size, Box & Hill 1967), and a designed run a user adds to the training
+      significantly worse is the worse structure for them (two models of equal size compared on
+      the data they were fitted to, Box & Hill 1967), and a designed run a user adds to the training
       runs separates there, where the held-out runs, of the old kinds, cannot. The window is
       the unit of both tests, not the sample: simulation errors are correlated within a window,
       which a comparison of the training log-likelihoods (ΔBIC) ignores.
@@ -450,6 +452,8 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
         test is used.
     run_names : list of str, optional
         The held-out runs' names, indexed by ``runs``.
+    train_names : list of str, optional
+        The training runs' names, indexed by the stages' ``train_runs``.
 
     Returns
     -------
@@ -498,7 +502,7 @@ def compare_structures(found: list, rows: list, stages: dict, th: Thresholds, ru
                 and run["p_second_worse"] < th.partial_p
                 and run["p_first_worse"] >= th.partial_p
             )
-            trn = training_separation(stages[k], stages[a], th)
+            trn = training_separation(stages[k], stages[a], th, train_names)
             heldout_favours_a = run["p_first_worse"] < th.partial_p or paired_window_test(kw, aw) < th.partial_p
             by_training = not by_heldout and not heldout_favours_a and trn["separated"]
             separated = by_heldout or by_training
