@@ -150,3 +150,15 @@ def test_a_gap_ending_between_model_steps_starts_its_window_on_the_first_sample_
     sc_gapped = wf.scores(model, fit, [ctx])["rms_position_m"]
     sc_before = wf.scores(model, fit, [model.context(_rows(tr, tr.t < 80.0, "before"), 30.0)])["rms_position_m"]
     assert sc_gapped < 3 * max(sc_before, wf.scores(model, fit, [model.context(after, 30.0)])["rms_position_m"])
+
+
+@pytest.mark.parametrize("start", ["measured", "fitted"])
+def test_scores_and_window_rms_from_one_simulation_equal_the_two_apart(setup, start):
+    tr, model, fit = setup
+    pieces = [_rows(tr, tr.t <= 80.0, "a"), _rows(tr, tr.t >= 100.0, "b")]
+    ctxs = [model.context(t, 30.0, start=start, leadin_s=10.0 if start == "fitted" else 0.0) for t in pieces]
+    sd = {"x": 0.1, "y": 0.1, "psi": 0.01}
+    both, windows = wf.scores_and_window_rms(model, fit, ctxs, sd=sd)
+    assert both.to_dict() == wf.scores(model, fit, ctxs, sd=sd).to_dict()
+    np.testing.assert_array_equal(windows, wf.window_rms(model, fit, ctxs))
+    assert windows.shape == (sum(c.W for c in ctxs),)

@@ -219,6 +219,27 @@ def simulate(model, ctx, P, nu=None, weights=None, starts=None) -> np.ndarray:
     return model.simulate(ctx, P, nu, starts=starts)
 
 
+def window_svd(Jd: np.ndarray) -> tuple:
+    """The thin SVD of one window's start-state Jacobian, cut to its numerical rank (singular
+    values above 1e-10 of the largest): the span :func:`project_out` removes and the
+    pseudo-inverse the linearised start profile uses
+    (:mod:`bayesid.estimation.track_posterior`).
+
+    Parameters
+    ----------
+    Jd : ndarray, shape (n_w, 6)
+        The window's rows of the Jacobian by the start offsets.
+
+    Returns
+    -------
+    tuple
+        ``(U, s, Vt)``: ndarray shapes (n_w, r), (r,), (r, 6), r the numerical rank.
+    """
+    U, s, Vt = np.linalg.svd(Jd, full_matrices=False)
+    keep = s > 1e-10 * max(s[0], 1e-300) if s.size else np.zeros(0, bool)
+    return U[:, keep], s[keep], Vt[keep]
+
+
 def project_out(J: np.ndarray, Jd: np.ndarray, rwin: np.ndarray, W: int) -> np.ndarray:
     """Kaufman's variable-projection Jacobian: the columns of ``J`` with, window by window, their
     component in the span of that window's start-state Jacobian removed.
@@ -244,9 +265,7 @@ def project_out(J: np.ndarray, Jd: np.ndarray, rwin: np.ndarray, W: int) -> np.n
         rows = np.flatnonzero(rwin == wi)
         if rows.size == 0:
             continue
-        U, s, _ = np.linalg.svd(Jd[rows], full_matrices=False)
-        keep = s > 1e-10 * max(s[0], 1e-300) if s.size else np.zeros(0, bool)
-        Q = U[:, keep]
+        Q, _, _ = window_svd(Jd[rows])
         out[rows] -= Q @ (Q.T @ out[rows])
     return out
 
@@ -436,4 +455,5 @@ __all__ = [
     "simulate",
     "lead_residuals",
     "project_out",
+    "window_svd",
 ]

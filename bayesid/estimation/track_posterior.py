@@ -660,9 +660,8 @@ class StartLinearisation:
                 idx = np.flatnonzero(rwin == wi)
                 if idx.size == 0:
                     continue
-                U, sv, Vt = np.linalg.svd(Jd[idx], full_matrices=False)
-                keep = sv > 1e-10 * max(sv[0], 1e-300) if sv.size else np.zeros(0, bool)
-                Kw = (Vt[keep].T / sv[keep]) @ U[:, keep].T  # (6, n_w): the pseudo-inverse of J_d
+                U, sv, Vt = shooting.window_svd(Jd[idx])
+                Kw = (Vt.T / sv) @ U.T  # (6, n_w): the pseudo-inverse of J_d
                 kr.append(np.repeat(6 * wi + np.arange(6), idx.size))
                 kc.append(np.tile(idx, 6))
                 kv.append(Kw.ravel())

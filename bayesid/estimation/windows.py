@@ -39,6 +39,7 @@ __all__ = [
     "residual_sd",
     "scores",
     "window_rms",
+    "scores_and_window_rms",
     "window_residuals",
     "channel_weights",
     "check_channels",
@@ -788,13 +789,25 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
         :func:`bayesid.protocol.pooled_scores` with ``per_track_rms_position_m`` (``{track
         name: m}``) and, with ``sd``, ``log_likelihood``.
     """
-    errs, per_track = [], {}
-    ll = 0.0
+    return _scores_of(ctxs, _track_errors(model, fitres, ctxs, nuisance), sd)
+
+
+def _track_errors(model, fitres: FitResult, ctxs, nuisance=None) -> list:
+    """Each track's protocol errors of the fitted model, ``[{channel: ndarray (n_samples,)}]``:
+    one simulation per track, shared by :func:`scores` and :func:`window_rms`."""
+    out = []
     for i, ctx in enumerate(ctxs):
         nu = None if nuisance is None else nuisance[i][None]
         S = shooting.simulate(model, ctx, fitres.p[None], nu)
-        e = {k: v[0] for k, v in ctxmod.errors(ctx, S).items()}
-        errs.append(e)
+        out.append({k: v[0] for k, v in ctxmod.errors(ctx, S).items()})
+    return out
+
+
+def _scores_of(ctxs, errs: list, sd: dict | None) -> Scores:
+    """:func:`scores` of the tracks' errors (:func:`_track_errors`)."""
+    per_track = {}
+    ll = 0.0
+    for ctx, e in zip(ctxs, errs):
         per_track[ctx.name] = pooled_scores([e])["rms_position_m"]
         if sd is not None:
             for c, v in e.items():
@@ -827,15 +840,45 @@ def window_rms(model, fitres: FitResult, ctxs, nuisance=None) -> np.ndarray:
         RMS error, m (tracks in order, windows in time order; NaN for a window without a
         finite sample).
     """
+    return _window_rms_of(ctxs, _track_errors(model, fitres, ctxs, nuisance))
+
+
+def _window_rms_of(ctxs, errs: list) -> np.ndarray:
+    """:func:`window_rms` of the tracks' errors (:func:`_track_errors`)."""
     out = []
-    for i, ctx in enumerate(ctxs):
-        nu = None if nuisance is None else nuisance[i][None]
-        e = ctxmod.errors(ctx, shooting.simulate(model, ctx, fitres.p[None], nu))
-        pos2 = e["x"][0] ** 2 + e["y"][0] ** 2
+    for ctx, e in zip(ctxs, errs):
+        pos2 = e["x"] ** 2 + e["y"] ** 2
         for w in range(ctx.W):
             v = pos2[(ctx.win == w) & np.isfinite(pos2)]
             out.append(float(np.sqrt(v.mean())) if v.size else np.nan)
     return np.array(out)
+
+
+def scores_and_window_rms(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None) -> tuple:
+    """:func:`scores` and :func:`window_rms` of a fitted model on tracks from one simulation of
+    each track (the two separately simulate every track twice).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    fitres : FitResult
+        The fit (its ``p``).
+    ctxs : list of TrackContext
+        The tracks.
+    nuisance : list of ndarray, optional
+        Per track nuisances.
+    sd : dict, optional
+        ``{channel: sd}``, SI, for the log-likelihood.
+
+    Returns
+    -------
+    tuple
+        ``(Scores, ndarray of shape (n_windows,))``, equal to ``scores(...)`` and
+        ``window_rms(...)``.
+    """
+    errs = _track_errors(model, fitres, ctxs, nuisance)
+    return _scores_of(ctxs, errs, sd), _window_rms_of(ctxs, errs)
 
 
 def pooled_noise_sd(tracks, floor: bool = True) -> dict:

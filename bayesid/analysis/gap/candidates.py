@@ -18,7 +18,7 @@ import numpy as np
 
 from ...estimation import shooting
 from ...estimation.fit import FitResult
-from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores, window_rms
+from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores_and_window_rms
 from ...models import build_model
 from .records import CandidateRow
 from .verdict import paired_window_test
@@ -170,16 +170,10 @@ def score_stage(model, fit: FitResult, ctx_train: list, ctx_held: list, sd_fit: 
         The scored model, with its per-window errors on the held-out and the training tracks.
     """
     nu_h = heldout_nuisance(model, fit, ctx_held, sd_fit) if model.n_nuisance else None
-    return Stage(
-        model,
-        fit,
-        scores(model, fit, ctx_train, sd=sd_fit),
-        scores(model, fit, ctx_held, nu_h, sd=sd_fit),
-        nu_h,
-        window_rms(model, fit, ctx_held, nu_h),
-        window_rms(model, fit, ctx_train),
-        np.repeat(np.arange(len(ctx_train)), [c.W for c in ctx_train]),
-    )
+    train, train_windows = scores_and_window_rms(model, fit, ctx_train, sd=sd_fit)
+    held, windows = scores_and_window_rms(model, fit, ctx_held, nu_h, sd=sd_fit)
+    runs = np.repeat(np.arange(len(ctx_train)), [c.W for c in ctx_train])
+    return Stage(model, fit, train, held, nu_h, windows, train_windows, runs)
 
 
 def effect_offset(model, effect) -> int:

@@ -20,7 +20,7 @@ from ...estimation.windows import (
     fit_weighted,
     pooled_noise_sd,
     scores,
-    window_rms,
+    scores_and_window_rms,
 )
 from ...models import context as ctxmod
 from ...models import model_class
@@ -495,7 +495,7 @@ def diagnose(
     w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor.by_channel)
     seeds = _seeds(cand_effects, base, bfit, ctr, train)
     significant = bool(b_held["rms_position_m"] > th.none_ratio * floor.heldout_rms_m)
-    base_stage = Stage(base, bfit, b_train, b_held, None, window_rms(base, bfit, cho))
+    base_stage = Stage(base, bfit, b_train, b_held, None, b["windows"])
     disc_context = {"sd_fit": sd_fit, "floor_rms": floor.heldout_rms_m, "thresholds": th}
     beside, held = None, None
     if opt.discover is not None and setup.train_starts == "fitted" and (check.starts or {}).get("suspect"):
@@ -707,7 +707,8 @@ def _design(found, setup: Setup, options, runner: Runner) -> tuple[list, list]:
 
 def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> dict:
     """The base model of ``setup`` fitted (with its extra starts), scored and checked: ``{setup,
-    model, ctr, cho, fit, sd_fit, multistart, train, held, check}`` (ValueError: too little data)."""
+    model, ctr, cho, fit, sd_fit, multistart, train, held, windows, check}`` (``windows``: the
+    held-out per-window RMS position errors; ValueError: too little data)."""
     base, ctr, cho = setup.build(())
     fw = setup.fit_window_s
     check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
@@ -716,7 +717,7 @@ def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, ru
         FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
     )
     bfit, base_ms = _base_multistart(FitProblem(base, ctr, sd_fit, max_nfev=opt.max_nfev), bfit, opt, runner)
-    held = scores(base, bfit, cho, sd=sd_fit)
+    held, windows = scores_and_window_rms(base, bfit, cho, sd=sd_fit)
     return {
         "setup": setup,
         "model": base,
@@ -727,6 +728,7 @@ def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, ru
         "multistart": base_ms,
         "train": scores(base, bfit, ctr, sd=sd_fit),
         "held": held,
+        "windows": windows,
         "check": base_fit_check(base, bfit, setup, sd_fit, held),
     }
 
@@ -765,7 +767,7 @@ def _held_start_base(done: dict | None, setup: Setup, fit_args: tuple) -> tuple:
     ``--train-starts auto`` already fitted it (and kept the fitted starts)."""
     k = done if done is not None else _base_stage(replace(setup, train_starts="kinematic"), *fit_args)
     model, fit = k["model"], k["fit"]
-    return k["setup"], Stage(model, fit, k["train"], k["held"], None, window_rms(model, fit, k["cho"])), k["sd_fit"]
+    return k["setup"], Stage(model, fit, k["train"], k["held"], None, k["windows"]), k["sd_fit"]
 
 
 def _base_multistart(problem: FitProblem, bfit: FitResult, opt: DiagnoseOptions, runner: Runner):
