@@ -52,6 +52,19 @@ def test_a_term_whose_windows_are_as_good_is_an_alternative_and_a_worse_one_is_n
     v = dv._verdict(["Nvvr"], 0.31, 0.5, alts)
     assert v == "discovered: Nvvr (not separable from Yvvdr on these runs)"
     assert dv._verdict(["Nvvr"], 0.31, 0.5, {"Nvvr": []}) == "discovered: Nvvr"  # alone only when none survives
+    # an alternative the held-out runs show better (it failed the kept test on its own, or was not added on
+    # top of the kept term) is named as favoured, not as a tie
+    better = dv.compare_structures(
+        ["Nvvr"],
+        [*rows, {"term": "N0", "kept": False, "heldout_rms_after_m": 0.1}],
+        {**stages, "N0": _stage(best / 3)},
+        Thresholds(),
+    )
+    entry = next(a for a in dv.alternatives(better)["Nvvr"] if a["term"] == "N0")
+    assert entry["favoured"]  # an alternative (not separated), and a better one
+    assert not any(a["favoured"] for a in dv.alternatives(better)["Nvvr"] if a["term"] != "N0")
+    v = dv._verdict(["Nvvr"], 0.31, 0.5, {"Nvvr": [a for a in dv.alternatives(better)["Nvvr"] if a["term"] != "Nvrr"]})
+    assert v == "discovered: Nvvr (not separable from Yvvdr on these runs; the held-out runs favour N0)"
 
 
 def _two_structures(rng, designed):

@@ -104,10 +104,9 @@ def test_select_terms_attributes_a_constant_column_to_the_free_coefficient_it_is
     )
 
 
-def test_a_hidden_constant_yaw_moment_is_attributed_to_the_neutral_rudder_angle():
-    # KVLCC2 zigzags with a constant yaw moment N0 hidden, no velocity log (the case of issue 50):
-    # the fit moves dR0 more than any other free parameter, and N0's mimic is dR0
-    from bayesid.analysis.gap import DiagnoseOptions, diagnose
+def _n0_zigzags():
+    """KVLCC2 zigzags with a constant yaw moment N0 = 0.003 hidden, no velocity log (the case of
+    issue 50): the vehicle and four runs (two to train, two held out)."""
     from bayesid.data.track import Track
     from bayesid.models import ship
     from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
@@ -126,6 +125,14 @@ def test_a_hidden_constant_yaw_moment_is_attributed_to_the_neutral_rudder_angle(
         data.update(delta_r=np.asarray(tr["delta_r"], float), n=np.asarray(tr["n"], float))
         runs.append(Track(tr.t + clock, data, name=f"z{angle}_{check}"))
         clock += tr.t[-1] + 60.0
+    return kv, runs
+
+
+def test_a_hidden_constant_yaw_moment_is_attributed_to_the_neutral_rudder_angle():
+    # the fit moves dR0 more than any other free parameter, and N0's mimic is dR0
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
+
+    kv, runs = _n0_zigzags()
     options = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=None)
     d = diagnose(kv, list(kv.free), runs[:2], runs[2:], options, rng=np.random.default_rng(0))
     names = dv.candidate_terms(d.base.model, dv.MAX_ORDER, ("Y", "N"))
@@ -135,3 +142,88 @@ def test_a_hidden_constant_yaw_moment_is_attributed_to_the_neutral_rudder_angle(
     assert m["shift_effect"] == max(v["shift_effect"] for v in problem["mimics"].values())
     sel = dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(0))
     assert "N0" in sel["mimicked"] and next(iter(sel["mimicked_by"])) == "N0"
+
+
+def test_one_mimicked_term_per_mimic_is_refitted_likeliest_first():
+    # issue 49: the selection sets aside a term whose column a free coefficient's reproduces; the
+    # likeliest of them are refitted all the same, one per mimic (the same mimic twice tests one
+    # likeness twice), whatever the mimic is
+    from bayesid.analysis.gap.discovery.selection import mimicked_refits
+
+    by = {
+        "Nabsvr": _by("Ncf", 0.97, 3.0),
+        "Nvabsr": _by("Ncf", 0.96, 2.5),
+        "Y0": _by("track0.waves.nuisance0", 0.99, 2.0),
+        "N0": _by("dR0", 0.946, 1.2),
+        "Nrrr": _by("Nr", 0.62, 1.0),
+    }
+    sel = {"mimicked": list(by), "mimicked_by": by}
+    assert mimicked_refits(sel, 2) == ["Nabsvr", "Y0"]
+    assert mimicked_refits(sel, 9) == ["Nabsvr", "Y0", "N0", "Nrrr"]
+    assert mimicked_refits(sel, 0) == [] and mimicked_refits({"mimicked": []}, 2) == []
+
+
+def test_the_report_gives_a_mimicked_refits_result_in_place_of_the_advice_to_run_it():
+    by = {"N0": _by("dR0", 0.9912, 4.5), "Nvv": _by("dR0", 0.95, 1.0), "Nrrr": _by("Nr", 0.97, 0.8)}
+    rows = [
+        {
+            "term": "N0",
+            "refitted_as": "mimicked",
+            "kept": True,
+            "coefficient": 0.00297,
+            "heldout_rms_before_m": 0.5,
+            "heldout_rms_after_m": 0.031,
+        },
+        {
+            "term": "Nrrr",
+            "refitted_as": "mimicked",
+            "kept": False,
+            "coefficient": 0.01,
+            "heldout_rms_before_m": 0.5,
+            "heldout_rms_after_m": 0.7,
+            "reason": "fits the training runs but not the held-out ones",
+        },
+        {"term": "Nvv", "refitted_as": "selected", "kept": False, "heldout_rms_after_m": 0.6},
+    ]
+    D = {"mimicked": list(by), "mimicked_by": by}
+    from bayesid.report.diagnosis import _mimicked_text
+
+    text = _mimicked_text(D, ["Nr", "dR0"], refit_rows=rows)
+    assert (
+        "refitted all the same, every coefficient free (N0 0.00297, held-out RMS 0.5 -> 0.031 m), it passes the "
+        "kept test; the others: refit with dR0 held (`--free` without dR0) to test it." in text
+    ), text
+    assert (
+        "refitted all the same, every coefficient free (Nrrr 0.01, held-out RMS 0.5 -> 0.7 m), it does not pass "
+        "the kept test (fits the training runs but not the held-out ones)." in text
+    )
+    assert "refit with Nr held" not in text
+    # without the refits, the advice as before
+    assert "refit with dR0 held (`--free` without dR0) to test them." in _mimicked_text(D, ["Nr", "dR0"])
+
+
+def test_a_constant_yaw_moment_the_selection_sets_aside_is_refitted_and_kept():
+    # issue 49/50: dR0 reproduces N0's column, so the selection sets N0 aside as mimicked and nothing
+    # it selects passes the kept test; refitted all the same (every coefficient free: the rudder's
+    # other forces tell dR0 from N0), N0 lands near the truth (measured 0.00297 against 0.003;
+    # held-out 0.866 -> 0.043 m) and is kept
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
+    from bayesid.report.diagnosis import _discovery_lines
+
+    kv, runs = _n0_zigzags()
+    found = dv.DiscoveryOptions(n_alternatives=1)
+    options = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=found, design=None)
+    d = diagnose(kv, list(kv.free), runs[:2], runs[2:], options, rng=np.random.default_rng(0))
+    D = d.discovery
+    assert "N0" in D["residuals"]["mimicked"]
+    row = next(r for r in D["discovered"] if r["term"] == "N0")
+    assert row["refitted_as"] == "mimicked" and row["kept"], row
+    assert abs(row["coefficient"] / 0.003 - 1) < 0.1
+    assert D["found"][0] == "N0" and d.verdict.startswith("unexplained -> discovered: N0"), d.verdict
+    assert D["heldout_rms_after_m"] < 0.2 * D["heldout_rms_before_m"]
+    text = "\n".join(_discovery_lines({"discovery": D}))
+    assert "N0 is mimicked by dR0" in text and "refitted all the same, every coefficient free (N0 0.00" in text
+    # without the refits of mimicked terms (the default), nothing is kept: what the refit adds
+    plain = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=dv.DiscoveryOptions(), design=None)
+    d0 = diagnose(kv, list(kv.free), runs[:2], runs[2:], plain, rng=np.random.default_rng(0))
+    assert d0.discovery["found"] == [] and "N0" not in [r["term"] for r in d0.discovery["discovered"]]

@@ -559,9 +559,9 @@ def add_discovery(parser, default_on: bool) -> None:
         at_least(0),
         kind=int,
         default=2,
-        help="refit this many further candidates per degree of freedom (score test) and those a selected "
-        "term's collinear group stood for, and name every one the held-out runs cannot separate from a kept "
-        "term (0: name the selected terms alone)",
+        help="refit this many further candidates per degree of freedom (score test), those a selected term's "
+        "collinear group stood for and this many set aside as mimicked, and name every one the held-out runs "
+        "cannot separate from a kept term (0: name the selected terms alone)",
     )
     parser.add_argument(
         "--no-design",

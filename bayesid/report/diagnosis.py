@@ -564,7 +564,21 @@ def _cosine(c: float) -> str:
     return f"{math.floor(abs(c) * 1000) / 1000:.3f}"
 
 
-def _mimicked_text(R: dict, free, shown: int = 5) -> str:
+def _refit_result(row: dict) -> str:
+    """What the refit of a term set aside as mimicked found (a row of ``discovered`` with
+    ``refitted_as`` ``"mimicked"``)."""
+    if row.get("heldout_rms_after_m") is None:
+        return f"refitted all the same, every fit of {row['term']} failed"
+    numbers = (
+        f"{row['term']} {fmt(row.get('coefficient'))}, held-out RMS {fmt(row['heldout_rms_before_m'])} -> "
+        f"{fmt(row['heldout_rms_after_m'])} m"
+    )
+    if row.get("kept"):
+        return f"refitted all the same, every coefficient free ({numbers}), it passes the kept test"
+    return f"refitted all the same, every coefficient free ({numbers}), it does not pass the kept test ({row.get('reason', '')})"
+
+
+def _mimicked_text(R: dict, free, shown: int = 5, refit_rows=()) -> str:
     """The sentences on the candidates set aside as mimicked (``R``: ``discovery.residuals``): the
     ``shown`` most likely stand-ins (``mimicked_by``'s order) named with their *mimic*, the free
     parameter whose column is closest to theirs, how far the fit moved it, and how to test them
@@ -586,6 +600,9 @@ def _mimicked_text(R: dict, free, shown: int = 5) -> str:
         ``--free``).
     shown : int, default 5
         Most terms named.
+    refit_rows : sequence of dict, default ()
+        The rows of ``discovered``: those of the mimicked terms refitted all the same
+        (``refitted_as`` ``"mimicked"``) give their result in place of the advice to test them.
 
     Returns
     -------
@@ -593,6 +610,7 @@ def _mimicked_text(R: dict, free, shown: int = 5) -> str:
         One or more sentences, each ending with ``". "``.
     """
     n = len(R["mimicked"])
+    refitted = {r["term"]: r for r in refit_rows if r.get("refitted_as") == "mimicked"}
     head = f"{n} set aside because a refit of the free coefficients reproduces them"
     by = R.get("mimicked_by") or {}
     if not by:
@@ -619,8 +637,15 @@ def _mimicked_text(R: dict, free, shown: int = 5) -> str:
             else ""
         )
         s = f"{names} {'is' if len(terms) == 1 else 'are'} mimicked by {p} (column cosine {cos}{moved})"
-        if p in free and not part:
-            s += f": refit with {p} held (`--free` without {p}) to test {'it' if len(terms) == 1 else 'them'}"
+        tested = [refitted[t] for t in terms if t in refitted]
+        untested = [t for t in terms if t not in refitted]
+        if tested:
+            s += "; " + "; ".join(_refit_result(r) for r in tested)
+        if p in free and not part and untested:
+            s += (
+                f"{'; the others' if tested else ''}: refit with {p} held (`--free` without {p}) to test "
+                f"{'it' if len(untested) == 1 else 'them'}"
+            )
         out.append(s + ". ")
     if len(by) > sum(map(len, groups.values())):
         out.append(
@@ -646,7 +671,7 @@ def _discovery_lines(res: dict) -> list:
         f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
         f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
         f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "
-        + _mimicked_text(R, D["settings"].get("free", []))
+        + _mimicked_text(R, D["settings"].get("free", []), refit_rows=D["discovered"])
         + f"{fmt(R['projected_rms'])} of the training residual's RMS is beyond any refit of the free coefficients; "
         f"the ensemble's median model explains {fmt(R['explained'])} of that.",
         "",

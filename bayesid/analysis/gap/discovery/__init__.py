@@ -98,6 +98,7 @@ from .options import DOFS, DiscoveryOptions
 from .selection import (
     alternative_pool,
     linearised_problem,
+    mimicked_refits,
     mimics,
     project_out,
     refit_candidates,
@@ -310,11 +311,16 @@ class Discovery:
 
 def _named_alternatives(found: list, alts: dict) -> list[str]:
     """The kept terms as the verdict names them: ``Yvvdr (not separable from Nvvr, Yvdrdr on
-    these runs)``."""
+    these runs)``; an alternative the held-out runs show better than the kept term (one that
+    failed the kept test on its own, or was not added on top of the kept terms) is named apart:
+    ``Nabsdr (the held-out runs favour N0)``."""
     out = []
     for k in found:
-        others = [a["term"] for a in alts.get(k, [])]
-        out.append(f"{k} (not separable from {', '.join(others)} on these runs)" if others else k)
+        favoured = [a["term"] for a in alts.get(k, []) if a.get("favoured")]
+        others = [a["term"] for a in alts.get(k, []) if not a.get("favoured")]
+        parts = [f"not separable from {', '.join(others)} on these runs"] if others else []
+        parts += [f"the held-out runs favour {', '.join(favoured)}"] if favoured else []
+        out.append(f"{k} ({'; '.join(parts)})" if parts else k)
     return out
 
 
@@ -324,7 +330,9 @@ def _verdict(found: list, heldout_rms: float, band: float, alts: dict | None = N
     kept term with alternatives the runs cannot separate from it is named with them
     (:func:`_named_alternatives`). With nothing kept, the terms a free coefficient may hide are
     named in the report (``residuals.mimicked_by``), not in the verdict: naming the likeliest one
-    there named a stand-in in every control and non-force case of ``studies/structure_discovery.py``."""
+    there named a stand-in in every control and non-force case of ``studies/structure_discovery.py``
+    (with ``n_alternatives``, the likeliest of them are refitted, :func:`~.selection.mimicked_refits`,
+    and kept like any candidate when they pass the kept test)."""
     if not found:
         return "no term of the library explains it"
     names = _named_alternatives(found, alts or {})
@@ -414,30 +422,19 @@ def discover(
         forces = {"error": str(exc)}
     cands = refit_candidates(sel, options)
     pool = alternative_pool(score_test(problem, names), sel, cands, options)
-    refit = [*cands, *pool]
+    # the likeliest terms the selection set aside as mimicked: the output-error refit may still see them
+    mimicked = (
+        [n for n in mimicked_refits(sel, options.n_alternatives) if n not in (*cands, *pool)] if significant else []
+    )
+    refit = [*cands, *pool, *mimicked]
     initial = reference_values(ref, refit)
     runner.say(f"discovery: refitting {', '.join(cands) or 'nothing'}")
     if pool:
         runner.say(f"discovery: and the alternatives {', '.join(pool)}")
-    tasks = [
-        Task(
-            n,
-            {"term": n},
-            (
-                TermFit(
-                    n,
-                    sel["coefficient"].get(n, 0.0),
-                    ref,
-                    setup,
-                    tuple(effects),
-                    ctx["sd_fit"],
-                    options.max_nfev,
-                    initial[n],
-                ),
-            ),
-        )
-        for n in refit
-    ]
+    if mimicked:
+        runner.say(f"discovery: and, set aside as mimicked, {', '.join(mimicked)}")
+    fit_args = (ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev)
+    tasks = [Task(n, {"term": n}, (TermFit(n, sel["coefficient"].get(n, 0.0), *fit_args, initial[n]),)) for n in refit]
     outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
     runs, run_names = window_runs(setup, ref.model)
     discovered, stages, fitted = [], {}, {}
@@ -449,7 +446,8 @@ def discover(
                 runner.say(f"discovery: {m}")
         sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
         row = refit_row(n, st, ref, sel, floor_rms, sd, (runs, run_names), th.separation_margin)
-        row = decide(replace(row, refitted_as="alternative" if n in pool else "selected"), significant, th)
+        how = "alternative" if n in pool else "mimicked" if n in mimicked else "selected"
+        row = decide(replace(row, refitted_as=how), significant, th)
         discovered.append(row)
         if st is not None:
             fitted[n] = st

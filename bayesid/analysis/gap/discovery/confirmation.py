@@ -469,7 +469,8 @@ def compare_structures(
         ``{held-out run: position RMS, m}``; ``train_window_p_value``, ``train_run_p_value``,
         ``train_separating_run`` and ``train_error_ratio``: the training runs' tests
         (:func:`training_separation`; None without training windows); ``separated_by``: which
-        data separate them (``"heldout"``, ``"training"`` or None).
+        data separate them (``"heldout"``, ``"training"`` or None); ``favoured``: the held-out
+        runs show the competitor better than ``k`` (pooled, or on some run by the run test).
     """
     out = {}
     for k in found:
@@ -527,6 +528,7 @@ def compare_structures(
                     "train_separating_run": trn["run"],
                     "train_error_ratio": trn["ratio"],
                     "separated_by": "heldout" if by_heldout else "training" if by_training else None,
+                    "favoured": bool(heldout_favours_a),
                 }
             )
         out[k].sort(key=lambda d: d["heldout_rms_m"])

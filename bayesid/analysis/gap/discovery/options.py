@@ -52,8 +52,12 @@ class DiscoveryOptions:
         for, and per searched degree of freedom this many best by the score test of the
         linearised problem (the share of the projected residual one column explains alone),
         whatever their group and inclusion probability: the structures the runs may not
-        separate from the selected term (:func:`~.confirmation.alternatives`). 0 (the default until the test
-        suite's budget is re-measured with it): none; 2 is the setting measured.
+        separate from the selected term (:func:`~.confirmation.alternatives`); and this many
+        candidates the selection set aside as mimicked, one per mimic
+        (:func:`~.selection.mimicked_refits`: a constant yaw moment ``N0`` hidden in the
+        neutral rudder angle ``dR0``), kept like any candidate when they pass the kept test. 0
+        (the default until the test suite's budget is re-measured with it): none; 2 is the
+        setting measured.
 
     Raises
     ------
