@@ -131,6 +131,7 @@ def _identify(args, out, vehicle, free, got):
         random_seed=args.seed,
         prior=args.prior == "file",
         inputs=args.inputs,
+        rudder_rate_deg_s=args.rudder_rate,
     )
     calibration = None
     if args.calibration == "loro" and len(train) >= 3:

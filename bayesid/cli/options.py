@@ -26,7 +26,9 @@ START_HELP = (
 #: The help text of ``--inputs``.
 INPUTS_HELP = (
     "logged inputs between samples: hold (each sample kept until the next), linear (interpolated "
-    "between samples, as a rate-limited rudder moves; for coarse logs, 1-5 Hz, of a moving rudder)"
+    "between samples, as a rate-limited rudder moves; for coarse logs, 1-5 Hz, of a moving rudder), rate "
+    "(the rudder and planes move at the steering gear's rate between samples: --rudder-rate or the ship "
+    "file's [service] rudder_rate_deg_s)"
 )
 #: The choices of ``--weighting`` ("": the model's default).
 WEIGHTINGS = ("", "noise", "residual")
@@ -407,7 +409,8 @@ def add_start(parser) -> None:
 
 
 def add_inputs(parser) -> None:
-    """``--inputs``: how the logged inputs are reconstructed between samples.
+    """``--inputs``: how the logged inputs are reconstructed between samples, and
+    ``--rudder-rate``: the gear's rate of ``--inputs rate`` (deg/s, positive).
 
     The choices are :data:`bayesid.models.context.INPUT_RECONSTRUCTIONS` (default ``hold``),
     the help text :data:`INPUTS_HELP`.
@@ -418,6 +421,14 @@ def add_inputs(parser) -> None:
         The subcommand's parser.
     """
     parser.add_argument("--inputs", choices=INPUT_RECONSTRUCTIONS, default="hold", help=INPUTS_HELP)
+    add_number(
+        parser,
+        "--rudder-rate",
+        POSITIVE,
+        default=None,
+        metavar="DEG_S",
+        help="the steering gear's rate of --inputs rate, deg/s (default: the ship file's [service] rudder_rate_deg_s)",
+    )
 
 
 def add_leadin(parser) -> None:

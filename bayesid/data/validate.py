@@ -420,7 +420,8 @@ def _check_log_rate(track: Track, name: str) -> list[str]:
         f"interval {h:.3g} s, about {p90 / h:.3g} deg/s): the log is coarse for the rudder's rate. Held between "
         f"samples (--inputs hold, the default) the model's rudder acts on average {h / 2:.2g} s late, which moved "
         "fitted coefficients beyond their intervals on synthetic logs at 1-5 Hz (reports/benchmark_log_rate.txt); "
-        "fit with --inputs linear, or log the rudder faster (or the column logs the rudder order, not its angle)"
+        "fit with --inputs rate (the gear's rate: --rudder-rate or the ship file's [service] rudder_rate_deg_s) or "
+        "--inputs linear, or log the rudder faster (or the column logs the rudder order, not its angle)"
     ]
 
 

@@ -170,7 +170,14 @@ def identify(
         raise ValueError("identify needs at least one training track")
     say = runner.say
     channels = wf.check_channels(options.channels)
-    model = build_model(vehicle, options.free, options.effects, options.dt, inputs=options.inputs)
+    model = build_model(
+        vehicle,
+        options.free,
+        options.effects,
+        options.dt,
+        inputs=options.inputs,
+        rudder_rate_deg_s=options.rudder_rate_deg_s,
+    )
     window_s = options.window_s if options.window_s is not None else model.default_fit_window(DEFAULT_WINDOW_S)
     for e in model.effects:
         bare = [t.name for t in train if not all(c in t for c in e.needs_columns)]

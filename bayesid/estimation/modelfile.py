@@ -80,6 +80,8 @@ class ModelDocument:
         How the fit reconstructed the logged inputs between samples
         (``inputs`` of :class:`bayesid.estimation.options.FitOptions`); the model built from the
         document does the same (files from before the option: ``"hold"``).
+    rudder_rate_deg_s : float, optional
+        The gear's rate of ``inputs`` ``"rate"``, deg/s (written only then).
     train_runs : list of str
         The training runs' names.
     train_scores : dict
@@ -121,6 +123,7 @@ class ModelDocument:
     fit_channels: list | None = None
     start_rule: str = "measured"
     inputs: str = "hold"
+    rudder_rate_deg_s: float | None = None
     train_runs: list = field(default_factory=list)
     train_scores: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
@@ -178,6 +181,7 @@ class ModelDocument:
             fit_channels=None if result.channels is None else list(result.channels),
             start_rule=result.start_rule,
             inputs=getattr(m, "inputs", "hold"),
+            rudder_rate_deg_s=getattr(m, "rudder_rate_deg_s", None),
             train_runs=list(train_names),
             train_scores=result.train_scores,
             provenance=provenance or {},
@@ -202,14 +206,14 @@ class ModelDocument:
         -------
         dict
             ``format`` then the fields in their order (``multistart`` and ``posterior_source``
-            only when set; ``inputs`` only when not ``"hold"``; ``path`` never; ``calibration`` as
+            only when set; ``inputs`` only when not ``"hold"``, ``rudder_rate_deg_s`` only when set; ``path`` never; ``calibration`` as
             :meth:`~bayesid.estimation.calibration.Calibration.to_dict`).
         """
         d = {"format": FORMAT}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name == "inputs" and v == "hold":
-                continue  # the default, as in every file from before the option
+            if (f.name == "inputs" and v == "hold") or (f.name == "rudder_rate_deg_s" and v is None):
+                continue  # the defaults, as in every file from before the options
             if f.name != "path" and not (f.name in ("multistart", "posterior_source") and v is None):
                 d[f.name] = v.to_dict() if isinstance(v, Calibration) else v
         return d
@@ -313,7 +317,9 @@ class ModelDocument:
         if self.inputs not in INPUT_RECONSTRUCTIONS:
             raise ValueError(f"{path}: 'inputs' must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}")
         try:
-            model = build_model(vehicle, self.free, self.effects, self.dt, inputs=self.inputs)
+            model = build_model(
+                vehicle, self.free, self.effects, self.dt, inputs=self.inputs, rudder_rate_deg_s=self.rudder_rate_deg_s
+            )
         except (KeyError, ValueError) as e:
             raise ValueError(
                 f"{path}: its free coefficients or effects do not fit the vehicle {ref!r}: {e.args[0] if e.args else e}"

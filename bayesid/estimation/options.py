@@ -54,14 +54,19 @@ class FitOptions:
         sample until the next (zero-order hold); ``"linear"`` interpolates linearly between
         samples, as a rate-limited rudder logged at its instantaneous angle moves. With a coarse
         log (1-5 Hz) of a moving rudder the hold makes the rudder act about half a sample late
-        (issue 50). The model keeps it (``model.inputs``), so prediction and sampling of the
-        fitted model read the inputs as the fit did.
+        (issue 50); ``"rate"`` moves the control surfaces at the steering gear's rate between
+        samples (:func:`bayesid.models.context.rate_limited_knots`), the propeller linearly. The
+        model keeps it (``model.inputs``), so prediction and sampling of the fitted model read the
+        inputs as the fit did.
+    rudder_rate_deg_s : float, optional
+        The gear's rate of ``inputs="rate"``, deg/s; default the vehicle file's (a ship's
+        ``[service] rudder_rate_deg_s``).
 
     Raises
     ------
     ValueError
-        ``max_nfev`` below 1, negative ``starts``, a non-positive ``window_s`` or ``dt``, an
-        unknown ``inputs``.
+        ``max_nfev`` below 1, negative ``starts``, a non-positive ``window_s``, ``dt`` or
+        ``rudder_rate_deg_s``, an unknown ``inputs``.
     """
 
     free: tuple | None = None
@@ -77,6 +82,7 @@ class FitOptions:
     random_seed: int = 0
     prior: bool = True
     inputs: str = "hold"
+    rudder_rate_deg_s: float | None = None
 
     def __post_init__(self):
         for name in ("free", "effects", "channels"):
@@ -87,7 +93,7 @@ class FitOptions:
             raise ValueError(f"FitOptions.max_nfev must be at least 1, not {self.max_nfev}")
         if int(self.starts) < 0:
             raise ValueError(f"FitOptions.starts must be 0 or more, not {self.starts}")
-        for name in ("window_s", "dt"):
+        for name in ("window_s", "dt", "rudder_rate_deg_s"):
             v = getattr(self, name)
             if v is not None and not v > 0:
                 raise ValueError(f"FitOptions.{name} must be positive, not {v}")

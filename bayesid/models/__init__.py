@@ -7,6 +7,8 @@ the command line) works with the model it returns.
 
 from __future__ import annotations
 
+import math
+
 from ..data.vehicle import Vehicle, load_vehicle
 from .context import INPUT_RECONSTRUCTIONS
 from .interface import SimulationModel
@@ -53,6 +55,7 @@ def build_model(
     mode: str = "horizontal",
     kernel: str = "generated",
     inputs: str = "hold",
+    rudder_rate_deg_s: float | None = None,
 ):
     """The simulation model of a vehicle with ``effects``: for a ship the MMG 3-DOF
     :class:`~bayesid.models.ship.model.ShipModel`, for a submarine
@@ -73,10 +76,14 @@ def build_model(
         Degrees of freedom of a submarine model (a ship is always 3-DOF).
     kernel : {"generated", "interpreted"}, default "generated"
         The compiled kernel kind (the interpreted one takes any set of terms without compiling).
-    inputs : {"hold", "linear"}, default "hold"
+    inputs : {"hold", "linear", "rate"}, default "hold"
         How the logged inputs are reconstructed between samples
         (:data:`bayesid.models.context.INPUT_RECONSTRUCTIONS`); the model's ``inputs``
         attribute, read by its track contexts.
+    rudder_rate_deg_s : float, optional
+        The control surfaces' gear rate of ``inputs="rate"``, deg/s
+        (:func:`bayesid.models.context.rate_limited_knots`); default the vehicle file's (a ship's
+        ``[service] rudder_rate_deg_s``). The model's ``rudder_rate_deg_s`` attribute.
 
     Returns
     -------
@@ -88,7 +95,8 @@ def build_model(
     KeyError
         For an unknown coefficient (:class:`~bayesid.data.terms.UnknownCoefficientError`).
     ValueError
-        For an unknown effect or input reconstruction.
+        For an unknown effect or input reconstruction; ``inputs="rate"`` without a rate (none
+        given and none in the vehicle file) or with one that is not positive.
     TypeError
         For a vehicle description of no registered family.
     """
@@ -97,7 +105,22 @@ def build_model(
     cls = model_class(vehicle)
     model = cls.for_vehicle(vehicle, free, effects, dt=cls.DEFAULT_DT if dt is None else dt, mode=mode, kernel=kernel)
     model.inputs = inputs
+    if inputs == "rate":
+        rate = rudder_rate_deg_s if rudder_rate_deg_s is not None else getattr(cls, "gear_rate_deg_s", _none)(vehicle)
+        if rate is None:
+            raise ValueError(
+                "inputs 'rate' needs the steering gear's rate: give it (--rudder-rate DEG_S) or write it in the "
+                "ship file ([service] rudder_rate_deg_s)"
+            )
+        if not (math.isfinite(rate) and rate > 0):
+            raise ValueError(f"--rudder-rate must be a positive number of deg/s, not {rate!r}")
+        model.rudder_rate_deg_s = float(rate)
     return model
+
+
+def _none(vehicle) -> None:
+    """No gear rate (a family whose files give none)."""
+    return None
 
 
 def load_any_vehicle(path_or_id):

@@ -27,8 +27,72 @@ from .effects import Effect
 #: How the logged inputs are reconstructed between their samples: ``"hold"`` keeps each sample
 #: until the next (zero-order hold, the default); ``"linear"`` interpolates linearly between
 #: samples, as a rate-limited rudder logged at its instantaneous angle moves (issue 50: a
-#: 16 deg/s rudder held over a 0.2 s log interval acts half a sample late on average).
-INPUT_RECONSTRUCTIONS = ("hold", "linear")
+#: 16 deg/s rudder held over a 0.2 s log interval acts half a sample late on average);
+#: ``"rate"`` moves the control surfaces at the steering gear's rate between samples
+#: (:func:`rate_limited_knots`; the propeller linearly).
+INPUT_RECONSTRUCTIONS = ("hold", "linear", "rate")
+
+
+def rate_limited_knots(t, u, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """The knots of a control surface that moves at its gear's rate between its logged samples.
+
+    A steering gear holds its angle or moves at its rate toward the order. Between two samples
+    that differ by less than the rate can move in the interval, the surface held part of it and
+    moved the rest; where it did so follows from the neighbours: consecutive intervals that move
+    the same way are one movement, so the first of them holds then moves (the ramp ends at its
+    second sample), the last moves then holds, the ones between move all along, and a movement
+    within one interval sits in its middle (the order's time is unknown there: the middle halves
+    the worst timing error). An interval that moves at least as far as the rate allows, or a
+    movement of several intervals whose inner one moved less (the gear paused), is kept linear.
+    A ramp across samples logged at its instantaneous angle is reconstructed exactly; a linear
+    interpolation cuts its corners by up to half an interval (issue 50).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times, s, increasing.
+    u : ndarray, shape (n,)
+        The logged angles, rad (no missing values).
+    rate : float
+        The gear's rate, rad/s, positive.
+
+    Returns
+    -------
+    tk : ndarray, shape (m,)
+        Knot times, s: the samples and the corners between them (m >= n).
+    uk : ndarray, shape (m,)
+        The angle at the knots, rad; linear between them.
+
+    Raises
+    ------
+    ValueError
+        A rate that is not positive and finite.
+    """
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValueError(f"the rudder's rate must be positive and finite, not {rate!r} rad/s")
+    t, u = np.asarray(t, float), np.asarray(u, float)
+    d, h = np.diff(u), np.diff(t)
+    tau = np.abs(d) / rate  # how long the gear moved in each interval
+    moves = np.abs(d) > 1e-9
+    full = tau >= h * (1.0 - 1e-6)
+    tk, uk = [t[:1]], [u[:1]]
+    for i in range(d.size):
+        same_before = i > 0 and moves[i - 1] and np.sign(d[i - 1]) == np.sign(d[i])
+        same_after = i + 1 < d.size and moves[i + 1] and np.sign(d[i + 1]) == np.sign(d[i])
+        if moves[i] and not full[i] and not (same_before and same_after):
+            if same_before:  # the movement goes on from the last interval: it ends inside this one
+                tk.append([t[i] + tau[i]])
+                uk.append([u[i + 1]])
+            elif same_after:  # it starts inside this one and goes on
+                tk.append([t[i + 1] - tau[i]])
+                uk.append([u[i]])
+            else:  # a movement within this interval
+                mid = 0.5 * (t[i] + t[i + 1])
+                tk.append([mid - 0.5 * tau[i], mid + 0.5 * tau[i]])
+                uk.append([u[i], u[i + 1]])
+        tk.append(t[i + 1 : i + 2])
+        uk.append(u[i + 1 : i + 2])
+    return np.concatenate(tk), np.concatenate(uk)
 
 
 @nb.njit(cache=True)
@@ -160,10 +224,11 @@ class TrackContext:
     leadin_s : float, default 0.0
         Lead-in of the fitted rule, s, a non-negative multiple of the model step and at most the
         window.
-    inputs : {"hold", "linear"}, optional
+    inputs : {"hold", "linear", "rate"}, optional
         How the logged inputs are reconstructed between samples (:data:`INPUT_RECONSTRUCTIONS`);
         None: the model's ``inputs`` attribute, ``"hold"`` when it has none. Kept as
-        ``input_reconstruction``.
+        ``input_reconstruction``. ``"rate"`` reads the gear's rate from the model's
+        ``rudder_rate_deg_s`` attribute (deg/s).
 
     Raises
     ------
@@ -172,7 +237,7 @@ class TrackContext:
         spanning more than :data:`MAX_GRID_STEPS` steps (names its longest gap), or too short for
         a window after the lead-in; a window or lead-in that is not a multiple of the step; a
         lead-in longer than the window; a missing ``delta_r`` or ``n`` column or an input without
-        any value.
+        any value; ``"rate"`` without the model's ``rudder_rate_deg_s``.
     """
 
     def __init__(
@@ -302,12 +367,12 @@ class TrackContext:
         if model.mode == "horizontal":
             self.s_meas[:, [2, 3, 4, 8, 9, 10]] = 0.0
         self.lead = self._lead_samples(track, t) if self.start == "fitted" else None
-        self._tk, self._ck, self._uk = self._input_integral(track, t, inputs)
+        self._tk, self._ck, self._uk = self._input_integral(track, t, inputs, getattr(model, "rudder_rate_deg_s", None))
         self.substeps = int(substeps)
         self.step_inputs = self.average_inputs(np.zeros(1))[0]
 
     @staticmethod
-    def _input_integral(track: Track, t, inputs: str = "hold") -> tuple:
+    def _input_integral(track: Track, t, inputs: str = "hold", rate_deg_s: float | None = None) -> tuple:
         """(knot times (n + 2,), cumulative integral (n + 2, 4), input values at the knots
         (n + 2, 4) or None) of the inputs reconstructed between samples, padded beyond both ends
         with the first and last sample held: averages over any interval are exact differences of
@@ -316,8 +381,10 @@ class TrackContext:
         ``"hold"``: the integral is piecewise linear (the knot values alone, None for the input
         values; missing samples forward-filled). ``"linear"``: the inputs are piecewise linear
         between the knots, the integral piecewise quadratic (:func:`_linear_integral`; missing
-        samples interpolated between their neighbours). ValueError for a missing ``delta_r`` or
-        ``n`` column or an input without any value."""
+        samples interpolated between their neighbours). ``"rate"``: as ``"linear"`` on knots that
+        add the corners of the control surfaces moving at ``rate_deg_s`` (deg/s) between samples
+        (:func:`rate_limited_knots`). ValueError for a missing ``delta_r`` or ``n`` column, an
+        input without any value, or ``"rate"`` without a rate."""
         missing = [k for k in ("delta_r", "n") if k not in track]
         if missing:
             raise ValueError(f"track {track.name!r} has no input column(s) {missing}")
@@ -327,7 +394,7 @@ class TrackContext:
             bad = ~np.isfinite(col)
             if bad.all():
                 raise ValueError(f"track {track.name!r}: input {INPUT_NAMES[j]} has no value")
-            if bad.any() and inputs == "linear":
+            if bad.any() and inputs in ("linear", "rate"):
                 col[bad] = np.interp(t[bad], t[~bad], col[~bad])
             elif bad.any():
                 idx = np.where(~bad, np.arange(col.size), 0)
@@ -336,6 +403,17 @@ class TrackContext:
                 if bad[0]:
                     col[: np.argmax(~bad)] = col[np.argmax(~bad)]
         pad = 1e5
+        if inputs == "rate":  # the control surfaces at the gear's rate, the propeller linear
+            if rate_deg_s is None:
+                raise ValueError(
+                    "inputs 'rate' needs the steering gear's rate: the ship file's [service] rudder_rate_deg_s "
+                    "or --rudder-rate"
+                )
+            knots = [rate_limited_knots(t, U[:, j], math.radians(rate_deg_s)) for j in range(3)]
+            tr = np.unique(np.concatenate([t, *(k[0] for k in knots)]))
+            cols = [np.interp(tr, *k) for k in knots] + [np.interp(tr, t, U[:, 3])]
+            t, U = tr, np.column_stack(cols)
+            inputs = "linear"
         tk = np.concatenate([[t[0] - pad], t, [t[-1] + pad]])
         dts = np.diff(t)
         if inputs == "linear":

@@ -56,8 +56,11 @@ class SimulationModel(Protocol):
     mode : str
         ``"horizontal"`` or ``"6dof"``.
     inputs : str, optional
-        How its track contexts reconstruct the logged inputs between samples, ``"hold"`` or
-        ``"linear"`` (set by :func:`bayesid.models.build_model`; a model without it holds them).
+        How its track contexts reconstruct the logged inputs between samples, ``"hold"``,
+        ``"linear"`` or ``"rate"`` (set by :func:`bayesid.models.build_model`; a model without it
+        holds them).
+    rudder_rate_deg_s : float, optional
+        The control surfaces' gear rate (deg/s) of ``inputs`` ``"rate"``.
     DEFAULT_DT : float
         Class level, the vessel family's: model step (s) when the user gives none.
     DEFAULT_WEIGHTING : str
@@ -73,6 +76,8 @@ class SimulationModel(Protocol):
         ``scoring_window_s``.
     default_free(vehicle)
         Class level: the default free list of a vehicle.
+    gear_rate_deg_s(vehicle)
+        Optional, class level: the steering gear's rate its vehicle file gives (deg/s), or None.
     check_free(vehicle, names, option)
         Class level: raise KeyError naming ``option`` and an unknown coefficient of ``names``.
     get_effect(name)

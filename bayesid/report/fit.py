@@ -83,9 +83,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         "",
         *(["**Input warnings:** " + "; ".join(warn), ""] if warn else []),
         f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
-        f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s"
-        + ("; inputs interpolated linearly between samples" if doc.get("inputs", "hold") == "linear" else "")
-        + "; "
+        f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s" + _inputs_phrase(doc) + "; "
         f"{len(doc['train_runs'])} training run(s).",
         "",
         f"Equation-error seed: {'used' if doc['seed'].get('used') else 'not used'} "
@@ -395,3 +393,14 @@ def _multistart_lines(ms: dict) -> list:
         lines += [f"No turning circles: {tc['error']}.", ""]
     lines += [md_table(head, rows), "", "![multistart](figures/multistart.png)", ""]
     return lines
+
+
+def _inputs_phrase(doc: dict) -> str:
+    """How the fit read the logged inputs between samples, for the report's first lines (nothing
+    for the default hold)."""
+    how = doc.get("inputs", "hold")
+    if how == "linear":
+        return "; inputs interpolated linearly between samples"
+    if how == "rate":
+        return f"; the rudder and planes at the gear's rate ({doc.get('rudder_rate_deg_s'):g} deg/s) between samples"
+    return ""

@@ -135,6 +135,29 @@ class ShipModel(ParameterLayout):
         return cls(ship, free, effects, dt=dt, kernel=kernel)
 
     @staticmethod
+    def gear_rate_deg_s(ship) -> float | None:
+        """The steering gear's rate of a ship file, deg/s: its ``[service] rudder_rate_deg_s``.
+
+        Parameters
+        ----------
+        ship : Ship
+            The ship.
+
+        Returns
+        -------
+        float or None
+            The rate; None when the file gives none (or the ship was built in code).
+
+        Raises
+        ------
+        ShipFileError
+            A ``[service]`` section with an unknown key or a value that is not positive.
+        """
+        from .trials import service_condition
+
+        return service_condition(ship).get("rudder_rate_deg_s")
+
+    @staticmethod
     def default_fit_window(scoring_window_s):
         """A ship's training fits use :data:`FIT_WINDOW_S` whatever the scoring window.
 
