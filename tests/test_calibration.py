@@ -265,3 +265,53 @@ def test_the_report_says_which_folds_are_extrapolations_and_what_data_would_help
     text = " ".join(_extrapolation_fold_lines(few, {a: few.window_band(a) for a in (0.9, 0.95)}))
     assert "Unbounded window bands at 0.9 (needs at least 9 left-out windows), 0.95 (needs at least 19" in text
     assert "the folds scored 3" in text
+
+
+def _circle(name, radius, speed, L=7.0, noise=0.0, seed=0):
+    """A run around a circle of ``radius`` m at ``speed`` m/s, 20 Hz, positions with ``noise`` m."""
+    t = np.arange(0.0, 120.0, 0.05)
+    a = speed * t / radius
+    rng = np.random.default_rng(seed)
+    x, y = radius * np.sin(a), radius * (1.0 - np.cos(a))
+    return Track(
+        t,
+        {"x": x + rng.normal(0, noise, t.size), "y": y + rng.normal(0, noise, t.size), "psi": a, "delta_r": 0 * t},
+        name=name,
+    )
+
+
+def test_the_nondimensional_yaw_rate_is_length_over_radius_whatever_the_speed():
+    # a 5.2 m circle of a 7 m ship at 0.31 m/s (the nominal KVLCC2's steady 35 deg turn) and a 16 m one
+    # at 0.9 m/s: r' = L / R, from positions and heading (positions with 2 cm noise)
+    from bayesid.estimation.calibration import yaw_rate_prime
+
+    for radius, speed in ((5.2, 0.31), (16.0, 0.9)):
+        tr = _circle("c", radius, speed, noise=0.02)
+        rp = yaw_rate_prime(tr.t, tr["x"], tr["y"], tr["psi"], 7.0)
+        assert np.median(rp) == pytest.approx(7.0 / radius, rel=0.03)
+        assert excitation(tr, 7.0)["yaw_rate_prime"] == pytest.approx(7.0 / radius, rel=0.06)
+    assert "yaw_rate_prime" not in excitation(tr)  # without the length: as before
+
+
+def test_predict_warns_where_the_models_own_run_turns_tighter_than_any_training_run():
+    # the calibration's runs reached r' 0.09-0.60 (the HSVA zigzags); a whole-run prediction around a
+    # 5.2 m circle of a 7 m ship (r' 1.35) is beyond 1.25 x that; one around a 16 m circle is not
+    from types import SimpleNamespace
+
+    from bayesid.cli.predict import model_excursion
+
+    cal = _cal(excitation={"a": {"yaw_rate_prime": 0.09}, "b": {"yaw_rate_prime": 0.60}})
+    doc = SimpleNamespace(calibration=cal)
+    sims = {}
+    for name, radius in (("tight", 5.2), ("wide", 16.0)):
+        tr = _circle(name, radius, 0.5)
+        S = np.zeros((tr.n_samples, 12))
+        S[:, 0], S[:, 1], S[:, 5] = tr["x"], tr["y"], tr["psi"]
+        sims[name] = (SimpleNamespace(ts=tr.t), S)
+    whole = SimpleNamespace(simulated=sims)
+    tracks = [SimpleNamespace(name="tight"), SimpleNamespace(name="wide")]
+    w = model_excursion(doc, whole, tracks, 7.0)
+    assert len(w) == 1 and w[0].startswith("tight: the model's own run turns at r' = r L / U 1.3"), w
+    assert "above the training runs' 0.09-0.60" in w[0]
+    assert model_excursion(SimpleNamespace(calibration=_cal()), whole, tracks, 7.0) == []  # older: no claim
+    assert model_excursion(SimpleNamespace(calibration=None), whole, tracks, 7.0) == []

@@ -70,6 +70,9 @@ def run(args) -> int:
     _warn(doc, got, window)
     with naming_files(got):
         pr, whole, indices, bands = _predict(args, (model, p, cov), doc, tracks, window, out)
+        for w in model_excursion(doc, whole, tracks, getattr(model.vehicle, "L", None)):
+            print(f"warning: {w}", file=sys.stderr)
+            got["_warnings"].append(w)
         _figures(pr, bands, indices, doc, tracks, window, out)
         res = {
             "model": str(args.model),
@@ -157,6 +160,54 @@ def _start_note(asked: str, rule: str, tracks) -> dict:
     return {"asked": asked, "rule": rule, "without_velocity_log": sorted(bare), "reason": reason}
 
 
+def model_excursion(doc, whole, tracks, length_m) -> list[str]:
+    """Warnings for runs on which the model's own whole-run prediction turns tighter than any
+    training run did: its nondimensional yaw rate ``r' = r L / U`` (95th percentile,
+    :func:`~bayesid.estimation.calibration.yaw_rate_prime`) above 1.25 x the training runs'
+    largest (``model.json``'s calibration records theirs). There the hull forces are
+    extrapolated, and the indices that rest on them with them: a KVLCC2 model fitted on the HSVA
+    zigzags (r' up to 0.60) turns its 35 deg circle at r' 1.3, losing 73 % of its speed, and its
+    steady turning diameter is half its tactical diameter (issue 50).
+
+    Parameters
+    ----------
+    doc : ModelDocument
+        The fitted model's document (its calibration's excitation range).
+    whole : Prediction
+        The whole-run prediction (``simulated``: ``{run: (ctx, states)}``).
+    tracks : list of Track
+        The runs.
+    length_m : float or None
+        The vessel's length, m (None: no check).
+
+    Returns
+    -------
+    list of str
+        One warning per run beyond the range; empty without a calibration that recorded ``r'``.
+    """
+    import numpy as np
+
+    from ..estimation.calibration import yaw_rate_prime
+
+    rng = doc.calibration.excitation_range().get("yaw_rate_prime") if doc.calibration is not None else None
+    if rng is None or length_m is None:
+        return []
+    out = []
+    for tr in tracks:
+        if tr.name not in whole.simulated:
+            continue
+        ctx, S = whole.simulated[tr.name]
+        rp = yaw_rate_prime(ctx.ts, S[:, 0], S[:, 1], S[:, 5], length_m)
+        x = float(np.percentile(rp, 95)) if rp.size else None
+        if x is not None and x > 1.25 * rng[1]:
+            out.append(
+                f"{tr.name}: the model's own run turns at r' = r L / U {x:.2f} (95th percentile), above the "
+                f"training runs' {rng[0]:.2f}-{rng[1]:.2f}: its hull forces are extrapolated there, and so are the "
+                "indices that rest on them (a steady turning diameter first)"
+            )
+    return out
+
+
 def _predict(args, fitted, doc, tracks, window, out):
     """The windowed and whole-run predictions, each track's manoeuvre indices with their
     posterior band, and the calibrated bands (``out/figures`` is created on the way)."""
@@ -180,7 +231,10 @@ def _predict(args, fitted, doc, tracks, window, out):
     if doc.calibration is None:
         bands = uncalibrated_bands(indices)
     else:
-        bands = doc.calibration.bands(window, pr.windows, indices, excitations={t.name: excitation(t) for t in tracks})
+        L = getattr(model.vehicle, "L", None)
+        bands = doc.calibration.bands(
+            window, pr.windows, indices, excitations={t.name: excitation(t, L) for t in tracks}
+        )
     return pr, whole, indices, bands
 
 

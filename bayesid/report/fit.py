@@ -293,9 +293,9 @@ def _calibration_lines(doc: dict) -> list:
             "",
             *(
                 [
-                    "The bands are calibrated for runs like these (95th percentiles of |delta_r| and |r|): "
+                    "The bands are calibrated for runs like these (95th percentiles of |delta_r|, |r| and r' = |r| L / U): "
                     + ", ".join(
-                        f"{label} {xr[key][0]:.3g}-{xr[key][1]:.3g} {unit}"
+                        f"{label} {xr[key][0]:.3g}-{xr[key][1]:.3g}{' ' + unit if unit else ''}"
                         for key, label, unit in EXCITATION_MEASURES
                         if key in xr
                     )
