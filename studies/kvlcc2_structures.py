@@ -43,8 +43,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from studies.real_ships import KVLCC2_HOLD, RPS, U0  # noqa: E402
 
 #: the turning indices each structure predicts, and the issue's targets on the other basin's runs
-TURN_INDICES = ("advance_m", "transfer_m", "tactical_diameter_m")
+TURN_INDICES = ("advance_m", "transfer_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
 TARGETS = {"tactical_diameter_m": 0.05, "advance_m": 0.03}
+#: The KVLCC2 model's length between perpendiculars, m (bayesid/vehicles/kvlcc2_7m.toml).
+L_PP = 7.0
 
 
 def parse_args():
@@ -126,9 +128,26 @@ def circles_of(fitted, args, rng) -> dict:
         side: {
             k: {"value": c["predicted"].get(k), "band_5_95": (c.get("band_5_95") or {}).get(k)} for k in TURN_INDICES
         }
-        | {"n_finite_draws": c.get("n_finite_draws")}
+        | {"n_finite_draws": c.get("n_finite_draws"), "steady_r_prime": steady_r_prime(c["_S"][0])}
         for side, c in tc.items()
     }, {side: c["_S"] for side, c in tc.items()}
+
+
+def steady_r_prime(S) -> float:
+    """The nondimensional yaw rate r' = |r| L / U over the last tenth of a simulated turn (states
+    (n, 12): u, v, r at 6, 7, 11): how tight a turn the hull forces settle in, to set beside the
+    training zigzags' largest r'."""
+    tail = np.asarray(S)[-max(1, len(S) // 10) :]
+    U = np.hypot(tail[:, 6], tail[:, 7])
+    return float(np.median(np.abs(tail[:, 11]) * L_PP / U))
+
+
+def zigzag_r_prime(tracks) -> float:
+    """The largest r' the HSVA zigzags reach: the 95th percentile over each run
+    (:func:`bayesid.estimation.calibration.yaw_rate_prime`), the largest run's."""
+    from bayesid.estimation.calibration import yaw_rate_prime
+
+    return max(float(np.percentile(yaw_rate_prime(t.t, t["x"], t["y"], t["psi"], L_PP), 95)) for t in tracks)
 
 
 def overshoots_of(fitted, tracks) -> dict:
@@ -207,6 +226,36 @@ def _cell(v: dict) -> str:
 
     lo, hi = v["band_5_95"] or (math.nan, math.nan)
     return f"{fmt(v['value'])} [{fmt(lo)}, {fmt(hi)}]"
+
+
+def _steady_lines(res: dict) -> list:
+    """Each structure's steady turn against the zigzags' largest r' (results from before the
+    measure: none)."""
+    from bayesid.report import fmt
+
+    top = res.get("zigzag_r_prime_max")
+    if top is None:
+        return []
+    cells = []
+    for label, s in res["structures"].items():
+        c = s["circles"]["starboard"]
+        if c.get("steady_r_prime") is None:
+            return []
+        cells.append(
+            f"{'no discovered term' if label == 'without' else label} r' {fmt(c['steady_r_prime'])}, steady "
+            f"diameter {fmt(c['steady_turning_diameter_m']['value'])} m against a tactical diameter of "
+            f"{fmt(c['tactical_diameter_m']['value'])} m, speed loss {fmt(c['speed_loss']['value'])}"
+        )
+    return [
+        f"Beyond the zigzags: the zigzags reach a nondimensional yaw rate r' = r L / U of {fmt(top)} at most (95th "
+        "percentile of the largest run); each structure's 35 deg turn to starboard settles at "
+        + "; ".join(cells)
+        + ". The steady turn lies beyond anything the zigzags show the hull, and there the structures "
+        "extrapolate: a steady turning diameter far below the tactical diameter comes from the model (the index "
+        "reads the circle the model turns), and `bayesid predict` warns where a model's own run goes past 1.25 x "
+        "its training runs' r'.",
+        "",
+    ]
 
 
 def write_report(out: Path, res: dict, args) -> None:
@@ -332,6 +381,7 @@ def write_report(out: Path, res: dict, args) -> None:
         "",
         "![turning circles](figures/turning35_structures.png)",
         "",
+        *_steady_lines(res),
     ]
     spread = res["spread_between_structures"]
     lines += [
@@ -472,6 +522,7 @@ def main() -> int:
         if m is not None:
             basin[label] = m
     res["other_basin"] = basin or None
+    res["zigzag_r_prime_max"] = zigzag_r_prime(tracks)
     spread = {}
     base = res["structures"]["without"]["circles"]
     for side in ("starboard", "port"):
