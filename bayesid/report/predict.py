@@ -265,13 +265,12 @@ def _coverage_lines(bands: dict) -> list:
         lines += [f"No window bands: {bands['window_reason']}.", ""]
     if bands.get("outside_range"):
         ir = bands["coverage_in_range"]
+        held = "; ".join(f"{g} {c['0.9']['inside']}/{c['0.9']['n']}" for g, c in ir.items() if c["0.9"]["n"])
         lines += [
             "**Outside the training runs' range** (a calibrated band assumes a run like the calibration runs; these "
             "are driven harder or more gently, and their claims are counted above): "
             + "; ".join(f"{t}: {', '.join(v)}" for t, v in bands["outside_range"].items())
-            + ". The other runs' 90 % claims: "
-            + "; ".join(f"{g} {c['0.9']['inside']}/{c['0.9']['n']}" for g, c in ir.items() if c["0.9"]["n"])
-            + ".",
+            + (f". The other runs' 90 % claims: {held}." if held else ". No other run has a claim to count."),
             "",
         ]
     ext = bands.get("extrapolated") or {}
