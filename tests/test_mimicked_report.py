@@ -163,6 +163,25 @@ def test_one_mimicked_term_per_mimic_is_refitted_likeliest_first():
     assert mimicked_refits(sel, 0) == [] and mimicked_refits({"mimicked": []}, 2) == []
 
 
+def test_a_kept_mimicked_term_competes_with_the_others_its_mimic_reproduces():
+    # a hidden Nvvr on the submarine without a velocity log: Nv mimics Nvabsr, Nvvr and Nvrr; Nvabsr is
+    # refitted (the likeliest) and, once kept, the others of its mimic are refitted too, so that the
+    # runs, not the construction, say whether it stands alone
+    from bayesid.analysis.gap.discovery.selection import mimicked_companions
+
+    by = {
+        "Nvabsr": _by("Nv", 0.99, 3.0),
+        "Yvvr": _by("Yv", 0.98, 2.0),
+        "Nvvr": _by("Nv", 0.988, 3.0),
+        "Nvrr": _by("Nv", 0.97, 3.0),
+        "Nvvv": _by("Nv", 0.96, 3.0),
+    }
+    sel = {"mimicked": list(by), "mimicked_by": by}
+    assert mimicked_companions(sel, "Nvabsr", 2) == ["Nvvr", "Nvrr"]
+    assert mimicked_companions(sel, "Nvabsr", 9) == ["Nvvr", "Nvrr", "Nvvv"]
+    assert mimicked_companions(sel, "Yvvr", 2) == [] and mimicked_companions(sel, "N0", 2) == []
+
+
 def test_the_report_gives_a_mimicked_refits_result_in_place_of_the_advice_to_run_it():
     by = {"N0": _by("dR0", 0.9912, 4.5), "Nvv": _by("dR0", 0.95, 1.0), "Nrrr": _by("Nr", 0.97, 0.8)}
     rows = [

@@ -98,6 +98,7 @@ from .options import DOFS, DiscoveryOptions
 from .selection import (
     alternative_pool,
     linearised_problem,
+    mimicked_companions,
     mimicked_refits,
     mimics,
     project_out,
@@ -309,6 +310,50 @@ class Discovery:
         return out
 
 
+def _refit_terms(how: dict, fit_args: tuple, initial: dict, judge: tuple, runner: Runner) -> tuple[list, dict]:
+    """Refit each term on top of the reference model (tasks of :func:`fit_term`) and decide its
+    row by the kept test.
+
+    Parameters
+    ----------
+    how : dict
+        ``{term: refitted_as}``, in the order refitted.
+    fit_args : tuple
+        ``(ref, setup, effects, sd_fit, max_nfev)`` of :class:`TermFit`.
+    initial : dict
+        ``{term: value in the reference model}``.
+    judge : tuple
+        ``(selection, floor_rms, (run of each held-out window, run names), thresholds, significant)``.
+    runner : Runner
+        Runs the fits; progress messages.
+
+    Returns
+    -------
+    rows : list of TermRow
+        One per term, decided.
+    stages : dict
+        ``{term: Stage}`` of every refit that converged.
+    """
+    sel, floor_rms, runs, th, significant = judge
+    ref = fit_args[0]
+    names = list(how)
+    tasks = [Task(n, {"term": n}, (TermFit(n, sel["coefficient"].get(n, 0.0), *fit_args, initial[n]),)) for n in names]
+    outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
+    rows, stages = [], {}
+    for n, out in zip(names, outs):
+        st = None if isinstance(out, TaskError) else out[0]
+        msgs = [str(out)] if isinstance(out, TaskError) else out[1]
+        for m in msgs:
+            if isinstance(m, str):
+                runner.say(f"discovery: {m}")
+        sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
+        row = refit_row(n, st, ref, sel, floor_rms, sd, runs, th.separation_margin)
+        rows.append(decide(replace(row, refitted_as=how[n]), significant, th))
+        if st is not None:
+            stages[n] = st
+    return rows, stages
+
+
 def _named_alternatives(found: list, alts: dict) -> list[str]:
     """The kept terms as the verdict names them: ``Yvvdr (not separable from Nvvr, Yvdrdr on
     these runs)``; an alternative the held-out runs show better than the kept term (one that
@@ -434,25 +479,25 @@ def discover(
     if mimicked:
         runner.say(f"discovery: and, set aside as mimicked, {', '.join(mimicked)}")
     fit_args = (ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev)
-    tasks = [Task(n, {"term": n}, (TermFit(n, sel["coefficient"].get(n, 0.0), *fit_args, initial[n]),)) for n in refit]
-    outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
     runs, run_names = window_runs(setup, ref.model)
-    discovered, stages, fitted = [], {}, {}
-    for n, out in zip(refit, outs):
-        st = None if isinstance(out, TaskError) else out[0]
-        msgs = [str(out)] if isinstance(out, TaskError) else out[1]
-        for m in msgs:
-            if isinstance(m, str):
-                runner.say(f"discovery: {m}")
-        sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
-        row = refit_row(n, st, ref, sel, floor_rms, sd, (runs, run_names), th.separation_margin)
-        how = "alternative" if n in pool else "mimicked" if n in mimicked else "selected"
-        row = decide(replace(row, refitted_as=how), significant, th)
-        discovered.append(row)
-        if st is not None:
-            fitted[n] = st
-        if row.kept:
-            stages[n] = st
+    judge = (sel, floor_rms, (runs, run_names), th, significant)
+    how = {n: "alternative" if n in pool else "mimicked" if n in mimicked else "selected" for n in refit}
+    discovered, fitted = _refit_terms(how, fit_args, initial, judge, runner)
+    # a kept term the selection had set aside as mimicked competes with the others its mimic reproduces
+    companions = [
+        c
+        for r in discovered
+        if r.kept and r.refitted_as == "mimicked"
+        for c in mimicked_companions(sel, r.term, 2 * options.n_alternatives)
+        if c not in how
+    ]
+    if companions:
+        runner.say(f"discovery: and the terms mimicked alike, {', '.join(dict.fromkeys(companions))}")
+        more = dict.fromkeys(companions, "mimicked")
+        initial = {**initial, **reference_values(ref, list(more))}
+        rows, stages_more = _refit_terms(more, fit_args, initial, judge, runner)
+        discovered, fitted = [*discovered, *rows], {**fitted, **stages_more}
+    stages = {r.term: fitted[r.term] for r in discovered if r.kept}
     found, after = ([], None)
     if stages:
         found, after = combine(

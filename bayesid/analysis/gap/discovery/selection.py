@@ -26,6 +26,7 @@ __all__ = [
     "refit_candidates",
     "alternative_pool",
     "mimicked_refits",
+    "mimicked_companions",
 ]
 
 
@@ -415,3 +416,32 @@ def mimicked_refits(sel: dict, n: int) -> list[str]:
     for t, m in (sel.get("mimicked_by") or {}).items():
         out.setdefault(m["parameter"], t)
     return list(out.values())[: max(int(n), 0)]
+
+
+def mimicked_companions(sel: dict, term: str, n: int) -> list[str]:
+    """The other candidates set aside as mimicked by the same free parameter as ``term``,
+    likeliest first: a kept term of :func:`mimicked_refits` has them as its competitors (their
+    columns all lie near their mimic's), and only their refits can say whether the runs
+    separate them from it. Without them such a term would be named alone by construction (a
+    hidden ``Nvvr`` on the submarine without a velocity log: ``Nvabsr`` refitted in its place
+    and kept alone).
+
+    Parameters
+    ----------
+    sel : dict
+        :func:`select_terms` (``mimicked_by``).
+    term : str
+        A mimicked term.
+    n : int
+        At most this many.
+
+    Returns
+    -------
+    list of str
+        The companions, without ``term``; empty when ``term`` is not mimicked.
+    """
+    by = sel.get("mimicked_by") or {}
+    if term not in by:
+        return []
+    p = by[term]["parameter"]
+    return [t for t, m in by.items() if m["parameter"] == p and t != term][: max(int(n), 0)]
