@@ -427,7 +427,7 @@ def add_inputs(parser) -> None:
         POSITIVE,
         default=None,
         metavar="DEG_S",
-        help="the steering gear's rate of --inputs rate, deg/s (default: the ship file's [service] rudder_rate_deg_s)",
+        help="the steering gear's rate of --inputs rate, deg/s; none: the ship file's [service] rudder_rate_deg_s",
     )
 
 
