@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from studies.real_ships import KVLCC2_HOLD, RPS, U0  # noqa: E402
 
 #: the turning indices each structure predicts, and the issue's targets on the other basin's runs
-TURN_INDICES = ("advance_m", "transfer_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
+TURN_INDICES = ("advance_m", "transfer_m", "tactical_diameter_m")
 TARGETS = {"tactical_diameter_m": 0.05, "advance_m": 0.03}
 #: The KVLCC2 model's length between perpendiculars, m (bayesid/vehicles/kvlcc2_7m.toml).
 L_PP = 7.0
@@ -128,18 +128,25 @@ def circles_of(fitted, args, rng) -> dict:
         side: {
             k: {"value": c["predicted"].get(k), "band_5_95": (c.get("band_5_95") or {}).get(k)} for k in TURN_INDICES
         }
-        | {"n_finite_draws": c.get("n_finite_draws"), "steady_r_prime": steady_r_prime(c["_S"][0])}
+        | {"n_finite_draws": c.get("n_finite_draws"), "steady": steady_turn(c["_S"][0])}
         for side, c in tc.items()
     }, {side: c["_S"] for side, c in tc.items()}
 
 
-def steady_r_prime(S) -> float:
-    """The nondimensional yaw rate r' = |r| L / U over the last tenth of a simulated turn (states
-    (n, 12): u, v, r at 6, 7, 11): how tight a turn the hull forces settle in, to set beside the
-    training zigzags' largest r'."""
+def steady_turn(S) -> dict:
+    """The steady turn a simulated 35 deg turn settles in, from its states (n, 12: u, v, r at 6,
+    7, 11) over the last tenth of the run: ``r_prime`` (r' = |r| L / U, how tight a turn the hull
+    forces settle in, to set beside the training zigzags' largest r'), ``diameter_m`` (2 U / |r|,
+    the steady turning diameter of a circle turned at steady speed) and ``speed_loss`` (1 - U /
+    U0)."""
     tail = np.asarray(S)[-max(1, len(S) // 10) :]
     U = np.hypot(tail[:, 6], tail[:, 7])
-    return float(np.median(np.abs(tail[:, 11]) * L_PP / U))
+    r = np.abs(tail[:, 11])
+    return {
+        "r_prime": float(np.median(r * L_PP / U)),
+        "diameter_m": float(np.median(2.0 * U / r)),
+        "speed_loss": float(1.0 - np.median(U) / U0),
+    }
 
 
 def zigzag_r_prime(tracks) -> float:
@@ -239,12 +246,12 @@ def _steady_lines(res: dict) -> list:
     cells = []
     for label, s in res["structures"].items():
         c = s["circles"]["starboard"]
-        if c.get("steady_r_prime") is None:
+        if c.get("steady") is None:
             return []
         cells.append(
-            f"{'no discovered term' if label == 'without' else label} r' {fmt(c['steady_r_prime'])}, steady "
-            f"diameter {fmt(c['steady_turning_diameter_m']['value'])} m against a tactical diameter of "
-            f"{fmt(c['tactical_diameter_m']['value'])} m, speed loss {fmt(c['speed_loss']['value'])}"
+            f"{'no discovered term' if label == 'without' else label} r' {fmt(c['steady']['r_prime'])}, steady "
+            f"diameter (2 U / r) {fmt(c['steady']['diameter_m'])} m against a tactical diameter of "
+            f"{fmt(c['tactical_diameter_m']['value'])} m, speed loss {fmt(c['steady']['speed_loss'])}"
         )
     return [
         f"Beyond the zigzags: the zigzags reach a nondimensional yaw rate r' = r L / U of {fmt(top)} at most (95th "
