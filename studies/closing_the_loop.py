@@ -321,13 +321,19 @@ def _wrong_lines(looped: list) -> list:
                 continue
             hidden = next(iter(r["hidden"]))
             m = rd.get("hidden_mimicked_by")
-            why = (
-                f"the hidden {hidden} was set aside as mimicked by the free coefficient {m['parameter']} (cosine of "
-                f"the columns {fmt(m['cosine'])}; the report's mimicked section names it and suggests holding "
-                f"{m['parameter']} to test it)"
-                if m
-                else f"the hidden {hidden} was not among the refitted terms"
-            )
+            wrong = [k for k in rd["kept"] if k != hidden and not rd["alternatives"].get(k)]
+            if hidden in rd["kept"]:
+                why = (
+                    f"the hidden {hidden} is kept too, and {', '.join(wrong)} with it, no competitor of "
+                    f"{'it' if len(wrong) == 1 else 'them'} surviving the runs"
+                )
+            elif m:
+                why = (
+                    f"the hidden {hidden} was set aside as mimicked by the free coefficient {m['parameter']} (cosine "
+                    f"of the columns {fmt(m['cosine'])}; the report's mimicked section names it)"
+                )
+            else:
+                why = f"the hidden {hidden} was not among the refitted terms"
             lines += [
                 f"A wrong term alone, {label}: {r['case']} (repeat {r['repeat']}), verdict `{rd['verdict']}` with "
                 f"the designed run {r['designed_run']['name']} ({fmt(r['designed_run']['duration_s'])} s): {why}. "
