@@ -34,7 +34,13 @@ def add_parser(sub) -> None:
         dest="window",
         alias=True,
     )
-    opt.add_dt(f, None, "model step, s (none: 0.2 ships, 0.5 submarines)")
+    opt.add_dt(
+        f,
+        None,
+        "model step, s (none: 0.2 ships, 0.5 submarines), or 'auto': from the family's, halved and refitted while "
+        "halving it moves a coefficient by more than 0.5 sd (every fit reports that check)",
+        auto=True,
+    )
     opt.add_max_nfev(f, "least-squares iterations")
     opt.add_weighting(f)
     f.add_argument(
@@ -122,7 +128,8 @@ def _identify(args, out, vehicle, free, got):
         free=free,
         effects=opt.split_names(args.effects, "--effects"),
         window_s=args.window,
-        dt=args.dt,
+        dt=None if args.dt == "auto" else args.dt,
+        refine_step=args.dt == "auto",
         max_nfev=args.max_nfev,
         weighting=args.weighting or None,
         channels=opt.split_names(args.fit_channels, "--fit-channels") or None,
@@ -186,6 +193,8 @@ def _write(res, doc, train, out) -> None:
     )
     if budget_exhausted(doc.fit):
         print(f"warning: {budget_advice(doc.fit)} (see {out / 'report.md'})", file=sys.stderr)
+    if res.step_check is not None and res.step_check.too_coarse:
+        print(f"warning: {res.step_check.sentence()} (see {out / 'report.md'})", file=sys.stderr)
 
 
 def _training_figures(res, train, figs) -> list:

@@ -351,8 +351,8 @@ def _add_alias(parser, old: str, new: str, dest: str, *checks) -> None:
     )
 
 
-def add_dt(parser, default, help: str) -> None:
-    """``--dt``: the model's integration step, s (positive).
+def add_dt(parser, default, help: str, auto: bool = False) -> None:
+    """``--dt``: the model's integration step, s (positive), or ``auto``.
 
     Parameters
     ----------
@@ -363,8 +363,20 @@ def add_dt(parser, default, help: str) -> None:
         says how).
     help : str
         The option's help text.
+    auto : bool, default False
+        Accept ``--dt auto`` as well (the string ``"auto"``: the command refines the step itself,
+        :mod:`bayesid.estimation.stepcheck`).
     """
-    add_number(parser, "--dt", POSITIVE, default=default, help=help)
+    parse = number("--dt", float, POSITIVE)
+    if not auto:
+        parser.add_argument("--dt", type=parse, default=default, help=help)
+        return
+
+    def parse_auto(text: str):
+        return "auto" if text.strip().lower() == "auto" else parse(text)
+
+    parse_auto.__name__ = "float"
+    parser.add_argument("--dt", type=parse_auto, default=default, help=help)
 
 
 def add_max_nfev(parser, help: str) -> None:

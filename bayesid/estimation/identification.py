@@ -35,6 +35,7 @@ from .fit import FitResult
 from .laplace import ar1_inflation, fit_covariance
 from .multistart import MultistartResult, multistart
 from .options import CalibrationOptions, FitOptions
+from .stepcheck import MAX_HALVINGS, StepCheck, step_check
 
 __all__ = ["DEFAULT_WINDOW_S", "IdentifyResult", "identify"]
 
@@ -84,6 +85,9 @@ class IdentifyResult:
         ``beyond_3sd``.
     calibration : Calibration or None
         The leave-one-run-out calibration (:func:`bayesid.estimation.calibration.leave_one_run_out`).
+    step_check : StepCheck or None
+        The step-halving check of the final fit (:mod:`bayesid.estimation.stepcheck`): how far
+        halving the model step would move each free coefficient, in sd, and the steps tried.
     """
 
     model: object
@@ -102,6 +106,7 @@ class IdentifyResult:
     multistart: MultistartResult | None
     prior: dict
     calibration: Calibration | None
+    step_check: StepCheck | None = None
 
 
 def identify(
@@ -139,8 +144,9 @@ def identify(
     Returns
     -------
     IdentifyResult
-        The model, final fit, covariance, weights, scores and (with 3 or more runs) the
-        calibration.
+        The model, final fit, covariance, weights, scores, the step check
+        (:mod:`bayesid.estimation.stepcheck`; with ``options.refine_step`` the fit is at the
+        step it accepted) and (with 3 or more runs) the calibration.
 
     Raises
     ------
@@ -170,14 +176,86 @@ def identify(
         raise ValueError("identify needs at least one training track")
     say = runner.say
     channels = wf.check_channels(options.channels)
-    model = build_model(
-        vehicle,
-        options.free,
-        options.effects,
-        options.dt,
-        inputs=options.inputs,
-        rudder_rate_deg_s=options.rudder_rate_deg_s,
+    dt, p_start, tried, first = options.dt, None, [], None
+    while True:
+        st = _fit_at_step(vehicle, train, options, channels, dt, p_start, runner)
+        first = first or st  # its start, seed and multistart describe the fit's way in
+        check = step_check(st.f, st.cov, st.problem, st.rebuild)
+        tried.append(st.model.dt)
+        if not (options.refine_step and check.too_coarse and len(tried) <= MAX_HALVINGS):
+            break
+        say(f"{check.sentence()}: refitting at {st.model.dt / 2:g} s")
+        dt, p_start = st.model.dt / 2, st.f.p
+    check.steps_tried = tried
+    model, f, gp, prior_info = st.model, st.f, st.gp, st.prior_info
+    calib = None
+    if calibration is not None and len(train) >= 3:
+        rule_p, lead_p = start_settings(options.start, train, calibration.window_s, model.dt, None)
+        say(f"calibration: leave one of {len(train)} runs out on {runner.where()}")
+        scale = (prior_info["residual_variance"], prior_info["ar1_inflation"]) if gp is not None else None
+        refit = dataclasses.replace(st.problem, prior=gp, data_scale=scale)
+        calib = leave_one_run_out(refit, f, train, calibration, start=rule_p, leadin_s=lead_p, runner=runner)
+    return IdentifyResult(
+        model=model,
+        fit=f,
+        cov=st.cov,
+        posterior=st.post,
+        seed=first.seed_info,
+        noise_sd=st.sd,
+        fit_sd=st.problem.sd,
+        weighting=st.weighting,
+        channels=channels,
+        start_rule=st.rule,
+        train_scores=wf.scores(model, f, st.problem.ctxs),
+        window_s=st.window_s,
+        p0=first.p0,
+        multistart=first.ms,
+        prior=prior_info,
+        calibration=calib,
+        step_check=check,
     )
+
+
+@dataclass
+class _Stage:
+    """One fit of :func:`identify` at one model step: the model, its problem (with the prior of a
+    MAP fit), the fit, its Laplace covariance and summaries, and ``rebuild(dt) -> (model,
+    ctxs)`` for the step check."""
+
+    model: object
+    problem: wf.FitProblem
+    f: FitResult
+    cov: np.ndarray
+    post: dict
+    gp: object
+    prior_info: dict
+    seed_info: dict
+    sd: dict
+    weighting: str
+    rule: str
+    window_s: float
+    p0: np.ndarray
+    ms: MultistartResult | None
+    rebuild: object
+
+
+def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, runner: Runner) -> _Stage:
+    """The fit of :func:`identify` at the model step ``dt`` (None: the family's), from
+    ``p_start`` (None: the nominal coefficients or the equation-error seed, and the multistart
+    when asked for; given, the optimum at a coarser step, refitted alone)."""
+    say = runner.say
+
+    def make(step):
+        return build_model(
+            vehicle,
+            options.free,
+            options.effects,
+            step,
+            inputs=options.inputs,
+            rudder_rate_deg_s=options.rudder_rate_deg_s,
+        )
+
+    model = make(dt)
     window_s = options.window_s if options.window_s is not None else model.default_fit_window(DEFAULT_WINDOW_S)
     for e in model.effects:
         bare = [t.name for t in train if not all(c in t for c in e.needs_columns)]
@@ -192,52 +270,37 @@ def identify(
     wf.check_enough_data(model, ctxs, window_s)
     sd = wf.pooled_noise_sd(train)
     p0, seed_info = model.start(), {"used": False}
-    if options.equation_error_seed:
+    if p_start is not None:
+        p0 = np.asarray(p_start, float)
+    elif options.equation_error_seed:
         p0, seed_info = _equation_error_start(model, ctxs, train, sd, channels)
         if seed_info.get("tried"):
             say(f"equation-error seed: {'used' if seed_info.get('used') else 'not used'}")
         seed_info.pop("tried", None)
-    say("multiple-shooting fit")
-    max_nfev = options.max_nfev
+    say(f"multiple-shooting fit (model step {model.dt:g} s)")
     weighting = options.weighting or model.DEFAULT_WEIGHTING
-    problem = wf.FitProblem(model, ctxs, sd, channels=channels, max_nfev=max_nfev)
+    problem = wf.FitProblem(model, ctxs, sd, channels=channels, max_nfev=options.max_nfev)
     f, sd_fit = wf.fit_weighted(problem, p0, weighting=weighting, bar=runner.bar("fit"))
     problem = dataclasses.replace(problem, sd=sd_fit)
     ms = None
-    if options.starts:
+    if options.starts and p_start is None:  # a refined step refits from the multistart's best
         say(f"multistart: {options.starts} more start(s) on {runner.where()}")
         f, ms = _multistart(problem, f, p0, options, runner)
     gp = wf.GaussianPrior.of_model(model) if options.prior else None
     if gp is not None and gp.idx.size:
         say(f"MAP fit with the vehicle file's priors on {len(gp.names)} coefficient(s)")
         f, cov, post, gp, prior_info = _map_fit(problem, f, gp, runner)
+        checked = dataclasses.replace(problem, prior=gp)
     else:
         cov, post = fit_covariance(f, ctxs)
-        gp, prior_info = None, {"used": False}
-    calib = None
-    if calibration is not None and len(train) >= 3:
-        rule_p, lead_p = start_settings(options.start, train, calibration.window_s, model.dt, None)
-        say(f"calibration: leave one of {len(train)} runs out on {runner.where()}")
-        scale = (prior_info["residual_variance"], prior_info["ar1_inflation"]) if gp is not None else None
-        refit = dataclasses.replace(problem, prior=gp, data_scale=scale)
-        calib = leave_one_run_out(refit, f, train, calibration, start=rule_p, leadin_s=lead_p, runner=runner)
-    return IdentifyResult(
-        model=model,
-        fit=f,
-        cov=cov,
-        posterior=post,
-        seed=seed_info,
-        noise_sd=sd,
-        fit_sd=sd_fit,
-        weighting=weighting,
-        channels=channels,
-        start_rule=rule,
-        train_scores=wf.scores(model, f, ctxs),
-        window_s=window_s,
-        p0=p0,
-        multistart=ms,
-        prior=prior_info,
-        calibration=calib,
+        gp, prior_info, checked = None, {"used": False}, problem
+
+    def rebuild(step):
+        m = make(step)
+        return m, [m.context(t, window_s, start=rule) for t in train]
+
+    return _Stage(
+        model, checked, f, cov, post, gp, prior_info, seed_info, sd, weighting, rule, window_s, p0, ms, rebuild
     )
 
 

@@ -193,6 +193,7 @@ class ModelDocument:
                 "message": f.message,
                 "seconds": f.wall_s,
                 "bic": f.bic,
+                **({} if getattr(result, "step_check", None) is None else {"step_check": result.step_check.to_dict()}),
             },
             multistart=None if result.multistart is None else result.multistart.to_dict(),
             prior=result.prior or {"used": False},

@@ -30,6 +30,10 @@ class FitOptions:
         The multiple-shooting window (s), positive; None: the family's ``default_fit_window``.
     dt : float, optional
         The model step (s), positive; None: the family's ``DEFAULT_DT``.
+    refine_step : bool, default False
+        Halve the model step and refit while halving it would move a free coefficient by more
+        than :data:`bayesid.estimation.stepcheck.STEP_SHIFT_SD` Laplace sd (``bayesid fit --dt
+        auto``; :mod:`bayesid.estimation.stepcheck`). Every fit runs the check; this acts on it.
     max_nfev : int, default 60
         Least-squares iterations of each fit, at least 1.
     equation_error_seed : bool, default True
@@ -73,6 +77,7 @@ class FitOptions:
     effects: tuple = ()
     window_s: float | None = None
     dt: float | None = None
+    refine_step: bool = False
     max_nfev: int = 60
     equation_error_seed: bool = True
     weighting: str | None = None

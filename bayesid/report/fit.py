@@ -93,6 +93,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         f"({doc['fit_window_s']} s windows). Fit: {doc['fit']['nfev']} evaluations, {doc['fit']['message']}",
         "",
         *([f"**Budget ran out**: {budget_advice(doc['fit'])}.", ""] if budget_exhausted(doc["fit"]) else []),
+        *_step_lines(doc["fit"]),
         _ar1_sentence(doc["posterior"]),
         "",
         *_coefficient_lines(doc),
@@ -393,6 +394,19 @@ def _multistart_lines(ms: dict) -> list:
         lines += [f"No turning circles: {tc['error']}.", ""]
     lines += [md_table(head, rows), "", "![multistart](figures/multistart.png)", ""]
     return lines
+
+
+def _step_lines(fit: dict) -> list:
+    """The step-halving check (:mod:`bayesid.estimation.stepcheck`) in words, bold when the step
+    is too coarse for the data (nothing for a model file from before the check)."""
+    from ..estimation.stepcheck import StepCheck
+
+    sc = fit.get("step_check")
+    if not sc:
+        return []
+    known = {k: sc[k] for k in ("dt", "dt_check", "shift_sd", "max_shift_sd", "worst", "d2", "steps_tried") if k in sc}
+    text = StepCheck(**known).sentence()
+    return [f"**Step check:** {text}.", ""] if sc.get("too_coarse") else [f"Step check: {text}.", ""]
 
 
 def _inputs_phrase(doc: dict) -> str:
