@@ -175,10 +175,25 @@ def _zigzag_rudder(rate_deg_s: float, log_s: float, n_reversals: int = 6) -> Tra
 )
 def test_a_log_coarse_for_the_rudders_rate_is_warned_about_naming_the_column(rate, log_s, warned):
     """Issue 50: a 16 deg/s rudder logged at 1-5 Hz moves 3.2-16 deg between samples, and held
-    between them it acts half an interval late; at 10-20 Hz (1.6 and 0.8 deg) nothing is said,
-    nor for a logged step (a simulation's instantaneous rudder is exact at its sample)."""
+    between them it acts half an interval late; at 10-20 Hz (1.6 and 0.8 deg) nothing is said of
+    the ramps, nor of a logged step's (its lone jumps have their own warning, below)."""
     msgs = [w for w in check_track(_zigzag_rudder(rate, log_s), None, "zz.csv") if "between samples" in w]
     assert bool(msgs) is warned, msgs
     if warned:
         assert msgs[0].startswith("zz.csv: column 'delta_r':") and "--inputs linear" in msgs[0]
         assert f"{16.0 * log_s:.2g} deg between samples" in msgs[0]
+
+
+@pytest.mark.parametrize("log_s", [0.1, 0.5, 1.0])
+def test_a_rudder_that_reverses_within_single_intervals_is_warned_about_its_timing(log_s):
+    """Issue 50: an instantaneous rudder (or a logged order) reversing between samples, as a
+    closed-loop zigzag's does, shows as lone jumps whose times within the interval no reading of
+    the log knows; on NPS AUV II zigzags that moved the coefficients far beyond their intervals
+    even at 10 Hz (reports/benchmark_reversal_timing.txt). Ramps logged across samples and a single
+    execute are not lone-jump warnings."""
+    msgs = [w for w in check_track(_zigzag_rudder(np.inf, log_s), None, "zz.csv") if "jumps" in w]
+    assert len(msgs) == 1 and msgs[0].startswith("zz.csv: column 'delta_r': the rudder jumps 5 times by up to 40 deg")
+    assert f"({log_s:.3g} s)" in msgs[0]
+    assert not [w for w in check_track(_zigzag_rudder(16.0, 0.1), None, "zz.csv") if "jumps" in w]
+    one = _zigzag_rudder(np.inf, log_s, n_reversals=2)  # the execute and one reversal
+    assert not [w for w in check_track(one, None, "zz.csv") if "jumps" in w]

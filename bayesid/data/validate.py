@@ -388,11 +388,15 @@ def _check_rudder_limit(track: Track, vehicle, name: str) -> list[str]:
 RUDDER_STEP_DEG = 2.0
 
 
-def _ramp_steps(d: np.ndarray) -> np.ndarray:
-    """The per-sample changes of ``d`` (deg) inside ramps: runs of at least two consecutive
-    changes of more than 0.05 deg in the same direction. A lone jump is left out: a logged step
-    (a rudder order, or a simulation's instantaneous rudder) is exact at its sample whatever the
-    log rate."""
+#: Lone rudder jumps (more than :data:`RUDDER_STEP_DEG` within one sample interval, outside a ramp)
+#: a run may hold before the log's timing is warned: a turn's execute and a pull-out's return are
+#: one or two; a closed-loop zigzag reverses at every check angle.
+LONE_JUMPS_WARNED = 3
+
+
+def _rudder_changes(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The per-sample changes of ``d`` (deg) and which of them lie inside ramps: runs of at least
+    two consecutive changes of more than 0.05 deg in the same direction."""
     step = np.diff(d)
     moving = np.isfinite(step) & (np.abs(step) > 0.05)
     sign = np.sign(step) * moving
@@ -400,29 +404,42 @@ def _ramp_steps(d: np.ndarray) -> np.ndarray:
     same_next[:-1] = (sign[:-1] != 0) & (sign[:-1] == sign[1:])
     in_ramp = same_next.copy()
     in_ramp[1:] |= same_next[:-1]
-    return np.abs(step[in_ramp])
+    return step, in_ramp
 
 
 def _check_log_rate(track: Track, name: str) -> list[str]:
-    """A warning when the rudder's ramps move more than :data:`RUDDER_STEP_DEG` between samples
-    (:func:`_ramp_steps`): the log is too coarse for the rudder's rate."""
+    """Warnings when the log is coarse for the rudder: its ramps move more than
+    :data:`RUDDER_STEP_DEG` between samples (the 90th percentile), or it jumps by more than that
+    within single intervals, outside a ramp, :data:`LONE_JUMPS_WARNED` times or more (a closed-loop
+    manoeuvre's reversals, whose times within the interval no reading of the log knows)."""
     if "delta_r" not in track or track.t.size < 4:
         return []
-    ramps = _ramp_steps(np.degrees(np.asarray(track["delta_r"], float)))
-    if ramps.size < 4:
-        return []
-    p90 = float(np.percentile(ramps, 90))
-    if p90 <= RUDDER_STEP_DEG:
-        return []
+    step, in_ramp = _rudder_changes(np.degrees(np.asarray(track["delta_r"], float)))
     h = float(np.median(np.diff(track.t)))
-    return [
-        f"{name}: column 'delta_r': the rudder's ramps move {p90:.2g} deg between samples (90th percentile; log "
-        f"interval {h:.3g} s, about {p90 / h:.3g} deg/s): the log is coarse for the rudder's rate. Held between "
-        f"samples (--inputs hold, the default) the model's rudder acts on average {h / 2:.2g} s late, which moved "
-        "fitted coefficients beyond their intervals on synthetic logs at 1-5 Hz (reports/benchmark_log_rate.txt); "
-        "fit with --inputs rate (the gear's rate: --rudder-rate or the ship file's [service] rudder_rate_deg_s) or "
-        "--inputs linear, or log the rudder faster (or the column logs the rudder order, not its angle)"
-    ]
+    out = []
+    ramps = np.abs(step[in_ramp])
+    p90 = float(np.percentile(ramps, 90)) if ramps.size >= 4 else 0.0
+    if p90 > RUDDER_STEP_DEG:
+        out.append(
+            f"{name}: column 'delta_r': the rudder's ramps move {p90:.2g} deg between samples (90th percentile; log "
+            f"interval {h:.3g} s, about {p90 / h:.3g} deg/s): the log is coarse for the rudder's rate. Held between "
+            f"samples (--inputs hold, the default) the model's rudder acts on average {h / 2:.2g} s late, which moved "
+            "fitted coefficients beyond their intervals on synthetic logs at 1-5 Hz (reports/benchmark_log_rate.txt); "
+            "fit with --inputs rate (the gear's rate: --rudder-rate or the ship file's [service] rudder_rate_deg_s) or "
+            "--inputs linear, or log the rudder faster (or the column logs the rudder order, not its angle)"
+        )
+    lone = np.abs(step[~in_ramp & np.isfinite(step)])
+    lone = lone[lone > RUDDER_STEP_DEG]
+    if lone.size >= LONE_JUMPS_WARNED:
+        out.append(
+            f"{name}: column 'delta_r': the rudder jumps {lone.size} times by up to {lone.max():.3g} deg within one "
+            f"sample interval ({h:.3g} s), not along a ramp: an actuator faster than the log, or the column logs the "
+            "rudder order. Where a jump fell between two samples (a closed-loop zigzag's reversals do) no --inputs "
+            f"reading knows its time within the {h:.3g} s, and that timing alone can move the fitted coefficients far "
+            "beyond their intervals (reports/benchmark_reversal_timing.txt); log the rudder angle as it moves, or "
+            "judge the fit on held-out runs"
+        )
+    return out
 
 
 def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
@@ -438,7 +455,9 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         :data:`RUDDER_LIMIT_MARGIN_DEG`) and its own plausibility checks,
         :meth:`~bayesid.data.vehicle.Vehicle.track_warnings`); None skips those checks. Whatever
         the vehicle, a rudder whose ramps move more than :data:`RUDDER_STEP_DEG` between samples
-        is a warning (the log is coarse for the inputs held between samples).
+        is a warning (the log is coarse for the inputs held between samples), and so is one that
+        jumps by more than that within single intervals :data:`LONE_JUMPS_WARNED` times or more
+        (reversals whose times between the samples no fit knows).
     where : str, optional
         The file named in messages; default the track's name.
 
