@@ -38,7 +38,7 @@ def add_parser(sub) -> None:
         f,
         None,
         "model step, s (none: 0.2 ships, 0.5 submarines), or 'auto': from the family's, halved and refitted while "
-        "halving it moves a coefficient by more than 0.5 sd (every fit reports that check)",
+        "halving it moves the estimate by more than 0.5 sd (every fit reports that check)",
         auto=True,
     )
     opt.add_max_nfev(f, "least-squares iterations")

@@ -31,8 +31,8 @@ class FitOptions:
     dt : float, optional
         The model step (s), positive; None: the family's ``DEFAULT_DT``.
     refine_step : bool, default False
-        Halve the model step and refit while halving it would move a free coefficient by more
-        than :data:`bayesid.estimation.stepcheck.STEP_SHIFT_SD` Laplace sd (``bayesid fit --dt
+        Halve the model step and refit while halving it would move the estimate by more than
+        :data:`bayesid.estimation.stepcheck.STEP_SHIFT_SD` sd along some direction (``bayesid fit --dt
         auto``; :mod:`bayesid.estimation.stepcheck`). Every fit runs the check; this acts on it.
     max_nfev : int, default 60
         Least-squares iterations of each fit, at least 1.
