@@ -28,12 +28,14 @@ Times are wall clock on one worker (numba's threads as set by ``NUMBA_NUM_THREAD
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import platform
 import time
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import chi2
 
 from bayesid import __version__
 from bayesid.data.track import INPUT_NAMES, STATE_NAMES, Track
@@ -120,8 +122,11 @@ def logs(runs, hz, noise):
     return out
 
 
-def coverage(vehicle, free, truth, train, options: FitOptions):
-    """(covered fraction, max |z|, worst coefficient, wall s) of one fit."""
+def coverage(vehicle, free, truth, train, options: FitOptions) -> dict:
+    """One fit's ``covered`` fraction, ``zmax`` (max |z|) and its ``worst`` coefficient, the
+    truth's Mahalanobis distance ``d2`` and whether it lies in the joint 90 % ellipsoid
+    (``joint``), the fit's final model step ``dt`` and step check's largest shift
+    ``shift_sd``, and the ``wall`` time, s."""
     t0 = time.perf_counter()
     res = identify(vehicle, train, options, calibration=None)
     wall = time.perf_counter() - t0
@@ -130,7 +135,18 @@ def coverage(vehicle, free, truth, train, options: FitOptions):
     tv = np.array([truth.coefficients[k] for k in free])
     z = np.abs(p - tv) / np.where(sd > 0, sd, np.nan)
     worst = int(np.nanargmax(z))
-    return float((np.abs(p - tv) <= Z90 * sd).mean()), float(z[worst]), free[worst], wall
+    d = p - tv
+    d2 = float(d @ np.linalg.lstsq(res.cov[:n, :n], d, rcond=None)[0])
+    return {
+        "covered": float((np.abs(p - tv) <= Z90 * sd).mean()),
+        "zmax": float(z[worst]),
+        "worst": free[worst],
+        "d2": d2,
+        "joint": d2 <= chi2.ppf(0.9, n),
+        "dt": res.model.dt,
+        "shift_sd": res.step_check.max_shift_sd,
+        "wall": wall,
+    }
 
 
 def vessel_runs(vessel: str, seed: int, a):
@@ -150,17 +166,53 @@ def vessel_runs(vessel: str, seed: int, a):
 
 
 def summary(rows, vessels, steps, modes, rates) -> list:
-    """Lines of the summary table: covered fraction over seeds (max |z|) per rate."""
-    out = [f"{'vessel':10s} {'dt':>7s} {'inputs':7s} " + " ".join(f"{f'{hz:g} Hz':>14s}" for hz in rates)]
+    """Lines of the summary table per rate: the covered fraction over seeds (max |z|), the fits
+    whose truth lies in the joint 90 % ellipsoid and, under ``--dts auto``, the steps used."""
+    out = [f"{'vessel':10s} {'dt':>7s} {'inputs':7s} " + " ".join(f"{f'{hz:g} Hz':>20s}" for hz in rates)]
     for vessel in vessels:
         for step in steps:
             for inputs in modes:
                 cells = []
                 for hz in rates:
-                    sel = [r for r in rows if r[:4] == (vessel, step, hz, inputs)]
-                    cells.append(f"{np.mean([r[4] for r in sel]):6.2f} ({max(r[5] for r in sel):4.1f})")
-                out.append(f"{vessel:10s} {step:>7s} {inputs:7s} " + " ".join(f"{c:>14s}" for c in cells))
+                    sel = [
+                        r for r in rows if (r["vessel"], r["step"], r["hz"], r["inputs"]) == (vessel, step, hz, inputs)
+                    ]
+                    joint = f"{sum(r['joint'] for r in sel)}/{len(sel)}"
+                    cells.append(
+                        f"{np.mean([r['covered'] for r in sel]):4.2f} ({max(r['zmax'] for r in sel):4.1f}) {joint:>5s}"
+                    )
+                out.append(f"{vessel:10s} {step:>7s} {inputs:7s} " + " ".join(f"{c:>20s}" for c in cells))
+                if step == "auto":
+                    used = [
+                        "/".join(
+                            f"{d:g}"
+                            for d in sorted(
+                                {
+                                    r["dt"]
+                                    for r in rows
+                                    if (r["vessel"], r["step"], r["hz"], r["inputs"]) == (vessel, step, hz, inputs)
+                                }
+                            )
+                        )
+                        for hz in rates
+                    ]
+                    out.append(f"{'':10s} {'steps':>7s} {'':7s} " + " ".join(f"{u:>20s}" for u in used))
     return out
+
+
+def fit_options(vessel: str, step: str, inputs: str, max_nfev: int) -> FitOptions:
+    """The fit's options: the vessel's free coefficients as fitted by ``bayesid fit --dt STEP
+    --inputs INPUTS`` (``default`` the family's step, ``auto`` refined by the step check) without
+    the file's prior."""
+    return FitOptions(
+        dt=None if step in ("default", "auto") else float(step),
+        refine_step=step == "auto",
+        max_nfev=max_nfev,
+        prior=False,
+        inputs=inputs,
+        # the ship file gives its gear's rate; the submarine's is the benchmark's
+        rudder_rate_deg_s=SUBMARINE_RATE_DEG_S if vessel == "submarine" else None,
+    )
 
 
 def main(argv=None) -> int:
@@ -169,7 +221,9 @@ def main(argv=None) -> int:
     ap.add_argument("--vessels", default="ship,submarine")
     ap.add_argument("--rates", default="1,2,5,10,20", help="log rates, Hz (divisors of 20)")
     ap.add_argument("--modes", default="hold,linear,rate", help="--inputs of the fits")
-    ap.add_argument("--dts", default="default,0.1", help="model steps of the fits, s (default: the family's)")
+    ap.add_argument(
+        "--dts", default="default,0.1,auto", help="model steps of the fits, s (default: the family's; auto: --dt auto)"
+    )
     ap.add_argument("--max-nfev", type=int, default=60)
     ap.add_argument("--duration-ship", type=float, default=150.0, help="ship run after the execute, s")
     ap.add_argument("--duration-submarine", type=float, default=120.0, help="submarine run, s")
@@ -187,10 +241,13 @@ def main(argv=None) -> int:
         f"{NOISE['x']:g} m, psi {math.degrees(NOISE['psi']):g} deg; no u, v, r logged; no prior; no calibration",
         "",
         "covered: free coefficients whose 90 % interval (estimate +- 1.645 Laplace sd) holds the truth;",
-        "max|z|: largest |estimate - truth| / sd (worst: that coefficient); wall: the fit (identify), s",
+        "max|z|: largest |estimate - truth| / sd (worst: that coefficient); d2: the truth's Mahalanobis",
+        "distance from the estimate (in the joint 90 % ellipsoid when d2 <= the chi^2 quantile: 'in');",
+        "dt: the fit's model step (auto: after the step check's halvings); shift: the step check's largest",
+        "shift, sd; wall: the fit (identify), s",
         "",
         f"{'vessel':10s} {'seed':>4s} {'dt':>7s} {'Hz':>4s} {'inputs':7s} {'covered':>8s} {'max|z|':>7s} "
-        f"{'worst':>8s} {'wall s':>7s}",
+        f"{'worst':>8s} {'d2':>7s} {'joint':>5s} {'step':>6s} {'shift':>6s} {'wall s':>7s}",
     ]
     print("\n".join(lines), flush=True)
     rows = []
@@ -201,42 +258,48 @@ def main(argv=None) -> int:
                 for hz in rates:
                     train = logs(runs, hz, noise)
                     for inputs in modes:
-                        options = FitOptions(
-                            free=free,
-                            dt=None if step == "default" else float(step),
-                            max_nfev=a.max_nfev,
-                            prior=False,
-                            inputs=inputs,
-                            # the ship file gives its gear's rate; the submarine's is the benchmark's
-                            rudder_rate_deg_s=SUBMARINE_RATE_DEG_S if vessel == "submarine" else None,
-                        )
-                        cov, zmax, worst, wall = coverage(veh, free, truth, train, options)
-                        rows.append((vessel, step, hz, inputs, cov, zmax, wall))
+                        options = dataclasses.replace(fit_options(vessel, step, inputs, a.max_nfev), free=free)
+                        r = coverage(veh, free, truth, train, options)
+                        rows.append({"vessel": vessel, "step": step, "hz": hz, "inputs": inputs, **r})
+                        frac = f"{round(r['covered'] * len(free))}/{len(free)}"
                         lines.append(
                             f"{vessel:10s} {seed:4d} {step:>7s} {hz:4g} {inputs:7s} "
-                            f"{f'{round(cov * len(free))}/{len(free)}':>8s} {zmax:7.2f} {worst:>8s} {wall:7.1f}"
+                            f"{frac:>8s} {r['zmax']:7.2f} {r['worst']:>8s} "
+                            f"{r['d2']:7.2f} {'in' if r['joint'] else 'out':>5s} {r['dt']:6.3g} {r['shift_sd']:6.2f} "
+                            f"{r['wall']:7.1f}"
                         )
                         print(lines[-1], flush=True)
     table = summary(rows, vessels, steps, modes, rates)
     met = {
-        (v, st, m): all(r[4] >= 0.8 for r in rows if r[0] == v and r[1] == st and r[3] == m)
+        (v, st, m): all(r["covered"] >= 0.8 for r in rows if (r["vessel"], r["step"], r["inputs"]) == (v, st, m))
+        for v in vessels
+        for st in steps
+        for m in modes
+    }
+    joint = {
+        (v, st, m): [r["joint"] for r in rows if (r["vessel"], r["step"], r["inputs"]) == (v, st, m)]
         for v in vessels
         for st in steps
         for m in modes
     }
     lines += [
         "",
-        "summary: covered fraction, mean over seeds (max |z| over seeds), by log rate",
-        "(dt default: 0.2 s ship, 0.5 s submarine)",
+        "summary by log rate: covered fraction, mean over seeds (max |z| over seeds), fits with the truth in the",
+        "joint 90 % ellipsoid (dt default: 0.2 s ship, 0.5 s submarine)",
         "",
         *table,
         "",
         "target (>= 80 % covered in every fit at every rate): "
         + "; ".join(f"{v} dt {st} {m} {'met' if ok else 'not met'}" for (v, st, m), ok in met.items()),
+        "joint 90 % ellipsoid holds the truth (expected 90 % of fits): "
+        + "; ".join(f"{v} dt {st} {m} {sum(j)}/{len(j)}" for (v, st, m), j in joint.items()),
         "",
         "wall per fit, s (median over fits): "
         + "; ".join(
-            f"{v} {m} {np.median([r[6] for r in rows if r[0] == v and r[3] == m]):.1f}" for v in vessels for m in modes
+            f"{v} {st} {m} {np.median([r['wall'] for r in rows if (r['vessel'], r['step'], r['inputs']) == (v, st, m)]):.1f}"
+            for v in vessels
+            for st in steps
+            for m in modes
         ),
         f"wall {time.perf_counter() - t_all:.0f} s",
     ]
