@@ -52,6 +52,7 @@ layer or closes a circle; the import graph is checked):
   :mod:`~bayesid.estimation.options` (FitOptions, CalibrationOptions),
   :mod:`~bayesid.estimation.identification` (identification on long runs),
   :mod:`~bayesid.estimation.stepcheck` (is the model step fine enough for the data),
+  :mod:`~bayesid.estimation.retiming` (when the rudder moved within a log interval),
   :mod:`~bayesid.estimation.prediction` (window protocol and whole-run predictions),
   :mod:`~bayesid.estimation.indices` (manoeuvre indices),
   :mod:`~bayesid.estimation.imo` (the IMO MSC.137(76) criteria at full scale),

@@ -51,6 +51,13 @@ def add_parser(sub) -> None:
     )
     opt.add_start(f)
     opt.add_inputs(f)
+    f.add_argument(
+        "--retime",
+        action="store_true",
+        help="with --inputs rate: estimate, with the coefficients, when each rudder movement that lies within one log "
+        "interval happened (a fast actuator's or a logged order's closed-loop reversals), and widen the coefficients' "
+        "intervals by what the data leave of those times; model.json records them (fit.retimed_moves)",
+    )
     opt.add_number(
         f,
         "--starts",
@@ -139,6 +146,7 @@ def _identify(args, out, vehicle, free, got):
         prior=args.prior == "file",
         inputs=args.inputs,
         rudder_rate_deg_s=args.rudder_rate,
+        retime=args.retime,
     )
     calibration = None
     if args.calibration == "loro" and len(train) >= 3:

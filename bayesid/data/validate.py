@@ -436,8 +436,9 @@ def _check_log_rate(track: Track, name: str) -> list[str]:
             f"sample interval ({h:.3g} s), not along a ramp: an actuator faster than the log, or the column logs the "
             "rudder order. Where a jump fell between two samples (a closed-loop zigzag's reversals do) no --inputs "
             f"reading knows its time within the {h:.3g} s, and that timing alone can move the fitted coefficients far "
-            "beyond their intervals (reports/benchmark_reversal_timing.txt); log the rudder angle as it moves, or "
-            "judge the fit on held-out runs"
+            "beyond their intervals (reports/benchmark_reversal_timing.txt): fit with --inputs rate --retime (the "
+            "gear's rate, --rudder-rate, or a rate far above the jumps' for an instant actuator), which estimates "
+            "their times with the coefficients, or log the rudder angle as it moves"
         )
     return out
 

@@ -29,6 +29,7 @@ import numpy as np
 from ..models import build_model
 from ..protocol import resolve_start, start_settings
 from ..tasks import Runner
+from . import retiming as rt
 from . import windows as wf
 from .calibration import Calibration, leave_one_run_out
 from .fit import FitResult
@@ -88,6 +89,9 @@ class IdentifyResult:
     step_check : StepCheck or None
         The step-halving check of the final fit (:mod:`bayesid.estimation.stepcheck`): how far
         halving the model step would move each free coefficient, in sd, and the steps tried.
+    retimed_moves : dict or None
+        With ``options.retime``: per training run, the start time (s) of each rudder movement
+        within one log interval and its sd (:mod:`bayesid.estimation.retiming`).
     """
 
     model: object
@@ -107,6 +111,7 @@ class IdentifyResult:
     prior: dict
     calibration: Calibration | None
     step_check: StepCheck | None = None
+    retimed_moves: dict | None = None
 
 
 def identify(
@@ -213,6 +218,7 @@ def identify(
         prior=prior_info,
         calibration=calib,
         step_check=check,
+        retimed_moves=st.retimed,
     )
 
 
@@ -237,6 +243,7 @@ class _Stage:
     p0: np.ndarray
     ms: MultistartResult | None
     rebuild: object
+    retimed: dict | None = None
 
 
 def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, runner: Runner) -> _Stage:
@@ -286,6 +293,13 @@ def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, run
     if options.starts and p_start is None:  # a refined step refits from the multistart's best
         say(f"multistart: {options.starts} more start(s) on {runner.where()}")
         f, ms = _multistart(problem, f, p0, options, runner)
+    retiming = None
+    if options.retime:
+        moves = rt.moves_of(ctxs)
+        if any(m.size for m in moves):
+            say(f"retiming {sum(m.size for m in moves)} rudder movement(s) within single log intervals")
+            p_rt, retiming = rt.fit_retimed(problem, f.p, moves, options.max_nfev, bar=runner.bar("retime"))
+            f = wf.fit_model(problem, p_rt)  # the coefficients at the retimed inputs, with their Jacobian
     gp = wf.GaussianPrior.of_model(model) if options.prior else None
     if gp is not None and gp.idx.size:
         say(f"MAP fit with the vehicle file's priors on {len(gp.names)} coefficient(s)")
@@ -294,14 +308,38 @@ def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, run
     else:
         cov, post = fit_covariance(f, ctxs)
         gp, prior_info, checked = None, {"used": False}, problem
+    retimed = None
+    if retiming is not None:
+        cov, post, retimed = _timing_covariance(f, ctxs, retiming, gp, prior_info)
 
     def rebuild(step):
         m = make(step)
-        return m, [m.context(t, window_s, start=rule) for t in train]
+        cs = [m.context(t, window_s, start=rule) for t in train]
+        if retiming is not None:
+            for c, lone in zip(cs, retiming.per_track()):
+                c.retime(lone)
+        return m, cs
 
     return _Stage(
-        model, checked, f, cov, post, gp, prior_info, seed_info, sd, weighting, rule, window_s, p0, ms, rebuild
+        model, checked, f, cov, post, gp, prior_info, seed_info, sd, weighting, rule, window_s, p0, ms, rebuild, retimed
     )
+
+
+def _timing_covariance(f: FitResult, ctxs, retiming, gp, prior_info: dict) -> tuple:
+    """(covariance, Laplace summary, movement times) of a retimed fit: the fit's Jacobian with
+    the movements' directions projected out (:func:`bayesid.estimation.retiming.project_timing`),
+    so that the coefficients' covariance counts the times' uncertainty; the times per track with
+    their sds, s (:meth:`~bayesid.estimation.retiming.Retiming.times`)."""
+    sd_factor = rt.project_timing(f, retiming.jac)
+    if gp is not None:
+        s2, infl = prior_info["residual_variance"], prior_info["ar1_inflation"]
+        cov, post = fit_covariance(f, ctxs, gp, (s2, infl))
+        for name, i in zip(gp.names, gp.idx):
+            prior_info["coefficients"][name]["posterior_sd"] = float(math.sqrt(max(cov[i, i], 0.0)))
+    else:
+        cov, post = fit_covariance(f, ctxs)
+        s2, infl = post["residual_variance"], post["ar1_inflation"]
+    return cov, post, retiming.times(ctxs, sd_factor * math.sqrt(s2 * infl))
 
 
 def _equation_error_start(model, ctxs, train, sd, channels) -> tuple:

@@ -194,6 +194,7 @@ class ModelDocument:
                 "seconds": f.wall_s,
                 "bic": f.bic,
                 **({} if getattr(result, "step_check", None) is None else {"step_check": result.step_check.to_dict()}),
+                **({} if getattr(result, "retimed_moves", None) is None else {"retimed_moves": result.retimed_moves}),
             },
             multistart=None if result.multistart is None else result.multistart.to_dict(),
             prior=result.prior or {"used": False},

@@ -65,12 +65,16 @@ class FitOptions:
     rudder_rate_deg_s : float, optional
         The gear's rate of ``inputs="rate"``, deg/s; default the vehicle file's (a ship's
         ``[service] rudder_rate_deg_s``).
+    retime : bool, default False
+        With ``inputs="rate"``: estimate, with the coefficients, when each rudder movement that
+        lies within one log interval happened, and count their uncertainty in the coefficients'
+        covariance (:mod:`bayesid.estimation.retiming`; ``bayesid fit --retime``).
 
     Raises
     ------
     ValueError
         ``max_nfev`` below 1, negative ``starts``, a non-positive ``window_s``, ``dt`` or
-        ``rudder_rate_deg_s``, an unknown ``inputs``.
+        ``rudder_rate_deg_s``, an unknown ``inputs``, ``retime`` without ``inputs="rate"``.
     """
 
     free: tuple | None = None
@@ -88,6 +92,7 @@ class FitOptions:
     prior: bool = True
     inputs: str = "hold"
     rudder_rate_deg_s: float | None = None
+    retime: bool = False
 
     def __post_init__(self):
         for name in ("free", "effects", "channels"):
@@ -105,6 +110,11 @@ class FitOptions:
         if self.inputs not in INPUT_RECONSTRUCTIONS:
             raise ValueError(
                 f"FitOptions.inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}"
+            )
+        if self.retime and self.inputs != "rate":
+            raise ValueError(
+                "--retime estimates the rudder's movements at the gear's rate: it needs --inputs rate "
+                f"(FitOptions.inputs is {self.inputs!r})"
             )
 
     def to_dict(self) -> dict:

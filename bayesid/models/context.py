@@ -33,7 +33,7 @@ from .effects import Effect
 INPUT_RECONSTRUCTIONS = ("hold", "linear", "rate")
 
 
-def rate_limited_knots(t, u, rate: float) -> tuple[np.ndarray, np.ndarray]:
+def rate_limited_knots(t, u, rate: float, lone_at: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The knots of a control surface that moves at its gear's rate between its logged samples.
 
     A steering gear holds its angle or moves at its rate toward the order. Between two samples
@@ -55,6 +55,11 @@ def rate_limited_knots(t, u, rate: float) -> tuple[np.ndarray, np.ndarray]:
         The logged angles, rad (no missing values).
     rate : float
         The gear's rate, rad/s, positive.
+    lone_at : dict, optional
+        ``{interval i: fraction}``: where a movement within the interval ``t[i]..t[i + 1]``
+        starts, as a fraction in [0, 1] of the time the gear held in it (0: at ``t[i]``, 1: it
+        ends at ``t[i + 1]``; default 0.5, the middle). The times of such movements
+        estimated with the model (:func:`lone_moves`, :meth:`TrackContext.retime`).
 
     Returns
     -------
@@ -87,12 +92,44 @@ def rate_limited_knots(t, u, rate: float) -> tuple[np.ndarray, np.ndarray]:
                 tk.append([t[i + 1] - tau[i]])
                 uk.append([u[i]])
             else:  # a movement within this interval
-                mid = 0.5 * (t[i] + t[i + 1])
-                tk.append([mid - 0.5 * tau[i], mid + 0.5 * tau[i]])
+                f = 0.5 if not lone_at else min(max(float(lone_at.get(i, 0.5)), 0.0), 1.0)
+                start = t[i] + f * (h[i] - tau[i])
+                tk.append([start, start + tau[i]])
                 uk.append([u[i], u[i + 1]])
         tk.append(t[i + 1 : i + 2])
         uk.append(u[i + 1 : i + 2])
     return np.concatenate(tk), np.concatenate(uk)
+
+
+def lone_moves(t, u, rate: float, min_step: float = 0.0) -> np.ndarray:
+    """The intervals in which a control surface moved within the interval alone (neither
+    movement goes on from the one before nor into the one after, and the gear had time to spare):
+    the movements whose time :func:`rate_limited_knots` does not know and puts mid-interval.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times, s.
+    u : ndarray, shape (n,)
+        The logged angles, rad (no missing values).
+    rate : float
+        The gear's rate, rad/s, positive.
+    min_step : float, default 0.0
+        Only movements larger than this, rad.
+
+    Returns
+    -------
+    ndarray of int
+        The intervals ``i`` (between ``t[i]`` and ``t[i + 1]``).
+    """
+    t, u = np.asarray(t, float), np.asarray(u, float)
+    d, h = np.diff(u), np.diff(t)
+    moves = np.abs(d) > max(1e-9, min_step)
+    tiny = np.abs(d) <= 1e-9
+    sgn = np.sign(d)
+    before = np.concatenate([[False], ~tiny[:-1] & (sgn[:-1] == sgn[1:])])
+    after = np.concatenate([~tiny[1:] & (sgn[1:] == sgn[:-1]), [False]])
+    return np.flatnonzero(moves & (np.abs(d) / rate < h * (1.0 - 1e-6)) & ~before & ~after)
 
 
 @nb.njit(cache=True)
@@ -368,11 +405,38 @@ class TrackContext:
             self.s_meas[:, [2, 3, 4, 8, 9, 10]] = 0.0
         self.lead = self._lead_samples(track, t) if self.start == "fitted" else None
         self._tk, self._ck, self._uk = self._input_integral(track, t, inputs, getattr(model, "rudder_rate_deg_s", None))
+        self.lone_at = None
         self.substeps = int(substeps)
         self.step_inputs = self.average_inputs(np.zeros(1))[0]
 
+    def retime(self, lone_at: dict | None) -> None:
+        """Place the rudder's movements within single intervals (``inputs="rate"``) at the given
+        fractions of their intervals and rebuild the step inputs (the times estimated with the
+        model: :func:`bayesid.estimation.retiming.retime_lone_moves`).
+
+        Parameters
+        ----------
+        lone_at : dict or None
+            ``{interval i: fraction in [0, 1]}`` of ``delta_r`` (:func:`rate_limited_knots`);
+            None: the middle of each.
+
+        Raises
+        ------
+        ValueError
+            A context whose inputs are not reconstructed at the gear's rate.
+        """
+        if self.input_reconstruction != "rate":
+            raise ValueError(f"track {self.name!r}: retiming needs inputs 'rate', not {self.input_reconstruction!r}")
+        t = np.asarray(self.track.t, float)
+        rate = self.model.rudder_rate_deg_s
+        self._tk, self._ck, self._uk = self._input_integral(self.track, t, "rate", rate, lone_at)
+        self.lone_at = None if lone_at is None else dict(lone_at)
+        self.step_inputs = self.average_inputs(np.zeros(1))[0]
+
     @staticmethod
-    def _input_integral(track: Track, t, inputs: str = "hold", rate_deg_s: float | None = None) -> tuple:
+    def _input_integral(
+        track: Track, t, inputs: str = "hold", rate_deg_s: float | None = None, lone_at: dict | None = None
+    ) -> tuple:
         """(knot times (n + 2,), cumulative integral (n + 2, 4), input values at the knots
         (n + 2, 4) or None) of the inputs reconstructed between samples, padded beyond both ends
         with the first and last sample held: averages over any interval are exact differences of
@@ -383,8 +447,9 @@ class TrackContext:
         between the knots, the integral piecewise quadratic (:func:`_linear_integral`; missing
         samples interpolated between their neighbours). ``"rate"``: as ``"linear"`` on knots that
         add the corners of the control surfaces moving at ``rate_deg_s`` (deg/s) between samples
-        (:func:`rate_limited_knots`). ValueError for a missing ``delta_r`` or ``n`` column, an
-        input without any value, or ``"rate"`` without a rate."""
+        (:func:`rate_limited_knots`; ``lone_at`` places the rudder's movements within single
+        intervals). ValueError for a missing ``delta_r`` or ``n`` column, an input without any
+        value, or ``"rate"`` without a rate."""
         missing = [k for k in ("delta_r", "n") if k not in track]
         if missing:
             raise ValueError(f"track {track.name!r} has no input column(s) {missing}")
@@ -409,7 +474,8 @@ class TrackContext:
                     "inputs 'rate' needs the steering gear's rate: the ship file's [service] rudder_rate_deg_s "
                     "or --rudder-rate"
                 )
-            knots = [rate_limited_knots(t, U[:, j], math.radians(rate_deg_s)) for j in range(3)]
+            rad_s = math.radians(rate_deg_s)
+            knots = [rate_limited_knots(t, U[:, j], rad_s, lone_at if j == 0 else None) for j in range(3)]
             tr = np.unique(np.concatenate([t, *(k[0] for k in knots)]))
             cols = [np.interp(tr, *k) for k in knots] + [np.interp(tr, t, U[:, 3])]
             t, U = tr, np.column_stack(cols)
@@ -685,6 +751,8 @@ __all__ = [
     "TrackContext",
     "INPUT_RECONSTRUCTIONS",
     "continuous_pieces",
+    "lone_moves",
+    "rate_limited_knots",
     "MAX_GRID_STEPS",
     "errors",
     "START_INDEX",

@@ -94,6 +94,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         "",
         *([f"**Budget ran out**: {budget_advice(doc['fit'])}.", ""] if budget_exhausted(doc["fit"]) else []),
         *_step_lines(doc["fit"]),
+        *_retime_lines(doc["fit"]),
         _ar1_sentence(doc["posterior"]),
         "",
         *_coefficient_lines(doc),
@@ -407,6 +408,22 @@ def _step_lines(fit: dict) -> list:
     known = {k: sc[k] for k in ("dt", "dt_check", "shift_sd", "max_shift_sd", "worst", "d2", "steps_tried") if k in sc}
     text = StepCheck(**known).sentence()
     return [f"**Step check:** {text}.", ""] if sc.get("too_coarse") else [f"Step check: {text}.", ""]
+
+
+def _retime_lines(fit: dict) -> list:
+    """The retimed rudder movements (``--retime``, :mod:`bayesid.estimation.retiming`) in words."""
+    moves = fit.get("retimed_moves")
+    if not moves:
+        return []
+    n = sum(len(v) for v in moves.values())
+    sds = [m[1] for v in moves.values() for m in v if m[1] is not None]
+    spread = f", each to within a median sd of {float(np.median(sds)):.2g} s" if sds else ""
+    return [
+        f"Retimed: {n} rudder movement(s) within single log intervals in {len(moves)} run(s), their times estimated "
+        f"with the coefficients{spread}; the coefficients' sds count what the data leave of those times "
+        "(model.json fit.retimed_moves).",
+        "",
+    ]
 
 
 def _inputs_phrase(doc: dict) -> str:
