@@ -241,7 +241,10 @@ def test_the_correct_units_pass_without_warning(csvs):
     from bayesid.data.track import read_csv
 
     for p in csvs:
-        assert validate.check_track(read_csv(p), load_vehicle("nps_auv2")) == []
+        # the zigzags' instantaneous reversals, decided every 0.1 s and logged every 0.2 s, fall
+        # between samples: that timing warning is about the log, not its units
+        warned = validate.check_track(read_csv(p), load_vehicle("nps_auv2"))
+        assert [w for w in warned if "the rudder jumps" not in w] == []
 
 
 def test_odd_but_possible_inputs_are_warned_about_in_the_outputs(csvs, tmp_path, capsys):
@@ -339,7 +342,7 @@ def test_implausible_tracks_for_the_vehicle_are_warned_about(csvs, tmp_path):
     assert any("Froude" in w for w in check_track(sub, esso))
     planes = read_csv(_variant(csvs[0], tmp_path, "planes", lambda t, d: (d.__setitem__("delta_s", 0 * t + 0.1), t)[1]))
     assert any("delta_s" in w and "surface ship" in w for w in check_track(planes, esso))
-    assert check_track(sub, auv) == []
+    assert [w for w in check_track(sub, auv) if "the rudder jumps" not in w] == []  # (timing: not implausible)
 
 
 def test_too_little_training_data_is_refused(csvs, tmp_path, capsys):

@@ -41,7 +41,8 @@ def test_the_packages_own_runs_turn_to_port_with_a_positive_rudder_and_pass(runs
     tr = read_csv(runs[key])
     resp = rudder_response(tr)
     assert resp["t"] < 0 and resp["t_K"] < 0
-    assert not [w for w in check_track(tr) if "delta_r" in w and "between samples" not in w]  # the sign: no word
+    # the sign: no word (the log-rate warnings are about timing)
+    assert not [w for w in check_track(tr) if "delta_r" in w and "between samples" not in w and "jumps" not in w]
     neg = read_csv(_negated(runs[key], tmp_path / "neg.csv"))
     with pytest.raises(ValueError, match="column 'delta_r'.*rudder positive: starboard"):
         check_track(neg, where="neg.csv")
