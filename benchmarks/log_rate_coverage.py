@@ -137,6 +137,11 @@ def coverage(vehicle, free, truth, train, options: FitOptions) -> dict:
     worst = int(np.nanargmax(z))
     d = p - tv
     d2 = float(d @ np.linalg.lstsq(res.cov[:n, :n], d, rcond=None)[0])
+    # the chance that a calibrated posterior with this covariance meets the target in one fit:
+    # errors drawn from N(0, cov), the share of coefficients inside their marginal 90 % intervals
+    rng = np.random.default_rng(0)
+    draws = rng.multivariate_normal(np.zeros(n), res.cov[:n, :n], size=4000, method="eigh")
+    p_target = float(np.mean(np.mean(np.abs(draws) <= Z90 * sd, axis=1) >= 0.8))
     return {
         "covered": float((np.abs(p - tv) <= Z90 * sd).mean()),
         "zmax": float(z[worst]),
@@ -145,6 +150,7 @@ def coverage(vehicle, free, truth, train, options: FitOptions) -> dict:
         "joint": d2 <= chi2.ppf(0.9, n),
         "dt": res.model.dt,
         "shift_sd": res.step_check.max_shift_sd,
+        "p_target": p_target,
         "wall": wall,
     }
 
@@ -244,10 +250,11 @@ def main(argv=None) -> int:
         "max|z|: largest |estimate - truth| / sd (worst: that coefficient); d2: the truth's Mahalanobis",
         "distance from the estimate (in the joint 90 % ellipsoid when d2 <= the chi^2 quantile: 'in');",
         "dt: the fit's model step (auto: after the step check's halvings); shift: the step check's largest",
-        "shift, sd; wall: the fit (identify), s",
+        "shift, sd; P80: the chance that a calibrated posterior with the fit's covariance covers >= 80 % of the",
+        "coefficients (errors drawn from N(0, cov)); wall: the fit (identify), s",
         "",
         f"{'vessel':10s} {'seed':>4s} {'dt':>7s} {'Hz':>4s} {'inputs':7s} {'covered':>8s} {'max|z|':>7s} "
-        f"{'worst':>8s} {'d2':>7s} {'joint':>5s} {'step':>6s} {'shift':>6s} {'wall s':>7s}",
+        f"{'worst':>8s} {'d2':>7s} {'joint':>5s} {'step':>6s} {'shift':>6s} {'P80':>5s} {'wall s':>7s}",
     ]
     print("\n".join(lines), flush=True)
     rows = []
@@ -265,7 +272,7 @@ def main(argv=None) -> int:
                         lines.append(
                             f"{vessel:10s} {seed:4d} {step:>7s} {hz:4g} {inputs:7s} "
                             f"{frac:>8s} {r['zmax']:7.2f} {r['worst']:>8s} "
-                            f"{r['d2']:7.2f} {'in' if r['joint'] else 'out':>5s} {r['dt']:6.3g} {r['shift_sd']:6.2f} "
+                            f"{r['d2']:7.2f} {'in' if r['joint'] else 'out':>5s} {r['dt']:6.3g} {r['shift_sd']:6.2f} {r['p_target']:5.2f} "
                             f"{r['wall']:7.1f}"
                         )
                         print(lines[-1], flush=True)
@@ -282,6 +289,16 @@ def main(argv=None) -> int:
         for st in steps
         for m in modes
     }
+    calibrated = {
+        key: (
+            sum(r["covered"] >= 0.8 for r in sel),
+            sum(r["p_target"] for r in sel),
+            float(np.prod([r["p_target"] for r in sel])),
+            len(sel),
+        )
+        for key in joint
+        for sel in [[r for r in rows if (r["vessel"], r["step"], r["inputs"]) == key]]
+    }
     lines += [
         "",
         "summary by log rate: covered fraction, mean over seeds (max |z| over seeds), fits with the truth in the",
@@ -293,6 +310,13 @@ def main(argv=None) -> int:
         + "; ".join(f"{v} dt {st} {m} {'met' if ok else 'not met'}" for (v, st, m), ok in met.items()),
         "joint 90 % ellipsoid holds the truth (expected 90 % of fits): "
         + "; ".join(f"{v} dt {st} {m} {sum(j)}/{len(j)}" for (v, st, m), j in joint.items()),
+        "",
+        "the target under a calibrated posterior (each fit's errors drawn from its own covariance): fits meeting it",
+        "observed / expected, and the chance that every fit meets it:",
+        *(
+            f"  {v} dt {st} {m}: {obs}/{n} observed, {exp:.1f}/{n} expected, all {n} with probability {pall:.2g}"
+            for (v, st, m), (obs, exp, pall, n) in calibrated.items()
+        ),
         "",
         "wall per fit, s (median over fits): "
         + "; ".join(
