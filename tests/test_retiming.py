@@ -106,6 +106,11 @@ def test_retime_needs_the_rate_inputs_and_is_recorded(tmp_path, capsys):
     (moves,) = doc["fit"]["retimed_moves"].values()
     assert len(moves) >= 3
     assert "Retimed:" in (tmp_path / "fit" / "report.md").read_text()
+    # sampling from the model reads the movements mid-interval again: it says so
+    capsys.readouterr()
+    sample = ["sample", "--model", str(tmp_path / "fit" / "model.json"), "--train", str(track)]
+    assert main([*sample, "--method", "importance", "--draws", "100", "--out", str(tmp_path / "s")]) == 0
+    assert "was fitted with --retime" in capsys.readouterr().err
 
 
 def test_projecting_the_times_out_widens_the_coefficients_covariance():

@@ -113,6 +113,14 @@ def run(args) -> int:
             w = f"{', '.join(other)}: not among the tracks {args.model} was fitted on; the posterior is over these tracks"
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
+        if doc.fit.get("retimed_moves"):
+            w = (
+                f"{args.model} was fitted with --retime: the posterior here reads every rudder movement within one "
+                "log interval at its middle (--inputs rate), not at the fitted times, and does not count their "
+                "uncertainty; the fit's Laplace covariance does"
+            )
+            print(f"warning: {w}", file=sys.stderr)
+            got["_warnings"].append(w)
         model_sha = file_sha256(args.model)
     else:
         vehicle_arg = args.vehicle
