@@ -434,7 +434,8 @@ def _check_log_rate(track: Track, name: str) -> list[str]:
         out.append(
             f"{name}: column 'delta_r': the rudder jumps {lone.size} times by up to {lone.max():.3g} deg within one "
             f"sample interval ({h:.3g} s), not along a ramp: an actuator faster than the log, or the column logs the "
-            "rudder order. Where a jump fell between two samples (a closed-loop zigzag's reversals do) no --inputs "
+            "rudder order (then the surface followed it at its gear's rate: a submarine's 'actuator' effect fits that "
+            "servo). Where a jump fell between two samples (a closed-loop zigzag's reversals do) no --inputs "
             f"reading knows its time within the {h:.3g} s, and that timing alone can move the fitted coefficients far "
             "beyond their intervals (reports/benchmark_reversal_timing.txt): fit with --inputs rate --retime (the "
             "gear's rate, --rudder-rate, or a rate far above the jumps' for an instant actuator), which estimates "
