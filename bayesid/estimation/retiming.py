@@ -126,10 +126,11 @@ def moves_of(ctxs) -> list:
         if c.input_reconstruction != "rate":
             raise ValueError("--retime estimates the rudder's movements at the gear's rate: it needs --inputs rate")
         t = np.asarray(c.track.t, float)
-        u = np.asarray(c.track["delta_r"], float)
-        ok = np.isfinite(u)
-        idx = lone_moves(t[ok], u[ok], math.radians(c.model.rudder_rate_deg_s), math.radians(MIN_MOVE_DEG))
-        out.append(np.flatnonzero(ok)[idx] if not ok.all() else idx)
+        u = np.asarray(c.track["delta_r"], float).copy()
+        bad = ~np.isfinite(u)
+        if bad.any():  # filled as the context reads them (interpolated): the same intervals
+            u[bad] = np.interp(t[bad], t[~bad], u[~bad])
+        out.append(lone_moves(t, u, math.radians(c.model.rudder_rate_deg_s), math.radians(MIN_MOVE_DEG)))
     return out
 
 

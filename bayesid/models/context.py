@@ -412,7 +412,7 @@ class TrackContext:
     def retime(self, lone_at: dict | None) -> None:
         """Place the rudder's movements within single intervals (``inputs="rate"``) at the given
         fractions of their intervals and rebuild the step inputs (the times estimated with the
-        model: :func:`bayesid.estimation.retiming.retime_lone_moves`).
+        model: :func:`bayesid.estimation.retiming.fit_retimed`).
 
         Parameters
         ----------
