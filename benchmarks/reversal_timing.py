@@ -95,7 +95,8 @@ def main(argv=None) -> int:
         f"benchmarks/reversal_timing.py: bayesid {__version__}, commit {git_commit()}, {platform.node()}, "
         f"{time.strftime('%Y-%m-%d')}",
         f"seeds {a.seeds}; NPS AUV II 20/20 zigzags both sides, instantaneous reversals, 100 s; noise {NOISE_M} m, "
-        f"{NOISE_DEG} deg; fits --dt auto --prior none; d2: the truth's Mahalanobis distance (chi^2_6 90 %: {q90:.2f})",
+        f"{NOISE_DEG} deg; fits --dt auto --prior none (rate, retime: --inputs rate --rudder-rate {GEAR_DEG_S:g}); "
+        f"d2: the truth's Mahalanobis distance (chi^2_6 90 %: {q90:.2f})",
         "",
         f"{'Hz':>4s} {'reversals':>10s} {'inputs':>7s} {'seed':>4s} {'d2':>8s} {'joint':>5s} {'max |rel err|':>14s} "
         f"{'worst':>6s} {'dt':>6s}",
