@@ -65,11 +65,7 @@ class Retiming:
         list of dict
             Per track ``{interval: fraction}``.
         """
-        out, k = [], 0
-        for m in self.moves:
-            out.append({int(i): float(self.fractions[k + a]) for a, i in enumerate(m)})
-            k += m.size
-        return out
+        return _split(self.moves, self.fractions)
 
     def times(self, ctxs, sd=None) -> dict:
         """When each movement started, s, per track name (with its sd from ``sd``, the
@@ -100,6 +96,15 @@ class Retiming:
             out[ctx.name] = rows
             k += m.size
         return out
+
+
+def _split(moves, fractions) -> list:
+    """Per track ``{interval: fraction}`` of the fractions of all tracks in order."""
+    out, k = [], 0
+    for m in moves:
+        out.append({int(i): float(fractions[k + a]) for a, i in enumerate(m)})
+        k += m.size
+    return out
 
 
 def moves_of(ctxs) -> list:
@@ -154,7 +159,7 @@ class _RetimedObjective:
         fractions = np.asarray(fractions, float)
         if self._placed is not None and np.array_equal(self._placed, fractions):
             return
-        for ctx, lone in zip(self.ctxs, Retiming(self.moves, fractions, np.zeros((0, 0))).per_track()):
+        for ctx, lone in zip(self.ctxs, _split(self.moves, fractions)):
             ctx.retime(lone)
         self._placed = fractions.copy()
 
