@@ -11,8 +11,9 @@ Method
   cannot separate from each kept term (``DiscoveryOptions.n_alternatives = 2``; a competitor is
   separated when the kept term's held-out windows are significantly better pooled or on one run)
   and the design of the separating run (``DiagnoseOptions.design``: the menu of standard runs
-  from the training runs' approach condition, ranked by the smallest pairwise J divergence of the
-  alternatives' predictive distributions, Box & Hill 1967).
+  from the training runs' approach condition, ranked first by the pairs of the kept term and an
+  alternative the run test could decide on them within eight windows, then by the smallest
+  pairwise J divergence of the alternatives' predictive distributions, Box & Hill 1967).
 - Structures: the model without a discovered term, each kept term, and each of its alternatives,
   one term at a time; each refitted with every free coefficient on all 13 HSVA zigzags (what
   ``bayesid fit`` does on the ``--write-vehicle`` file), 15 s fit windows, measured starts.
@@ -24,6 +25,10 @@ Method
   predicts every run whole from its measured start with its recorded rudder and propeller, and
   the report gives the advance and tactical diameter errors against the issue's targets (5 % /
   3 %); without them, the spread between structures is the finding.
+- The loop on real data (with the MARIN runs): the MARIN runs of the kind of the design's top run
+  (the run the design asks for, as this hull has it) join the held-out runs and the diagnosis runs
+  again (``diagnosis_other_basin/``); the report names the term the design and the data keep and
+  compares its MARIN turning-circle errors with those of the model without a discovered term.
 
     python studies/kvlcc2_structures.py [--quick] [--out DIR] [--data DIR] [--seed N] [--draws N]
 """
@@ -61,8 +66,9 @@ def parse_args():
     return ap.parse_args()
 
 
-def diagnose_split(kv, train, held, args, out, log):
-    """The validation split's diagnosis with alternatives and the design; its report written."""
+def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis"):
+    """The validation split's diagnosis with alternatives and the design; its report written to
+    ``out / folder``."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.analysis.gap.design import DesignOptions
     from bayesid.analysis.gap.discovery import DiscoveryOptions
@@ -88,19 +94,20 @@ def diagnose_split(kv, train, held, args, out, log):
         rng=np.random.default_rng(args.seed),
         runner=Runner(progress=lambda m: log(f"diagnose: {m}")),
     )
-    write_diagnosis(diag, out / "diagnosis", held, command="studies/kvlcc2_structures.py")
+    write_diagnosis(diag, out / folder, held, command="studies/kvlcc2_structures.py")
     return diag
 
 
-def structures(diag) -> dict:
+def structures(diag, out: dict | None = None) -> dict:
     """``{label: {term: coefficient}}``: the model without a discovered term, each kept term and
-    each of its alternatives (one term each), from the diagnosis's top-level ``discovered`` list."""
+    each of its alternatives (one term each), from the diagnosis's top-level ``discovered`` list;
+    added to ``out`` when given (a structure already there keeps its coefficient)."""
     items = diag.to_dict().get("discovered") or []
-    out = {"without": {}}
+    out = {"without": {}} if out is None else out
     for it in items:
         if not it["kept"]:
             continue
-        out[it["term"]] = {it["term"]: it["coefficient"]}
+        out.setdefault(it["term"], {it["term"]: it["coefficient"]})
         for a in it["alternatives"]:
             out.setdefault(a["term"], {a["term"]: a["coefficient"]})
     return out
@@ -177,6 +184,59 @@ def overshoots_of(fitted, tracks) -> dict:
         if v["predicted"] is not None and v["measured"] is not None and math.isfinite(v["predicted"])
     ]
     return {"runs": out, "mean_abs_error_deg": float(np.mean(errs)) if errs else None}
+
+
+def other_basin_runs(data: Path) -> tuple[list, dict]:
+    """The MARIN runs under ``data``: (tracks read, ``{file: why it was not read}``)."""
+    from bayesid.data import datasets
+
+    tracks, unread = [], {}
+    for p in datasets.list_runs(data, "simman-marin"):
+        try:
+            tracks.append(datasets.read_run(p, "simman-marin"))
+        except ValueError as exc:
+            unread[str(p)] = str(exc)
+    return tracks, unread
+
+
+def kept_terms(diag) -> list:
+    """The terms a diagnosis keeps (its verdict's discovered terms), in its order."""
+    return [it["term"] for it in diag.to_dict().get("discovered") or [] if it["kept"]]
+
+
+def loop_on_other_basin(kv, train, held, diag, marin: list, args, out, log) -> dict | None:
+    """The loop of issue 49 on real data: the other basin's runs of the kind of the design's top
+    run (the run the design asks for, as this hull has it) added to the held-out runs, and the
+    diagnosis again. None when the design ranked no run or no MARIN run is of that kind.
+
+    Returns ``{"kind", "added_runs", "verdict", "kept", "discovered", "worse_on_other_kinds"}``:
+    ``kept`` is the term (or terms) the design and the data keep; ``worse_on_other_kinds`` the
+    kept terms of the first round that predict an added run worse than the model without them
+    (by more than the separation margin)."""
+    from bayesid.estimation.indices import manoeuvre_kind
+
+    design = diag.to_dict().get("design") or []
+    if not design or not marin:
+        return None
+    kind = design[0]["kind"]
+    added = [t for t in marin if manoeuvre_kind(t) == kind]
+    if not added:
+        return None
+    log(f"the loop: {len(added)} other-basin run(s) of the designed kind ({kind}) added to the held-out runs")
+    diag2 = diagnose_split(kv, train, [*held, *added], args, out, log, folder="diagnosis_other_basin")
+    D2 = diag2.to_dict()
+    return {
+        "kind": kind,
+        "added_runs": [t.name for t in added],
+        "verdict": D2["verdict"],
+        "kept": kept_terms(diag2),
+        "discovered": [
+            {k: it.get(k) for k in ("term", "kept", "reason", "coefficient", "heldout_rms_m", "alternatives")}
+            | {"worse_on_other_kinds": it.get("worse_on_other_kinds") or []}
+            for it in D2.get("discovered") or []
+        ],
+        "_diag": diag2,
+    }
 
 
 def other_basin(fitted, data: Path, draws: int, rng) -> dict | None:
@@ -322,9 +382,10 @@ def write_report(out: Path, res: dict, args) -> None:
         lines += ["No term kept on this split: there is nothing to tell apart.", ""]
     if D.get("design"):
         lines += [
-            "The runs that would separate them best (J divergence of the models' predictive distributions, nats; "
-            "the smallest over the pairs; with no alternative, the kept term's model against the model without it, "
-            "the run of another kind that would test the term):",
+            "The runs that would separate them best (first the runs on which the run test could decide a pair of "
+            "the kept term within eight windows, then by the J divergence of the models' predictive distributions, "
+            "nats, the smallest over the pairs; with no alternative, the kept term's model against the model without "
+            "it, the run of another kind that would test the term):",
             "",
             md_table(
                 ["rank", "run", "length (s)", "separation (nats)", "worst pair", "run test: windows needed"],
@@ -461,8 +522,75 @@ def write_report(out: Path, res: dict, args) -> None:
             f"Targets: tactical diameter within {fmt(100 * TARGETS['tactical_diameter_m'])} %, advance within "
             f"{fmt(100 * TARGETS['advance_m'])} %.",
             "",
+            *_loop_lines(res),
         ]
     (out / "report.md").write_text("\n".join(lines))
+
+
+def _loop_lines(res: dict) -> list:
+    """The report's account of the loop on the other basin's runs (:func:`loop_on_other_basin`)."""
+    from bayesid.report import fmt
+
+    L, M = res.get("loop_on_other_basin"), res.get("other_basin") or {}
+    D = res["diagnosis"]
+    top = (D.get("design") or [{}])[0].get("name")
+    lines = ["## The loop: the designed run, as the other basin has it", ""]
+    if res.get("other_basin_unread"):
+        lines += [
+            "Not read: " + "; ".join(f"{k}: {v}" for k, v in res["other_basin_unread"].items()) + ".",
+            "",
+        ]
+    if L is None:
+        return lines + [
+            f"The design's top run is a {top}; no run of the other basin is of that kind, so the loop is not "
+            "closed here."
+            if top
+            else "The diagnosis kept no term and designed no run: there is no loop to close.",
+            "",
+        ]
+    kept1 = [it["term"] for it in D["discovered"] if it["kept"]]
+    fate = []
+    for t in kept1:
+        it = next((i for i in L["discovered"] if i["term"] == t), None)
+        fate.append(
+            f"{t}: " + ("kept" if it and it["kept"] else f"not kept ({it['reason']})" if it else "not refitted")
+        )
+    kept = "+".join(L["kept"]) if L["kept"] else None
+    lines += [
+        f"The design's top run is a {top}; the other basin's runs of that kind ({', '.join(L['added_runs'])}) "
+        "were added to the held-out runs and the diagnosis was run again (`diagnosis_other_basin/report.md`). "
+        f"Verdict: `{L['verdict']}`. The first round's kept terms there: " + ("; ".join(fate) or "none") + ".",
+        "",
+    ]
+    for it in L["discovered"]:
+        for w in it.get("worse_on_other_kinds") or []:
+            lines += [
+                f"{it['term']} predicts {w['run']} ({w['kind']}, a kind the training runs lack) worse than the model "
+                f"without it: {fmt(w['rms_m'])} m against {fmt(w['reference_rms_m'])} m.",
+                "",
+            ]
+    base = (M.get("without") or {}).get("max_abs_rel_error") or {}
+    mine = (M.get(kept) or {}).get("max_abs_rel_error") if kept else base
+    if mine:
+        verdict = []
+        for k, lim in TARGETS.items():
+            a, b = mine.get(k), base.get(k)
+            if a is None or b is None:
+                continue
+            verdict.append(
+                f"largest |{k.replace('_m', '').replace('_', ' ')} error| {fmt(100 * a)} % "
+                f"(without the term {fmt(100 * b)} %; target {fmt(100 * lim)} %: "
+                f"{'met' if a <= lim else 'not met'}; {'no worse' if a <= b else 'worse'} than without)"
+            )
+        lines += [
+            f"The term the design and the data keep: **{kept or 'none'}**"
+            + (" (the model without a discovered term)" if kept is None else "")
+            + ". On the other basin's runs, refitted on all HSVA zigzags: "
+            + "; ".join(verdict)
+            + ".",
+            "",
+        ]
+    return lines
 
 
 def main() -> int:
@@ -512,8 +640,18 @@ def main() -> int:
         "structures": {},
         "quick": bool(args.quick),
     }
+    marin, unread = other_basin_runs(data)
+    loop = loop_on_other_basin(kv, train, held, diag, marin, args, out, log)
     sims, basin = {}, {}
-    for label, terms in structures(diag).items():
+    todo = structures(diag)
+    if loop is not None:
+        todo = structures(loop.pop("_diag"), todo)
+        if len(loop["kept"]) > 1:  # the kept combination, refitted as one structure
+            coef = {it["term"]: it["coefficient"] for it in loop["discovered"] if it["kept"]}
+            todo["+".join(loop["kept"])] = {t: coef[t] for t in loop["kept"]}
+    res["loop_on_other_basin"] = loop
+    res["other_basin_unread"] = unread
+    for label, terms in todo.items():
         log(f"refit on all {len(tracks)} zigzags: {label}")
         fitted, coefs, rms = refit_all(kv, tracks, terms, args)
         circles, S = circles_of(fitted, args, rng)
