@@ -340,7 +340,7 @@ def test_the_designed_runs_separate_two_structures_and_none_separates_a_model_fr
     ]
     setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
     rows = dz.design(stages, setup, dz.DesignOptions(n_draws=0, duration_s=120.0))
-    assert rows and rows == sorted(rows, key=lambda r: -r["separation"])
+    assert rows and rows == sorted(rows, key=lambda r: (-len(r["decidable_pairs"]), -r["separation"]))
     kinds = {r["kind"] for r in rows}
     assert {"turning_circle", "zigzag", "pull_out"} <= kinds
     for r in rows:  # no run separates the model from itself: not separable by the menu, not ranked on
@@ -374,6 +374,35 @@ def test_runs_are_ranked_on_the_pairs_some_run_separates_and_the_others_are_name
     ranked = dz.rank_by_separable_pairs(rows, 1e4)
     assert set(ranked[0]["menu_inseparable"]) == {"A vs B", "A vs C", "B vs C"}
     assert ranked[0]["name"] == "zigzag" and ranked[0]["separation"] == 6.0
+
+
+def test_runs_the_run_test_could_decide_come_before_larger_divergences():
+    """A run whose divergence is large but whose expected window error ratio is within the run
+    test's margin would not change the decision: the design asks first for the run on which the
+    run test could separate the kept term from its alternatives within max_windows windows."""
+
+    def row(name, separation, needed, inseparable=()):
+        return {
+            "name": name,
+            "separation": separation,
+            "run_test": {"pairs": {f"K vs {k}": {"windows_needed": w} for k, w in needed.items()}},
+            "menu_inseparable": {p: {} for p in inseparable},
+        }
+
+    rows = [
+        row("turn 35", 900.0, {"A": float("inf"), "B": 40.0}),  # large divergence, nothing decidable
+        row("turn 18", 120.0, {"A": 6.0, "B": 9.0}),  # one pair within 8 windows
+        row("pull-out", 200.0, {"A": 7.5, "B": None}),  # one pair; larger divergence than turn 18
+        row("zigzag", 50.0, {"A": 3.0, "B": 2.0}, inseparable=["K vs B"]),  # B: no run separates it
+    ]
+    ranked = dz.rank_by_decidable_pairs(rows, 8)
+    assert [r["name"] for r in ranked] == ["pull-out", "turn 18", "zigzag", "turn 35"]
+    assert ranked[0]["decidable_pairs"] == ["K vs A"] and ranked[-1]["decidable_pairs"] == []
+    assert ranked[2]["decidable_pairs"] == ["K vs A"]  # the menu-inseparable pair does not count
+    # with room for more windows turn 18 decides both pairs and comes first
+    assert [r["name"] for r in dz.rank_by_decidable_pairs(rows, 10)][:2] == ["turn 18", "pull-out"]
+    # nothing decidable anywhere: the divergence ranks the runs, as before
+    assert [r["name"] for r in dz.rank_by_decidable_pairs(rows, 1)] == ["turn 35", "pull-out", "turn 18", "zigzag"]
 
 
 def _n0_against_nabsdr():

@@ -90,7 +90,7 @@ def test_the_best_designed_runs_are_lengthened_for_the_run_test():
     setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 30.0, "measured", None)
     options = dz.DesignOptions(n_draws=0, max_windows=6, sized_rows=2)
     rows = dz.design(stages, setup, options)
-    assert rows == sorted(rows, key=lambda r: -r["separation"])
+    assert rows == sorted(rows, key=lambda r: (-len(r["decidable_pairs"]), -r["separation"]))
     sd = rows[0]["run_test"]["log_sd"]
     assert sd == pytest.approx(math.log(10.0) * math.sqrt(4 / 3))  # four windows' log ratios +-2.3 about 0
     sized = [r for r in rows if r["run_test"]["sized_from_s"] is not None]

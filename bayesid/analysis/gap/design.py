@@ -42,7 +42,13 @@ their rudder rate:
    alternative if either is right (:func:`expected_window_log_ratio`) and the scatter of window
    ratios within the held-out runs (:func:`window_log_sd`) give the windows the test needs
    (:func:`run_test_windows`), and such a run is lengthened to them (at most
-   ``DesignOptions.max_windows``) and scored again.
+   ``DesignOptions.max_windows``) and scored again;
+7. the runs are ranked first by the number of pairs of the kept term and an alternative that
+   this test could decide on them within ``DesignOptions.max_windows`` windows
+   (:func:`decidable_pairs`), then by the divergence of 5. (:func:`rank_by_decidable_pairs`): a
+   run with a large divergence but an expected window error ratio within the test's margin would
+   not change the diagnosis's decision (the divergence sums small differences over many
+   samples).
 
 Samples of one track are correlated beyond the measurement noise (the models' own errors persist
 over a window); the sum over samples ``sample_s`` apart, not every logged sample, keeps the
@@ -628,7 +634,8 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
 
 def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None, thresholds=None) -> list[dict]:
     """Rank the menu's runs by how well they separate alternative model structures (module
-    docstring), and size the best for the run-by-run separation test (:func:`run_test_windows`).
+    docstring: first by the pairs the run-by-run test could decide on them, then by the Box-Hill
+    divergence), and size the best for that test (:func:`run_test_windows`).
 
     Parameters
     ----------
@@ -661,6 +668,7 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         log window-error ratios, None when too few windows), ``pairs``: ``{"A vs B":
         {"expected_ratio", "windows_needed"}}`` for the kept term against each alternative, and
         ``sized_from_s``: the menu's duration when sizing lengthened the run, else None),
+        ``decidable_pairs`` (the pairs the run test could decide on it, :func:`decidable_pairs`),
         ``inputs`` (``{"t" s, "delta_r" rad, "n" rpm}``: the run's input schedule,
         :func:`run_inputs`) and ``predicted`` (``{label: {"t", "x", "y", "psi"}}``, the
         estimates' predictions over the windows, for the figure).
@@ -701,13 +709,13 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         power=options.power,
     )
     out = [r for r in (_evaluate(run, scoring, rng) for run in menu(approach, options)) if r is not None]
-    out = rank_by_separable_pairs(out, options.min_separation)
+    out = rank_by_decidable_pairs(rank_by_separable_pairs(out, options.min_separation), options.max_windows)
     if options.duration_s is None and setup.window_s and options.sized_rows:
         inseparable = set(out[0]["menu_inseparable"]) if out else set()
         out[: options.sized_rows] = [
             _sized(r, scoring, rng, inseparable, options.max_windows) for r in out[: options.sized_rows]
         ]
-        out = sorted(out, key=lambda r: -r["separation"])
+        out = rank_by_decidable_pairs(out, options.max_windows)
     return out
 
 
@@ -947,6 +955,65 @@ def window_log_sd(stages: dict, setup) -> float | None:
             ss += float(((x - x.mean()) ** 2).sum())
             df += x.size - 1
     return float(math.sqrt(ss / df)) if df >= 2 and ss > 0 else None
+
+
+def decidable_pairs(row: dict, max_windows: int) -> list:
+    """The pairs of the kept term and an alternative (or the model without it) that the run-by-run
+    test could decide on this run: some run of the menu separates them (not in
+    ``row["menu_inseparable"]``) and the run test needs at most ``max_windows`` protocol windows
+    to find their expected window error ratio with its power (:func:`run_test_windows`).
+
+    A run whose divergence is large but whose expected window error ratio stays within the run
+    test's margin would not change the diagnosis's decision: the divergence sums small
+    differences over many samples, the decision reads window errors.
+
+    Parameters
+    ----------
+    row : dict
+        A designed run with ``run_test`` (``pairs``: ``{"A vs B": {"windows_needed"}}``) and,
+        optionally, ``menu_inseparable``.
+    max_windows : int
+        The most protocol windows a designed run may last (``DesignOptions.max_windows``).
+
+    Returns
+    -------
+    list of str
+        The decidable pairs, in the order of ``row["run_test"]["pairs"]``.
+    """
+    inseparable = set(row.get("menu_inseparable") or {})
+    out = []
+    for pair, v in ((row.get("run_test") or {}).get("pairs") or {}).items():
+        need = v.get("windows_needed")
+        if pair not in inseparable and need is not None and np.isfinite(need) and need <= max_windows:
+            out.append(pair)
+    return out
+
+
+def rank_by_decidable_pairs(rows: list, max_windows: int) -> list:
+    """Rank designed runs by the number of pairs the run test could decide on them
+    (:func:`decidable_pairs`, written to each row as ``decidable_pairs``), then by their
+    separation (nats, :func:`rank_by_separable_pairs`).
+
+    The divergence ranks the runs by how far apart the alternatives' predictive distributions
+    lie (Box & Hill 1967); the diagnosis decides between the alternatives by the run-by-run
+    test of window errors against a margin. The design asks first for the run on which that
+    decision can be made, and among equals for the largest divergence.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Designed runs with ``separation`` and ``run_test``.
+    max_windows : int
+        As :func:`decidable_pairs`.
+
+    Returns
+    -------
+    list of dict
+        The rows, best first.
+    """
+    for r in rows:
+        r["decidable_pairs"] = decidable_pairs(r, max_windows)
+    return sorted(rows, key=lambda r: (-len(r["decidable_pairs"]), -r["separation"]))
 
 
 def rank_by_separable_pairs(rows: list, min_separation: float) -> list:
