@@ -209,10 +209,10 @@ def loop_on_other_basin(kv, train, held, diag, marin: list, args, out, log) -> d
     run (the run the design asks for, as this hull has it) added to the held-out runs, and the
     diagnosis again. None when the design ranked no run or no MARIN run is of that kind.
 
-    Returns ``{"kind", "added_runs", "verdict", "kept", "discovered", "worse_on_other_kinds"}``:
-    ``kept`` is the term (or terms) the design and the data keep; ``worse_on_other_kinds`` the
-    kept terms of the first round that predict an added run worse than the model without them
-    (by more than the separation margin)."""
+    Returns ``{"kind", "added_runs", "verdict", "kept", "discovered", "_diag"}``: ``kept`` is the
+    term (or terms) the design and the data keep; each item of ``discovered`` has its
+    ``worse_on_other_kinds``, the added runs a kept term predicts worse than the model without it
+    (by more than the separation margin); ``_diag`` is the diagnosis itself."""
     from bayesid.estimation.indices import manoeuvre_kind
 
     design = diag.to_dict().get("design") or []
@@ -239,22 +239,16 @@ def loop_on_other_basin(kv, train, held, diag, marin: list, args, out, log) -> d
     }
 
 
-def other_basin(fitted, data: Path, draws: int, rng) -> dict | None:
-    """The MARIN runs under ``data`` (None when there are none): per run, measured and predicted
-    turning indices with the 5-95 % range, and the relative errors of advance and tactical diameter."""
-    from bayesid.data import datasets
+def other_basin(fitted, marin: list, unread: dict, draws: int, rng) -> dict | None:
+    """The MARIN runs (``marin`` and ``unread`` as :func:`other_basin_runs` returns them; None when
+    there are none): per run, measured and predicted turning indices with the 5-95 % range, and the
+    relative errors of advance and tactical diameter; an unread file's entry says why."""
     from bayesid.estimation.prediction import turning_band
 
-    paths = datasets.list_runs(data, "simman-marin")
-    if not paths:
+    if not marin and not unread:
         return None
-    runs = {}
-    for p in paths:
-        try:
-            tr = datasets.read_run(p, "simman-marin")
-        except ValueError as exc:
-            runs[p.stem] = {"unread": str(exc)}
-            continue
+    runs = {Path(k).stem: {"unread": v} for k, v in unread.items()}
+    for tr in marin:
         tb = turning_band(fitted, tr, draws, rng)
         meas, pred = tb["measured"], tb["predicted"]
         e = {"kind": meas.get("kind"), "indices": {}}
@@ -537,7 +531,7 @@ def _loop_lines(res: dict) -> list:
     lines = ["## The loop: the designed run, as the other basin has it", ""]
     if res.get("other_basin_unread"):
         lines += [
-            "Not read: " + "; ".join(f"{k}: {v}" for k, v in res["other_basin_unread"].items()) + ".",
+            "Not read (the message names the file): " + "; ".join(res["other_basin_unread"].values()) + ".",
             "",
         ]
     if L is None:
@@ -663,7 +657,7 @@ def main() -> int:
             "circles": circles,
             "overshoots": overshoots_of(fitted, tracks),
         }
-        m = other_basin(fitted, data, args.draws, rng)
+        m = other_basin(fitted, marin, unread, args.draws, rng)
         if m is not None:
             basin[label] = m
     res["other_basin"] = basin or None
