@@ -21,7 +21,11 @@ Method
   case's rate with its noise (and without u, v, r when the case has no velocity log), added to
   the held-out runs.
 - Round 2: the same diagnosis with that run held out; and once more with that run added to the
-  training runs instead (the held-out runs as in round 1), the other way a user adds it. A term
+  training runs instead (the held-out runs as in round 1), the other way a user adds it. Round 1's
+  kept terms and alternatives are refitted and judged again whatever the new selection picks
+  (``DiscoveryOptions.compare``, ``bayesid diagnose --compare diagnosis.json``): the question
+  the designed run answers is which of them, and a fresh selection on the new runs may refit
+  none of them. A term
   is kept only if no held-out run is predicted significantly worse than without it (the kept
   test's run check); a designed run lasts at least three protocol windows, and the three best
   are lengthened (to at most eight) to the windows the run test needs to see the kept term
@@ -46,6 +50,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -210,6 +215,9 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
                 "run_test": top.get("run_test"),
                 "decidable_pairs": top.get("decidable_pairs", []),
             }
+            # round 1's kept terms and alternatives are judged again on the new run (``--compare``)
+            asked = [*first["kept"], *(a for k in first["kept"] for a in first["alternatives"][k])]
+            options = replace(options, discover=replace(options.discover, compare=tuple(asked)))
             d2 = diagnose(veh, free, train, [*held, run], options, rng=np.random.default_rng(seed))
             out["round2"] = _round(d2, hidden, run.name)
             # the other way a user adds the run: to the training runs (the refits then have to fit it)

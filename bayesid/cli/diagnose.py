@@ -92,7 +92,8 @@ def run(args) -> int:
     int
         The exit code (0).
     """
-    from ..models import load_any_vehicle, model_class
+    from ..analysis.gap.discovery import check_compare
+    from ..models import build_model, load_any_vehicle, model_class
 
     check_outputs(args)
     vehicle = load_any_vehicle(args.vehicle)
@@ -103,6 +104,8 @@ def run(args) -> int:
     with naming_files(got):
         cands = _candidates(args, family, train + held)
         found, design = opt.discovery_options(args)
+        if not args.no_discover:
+            check_compare(build_model(vehicle, free, mode=args.mode), found)
         options = diagnose_options(
             args,
             candidates=cands,

@@ -75,16 +75,18 @@ def discover(args):
         The diagnosis written.
     """
     from ..estimation.modelfile import ModelDocument
+    from ..analysis.gap.discovery import check_compare
     from ..models import load_any_vehicle
     from .diagnose import check_outputs, diagnose_options, run_and_write
 
     check_outputs(args)  # the same outputs as bayesid diagnose
     doc = ModelDocument.from_json(args.model)
     vehicle = load_any_vehicle(doc.vehicle_path())
-    doc.build()  # the document's coefficients and effects fit the vehicle (else a named error)
+    model = doc.build()[0]  # the document's coefficients and effects fit the vehicle (else a named error)
     vehicle = vehicle.with_coefficients(dict(zip(doc.free, doc.p[: len(doc.free)])))
     got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     found, design = opt.discovery_options(args)
+    check_compare(model, found)
     with naming_files(got):
         options = diagnose_options(
             args,

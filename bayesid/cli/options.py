@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 
 from .. import protocol, tasks
 from ..models.context import INPUT_RECONSTRUCTIONS
@@ -529,8 +530,8 @@ def add_overwrite(parser) -> None:
 
 
 def discovery_options(args):
-    """The discovery and design options of ``--max-order``, ``--alternatives``, ``--no-design``
-    and ``--seed``.
+    """The discovery and design options of ``--max-order``, ``--alternatives``, ``--compare``,
+    ``--no-design`` and ``--seed``.
 
     Parameters
     ----------
@@ -545,13 +546,59 @@ def discovery_options(args):
     from ..analysis.gap.design import DesignOptions
     from ..analysis.gap.discovery import DiscoveryOptions
 
-    found = DiscoveryOptions(max_order=args.max_order, n_alternatives=args.alternatives)
+    found = DiscoveryOptions(
+        max_order=args.max_order, n_alternatives=args.alternatives, compare=compare_terms(args.compare)
+    )
     off = args.no_design or args.alternatives == 0
     return found, None if off else DesignOptions(seed=args.seed)
 
 
+def compare_terms(value: str) -> tuple:
+    """The terms of ``--compare``: comma-separated names, or the kept terms and their
+    alternatives read from an earlier round's ``diagnosis.json`` (a value ending in ``.json``).
+
+    Parameters
+    ----------
+    value : str
+        The option's value ("" for none).
+
+    Returns
+    -------
+    tuple of str
+        The term names, in order, each once.
+
+    Raises
+    ------
+    ValueError
+        The file is missing, not JSON or lists no discovered term (named with ``--compare``);
+        an empty name in the list.
+    """
+    value = (value or "").strip()
+    if not value:
+        return ()
+    if not value.lower().endswith(".json"):
+        names = [n.strip() for n in value.split(",")]
+        if not all(names):
+            raise ValueError(f"--compare: an empty term name in {value!r}")
+        return tuple(dict.fromkeys(names))
+    import json
+
+    path = Path(value)
+    if not path.is_file():
+        raise ValueError(f"--compare: {path}: no such file (an earlier round's diagnosis.json)")
+    try:
+        items = json.loads(path.read_text()).get("discovered") or []
+        kept = [r for r in items if r.get("kept")]
+        names = [r["term"] for r in kept] + [a["term"] for r in kept for a in r.get("alternatives") or []]
+    except (ValueError, AttributeError, KeyError, TypeError) as exc:
+        raise ValueError(f"--compare: {path}: not a diagnosis.json with a 'discovered' list ({exc})") from None
+    if not names:
+        raise ValueError(f"--compare: {path}: the earlier round kept no term; nothing to compare")
+    return tuple(dict.fromkeys(names))
+
+
 def add_discovery(parser, default_on: bool) -> None:
-    """Structure discovery's options: ``--max-order``, ``--alternatives``, ``--no-design``,
+    """Structure discovery's options: ``--max-order``, ``--alternatives``, ``--compare``, ``--no-design``,
     ``--write-vehicle`` (and ``--no-discover`` where discovery is a stage that may be skipped).
 
     Parameters
@@ -585,6 +632,13 @@ def add_discovery(parser, default_on: bool) -> None:
         help="refit this many further candidates per degree of freedom (score test), those a selected term's "
         "collinear group stood for and this many set aside as mimicked, and name every one the held-out runs "
         "cannot separate from a kept term (0: name the selected terms alone)",
+    )
+    parser.add_argument(
+        "--compare",
+        default="",
+        metavar="TERMS|DIAGNOSIS.json",
+        help="terms refitted and judged whatever the selection says: comma-separated names, or the kept terms and "
+        "their alternatives from an earlier round's diagnosis.json (after adding the designed run)",
     )
     parser.add_argument(
         "--no-design",

@@ -355,9 +355,10 @@ class TermRow(Record):
         ``error_ratio``, ``p_value``; :func:`~bayesid.analysis.gap.discovery.confirmation.worst_run`),
         None when no run is worse.
     refitted_as : str or None
-        ``"selected"`` by the ensemble, ``"alternative"`` by the score test or ``"mimicked"`` (set
+        ``"selected"`` by the ensemble, ``"alternative"`` by the score test, ``"mimicked"`` (set
         aside as mimicked by the selection and refitted all the same,
-        :func:`~bayesid.analysis.gap.discovery.selection.mimicked_refits`); None for a term
+        :func:`~bayesid.analysis.gap.discovery.selection.mimicked_refits`) or ``"compared"``
+        (asked for, ``DiscoveryOptions.compare``: an earlier round's terms); None for a term
         refitted on top of others (left out of the JSON).
     kept : bool or None
         Whether it passed the kept test; None until decided (left out of the JSON).

@@ -126,6 +126,7 @@ __all__ = [
     "fit_term",
     "with_terms",
     "discover",
+    "check_compare",
 ]
 
 # the helpers' names before the package was split by concept (private in one module then)
@@ -272,8 +273,8 @@ class Discovery:
             passed alone but not on top of the terms added before it), ``coefficient`` and
             ``coefficient_sd`` (prime, its single-term refit), ``heldout_rms_m``,
             ``window_p_value`` (against the reference model), ``inclusion_probability``,
-            ``refitted_as`` (``"selected"`` by the ensemble or ``"alternative"`` by the score
-            test), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
+            ``refitted_as`` (``"selected"`` by the ensemble, ``"alternative"`` by the score
+            test, ``"mimicked"`` or ``"compared"``: asked for, ``DiscoveryOptions.compare``), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
             ``separated`` (kept terms: :attr:`separated`; others: empty), ``separable`` (kept terms: no alternative survives; others: None) and
             ``heldout_rms_by_run_m`` (kept terms: ``{held-out run: position RMS, m}`` of the
             single-term refit; others: empty).
@@ -384,6 +385,33 @@ def _verdict(found: list, heldout_rms: float, band: float, alts: dict | None = N
     return f"discovered: {'+'.join(names)}" + ("+unexplained" if heldout_rms > band else "")
 
 
+def check_compare(model, options: DiscoveryOptions) -> None:
+    """Check that every term of ``options.compare`` is a candidate term of ``model``.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The reference model (its vehicle's coefficients are not candidates).
+    options : DiscoveryOptions
+        ``compare``, ``max_order`` and ``dofs``.
+
+    Raises
+    ------
+    ValueError
+        Naming each term that is not among the candidates (:func:`candidate_terms`).
+    """
+    if not options.compare:
+        return
+    names = candidate_terms(model, options.max_order, options.dofs)
+    bad = [n for n in options.compare if n not in names]
+    if bad:
+        raise ValueError(
+            f"compare: {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not among the model's candidate terms "
+            f"(degrees of freedom {', '.join(options.dofs)}, at most {options.max_order} factors; a coefficient "
+            "the vehicle file already has is not a candidate)"
+        )
+
+
 def discover(
     setup: Setup,
     ref: Stage,
@@ -453,6 +481,7 @@ def discover(
     th = ctx.get("thresholds", Thresholds())
     floor_rms, significant = float(ctx.get("floor_rms", 0.0)), bool(ctx.get("significant", True))
     rng = np.random.default_rng(0) if rng is None else rng
+    check_compare(ref.model, options)
     names = candidate_terms(ref.model, options.max_order, options.dofs)
     runner.say(f"discovery: {len(names)} candidate terms")
     problem = linearised_problem(setup, ref, effects, names, ctx["sd_fit"])
@@ -471,17 +500,24 @@ def discover(
     mimicked = (
         [n for n in mimicked_refits(sel, options.n_alternatives) if n not in (*cands, *pool)] if significant else []
     )
-    refit = [*cands, *pool, *mimicked]
+    # the terms asked for (an earlier round's kept terms and alternatives), whatever the selection says
+    asked = [n for n in options.compare if n not in (*cands, *pool, *mimicked)]
+    refit = [*cands, *pool, *mimicked, *asked]
     initial = reference_values(ref, refit)
     runner.say(f"discovery: refitting {', '.join(cands) or 'nothing'}")
     if pool:
         runner.say(f"discovery: and the alternatives {', '.join(pool)}")
     if mimicked:
         runner.say(f"discovery: and, set aside as mimicked, {', '.join(mimicked)}")
+    if asked:
+        runner.say(f"discovery: and, as asked (compare), {', '.join(asked)}")
     fit_args = (ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev)
     runs, run_names = window_runs(setup, ref.model)
     judge = (sel, floor_rms, (runs, run_names), th, significant)
-    how = {n: "alternative" if n in pool else "mimicked" if n in mimicked else "selected" for n in refit}
+    how = {
+        n: "alternative" if n in pool else "mimicked" if n in mimicked else "compared" if n in asked else "selected"
+        for n in refit
+    }
     discovered, fitted = _refit_terms(how, fit_args, initial, judge, runner)
     # a kept term the selection had set aside as mimicked competes with the others its mimic reproduces
     companions = [

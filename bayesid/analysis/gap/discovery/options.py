@@ -58,6 +58,12 @@ class DiscoveryOptions:
         neutral rudder angle ``dR0``), kept like any candidate when they pass the kept test. 0
         (the default until the test suite's budget is re-measured with it): none; 2 is the
         setting measured.
+    compare : tuple of str, default ()
+        Terms of the library refitted and judged whatever the selection says: the kept terms
+        and alternatives of an earlier round, compared again once a run designed to separate
+        them is added (issue 49's loop). Without them a fresh selection on the new runs may
+        refit none of the earlier alternatives, and name a new surrogate alone. A name that
+        is not a term of the library searched raises ``ValueError`` in :func:`discover`.
 
     Raises
     ------
@@ -78,6 +84,7 @@ class DiscoveryOptions:
     ridge: float = 0.01
     max_nfev: int = 60
     n_alternatives: int = 0
+    compare: tuple = ()
 
     def __post_init__(self):
         if not 1 <= int(self.max_order) <= MAX_ORDER:
@@ -96,3 +103,6 @@ class DiscoveryOptions:
         if not self.threshold >= 0 or not self.block_s > 0 or not self.trim_s >= 0:
             raise ValueError("threshold and trim_s must be >= 0 and block_s > 0")
         object.__setattr__(self, "dofs", tuple(self.dofs))
+        if isinstance(self.compare, str):
+            raise ValueError(f"compare must be a sequence of term names, got the string {self.compare!r}")
+        object.__setattr__(self, "compare", tuple(dict.fromkeys(str(n) for n in self.compare)))
