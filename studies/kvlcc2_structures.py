@@ -66,9 +66,10 @@ def parse_args():
     return ap.parse_args()
 
 
-def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis"):
+def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis", compare: tuple = ()):
     """The validation split's diagnosis with alternatives and the design; its report written to
-    ``out / folder``."""
+    ``out / folder``; ``compare``: terms refitted whatever the selection picks (an earlier
+    round's kept terms and alternatives, ``DiscoveryOptions.compare``)."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.analysis.gap.design import DesignOptions
     from bayesid.analysis.gap.discovery import DiscoveryOptions
@@ -88,7 +89,7 @@ def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis"):
             dt=0.2,
             max_nfev=args.max_nfev,
             start="measured",
-            discover=DiscoveryOptions(max_nfev=args.max_nfev, n_alternatives=2),
+            discover=DiscoveryOptions(max_nfev=args.max_nfev, n_alternatives=2, compare=tuple(compare)),
             design=DesignOptions(seed=args.seed),
         ),
         rng=np.random.default_rng(args.seed),
@@ -207,7 +208,8 @@ def kept_terms(diag) -> list:
 def loop_on_other_basin(kv, train, held, diag, marin: list, args, out, log) -> dict | None:
     """The loop of issue 49 on real data: the other basin's runs of the kind of the design's top
     run (the run the design asks for, as this hull has it) added to the held-out runs, and the
-    diagnosis again. None when the design ranked no run or no MARIN run is of that kind.
+    diagnosis again, with the first round's kept terms and alternatives refitted whatever its
+    selection picks. None when the design ranked no run or no MARIN run is of that kind.
 
     Returns ``{"kind", "added_runs", "verdict", "kept", "discovered", "_diag"}``: ``kept`` is the
     term (or terms) the design and the data keep; each item of ``discovered`` has its
@@ -223,7 +225,9 @@ def loop_on_other_basin(kv, train, held, diag, marin: list, args, out, log) -> d
     if not added:
         return None
     log(f"the loop: {len(added)} other-basin run(s) of the designed kind ({kind}) added to the held-out runs")
-    diag2 = diagnose_split(kv, train, [*held, *added], args, out, log, folder="diagnosis_other_basin")
+    # the first round's kept terms and alternatives are judged again on the added runs (``--compare``)
+    asked = list(structures(diag))[1:]
+    diag2 = diagnose_split(kv, train, [*held, *added], args, out, log, folder="diagnosis_other_basin", compare=asked)
     D2 = diag2.to_dict()
     return {
         "kind": kind,

@@ -75,8 +75,14 @@ BAD = {  # name: (args builder, text the message must contain)
     "simulate over an existing file": (lambda c, t: ["simulate", "--out", c[0]], "--overwrite"),
     "unknown start rule": (lambda c, t: _diag([c[0]], [c[1]], t / "o", "--start", "smooth"), None),
     "a track of another packaged vessel": (lambda c, t: _diag([c[0]], [t / "esso.csv"], t / "o"), "esso.csv"),
-    "--compare with a term the library lacks": (lambda c, t: _diag([c[0]], [c[1]], t / "o", "--compare", "Nvvr,Nfoo"), "Nfoo"),
-    "--compare with a coefficient the vehicle has": (lambda c, t: _diag([c[0]], [c[1]], t / "o", "--compare", "Nr"), "Nr"),
+    "--compare with a term the library lacks": (
+        lambda c, t: _diag([c[0]], [c[1]], t / "o", "--compare", "Nvvr,Nfoo"),
+        "Nfoo",
+    ),
+    "--compare with a coefficient the vehicle has": (
+        lambda c, t: _diag([c[0]], [c[1]], t / "o", "--compare", "Nr"),
+        "Nr",
+    ),
     "--compare with a missing diagnosis.json": (
         lambda c, t: _diag([c[0]], [c[1]], t / "o", "--compare", t / "none" / "diagnosis.json"),
         "--compare",

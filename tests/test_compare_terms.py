@@ -61,8 +61,9 @@ def test_a_compared_term_the_selection_passes_over_is_refitted_and_judged():
     # mimics it) and, without refits of mimicked terms, keeps nothing; asked for, N0 is refitted
     # with every coefficient free, lands near the truth (0.003) and is kept. Nothing else changes:
     # the selected terms are refitted as before.
-    from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from test_mimicked_report import _n0_zigzags
+
+    from bayesid.analysis.gap import DiagnoseOptions, diagnose
 
     kv, runs = _n0_zigzags()
     found = dv.DiscoveryOptions(compare=("N0",))
@@ -75,3 +76,31 @@ def test_a_compared_term_the_selection_passes_over_is_refitted_and_judged():
     assert D["found"][0] == "N0", D["found"]
     assert list(D["settings"]["compare"]) == ["N0"]
     assert sum(r["refitted_as"] == "compared" for r in D["discovered"]) == 1
+
+
+def test_the_report_says_what_became_of_each_compared_term():
+    from bayesid.report.diagnosis import _compared_lines
+
+    D = {
+        "found": ["Nvabsvabsr"],
+        "settings": {"compare": ["Nvabsvabsr", "Nvvr", "Nvrr", "Nrrr", "Yvvr", "Nvvv"]},
+        "alternatives": {"Nvabsvabsr": [{"term": "Nvvr"}]},
+        "separated": {
+            "Nvabsvabsr": [
+                {"term": "Nvrr", "separated_by": "heldout", "separating_run": "designed_turn", "run_error_ratio": 1.62},
+                {"term": "Nrrr", "separated_by": "training", "train_separating_run": "z20", "train_error_ratio": 1.3},
+            ]
+        },
+        "discovered": [
+            {"term": "Yvvr", "kept": False, "reason": "fits the training runs but not the held-out ones"},
+            {"term": "Nvabsvabsr", "kept": True},
+        ],
+    }
+    text = "\n".join(_compared_lines(D))
+    assert "Nvabsvabsr: kept;" in text
+    assert "Nvvr: an alternative of Nvabsvabsr (the runs do not separate them)" in text
+    assert "Nvrr: set apart from Nvabsvabsr by the held-out runs, run designed_turn, error ratio 1.62" in text
+    assert "Nrrr: set apart from Nvabsvabsr by the training runs, run z20, error ratio 1.3" in text
+    assert "Yvvr: not kept: fits the training runs but not the held-out ones" in text
+    assert "Nvvv: not refitted." in text
+    assert _compared_lines({"settings": {}}) == []

@@ -74,14 +74,15 @@ def test_loop_adds_the_other_basins_runs_of_the_designed_kind(tmp_path, monkeypa
     )
     seen = {}
 
-    def fake(kv, train, held, args, out, log, folder="diagnosis"):
-        seen.update(held=[t.name for t in held], folder=folder)
+    def fake(kv, train, held, args, out, log, folder="diagnosis", compare=()):
+        seen.update(held=[t.name for t in held], folder=folder, compare=list(compare))
         return _Diag(ROUND2)
 
     monkeypatch.setattr(study, "diagnose_split", fake)
     loop = study.loop_on_other_basin(None, [], [], _Diag(ROUND1), marin, None, tmp_path, lambda m: None)
-    # only the turning circle joins the held-out runs: the design asked for a turning circle
-    assert seen == {"held": ["MARIN_FREE_KVLCC2_tc_35_m"], "folder": "diagnosis_other_basin"}
+    # only the turning circle joins the held-out runs: the design asked for a turning circle; the
+    # first round's kept term is refitted on them whatever the selection picks
+    assert seen == {"held": ["MARIN_FREE_KVLCC2_tc_35_m"], "folder": "diagnosis_other_basin", "compare": ["Nvdrabsdr"]}
     assert loop["kind"] == "turning_circle" and loop["added_runs"] == ["MARIN_FREE_KVLCC2_tc_35_m"]
     assert loop["kept"] == [] and loop["verdict"] == ROUND2["verdict"]
     # a design of a kind the other basin lacks, or no design: no loop

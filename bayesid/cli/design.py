@@ -6,7 +6,9 @@ apart the alternatives' predictions of them lie against measurement noise and pa
 uncertainty (:mod:`bayesid.analysis.gap.design`, Box & Hill 1967). Writes ``design.json`` (the
 ranked runs), the input schedules of the top runs (``design_runs/*.csv``), ``diagnosis.json``,
 ``report.md`` and ``figures/design_top.png``; prints the ranked runs. Steer the top run (its
-zigzag by your own heading), add it to ``--heldout`` and run ``bayesid discover`` again.
+zigzag by your own heading), add it to ``--heldout`` and run ``bayesid discover`` again with
+``--compare OUT/diagnosis.json``: the kept terms and their alternatives are then refitted on it
+whatever the new selection picks.
 """
 
 from __future__ import annotations
@@ -86,5 +88,9 @@ def run(args) -> int:
         )
     print(
         f"wrote {Path(args.out) / 'design.json'} and the top runs' input schedules in {Path(args.out) / 'design_runs'}"
+    )
+    print(
+        "fly the top run, add it to --heldout (or --train) and run again with "
+        f"--compare {Path(args.out) / 'diagnosis.json'}: the kept terms and their alternatives are refitted on it"
     )
     return 0

@@ -74,8 +74,8 @@ def discover(args):
     Diagnosis
         The diagnosis written.
     """
-    from ..estimation.modelfile import ModelDocument
     from ..analysis.gap.discovery import check_compare
+    from ..estimation.modelfile import ModelDocument
     from ..models import load_any_vehicle
     from .diagnose import check_outputs, diagnose_options, run_and_write
 

@@ -485,7 +485,8 @@ def _design_lines(res: dict) -> list:
         "prior probabilities). It is the expected log Bayes factor for the right one of a pair if the samples' "
         "errors were independent; they are correlated within a window, so read it as a ranking, and check it as "
         "studies/closing_the_loop.py does: add the top run to `--heldout` "
-        "(or `--train`) and diagnose again.",
+        "(or `--train`) and diagnose again with `--compare` this diagnosis.json, so that the kept terms and "
+        "alternatives above are refitted on the new run whatever its selection picks.",
         "",
         *_inseparable_lines(rows),
         *(
@@ -655,6 +656,42 @@ def _mimicked_text(R: dict, free, shown: int = 5, refit_rows=()) -> str:
     return "".join(out)
 
 
+def _compared_fate(D: dict, term: str) -> str:
+    """What became of a term asked for with ``--compare`` (the discovery entry ``D``)."""
+    if term in D.get("found", []):
+        return "kept"
+    for k, alts in (D.get("alternatives") or {}).items():
+        if any(a["term"] == term for a in alts):
+            return f"an alternative of {k} (the runs do not separate them)"
+    for k, seps in (D.get("separated") or {}).items():
+        a = next((a for a in seps if a["term"] == term), None)
+        if a is not None:
+            by = a.get("separated_by") or "held-out"
+            run = a.get("separating_run") if by == "heldout" else a.get("train_separating_run")
+            ratio = a.get("run_error_ratio") if by == "heldout" else a.get("train_error_ratio")
+            where = f", run {run}" + (f", error ratio {fmt(ratio)}" if ratio is not None else "") if run else ""
+            return f"set apart from {k} by the {'training' if by == 'training' else 'held-out'} runs{where}"
+    row = next((r for r in D.get("discovered", []) if r["term"] == term), None)
+    if row is None:
+        return "not refitted"
+    if row.get("kept"):
+        return "passed the kept test alone but not on top of " + "+".join(D.get("found", []))
+    return "not kept: " + (row.get("reason") or "failed the kept test")
+
+
+def _compared_lines(D: dict) -> list:
+    """The fate of each term asked for with ``--compare`` (``settings.compare``), when any."""
+    asked = list((D.get("settings") or {}).get("compare") or [])
+    if not asked:
+        return []
+    return [
+        "Asked to compare (`--compare`: an earlier round's terms, refitted whatever the selection picks): "
+        + "; ".join(f"{t}: {_compared_fate(D, t)}" for t in asked)
+        + ".",
+        "",
+    ]
+
+
 def _discovery_lines(res: dict) -> list:
     """The structure-discovery section: every refitted term with its numbers, the missing force
     per degree of freedom against the best library terms, and what was tried."""
@@ -708,6 +745,7 @@ def _discovery_lines(res: dict) -> list:
         else "No candidate reached the inclusion probability at which it is refitted "
         f"({D['settings']['min_probability']}).",
         "",
+        *_compared_lines(D),
         "Method: the training residuals of the output-error fit, linearised in every candidate's "
         "coefficient, with the directions a refit of the free coefficients can take projected out; a sparse "
         "regression (pysindy STLSQ, block bootstrap over the fit windows) gives each term an inclusion "
