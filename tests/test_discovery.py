@@ -290,6 +290,30 @@ def test_discover_command_writes_a_vehicle_file_that_loads_and_fits(tmp_path):
             assert (tmp_path / "des" / r["inputs_csv"]).is_file()
     else:
         assert "nothing to design" in des.stdout
+    # the loop (issue 49): round 1's kept terms and alternatives refitted again, whatever the selection
+    # picks, and what became of each said in the report; a term the model cannot take refused first
+    comp = subprocess.run(
+        py
+        + ["discover", "--model", str(tmp_path / "fit" / "model.json"), "--train", *tr_csv, "--heldout", *ho_csv]
+        + ["--max-nfev", "5", "--alternatives", "0", "--compare", str(out / "diagnosis.json")]
+        + ["--out", str(tmp_path / "disc3")],
+        capture_output=True,
+        text=True,
+    )
+    assert comp.returncode == 0, comp.stderr
+    doc3 = json.loads((tmp_path / "disc3" / "diagnosis.json").read_text())
+    assert doc3["discovery"]["settings"]["compare"][: len(kept)] == kept
+    assert {r["term"] for r in doc3["discovery"]["discovered"]} >= set(kept)
+    assert "Asked to compare (`--compare`" in (tmp_path / "disc3" / "report.md").read_text()
+    bad = subprocess.run(
+        py
+        + ["discover", "--model", str(tmp_path / "fit" / "model.json"), "--train", *tr_csv, "--heldout", *ho_csv]
+        + ["--compare", "Nabsdr,Nfoo", "--out", str(tmp_path / "disc4")],
+        capture_output=True,
+        text=True,
+    )
+    assert bad.returncode == 2 and "Nfoo is not among" in bad.stderr and "Traceback" not in bad.stderr
+    assert not (tmp_path / "disc4" / "diagnosis.json").exists()
 
 
 def test_the_mmg_polynomial_form_of_the_docs_loads_fits_predicts_and_samples(tmp_path):
