@@ -456,7 +456,9 @@ def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
     ]
     _write_design_runs(rows, tmp_path)
     path = tmp_path / "design_runs" / "1_zigzag_20_20_port.csv"
-    data = np.loadtxt(path, delimiter=",", comments="#")
+    lines = path.read_text().splitlines()  # a comment line, then a plain header row
+    assert lines[0].startswith("# designed run 1: zigzag 20/20 port") and lines[1] == "t,delta_r,n"
+    data = np.loadtxt(path, delimiter=",", skiprows=2)
     assert data.shape == (2, 3) and data[1, 1] == pytest.approx(0.01)
     assert not (tmp_path / "design_runs" / "2_pull_out_20_deg_port.csv").exists()
     rows[1].update(kind="pull_out", side="port", rudder_deg=20, check_deg=None, rpm=600, duration_s=90)

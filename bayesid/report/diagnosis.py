@@ -532,13 +532,14 @@ def _write_design_runs(rows: list, out: Path) -> None:
         path = out / _design_run_name(i, r)
         path.parent.mkdir(parents=True, exist_ok=True)
         u = r["inputs"]
+        # a comment line, then a plain header row (pandas.read_csv(path, comment="#") reads it)
         np.savetxt(
             path,
             np.column_stack([u["t"], u["delta_r"], u["n"]]),
             delimiter=",",
-            header=f"designed run {i}: {r['name']} (rudder + to port, rad; zigzag switches as the kept model steers)\n"
-            "t,delta_r,n",
-            comments="# ",
+            header=f"# designed run {i}: {r['name']} (rudder + to port, rad; zigzag switches as the kept model "
+            "steers)\nt,delta_r,n",
+            comments="",
             fmt="%.6g",
         )
 
