@@ -365,32 +365,59 @@ SIGN_RUNS = (
 
 def sign_coupling() -> list:
     """Why no standard run separates ``Nvvr`` from ``Nvabsvabsr``: on NPS AUV II's standard runs
-    (simulated by ``bayesid simulate``), the share of samples where the sway velocity and yaw rate
-    have opposite signs, and the cosine between the two terms' columns v^2 r and v|v||r| (equal up
-    to the sign wherever v r < 0)."""
+    (simulated by ``bayesid simulate``), and on two rudder schedules beyond them (hard over the other
+    way from a steady 35 deg turn; switched every 8 s), the share of samples where the sway velocity
+    and yaw rate have opposite signs, and the cosine between the two terms' columns v^2 r and
+    v|v||r| (equal up to the sign wherever v r < 0)."""
     import tempfile
 
     from bayesid import cli
+    from bayesid.analysis.gap.design import approach_condition, input_track, simulate_run
     from bayesid.data.track import read_csv
+    from bayesid.models import build_model, load_any_vehicle
 
-    out = []
+    def coupling(name, tr):
+        v, r = np.asarray(tr["v"], float), np.asarray(tr["r"], float)
+        moving = (np.abs(v) > 1e-3) & (np.abs(r) > 1e-3)
+        a, b = v**2 * r, v * np.abs(v) * np.abs(r)
+        return {
+            "run": name,
+            "share_opposite_signs": float(np.mean(v[moving] * r[moving] < 0)),
+            "cosine": float(a @ b / np.sqrt((a @ a) * (b @ b))),
+        }
+
+    out, tracks = [], []
     with tempfile.TemporaryDirectory() as d:
         for i, (name, argv) in enumerate(SIGN_RUNS):
             path = Path(d) / f"run{i}.csv"  # a new file each (simulate never overwrites one)
             rc = cli.main(["-q", "simulate", "--vehicle", "nps_auv2", *argv, "--out", str(path), "--no-figure"])
             if rc != 0:
                 raise RuntimeError(f"bayesid simulate {' '.join(argv)} failed (exit {rc})")
-            tr = read_csv(path)
-            v, r = np.asarray(tr["v"], float), np.asarray(tr["r"], float)
-            moving = (np.abs(v) > 1e-3) & (np.abs(r) > 1e-3)
-            a, b = v**2 * r, v * np.abs(v) * np.abs(r)
-            out.append(
-                {
-                    "run": name,
-                    "share_opposite_signs": float(np.mean(v[moving] * r[moving] < 0)),
-                    "cosine": float(a @ b / np.sqrt((a @ a) * (b @ b))),
-                }
-            )
+            tracks.append(read_csv(path))
+            out.append(coupling(name, tracks[-1]))
+    # runs beyond the standard ones, from the zigzags' approach and within their rudder rate: the rudder
+    # put hard over the other way from a steady turn, and switched every 8 s (the vessel yaws into its
+    # drift only while the sway velocity lags a reversed yaw rate)
+    approach = approach_condition(tracks[-2:])
+    model = build_model(load_any_vehicle("nps_auv2"), [])
+    big = math.radians(35.0)
+    for name, orders, duration in (
+        ("rudder reversed from a steady 35 deg turn", [(5.0, big), (65.0, -big)], 125.0),
+        ("rudder switched every 8 s, +-35 deg", [(5.0 + 8.0 * i, big * (-1) ** i) for i in range(15)], 125.0),
+    ):
+        t = np.arange(0.0, duration, 0.05)
+        target = np.zeros_like(t)
+        for t_o, a in orders:
+            target[t >= t_o] = a
+        delta = np.zeros_like(t)
+        for i in range(1, t.size):  # the rudder moves to each order at the approach's rudder rate
+            step = approach["rudder_rate"] * (t[i] - t[i - 1])
+            delta[i] = delta[i - 1] + np.clip(target[i] - delta[i - 1], -step, step)
+        run = simulate_run(
+            model, model.start(), input_track(t, delta, np.full_like(t, approach["rpm"]), approach), approach
+        )
+        if run is not None:
+            out.append(coupling(name, run))
     return out
 
 
@@ -588,8 +615,11 @@ def write_report(out: Path, rows: list, args) -> dict:
         + ". The two terms are the same column up to its sign (within 0.001) on each of these runs, so none of "
         "them can tell the two apart, and naming both as alternatives is the honest answer: a structure these "
         "manoeuvres cannot identify, not a shortfall of the test. Separating "
-        "them needs a run where the vessel yaws into its drift (v and r of the same sign), e.g. a turn entered "
-        "from a sideslip.",
+        "them needs a run where the vessel yaws into its drift (v and r of the same sign) at large v and r; "
+        "the rudder alone does not give one on this vehicle, whatever its schedule (the last rows above: "
+        "after a reversal the sway velocity follows the yaw rate within seconds, while both are small), so it "
+        "takes a sideslip the rudder did not make (a turn entered from a drift, a lateral thruster, a current "
+        "gradient).",
         "",
         "Every round's verdict, coefficients, the alternatives' held-out RMS and the ranked runs are in results.json.",
         "",

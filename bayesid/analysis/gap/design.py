@@ -71,6 +71,7 @@ __all__ = [
     "DesignOptions",
     "ManoeuvreRun",
     "approach_condition",
+    "rudder_rate",
     "menu",
     "run_inputs",
     "input_track",
@@ -197,10 +198,44 @@ class ManoeuvreRun:
         return f"{self.kind.replace('_', ' ')} {self.rudder_deg:g} deg {self.side}"
 
 
+def rudder_rate(tracks: list) -> float | None:
+    """How fast the runs' rudder moves when it moves: the median of |d delta_r / dt| over the
+    sample intervals where it changes faster than 1 deg/s and than three times a log's jitter
+    (its noise sd from the median absolute second difference, whose median a held or slewing
+    rudder leaves at 0, times sqrt 2 over the interval). A rudder held between orders moves in few
+    intervals: a percentile over all of them is the held rudder's 0 (a step-logged rudder's
+    designed runs then ramped at 1 deg/s); a step order logged at 5 Hz reads as the jump over one
+    interval, as fast as the log can say.
+
+    Parameters
+    ----------
+    tracks : list of Track
+        Runs with ``delta_r`` (rad; non-finite samples skipped).
+
+    Returns
+    -------
+    float or None
+        rad/s; None when the rudder never moves.
+    """
+    moving = []
+    for tr in tracks:
+        t, d = np.asarray(tr.t, float), np.asarray(tr["delta_r"], float)
+        ok = np.isfinite(d)
+        if ok.sum() < 4:
+            continue
+        t, d = t[ok], d[ok]
+        rate = np.abs(np.diff(d) / np.diff(t))
+        noise_sd = 1.4826 * float(np.median(np.abs(np.diff(d, 2)))) / math.sqrt(6.0)
+        jitter = math.sqrt(2.0) * noise_sd / float(np.median(np.diff(t)))
+        moving.append(rate[rate > max(math.radians(1.0), 3.0 * jitter)])
+    r = np.concatenate(moving) if moving else np.zeros(0)
+    return float(np.median(r)) if r.size else None
+
+
 def approach_condition(tracks: list) -> dict:
     """The approach condition of the training runs: median speed and rpm over each run's first
-    5 s, the rudder rate (the 95th percentile of |d delta_r / dt| over the runs, at least
-    1 deg/s) and the median run length.
+    5 s, the rudder rate (:func:`rudder_rate`, at least 1 deg/s; 5 deg/s when the rudder never
+    moves) and the median run length.
 
     Parameters
     ----------
@@ -212,7 +247,7 @@ def approach_condition(tracks: list) -> dict:
     dict
         ``u`` (m/s), ``rpm``, ``rudder_rate`` (rad/s), ``duration_s``.
     """
-    us, ns, rates, lens = [], [], [], []
+    us, ns, lens = [], [], []
     for tr in tracks:
         t = np.asarray(tr.t, float)
         first = t <= t[0] + 5.0
@@ -224,12 +259,9 @@ def approach_condition(tracks: list) -> dict:
             if ok.sum() > 2:
                 us.append(float(np.hypot(*np.polyfit(t[first][ok], np.column_stack([x[ok], y[ok]]), 1)[0])))
         ns.append(float(np.nanmedian(np.asarray(tr["n"], float)[first])))
-        d = np.asarray(tr["delta_r"], float)
-        ok = np.isfinite(d)
-        if ok.sum() > 2:
-            rates.append(np.abs(np.diff(d[ok]) / np.diff(t[ok])))
         lens.append(t[-1] - t[0])
-    rate = float(np.percentile(np.concatenate(rates), 95)) if rates else math.radians(5.0)
+    rate = rudder_rate(tracks)
+    rate = math.radians(5.0) if rate is None else rate
     return {
         "u": float(np.median(us)) if us else 1.0,
         "rpm": float(np.median(ns)),
