@@ -354,6 +354,40 @@ def _wrong_lines(looped: list) -> list:
     return lines
 
 
+def _diverged(v) -> bool:
+    """A position RMS the case file holds as NaN (``"nan"`` or null): the refit's prediction of
+    the run diverged."""
+    return v is None or (isinstance(v, str) and v.lower() == "nan") or (isinstance(v, float) and math.isnan(v))
+
+
+def _diverged_lines(looped: list) -> list:
+    """A paragraph naming the round-2 kept terms whose single-term refit diverged on the designed
+    run: the held-out scores drop a diverged window (NaN) instead of counting it as a failure, so
+    such a term can pass the kept test on the windows it did not diverge on."""
+    found = [
+        (r, k)
+        for r in looped
+        for k in (r.get("round2") or {}).get("kept", [])
+        if _diverged(((r.get("round2") or {}).get("run_rms_m") or {}).get(k, 0.0))
+    ]
+    if not found:
+        return []
+    from bayesid.report import fmt
+
+    return [
+        "A kept term whose refit diverged on the designed run: "
+        + "; ".join(
+            f"{r['case']} (repeat {r['repeat']}): {k}, held-out RMS {fmt(r['round2']['alternative_rms_m'][k][k])} m "
+            "over the windows it did not diverge on"
+            for r, k in found
+        )
+        + ". A known flaw, not fixed in this run: the held-out scores (``scores_and_window_rms``) drop a window "
+        "whose prediction diverged (NaN) instead of counting it as the worst error, so the kept test and the "
+        "comparison of alternatives read such a refit on its other windows only.",
+        "",
+    ]
+
+
 #: Standard NPS AUV II runs on which to compare the v^2 r and v|v||r| columns (bayesid simulate)
 SIGN_RUNS = (
     ("turning circle 20 deg", ["--manoeuvre", "turn", "--angle", "20"]),
@@ -604,6 +638,7 @@ def write_report(out: Path, rows: list, args) -> dict:
         ),
         "",
         *_wrong_lines(looped),
+        *_diverged_lines(looped),
         "Why the hidden ``Nvvr`` (a yaw moment in v^2 r) is not kept alone after the loop: its surrogate "
         "``Nvabsvabsr`` (v|v||r|) differs from it only where v and r have the same sign, and on NPS AUV II's "
         "standard runs they seldom do: "
