@@ -354,6 +354,18 @@ def _wrong_lines(looped: list) -> list:
     return lines
 
 
+def _revive(x):
+    """A checkpointed case as the run held it: the non-finite numbers the JSON writer stored as
+    strings (``"nan"``, ``"inf"``, ``"-inf"``) back to floats."""
+    if isinstance(x, dict):
+        return {k: _revive(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_revive(v) for v in x]
+    if isinstance(x, str) and x.lower() in ("nan", "inf", "-inf"):
+        return float(x)
+    return x
+
+
 def _diverged(v) -> bool:
     """A position RMS the case file holds as NaN (``"nan"`` or null): the refit's prediction of
     the run diverged."""
@@ -694,7 +706,7 @@ def main() -> int:
         slug = "".join(c if c.isalnum() else "_" for c in case["name"])
         path = out / "cases" / f"{slug}_{i % repeats}.json"
         if path.is_file() and not args.fresh:
-            rows.append(json.loads(path.read_text()))
+            rows.append(_revive(json.loads(path.read_text())))
             print(f"{case['name']}: from {path}", flush=True)
             continue
         r = run_case(case, args.seed + i, args.quick)
