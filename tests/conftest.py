@@ -1,4 +1,6 @@
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,3 +32,12 @@ def kvlcc2_square_wave_track() -> Track:
             "n": z + 613.8,
         },
     )
+
+
+def load_study(name: str):
+    """The module of ``studies/<name>.py``, loaded from its file (the studies are scripts, not a
+    package the tests import)."""
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).resolve().parents[1] / "studies" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -2,19 +2,14 @@
 stores a diverged refit's NaN as the string "nan", which the report's ratios then divided by (a
 resumed run failed); and a kept term whose refit diverged on the designed run is named."""
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from conftest import load_study
 
 
 def _study():
-    spec = importlib.util.spec_from_file_location("closing_the_loop", ROOT / "studies" / "closing_the_loop.py")
-    study = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(study)
-    return study
+    return load_study("closing_the_loop")
 
 
 def _case(study):

@@ -3,7 +3,6 @@ studies/sim_to_real.py --quick."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -11,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import load_study
 
 from bayesid import cli, protocol
 from bayesid.analysis import gap
@@ -476,9 +476,7 @@ def test_the_benchmarks_true_model_reproduces_noise_free_world_tracks(veh, scena
     parameters and per-track wave phases) predicts noise-free held-out tracks as well as the
     protocol allows (0.28 m without any effect: windows start from a 1 s causal fit of a curving
     track), while the base model misses them by metres."""
-    spec = importlib.util.spec_from_file_location("sim_to_real", ROOT / "studies" / "sim_to_real.py")
-    s2r = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(s2r)
+    s2r = load_study("sim_to_real")
     truth = {
         "waves": draw_parameters("waves", 1, np.random.default_rng(0)),
         "thrust": draw_parameters("thrust", 2, np.random.default_rng(0)),

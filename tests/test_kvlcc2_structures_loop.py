@@ -4,21 +4,15 @@ diagnosis runs again, and the report says which term the design and the data kee
 turning circles compare with the model without it. Synthetic MARIN files only (the real ones are
 withheld); the second diagnosis is replaced by a stand-in so that the test stays fast."""
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
+from conftest import load_study
 from test_marin import marin_file, port_turn_full_scale
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _study():
-    spec = importlib.util.spec_from_file_location("kvlcc2_structures", ROOT / "studies" / "kvlcc2_structures.py")
-    study = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(study)
-    return study
+    return load_study("kvlcc2_structures")
 
 
 class _Diag:

@@ -174,16 +174,11 @@ def test_list_runs_tells_the_basins_apart_and_convert_round_trips(tmp_path, caps
 def test_real_ships_study_compares_marin_turns_when_present(tmp_path):
     """studies/real_ships.py picks MARIN files up anywhere under --data (here a synthetic port
     turn beside an HSVA-like folder) and scores the tactical diameter against the measured one."""
-    import importlib.util
-    from pathlib import Path
+    from conftest import load_study
 
     from bayesid.models import ship
 
-    spec = importlib.util.spec_from_file_location(
-        "real_ships", Path(__file__).resolve().parents[1] / "studies" / "real_ships.py"
-    )
-    study = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(study)
+    study = load_study("real_ships")
     data = tmp_path / "data"
     (data / "kvlcc2-other-basin").mkdir(parents=True)
     R = 520.0

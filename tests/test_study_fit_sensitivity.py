@@ -4,7 +4,6 @@ training-only splits never see the validation held-out runs), and --quick writes
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -12,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import load_study
 
 from bayesid.data.track import Track
 
@@ -20,10 +20,7 @@ REAL = ROOT / ".." / "shared" / "data" / "real"
 
 
 def _study():
-    spec = importlib.util.spec_from_file_location("fit_sensitivity", ROOT / "studies" / "fit_sensitivity.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_study("fit_sensitivity")
 
 
 def _tracks(names):
