@@ -24,6 +24,7 @@ __all__ = [
     "fit_term",
     "refit_row",
     "worst_run",
+    "diverged_run",
     "decide",
     "combine",
     "dominance_order",
@@ -191,6 +192,31 @@ def refit_row(
     )
 
 
+def diverged_run(ref_windows, windows, runs) -> int | None:
+    """The first held-out run on which a model's prediction diverged (a NaN window) where the
+    model it is compared with predicts a finite error: the scores pool the finite samples only,
+    so without this check a diverged run would simply not count against the model.
+
+    Parameters
+    ----------
+    ref_windows, windows : array_like, shape (n_windows,)
+        The two models' window RMS errors, m (NaN where a window's prediction diverged).
+    runs : array_like of int, shape (n_windows,)
+        The held-out run of each window.
+
+    Returns
+    -------
+    int or None
+        The run's index, None when ``windows`` has no NaN window that ``ref_windows`` has finite
+        (or the shapes differ).
+    """
+    a, b, idx = np.asarray(ref_windows, float), np.asarray(windows, float), np.asarray(runs)
+    if not a.shape == b.shape == idx.shape:
+        return None
+    bad = np.isfinite(a) & ~np.isfinite(b)
+    return int(idx[bad][0]) if bad.any() else None
+
+
 def worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict | None:
     """The held-out run on which a refit predicts worst against its reference model: ``{"run",
     "error_ratio", "p_value"}`` of the run test (:func:`run_separation_test` with the reference
@@ -213,7 +239,9 @@ def worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict 
     -------
     dict or None
         ``{"run", "error_ratio", "p_value"}``; None without ``runs``, when the windows do not
-        match them, or when no run is worse.
+        match them, or when no run is worse. A run on which the refit's prediction diverges
+        (:func:`diverged_run`) is the worst: ``{"run", "error_ratio": None, "p_value": 0.0,
+        "diverged": True}``.
     """
     if runs is None:
         return None
@@ -221,6 +249,9 @@ def worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict 
     a, b = np.asarray(ref.windows, float), np.asarray(st.windows, float)
     if not (a.shape == b.shape == np.shape(idx)):
         return None
+    gone = diverged_run(a, b, idx)
+    if gone is not None:
+        return {"run": _run_name(names, gone), "error_ratio": None, "p_value": 0.0, "diverged": True}
     res = run_separation_test(a, b, np.asarray(idx), margin)
     i = res["run_second_worse"]
     if i is None:
@@ -271,6 +302,8 @@ def _kept_and_reason(row, significant: bool, th: Thresholds) -> tuple[bool, str]
     """``(kept, reason)`` of the kept test on a refitted candidate (:func:`decide`)."""
     kept = _passes(row, significant, th)
     worst = row.get("worst_run") or {}
+    if worst.get("diverged"):
+        return False, f"its prediction of run {worst['run']} diverges where the model without it does not"
     if kept:
         return kept, "improves the held-out windows (contributor test)"
     if is_contributor(row, significant, th):
@@ -391,6 +424,9 @@ def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None
                     continue
                 res = run_separation_test(wa, wb, idx, th.separation_margin)
                 b_worse, a_worse = res["p_second_worse"] < th.partial_p, res["p_first_worse"] < th.partial_p
+                # a prediction that diverges on a run the other one predicts is the worse one there
+                b_worse = b_worse or diverged_run(wa, wb, idx) is not None
+                a_worse = a_worse or diverged_run(wb, wa, idx) is not None
                 if not b_worse and not a_worse:  # the held-out runs tie them: do the training runs?
                     b_worse = training_separation(stages[a], stages[b], th)["separated"]
                     a_worse = training_separation(stages[b], stages[a], th)["separated"]
@@ -430,6 +466,10 @@ def compare_structures(
       runs separates there, where the held-out runs, of the old kinds, cannot. The window is
       the unit of both tests, not the sample: simulation errors are correlated within a window,
       which a comparison of the training log-likelihoods (ΔBIC) ignores.
+
+    A prediction that diverges on a held-out run the other model predicts (:func:`diverged_run`)
+    is the worse one on that run (p = 0): ``k`` diverging makes the runs favour ``a``; ``a``
+    diverging separates it from ``k``.
 
     Otherwise ``a`` is an *alternative*: the output-error counterpart of a collinear group, two
     terms whose refitted models predict the held-out runs equally well, whatever their columns'
@@ -496,15 +536,27 @@ def compare_structures(
             }
             if runs is not None and len(runs) == len(kw) == len(aw):
                 run = run_separation_test(kw, aw, np.asarray(runs), th.separation_margin)
+            # a prediction that diverges on a run the other one predicts is the worse one there
+            a_gone = diverged_run(kw, aw, runs) if runs is not None else None
+            k_gone = diverged_run(aw, kw, runs) if runs is not None else None
+            if k_gone is not None:  # the kept term's prediction diverges where the competitor's does not
+                run = {**run, "run_first_worse": k_gone, "p_first_worse": 0.0}
+            elif a_gone is not None:
+                run = {**run, "run_second_worse": a_gone, "p_second_worse": 0.0, "p_first_worse": 1.0}
             i = run["run_second_worse"]
             by_run = run["ratio_by_run"]
-            by_heldout = p < th.partial_p or (
-                run["p_second_worse"] is not None
-                and run["p_second_worse"] < th.partial_p
-                and run["p_first_worse"] >= th.partial_p
+            by_heldout = k_gone is None and (
+                p < th.partial_p
+                or (
+                    run["p_second_worse"] is not None
+                    and run["p_second_worse"] < th.partial_p
+                    and run["p_first_worse"] >= th.partial_p
+                )
             )
             trn = training_separation(stages[k], stages[a], th, train_names)
-            heldout_favours_a = run["p_first_worse"] < th.partial_p or paired_window_test(kw, aw) < th.partial_p
+            heldout_favours_a = a_gone is None and (
+                run["p_first_worse"] < th.partial_p or paired_window_test(kw, aw) < th.partial_p
+            )
             by_training = not by_heldout and not heldout_favours_a and trn["separated"]
             separated = by_heldout or by_training
             out[k].append(
