@@ -264,7 +264,8 @@ def _alternatives_lines(res: dict) -> list:
                 for a in d["alternatives"]
             )
             lines.append(
-                f"- **{d['term']}** (held-out {fmt(d['heldout_rms_m'])} m) is not separable on these runs from: {alts}. "
+                f"- **{d['term']}** (held-out {fmt(d.get('heldout_rms_on_top_m', d['heldout_rms_m']))} m) is not "
+                f"separable on these runs from: {alts}. "
                 "Each predicts the held-out windows not significantly worse (and passes the kept test alone, or "
                 "predicts them at least as well): the runs say "
                 f"a force of one of these forms is missing in {'/'.join(sorted({d['dof'], *(a['term'][0] for a in d['alternatives'])}))}, "
@@ -273,6 +274,14 @@ def _alternatives_lines(res: dict) -> list:
         if d.get("separated"):
             lines.append(
                 f"  The runs separate {d['term']} from: " + "; ".join(_separated_cell(a) for a in d["separated"]) + "."
+            )
+        below = next(
+            (a["on_top_of"] for a in [*d["alternatives"], *d.get("separated", [])] if a.get("on_top_of")), None
+        )
+        if below:
+            lines.append(
+                f"  {d['term']} was added on top of {' + '.join(below)}: each competitor above was refitted in its place, "
+                f"on top of {' + '.join(below)}, and its held-out error and coefficient are of that model."
             )
     for d in kept:
         for w in d.get("worse_on_other_kinds") or []:

@@ -684,12 +684,14 @@ def _design(found, setup: Setup, options, runner: Runner) -> tuple[list, list]:
         return [], []
     within = {manoeuvre_kind(t) for t in setup.heldout} <= {manoeuvre_kind(t) for t in setup.train}
     for k in found.found:
-        if k not in found.stages:
+        # a term added on top of others, and its competitors, as refitted in its place
+        pool = getattr(found, "combined_stages", {}).get(k) or found.stages
+        if k not in pool:
             continue
-        alts = [a["term"] for a in found.alternatives.get(k, []) if a["term"] in found.stages]
+        alts = [a["term"] for a in found.alternatives.get(k, []) if a["term"] in pool]
         if alts:
             runner.say(f"design: the run that separates {k} from {', '.join(alts)}")
-            stages = {n: found.stages[n] for n in (k, *alts)}
+            stages = {n: pool[n] for n in (k, *alts)}
         elif within and found.reference is not None:
             runner.say(f"design: the run of another kind that would test {k} (against the model without it)")
             stages = {k: found.stages[k], WITHOUT_TERMS: found.reference}

@@ -71,6 +71,7 @@ from .confirmation import (
     TermFit,
     alternatives,
     combine,
+    combined_competitors,
     compare_structures,
     decide,
     dominance_order,
@@ -145,6 +146,10 @@ _decide = decide
 _combine = combine
 _by_run = heldout_rms_by_run
 
+#: At most this many competitors of a term added on top of others are refitted in its place
+#: (:func:`~.confirmation.combined_competitors`), those with the lowest single-term held-out RMS.
+MAX_COMBINED_RIVALS = 6
+
 
 @dataclass
 class Discovery:
@@ -203,6 +208,9 @@ class Discovery:
     stages : dict, optional
         ``{term: Stage}`` of every refitted term's single-term model (the kept terms' and their
         alternatives' among them); not in :meth:`to_dict`.
+    combined_stages : dict, optional
+        ``{term added on top of others: {term: Stage}}``: its model and each competitor's refit in
+        its place (:func:`~.confirmation.combined_competitors`); not in :meth:`to_dict`.
     """
 
     found: list
@@ -223,6 +231,7 @@ class Discovery:
     after: Stage | None = field(repr=False, default=None)
     reference: Stage | None = field(repr=False, default=None)
     stages: dict = field(repr=False, default_factory=dict)
+    combined_stages: dict = field(repr=False, default_factory=dict)
 
     def to_dict(self) -> dict:
         """The JSON-able fields.
@@ -277,7 +286,9 @@ class Discovery:
             test, ``"mimicked"`` or ``"compared"``: asked for, ``DiscoveryOptions.compare``), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
             ``separated`` (kept terms: :attr:`separated`; others: empty), ``separable`` (kept terms: no alternative survives; others: None) and
             ``heldout_rms_by_run_m`` (kept terms: ``{held-out run: position RMS, m}`` of the
-            single-term refit; others: empty).
+            single-term refit, or of the model it was added to others in, :attr:`combined_stages`;
+            others: empty). A term added on top of others also has ``heldout_rms_on_top_m``, that
+            model's held-out position RMS: its alternatives' numbers are of models of that size.
         """
         out = []
         for row in self.discovered:
@@ -290,6 +301,9 @@ class Discovery:
             else:
                 reason = row.get("reason", "")
             alts = list(self.alternatives.get(t, [])) if kept else []
+            # a term added on top of others: its competitors were refitted in its place, so is it
+            on_top = (self.combined_stages.get(t) or {}).get(t) if kept else None
+            by_run = on_top if on_top is not None else self.stages.get(t) if kept else None
             out.append(
                 {
                     "term": t,
@@ -305,9 +319,11 @@ class Discovery:
                     "alternatives": alts,
                     "separated": list(self.separated.get(t, [])) if kept else [],
                     "separable": (not alts) if kept else None,
-                    "heldout_rms_by_run_m": heldout_rms_by_run(self.stages[t]) if kept and t in self.stages else {},
+                    "heldout_rms_by_run_m": heldout_rms_by_run(by_run) if by_run is not None else {},
                 }
             )
+            if on_top is not None:
+                out[-1]["heldout_rms_on_top_m"] = on_top.held["rms_position_m"]
         return out
 
 
@@ -534,18 +550,25 @@ def discover(
         rows, stages_more = _refit_terms(more, fit_args, initial, judge, runner)
         discovered, fitted = [*discovered, *rows], {**fitted, **stages_more}
     stages = {r.term: fitted[r.term] for r in discovered if r.kept}
-    found, after = ([], None)
+    found, chain = [], [None]
+    combined_args = ((tuple(effects), ctx["sd_fit"], options.max_nfev), (floor_rms, th, (runs, run_names)), initial)
     if stages:
-        found, after = combine(
-            list(stages),
-            stages,
-            ref,
-            setup,
-            (tuple(effects), ctx["sd_fit"], options.max_nfev),
-            (floor_rms, th, (runs, run_names)),
-            initial,
+        found, chain = combine(list(stages), stages, ref, setup, *combined_args)
+    after = chain[-1]
+    train_names = [t.name for t in setup.train]
+    compared = compare_structures(found, discovered, fitted, th, runs, run_names, train_names)
+    combined = {}
+    if len(found) > 1:
+        # a term added on top of others competes with the terms that could take its place there
+        single = alternatives(compared)
+        held = {r.term: r.heldout_rms_after_m for r in discovered if r.term in fitted}
+        rivals = [*stages, *(a["term"] for k in found[1:] for a in single.get(k, []))]
+        rivals = sorted(dict.fromkeys(r for r in rivals if r not in found), key=lambda n: held.get(n) or np.inf)
+        rivals = rivals[:MAX_COMBINED_RIVALS]
+        runner.say(f"discovery: refitting {', '.join(rivals) or 'nothing'} in the place of {', '.join(found[1:])}")
+        compared, combined = combined_competitors(
+            found, chain, compared, ref, setup, *combined_args, rivals, train_names
         )
-    compared = compare_structures(found, discovered, fitted, th, runs, run_names, [t.name for t in setup.train])
     alts = alternatives(compared)
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
@@ -580,4 +603,5 @@ def discover(
         after=after,
         reference=ref,
         stages=fitted,
+        combined_stages=combined,
     )

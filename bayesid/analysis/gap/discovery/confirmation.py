@@ -27,6 +27,7 @@ __all__ = [
     "diverged_run",
     "decide",
     "combine",
+    "combined_competitors",
     "dominance_order",
     "compare_structures",
     "training_separation",
@@ -326,6 +327,28 @@ def _kept_and_reason(row, significant: bool, th: Thresholds) -> tuple[bool, str]
     return kept, f"held-out gain not significant (window test p = {row['window_p_value']:.3g})"
 
 
+def _fit_on_top(values: dict, n: str, cur: Stage, ref: Stage, setup: Setup, fit_args: tuple, initial: dict):
+    """Term ``n`` refitted on top of the terms ``values`` (``{term: value in cur}``) of the
+    model ``cur``, every coefficient re-identified from ``cur``'s: the scored stage, or None when
+    the fit fails."""
+    effects, sd_fit, max_nfev = fit_args
+    trial = with_terms(setup, {**values, n: initial[n]})
+    model, ct, ch = trial.build([e for e in effects if e not in setup.effects])
+    p0 = extended_start(ref, model, [*values.values(), initial[n]])
+    n_ref = ref.model.n_theta
+    p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
+    try:
+        f = fit_model(
+            FitProblem(model, ct, sd_fit, max_nfev=max_nfev),
+            p0,
+            nuisance_start(cur, model),
+            starts0=warm_starts(cur.fit, ct),
+        )
+    except Exception:  # noqa: BLE001 - the combination is skipped
+        return None
+    return score_stage(model, f, ct, ch, sd_fit)
+
+
 def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple, initial: dict):
     """Add the kept terms together, best first (:func:`dominance_order`): each further term is refitted on top of those
     added (all coefficients re-identified) and stays only if it passes the kept test
@@ -352,37 +375,97 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
     -------
     found : list of str
         The terms of the final model, in the order added.
-    after : Stage
-        The model with all of them.
+    chain : list of Stage
+        ``chain[i]`` is the model with ``found[: i + 1]`` (``chain[-1]`` the final model).
     """
-    effects, sd_fit, max_nfev = fit_args
     floor_rms, th, runs = floor
     order = dominance_order(kept, stages, th, runs)
-    found, cur, values = [order[0]], stages[order[0]], {order[0]: stages[order[0]].fit.coefficients()[order[0]]}
+    found, chain = [order[0]], [stages[order[0]]]
     for n in order[1:]:
+        cur = chain[-1]
         if cur.held["rms_position_m"] <= th.none_ratio * floor_rms:
             break  # the gap is closed: a further term would fit noise
-        trial = with_terms(setup, {**values, n: initial[n]})
-        model, ct, ch = trial.build([e for e in effects if e not in setup.effects])
-        p0 = extended_start(ref, model, [*values.values(), initial[n]])
-        n_ref = ref.model.n_theta
-        p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
-        try:
-            f = fit_model(
-                FitProblem(model, ct, sd_fit, max_nfev=max_nfev),
-                p0,
-                nuisance_start(cur, model),
-                starts0=warm_starts(cur.fit, ct),
-            )
-        except Exception:  # noqa: BLE001 - the combination is skipped
+        values = {k: cur.fit.coefficients()[k] for k in found}
+        st = _fit_on_top(values, n, cur, ref, setup, fit_args, initial)
+        if st is None:
             continue
-        st = score_stage(model, f, ct, ch, sd_fit)
         row = refit_row(n, st, cur, None, floor_rms, runs=runs, margin=th.separation_margin)
         if _passes(row, True, th):
             found.append(n)
-            cur = st
-            values = {k: f.coefficients()[k] for k in found}
-    return found, cur
+            chain.append(st)
+    return found, chain
+
+
+def combined_competitors(
+    found: list,
+    chain: list,
+    compared: dict,
+    ref: Stage,
+    setup: Setup,
+    fit_args: tuple,
+    floor: tuple,
+    initial: dict,
+    competitors: list,
+    train_names=None,
+) -> tuple[dict, dict]:
+    """The competitors of each term added on top of others (``found[i]``, ``i >= 1``), refitted in
+    its place: on top of ``found[:i]``, the model it was judged against.
+
+    A term added in a combination was chosen over the others for the second (third, ...) place,
+    yet :func:`compare_structures` compares single-term refits, which lack the first term: a
+    competitor that mimics the residual left by the first term would not be seen there. Each
+    competitor ``a`` is refitted on top of ``found[:i]`` (:func:`_fit_on_top`), judged by the
+    kept test against ``chain[i - 1]`` and compared with ``chain[i]`` by the tests of
+    :func:`compare_structures` (Box & Hill 1967: models of equal size, the same data).
+
+    Parameters
+    ----------
+    found, chain : list
+        :func:`combine`'s terms and models.
+    compared : dict
+        :func:`compare_structures` of the single-term refits; the entries of ``found[i]``
+        (``i >= 1``) are replaced.
+    ref, setup, fit_args, floor, initial
+        As :func:`combine`.
+    competitors : list of str
+        Refitted terms that may compete for a place (kept alone, or alternatives of a kept term);
+        the terms of ``found`` are skipped.
+    train_names : list of str, optional
+        The training runs' names.
+
+    Returns
+    -------
+    compared : dict
+        ``compared`` with the entries of ``found[1:]`` from the refits in their place (each entry
+        has ``on_top_of``: the terms it was refitted on top of).
+    stages : dict
+        ``{found[i]: {term: Stage}}``: ``found[i]``'s model (``chain[i]``) and each competitor's
+        refit in its place, for the design.
+    """
+    floor_rms, th, runs = floor
+    out, stages = dict(compared), {}
+    for i in range(1, len(found)):
+        k, below = found[i], chain[i - 1]
+        values = {t: below.fit.coefficients()[t] for t in found[:i]}
+        # it passed the kept test in the combination
+        rows = [
+            replace(refit_row(k, chain[i], below, None, floor_rms, runs=runs, margin=th.separation_margin), kept=True)
+        ]
+        fitted = {k: chain[i]}
+        for a in dict.fromkeys(competitors):
+            if a in found or a not in initial:
+                continue
+            st = _fit_on_top(values, a, below, ref, setup, fit_args, initial)
+            if st is None:
+                continue
+            rows.append(
+                decide(refit_row(a, st, below, None, floor_rms, runs=runs, margin=th.separation_margin), True, th)
+            )
+            fitted[a] = st
+        cmp = compare_structures([k], rows, fitted, th, runs[0], runs[1], train_names)
+        out[k] = [{**e, "on_top_of": list(found[:i])} for e in cmp[k]]
+        stages[k] = fitted
+    return out, stages
 
 
 def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None = None) -> list:

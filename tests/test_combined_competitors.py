@@ -1,0 +1,102 @@
+"""A term added on top of another in a combination competes with the terms that could take its
+place there, refitted on top of the same first term (issue 49): its alternatives do not come from
+single-term refits, which lack the first term."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from bayesid.analysis.gap import discovery as dv
+from bayesid.analysis.gap.candidates import Stage
+from bayesid.analysis.gap.discovery import confirmation as cf
+from bayesid.analysis.gap.verdict import Thresholds
+from bayesid.models import ship
+
+TERMS = ("Nvvr", "Nrdrdr", "Nvdrdr", "Yvvr")
+
+
+def _model():
+    kv = ship.load_ship("kvlcc2_7m").with_coefficients(dict.fromkeys(TERMS, 0.0))
+    return ship.ShipModel(kv, free=list(TERMS), dt=0.2)
+
+
+def _stage(model, windows, coefficients, cost):
+    w = np.asarray(windows, float)
+    rms = float(np.sqrt(np.mean(w**2)))
+    fit = SimpleNamespace(coefficients=lambda: dict(coefficients), cost=cost, bic=-100.0 * (1 - cost), p=np.zeros(3))
+    held = {"rms_position_m": rms, "per_track_rms_position_m": {"z": rms}}
+    return Stage(model, fit, {"rms_position_m": rms}, held, None, w)
+
+
+def test_the_second_terms_competitors_are_refitted_on_top_of_the_first(monkeypatch):
+    rng = np.random.default_rng(3)
+    m, n = _model(), 24
+    base = 0.9 + 0.05 * rng.random(n)
+    first = 0.6 + 0.05 * rng.random(n)  # Nvvr alone
+    both = 0.3 + 0.02 * rng.random(n)  # Nvvr + Nrdrdr
+    ref = _stage(m, base, {}, 1.0)
+    chain = [_stage(m, first, {"Nvvr": 1.0}, 0.5), _stage(m, both, {"Nvvr": 1.1, "Nrdrdr": 2.0}, 0.2)]
+    # on top of Nvvr, Nvdrdr predicts as well as Nrdrdr (window by window); Yvvr clearly worse
+    on_top = {
+        "Nvdrdr": _stage(m, both + 0.002 * rng.standard_normal(n), {"Nvvr": 1.1, "Nvdrdr": 3.0}, 0.2),
+        "Yvvr": _stage(m, both + 0.25, {"Nvvr": 1.0, "Yvvr": 0.5}, 0.4),
+    }
+    calls = []
+
+    def fake_fit_on_top(values, term, cur, *_):
+        calls.append((dict(values), term, cur))
+        return on_top[term]
+
+    monkeypatch.setattr(cf, "_fit_on_top", fake_fit_on_top)
+    # the single-term refits separated Nvdrdr from Nrdrdr: alone, Nrdrdr looked unique
+    single = {"Nrdrdr": [{"term": "Nvdrdr", "separable": True, "heldout_rms_m": 0.7}], "Nvvr": []}
+    runs = (np.zeros(n, int), ["z"])
+    out, stages = cf.combined_competitors(
+        ["Nvvr", "Nrdrdr"],
+        chain,
+        single,
+        ref,
+        None,
+        ((), {}, 10),
+        (0.1, Thresholds(), runs),
+        dict.fromkeys(TERMS, 0.0),
+        ["Nvvr", "Nvdrdr", "Yvvr"],
+    )
+    # each competitor refitted once, on top of the first term as the combination fitted it
+    assert [c[1] for c in calls] == ["Nvdrdr", "Yvvr"]
+    assert all(c[0] == {"Nvvr": 1.0} and c[2] is chain[0] for c in calls)
+    alts = dv.alternatives(out)
+    assert [a["term"] for a in alts["Nrdrdr"]] == ["Nvdrdr"]
+    assert alts["Nrdrdr"][0]["on_top_of"] == ["Nvvr"]
+    assert alts["Nrdrdr"][0]["passed_kept_test"]
+    assert [a["term"] for a in dv.separated(out)["Nrdrdr"]] == ["Yvvr"]
+    assert out["Nvvr"] == []  # the first term's comparison stands as it was
+    assert set(stages["Nrdrdr"]) == {"Nrdrdr", "Nvdrdr", "Yvvr"} and stages["Nrdrdr"]["Nrdrdr"] is chain[1]
+    assert dv._verdict(["Nvvr", "Nrdrdr"], 0.3, 0.5, alts) == (
+        "discovered: Nvvr+Nrdrdr (not separable from Nvdrdr on these runs)"
+    )
+
+
+def test_the_report_says_the_competitors_were_refitted_in_the_place_of_the_added_term():
+    from bayesid.report.diagnosis import _alternatives_lines
+
+    m = _model()
+    w = np.full(6, 0.3)
+    alt = {"term": "Nvdrdr", "coefficient": 3.0, "heldout_rms_m": 0.31, "window_p_value": 0.4, "on_top_of": ["Nvvr"]}
+    rows = [
+        {"term": t, "dof": "N", "kept": True, "inclusion_probability": 0.5, "heldout_rms_after_m": 0.6}
+        for t in ("Nvvr", "Nrdrdr")
+    ]
+    stages = {"Nvvr": _stage(m, w * 2, {"Nvvr": 1.0}, 0.5), "Nrdrdr": _stage(m, w * 2.2, {"Nrdrdr": 1.0}, 0.5)}
+    combined = {"Nrdrdr": {"Nrdrdr": _stage(m, w, {"Nvvr": 1.0, "Nrdrdr": 2.0}, 0.2)}}
+    d = dv.Discovery(
+        ["Nvvr", "Nrdrdr"], "", rows, {}, {}, 3, 1.0, 0.3, {}, [], [], {}, 0.0,
+        alternatives={"Nvvr": [], "Nrdrdr": [alt]}, stages=stages, combined_stages=combined,
+    )  # fmt: skip
+    items = {i["term"]: i for i in d.terms()}
+    assert items["Nrdrdr"]["heldout_rms_on_top_m"] == 0.3 and "heldout_rms_on_top_m" not in items["Nvvr"]
+    text = "\n".join(_alternatives_lines({"discovered": list(items.values())}))
+    assert "**Nrdrdr** (held-out 0.3 m) is not separable" in text
+    assert "Nrdrdr was added on top of Nvvr: each competitor above was refitted in its place" in text
