@@ -425,8 +425,16 @@ def combined_competitors(
     compared : dict
         :func:`compare_structures` of the single-term refits; the entries of ``found[i]``
         (``i >= 1``) are replaced.
-    ref, setup, fit_args, floor, initial
-        As :func:`combine`.
+    ref : Stage
+        The reference model.
+    setup : Setup
+        The reference model's setup.
+    fit_args : tuple
+        ``(effects, channel weights, iterations)`` of the fits.
+    floor : tuple
+        ``(noise floor RMS, thresholds, runs)`` with ``runs`` as :func:`window_runs` returns it.
+    initial : dict
+        Each term's value in the reference (:func:`~.library.reference_values`).
     competitors : list of str
         Refitted terms that may compete for a place (kept alone, or alternatives of a kept term);
         the terms of ``found`` are skipped.
