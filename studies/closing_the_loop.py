@@ -137,7 +137,9 @@ def _round(d, hidden: str | None, run: str | None = None) -> dict:
         "alternatives": alts,
         "coefficients": {i["term"]: i.get("coefficient") for i in kept},
         "alternative_rms_m": {
-            i["term"]: {a["term"]: a["heldout_rms_m"] for a in i["alternatives"]} | {i["term"]: i["heldout_rms_m"]}
+            # a term added on top of others: its alternatives were refitted in its place, so is it
+            i["term"]: {a["term"]: a["heldout_rms_m"] for a in i["alternatives"]}
+            | {i["term"]: i.get("heldout_rms_on_top_m", i["heldout_rms_m"])}
             for i in kept
         },
         # the competitors only the training runs' fit windows set apart (the held-out runs tie them)

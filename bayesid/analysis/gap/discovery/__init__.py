@@ -147,7 +147,8 @@ _combine = combine
 _by_run = heldout_rms_by_run
 
 #: At most this many competitors of a term added on top of others are refitted in its place
-#: (:func:`~.confirmation.combined_competitors`), those with the lowest single-term held-out RMS.
+#: (:func:`~.confirmation.combined_competitors`): of the refitted terms, those kept alone first, then
+#: those with the lowest single-term held-out RMS.
 MAX_COMBINED_RIVALS = 6
 
 
@@ -560,11 +561,9 @@ def discover(
     combined = {}
     if len(found) > 1:
         # a term added on top of others competes with the terms that could take its place there
-        single = alternatives(compared)
-        held = {r.term: r.heldout_rms_after_m for r in discovered if r.term in fitted}
-        rivals = [*stages, *(a["term"] for k in found[1:] for a in single.get(k, []))]
-        rivals = sorted(dict.fromkeys(r for r in rivals if r not in found), key=lambda n: held.get(n) or np.inf)
-        rivals = rivals[:MAX_COMBINED_RIVALS]
+        # every refitted term may take that place: those kept alone first, then by their single-term held-out RMS
+        rank = {r.term: (not r.kept, r.heldout_rms_after_m or np.inf) for r in discovered if r.term in fitted}
+        rivals = sorted((n for n in rank if n not in found), key=rank.get)[:MAX_COMBINED_RIVALS]
         runner.say(f"discovery: refitting {', '.join(rivals) or 'nothing'} in the place of {', '.join(found[1:])}")
         compared, combined = combined_competitors(
             found, chain, compared, ref, setup, *combined_args, rivals, train_names
