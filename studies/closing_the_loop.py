@@ -32,7 +32,10 @@ Method
   apart from each alternative with 80 % power (``design.run_test_windows``, from the expected
   window error ratio and the scatter of the ratios within the held-out runs); pairs of
   alternatives that no run of the menu separates (below 20 nats on every run) do not rank the
-  runs.
+  runs. A term added on top of another (a combination) competes with the refitted terms
+  refitted in its place, on top of the same terms (``confirmation.combined_competitors``), and
+  a refit whose prediction of a held-out run diverges where the model it is compared with
+  predicts that run is the worse one there (``confirmation.diverged_run``).
 - Scores: whether the hidden term is kept, alone or with alternatives, in each round; a *wrong
   term alone* is a kept term other than the hidden one named without alternatives (the issue's
   target: never); a control or a non-force case is *clean* when no term is kept. A hidden-term

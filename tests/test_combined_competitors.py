@@ -57,12 +57,8 @@ def test_the_second_terms_competitors_are_refitted_on_top_of_the_first(monkeypat
         ["Nvvr", "Nrdrdr"],
         chain,
         single,
-        ref,
-        None,
-        ((), {}, 10),
-        (0.1, Thresholds(), runs),
-        dict.fromkeys(TERMS, 0.0),
         ["Nvvr", "Nvdrdr", "Yvvr"],
+        (ref, None, ((), {}, 10), (0.1, Thresholds(), runs), dict.fromkeys(TERMS, 0.0)),
     )
     # each competitor refitted once, on top of the first term as the combination fitted it
     assert [c[1] for c in calls] == ["Nvdrdr", "Yvvr"]

@@ -566,7 +566,7 @@ def discover(
         rivals = sorted((n for n in rank if n not in found), key=rank.get)[:MAX_COMBINED_RIVALS]
         runner.say(f"discovery: refitting {', '.join(rivals) or 'nothing'} in the place of {', '.join(found[1:])}")
         compared, combined = combined_competitors(
-            found, chain, compared, ref, setup, *combined_args, rivals, train_names
+            found, chain, compared, rivals, (ref, setup, *combined_args), train_names
         )
     alts = alternatives(compared)
     inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))

@@ -397,16 +397,7 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
 
 
 def combined_competitors(
-    found: list,
-    chain: list,
-    compared: dict,
-    ref: Stage,
-    setup: Setup,
-    fit_args: tuple,
-    floor: tuple,
-    initial: dict,
-    competitors: list,
-    train_names=None,
+    found: list, chain: list, compared: dict, competitors: list, fits: tuple, train_names=None
 ) -> tuple[dict, dict]:
     """The competitors of each term added on top of others (``found[i]``, ``i >= 1``), refitted in
     its place: on top of ``found[:i]``, the model it was judged against.
@@ -425,19 +416,14 @@ def combined_competitors(
     compared : dict
         :func:`compare_structures` of the single-term refits; the entries of ``found[i]``
         (``i >= 1``) are replaced.
-    ref : Stage
-        The reference model.
-    setup : Setup
-        The reference model's setup.
-    fit_args : tuple
-        ``(effects, channel weights, iterations)`` of the fits.
-    floor : tuple
-        ``(noise floor RMS, thresholds, runs)`` with ``runs`` as :func:`window_runs` returns it.
-    initial : dict
-        Each term's value in the reference (:func:`~.library.reference_values`).
     competitors : list of str
-        Refitted terms that may compete for a place (kept alone, or alternatives of a kept term);
-        the terms of ``found`` are skipped.
+        Refitted terms that may compete for a place; the terms of ``found`` are skipped.
+    fits : tuple
+        ``(ref, setup, fit_args, floor, initial)``, :func:`combine`'s arguments after ``stages``:
+        the reference model (Stage), its setup (Setup), ``(effects, channel weights,
+        iterations)`` of the fits, ``(noise floor RMS, thresholds, runs)`` with ``runs`` as
+        :func:`window_runs` returns it, and each term's value in the reference
+        (:func:`~.library.reference_values`).
     train_names : list of str, optional
         The training runs' names.
 
@@ -450,6 +436,7 @@ def combined_competitors(
         ``{found[i]: {term: Stage}}``: ``found[i]``'s model (``chain[i]``) and each competitor's
         refit in its place, for the design.
     """
+    ref, setup, fit_args, floor, initial = fits
     floor_rms, th, runs = floor
     out, stages = dict(compared), {}
     for i in range(1, len(found)):
