@@ -96,3 +96,30 @@ def test_the_report_says_the_competitors_were_refitted_in_the_place_of_the_added
     text = "\n".join(_alternatives_lines({"discovered": list(items.values())}))
     assert "**Nrdrdr** (held-out 0.3 m) is not separable" in text
     assert "Nrdrdr was added on top of Nvvr: each competitor above was refitted in its place" in text
+
+
+def test_the_design_separates_an_added_term_from_its_competitors_as_refitted_in_its_place(monkeypatch):
+    import importlib
+    import math
+
+    from bayesid.data.track import Track
+    from bayesid.tasks import Runner
+
+    dg = importlib.import_module("bayesid.analysis.gap.diagnose")
+    calls = []
+    monkeypatch.setattr(dg, "design", lambda stages, setup, options: calls.append(dict(stages)) or [{"name": "r"}])
+    monkeypatch.setattr(dg, "standard_predictions", lambda models, setup, options: dict(models))
+    t = np.arange(0.0, 150.0, 0.5)
+    zigzag = Track(t, {"x": 0 * t, "delta_r": math.radians(20) * np.sign(np.sin(2 * np.pi * t / 40))}, name="z")
+    turn = Track(t, {"x": 0 * t, "delta_r": 0.6 * (t > 5)}, name="turn")  # a held-out run of another kind
+    setup = SimpleNamespace(train=[zigzag], heldout=[turn])
+    found = SimpleNamespace(
+        found=["Nvvr", "Nrdrdr"],
+        alternatives={"Nvvr": [], "Nrdrdr": [{"term": "Nvdrdr"}]},
+        stages={"Nvvr": "Nvvr alone", "Nrdrdr": "Nrdrdr alone", "Nvdrdr": "Nvdrdr alone"},
+        combined_stages={"Nrdrdr": {"Nrdrdr": "Nvvr+Nrdrdr", "Nvdrdr": "Nvvr+Nvdrdr"}},
+        reference="ref",
+    )
+    rows, predictions = dg._design(found, setup, object(), Runner())
+    assert calls == [{"Nrdrdr": "Nvvr+Nrdrdr", "Nvdrdr": "Nvvr+Nvdrdr"}]
+    assert predictions == {"base model": "ref", "Nrdrdr": "Nvvr+Nrdrdr", "Nvdrdr": "Nvvr+Nvdrdr"}
