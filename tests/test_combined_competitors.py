@@ -4,6 +4,7 @@ single-term refits, which lack the first term."""
 
 from __future__ import annotations
 
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -13,6 +14,7 @@ from bayesid.analysis.gap.candidates import Stage
 from bayesid.analysis.gap.discovery import confirmation as cf
 from bayesid.analysis.gap.verdict import Thresholds
 from bayesid.models import ship
+from bayesid.tasks import jsonable
 
 TERMS = ("Nvvr", "Nrdrdr", "Nvdrdr", "Yvvr")
 
@@ -91,6 +93,11 @@ def test_the_report_says_the_competitors_were_refitted_in_the_place_of_the_added
         ["Nvvr", "Nrdrdr"], "", rows, {}, {}, 3, 1.0, 0.3, {}, [], [], {}, 0.0,
         alternatives={"Nvvr": [], "Nrdrdr": [alt]}, stages=stages, combined_stages=combined,
     )  # fmt: skip
+    # the models stay out of the JSON, which reads back
+    doc = d.to_dict()
+    assert not set(doc) & set(dv.MODEL_FIELDS)
+    json.dumps(jsonable(doc), allow_nan=False)
+    assert dv.Discovery.from_dict(doc).to_dict() == doc
     items = {i["term"]: i for i in d.terms()}
     assert items["Nrdrdr"]["heldout_rms_on_top_m"] == 0.3 and "heldout_rms_on_top_m" not in items["Nvvr"]
     text = "\n".join(_alternatives_lines({"discovered": list(items.values())}))

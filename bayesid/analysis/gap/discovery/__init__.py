@@ -146,6 +146,9 @@ _decide = decide
 _combine = combine
 _by_run = heldout_rms_by_run
 
+#: The fields of :class:`Discovery` that hold models, not in its JSON.
+MODEL_FIELDS = ("after", "reference", "stages", "combined_stages")
+
 #: At most this many competitors of a term added on top of others are refitted in its place
 #: (:func:`~.confirmation.combined_competitors`): of the refitted terms, those kept alone first, then
 #: those with the lowest single-term held-out RMS.
@@ -240,17 +243,17 @@ class Discovery:
         Returns
         -------
         dict
-            ``{field: value}`` without ``after``, ``reference`` and ``stages`` (``discovered``
-            as the rows' JSON objects).
+            ``{field: value}`` without the models (``after``, ``reference``, ``stages``,
+            ``combined_stages``; ``discovered`` as the rows' JSON objects).
         """
-        out = {k: v for k, v in self.__dict__.items() if k not in ("after", "reference", "stages")}
+        out = {k: v for k, v in self.__dict__.items() if k not in MODEL_FIELDS}
         out["discovered"] = [r.to_dict() if isinstance(r, Record) else dict(r) for r in self.discovered]
         return out
 
     @classmethod
     def from_dict(cls, d: dict) -> Discovery:
         """The result read back from its JSON (``diagnosis.json``'s ``discovery``, or
-        :meth:`to_dict`), without the models (``after``, ``reference``, ``stages`` empty); the
+        :meth:`to_dict`), without the models (:data:`MODEL_FIELDS` empty); the
         rows of ``discovered`` as :class:`~bayesid.analysis.gap.records.TermRow`
         (:meth:`~bayesid.analysis.gap.records.Record.read`: a row of an older shape stays a dict).
 
@@ -269,7 +272,7 @@ class Discovery:
         ValueError
             A key the result does not have, or a required one missing (named).
         """
-        args = record_fields(cls, d, "discovery", skip=("after", "reference", "stages"))
+        args = record_fields(cls, d, "discovery", skip=MODEL_FIELDS)
         return cls(**dict(args, discovered=[TermRow.read(r) for r in args["discovered"]]))
 
     def terms(self) -> list[dict]:
