@@ -27,7 +27,7 @@ def _model():
 def _stage(model, windows, coefficients, cost):
     w = np.asarray(windows, float)
     rms = float(np.sqrt(np.mean(w**2)))
-    fit = SimpleNamespace(coefficients=lambda: dict(coefficients), cost=cost, bic=-100.0 * (1 - cost), p=np.zeros(3))
+    fit = SimpleNamespace(coefficients=lambda: dict(coefficients), cost=cost, bic=1000.0 * cost, p=np.zeros(3))
     held = {"rms_position_m": rms, "per_track_rms_position_m": {"z": rms}}
     return Stage(model, fit, {"rms_position_m": rms}, held, None, w)
 
@@ -130,3 +130,41 @@ def test_the_design_separates_an_added_term_from_its_competitors_as_refitted_in_
     rows, predictions = dg._design(found, setup, object(), Runner())
     assert calls == [{"Nrdrdr": "Nvvr+Nrdrdr", "Nvdrdr": "Nvvr+Nvdrdr"}]
     assert predictions == {"base model": "ref", "Nrdrdr": "Nvvr+Nrdrdr", "Nvdrdr": "Nvvr+Nvdrdr"}
+
+
+def test_a_surrogate_added_first_is_dropped_once_the_term_it_stood_for_joins_it(monkeypatch):
+    """Backward elimination (confirmation.prune): Yvvr, added first, predicts nothing on top of
+    Nvvr that Nvvr alone does not; Nrdrdr still adds to Nvvr and stays."""
+    rng = np.random.default_rng(5)
+    m, n = _model(), 24
+    noise = 0.02 * rng.random(n)
+    err = {  # held-out window errors of each model, by its terms
+        ("Yvvr",): 0.6 + noise,
+        ("Nvvr",): 0.45 + noise,
+        ("Nrdrdr",): 0.7 + noise,
+        ("Yvvr", "Nvvr"): 0.45 + noise + 0.001 * rng.standard_normal(n),
+        ("Yvvr", "Nvvr", "Nrdrdr"): 0.3 + noise,
+        ("Nvvr", "Nrdrdr"): 0.3 + noise + 0.001 * rng.standard_normal(n),
+        ("Yvvr", "Nrdrdr"): 0.5 + noise,
+    }
+    st = {k: _stage(m, w, dict.fromkeys(k, 1.0), 0.1 * w.mean()) for k, w in err.items()}
+    calls = []
+
+    def fake_fit_on_top(values, term, cur, *_):
+        calls.append((*values, term))
+        return st[(*values, term)]
+
+    monkeypatch.setattr(cf, "_fit_on_top", fake_fit_on_top)
+    found = ["Yvvr", "Nvvr", "Nrdrdr"]
+    chain = [st[("Yvvr",)], st[("Yvvr", "Nvvr")], st[("Yvvr", "Nvvr", "Nrdrdr")]]
+    singles = {t: st[(t,)] for t in found}
+    ref = _stage(m, 0.9 + noise, {}, 1.0)
+    runs = (np.zeros(n, int), ["z"])
+    fits = (ref, None, ((), {}, 10), (0.1, Thresholds(), runs), dict.fromkeys(TERMS, 0.0))
+    kept, new_chain, dropped = cf.prune(found, chain, singles, fits)
+    assert kept == ["Nvvr", "Nrdrdr"] and dropped == ["Yvvr"]
+    assert new_chain == [st[("Nvvr",)], st[("Nvvr", "Nrdrdr")]]
+    assert ("Nvvr", "Nrdrdr") in calls and ("Yvvr", "Nrdrdr") in calls
+    # nothing redundant: nothing dropped, no fit
+    calls.clear()
+    assert cf.prune(["Nvvr", "Nrdrdr"], [st[("Nvvr",)], st[("Nvvr", "Nrdrdr")]], singles, fits)[2] == []

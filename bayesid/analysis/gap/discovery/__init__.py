@@ -77,6 +77,7 @@ from .confirmation import (
     dominance_order,
     fit_term,
     heldout_rms_by_run,
+    prune,
     refit_row,
     separated,
     training_separation,
@@ -205,6 +206,9 @@ class Discovery:
         ``{kept term: [...]}``, the same entries for the competing terms the runs separate, with
         the run that separates each (``separating_run``, ``run_error_ratio``; where only the
         training runs do, ``train_separating_run``, ``train_error_ratio``) and ``separated_by``.
+    dropped : list of str
+        Terms of the combination dropped because the terms added after them made them redundant
+        (:func:`~.confirmation.prune`), in the order dropped.
     after : Stage, optional
         The model with every kept term (None when nothing is kept); not in :meth:`to_dict`.
     reference : Stage, optional
@@ -232,6 +236,7 @@ class Discovery:
     seconds: float
     alternatives: dict = field(default_factory=dict)
     separated: dict = field(default_factory=dict)
+    dropped: list = field(default_factory=list)
     after: Stage | None = field(repr=False, default=None)
     reference: Stage | None = field(repr=False, default=None)
     stages: dict = field(repr=False, default_factory=dict)
@@ -300,6 +305,8 @@ class Discovery:
             kept = t in self.found
             if kept:
                 reason = "in the final model"
+            elif t in self.dropped:
+                reason = "passed the kept test alone and was added, then the later terms made it redundant: dropped"
             elif row.get("kept"):
                 reason = "passed the kept test alone but not on top of " + "+".join(self.found)
             else:
@@ -556,8 +563,14 @@ def discover(
     stages = {r.term: fitted[r.term] for r in discovered if r.kept}
     found, chain = [], [None]
     combined_args = ((tuple(effects), ctx["sd_fit"], options.max_nfev), (floor_rms, th, (runs, run_names)), initial)
+    dropped = []
     if stages:
         found, chain = combine(list(stages), stages, ref, setup, *combined_args)
+    if len(found) > 1:
+        # a term added early that the later ones make redundant goes (backward elimination)
+        found, chain, dropped = prune(found, chain, stages, (ref, setup, *combined_args))
+        if dropped:
+            runner.say(f"discovery: {', '.join(dropped)} no longer needed on top of {'+'.join(found)}: dropped")
     after = chain[-1]
     train_names = [t.name for t in setup.train]
     compared = compare_structures(found, discovered, fitted, th, runs, run_names, train_names)
@@ -602,6 +615,7 @@ def discover(
         seconds=time.perf_counter() - t0,
         alternatives=alts,
         separated=separated(compared),
+        dropped=dropped,
         after=after,
         reference=ref,
         stages=fitted,

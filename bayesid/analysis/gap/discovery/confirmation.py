@@ -28,6 +28,7 @@ __all__ = [
     "decide",
     "combine",
     "combined_competitors",
+    "prune",
     "dominance_order",
     "compare_structures",
     "training_separation",
@@ -394,6 +395,67 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
             found.append(n)
             chain.append(st)
     return found, chain
+
+
+def prune(found: list, chain: list, stages: dict, fits: tuple) -> tuple[list, list, list]:
+    """Backward elimination after :func:`combine`: a term of the combination that no longer passes
+    the kept test on top of all the others (the model without it, every coefficient refitted,
+    against the model with it) is dropped, the weakest first (largest window p), until every
+    remaining term passes.
+
+    :func:`combine` adds terms best first while the held-out error stays above the floor band, so
+    a surrogate chosen first can stay in the model after the term it stood for joined it (the
+    forward half of stepwise selection; Efroymson 1960, "Multiple regression analysis", in
+    Ralston & Wilf, Mathematical Methods for Digital Computers: a variable entered early is
+    removed when later ones make it redundant).
+
+    Parameters
+    ----------
+    found, chain : list
+        :func:`combine`'s terms and models (``chain[i]`` with ``found[: i + 1]``).
+    stages : dict
+        ``{term: Stage}`` of the single-term refits (every term of ``found`` among them).
+    fits : tuple
+        ``(ref, setup, fit_args, floor, initial)`` as :func:`combined_competitors` takes it.
+
+    Returns
+    -------
+    found : list of str
+        The terms kept, in the order added.
+    chain : list of Stage
+        ``chain[i]`` the model with ``found[: i + 1]`` (refitted where the combination had no
+        such model).
+    dropped : list of str
+        The terms dropped, in the order dropped.
+    """
+    ref, setup, fit_args, floor, initial = fits
+    floor_rms, th, runs = floor
+    memo = {tuple(found[: i + 1]): st for i, st in enumerate(chain)} | {(t,): stages[t] for t in found}
+
+    def model_of(terms: tuple):
+        if terms not in memo:
+            below = model_of(terms[:-1])
+            values = None if below is None else {k: below.fit.coefficients()[k] for k in terms[:-1]}
+            memo[terms] = (
+                None if below is None else _fit_on_top(values, terms[-1], below, ref, setup, fit_args, initial)
+            )
+        return memo[terms]
+
+    dropped = []
+    while len(found) > 1:
+        full, weakest = model_of(tuple(found)), None
+        for t in found:
+            without = model_of(tuple(k for k in found if k != t))
+            if full is None or without is None:
+                continue
+            row = refit_row(t, full, without, None, floor_rms, runs=runs, margin=th.separation_margin)
+            if not _passes(row, True, th) and (weakest is None or row["window_p_value"] > weakest[1]):
+                weakest = (t, row["window_p_value"])
+        if weakest is None:
+            break
+        found = [k for k in found if k != weakest[0]]
+        dropped.append(weakest[0])
+    return found, [model_of(tuple(found[: i + 1])) for i in range(len(found))], dropped
 
 
 def combined_competitors(
