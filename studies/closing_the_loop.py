@@ -337,11 +337,19 @@ def _wrong_lines(looped: list) -> list:
             hidden = next(iter(r["hidden"]))
             m = rd.get("hidden_mimicked_by")
             wrong = [k for k in rd["kept"] if k != hidden and not rd["alternatives"].get(k)]
+            alt_of = [k for k in rd["kept"] if hidden in (rd["alternatives"].get(k) or [])]
             if hidden in rd["kept"]:
                 why = (
                     f"the hidden {hidden} is kept too, and {', '.join(wrong)} with it, no competitor of "
                     f"{'it' if len(wrong) == 1 else 'them'} surviving the runs"
                 )
+            elif alt_of:
+                why = (
+                    f"the hidden {hidden} is named among the alternatives of {', '.join(alt_of)}, and "
+                    f"{', '.join(wrong)}, added beside it, had no competitor surviving the runs"
+                )
+            elif hidden in (rd.get("train_delta_bic") or {}) and not m:
+                why = f"the hidden {hidden} was refitted but did not pass the kept test"
             elif m:
                 why = (
                     f"the hidden {hidden} was set aside as mimicked by the free coefficient {m['parameter']} (cosine "
