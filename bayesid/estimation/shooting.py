@@ -16,7 +16,10 @@ model's prediction over the samples that belong to the start (``ctx.lead``):
 
 Windows are independent given the parameters, so the start states of all windows are fitted at
 once: one simulation per start component perturbs that component in every window, and each
-window solves its own 6 x 6 Levenberg-Marquardt step (Nocedal & Wright 2006, Sec. 10.3).
+window solves its own 6 x 6 Levenberg-Marquardt step (Nocedal & Wright 2006, Sec. 10.3). A
+window left far above the noise is fitted once more from a second guess, the velocity along the
+heading (:func:`zero_sideslip`): a first guess with the wrong sway velocity can start the
+iterations in the basin of a start that turns the wrong way.
 Why it matters: from 5 Hz positions with 0.2 m noise, a 1 s slope misjudges the start velocity by
 about 0.1 m/s (6 m after 60 s); a 10 s lead-in through the model pins it to about 0.01 m/s.
 """
@@ -36,6 +39,14 @@ PENALTY = 1e3
 #: samples), and the relative cost decrease below which it stops.
 LM_ITERATIONS = 12
 LM_TOLERANCE = 1e-7
+#: A window whose start fit ends with a sum of squared weighted residuals above this many per
+#: residual (an RMS of 3 noise sds) is fitted again from the zero-sideslip guess
+#: (:func:`zero_sideslip`); the second fit replaces the first where its cost is below
+#: ``RETRY_GAIN`` times the first's. From 5 Hz positions the first guess's sway velocity (a
+#: quadratic's slope at the end of a 2 s span) can be 0.8 m/s off; a model with a strong v^2 r
+#: moment then turns the wrong way at once and the iterations never leave that basin.
+RETRY_COST = 9.0
+RETRY_GAIN = 0.5
 
 
 def _weights(ctx, weights):
@@ -95,6 +106,11 @@ def fit_starts(
 ):
     """Least-squares start-state offsets of every window of ``ctx`` for parameter rows ``P``.
 
+    Batched Levenberg-Marquardt from ``starts0``; a window whose fit ends with a mean squared
+    weighted residual above :data:`RETRY_COST` is fitted again from the zero-sideslip guess
+    (:func:`zero_sideslip`), and that fit replaces the first where it at least halves the window's
+    cost (:data:`RETRY_GAIN`). The other windows keep the first fit's offsets.
+
     Parameters
     ----------
     model : EffectModel or ShipModel
@@ -135,6 +151,68 @@ def fit_starts(
     rwin = _row_windows(ctx, w)
     G = sparse.csr_matrix((np.ones(rwin.size), (rwin, np.arange(rwin.size))), shape=(W, rwin.size))
     D = np.zeros((B, W, 6)) if starts0 is None else np.array(starts0, float)
+    lm = (model, ctx, P, nu, w, G)
+    D, cost, J = _levenberg_marquardt(lm, D)
+    # a window whose fit ended far above the noise: again from the zero-sideslip guess, kept when much better
+    rows = np.maximum(np.asarray(G.sum(axis=1)).ravel(), 1.0)
+    stuck = cost / rows > RETRY_COST
+    if stuck.any():
+        D2, cost2, J2 = _levenberg_marquardt(lm, np.where(stuck[..., None], zero_sideslip(ctx, D), D))
+        better = stuck & (cost2 < RETRY_GAIN * cost)
+        D = np.where(better[..., None], D2, D)
+        for b, wi in zip(*np.nonzero(better)):
+            J[:, b, rwin == wi] = J2[:, b, rwin == wi]
+    if return_jacobian:
+        return D, J, rwin
+    return D
+
+
+def zero_sideslip(ctx, D) -> np.ndarray:
+    """Start offsets that turn each window's start velocity into one along its heading: the
+    speed of ``ctx.s_meas`` plus ``D`` kept, the sway velocity zero (the second guess of
+    :func:`fit_starts`).
+
+    Parameters
+    ----------
+    ctx : TrackContext
+        A context with the fitted start rule.
+    D : ndarray, shape (B, W, 6)
+        Start offsets (:data:`START_INDEX` components).
+
+    Returns
+    -------
+    ndarray, shape (B, W, 6)
+        ``D`` with the u and v offsets replaced.
+    """
+    u = ctx.s_meas[None, :, 6] + D[..., 3]
+    v = ctx.s_meas[None, :, 7] + D[..., 4]
+    out = np.array(D, float)
+    out[..., 3] = np.hypot(u, v) * np.sign(np.where(u == 0.0, 1.0, u)) - ctx.s_meas[None, :, 6]
+    out[..., 4] = -ctx.s_meas[None, :, 7]
+    return out
+
+
+def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
+    """The batched Levenberg-Marquardt iterations of :func:`fit_starts` from the offsets ``D``.
+
+    Parameters
+    ----------
+    lm : tuple
+        ``(model, ctx, P, nu, weights, G)``: G the sparse (W, n_rows) sum of the rows of each window.
+    D : ndarray, shape (B, W, 6)
+        First offsets.
+
+    Returns
+    -------
+    D : ndarray, shape (B, W, 6)
+        The offsets.
+    cost : ndarray, shape (B, W)
+        Each window's sum of squared weighted residuals at ``D``.
+    J : ndarray, shape (6, B, n_rows)
+        The Jacobian at the last linearisation.
+    """
+    model, ctx, P, nu, w, G = lm
+    B, W = D.shape[:2]
     P7 = np.repeat(P, 7, axis=0)
     nu7 = None if nu is None else np.repeat(np.atleast_2d(nu), 7, axis=0)
 
@@ -144,7 +222,7 @@ def fit_starts(
     r = lead_residuals(model, ctx, P, nu, D, w)
     cost = window_cost(r)
     lam = np.full((B, W), 1e-3)
-    J = np.zeros((6, B, rwin.size))
+    J = np.zeros((6, B, G.shape[1]))
     for _ in range(LM_ITERATIONS):
         # the 6 perturbed start vectors of every window in one batch: rows b*7 + j (j = 0: base)
         Dp = np.repeat(D, 7, axis=0).reshape(B, 7, W, 6)
@@ -183,9 +261,7 @@ def fit_starts(
                 break
         if not improved:
             break
-    if return_jacobian:
-        return D, J, rwin
-    return D
+    return D, cost, J
 
 
 def simulate(model, ctx, P, nu=None, weights=None, starts=None) -> np.ndarray:
