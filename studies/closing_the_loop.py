@@ -472,8 +472,8 @@ SIGN_RUNS = (
 
 def sign_coupling() -> list:
     """Why no standard run separates ``Nvvr`` from ``Nvabsvabsr``: on NPS AUV II's standard runs
-    (simulated by ``bayesid simulate``), and on two rudder schedules beyond them (hard over the other
-    way from a steady 35 deg turn; switched every 8 s), the share of samples where the sway velocity
+    (simulated by ``bayesid simulate``), and on two rudder schedules beyond them at the vehicle's
+    rudder limit (hard over the other way from a steady turn; switched every 8 s), the share of samples where the sway velocity
     and yaw rate have opposite signs, and the cosine between the two terms' columns v^2 r and
     v|v||r| (equal up to the sign wherever v r < 0)."""
     import tempfile
@@ -481,6 +481,7 @@ def sign_coupling() -> list:
     from bayesid import cli
     from bayesid.analysis.gap.design import approach_condition, input_track, simulate_run
     from bayesid.data.track import read_csv
+    from bayesid.data.validate import rudder_limit_deg
     from bayesid.models import build_model, load_any_vehicle
 
     def coupling(name, tr):
@@ -506,11 +507,13 @@ def sign_coupling() -> list:
     # put hard over the other way from a steady turn, and switched every 8 s (the vessel yaws into its
     # drift only while the sway velocity lags a reversed yaw rate)
     approach = approach_condition(tracks[-2:])
-    model = build_model(load_any_vehicle("nps_auv2"), [])
-    big = math.radians(35.0)
+    vehicle = load_any_vehicle("nps_auv2")
+    model = build_model(vehicle, [])
+    limit = rudder_limit_deg(vehicle)
+    big = math.radians(limit)
     for name, orders, duration in (
-        ("rudder reversed from a steady 35 deg turn", [(5.0, big), (65.0, -big)], 125.0),
-        ("rudder switched every 8 s, +-35 deg", [(5.0 + 8.0 * i, big * (-1) ** i) for i in range(15)], 125.0),
+        (f"rudder reversed from a steady {limit:g} deg turn", [(5.0, big), (65.0, -big)], 125.0),
+        (f"rudder switched every 8 s, +-{limit:g} deg", [(5.0 + 8.0 * i, big * (-1) ** i) for i in range(15)], 125.0),
     ):
         t = np.arange(0.0, duration, 0.05)
         target = np.zeros_like(t)

@@ -347,9 +347,20 @@ def _check_rudder_sign(track: Track, refuse, warn: list, name: str) -> None:
 RUDDER_LIMIT_MARGIN_DEG = 1.0
 
 
-def _rudder_limit_deg(vehicle) -> float | None:
-    """The vehicle's largest rudder angle, deg: a submarine's ``limits.rudder_max``, a ship's
-    ``rudder_max_deg`` (None: its file has no ``[limits]``), None without a vehicle."""
+def rudder_limit_deg(vehicle) -> float | None:
+    """The vehicle's largest rudder angle either side.
+
+    Parameters
+    ----------
+    vehicle : Vehicle or Ship or None
+        A submarine (its ``limits.rudder_max``, rad) or a ship (its file's ``[limits]
+        rudder_max_deg``).
+
+    Returns
+    -------
+    float or None
+        Deg; None when a ship file has no ``[limits]``, or without a vehicle.
+    """
     limits = getattr(vehicle, "limits", None)
     if limits is not None:
         return math.degrees(limits.rudder_max)
@@ -358,10 +369,10 @@ def _rudder_limit_deg(vehicle) -> float | None:
 
 def _check_rudder_limit(track: Track, vehicle, name: str) -> list[str]:
     """A warning when the track's ``|delta_r|`` passes the vehicle's rudder limit
-    (:func:`_rudder_limit_deg`) by more than :data:`RUDDER_LIMIT_MARGIN_DEG`: not a refusal, since
+    (:func:`rudder_limit_deg`) by more than :data:`RUDDER_LIMIT_MARGIN_DEG`: not a refusal, since
     a log may hold a steering gear's overshoot, but a track of another vessel, or a rudder in
     another scale, shows the same way."""
-    limit = _rudder_limit_deg(vehicle)
+    limit = rudder_limit_deg(vehicle)
     if limit is None or "delta_r" not in track:
         return []
     deg = np.degrees(np.abs(np.asarray(track["delta_r"], float)))
@@ -582,6 +593,7 @@ __all__ = [
     "RUDDER_SIGN_T",
     "RUDDER_SPREAD",
     "RUDDER_LIMIT_MARGIN_DEG",
+    "rudder_limit_deg",
     "input_gaps",
     "track_vessel",
     "SPEED_UNITS",

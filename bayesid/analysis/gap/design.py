@@ -7,8 +7,8 @@ Structure discovery (:mod:`bayesid.analysis.gap.discovery`) may keep a term whos
 (:func:`~bayesid.analysis.gap.discovery.confirmation.alternatives`). Which run would tell them apart? For each
 manoeuvre of a menu (:func:`menu`: turning circles both sides at the largest and at half the
 rudder, pull-outs, zigzags of other angles both sides, a spiral's rudder steps, a speed change,
-a pseudo-random rudder sequence), all from the training runs' approach condition and within
-their rudder rate:
+a pseudo-random rudder sequence), all from the training runs' approach condition, within
+their rudder rate and within the vehicle's rudder limit (:func:`within_limits`):
 
 1. the input sequence is fixed by the kept term's model (a zigzag's rudder switches where that
    model's heading crosses the check angle; the other runs are open-loop schedules);
@@ -58,7 +58,7 @@ divergence from growing with the log rate. It ranks runs; it is not a coverage c
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -80,6 +80,7 @@ __all__ = [
     "separation",
     "STANDARD_RUNS",
     "standard_predictions",
+    "within_limits",
     "design",
     "rank_by_separable_pairs",
     "expected_window_log_ratio",
@@ -102,7 +103,8 @@ class DesignOptions:
     Parameters
     ----------
     max_rudder_deg : float, default 35.0
-        The largest rudder angle of the menu (the standard turning circle's), deg.
+        The largest rudder angle of the menu (the standard turning circle's), deg; the
+        vehicle's rudder limit where that is smaller (:func:`within_limits`).
     sample_s : float, default 1.0
         Spacing of the samples the divergence sums over, s.
     n_draws : int, default 8
@@ -270,6 +272,32 @@ def approach_condition(tracks: list) -> dict:
     }
 
 
+def within_limits(options: DesignOptions, vehicle) -> DesignOptions:
+    """The options with ``max_rudder_deg`` no larger than the vehicle's rudder limit: a designed
+    run the vessel cannot fly is no answer (NPS AUV II's file limits its rudder to 20 deg, below
+    the menu's standard 35 deg turning circle).
+
+    Parameters
+    ----------
+    options : DesignOptions
+        The design's options.
+    vehicle : Vehicle or Ship or None
+        The vehicle (:func:`bayesid.data.validate.rudder_limit_deg`: a submarine's
+        ``limits.rudder_max``, a ship file's ``[limits] rudder_max_deg``; none: no limit).
+
+    Returns
+    -------
+    DesignOptions
+        ``options`` itself when the vehicle has no smaller limit.
+    """
+    from ...data.validate import rudder_limit_deg
+
+    limit = rudder_limit_deg(vehicle)
+    if limit is None or limit >= options.max_rudder_deg:
+        return options
+    return replace(options, max_rudder_deg=float(limit))
+
+
 def menu(approach: dict, options: DesignOptions = DesignOptions()) -> list[ManoeuvreRun]:
     """The standard manoeuvres :func:`design` compares (module docstring).
 
@@ -278,7 +306,8 @@ def menu(approach: dict, options: DesignOptions = DesignOptions()) -> list[Manoe
     approach : dict
         :func:`approach_condition`.
     options : DesignOptions, default DesignOptions()
-        ``max_rudder_deg``, ``duration_s``.
+        ``max_rudder_deg`` (the largest rudder of every run: :func:`within_limits` makes it the
+        vehicle's limit where that is smaller), ``duration_s``.
 
     Returns
     -------
@@ -293,9 +322,10 @@ def menu(approach: dict, options: DesignOptions = DesignOptions()) -> list[Manoe
         runs += [
             ManoeuvreRun("turning_circle", big, None, side, rpm, D),
             ManoeuvreRun("turning_circle", round(big / 2), None, side, rpm, D),
-            ManoeuvreRun("pull_out", 20.0, None, side, rpm, D),
+            ManoeuvreRun("pull_out", min(20.0, big), None, side, rpm, D),
         ]
-        runs += [ManoeuvreRun("zigzag", a, a, side, rpm, D) for a in (10.0, 20.0, big)]
+        # the zigzags 10/10 and 20/20 and at the largest rudder, each once (a 20 deg limit: two)
+        runs += [ManoeuvreRun("zigzag", a, a, side, rpm, D) for a in sorted({min(10.0, big), min(20.0, big), big})]
     runs += [
         ManoeuvreRun("spiral_steps", round(big * 0.7), None, "port", rpm, D),
         ManoeuvreRun("speed_change", 0.0, None, "-", 0.6 * rpm, D),
@@ -562,7 +592,9 @@ def separation(a: tuple, b: tuple, noise_var: np.ndarray, sample_s: float) -> fl
 
 
 #: The standard manoeuvres :func:`standard_predictions` predicts: (kind, rudder deg or None for
-#: the menu's largest, check deg, side), with the indices of :mod:`bayesid.estimation.indices`.
+#: the menu's largest, check deg, side), with the indices of :mod:`bayesid.estimation.indices`;
+#: every rudder angle at most the vehicle's limit (:func:`within_limits`; a zigzag's check angle
+#: its rudder angle).
 STANDARD_RUNS = (
     ("turning_circle", None, None, "port"),
     ("turning_circle", None, None, "starboard"),
@@ -634,6 +666,7 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
         over the ``n_finite`` of ``n`` runs that did).
     """
     rng = np.random.default_rng(options.seed) if rng is None else rng
+    options = within_limits(options, setup.vehicle)
     approach = approach_condition(setup.train)
     kinds = {manoeuvre_kind(tr) for tr in setup.train}
     D = float(options.duration_s or max(150.0, approach["duration_s"]))
@@ -643,8 +676,8 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
         draws[k] = _draws(st, ctxs, options.n_draws, rng)
     out = []
     for kind, rudder, check, side in STANDARD_RUNS:
-        a = float(options.max_rudder_deg) if rudder is None else rudder
-        run = ManoeuvreRun(kind, a, check, side, approach["rpm"], D)
+        a = float(options.max_rudder_deg) if rudder is None else min(rudder, float(options.max_rudder_deg))
+        run = ManoeuvreRun(kind, a, None if check is None else a, side, approach["rpm"], D)
         models = {}
         for k, st in stages.items():
             t = np.arange(0.0, D, min(0.1, st.model.dt))
@@ -716,6 +749,7 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         raise ValueError(f"design needs at least two alternative models, got {len(stages)}")
     rng = np.random.default_rng(options.seed) if rng is None else rng
     th = Thresholds() if thresholds is None else thresholds
+    options = within_limits(options, setup.vehicle)
     approach = approach_condition(setup.train)
     if options.duration_s is None and setup.window_s:  # enough windows for the run test to see it
         approach = {**approach, "duration_s": max(approach["duration_s"], RUN_WINDOWS * float(setup.window_s))}
