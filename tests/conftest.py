@@ -34,6 +34,30 @@ def kvlcc2_square_wave_track() -> Track:
     )
 
 
+def n0_against_nabsdr(kv=None):
+    """Two KVLCC2 structures (a constant yaw moment ``N0``, one in |rudder| ``Nabsdr``), the first
+    the truth, and a zigzag-like training run: ``(stages, setup)`` for the design's tests.
+
+    Parameters
+    ----------
+    kv : Ship, optional
+        The hull (default: the packaged ``kvlcc2_7m``).
+    """
+    from types import SimpleNamespace
+
+    from bayesid.analysis.gap.candidates import Setup, Stage
+    from bayesid.models import ship
+
+    kv = ship.load_ship("kvlcc2_7m") if kv is None else kv
+    stages = {}
+    for name, value in (("N0", 0.0008), ("Nabsdr", 0.0016)):
+        m = ship.ShipModel(kv.with_coefficients({name: value}), free=[name], dt=0.2)
+        stages[name] = Stage(m, SimpleNamespace(p=m.start()), {}, {}, None, np.zeros(0))
+    train = [kvlcc2_square_wave_track()]
+    setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
+    return stages, setup
+
+
 def load_study(name: str):
     """The module of ``studies/<name>.py``, loaded from its file (the studies are scripts, not a
     package the tests import)."""

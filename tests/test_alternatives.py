@@ -10,7 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import kvlcc2_square_wave_track
+from conftest import n0_against_nabsdr
 
 from bayesid.analysis.gap import design as dz
 from bayesid.analysis.gap import discovery as dv
@@ -408,14 +408,7 @@ def test_runs_the_run_test_could_decide_come_before_larger_divergences():
 def _n0_against_nabsdr():
     """Two KVLCC2 structures (a constant yaw moment, one in |rudder|), the first the truth, and a
     zigzag-like training run."""
-    kv = ship.load_ship("kvlcc2_7m")
-    stages = {}
-    for name, value in (("N0", 0.0008), ("Nabsdr", 0.0016)):
-        m = ship.ShipModel(kv.with_coefficients({name: value}), free=[name], dt=0.2)
-        stages[name] = Stage(m, SimpleNamespace(p=m.start()), {}, {}, None, np.zeros(0))
-    train = [kvlcc2_square_wave_track()]
-    setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
-    return stages, setup
+    return n0_against_nabsdr()
 
 
 def _window_rms(stage, run, window_s):

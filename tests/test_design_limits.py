@@ -7,14 +7,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import kvlcc2_square_wave_track
+from conftest import n0_against_nabsdr
 
 from bayesid.analysis.gap import design as dz
-from bayesid.analysis.gap.candidates import Setup, Stage
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import ship
 
@@ -39,13 +37,7 @@ def test_the_menus_largest_rudder_is_the_vehicles_limit_where_smaller(vehicle, l
 
 
 def test_design_and_standard_predictions_keep_within_a_15_deg_gear():
-    kv = dataclasses.replace(ship.load_ship("kvlcc2_7m"), rudder_max_deg=15.0)
-    stages = {}
-    for name, value in (("N0", 0.0008), ("Nabsdr", 0.0016)):
-        m = ship.ShipModel(kv.with_coefficients({name: value}), free=[name], dt=0.2)
-        stages[name] = Stage(m, SimpleNamespace(p=m.start()), {}, {}, None, np.zeros(0))
-    train = [kvlcc2_square_wave_track()]
-    setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
+    stages, setup = n0_against_nabsdr(dataclasses.replace(ship.load_ship("kvlcc2_7m"), rudder_max_deg=15.0))
     options = dz.DesignOptions(n_draws=0, duration_s=120.0)
     rows = dz.design(stages, setup, options)
     assert rows and max(r["rudder_deg"] for r in rows) == pytest.approx(15.0)
