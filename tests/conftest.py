@@ -1,12 +1,18 @@
 import importlib.util
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from bayesid.data.track import Track
-from bayesid.data.vehicle import load_vehicle
+# Under pytest-xdist (``-n``) each worker is a process of its own: give each one numba thread, so
+# that two workers on two cores do not share them four ways (set before numba is first imported).
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+from bayesid.data.track import Track  # noqa: E402
+from bayesid.data.vehicle import load_vehicle  # noqa: E402
 
 
 @pytest.fixture(scope="session")
