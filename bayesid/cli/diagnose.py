@@ -54,6 +54,7 @@ def add_parser(sub) -> None:
     )
     opt.add_start(d)
     opt.add_leadin(d)
+    opt.add_inputs(d)
     opt.add_max_nfev(d, "least-squares iterations per fit")
     opt.add_seed(d, "random seed (noise-floor simulation, ensemble of the force-signature regression)")
     opt.add_weighting(d)
@@ -118,6 +119,8 @@ def run(args) -> int:
             train_starts=args.train_starts,
             discover=None if args.no_discover else found,
             design=None if args.no_discover else design,
+            inputs=args.inputs,
+            rudder_rate_deg_s=args.rudder_rate,
         )
         run_and_write(args, vehicle, free, got, options)
     return 0

@@ -44,8 +44,9 @@ def add_options(d) -> None:
 
 def run(args) -> int:
     """Run ``bayesid discover``: refit the model of ``--model`` on ``--train`` (its free
-    coefficients from their fitted values, its effects), score it on ``--heldout`` against the
-    noise floor, and search the term library when the gap is significant.
+    coefficients from their fitted values, its effects, the fit's reading of the logged inputs:
+    ``bayesid fit --inputs``), score it on ``--heldout`` against the noise floor, and search the
+    term library when the gap is significant.
 
     Parameters
     ----------
@@ -97,5 +98,8 @@ def discover(args):
             weighting=doc.weighting,
             discover=found,
             design=design,
+            # the fit's reading of the logged inputs (bayesid fit --inputs), for every model refitted
+            inputs=doc.inputs,
+            rudder_rate_deg_s=doc.rudder_rate_deg_s,
         )
         return run_and_write(args, vehicle, list(doc.free), got, options)

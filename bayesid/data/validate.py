@@ -436,8 +436,9 @@ def _check_log_rate(track: Track, name: str) -> list[str]:
             f"interval {h:.3g} s, about {p90 / h:.3g} deg/s): the log is coarse for the rudder's rate. Held between "
             f"samples (--inputs hold, the default) the model's rudder acts on average {h / 2:.2g} s late, which moved "
             "fitted coefficients beyond their intervals on synthetic logs at 1-5 Hz (reports/benchmark_log_rate.txt); "
-            "fit with --inputs rate (the gear's rate: --rudder-rate or the ship file's [service] rudder_rate_deg_s) or "
-            "--inputs linear, or log the rudder faster (or the column logs the rudder order, not its angle)"
+            "read it with --inputs rate (the gear's rate: --rudder-rate or the ship file's [service] rudder_rate_deg_s; "
+            "bayesid fit and diagnose; discover and design read the rudder as the fit of --model did) or --inputs "
+            "linear, or log the rudder faster (or the column logs the rudder order, not its angle)"
         )
     lone = np.abs(step[~in_ramp & np.isfinite(step)])
     lone = lone[lone > RUDDER_STEP_DEG]

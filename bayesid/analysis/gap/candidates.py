@@ -106,6 +106,11 @@ class Setup:
         (:func:`bayesid.estimation.shooting.kinematic_contexts`, with ``kinematic_sd``).
     kinematic_sd : dict, optional
         ``{channel: noise sd}`` (SI) of x, y, psi for the kinematic starts.
+    inputs : {"hold", "linear", "rate"}, default "hold"
+        How every model reconstructs the logged inputs between samples
+        (:func:`bayesid.models.build_model`).
+    rudder_rate_deg_s : float, optional
+        The gear's rate of ``inputs="rate"``, deg/s (None: the vehicle file's).
     """
 
     vehicle: object
@@ -121,6 +126,8 @@ class Setup:
     effects: tuple = ()
     train_starts: str = "fitted"
     kinematic_sd: dict | None = None
+    inputs: str = "hold"
+    rudder_rate_deg_s: float | None = None
 
     def build(self, effects):
         """The model with the setup's effects, then ``effects``, and its contexts.
@@ -135,7 +142,15 @@ class Setup:
         tuple
             ``(model, training contexts, held-out contexts)``.
         """
-        m = build_model(self.vehicle, self.free, [*self.effects, *effects], dt=self.dt, mode=self.mode)
+        m = build_model(
+            self.vehicle,
+            self.free,
+            [*self.effects, *effects],
+            dt=self.dt,
+            mode=self.mode,
+            inputs=self.inputs,
+            rudder_rate_deg_s=self.rudder_rate_deg_s,
+        )
         if self.rule == "fitted" and self.train_starts == "kinematic":
             train = shooting.kinematic_contexts(m, self.train, self.fit_window_s, self.kinematic_sd)
         else:

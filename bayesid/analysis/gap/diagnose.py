@@ -3,6 +3,7 @@ candidates, verdict, support (the rules: :mod:`bayesid.analysis.gap`)."""
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, fields, replace
 from functools import cache, partial
@@ -24,6 +25,7 @@ from ...estimation.windows import (
 )
 from ...models import context as ctxmod
 from ...models import model_class
+from ...models.context import INPUT_RECONSTRUCTIONS
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
@@ -341,6 +343,18 @@ class DiagnoseOptions:
     design : DesignOptions or None, default None
         When given (and discovery names alternatives it cannot separate from a kept term), rank
         the standard runs that would separate them (:func:`bayesid.analysis.gap.design.design`).
+    inputs : {"hold", "linear", "rate"}, default "hold"
+        How every model of the diagnosis reconstructs the logged inputs between samples
+        (:data:`bayesid.models.context.INPUT_RECONSTRUCTIONS`; :func:`bayesid.models.build_model`):
+        ``"rate"`` moves the rudder at the gear's rate, for logs coarse for it (1-5 Hz).
+    rudder_rate_deg_s : float, optional
+        The gear's rate of ``inputs="rate"``, deg/s; None: the vehicle file's
+        (``[service] rudder_rate_deg_s``).
+
+    Raises
+    ------
+    ValueError
+        ``train_starts`` or ``inputs`` not among the choices; ``rudder_rate_deg_s`` not positive.
     """
 
     candidates: tuple | None = None
@@ -358,10 +372,17 @@ class DiagnoseOptions:
     discover: object = None
     train_starts: str = "fitted"
     design: object = None
+    inputs: str = "hold"
+    rudder_rate_deg_s: float | None = None
 
     def __post_init__(self):
         if self.train_starts not in TRAIN_STARTS:
             raise ValueError(f"train_starts must be one of {', '.join(TRAIN_STARTS)}, not {self.train_starts!r}")
+        if self.inputs not in INPUT_RECONSTRUCTIONS:
+            raise ValueError(f"inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}")
+        r = self.rudder_rate_deg_s
+        if r is not None and not (math.isfinite(r) and r > 0):
+            raise ValueError(f"rudder_rate_deg_s must be a positive number of deg/s, not {r!r}")
         if self.candidates is not None and not isinstance(self.candidates, tuple):
             object.__setattr__(self, "candidates", tuple(self.candidates))
         object.__setattr__(self, "base_effects", tuple(self.base_effects))
@@ -606,6 +627,7 @@ def _diagnosis_setup(vehicle, free, train: list, heldout: list, opt: DiagnoseOpt
     setup = Setup(
         vehicle, free, train, heldout, dt, opt.mode, fw, opt.window_s, rule, lead, base_effects,
         train_starts="kinematic" if opt.train_starts == "kinematic" else "fitted", kinematic_sd=sd,
+        inputs=opt.inputs, rudder_rate_deg_s=opt.rudder_rate_deg_s,
     )  # fmt: skip
     return family, setup, cand_effects, sd
 
@@ -831,6 +853,9 @@ def _settings(opt: DiagnoseOptions, setup: Setup, cand_effects, weighting: str) 
         "max_effects": opt.max_effects,
         "weighting": weighting,
         **({"train_starts": opt.train_starts} if opt.train_starts != "fitted" else {}),
+        # the logged inputs' reconstruction, when not the default (the JSON of a held reading unchanged)
+        **({"inputs": opt.inputs} if opt.inputs != "hold" else {}),
+        **({"rudder_rate_deg_s": opt.rudder_rate_deg_s} if opt.rudder_rate_deg_s is not None else {}),
     }
 
 

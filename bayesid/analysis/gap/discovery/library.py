@@ -152,7 +152,16 @@ def augmented_model(setup: Setup, effects, values: dict, window_s: float | None)
         Its context of each training track.
     """
     veh = setup.vehicle.with_coefficients(values)
-    m = build_model(veh, [*setup.free, *values], list(effects), dt=setup.dt, mode=setup.mode, kernel="interpreted")
+    m = build_model(
+        veh,
+        [*setup.free, *values],
+        list(effects),
+        dt=setup.dt,
+        mode=setup.mode,
+        kernel="interpreted",
+        inputs=setup.inputs,
+        rudder_rate_deg_s=setup.rudder_rate_deg_s,
+    )
     return m, [m.context(t, window_s, start=setup.rule) for t in setup.train]
 
 
