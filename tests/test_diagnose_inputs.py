@@ -33,7 +33,13 @@ def _runs(log_s: float = 1.0):
     out = []
     for angle, check in ((20, 20), (-15, 10), (10, 10), (-20, 5)):
         tr = simulate_trial(
-            kv, "zigzag", angle, check_deg=check, speed=speed, rpm=rpm, options=TrialOptions(duration=120.0, rudder_rate_deg_s=15.8)
+            kv,
+            "zigzag",
+            angle,
+            check_deg=check,
+            speed=speed,
+            rpm=rpm,
+            options=TrialOptions(duration=120.0, rudder_rate_deg_s=15.8),
         ).track
         t = np.arange(0.0, float(tr.t[-1]) + 1e-9, log_s)
         data = {
