@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from bayesid import cli
-from bayesid.data.track import write_csv
+from bayesid.data.track import Track, write_csv
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import manoeuvres as mv
 from bayesid.models.world import LogOptions, world_track
@@ -441,3 +441,27 @@ def test_duplicate_names_in_an_option_and_an_empty_vehicle_name_are_refused(csvs
     assert rc == 2 and "--candidates" in msg and "twice" in msg, msg
     with pytest.raises(FileNotFoundError, match="empty vehicle name"):
         load_vehicle("")
+
+
+def test_a_warning_every_file_of_a_coarse_log_raises_is_printed_once_and_kept_for_each(tmp_path, capsys):
+    # four zigzags logged at 2 Hz, their rudder reversals within single intervals: one warning in full, the
+    # other files named after it; the outputs keep each file's own
+    veh = load_vehicle("nps_auv2")
+    paths = []
+    for i, a in enumerate((20.0, 15.0, 10.0, 18.0)):
+        tr = world_track(veh, mv.zigzag(veh, a, dt=0.1, duration=60.0), {}, np.random.default_rng(i), name=f"z{i}")
+        keep = np.arange(0, tr.n_samples, 5)
+        coarse = Track(
+            tr.t[keep], {k: np.asarray(tr[k])[keep] for k in ("x", "y", "psi", "delta_r", "n")}, name=f"z{i}"
+        )
+        paths.append(tmp_path / f"z{i}.csv")
+        write_csv(coarse, paths[-1])
+    got = cli.inputs.read_tracks([("--train", paths[:2]), ("--heldout", paths[2:])], veh)
+    err = capsys.readouterr().err
+    jumps = [w for w in got["_warnings"] if "the rudder jumps" in w]
+    assert len(jumps) == 4 and {w.split(": ")[0] for w in jumps} == {str(p) for p in paths}
+    assert err.count("the rudder jumps") == 1, err
+    assert (
+        f"the same for 3 more file(s), with their own numbers (in the outputs' warnings): {paths[1]}, {paths[2]}, {paths[3]}"
+        in err
+    )
