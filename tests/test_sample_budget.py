@@ -257,7 +257,8 @@ def test_the_mcmc_stops_on_its_share_of_the_budget(case):
     res = tp.sample_tracks(
         problem,
         p0,
-        tp.SampleOptions(method="mcmc", max_minutes=0.05),
+        # 6 s: under a parallel test run (pytest -n) the stages before the MCMC may take most of 3 s
+        tp.SampleOptions(method="mcmc", max_minutes=0.1),
         importance=tp.ImportanceOptions(n_draws=200),
         runner=Runner(progress=said.append),
     )
@@ -266,7 +267,7 @@ def test_the_mcmc_stops_on_its_share_of_the_budget(case):
     assert res.method == "mcmc" and res.budget["start_profile"] == "linearised"
     assert mc["cut"] and 0 < mc["done"] < mc["planned"] and mc["unit"] == "steps", mc
     assert res.mcmc["result"].stop_reason == "max_wall_s"
-    assert wall < 0.05 * 60 + 2.0, wall
+    assert wall < 0.1 * 60 + 2.0, wall
     assert "noise_scales" in res.budget["stages"] and res.sigma.shape[1] == len(res.errors.channels)
     est = [m for m in said if m.startswith("MCMC: 2 emcee ensembles")]
     assert est and "s per step" in est[0] and "the budget allows about" in est[0], said
