@@ -216,8 +216,8 @@ def fit_options(vessel: str, step: str, inputs: str, max_nfev: int) -> FitOption
         max_nfev=max_nfev,
         prior=False,
         inputs=inputs,
-        # the ship file gives its gear's rate; the submarine's is the benchmark's
-        rudder_rate_deg_s=SUBMARINE_RATE_DEG_S if vessel == "submarine" else None,
+        # the ship file gives its gear's rate; the submarine's is the benchmark's (read by --inputs rate alone)
+        rudder_rate_deg_s=SUBMARINE_RATE_DEG_S if vessel == "submarine" and inputs == "rate" else None,
     )
 
 

@@ -84,6 +84,13 @@ def test_bad_readings_are_refused_by_name():
         gap.DiagnoseOptions(inputs="cubic")
     with pytest.raises(ValueError, match="rudder_rate_deg_s must be a positive number"):
         gap.DiagnoseOptions(inputs="rate", rudder_rate_deg_s=-3.0)
+    # a gear rate the reading would not use: refused, not recorded and ignored
+    with pytest.raises(ValueError, match="--rudder-rate is the gear's rate of --inputs rate: with --inputs hold"):
+        gap.DiagnoseOptions(rudder_rate_deg_s=10.0)
+    from bayesid.estimation.options import FitOptions
+
+    with pytest.raises(ValueError, match="with --inputs linear it would not be used"):
+        FitOptions(inputs="linear", rudder_rate_deg_s=10.0)
 
 
 def test_the_commands_take_the_reading_and_record_it(runs, tmp_path, capsys):

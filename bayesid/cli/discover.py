@@ -100,6 +100,6 @@ def discover(args):
             design=design,
             # the fit's reading of the logged inputs (bayesid fit --inputs), for every model refitted
             inputs=doc.inputs,
-            rudder_rate_deg_s=doc.rudder_rate_deg_s,
+            rudder_rate_deg_s=doc.rudder_rate_deg_s if doc.inputs == "rate" else None,
         )
         return run_and_write(args, vehicle, list(doc.free), got, options)

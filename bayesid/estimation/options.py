@@ -74,7 +74,8 @@ class FitOptions:
     ------
     ValueError
         ``max_nfev`` below 1, negative ``starts``, a non-positive ``window_s``, ``dt`` or
-        ``rudder_rate_deg_s``, an unknown ``inputs``, ``retime`` without ``inputs="rate"``.
+        ``rudder_rate_deg_s``, an unknown ``inputs``, ``retime`` or ``rudder_rate_deg_s`` without
+        ``inputs="rate"``.
     """
 
     free: tuple | None = None
@@ -110,6 +111,10 @@ class FitOptions:
         if self.inputs not in INPUT_RECONSTRUCTIONS:
             raise ValueError(
                 f"FitOptions.inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}"
+            )
+        if self.rudder_rate_deg_s is not None and self.inputs != "rate":
+            raise ValueError(
+                f"--rudder-rate is the gear's rate of --inputs rate: with --inputs {self.inputs} it would not be used"
             )
         if self.retime and self.inputs != "rate":
             raise ValueError(

@@ -354,7 +354,8 @@ class DiagnoseOptions:
     Raises
     ------
     ValueError
-        ``train_starts`` or ``inputs`` not among the choices; ``rudder_rate_deg_s`` not positive.
+        ``train_starts`` or ``inputs`` not among the choices; ``rudder_rate_deg_s`` not positive,
+        or given with another reading than ``"rate"``.
     """
 
     candidates: tuple | None = None
@@ -383,6 +384,10 @@ class DiagnoseOptions:
         r = self.rudder_rate_deg_s
         if r is not None and not (math.isfinite(r) and r > 0):
             raise ValueError(f"rudder_rate_deg_s must be a positive number of deg/s, not {r!r}")
+        if r is not None and self.inputs != "rate":
+            raise ValueError(
+                f"--rudder-rate is the gear's rate of --inputs rate: with --inputs {self.inputs} it would not be used"
+            )
         if self.candidates is not None and not isinstance(self.candidates, tuple):
             object.__setattr__(self, "candidates", tuple(self.candidates))
         object.__setattr__(self, "base_effects", tuple(self.base_effects))
