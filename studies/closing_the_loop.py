@@ -357,15 +357,22 @@ def _miss_row(r: dict, window_s: float) -> list:
     ]
 
 
+def _best_kept(r: dict) -> str | None:
+    """Round 2's kept term whose refit predicts the designed run best (its ``run_rms_m``); None
+    when no kept term was scored on it."""
+    rms = r["round2"].get("run_rms_m") or {}
+    scored = [k for k in r["round2"]["kept"] if rms.get(k)]
+    return min(scored, key=lambda k: rms[k]) if scored else None
+
+
 def _hidden_ratio(r: dict) -> float | None:
     """The hidden term's single-term refit's position RMS on the designed run over the best kept
     term's (round 2); None when the hidden term is kept, or not refitted."""
     rd, hidden = r["round2"], next(iter(r["hidden"]), None)
-    rms = rd.get("run_rms_m") or {}
-    kept = [rms[k] for k in rd["kept"] if rms.get(k)]
-    if hidden is None or hidden in rd["kept"] or rms.get(hidden) is None or not kept:
+    rms, kept = rd.get("run_rms_m") or {}, _best_kept(r)
+    if hidden is None or hidden in rd["kept"] or rms.get(hidden) is None or kept is None:
         return None
-    return rms[hidden] / min(kept)
+    return rms[hidden] / rms[kept]
 
 
 def _hidden_on_run(r: dict) -> str:
@@ -384,9 +391,8 @@ def _truth_on_run_ratio(r: dict) -> str:
     over the best kept term's refit (the miss table's column); "-" when not scored."""
     from bayesid.report import fmt
 
-    tr, rms = r.get("truth_on_run"), r["round2"].get("run_rms_m") or {}
-    kept = [rms[k] for k in r["round2"]["kept"] if rms.get(k)]
-    return "-" if not tr or not kept else fmt(tr["true_coefficients_rms_m"] / min(kept))
+    tr, kept = r.get("truth_on_run"), _best_kept(r)
+    return "-" if not tr or kept is None else fmt(tr["true_coefficients_rms_m"] / r["round2"]["run_rms_m"][kept])
 
 
 def _truth_separates(r: dict) -> bool:
@@ -394,9 +400,9 @@ def _truth_separates(r: dict) -> bool:
     better than the kept term's refit by more than the run test's margin."""
     from bayesid.analysis.gap.verdict import Thresholds
 
-    tr, rms = r.get("truth_on_run"), r["round2"].get("run_rms_m") or {}
-    kept = [rms[k] for k in r["round2"]["kept"] if rms.get(k)]
-    return bool(tr and kept and min(kept) > (1.0 + Thresholds().separation_margin) * tr["true_coefficients_rms_m"])
+    tr, kept = r.get("truth_on_run"), _best_kept(r)
+    margin = 1.0 + Thresholds().separation_margin
+    return bool(tr and kept and r["round2"]["run_rms_m"][kept] > margin * tr["true_coefficients_rms_m"])
 
 
 def _worse_hidden_lines(misses: list) -> list:
@@ -431,7 +437,7 @@ def _truth_lines(r: dict) -> list:
     if not tr or not tr.get("refit"):
         return []
     rms = r["round2"]["run_rms_m"]
-    kept = min((k for k in r["round2"]["kept"] if rms.get(k)), key=lambda k: rms[k])
+    kept = _best_kept(r)
     ref = tr["refit"]
     off = sorted(
         ((k, v) for k, v in ref.items() if k != hidden and v["truth"] != 0.0),
