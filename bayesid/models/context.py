@@ -12,6 +12,7 @@ minus measurement per channel).
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numba as nb
@@ -405,9 +406,71 @@ class TrackContext:
             self.s_meas[:, [2, 3, 4, 8, 9, 10]] = 0.0
         self.lead = self._lead_samples(track, t) if self.start == "fitted" else None
         self._tk, self._ck, self._uk = self._input_integral(track, t, inputs, getattr(model, "rudder_rate_deg_s", None))
+        self._rows = None
         self.lone_at = None
         self.substeps = int(substeps)
         self.step_inputs = self.average_inputs(np.zeros(1))[0]
+        self.row_inputs = None
+
+    def with_row_inputs(self, tracks) -> TrackContext:
+        """This context with other inputs for each parameter row: row ``b`` of a simulation reads
+        the inputs of ``tracks[b]`` (reconstructed between their samples as this context reads its
+        own), on this context's grid, windows and start states. One batched simulation then flies
+        ``B`` input schedules (e.g. each parameter draw's own closed-loop zigzag,
+        :func:`bayesid.analysis.gap.design.simulate_runs`).
+
+        Parameters
+        ----------
+        tracks : sequence of Track
+            One per parameter row, each with ``delta_r`` and ``n`` (only their inputs are read).
+
+        Returns
+        -------
+        TrackContext
+            A shallow copy whose :meth:`inputs` and :meth:`average_inputs` are per row
+            (``row_inputs``, shape (B, n_steps, 4)); a simulation with it takes exactly
+            ``len(tracks)`` parameter vectors.
+
+        Raises
+        ------
+        ValueError
+            No track, or a track without an input column or an input without any value.
+        """
+        if not len(tracks):
+            raise ValueError("with_row_inputs needs at least one track")
+        out = copy.copy(self)
+        rate = getattr(self.model, "rudder_rate_deg_s", None)
+        out._rows = [
+            self._input_integral(tr, np.asarray(tr.t, float), self.input_reconstruction, rate) for tr in tracks
+        ]
+        out.row_inputs = out.average_inputs(np.zeros(len(tracks)))
+        out.step_inputs = out.row_inputs[0]
+        return out
+
+    def held_inputs(self, B: int) -> np.ndarray:
+        """The step inputs of ``B`` parameter rows before any input effect: the track's own
+        repeated, or each row's (:meth:`with_row_inputs`).
+
+        Parameters
+        ----------
+        B : int
+            Number of parameter vectors.
+
+        Returns
+        -------
+        ndarray, shape (B, n_steps, 4)
+            A new array (the caller may change it).
+
+        Raises
+        ------
+        ValueError
+            Per-row inputs for another number of rows.
+        """
+        if self.row_inputs is None:
+            return np.repeat(self.step_inputs[None], B, axis=0)
+        if B != self.row_inputs.shape[0]:
+            raise ValueError(f"track {self.name!r} has inputs for {self.row_inputs.shape[0]} parameter rows, not {B}")
+        return self.row_inputs.copy()
 
     def retime(self, lone_at: dict | None) -> None:
         """Place the rudder's movements within single intervals (``inputs="rate"``) at the given
@@ -423,10 +486,13 @@ class TrackContext:
         Raises
         ------
         ValueError
-            A context whose inputs are not reconstructed at the gear's rate.
+            A context whose inputs are not reconstructed at the gear's rate, or with per-row inputs
+            (:meth:`with_row_inputs`).
         """
         if self.input_reconstruction != "rate":
             raise ValueError(f"track {self.name!r}: retiming needs inputs 'rate', not {self.input_reconstruction!r}")
+        if self._rows is not None:
+            raise ValueError(f"track {self.name!r}: a context with per-row inputs is not retimed")
         t = np.asarray(self.track.t, float)
         rate = self.model.rudder_rate_deg_s
         self._tk, self._ck, self._uk = self._input_integral(self.track, t, "rate", rate, lone_at)
@@ -562,18 +628,27 @@ class TrackContext:
         Returns
         -------
         ndarray, shape (B, n, 4)
-            The averaged inputs; n is ``n_steps`` (times ``substeps`` if ``fine``).
+            The averaged inputs; n is ``n_steps`` (times ``substeps`` if ``fine``); row ``b`` of a
+            context with per-row inputs (:meth:`with_row_inputs`) reads row ``b``'s.
+
+        Raises
+        ------
+        ValueError
+            Per-row inputs for another number of rows than ``delay`` has.
         """
         m = self.substeps if fine else 1
         tf = self.t0 + self.model.dt / m * np.arange(self.n_steps * m + 1)
         out = np.empty((delay.size, tf.size - 1, 4))
         h = self.model.dt / m
+        if self._rows is not None and delay.size != len(self._rows):
+            raise ValueError(f"track {self.name!r} has inputs for {len(self._rows)} parameter rows, not {delay.size}")
         for b, d in enumerate(delay):
-            if self._uk is not None:
-                out[b] = np.diff(_linear_integral(tf - d, self._tk, self._ck, self._uk), axis=0) / h
+            tk, ck, uk = (self._tk, self._ck, self._uk) if self._rows is None else self._rows[b]
+            if uk is not None:
+                out[b] = np.diff(_linear_integral(tf - d, tk, ck, uk), axis=0) / h
                 continue
             for j in range(4):
-                c = np.interp(tf - d, self._tk, self._ck[:, j])
+                c = np.interp(tf - d, tk, ck[:, j])
                 out[b, :, j] = np.diff(c) / h
         return out
 
@@ -599,7 +674,7 @@ class TrackContext:
             delay = e.delay(q) if e.delay(q) is not None else delay
             servo = e.actuator(q) if e.actuator(q) is not None else servo
         if delay is None and servo is None:
-            x = np.repeat(self.step_inputs[None], B, axis=0)
+            x = self.held_inputs(B)
         elif servo is None:
             x = self.average_inputs(np.zeros(B) if delay is None else np.asarray(delay, float))
         else:

@@ -76,6 +76,7 @@ __all__ = [
     "run_inputs",
     "input_track",
     "simulate_run",
+    "simulate_runs",
     "predictive",
     "separation",
     "STANDARD_RUNS",
@@ -412,15 +413,53 @@ def simulate_run(model, p, inputs: Track, approach: dict) -> Track | None:
         ``x y psi u v r`` (m, rad, m/s, rad/s) and the inputs at the model's steps from the
         inputs' first time; None when the run diverges.
     """
+    return simulate_runs(model, np.asarray(p, float)[None], [inputs], approach)[0]
+
+
+def simulate_runs(model, P, inputs: list, approach: dict) -> list:
+    """:func:`simulate_run` for several parameter vectors at once, each through its own input
+    schedule on the same times (one batched simulation: e.g. each parameter draw's own zigzag).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    inputs : list of Track
+        ``B`` input schedules on the same times, or one for every row.
+    approach : dict
+        :func:`approach_condition`.
+
+    Returns
+    -------
+    list of (Track or None)
+        One per row, as :func:`simulate_run` returns it.
+
+    Raises
+    ------
+    ValueError
+        Neither one nor ``B`` input schedules.
+    """
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(inputs) not in (1, P.shape[0]):
+        raise ValueError(f"{len(inputs)} input schedules for {P.shape[0]} parameter vectors (one, or one each)")
     s0 = np.zeros(12)
     s0[6] = approach["u"]
-    ctx = model.context(inputs, None, s0=s0)
-    S = model.simulate(ctx, np.asarray(p, float)[None], measured_start=False)[0]
-    if not np.isfinite(S).all():
-        return None
-    data = {k: S[:, STATE_NAMES.index(k)] for k in ("x", "y", "psi", "u", "v", "r")}
-    data.update(delta_r=np.interp(ctx.ts, inputs.t, inputs["delta_r"]), n=np.interp(ctx.ts, inputs.t, inputs["n"]))
-    return Track(np.asarray(ctx.ts, float), data)
+    ctx = model.context(inputs[0], None, s0=s0)
+    if len(inputs) > 1:
+        ctx = ctx.with_row_inputs(inputs)
+    S = model.simulate(ctx, P, measured_start=False)
+    out = []
+    for b, Sb in enumerate(S):
+        if not np.isfinite(Sb).all():
+            out.append(None)
+            continue
+        u = inputs[b if len(inputs) > 1 else 0]
+        data = {k: Sb[:, STATE_NAMES.index(k)] for k in ("x", "y", "psi", "u", "v", "r")}
+        data.update(delta_r=np.interp(ctx.ts, u.t, u["delta_r"]), n=np.interp(ctx.ts, u.t, u["n"]))
+        out.append(Track(np.asarray(ctx.ts, float), data))
+    return out
 
 
 def input_track(t, delta_r, n, approach: dict) -> Track:
@@ -449,28 +488,61 @@ def _zigzag(stage, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> np.ndarr
     """A zigzag's rudder as ``stage``'s model steers it: the rudder is reversed each time the
     heading change from the approach passes the check angle on the rudder's side (the sign of
     the heading change a rudder gives is read from the model's first response)."""
+    return zigzag_rudders(stage.model, np.asarray(stage.fit.p, float)[None], run, approach, t)[0]
+
+
+def zigzag_rudders(model, P, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> np.ndarray:
+    """Each parameter vector's own zigzag rudder (:func:`_zigzag`), found in lock step: every
+    pass simulates the rows still turning towards a check angle together (:func:`simulate_runs`)
+    and reverses each row's rudder where its heading passes it.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    run : ManoeuvreRun
+        A zigzag (``rudder_deg``, ``check_deg``, ``side``).
+    approach : dict
+        :func:`approach_condition` (``u``, ``rpm``, ``rudder_rate``).
+    t : ndarray, shape (n,)
+        Times from the start of the run, s.
+
+    Returns
+    -------
+    ndarray, shape (B, n)
+        Rudder angle, rad; a row whose run diverges keeps the orders found before.
+    """
+    P = np.atleast_2d(np.asarray(P, float))
     a = math.radians(run.rudder_deg) * (1.0 if run.side == "port" else -1.0)
     check = math.radians(run.check_deg)
-    orders = [(5.0, a)]
+    orders = [[(5.0, a)] for _ in P]
     n = np.full_like(t, approach["rpm"])
-    turn = None
+    turn: list = [None] * len(P)
+    live = list(range(len(P)))
     for _ in range(12):
-        delta = _ramp(t, orders, approach["rudder_rate"])
-        sim = _simulate_whole(stage, _track(t, delta, n, approach), approach)
-        if sim is None:
+        if not live:
             break
-        h = np.unwrap(np.asarray(sim["psi"], float))
-        h = np.interp(t, sim.t, h - h[0])
-        if turn is None:  # which way a positive rudder turns this model
-            late = h[t > 5.0]
-            turn = float(np.sign(late[np.argmax(np.abs(late))])) * np.sign(a) or 1.0
-        t_last, target = orders[-1]
-        want = turn * np.sign(target) * check
-        after = np.flatnonzero((t > t_last) & (np.sign(want) * (h - want) >= 0))
-        if after.size == 0:
-            break
-        orders.append((float(t[after[0]]), -target))
-    return _ramp(t, orders, approach["rudder_rate"])
+        tracks = [_track(t, _ramp(t, orders[b], approach["rudder_rate"]), n, approach) for b in live]
+        sims = simulate_runs(model, P[live], tracks, approach)
+        still = []
+        for b, sim in zip(live, sims):
+            if sim is None:
+                continue
+            h = np.unwrap(np.asarray(sim["psi"], float))
+            h = np.interp(t, sim.t, h - h[0])
+            if turn[b] is None:  # which way a positive rudder turns this model
+                late = h[t > 5.0]
+                turn[b] = float(np.sign(late[np.argmax(np.abs(late))])) * np.sign(a) or 1.0
+            t_last, target = orders[b][-1]
+            want = turn[b] * np.sign(target) * check
+            after = np.flatnonzero((t > t_last) & (np.sign(want) * (h - want) >= 0))
+            if after.size:
+                orders[b].append((float(t[after[0]]), -target))
+                still.append(b)
+        live = still
+    return np.array([_ramp(t, o, approach["rudder_rate"]) for o in orders])
 
 
 def run_inputs(stage, run: ManoeuvreRun, approach: dict, rng=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -607,22 +679,26 @@ STANDARD_INDICES = {
 }
 
 
-def _free_run_indices(stage, p, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> dict:
-    """The indices of one model's free run (its own zigzag switches), NaN where it diverges."""
-    from types import SimpleNamespace
-
+def _free_run_indices(stage, P, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> list[dict]:
+    """The indices of each parameter vector's free run (a zigzag on its own switches,
+    :func:`zigzag_rudders`; one batched simulation per pass), NaN where a run diverges."""
     from ...estimation.indices import manoeuvre_indices
 
-    st = SimpleNamespace(model=stage.model, fit=SimpleNamespace(p=p))
+    P = np.atleast_2d(np.asarray(P, float))
     delta, n = _inputs(run, approach, t, None)
     if run.kind == "zigzag":
-        delta = _zigzag(st, run, approach, t)
-    sim = simulate_run(stage.model, p, _track(t, delta, n, approach), approach)
+        tracks = [_track(t, d, n, approach) for d in zigzag_rudders(stage.model, P, run, approach, t)]
+    else:
+        tracks = [_track(t, delta, n, approach)]
     keys = STANDARD_INDICES[run.kind]
-    if sim is None:
-        return dict.fromkeys(keys, float("nan"))
-    got = manoeuvre_indices(sim.t, sim["x"], sim["y"], sim["psi"], sim["delta_r"])
-    return {k: float(got.get(k, float("nan"))) for k in keys}
+    out = []
+    for sim in simulate_runs(stage.model, P, tracks, approach):
+        if sim is None:
+            out.append(dict.fromkeys(keys, float("nan")))
+            continue
+        got = manoeuvre_indices(sim.t, sim["x"], sim["y"], sim["psi"], sim["delta_r"])
+        out.append({k: float(got.get(k, float("nan"))) for k in keys})
+    return out
 
 
 def _spread(values: list) -> dict:
@@ -681,7 +757,7 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
         models = {}
         for k, st in stages.items():
             t = np.arange(0.0, D, min(0.1, st.model.dt))
-            vals = [_free_run_indices(st, p, run, approach, t) for p in draws[k]]
+            vals = _free_run_indices(st, draws[k], run, approach, t)
             models[k] = {i: _spread([v[i] for v in vals]) for i in STANDARD_INDICES[kind]}
         out.append(
             {

@@ -358,7 +358,7 @@ class ShipModel(ParameterLayout):
         """
         prm, cur, delay = self.kernel_params(P)
         B = prm.shape[0]
-        U = ctx.step_inputs[None] if delay is None else ctx.average_inputs(np.asarray(delay, float))
+        U = ctx.held_inputs(B) if delay is None else ctx.average_inputs(np.asarray(delay, float))
         inp = np.empty((B, ctx.n_steps, 2))
         inp[:, :, 0] = U[:, :, 0]
         inp[:, :, 1] = U[:, :, 3] / 60.0
