@@ -145,6 +145,16 @@ def _noise_sd3(x) -> float:
 
 
 # --- a signal between its samples -----------------------------------------------------------------
+def _der(c, m: int = 1) -> np.ndarray:
+    """The ``m``-th derivative of the polynomial ``c`` (increasing powers), as
+    :func:`numpy.polynomial.polynomial.polyder` computes it, without its argument handling (it
+    is called for every index read, and dominated their cost)."""
+    c = np.asarray(c, float)
+    for _ in range(m):
+        c = c[1:] * np.arange(1, c.size) if c.size > 1 else np.zeros(1)
+    return c
+
+
 @dataclass(frozen=True)
 class _Local:
     """A polynomial fitted by least squares to a signal's samples around a time ``tc``: the signal
@@ -165,7 +175,7 @@ class _Local:
         return float(P.polyval(self._u(tt), self.coef))
 
     def slope(self, tt) -> float:
-        return float(P.polyval(self._u(tt), P.polyder(self.coef))) / self.scale
+        return float(P.polyval(self._u(tt), _der(self.coef))) / self.scale
 
     def sd(self, tt) -> float:
         phi = self._u(tt) ** np.arange(self.coef.size)
@@ -243,7 +253,7 @@ def _root(c, u0: float):
     ``u0`` (a local polynomial's root near the sample it was fitted around: its other roots lie
     far away, where a companion-matrix solver loses the near one when the top coefficient is
     small), or None when it does not converge."""
-    dc = P.polyder(c)
+    dc = _der(c)
     u = float(u0)
     for _ in range(100):
         g = float(P.polyval(u, dc))
@@ -271,9 +281,9 @@ def _extreme(t, g, t_from: float, t_to: float, half: float):
         fit = _local_fit(t, g, tp, half, 3, t_from, t_to)
         if fit is None or fit.coef.size < 3:
             break
-        u = _root(P.polyder(fit.coef), 0.0)
+        u = _root(_der(fit.coef), 0.0)
         tr = None if u is None else fit.tc + fit.scale * u
-        if tr is None or not fit.lo <= tr <= fit.hi or not P.polyval(u, P.polyder(fit.coef, 2)) < 0:
+        if tr is None or not fit.lo <= tr <= fit.hi or not P.polyval(u, _der(fit.coef, 2)) < 0:
             break
         tp, found = tr, (fit, u)
     if found is None:  # the largest sample, as noisy as the signal
@@ -282,7 +292,7 @@ def _extreme(t, g, t_from: float, t_to: float, half: float):
     # the extreme's time moves with the coefficients as -(d p'/d coef) / p'' (implicit function)
     k = np.arange(fit.coef.size)
     dp1 = k * u ** np.clip(k - 1, 0, None)
-    grad = -dp1 / float(P.polyval(u, P.polyder(fit.coef, 2)))
+    grad = -dp1 / float(P.polyval(u, _der(fit.coef, 2)))
     sd_t = fit.scale * float(math.sqrt(max(grad @ fit.cov @ grad, 0.0)))
     return tp, fit.value(tp), sd_t, fit.sd(tp)
 
