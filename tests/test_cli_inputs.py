@@ -465,3 +465,30 @@ def test_a_warning_every_file_of_a_coarse_log_raises_is_printed_once_and_kept_fo
         f"the same for 3 more file(s), with their own numbers (in the outputs' warnings): {paths[1]}, {paths[2]}, {paths[3]}"
         in err
     )
+
+
+def test_a_gap_that_splits_a_run_is_named_in_the_outputs(csvs, tmp_path, capsys):
+    """A gap in the positions (here 10 s cut out of a 0.2 s log, and a row of empty x, y, psi cells
+    elsewhere, too short to split) is named with its times and file rows: the run is fitted and
+    scored as two pieces."""
+    from bayesid.data import validate
+    from bayesid.data.track import read_csv
+
+    tr = read_csv(csvs[1])
+    keep = (tr.t < 20.0) | (tr.t >= 30.0)
+    data = {k: np.array(v)[keep] for k, v in tr.data.items()}
+    for k in ("x", "y", "psi"):
+        data[k][5] = np.nan  # one empty row: held over, no gap
+    p = tmp_path / "gapped.csv"
+    write_csv(Track(tr.t[keep], data, name="gapped"), p)
+    warned = [w for w in validate.check_track(read_csv(p), load_vehicle("nps_auv2"), str(p)) if " gap" in w]
+    assert len(warned) == 1, warned
+    # the last sample before the gap is t = 19.8 s (row 101 of the file: header, then t = 0 on row 2)
+    assert "1 gap in x, y, psi" in warned[0] and "t = 19.8-30 s" in warned[0] and "rows 101-102" in warned[0]
+    assert "2 continuous pieces" in warned[0] and str(p) in warned[0]
+    rc, msg = _run(_diag([csvs[0]], [p], tmp_path / "o"), capsys)
+    assert rc == 0, msg
+    doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert any("2 continuous pieces" in w for w in doc["warnings"])
+    # the runs without a gap are not warned of one
+    assert not any(" gap" in w for w in validate.check_track(read_csv(csvs[0]), load_vehicle("nps_auv2")))

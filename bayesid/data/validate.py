@@ -456,6 +456,32 @@ def _check_log_rate(track: Track, name: str) -> list[str]:
     return out
 
 
+def _check_pieces(track: Track, name: str) -> list[str]:
+    """A warning naming the gaps that split a track into continuous pieces
+    (:func:`bayesid.models.context.continuous_pieces`: no x, y or psi, or no sample, for more than
+    five sample intervals): every command fits and scores each piece on its own (no window crosses
+    a gap, and a piece too short for a window is left out), which a user reading the scores should
+    know."""
+    from ..models.context import continuous_pieces
+
+    if any(k not in track or not np.isfinite(np.asarray(track[k], float)).any() for k in ("x", "y", "psi")):
+        return []
+    pieces = continuous_pieces(track)
+    if len(pieces) < 2:
+        return []
+    t = track.t
+    gaps = []
+    for (_, end), (start, _) in zip(pieces[:-1], pieces[1:]):
+        i, j = int(np.searchsorted(t, end)), int(np.searchsorted(t, start))
+        gaps.append(f"t = {end:.6g}-{start:.6g} s ({start - end:.3g} s, {_rows(track, i, j)})")
+    shown = "; ".join(gaps[:3]) + (f"; and {len(gaps) - 3} more" if len(gaps) > 3 else "")
+    return [
+        f"{name}: {len(gaps)} gap{'s' if len(gaps) > 1 else ''} in x, y, psi or the inputs ({shown}): the run is "
+        f"fitted and scored as {len(pieces)} continuous pieces, no window crosses a gap, and a piece shorter than "
+        "one window (after the start estimate's span) is left out; a clock jump shows here too"
+    ]
+
+
 def check_track(track: Track, vehicle=None, where: str | None = None) -> list[str]:
     """Units and plausibility of a track (module docstring).
 
@@ -471,7 +497,8 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         the vehicle, a rudder whose ramps move more than :data:`RUDDER_STEP_DEG` between samples
         is a warning (the log is coarse for the inputs held between samples), and so is one that
         jumps by more than that within single intervals :data:`LONE_JUMPS_WARNED` times or more
-        (reversals whose times between the samples no fit knows).
+        (reversals whose times between the samples no fit knows), and so are gaps that split the
+        track into continuous pieces (:func:`_check_pieces`).
     where : str, optional
         The file named in messages; default the track's name.
 
@@ -510,6 +537,7 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
     _check_rudder_sign(track, refuse, warn, name)
     warn += _check_rudder_limit(track, vehicle, name)
     warn += _check_log_rate(track, name)
+    warn += _check_pieces(track, name)
     ground = None
     if "x" in track and "y" in track:
         # over a 5 s baseline, so that position noise does not pass for speed
