@@ -461,10 +461,15 @@ def test_a_warning_every_file_of_a_coarse_log_raises_is_printed_once_and_kept_fo
     jumps = [w for w in got["_warnings"] if "the rudder jumps" in w]
     assert len(jumps) == 4 and {w.split(": ")[0] for w in jumps} == {str(p) for p in paths}
     assert err.count("the rudder jumps") == 1, err
-    assert (
-        f"the same for 3 more file(s), with their own numbers (in the outputs' warnings): {paths[1]}, {paths[2]}, {paths[3]}"
-        in err
-    )
+    same = f"the same for 3 more file(s), with their own numbers (in the outputs' warnings): {paths[1]}, {paths[2]}, {paths[3]}"
+    assert same in err
+    # the diagnosis report reads the same way; its JSON keeps every file's warning
+    rc, msg = _run(_diag(paths[:2], paths[2:], tmp_path / "o"), capsys)
+    assert rc == 0, msg
+    text = (tmp_path / "o" / "report.md").read_text()
+    assert text.count("the rudder jumps") == 1 and f"- {same}" in text, text[:3000]
+    doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert sum("the rudder jumps" in w for w in doc["warnings"]) == 4
 
 
 def test_a_gap_that_splits_a_run_is_named_in_the_outputs(csvs, tmp_path, capsys):

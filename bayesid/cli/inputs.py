@@ -9,11 +9,11 @@ the file beside the track's name: ``track 'run3' (runs/run3.csv)``.
 
 from __future__ import annotations
 
-import re
 import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+from ..report.markdown import grouped_warnings
 from .options import split_names
 from .provenance import file_sha256
 
@@ -134,29 +134,10 @@ def read_tracks(groups, vehicle=None) -> dict:
                     )
             read.append((option, p, tr))
             out[option].append(tr)
-    for w in _grouped(warnings):
+    for w in grouped_warnings(warnings):
         print(f"warning: {w}", file=sys.stderr)
     out["_sha256"], out["_warnings"] = hashes, warnings
     out["_files"] = {name: str(p) for name, p in names.items()}
-    return out
-
-
-def _grouped(warnings: list) -> list:
-    """The warnings as printed: one in full per kind (the same text but for the file and the
-    numbers), the other files of that kind named after it in one line; the outputs keep them all.
-    A check that fires on every file of a coarse log prints once, not once per file."""
-    groups = {}
-    for w in warnings:
-        name, _, text = w.partition(": ")
-        groups.setdefault(re.sub(r"\d+(\.\d+)?(e[-+]?\d+)?", "#", text), []).append((name, w))
-    out = []
-    for same in groups.values():
-        out.append(same[0][1])
-        if len(same) > 1:
-            out.append(
-                f"the same for {len(same) - 1} more file(s), with their own numbers (in the outputs' warnings): "
-                + ", ".join(n for n, _ in same[1:])
-            )
     return out
 
 

@@ -8,7 +8,7 @@ from functools import partial
 from pathlib import Path
 
 from ..analysis.gap.records import BaseCheck, CandidateRow, NoiseFloor, Remainder, TermRow
-from .markdown import fmt, md_table
+from .markdown import fmt, md_table, warning_lines
 from .study import write_json
 
 #: Report units of the protocol's channels: (factor from SI, unit).
@@ -831,7 +831,7 @@ def _summary_lines(res: dict, command: str) -> list:
         "",
         f"`{command}`" if command else "",
         "",
-        *(["**Input warnings:** " + "; ".join(res["warnings"]), ""] if res.get("warnings") else []),
+        *warning_lines(res.get("warnings") or []),
         *_base_check_lines(res.get("base_check")),
         *_multistart_lines(getattr(_record(BaseCheck, res.get("base_check")), "multistart", None)),
         f"**Verdict: {res['verdict']}**"
@@ -851,9 +851,16 @@ def _how_far_lines(res: dict) -> list:
     gb, ga, gd = res["gap_before"], res["gap_after"], res.get("gap_discovered") or {}
     added = _added(res)
     rows = [("base model", gb), ("with " + ("+".join(added) or "nothing"), ga)]
-    found, shrink = (res.get("discovery") or {}).get("found") or [], []
+    D = res.get("discovery") or {}
+    found, shrink = D.get("found") or [], []
     if gd and found:
-        rows.append((f"with {'+'.join([*added, *found])} ({'+'.join(found)} discovered)", gd))
+        # discovery's search on the base refitted with its training window starts held: its training
+        # RMS is under those starts, not the fitted ones of the rows above
+        held = (D.get("settings") or {}).get("train_starts") == "kinematic" and res.get("settings", {}).get(
+            "train_starts"
+        ) != "kinematic"
+        how = "; training window starts held at the kinematics, its train RMS under them" if held else ""
+        rows.append((f"with {'+'.join([*added, *found])} ({'+'.join(found)} discovered{how})", gd))
         gain = 1 - gd["heldout_rms_m"] / gb["heldout_rms_m"]
         shrink = [f"With the discovered terms: held-out shrinkage {fmt(gain)}.", ""]
     return [

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .imo import fit_imo_lines
-from .markdown import fmt, md_table
+from .markdown import fmt, md_table, warning_lines
 
 #: Distance from the prior mean (in prior sds) beyond which a coefficient is flagged "far".
 FAR_FROM_PRIOR = 3.0
@@ -81,7 +81,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         "",
         f"`{command}`" if command else "",
         "",
-        *(["**Input warnings:** " + "; ".join(warn), ""] if warn else []),
+        *warning_lines(warn),
         f"Vehicle {doc['vehicle_id']}; effects: {', '.join(doc['effects']) or 'none'}; "
         f"multiple shooting over {doc['fit_window_s']} s windows, step {doc['dt']} s" + _inputs_phrase(doc) + "; "
         f"{len(doc['train_runs'])} training run(s).",

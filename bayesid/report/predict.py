@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .imo import predict_imo_lines
-from .markdown import fmt, md_table
+from .markdown import fmt, grouped_warnings, md_table
 
 #: Windows named as the worst in the per-window error distribution.
 WORST_WINDOWS = 3
@@ -121,7 +121,7 @@ def write_predict_report(doc: dict, out, tracks: list, command: str = "") -> Non
         "",
         *_distribution_lines(doc.get("window_distribution")),
     ]
-    lines += [f"- **Warning**: {w}" for w in doc["warnings"]] + ([""] if doc["warnings"] else [])
+    lines += [f"- **Warning**: {w}" for w in grouped_warnings(doc["warnings"])] + ([""] if doc["warnings"] else [])
     lines += _index_lines(doc["indices"])
     lines += predict_imo_lines(doc)  # ships: the IMO criteria, measured and predicted
     lines += ["", *_band_lines(doc["bands"], doc["n_draws"]), *[f"![{t}](figures/{t}.png)" for t in tracks], ""]
