@@ -47,6 +47,7 @@ __all__ = [
     "Track",
     "read_csv",
     "write_csv",
+    "continuous_pieces",
 ]
 
 STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r")
@@ -715,3 +716,61 @@ def write_csv(track: Track, path) -> None:
         for a in range(0, track.n_samples, _CHUNK_ROWS):  # in blocks: memory stays near the arrays'
             table = np.column_stack([c[a : a + _CHUNK_ROWS] for c in columns]).tolist()
             writer.writerows([_format(v) for v in row] for row in table)
+
+
+def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float, float]]:
+    """The continuous pieces of a track: runs of samples with finite x, y and psi, split where
+    consecutive such samples are more than ``max(5 x the median sample interval, min_gap_s)``
+    apart (a logging gap, or a stretch of empty cells).
+
+    A logged input (``delta_r``, ``delta_s``, ``delta_b``, ``n``) with no value for longer than
+    that and five of its own median intervals removes the samples in between (a piece never runs
+    on a guessed input; shorter holes are held, zero-order).
+
+    Parameters
+    ----------
+    track : Track
+        The track.
+    min_gap_s : float, default 0.0
+        Smallest gap that splits the track, s.
+
+    Returns
+    -------
+    list of tuple
+        ``(first, last)`` sample times of each piece, s.
+
+    Raises
+    ------
+    ValueError
+        Naming the track and column when x, y or psi is absent or entirely empty, or when no
+        row has all three.
+    """
+    t = np.asarray(track.t, float)
+    ok = np.ones(t.size, bool)
+    for k in ("x", "y", "psi"):
+        if k not in track:
+            raise ValueError(f"track {track.name!r} has no column {k!r}; the protocol needs x, y, psi")
+        fin = np.isfinite(np.asarray(track[k], float))
+        if not fin.any():
+            raise ValueError(f"track {track.name!r}: column {k!r} is empty (no value in any row)")
+        ok &= fin
+    gap = max(5.0 * float(np.median(np.diff(t))) if t.size > 1 else 0.0, min_gap_s)
+    # a logged input (rudder, propeller) missing for longer than five of its own sample intervals
+    # is a hole too: the model would fly on a guessed input there (shorter stretches are held)
+    for k in ("delta_r", "delta_s", "delta_b", "n"):
+        if k not in track:
+            continue
+        fin = np.flatnonzero(np.isfinite(np.asarray(track[k], float)))
+        if fin.size < 2:
+            continue
+        tk = t[fin]
+        hole = np.flatnonzero(np.diff(tk) > max(gap, 5.0 * float(np.median(np.diff(tk)))) + 1e-9)
+        for h in hole:
+            ok[fin[h] + 1 : fin[h + 1]] = False
+    tt = t[ok]
+    if tt.size == 0:
+        raise ValueError(f"track {track.name!r}: no row has x, y and psi all measured")
+    cut = np.flatnonzero(np.diff(tt) > gap + 1e-9)
+    lo = np.r_[0, cut + 1]
+    hi = np.r_[cut, tt.size - 1]
+    return [(float(tt[a]), float(tt[b])) for a, b in zip(lo, hi)]

@@ -18,7 +18,7 @@ import re
 
 import numpy as np
 
-from .track import INPUT_NAMES, Track
+from .track import INPUT_NAMES, Track, continuous_pieces
 
 #: (factor, unit) pairs a speed column is recognised in when its ratio to the ground speed from
 #: the positions is within 15 % of the factor.
@@ -44,7 +44,7 @@ def _ratio(a, b):
 
 #: A run of empty cells in an input column is a hole when the logged values on either side of it
 #: are more than this many sample intervals apart (the track's or, for an input logged more slowly,
-#: its own median interval; the rule of :func:`bayesid.models.context.continuous_pieces`).
+#: its own median interval; the rule of :func:`bayesid.data.track.continuous_pieces`).
 HOLE_INTERVALS = 5.0
 #: A vessel moving faster than this (m/s, median) with its propeller at 0 rpm in every row gets a
 #: warning: a propeller that was not logged, rather than a ship drifting.
@@ -214,6 +214,25 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
     return []
 
 
+def _looks_like_rad(track: Track) -> bool:
+    """A heading in rad by the measures :func:`_check_heading` refuses degrees on (wrapped or
+    not): no jumps of about 360, changing by at most 0.5 per sample (median), and beyond 2 pi
+    turning at less than 1 unit/s (95th percentile)."""
+    t = np.asarray(track.t, float)
+    psi = np.asarray(track["psi"], float)
+    ok = np.isfinite(psi)
+    fin = psi[ok]
+    if fin.size < 2:
+        return False
+    top, jumps = float(np.max(np.abs(fin))), np.abs(np.diff(fin))
+    if float(np.median(jumps)) > 0.5 or (2 * math.pi + 0.1 < top <= 361.0 and (jumps > 300.0).any()):
+        return False
+    if top > 2 * math.pi + 0.1:
+        rate = np.abs(np.diff(fin) / np.diff(t[ok]))
+        return not (rate.size and np.percentile(rate, 95) > 1.0)
+    return True
+
+
 def _check_heading(track: Track, refuse) -> None:
     """The unit checks of the heading (against the yaw rate r when logged): ``refuse(column,
     message)`` raises for a heading, yaw rate or clock in the wrong unit."""
@@ -323,6 +342,149 @@ def _gain(X: np.ndarray, y: np.ndarray, inflation: float, at: int = 1) -> tuple[
     return float(coef[at]), float(coef[at] / se)
 
 
+#: Median |course over ground - heading| (deg) within which a reading of the heading fits the
+#: track (:func:`heading_course`), when the other reading is 20 deg further off: a vessel's drift
+#: angle stays below it over most of a run (KVLCC2's 35 deg turning circle: 26 deg).
+HEADING_COURSE_DEG = 45.0
+#: Above this median |course over ground - heading (+ drift angle)| (deg), a heading that turns
+#: with the track is warned about: an offset between the heading and the positions (a magnetic
+#: heading, a heading relative to the start, a sensor's mounting), or a vessel going astern or
+#: sideways without u, v logged. The largest over the real runs (1-20 Hz, u and v dropped at
+#: 1 Hz) but one: 28.5 deg (a low-speed Esso Osaka run at 1 Hz); that one, going astern, 60 deg;
+#: a simulated KVLCC2 35 deg turning circle 26 deg.
+HEADING_OFFSET_DEG = 40.0
+#: Share of the turns (the heading changing by more than 5 deg over a baseline) in which the
+#: course over ground turns the same way, below which the heading is refused as turning the other
+#: way (counted counterclockwise, or a mathematical angle): each of the 48 real HSVA and Esso Osaka
+#: runs (at 20, 10 and 1 Hz) turns the same way in 0.85 of its turns or more, each with its heading
+#: negated in 0.04 or fewer.
+TURN_AGREEMENT = 0.2
+
+
+def _noise_sd2(y) -> float:
+    """A signal's sample noise, robustly, from its second differences (1.4826 MAD / sqrt 6; the
+    estimator of :func:`bayesid.protocol.estimate_noise`, which this layer does not import)."""
+    d = np.diff(np.asarray(y, float), 2)
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(6.0)) if d.size > 2 else 0.0
+
+
+def heading_course(track: Track, baseline_s: float = 5.0) -> dict | None:
+    """How the heading agrees with the course over ground (the direction of travel over
+    ``baseline_s``, ``atan2(dy, dx)``: from north, clockwise, in the package's north-east-down
+    frame): whether they turn the same way, and the median absolute difference (deg) between the
+    course and the heading at the middle of each baseline, read three ways: as logged (``psi``
+    clockwise from north; plus the drift angle ``atan2(v, u)`` when the track logs ``u`` and
+    ``v``: a vessel going astern or sideways), counterclockwise (``-psi``) and as a mathematical
+    angle from the x axis (``pi/2 - psi``). Only baselines along which the vessel moves (a
+    displacement above half the median one and ten times the positions' noise) count.
+
+    Parameters
+    ----------
+    track : Track
+        With ``x``, ``y`` (m) and ``psi`` (rad).
+    baseline_s : float, default 5.0
+        Baseline of the course, s.
+
+    Returns
+    -------
+    dict or None
+        ``as_logged``, ``counterclockwise``, ``from_x_axis`` (deg), ``n`` (baselines used),
+        ``turn_agreement`` (share of the turns, baselines ``baseline_s`` apart over which the
+        heading changes by more than 5 deg, in which the course turns the same way; None with
+        fewer than 10 turns, or turns of more than 60 deg per baseline, median: a clock in other
+        units) and ``n_turns``; None without the columns or fewer than 10 moving baselines.
+    """
+    if any(k not in track for k in ("x", "y", "psi")):
+        return None
+    t = np.asarray(track.t, float)
+    x, y, psi = (np.asarray(track[k], float) for k in ("x", "y", "psi"))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(psi)
+    if ok.sum() < 20:
+        return None
+    t, x, y, psi = t[ok], x[ok], y[ok], psi[ok]
+    h = float(np.median(np.diff(t)))
+    if not h > 0:
+        return None
+    k = max(1, min(int(round(baseline_s / h)), t.size // 4))
+    dx, dy = x[k:] - x[:-k], y[k:] - y[:-k]
+    dist = np.hypot(dx, dy)
+    moving = dist > max(10.0 * math.hypot(_noise_sd2(x), _noise_sd2(y)), 0.5 * float(np.median(dist)))
+    if moving.sum() < 10:
+        return None
+    course_all = np.arctan2(dy, dx)
+    head_all = np.angle(np.exp(1j * psi[:-k]) + np.exp(1j * psi[k:]))
+    course, head = course_all[moving], head_all[moving]
+    drift = 0.0
+    if "u" in track and "v" in track:
+        u, v = (np.asarray(track[c], float)[ok] for c in ("u", "v"))
+        b = np.exp(1j * np.arctan2(v, u))
+        b = np.angle(b[:-k] + b[k:])[moving]
+        drift = np.where(np.isfinite(b), b, 0.0)
+
+    def wrap(a):
+        return np.angle(np.exp(1j * a))
+
+    def med(a):
+        return float(np.degrees(np.median(np.abs(wrap(a)))))
+
+    # the turns: baselines k apart, both moving, over which the heading changes by more than 5 deg
+    both = moving[:-k] & moving[k:] if moving.size > k else np.zeros(0, bool)
+    dc = wrap(course_all[k:] - course_all[:-k])[both]
+    dh = wrap(head_all[k:] - head_all[:-k])[both]
+    turning = np.abs(dh) > math.radians(5.0)
+    # a baseline over which the heading typically turns by more than 60 deg (a clock in other units)
+    # aliases the course's turns: no verdict
+    judged = turning.sum() >= 10 and float(np.median(np.abs(dh[turning]))) < math.radians(60.0)
+    agree = float(np.mean(np.sign(dc[turning]) == np.sign(dh[turning]))) if judged else None
+    return {
+        "as_logged": med(course - head - drift),
+        "counterclockwise": med(course + head),
+        "from_x_axis": med(course - (math.pi / 2 - head)),
+        "n": int(moving.sum()),
+        "turn_agreement": agree,
+        "n_turns": int(turning.sum()),
+    }
+
+
+def _check_heading_course(track: Track, refuse, warn: list, name: str) -> None:
+    """Refuse a heading that turns the other way from the course over ground
+    (:func:`heading_course`, :data:`TURN_AGREEMENT`), naming the reading that fits; warn of an
+    offset between a heading that turns with the track and the course
+    (:data:`HEADING_OFFSET_DEG`)."""
+    got = heading_course(track)
+    if got is None:
+        return
+    frame = (
+        "the package's frame is north-east-down: x north, y east, psi clockwise from north (from x towards y), "
+        "the course over ground atan2(dy, dx)"
+    )
+    agree = got["turn_agreement"]
+    if agree is not None and agree < TURN_AGREEMENT:
+        ccw, fx = got["counterclockwise"], got["from_x_axis"]
+        if fx <= HEADING_COURSE_DEG and ccw - fx >= 20.0:
+            how = (
+                f"it is measured from the other axis (|course - (pi/2 - psi)| {got['from_x_axis']:.0f} deg, median): "
+                "a mathematical angle from x, or x and y swapped (x east, y north): use psi' = pi/2 - psi and "
+                "r' = -r, or swap x and y"
+            )
+        elif ccw <= HEADING_COURSE_DEG and fx - ccw >= 20.0:
+            how = f"|course + psi| {got['counterclockwise']:.0f} deg (median): negate psi and r"
+        else:
+            how = "with an offset besides: negate psi and r, then check the offset"
+        refuse(
+            "psi",
+            f"the heading turns the other way from the course over ground (in {1 - agree:.0%} of "
+            f"{got['n_turns']} turns of 5 s): it is counted counterclockwise; {how}; {frame}",
+        )
+    if got["as_logged"] > HEADING_OFFSET_DEG:
+        warn.append(
+            f"{name}: column 'psi': the heading differs from the course over ground by a median "
+            f"{got['as_logged']:.0f} deg over {got['n']} baselines of 5 s (a vessel's drift angle is smaller over "
+            "most of a run): an offset (a magnetic or relative heading, a sensor's mounting) or a vessel going astern "
+            "or sideways (with u and v logged the check allows for the drift angle)? " + frame
+        )
+
+
 def _check_rudder_sign(track: Track, refuse, warn: list, name: str) -> None:
     """Refuse (or warn about) a rudder that turns the vessel the other way than the package's
     convention says (:func:`rudder_response`): both the yaw-rate gain and the steady gain
@@ -334,7 +496,12 @@ def _check_rudder_sign(track: Track, refuse, warn: list, name: str) -> None:
         f"a positive rudder angle turns the vessel to starboard in this run (yaw-rate gain t = {resp['t']:.1f}, "
         f"steady turn-rate gain t = {resp['t_K']:.1f}), while the package's convention is + = to port (SNAME); "
         "if the log uses + = to starboard (MMG papers), put the line '# rudder positive: starboard' before its "
-        "header (delta_r is then negated on reading)"
+        "header (delta_r is then negated on reading); if instead its heading alone is counted counterclockwise, "
+        "negate psi and r (on a run along the x axis the course over ground cannot tell); if its x, y, psi are "
+        "in a frame that turns the "
+        "other way (x east, y north, psi counterclockwise from x: the heading then agrees with the course over "
+        "ground and only the turns are mirrored), convert them to the package's north-east-down frame (x north, "
+        "y east, psi clockwise from north: swap x and y, psi' = pi/2 - psi, r' = -r)"
     )
     if resp["t"] + resp["t_K"] > RUDDER_SIGN_T:
         refuse("delta_r", msg)
@@ -458,12 +625,10 @@ def _check_log_rate(track: Track, name: str) -> list[str]:
 
 def _check_pieces(track: Track, name: str) -> list[str]:
     """A warning naming the gaps that split a track into continuous pieces
-    (:func:`bayesid.models.context.continuous_pieces`: no x, y or psi, or no sample, for more than
+    (:func:`bayesid.data.track.continuous_pieces`: no x, y or psi, or no sample, for more than
     five sample intervals): every command fits and scores each piece on its own (no window crosses
     a gap, and a piece too short for a window is left out), which a user reading the scores should
     know."""
-    from ..models.context import continuous_pieces
-
     if any(k not in track or not np.isfinite(np.asarray(track[k], float)).any() for k in ("x", "y", "psi")):
         return []
     pieces = continuous_pieces(track)
@@ -534,7 +699,6 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             m = float(np.nanmax(np.abs(track[col]))) if np.isfinite(track[col]).any() else 0.0
             if m > math.pi / 2 + 1e-6:
                 refuse(col, f"values up to {m:.4g} cannot be a control-surface angle in rad; it looks like degrees")
-    _check_rudder_sign(track, refuse, warn, name)
     warn += _check_rudder_limit(track, vehicle, name)
     warn += _check_log_rate(track, name)
     warn += _check_pieces(track, name)
@@ -583,6 +747,11 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         m = float(np.nanmax(np.abs(track["wind_dir"])))
         if m > 2 * math.pi + 0.1:
             refuse("wind_dir", f"values up to {m:.4g} cannot be a direction in rad; it looks like degrees")
+    # the conventions, once the units passed: the heading against the course over ground first (a heading
+    # counted the other way would otherwise read as a rudder of the other sign)
+    if "psi" in track and np.isfinite(track["psi"]).sum() > 10 and _looks_like_rad(track):
+        _check_heading_course(track, refuse, warn, name)
+    _check_rudder_sign(track, refuse, warn, name)
     if "n" in track and np.isfinite(track["n"]).any():
         n_med = float(np.nanmedian(track["n"]))
         ahead = body if body is not None else ground
