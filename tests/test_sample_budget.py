@@ -204,18 +204,23 @@ def test_a_soft_limit_stops_the_draws_only_while_they_fail_the_verdict(posterior
     slow = SlowPosterior(post.ob, post.errors, post.prior, post.nuisance)
     slow.delay = 0.1
     slow.linearise_starts(mode["p"], mode["cov"])
-    opts = tp.ImportanceOptions(n_draws=1000, chunk=100)
+    opts = tp.ImportanceOptions(n_draws=1500, chunk=100)
     said = []
     runner = Runner(progress=said.append)
     rng = np.random.default_rng
-    # the soft limits in chunks, as this machine computes them now (a loaded machine is slower)
+    # the soft limits in chunks, as this machine computes them now (a loaded machine is slower), after a
+    # warm-up (run alone, the first evaluation is the slowest and the limits came out too long to bind)
+    tp.importance_laplace(slow, mode["p"], mode["cov"], rng(1), tp.ImportanceOptions(n_draws=100, chunk=100))
     t0 = time.perf_counter()
     tp.importance_laplace(slow, mode["p"], mode["cov"], rng(1), tp.ImportanceOptions(n_draws=100, chunk=100))
     chunk_s = time.perf_counter() - t0
+    # 2.5 chunks: two or three chunks run, too few for an ESS of 400 (0.87 of the draws): stopped at the soft limit
     early = tp.importance_laplace(slow, mode["p"], mode["cov"], rng(1), opts, runner=runner, soft_seconds=2.5 * chunk_s)
-    assert early["cut"] and early["done"] < 400  # too few for an ESS of 400: stopped at the soft limit
-    going = tp.importance_laplace(slow, mode["p"], mode["cov"], rng(1), opts, runner=runner, soft_seconds=8 * chunk_s)
-    assert not going["cut"] and going["done"] == 1000 and going["ess"] >= 400
+    assert early["cut"] and early["done"] < 500 and early["ess"] < 400, early
+    # 7 chunks: the limit binds after 5-9 of the 15 chunks even when this run's chunks take 0.5-1.5 x the
+    # measured one, with an ESS above 400 by then: the draws go on within the whole budget
+    going = tp.importance_laplace(slow, mode["p"], mode["cov"], rng(1), opts, runner=runner, soft_seconds=7 * chunk_s)
+    assert not going["cut"] and going["done"] == 1500 and going["ess"] >= 400
     assert any(m.startswith("importance: reliable already after") for m in said), said
 
 
