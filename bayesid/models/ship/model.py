@@ -358,7 +358,10 @@ class ShipModel(ParameterLayout):
         """
         prm, cur, delay = self.kernel_params(P)
         B = prm.shape[0]
-        U = ctx.held_inputs(B) if delay is None else ctx.average_inputs(np.asarray(delay, float))
+        if delay is not None:
+            U = ctx.average_inputs(np.asarray(delay, float))
+        else:  # the track's own inputs broadcast over the rows (no copy), or each row's
+            U = ctx.step_inputs[None] if getattr(ctx, "row_inputs", None) is None else ctx.held_inputs(B)
         inp = np.empty((B, ctx.n_steps, 2))
         inp[:, :, 0] = U[:, :, 0]
         inp[:, :, 1] = U[:, :, 3] / 60.0
