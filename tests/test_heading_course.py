@@ -103,3 +103,25 @@ def test_a_clock_in_minutes_gives_no_verdict_on_the_turns(runs):
         validate.check_track(slow, None, "minutes.csv")
     except ValueError as exc:
         assert "turns the other way" not in str(exc), exc
+
+
+def test_a_fast_zigzag_logged_at_10_hz_turns_with_its_course():
+    """REMUS 100's 10/10 zigzag (a 7 s period) with 2 cm position noise: a 5-s chord lags its
+    heading so far that the turns read reversed (the docs walkthrough's fit was refused); the
+    chords are as short as the noise allows, the heading averaged along them."""
+    from pathlib import Path
+
+    from bayesid.models import load_any_vehicle
+    from bayesid.models import manoeuvres as mv
+    from bayesid.models.world import LogOptions, world_track
+
+    veh = load_any_vehicle(str(Path(__file__).resolve().parents[1] / "docs" / "examples" / "remus100.toml"))
+    noise = {"x": 0.02, "y": 0.02, "psi": math.radians(0.2)}
+    tr = world_track(
+        veh, mv.zigzag(veh, 10.0, dt=0.1, duration=120.0), {}, np.random.default_rng(1), LogOptions(noise=noise)
+    )
+    got = validate.heading_course(tr)
+    assert got["turn_agreement"] > 0.9 and got["as_logged"] < 5.0, got
+    assert not [w for w in validate.check_track(tr) if "course over ground" in w]
+    flipped = _with(tr, psi=-np.asarray(tr["psi"]), r=-np.asarray(tr["r"]))
+    assert validate.heading_course(flipped)["turn_agreement"] < validate.TURN_AGREEMENT

@@ -356,7 +356,7 @@ HEADING_OFFSET_DEG = 40.0
 #: Share of the turns (the heading changing by more than 5 deg over a baseline) in which the
 #: course over ground turns the same way, below which the heading is refused as turning the other
 #: way (counted counterclockwise, or a mathematical angle): each of the 48 real HSVA and Esso Osaka
-#: runs (at 20, 10 and 1 Hz) turns the same way in 0.85 of its turns or more, each with its heading
+#: runs (at 20, 10 and 1 Hz) turns the same way in 0.83 of its turns or more, each with its heading
 #: negated in 0.04 or fewer.
 TURN_AGREEMENT = 0.2
 
@@ -369,10 +369,11 @@ def _noise_sd2(y) -> float:
 
 
 def heading_course(track: Track, baseline_s: float = 5.0) -> dict | None:
-    """How the heading agrees with the course over ground (the direction of travel over
-    ``baseline_s``, ``atan2(dy, dx)``: from north, clockwise, in the package's north-east-down
-    frame): whether they turn the same way, and the median absolute difference (deg) between the
-    course and the heading at the middle of each baseline, read three ways: as logged (``psi``
+    """How the heading agrees with the course over ground (the direction of travel along a chord,
+    ``atan2(dy, dx)``: from north, clockwise, in the package's north-east-down frame; the chord the
+    shortest baseline over which the vessel moves 50 times the positions' noise, at most
+    ``baseline_s``): whether they turn the same way, and the median absolute difference (deg)
+    between the course and the heading along each chord (circular mean), read three ways: as logged (``psi``
     clockwise from north; plus the drift angle ``atan2(v, u)`` when the track logs ``u`` and
     ``v``: a vessel going astern or sideways), counterclockwise (``-psi``) and as a mathematical
     angle from the x axis (``pi/2 - psi``). Only baselines along which the vessel moves (a
@@ -389,8 +390,8 @@ def heading_course(track: Track, baseline_s: float = 5.0) -> dict | None:
     -------
     dict or None
         ``as_logged``, ``counterclockwise``, ``from_x_axis`` (deg), ``n`` (baselines used),
-        ``turn_agreement`` (share of the turns, baselines ``baseline_s`` apart over which the
-        heading changes by more than 5 deg, in which the course turns the same way; None with
+        ``turn_agreement`` (share of the turns, chords ``baseline_s`` apart over which the heading
+        changes by more than 5 deg, in which the course turns the same way; None with
         fewer than 10 turns, or turns of more than 60 deg per baseline, median: a clock in other
         units) and ``n_turns``; None without the columns or fewer than 10 moving baselines.
     """
@@ -405,21 +406,33 @@ def heading_course(track: Track, baseline_s: float = 5.0) -> dict | None:
     h = float(np.median(np.diff(t)))
     if not h > 0:
         return None
-    k = max(1, min(int(round(baseline_s / h)), t.size // 4))
+    noise = math.hypot(_noise_sd2(x), _noise_sd2(y))
+    step = float(np.median(np.hypot(np.diff(x), np.diff(y))))
+    # the shortest baseline whose chord is 50 x the positions' noise (the course to about 1.6 deg), at most
+    # baseline_s: a longer chord lags the heading and aliases a fast zigzag's turns (REMUS 100's 7 s period)
+    k_noise = int(math.ceil(50.0 * noise / step)) if step > 0 else t.size
+    k = max(1, min(k_noise, int(round(baseline_s / h)), t.size // 4))
     dx, dy = x[k:] - x[:-k], y[k:] - y[:-k]
     dist = np.hypot(dx, dy)
-    moving = dist > max(10.0 * math.hypot(_noise_sd2(x), _noise_sd2(y)), 0.5 * float(np.median(dist)))
+    moving = dist > max(10.0 * noise, 0.5 * float(np.median(dist)))
     if moving.sum() < 10:
         return None
+
+    def along(angle):
+        """The circular mean of an angle over each chord's samples."""
+        c = np.concatenate([[0.0], np.cumsum(np.exp(1j * angle))])
+        return np.angle(c[k + 1 :] - c[: -k - 1])
+
     course_all = np.arctan2(dy, dx)
-    head_all = np.angle(np.exp(1j * psi[:-k]) + np.exp(1j * psi[k:]))
+    head_all = along(psi)
     course, head = course_all[moving], head_all[moving]
     drift = 0.0
     if "u" in track and "v" in track:
         u, v = (np.asarray(track[c], float)[ok] for c in ("u", "v"))
-        b = np.exp(1j * np.arctan2(v, u))
-        b = np.angle(b[:-k] + b[k:])[moving]
-        drift = np.where(np.isfinite(b), b, 0.0)
+        b = np.arctan2(v, u)
+        b = along(np.where(np.isfinite(b), b, 0.0))[moving]
+        drift = b
+    course_sd = math.sqrt(2.0) * noise / max(float(np.median(dist[moving])), 1e-12)
 
     def wrap(a):
         return np.angle(np.exp(1j * a))
@@ -427,11 +440,14 @@ def heading_course(track: Track, baseline_s: float = 5.0) -> dict | None:
     def med(a):
         return float(np.degrees(np.median(np.abs(wrap(a)))))
 
-    # the turns: baselines k apart, both moving, over which the heading changes by more than 5 deg
-    both = moving[:-k] & moving[k:] if moving.size > k else np.zeros(0, bool)
-    dc = wrap(course_all[k:] - course_all[:-k])[both]
-    dh = wrap(head_all[k:] - head_all[:-k])[both]
-    turning = np.abs(dh) > math.radians(5.0)
+    # the turns: chords baseline_s apart (both short: course and heading at the same instants, so the
+    # drift angle alone tells them apart), both moving, over which the heading changes by more than 5 deg
+    # and three times the course's noise
+    m = max(k, min(int(round(baseline_s / h)), t.size // 4))
+    both = moving[:-m] & moving[m:] if moving.size > m else np.zeros(0, bool)
+    dc = wrap(course_all[m:] - course_all[:-m])[both]
+    dh = wrap(head_all[m:] - head_all[:-m])[both]
+    turning = np.abs(dh) > max(math.radians(5.0), 3.0 * course_sd)
     # a baseline over which the heading typically turns by more than 60 deg (a clock in other units)
     # aliases the course's turns: no verdict
     judged = turning.sum() >= 10 and float(np.median(np.abs(dh[turning]))) < math.radians(60.0)
