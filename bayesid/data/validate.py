@@ -214,25 +214,6 @@ def check_vessel(track: Track, vehicle, where: str | None = None) -> list[str]:
     return []
 
 
-def _looks_like_rad(track: Track) -> bool:
-    """A heading in rad by the measures :func:`_check_heading` refuses degrees on (wrapped or
-    not): no jumps of about 360, changing by at most 0.5 per sample (median), and beyond 2 pi
-    turning at less than 1 unit/s (95th percentile)."""
-    t = np.asarray(track.t, float)
-    psi = np.asarray(track["psi"], float)
-    ok = np.isfinite(psi)
-    fin = psi[ok]
-    if fin.size < 2:
-        return False
-    top, jumps = float(np.max(np.abs(fin))), np.abs(np.diff(fin))
-    if float(np.median(jumps)) > 0.5 or (2 * math.pi + 0.1 < top <= 361.0 and (jumps > 300.0).any()):
-        return False
-    if top > 2 * math.pi + 0.1:
-        rate = np.abs(np.diff(fin) / np.diff(t[ok]))
-        return not (rate.size and np.percentile(rate, 95) > 1.0)
-    return True
-
-
 def _check_heading(track: Track, refuse) -> None:
     """The unit checks of the heading (against the yaw rate r when logged): ``refuse(column,
     message)`` raises for a heading, yaw rate or clock in the wrong unit."""
@@ -763,9 +744,10 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
         m = float(np.nanmax(np.abs(track["wind_dir"])))
         if m > 2 * math.pi + 0.1:
             refuse("wind_dir", f"values up to {m:.4g} cannot be a direction in rad; it looks like degrees")
-    # the conventions, once the units passed: the heading against the course over ground first (a heading
-    # counted the other way would otherwise read as a rudder of the other sign)
-    if "psi" in track and np.isfinite(track["psi"]).sum() > 10 and _looks_like_rad(track):
+    # the conventions, once the units passed (_check_heading has refused a heading in degrees): the heading
+    # against the course over ground first (a heading counted the other way would otherwise read as a rudder
+    # of the other sign)
+    if "psi" in track and np.isfinite(track["psi"]).sum() > 10:
         _check_heading_course(track, refuse, warn, name)
     _check_rudder_sign(track, refuse, warn, name)
     if "n" in track and np.isfinite(track["n"]).any():
