@@ -15,6 +15,28 @@ from ..models.context import INPUT_RECONSTRUCTIONS
 __all__ = ["CalibrationOptions", "FitOptions"]
 
 
+def check_rudder_rate_reading(inputs: str, rudder_rate_deg_s) -> None:
+    """Refuse a steering gear's rate given with a reading of the logged inputs that does not use it
+    (only ``inputs="rate"`` reads it): the fit's and the gap diagnosis's options.
+
+    Parameters
+    ----------
+    inputs : str
+        The reading (``"hold"``, ``"linear"``, ``"rate"``).
+    rudder_rate_deg_s : float or None
+        The gear's rate, deg/s.
+
+    Raises
+    ------
+    ValueError
+        A rate with another reading than ``"rate"``, naming both options.
+    """
+    if rudder_rate_deg_s is not None and inputs != "rate":
+        raise ValueError(
+            f"--rudder-rate is the gear's rate of --inputs rate: with --inputs {inputs} it would not be used"
+        )
+
+
 @dataclass(frozen=True)
 class FitOptions:
     """What a fit identifies and how (:func:`bayesid.estimation.identification.identify`).
@@ -112,10 +134,7 @@ class FitOptions:
             raise ValueError(
                 f"FitOptions.inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}"
             )
-        if self.rudder_rate_deg_s is not None and self.inputs != "rate":
-            raise ValueError(
-                f"--rudder-rate is the gear's rate of --inputs rate: with --inputs {self.inputs} it would not be used"
-            )
+        check_rudder_rate_reading(self.inputs, self.rudder_rate_deg_s)
         if self.retime and self.inputs != "rate":
             raise ValueError(
                 "--retime estimates the rudder's movements at the gear's rate: it needs --inputs rate "

@@ -14,6 +14,7 @@ from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.indices import manoeuvre_kind
 from ...estimation.multistart import multistart
+from ...estimation.options import check_rudder_rate_reading
 from ...estimation.windows import (
     FitProblem,
     check_enough_data,
@@ -384,10 +385,7 @@ class DiagnoseOptions:
         r = self.rudder_rate_deg_s
         if r is not None and not (math.isfinite(r) and r > 0):
             raise ValueError(f"rudder_rate_deg_s must be a positive number of deg/s, not {r!r}")
-        if r is not None and self.inputs != "rate":
-            raise ValueError(
-                f"--rudder-rate is the gear's rate of --inputs rate: with --inputs {self.inputs} it would not be used"
-            )
+        check_rudder_rate_reading(self.inputs, r)
         if self.candidates is not None and not isinstance(self.candidates, tuple):
             object.__setattr__(self, "candidates", tuple(self.candidates))
         object.__setattr__(self, "base_effects", tuple(self.base_effects))
