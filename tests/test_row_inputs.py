@@ -94,3 +94,29 @@ def test_each_draws_zigzag_found_in_lock_step_is_the_one_it_finds_alone(vehicle)
     switches = [np.flatnonzero(np.diff(np.sign(np.round(r, 9))) != 0).size for r in rows]
     assert min(switches) >= 3
     assert len({tuple(np.round(r[::50], 6)) for r in rows}) > 1
+
+
+def test_a_long_zigzag_keeps_reversing_to_the_end_of_the_run():
+    """A zigzag with more reversals than the search once allowed (12) reverses at every check
+    angle to the run's end: its heading stays about the original course, and the indices read a
+    zigzag (the search held the 13th rudder to the end: a turn, and NaN overshoots)."""
+    from bayesid.estimation.indices import manoeuvre_indices
+
+    model = build_model(load_any_vehicle("nps_auv2"), ["Yv", "Nr", "Ndr"])
+    approach = {**APPROACH, "u": 1.5, "rpm": 1500.0, "duration_s": 240.0}
+    run = dz.ManoeuvreRun("zigzag", 10.0, 10.0, "port", 1500.0, 240.0)
+    t = np.arange(0.0, 240.0, min(0.1, model.dt))
+    P = np.repeat(np.asarray(model.start(), float)[None], 2, axis=0)
+    P[1, : model.n_theta] *= 1.2  # another hull: other switch times
+    rows = dz.zigzag_rudders(model, P, run, approach, t)
+    tracks = [dz.input_track(t, r, np.full_like(t, 1500.0), approach) for r in rows]
+    for rudder, sim in zip(rows, dz.simulate_runs(model, P, tracks, approach)):
+        held = np.abs(rudder) > 1e-9
+        side = np.sign(rudder[held])
+        reversals = t[held][1:][np.diff(side) != 0]
+        assert reversals.size > 12, reversals.size  # measured: 14 and 15 in 240 s
+        assert reversals[-1] > 240.0 - 2.0 * np.diff(reversals).max()  # still reversing at the end
+        heading = np.degrees(np.unwrap(sim["psi"]) - sim["psi"][0])
+        assert np.abs(heading).max() < 25.0, np.abs(heading).max()  # measured 17.6-18.8 deg
+        got = manoeuvre_indices(sim.t, sim["x"], sim["y"], sim["psi"], sim["delta_r"])
+        assert got["kind"] == "zigzag" and np.isfinite(got["second_overshoot_deg"]), got.get("reason")

@@ -512,7 +512,8 @@ def zigzag_rudders(model, P, run: ManoeuvreRun, approach: dict, t: np.ndarray) -
     Returns
     -------
     ndarray, shape (B, n)
-        Rudder angle, rad; a row whose run diverges keeps the orders found before.
+        Rudder angle, rad: reversed at every check angle the heading passes until the run's end;
+        a row whose run diverges keeps the orders found before.
     """
     P = np.atleast_2d(np.asarray(P, float))
     a = math.radians(run.rudder_deg) * (1.0 if run.side == "port" else -1.0)
@@ -521,7 +522,11 @@ def zigzag_rudders(model, P, run: ManoeuvreRun, approach: dict, t: np.ndarray) -
     n = np.full_like(t, approach["rpm"])
     turn: list = [None] * len(P)
     live = list(range(len(P)))
-    for _ in range(12):
+    # every pass adds at most one reversal per row, each at a later sample than the row's last:
+    # the search ends when no row's heading passes another check angle before the run's end
+    # (at most one pass per sample; it stopped after 12 reversals before, and a longer run held
+    # its last rudder from there on: a turn, not a zigzag)
+    for _ in range(t.size):
         if not live:
             break
         tracks = [_track(t, _ramp(t, orders[b], approach["rudder_rate"]), n, approach) for b in live]
