@@ -1067,8 +1067,10 @@ def window_scatter(before, after, path=None, title: str = "", labels=("reference
     ax.plot(b, a, "o", ms=4, color="tab:blue", label=f"{better} of {b.size} windows better")
     ax.set_xlim(0, top)
     ax.set_ylim(0, top)
-    ax.set_xlabel(f"{labels[0]}: window RMS position error (m)")
-    ax.set_ylabel(f"{labels[1]}: window RMS position error (m)")
+    # a long model name (e.g. "with Ydrabsdr (best refitted, not kept)") wraps: on one line the
+    # vertical label ran past the figure's height and its unit was cut off
+    ax.set_xlabel(textwrap.fill(f"{labels[0]}: window RMS position error (m)", 60))
+    ax.set_ylabel(textwrap.fill(f"{labels[1]}: window RMS position error (m)", 50))
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8)
     return _done(fig, ax, path)
