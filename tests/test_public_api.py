@@ -184,6 +184,14 @@ def test_the_command_leaves_the_same_effects_out_and_says_so_once(ship_runs, tmp
         assert capsys.readouterr().out.count(f"  {said}\n") == 1
         got = json.loads((out / "diagnosis.json").read_text())["settings"]["candidates"]
         assert got == [c for c in catalogue if c not in left_out]
-    # an effect already left out cannot be excluded (as before)
-    assert main([*base, "--exclude", "wind", "--out", str(tmp_path / "dw")]) != 0
-    assert "--exclude wind: not among the candidates" in capsys.readouterr().err
+    # excluding an effect the columns already left out is said and skipped: what was asked for holds
+    assert main([*base, "--exclude", "wind", "--out", str(tmp_path / "dw")]) == 0
+    assert "--exclude wind: already left out (the tracks lack its columns)" in capsys.readouterr().out
+    got = json.loads((tmp_path / "dw" / "diagnosis.json").read_text())["settings"]["candidates"]
+    assert got == [c for c in catalogue if c != "wind"]
+    # a name of no effect in the catalogue is refused, naming it (exit 2)
+    assert main([*base, "--exclude", "wnid", "--out", str(tmp_path / "dx")]) == 2
+    assert "--exclude wnid: not among the candidates" in capsys.readouterr().err
+    # so is one left out of the caller's own --candidates
+    assert main([*base, "--candidates", "delay", "--exclude", "wind", "--out", str(tmp_path / "dy")]) == 2
+    assert "--exclude wind: not among the candidates ['delay']" in capsys.readouterr().err

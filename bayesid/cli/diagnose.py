@@ -229,7 +229,10 @@ def run_and_write(args, vehicle, free, got: dict, options):
 def _candidates(args, family, tracks) -> list | None:
     """The candidate effects: ``--candidates``, or None without ``--exclude``: the catalogue less
     the effects whose columns not every track has, left to :func:`~bayesid.analysis.gap.diagnose`
-    (which says them); less ``--exclude`` (ValueError for one not among them)."""
+    (which says them); less ``--exclude``. An excluded effect of the catalogue that the tracks'
+    columns already left out is said and skipped (e.g. ``--exclude wind`` on tracks without wind
+    columns: what the user asked for holds); ValueError for any other name not among the
+    candidates."""
     from ..analysis.gap.diagnose import catalogue_candidates
 
     if not args.candidates and not args.exclude:
@@ -239,9 +242,12 @@ def _candidates(args, family, tracks) -> list | None:
     else:  # the catalogue as diagnose() takes it, said as its progress is
         cands = catalogue_candidates(family, tracks, tasks.Runner(progress=_progress))
     for c in opt.split_names(args.exclude, "--exclude"):
-        if c not in cands:
+        if c in cands:
+            cands.remove(c)
+        elif not args.candidates and c in family.CATALOGUE:
+            _progress(f"--exclude {c}: already left out (the tracks lack its columns)")
+        else:
             raise ValueError(f"--exclude {c}: not among the candidates {cands}")
-        cands.remove(c)
     return cands
 
 
