@@ -183,7 +183,7 @@ EXTRA_TERMS = {
 
 
 def test_generated_kernel_with_extra_hull_terms_agrees_with_the_interpreted_one():
-    # the generated kernel specialised to a term set reads each term's coefficient from the row
+    # the generated kernel reads each term's degree of freedom, exponents and coefficient from the row
     shp = ship.load_ship("kvlcc2_7m").with_coefficients(EXTRA_TERMS)
     args = _case("kvlcc2_7m", 4)
     terms = shp.hull_terms
@@ -201,6 +201,12 @@ def test_generated_kernel_with_extra_hull_terms_agrees_with_the_interpreted_one(
     # and the terms change the motion (the kernels do not ignore them)
     base, _ = _run(shipdyn.simulate_windows, [*args[:5], args[5][:, : layout.NP], args[6]])
     assert np.nanmax(np.abs(base[..., 5] - ref[..., 5])) > 1e-3
+    # one compiled kernel serves every term set (a compile per set cost 8-17 s, one per candidate
+    # term discovery refits); the kernel without terms is the one without the term loop
+    other = ship.hullterms.signature(ship.load_ship("kvlcc2_7m").with_coefficients({"Nvvv": 0.01}).hull_terms)
+    assert shipkernel.generated(2, other) is shipkernel.generated(2, ship.hullterms.signature(terms))
+    assert shipkernel.generated(2, ()) is not shipkernel.generated(2, other)
+    assert "_terms(" not in shipkernel.source(2, ()) and "_terms(" in shipkernel.source(2, other)
 
 
 def test_extra_hull_terms_in_the_forces_are_the_prime_form_columns():

@@ -255,7 +255,8 @@ def index(terms) -> dict:
 
 
 def signature(terms) -> tuple:
-    """A hashable key of a term set's structure (the generated kernel is specialised to it).
+    """A hashable key of a term set's structure (the model's kernel cache key; the generated kernel
+    reads the terms from the parameter rows, so every non-empty set shares one compile).
 
     Parameters
     ----------

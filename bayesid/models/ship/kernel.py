@@ -49,9 +49,17 @@ best of 5 after warm-up): interpreted 380 tracks/s; generated 1 lane 1120, 2 lan
 3 lanes 1320, 4 lanes 1330 tracks/s, compiled in 4.5, 10, 15.5, 27 s. Without windage:
 interpreted 570, generated (2 lanes) 1610 tracks/s.
 
-The generated module is written once per lane count to :func:`bayesid.models.codegen.cache_dir`
-(:func:`bayesid.models.codegen.load_module`), named by the hash of its source, and compiled by
-numba with ``cache=True``, so the compile is paid once per machine.
+Extra hull terms (:mod:`bayesid.models.ship.hullterms`: structure discovery's candidates, a ship
+file's added terms) are not written into the source: a second kernel loops over them at run time,
+reading each term's degree of freedom, exponents and coefficient from the parameter row, so that
+every term set shares one compile. (A kernel specialised to each term set cost a compile of 8-17 s
+per set, and a diagnosis refits a dozen or more candidate terms.) The loop multiplies each term's
+factors in the order the specialised product was written in, and gives the same bits.
+
+The generated module is written once per lane count (with and without the term loop) to
+:func:`bayesid.models.codegen.cache_dir` (:func:`bayesid.models.codegen.load_module`), named by
+the hash of its source, and compiled by numba with ``cache=True``, so the compile is paid once per
+machine.
 """
 
 from __future__ import annotations
@@ -316,33 +324,66 @@ _KEEP = {
     "k",
     "wn",
     "we",
+    "nterm",
+    "_terms",
 }
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
-#: the row constants of the extra hull terms' coefficients
-_TERM_COEF = re.compile(r"cE\d+")
 #: RK4: stage s is evaluated at the state plus _FAC[s] times the previous stage's derivative
 _FAC = {2: "h2", 3: "h2", 4: "dt"}
 
 
-def _term_statements(terms) -> list[str]:
-    """The extra hull terms' forces (:mod:`bayesid.models.ship.hullterms`) as statements after the
-    hull block: ``terms`` is a :func:`~bayesid.models.ship.hullterms.signature`, the coefficient
-    of term k is the row constant ``cE{k}``."""
-    feats = ("v", "(r * L)", "abs(v)", "(abs(r) * L)", "dl", "abs(dl)")
-    out = []
-    if any(sum(e[:4]) > 2 for _, e in terms):
-        out.append("iU = 1.0 / U if U > 1e-9 else 0.0")
-    for k, (dof, e) in enumerate(terms):
-        fac = [f for f, n in zip(feats, e) for _ in range(n)]
-        fac += {0: ["U", "U"], 1: ["U"], 2: [], 3: ["iU"]}[sum(e[:4])]
-        out.append(f"{'XYN'[dof]} += {'qL' if dof == 2 else 'q'} * cE{k}" + "".join(f" * {f}" for f in fac))
-    return out
+# The extra hull terms (:mod:`bayesid.models.ship.hullterms`), read from the lane's parameter row at
+# run time: one compiled kernel serves every term set (a kernel specialised to each set cost a
+# compile of 8-17 s per set, one per candidate term that structure discovery refits). Each term's
+# force is the product of the specialised form's factors in its order -- the coefficient times
+# q (q L for N), each factor's power in the order of hullterms.FACTORS, then U^(2 - n) for n <= 2
+# velocity factors or 1/U for n = 3 (0 below 1e-9 m/s) -- multiplied one at a time, left to
+# right, so that the rounding is that of the written-out product. A function of its own, called
+# at each stage of each lane: the same loop inlined there doubled the kernel's compile (31 s
+# against 16 s, benchmarks/ship_terms.py).
+_TERMS_FUNCTION = f'''
+@nb.njit(cache=True, error_model="numpy")
+def _terms(p, nterm, v, r, L, dl, U, q, qL, X, Y, N):
+    """X, Y, N plus the extra hull terms' forces of parameter row p."""
+    for kt in range(nterm):
+        jt = {NP} + {TERM_WIDTH} * kt
+        ft = p[jt]
+        at = (qL if ft == 2.0 else q) * p[jt + {TERM_WIDTH - 1}]
+        for it in range(int(p[jt + 1])):
+            at = at * v
+        for it in range(int(p[jt + 2])):
+            at = at * (r * L)
+        for it in range(int(p[jt + 3])):
+            at = at * abs(v)
+        for it in range(int(p[jt + 4])):
+            at = at * (abs(r) * L)
+        for it in range(int(p[jt + 5])):
+            at = at * dl
+        for it in range(int(p[jt + 6])):
+            at = at * abs(dl)
+        nvt = int(p[jt + 1]) + int(p[jt + 2]) + int(p[jt + 3]) + int(p[jt + 4])
+        if nvt == 0:
+            at = at * U
+            at = at * U
+        elif nvt == 1:
+            at = at * U
+        elif nvt == 3:
+            at = at * (1.0 / U if U > 1e-9 else 0.0)
+        if ft == 0.0:
+            X += at
+        elif ft == 1.0:
+            Y += at
+        else:
+            N += at
+    return X, Y, N
+'''
+_RHS_TERMS = "X, Y, N = _terms(p, nterm, v, r, L, dl, U, q, qL, X, Y, N)"
 
 
-def _rhs_statements(stage: int, terms=()) -> list[str]:
+def _rhs_statements(stage: int, terms: bool = False) -> list[str]:
     """The right-hand side at RK4 ``stage`` (1..4) as statements on canonical names; the last ones
     assign ``D0``..``D5``, the derivatives of ``x, y, psi, u, v, r``. A statement may span lines
-    (a block). ``terms``: the extra hull terms' signature."""
+    (a block). ``terms``: with the loop over the extra hull terms of the row."""
     # cross-flow sums i0 = sum_k gw_k f(x_k), i1 = sum_k gw_k x_k f(x_k), f(x) = (v + x r)|v + x r|,
     # x_k = h gx_k: the nodes +-x_j (equal weights) in pairs
     gx, gw = GAUSS_X, GAUSS_W
@@ -359,7 +400,7 @@ def _rhs_statements(stage: int, terms=()) -> list[str]:
             f"i1 += {c!r} * h * {x!r} * (fp{j} - fm{j})",
         ]
     blocks = [_RHS_HEADING if stage == 1 else _RHS_HEADING_ADD, _RHS_HEAD, _RHS_WIND, _RHS_HULL]
-    head = [s for b in blocks for s in _split(b)] + _term_statements(terms) + _split(_RHS_WIND_ADD)
+    head = [s for b in blocks for s in _split(b)] + ([_RHS_TERMS] if terms else []) + _split(_RHS_WIND_ADD)
     return head + quad + _split(_RHS_TAIL) + _split(_RHS_ACC)
 
 
@@ -410,17 +451,17 @@ def _stage_name(stage: int, lane: int):
             return special[nm]
         if nm in _STATES:
             return f"{nm}_{lane}" if stage == 1 else f"{nm}_s{stage}_{lane}"
-        if nm in _ROW_NAMES or nm in _STEP_NAMES or _TERM_COEF.fullmatch(nm):
+        if nm in _ROW_NAMES or nm in _STEP_NAMES:
             return f"{nm}_{lane}"
         return f"{nm}_s{stage}_{lane}"
 
     return fn
 
 
-def _kernel_source(lanes: int, terms=()) -> str:
+def _kernel_source(lanes: int, terms: bool = False) -> str:
     """Source of ``simulate_windows``, the driver over (row group, window) jobs, and of ``_job``,
-    one job with the RK4 step inlined, ``lanes`` rows per job; ``terms`` the extra hull terms'
-    signature."""
+    one job with the RK4 step inlined, ``lanes`` rows per job; ``terms``: with the loop over the
+    extra hull terms of each row."""
     K = lanes
     P1, P2 = " " * 4, " " * 8
     body = []
@@ -430,7 +471,7 @@ def _kernel_source(lanes: int, terms=()) -> str:
             f"live_{lane} = g * {K} + {lane} < B",
             f"p_{lane} = prm[b_{lane}]",
         ]
-    row = _split(_ROW) + [f"cE{k} = p[{NP + TERM_WIDTH * k + TERM_WIDTH - 1}]" for k in range(len(terms))]
+    row = _split(_ROW)
     for stmt in row:
         for lane in range(K):
             body.append(_rename(stmt, _lane_name(lane)))
@@ -486,7 +527,7 @@ def _job(g, w, s0, starts, inputs, wind, cur, prm, dt, out, status):
     dt6 = dt / 6.0
     row0 = starts[w] + w
     row1 = starts[w + 1] + w
-{chr(10).join(_indent(s, P1) for s in body)}
+{"    nterm = (prm.shape[1] - " + str(NP) + ") // " + str(TERM_WIDTH) + chr(10) if terms else ""}{chr(10).join(_indent(s, P1) for s in body)}
     row = row0
     for k in range(starts[w], starts[w + 1]):
         row += 1
@@ -521,9 +562,9 @@ def source(lanes: int = LANES, terms: tuple = ()) -> str:
     lanes : int, default LANES
         Parameter rows per thread, at least 1.
     terms : tuple, default ()
-        The extra hull terms the kernel evaluates
-        (:func:`bayesid.models.ship.hullterms.signature`); their coefficients are read from the
-        parameter rows.
+        The extra hull terms' signature (:func:`bayesid.models.ship.hullterms.signature`). Any
+        non-empty set gives the one kernel with the loop over the extra terms, which reads each
+        term's degree of freedom, exponents and coefficient from the parameter rows.
 
     Returns
     -------
@@ -537,7 +578,7 @@ def source(lanes: int = LANES, terms: tuple = ()) -> str:
     """
     if lanes < 1:
         raise ValueError(f"lanes must be >= 1, got {lanes}")
-    return _HEADER.format(lanes=lanes) + _kernel_source(lanes, tuple(terms))
+    return _HEADER.format(lanes=lanes) + (_TERMS_FUNCTION if terms else "") + _kernel_source(lanes, bool(terms))
 
 
 _MODULES: dict[tuple, object] = {}
@@ -545,25 +586,26 @@ _MODULES: dict[tuple, object] = {}
 
 def generated(lanes: int = LANES, terms: tuple = ()):
     """The generated kernel module (:func:`bayesid.models.codegen.load_module`; kept per lane
-    count and term set, as building and hashing the source costs about 11 ms).
+    count and with or without extra terms, as building and hashing the source costs about 11 ms).
 
     Parameters
     ----------
     lanes : int, default LANES
         Parameter rows per thread.
     terms : tuple, default ()
-        The extra hull terms' signature (:func:`bayesid.models.ship.hullterms.signature`): each
-        term set is its own module, compiled once per machine.
+        The extra hull terms' signature (:func:`bayesid.models.ship.hullterms.signature`): every
+        non-empty set shares one module (the terms are read from the rows), compiled once per
+        machine and lane count.
 
     Returns
     -------
     module
         The module, with its ``simulate_windows`` driver.
     """
-    key = (lanes, tuple(terms))
+    key = (lanes, bool(terms))
     mod = _MODULES.get(key)
     if mod is None:
-        mod = _MODULES[key] = load_module(source(lanes, key[1]), "bayesid_shipkernel")
+        mod = _MODULES[key] = load_module(source(lanes, terms), "bayesid_shipkernel")
     return mod
 
 
