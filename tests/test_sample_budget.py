@@ -272,7 +272,10 @@ def test_the_mcmc_stops_on_its_share_of_the_budget(case):
     assert res.method == "mcmc" and res.budget["start_profile"] == "linearised"
     assert mc["cut"] and 0 < mc["done"] < mc["planned"] and mc["unit"] == "steps", mc
     assert res.mcmc["result"].stop_reason == "max_wall_s"
-    assert wall < 0.1 * 60 + 2.0, wall
+    # the MCMC planned 400,000 steps: run past its share it would take minutes. The bound leaves
+    # the noise scales' 100 evaluations and the MCMC's last block room under load (budget + 2 s
+    # failed once at 8.0 s in a cold parallel test run)
+    assert wall < 2 * 0.1 * 60, wall
     assert "noise_scales" in res.budget["stages"] and res.sigma.shape[1] == len(res.errors.channels)
     est = [m for m in said if m.startswith("MCMC: 2 emcee ensembles")]
     assert est and "s per step" in est[0] and "the budget allows about" in est[0], said
