@@ -176,3 +176,72 @@ def test_submarine_kernels_are_bit_identical(veh, mode):
     theta = _random_coefficients(rng, runs["generated"], 3)
     gen, ref = runs["generated"].run(theta), runs["interpreted"].run(theta)
     assert np.array_equal(gen.states, ref.states, equal_nan=True)
+
+
+def test_the_candidates_a_vehicle_lacks_share_one_open_kernel_with_the_same_bits(veh):
+    """Discovery frees, one refit at a time, a coefficient the vehicle lacks. Each such model
+    runs in the one open kernel of the vehicle's terms (no compile per candidate), with the
+    candidate taken at run time, and its tracks are the interpreted kernel's bits; the candidate
+    acts. Nprop sits before some of the vehicle's yaw terms in the table: adding it after them
+    would change the sum's order, so it gets a kernel generated for all its terms."""
+    rng = np.random.default_rng(17)
+    man = _random_manoeuvre(rng, "horizontal", n_steps=300)
+    modules = set()
+    for cand in ("Nvvr", "Yabsrdrdr", "Cd0"):
+        free = ["Yv", "Nr", cand]
+        runs = {k: Simulator(veh, man, free, mode="horizontal", kernel=k) for k in codegen.KINDS}
+        if cand == "Cd0":  # the vehicle has it: not a further term, the generated kernel as before
+            assert runs["generated"].further_names == []
+            assert not isinstance(runs["generated"].kernel, codegen.Open)
+            continue
+        kern = runs["generated"].kernel
+        assert isinstance(kern, codegen.Open) and runs["generated"].further_names == [cand]
+        modules.add(kern.module.__name__)
+        theta = np.repeat(veh.coefficient_vector(["Yv", "Nr"])[None], 3, axis=0)
+        theta = np.hstack([theta, [[0.0], [0.01], [-0.02]]])
+        gen, ref = runs["generated"].run(theta), runs["interpreted"].run(theta)
+        assert np.array_equal(gen.states, ref.states, equal_nan=True)
+        assert np.array_equal(gen.status, ref.status)
+        assert np.max(np.abs(gen.states[1] - gen.states[0])) > 1e-3  # the candidate acts
+    assert len(modules) == 1
+    assert not codegen.further_terms_last(["Yv", "Nprop", "Nr"], ["Nprop"])
+    assert not isinstance(Simulator(veh, man, ["Yv", "Nprop"], mode="horizontal").kernel, codegen.Open)
+
+
+def test_an_open_kernel_reorders_columns_and_computes_every_factor_as_generated(veh):
+    """A further term that precedes some of the vehicle's terms of another degree of freedom in
+    the table: the open kernel takes its ``tcoef`` columns in another order (``perm``). The
+    further terms' factors include 1/U (a third velocity factor, Nvvr) and the propeller's
+    ``prop`` (Cd0), computed in the loop as in the generated right-hand side: the batch and the
+    window drivers give the interpreted kernel's bits. (eps(eta) terms act out of the horizontal
+    plane; the loop computes them as the generated 6-DOF right-hand side does.)"""
+    import dataclasses
+
+    keep = ("Yv", "Yr", "Ydr", "Nv", "Nr", "Ndr", "Xuu", "Yvdot", "Nrdot")
+    small = dataclasses.replace(veh, coefficients={k: veh.coefficients[k] for k in keep if k in veh.coefficients})
+    ydof = terms.term("Yv").dof
+    y_after = next(
+        t.name
+        for t in terms.TERMS[terms.INDEX["Ydr"] + 1 :]
+        if t.kind == "force" and t.dof == ydof and t.horizontal and t.name not in keep
+    )
+    further = [y_after, "Nvvr", "Cd0"]
+    free = ["Yv", "Nr", *further]
+    rng = np.random.default_rng(23)
+    man = _random_manoeuvre(rng, "horizontal", n_steps=300)
+    runs = {k: Simulator(small, man, free, mode="horizontal", kernel=k) for k in codegen.KINDS}
+    kern = runs["generated"].kernel
+    assert isinstance(kern, codegen.Open) and kern.perm is not None
+    theta = np.repeat(small.coefficient_vector(["Yv", "Nr"])[None], 3, axis=0)
+    theta = np.hstack([theta, rng.normal(0.0, 0.005, (3, len(further)))])
+    gen, ref = runs["generated"].run(theta), runs["interpreted"].run(theta)
+    assert np.array_equal(gen.states, ref.states, equal_nan=True)
+    tr = runs["interpreted"].run().track(0, name="random")
+    models = {k: EffectModel(small, free, ("thrust",), mode="horizontal", dt=0.2, kernel=k) for k in codegen.KINDS}
+    ctx = {k: m.context(tr, 10.0) for k, m in models.items()}
+    P = np.repeat(models["generated"].start()[None], 2, axis=0)
+    P[1, 2 : len(free)] = rng.normal(0.0, 0.005, len(further))
+    nu = np.zeros((2, max(models["generated"].n_nuisance, 1)))
+    a = models["generated"].simulate(ctx["generated"], P, nu)
+    b = models["interpreted"].simulate(ctx["interpreted"], P, nu)
+    assert ctx["generated"].W > 1 and np.array_equal(a, b, equal_nan=True)

@@ -59,6 +59,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from .._numba import use_package_threading_layer
 from ..data import terms
 from . import dynamics
@@ -109,12 +111,13 @@ def _hydro_sums(force_names, mode) -> list[str]:
     return [f"F{i} = " + (" + ".join(per_dof[i]) if per_dof[i] else "0.0") for i in dofs]
 
 
-def _rhs_statements(force_names, mode: str) -> list[str]:
+def _rhs_statements(force_names, mode: str, open_terms: bool = False) -> list[str]:
     """The right-hand side as statements on canonical names -- the states (:data:`_STATES`),
     inputs ``d_r, d_s, d_b, n``, external force ``e0..e5``, the track's ``c`` (tcoef row), ``M``
     (inverse mass matrix), ``vp`` and the :func:`_track_constants`; the last statements assign
     ``D0, D1, ...``, the derivatives of the evolving states. A statement may span lines (a
-    block); it is inlined as a whole."""
+    block); it is inlined as a whole. An open kernel (``open_terms``) adds the further terms of
+    the factor table ``xfac, xdof`` (:func:`_further_terms_source`) after the generated sums."""
     planar = mode == "horizontal"
     dof_terms = [terms.term(n) for n in force_names]
     used = {f for t in dof_terms if not planar or t.dof in _PLANE_DOF for f in t.factors}
@@ -152,6 +155,9 @@ def _rhs_statements(force_names, mode: str) -> list[str]:
         a("spd = math.sqrt(u * u + v * v + w * w)")
         a("iU = 1.0 / (spd if spd > U_MIN_EPS else U_MIN_EPS)")
     S += _hydro_sums(force_names, mode)
+    if open_terms:
+        fs = ", ".join(f"F{i}" for i in (_PLANE_DOF if planar else range(6)))
+        a(f"{fs} = _further_terms(c, xfac, xdof, u, v, w, p, q, r, d_r, d_s, d_b, n, vp, {fs})")
     if not planar:
         # Hydrostatics (Fossen 1994 pp. 45-46; equations.md "Hydrostatics"); they vanish at
         # phi = theta = 0 and are left out of the horizontal plane.
@@ -272,6 +278,9 @@ _KEEP = {
     "OK",
     "NONFINITE",
     "OUT_OF_BOUNDS",
+    "_further_terms",
+    "xfac",
+    "xdof",
 }
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
 
@@ -295,16 +304,18 @@ def _indent(stmt: str, pad: str) -> str:
     return "\n".join(pad + line for line in stmt.split("\n"))
 
 
-def _step_source(force_names, mode: str, lanes: int) -> str:
+def _step_source(force_names, mode: str, lanes: int, open_terms: bool = False) -> str:
     """Source of ``_step``: one classical RK4 step of ``lanes`` independent tracks on scalars, the
     right-hand side inlined four times and the lanes interleaved statement by statement (their
     dependency chains overlap in the CPU; no arrays, no allocation). Inputs and external force
-    are held over the step (zero-order hold), as in :func:`bayesid.models.dynamics.rk4_step`."""
-    body = _rhs_statements(force_names, mode)
+    are held over the step (zero-order hold), as in :func:`bayesid.models.dynamics.rk4_step`.
+    An open kernel's step also takes the further terms' factor table ``xfac, xdof``."""
+    body = _rhs_statements(force_names, mode, open_terms)
+    shared = "dt, xs, ws, xfac, xdof" if open_terms else "dt, xs, ws"
     st = [_STATES[i] for i in (_PLANE_STATES if mode == "horizontal" else range(12))]
     per_lane = st + ["d_r", "d_s", "d_b", "n", "e0", "e1", "e2", "e3", "e4", "e5", "c", "M", "vp"]
     args = [f"{a}_{l}" for l in range(lanes) for a in per_lane]
-    L = ["@nb.njit(cache=True, error_model='numpy')", f"def _step({', '.join(args)}, dt, xs, ws):", "    h = 0.5 * dt"]
+    L = ["@nb.njit(cache=True, error_model='numpy')", f"def _step({', '.join(args)}, {shared}):", "    h = 0.5 * dt"]
     consts = _track_constants(force_names, mode)
     hoisted = sorted({_IDENT.match(c).group(1) for c in consts})
     for c in consts:
@@ -359,8 +370,10 @@ class _LaneCode:
     """Source fragments shared by the two drivers: ``lanes`` tracks advanced together per thread
     through :func:`_step`, over the states of ``mode``."""
 
-    def __init__(self, mode: str, lanes: int):
+    def __init__(self, mode: str, lanes: int, open_terms: bool = False):
         self.mode, self.K = mode, lanes
+        # an open kernel's drivers take the further terms' factor table last (Open)
+        self.more = ", xfac, xdof" if open_terms else ""
         self.idx = list(_PLANE_STATES if mode == "horizontal" else range(12))
         self.any_live = " or ".join(f"live_{l}" for l in range(lanes))
 
@@ -373,7 +386,7 @@ class _LaneCode:
             args += [inp.format(l=l, j=j) for j in range(4)] + [ext.format(l=l, j=j) for j in range(6)]
             args += [f"c_{l}", f"M_{l}", f"vp_{l}"]
         lhs = ", ".join(f"{_STATES[i]}_{l}" for l in range(self.K) for i in self.idx)
-        return f"({lhs},) = _step({', '.join(args)}, dt, xs, ws)"
+        return f"({lhs},) = _step({', '.join(args)}, dt, xs, ws{self.more})"
 
     def reset(self, l: int, src: str, pad: str) -> str:
         """A finished lane restarts from its start state (finite, ignored)."""
@@ -434,7 +447,7 @@ def _batch_source(h: _LaneCode) -> str:
     ]
     return f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
-def simulate_batch(s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step):
+def simulate_batch(s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step{h.more}):
     """As bayesid.models.dynamics.simulate_batch (generated: {h.mode}, {K} lane(s) per thread)."""
     B = s0.shape[0]
     n_steps = inputs.shape[0]
@@ -477,7 +490,7 @@ def _windows_source(h: _LaneCode) -> str:
     ]
     return f'''
 @nb.njit(cache=True, parallel=True, error_model='numpy')
-def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp_all, tcoef, Minv, xs, ws, out, status):
+def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp_all, tcoef, Minv, xs, ws, out, status{h.more}):
     """As bayesid.models.dynamics.simulate_windows (generated: {h.mode}, {K} lane(s) per thread)."""
     B = s0.shape[0]
     W = starts.shape[0] - 1
@@ -501,10 +514,10 @@ def simulate_windows(s0, starts, inputs, exo, ecoef, dt, vp_all, tcoef, Minv, xs
 '''
 
 
-def _drivers_source(mode: str, lanes: int) -> str:
+def _drivers_source(mode: str, lanes: int, open_terms: bool = False) -> str:
     """Source of the two drivers (the batch over coefficient vectors and the windows), each
     thread advancing ``lanes`` tracks together through :func:`_step`."""
-    h = _LaneCode(mode, lanes)
+    h = _LaneCode(mode, lanes, open_terms)
     return _batch_source(h) + _windows_source(h)
 
 
@@ -525,7 +538,86 @@ from bayesid.models.dynamics import (OK, NONFINITE, OUT_OF_BOUNDS, RPM_TO_RAD_S,
 '''
 
 
-def source(force_names, mode: str = "6dof", lanes: int | None = None) -> str:
+def _further_terms_source(n_base: int, mode: str) -> str:
+    """Source of ``_further_terms``, the open kernel's loop over the terms the kernel was not
+    generated for: the term table's encoding (:func:`bayesid.data.terms.factor_table`: feature
+    indices, degree of freedom) passed at run time, each coefficient in ``c[n_base + j]``. Each
+    product is formed coefficient first, then its factors in order, and added to its degree of
+    freedom after the generated terms -- the order of the interpreted kernel when the further
+    terms come last in their degree of freedom, which :class:`Open` checks."""
+    dofs = _PLANE_DOF if mode == "horizontal" else tuple(range(6))
+    fs = ", ".join(f"F{i}" for i in dofs)
+    add = "\n".join(
+        f"        {'if' if k == 0 else 'elif'} d == {i}:\n            F{i} += prod" for k, i in enumerate(dofs)
+    )
+    return f'''@nb.njit(cache=True, error_model='numpy', inline='always')
+def _feature(i, u, v, w, p, q, r, d_r, d_s, d_b, n, vp):
+    """Feature i of bayesid.data.terms.FEATURES, computed as the generated right-hand side does."""
+    if i == 1:
+        return u
+    if i == 2:
+        return v
+    if i == 3:
+        return w
+    if i == 4:
+        return p
+    if i == 5:
+        return q
+    if i == 6:
+        return r
+    if i == 7:
+        return d_r
+    if i == 8:
+        return d_s
+    if i == 9:
+        return d_b
+    if i == 11:
+        return abs(v)
+    if i == 12:
+        return abs(r)
+    if i == 14:
+        return abs(w)
+    if i == 15:
+        return abs(q)
+    if i == 16:
+        return abs(p)
+    if i == 17:
+        spd = math.sqrt(u * u + v * v + w * w)
+        return 1.0 / (spd if spd > U_MIN_EPS else U_MIN_EPS)
+    n_rad = n * RPM_TO_RAD_S
+    uc = vp[VP_UC] * n_rad
+    if i == 13:
+        return uc * abs(uc) - u * abs(u)
+    # i == 10: eps(eta) (Healey & Lienard 1993), |u| floored at U_MIN_EPS
+    ct1 = vp[VP_CT] * vp[VP_L] * vp[VP_L] / 2.0
+    epsden = math.sqrt(ct1 + 1.0) - 1.0
+    ug = u if abs(u) > U_MIN_EPS else (U_MIN_EPS if u >= 0.0 else -U_MIN_EPS)
+    eta = uc / ug
+    ct = vp[VP_CT] * vp[VP_L] * vp[VP_L] * eta * abs(eta) / 2.0
+    sn = 1.0 if n_rad >= 0.0 else -1.0
+    su = 1.0 if ug >= 0.0 else -1.0
+    return -1.0 + (sn * su) * (math.sqrt(abs(ct) + 1.0) - 1.0) / epsden
+
+
+@nb.njit(cache=True, error_model='numpy', inline='always')
+def _further_terms(c, xfac, xdof, u, v, w, p, q, r, d_r, d_s, d_b, n, vp, {fs}):
+    """The forces plus the further terms (factor table xfac, xdof; coefficients c[{n_base}:])."""
+    for j in range(xdof.shape[0]):
+        prod = c[{n_base} + j]
+        for k in range(xfac.shape[1]):
+            i = xfac[j, k]
+            if i == 0:
+                break
+            prod *= _feature(i, u, v, w, p, q, r, d_r, d_s, d_b, n, vp)
+        d = xdof[j]
+{add}
+    return {fs}
+
+
+'''
+
+
+def source(force_names, mode: str = "6dof", lanes: int | None = None, open_terms: bool = False) -> str:
     """Python source of the generated kernel module for a model's active force terms.
 
     Parameters
@@ -536,6 +628,9 @@ def source(force_names, mode: str = "6dof", lanes: int | None = None) -> str:
         Degrees of freedom.
     lanes : int, optional
         Tracks each thread advances together; default :data:`LANES` of the mode.
+    open_terms : bool, default False
+        Generate an open kernel (:class:`Open`): its drivers also take the factor table of
+        further terms, ``xfac, xdof``, whose coefficients follow the generated ones in ``tcoef``.
 
     Returns
     -------
@@ -556,12 +651,11 @@ def source(force_names, mode: str = "6dof", lanes: int | None = None) -> str:
         raise ValueError(f"lanes must be >= 1, got {lanes}")
     force_names = list(force_names)
     terms.factor_table(force_names)  # raises on an acceleration term or an unknown name
-    return (
-        _HEADER.format(n=len(force_names), mode=mode, lanes=lanes, names=" ".join(force_names) or "(none)")
-        + _step_source(force_names, mode, lanes)
-        + "\n\n"
-        + _drivers_source(mode, lanes)
-    )
+    head = _HEADER.format(n=len(force_names), mode=mode, lanes=lanes, names=" ".join(force_names) or "(none)")
+    if open_terms:
+        head = head.replace(" Do not edit.", " Open: further terms at run time. Do not edit.", 1)
+        head = head.rstrip("\n") + "\n\n\n" + _further_terms_source(len(force_names), mode)
+    return head + _step_source(force_names, mode, lanes, open_terms) + "\n\n" + _drivers_source(mode, lanes, open_terms)
 
 
 def cache_dir() -> Path:
@@ -626,7 +720,7 @@ def load_module(src: str, prefix: str):
     return mod
 
 
-def generated(force_names, mode: str = "6dof", lanes: int | None = None):
+def generated(force_names, mode: str = "6dof", lanes: int | None = None, open_terms: bool = False):
     """The generated kernel module (:func:`load_module` of :func:`source`).
 
     Parameters
@@ -637,13 +731,133 @@ def generated(force_names, mode: str = "6dof", lanes: int | None = None):
         Degrees of freedom.
     lanes : int, optional
         Tracks each thread advances together; default :data:`LANES` of the mode.
+    open_terms : bool, default False
+        The open kernel of these terms (:class:`Open`).
 
     Returns
     -------
     module
         The module, with the drivers ``simulate_batch`` and ``simulate_windows``.
     """
-    return load_module(source(force_names, mode, lanes), "bayesid_kernel")
+    return load_module(source(force_names, mode, lanes, open_terms), "bayesid_kernel")
+
+
+def further_terms_last(force_names, further) -> bool:
+    """Whether every term of ``further`` comes after every other term of its degree of freedom in
+    ``force_names``: then the open kernel of the others (:class:`Open`), which adds the further
+    terms after its generated sums, adds in the interpreted kernel's order, and its tracks are the
+    same bits as those of the kernel generated for all of ``force_names``.
+
+    Parameters
+    ----------
+    force_names : sequence of str
+        The active force terms, in the order of the ``tcoef`` columns.
+    further : sequence of str
+        Some of them.
+
+    Returns
+    -------
+    bool
+    """
+    further = set(further)
+    last_base = {}
+    for j, n in enumerate(force_names):
+        if n not in further:
+            last_base[terms.term(n).dof] = j
+    return all(j > last_base.get(terms.term(n).dof, -1) for j, n in enumerate(force_names) if n in further)
+
+
+class Open:
+    """A kernel generated for a model's base terms that takes further terms at run time.
+
+    Structure discovery refits a model once per candidate term, each a coefficient that is zero in
+    the vehicle and free: a kernel generated per candidate costs a numba compile each (about 10 s
+    on a 2-core machine), far more than most refits. The open kernel is generated and compiled
+    once per base: the candidate's product is formed by a loop over its factors
+    (:func:`_further_terms_source`) and added after the generated terms of its degree of freedom,
+    which is the interpreted kernel's order when :func:`further_terms_last` holds, so the tracks
+    are the same bits.
+
+    Parameters
+    ----------
+    force_names : sequence of str
+        The active force terms (the order of the ``tcoef`` columns).
+    further : sequence of str
+        The ones the kernel takes at run time; the others are generated.
+    mode : {"6dof", "horizontal"}
+        Degrees of freedom.
+
+    Raises
+    ------
+    ValueError
+        When a further term is not among ``force_names``.
+    """
+
+    def __init__(self, force_names, further, mode: str):
+        force_names, further = list(force_names), list(further)
+        missing = [n for n in further if n not in force_names]
+        if missing:
+            raise ValueError(f"further terms {missing} are not among the active force terms")
+        base = [n for n in force_names if n not in further]
+        further = [n for n in force_names if n in further]  # in column order
+        self.module = generated(base, mode, open_terms=True)
+        order = [force_names.index(n) for n in base + further]
+        self.perm = None if order == list(range(len(order))) else np.array(order, dtype=np.int64)
+        self.xfac, self.xdof = terms.factor_table(further)
+
+    def _columns(self, tcoef):
+        return tcoef if self.perm is None else np.ascontiguousarray(tcoef[:, self.perm])
+
+    def simulate_batch(self, s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step):
+        """The generated ``simulate_batch`` with the further terms' factor table.
+
+        Parameters
+        ----------
+        s0, inputs, dt, sample_every, vp, tcoef, Minv, xs, ws, out, status, fail_step : object
+            As in :func:`bayesid.models.dynamics.simulate_batch`.
+        """
+        self.module.simulate_batch(
+            s0,
+            inputs,
+            dt,
+            sample_every,
+            vp,
+            self._columns(tcoef),
+            Minv,
+            xs,
+            ws,
+            out,
+            status,
+            fail_step,
+            self.xfac,
+            self.xdof,
+        )
+
+    def simulate_windows(self, s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, ws, out, status):
+        """The generated ``simulate_windows`` with the further terms' factor table.
+
+        Parameters
+        ----------
+        s0, starts, inputs, exo, ecoef, dt, vp, tcoef, Minv, xs, ws, out, status : object
+            As in :func:`bayesid.models.dynamics.simulate_windows`.
+        """
+        self.module.simulate_windows(
+            s0,
+            starts,
+            inputs,
+            exo,
+            ecoef,
+            dt,
+            vp,
+            self._columns(tcoef),
+            Minv,
+            xs,
+            ws,
+            out,
+            status,
+            self.xfac,
+            self.xdof,
+        )
 
 
 class Interpreted:
@@ -687,7 +901,7 @@ class Interpreted:
         )
 
 
-def kernel(force_names, mode: str = "6dof", kind: str = "generated"):
+def kernel(force_names, mode: str = "6dof", kind: str = "generated", further=()):
     """The compiled drivers for a model's active force terms.
 
     Parameters
@@ -698,10 +912,15 @@ def kernel(force_names, mode: str = "6dof", kind: str = "generated"):
         Degrees of freedom.
     kind : {"generated", "interpreted"}, default "generated"
         ``"generated"`` (this module) or ``"interpreted"`` (:mod:`bayesid.models.dynamics`).
+    further : sequence of str, default ()
+        Terms a generated kernel may take at run time (:class:`Open`) rather than generate: the
+        simulator passes the free coefficients that are zero in the vehicle (a discovery
+        candidate). Used when :func:`further_terms_last` holds, so the tracks are the same bits
+        either way; otherwise every term is generated.
 
     Returns
     -------
-    module or Interpreted
+    module, Open or Interpreted
         An object with the drivers ``simulate_batch`` and ``simulate_windows``.
 
     Raises
@@ -713,6 +932,8 @@ def kernel(force_names, mode: str = "6dof", kind: str = "generated"):
         raise ValueError(f"mode must be '6dof' or 'horizontal', got {mode!r}")
     use_package_threading_layer()
     if kind == "generated":
+        if len(further) and further_terms_last(force_names, further):
+            return Open(force_names, further, mode)
         return generated(force_names, mode)
     if kind == "interpreted":
         return Interpreted(force_names)

@@ -220,6 +220,9 @@ class Simulator:
             and (self.base[terms.INDEX[t.name]] != 0.0 or t.name in free_set)
             and (mode == "6dof" or t.horizontal)
         ]
+        # free terms the vehicle lacks (a discovery candidate): a generated kernel takes them at
+        # run time, so one compile serves every candidate (codegen.Open)
+        self.further_names = [n for n in self.force_names if self.base[terms.INDEX[n]] == 0.0]
         # term encoding of the interpreted kernels (closed-loop manoeuvres use them directly)
         self.tfac, self.tdof = terms.factor_table(self.force_names)
         self.kernel_kind = kernel
@@ -248,9 +251,10 @@ class Simulator:
     @property
     def kernel(self):
         """The compiled drivers for this model's active terms and mode
-        (:func:`bayesid.models.codegen.kernel`; generated on first use)."""
+        (:func:`bayesid.models.codegen.kernel`; generated on first use; the free terms the
+        vehicle lacks are taken at run time, :class:`bayesid.models.codegen.Open`)."""
         if self._kernel is None:
-            self._kernel = codegen.kernel(self.force_names, self.mode, self.kernel_kind)
+            self._kernel = codegen.kernel(self.force_names, self.mode, self.kernel_kind, self.further_names)
         return self._kernel
 
     def coefficient_matrix(self, theta_free=None) -> np.ndarray:
