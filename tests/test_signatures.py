@@ -15,6 +15,8 @@ MOST = 8
 KERNEL_INTERFACES = {
     "bayesid.models.codegen.Interpreted.simulate_batch",
     "bayesid.models.codegen.Interpreted.simulate_windows",
+    "bayesid.models.codegen.Open.simulate_batch",
+    "bayesid.models.codegen.Open.simulate_windows",
     "bayesid.models.ship.kernel.simulate_windows",
 }
 

@@ -758,6 +758,7 @@ def further_terms_last(force_names, further) -> bool:
     Returns
     -------
     bool
+        True when the open kernel adds every further term in the interpreted kernel's order.
     """
     further = set(further)
     last_base = {}
