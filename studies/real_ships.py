@@ -72,7 +72,11 @@ MCMC_STEPS = 2500
 
 def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="few runs, few iterations (a smoke test)")
+    ap.add_argument(
+        "--quick",
+        action="store_true",
+        help="few runs, few iterations, two effects and three candidate terms per diagnosis (a smoke test)",
+    )
     ap.add_argument("--out", default="reports/real_ships")
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
     ap.add_argument("--draws", type=int, default=100, help="posterior draws for the predictive bands")
@@ -113,7 +117,8 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
             dt=0.2,
             max_nfev=args.max_nfev,
             start="measured",
-            discover=DiscoveryOptions(max_nfev=args.max_nfev),
+            # a smoke test refits the three strongest candidate terms, the full run six
+            discover=DiscoveryOptions(max_nfev=args.max_nfev, max_candidates=3 if args.quick else 6),
         ),
         rng=np.random.default_rng(args.seed),
         runner=Runner(progress=lambda m: log(f"{name}: {m}")),
@@ -551,9 +556,9 @@ def main() -> int:
         train = [t for t in train if t.name.startswith(("zigzag", "turn"))][:3]
         held = [t for t in held if t.name.startswith("zigzag")][:1]
     esso = ship.load_ship("esso_osaka_3m")
-    e_doc, e_res, e_base, e_after, _ = evaluate(
-        "esso_osaka", esso, train, held, list(ship.SHIP_CATALOGUE), args, out, log
-    )
+    # a smoke test tries two effects of the catalogue on each vessel, the full run all of them
+    e_cands = list(ship.SHIP_CATALOGUE)[: 2 if args.quick else None]
+    e_doc, e_res, e_base, e_after, _ = evaluate("esso_osaka", esso, train, held, e_cands, args, out, log)
     figs = [
         track_figure(
             (e_base, e_after[:2]),
@@ -582,9 +587,8 @@ def main() -> int:
     if args.quick:
         ktrain, kheld = ktrain[:3], kheld[:1]
     kv = ship.load_ship("kvlcc2_7m")
-    k_doc, k_res, k_base, k_after, k_diag = evaluate(
-        "kvlcc2_hsva", kv, ktrain, kheld, [c for c in ship.SHIP_CATALOGUE if c != "wind"], args, out, log
-    )
+    k_cands = [c for c in ship.SHIP_CATALOGUE if c != "wind"][: 2 if args.quick else None]
+    k_doc, k_res, k_base, k_after, k_diag = evaluate("kvlcc2_hsva", kv, ktrain, kheld, k_cands, args, out, log)
     am, af, cov = k_after
     circles = turning_circles(FittedModel(am, af.p, cov), args.draws, rng, U0, RPS)
     k_doc["turning_circles_35deg"] = {
