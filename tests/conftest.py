@@ -14,28 +14,31 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 from bayesid.data.track import Track  # noqa: E402
 from bayesid.data.vehicle import load_vehicle  # noqa: E402
 
-#: The test files that take longest, longest first (seconds of their tests in a cold run on 2
-#: cores, ``--durations=60``: test_ship 222, test_discovery_nps 189, test_gap 118, test_discovery
-#: 106, test_gap_userdata 92, test_term_products 76, test_study_posterior 73, ...). With
-#: ``--dist loadfile`` a worker takes one file at a time in collection order
+#: The test files that take longest, longest first: seconds of their tests in a cold run from a
+#: clean clone on 2 cores (``--durations=40``; test_ship 222 with ../shared/data/real, whose
+#: study smoke test it runs, and about 40 without; test_discovery_nps 216 before it was split in
+#: two, test_discovery 120, test_gap 103, test_gap_userdata 82, test_study_posterior 79, ...).
+#: With ``--dist loadfile`` a worker takes one file at a time in collection order
 #: (``--no-loadscope-reorder`` in pyproject.toml keeps that order): handing the long files out
-#: first keeps a worker from starting a 200 s file while the other has nothing left to do. The
+#: first keeps a worker from starting a long file while the other has nothing left to do. The
 #: list only orders the files; a stale entry costs balance, never a test.
 LONGEST_FIRST = (
     "test_ship.py",
-    "test_discovery_nps.py",
-    "test_gap.py",
+    "test_discovery_nps_starts.py",
     "test_discovery.py",
+    "test_gap.py",
     "test_gap_userdata.py",
-    "test_term_products.py",
     "test_study_posterior.py",
-    "test_third_order_terms.py",
-    "test_reference.py",
+    "test_discovery_nps.py",
     "test_codegen.py",
-    "test_cli_inputs.py",
+    "test_third_order_terms.py",
     "test_calibration.py",
+    "test_term_products.py",
     "test_mimicked_report.py",
+    "test_cli_inputs.py",
+    "test_reference.py",
     "test_sample_budget.py",
+    "test_compare_terms.py",
     "test_imo.py",
 )
 
@@ -94,6 +97,20 @@ def n0_against_nabsdr(kv=None):
     train = [kvlcc2_square_wave_track()]
     setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
     return stages, setup
+
+
+def yaw_moment_effect():
+    """A constant body-frame yaw moment (parameter ``N_Nm``, N m) outside the term table, so a world
+    with it does not share the model's ``Nconst`` code (tests/test_discovery_nps*.py)."""
+    from bayesid.models import effects as ef
+
+    class YawMoment(ef.Effect):
+        def exo(self, ctx, inputs, q, nu):
+            coef = np.zeros((q.shape[0], 1, 6))
+            coef[:, 0, 5] = q[:, 0]
+            return np.ones((q.shape[0], ctx.n_steps, 1)), coef
+
+    return YawMoment("yaw_moment", ("N_Nm",), (-1e4,), (1e4,), (0.0,), (10.0,), exo_columns=1)
 
 
 def load_study(name: str):
