@@ -550,38 +550,16 @@ def _further_terms_source(n_base: int, mode: str) -> str:
     add = "\n".join(
         f"        {'if' if k == 0 else 'elif'} d == {i}:\n            F{i} += prod" for k, i in enumerate(dofs)
     )
+    # the features that are a state or input or its magnitude, as the generated sums read them
+    simple = "".join(
+        f"    if i == {k}:\n        return {_FEATURE_VAR[f]}\n"
+        for k, f in enumerate(terms.FEATURES)
+        if f not in ("1", "eps", "prop", "1/U")
+    )
     return f'''@nb.njit(cache=True, error_model='numpy', inline='always')
 def _feature(i, u, v, w, p, q, r, d_r, d_s, d_b, n, vp):
     """Feature i of bayesid.data.terms.FEATURES, computed as the generated right-hand side does."""
-    if i == 1:
-        return u
-    if i == 2:
-        return v
-    if i == 3:
-        return w
-    if i == 4:
-        return p
-    if i == 5:
-        return q
-    if i == 6:
-        return r
-    if i == 7:
-        return d_r
-    if i == 8:
-        return d_s
-    if i == 9:
-        return d_b
-    if i == 11:
-        return abs(v)
-    if i == 12:
-        return abs(r)
-    if i == 14:
-        return abs(w)
-    if i == 15:
-        return abs(q)
-    if i == 16:
-        return abs(p)
-    if i == 17:
+{simple}    if i == 17:
         spd = math.sqrt(u * u + v * v + w * w)
         return 1.0 / (spd if spd > U_MIN_EPS else U_MIN_EPS)
     n_rad = n * RPM_TO_RAD_S
