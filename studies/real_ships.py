@@ -117,8 +117,8 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
             dt=0.2,
             max_nfev=args.max_nfev,
             start="measured",
-            # a smoke test refits the three strongest candidate terms, the full run six
-            discover=DiscoveryOptions(max_nfev=args.max_nfev, max_candidates=3 if args.quick else 6),
+            # a smoke test refits the three strongest candidate terms, the full run as many as the default
+            discover=DiscoveryOptions(max_nfev=args.max_nfev, **({"max_candidates": 3} if args.quick else {})),
         ),
         rng=np.random.default_rng(args.seed),
         runner=Runner(progress=lambda m: log(f"{name}: {m}")),
