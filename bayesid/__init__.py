@@ -31,6 +31,8 @@ layer or closes a circle; the import graph is checked):
   :mod:`~bayesid.models.codegen` (kernels generated from the term table),
   :mod:`~bayesid.models.simulate` (Manoeuvre, Simulator), :mod:`~bayesid.models.reference`
   (solve_ivp anchor), :mod:`~bayesid.models.crossflow`, :mod:`~bayesid.models.manoeuvres`,
+  :mod:`~bayesid.models.runs` (any model's manoeuvre runs: approach condition, standard menu,
+  closed-loop zigzag, batched over parameter rows),
   :mod:`~bayesid.models.inverse` (smoothed motion, inverse dynamics),
   :mod:`~bayesid.models.effects` (the effect catalogue), :mod:`~bayesid.models.context` (the
   track context: windows, start states, step inputs), :mod:`~bayesid.models.submarine` (the

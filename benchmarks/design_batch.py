@@ -1,5 +1,5 @@
 """Benchmark: the design's standard predictions with each model's parameter draws flown in one
-batched simulation per pass (``design.simulate_runs``, ``design.zigzag_rudders``: the package)
+batched simulation per pass (``runs.simulate_runs``, ``runs.zigzag_rudders``: the package)
 against one draw at a time (the same functions called with one row per draw: what the package did
 before the lock-step search), in one run, on the same models.
 
@@ -35,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import discovery as cases  # noqa: E402  (benchmarks/discovery.py: the same synthetic cases)
 
 from bayesid.analysis.gap import design as dz  # noqa: E402
+from bayesid.models import runs as mr  # noqa: E402
 
 
 def _models(case):
@@ -66,8 +67,8 @@ def _all_runs(stages, setup, options, batched: bool) -> list:
     and the runs as :func:`~bayesid.analysis.gap.design.standard_predictions` makes them)."""
     rng = np.random.default_rng(options.seed)
     options = dz.within_limits(options, setup.vehicle)
-    approach = dz.approach_condition(setup.train)
-    D = float(options.duration_s or max(150.0, approach["duration_s"]))
+    approach = mr.approach_condition(setup.train)
+    D = float(options.duration_s or max(150.0, approach.duration_s))
     draws = {
         k: dz._draws(st, [st.model.context(tr, setup.fit_window_s) for tr in setup.train], options.n_draws, rng)
         for k, st in stages.items()
@@ -75,7 +76,7 @@ def _all_runs(stages, setup, options, batched: bool) -> list:
     out = []
     for kind, rudder, check, side in dz.STANDARD_RUNS:
         a = float(options.max_rudder_deg) if rudder is None else min(rudder, float(options.max_rudder_deg))
-        run = dz.ManoeuvreRun(kind, a, None if check is None else a, side, approach["rpm"], D)
+        run = mr.ManoeuvreRun(kind, a, None if check is None else a, side, approach.rpm, D)
         for k, st in stages.items():
             t = np.arange(0.0, D, min(0.1, st.model.dt))
             f = dz._free_run_indices if batched else _one_at_a_time

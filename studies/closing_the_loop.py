@@ -103,11 +103,12 @@ def case_data(case: dict, seed: int, quick: bool):
     return veh, free, train, held
 
 
-def fly(case: dict, vehicle, free: list, row: dict, approach: dict, rng, t0: float):
-    """The designed run ``row`` flown by the truth: logged at the case's rate with its noise."""
-    from bayesid.analysis.gap.design import input_track, simulate_run
+def fly(case: dict, vehicle, free: list, row: dict, approach, rng, t0: float):
+    """The designed run ``row`` flown by the truth from ``approach``
+    (:class:`bayesid.models.runs.Approach`): logged at the case's rate with its noise."""
     from bayesid.data.track import Track
     from bayesid.models import build_model
+    from bayesid.models.runs import input_track, simulate_run
 
     truth = vehicle.with_coefficients(case["hidden"]) if case["hidden"] else vehicle
     model = build_model(truth, free)
@@ -209,8 +210,9 @@ def _mimicked_by(d, hidden: str | None) -> dict | None:
 def run_case(case: dict, seed: int, quick: bool) -> dict:
     """Both rounds of one case."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
-    from bayesid.analysis.gap.design import DesignOptions, approach_condition
+    from bayesid.analysis.gap.design import DesignOptions
     from bayesid.analysis.gap.discovery import DiscoveryOptions
+    from bayesid.models.runs import approach_condition
 
     t_start = time.perf_counter()
     veh, free, train, held = case_data(case, seed, quick)
@@ -587,10 +589,10 @@ def sign_coupling() -> list:
     import tempfile
 
     from bayesid import cli
-    from bayesid.analysis.gap.design import approach_condition, input_track, simulate_run
     from bayesid.data.track import read_csv
     from bayesid.data.validate import rudder_limit_deg
     from bayesid.models import build_model, load_any_vehicle
+    from bayesid.models.runs import approach_condition, input_track, simulate_run
 
     def coupling(name, tr):
         v, r = np.asarray(tr["v"], float), np.asarray(tr["r"], float)
@@ -629,10 +631,10 @@ def sign_coupling() -> list:
             target[t >= t_o] = a
         delta = np.zeros_like(t)
         for i in range(1, t.size):  # the rudder moves to each order at the approach's rudder rate
-            step = approach["rudder_rate"] * (t[i] - t[i - 1])
+            step = approach.rudder_rate * (t[i] - t[i - 1])
             delta[i] = delta[i - 1] + np.clip(target[i] - delta[i - 1], -step, step)
         run = simulate_run(
-            model, model.start(), input_track(t, delta, np.full_like(t, approach["rpm"]), approach), approach
+            model, model.start(), input_track(t, delta, np.full_like(t, approach.rpm), approach), approach
         )
         if run is not None:
             out.append(coupling(name, run))

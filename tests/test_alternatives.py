@@ -17,6 +17,7 @@ from bayesid.analysis.gap import discovery as dv
 from bayesid.analysis.gap.candidates import Setup, Stage
 from bayesid.analysis.gap.verdict import Thresholds
 from bayesid.data.track import Track
+from bayesid.models import runs as mr
 from bayesid.models import ship
 
 
@@ -423,13 +424,13 @@ def test_the_top_designed_run_flown_by_the_truth_rejects_the_wrong_structure():
     rows = dz.design(stages, setup, dz.DesignOptions(n_draws=0, duration_s=120.0))
     top, last = rows[0], rows[-1]
     assert top["separation"] > 5.0 and top["inputs"]["t"][0] == 0.0
-    approach = dz.approach_condition(setup.train)
+    approach = mr.approach_condition(setup.train)
     truth = stages["N0"]
     errors = {}
     for row in (top, last):
         u = row["inputs"]
-        run = dz.simulate_run(
-            truth.model, truth.fit.p, dz.input_track(u["t"], u["delta_r"], u["n"], approach), approach
+        run = mr.simulate_run(
+            truth.model, truth.fit.p, mr.input_track(u["t"], u["delta_r"], u["n"], approach), approach
         )
         assert run is not None
         errors[row["name"]] = {k: _window_rms(st, run, setup.window_s) for k, st in stages.items()}

@@ -15,6 +15,7 @@ from conftest import n0_against_nabsdr
 from bayesid.analysis.gap import design as dz
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import ship
+from bayesid.models.runs import Approach, menu
 
 
 @pytest.mark.parametrize(
@@ -29,8 +30,8 @@ from bayesid.models import ship
 def test_the_menus_largest_rudder_is_the_vehicles_limit_where_smaller(vehicle, limit):
     options = dz.within_limits(dz.DesignOptions(), vehicle())
     assert options.max_rudder_deg == pytest.approx(limit)
-    approach = {"u": 1.0, "rpm": 600.0, "duration_s": 120.0, "rudder_rate": math.radians(5.0)}
-    runs = dz.menu(approach, options)
+    approach = Approach(u=1.0, rpm=600.0, rudder_rate=math.radians(5.0), duration_s=120.0)
+    runs = menu(approach, options.max_rudder_deg, options.duration_s)
     assert max(r.rudder_deg for r in runs) == pytest.approx(limit)
     assert len({r.name for r in runs}) == len(runs)  # each run once
     assert dz.within_limits(dz.DesignOptions(max_rudder_deg=15.0), vehicle()).max_rudder_deg == 15.0

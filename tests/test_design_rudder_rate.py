@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from bayesid.analysis.gap.design import approach_condition, rudder_rate
 from bayesid.data.track import Track
+from bayesid.models.runs import approach_condition, rudder_rate
 
 
 def _run(delta_deg, dt, name="run"):
@@ -38,7 +38,7 @@ def test_a_step_logged_rudder_moves_as_fast_as_the_log_says():
     runs = [_run(_zigzag_orders(t, a, p), dt, f"z{a}") for a, p in ((20.0, 40.0), (10.0, 30.0))]
     got = math.degrees(rudder_rate(runs))
     assert got >= 99.0, got  # jumps of 20-40 deg over 0.2 s; the old percentile gave 0 -> 1 deg/s
-    assert math.degrees(approach_condition(runs)["rudder_rate"]) == pytest.approx(got)
+    assert math.degrees(approach_condition(runs).rudder_rate) == pytest.approx(got)
 
 
 @pytest.mark.parametrize("rate, noise_deg", [(2.32, 0.0), (5.0, 0.0), (5.0, 0.1), (15.8, 0.1)])
@@ -54,4 +54,4 @@ def test_a_rudder_that_never_moves_has_no_rate_and_the_design_assumes_5_deg_s():
     dt = 0.2
     runs = [_run(np.zeros(500), dt)]
     assert rudder_rate(runs) is None
-    assert approach_condition(runs)["rudder_rate"] == pytest.approx(math.radians(5.0))
+    assert approach_condition(runs).rudder_rate == pytest.approx(math.radians(5.0))

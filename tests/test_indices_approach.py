@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayesid.analysis.gap import design as dz
 from bayesid.data.track import Track
 from bayesid.estimation.indices import manoeuvre_indices, manoeuvre_kind
 from bayesid.models import build_model
+from bayesid.models import runs as mr
 from bayesid.models.ship import load_ship
 from bayesid.models.ship.trials import propulsion_point, service_condition
 
@@ -42,14 +42,14 @@ def runs():
     service = service_condition(ship)
     speed, rpm = propulsion_point(ship, service["speed"])
     model = build_model(ship)
-    approach = {"u": speed, "rpm": rpm}
     t = np.round(np.arange(0.0, 150.0, 0.1), 10)
+    approach = mr.Approach(u=speed, rpm=rpm, rudder_rate=math.radians(service["rudder_rate_deg_s"]), duration_s=150.0)
     ramp = np.clip((t - T_EXEC) * math.radians(service["rudder_rate_deg_s"]), 0.0, math.radians(ANGLE))
     out = {}
     for name, wiggle in (("straight", lambda t: 0.0 * t), ("both sides", _both_sides), ("one side", _one_side)):
         delta = np.where(t < T_EXEC, wiggle(t), ramp)
-        inputs = dz.input_track(t, delta, np.full_like(t, rpm), approach)
-        out[name] = dz.simulate_run(model, model.start(), inputs, approach)
+        inputs = mr.input_track(t, delta, np.full_like(t, rpm), approach)
+        out[name] = mr.simulate_run(model, model.start(), inputs, approach)
     return out
 
 

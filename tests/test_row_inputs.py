@@ -5,16 +5,17 @@ input schedule for each parameter row, exactly as each row flown alone; the desi
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from bayesid import load_any_vehicle
-from bayesid.analysis.gap import design as dz
 from bayesid.data.track import Track
 from bayesid.models import build_model
+from bayesid.models import runs as mr
 
-APPROACH = {"rpm": 0.0, "rudder_rate": math.radians(5.0), "duration_s": 60.0}
+APPROACH = mr.Approach(u=0.0, rpm=0.0, rudder_rate=math.radians(5.0), duration_s=60.0)
 
 
 def _runs(u: float, rpm: float, n_runs: int, hz: float = 2.0) -> list[Track]:
@@ -23,7 +24,7 @@ def _runs(u: float, rpm: float, n_runs: int, hz: float = 2.0) -> list[Track]:
     out = []
     for i in range(n_runs):
         delta = math.radians(5.0 + 7.0 * i) * (t > 3.0 + 2.0 * i) * (1 - 2 * (i % 2))
-        out.append(dz.input_track(t, delta, np.full_like(t, rpm + 3.0 * i), {"u": u}))
+        out.append(mr.input_track(t, delta, np.full_like(t, rpm + 3.0 * i), replace(APPROACH, u=u)))
     return out
 
 
@@ -41,14 +42,14 @@ def test_each_row_flies_its_own_inputs_as_it_would_alone(vehicle, effects, readi
     model = build_model(veh, effects=effects, inputs=reading)
     ship = vehicle.startswith("kvlcc2")
     u, rpm = (1.179, 600.0) if ship else (1.5, 0.0)
-    approach = {**APPROACH, "u": u, "rpm": rpm}
+    approach = replace(APPROACH, u=u, rpm=rpm)
     runs = _runs(u, rpm, 3)
     p = np.asarray(model.start(), float)
     P = np.repeat(p[None], 3, axis=0)
     if model.n_params > model.n_theta:  # each row its own effect parameters
         P[:, model.n_theta :] += 0.1 * np.arange(3)[:, None] * np.abs(P[:, model.n_theta :] + 0.1)
-    together = dz.simulate_runs(model, P, runs, approach)
-    alone = [dz.simulate_run(model, P[b], runs[b], approach) for b in range(3)]
+    together = mr.simulate_runs(model, P, runs, approach)
+    alone = [mr.simulate_run(model, P[b], runs[b], approach) for b in range(3)]
     for a, b in zip(together, alone):
         assert a is not None and b is not None
         for k in ("x", "y", "psi", "delta_r", "n"):
@@ -65,7 +66,7 @@ def test_a_context_with_inputs_for_other_rows_is_refused():
     with pytest.raises(ValueError, match="inputs for 2 parameter rows, not 3"):
         model.simulate(ctx, np.repeat(np.asarray(model.start(), float)[None], 3, axis=0), measured_start=False)
     with pytest.raises(ValueError, match="2 input schedules for 3 parameter vectors"):
-        dz.simulate_runs(model, np.zeros((3, model.n_params)), runs, {**APPROACH, "u": 1.179})
+        mr.simulate_runs(model, np.zeros((3, model.n_params)), runs, replace(APPROACH, u=1.179))
     with pytest.raises(ValueError, match="at least one track"):
         ctx.with_row_inputs([])
 
@@ -78,17 +79,15 @@ def test_each_draws_zigzag_found_in_lock_step_is_the_one_it_finds_alone(vehicle)
     free = veh.free if vehicle.startswith("kvlcc2") else ["Yv", "Nr", "Ndr"]
     model = build_model(veh, free)
     ship = vehicle.startswith("kvlcc2")
-    approach = {**APPROACH, "u": 1.179 if ship else 1.5, "rpm": 600.0 if ship else 0.0, "duration_s": 120.0}
-    run = dz.ManoeuvreRun("zigzag", 20.0, 10.0, "port", approach["rpm"], 120.0)
+    approach = replace(APPROACH, u=1.179 if ship else 1.5, rpm=600.0 if ship else 0.0, duration_s=120.0)
+    run = mr.ManoeuvreRun("zigzag", 20.0, 10.0, "port", approach.rpm, 120.0)
     t = np.arange(0.0, 120.0, min(0.1, model.dt))
     p = np.asarray(model.start(), float)
     P = np.repeat(p[None], 4, axis=0)
     P[:, : model.n_theta] *= np.array([1.0, 0.7, 1.3, 0.85])[:, None]  # four hulls that turn differently
-    rows = dz.zigzag_rudders(model, P, run, approach, t)
-    from types import SimpleNamespace
-
+    rows = mr.zigzag_rudders(model, P, run, approach, t)
     for b in range(4):
-        alone = dz._zigzag(SimpleNamespace(model=model, fit=SimpleNamespace(p=P[b])), run, approach, t)
+        _, alone, _ = mr.run_inputs(model, P[b], run, approach)
         np.testing.assert_array_equal(rows[b], alone)
     # the switches differ between the hulls, and each zigzag reversed several times
     switches = [np.flatnonzero(np.diff(np.sign(np.round(r, 9))) != 0).size for r in rows]
@@ -103,14 +102,14 @@ def test_a_long_zigzag_keeps_reversing_to_the_end_of_the_run():
     from bayesid.estimation.indices import manoeuvre_indices
 
     model = build_model(load_any_vehicle("nps_auv2"), ["Yv", "Nr", "Ndr"])
-    approach = {**APPROACH, "u": 1.5, "rpm": 1500.0, "duration_s": 240.0}
-    run = dz.ManoeuvreRun("zigzag", 10.0, 10.0, "port", 1500.0, 240.0)
+    approach = replace(APPROACH, u=1.5, rpm=1500.0, duration_s=240.0)
+    run = mr.ManoeuvreRun("zigzag", 10.0, 10.0, "port", 1500.0, 240.0)
     t = np.arange(0.0, 240.0, min(0.1, model.dt))
     P = np.repeat(np.asarray(model.start(), float)[None], 2, axis=0)
     P[1, : model.n_theta] *= 1.2  # another hull: other switch times
-    rows = dz.zigzag_rudders(model, P, run, approach, t)
-    tracks = [dz.input_track(t, r, np.full_like(t, 1500.0), approach) for r in rows]
-    for rudder, sim in zip(rows, dz.simulate_runs(model, P, tracks, approach)):
+    rows = mr.zigzag_rudders(model, P, run, approach, t)
+    tracks = [mr.input_track(t, r, np.full_like(t, 1500.0), approach) for r in rows]
+    for rudder, sim in zip(rows, mr.simulate_runs(model, P, tracks, approach)):
         held = np.abs(rudder) > 1e-9
         side = np.sign(rudder[held])
         reversals = t[held][1:][np.diff(side) != 0]

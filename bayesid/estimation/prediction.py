@@ -17,6 +17,7 @@ import numpy as np
 
 from ..data.track import Track
 from ..models.context import errors
+from ..models.runs import Approach, ManoeuvreRun, free_run_states
 from ..protocol import pooled_scores, start_settings
 from . import shooting
 from .indices import index_keys, manoeuvre_indices
@@ -32,6 +33,7 @@ __all__ = [
     "predict",
     "predictive_band",
     "predictive_sd",
+    "standard_run",
     "turning_band",
     "turning_circles",
     "windowed_xy",
@@ -420,6 +422,45 @@ def approach_condition(tracks, first_s: float = 5.0) -> tuple[float, float]:
     return float(np.nanmedian(sp)), float(np.nanmedian(np.concatenate(rps)))
 
 
+def standard_run(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> tuple:
+    """The free run of a standard manoeuvre by each parameter vector and its ITTC indices: the one
+    predictor of a turning circle or zigzag, read by :func:`turning_circles` and by a diagnosis's
+    standard predictions (:func:`bayesid.analysis.gap.design.standard_predictions`).
+
+    The run starts straight ahead at the approach speed (:func:`bayesid.models.runs.free_run_states`:
+    the rudder ordered at ``run.execute_s`` and moved at ``approach.rudder_rate``; a zigzag reversed
+    on each row's own heading), and the indices are read from the simulated track as from a
+    measured one (:func:`~bayesid.estimation.indices.manoeuvre_indices`; ITTC Recommended
+    Procedure 7.5-04-02-01 (2017), Sec. 2.2.1, 2.2.2).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    P : array_like, shape (B, n_params)
+        Parameter vectors (e.g. an estimate and draws about it).
+    run : ManoeuvreRun
+        The manoeuvre.
+    approach : Approach
+        The approach condition (``u`` m/s, ``rpm``, ``rudder_rate`` rad/s; ``math.inf``: the
+        rudder steps).
+    t : ndarray, shape (n,)
+        Times from the start of the run, s.
+
+    Returns
+    -------
+    ts : ndarray, shape (n_steps,)
+        The model's step times, s.
+    S : ndarray, shape (B, n_steps, 12)
+        Each row's states (non-finite where its run diverged).
+    indices : list of dict
+        Each row's :func:`~bayesid.estimation.indices.manoeuvre_indices` (m, deg), read whether
+        or not the row diverged: a caller decides what a diverged row's indices mean.
+    """
+    ts, S, delta = free_run_states(model, P, run, approach, t)
+    return ts, S, [manoeuvre_indices(ts, s[:, 0], s[:, 1], s[:, 5], d) for s, d in zip(S, delta)]
+
+
 def turning_circles(
     fitted: FittedModel,
     n_draws: int,
@@ -432,7 +473,9 @@ def turning_circles(
     """Predicted turning circles to starboard and port.
 
     From a straight run at ``speed_mps`` with the propeller at ``rps``, the rudder is put over to
-    ``rudder_deg`` at t = 1 s and held for ``duration_s``; advance, transfer and tactical diameter
+    ``rudder_deg`` at t = 1 s in one step and held for ``duration_s`` (:func:`standard_run`, the
+    predictor of the design's standard predictions, which moves the rudder at the training runs'
+    rate from 5 s instead); advance, transfer and tactical diameter
     (m, :func:`manoeuvre_indices`, ITTC definitions) of the model at its estimate, with the
     5-95 % band of ``n_draws`` posterior draws.
 
@@ -459,31 +502,14 @@ def turning_circles(
         ``{side: {"predicted", "band_5_95", "sd" (of the draws), "n_finite_draws", "_S" (B, n, 12)
         predictions}}``.
     """
-    model = fitted.model
-    out = {}
+    keys = ("advance_m", "transfer_m", "tactical_diameter_m")
+    approach = Approach(u=speed_mps, rpm=rps * 60, rudder_rate=math.inf, duration_s=duration_s)
     t = np.arange(0.0, duration_s + 1e-9, 0.1)
-    for side, sgn in (("starboard", -1.0), ("port", 1.0)):  # package rudder: + = to port
-        dr = np.where(t >= 1.0, sgn * math.radians(rudder_deg), 0.0)
-        tr = Track(
-            t,
-            {
-                "x": np.zeros_like(t),
-                "y": np.zeros_like(t),
-                "psi": np.zeros_like(t),
-                "u": np.full_like(t, speed_mps),
-                "v": np.zeros_like(t),
-                "r": np.zeros_like(t),
-                "delta_r": dr,
-                "n": np.full_like(t, rps * 60),
-            },
-            name=f"turn{rudder_deg:g}_{side}",
-        )
-        s0 = np.zeros(12)
-        s0[6] = speed_mps
-        ctx = model.context(tr, None, s0=s0)
-        S = model.simulate(ctx, fitted.rows(n_draws, rng), measured_start=False)
-        ind = [manoeuvre_indices(ctx.ts, s[:, 0], s[:, 1], s[:, 5], dr[ctx.idx]) for s in S]
-        res = {"predicted": {k: ind[0][k] for k in ("advance_m", "transfer_m", "tactical_diameter_m")}}
+    out = {}
+    for side in ("starboard", "port"):  # package rudder: + = to port
+        run = ManoeuvreRun("turning_circle", rudder_deg, None, side, approach.rpm, duration_s, execute_s=1.0)
+        _, S, ind = standard_run(fitted.model, fitted.rows(n_draws, rng), run, approach, t)
+        res = {"predicted": {k: ind[0][k] for k in keys}}
         res["band_5_95"], res["n_finite_draws"] = predictive_band(ind[1:], list(res["predicted"]))
         res["sd"] = predictive_sd(ind[1:], list(res["predicted"]))
         res["_S"] = S

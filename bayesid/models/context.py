@@ -359,7 +359,7 @@ class TrackContext:
         the inputs of ``tracks[b]`` (reconstructed between their samples as this context reads its
         own), on this context's grid, windows and start states. One batched simulation then flies
         ``B`` input schedules (e.g. each parameter draw's own closed-loop zigzag,
-        :func:`bayesid.analysis.gap.design.simulate_runs`).
+        :func:`bayesid.models.runs.simulate_runs`).
 
         Parameters
         ----------

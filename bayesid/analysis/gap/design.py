@@ -5,7 +5,7 @@ uncertainty.
 Structure discovery (:mod:`bayesid.analysis.gap.discovery`) may keep a term whose alternatives
 (other terms, other degrees of freedom) predict the held-out runs as well
 (:func:`~bayesid.analysis.gap.discovery.confirmation.alternatives`). Which run would tell them apart? For each
-manoeuvre of a menu (:func:`menu`: turning circles both sides at the largest and at half the
+manoeuvre of a menu (:func:`bayesid.models.runs.menu`: turning circles both sides at the largest and at half the
 rudder, pull-outs, zigzags of other angles both sides, a spiral's rudder steps, a speed change,
 a pseudo-random rudder sequence), all from the training runs' approach condition, within
 their rudder rate and within the vehicle's rudder limit (:func:`within_limits`):
@@ -65,18 +65,20 @@ import numpy as np
 from ...data.track import STATE_NAMES, Track
 from ...estimation.indices import manoeuvre_kind as manoeuvre_kind  # its home since the calibration reads it
 from ...estimation.laplace import fit_covariance
+from ...estimation.prediction import standard_run
 from ...estimation.windows import pooled_noise_sd
+from ...models.runs import (
+    Approach,
+    ManoeuvreRun,
+    approach_condition,
+    input_track,
+    menu,
+    run_inputs,
+    simulate_run,
+)
 
 __all__ = [
     "DesignOptions",
-    "ManoeuvreRun",
-    "approach_condition",
-    "rudder_rate",
-    "menu",
-    "run_inputs",
-    "input_track",
-    "simulate_run",
-    "simulate_runs",
     "predictive",
     "separation",
     "STANDARD_RUNS",
@@ -163,116 +165,6 @@ class DesignOptions:
             raise ValueError(f"sized_rows must be >= 0, got {self.sized_rows}")
 
 
-@dataclass(frozen=True)
-class ManoeuvreRun:
-    """One run of the menu.
-
-    Parameters
-    ----------
-    kind : str
-        ``"turning_circle"``, ``"pull_out"``, ``"zigzag"``, ``"spiral_steps"``,
-        ``"speed_change"`` or ``"prbs"``.
-    rudder_deg : float
-        Rudder angle (zigzag, turn, pull-out; the steps' largest; the PRBS amplitude), deg.
-    check_deg : float or None
-        A zigzag's check heading change, deg.
-    side : str
-        ``"port"`` or ``"starboard"`` (the first rudder's; ``"-"`` for a speed change).
-    rpm : float
-        Propeller rpm after the execute.
-    duration_s : float
-        Length, s.
-    """
-
-    kind: str
-    rudder_deg: float
-    check_deg: float | None
-    side: str
-    rpm: float
-    duration_s: float
-
-    @property
-    def name(self) -> str:
-        """A short label, e.g. ``zigzag 20/20 port``."""
-        if self.kind == "zigzag":
-            return f"zigzag {self.rudder_deg:g}/{self.check_deg:g} {self.side}"
-        if self.kind == "speed_change":
-            return f"speed change to {self.rpm:.0f} rpm"
-        return f"{self.kind.replace('_', ' ')} {self.rudder_deg:g} deg {self.side}"
-
-
-def rudder_rate(tracks: list) -> float | None:
-    """How fast the runs' rudder moves when it moves: the median of |d delta_r / dt| over the
-    sample intervals where it changes faster than 1 deg/s and than three times a log's jitter
-    (its noise sd from the median absolute second difference, whose median a held or slewing
-    rudder leaves at 0, times sqrt 2 over the interval). A rudder held between orders moves in few
-    intervals: a percentile over all of them is the held rudder's 0 (a step-logged rudder's
-    designed runs then ramped at 1 deg/s); a step order logged at 5 Hz reads as the jump over one
-    interval, as fast as the log can say.
-
-    Parameters
-    ----------
-    tracks : list of Track
-        Runs with ``delta_r`` (rad; non-finite samples skipped).
-
-    Returns
-    -------
-    float or None
-        rad/s; None when the rudder never moves.
-    """
-    moving = []
-    for tr in tracks:
-        t, d = np.asarray(tr.t, float), np.asarray(tr["delta_r"], float)
-        ok = np.isfinite(d)
-        if ok.sum() < 4:
-            continue
-        t, d = t[ok], d[ok]
-        rate = np.abs(np.diff(d) / np.diff(t))
-        noise_sd = 1.4826 * float(np.median(np.abs(np.diff(d, 2)))) / math.sqrt(6.0)
-        jitter = math.sqrt(2.0) * noise_sd / float(np.median(np.diff(t)))
-        moving.append(rate[rate > max(math.radians(1.0), 3.0 * jitter)])
-    r = np.concatenate(moving) if moving else np.zeros(0)
-    return float(np.median(r)) if r.size else None
-
-
-def approach_condition(tracks: list) -> dict:
-    """The approach condition of the training runs: median speed and rpm over each run's first
-    5 s, the rudder rate (:func:`rudder_rate`, at least 1 deg/s; 5 deg/s when the rudder never
-    moves) and the median run length.
-
-    Parameters
-    ----------
-    tracks : list of Track
-        The training runs (``delta_r``, ``n``; ``u`` or ``x, y`` for the speed).
-
-    Returns
-    -------
-    dict
-        ``u`` (m/s), ``rpm``, ``rudder_rate`` (rad/s), ``duration_s``.
-    """
-    us, ns, lens = [], [], []
-    for tr in tracks:
-        t = np.asarray(tr.t, float)
-        first = t <= t[0] + 5.0
-        if "u" in tr and np.isfinite(np.asarray(tr["u"], float)[first]).any():
-            us.append(float(np.nanmedian(np.asarray(tr["u"], float)[first])))
-        elif "x" in tr and "y" in tr:
-            x, y = np.asarray(tr["x"], float)[first], np.asarray(tr["y"], float)[first]
-            ok = np.isfinite(x) & np.isfinite(y)
-            if ok.sum() > 2:
-                us.append(float(np.hypot(*np.polyfit(t[first][ok], np.column_stack([x[ok], y[ok]]), 1)[0])))
-        ns.append(float(np.nanmedian(np.asarray(tr["n"], float)[first])))
-        lens.append(t[-1] - t[0])
-    rate = rudder_rate(tracks)
-    rate = math.radians(5.0) if rate is None else rate
-    return {
-        "u": float(np.median(us)) if us else 1.0,
-        "rpm": float(np.median(ns)),
-        "rudder_rate": max(rate, math.radians(1.0)),
-        "duration_s": float(np.median(lens)),
-    }
-
-
 def within_limits(options: DesignOptions, vehicle) -> DesignOptions:
     """The options with ``max_rudder_deg`` no larger than the vehicle's rudder limit: a designed
     run the vessel cannot fly is no answer (NPS AUV II's file limits its rudder to 20 deg, below
@@ -297,290 +189,6 @@ def within_limits(options: DesignOptions, vehicle) -> DesignOptions:
     if limit is None or limit >= options.max_rudder_deg:
         return options
     return replace(options, max_rudder_deg=float(limit))
-
-
-def menu(approach: dict, options: DesignOptions = DesignOptions()) -> list[ManoeuvreRun]:
-    """The standard manoeuvres :func:`design` compares (module docstring).
-
-    Parameters
-    ----------
-    approach : dict
-        :func:`approach_condition`.
-    options : DesignOptions, default DesignOptions()
-        ``max_rudder_deg`` (the largest rudder of every run: :func:`within_limits` makes it the
-        vehicle's limit where that is smaller), ``duration_s``.
-
-    Returns
-    -------
-    list of ManoeuvreRun
-        The candidate runs, each with its inputs and a description.
-    """
-    big = float(options.max_rudder_deg)
-    D = float(options.duration_s or max(90.0, approach["duration_s"]))
-    rpm = approach["rpm"]
-    runs = []
-    for side in ("port", "starboard"):
-        runs += [
-            ManoeuvreRun("turning_circle", big, None, side, rpm, D),
-            ManoeuvreRun("turning_circle", round(big / 2), None, side, rpm, D),
-            ManoeuvreRun("pull_out", min(20.0, big), None, side, rpm, D),
-        ]
-        # the zigzags 10/10 and 20/20 and at the largest rudder, each once (a 20 deg limit: two)
-        runs += [ManoeuvreRun("zigzag", a, a, side, rpm, D) for a in sorted({min(10.0, big), min(20.0, big), big})]
-    runs += [
-        ManoeuvreRun("spiral_steps", round(big * 0.7), None, "port", rpm, D),
-        ManoeuvreRun("speed_change", 0.0, None, "-", 0.6 * rpm, D),
-        ManoeuvreRun("prbs", round(big / 2), None, "port", rpm, D),
-    ]
-    return runs
-
-
-def _ramp(t: np.ndarray, orders: list, rate: float) -> np.ndarray:
-    """A rudder angle that moves at ``rate`` (rad/s) to each ordered angle from its time on
-    (``orders``: ``[(time s, angle rad), ...]``, in time order), from 0: piecewise linear
-    between the orders' breakpoints."""
-    knots_t, knots_v = [float(t[0])], [0.0]
-    for i, (t_o, target) in enumerate(orders):
-        t_next = orders[i + 1][0] if i + 1 < len(orders) else float(t[-1]) + 1.0
-        t_o = max(float(t_o), knots_t[-1])
-        v0 = float(np.interp(t_o, knots_t, knots_v)) if t_o <= knots_t[-1] else knots_v[-1]
-        knots_t.append(t_o)
-        knots_v.append(v0)
-        t_reach = t_o + abs(target - v0) / rate
-        if t_reach <= t_next:
-            knots_t.append(t_reach)
-            knots_v.append(float(target))
-        else:  # the next order comes before the rudder gets there
-            knots_t.append(t_next)
-            knots_v.append(v0 + np.sign(target - v0) * rate * (t_next - t_o))
-    return np.interp(t, knots_t, knots_v)
-
-
-def _inputs(run: ManoeuvreRun, approach: dict, t: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
-    """The open-loop rudder (rad) and rpm of a run (a zigzag's first order only; :func:`_zigzag`
-    adds the switches). Port is a positive rudder angle (the package's convention)."""
-    sgn = 1.0 if run.side == "port" else -1.0
-    a = math.radians(run.rudder_deg) * sgn
-    t0, D = 5.0, run.duration_s
-    n = np.full_like(t, approach["rpm"])
-    if run.kind in ("turning_circle", "zigzag"):
-        orders = [(t0, a)]
-    elif run.kind == "pull_out":
-        orders = [(t0, a), (t0 + 0.45 * D, 0.0)]
-    elif run.kind == "spiral_steps":
-        steps = np.linspace(1.0, -1.0, 5) * a
-        orders = [(t0 + i * (D - t0) / steps.size, float(s)) for i, s in enumerate(steps)]
-    elif run.kind == "speed_change":
-        orders, n = [], np.where(t >= t0, run.rpm, approach["rpm"])
-    else:  # prbs: a pseudo-random sign every hold time, the hold a tenth of the run
-        hold = max(D / 10.0, 5.0)
-        times = np.arange(t0, D, hold)
-        orders = [(float(s), a * float(rng.choice((-1.0, 1.0)))) for s in times]
-    return _ramp(t, orders, approach["rudder_rate"]), n
-
-
-def _track(t, delta, n, approach: dict) -> Track:
-    """An input-only track from the approach state (states as placeholders: the simulation
-    starts from ``s0``)."""
-    z = np.zeros_like(t)
-    return Track(t, {"x": z, "y": z, "psi": z, "u": z + approach["u"], "v": z, "r": z, "delta_r": delta, "n": n})
-
-
-def _simulate_whole(stage, track: Track, approach: dict) -> Track | None:
-    """A model's run through a track's inputs from the approach state (one window): the track of
-    its states at the model's steps, or None when it diverges."""
-    return simulate_run(stage.model, stage.fit.p, track, approach)
-
-
-def simulate_run(model, p, inputs: Track, approach: dict) -> Track | None:
-    """A model's run through an input schedule from the approach state, in one window (no
-    restarts): e.g. a designed run flown by a vehicle file's truth, for a synthetic check.
-
-    Parameters
-    ----------
-    model : SimulationModel
-        The model (:func:`bayesid.models.build_model`).
-    p : array_like, shape (n_params,)
-        Its parameter vector (e.g. ``model.start()``).
-    inputs : Track
-        The inputs ``delta_r`` (rad) and ``n`` (rpm) on its times (its states are not read).
-    approach : dict
-        :func:`approach_condition`: the run starts straight ahead at ``u`` m/s.
-
-    Returns
-    -------
-    Track or None
-        ``x y psi u v r`` (m, rad, m/s, rad/s) and the inputs at the model's steps from the
-        inputs' first time; None when the run diverges.
-    """
-    return simulate_runs(model, np.asarray(p, float)[None], [inputs], approach)[0]
-
-
-def simulate_runs(model, P, inputs: list, approach: dict) -> list:
-    """:func:`simulate_run` for several parameter vectors at once, each through its own input
-    schedule on the same times (one batched simulation: e.g. each parameter draw's own zigzag).
-
-    Parameters
-    ----------
-    model : SimulationModel
-        The model.
-    P : array_like, shape (B, n_params)
-        Parameter vectors.
-    inputs : list of Track
-        ``B`` input schedules on the same times, or one for every row.
-    approach : dict
-        :func:`approach_condition`.
-
-    Returns
-    -------
-    list of (Track or None)
-        One per row, as :func:`simulate_run` returns it.
-
-    Raises
-    ------
-    ValueError
-        Neither one nor ``B`` input schedules.
-    """
-    P = np.atleast_2d(np.asarray(P, float))
-    if len(inputs) not in (1, P.shape[0]):
-        raise ValueError(f"{len(inputs)} input schedules for {P.shape[0]} parameter vectors (one, or one each)")
-    s0 = np.zeros(12)
-    s0[6] = approach["u"]
-    ctx = model.context(inputs[0], None, s0=s0)
-    if len(inputs) > 1:
-        ctx = ctx.with_row_inputs(inputs)
-    S = model.simulate(ctx, P, measured_start=False)
-    out = []
-    for b, Sb in enumerate(S):
-        if not np.isfinite(Sb).all():
-            out.append(None)
-            continue
-        u = inputs[b if len(inputs) > 1 else 0]
-        data = {k: Sb[:, STATE_NAMES.index(k)] for k in ("x", "y", "psi", "u", "v", "r")}
-        data.update(delta_r=np.interp(ctx.ts, u.t, u["delta_r"]), n=np.interp(ctx.ts, u.t, u["n"]))
-        out.append(Track(np.asarray(ctx.ts, float), data))
-    return out
-
-
-def input_track(t, delta_r, n, approach: dict) -> Track:
-    """An input-only track for :func:`simulate_run` (the states are placeholders).
-
-    Parameters
-    ----------
-    t : array_like, shape (n,)
-        Times, s.
-    delta_r : array_like, shape (n,)
-        Rudder angle, rad.
-    n : array_like, shape (n,)
-        Propeller speed, rpm.
-    approach : dict
-        :func:`approach_condition`.
-
-    Returns
-    -------
-    Track
-        The inputs on ``t``.
-    """
-    return _track(np.asarray(t, float), np.asarray(delta_r, float), np.asarray(n, float), approach)
-
-
-def _zigzag(stage, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> np.ndarray:
-    """A zigzag's rudder as ``stage``'s model steers it: the rudder is reversed each time the
-    heading change from the approach passes the check angle on the rudder's side (the sign of
-    the heading change a rudder gives is read from the model's first response)."""
-    return zigzag_rudders(stage.model, np.asarray(stage.fit.p, float)[None], run, approach, t)[0]
-
-
-def zigzag_rudders(model, P, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> np.ndarray:
-    """Each parameter vector's own zigzag rudder (:func:`_zigzag`), found in lock step: every
-    pass simulates the rows still turning towards a check angle together (:func:`simulate_runs`)
-    and reverses each row's rudder where its heading passes it.
-
-    Parameters
-    ----------
-    model : SimulationModel
-        The model.
-    P : array_like, shape (B, n_params)
-        Parameter vectors.
-    run : ManoeuvreRun
-        A zigzag (``rudder_deg``, ``check_deg``, ``side``).
-    approach : dict
-        :func:`approach_condition` (``u``, ``rpm``, ``rudder_rate``).
-    t : ndarray, shape (n,)
-        Times from the start of the run, s.
-
-    Returns
-    -------
-    ndarray, shape (B, n)
-        Rudder angle, rad: reversed at every check angle the heading passes until the run's end;
-        a row whose run diverges keeps the orders found before.
-    """
-    P = np.atleast_2d(np.asarray(P, float))
-    a = math.radians(run.rudder_deg) * (1.0 if run.side == "port" else -1.0)
-    check = math.radians(run.check_deg)
-    orders = [[(5.0, a)] for _ in P]
-    n = np.full_like(t, approach["rpm"])
-    turn: list = [None] * len(P)
-    live = list(range(len(P)))
-    # every pass adds at most one reversal per row, each at a later sample than the row's last:
-    # the search ends when no row's heading passes another check angle before the run's end
-    # (at most one pass per sample; it stopped after 12 reversals before, and a longer run held
-    # its last rudder from there on: a turn, not a zigzag)
-    for _ in range(t.size):
-        if not live:
-            break
-        tracks = [_track(t, _ramp(t, orders[b], approach["rudder_rate"]), n, approach) for b in live]
-        sims = simulate_runs(model, P[live], tracks, approach)
-        still = []
-        for b, sim in zip(live, sims):
-            if sim is None:
-                continue
-            h = np.unwrap(np.asarray(sim["psi"], float))
-            h = np.interp(t, sim.t, h - h[0])
-            if turn[b] is None:  # which way a positive rudder turns this model
-                late = h[t > 5.0]
-                turn[b] = float(np.sign(late[np.argmax(np.abs(late))])) * np.sign(a) or 1.0
-            t_last, target = orders[b][-1]
-            want = turn[b] * np.sign(target) * check
-            after = np.flatnonzero((t > t_last) & (np.sign(want) * (h - want) >= 0))
-            if after.size:
-                orders[b].append((float(t[after[0]]), -target))
-                still.append(b)
-        live = still
-    return np.array([_ramp(t, o, approach["rudder_rate"]) for o in orders])
-
-
-def run_inputs(stage, run: ManoeuvreRun, approach: dict, rng=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The input schedule of a menu run, from the approach condition: the rudder moves at the
-    approach's rudder rate; a zigzag's rudder is reversed where ``stage``'s model's heading
-    passes the check angle (a user steers the real run by its own heading instead).
-
-    Parameters
-    ----------
-    stage : Stage
-        The model that steers a zigzag (the kept term's).
-    run : ManoeuvreRun
-        The run (:func:`menu`).
-    approach : dict
-        :func:`approach_condition`.
-    rng : numpy.random.Generator, optional
-        The pseudo-random rudder sequence's signs (default: seed 0).
-
-    Returns
-    -------
-    t : ndarray, shape (n,)
-        Times from the start of the run, s (0.1 s or the model's step, whichever is smaller).
-    delta_r : ndarray, shape (n,)
-        Rudder angle, rad (+ to port, the package's convention).
-    n : ndarray, shape (n,)
-        Propeller speed, rpm.
-    """
-    rng = np.random.default_rng(0) if rng is None else rng
-    t = np.arange(0.0, run.duration_s, min(0.1, stage.model.dt))
-    delta, n = _inputs(run, approach, t, rng)
-    if run.kind == "zigzag":
-        delta = _zigzag(stage, run, approach, t)
-    return t, delta, n
 
 
 def _draws(stage, ctxs, n_draws: int, rng) -> np.ndarray:
@@ -684,26 +292,18 @@ STANDARD_INDICES = {
 }
 
 
-def _free_run_indices(stage, P, run: ManoeuvreRun, approach: dict, t: np.ndarray) -> list[dict]:
-    """The indices of each parameter vector's free run (a zigzag on its own switches,
-    :func:`zigzag_rudders`; one batched simulation per pass), NaN where a run diverges."""
-    from ...estimation.indices import manoeuvre_indices
-
-    P = np.atleast_2d(np.asarray(P, float))
-    delta, n = _inputs(run, approach, t, None)
-    if run.kind == "zigzag":
-        tracks = [_track(t, d, n, approach) for d in zigzag_rudders(stage.model, P, run, approach, t)]
-    else:
-        tracks = [_track(t, delta, n, approach)]
+def _free_run_indices(stage, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> list[dict]:
+    """The indices of each parameter vector's free run
+    (:func:`bayesid.estimation.prediction.standard_run`: a zigzag on its own switches, one batched
+    simulation per pass), NaN where a run diverges."""
     keys = STANDARD_INDICES[run.kind]
-    out = []
-    for sim in simulate_runs(stage.model, P, tracks, approach):
-        if sim is None:
-            out.append(dict.fromkeys(keys, float("nan")))
-            continue
-        got = manoeuvre_indices(sim.t, sim["x"], sim["y"], sim["psi"], sim["delta_r"])
-        out.append({k: float(got.get(k, float("nan"))) for k in keys})
-    return out
+    _, S, indices = standard_run(stage.model, P, run, approach, t)
+    return [
+        {k: float(got.get(k, float("nan"))) for k in keys}
+        if np.isfinite(s).all()
+        else dict.fromkeys(keys, float("nan"))
+        for s, got in zip(S, indices)
+    ]
 
 
 def _spread(values: list) -> dict:
@@ -750,7 +350,7 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
     options = within_limits(options, setup.vehicle)
     approach = approach_condition(setup.train)
     kinds = {manoeuvre_kind(tr) for tr in setup.train}
-    D = float(options.duration_s or max(150.0, approach["duration_s"]))
+    D = float(options.duration_s or max(150.0, approach.duration_s))
     draws = {}
     for k, st in stages.items():
         ctxs = [st.model.context(tr, setup.fit_window_s) for tr in setup.train]
@@ -758,7 +358,7 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
     out = []
     for kind, rudder, check, side in STANDARD_RUNS:
         a = float(options.max_rudder_deg) if rudder is None else min(rudder, float(options.max_rudder_deg))
-        run = ManoeuvreRun(kind, a, None if check is None else a, side, approach["rpm"], D)
+        run = ManoeuvreRun(kind, a, None if check is None else a, side, approach.rpm, D)
         models = {}
         for k, st in stages.items():
             t = np.arange(0.0, D, min(0.1, st.model.dt))
@@ -816,7 +416,7 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         ``sized_from_s``: the menu's duration when sizing lengthened the run, else None),
         ``decidable_pairs`` (the pairs the run test could decide on it, :func:`decidable_pairs`),
         ``inputs`` (``{"t" s, "delta_r" rad, "n" rpm}``: the run's input schedule,
-        :func:`run_inputs`) and ``predicted`` (``{label: {"t", "x", "y", "psi"}}``, the
+        :func:`bayesid.models.runs.run_inputs`) and ``predicted`` (``{label: {"t", "x", "y", "psi"}}``, the
         estimates' predictions over the windows, for the figure).
 
     Raises
@@ -833,7 +433,7 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
     options = within_limits(options, setup.vehicle)
     approach = approach_condition(setup.train)
     if options.duration_s is None and setup.window_s:  # enough windows for the run test to see it
-        approach = {**approach, "duration_s": max(approach["duration_s"], RUN_WINDOWS * float(setup.window_s))}
+        approach = replace(approach, duration_s=max(approach.duration_s, RUN_WINDOWS * float(setup.window_s)))
     sd = pooled_noise_sd(setup.train)
     noise_var = np.array([sd.get(c, 0.0) ** 2 for c in _CHANNELS]) + 1e-12
     # the error a prediction makes beyond the parameters' spread: the measurement noise, or the
@@ -855,7 +455,11 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         level=th.partial_p,
         power=options.power,
     )
-    out = [r for r in (_evaluate(run, scoring, rng) for run in menu(approach, options)) if r is not None]
+    out = [
+        r
+        for r in (_evaluate(run, scoring, rng) for run in menu(approach, options.max_rudder_deg, options.duration_s))
+        if r is not None
+    ]
     out = rank_by_decidable_pairs(rank_by_separable_pairs(out, options.min_separation), options.max_windows)
     if options.duration_s is None and setup.window_s and options.sized_rows:
         inseparable = set(out[0]["menu_inseparable"]) if out else set()
@@ -871,7 +475,7 @@ class _Scoring:
     """What scoring one run of the menu needs (:func:`_evaluate`)."""
 
     stages: dict
-    approach: dict
+    approach: Approach
     noise_var: np.ndarray
     draws: dict
     window_s: float | None
@@ -888,8 +492,8 @@ def _evaluate(run: ManoeuvreRun, sc: _Scoring, rng) -> dict | None:
     on it or no pair is finite."""
     labels = list(sc.stages)
     best = sc.stages[labels[0]]
-    t, delta, n = run_inputs(best, run, sc.approach, rng)
-    ref = _simulate_whole(best, _track(t, delta, n, sc.approach), sc.approach)
+    t, delta, n = run_inputs(best.model, best.fit.p, run, sc.approach, rng)
+    ref = simulate_run(best.model, best.fit.p, input_track(t, delta, n, sc.approach), sc.approach)
     if ref is None:
         return None
     pred = {k: predictive(st, sc.draws[k], ref, sc.window_s) for k, st in sc.stages.items()}

@@ -1,0 +1,573 @@
+"""Manoeuvre runs of any simulation model: the approach condition of a set of logged runs, the
+standard manoeuvres' input schedules from it, and their free runs (no restarts), a zigzag steered
+closed loop on each parameter row's own heading.
+
+These are what a designed run (:mod:`bayesid.analysis.gap.design`) and a predicted standard
+manoeuvre are made of, for a submarine (:mod:`bayesid.models.submarine`) and a ship
+(:mod:`bayesid.models.ship`) alike: every function takes a :class:`~bayesid.models.SimulationModel`
+and parameter rows, and simulates the rows together (one batched simulation per pass).
+
+The kinds of run (:data:`KINDS`) are the names :func:`bayesid.estimation.indices.manoeuvre_kind`
+reads a logged run as, where it reads one: ``turning_circle``, ``zigzag``, ``pull_out``;
+procedures: ITTC Recommended Procedure 7.5-04-02-01 (2017), "Full Scale Manoeuvring Trials",
+Sec. 2.2.1 (turning circle), 2.2.2 (zigzag), 2.2.6 (pull-out).
+
+Sign convention: the package's rudder is positive to port; ``side="port"`` is a positive first
+rudder angle.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data.track import STATE_NAMES, Track
+
+__all__ = [
+    "KINDS",
+    "Approach",
+    "ManoeuvreRun",
+    "approach_condition",
+    "rudder_rate",
+    "menu",
+    "ramp",
+    "open_loop_inputs",
+    "input_track",
+    "simulate_run",
+    "simulate_runs",
+    "zigzag_rudders",
+    "run_inputs",
+    "free_runs",
+    "free_run_states",
+]
+
+#: The runs :func:`open_loop_inputs` schedules (a zigzag's switches by :func:`zigzag_rudders`).
+KINDS = ("turning_circle", "pull_out", "zigzag", "spiral_steps", "speed_change", "prbs")
+#: Time of the first order from the start of a run, s.
+T_EXECUTE = 5.0
+
+
+@dataclass(frozen=True)
+class Approach:
+    """The approach condition a run starts from (:func:`approach_condition`).
+
+    Parameters
+    ----------
+    u : float
+        Speed ahead, m/s (the run starts straight ahead at it).
+    rpm : float
+        Propeller speed, rpm.
+    rudder_rate : float
+        How fast the rudder moves to an order, rad/s (``math.inf``: it steps).
+    duration_s : float
+        The runs' length, s (the training runs' median).
+    """
+
+    u: float
+    rpm: float
+    rudder_rate: float
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class ManoeuvreRun:
+    """One run of the menu.
+
+    Parameters
+    ----------
+    kind : str
+        ``"turning_circle"``, ``"pull_out"``, ``"zigzag"``, ``"spiral_steps"``,
+        ``"speed_change"`` or ``"prbs"``.
+    rudder_deg : float
+        Rudder angle (zigzag, turn, pull-out; the steps' largest; the PRBS amplitude), deg.
+    check_deg : float or None
+        A zigzag's check heading change, deg.
+    side : str
+        ``"port"`` or ``"starboard"`` (the first rudder's; ``"-"`` for a speed change).
+    rpm : float
+        Propeller rpm after the execute.
+    duration_s : float
+        Length, s.
+    execute_s : float, default :data:`T_EXECUTE`
+        Time of the first order from the start of the run, s.
+    """
+
+    kind: str
+    rudder_deg: float
+    check_deg: float | None
+    side: str
+    rpm: float
+    duration_s: float
+    execute_s: float = T_EXECUTE
+
+    @property
+    def name(self) -> str:
+        """A short label, e.g. ``zigzag 20/20 port``."""
+        if self.kind == "zigzag":
+            return f"zigzag {self.rudder_deg:g}/{self.check_deg:g} {self.side}"
+        if self.kind == "speed_change":
+            return f"speed change to {self.rpm:.0f} rpm"
+        return f"{self.kind.replace('_', ' ')} {self.rudder_deg:g} deg {self.side}"
+
+
+def rudder_rate(tracks: list) -> float | None:
+    """How fast the runs' rudder moves when it moves: the median of |d delta_r / dt| over the
+    sample intervals where it changes faster than 1 deg/s and than three times a log's jitter
+    (its noise sd from the median absolute second difference, whose median a held or slewing
+    rudder leaves at 0, times sqrt 2 over the interval). A rudder held between orders moves in few
+    intervals: a percentile over all of them is the held rudder's 0 (a step-logged rudder's
+    designed runs then ramped at 1 deg/s); a step order logged at 5 Hz reads as the jump over one
+    interval, as fast as the log can say.
+
+    Parameters
+    ----------
+    tracks : list of Track
+        Runs with ``delta_r`` (rad; non-finite samples skipped).
+
+    Returns
+    -------
+    float or None
+        rad/s; None when the rudder never moves.
+    """
+    moving = []
+    for tr in tracks:
+        t, d = np.asarray(tr.t, float), np.asarray(tr["delta_r"], float)
+        ok = np.isfinite(d)
+        if ok.sum() < 4:
+            continue
+        t, d = t[ok], d[ok]
+        rate = np.abs(np.diff(d) / np.diff(t))
+        noise_sd = 1.4826 * float(np.median(np.abs(np.diff(d, 2)))) / math.sqrt(6.0)
+        jitter = math.sqrt(2.0) * noise_sd / float(np.median(np.diff(t)))
+        moving.append(rate[rate > max(math.radians(1.0), 3.0 * jitter)])
+    r = np.concatenate(moving) if moving else np.zeros(0)
+    return float(np.median(r)) if r.size else None
+
+
+def approach_condition(tracks: list) -> Approach:
+    """The approach condition of the training runs: median speed and rpm over each run's first
+    5 s, the rudder rate (:func:`rudder_rate`, at least 1 deg/s; 5 deg/s when the rudder never
+    moves) and the median run length.
+
+    Parameters
+    ----------
+    tracks : list of Track
+        The training runs (``delta_r``, ``n``; ``u`` or ``x, y`` for the speed).
+
+    Returns
+    -------
+    Approach
+        ``u`` (m/s), ``rpm``, ``rudder_rate`` (rad/s), ``duration_s``.
+    """
+    us, ns, lens = [], [], []
+    for tr in tracks:
+        t = np.asarray(tr.t, float)
+        first = t <= t[0] + 5.0
+        if "u" in tr and np.isfinite(np.asarray(tr["u"], float)[first]).any():
+            us.append(float(np.nanmedian(np.asarray(tr["u"], float)[first])))
+        elif "x" in tr and "y" in tr:
+            x, y = np.asarray(tr["x"], float)[first], np.asarray(tr["y"], float)[first]
+            ok = np.isfinite(x) & np.isfinite(y)
+            if ok.sum() > 2:
+                us.append(float(np.hypot(*np.polyfit(t[first][ok], np.column_stack([x[ok], y[ok]]), 1)[0])))
+        ns.append(float(np.nanmedian(np.asarray(tr["n"], float)[first])))
+        lens.append(t[-1] - t[0])
+    rate = rudder_rate(tracks)
+    rate = math.radians(5.0) if rate is None else rate
+    return Approach(
+        u=float(np.median(us)) if us else 1.0,
+        rpm=float(np.median(ns)),
+        rudder_rate=max(rate, math.radians(1.0)),
+        duration_s=float(np.median(lens)),
+    )
+
+
+def menu(approach: Approach, max_rudder_deg: float = 35.0, duration_s: float | None = None) -> list[ManoeuvreRun]:
+    """The standard manoeuvres a design compares (:func:`bayesid.analysis.gap.design.design`):
+    turning circles both sides at the largest and at half the rudder, pull-outs, zigzags 10/10,
+    20/20 and at the largest rudder both sides, a spiral's rudder steps, a speed change to 60 %
+    of the rpm and a pseudo-random rudder sequence, all from ``approach``.
+
+    Parameters
+    ----------
+    approach : Approach
+        :func:`approach_condition`.
+    max_rudder_deg : float, default 35.0
+        The largest rudder of every run, deg (the vehicle's limit where that is smaller:
+        :func:`bayesid.analysis.gap.design.within_limits`).
+    duration_s : float, optional
+        Length of every run, s (default: the approach's, at least 90 s).
+
+    Returns
+    -------
+    list of ManoeuvreRun
+        The candidate runs, each with its inputs and a description.
+    """
+    big = float(max_rudder_deg)
+    D = float(duration_s or max(90.0, approach.duration_s))
+    rpm = approach.rpm
+    runs = []
+    for side in ("port", "starboard"):
+        runs += [
+            ManoeuvreRun("turning_circle", big, None, side, rpm, D),
+            ManoeuvreRun("turning_circle", round(big / 2), None, side, rpm, D),
+            ManoeuvreRun("pull_out", min(20.0, big), None, side, rpm, D),
+        ]
+        # the zigzags 10/10 and 20/20 and at the largest rudder, each once (a 20 deg limit: two)
+        runs += [ManoeuvreRun("zigzag", a, a, side, rpm, D) for a in sorted({min(10.0, big), min(20.0, big), big})]
+    runs += [
+        ManoeuvreRun("spiral_steps", round(big * 0.7), None, "port", rpm, D),
+        ManoeuvreRun("speed_change", 0.0, None, "-", 0.6 * rpm, D),
+        ManoeuvreRun("prbs", round(big / 2), None, "port", rpm, D),
+    ]
+    return runs
+
+
+def ramp(t: np.ndarray, orders: list, rate: float) -> np.ndarray:
+    """A rudder angle that moves at ``rate`` to each ordered angle from its time on, from 0:
+    piecewise linear between the orders' breakpoints (an order that comes before the rudder got
+    to the last one turns it round where it is).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Times, s.
+    orders : list of (float, float)
+        ``[(time s, angle rad), ...]``, in time order.
+    rate : float
+        Rudder rate, rad/s.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Rudder angle, rad.
+    """
+    knots_t, knots_v = [float(t[0])], [0.0]
+    for i, (t_o, target) in enumerate(orders):
+        t_next = orders[i + 1][0] if i + 1 < len(orders) else float(t[-1]) + 1.0
+        t_o = max(float(t_o), knots_t[-1])
+        v0 = float(np.interp(t_o, knots_t, knots_v)) if t_o <= knots_t[-1] else knots_v[-1]
+        knots_t.append(t_o)
+        knots_v.append(v0)
+        t_reach = t_o + abs(target - v0) / rate
+        if t_reach <= t_next:
+            knots_t.append(t_reach)
+            knots_v.append(float(target))
+        else:  # the next order comes before the rudder gets there
+            knots_t.append(t_next)
+            knots_v.append(v0 + np.sign(target - v0) * rate * (t_next - t_o))
+    return np.interp(t, knots_t, knots_v)
+
+
+def open_loop_inputs(run: ManoeuvreRun, approach: Approach, t: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
+    """The open-loop rudder and rpm of a run from :data:`T_EXECUTE` (a zigzag's first order only;
+    :func:`zigzag_rudders` adds the switches). Port is a positive rudder angle.
+
+    Parameters
+    ----------
+    run : ManoeuvreRun
+        The run.
+    approach : Approach
+        ``rpm`` before the execute, ``rudder_rate``.
+    t : ndarray, shape (n,)
+        Times from the start of the run, s.
+    rng : numpy.random.Generator or None
+        The pseudo-random sequence's signs (``prbs`` only).
+
+    Returns
+    -------
+    delta_r : ndarray, shape (n,)
+        Rudder angle, rad.
+    n : ndarray, shape (n,)
+        Propeller speed, rpm.
+    """
+    sgn = 1.0 if run.side == "port" else -1.0
+    a = math.radians(run.rudder_deg) * sgn
+    t0, D = run.execute_s, run.duration_s
+    n = np.full_like(t, approach.rpm)
+    if run.kind in ("turning_circle", "zigzag"):
+        orders = [(t0, a)]
+    elif run.kind == "pull_out":
+        orders = [(t0, a), (t0 + 0.45 * D, 0.0)]
+    elif run.kind == "spiral_steps":
+        steps = np.linspace(1.0, -1.0, 5) * a
+        orders = [(t0 + i * (D - t0) / steps.size, float(s)) for i, s in enumerate(steps)]
+    elif run.kind == "speed_change":
+        orders, n = [], np.where(t >= t0, run.rpm, approach.rpm)
+    else:  # prbs: a pseudo-random sign every hold time, the hold a tenth of the run
+        hold = max(D / 10.0, 5.0)
+        times = np.arange(t0, D, hold)
+        orders = [(float(s), a * float(rng.choice((-1.0, 1.0)))) for s in times]
+    return ramp(t, orders, approach.rudder_rate), n
+
+
+def _track(t, delta, n, approach: Approach) -> Track:
+    """An input-only track from the approach state (states as placeholders: the simulation
+    starts from ``s0``)."""
+    z = np.zeros_like(t)
+    return Track(t, {"x": z, "y": z, "psi": z, "u": z + approach.u, "v": z, "r": z, "delta_r": delta, "n": n})
+
+
+def simulate_run(model, p, inputs: Track, approach: Approach) -> Track | None:
+    """A model's run through an input schedule from the approach state, in one window (no
+    restarts): e.g. a designed run flown by a vehicle file's truth, for a synthetic check.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model (:func:`bayesid.models.build_model`).
+    p : array_like, shape (n_params,)
+        Its parameter vector (e.g. ``model.start()``).
+    inputs : Track
+        The inputs ``delta_r`` (rad) and ``n`` (rpm) on its times (its states are not read).
+    approach : Approach
+        :func:`approach_condition` (or any object with ``u``): the run starts straight ahead at
+        ``u`` m/s.
+
+    Returns
+    -------
+    Track or None
+        ``x y psi u v r`` (m, rad, m/s, rad/s) and the inputs at the model's steps from the
+        inputs' first time; None when the run diverges.
+    """
+    return simulate_runs(model, np.asarray(p, float)[None], [inputs], approach)[0]
+
+
+def simulate_runs(model, P, inputs: list, approach: Approach) -> list:
+    """:func:`simulate_run` for several parameter vectors at once, each through its own input
+    schedule on the same times (one batched simulation: e.g. each parameter draw's own zigzag).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    inputs : list of Track
+        ``B`` input schedules on the same times, or one for every row.
+    approach : Approach
+        :func:`approach_condition`.
+
+    Returns
+    -------
+    list of (Track or None)
+        One per row, as :func:`simulate_run` returns it.
+
+    Raises
+    ------
+    ValueError
+        Neither one nor ``B`` input schedules.
+    """
+    ctx, S = _simulate(model, P, inputs, approach)
+    out = []
+    for b, Sb in enumerate(S):
+        if not np.isfinite(Sb).all():
+            out.append(None)
+            continue
+        u = inputs[b if len(inputs) > 1 else 0]
+        data = {k: Sb[:, STATE_NAMES.index(k)] for k in ("x", "y", "psi", "u", "v", "r")}
+        data.update(delta_r=np.interp(ctx.ts, u.t, u["delta_r"]), n=np.interp(ctx.ts, u.t, u["n"]))
+        out.append(Track(np.asarray(ctx.ts, float), data))
+    return out
+
+
+def _simulate(model, P, inputs: list, approach: Approach):
+    """The track context of ``inputs`` (each row its own schedule when there are several) and the
+    states ``(B, n_steps, 12)`` of every row from the approach state."""
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(inputs) not in (1, P.shape[0]):
+        raise ValueError(f"{len(inputs)} input schedules for {P.shape[0]} parameter vectors (one, or one each)")
+    s0 = np.zeros(12)
+    s0[6] = approach.u
+    ctx = model.context(inputs[0], None, s0=s0)
+    if len(inputs) > 1:
+        ctx = ctx.with_row_inputs(inputs)
+    return ctx, model.simulate(ctx, P, measured_start=False)
+
+
+def input_track(t, delta_r, n, approach: Approach) -> Track:
+    """An input-only track for :func:`simulate_run` (the states are placeholders).
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Times, s.
+    delta_r : array_like, shape (n,)
+        Rudder angle, rad.
+    n : array_like, shape (n,)
+        Propeller speed, rpm.
+    approach : Approach
+        :func:`approach_condition`.
+
+    Returns
+    -------
+    Track
+        The inputs on ``t``.
+    """
+    return _track(np.asarray(t, float), np.asarray(delta_r, float), np.asarray(n, float), approach)
+
+
+def zigzag_rudders(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> np.ndarray:
+    """Each parameter vector's own zigzag rudder, steered on its own heading: the rudder is
+    reversed each time the heading change from the approach passes the check angle on the
+    rudder's side (the sign of the heading change a rudder gives is read from the row's first
+    response). Found in lock step: every pass simulates the rows still turning towards a check
+    angle together (:func:`simulate_runs`) and reverses each row's rudder where its heading
+    passes it (at the first sample past it).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    run : ManoeuvreRun
+        A zigzag (``rudder_deg``, ``check_deg``, ``side``).
+    approach : Approach
+        :func:`approach_condition` (``u``, ``rpm``, ``rudder_rate``).
+    t : ndarray, shape (n,)
+        Times from the start of the run, s.
+
+    Returns
+    -------
+    ndarray, shape (B, n)
+        Rudder angle, rad: reversed at every check angle the heading passes until the run's end;
+        a row whose run diverges keeps the orders found before.
+    """
+    P = np.atleast_2d(np.asarray(P, float))
+    a = math.radians(run.rudder_deg) * (1.0 if run.side == "port" else -1.0)
+    check = math.radians(run.check_deg)
+    orders = [[(run.execute_s, a)] for _ in P]
+    n = np.full_like(t, approach.rpm)
+    turn: list = [None] * len(P)
+    live = list(range(len(P)))
+    # every pass adds at most one reversal per row, each at a later sample than the row's last:
+    # the search ends when no row's heading passes another check angle before the run's end
+    # (at most one pass per sample; it stopped after 12 reversals before, and a longer run held
+    # its last rudder from there on: a turn, not a zigzag)
+    for _ in range(t.size):
+        if not live:
+            break
+        tracks = [_track(t, ramp(t, orders[b], approach.rudder_rate), n, approach) for b in live]
+        sims = simulate_runs(model, P[live], tracks, approach)
+        still = []
+        for b, sim in zip(live, sims):
+            if sim is None:
+                continue
+            h = np.unwrap(np.asarray(sim["psi"], float))
+            h = np.interp(t, sim.t, h - h[0])
+            if turn[b] is None:  # which way a positive rudder turns this model
+                late = h[t > run.execute_s]
+                turn[b] = float(np.sign(late[np.argmax(np.abs(late))])) * np.sign(a) or 1.0
+            t_last, target = orders[b][-1]
+            want = turn[b] * np.sign(target) * check
+            after = np.flatnonzero((t > t_last) & (np.sign(want) * (h - want) >= 0))
+            if after.size:
+                orders[b].append((float(t[after[0]]), -target))
+                still.append(b)
+        live = still
+    return np.array([ramp(t, o, approach.rudder_rate) for o in orders])
+
+
+def run_inputs(model, p, run: ManoeuvreRun, approach: Approach, rng=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The input schedule of a menu run, from the approach condition: the rudder moves at the
+    approach's rudder rate; a zigzag's rudder is reversed where ``model``'s heading passes the
+    check angle (:func:`zigzag_rudders`; a user steers the real run by its own heading instead).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model that steers a zigzag (a design's: the kept term's).
+    p : array_like, shape (n_params,)
+        Its parameter vector.
+    run : ManoeuvreRun
+        The run (:func:`menu`).
+    approach : Approach
+        :func:`approach_condition`.
+    rng : numpy.random.Generator, optional
+        The pseudo-random rudder sequence's signs (default: seed 0).
+
+    Returns
+    -------
+    t : ndarray, shape (n,)
+        Times from the start of the run, s (0.1 s or the model's step, whichever is smaller).
+    delta_r : ndarray, shape (n,)
+        Rudder angle, rad (+ to port, the package's convention).
+    n : ndarray, shape (n,)
+        Propeller speed, rpm.
+    """
+    rng = np.random.default_rng(0) if rng is None else rng
+    t = np.arange(0.0, run.duration_s, min(0.1, model.dt))
+    delta, n = open_loop_inputs(run, approach, t, rng)
+    if run.kind == "zigzag":
+        delta = zigzag_rudders(model, np.asarray(p, float)[None], run, approach, t)[0]
+    return t, delta, n
+
+
+def free_runs(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> list:
+    """Each parameter vector's free run of a standard manoeuvre from the approach condition, a
+    zigzag on the row's own switches (:func:`zigzag_rudders`): one batched simulation per pass.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    run : ManoeuvreRun
+        The run (its ``duration_s`` is not read: ``t`` is the run's time).
+    approach : Approach
+        :func:`approach_condition`.
+    t : ndarray, shape (n,)
+        Times from the start of the run, s.
+
+    Returns
+    -------
+    list of (Track or None)
+        One per row, as :func:`simulate_run` returns it (None: the run diverged).
+    """
+    return simulate_runs(model, P, _free_run_inputs(model, P, run, approach, t), approach)
+
+
+def free_run_states(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray):
+    """:func:`free_runs` as arrays, diverged rows included (non-finite): what a band over
+    parameter draws and a figure of every draw's run read.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    P : array_like, shape (B, n_params)
+        Parameter vectors.
+    run : ManoeuvreRun
+        The run (its ``duration_s`` is not read: ``t`` is the run's time).
+    approach : Approach
+        :func:`approach_condition` (``rudder_rate`` ``math.inf``: the rudder steps).
+    t : ndarray, shape (n,)
+        Times from the start of the run, s.
+
+    Returns
+    -------
+    ts : ndarray, shape (n_steps,)
+        The model's step times, s.
+    S : ndarray, shape (B, n_steps, 12)
+        States of every row (:data:`bayesid.data.track.STATE_NAMES`; SI units).
+    delta_r : ndarray, shape (B, n_steps)
+        Each row's rudder angle at the step times, rad.
+    """
+    inputs = _free_run_inputs(model, P, run, approach, t)
+    ctx, S = _simulate(model, P, inputs, approach)
+    idx = np.asarray(ctx.idx)
+    delta = np.array([np.asarray(inputs[b if len(inputs) > 1 else 0]["delta_r"], float)[idx] for b in range(len(S))])
+    return np.asarray(ctx.ts, float), S, delta
+
+
+def _free_run_inputs(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> list:
+    """The input tracks of :func:`free_runs`: one, or one per row for a zigzag."""
+    P = np.atleast_2d(np.asarray(P, float))
+    delta, n = open_loop_inputs(run, approach, t, None)
+    if run.kind == "zigzag":
+        return [_track(t, d, n, approach) for d in zigzag_rudders(model, P, run, approach, t)]
+    return [_track(t, delta, n, approach)]
