@@ -57,9 +57,9 @@ def _models(case):
     return got["stages"], got["setup"], got["options"]
 
 
-def _one_at_a_time(stage, P, run, approach, t):
+def _one_at_a_time(stage, P, run, approach):
     """Each draw's indices from its own free run, one row per call (the cost of the old loop)."""
-    return [dz._free_run_indices(stage, P[b : b + 1], run, approach, t)[0] for b in range(len(P))]
+    return [dz._free_run_indices(stage, P[b : b + 1], run, approach)[0] for b in range(len(P))]
 
 
 def _all_runs(stages, setup, options, batched: bool) -> list:
@@ -78,9 +78,8 @@ def _all_runs(stages, setup, options, batched: bool) -> list:
         a = float(options.max_rudder_deg) if rudder is None else min(rudder, float(options.max_rudder_deg))
         run = mr.ManoeuvreRun(kind, a, None if check is None else a, side, approach.rpm, D)
         for k, st in stages.items():
-            t = np.arange(0.0, D, min(0.1, st.model.dt))
             f = dz._free_run_indices if batched else _one_at_a_time
-            out.append(f(st, draws[k], run, approach, t))
+            out.append(f(st, draws[k], run, approach))
     return out
 
 

@@ -18,7 +18,8 @@ Method
   one term at a time; each refitted with every free coefficient on all 13 HSVA zigzags (what
   ``bayesid fit`` does on the ``--write-vehicle`` file), 15 s fit windows, measured starts.
 - Beyond the zigzags: each structure predicts the 35 deg turning circles both ways (from U0 =
-  1.179 m/s at 10.23 rps, the ITTC indices, the 5-95 % range over Laplace draws), and every
+  1.179 m/s at 10.23 rps, the rudder moved at the HSVA runs' rate, ``real_ships.turn_approach``;
+  the ITTC indices, the 5-95 % range over Laplace draws), and every
   HSVA zigzag's overshoots (training runs now: a check of the fit, not a prediction).
 - The other basin (MARIN, SIMMAN 2008 free-running runs of the same hull, Froude-scaled): when
   their files are under ``--data`` (they are withheld from this repository), each structure
@@ -45,10 +46,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from studies.real_ships import KVLCC2_HOLD, RPS, U0  # noqa: E402
+from studies.real_ships import KVLCC2_HOLD, U0, turn_approach  # noqa: E402
 
 #: the turning indices each structure predicts, and the issue's targets on the other basin's runs
-TURN_INDICES = ("advance_m", "transfer_m", "tactical_diameter_m")
+TURN_INDICES = ("advance_m", "transfer_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
 TARGETS = {"tactical_diameter_m": 0.05, "advance_m": 0.03}
 #: The KVLCC2 model's length between perpendiculars, m (bayesid/vehicles/kvlcc2_7m.toml).
 L_PP = 7.0
@@ -127,11 +128,12 @@ def refit_all(kv, tracks, terms: dict, args):
     return FittedModel(res.model, res.fit.p, res.cov), coefs, res.train_scores.get("rms_position_m")
 
 
-def circles_of(fitted, args, rng) -> dict:
-    """35 deg turning circles both ways: each index at the estimate and its 5-95 % range."""
+def circles_of(fitted, args, rng, approach) -> dict:
+    """35 deg turning circles both ways from ``approach``: each index at the estimate and its
+    5-95 % range."""
     from bayesid.estimation.prediction import turning_circles
 
-    tc = turning_circles(fitted, args.draws, rng, U0, RPS)
+    tc = turning_circles(fitted, args.draws, rng, approach)
     return {
         side: {
             k: {"value": c["predicted"].get(k), "band_5_95": (c.get("band_5_95") or {}).get(k)} for k in TURN_INDICES
@@ -652,7 +654,7 @@ def main() -> int:
     for label, terms in todo.items():
         log(f"refit on all {len(tracks)} zigzags: {label}")
         fitted, coefs, rms = refit_all(kv, tracks, terms, args)
-        circles, S = circles_of(fitted, args, rng)
+        circles, S = circles_of(fitted, args, rng, turn_approach(tracks))
         sims["no discovered term" if label == "without" else label] = S["starboard"]
         res["structures"][label] = {
             "terms": list(terms),

@@ -30,8 +30,9 @@ Method
   turn_14-Oct-2020_15_06_53, zigzag_31-Jul-2020_13_57_45, berthing_12-Nov-2020_11_38_50; train on
   the other runs, the trimmed ``turn_cut_*`` copies left out); KVLCC2: hold out Z_10_10_P,
   Z_20_10_S, Z_35_05, Z_15_01, train on the other nine zigzags.
-- KVLCC2 turning circles (35 deg both ways, from U0 = 1.179 m/s at 10.23 rps) are predicted from
-  the zigzag-trained model with a posterior predictive band (Laplace draws).
+- KVLCC2 turning circles (35 deg both ways, from U0 = 1.179 m/s at 10.23 rps, the rudder moved at
+  the rate the HSVA runs log: :func:`turn_approach`) are predicted from the zigzag-trained model
+  with a posterior predictive band (Laplace draws).
 
     python studies/real_ships.py [--quick] [--out DIR] [--data DIR] [--draws N]
 """
@@ -63,6 +64,19 @@ ESSO_HOLD = [
 KVLCC2_HOLD = ["Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01"]
 #: KVLCC2 7 m model's approach speed (m/s) and propeller speed (rev/s) of the predicted turning circles
 U0, RPS = 1.179, 10.23
+
+
+def turn_approach(tracks):
+    """The approach of the predicted KVLCC2 turning circles: U0 at RPS, the rudder moved at the
+    rate the HSVA runs' rudder moves (:func:`bayesid.models.runs.approach_condition`; the
+    package's one approach condition, whose speed and rpm the constants fix here)."""
+    from dataclasses import replace
+
+    from bayesid.models.runs import approach_condition
+
+    return replace(approach_condition(tracks), u=U0, rpm=RPS * 60.0)
+
+
 #: The rudder-hull interaction parameters of the MMG model that the KVLCC2 file holds at their
 #: captive-test values (Yasukawa & Yoshimura 2015, eqs. 13-23; bayesid.models.ship): freed in one all-13 refit
 INTERACTION = ("tR", "aH", "xH", "kappa", "lR")
@@ -214,9 +228,10 @@ def track_figure(models, track, window, path, title):
     return plots.window_tracks(meas, xb, xa, path, title=title, run=track)
 
 
-def literature_baseline(vessel, held, rng):
+def literature_baseline(vessel, held, rng, approach):
     """The vehicle file's published coefficients, not fitted, in this model: protocol scores on the
-    held-out runs (30 s, 60 s, whole run) and the predicted 35 deg turning circles."""
+    held-out runs (30 s, 60 s, whole run) and the predicted 35 deg turning circles from
+    ``approach`` (:func:`turn_approach`)."""
     from bayesid.estimation.prediction import FittedModel, predict, turning_circles
     from bayesid.models import build_model
 
@@ -225,7 +240,7 @@ def literature_baseline(vessel, held, rng):
     out = {"coefficients": dict(zip(m.param_names, map(float, p)))}
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
         out[key] = predict(m, p, held, w, start="measured").pooled["rms_position_m"]
-    tc = turning_circles(FittedModel(m, p, None), 0, rng, U0, RPS)
+    tc = turning_circles(FittedModel(m, p, None), 0, rng, approach)
     out["turning_circles_35deg"] = {side: v["predicted"] for side, v in tc.items()}
     return out
 
@@ -437,7 +452,7 @@ def sampled_posterior(name, label, model, p, res, train, held, prior, args, log)
     }, {"p": ps, "cov": cs}
 
 
-def prior_variants(kv, ktrain, kheld, args, figdir, log):
+def prior_variants(kv, ktrain, kheld, args, figdir, log, approach):
     """KVLCC2 from the HSVA zigzags under three priors on the captive-test values: none, the
     vehicle file's Gaussian prior, and the static terms fixed (the paper's Case 2); for each the
     held-out coverage and the predicted 35 deg turning circle with its calibrated 90 % band."""
@@ -453,7 +468,7 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
         doc, res, fig, smp = uncertainty("kvlcc2_hsva", kv, ktrain, kheld, [], args, figdir, log, label=label, **kw)
         figs += [fig] if fig else []
         circ = turning_circles(
-            FittedModel(res.model, res.fit.p, res.cov), args.draws, np.random.default_rng([args.seed, 41]), U0, RPS
+            FittedModel(res.model, res.fit.p, res.cov), args.draws, np.random.default_rng([args.seed, 41]), approach
         )
         tc = {}
         for side, c in circ.items():
@@ -470,7 +485,7 @@ def prior_variants(kv, ktrain, kheld, args, figdir, log):
             }
             sims[f"{label} {side}"] = c["_S"][:1]
         circ_s = turning_circles(
-            FittedModel(res.model, smp["p"], smp["cov"]), args.draws, np.random.default_rng([args.seed, 47]), U0, RPS
+            FittedModel(res.model, smp["p"], smp["cov"]), args.draws, np.random.default_rng([args.seed, 47]), approach
         )
         for side, c in circ_s.items():
             tc[side]["sampled_band_5_95"] = c["band_5_95"]
@@ -590,12 +605,13 @@ def main() -> int:
     k_cands = [c for c in ship.SHIP_CATALOGUE if c != "wind"][: 2 if args.quick else None]
     k_doc, k_res, k_base, k_after, k_diag = evaluate("kvlcc2_hsva", kv, ktrain, kheld, k_cands, args, out, log)
     am, af, cov = k_after
-    circles = turning_circles(FittedModel(am, af.p, cov), args.draws, rng, U0, RPS)
+    k_approach = turn_approach(ktracks)
+    circles = turning_circles(FittedModel(am, af.p, cov), args.draws, rng, k_approach)
     k_doc["turning_circles_35deg"] = {
         k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in circles.items()
     }
     k_doc["literature_baseline"] = dict(
-        literature_baseline(kv, kheld, rng),
+        literature_baseline(kv, kheld, rng, k_approach),
         source="Yasukawa & Yoshimura (2015), J. Mar. Sci. Technol. 20:37-52, Tables 3-5 (KVLCC2 L7, captive "
         "tests), as in vehicles/kvlcc2_7m.toml; the cubic hull terms replaced by the cross-flow integral",
     )
@@ -639,7 +655,7 @@ def main() -> int:
 
     # ---- honest uncertainty: calibrated bands on both validation splits; KVLCC2 under three priors ----
     e_unc, _, e_fig, _ = uncertainty("esso_osaka", esso, train, held, ["wind"], args, out / "figures", log)
-    k_var, ufigs, tsims = prior_variants(kv, ktrain, kheld, args, out / "figures", log)
+    k_var, ufigs, tsims = prior_variants(kv, ktrain, kheld, args, out / "figures", log, k_approach)
     ufigs = ([e_fig] if e_fig else []) + ufigs
     ufigs.append(
         plots.turning_band(
@@ -702,7 +718,7 @@ def discovery_refit(kv, tracks, discovery: dict, args, log) -> dict | None:
         log(f"kvlcc2: all 13 zigzags, refit {label}")
         res = identify(veh, tracks, FitOptions(free=free, dt=0.2, max_nfev=args.max_nfev, start="measured"))
         fitted = FittedModel(res.model, res.fit.p, res.cov)
-        circles = turning_circles(fitted, 0, None, U0, RPS)
+        circles = turning_circles(fitted, 0, None, turn_approach(tracks))
         out[label] = {
             "coefficients": {
                 k: v for k, v in res.fit.coefficients().items() if k in kept or k in ("gR", "gRm", *INTERACTION)

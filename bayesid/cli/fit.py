@@ -246,25 +246,35 @@ def _training_figures(res, train, figs) -> list:
 
 def _multistart_circles(res, doc, train, rudder_deg: float = 35.0, most: int = 6):
     """35 deg turning circles (starboard) of the distinct near-best optima of a multistart fit,
-    from the training runs' approach speed and propeller rate; their advance and tactical
-    diameter go into ``doc.multistart["distinct_optima"]``. Returns [(label, x, y)] for the
-    figure, or None when the model cannot simulate a turn from these tracks (said in the doc)."""
+    from the training runs' approach speed and propeller rate, the rudder moved at their rate
+    (:func:`bayesid.models.runs.approach_condition`); their indices go into
+    ``doc.multistart["distinct_optima"]``. Returns [(label, x, y)] for the figure, or None when the
+    model cannot simulate a turn from these tracks (said in the doc)."""
+    import math
+
     import numpy as np
 
-    from ..estimation.prediction import FittedModel, approach_condition, turning_circles
+    from ..estimation.prediction import FittedModel, turning_circles
+    from ..models.runs import approach_condition
 
     ms = doc.multistart
     try:
-        u0, rps = approach_condition(train)
+        approach = approach_condition(train)
     except ValueError as exc:
         ms["turning_circle"] = {"error": str(exc)}
         return None
-    ms["turning_circle"] = {"rudder_deg": rudder_deg, "side": "starboard", "speed_mps": u0, "rps": rps}
+    ms["turning_circle"] = {
+        "rudder_deg": rudder_deg,
+        "side": "starboard",
+        "speed_mps": approach.u,
+        "rps": approach.rpm / 60.0,
+        "rudder_rate_deg_s": math.degrees(approach.rudder_rate),
+    }
     out = []
     for k, optimum in enumerate(ms["distinct_optima"][:most]):
         p = np.array([optimum["coefficients"][n] for n in doc.param_names])
         fitted = FittedModel(res.model, p, None)
-        tc = turning_circles(fitted, 0, np.random.default_rng(0), u0, rps, rudder_deg)["starboard"]
+        tc = turning_circles(fitted, 0, np.random.default_rng(0), approach, rudder_deg)["starboard"]
         optimum["turning_circle"] = tc["predicted"]
         S = tc["_S"][0]
         out.append(

@@ -10,14 +10,13 @@ an approach condition.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..data.track import Track
 from ..models.context import errors
-from ..models.runs import Approach, ManoeuvreRun, free_run_states
+from ..models.runs import T_EXECUTE, Approach, ManoeuvreRun, free_run_states
 from ..protocol import pooled_scores, start_settings
 from . import shooting
 from .indices import index_keys, manoeuvre_indices
@@ -26,7 +25,6 @@ from .indices import index_keys, manoeuvre_indices
 BATCH_BYTES = 2e8
 
 __all__ = [
-    "approach_condition",
     "BATCH_BYTES",
     "FittedModel",
     "Prediction",
@@ -34,6 +32,7 @@ __all__ = [
     "predictive_band",
     "predictive_sd",
     "standard_run",
+    "TURNING_INDICES",
     "turning_band",
     "turning_circles",
     "windowed_xy",
@@ -382,56 +381,20 @@ def predictive_sd(draws: list, keys) -> dict:
     return out
 
 
-def approach_condition(tracks, first_s: float = 5.0) -> tuple[float, float]:
-    """The tracks' approach: medians over the first ``first_s`` seconds of every track of the
-    speed (from ``u, v`` when logged, else the positions' differences) and of ``n`` (rpm / 60).
-    The condition a predicted turning circle starts from.
-
-    Parameters
-    ----------
-    tracks : iterable of Track
-        The tracks.
-    first_s : float, default 5.0
-        Length of the approach, s.
-
-    Returns
-    -------
-    speed : float
-        Approach speed, m/s.
-    rps : float
-        Propeller speed, rev/s.
-
-    Raises
-    ------
-    ValueError
-        When no track has ``n``.
-    """
-    speeds, rps = [], []
-    for tr in tracks:
-        k = np.asarray(tr.t) <= tr.t[0] + first_s
-        if "u" in tr and np.isfinite(tr["u"][k]).any():
-            v = tr["v"][k] if "v" in tr else 0.0
-            speeds.append(np.hypot(tr["u"][k], v))
-        elif k.sum() >= 2:
-            speeds.append(np.hypot(np.diff(tr["x"][k]), np.diff(tr["y"][k])) / np.diff(tr.t[k]))
-        if "n" in tr:
-            rps.append(np.asarray(tr["n"][k], float) / 60.0)
-    if not rps:
-        raise ValueError("approach_condition: no track logs the propeller speed n")
-    sp = np.concatenate([np.atleast_1d(s) for s in speeds]) if speeds else np.array([np.nan])
-    return float(np.nanmedian(sp)), float(np.nanmedian(np.concatenate(rps)))
-
-
-def standard_run(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> tuple:
+def standard_run(model, P, run: ManoeuvreRun, approach: Approach) -> tuple:
     """The free run of a standard manoeuvre by each parameter vector and its ITTC indices: the one
-    predictor of a turning circle or zigzag, read by :func:`turning_circles` and by a diagnosis's
-    standard predictions (:func:`bayesid.analysis.gap.design.standard_predictions`).
+    predictor of a turning circle or zigzag, read by :func:`turning_circles` (``bayesid fit --starts``, the studies)
+    and by a diagnosis's standard predictions
+    (:func:`bayesid.analysis.gap.design.standard_predictions`).
 
-    The run starts straight ahead at the approach speed (:func:`bayesid.models.runs.free_run_states`:
-    the rudder ordered at ``run.execute_s`` and moved at ``approach.rudder_rate``; a zigzag reversed
-    on each row's own heading), and the indices are read from the simulated track as from a
-    measured one (:func:`~bayesid.estimation.indices.manoeuvre_indices`; ITTC Recommended
-    Procedure 7.5-04-02-01 (2017), Sec. 2.2.1, 2.2.2).
+    The run starts straight ahead at the approach speed; the rudder is ordered at
+    ``run.execute_s`` and moves at ``approach.rudder_rate``, the rate the logged runs' rudder moves
+    at (:func:`bayesid.models.runs.approach_condition`; a rudder that steps turns the vessel
+    sooner than its gear can: at KVLCC2's 15.8 deg/s a 35 deg order takes 2.2 s), a zigzag
+    reversed on each row's own heading (:func:`bayesid.models.runs.free_run_states`). The samples
+    are ``min(0.1 s, model.dt)`` apart over ``run.duration_s``, and the indices are read from the
+    simulated track as from a measured one (:func:`~bayesid.estimation.indices.manoeuvre_indices`;
+    ITTC Recommended Procedure 7.5-04-02-01 (2017), Sec. 2.2.1, 2.2.2).
 
     Parameters
     ----------
@@ -440,12 +403,9 @@ def standard_run(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray)
     P : array_like, shape (B, n_params)
         Parameter vectors (e.g. an estimate and draws about it).
     run : ManoeuvreRun
-        The manoeuvre.
+        The manoeuvre (its length ``duration_s`` counted from the start of the approach).
     approach : Approach
-        The approach condition (``u`` m/s, ``rpm``, ``rudder_rate`` rad/s; ``math.inf``: the
-        rudder steps).
-    t : ndarray, shape (n,)
-        Times from the start of the run, s.
+        The approach condition (``u`` m/s, ``rpm``, ``rudder_rate`` rad/s).
 
     Returns
     -------
@@ -457,27 +417,32 @@ def standard_run(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray)
         Each row's :func:`~bayesid.estimation.indices.manoeuvre_indices` (m, deg), read whether
         or not the row diverged: a caller decides what a diverged row's indices mean.
     """
+    t = np.arange(0.0, run.duration_s, min(0.1, model.dt))
     ts, S, delta = free_run_states(model, P, run, approach, t)
     return ts, S, [manoeuvre_indices(ts, s[:, 0], s[:, 1], s[:, 5], d) for s, d in zip(S, delta)]
+
+
+#: The indices of a predicted turning circle (:func:`turning_circles`, the standard predictions):
+#: advance, transfer, tactical diameter and steady turning diameter (m), and the speed loss in the
+#: steady turn (1 - u / U0 of the track's speed; :func:`~bayesid.estimation.indices.manoeuvre_indices`).
+TURNING_INDICES = ("advance_m", "transfer_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
 
 
 def turning_circles(
     fitted: FittedModel,
     n_draws: int,
     rng,
-    speed_mps: float,
-    rps: float,
+    approach: Approach,
     rudder_deg: float = 35.0,
     duration_s: float = 300.0,
 ) -> dict:
-    """Predicted turning circles to starboard and port.
+    """Predicted turning circles to starboard and port (:func:`standard_run`).
 
-    From a straight run at ``speed_mps`` with the propeller at ``rps``, the rudder is put over to
-    ``rudder_deg`` at t = 1 s in one step and held for ``duration_s`` (:func:`standard_run`, the
-    predictor of the design's standard predictions, which moves the rudder at the training runs'
-    rate from 5 s instead); advance, transfer and tactical diameter
-    (m, :func:`manoeuvre_indices`, ITTC definitions) of the model at its estimate, with the
-    5-95 % band of ``n_draws`` posterior draws.
+    From a straight approach (``approach``: the speed, rpm and rudder rate of the logged runs,
+    :func:`bayesid.models.runs.approach_condition`), the rudder is ordered to ``rudder_deg`` at
+    :data:`bayesid.models.runs.T_EXECUTE` s, moves there at the approach's rudder rate and is held
+    for ``duration_s``; the indices of :data:`TURNING_INDICES` (ITTC definitions) of the model at
+    its estimate, with the 5-95 % band of ``n_draws`` posterior draws.
 
     Parameters
     ----------
@@ -487,29 +452,24 @@ def turning_circles(
         Posterior draws of the band (0: no band).
     rng : numpy.random.Generator
         Draws them.
-    speed_mps : float
-        The approach speed (m/s).
-    rps : float
-        The propeller rate (rev/s).
+    approach : Approach
+        The approach condition: ``u`` (m/s), ``rpm``, ``rudder_rate`` (rad/s).
     rudder_deg : float, default 35.0
         The rudder angle (deg).
     duration_s : float, default 300.0
-        The time the rudder is held (s).
+        The time from the order on (s).
 
     Returns
     -------
     dict
         ``{side: {"predicted", "band_5_95", "sd" (of the draws), "n_finite_draws", "_S" (B, n, 12)
-        predictions}}``.
+        predictions}}``; the indices in m, the speed loss a fraction.
     """
-    keys = ("advance_m", "transfer_m", "tactical_diameter_m")
-    approach = Approach(u=speed_mps, rpm=rps * 60, rudder_rate=math.inf, duration_s=duration_s)
-    t = np.arange(0.0, duration_s + 1e-9, 0.1)
     out = {}
     for side in ("starboard", "port"):  # package rudder: + = to port
-        run = ManoeuvreRun("turning_circle", rudder_deg, None, side, approach.rpm, duration_s, execute_s=1.0)
-        _, S, ind = standard_run(fitted.model, fitted.rows(n_draws, rng), run, approach, t)
-        res = {"predicted": {k: ind[0][k] for k in keys}}
+        run = ManoeuvreRun("turning_circle", rudder_deg, None, side, approach.rpm, T_EXECUTE + duration_s)
+        _, S, ind = standard_run(fitted.model, fitted.rows(n_draws, rng), run, approach)
+        res = {"predicted": {k: ind[0][k] for k in TURNING_INDICES}}
         res["band_5_95"], res["n_finite_draws"] = predictive_band(ind[1:], list(res["predicted"]))
         res["sd"] = predictive_sd(ind[1:], list(res["predicted"]))
         res["_S"] = S

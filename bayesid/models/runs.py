@@ -147,20 +147,30 @@ def rudder_rate(tracks: list) -> float | None:
 
 
 def approach_condition(tracks: list) -> Approach:
-    """The approach condition of the training runs: median speed and rpm over each run's first
-    5 s, the rudder rate (:func:`rudder_rate`, at least 1 deg/s; 5 deg/s when the rudder never
-    moves) and the median run length.
+    """The approach condition of logged runs, the one a predicted or designed run starts from:
+    the median over the runs of each run's speed over its first 5 s (the median of ``u`` when
+    logged, else the slope of a straight line through the positions: differences of noisy
+    positions would read the noise as speed) and rpm, the rudder rate the runs' rudder moves at
+    (:func:`rudder_rate`, at least 1 deg/s; 5 deg/s when the rudder never moves) and the median
+    run length.
 
     Parameters
     ----------
     tracks : list of Track
-        The training runs (``delta_r``, ``n``; ``u`` or ``x, y`` for the speed).
+        The runs (``delta_r``, ``n``; ``u`` or ``x, y`` for the speed).
 
     Returns
     -------
     Approach
         ``u`` (m/s), ``rpm``, ``rudder_rate`` (rad/s), ``duration_s``.
+
+    Raises
+    ------
+    ValueError
+        No run logs the propeller speed ``n``.
     """
+    if not any("n" in tr for tr in tracks):
+        raise ValueError("approach_condition: no track logs the propeller speed n")
     us, ns, lens = [], [], []
     for tr in tracks:
         t = np.asarray(tr.t, float)
@@ -172,7 +182,8 @@ def approach_condition(tracks: list) -> Approach:
             ok = np.isfinite(x) & np.isfinite(y)
             if ok.sum() > 2:
                 us.append(float(np.hypot(*np.polyfit(t[first][ok], np.column_stack([x[ok], y[ok]]), 1)[0])))
-        ns.append(float(np.nanmedian(np.asarray(tr["n"], float)[first])))
+        if "n" in tr:
+            ns.append(float(np.nanmedian(np.asarray(tr["n"], float)[first])))
         lens.append(t[-1] - t[0])
     rate = rudder_rate(tracks)
     rate = math.radians(5.0) if rate is None else rate

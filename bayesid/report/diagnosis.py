@@ -321,7 +321,9 @@ def _predictions_lines(res: dict) -> list:
         "",
         md_table(["run", "kind in the training runs", "index", *models], rows),
         "",
-        "Free runs from the training runs' approach condition (each model steers its own zigzag). Brackets: the "
+        "Free runs from the training runs' approach condition, the rudder moved at their rate (each model steers its "
+        "own zigzag); the steady turning diameter is fitted to the turn from 180 deg of heading change on and the "
+        "speed loss is 1 - u/U0 there (not reached: the run is too short for a steady turn). Brackets: the "
         "5-95 % range over the estimate and parameter draws from each refit's Laplace covariance (over the runs that "
         "did not diverge, counted when some did) -- parameter "
         "uncertainty only, not a calibrated band: where no run of the kind exists it cannot be checked. Where the "

@@ -65,7 +65,7 @@ import numpy as np
 from ...data.track import STATE_NAMES, Track
 from ...estimation.indices import manoeuvre_kind as manoeuvre_kind  # its home since the calibration reads it
 from ...estimation.laplace import fit_covariance
-from ...estimation.prediction import standard_run
+from ...estimation.prediction import TURNING_INDICES, standard_run
 from ...estimation.windows import pooled_noise_sd
 from ...models.runs import (
     Approach,
@@ -287,17 +287,17 @@ STANDARD_RUNS = (
     ("zigzag", 20.0, 20.0, "port"),
 )
 STANDARD_INDICES = {
-    "turning_circle": ("advance_m", "transfer_m", "tactical_diameter_m"),
+    "turning_circle": TURNING_INDICES,
     "zigzag": ("first_overshoot_deg", "second_overshoot_deg"),
 }
 
 
-def _free_run_indices(stage, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> list[dict]:
+def _free_run_indices(stage, P, run: ManoeuvreRun, approach: Approach) -> list[dict]:
     """The indices of each parameter vector's free run
     (:func:`bayesid.estimation.prediction.standard_run`: a zigzag on its own switches, one batched
     simulation per pass), NaN where a run diverges."""
     keys = STANDARD_INDICES[run.kind]
-    _, S, indices = standard_run(stage.model, P, run, approach, t)
+    _, S, indices = standard_run(stage.model, P, run, approach)
     return [
         {k: float(got.get(k, float("nan"))) for k in keys}
         if np.isfinite(s).all()
@@ -342,8 +342,9 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
     list of dict
         One per run: ``name``, ``kind``, ``rudder_deg``, ``check_deg``, ``side``,
         ``in_training_kinds`` (bool) and ``models``: ``{label: {index: {"value", "low",
-        "high", "n_finite", "n"}}}`` (advance, transfer and tactical diameter in m; overshoots in
-        deg; ``value`` NaN when the estimate's run diverged or never reached the index, the range
+        "high", "n_finite", "n"}}}`` (advance, transfer, tactical and steady turning diameter in
+        m, the speed loss in the steady turn a fraction, :data:`~bayesid.estimation.prediction.TURNING_INDICES`;
+        overshoots in deg; ``value`` NaN when the estimate's run diverged or never reached the index, the range
         over the ``n_finite`` of ``n`` runs that did).
     """
     rng = np.random.default_rng(options.seed) if rng is None else rng
@@ -361,8 +362,7 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
         run = ManoeuvreRun(kind, a, None if check is None else a, side, approach.rpm, D)
         models = {}
         for k, st in stages.items():
-            t = np.arange(0.0, D, min(0.1, st.model.dt))
-            vals = _free_run_indices(st, draws[k], run, approach, t)
+            vals = _free_run_indices(st, draws[k], run, approach)
             models[k] = {i: _spread([v[i] for v in vals]) for i in STANDARD_INDICES[kind]}
         out.append(
             {

@@ -1,0 +1,70 @@
+"""One predictor of a standard manoeuvre (issue 66): a fitted model's turning circle is the same
+whether ``turning_circles`` (``bayesid fit --starts``, the studies) or a diagnosis's standard
+predictions ask for it, both from the logged runs' approach with the rudder moved at their rate;
+the steady turn's diameter and speed loss are reported beside the ITTC indices (issue 67)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from bayesid.analysis.gap import design as dz
+from bayesid.estimation.prediction import TURNING_INDICES, FittedModel, turning_circles
+from bayesid.models import build_model
+from bayesid.models.runs import T_EXECUTE, approach_condition
+from bayesid.models.ship import load_ship
+from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
+
+
+@pytest.fixture(scope="module")
+def kvlcc2():
+    ship = load_ship("kvlcc2_7m")
+    speed, rpm = propulsion_point(ship, 1.179)
+    opts = TrialOptions(dt=0.1, sample_every=2, duration=120.0, rudder_rate_deg_s=15.8)
+    train = [simulate_trial(ship, "zigzag", 20.0, speed=speed, rpm=rpm, options=opts).track]
+    return ship, build_model(ship, ship.free), train
+
+
+def test_turning_circles_and_the_standard_predictions_agree(kvlcc2):
+    ship, model, train = kvlcc2
+    approach = approach_condition(train)
+    assert math.degrees(approach.rudder_rate) == pytest.approx(15.8, rel=0.05)  # the logged gear's rate
+    p = np.asarray(model.start(), float)
+    D = 300.0
+    tc = turning_circles(FittedModel(model, p, None), 0, None, approach, 35.0, D - T_EXECUTE)
+    stage = SimpleNamespace(model=model, fit=SimpleNamespace(p=p))
+    setup = SimpleNamespace(vehicle=ship, train=train, fit_window_s=None)
+    std = dz.standard_predictions({"m": stage}, setup, dz.DesignOptions(n_draws=0, duration_s=D))
+    turns = {r["side"]: r["models"]["m"] for r in std if r["kind"] == "turning_circle"}
+    assert set(turns) == {"port", "starboard"}
+    for side, got in turns.items():
+        assert set(got) == set(TURNING_INDICES)
+        for k in TURNING_INDICES:
+            assert got[k]["value"] == tc[side]["predicted"][k], (side, k)
+    # a 35 deg turn held 295 s settles: the steady turn's diameter is smaller than the tactical
+    # diameter and the ship slows in it
+    for side in ("port", "starboard"):
+        pr = tc[side]["predicted"]
+        assert 0.0 < pr["steady_turning_diameter_m"] < pr["tactical_diameter_m"]
+        assert 0.1 < pr["speed_loss"] < 0.9
+
+
+def test_the_rudder_moves_at_the_approach_rate(kvlcc2):
+    # a slower gear reaches 35 deg later, and the ship advances further before it turns
+    ship, model, train = kvlcc2
+    approach = approach_condition(train)
+    p = np.asarray(model.start(), float)
+    fast = turning_circles(FittedModel(model, p, None), 0, None, approach, 35.0, 200.0)
+    slow = turning_circles(
+        FittedModel(model, p, None),
+        0,
+        None,
+        type(approach)(approach.u, approach.rpm, math.radians(2.0), 0.0),
+        35.0,
+        200.0,
+    )
+    for side in ("port", "starboard"):
+        assert slow[side]["predicted"]["advance_m"] > fast[side]["predicted"]["advance_m"] + 0.1
