@@ -68,3 +68,55 @@ def test_the_rudder_moves_at_the_approach_rate(kvlcc2):
     )
     for side in ("port", "starboard"):
         assert slow[side]["predicted"]["advance_m"] > fast[side]["predicted"]["advance_m"] + 0.1
+
+
+@pytest.fixture(scope="module")
+def turns(kvlcc2):
+    """35 deg turns of three KVLCC2 hulls (as packaged, X'vr changed: the surge in the turn, N'r
+    30 % larger: the yaw damping) and a zigzag, 300 s, sampled at 2 Hz."""
+    ship, model, _ = kvlcc2
+    speed, rpm = propulsion_point(ship, 1.179)
+    opts = TrialOptions(dt=0.1, sample_every=5, duration=300.0, rudder_rate_deg_s=15.8)
+    out = {}
+    for label, change in (("as packaged", {}), ("Xvr", {"Xvr": -0.25}), ("Nr", {"Nr": 1.3 * ship.coefficients["Nr"]})):
+        truth = ship.with_coefficients(change) if change else ship
+        out[label] = simulate_trial(truth, "turn", 35.0, speed=speed, rpm=rpm, options=opts).track
+    out["zigzag"] = simulate_trial(ship, "zigzag", 20.0, speed=speed, rpm=rpm, options=opts).track
+    return out
+
+
+def test_a_model_that_cannot_fly_its_training_turn_is_said_to_and_a_component_suspected(kvlcc2, turns):
+    from bayesid.estimation.prediction import training_turns
+
+    _, model, _ = kvlcc2
+    nominal = FittedModel(model, np.asarray(model.start(), float), None)
+    got = {t["run"]: t for t in training_turns(nominal, [turns["zigzag"], turns["as packaged"]])}
+    assert list(got) == [turns["as packaged"].name]  # the zigzag is not a turning circle
+    (own,) = got.values()
+    assert own["reproduced"] and own["suspect"] is None
+    assert abs(own["rel_error"]["steady_turning_diameter_m"]) < 0.01
+    # measured: steady diameter -38 %, speed loss 0.54 against 0.73
+    (surge,) = training_turns(nominal, [turns["Xvr"]])
+    assert surge["reproduced"] is False and surge["suspect"] == "speed in the turn"
+    # measured: steady diameter -17 %, speed loss 0.71 against 0.73
+    (yaw,) = training_turns(nominal, [turns["Nr"]])
+    assert yaw["reproduced"] is False and yaw["suspect"] == "turning forces"
+
+
+def test_bayesid_fit_reports_a_training_turn_it_cannot_reproduce(turns, tmp_path):
+    import json
+
+    from bayesid import cli
+    from bayesid.data.track import write_csv
+
+    path = tmp_path / "turn.csv"
+    write_csv(turns["Xvr"], path)
+    out = tmp_path / "fit"
+    rc = cli.main(["-q", "fit", "--vehicle", "kvlcc2_7m", "--free", "Yv,Nr", "--train", str(path)]
+                  + ["--max-nfev", "3", "--out", str(out)])  # fmt: skip
+    assert rc == 0
+    doc = json.loads((out / "model.json").read_text())
+    (turn,) = doc["training_turns"]
+    assert turn["reproduced"] is False and turn["suspect"] == "speed in the turn"
+    report = (out / "report.md").read_text()
+    assert "## The training turning circles" in report and "does not reproduce its own training turn" in report

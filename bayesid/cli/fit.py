@@ -182,12 +182,14 @@ def _identify(args, out, vehicle, free, got):
 
 def _write(res, doc, train, out) -> None:
     """``model.json``, ``report.md`` and, for a multistart fit, its turning circles and figure."""
+    from ..estimation.prediction import FittedModel, training_turns
     from ..report import write_fit_report
-    from ..report.fit import budget_advice, budget_exhausted
+    from ..report.fit import budget_advice, budget_exhausted, training_turn_sentence
 
     circles = None
     if res.multistart is not None:
         circles = _multistart_circles(res, doc, train)
+    doc.training_turns = training_turns(FittedModel(res.model, res.fit.p, None), train) or None
     doc.to_json(out / "model.json")
     figures = _training_figures(res, train, out / "figures")
     write_fit_report(doc.to_dict(), out, command="bayesid " + " ".join(sys.argv[1:]), training_figures=figures)
@@ -203,6 +205,9 @@ def _write(res, doc, train, out) -> None:
         print(f"warning: {budget_advice(doc.fit)} (see {out / 'report.md'})", file=sys.stderr)
     if res.step_check is not None and res.step_check.too_coarse:
         print(f"warning: {res.step_check.sentence()} (see {out / 'report.md'})", file=sys.stderr)
+    for turn in doc.training_turns or []:
+        if turn["reproduced"] is False:
+            print(f"warning: {training_turn_sentence(turn)} (see {out / 'report.md'})", file=sys.stderr)
 
 
 def _training_figures(res, train, figs) -> list:

@@ -92,6 +92,9 @@ class ModelDocument:
         ``ssr``, ``n_residuals``, ``nfev``, ``success``, ``message``, ``seconds``, ``bic``.
     multistart : dict, optional
         The multistart summary, when the fit had extra starts.
+    training_turns : list of dict, optional
+        Whether the model reproduces the turning circles among its training runs
+        (:func:`bayesid.estimation.prediction.training_turns`), when there are any.
     prior : dict, default {"used": False}
         The vehicle file's prior as used (``{"used": False}`` without one).
     calibration : Calibration, optional
@@ -129,6 +132,7 @@ class ModelDocument:
     provenance: dict = field(default_factory=dict)
     fit: dict = field(default_factory=dict)
     multistart: dict | None = None
+    training_turns: list | None = None
     prior: dict = field(default_factory=lambda: {"used": False})
     calibration: Calibration | None = None
     posterior_source: dict | None = None
@@ -207,8 +211,8 @@ class ModelDocument:
         Returns
         -------
         dict
-            ``format`` then the fields in their order (``multistart`` and ``posterior_source``
-            only when set; ``inputs`` only when not ``"hold"``, ``rudder_rate_deg_s`` only when set; ``path`` never; ``calibration`` as
+            ``format`` then the fields in their order (``multistart``, ``training_turns`` and
+            ``posterior_source`` only when set; ``inputs`` only when not ``"hold"``, ``rudder_rate_deg_s`` only when set; ``path`` never; ``calibration`` as
             :meth:`~bayesid.estimation.calibration.Calibration.to_dict`).
         """
         d = {"format": FORMAT}
@@ -216,7 +220,7 @@ class ModelDocument:
             v = getattr(self, f.name)
             if (f.name == "inputs" and v == "hold") or (f.name == "rudder_rate_deg_s" and v is None):
                 continue  # the defaults, as in every file from before the options
-            if f.name != "path" and not (f.name in ("multistart", "posterior_source") and v is None):
+            if f.name != "path" and not (f.name in ("multistart", "training_turns", "posterior_source") and v is None):
                 d[f.name] = v.to_dict() if isinstance(v, Calibration) else v
         return d
 

@@ -10,6 +10,7 @@ an approach condition.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +34,7 @@ __all__ = [
     "predictive_sd",
     "standard_run",
     "TURNING_INDICES",
+    "training_turns",
     "turning_band",
     "turning_circles",
     "windowed_xy",
@@ -474,4 +476,86 @@ def turning_circles(
         res["sd"] = predictive_sd(ind[1:], list(res["predicted"]))
         res["_S"] = S
         out[side] = res
+    return out
+
+
+#: A fitted model reproduces a training turning circle when its tactical and steady turning
+#: diameters are within this fraction of the measured ones (issue 67's target).
+TURN_TOLERANCE = 0.05
+#: A predicted speed loss in the steady turn this far (a fraction of the approach speed) from the
+#: measured one points at the speed in the turn rather than at the turning forces.
+SPEED_LOSS_TOLERANCE = 0.05
+
+
+def training_turns(fitted: FittedModel, tracks, *, tolerance: float = TURN_TOLERANCE) -> list[dict]:
+    """Whether a fitted model reproduces the turning circles it was trained on: each training run
+    that reads as a turning circle (:func:`~bayesid.estimation.indices.manoeuvre_kind`) predicted
+    whole from its measured first state with its logged inputs (:func:`turning_band`), its
+    indices against the measured ones. A miss here is structural (the model form cannot hold the
+    turn its coefficients were fitted to), not a prediction error.
+
+    The component suspected: a speed loss in the steady turn off by more than
+    :data:`SPEED_LOSS_TOLERANCE` of the approach speed points at the speed in the turn (the surge
+    equation: hull resistance in the turn, the propeller's inflow and thrust deduction, the
+    rudder's drag; MMG: Yasukawa & Yoshimura 2015, J. Mar. Sci. Technol. 20:37, eqs. 5-10), since
+    the steady diameter is 2 U / r; a speed loss within it with a diameter off points at the
+    sway force and yaw moment of the hull and rudder in the turn. A suspicion, not a diagnosis:
+    ``bayesid diagnose`` tests named causes.
+
+    Parameters
+    ----------
+    fitted : FittedModel
+        The model and its estimate.
+    tracks : list of Track
+        The training runs (the others are skipped).
+    tolerance : float, default :data:`TURN_TOLERANCE`
+        The largest relative error of the tactical and steady turning diameters that counts as
+        reproduced.
+
+    Returns
+    -------
+    list of dict
+        One per turning circle: ``run``, ``measured`` and ``predicted`` (``{index: value}`` of
+        :data:`TURNING_INDICES`: m, the speed loss a fraction; None where not reached),
+        ``rel_error`` (``{index: (predicted - measured) / measured}`` of the diameters, advance
+        and transfer; None where either is missing), ``reproduced`` (bool, or None when neither
+        diameter could be read from both) and ``suspect`` (None when reproduced: ``"speed in the
+        turn"`` or ``"turning forces"``).
+    """
+    from .indices import manoeuvre_kind
+
+    out = []
+    for tr in tracks:
+        if manoeuvre_kind(tr) != "turning_circle":
+            continue
+        tb = turning_band(fitted, tr, 0, None)
+
+        def value(d, k):
+            v = d.get(k)
+            return float(v) if v is not None and math.isfinite(v) else None
+
+        meas = {k: value(tb["measured"], k) for k in TURNING_INDICES}
+        pred = {k: value(tb["predicted"], k) for k in TURNING_INDICES}
+        rel = {
+            k: (pred[k] - meas[k]) / meas[k] if meas[k] and pred[k] is not None else None
+            for k in TURNING_INDICES
+            if k != "speed_loss"
+        }
+        judged = [abs(rel[k]) for k in ("tactical_diameter_m", "steady_turning_diameter_m") if rel[k] is not None]
+        reproduced = None if not judged else max(judged) <= tolerance
+        suspect = None
+        if reproduced is False:
+            m, q = meas["speed_loss"], pred["speed_loss"]
+            off = m is not None and q is not None and abs(q - m) > SPEED_LOSS_TOLERANCE
+            suspect = "speed in the turn" if off else "turning forces"
+        out.append(
+            {
+                "run": tr.name,
+                "measured": meas,
+                "predicted": pred,
+                "rel_error": rel,
+                "reproduced": reproduced,
+                "suspect": suspect,
+            }
+        )
     return out

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..estimation.prediction import TURN_TOLERANCE
 from .imo import fit_imo_lines
 from .markdown import fmt, md_table, warning_lines
 
@@ -102,10 +103,81 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
     ]
     lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
     lines += fit_imo_lines(doc)  # ships: the IMO criteria of the training runs
+    lines += _training_turn_lines(doc.get("training_turns"))
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)
     (out / "report.md").write_text("\n".join(lines))
+
+
+_SUSPECTS = {
+    "speed in the turn": (
+        "the speed in the turn is off too, so the surge equation is the first suspect (hull resistance in the turn, "
+        "the propeller's inflow and thrust deduction, the rudder's drag)"
+    ),
+    "turning forces": (
+        "the speed in the turn is right, so the sway force and yaw moment of the hull and rudder in the turn are the "
+        "first suspects"
+    ),
+}
+
+
+def training_turn_sentence(turn: dict) -> str:
+    """One line on a training turning circle the fitted model does not reproduce
+    (:func:`bayesid.estimation.prediction.training_turns`).
+
+    Parameters
+    ----------
+    turn : dict
+        One entry of ``training_turns``.
+
+    Returns
+    -------
+    str
+        E.g. ``the model does not reproduce its own training turn T: steady turning diameter
+        -34 %, tactical diameter -8 % -- a structural miss; ...``.
+    """
+    errs = ", ".join(
+        f"{k.removesuffix('_m').replace('_', ' ')} {100 * v:+.1f} %"
+        for k, v in turn["rel_error"].items()
+        if v is not None and k in ("tactical_diameter_m", "steady_turning_diameter_m")
+    )
+    return (
+        f"the model does not reproduce its own training turn {turn['run']}: {errs} -- a structural miss of the model "
+        f"form, not a prediction error; {_SUSPECTS.get(turn['suspect'], 'no suspect')}"
+    )
+
+
+def _training_turn_lines(turns: list | None) -> list:
+    """The training turning circles as measured and as the fitted model flies them."""
+    if not turns:
+        return []
+    keys = ("advance_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
+    rows = []
+    for t in turns:
+        for k in keys:
+            m, q = t["measured"].get(k), t["predicted"].get(k)
+            e = t["rel_error"].get(k)
+            rows.append([t["run"], k.replace("_", " "), fmt(m), fmt(q), "-" if e is None else f"{100 * e:+.1f} %"])
+    said = [training_turn_sentence(t) for t in turns if t["reproduced"] is False]
+    ok = [t["run"] for t in turns if t["reproduced"]]
+    return [
+        "## The training turning circles",
+        "",
+        "Each training run that reads as a turning circle, predicted whole from its measured first state with its "
+        "logged rudder and propeller (speed loss: 1 - u/U0 in the steady turn). A fitted model that misses the turn "
+        "it was fitted to cannot be right on others.",
+        "",
+        md_table(["run", "index", "measured", "predicted", "error"], rows),
+        "",
+        *[f"- **{s[0].upper() + s[1:]}.**" for s in said],
+        *(
+            [f"- Reproduced within {fmt(100 * TURN_TOLERANCE)} % (tactical and steady diameters): {', '.join(ok)}."]
+            if ok
+            else []
+        ),
+        "",
+    ]
 
 
 def _ar1_sentence(post: dict) -> str:
