@@ -6,6 +6,7 @@ same status, same NaN layout after divergence."""
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -170,7 +171,8 @@ def test_unknown_kernel_is_named():
         shipkernel.kernel("compiled")
 
 
-#: extra hull terms of every kind: a constant, a cubic (1/U), rudder powers and |.| forms
+#: extra hull terms of every kind: a constant, a cubic (1/U), rudder powers and |.| forms, fourth-order
+#: surge terms (1/U^2; Yasukawa & Yoshimura 2015's X'vvvv of KVLCC2, 0.771)
 EXTRA_TERMS = {
     "N0": 0.002,
     "Y0": -0.003,
@@ -179,6 +181,8 @@ EXTRA_TERMS = {
     "Ndrabsdr": 0.01,
     "Nabsdr": 0.004,
     "Xabsvdr": 0.01,
+    "Xvvvv": 0.771,
+    "Xvvabsvabsr": -0.2,
 }
 
 
@@ -231,3 +235,25 @@ def test_extra_hull_terms_in_the_forces_are_the_prime_form_columns():
     U = np.hypot(st[:, 3], st[:, 4])
     np.testing.assert_allclose(C[:, 0], q * P["L"] * U**2)
     np.testing.assert_allclose(C[:, 2], q * st[:, 4] ** 3 / U)
+    # and a fourth-order surge term: Xvvvv = q v^4 / U^2 Xvvvv'
+    np.testing.assert_allclose(C[:, 7], q * st[:, 4] ** 4 / U**2)
+
+
+def test_surge_terms_reach_fourth_order_in_the_velocities_only():
+    from bayesid.models.ship.library import ShipTerms, surge_products
+
+    assert ship.hullterms.parse("Xvvvv").factors == ("v",) * 4
+    assert ship.hullterms.parse("Xvvrr").n_velocity == 4
+    for bad in ("Yvvvv", "Nvvrr", "Xvvvdr", "Xvvvvv"):  # sway, yaw, a rudder factor, fifth order
+        with pytest.raises(ship.hullterms.HullTermError, match="factors"):
+            ship.hullterms.parse(bad)
+    # the library offers the fourth-order surge products even in v, r (X(v, r) = X(-v, -r)) in X only
+    bodies = surge_products()
+    assert {"vvvv", "vvvr", "vvrr", "vrrr", "rrrr"} <= set(bodies) and "vvvabsv" not in bodies
+    lib = ShipTerms(ship.load_ship("kvlcc2_7m"))
+    model = SimpleNamespace(free=[])
+    names = [n for n in lib.candidates(model, 3, ("X", "Y", "N")) if ship.hullterms.is_term(n)]
+    assert {"Xvvvv", "Xvvrr", "Xrrrr"} <= set(names)
+    assert max(len(ship.hullterms.parse(n).factors) for n in names if n[0] in "YN") == 3
+    assert "Xvvvv" not in lib.candidates(model, 2, ("X",))
+    assert not any(n.startswith("X") for n in lib.candidates(model, 3, ("Y", "N")))

@@ -114,6 +114,8 @@ def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
             val *= U ** (2 - nv)
         elif U > 1e-9:
             val /= U
+            if nv == 4:  # a fourth-order surge term (hullterms.MAX_SURGE_ORDER)
+                val /= U
         else:
             val = 0.0
         dof = int(p[j])

@@ -21,7 +21,8 @@ the terms with at most two velocity factors are finite at every speed; a cubic o
 Name grammar: the force letter ``X``, ``Y`` or ``N``, then either ``0`` (a constant force or
 moment in prime form, ``Y0``: ``0.5 rho L d U^2 Y0``) or one to three factors from ``v r absv absr
 dr absdr`` (longest token first): ``Yvvv``, ``Nvrr``, ``Ndr``, ``Nabsdr`` (``|dr|``), ``Ndrabsdr``
-(``dr |dr|``), ``Yabsvdr``. A product that a listed coefficient already has (``Yrvv`` is
+(``dr |dr|``), ``Yabsvdr``; a surge term of velocity factors alone may have four
+(``Xvvvv``, ``Xvvrr``: :data:`MAX_SURGE_ORDER`). A product that a listed coefficient already has (``Yrvv`` is
 ``Yvvr``) is refused with the listed name; the listed names keep their own forms (see
 :mod:`bayesid.models.ship`).
 
@@ -49,6 +50,11 @@ _DOFS = ("X", "Y", "N")
 TERM_WIDTH = 8
 #: Highest order of an extra term (number of factors).
 MAX_ORDER = 3
+#: Highest order of a surge term of velocity factors alone: the MMG hull surge force is a
+#: polynomial in ``v', r'`` to fourth order (``X'vvvv`` of Yasukawa & Yoshimura 2015, Sec. 2.2,
+#: Table 4; ``X'vvrr``, ``X'rrrr``, ... the other products of that order), written
+#: ``U^2 v'^a r'^b = v^a (rL)^b / U^2`` for ``a + b = 4`` and set to 0 below ``U = 1e-9`` m/s.
+MAX_SURGE_ORDER = 4
 
 # Products of the listed hull coefficients (their own slots and forms).
 _LISTED_PRODUCTS = {
@@ -130,7 +136,8 @@ def parse(name: str) -> HullTerm:
     ------
     HullTermError
         A listed coefficient's name (it is not an extra term), a name the grammar cannot read, a
-        product of more than :data:`MAX_ORDER` factors, or another spelling of a listed product;
+        product of more than :data:`MAX_ORDER` factors (:data:`MAX_SURGE_ORDER` for a surge term of
+        velocity factors), or another spelling of a listed product;
         the message says which and suggests the closest listed names.
     """
     if not isinstance(name, str) or not name or name[0] not in _DOFS:
@@ -151,8 +158,13 @@ def parse(name: str) -> HullTerm:
         i += len(tok)
     if not factors:
         raise _unknown(name, "no factor after the force letter")
-    if len(factors) > MAX_ORDER:
-        raise _unknown(name, f"{len(factors)} factors; an extra hull term has at most {MAX_ORDER}")
+    most = MAX_SURGE_ORDER if name[0] == "X" and set(factors) <= _VELOCITY else MAX_ORDER
+    if len(factors) > most:
+        raise _unknown(
+            name,
+            f"{len(factors)} factors; an extra hull term has at most {MAX_ORDER} "
+            f"(a surge term of v, r, absv, absr alone {MAX_SURGE_ORDER})",
+        )
     listed = _LISTED_PRODUCTS.get((name[0], tuple(sorted(factors))))
     if listed is not None:
         raise HullTermError(f"ship coefficient {name!r} is the product listed as {listed!r}: use that name")
@@ -308,7 +320,7 @@ def columns(terms, u, v, r, dr, L: float, rho: float, d: float) -> np.ndarray:
             col = col * feats[f]
         nu = 2 - t.n_velocity
         with np.errstate(divide="ignore", invalid="ignore"):
-            col = col * (U**nu if nu >= 0 else np.where(U > 1e-9, 1.0 / np.maximum(U, 1e-300), 0.0))
+            col = col * (U**nu if nu >= 0 else np.where(U > 1e-9, 1.0 / np.maximum(U, 1e-300) ** -nu, 0.0))
         out[:, k] = q * (L if t.dof == 2 else 1.0) * col
     return out
 
@@ -317,6 +329,7 @@ __all__ = [
     "FACTORS",
     "TERM_WIDTH",
     "MAX_ORDER",
+    "MAX_SURGE_ORDER",
     "HullTerm",
     "HullTermError",
     "parse",

@@ -337,8 +337,8 @@ _FAC = {2: "h2", 3: "h2", 4: "dt"}
 # compile of 8-17 s per set, one per candidate term that structure discovery refits). Each term's
 # force is the product of the specialised form's factors in its order -- the coefficient times
 # q (q L for N), each factor's power in the order of hullterms.FACTORS, then U^(2 - n) for n <= 2
-# velocity factors or 1/U for n = 3 (0 below 1e-9 m/s) -- multiplied one at a time, left to
-# right, so that the rounding is that of the written-out product. A function of its own, called
+# velocity factors, 1/U for n = 3 and 1/U twice for n = 4 (a surge term; 0 below 1e-9 m/s) --
+# multiplied one at a time, left to right, so that the rounding is that of the written-out product. A function of its own, called
 # at each stage of each lane: the same loop inlined there doubled the kernel's compile (31 s
 # against 16 s, benchmarks/ship_terms.py).
 _TERMS_FUNCTION = f'''
@@ -368,6 +368,9 @@ def _terms(p, nterm, v, r, L, dl, U, q, qL, X, Y, N):
         elif nvt == 1:
             at = at * U
         elif nvt == 3:
+            at = at * (1.0 / U if U > 1e-9 else 0.0)
+        elif nvt == 4:
+            at = at * (1.0 / U if U > 1e-9 else 0.0)
             at = at * (1.0 / U if U > 1e-9 else 0.0)
         if ft == 0.0:
             X += at

@@ -33,7 +33,8 @@ class ShipTerms(TermLibrary):
 
     def candidates(self, model, max_order: int = hullterms.MAX_ORDER, dofs=("Y", "N")) -> list[str]:
         """See :meth:`TermLibrary.candidates`; a listed coefficient's product (``Yrvv`` is
-        ``Yvvr``) is not a candidate.
+        ``Yvvr``) is not a candidate. In X, with ``max_order`` 3, the fourth-order products of
+        :func:`surge_products` too (``Xvvvv``, ``Xvvrr``, ...: the MMG hull surge polynomial).
 
         Parameters
         ----------
@@ -51,7 +52,10 @@ class ShipTerms(TermLibrary):
         """
         out = []
         for g in dofs:
-            for body in ["0", *motion_products(max_order)]:
+            bodies = ["0", *motion_products(max_order)]
+            if g == "X" and max_order >= hullterms.MAX_ORDER:
+                bodies += surge_products()
+            for body in bodies:
                 name = g + body
                 if name in self.vehicle.coefficients:
                     continue
@@ -114,3 +118,27 @@ class ShipTerms(TermLibrary):
             P["rho"],
             P["d"],
         )
+
+
+def surge_products() -> list[str]:
+    """The fourth-order products of the velocity factors ``v r |v| |r|`` that a port-starboard
+    symmetric hull's surge force can have: even in the signed factors (``X(v, r) = X(-v, -r)``),
+    e.g. ``vvvv``, ``vvvr``, ``vvrr``, ``vrrr``, ``rrrr``, ``vvabsrabsr``... The MMG hull surge
+    polynomial (Yasukawa & Yoshimura 2015, J. Mar. Sci. Technol. 20:37-52, Sec. 2.2) has ``X'vvvv``
+    of these; structure discovery offers the others beside it
+    (:data:`~bayesid.models.ship.hullterms.MAX_SURGE_ORDER`).
+
+    Returns
+    -------
+    list of str
+        Name bodies (without the force letter) in :func:`~bayesid.models.library.motion_products`'
+        spelling.
+    """
+    out = []
+    for a_v in range(5):
+        for c_v in (0, 1):
+            for a_r in range(5):
+                for c_r in (0, 1):
+                    if a_v + c_v + a_r + c_r == hullterms.MAX_SURGE_ORDER and (a_v + a_r) % 2 == 0:
+                        out.append("v" * a_v + "absv" * c_v + "r" * a_r + "absr" * c_r)
+    return sorted(out, key=lambda p: (len(p), p))
