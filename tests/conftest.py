@@ -39,6 +39,7 @@ LONGEST_FIRST = (
     "test_reference.py",
     "test_sample_budget.py",
     "test_compare_terms.py",
+    "test_surge_discovery.py",
     "test_imo.py",
 )
 

@@ -1020,6 +1020,11 @@ def _where_lines(res: dict) -> list:
         f"{res['where']['dominant_region']['region']} (error growth {fmt(res['where']['dominant_region']['growth_ratio'])}"
         " x the mean).",
         "",
+        *(
+            [f"Structure discovery: {res['where']['discovery_routed']}.", ""]
+            if res["where"].get("discovery_routed")
+            else []
+        ),
     ]
     ph = res["where"]["phases"]
     lines += [

@@ -31,7 +31,7 @@ from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
 from .design import design, standard_predictions
-from .discovery import Discovery, discover, with_terms
+from .discovery import Discovery, discover, routed, with_terms
 from .records import BaseCheck, CandidateRow, NoiseFloor, Record, Remainder
 from .support import signature_regression
 from .verdict import (
@@ -517,6 +517,12 @@ def diagnose(
         (noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)), key=lambda d: d.heldout_rms_m
     )
     w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor.by_channel)
+    if opt.discover is not None:  # Where's dominant channel decides where the search starts
+        searched, why = routed(opt.discover, w, base)
+        if why is not None:
+            say(f"discovery: {why}")
+            w["discovery_routed"] = why
+            opt = replace(opt, discover=searched)
     seeds = _seeds(cand_effects, base, bfit, ctr, train)
     significant = bool(b_held["rms_position_m"] > th.none_ratio * floor.heldout_rms_m)
     base_stage = Stage(base, bfit, b_train, b_held, None, b["windows"])

@@ -60,6 +60,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ....models.library import MAX_ORDER as MAX_ORDER
+from ....models.library import NoTermLibraryError
 from ....tasks import Runner, Task, TaskError, record_fields
 from ..candidates import Setup, Stage
 from ..records import Record, TermRow
@@ -129,6 +130,7 @@ __all__ = [
     "with_terms",
     "discover",
     "check_compare",
+    "routed",
 ]
 
 # the helpers' names before the package was split by concept (private in one module then)
@@ -410,6 +412,55 @@ def _verdict(found: list, heldout_rms: float, band: float, alts: dict | None = N
         return "no term of the library explains it"
     names = _named_alternatives(found, alts or {})
     return f"discovered: {'+'.join(names)}" + ("+unexplained" if heldout_rms > band else "")
+
+
+#: The channels whose miss routes structure discovery into the surge equation: the speed through
+#: the water is set by X alone (the position and heading channels by Y and N first).
+SURGE_CHANNELS = ("u",)
+
+
+def routed(options: DiscoveryOptions, where: dict | None, model) -> tuple[DiscoveryOptions, str | None]:
+    """The degrees of freedom discovery searches, as *Where* points: when the channel the base
+    model misses most (``where["dominant_channel"]``, the largest excess over its noise floor) is
+    the speed ``u`` (:data:`SURGE_CHANNELS`), the surge equation X joins the searched degrees of
+    freedom (first) where the model's term library offers X terms and ``options`` does not search
+    it already: a model that loses speed wrongly in the turns is missing a surge force, which no
+    term in Y or N supplies (the MMG surge: Yasukawa & Yoshimura 2015, J. Mar. Sci. Technol.
+    20:37-52, Sec. 2.2). Y and N stay searched: a sway or yaw term that fits the same runs competes
+    with the surge term, and the alternatives and the design tell them apart.
+
+    Parameters
+    ----------
+    options : DiscoveryOptions
+        The options asked for.
+    where : dict or None
+        The base model's *Where* summary (:func:`bayesid.analysis.gap.where.where`).
+    model : SimulationModel
+        The base model (its term library's X candidates).
+
+    Returns
+    -------
+    options : DiscoveryOptions
+        ``options``, or a copy with ``"X"`` added to ``dofs``.
+    reason : str or None
+        Why X was added (None when it was not).
+    """
+    channel = (where or {}).get("dominant_channel")
+    if channel not in SURGE_CHANNELS or "X" in options.dofs:
+        return options, None
+    try:
+        offered = candidate_terms(model, options.max_order, ("X",))
+    except NoTermLibraryError:
+        return options, None
+    if not offered:
+        return options, None
+    ratio = ((where.get("channels") or {}).get(channel) or {}).get("excess_ratio")
+    reason = (
+        f"the base model misses the speed {channel} most"
+        + (f" ({ratio:.3g} x its noise floor)" if ratio else "")
+        + ": the surge equation X is searched too"
+    )
+    return replace(options, dofs=("X", *options.dofs)), reason
 
 
 def check_compare(model, options: DiscoveryOptions) -> None:

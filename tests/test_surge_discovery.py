@@ -1,0 +1,83 @@
+"""Structure discovery routed by *Where* (issue 67): a KVLCC2 whose hull has a fourth-order surge
+term the model lacks (Yasukawa & Yoshimura 2015's X'vvvv, here 2.0) loses speed in the turns the
+model does not; the speed u is the channel the base model misses most, so discovery searches the
+surge equation X too, and the hidden term is named or kept among the alternatives. A miss in
+another channel leaves the search in Y and N."""
+
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from bayesid import cli
+from bayesid.analysis.gap.discovery import DiscoveryOptions, routed
+from bayesid.data.track import Track, write_csv
+from bayesid.models import build_model
+from bayesid.models.ship import load_ship
+from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
+
+RUNS = [
+    ("zigzag", 10.0, "z10p"),
+    ("zigzag", -20.0, "z20s"),
+    ("turn", 35.0, "t35p"),
+    ("zigzag", 35.0, "z35p_held"),
+    ("turn", -35.0, "t35s_held"),
+    ("turn", 20.0, "t20p_held"),
+]
+
+
+@pytest.fixture(scope="module")
+def surge_diagnosis(tmp_path_factory):
+    """``bayesid diagnose`` on 3 training runs (two zigzags, a turn) and 3 held-out ones (a 35/35
+    zigzag, turns both ways), 200 s at 2 Hz with a velocity log and light noise."""
+    d = tmp_path_factory.mktemp("surge")
+    base = load_ship("kvlcc2_7m")
+    truth = base.with_coefficients({"Xvvvv": 2.0})
+    speed, rpm = propulsion_point(base, 1.179)
+    opts = TrialOptions(dt=0.1, sample_every=5, rudder_rate_deg_s=15.8, duration=200.0)
+    rng = np.random.default_rng(67)
+    noise = {"x": 0.02, "y": 0.02, "psi": np.radians(0.1), "u": 0.005, "v": 0.005, "r": np.radians(0.05)}
+    paths = {}
+    for kind, angle, name in RUNS:
+        tr = simulate_trial(truth, kind, angle, speed=speed, rpm=rpm, options=opts).track
+        data = {k: np.asarray(tr[k], float).copy() for k in ("x", "y", "psi", "u", "v", "r", "delta_r", "n")}
+        for k, s in noise.items():
+            data[k] += rng.normal(0, s, data[k].size)
+        paths[name] = d / f"{name}.csv"
+        write_csv(Track(np.asarray(tr.t, float), data, name=name, meta=tr.meta), paths[name])
+    train = [str(p) for n, p in paths.items() if not n.endswith("_held")]
+    held = [str(p) for n, p in paths.items() if n.endswith("_held")]
+    out = d / "diag"
+    rc = cli.main(["-q", "diagnose", "--vehicle", "kvlcc2_7m", "--train", *train, "--heldout", *held]
+                  + ["--score-window", "60", "--candidates", "current,delay", "--max-nfev", "30", "--no-design"]
+                  + ["--out", str(out)])  # fmt: skip
+    assert rc == 0
+    return json.loads((out / "diagnosis.json").read_text()), (out / "report.md").read_text()
+
+
+def test_a_missing_surge_term_is_found_once_the_speed_routes_discovery_into_x(surge_diagnosis):
+    d, report = surge_diagnosis
+    assert d["where"]["dominant_channel"] == "u"  # measured: 2.76 x its floor, x 2.10, y 1.60
+    assert "surge equation X" in d["where"]["discovery_routed"] and "surge equation X" in report
+    assert d["discovery"]["settings"]["dofs"] == ["X", "Y", "N"]
+    found = d["discovery"]["found"]
+    named = set(found) | {a["term"] for k in found for a in d["discovery"]["alternatives"].get(k, [])}
+    assert "Xvvvv" in named, (found, d["discovery"]["alternatives"])  # measured: Xvvvr kept, Xvvvv beside it
+    assert all(k.startswith("X") for k in found)  # no sway or yaw term alone
+
+
+def test_a_miss_in_another_channel_leaves_the_search_in_y_and_n():
+    model = build_model(load_ship("kvlcc2_7m"))
+    opts = DiscoveryOptions()
+    where = {"dominant_channel": "psi", "channels": {"psi": {"excess_ratio": 5.0}, "u": {"excess_ratio": 2.0}}}
+    assert routed(opts, where, model) == (opts, None)
+    where_u = {"dominant_channel": "u", "channels": {"u": {"excess_ratio": 5.0}}}
+    got, why = routed(opts, where_u, model)
+    assert got.dofs == ("X", "Y", "N") and "5 x its noise floor" in why
+    assert routed(got, where_u, model) == (got, None)  # X searched already
+    assert routed(opts, None, model) == (opts, None)
+    # a family without a term library is left as it is
+    assert routed(opts, where_u, SimpleNamespace(term_library=lambda: None)) == (opts, None)
