@@ -21,9 +21,12 @@ kept in ``Track.meta["comments"]``.  A comment ``# rudder positive: starboard``
 declares a log in the other rudder sign convention (+ = to starboard, as in MMG
 papers): ``delta_r`` is negated on reading into the package's (SNAME: + = to
 port) and the comment rewritten to ``rudder positive: port (...)``, so that a
-written copy is not negated twice.  Floats are written with ``repr`` so that
-:func:`write_csv` followed by :func:`read_csv` reproduces every value
-bit-for-bit.
+written copy is not negated twice.  A heading logged wrapped, as a compass logs
+it ((-pi, pi] or [0, 2 pi)), is unwrapped on reading (:func:`unwrap_heading`;
+the number of wraps in ``Track.meta["psi_wraps"]`` and a comment line), and a
+jump of more than pi that is not a wrap is refused, naming ``psi`` and the time.
+Floats are written with ``repr`` so that :func:`write_csv` followed by
+:func:`read_csv` reproduces every value bit-for-bit (a continuous heading).
 """
 
 from __future__ import annotations
@@ -48,6 +51,9 @@ __all__ = [
     "read_csv",
     "write_csv",
     "continuous_pieces",
+    "unwrap_heading",
+    "HeadingJumpError",
+    "WRAP_LIMIT",
 ]
 
 STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r")
@@ -632,13 +638,90 @@ def _read_stream(path, f) -> Track:
     del blocks
     data = {k: c for k, c in zip(names, columns) if k != "t"}
     comments = _rudder_convention(path, comments, data, n_before)
-    return Track(
-        columns[it],
-        data,
-        name=Path(path).stem,
-        units=units,
-        meta={"comments": comments, "file_rows": (first_row, last_row)},
-    )
+    meta = {"comments": comments, "file_rows": (first_row, last_row)}
+    if "psi" in data:
+        try:
+            data["psi"], wraps = unwrap_heading(data["psi"], columns[it])
+        except HeadingJumpError as exc:
+            raise format_error(path, f"{exc} (at t = {columns[it][exc.index]:.6g} s)", column="psi") from None
+        if wraps:
+            meta["psi_wraps"] = wraps
+            comments.append(
+                f"psi unwrapped on reading: {wraps} wrap(s) of 2 pi (a heading logged in (-pi, pi] or [0, 2 pi))"
+            )
+    return Track(columns[it], data, name=Path(path).stem, units=units, meta=meta)
+
+
+#: A heading whose finite values all lie within this of 0 (rad) may be wrapped (a compass's
+#: (-pi, pi] or [0, 2 pi)); beyond it the values are unwrapped already, or degrees (refused by
+#: :func:`bayesid.data.validate.check_track`).
+WRAP_LIMIT = 2.0 * math.pi + 0.1
+
+
+#: A heading step faster than this (rad/s) and larger than pi/2 is a jump, not a turn.
+MAX_TURN_RATE = 1.0
+
+
+class HeadingJumpError(ValueError):
+    """A heading jump that is not a wrap of 2 pi (:func:`unwrap_heading`); ``index`` is the
+    sample after the jump."""
+
+    def __init__(self, message: str, index: int):
+        super().__init__(message)
+        self.index = index
+
+
+def unwrap_heading(psi, t=None) -> tuple[np.ndarray, int]:
+    """A heading logged wrapped, as a compass, INS or AHRS logs it ((-pi, pi] or [0, 2 pi)),
+    made continuous: each step between finite samples of more than pi is taken as a wrap and
+    2 pi k added from it on (:func:`numpy.unwrap`), NaN kept. A heading whose values pass
+    :data:`WRAP_LIMIT` is returned as it is (unwrapped already, or degrees).
+
+    Parameters
+    ----------
+    psi : array_like, shape (n,)
+        Heading, rad.
+    t : array_like, shape (n,), optional
+        Sample times, s (None: one sample per second).
+
+    Returns
+    -------
+    psi : ndarray, shape (n,)
+        The continuous heading, rad (the input itself when nothing was wrapped).
+    wraps : int
+        How many steps were wraps.
+
+    Raises
+    ------
+    HeadingJumpError
+        A step between finite samples of more than pi/2, as a wrap or not, at more than
+        :data:`MAX_TURN_RATE`: a jump of the heading (no vessel turns a quarter circle at 1 rad/s),
+        which unwrapping would misread; ``index`` names the sample after it. A long gap of a
+        turning vessel is not refused.
+    """
+    psi = np.asarray(psi, float)
+    ok = np.flatnonzero(np.isfinite(psi))
+    if ok.size < 2 or np.max(np.abs(psi[ok])) > WRAP_LIMIT:
+        return psi, 0
+    step = np.diff(psi[ok])
+    left = np.abs(step - 2.0 * math.pi * np.round(step / (2.0 * math.pi)))
+    dt = np.diff(np.arange(psi.size, dtype=float)[ok] if t is None else np.asarray(t, float)[ok])
+    bad = np.flatnonzero((left > 0.5 * math.pi) & (left > MAX_TURN_RATE * dt))
+    if bad.size:
+        k = int(bad[0])
+        raise HeadingJumpError(
+            f"the heading jumps by {step[k]:.4g} rad in {dt[k]:.3g} s"
+            + (f" ({left[k]:.3g} rad even as a wrap of 2 pi)" if abs(step[k]) > math.pi else "")
+            + ": a jump, not a turn or a wrap of a compass heading (a glitch, or a gap of a turning vessel): "
+            "unwrapping would misread it; fill or cut it",
+            int(ok[k + 1]),
+        )
+    wrap = np.abs(step) > math.pi
+    if not wrap.any():
+        return psi, 0
+    out = psi.copy()
+    out[ok] = np.unwrap(psi[ok])
+    return out, int(wrap.sum())
 
 
 _RUDDER_LINE = re.compile(r"\s*rudder\s+positive\s*[:=]\s*(\S*)(.*)", re.IGNORECASE)

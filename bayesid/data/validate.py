@@ -696,6 +696,11 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
             m = float(np.nanmax(np.abs(track[col]))) if np.isfinite(track[col]).any() else 0.0
             if m > math.pi / 2 + 1e-6:
                 refuse(col, f"values up to {m:.4g} cannot be a control-surface angle in rad; it looks like degrees")
+    if track.meta.get("psi_wraps"):
+        warn.append(
+            f"{name}: column 'psi': the heading was wrapped like a compass's ({track.meta['psi_wraps']} wrap(s) of "
+            "2 pi): unwrapped on reading"
+        )
     warn += _check_rudder_limit(track, vehicle, name)
     warn += _check_log_rate(track, name)
     warn += _check_pieces(track, name)
