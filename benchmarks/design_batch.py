@@ -4,7 +4,7 @@ against one draw at a time (the same functions called with one row per draw: wha
 before the lock-step search), in one run, on the same models.
 
 Workloads: the models the gap diagnosis designs with (the base model, the kept term's refit and its
-alternatives' refits, ``DesignOptions().n_draws`` Laplace draws each) for the synthetic NPS AUV II
+alternatives' refits, ``DiscriminationOptions().n_draws`` Laplace draws each) for the synthetic NPS AUV II
 and KVLCC2 cases of ``benchmarks/discovery.py``; the standard runs of
 ``design.STANDARD_RUNS`` (turning circles both ways, zigzags 10/10 and 20/20). Each variant is
 timed ``--repeats`` times alternately and the best time kept (other load only slows a run down);
@@ -45,7 +45,7 @@ def _models(case):
     orig = diag.standard_predictions
 
     def grab(stages, setup, options=None, **kw):
-        options = dz.DesignOptions() if options is None else options
+        options = dz.DiscriminationOptions() if options is None else options
         got.update(stages=stages, setup=setup, options=options)
         return orig(stages, setup, options, **kw)
 

@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bayesid.analysis.gap import DiagnoseOptions, diagnose  # noqa: E402
-from bayesid.analysis.gap.design import DesignOptions  # noqa: E402
+from bayesid.analysis.gap.design import DiscriminationOptions  # noqa: E402
 from bayesid.analysis.gap.discovery import DiscoveryOptions  # noqa: E402
 from bayesid.data.track import Track  # noqa: E402
 from bayesid.models import ship  # noqa: E402
@@ -100,7 +100,7 @@ def _diagnose(kv, free, train, held, cands, max_nfev, alternatives: bool):
             max_effects=1,
             start="measured",
             discover=DiscoveryOptions(max_nfev=max_nfev, n_alternatives=2 if alternatives else 0),
-            design=DesignOptions() if alternatives else None,
+            design=DiscriminationOptions() if alternatives else None,
         ),
     )
     return d, time.perf_counter() - t0

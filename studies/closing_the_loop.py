@@ -210,7 +210,7 @@ def _mimicked_by(d, hidden: str | None) -> dict | None:
 def run_case(case: dict, seed: int, quick: bool) -> dict:
     """Both rounds of one case."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
-    from bayesid.analysis.gap.design import DesignOptions
+    from bayesid.analysis.gap.design import DiscriminationOptions
     from bayesid.analysis.gap.discovery import DiscoveryOptions
     from bayesid.models.runs import approach_condition
 
@@ -222,7 +222,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
         window_s=60.0 if case["family"] == "ship" else 30.0,
         max_nfev=nfev,
         discover=DiscoveryOptions(max_nfev=nfev, n_alternatives=2),
-        design=DesignOptions(seed=seed),
+        design=DiscriminationOptions(seed=seed),
     )
     hidden = next(iter(case["hidden"]), None)
     d1 = diagnose(veh, free, train, held, options, rng=np.random.default_rng(seed))
@@ -312,10 +312,10 @@ def _menu_inseparable(r: dict) -> dict:
     """Round 1's pairs of alternatives that no run of the design's menu separates
     (:func:`bayesid.analysis.gap.design.rank_by_separable_pairs` over the ranked runs' pairwise
     divergences, at the design's threshold)."""
-    from bayesid.analysis.gap.design import DesignOptions, rank_by_separable_pairs
+    from bayesid.analysis.gap.design import DiscriminationOptions, rank_by_separable_pairs
 
     rows = [dict(x) for x in r.get("design") or [] if x.get("pairs")]
-    return rank_by_separable_pairs(rows, DesignOptions().min_separation)[0]["menu_inseparable"] if rows else {}
+    return rank_by_separable_pairs(rows, DiscriminationOptions().min_separation)[0]["menu_inseparable"] if rows else {}
 
 
 def _resolved_up_to_menu(r: dict, key: str) -> bool:

@@ -72,7 +72,7 @@ def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis", c
     ``out / folder``; ``compare``: terms refitted whatever the selection picks (an earlier
     round's kept terms and alternatives, ``DiscoveryOptions.compare``)."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
-    from bayesid.analysis.gap.design import DesignOptions
+    from bayesid.analysis.gap.design import DiscriminationOptions
     from bayesid.analysis.gap.discovery import DiscoveryOptions
     from bayesid.models import ship
     from bayesid.report import write_diagnosis
@@ -91,7 +91,7 @@ def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis", c
             max_nfev=args.max_nfev,
             start="measured",
             discover=DiscoveryOptions(max_nfev=args.max_nfev, n_alternatives=2, compare=tuple(compare)),
-            design=DesignOptions(seed=args.seed),
+            design=DiscriminationOptions(seed=args.seed),
         ),
         rng=np.random.default_rng(args.seed),
         runner=Runner(progress=lambda m: log(f"diagnose: {m}")),

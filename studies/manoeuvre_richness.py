@@ -234,7 +234,7 @@ def main():
     )
     designs = {}
     for crit in ("D", "direction"):
-        options = richness.DesignOptions(
+        options = richness.RichnessOptions(
             criterion=crit,
             direction=w,
             prior_precision=prior,

@@ -340,7 +340,7 @@ def test_the_designed_runs_separate_two_structures_and_none_separates_a_model_fr
         )
     ]
     setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 60.0, "measured", None)
-    rows = dz.design(stages, setup, dz.DesignOptions(n_draws=0, duration_s=120.0))
+    rows = dz.design(stages, setup, dz.DiscriminationOptions(n_draws=0, duration_s=120.0))
     assert rows and rows == sorted(rows, key=lambda r: (-len(r["decidable_pairs"]), -r["separation"]))
     kinds = {r["kind"] for r in rows}
     assert {"turning_circle", "zigzag", "pull_out"} <= kinds
@@ -421,7 +421,7 @@ def _window_rms(stage, run, window_s):
 
 def test_the_top_designed_run_flown_by_the_truth_rejects_the_wrong_structure():
     stages, setup = _n0_against_nabsdr()
-    rows = dz.design(stages, setup, dz.DesignOptions(n_draws=0, duration_s=120.0))
+    rows = dz.design(stages, setup, dz.DiscriminationOptions(n_draws=0, duration_s=120.0))
     top, last = rows[0], rows[-1]
     assert top["separation"] > 5.0 and top["inputs"]["t"][0] == 0.0
     approach = mr.approach_condition(setup.train)
@@ -489,7 +489,7 @@ def test_design_refuses_options_that_leave_nothing_to_design(argv, tmp_path, cap
 
 def test_each_alternative_predicts_the_standard_manoeuvres_the_training_runs_lack():
     stages, setup = _n0_against_nabsdr()
-    runs = dz.standard_predictions(stages, setup, dz.DesignOptions(n_draws=0, duration_s=200.0))
+    runs = dz.standard_predictions(stages, setup, dz.DiscriminationOptions(n_draws=0, duration_s=200.0))
     names = [r["name"] for r in runs]
     assert names == [
         "turning circle 35 deg port",

@@ -28,18 +28,18 @@ from bayesid.models.runs import Approach, menu
     ],
 )
 def test_the_menus_largest_rudder_is_the_vehicles_limit_where_smaller(vehicle, limit):
-    options = dz.within_limits(dz.DesignOptions(), vehicle())
+    options = dz.within_limits(dz.DiscriminationOptions(), vehicle())
     assert options.max_rudder_deg == pytest.approx(limit)
     approach = Approach(u=1.0, rpm=600.0, rudder_rate=math.radians(5.0), duration_s=120.0)
     runs = menu(approach, options.max_rudder_deg, options.duration_s)
     assert max(r.rudder_deg for r in runs) == pytest.approx(limit)
     assert len({r.name for r in runs}) == len(runs)  # each run once
-    assert dz.within_limits(dz.DesignOptions(max_rudder_deg=15.0), vehicle()).max_rudder_deg == 15.0
+    assert dz.within_limits(dz.DiscriminationOptions(max_rudder_deg=15.0), vehicle()).max_rudder_deg == 15.0
 
 
 def test_design_and_standard_predictions_keep_within_a_15_deg_gear():
     stages, setup = n0_against_nabsdr(dataclasses.replace(ship.load_ship("kvlcc2_7m"), rudder_max_deg=15.0))
-    options = dz.DesignOptions(n_draws=0, duration_s=120.0)
+    options = dz.DiscriminationOptions(n_draws=0, duration_s=120.0)
     rows = dz.design(stages, setup, options)
     assert rows and max(r["rudder_deg"] for r in rows) == pytest.approx(15.0)
     for r in rows:  # the schedules themselves, not only their labels

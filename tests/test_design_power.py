@@ -88,7 +88,7 @@ def test_the_best_designed_runs_are_lengthened_for_the_run_test():
         m = ship.ShipModel(kv.with_coefficients({name: value}), free=[name], dt=0.2)
         stages[name] = Stage(m, SimpleNamespace(p=m.start()), {}, {}, None, np.asarray(windows))
     setup = Setup(kv, ["N0"], train, train, 0.2, "horizontal", 15.0, 30.0, "measured", None)
-    options = dz.DesignOptions(n_draws=0, max_windows=6, sized_rows=2)
+    options = dz.DiscriminationOptions(n_draws=0, max_windows=6, sized_rows=2)
     rows = dz.design(stages, setup, options)
     assert rows == sorted(rows, key=lambda r: (-len(r["decidable_pairs"]), -r["separation"]))
     sd = rows[0]["run_test"]["log_sd"]
@@ -101,7 +101,7 @@ def test_the_best_designed_runs_are_lengthened_for_the_run_test():
         assert r["run_test"]["windows"] == round(r["duration_s"] / setup.window_s)
         assert r["inputs"]["t"][-1] == pytest.approx(r["duration_s"] - 0.1)
     # a given duration is the user's: nothing is sized
-    fixed = dz.design(stages, setup, dz.DesignOptions(n_draws=0, duration_s=120.0))
+    fixed = dz.design(stages, setup, dz.DiscriminationOptions(n_draws=0, duration_s=120.0))
     assert all(r["run_test"]["sized_from_s"] is None and r["duration_s"] == 120.0 for r in fixed)
     pair = fixed[0]["run_test"]["pairs"]["N0 vs Nabsdr"]
     assert pair["expected_ratio"] >= 1.0 and (pair["windows_needed"] is None or pair["windows_needed"] >= 2.0)

@@ -37,7 +37,7 @@ def test_turning_circles_and_the_standard_predictions_agree(kvlcc2):
     tc = turning_circles(FittedModel(model, p, None), 0, None, approach, 35.0, D - T_EXECUTE)
     stage = SimpleNamespace(model=model, fit=SimpleNamespace(p=p))
     setup = SimpleNamespace(vehicle=ship, train=train, fit_window_s=None)
-    std = dz.standard_predictions({"m": stage}, setup, dz.DesignOptions(n_draws=0, duration_s=D))
+    std = dz.standard_predictions({"m": stage}, setup, dz.DiscriminationOptions(n_draws=0, duration_s=D))
     turns = {r["side"]: r["models"]["m"] for r in std if r["kind"] == "turning_circle"}
     assert set(turns) == {"port", "starboard"}
     for side, got in turns.items():

@@ -65,14 +65,14 @@ def test_designed_multisine_beats_the_spiral_d_criterion(nps):
         return Problem(sim, sim.run(theta[None]).track(0), theta, channels=("x", "y", "psi"))
 
     spiral = richness.fisher_metrics(make(mv.spiral(nps, dt=0.5)), theta, NOISE)["logdet_fim"]
-    options = richness.DesignOptions(criterion="D", duration=600.0, dt=0.5, maxiter=1, popsize=2)
+    options = richness.RichnessOptions(criterion="D", duration=600.0, dt=0.5, maxiter=1, popsize=2)
     d = richness.design_multisine(nps, make, theta, NOISE, options, rng=np.random.default_rng(1))
     assert d.manoeuvre.duration == pytest.approx(600.0)
     assert np.max(np.abs(np.degrees(d.manoeuvre.inputs[:, 0]))) == pytest.approx(20.0)
     assert d.value >= d.start_value
     assert d.value > spiral
     with pytest.raises(ValueError, match="direction"):
-        richness.design_multisine(nps, make, theta, NOISE, richness.DesignOptions(criterion="direction"))
+        richness.design_multisine(nps, make, theta, NOISE, richness.RichnessOptions(criterion="direction"))
 
 
 def test_manoeuvre_richness_quick(tmp_path):

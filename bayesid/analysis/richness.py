@@ -135,7 +135,7 @@ class Design:
 
 
 @dataclass(frozen=True)
-class DesignOptions:
+class RichnessOptions:
     """What :func:`design_multisine` searches and for which criterion.
 
     Parameters
@@ -188,7 +188,7 @@ def design_multisine(
     make_problem,
     theta,
     sigmas: dict,
-    options: DesignOptions = DesignOptions(),
+    options: RichnessOptions = RichnessOptions(),
     *,
     rng: np.random.Generator | None = None,
 ) -> Design:
@@ -210,7 +210,7 @@ def design_multisine(
         Prime coefficients where F is evaluated (local design).
     sigmas : dict
         ``{channel: sd}`` of the measurements (SI).
-    options : DesignOptions, default DesignOptions()
+    options : RichnessOptions, default RichnessOptions()
         Criterion, multisine space and search settings.
     rng : numpy.random.Generator, optional
         Seeds the search (default seed 0).
@@ -274,4 +274,4 @@ def design_multisine(
     )
 
 
-__all__ = ["fisher_metrics", "direction_sd", "Design", "DesignOptions", "design_multisine"]
+__all__ = ["fisher_metrics", "direction_sd", "Design", "RichnessOptions", "design_multisine"]

@@ -541,16 +541,16 @@ def discovery_options(args):
     Returns
     -------
     tuple
-        ``(DiscoveryOptions, DesignOptions or None)``: no design without alternatives.
+        ``(DiscoveryOptions, DiscriminationOptions or None)``: no design without alternatives.
     """
-    from ..analysis.gap.design import DesignOptions
+    from ..analysis.gap.design import DiscriminationOptions
     from ..analysis.gap.discovery import DiscoveryOptions
 
     found = DiscoveryOptions(
         max_order=args.max_order, n_alternatives=args.alternatives, compare=compare_terms(args.compare)
     )
     off = args.no_design or args.alternatives == 0
-    return found, None if off else DesignOptions(seed=args.seed)
+    return found, None if off else DiscriminationOptions(seed=args.seed)
 
 
 def compare_terms(value: str) -> tuple:

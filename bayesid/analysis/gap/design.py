@@ -33,7 +33,7 @@ their rudder rate and within the vehicle's rudder limit (:func:`within_limits`):
    5 nats is a Bayes factor of about 150;
 5. a run separates the set only as well as its worst pair: runs are ranked by the smallest
    pairwise divergence, and each row says which pair that is; a pair that no run of the menu
-   separates (below ``DesignOptions.min_separation`` on every run) is reported as not separable
+   separates (below ``DiscriminationOptions.min_separation`` on every run) is reported as not separable
    by the standard manoeuvres and the runs are ranked by the other pairs
    (:func:`rank_by_separable_pairs`);
 6. the diagnosis decides with the run-by-run separation test
@@ -42,9 +42,9 @@ their rudder rate and within the vehicle's rudder limit (:func:`within_limits`):
    alternative if either is right (:func:`expected_window_log_ratio`) and the scatter of window
    ratios within the held-out runs (:func:`window_log_sd`) give the windows the test needs
    (:func:`run_test_windows`), and such a run is lengthened to them (at most
-   ``DesignOptions.max_windows``) and scored again;
+   ``DiscriminationOptions.max_windows``) and scored again;
 7. the runs are ranked first by the number of pairs of the kept term and an alternative that
-   this test could decide on them within ``DesignOptions.max_windows`` windows
+   this test could decide on them within ``DiscriminationOptions.max_windows`` windows
    (:func:`decidable_pairs`), then by the divergence of 5. (:func:`rank_by_decidable_pairs`): a
    run with a large divergence but an expected window error ratio within the test's margin would
    not change the diagnosis's decision (the divergence sums small differences over many
@@ -78,7 +78,7 @@ from ...models.runs import (
 )
 
 __all__ = [
-    "DesignOptions",
+    "DiscriminationOptions",
     "predictive",
     "separation",
     "STANDARD_RUNS",
@@ -92,7 +92,7 @@ __all__ = [
 ]
 
 _CHANNELS = ("x", "y", "psi")
-#: A designed run lasts at least this many protocol windows (when ``DesignOptions.duration_s`` is
+#: A designed run lasts at least this many protocol windows (when ``DiscriminationOptions.duration_s`` is
 #: not given): the run-by-run separation test
 #: (:func:`bayesid.analysis.gap.verdict.run_separation_test`) has no power on a run of one or two
 #: windows.
@@ -100,7 +100,7 @@ RUN_WINDOWS = 3
 
 
 @dataclass(frozen=True)
-class DesignOptions:
+class DiscriminationOptions:
     """What :func:`design` simulates and how it scores.
 
     Parameters
@@ -165,14 +165,14 @@ class DesignOptions:
             raise ValueError(f"sized_rows must be >= 0, got {self.sized_rows}")
 
 
-def within_limits(options: DesignOptions, vehicle) -> DesignOptions:
+def within_limits(options: DiscriminationOptions, vehicle) -> DiscriminationOptions:
     """The options with ``max_rudder_deg`` no larger than the vehicle's rudder limit: a designed
     run the vessel cannot fly is no answer (NPS AUV II's file limits its rudder to 20 deg, below
     the menu's standard 35 deg turning circle).
 
     Parameters
     ----------
-    options : DesignOptions
+    options : DiscriminationOptions
         The design's options.
     vehicle : Vehicle or Ship or None
         The vehicle (:func:`bayesid.data.validate.rudder_limit_deg`: a submarine's
@@ -180,7 +180,7 @@ def within_limits(options: DesignOptions, vehicle) -> DesignOptions:
 
     Returns
     -------
-    DesignOptions
+    DiscriminationOptions
         ``options`` itself when the vehicle has no smaller limit.
     """
     from ...data.validate import rudder_limit_deg
@@ -316,7 +316,9 @@ def _spread(values: list) -> dict:
     return {"value": float(v[0]), "low": low, "high": high, "n_finite": int(ok.size), "n": int(v.size)}
 
 
-def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None) -> list[dict]:
+def standard_predictions(
+    stages: dict, setup, options: DiscriminationOptions = DiscriminationOptions(), *, rng=None
+) -> list[dict]:
     """Each model's free-running predictions of the standard manoeuvres (:data:`STANDARD_RUNS`:
     turning circles at the menu's largest rudder both ways, zigzags 10/10 and 20/20), from the
     training runs' approach condition, with the spread over parameter draws: where the
@@ -332,7 +334,7 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
         ``{label: Stage}``: e.g. the base model, the kept term's and its alternatives' refits.
     setup : Setup
         The diagnosis's tracks (the approach condition; the training runs' kinds).
-    options : DesignOptions, default DesignOptions()
+    options : DiscriminationOptions, default DiscriminationOptions()
         ``max_rudder_deg``, ``duration_s``, ``n_draws``, ``seed``.
     rng : numpy.random.Generator, optional
         The parameter draws (default: ``options.seed``).
@@ -378,7 +380,9 @@ def standard_predictions(stages: dict, setup, options: DesignOptions = DesignOpt
     return out
 
 
-def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng=None, thresholds=None) -> list[dict]:
+def design(
+    stages: dict, setup, options: DiscriminationOptions = DiscriminationOptions(), *, rng=None, thresholds=None
+) -> list[dict]:
     """Rank the menu's runs by how well they separate alternative model structures (module
     docstring: first by the pairs the run-by-run test could decide on them, then by the Box-Hill
     divergence), and size the best for that test (:func:`run_test_windows`).
@@ -392,7 +396,7 @@ def design(stages: dict, setup, options: DesignOptions = DesignOptions(), *, rng
         The diagnosis's tracks and windows (:class:`bayesid.analysis.gap.candidates.Setup`); its
         training runs give the approach condition and the noise, its held-out runs the
         scatter of the window error ratios.
-    options : DesignOptions, default DesignOptions()
+    options : DiscriminationOptions, default DiscriminationOptions()
         The menu's limits, the number of parameter draws, the sizing and the seed.
     rng : numpy.random.Generator, optional
         Parameter draws and the PRBS (default: ``options.seed``).
@@ -724,7 +728,7 @@ def decidable_pairs(row: dict, max_windows: int) -> list:
         A designed run with ``run_test`` (``pairs``: ``{"A vs B": {"windows_needed"}}``) and,
         optionally, ``menu_inseparable``.
     max_windows : int
-        The most protocol windows a designed run may last (``DesignOptions.max_windows``).
+        The most protocol windows a designed run may last (``DiscriminationOptions.max_windows``).
 
     Returns
     -------

@@ -341,7 +341,7 @@ class DiagnoseOptions:
         kinematics, in which case the base model is refitted with held starts and the setup
         whose base fit predicts its own training tracks better under the held-out protocol is
         used for every fit of the diagnosis (``base_check["train_starts"]``).
-    design : DesignOptions or None, default None
+    design : DiscriminationOptions or None, default None
         When given (and discovery names alternatives it cannot separate from a kept term), rank
         the standard runs that would separate them (:func:`bayesid.analysis.gap.design.design`).
     inputs : {"hold", "linear", "rate"}, default "hold"
@@ -461,7 +461,7 @@ def diagnose(
     Diagnosis
         The verdict, the ranking of every round, the scores before and after and the evidence.
 
-    design : DesignOptions or None, default None
+    design : DiscriminationOptions or None, default None
         When discovery keeps a term that the runs cannot separate from its alternatives, rank
         the standard manoeuvres by how well each would separate them
         (:func:`bayesid.analysis.gap.design.design`); None: not.
