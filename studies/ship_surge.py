@@ -19,7 +19,8 @@ Method
   scoring windows, two alternatives per degree of freedom, no design, ``--max-nfev 30``.
 - Scores: a hidden term is *named* when it is kept, or among the alternatives of a kept term; a
   case is *clear* when the base model's held-out gap is significant (verdict not ``none``); a
-  control is *clean* when nothing is kept and no effect named. The held-out excess shrink is
+  control is *clean* when its verdict is ``none`` (no gap beyond the noise floor: nothing kept,
+  no effect named, nothing left unexplained). The held-out excess shrink is
   ``(before - after) / (before - floor)`` of the held-out RMS position error.
 
     python studies/ship_surge.py [--quick] [--out DIR] [--seed N]
@@ -146,7 +147,7 @@ def summarise(rows: list) -> dict:
         "surge_cases_routed_to_x": sum("X" in (r["dofs"] or []) for r in surge),
         "surge_clear_cases": len(surge),
         "yaw_cases_routed_to_x": sum("X" in (r["dofs"] or []) for r in rows if r["structure"] == "yaw Nrrr"),
-        "controls_clean": sum(not r["found"] and not r["effects"] for r in controls),
+        "controls_clean": sum(r["verdict"] == "none" for r in controls),
         "controls": len(controls),
         "median_excess_shrink": float(np.median(shrink)) if shrink else None,
     }
@@ -169,7 +170,7 @@ def write_report(out: Path, rows: list, summary: dict, args) -> None:
         f"- Surge cases whose search went into X: {summary['surge_cases_routed_to_x']} of {summary['surge_clear_cases']} "
         "(the routing needs the speed u: without a velocity log there is no u channel).",
         f"- Yaw cases routed into X: {summary['yaw_cases_routed_to_x']} (the search stays in Y and N).",
-        f"- Controls clean: {summary['controls_clean']} of {summary['controls']}.",
+        f"- Controls clean (verdict none): {summary['controls_clean']} of {summary['controls']}.",
         f"- Median held-out excess shrink of the clear hidden cases: {fmt(summary['median_excess_shrink'])} "
         "(the issue's target: 0.5 on the turns).",
         "",
