@@ -153,6 +153,36 @@ def summarise(rows: list) -> dict:
     }
 
 
+def reading(rows: list) -> list:
+    """What the cases say, from their numbers: the routing, the surrogates, the controls."""
+    from bayesid.report.markdown import fmt
+
+    lines = ["## Reading", ""]
+    routed = [r for r in rows if "X" in (r["dofs"] or [])]
+    for r in routed:
+        kept = ", ".join(r["found"]) or "no term"
+        lines.append(
+            f"- {r['case']}: the speed u missed most ({r['routed'] or 'routed'}); discovery kept {kept}, the held-out "
+            f"excess shrank by {fmt(r['excess_shrink'])}"
+            + ("" if r["named"] else f"; the hidden {r['term']} was neither kept nor among the alternatives")
+            + "."
+        )
+    quiet = [r for r in rows if r["term"] and r["term"].startswith("X") and "X" not in (r["dofs"] or []) and r["clear"]]
+    for r in quiet:
+        lines.append(
+            f"- {r['case']}: the dominant channel was {r['dominant_channel']}, not the speed, so the search stayed in "
+            "Y and N, and found nothing."
+        )
+    for r in rows:
+        if not r["hidden"] and r["verdict"] != "none":
+            lines.append(
+                f"- {r['case']}: nothing hidden, yet a gap: held-out RMS {fmt(r['heldout_rms_before_m'])} m against a "
+                f"noise floor of {fmt(r['floor_m'])} m ({fmt(r['heldout_rms_before_m'] / r['floor_m'])} x): the zigzag-"
+                "trained base model does not predict the turns within the floor, which is not a missing term."
+            )
+    return [*lines, ""]
+
+
 def write_report(out: Path, rows: list, summary: dict, args) -> None:
     from bayesid.report.markdown import fmt, md_table
 
@@ -174,6 +204,7 @@ def write_report(out: Path, rows: list, summary: dict, args) -> None:
         f"- Median held-out excess shrink of the clear hidden cases: {fmt(summary['median_excess_shrink'])} "
         "(the issue's target: 0.5 on the turns).",
         "",
+        *reading(rows),
         "## Cases",
         "",
         md_table(
