@@ -23,7 +23,14 @@ def test_ship_surge_quick(tmp_path):
     assert case["term"] == "Xvvvv" and case["velocity_log"] is True
     for key in ("verdict", "dominant_channel", "dofs", "found", "alternatives", "named", "excess_shrink"):
         assert key in case
-    for key in ("clear_cases", "named_in_clear", "wrong_term_alone", "controls_clean", "median_excess_shrink"):
+    for key in (
+        "clear_cases",
+        "named_in_clear",
+        "wrong_term_alone",
+        "controls_clean",
+        "median_excess_shrink",
+        "cases_with_a_kept_term",
+    ):
         assert key in res["summary"]
     assert (out / "report.md").read_text().startswith("# A ship's surge")
     assert json.loads((out / "manifest.json").read_text())["quick"] is True
