@@ -663,8 +663,15 @@ MAX_TURN_RATE = 1.0
 
 
 class HeadingJumpError(ValueError):
-    """A heading jump that is not a wrap of 2 pi (:func:`unwrap_heading`); ``index`` is the
-    sample after the jump."""
+    """A heading jump that is not a wrap of 2 pi (:func:`unwrap_heading`).
+
+    Parameters
+    ----------
+    message : str
+        What jumped, by how much, in what time.
+    index : int
+        The sample after the jump (the attribute ``index``).
+    """
 
     def __init__(self, message: str, index: int):
         super().__init__(message)
