@@ -39,7 +39,6 @@ __all__ = [
     "simulate_runs",
     "zigzag_rudders",
     "run_inputs",
-    "free_runs",
     "free_run_states",
 ]
 
@@ -517,34 +516,11 @@ def run_inputs(model, p, run: ManoeuvreRun, approach: Approach, rng=None) -> tup
     return t, delta, n
 
 
-def free_runs(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> list:
-    """Each parameter vector's free run of a standard manoeuvre from the approach condition, a
-    zigzag on the row's own switches (:func:`zigzag_rudders`): one batched simulation per pass.
-
-    Parameters
-    ----------
-    model : SimulationModel
-        The model.
-    P : array_like, shape (B, n_params)
-        Parameter vectors.
-    run : ManoeuvreRun
-        The run (its ``duration_s`` is not read: ``t`` is the run's time).
-    approach : Approach
-        :func:`approach_condition`.
-    t : ndarray, shape (n,)
-        Times from the start of the run, s.
-
-    Returns
-    -------
-    list of (Track or None)
-        One per row, as :func:`simulate_run` returns it (None: the run diverged).
-    """
-    return simulate_runs(model, P, _free_run_inputs(model, P, run, approach, t), approach)
-
-
 def free_run_states(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray):
-    """:func:`free_runs` as arrays, diverged rows included (non-finite): what a band over
-    parameter draws and a figure of every draw's run read.
+    """Each parameter vector's free run of a standard manoeuvre from the approach condition, a
+    zigzag on the row's own switches (:func:`zigzag_rudders`; one batched simulation per pass),
+    as arrays, diverged rows included (non-finite): what a band over parameter draws and a
+    figure of every draw's run read.
 
     Parameters
     ----------
@@ -576,7 +552,7 @@ def free_run_states(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarr
 
 
 def _free_run_inputs(model, P, run: ManoeuvreRun, approach: Approach, t: np.ndarray) -> list:
-    """The input tracks of :func:`free_runs`: one, or one per row for a zigzag."""
+    """The input tracks of :func:`free_run_states`: one, or one per row for a zigzag."""
     P = np.atleast_2d(np.asarray(P, float))
     delta, n = open_loop_inputs(run, approach, t, None)
     if run.kind == "zigzag":
