@@ -658,7 +658,8 @@ def _read_stream(path, f) -> Track:
 WRAP_LIMIT = 2.0 * math.pi + 0.1
 
 
-#: A heading step faster than this (rad/s) and larger than pi/2 is a jump, not a turn.
+#: A heading step of more than pi that leaves more than pi/2 as a wrap is a jump, not a wrap, when
+#: faster than this (rad/s).
 MAX_TURN_RATE = 1.0
 
 
@@ -701,10 +702,11 @@ def unwrap_heading(psi, t=None) -> tuple[np.ndarray, int]:
     Raises
     ------
     HeadingJumpError
-        A step between finite samples of more than pi/2, as a wrap or not, at more than
-        :data:`MAX_TURN_RATE`: a jump of the heading (no vessel turns a quarter circle at 1 rad/s),
-        which unwrapping would misread; ``index`` names the sample after it. A long gap of a
-        turning vessel is not refused.
+        A step between finite samples of more than pi (a wrap, were it one) that leaves more than
+        pi/2 once unwrapped, at more than :data:`MAX_TURN_RATE`: a jump of the heading (no vessel
+        turns a quarter circle at 1 rad/s), which unwrapping would misread; ``index`` names the
+        sample after it. A long gap of a turning vessel is not refused, nor is a step of less than
+        pi (no wrap is read into it: the track is as it was).
     """
     psi = np.asarray(psi, float)
     ok = np.flatnonzero(np.isfinite(psi))
@@ -713,17 +715,16 @@ def unwrap_heading(psi, t=None) -> tuple[np.ndarray, int]:
     step = np.diff(psi[ok])
     left = np.abs(step - 2.0 * math.pi * np.round(step / (2.0 * math.pi)))
     dt = np.diff(np.arange(psi.size, dtype=float)[ok] if t is None else np.asarray(t, float)[ok])
-    bad = np.flatnonzero((left > 0.5 * math.pi) & (left > MAX_TURN_RATE * dt))
+    wrap = np.abs(step) > math.pi
+    bad = np.flatnonzero(wrap & (left > 0.5 * math.pi) & (left > MAX_TURN_RATE * dt))
     if bad.size:
         k = int(bad[0])
         raise HeadingJumpError(
-            f"the heading jumps by {step[k]:.4g} rad in {dt[k]:.3g} s"
-            + (f" ({left[k]:.3g} rad even as a wrap of 2 pi)" if abs(step[k]) > math.pi else "")
-            + ": a jump, not a turn or a wrap of a compass heading (a glitch, or a gap of a turning vessel): "
+            f"the heading jumps by {step[k]:.4g} rad in {dt[k]:.3g} s ({left[k]:.3g} rad even as a wrap of 2 pi): "
+            "a jump, not a turn or a wrap of a compass heading (a glitch, or a gap of a turning vessel): "
             "unwrapping would misread it; fill or cut it",
             int(ok[k + 1]),
         )
-    wrap = np.abs(step) > math.pi
     if not wrap.any():
         return psi, 0
     out = psi.copy()
