@@ -519,8 +519,9 @@ def training_turns(fitted: FittedModel, tracks, *, tolerance: float = TURN_TOLER
         :data:`TURNING_INDICES`: m, the speed loss a fraction; None where not reached),
         ``rel_error`` (``{index: (predicted - measured) / measured}`` of the diameters, advance
         and transfer; None where either is missing), ``reproduced`` (bool, or None when neither
-        diameter could be read from both) and ``suspect`` (None when reproduced: ``"speed in the
-        turn"`` or ``"turning forces"``).
+        diameter could be read from both), ``suspect`` (None when reproduced: ``"speed in the
+        turn"`` or ``"turning forces"``) and ``predicted_unread`` (why the model's run gave no
+        index, e.g. it does not read as a turning circle; None when it did).
     """
     from .indices import manoeuvre_kind
 
@@ -548,6 +549,7 @@ def training_turns(fitted: FittedModel, tracks, *, tolerance: float = TURN_TOLER
             m, q = meas["speed_loss"], pred["speed_loss"]
             off = m is not None and q is not None and abs(q - m) > SPEED_LOSS_TOLERANCE
             suspect = "speed in the turn" if off else "turning forces"
+        unread = None if any(v is not None for v in pred.values()) else tb["predicted"].get("reason", "not read")
         out.append(
             {
                 "run": tr.name,
@@ -556,6 +558,7 @@ def training_turns(fitted: FittedModel, tracks, *, tolerance: float = TURN_TOLER
                 "rel_error": rel,
                 "reproduced": reproduced,
                 "suspect": suspect,
+                "predicted_unread": unread,
             }
         )
     return out

@@ -160,6 +160,12 @@ def _training_turn_lines(turns: list | None) -> list:
             e = t["rel_error"].get(k)
             rows.append([t["run"], k.replace("_", " "), fmt(m), fmt(q), "-" if e is None else f"{100 * e:+.1f} %"])
     said = [training_turn_sentence(t) for t in turns if t["reproduced"] is False]
+    said += [
+        f"the index reader does not read the model's run of {t['run']} as a turning circle, while it reads the "
+        f"measured run as one ({t['predicted_unread']}): whether the model misses this turn is not said here"
+        for t in turns
+        if t.get("predicted_unread")
+    ]
     ok = [t["run"] for t in turns if t["reproduced"]]
     return [
         "## The training turning circles",
