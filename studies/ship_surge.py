@@ -72,9 +72,8 @@ def tracks(hidden: dict, velocity_log: bool, seed: int, duration: float, folder:
     rng = np.random.default_rng(seed)
     out = {}
     for kind, angle, name in RUNS:
-        opts = TrialOptions(dt=0.1, sample_every=5, rudder_rate_deg_s=15.8, duration=duration)
-        if kind == "pull_out":
-            opts = TrialOptions(dt=0.1, sample_every=5, rudder_rate_deg_s=15.8, hold=duration / 2, duration=duration)
+        hold = duration / 2 if kind == "pull_out" else None
+        opts = TrialOptions(dt=0.1, sample_every=5, rudder_rate_deg_s=15.8, hold=hold, duration=duration)
         tr = simulate_trial(truth, kind, angle, speed=speed, rpm=rpm, options=opts).track
         cols = ("x", "y", "psi", "u", "v", "r") if velocity_log else ("x", "y", "psi")
         data = {k: np.asarray(tr[k], float) + rng.normal(0, NOISE[k], tr.t.size) for k in cols}

@@ -530,13 +530,8 @@ def training_turns(fitted: FittedModel, tracks, *, tolerance: float = TURN_TOLER
         if manoeuvre_kind(tr) != "turning_circle":
             continue
         tb = turning_band(fitted, tr, 0, None)
-
-        def value(d, k):
-            v = d.get(k)
-            return float(v) if v is not None and math.isfinite(v) else None
-
-        meas = {k: value(tb["measured"], k) for k in TURNING_INDICES}
-        pred = {k: value(tb["predicted"], k) for k in TURNING_INDICES}
+        meas = {k: _finite(tb["measured"].get(k)) for k in TURNING_INDICES}
+        pred = {k: _finite(tb["predicted"].get(k)) for k in TURNING_INDICES}
         rel = {
             k: (pred[k] - meas[k]) / meas[k] if meas[k] and pred[k] is not None else None
             for k in TURNING_INDICES
@@ -562,3 +557,8 @@ def training_turns(fitted: FittedModel, tracks, *, tolerance: float = TURN_TOLER
             }
         )
     return out
+
+
+def _finite(v) -> float | None:
+    """An index as a float, None when missing or not finite."""
+    return float(v) if v is not None and math.isfinite(v) else None
