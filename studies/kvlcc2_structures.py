@@ -73,6 +73,7 @@ def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis", c
     round's kept terms and alternatives, ``DiscoveryOptions.compare``)."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.analysis.gap.design import DiscriminationOptions
+    from bayesid.analysis.gap.diagnose import catalogue_candidates
     from bayesid.analysis.gap.discovery import DiscoveryOptions
     from bayesid.models import ship
     from bayesid.report import write_diagnosis
@@ -84,7 +85,7 @@ def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis", c
         train,
         held,
         DiagnoseOptions(
-            candidates=[c for c in ship.SHIP_CATALOGUE if c != "wind"],
+            candidates=catalogue_candidates(ship.ShipModel, train + held, free=kv.free),
             window_s=60.0,
             fit_window_s=ship.FIT_WINDOW_S,
             dt=0.2,

@@ -16,7 +16,9 @@ Method
   is 10-100x the sensor noise); Laplace posterior with an AR(1) inflation.
 - Diagnosis (``bayesid.analysis.gap.diagnose``): the base model is fitted without the wind; candidates
   from ``bayesid.models.ship.SHIP_CATALOGUE`` (wind -- Fujiwara-form, 7 coefficients, driven by the
-  measured wind --, current, delay, sensor lag of the logged velocities and a position time skew)
+  measured wind --, current, delay, the MMG 2015 wake in a turn, shifts of the rudder's resistance
+  ``tR`` and the thrust deduction ``tP``, sensor lag of the logged velocities and a position time
+  skew; the shifts of ``wP`` and ``Xuu``, which the base model fits, are left out)
   are each added with all coefficients re-identified; ranked by the held-out error at 60 s
   windows; the verdict names the cause or the contributors added (two greedy rounds) and
   ``+unexplained`` for a significant remainder.
@@ -543,9 +545,11 @@ def main() -> int:
     matplotlib.use("Agg")  # the study writes its figures, it never shows them
     args = parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from bayesid.analysis.gap.diagnose import catalogue_candidates
     from bayesid.data import datasets
     from bayesid.estimation.prediction import FittedModel, turning_band, turning_circles
     from bayesid.models import ship
+    from bayesid.models.ship import ShipModel
     from bayesid.report import plots, write_json, write_manifest
 
     data = Path(args.data)
@@ -572,7 +576,7 @@ def main() -> int:
         held = [t for t in held if t.name.startswith("zigzag")][:1]
     esso = ship.load_ship("esso_osaka_3m")
     # a smoke test tries two effects of the catalogue on each vessel, the full run all of them
-    e_cands = list(ship.SHIP_CATALOGUE)[: 2 if args.quick else None]
+    e_cands = catalogue_candidates(ShipModel, train + held, free=esso.free)[: 2 if args.quick else None]
     e_doc, e_res, e_base, e_after, _ = evaluate("esso_osaka", esso, train, held, e_cands, args, out, log)
     figs = [
         track_figure(
@@ -602,7 +606,7 @@ def main() -> int:
     if args.quick:
         ktrain, kheld = ktrain[:3], kheld[:1]
     kv = ship.load_ship("kvlcc2_7m")
-    k_cands = [c for c in ship.SHIP_CATALOGUE if c != "wind"][: 2 if args.quick else None]
+    k_cands = catalogue_candidates(ShipModel, ktrain + kheld, free=kv.free)[: 2 if args.quick else None]
     k_doc, k_res, k_base, k_after, k_diag = evaluate("kvlcc2_hsva", kv, ktrain, kheld, k_cands, args, out, log)
     am, af, cov = k_after
     k_approach = turn_approach(ktracks)

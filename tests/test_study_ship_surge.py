@@ -29,7 +29,8 @@ def test_ship_surge_quick(tmp_path):
         "wrong_term_alone",
         "controls_clean",
         "median_excess_shrink",
-        "cases_with_a_kept_term",
+        "cases_with_a_kept_term_or_effect",
+        "effects_named_in_clear",
     ):
         assert key in res["summary"]
     assert (out / "report.md").read_text().startswith("# A ship's surge")

@@ -103,7 +103,7 @@ def run(args) -> int:
     got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     train, held = got["--train"], got["--heldout"]
     with naming_files(got):
-        cands = _candidates(args, family, train + held)
+        cands = _candidates(args, family, train + held, free)
         found, design = opt.discovery_options(args)
         if not args.no_discover:
             check_compare(build_model(vehicle, free, mode=args.mode), found)
@@ -213,34 +213,64 @@ def run_and_write(args, vehicle, free, got: dict, options):
             f"{found.heldout_rms_after_m:.3f} m"
         )
     if args.write_vehicle:
-        if found is None or not found.found:
-            print(f"--write-vehicle: no term was kept, {args.write_vehicle} not written")
+        values, named = _vehicle_values(res, vehicle)
+        if not values:
+            print(f"--write-vehicle: no term was kept and no model form named, {args.write_vehicle} not written")
         else:
-            # the final model's values (the effects may have been fitted on top of the terms)
-            final = res.after_fit["coefficients"]
-            values = {n: final.get(n, found.after_coefficients[n]) for n in found.found}
             note = f"discovered by bayesid ({Path(args.out) / 'diagnosis.json'}); a start value for bayesid fit"
             src = vehicle.file_path
             path = write_vehicle_with_terms(src, values, args.write_vehicle, note, args.overwrite)
-            print(f"wrote {path}: {src} with {', '.join(found.found)} added")
+            print(f"wrote {path}: {src} with {', '.join(named)} added")
     return res
 
 
-def _candidates(args, family, tracks) -> list | None:
+def _vehicle_values(res, vehicle) -> tuple[dict, list]:
+    """The coefficients ``--write-vehicle`` writes: the kept terms at the final model's values
+    (the effects may have been fitted on top of them), and the vehicle-file coefficients of the
+    named effects that have them (``vehicle_coefficients``: the ship's wake in a turn, a shifted MMG
+    coefficient); with what they are, for the message."""
+    from ..models import model_class
+
+    values, named = {}, []
+    found = res.discovered
+    if found is not None and found.found:
+        final = res.after_fit["coefficients"]
+        values.update({n: final.get(n, found.after_coefficients[n]) for n in found.found})
+        named += list(found.found)
+    family = model_class(vehicle)
+    for name, params in (res.after_fit.get("effects") or {}).items():
+        effect = family.get_effect(name)
+        if hasattr(effect, "vehicle_coefficients"):
+            q = [params[k] for k in effect.params]
+            got = effect.vehicle_coefficients(q, vehicle)
+            values.update(got)
+            named.append(f"the {name} effect ({', '.join(got)})")
+    return values, named
+
+
+def _candidates(args, family, tracks, free=()) -> list | None:
     """The candidate effects: ``--candidates``, or None without ``--exclude``: the catalogue less
     the effects whose columns not every track has, left to :func:`~bayesid.analysis.gap.diagnose`
     (which says them); less ``--exclude``. An excluded effect of the catalogue that the tracks'
     columns already left out is said and skipped (e.g. ``--exclude wind`` on tracks without wind
     columns: what the user asked for holds); ValueError for any other name not among the
-    candidates."""
+    candidates, and for a ``--candidates`` effect that sets a coefficient of ``free`` (the base
+    model's free list: a shift of ``wP`` with ``wP`` free has one parameter twice)."""
     from ..analysis.gap.diagnose import catalogue_candidates
 
     if not args.candidates and not args.exclude:
         return None
     if args.candidates:
         cands = opt.split_names(args.candidates, "--candidates")
+        for c in cands:
+            clash = family.effect_clash(family.get_effect(c), free) if hasattr(family, "effect_clash") else []
+            if clash:
+                raise ValueError(
+                    f"--candidates {c}: the {c} effect sets {', '.join(clash)}, which the base model fits "
+                    f"(--free or the vehicle file's [fit] free): leave {', '.join(clash)} out of --free to test it"
+                )
     else:  # the catalogue as diagnose() takes it, said as its progress is
-        cands = catalogue_candidates(family, tracks, tasks.Runner(progress=_progress))
+        cands = catalogue_candidates(family, tracks, tasks.Runner(progress=_progress), free)
     for c in opt.split_names(args.exclude, "--exclude"):
         if c in cands:
             cands.remove(c)

@@ -649,5 +649,6 @@ def add_discovery(parser, default_on: bool) -> None:
         "--write-vehicle",
         default="",
         metavar="PATH",
-        help="write the vehicle file with the kept terms added (ready for bayesid fit); empty: not written",
+        help="write the vehicle file with the kept terms added, and a named ship effect's coefficients (the wake "
+        "in a turn's C1, C2, C2m; a shifted tR, tP, wP or Xuu) set (ready for bayesid fit); empty: not written",
     )

@@ -391,9 +391,10 @@ class DiagnoseOptions:
         object.__setattr__(self, "base_effects", tuple(self.base_effects))
 
 
-def catalogue_candidates(family, tracks: list, runner: Runner = Runner()) -> list[str]:
+def catalogue_candidates(family, tracks: list, runner: Runner = Runner(), free=()) -> list[str]:
     """The effects of a model family's catalogue that the tracks can inform: those whose
-    columns (``needs_columns``, e.g. the measured wind) every track has. The candidates of
+    columns (``needs_columns``, e.g. the measured wind) every track has, and (a family with
+    ``effect_clash``, the ship) that set no coefficient the base model fits. The candidates of
     :func:`diagnose` when ``DiagnoseOptions.candidates`` is None (and of ``bayesid diagnose``
     without ``--candidates``).
 
@@ -404,7 +405,10 @@ def catalogue_candidates(family, tracks: list, runner: Runner = Runner()) -> lis
     tracks : list of Track
         Every track of the diagnosis (training and held-out).
     runner : Runner, default Runner()
-        Receives one message per effect left out, naming it and the columns it needs.
+        Receives one message per effect left out, naming it and the columns it needs or the free
+        coefficients it sets.
+    free : iterable of str, default ()
+        The base model's free coefficients.
 
     Returns
     -------
@@ -414,7 +418,13 @@ def catalogue_candidates(family, tracks: list, runner: Runner = Runner()) -> lis
     names = []
     for name, effect in family.CATALOGUE.items():
         need = effect.needs_columns
-        if all(c in t for t in tracks for c in need):
+        clash = family.effect_clash(effect, free) if hasattr(family, "effect_clash") else []
+        if clash:
+            runner.say(
+                f"the base model fits {', '.join(clash)}, which the {name} effect sets: the {name} candidate is "
+                "left out (free its coefficient from the base fit to test it)"
+            )
+        elif all(c in t for t in tracks for c in need):
             names.append(name)
         else:
             runner.say(f"no {', '.join(need)} columns in every track: the {name} candidate is left out")
@@ -626,7 +636,11 @@ def _diagnosis_setup(vehicle, free, train: list, heldout: list, opt: DiagnoseOpt
         raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
     family = model_class(vehicle)
     dt = family.DEFAULT_DT if opt.dt is None else opt.dt
-    names = catalogue_candidates(family, train + heldout, runner) if opt.candidates is None else opt.candidates
+    if opt.candidates is None:
+        base_free = family.default_free(vehicle) if free is None else free
+        names = catalogue_candidates(family, train + heldout, runner, base_free)
+    else:
+        names = opt.candidates
     cand_effects = [family.get_effect(c) for c in names]
     sd = pooled_noise_sd(train + heldout)
     fw = opt.fit_window_s if opt.fit_window_s is not None else family.default_fit_window(opt.window_s)

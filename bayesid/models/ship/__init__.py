@@ -31,6 +31,12 @@ Propeller (Yasukawa & Yoshimura 2015, eqs. 9-12)::
     KT = k0 + k1 J + k2 J^2 (J clipped to [-0.5, 1.2]),   w = wP exp(-4 beta_P^2),
     beta_P = -(v + xP L r) / |U_P| ;   n < 0 (astern): T = -Ka rho n^2 D^4.
 
+or, where the ship file (or the ``wake_in_turn`` effect) gives ``C1 > 0``, the MMG 2015 wake in a
+turn (Yasukawa & Yoshimura 2015, eq. 16; KVLCC2: C1 = 2.0, C2 = 1.6, C2m = 1.1)::
+
+    1 - w = (1 - wP) (1 + (1 - exp(-C1 |beta_P|)) (C2 - 1)),   C2m in place of C2 for beta_P < 0,
+    beta_P = atan(-(v + xP L r) / |u|)   (MMG's beta - x'_P r' to first order).
+
 Rudder (MMG, eqs. 13-23; delta_MMG = dR0 - delta_r: the package's rudder is positive to port)::
 
     FN = 0.5 rho AR f_alpha UR (uR sin(delta) - vR cos(delta))     (= 0.5 rho AR f UR^2 sin(alpha_R))

@@ -54,9 +54,15 @@ def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
     N -= 0.5 * rho * d * Ncf * h * i1
     # propeller
     vp = v + xP * L * r
-    b2 = vp * vp / (u * u + vp * vp + 1e-12)
-    wP = wP0 * math.exp(-4.0 * b2)
-    uP = (1.0 - wP) * u
+    C1 = p[o + 36]
+    if C1 > 0.0:  # the MMG 2015 wake in a turn (layout.WAKE_IN_TURN), C2m for beta_P < 0
+        bP = math.atan2(-vp, abs(u) + 1e-12)
+        C2 = p[o + 37] if bP > 0.0 else p[o + 38]
+        uP = (1.0 - wP0) * (1.0 + (1.0 - math.exp(-C1 * abs(bP))) * (C2 - 1.0)) * u
+    else:
+        b2 = vp * vp / (u * u + vp * vp + 1e-12)
+        wP = wP0 * math.exp(-4.0 * b2)
+        uP = (1.0 - wP) * u
     KT = 0.0
     T = 0.0
     if n > 1e-6:

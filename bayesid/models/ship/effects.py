@@ -1,15 +1,26 @@
 """The candidate effects of a surface ship (:data:`SHIP_CATALOGUE`): wind loads, current and
 delay act in the MMG kernel through :meth:`~bayesid.models.effects.Effect.kernel`, the sensor lag
 (:class:`bayesid.models.effects.SensorLag`) on the measurements.
+
+The surge and the propeller (issue 67: where a ship's turns fail, the speed ``u`` is the channel
+missed most): the MMG 2015 wake in a turn (:class:`ShipWakeInTurn`, a model form in place of
+``wP exp(-4 beta_P^2)``) and shifts of one MMG coefficient the base model holds at its captive-test
+value (:class:`ShipCoefficientShift`): the rudder's resistance in a turn (``tR``), the thrust
+deduction (``tP``), the propulsion point (the effective wake ``wP``: rpm against speed) and the hull
+resistance (``Xuu = -R'0``). A shift of a coefficient the base model fits is not identifiable: the
+model refuses it (:class:`~bayesid.models.ship.model.ShipModel`) and
+:func:`~bayesid.analysis.gap.diagnose.catalogue_candidates` leaves it out, saying why.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..effects import Effect, SensorLag, delay_starts, drift_seed, drift_starts
 from .dynamics import apparent_wind
-from .layout import COEFFICIENT_INDEX, WIND
+from .layout import COEFFICIENT_INDEX, WAKE_IN_TURN, WIND
 
 
 class ShipWind(Effect):
@@ -124,6 +135,113 @@ class ShipDelay(Effect):
         return [np.column_stack([u * u * m["rudder_rate"]] * 3)]
 
 
+class ShipWakeInTurn(Effect):
+    """The MMG 2015 wake in a turn in place of ``w_P = wP exp(-4 beta_P^2)``: the propeller's
+    effective inflow ``1 - w_P = (1 - wP) (1 + (1 - exp(-C1 |beta_P|)) (C2 - 1))``, ``C2m`` in place
+    of ``C2`` for ``beta_P < 0`` (Yasukawa & Yoshimura 2015, J. Mar. Sci. Technol. 20:37-52, eq. 16;
+    the kernels' form in :mod:`bayesid.models.ship`). A model form, not an added term: it does not
+    nest the base model (``neutral`` None), and the diagnosis judges it on the held-out runs like
+    any candidate. Its parameters are the ship file's ``C1``, ``C2``, ``C2m``
+    (:data:`~bayesid.models.ship.layout.WAKE_IN_TURN`), which :meth:`vehicle_coefficients` writes.
+
+    Parameters
+    ----------
+    name, params : str, tuple of str
+        Catalogue key and parameter names (the fields of :class:`~bayesid.models.effects.Effect`;
+        the instance of :data:`SHIP_CATALOGUE` sets them all).
+    lo, hi, start, scale : tuple of float
+        Bounds, start values and typical sizes of the parameters.
+    magnitudes, source, description : tuple of dict, str, str
+        Benchmark levels, the reasoning behind the values, a one-line description.
+    n_nuisance, nuisance_lo, nuisance_hi : int, float, float
+        Per-track parameters and their bounds.
+    mode, input_effect, exo_columns, signature, neutral, needs_columns : object
+        The other fields of :class:`~bayesid.models.effects.Effect`.
+    """
+
+    def kernel(self, kp, q):
+        kp["prm"][:, [COEFFICIENT_INDEX[k] for k in WAKE_IN_TURN]] = q
+
+    def start_values(self, vehicle):
+        c = vehicle.coefficients
+        if c.get("C1", 0.0) > 0.0:  # the ship file's own wake in a turn
+            return np.array([c[k] for k in WAKE_IN_TURN], float)
+        return np.asarray(self.start, float)
+
+    def vehicle_coefficients(self, q, vehicle) -> dict:
+        """The ship file's coefficients of fitted parameters ``q``.
+
+        Parameters
+        ----------
+        q : array_like, shape (3,)
+            ``C1``, ``C2``, ``C2m``.
+        vehicle : Ship
+            The ship (unused: the parameters are the coefficients).
+
+        Returns
+        -------
+        dict
+            ``{"C1": ..., "C2": ..., "C2m": ...}``.
+        """
+        return {k: float(x) for k, x in zip(WAKE_IN_TURN, q)}
+
+
+@dataclass(frozen=True, eq=False)
+class ShipCoefficientShift(Effect):
+    """A shift of one MMG coefficient that the base model holds at its captive-test (or file)
+    value: the kernel's coefficient is the file's plus the effect's one parameter, 0 (``neutral``)
+    leaving the base model. Refused by the model when the coefficient is free
+    (:class:`~bayesid.models.ship.model.ShipModel`).
+
+    Parameters
+    ----------
+    name, params : str, tuple of str
+        Catalogue key and parameter names (the fields of :class:`~bayesid.models.effects.Effect`;
+        the instances of :data:`SHIP_CATALOGUE` set them all).
+    lo, hi, start, scale : tuple of float
+        Bounds, start values and typical sizes of the shift.
+    magnitudes, source, description : tuple of dict, str, str
+        Benchmark levels, the reasoning behind the values, a one-line description.
+    n_nuisance, nuisance_lo, nuisance_hi : int, float, float
+        Per-track parameters and their bounds.
+    mode, input_effect, exo_columns, signature, neutral, needs_columns : object
+        The other fields of :class:`~bayesid.models.effects.Effect`.
+    coefficient : str
+        The shifted coefficient (a name of :data:`~bayesid.models.ship.layout.COEFFICIENTS`).
+    """
+
+    coefficient: str = ""
+
+    def kernel(self, kp, q):
+        kp["prm"][:, COEFFICIENT_INDEX[self.coefficient]] += q[:, 0]
+
+    def vehicle_coefficients(self, q, vehicle) -> dict:
+        """The ship file's coefficient once shifted by fitted ``q``.
+
+        Parameters
+        ----------
+        q : array_like, shape (1,)
+            The shift.
+        vehicle : Ship
+            The ship: its value of the coefficient.
+
+        Returns
+        -------
+        dict
+            ``{coefficient: file value + shift}``.
+        """
+        return {self.coefficient: float(vehicle.coefficients[self.coefficient] + q[0])}
+
+    def force_signature(self, m):
+        if self.coefficient != "Xuu":  # the others act through the propeller and rudder models
+            return None
+        pr, u = m["particulars"], m["u"]
+        z = np.zeros(u.size)
+        return [np.column_stack([0.5 * pr["rho"] * pr["L"] * pr["d"] * u * np.abs(u), z, z])]
+
+
+_MMG = "Yasukawa & Yoshimura (2015), J. Mar. Sci. Technol. 20:37-52"
+
 #: Candidate effects of a surface ship.
 SHIP_CATALOGUE = {
     "wind": ShipWind(
@@ -160,6 +278,69 @@ SHIP_CATALOGUE = {
         neutral=(0.0,),
         description="pure time delay of the logged rudder and propeller",
         source="logging / actuator latency",
+    ),
+    "wake_in_turn": ShipWakeInTurn(
+        "wake_in_turn",
+        WAKE_IN_TURN,
+        (0.05, 0.3, 0.3),
+        (10.0, 3.0, 3.0),
+        (2.0, 1.6, 1.1),
+        (0.5, 0.2, 0.2),
+        neutral=None,
+        description="the MMG 2015 wake in a turn, 1 - w_P = (1 - wP)(1 + (1 - exp(-C1|beta_P|))(C2 - 1)), "
+        "C2 for beta_P > 0 and C2m for beta_P < 0, in place of wP exp(-4 beta_P^2)",
+        source=f"{_MMG}, eq. 16; start values their KVLCC2 L7 (C1 2.0, C2 1.6 and 1.1)",
+    ),
+    "rudder_resistance": ShipCoefficientShift(
+        "rudder_resistance",
+        ("dtR",),
+        (-0.6,),
+        (0.6,),
+        (0.0,),
+        (0.1,),
+        neutral=(0.0,),
+        coefficient="tR",
+        description="the rudder's resistance in a turn: a shift of the steering resistance deduction t_R "
+        "in X_R = -(1 - t_R) F_N sin(delta)",
+        source=f"{_MMG}, eq. 12; t_R from captive tests (KVLCC2 0.387), often estimated from other hulls",
+    ),
+    "thrust_deduction": ShipCoefficientShift(
+        "thrust_deduction",
+        ("dtP",),
+        (-0.3,),
+        (0.3,),
+        (0.0,),
+        (0.05,),
+        neutral=(0.0,),
+        coefficient="tP",
+        description="the propeller's thrust deduction: a shift of t_P in X_P = (1 - t_P) T",
+        source=f"{_MMG}, eq. 9; t_P from a self-propulsion test, which a free-running model in another "
+        "basin or at another rpm need not share",
+    ),
+    "propulsion_point": ShipCoefficientShift(
+        "propulsion_point",
+        ("dwP",),
+        (-0.3,),
+        (0.3,),
+        (0.0,),
+        (0.05,),
+        neutral=(0.0,),
+        coefficient="wP",
+        description="the propulsion point: a shift of the effective wake fraction w_P0 (thrust identity), "
+        "i.e. the rpm a speed needs",
+        source=f"{_MMG}, eqs. 10-11; the rpm against speed differs between basins and between model and ship",
+    ),
+    "hull_resistance": ShipCoefficientShift(
+        "hull_resistance",
+        ("dXuu",),
+        (-0.03,),
+        (0.03,),
+        (0.0,),
+        (0.005,),
+        neutral=(0.0,),
+        coefficient="Xuu",
+        description="the hull's resistance: a shift of X'uu = -R'0",
+        source=f"{_MMG}, eq. 8; R'0 from a resistance test, scaled or from another basin",
     ),
     "sensor_lag": SensorLag(
         "sensor_lag",
@@ -203,4 +384,12 @@ def get_effect(name) -> Effect:
         raise ValueError(f"unknown ship effect {name!r}; the ship catalogue has {sorted(SHIP_CATALOGUE)}") from None
 
 
-__all__ = ["SHIP_CATALOGUE", "get_effect", "ShipWind", "ShipCurrent", "ShipDelay"]
+__all__ = [
+    "SHIP_CATALOGUE",
+    "get_effect",
+    "ShipWind",
+    "ShipCurrent",
+    "ShipDelay",
+    "ShipWakeInTurn",
+    "ShipCoefficientShift",
+]

@@ -415,6 +415,12 @@ def load_ship(path_or_id) -> Ship:
                 f"{p}: [coefficients] {k} = {coef[k]!r} must be >= 0 (the rudder's flow-straightening "
                 "coefficient gamma_R)"
             )
+    if coef["C1"] < 0.0 or (coef["C1"] > 0.0 and not (coef["C2"] > 0.0 and coef["C2m"] > 0.0)):
+        raise ShipFileError(
+            f"{p}: [coefficients] C1 = {coef['C1']!r}, C2 = {coef['C2']!r}, C2m = {coef['C2m']!r}: the MMG 2015 "
+            "wake in a turn needs C1 > 0 with C2 > 0 (and C2m > 0, or C2m left out to equal C2); C1 = 0 or "
+            "left out keeps wP exp(-4 beta_P^2)"
+        )
     wind = {k: coef[k] for k in WIND}
     for k in WIND:  # the base model has no wind term; the wind effect starts from these
         coef[k] = 0.0

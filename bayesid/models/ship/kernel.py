@@ -134,6 +134,11 @@ Cn2 = p[52]
 Cn3 = p[53]
 dR0 = p[54]
 gRm = p[55]
+C1w = p[56]
+C2w = p[57]
+C2wm = p[58]
+wform = C1w > 0.0
+omwP0 = 1.0 - wP0
 q = 0.5 * rho * L * d
 qL = q * L
 h = 0.5 * L
@@ -208,11 +213,16 @@ else:
     cps = math.cos(ps)
     sps = math.sin(ps)"""
 
-# The propeller's wake fraction wP0 exp(-4 beta_P^2).
+# The propeller's wake: omw = 1 - w_P, with w_P = wP0 exp(-4 beta_P^2), or the MMG 2015 wake in a
+# turn where the row gives C1 > 0 (layout.WAKE_IN_TURN; C2m for beta_P < 0).
 _RHS_HEAD = """\
 vp = v + xPL * r
-beta2 = vp * vp / (u * u + vp * vp + 1e-12)
-ewP = math.exp(-4.0 * beta2)"""
+if wform:
+    bP = math.atan2(-vp, abs(u) + 1e-12)
+    omw = omwP0 * (1.0 + (1.0 - math.exp(-C1w * abs(bP))) * ((C2w if bP > 0.0 else C2wm) - 1.0))
+else:
+    beta2 = vp * vp / (u * u + vp * vp + 1e-12)
+    omw = 1.0 - wP0 * math.exp(-4.0 * beta2)"""
 
 # Wind (Fujiwara et al. 1998): true wind (wn, we, towards north and east) in body axes, the
 # apparent wind (ax, ay) relative to the hull moving through the current, and the loads of the
@@ -259,7 +269,7 @@ i1 = 0.0"""
 _RHS_TAIL = """\
 Y -= cY * i0
 N -= cN * i1
-uP = (1.0 - wP0 * ewP) * u
+uP = omw * u
 wR = v + lRL * r
 vR = (mgR if wR <= 0.0 else mgRm) * wR
 if npos:

@@ -69,13 +69,21 @@ COEFFICIENTS = (
     "Cn3",
     "dR0",
     "gRm",
+    "C1",
+    "C2",
+    "C2m",
 )
 #: Coefficients that equal another one unless given (a ship file's ``[coefficients]``, a fit or
 #: :meth:`~bayesid.models.ship.fileformat.Ship.with_coefficients`): ``gRm``, the rudder's
 #: flow-straightening coefficient gamma_R for ``beta_R < 0``, is ``gR`` (``beta_R >= 0``), so a
 #: ship file without it has one gamma_R for both sides (Yasukawa & Yoshimura 2015, eqs. 13-23 and
-#: Tables 3-5, give two for KVLCC2). Appended last: the other coefficients keep their positions.
-FOLLOWS = {"gRm": "gR"}
+#: Tables 3-5, give two for KVLCC2). ``C2m``, the wake-in-turn coefficient C2 for ``beta_P < 0``, is
+#: ``C2`` (``beta_P > 0``) in the same way. Appended last: the other coefficients keep their positions.
+FOLLOWS = {"gRm": "gR", "C2m": "C2"}
+#: The coefficients of the MMG 2015 wake in a turn (Yasukawa & Yoshimura 2015, eq. 16):
+#: ``1 - w_P = (1 - wP) (1 + (1 - exp(-C1 |beta_P|)) (C2 - 1))``, ``C2m`` in place of ``C2`` for
+#: ``beta_P < 0``. ``C1 = 0`` (a ship file without them) keeps the form ``w_P = wP exp(-4 beta_P^2)``.
+WAKE_IN_TURN = ("C1", "C2", "C2m")
 WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3")
 NP = len(PARTICULARS) + len(COEFFICIENTS)
 #: Position of each particular in the parameter vector.
@@ -95,6 +103,7 @@ __all__ = [
     "COEFFICIENTS",
     "FOLLOWS",
     "WIND",
+    "WAKE_IN_TURN",
     "NP",
     "PARTICULAR_INDEX",
     "COEFFICIENT_INDEX",

@@ -20,7 +20,7 @@ from . import kernel as shipkernel
 from .dynamics import accelerations, apparent_wind, mass_matrix, wind_components
 from .effects import SHIP_CATALOGUE, get_effect
 from .fileformat import Ship
-from .layout import COEFFICIENT_INDEX, WIND
+from .layout import COEFFICIENT_INDEX, WAKE_IN_TURN, WIND
 from .library import ShipTerms
 from .seed import equation_error_seed
 
@@ -94,8 +94,9 @@ class ShipModel(ParameterLayout):
     KeyError
         A free name that is not a ship coefficient (named).
     ValueError
-        Unknown effect or kernel (named), or wind coefficients listed as free with the wind
-        effect.
+        Unknown effect or kernel (named), or coefficients listed as free that an effect sets
+        (:meth:`effect_clash`: the wind coefficients with the wind effect, ``C1, C2, C2m`` with
+        the wake in a turn, a shifted coefficient with its shift).
     """
 
     mode = "horizontal"
@@ -212,6 +213,29 @@ class ShipModel(ParameterLayout):
             if k not in ship.coefficients:
                 raise KeyError(f"{option}: {_unknown_message(ship, k)}")
 
+    @staticmethod
+    def effect_clash(effect, free) -> list:
+        """The free coefficients an effect sets: a model with both has a parameter twice (the
+        fit cannot tell them apart).
+
+        Parameters
+        ----------
+        effect : Effect
+            A ship effect.
+        free : iterable of str
+            The free coefficients.
+
+        Returns
+        -------
+        list of str
+            The free names the effect sets (the wind coefficients, ``C1, C2, C2m`` of the wake in
+            a turn, the coefficient of a :class:`~bayesid.models.ship.effects.ShipCoefficientShift`);
+            empty when none.
+        """
+        owned = {"wind": WIND, "wake_in_turn": WAKE_IN_TURN}.get(effect.name, ())
+        owned = tuple(owned) + ((effect.coefficient,) if getattr(effect, "coefficient", "") else ())
+        return [k for k in free if k in owned]
+
     def __init__(self, ship: Ship, free=None, effects=(), dt: float = 0.2, kernel: str = "generated"):
         if kernel not in shipkernel.KINDS:
             raise ValueError(f"kernel must be one of {shipkernel.KINDS}, got {kernel!r}")
@@ -223,6 +247,13 @@ class ShipModel(ParameterLayout):
         self.effects = [get_effect(e) for e in effects]
         if any(e.name == "wind" for e in self.effects) and any(k in WIND for k in self.free):
             raise ValueError("wind coefficients are the wind effect's parameters; do not list them as free")
+        for e in self.effects:
+            clash = self.effect_clash(e, self.free)
+            if clash:
+                raise ValueError(
+                    f"{', '.join(clash)} free and the {e.name} effect, which sets {'them' if len(clash) > 1 else 'it'}: "
+                    f"a parameter twice; leave {', '.join(clash)} out of the free list or the {e.name} effect out"
+                )
         self.n_theta = len(self.free)
         self.n_q = [len(e.params) for e in self.effects]
         self.theta0 = np.array([ship.coefficients[k] for k in self.free])
