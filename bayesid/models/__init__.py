@@ -9,11 +9,16 @@ from __future__ import annotations
 
 import math
 
+from .._numba import drop_stale_caches
 from ..data.vehicle import Vehicle, load_vehicle
 from .context import INPUT_RECONSTRUCTIONS
 from .interface import SimulationModel
 from .ship import Ship, ShipModel, is_ship_file, load_ship
 from .submarine import EffectModel
+
+# numba reads a cache at a function's first call, not at its decoration: dropping stale caches
+# after the imports is in time (see bayesid._numba)
+drop_stale_caches()
 
 __all__ = ["FAMILIES", "SimulationModel", "build_model", "load_any_vehicle", "model_class"]
 

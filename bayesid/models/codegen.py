@@ -61,7 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._numba import use_package_threading_layer
+from .._numba import sources_digest, use_package_threading_layer
 from ..data import terms
 from . import dynamics
 
@@ -667,7 +667,9 @@ def load_module(src: str, prefix: str):
     """Import generated source as a module named ``<prefix>_<hash>``: written once to
     :func:`cache_dir` (atomically; a concurrent process sees the old or the whole new file) and
     imported once per process, so numba's ``cache=True`` keeps its compiled code between
-    processes. Shared by this module and :mod:`bayesid.models.ship.kernel`.
+    processes. Shared by this module and :mod:`bayesid.models.ship.kernel`. The hash covers the
+    package's model sources too (:func:`bayesid._numba.sources_digest`): a generated module imports
+    their constants, which numba freezes into its cache, so a change there names a new module.
 
     Parameters
     ----------
@@ -681,7 +683,7 @@ def load_module(src: str, prefix: str):
     module
         The imported module.
     """
-    name = f"{prefix}_{hashlib.sha256(src.encode()).hexdigest()[:16]}"
+    name = f"{prefix}_{hashlib.sha256((src + sources_digest()).encode()).hexdigest()[:16]}"
     mod = _LOADED.get(name)
     if mod is not None:
         return mod
