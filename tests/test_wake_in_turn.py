@@ -159,3 +159,15 @@ def test_a_named_wake_in_a_turn_written_by_write_vehicle_loads_and_fits(tmp_path
     assert abs(a["u"][-1] - b["u"][-1]) > 1e-3
     res = identify(written, [a], FitOptions(free=("Yv", "Nr"), window_s=30.0, dt=0.1, max_nfev=5, prior=False))
     assert res.fit.success and np.all(np.isfinite(res.fit.p))
+
+
+def test_c2m_is_a_candidate_to_untie_only_where_it_acts():
+    from bayesid.models.ship.library import ShipTerms
+
+    kv = ship.load_ship("kvlcc2_7m")
+    assert ShipTerms(kv).untied(ship.ShipModel(kv)) == ["gRm"]  # the exp form: C2m does not act
+    turned = kv.with_coefficients({"C1": 2.0, "C2": 1.6})
+    assert ShipTerms(turned).untied(ship.ShipModel(turned)) == ["gRm", "C2m"]
+    # beside the wake_in_turn effect, which sets C2m
+    free = [k for k in turned.free]
+    assert ShipTerms(turned).untied(ship.ShipModel(turned, free=free, effects=["wake_in_turn"])) == ["gRm"]

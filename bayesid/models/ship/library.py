@@ -80,6 +80,10 @@ class ShipTerms(TermLibrary):
         dofs : sequence of str, default ("Y", "N")
             The force letters searched.
 
+        ``C2m`` (the wake in a turn's C2 for ``beta_P < 0``) is untied only where it acts: in a ship
+        file with the MMG 2015 wake in a turn (``C1 > 0``), and not beside the ``wake_in_turn``
+        effect, which sets it.
+
         Returns
         -------
         list of str
@@ -87,7 +91,10 @@ class ShipTerms(TermLibrary):
         """
         if not {"Y", "N"} & set(dofs):
             return []
-        return [k for k in self.tied if k not in model.free]
+        wake = self.vehicle.coefficients.get("C1", 0.0) > 0.0 and not any(
+            e.name == "wake_in_turn" for e in getattr(model, "effects", ())
+        )
+        return [k for k in self.tied if k not in model.free and (k != "C2m" or wake)]
 
     def columns(self, names, motion: dict, inputs) -> np.ndarray:
         """Force columns of terms at unit prime coefficient along a motion
