@@ -302,3 +302,21 @@ def test_bayesid_sample_writes_the_budget_to_sample_json_and_the_report(case, ca
     assert "importance: 20000 draws, about" in printed
     report = (out / "report.md").read_text()
     assert "**The budget cut: importance draws**" in report and f"{imp['done']} of 20000 draws" in report
+    assert doc["reliable"] is doc["verdict"]["converged"] and doc["n_draws_evaluated"] == imp["done"]
+    # a failed posterior (too few draws in a budget of 0.3 s) is labelled where its numbers are (issue 69):
+    # sample.json's marginals, the report's table (no interval), posterior_model.json, bayesid predict
+    out = d / "sample_failed"
+    assert main([*args, "--draws", "20000", "--max-minutes", "0.005", "--out", str(out)]) == 0
+    doc = json.loads((out / "sample.json").read_text())
+    report = (out / "report.md").read_text()
+    assert doc["verdict"]["converged"] is False, doc["verdict"]
+    assert doc["reliable"] is False
+    assert all(m["reliable"] is False for m in doc["marginals"].values())
+    assert "**The posterior is not reliable**" in report and "| not reliable |" in report
+    pm = json.loads((out / "posterior_model.json").read_text())
+    assert pm["posterior_source"]["reliable"] is False
+    pred = d / "predict"
+    assert main(["predict", "--model", str(out / "posterior_model.json"), "--track", files[0], "--draws", "4"]
+                + ["--out", str(pred)]) == 0  # fmt: skip
+    assert "bayesid sample judged not reliable" in capsys.readouterr().err
+    assert any("not reliable" in w for w in json.loads((pred / "predict.json").read_text())["warnings"])

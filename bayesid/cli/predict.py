@@ -98,8 +98,18 @@ def run(args) -> int:
 
 
 def _warn(doc, got: dict, window) -> None:
-    """Warnings (printed, and added to the inputs' warnings) for a track the model was fitted on
-    and for a track shorter than one window."""
+    """Warnings (printed, and added to the inputs' warnings) for a model whose covariance is a
+    posterior ``bayesid sample`` judged not reliable, for a track the model was fitted on and for a
+    track shorter than one window."""
+    src = doc.posterior_source or {}
+    if src and not src.get("reliable", src.get("converged", True)):
+        w = (
+            f"the model's covariance is a posterior that bayesid sample judged not reliable ({src.get('sample')}, "
+            f"{src.get('method')}): the bands below do not hold; sample again (a longer budget, --method mcmc) or "
+            "predict from the fit's model.json"
+        )
+        print(f"warning: {w}", file=sys.stderr)
+        got["_warnings"].append(w)
     trained = {h: f for f, h in (doc.provenance.get("input_sha256") or {}).items()}
     for f, h in got["_sha256"].items():
         if h in trained:

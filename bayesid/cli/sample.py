@@ -338,6 +338,7 @@ def _document(args, fitted: tuple, got: dict, res, rule: str, out: Path) -> dict
     )
     _flat_prior_status(dos)
     q05, q95 = np.quantile(draws, [0.05, 0.95], axis=0)
+    reliable = bool(res.verdict["converged"])
     em = _error_model(res)
     label = {
         "importance": f"importance-reweighted Laplace ({args.draws} multivariate Student-t draws, df {args.df:g}, "
@@ -357,6 +358,11 @@ def _document(args, fitted: tuple, got: dict, res, rule: str, out: Path) -> dict
         "method": res.method,
         "method_label": label,
         "n_draws": int(draws.shape[0]),
+        # importance: the draws whose posterior was evaluated (the budget may end the stage early); the
+        # n_draws above are resampled from them
+        "n_draws_evaluated": int((res.importance or {}).get("done", draws.shape[0]))
+        if res.method == "importance"
+        else int(draws.shape[0]),
         "df": args.df,
         "window_s": doc.fit_window_s,
         "start_rule": rule,
@@ -373,6 +379,7 @@ def _document(args, fitted: tuple, got: dict, res, rule: str, out: Path) -> dict
             + f" (6 per window; sampling them would add {6 * res.n_windows} dimensions)"
         ),
         "verdict": res.verdict,
+        "reliable": reliable,
         "verdict_criteria": _criteria(res),
         "cost": {
             "seconds_per_evaluation": res.seconds_per_evaluation,
@@ -397,6 +404,7 @@ def _document(args, fitted: tuple, got: dict, res, rule: str, out: Path) -> dict
                 "sd": float(draws[:, j].std(ddof=1)),
                 "q05": float(q05[j]),
                 "q95": float(q95[j]),
+                "reliable": reliable,
             }
             for j, n in enumerate(names)
         },
@@ -470,5 +478,6 @@ def _posterior_model(res, doc, out: Path):
     """The fit's model document with this posterior's mode and covariance: predict draws from it."""
     import numpy as np
 
-    source = {"sample": str(out / "sample.json"), "method": res.method, "converged": bool(res.verdict["converged"])}
+    ok = bool(res.verdict["converged"])
+    source = {"sample": str(out / "sample.json"), "method": res.method, "converged": ok, "reliable": ok}
     return doc.with_posterior(res.mode["p"], np.cov(res.draws, rowvar=False), source)

@@ -223,6 +223,12 @@ def _coefficient_lines(doc: dict) -> list:
             "given: read their posterior sd in absolute terms and as a share of the posterior mean (relative sd)."
             if flat
             else ""
+        )
+        + (
+            ""
+            if doc.get("reliable", True)
+            else " **The posterior is not reliable** (the verdict above): the means and sds are those of its "
+            "draws, and no 5-95 % interval is given (its draws do not hold one)."
         ),
         "",
         md_table(
@@ -245,7 +251,9 @@ def _coefficient_lines(doc: dict) -> list:
                     fmt(doc["fit_estimate"][n]),
                     fmt(c["mean"]),
                     fmt(c["sd"]),
-                    f"{fmt(doc['marginals'][n]['q05'])} - {fmt(doc['marginals'][n]['q95'])}",
+                    f"{fmt(doc['marginals'][n]['q05'])} - {fmt(doc['marginals'][n]['q95'])}"
+                    if doc["marginals"][n].get("reliable", True)
+                    else "not reliable",
                     fmt(c["sd"] / abs(c["mean"]), 2) if c["mean"] else "-",
                     fmt(c["sd_ratio"], 2) if c["prior"] == "normal" else "-",
                     fmt(c["z"], 2) if c["z"] is not None else "",
