@@ -370,6 +370,8 @@ def test_the_base_fit_from_extra_starts_is_never_worse_and_says_so():
     many = gap.diagnose(kv, kv.free, train, held, gap.DiagnoseOptions(base_starts=2, **opts))
     ms = many.base_check["multistart"]
     assert one.base_check["multistart"] is None and ms["n_starts"] == 2
+    # what was passed is recorded (issue 69), and nothing for the default
+    assert many.settings["base_starts"] == 2 and "base_starts" not in one.settings
     assert ms["best_cost"] <= ms["default_cost"] * (1 + 1e-9)
     assert ms["improved"] == (ms["best_cost"] < ms["default_cost"] * (1 - 1e-6))
     if not ms["improved"]:

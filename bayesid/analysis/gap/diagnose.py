@@ -879,6 +879,8 @@ def _settings(opt: DiagnoseOptions, setup: Setup, cand_effects, weighting: str) 
         # the logged inputs' reconstruction, when not the default (the JSON of a held reading unchanged)
         **({"inputs": opt.inputs} if opt.inputs != "hold" else {}),
         **({"rudder_rate_deg_s": opt.rudder_rate_deg_s} if opt.rudder_rate_deg_s is not None else {}),
+        # the base fit's extra starts, when asked for (issue 69: what was passed is recorded)
+        **({"base_starts": int(opt.base_starts)} if opt.base_starts else {}),
     }
 
 
