@@ -126,6 +126,9 @@ def run(args) -> int:
 def _identify(args, out, vehicle, free, got):
     """The fit (resumable through ``out/journal.jsonl`` with multistart or calibration) and its
     model document."""
+    import warnings
+
+    from ..data.validate import BayesidWarning
     from ..estimation.identification import identify
     from ..estimation.modelfile import ModelDocument
     from ..estimation.options import CalibrationOptions, FitOptions
@@ -164,13 +167,15 @@ def _identify(args, out, vehicle, free, got):
                 "calibration": None if calibration is None else calibration.to_dict(),
             },
         )
-    res = identify(
-        vehicle,
-        train,
-        options,
-        calibration,
-        runner=tasks.Runner(args.jobs, args.scheduler, journal, progress=lambda m: print(f"  {m}", flush=True)),
-    )
+    with warnings.catch_warnings():  # the command prints its own (the files' checks, the step check)
+        warnings.simplefilter("ignore", BayesidWarning)
+        res = identify(
+            vehicle,
+            train,
+            options,
+            calibration,
+            runner=tasks.Runner(args.jobs, args.scheduler, journal, progress=lambda m: print(f"  {m}", flush=True)),
+        )
     doc = ModelDocument.from_identify(
         res,
         vehicle_ref(args.vehicle),

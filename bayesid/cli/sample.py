@@ -216,6 +216,9 @@ def _flat_prior_status(dos: dict) -> None:
 def _fit_first(args, vehicle, got: dict, out: Path):
     """Fit with ``bayesid fit``'s defaults, written as ``out/fit/model.json``; returns the model
     as read back, its parameters, its document and the file's SHA-256."""
+    import warnings
+
+    from ..data.validate import BayesidWarning
     from ..estimation.identification import identify
     from ..estimation.modelfile import ModelDocument, load_model
     from ..estimation.options import FitOptions
@@ -227,12 +230,14 @@ def _fit_first(args, vehicle, got: dict, out: Path):
         effects=opt.split_names(args.effects, "--effects"),
         prior=args.prior == "file",
     )
-    res = identify(
-        vehicle,
-        got["--train"],
-        options,
-        runner=tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True)),
-    )
+    with warnings.catch_warnings():  # the files' checks were printed on reading them
+        warnings.simplefilter("ignore", BayesidWarning)
+        res = identify(
+            vehicle,
+            got["--train"],
+            options,
+            runner=tasks.Runner(args.jobs, args.scheduler, progress=lambda m: print(f"  {m}", flush=True)),
+        )
     fdoc = ModelDocument.from_identify(
         res,
         vehicle_ref(args.vehicle),

@@ -8,7 +8,9 @@ from ranges and from consistency (yaw rate against the heading's rate, body spee
 position increments, sample interval against speed) and refused with a message naming the file,
 the column and the unit it looks like. Things that may be real but deserve a look (propeller
 stopped throughout, a speed far outside the vehicle's range) come back as warnings, which the
-commands print and record in their outputs.
+commands print and record in their outputs, and which :func:`bayesid.identify` raises as Python
+warnings of the category :class:`TrackWarning` (a :class:`BayesidWarning`), so that the API says
+what the commands say.
 """
 
 from __future__ import annotations
@@ -19,6 +21,18 @@ import re
 import numpy as np
 
 from .track import INPUT_NAMES, Track, continuous_pieces
+
+
+class BayesidWarning(UserWarning):
+    """Base of the package's warnings: ``warnings.simplefilter("error", BayesidWarning)`` makes
+    every one of them an error, ``"ignore"`` silences them (the commands print their own)."""
+
+
+class TrackWarning(BayesidWarning):
+    """A track that passed its checks but deserves a look (:func:`check_track`'s warnings: a
+    coarse log for the inputs, a propeller at 0 rpm while moving, a wrapped heading, a rudder past
+    the vehicle's limit, ...)."""
+
 
 #: (factor, unit) pairs a speed column is recognised in when its ratio to the ground speed from
 #: the positions is within 15 % of the factor.
@@ -788,6 +802,8 @@ def check_track(track: Track, vehicle=None, where: str | None = None) -> list[st
 
 
 __all__ = [
+    "BayesidWarning",
+    "TrackWarning",
     "check_track",
     "check_vessel",
     "rudder_response",

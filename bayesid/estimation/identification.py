@@ -22,10 +22,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..data.validate import TrackWarning, check_track
 from ..models import build_model
 from ..protocol import resolve_start, start_settings
 from ..tasks import Runner
@@ -36,7 +38,7 @@ from .fit import FitResult
 from .laplace import ar1_inflation, fit_covariance
 from .multistart import MultistartResult, multistart
 from .options import CalibrationOptions, FitOptions
-from .stepcheck import MAX_HALVINGS, StepCheck, step_check
+from .stepcheck import MAX_HALVINGS, StepCheck, StepWarning, step_check
 
 __all__ = ["DEFAULT_WINDOW_S", "IdentifyResult", "identify"]
 
@@ -156,11 +158,21 @@ def identify(
     Raises
     ------
     ValueError
-        No training track; a track without the needed columns (named); an unknown channel or a
+        No training track; a track that fails :func:`bayesid.data.validate.check_track` (units,
+        conventions; named); a track without the needed columns (named); an unknown channel or a
         track that measures none of the channels; too little data
         (:func:`bayesid.estimation.windows.check_enough_data`).
     KeyError
         An unknown coefficient name.
+
+    Warns
+    -----
+    TrackWarning
+        Each warning of :func:`bayesid.data.validate.check_track` on a training track (what
+        ``bayesid fit`` prints about its files).
+    StepWarning
+        The model step too coarse for the data (:attr:`~bayesid.estimation.stepcheck.StepCheck.too_coarse`)
+        at the step the fit ends at.
 
     Examples
     --------
@@ -179,6 +191,9 @@ def identify(
     """
     if not train:
         raise ValueError("identify needs at least one training track")
+    for tr in train:  # what the commands print about their files, as Python warnings
+        for w in check_track(tr, vehicle):
+            warnings.warn(w, TrackWarning, stacklevel=2)
     say = runner.say
     channels = wf.check_channels(options.channels)
     dt, p_start, tried, first = options.dt, None, [], None
@@ -192,6 +207,8 @@ def identify(
         say(f"{check.sentence()}: refitting at {st.model.dt / 2:g} s")
         dt, p_start = st.model.dt / 2, st.f.p
     check.steps_tried = tried
+    if check.too_coarse:
+        warnings.warn(check.sentence(), StepWarning, stacklevel=2)
     model, f, gp, prior_info = st.model, st.f, st.gp, st.prior_info
     calib = None
     if calibration is not None and len(train) >= 3:

@@ -31,9 +31,16 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..data.validate import BayesidWarning
 from .windows import WindowObjective
 
-__all__ = ["MAX_HALVINGS", "STEP_SHIFT_SD", "StepCheck", "step_check"]
+
+class StepWarning(BayesidWarning):
+    """The model step is too coarse for the data (:attr:`StepCheck.too_coarse`): raised by
+    :func:`bayesid.identify` where ``bayesid fit`` prints the same sentence."""
+
+
+__all__ = ["MAX_HALVINGS", "STEP_SHIFT_SD", "StepCheck", "StepWarning", "step_check"]
 
 #: The largest shift of the estimate, in sd along any direction (the root of its Mahalanobis
 #: distance), that halving the model step may cause before the step counts as too coarse for the
