@@ -19,8 +19,10 @@ Method
   5 mm/s, 0.05 deg/s on the velocity log): three zigzags to train (10/10 port, 20/20 starboard,
   35/35 port, 200 s each), two 35 deg turning circles and a 20 deg pull-out held out.
 - Each case with and without the velocity log (u, v, r), diagnosed by ``bayesid diagnose`` as a
-  user runs it: the ship catalogue (current, delay, sensor lag: the runs log no wind), 60 s
-  scoring windows, two alternatives per degree of freedom, no design, ``--max-nfev 30``.
+  user runs it: the ship catalogue less the wind (the runs log none) and less the shifts of ``wP``
+  and ``Xuu``, which the base model fits (current, delay, wake in a turn, rudder resistance,
+  thrust deduction, sensor lag), 60 s scoring windows, two alternatives per degree of freedom, no
+  design, ``--max-nfev 30``.
 - Scores: a hidden term is *named* when it is kept, or among the alternatives of a kept term; a
   hidden effect when the verdict names it (cause or contributor); a case is *clear* when the base
   model's held-out gap is significant (verdict not ``none``); a *wrong name alone* is a kept term
@@ -30,7 +32,7 @@ Method
   ``(before - after) / (before - floor)`` of the held-out RMS position error, ``after`` the final
   model's (effects and kept terms added).
 
-    python studies/ship_surge.py [--quick] [--out DIR] [--seed N]
+    python studies/ship_surge.py [--quick] [--out DIR] [--seed N] [--render]
 """
 
 from __future__ import annotations
@@ -294,10 +296,16 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="one structure, short runs, few iterations (a smoke test)")
     ap.add_argument("--out", default="reports/ship_surge")
     ap.add_argument("--seed", type=int, default=67)
+    ap.add_argument("--render", action="store_true", help="rewrite report.md from --out's results.json")
     args = ap.parse_args()
     from bayesid.report import write_json, write_manifest
 
     out = Path(args.out)
+    if args.render:
+        doc = json.loads((out / "results.json").read_text())
+        args.quick = doc["quick"]
+        write_report(out, doc["cases"], doc["summary"], args)
+        return 0
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     structures = [STRUCTURES[i] for i in QUICK] if args.quick else STRUCTURES
