@@ -71,7 +71,9 @@ class ShipTerms(TermLibrary):
         coefficient gamma_R for both signs of the rudder's inflow angle (MMG eq. 23; Yasukawa &
         Yoshimura's Table 3 gives two for KVLCC2). Untying it, with the value it follows as its
         start, is a candidate like a missing term: a port/starboard asymmetry of the rudder
-        force, acting in X, Y and N at once (it needs Y or N among ``dofs``).
+        force, acting in X, Y and N at once (it needs Y or N among ``dofs``). ``C2m`` (the wake in
+        a turn's C2 for ``beta_P < 0``) is untied only where it acts: in a ship file with the MMG
+        2015 wake in a turn (``C1 > 0``), and not beside the ``wake_in_turn`` effect, which sets it.
 
         Parameters
         ----------
@@ -79,10 +81,6 @@ class ShipTerms(TermLibrary):
             The reference model.
         dofs : sequence of str, default ("Y", "N")
             The force letters searched.
-
-        ``C2m`` (the wake in a turn's C2 for ``beta_P < 0``) is untied only where it acts: in a ship
-        file with the MMG 2015 wake in a turn (``C1 > 0``), and not beside the ``wake_in_turn``
-        effect, which sets it.
 
         Returns
         -------
