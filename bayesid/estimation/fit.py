@@ -237,10 +237,13 @@ class FitResult:
 
 
 def _active(p, lo, hi, tol=1e-6):
+    """Indices of ``p`` on a finite bound (an infinite bound is never reached: ``inf <= inf`` put
+    every unbounded coefficient "at bound", issue 69)."""
     return [
         i
         for i in range(p.size)
-        if p[i] - lo[i] <= tol * max(1.0, abs(lo[i])) or hi[i] - p[i] <= tol * max(1.0, abs(hi[i]))
+        if (np.isfinite(lo[i]) and p[i] - lo[i] <= tol * max(1.0, abs(lo[i])))
+        or (np.isfinite(hi[i]) and hi[i] - p[i] <= tol * max(1.0, abs(hi[i])))
     ]
 
 
