@@ -140,3 +140,24 @@ def test_sample_dossier_marks_a_round_off_null_space_and_reports_it_by_coefficie
     assert d["round_off_participation"] == pytest.approx({"Yv": 0.5, "Yr": 0.5}, abs=1e-9)
     assert "1 Fisher eigenvalue(s) are at round-off level" in "\n".join(_round_off_lines(d))
     json.dumps(d)
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_a_failed_posteriors_constant_draws_leak_no_runtime_warning():
+    """A posterior whose draws are one repeated point (ESS 1, issue 69): the dossier's correlations
+    are undefined (NaN), said without numpy's RuntimeWarning leaking to the user."""
+    from bayesid.analysis.dossier import data_dossier
+
+    class FlatPrior:
+        gaussian = np.array([False, False])
+
+        def marginal_mean(self):
+            return np.full(2, np.nan)
+
+        def marginal_sd(self):
+            return np.full(2, np.inf)
+
+    draws = np.tile([[0.5, -0.2]], (400, 1))
+    J = np.random.default_rng(2).normal(size=(30, 2))
+    d = data_dossier(["Yv", "Nr"], J.T @ J, J, np.ones(2), FlatPrior(), draws)
+    assert np.isnan(d["correlations"][0]["r"])

@@ -291,7 +291,8 @@ def data_dossier(names, fisher, jac, scales, prior, draws, top: int = 5) -> dict
             moved.append(n)
             if abs(z) > 3.0:
                 beyond.append(n)
-    C = np.atleast_2d(np.corrcoef(draws, rowvar=False))  # one parameter: no pair
+    with np.errstate(invalid="ignore", divide="ignore"):  # a constant column (a failed posterior): r undefined, NaN
+        C = np.atleast_2d(np.corrcoef(draws, rowvar=False))  # one parameter: no pair
     iu = np.triu_indices(len(names), 1)
     order = np.argsort(-np.abs(np.nan_to_num(C[iu])))[: 2 * top]
     return dict(

@@ -551,7 +551,8 @@ def pair_scatter(
         if bounds and p in bounds and q in bounds:
             (x0, x1), (y0, y1) = bounds[p], bounds[q]
             a.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], "k--", lw=0.7)
-        r = np.corrcoef(sub[:, idx[p]], sub[:, idx[q]])[0, 1]
+        with np.errstate(invalid="ignore", divide="ignore"):  # constant draws: r undefined (NaN)
+            r = np.corrcoef(sub[:, idx[p]], sub[:, idx[q]])[0, 1]
         a.set_title(f"{p}–{q}: r = {r:+.3f}", fontsize=9)
         a.set_xlabel(p, fontsize=8)
         a.set_ylabel(q, fontsize=8)
