@@ -50,6 +50,10 @@ BOUNDS = {
     "gR": (0.0, 2.0),
     "gRm": (0.0, 2.0),
     "dR0": (-0.1, 0.1),
+    # the MMG 2015 wake in a turn (as the wake_in_turn effect's bounds): C1 > 0 keeps the form
+    "C1": (0.05, 10.0),
+    "C2": (0.3, 3.0),
+    "C2m": (0.3, 3.0),
 }
 
 
