@@ -42,6 +42,9 @@ class ShipWind(Effect):
         The other fields of :class:`~bayesid.models.effects.Effect`.
     """
 
+    #: the ship file's coefficients the effect sets (a model cannot also fit them)
+    sets = WIND
+
     def kernel(self, kp, q):
         kp["prm"][:, [COEFFICIENT_INDEX[k] for k in WIND]] = q
 
@@ -159,6 +162,9 @@ class ShipWakeInTurn(Effect):
         The other fields of :class:`~bayesid.models.effects.Effect`.
     """
 
+    #: the ship file's coefficients the effect sets (a model cannot also fit them)
+    sets = WAKE_IN_TURN
+
     def kernel(self, kp, q):
         kp["prm"][:, [COEFFICIENT_INDEX[k] for k in WAKE_IN_TURN]] = q
 
@@ -211,6 +217,11 @@ class ShipCoefficientShift(Effect):
     """
 
     coefficient: str = ""
+
+    @property
+    def sets(self) -> tuple:
+        """The ship file's coefficient the effect sets (a model cannot also fit it)."""
+        return (self.coefficient,)
 
     def kernel(self, kp, q):
         kp["prm"][:, COEFFICIENT_INDEX[self.coefficient]] += q[:, 0]

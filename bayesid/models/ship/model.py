@@ -20,7 +20,7 @@ from . import kernel as shipkernel
 from .dynamics import accelerations, apparent_wind, mass_matrix, wind_components
 from .effects import SHIP_CATALOGUE, get_effect
 from .fileformat import Ship
-from .layout import COEFFICIENT_INDEX, WAKE_IN_TURN, WIND
+from .layout import COEFFICIENT_INDEX, WIND
 from .library import ShipTerms
 from .seed import equation_error_seed
 
@@ -232,12 +232,11 @@ class ShipModel(ParameterLayout):
         Returns
         -------
         list of str
-            The free names the effect sets (the wind coefficients, ``C1, C2, C2m`` of the wake in
-            a turn, the coefficient of a :class:`~bayesid.models.ship.effects.ShipCoefficientShift`);
-            empty when none.
+            The free names the effect sets (its ``sets``: the wind coefficients, ``C1, C2, C2m`` of
+            the wake in a turn, the coefficient of a
+            :class:`~bayesid.models.ship.effects.ShipCoefficientShift`); empty when none.
         """
-        owned = {"wind": WIND, "wake_in_turn": WAKE_IN_TURN}.get(effect.name, ())
-        owned = tuple(owned) + ((effect.coefficient,) if getattr(effect, "coefficient", "") else ())
+        owned = getattr(effect, "sets", ())
         return [k for k in free if k in owned]
 
     def __init__(self, ship: Ship, free=None, effects=(), dt: float = 0.2, kernel: str = "generated"):
