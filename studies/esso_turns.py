@@ -49,7 +49,11 @@ def main() -> int:
 
     matplotlib.use("Agg")
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="two runs each way, two candidates, few iterations")
+    ap.add_argument(
+        "--quick",
+        action="store_true",
+        help="two training runs (their first 200 s), one turn, two candidates, few iterations",
+    )
     ap.add_argument("--out", default="reports/esso_turns")
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
     ap.add_argument("--max-nfev", type=int, default=30)
@@ -74,8 +78,9 @@ def main() -> int:
     tracks = [datasets.read_run(p, "esso-osaka") for p in runs]
     train = [t for t in tracks if t.name.startswith(("zigzag", "random"))]
     held = [t for t in tracks if t.name.startswith("turn")]
-    if args.quick:
+    if args.quick:  # a smoke test: the first 200 s of two training runs, one turn held out whole
         train, held, args.max_nfev = train[:2], held[:1], min(args.max_nfev, 4)
+        train = [t.slice_time(t.t[0], t.t[0] + 200.0) for t in train]
     esso = ship.load_ship("esso_osaka_3m")
     said = []
     cands = catalogue_candidates(ship.ShipModel, train + held, Runner(progress=said.append), free=esso.free)

@@ -100,7 +100,7 @@ SUMMARY_KEYS = (
 
 def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="a few hundred steps per case (tests, CI)")
+    ap.add_argument("--quick", action="store_true", help="50 steps per case (a smoke test)")
     ap.add_argument("--out", default="reports/posterior")
     ap.add_argument("--seed", type=int, default=2003)
     ap.add_argument(
@@ -223,9 +223,9 @@ def run_case(setup, vehicle, spiral_model, target, args, out, rng):
         progress=not args.quick,
         until_converged=not args.quick,
         redraw_stranded=True,
-        check_every=50 if args.quick else 250,
-        min_steps=100 if args.quick else 1000,
-        max_steps=100 if args.quick else 400000,
+        check_every=25 if args.quick else 250,
+        min_steps=50 if args.quick else 1000,
+        max_steps=50 if args.quick else 400000,
         max_wall_s=60.0 * (args.max_minutes or BUDGET_MIN[setup.key]),
     )
     ck = out / "checkpoints"
