@@ -472,6 +472,27 @@ def test_a_warning_every_file_of_a_coarse_log_raises_is_printed_once_and_kept_fo
     assert sum("the rudder jumps" in w for w in doc["warnings"]) == 4
 
 
+def test_a_gap_on_an_epoch_clock_is_named_with_its_times_to_the_tenth(csvs, tmp_path):
+    """Issue 69: an AUV logs on an epoch clock (about 1.8e9 s). The gap's times print in full
+    (``:g`` printed both ends as 1.8e+09), and a short clock prints as before."""
+    from bayesid.data import validate
+    from bayesid.data.track import clock, read_csv
+
+    tr = read_csv(csvs[1])
+    keep = (tr.t < 20.0) | (tr.t >= 30.0)
+    T0 = 1795789700.0
+    p = tmp_path / "epoch.csv"
+    write_csv(Track(tr.t[keep] + T0, {k: np.array(v)[keep] for k, v in tr.data.items()}, name="epoch"), p)
+    warned = [w for w in validate.check_track(read_csv(p), load_vehicle("nps_auv2"), str(p)) if " gap" in w]
+    assert len(warned) == 1 and "t = 1795789719.8-1795789730 s" in warned[0], warned
+    assert (clock(19.8), clock(-3.25e-3), clock(1795789719.8049), clock(float("nan"))) == (
+        "19.8",
+        "-0.00325",
+        "1795789719.8",
+        "nan",
+    )
+
+
 def test_a_gap_that_splits_a_run_is_named_in_the_outputs(csvs, tmp_path, capsys):
     """A gap in the positions (here 10 s cut out of a 0.2 s log, and a row of empty x, y, psi cells
     elsewhere, too short to split) is named with its times and file rows: the run is fitted and

@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .track import Track, TrackFormatError
+from .track import Track, TrackFormatError, clock
 from .track import format_error as _track_fail
 
 __all__ = [
@@ -269,7 +269,7 @@ def _build(path, fmt, t, data, units, vessel, reference, conversions, notes, man
     name = Path(path).stem
     rate = _sample_rate(t)
     if t.size and t[0] != 0:
-        notes.append(f"time as in the file: starts at t = {t[0]:g} s")
+        notes.append(f"time as in the file: starts at t = {clock(t[0])} s")
     meta = {
         "vessel": vessel,
         "format": fmt,

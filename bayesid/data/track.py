@@ -643,7 +643,7 @@ def _read_stream(path, f) -> Track:
         try:
             data["psi"], wraps = unwrap_heading(data["psi"], columns[it])
         except HeadingJumpError as exc:
-            raise format_error(path, f"{exc} (at t = {columns[it][exc.index]:.6g} s)", column="psi") from None
+            raise format_error(path, f"{exc} (at t = {clock(columns[it][exc.index])} s)", column="psi") from None
         if wraps:
             meta["psi_wraps"] = wraps
             comments.append(
@@ -807,6 +807,29 @@ def write_csv(track: Track, path) -> None:
         for a in range(0, track.n_samples, _CHUNK_ROWS):  # in blocks: memory stays near the arrays'
             table = np.column_stack([c[a : a + _CHUNK_ROWS] for c in columns]).tolist()
             writer.writerows([_format(v) for v in row] for row in table)
+
+
+def clock(t: float) -> str:
+    """A time of a track as a message prints it.
+
+    To 0.01 s whatever its size, so that a time on an epoch clock (about 1.8e9 s) reads as
+    ``1795789708.3``, not ``1.8e+09`` (``:g`` prints two gaps a minute apart alike); a short clock
+    as ``:g`` prints it (``52.3``).
+
+    Parameters
+    ----------
+    t : float
+        The time, s.
+
+    Returns
+    -------
+    str
+        The time without its unit.
+    """
+    t = float(t)
+    if not np.isfinite(t) or abs(t) < 1e5:
+        return f"{t:g}"
+    return f"{t:.2f}".rstrip("0").rstrip(".")
 
 
 def continuous_pieces(track: Track, min_gap_s: float = 0.0) -> list[tuple[float, float]]:

@@ -20,7 +20,7 @@ import re
 
 import numpy as np
 
-from .track import INPUT_NAMES, Track, continuous_pieces
+from .track import INPUT_NAMES, Track, clock, continuous_pieces
 
 
 class BayesidWarning(UserWarning):
@@ -122,7 +122,7 @@ def input_gaps(track: Track, where: str | None = None) -> None:
             if held > limit + 1e-9 or fin.size == 0:
                 whole = " (the whole track)" if i == 0 and j == t.size - 1 else ""
                 raise ValueError(
-                    f"{name}: column '{col}': empty in {_rows(track, i, j)} (t = {t[i]:g} to {t[j]:g} s, "
+                    f"{name}: column '{col}': empty in {_rows(track, i, j)} (t = {clock(t[i])} to {clock(t[j])} s, "
                     f"{t[j] - t[i] + h:.3g} s{whole}): no logged {col} to simulate with there (an input may "
                     f"miss at most {HOLE_INTERVALS:g} sample intervals in a row); fill in the logged "
                     "values, or split the file at the hole, one track file per piece"
@@ -562,8 +562,8 @@ def _check_rudder_limit(track: Track, vehicle, name: str) -> list[str]:
     source = f"[limits] rudder_max_deg of {file}" if file else "[limits] rudder_max_deg"
     return [
         f"{name}: column 'delta_r': |delta_r| reaches {deg[k]:.3g} deg ({math.radians(deg[k]):.4g} rad, "
-        f"t = {t[k]:g} s), beyond the rudder limit of {vehicle.id} ({limit:g} deg, {source}) in {over.size} "
-        f"sample(s) from t = {t[over[0]]:g} to {t[over[-1]]:g} s: a steering gear overshoot, or a track of "
+        f"t = {clock(t[k])} s), beyond the rudder limit of {vehicle.id} ({limit:g} deg, {source}) in {over.size} "
+        f"sample(s) from t = {clock(t[over[0]])} to {clock(t[over[-1]])} s: a steering gear overshoot, or a track of "
         "another vessel?"
     ]
 
@@ -649,7 +649,7 @@ def _check_pieces(track: Track, name: str) -> list[str]:
     gaps = []
     for (_, end), (start, _) in zip(pieces[:-1], pieces[1:]):
         i, j = int(np.searchsorted(t, end)), int(np.searchsorted(t, start))
-        gaps.append(f"t = {end:.6g}-{start:.6g} s ({start - end:.3g} s, {_rows(track, i, j)})")
+        gaps.append(f"t = {clock(end)}-{clock(start)} s ({start - end:.3g} s, {_rows(track, i, j)})")
     shown = "; ".join(gaps[:3]) + (f"; and {len(gaps) - 3} more" if len(gaps) > 3 else "")
     return [
         f"{name}: {len(gaps)} gap{'s' if len(gaps) > 1 else ''} in x, y, psi or the inputs ({shown}): the run is "
