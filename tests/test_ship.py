@@ -379,6 +379,7 @@ def test_fit_predict_diagnose_commands_on_two_converted_runs(tmp_path):
             "delay",
             "--max-nfev",
             "2",
+            "--no-discover",  # the round's ranking is what this test reads; discovery has its own
             "--out",
             str(tmp_path / "diag"),
         ],
