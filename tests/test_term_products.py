@@ -318,6 +318,23 @@ def test_a_pickled_vehicle_keeps_its_new_products_in_a_fresh_process(nps):
     assert out.stdout.decode().strip() == "True"
 
 
+@pytest.mark.parametrize("vid", ["remus100", "REMUS100", "kvlcc2_7m_mmg"])
+def test_a_docs_example_asked_for_by_id_is_refused_naming_its_file(vid, tmp_path, capsys):
+    """Issue 69: REMUS 100 is a file of the docs, not a packaged vehicle. Asked for by its id, the
+    error says so and names the file, which exists (exit code 2 from the command)."""
+    from bayesid.cli import main
+    from bayesid.data.vehicle import DOCS_EXAMPLES
+    from bayesid.models.ship import load_ship
+
+    path = DOCS_EXAMPLES[vid.lower()]
+    assert (ROOT / path).is_file()
+    for load in (load_vehicle, load_ship):
+        with pytest.raises(FileNotFoundError, match=f"not packaged: its file is {path}"):
+            load(vid)
+    assert main(["simulate", "--vehicle", vid, "--manoeuvre", "turn", "--out", str(tmp_path / "t.csv")]) == 2
+    assert path in capsys.readouterr().err
+
+
 def test_remus100_docs_example_loads_and_simulates():
     """The worked example of the docs (Prestero 2001 converted to prime form) loads, has the
     converted values, and turns in a short horizontal-plane run in both kernels."""

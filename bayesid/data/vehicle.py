@@ -428,6 +428,11 @@ class _KnownTerms:
         return True
 
 
+#: Vehicle files the docs work with that are not packaged (id -> path in the source tree): a user who
+#: read the docs and gives the id is told where the file is
+DOCS_EXAMPLES = {"remus100": "docs/examples/remus100.toml", "kvlcc2_7m_mmg": "docs/vessels/kvlcc2_7m_mmg.toml"}
+
+
 def packaged_vehicles() -> list[str]:
     """Ids of the vehicle files shipped with the package.
 
@@ -469,7 +474,13 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
     if not p.suffix and not p.exists():
         res = resources.files("bayesid") / "vehicles" / f"{path_or_id}.toml"
         if not res.is_file():
-            raise FileNotFoundError(f"no vehicle file {path_or_id!r}; packaged: {packaged_vehicles()}")
+            hint = DOCS_EXAMPLES.get(str(path_or_id).lower())
+            hint = (
+                f"; {path_or_id} is a worked example of the docs, not packaged: its file is {hint} in the source tree (give that path)"
+                if hint
+                else ""
+            )
+            raise FileNotFoundError(f"no vehicle file {path_or_id!r}; packaged: {packaged_vehicles()}{hint}")
         p = Path(str(res))
     if not p.is_file():
         raise FileNotFoundError(f"vehicle file {p} does not exist")
