@@ -13,7 +13,7 @@ import numpy as np
 import bayesid
 from bayesid.cli import main
 from bayesid.data.track import Track, write_csv
-from bayesid.data.validate import BayesidWarning, TrackWarning
+from bayesid.data.validate import BayesidWarning, TrackWarning, in_api_terms
 from bayesid.models.ship import load_ship
 from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
 
@@ -60,5 +60,8 @@ def test_every_warning_bayesid_fit_prints_on_a_file_is_a_python_warning_of_ident
         warnings.simplefilter("always")
         bayesid.identify(load_ship("kvlcc2_7m"), tracks, bayesid.FitOptions(free=FREE, max_nfev=2))
     api = [str(r.message) for r in rec if issubclass(r.category, TrackWarning)]
-    assert {_text(w) for w in cli} <= {_text(w) for w in api}, (cli, api)
+    # the API's text is the command's, with the API's name of each command option it names
+    assert {_text(in_api_terms(w)) for w in cli} <= {_text(w) for w in api}, (cli, api)
+    rudder = next(w for w in api if "coarse for the rudder" in w)
+    assert '--inputs rate is FitOptions(inputs="rate")' in rudder and "rudder_rate_deg_s" in rudder, rudder
     assert all(issubclass(r.category, BayesidWarning) for r in rec if "rudder" in str(r.message))

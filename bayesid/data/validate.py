@@ -28,6 +28,38 @@ class BayesidWarning(UserWarning):
     every one of them an error, ``"ignore"`` silences them (the commands print their own)."""
 
 
+#: The command options the track checks' and the step check's advice names, and the option of the
+#: Python API that does the same (a warning raised by :func:`bayesid.identify` names both)
+API_OPTIONS = {
+    "--inputs rate": 'FitOptions(inputs="rate")',
+    "--inputs hold": 'FitOptions(inputs="hold")',
+    "--rudder-rate": "FitOptions(rudder_rate_deg_s=...)",
+    "--retime": "FitOptions(retime=True)",
+    "--dt auto": "FitOptions(refine_step=True)",
+    "--vehicle": "the vehicle given to identify",
+}
+
+
+def in_api_terms(message: str) -> str:
+    """A message of the track checks or the step check with the Python API's name of each command
+    option it names appended (``--inputs rate`` is ``FitOptions(inputs="rate")``), for the
+    warnings the API raises.
+
+    Parameters
+    ----------
+    message : str
+        The advice as the commands print it.
+
+    Returns
+    -------
+    str
+        The same text, followed by ``(in the Python API: ...)`` when it names an option of
+        :data:`API_OPTIONS`.
+    """
+    said = [f"{cli} is {api}" for cli, api in API_OPTIONS.items() if cli in message]
+    return f"{message} (in the Python API: {'; '.join(said)})" if said else message
+
+
 class TrackWarning(BayesidWarning):
     """A track that passed its checks but deserves a look (:func:`check_track`'s warnings: a
     coarse log for the inputs, a propeller at 0 rpm while moving, a wrapped heading, a rudder past

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..data.validate import TrackWarning, check_track
+from ..data.validate import TrackWarning, check_track, in_api_terms
 from ..models import build_model
 from ..protocol import resolve_start, start_settings
 from ..tasks import Runner
@@ -193,7 +193,7 @@ def identify(
         raise ValueError("identify needs at least one training track")
     for tr in train:  # what the commands print about their files, as Python warnings
         for w in check_track(tr, vehicle):
-            warnings.warn(w, TrackWarning, stacklevel=2)
+            warnings.warn(in_api_terms(w), TrackWarning, stacklevel=2)
     say = runner.say
     channels = wf.check_channels(options.channels)
     dt, p_start, tried, first = options.dt, None, [], None
@@ -208,7 +208,7 @@ def identify(
         dt, p_start = st.model.dt / 2, st.f.p
     check.steps_tried = tried
     if check.too_coarse:
-        warnings.warn(check.sentence(), StepWarning, stacklevel=2)
+        warnings.warn(in_api_terms(check.sentence()), StepWarning, stacklevel=2)
     model, f, gp, prior_info = st.model, st.f, st.gp, st.prior_info
     calib = None
     if calibration is not None and len(train) >= 3:

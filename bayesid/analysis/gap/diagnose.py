@@ -945,7 +945,8 @@ def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> BaseCh
             "base fit suspect: "
             + "; ".join(msgs)
             + ": either the fit failed (a local optimum) or the model misses structure its coefficients and "
-            "window starts absorb; rule out the first (diagnose --starts N) before reading the verdict"
+            "window starts absorb; rule out the first (diagnose --starts N; DiagnoseOptions(base_starts=N) in the Python "
+            "API) before reading the verdict"
         )
     else:
         msg = f"base fit: held-out / training RMS under the same protocol {ratio:.2f} (<= {BASE_FIT_RATIO:g})"
