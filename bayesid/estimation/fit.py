@@ -86,7 +86,9 @@ class FitResult:
     at_bound : list of str
         Names of parameters at a bound at the optimum.
     history : list of dict
-        Per iterate: cost, step and active bounds.
+        Per iterate: cost, step and active bounds. For a stateful objective (fitted window starts
+        warm-started from the previous evaluation) the cost as the solver evaluated it at that
+        iterate, NaN where it did not.
     jac : ndarray, shape (n_res, n), optional
         Jacobian at the optimum when the solver has one.
     n_residuals : int, default 0
@@ -453,6 +455,8 @@ def _result(objective, mon, x, bounds, iterates, solved) -> FitResult:
     iter_set = {tuple(v) for v in iterates}
     n_cost = sum(1 for v, _ in mon.evals if tuple(v) in iter_set)
     known = {tuple(v): c for v, c in mon.evals} if objective.cache_residuals else {}
+    # a stateful objective cannot be evaluated again as it was: its iterates' costs as the solver saw them
+    seen = {tuple(v): c for v, c in mon.evals}
 
     def cost(v):
         if tuple(v) in known:
@@ -465,7 +469,7 @@ def _result(objective, mon, x, bounds, iterates, solved) -> FitResult:
         hist.append(
             dict(
                 iteration=k,
-                cost=cost(v) if objective.cache_residuals else float("nan"),
+                cost=cost(v) if objective.cache_residuals else float(seen.get(tuple(v), float("nan"))),
                 step=float(np.linalg.norm(v - prev)) if prev is not None else 0.0,
                 active_bounds=[objective.names[i] for i in _active(v, lo, hi)],
             )
