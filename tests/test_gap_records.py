@@ -29,6 +29,7 @@ KEYS = {
     CandidateRow: (
         "effect", "heldout_rms_m", "train_rms_m", "delta_bic", "excess_removed", "share_of_excess",
         "heldout_shrinkage", "parameters", "heading_rms_deg", "window_p_value", "nfev", "fit_seconds", "role",
+        "parameter_sd", "undetermined",  # issue 69, appended
     ),
     BaseCheck: ("train_rms_at_window_m", "heldout_rms_m", "ratio", "threshold", "starts", "suspect", "message", "multistart"),
     TermRow: (

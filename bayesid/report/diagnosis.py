@@ -7,6 +7,7 @@ import math
 from functools import partial
 from pathlib import Path
 
+from ..analysis.gap.candidates import UNDETERMINED_SCALES
 from ..analysis.gap.records import BaseCheck, CandidateRow, NoiseFloor, Remainder, TermRow
 from .markdown import fmt, md_table, warning_lines
 from .study import write_json
@@ -904,6 +905,29 @@ def _how_far_lines(res: dict) -> list:
     ]
 
 
+def _undetermined_lines(res: dict) -> list:
+    """A paragraph naming the candidates whose parameters the training runs do not determine
+    (``CandidateRow.undetermined``): their fitted values and held-out tests say nothing either way,
+    so a verdict of none is "these runs cannot tell" for them, not "nothing is missing"."""
+    rows = [r for r in map(partial(_record, CandidateRow), res["ranking"]) if r.undetermined]
+    if not rows:
+        return []
+    said = [
+        f"{r.effect} ("
+        + ", ".join(f"{p} {fmt(r.parameters[p])} +- {fmt(r.parameter_sd[p])}" for p in r.undetermined)
+        + ")"
+        for r in rows
+    ]
+    return [
+        "",
+        f"Not determined by the training runs: {'; '.join(said)} (Laplace sd over "
+        f"{UNDETERMINED_SCALES:g} times the effect's typical size, a lower bound). For these candidates the "
+        "fitted values and the held-out test say nothing either way: these runs cannot tell whether the effect "
+        "is present, and a verdict that leaves it out is not evidence that it is absent. A velocity log, longer "
+        "windows or a manoeuvre that excites it would.",
+    ]
+
+
 def _which_lines(res: dict) -> list:
     """The "Which" section: the ranking of the candidate effects, the verdict in words, the rules
     and the sparse-regression support."""
@@ -933,6 +957,7 @@ def _which_lines(res: dict) -> list:
                 for r in map(partial(_record, CandidateRow), res["ranking"])
             ],
         ),
+        *_undetermined_lines(res),
         "",
         *attribution_lines(res),
         "",

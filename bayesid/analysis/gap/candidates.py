@@ -18,6 +18,7 @@ import numpy as np
 
 from ...estimation import shooting
 from ...estimation.fit import FitResult
+from ...estimation.laplace import gauss_newton_covariance
 from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores_and_window_rms
 from ...models import build_model
 from .records import CandidateRow
@@ -380,6 +381,66 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
     return score_stage(model, best, ctx_train, ctx_held, sd_fit), messages
 
 
+#: An effect parameter whose Laplace sd exceeds this many times the effect's typical size of it
+#: (``Effect.scale``) is not determined by the training runs (issue 69: on two 5 Hz AUV runs without
+#: a velocity log a current was fitted at half the truth with sds of 5.6 m/s, 56 times its 0.1 m/s)
+UNDETERMINED_SCALES = 10.0
+
+
+def parameter_sds(fit: FitResult, effect) -> dict | None:
+    """Laplace sds of an effect's fitted parameters, marginal over every other fitted variable.
+
+    Gauss-Newton at the optimum, ``(J^T J)^+ s2`` with ``s2 = SSR / (n - k)``
+    (:func:`bayesid.estimation.laplace.gauss_newton_covariance`), without the AR(1) inflation of
+    :func:`~bayesid.estimation.laplace.fit_covariance`: a lower bound of the sd, so that a
+    parameter it calls undetermined is so at least by this much.
+
+    Parameters
+    ----------
+    fit : FitResult
+        The candidate's fit (its Jacobian ``jac``, shape (n_res, n_x), and ``names``).
+    effect : Effect
+        The candidate effect.
+
+    Returns
+    -------
+    dict or None
+        ``{parameter: sd}`` in the parameter's unit; None when the fit has no Jacobian.
+    """
+    if fit.jac is None:
+        return None
+    J = fit.jac.toarray() if hasattr(fit.jac, "toarray") else np.asarray(fit.jac, float)
+    if not np.isfinite(J).all():
+        return None
+    s2 = fit.cost / max(J.shape[0] - J.shape[1], 1)
+    cov = gauss_newton_covariance(J, residual_variance=s2)
+    index = {n: j for j, n in enumerate(fit.names)}
+    keys = {p: f"{effect.name}.{p}" for p in effect.params}
+    return {p: float(np.sqrt(max(cov[index[k], index[k]], 0.0))) for p, k in keys.items() if k in index}
+
+
+def undetermined_parameters(effect, sds: dict | None) -> list[str]:
+    """The parameters of an effect the training runs do not determine: Laplace sd (``sds``,
+    :func:`parameter_sds`) above :data:`UNDETERMINED_SCALES` times the effect's typical size
+    (``Effect.scale``).
+
+    Parameters
+    ----------
+    effect : Effect
+        The candidate effect.
+    sds : dict or None
+        ``{parameter: sd}``; None gives none.
+
+    Returns
+    -------
+    list of str
+        The parameters, in the effect's order.
+    """
+    if not sds:
+        return []
+    return [p for p, sc in zip(effect.params, effect.scale) if sds.get(p, 0.0) > UNDETERMINED_SCALES * abs(sc)]
+
+
 def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> CandidateRow:
     """The ranking's record of a fitted candidate against the model it extends.
 
@@ -407,6 +468,7 @@ def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: floa
     """
     excess = ref.held["rms_position_m"] - floor_rms
     gain = ref.held["rms_position_m"] - st.held["rms_position_m"]
+    sds = parameter_sds(st.fit, effect)
     return CandidateRow(
         effect=effect.name,
         heldout_rms_m=st.held["rms_position_m"],
@@ -420,4 +482,6 @@ def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: floa
         window_p_value=paired_window_test(ref.windows, st.windows),
         nfev=st.fit.n_simulations,
         fit_seconds=st.fit.wall_s,
+        parameter_sd=sds,
+        undetermined=undetermined_parameters(effect, sds),
     )

@@ -11,7 +11,7 @@ back.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
 from ...protocol import Scores
@@ -198,6 +198,14 @@ class CandidateRow(Record):
     role : str or None
         ``"cause"``, ``"contributor"`` or None, by the verdict's rules
         (:func:`~bayesid.analysis.gap.verdict.assign_roles`; None until the round is judged).
+    parameter_sd : dict or None
+        Laplace sd of each fitted parameter of the effect (units in the name), marginal over the
+        model's other parameters (:func:`~bayesid.analysis.gap.candidates.parameter_sds`); None
+        where the fit has no Jacobian (left out of the JSON then).
+    undetermined : list of str
+        The parameters whose sd exceeds :data:`~bayesid.analysis.gap.candidates.UNDETERMINED_SCALES`
+        times the effect's typical size (``Effect.scale``): the training runs do not determine
+        them, and the candidate's fitted values and held-out test say nothing either way.
     """
 
     effect: str
@@ -213,7 +221,10 @@ class CandidateRow(Record):
     nfev: int
     fit_seconds: float
     role: str | None = None
+    parameter_sd: dict | None = None
+    undetermined: list = field(default_factory=list)
 
+    _OPTIONAL: ClassVar[tuple] = ("parameter_sd",)
     _WHAT: ClassVar[str] = "candidate"
 
 
