@@ -433,6 +433,26 @@ class _KnownTerms:
 DOCS_EXAMPLES = {"remus100": "docs/examples/remus100.toml", "kvlcc2_7m_mmg": "docs/vessels/kvlcc2_7m_mmg.toml"}
 
 
+def docs_example_hint(path_or_id) -> str:
+    """The end of the error for an id that is not packaged: where the docs' file of that id is
+    (:data:`DOCS_EXAMPLES`), or nothing.
+
+    Parameters
+    ----------
+    path_or_id : str or Path
+        The id the user gave.
+
+    Returns
+    -------
+    str
+        ``"; remus100 is a worked example of the docs, ..."`` or ``""``.
+    """
+    path = DOCS_EXAMPLES.get(str(path_or_id).lower())
+    if path is None:
+        return ""
+    return f"; {path_or_id} is a worked example of the docs, not packaged: its file is {path} in the source tree (give that path)"
+
+
 def packaged_vehicles() -> list[str]:
     """Ids of the vehicle files shipped with the package.
 
@@ -474,13 +494,9 @@ def load_vehicle(path_or_id: str | Path) -> Vehicle:
     if not p.suffix and not p.exists():
         res = resources.files("bayesid") / "vehicles" / f"{path_or_id}.toml"
         if not res.is_file():
-            hint = DOCS_EXAMPLES.get(str(path_or_id).lower())
-            hint = (
-                f"; {path_or_id} is a worked example of the docs, not packaged: its file is {hint} in the source tree (give that path)"
-                if hint
-                else ""
+            raise FileNotFoundError(
+                f"no vehicle file {path_or_id!r}; packaged: {packaged_vehicles()}{docs_example_hint(path_or_id)}"
             )
-            raise FileNotFoundError(f"no vehicle file {path_or_id!r}; packaged: {packaged_vehicles()}{hint}")
         p = Path(str(res))
     if not p.is_file():
         raise FileNotFoundError(f"vehicle file {p} does not exist")

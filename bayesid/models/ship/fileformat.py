@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ...data.priors import parse_prior_section
-from ...data.vehicle import DOCS_EXAMPLES, VehicleFileError
+from ...data.vehicle import VehicleFileError, docs_example_hint
 from . import hullterms
 from .layout import COEFFICIENTS, FOLLOWS, PARTICULARS, WIND
 
@@ -299,13 +299,9 @@ def _resolve(path_or_id) -> Path:
     if not p.suffix and not p.exists():
         res = resources.files("bayesid") / "vehicles" / f"{path_or_id}.toml"
         if not res.is_file():
-            hint = DOCS_EXAMPLES.get(str(path_or_id).lower())
-            hint = (
-                f"; {path_or_id} is a worked example of the docs, not packaged: its file is {hint} in the source tree (give that path)"
-                if hint
-                else ""
+            raise FileNotFoundError(
+                f"no vehicle file {path_or_id!r}; packaged ships: {packaged_ships()}{docs_example_hint(path_or_id)}"
             )
-            raise FileNotFoundError(f"no vehicle file {path_or_id!r}; packaged ships: {packaged_ships()}{hint}")
         return Path(str(res))
     if not p.is_file():
         raise FileNotFoundError(f"vehicle file {p} does not exist")
