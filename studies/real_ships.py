@@ -36,7 +36,7 @@ Method
   the rate the HSVA runs log: :func:`turn_approach`) are predicted from the zigzag-trained model
   with a posterior predictive band (Laplace draws).
 
-    python studies/real_ships.py [--quick] [--out DIR] [--data DIR] [--draws N]
+    python studies/real_ships.py [--quick] [--out DIR] [--data DIR] [--draws N] [--render]
 """
 
 from __future__ import annotations
@@ -93,7 +93,8 @@ def parse_args():
     ap.add_argument(
         "--quick",
         action="store_true",
-        help="few runs, few iterations, two effects and three candidate terms per diagnosis (a smoke test)",
+        help="three runs to train (Esso: their first 200 s), few iterations, two effects and three candidate terms "
+        "per diagnosis (a smoke test)",
     )
     ap.add_argument("--out", default="reports/real_ships")
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
