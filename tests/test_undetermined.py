@@ -32,6 +32,15 @@ def test_a_parameter_the_residuals_hardly_move_is_undetermined_and_the_others_ar
     assert sds["current_east_mps"] > UNDETERMINED_SCALES * current.scale[1]
     assert undetermined_parameters(current, sds) == ["current_east_mps"]
     assert undetermined_parameters(current, parameter_sds(_fit(1.0), current)) == []
+    # a column the residuals do not move at all, or one the others reproduce: infinite, not the zero
+    # sd a pseudo-inverse gives a null direction
+    for col in (0.0, "copy"):
+        fit = _fit(1.0)
+        fit.jac[:, 2] = fit.jac[:, 1] if col == "copy" else 0.0
+        sds = parameter_sds(fit, current)
+        assert sds["current_east_mps"] == np.inf and undetermined_parameters(current, sds) == (
+            ["current_north_mps", "current_east_mps"] if col == "copy" else ["current_east_mps"]
+        ), (col, sds)
     assert parameter_sds(SimpleNamespace(jac=None, cost=1.0, names=[]), current) is None
     assert undetermined_parameters(current, None) == []
 

@@ -18,7 +18,6 @@ import numpy as np
 
 from ...estimation import shooting
 from ...estimation.fit import FitResult
-from ...estimation.laplace import gauss_newton_covariance
 from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores_and_window_rms
 from ...models import build_model
 from .records import CandidateRow
@@ -385,15 +384,21 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
 #: (``Effect.scale``) is not determined by the training runs (issue 69: on two 5 Hz AUV runs without
 #: a velocity log a current was fitted at half the truth with sds of 5.6 m/s, 56 times its 0.1 m/s)
 UNDETERMINED_SCALES = 10.0
+#: Singular values of the column-scaled Jacobian under this share of the largest are directions the
+#: residuals do not move (:func:`parameter_sds`)
+NULL_RCOND = 1e-10
 
 
 def parameter_sds(fit: FitResult, effect) -> dict | None:
     """Laplace sds of an effect's fitted parameters, marginal over every other fitted variable.
 
-    Gauss-Newton at the optimum, ``(J^T J)^+ s2`` with ``s2 = SSR / (n - k)``
-    (:func:`bayesid.estimation.laplace.gauss_newton_covariance`), without the AR(1) inflation of
+    Gauss-Newton at the optimum, ``(J^T J)^-1 s2`` with ``s2 = SSR / (n - k)``, from the SVD of the
+    Jacobian with its columns scaled to unit norm; without the AR(1) inflation of
     :func:`~bayesid.estimation.laplace.fit_covariance`: a lower bound of the sd, so that a
-    parameter it calls undetermined is so at least by this much.
+    parameter it calls undetermined is so at least by this much. A parameter with a share in a
+    direction the residuals do not move (singular value under :data:`NULL_RCOND` of the largest:
+    a zero column, or one the others reproduce) has an infinite sd, where a pseudo-inverse would
+    give it none.
 
     Parameters
     ----------
@@ -413,10 +418,19 @@ def parameter_sds(fit: FitResult, effect) -> dict | None:
     if not np.isfinite(J).all():
         return None
     s2 = fit.cost / max(J.shape[0] - J.shape[1], 1)
-    cov = gauss_newton_covariance(J, residual_variance=s2)
+    # the SVD of the column-scaled Jacobian: a parameter with a share in a direction the residuals do
+    # not move (a zero column, or one a combination of the others) has an infinite sd; a pseudo-inverse
+    # would give it none
+    norms = np.linalg.norm(J, axis=0)
+    unit = np.where(norms > 0, norms, 1.0)
+    _, sv, Vt = np.linalg.svd(J / unit, full_matrices=False)
+    null = sv <= NULL_RCOND * (sv[0] if sv.size else 0.0)
+    var = s2 * ((Vt[~null] / sv[~null, None]) ** 2).sum(axis=0) / unit**2
+    unknown = (norms == 0) | (np.abs(Vt[null]) > 1e-6).any(axis=0)
+    sd = np.where(unknown, np.inf, np.sqrt(var))
     index = {n: j for j, n in enumerate(fit.names)}
     keys = {p: f"{effect.name}.{p}" for p in effect.params}
-    return {p: float(np.sqrt(max(cov[index[k], index[k]], 0.0))) for p, k in keys.items() if k in index}
+    return {p: float(sd[index[k]]) for p, k in keys.items() if k in index}
 
 
 def undetermined_parameters(effect, sds: dict | None) -> list[str]:
