@@ -9,7 +9,7 @@ The names a study needs are importable from the package itself (``import bayesid
 the window protocol's predictions (:func:`~bayesid.estimation.prediction.predict`), the posterior
 (:func:`~bayesid.estimation.track_posterior.sample_tracks`,
 :class:`~bayesid.estimation.track_posterior.SampleOptions`,
-:class:`~bayesid.estimation.windows.FitProblem`), the gap diagnosis and structure discovery
+:class:`~bayesid.estimation.windows.WindowProblem`), the gap diagnosis and structure discovery
 (:func:`~bayesid.analysis.gap.diagnose.diagnose`, :class:`~bayesid.analysis.gap.diagnose.DiagnoseOptions`,
 :func:`~bayesid.analysis.gap.discovery.discover`,
 :class:`~bayesid.analysis.gap.discovery.options.DiscoveryOptions`) and :class:`~bayesid.tasks.Runner`.
@@ -101,7 +101,7 @@ _EXPORTS = {
     "FitOptions": "bayesid.estimation.options",
     "identify": "bayesid.estimation.identification",
     "predict": "bayesid.estimation.prediction",
-    "FitProblem": "bayesid.estimation.windows",
+    "WindowProblem": "bayesid.estimation.windows",
     "SampleOptions": "bayesid.estimation.track_posterior",
     "sample_tracks": "bayesid.estimation.track_posterior",
     "DiagnoseOptions": "bayesid.analysis.gap.diagnose",
@@ -113,9 +113,19 @@ _EXPORTS = {
 
 __all__ = list(_EXPORTS)
 
+#: Former public names: ``{old: new}`` (the old name still resolves, with a DeprecationWarning).
+_RENAMED = {"FitProblem": "WindowProblem"}
+
 
 def __getattr__(name: str):
     """A name of :data:`__all__`, imported from its module at first use (then cached here)."""
+    if name in _RENAMED:
+        import warnings
+
+        warnings.warn(
+            f"bayesid.{name} is now bayesid.{_RENAMED[name]} (the same class)", DeprecationWarning, stacklevel=2
+        )
+        return __getattr__(_RENAMED[name])
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

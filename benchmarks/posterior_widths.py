@@ -30,7 +30,7 @@ from bayesid.estimation import track_posterior as tp
 from bayesid.estimation import windows as wf
 from bayesid.estimation.identification import identify
 from bayesid.estimation.options import FitOptions
-from bayesid.estimation.windows import FitProblem
+from bayesid.estimation.windows import WindowProblem
 from bayesid.models import manoeuvres as mv
 from bayesid.models import model_class
 from bayesid.models.world import LogOptions, world_track
@@ -80,7 +80,7 @@ def main(argv=None) -> int:
         res = identify(veh, train, FitOptions(free=free, max_nfev=15))
         ctxs = [res.model.context(t, res.window_s, start=res.start_rule) for t in train]
         out = tp.sample_tracks(
-            FitProblem(res.model, ctxs, res.fit_sd),
+            WindowProblem(res.model, ctxs, res.fit_sd),
             res.fit.p,
             tp.SampleOptions(method="auto", seed=r, max_minutes=3.0),
             importance=tp.ImportanceOptions(n_draws=a.draws),

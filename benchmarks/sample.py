@@ -407,7 +407,7 @@ def bench_velocity_log(key, label, vehicle_id, effects, tracks, args, say, keys)
     from bayesid.estimation import track_posterior as tp
     from bayesid.estimation.identification import identify
     from bayesid.estimation.options import FitOptions
-    from bayesid.estimation.windows import FitProblem
+    from bayesid.estimation.windows import WindowProblem
     from bayesid.models import load_any_vehicle
 
     bare = without_velocity(tracks)
@@ -426,7 +426,9 @@ def bench_velocity_log(key, label, vehicle_id, effects, tracks, args, say, keys)
     channels = tuple(c for c in ("x", "y", "psi") if c in res.fit_sd)
     posts, imps, times = {}, {}, {}
     for name, runs, rule in (("log", tracks, "measured"), ("no_log", bare, "fitted")):
-        problem = FitProblem(model, [model.context(tr, res.window_s, start=rule) for tr in runs], res.fit_sd, channels)
+        problem = WindowProblem(
+            model, [model.context(tr, res.window_s, start=rule) for tr in runs], res.fit_sd, channels
+        )
         post = tp._track_posterior(problem, p0, True, lambda m: None)[0]
         post.evaluate(p0[None])  # warm-up: compiled kernels loaded
         mode = tp.posterior_mode(post, p0)
@@ -480,7 +482,7 @@ def bench_velocity_log(key, label, vehicle_id, effects, tracks, args, say, keys)
     keys[f"{key}_no_log_linearised_over_log"] = sec[("no_log", "linearised")] / base
     keys[f"{key}_linearised_speedup"] = sec[("no_log", "full")] / sec[("no_log", "linearised")]
     if args.budget_minutes:
-        problem = FitProblem(
+        problem = WindowProblem(
             model, [model.context(tr, res.window_s, start="fitted") for tr in bare], res.fit_sd, channels
         )
         for path in ("full", "linearised"):

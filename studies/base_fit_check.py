@@ -71,7 +71,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     """The base fit and its check, the two independent fits, the true model (JSON-able)."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.estimation import shooting
-    from bayesid.estimation.windows import FitProblem, fit_model, scores
+    from bayesid.estimation.windows import WindowProblem, fit_model, scores
 
     tic = time.perf_counter()
     world, train, held = s2r.case_data(case, seed, False)
@@ -88,9 +88,9 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     )
     base, ctr, cho = d.setup.build(())
     truth_p = np.array([wv.coefficients[k] for k in s2r.FREE])
-    f_truth = fit_model(FitProblem(base, ctr, d.fit_sd, max_nfev=nfev), truth_p, None)
+    f_truth = fit_model(WindowProblem(base, ctr, d.fit_sd, max_nfev=nfev), truth_p, None)
     ckin = shooting.kinematic_contexts(base, train, d.setup.fit_window_s, d.fit_sd)
-    f_kin = fit_model(FitProblem(base, ckin, d.fit_sd, max_nfev=nfev), None, None)
+    f_kin = fit_model(WindowProblem(base, ckin, d.fit_sd, max_nfev=nfev), None, None)
     held_of = {k: scores(base, f, cho)["rms_position_m"] for k, f in (("truth_start", f_truth), ("kinematic", f_kin))}
     oracle = s2r.true_model_scores(wv, held, world["objs"], window, d.settings)
     base_held = d.gap_before["heldout_rms_m"]

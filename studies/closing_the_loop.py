@@ -564,7 +564,7 @@ def _diverged_lines(looped: list) -> list:
             "over the windows it did not diverge on"
             for r, k in found
         )
-        + ". A known flaw, not fixed in this run: the held-out scores (``scores_and_window_rms``) drop a window "
+        + ". A known flaw, not fixed in this run: the held-out scores (``Evaluation.scores`` and ``window_rms``) drop a window "
         "whose prediction diverged (NaN) instead of counting it as the worst error, so the kept test and the "
         "comparison of alternatives read such a refit on its other windows only.",
         "",

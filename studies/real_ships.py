@@ -177,7 +177,9 @@ def evaluate(name, ship, train, held, candidates, args, out, log):
     if not res["effects_added"] and top is not None:
         am = build_model(ship, ship.free, [top], 0.2)
         ctr = [am.context(t, fw) for t in train]
-        af = wf.fit_model(wf.FitProblem(am, ctr, res["fit_sd"], max_nfev=args.max_nfev), am.start(bf.p[: bm.n_theta]))
+        af = wf.fit_model(
+            wf.WindowProblem(am, ctr, res["fit_sd"], max_nfev=args.max_nfev), am.start(bf.p[: bm.n_theta])
+        )
     doc["after_effects"] = [e.name for e in am.effects]
     for key, w in (("w30", 30.0), ("w60", 60.0), ("whole_run", None)):
         b, a = _scores(bm, bf, held, w), _scores(am, af, held, w)
@@ -413,11 +415,11 @@ def sampled_posterior(name, label, model, p, res, train, held, prior, args, log)
     from bayesid.estimation import track_posterior as tp
     from bayesid.estimation.laplace import psd_covariance
     from bayesid.estimation.prediction import FittedModel, turning_band
-    from bayesid.estimation.windows import FitProblem
+    from bayesid.estimation.windows import WindowProblem
     from bayesid.tasks import Runner
 
     t0 = time.perf_counter()
-    problem = FitProblem(
+    problem = WindowProblem(
         model, [model.context(t, res.window_s, start=res.start_rule) for t in train], res.fit_sd, res.channels
     )
     post = tp.sample_tracks(

@@ -21,6 +21,7 @@ from bayesid.analysis import gap
 from bayesid.analysis.gap import discovery as dv
 from bayesid.data.track import Track, write_csv
 from bayesid.estimation import shooting
+from bayesid.estimation import windows as wf
 from bayesid.models import ship
 from bayesid.models.ship import hullterms
 
@@ -419,12 +420,12 @@ def test_window_starts_of_a_model_far_off_contradict_the_kinematics_and_the_righ
     ctxs = [m.context(t, 30.0, start="fitted", leadin_s=10.0) for t in tracks]
     sd = {"x": NOISE["x"], "y": NOISE["y"], "psi": NOISE["psi"]}
     z_right = [abs(r["z"]) for r in shooting.start_consistency(m, m.start(), tracks, ctxs, sd, "held-out")]
-    assert len(z_right) >= 15 and max(z_right) < shooting.START_Z
+    assert len(z_right) >= 15 and max(z_right) < wf.START_Z
     p = m.start().copy()
     for name, f in (("Nr", 0.5), ("Nv", 1.5)):
         p[m.free.index(name)] *= f
     rows = shooting.start_consistency(m, p, tracks, ctxs, sd, "held-out")
-    assert np.mean([abs(r["z"]) > shooting.START_Z for r in rows]) > 0.5
+    assert np.mean([abs(r["z"]) > wf.START_Z for r in rows]) > 0.5
     assert {"set", "track", "t_s", "component", "fitted", "kinematic", "sd", "z"} <= set(rows[0])
 
 
@@ -458,7 +459,7 @@ def test_auto_train_starts_refits_with_held_starts_when_the_check_fires_and_keep
     # every start flagged (threshold 0): auto refits with held starts and compares both fits on their
     # own training tracks under the held-out protocol; on a right model with precise runs the fitted
     # starts predict better and are kept, and the comparison is reported
-    monkeypatch.setattr(shooting, "START_Z", 0.0)
+    monkeypatch.setattr(sys.modules["bayesid.analysis.gap.diagnose"], "START_Z", 0.0)
     kv, train, held = _runs({}, velocity_log=False)
     opts = gap.DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=20, train_starts="auto")
     d = gap.diagnose(kv, kv.free, train, held, opts)
@@ -555,20 +556,20 @@ def test_a_refit_warm_starts_from_the_window_starts_of_the_fit_it_extends():
     # off settles elsewhere (measured on sim_to_real's constant-yaw-moment case without the log: cost
     # 8.6e7 cold at the base fit's parameters against 1.9e4 at its own starts), and discovery's refits
     # ended "above the reference" for that reason alone
-    from bayesid.estimation.windows import FitProblem, fit_model
+    from bayesid.estimation.windows import WindowProblem, fit_model
 
     kv, train, held = _runs({"Nabsdr": 0.004}, velocity_log=False, duration=100.0)
     m = ship.ShipModel(kv, dt=0.1)
     ctxs = [m.context(t, 30.0, start="fitted", leadin_s=10.0) for t in train]
     sd = {"x": NOISE["x"], "y": NOISE["y"], "psi": NOISE["psi"]}
-    f = fit_model(FitProblem(m, ctxs, sd, max_nfev=15))
+    f = fit_model(WindowProblem(m, ctxs, sd, max_nfev=15))
     assert [np.shape(s) for s in f.window_starts] == [(c.W, 6) for c in ctxs]
-    again = fit_model(FitProblem(m, ctxs, sd, max_nfev=1), f.p, starts0=f.window_starts)
+    again = fit_model(WindowProblem(m, ctxs, sd, max_nfev=1), f.p, starts0=f.window_starts)
     assert again.start_cost == pytest.approx(f.cost, rel=1e-6)
     with pytest.raises(ValueError, match=train[0].name):
-        fit_model(FitProblem(m, ctxs, sd, max_nfev=1), f.p, starts0=[s[:-1] for s in f.window_starts])
+        fit_model(WindowProblem(m, ctxs, sd, max_nfev=1), f.p, starts0=[s[:-1] for s in f.window_starts])
     # measured starts have none to keep
-    assert fit_model(FitProblem(m, [m.context(t, 30.0) for t in train], sd, max_nfev=1)).window_starts is None
+    assert fit_model(WindowProblem(m, [m.context(t, 30.0) for t in train], sd, max_nfev=1)).window_starts is None
 
 
 def test_write_vehicle_replaces_a_coefficient_the_file_gives_at_zero(tmp_path):

@@ -80,7 +80,7 @@ def test_one_fit_function_serves_both_objectives(short_problem, nps):
     """The paper's whole-track Problem and the multiple-shooting WindowObjective go through the
     same fit() and return the same FitResult type; an unknown method is refused by name."""
     from bayesid.estimation.fit import FitResult
-    from bayesid.estimation.windows import FitProblem, fit_model
+    from bayesid.estimation.windows import WindowProblem, fit_model
     from bayesid.models.submarine import EffectModel
 
     case, pb = short_problem
@@ -90,7 +90,9 @@ def test_one_fit_function_serves_both_objectives(short_problem, nps):
     tr = Simulator(nps, m, mode="horizontal").run().track(0)  # every step: the rudder log is exact
     model = EffectModel(nps.with_coefficients({"Nr": 1.2 * nps.coefficients["Nr"]}), ["Nr"], dt=0.1)
     res = fit_model(
-        FitProblem(model, [model.context(tr, 30.0)], {c: 0.01 for c in ("x", "y", "psi", "u", "v", "r")}, max_nfev=20)
+        WindowProblem(
+            model, [model.context(tr, 30.0)], {c: 0.01 for c in ("x", "y", "psi", "u", "v", "r")}, max_nfev=20
+        )
     )
     assert isinstance(res, FitResult) and type(res) is type(
         fit_problem(pb, np.ones(len(case.free)), case.scaled_bounds(), SolverOptions(max_nfev=2))

@@ -153,12 +153,25 @@ def test_a_gap_ending_between_model_steps_starts_its_window_on_the_first_sample_
 
 
 @pytest.mark.parametrize("start", ["measured", "fitted"])
-def test_scores_and_window_rms_from_one_simulation_equal_the_two_apart(setup, start):
+def test_one_evaluation_gives_the_scores_window_errors_and_states_of_the_shooting_simulation(setup, start):
+    from bayesid.estimation import shooting
+    from bayesid.models import context as ctxmod
+
     tr, model, fit = setup
     pieces = [_rows(tr, tr.t <= 80.0, "a"), _rows(tr, tr.t >= 100.0, "b")]
     ctxs = [model.context(t, 30.0, start=start, leadin_s=10.0 if start == "fitted" else 0.0) for t in pieces]
     sd = {"x": 0.1, "y": 0.1, "psi": 0.01}
-    both, windows = wf.scores_and_window_rms(model, fit, ctxs, sd=sd)
-    assert both.to_dict() == wf.scores(model, fit, ctxs, sd=sd).to_dict()
+    ev = wf.evaluate(model, fit.p, ctxs)
+    assert ev.scores(sd).to_dict() == wf.scores(model, fit, ctxs, sd=sd).to_dict()
+    windows = ev.window_rms()
     np.testing.assert_array_equal(windows, wf.window_rms(model, fit, ctxs))
     assert windows.shape == (sum(c.W for c in ctxs),)
+    np.testing.assert_array_equal(ev.window_runs(), np.repeat([0, 1], [c.W for c in ctxs]))
+    for ctx, S0, e, st in zip(ctxs, ev.states, ev.errors, ev.starts):
+        S = shooting.simulate(model, ctx, fit.p[None])  # the start rule applied as the fits apply it
+        np.testing.assert_array_equal(S0, S[0])
+        for k, v in ctxmod.errors(ctx, S).items():
+            np.testing.assert_array_equal(e[k], v[0])
+        assert (st is None) == (start != "fitted")
+        if st is not None:
+            np.testing.assert_array_equal(st, wf.window_starts(model, fit.p, ctx))

@@ -27,7 +27,7 @@ EXPECTED = {
     "FitOptions",
     "identify",
     "predict",
-    "FitProblem",
+    "WindowProblem",
     "SampleOptions",
     "sample_tracks",
     "DiagnoseOptions",
@@ -60,6 +60,13 @@ def test_dir_lists_every_name_before_and_after_its_import():
     listed = json.loads(_run("import bayesid, json; print(json.dumps(dir(bayesid)))"))
     assert set(bayesid.__all__) | {"__version__"} <= set(listed)
     assert set(bayesid.__all__) <= set(dir(bayesid))
+
+
+def test_a_renamed_name_still_resolves_with_a_deprecation_warning():
+    with pytest.warns(DeprecationWarning, match="bayesid.FitProblem is now bayesid.WindowProblem"):
+        old = bayesid.FitProblem
+    assert old is bayesid.WindowProblem
+    assert "FitProblem" not in bayesid.__all__
 
 
 def test_an_unknown_name_is_an_attribute_error():

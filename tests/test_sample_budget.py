@@ -19,7 +19,7 @@ import pytest
 from bayesid.cli import main
 from bayesid.data.track import Track, read_csv, write_csv
 from bayesid.estimation import track_posterior as tp
-from bayesid.estimation.windows import FitProblem
+from bayesid.estimation.windows import WindowProblem
 from bayesid.models import build_model
 from bayesid.models.ship import load_ship
 from bayesid.report.sample import budget_lines
@@ -31,7 +31,7 @@ FREE = ["Yv", "Yr", "Nv", "Nr"]
 
 @pytest.fixture(scope="module")
 def case(tmp_path_factory):
-    """(folder, track files, FitProblem, p0): the runs without a velocity log, 4 free
+    """(folder, track files, WindowProblem, p0): the runs without a velocity log, 4 free
     coefficients, 15 s windows with fitted start states; p0 the vehicle file's values."""
     d = tmp_path_factory.mktemp("budget")
     rng = np.random.default_rng(3)
@@ -50,7 +50,7 @@ def case(tmp_path_factory):
     model = build_model(load_ship("kvlcc2_7m"), FREE, (), 0.2)
     ctxs = [model.context(t, 15.0, start="fitted") for t in tracks]
     assert all(c.start == "fitted" for c in ctxs)
-    return d, files, FitProblem(model, ctxs, SD, ("x", "y", "psi")), model.start()
+    return d, files, WindowProblem(model, ctxs, SD, ("x", "y", "psi")), model.start()
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +70,7 @@ def misfit(case):
     wrong = {k: 1.2 * ship.coefficients[k] for k in ("Nvvr", "Yvrr", "Ncf", "Ycf")}
     model = build_model(ship.with_coefficients(wrong), FREE, (), 0.2)
     tracks = [read_csv(f) for f in files]
-    problem = FitProblem(model, [model.context(t, 15.0, start="fitted") for t in tracks], SD, ("x", "y", "psi"))
+    problem = WindowProblem(model, [model.context(t, 15.0, start="fitted") for t in tracks], SD, ("x", "y", "psi"))
     post = tp._track_posterior(problem, model.start(), True, lambda m: None)[0]
     return post, tp.posterior_mode(post, model.start())
 

@@ -196,20 +196,20 @@ def test_residual_weighting_follows_the_structural_error():
     sd = {k: noise[k] for k in ("x", "y", "psi", "u", "v", "r")}
     right = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [right.context(tr, 30.0)]
-    f, sd2 = wf.fit_weighted(wf.FitProblem(right, ctx, sd, max_nfev=20), weighting="residual")
+    f, sd2 = wf.fit_weighted(wf.WindowProblem(right, ctx, sd, max_nfev=20), weighting="residual")
     assert set(sd2) == set(sd) and all(sd2[k] >= sd[k] for k in sd)
     # the model is right: residuals ~ noise (x, y, psi ~3x: the start-state noise propagates)
     assert all(sd2[k] < 5 * sd[k] for k in sd)
     assert dict(zip(right.param_names, f.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
     wrong = ship.ShipModel(kv, ["Xuu"], dt=0.1)  # cannot change the turning: structural error
     cw = [wrong.context(tr, 30.0)]
-    fw, sdw = wf.fit_weighted(wf.FitProblem(wrong, cw, sd, max_nfev=10), weighting="residual")
+    fw, sdw = wf.fit_weighted(wf.WindowProblem(wrong, cw, sd, max_nfev=10), weighting="residual")
     assert sdw["psi"] > 5 * sd2["psi"] and sdw["x"] > 5 * sd2["x"]
     assert sdw == pytest.approx(
-        wf.residual_sd(wrong, wf.fit_model(wf.FitProblem(wrong, cw, sd, max_nfev=10)), cw, sd), rel=0.2
+        wf.residual_sd(wrong, wf.fit_model(wf.WindowProblem(wrong, cw, sd, max_nfev=10)), cw, sd), rel=0.2
     )
     with pytest.raises(ValueError, match="weighting"):
-        wf.fit_weighted(wf.FitProblem(right, ctx, sd), weighting="robust")
+        wf.fit_weighted(wf.WindowProblem(right, ctx, sd), weighting="robust")
 
 
 def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tmp_path, capsys):
@@ -223,8 +223,8 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     bad = tr.with_columns(r=tr["r"] + math.radians(1.0) * np.sin(2 * np.pi * tr.t / 30.0))
     m = ship.ShipModel(kv, ["Nr", "Yv"], dt=0.1)
     ctx = [m.context(bad, 30.0)]
-    every = wf.fit_model(wf.FitProblem(m, ctx, noise, max_nfev=20))
-    pos = wf.fit_model(wf.FitProblem(m, ctx, noise, channels=("x", "y", "psi"), max_nfev=20))
+    every = wf.fit_model(wf.WindowProblem(m, ctx, noise, max_nfev=20))
+    pos = wf.fit_model(wf.WindowProblem(m, ctx, noise, channels=("x", "y", "psi"), max_nfev=20))
     assert pos.channels == ("x", "y", "psi") and pos.n_residuals == every.n_residuals // 2
     assert dict(zip(m.param_names, pos.p))["Yv"] == pytest.approx(-0.25, rel=0.02)
     assert dict(zip(m.param_names, pos.p))["Nr"] == pytest.approx(-0.07, rel=0.05)
@@ -234,10 +234,10 @@ def test_fit_channels_leave_a_corrupted_velocity_channel_out_of_the_objective(tm
     )
     assert res.fit.channels == ("x", "y", "psi") and np.all(np.isfinite(res.cov))
     with pytest.raises(ValueError, match="'q'|q;"):
-        wf.fit_model(wf.FitProblem(m, ctx, noise, channels=("x", "q")))
+        wf.fit_model(wf.WindowProblem(m, ctx, noise, channels=("x", "q")))
     no_u = Track(tr.t, {k: tr[k] for k in ("x", "y", "psi", "delta_r", "n")}, name="no_velocities")
     with pytest.raises(ValueError, match="no_velocities"):
-        wf.fit_model(wf.FitProblem(m, [m.context(no_u, 30.0)], noise, channels=("u",)))
+        wf.fit_model(wf.WindowProblem(m, [m.context(no_u, 30.0)], noise, channels=("u",)))
     from bayesid.data.track import write_csv
 
     write_csv(bad, tmp_path / "bad.csv")

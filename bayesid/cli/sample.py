@@ -262,7 +262,7 @@ def _sample(args, model, p, doc, got: dict, model_sha: str, out: Path):
     the window start rule."""
     from ..estimation import track_posterior as tp
     from ..estimation.sampling import Checkpoint
-    from ..estimation.windows import FitProblem
+    from ..estimation.windows import WindowProblem
     from ..protocol import resolve_start
 
     train = got["--train"]
@@ -280,7 +280,7 @@ def _sample(args, model, p, doc, got: dict, model_sha: str, out: Path):
         "start_profile": "linearised" if rule == "fitted" else "measured",
     }
     journal = tasks.Journal(out / "journal.jsonl", identity)
-    problem = FitProblem(
+    problem = WindowProblem(
         model, [model.context(t, doc.fit_window_s, start=rule) for t in train], doc.fit_sd, doc.fit_channels
     )
     res = tp.sample_tracks(

@@ -155,7 +155,7 @@ class Fold:
 
     Parameters
     ----------
-    refit : FitProblem
+    refit : WindowProblem
         The full fit's problem and settings, refitted without the left-out runs.
     ks : list of int
         Indices of the left-out runs in ``refit.ctxs``.
@@ -177,7 +177,7 @@ class Fold:
         Seed of those draws.
     """
 
-    refit: wf.FitProblem
+    refit: wf.WindowProblem
     ks: list
     p: object
     nuisance: list | None
@@ -241,7 +241,7 @@ def fold_scores(fold: Fold) -> dict:
 
 
 def leave_one_run_out(
-    refit: wf.FitProblem,
+    refit: wf.WindowProblem,
     fit,
     train,
     options: CalibrationOptions = CalibrationOptions(),
@@ -254,7 +254,7 @@ def leave_one_run_out(
 
     Parameters
     ----------
-    refit : FitProblem
+    refit : WindowProblem
         The full fit's problem and settings, which every fold refits.
     fit : FitResult
         The full fit (``p``, ``nuisance``: the refits' start).

@@ -246,7 +246,7 @@ class _Stage:
     ctxs)`` for the step check."""
 
     model: object
-    problem: wf.FitProblem
+    problem: wf.WindowProblem
     f: FitResult
     cov: np.ndarray
     post: dict
@@ -303,7 +303,7 @@ def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, run
         seed_info.pop("tried", None)
     say(f"multiple-shooting fit (model step {model.dt:g} s)")
     weighting = options.weighting or model.DEFAULT_WEIGHTING
-    problem = wf.FitProblem(model, ctxs, sd, channels=channels, max_nfev=options.max_nfev)
+    problem = wf.WindowProblem(model, ctxs, sd, channels=channels, max_nfev=options.max_nfev)
     f, sd_fit = wf.fit_weighted(problem, p0, weighting=weighting, bar=runner.bar("fit"))
     problem = dataclasses.replace(problem, sd=sd_fit)
     ms = None
@@ -386,7 +386,7 @@ def _equation_error_start(model, ctxs, train, sd, channels) -> tuple:
     return p0, dict(info, used=False, tried=True)
 
 
-def _multistart(problem: wf.FitProblem, f: FitResult, p0, options: FitOptions, runner: Runner) -> tuple:
+def _multistart(problem: wf.WindowProblem, f: FitResult, p0, options: FitOptions, runner: Runner) -> tuple:
     """(best fit, :class:`MultistartResult`) of ``options.starts`` more starts besides the
     default fit ``f`` (:func:`bayesid.estimation.multistart.multistart`)."""
     dflt = {
@@ -404,7 +404,7 @@ def _multistart(problem: wf.FitProblem, f: FitResult, p0, options: FitOptions, r
     return f, ms
 
 
-def _map_fit(problem: wf.FitProblem, f: FitResult, gp, runner: Runner) -> tuple:
+def _map_fit(problem: wf.WindowProblem, f: FitResult, gp, runner: Runner) -> tuple:
     """The MAP fit with the vehicle file's Gaussian prior ``gp`` from the fit ``f`` without it:
     (fit, covariance, Laplace summary, the weighted prior, prior summary). The prior weighs
     against the data as a likelihood whose samples count 1 / inflation each (serially correlated

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.stats import qmc
 
 from ..tasks import Runner, Task, TaskError
-from .windows import FitProblem, fit_model
+from .windows import WindowProblem, fit_model
 
 __all__ = [
     "start_points",
@@ -82,7 +82,7 @@ def start_points(p0, scales, lo, hi, n: int, rng, spread: float = 1.0) -> np.nda
     return a + u * (b - a)
 
 
-def fit_start(p0, problem: FitProblem) -> dict:
+def fit_start(p0, problem: WindowProblem) -> dict:
     """One start of a multistart fit of a model (a task; runs in a worker): the multiple-shooting
     fit (:func:`bayesid.estimation.windows.fit_model`) of ``problem`` (fixed weights) from ``p0``.
 
@@ -90,7 +90,7 @@ def fit_start(p0, problem: FitProblem) -> dict:
     ----------
     p0 : array_like, shape (P,)
         The start.
-    problem : FitProblem
+    problem : WindowProblem
         The fit's problem and settings.
 
     Returns
@@ -310,7 +310,7 @@ def run_starts(
 
 
 def multistart(
-    problem: FitProblem,
+    problem: WindowProblem,
     p_default,
     n_starts: int,
     rng,
@@ -323,8 +323,8 @@ def multistart(
 
     Parameters
     ----------
-    problem : FitProblem
-        :class:`~bayesid.estimation.windows.FitProblem` (model, training contexts, fixed channel
+    problem : WindowProblem
+        :class:`~bayesid.estimation.windows.WindowProblem` (model, training contexts, fixed channel
         weights ``sd``, scored channels, iterations; its prior is not used).
     p_default : array_like, shape (P,)
         The default start.

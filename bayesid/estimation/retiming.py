@@ -198,7 +198,7 @@ def fit_retimed(problem, p0, moves, max_nfev: int = 60, bar: str | None = None) 
 
     Parameters
     ----------
-    problem : FitProblem
+    problem : WindowProblem
         The fit's problem (contexts with ``inputs="rate"``, channel weights, channels; its prior
         is not used).
     p0 : array_like, shape (n_params,)

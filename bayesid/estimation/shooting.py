@@ -346,10 +346,6 @@ def project_out(J: np.ndarray, Jd: np.ndarray, rwin: np.ndarray, W: int) -> np.n
     return out
 
 
-#: |z| of a fitted window start against the track's own kinematics above which the start is
-#: flagged (:func:`start_consistency`): at 5 sd a right model on Gaussian noise flags about one
-#: start component in a million.
-START_Z = 5.0
 #: Half-widths (s) of the two centred local-cubic fits that give the kinematic reference
 #: (:func:`kinematic_rates`; each widened to at least 4 samples either side at slow logs).
 KINEMATIC_HALF_SPANS_S = (2.0, 5.0)
@@ -523,7 +519,6 @@ def kinematic_contexts(model, tracks, window_s, sd: dict) -> list:
 __all__ = [
     "START_INDEX",
     "START_STEP",
-    "START_Z",
     "fit_starts",
     "kinematic_contexts",
     "kinematic_rates",

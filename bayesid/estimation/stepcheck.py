@@ -150,7 +150,7 @@ def step_check(fitres, cov, problem, rebuild) -> StepCheck:
         The fit (its ``x``, ``jac``, ``window_starts`` and ``model``).
     cov : ndarray, shape (n_params, n_params)
         Its Laplace covariance.
-    problem : FitProblem
+    problem : WindowProblem
         The fit's problem (contexts, channel weights, channels, prior of a MAP fit).
     rebuild : callable
         ``rebuild(dt) -> (model, ctxs)``: the same model and contexts at another step.

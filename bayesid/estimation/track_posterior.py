@@ -1018,7 +1018,7 @@ def posterior_mode(post: TrackPosterior, p0, max_nfev: int = 30) -> dict:
     if post.nuisance.size:
         nu0 = [post.nuisance[i * model.n_nuisance : (i + 1) * model.n_nuisance] for i in range(len(ob.ctxs))]
     f = wf.fit_model(
-        wf.FitProblem(
+        wf.WindowProblem(
             model, ob.ctxs, em.fit_sd(), channels=ob.channels, max_nfev=max_nfev, prior=gp if gp.idx.size else None
         ),
         np.asarray(p0, float),
@@ -1552,7 +1552,7 @@ MIN_MCMC_STEPS = 20
 
 
 def sample_tracks(
-    problem: wf.FitProblem,
+    problem: wf.WindowProblem,
     p0,
     options: SampleOptions = SampleOptions(),
     *,
@@ -1567,10 +1567,10 @@ def sample_tracks(
 
     Parameters
     ----------
-    problem : FitProblem
+    problem : WindowProblem
         The fit's objective: the model (e.g. from a ``model.json``), the contexts of the training
         tracks (the fit's windows and start rule), its channel weights and scored channels
-        (:class:`~bayesid.estimation.windows.FitProblem`; its prior and iterations are not used:
+        (:class:`~bayesid.estimation.windows.WindowProblem`; its prior and iterations are not used:
         the prior is ``options.use_prior``'s).
     p0 : array_like, shape (P,)
         The fit's estimate.
@@ -1614,7 +1614,7 @@ def sample_tracks(
     >>> train = [bayesid.read_csv(f) for f in ("z10.csv", "z20.csv")]
     >>> res = bayesid.identify(vehicle, train, bayesid.FitOptions(free=("Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"), dt=0.1))
     >>> ctxs = [res.model.context(t, res.window_s, start=res.start_rule) for t in train]
-    >>> problem = bayesid.FitProblem(res.model, ctxs, res.fit_sd, res.channels)
+    >>> problem = bayesid.WindowProblem(res.model, ctxs, res.fit_sd, res.channels)
     >>> post = bayesid.sample_tracks(problem, res.fit.p, bayesid.SampleOptions(method="importance"))
     >>> post.method, post.draws.shape
     ('importance', (4000, 6))

@@ -13,7 +13,7 @@ same objective serves the identification of long runs (:mod:`bayesid.estimation.
 gap diagnosis (:mod:`bayesid.analysis.gap`) and the studies; :func:`fit_model` minimises it with the one
 fit function (:func:`bayesid.estimation.fit.fit`) and returns its :class:`FitResult`. Also here:
 the held-out nuisances, the two-step channel weighting (:func:`fit_weighted`), protocol scores of
-a fitted model (:func:`scores`, :func:`window_rms`), the pooled noise sds and the data check.
+a fitted model (:class:`Evaluation`: :func:`evaluate`, :func:`scores`, :func:`window_rms`), the pooled noise sds and the data check.
 """
 
 from __future__ import annotations
@@ -39,7 +39,12 @@ __all__ = [
     "residual_sd",
     "scores",
     "window_rms",
-    "scores_and_window_rms",
+    "Evaluation",
+    "evaluate",
+    "window_starts",
+    "WindowProblem",
+    "contexts",
+    "START_Z",
     "window_residuals",
     "channel_weights",
     "check_channels",
@@ -47,7 +52,6 @@ __all__ = [
     "check_enough_data",
     "MIN_SAMPLES_PER_PARAMETER",
     "PENALTY",
-    "FitProblem",
 ]
 
 
@@ -527,16 +531,20 @@ class GaussianPrior:
 
 
 @dataclass(frozen=True)
-class FitProblem:
-    """A multiple-shooting fit's problem and settings: what a multistart fits from every start
-    and every fold of a calibration refits.
+class WindowProblem:
+    """One model on the protocol windows of a set of tracks: what a fit minimises, what a
+    multistart fits from every start, what each fold of a calibration refits, and what every
+    model of the gap diagnosis is scored on. Its two verbs are :meth:`fit` (the parameters that
+    minimise the window objective) and :meth:`evaluate` (one simulation of a parameter vector over
+    every window, :class:`Evaluation`). The contexts carry the windows and the start rule
+    (:func:`contexts` builds them, :meth:`start_consistency` checks fitted starts).
 
     Parameters
     ----------
     model : SimulationModel
         The model.
     ctxs : list of TrackContext
-        The contexts of the training tracks (windows and start rule).
+        The contexts of the tracks (windows and start rule).
     sd : dict
         ``{channel: sd}``, the channel weights (SI).
     channels : tuple of str, optional
@@ -558,9 +566,119 @@ class FitProblem:
     prior: object = None
     data_scale: tuple | None = None
 
+    def fit(self, p0=None, nuisance0=None, **options) -> FitResult:
+        """:func:`fit_model` of this problem.
+
+        Parameters
+        ----------
+        p0 : array_like, shape (n_params,), optional
+            The start (default ``model.start()``).
+        nuisance0 : list of array_like, optional
+            Per track, the (n_nuisance,) start of the nuisances.
+        **options
+            ``fit_nuisance_only``, ``bar``, ``starts0`` of :func:`fit_model`.
+
+        Returns
+        -------
+        FitResult
+            As :func:`fit_model` (it raises the same errors).
+        """
+        return fit_model(self, p0, nuisance0, **options)
+
+    def evaluate(self, p, nuisance=None) -> Evaluation:
+        """:func:`evaluate` of a parameter vector on this problem's tracks.
+
+        Parameters
+        ----------
+        p : array_like, shape (n_params,)
+            The parameter vector.
+        nuisance : list of ndarray, optional
+            Per track, the (n_nuisance,) nuisances.
+
+        Returns
+        -------
+        Evaluation
+            The one simulation of ``p`` over every window.
+        """
+        return evaluate(self.model, p, self.ctxs, nuisance)
+
+    def start_consistency(self, p, tracks, label: str = "") -> list:
+        """Each fitted window start of ``p`` against the track's own kinematics
+        (:func:`bayesid.estimation.shooting.start_consistency` on this problem's contexts, the
+        problem's ``sd`` as the start fit's weights and the kinematic noise); a start more than
+        :data:`START_Z` sd away is one the vessel did not have.
+
+        Parameters
+        ----------
+        p : array_like, shape (n_params,)
+            The parameter vector.
+        tracks : list of Track
+            The tracks, parallel to the contexts.
+        label : str, default ""
+            Names the track set in the rows.
+
+        Returns
+        -------
+        list of dict
+            Per window of a fitted-start context: ``set``, ``track``, ``t_s``, ``component``,
+            ``fitted``, ``kinematic``, ``sd`` and ``z``.
+        """
+        return shooting.start_consistency(self.model, p, tracks, self.ctxs, self.sd, label)
+
+
+# the former name of WindowProblem (bayesid.FitProblem warns and gives WindowProblem)
+FitProblem = WindowProblem
+
+#: |z| of a fitted window start against the track's own kinematics above which the start is
+#: flagged (:meth:`WindowProblem.start_consistency`): at 5 sd a right model on Gaussian noise flags
+#: about one start component in a million.
+START_Z = 5.0
+
+
+def contexts(
+    model, tracks, window_s, start: str, *, leadin_s: float | None = 0.0, held_starts: bool = False, kinematic_sd=None
+) -> list:
+    """The contexts of a window problem: each track's windows and window starts under a start rule.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    tracks : list of Track
+        The tracks.
+    window_s : float or None
+        The window, s (None: one window per track).
+    start : str
+        The start rule (:data:`bayesid.protocol.START_RULES`).
+    leadin_s : float or None, default 0.0
+        The lead-in of the fitted rule, s.
+    held_starts : bool, default False
+        Under the fitted rule, hold the window starts at the tracks' own kinematics
+        (:func:`bayesid.estimation.shooting.kinematic_contexts`, a training fit's alternative to
+        fitting them; the lead-in is then not used).
+    kinematic_sd : dict, optional
+        ``{channel: noise sd}`` (SI) of x, y, psi, for ``held_starts``.
+
+    Returns
+    -------
+    list of TrackContext
+        One per track.
+
+    Raises
+    ------
+    ValueError
+        ``held_starts`` without ``kinematic_sd``; a track the model cannot prepare (as
+        ``model.context`` raises).
+    """
+    if start == "fitted" and held_starts:
+        if kinematic_sd is None:
+            raise ValueError("window starts held at the kinematics need kinematic_sd (the noise sds of x, y, psi)")
+        return shooting.kinematic_contexts(model, tracks, window_s, kinematic_sd)
+    return [model.context(t, window_s, start=start, leadin_s=leadin_s) for t in tracks]
+
 
 def fit_model(
-    problem: FitProblem,
+    problem: WindowProblem,
     p0=None,
     nuisance0=None,
     *,
@@ -575,7 +693,7 @@ def fit_model(
 
     Parameters
     ----------
-    problem : FitProblem
+    problem : WindowProblem
         The model, its track contexts, the channel weights ``{channel: sd}``, the scored channels
         (None: all the tracks measure), the iterations and the :class:`GaussianPrior` whose
         residuals are appended to the data's (a MAP fit; None: none).
@@ -661,7 +779,9 @@ def heldout_nuisance(model, fitres: FitResult, ctxs, sd: dict, n_grid: int = 8, 
         st = [shooting.fit_starts(model, ctx, P, grid, w)] if ctx.start == "fitted" else None
         r = window_residuals(model, [ctx], [w], P, [grid], st)[0]
         starts.append(grid[int(np.argmin(np.sum(r * r, axis=1)))].copy())
-    return fit_model(FitProblem(model, ctxs, sd, max_nfev=max_nfev), fitres.p, starts, fit_nuisance_only=True).nuisance
+    return fit_model(
+        WindowProblem(model, ctxs, sd, max_nfev=max_nfev), fitres.p, starts, fit_nuisance_only=True
+    ).nuisance
 
 
 def residual_sd(model, fitres: FitResult, ctxs, floor: dict) -> dict:
@@ -702,7 +822,7 @@ def residual_sd(model, fitres: FitResult, ctxs, floor: dict) -> dict:
 
 
 def fit_weighted(
-    problem: FitProblem,
+    problem: WindowProblem,
     p0=None,
     nuisance0=None,
     *,
@@ -723,7 +843,7 @@ def fit_weighted(
 
     Parameters
     ----------
-    problem : FitProblem
+    problem : WindowProblem
         As :func:`fit_model`, with the noise sds as its weights (``problem.sd``; its prior is not
         used).
     p0 : array_like, shape (n_params,), optional
@@ -759,8 +879,150 @@ def fit_weighted(
     return fit_model(dataclasses.replace(first, sd=sd2), f.p, nuisance, bar=lab("residual weights")), sd2
 
 
+@dataclass(frozen=True)
+class Evaluation:
+    """A parameter vector simulated once over every protocol window of a set of tracks: the
+    predicted states, the errors by channel, and what is read from them (the protocol scores,
+    each window's RMS position error, each run's). Every score of a fitted model on tracks is
+    read from one of these, so nothing is simulated twice for two readings.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    p : ndarray, shape (n_params,)
+        The parameter vector.
+    ctxs : tuple of TrackContext
+        The tracks' contexts.
+    nuisance : tuple of ndarray or None
+        Per track, the nuisances simulated with.
+    starts : tuple
+        Per track, the (W, 6) window start offsets fitted under the fitted rule
+        (:func:`bayesid.estimation.shooting.fit_starts`), None under another rule.
+    states : tuple of ndarray
+        Per track, the (n_samples, 12) predicted measurements at the scored samples.
+    errors : tuple of dict
+        Per track, ``{channel: ndarray (n_samples,)}`` of prediction minus measurement
+        (:func:`bayesid.models.context.errors`: heading wrapped, NaN where not finite).
+    """
+
+    model: object
+    p: np.ndarray
+    ctxs: tuple
+    nuisance: tuple | None
+    starts: tuple
+    states: tuple
+    errors: tuple
+
+    def scores(self, sd: dict | None = None) -> Scores:
+        """Protocol scores pooled over windows and tracks (:func:`scores`).
+
+        Parameters
+        ----------
+        sd : dict, optional
+            ``{channel: sd}``, SI, for the log-likelihood.
+
+        Returns
+        -------
+        Scores
+            :func:`bayesid.protocol.pooled_scores` with ``per_track_rms_position_m`` and, with
+            ``sd``, ``log_likelihood``.
+        """
+        return _scores_of(self.ctxs, list(self.errors), sd)
+
+    def window_rms(self) -> np.ndarray:
+        """RMS horizontal position error of every window (:func:`window_rms`).
+
+        Returns
+        -------
+        ndarray, shape (n_windows,)
+            m; tracks in order, windows in time order, NaN for a window without a finite sample.
+        """
+        return _window_rms_of(self.ctxs, list(self.errors))
+
+    def window_runs(self) -> np.ndarray:
+        """The track of each window of :meth:`window_rms`.
+
+        Returns
+        -------
+        ndarray of int, shape (n_windows,)
+            The track's index in ``ctxs``.
+        """
+        return np.repeat(np.arange(len(self.ctxs)), [c.W for c in self.ctxs]).astype(int)
+
+
+def evaluate(model, p, ctxs, nuisance=None) -> Evaluation:
+    """Simulate a parameter vector once over every protocol window of tracks: under the fitted
+    start rule each window's start offsets are fitted first with the parameters held
+    (:func:`bayesid.estimation.shooting.fit_starts`, the track's own noise sds as weights), as
+    :func:`bayesid.estimation.shooting.simulate` does.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    p : array_like, shape (n_params,)
+        The parameter vector.
+    ctxs : list of TrackContext
+        The tracks' contexts.
+    nuisance : list of ndarray, optional
+        Per track, the (n_nuisance,) nuisances.
+
+    Returns
+    -------
+    Evaluation
+        The states, errors and start offsets of every track.
+    """
+    P = np.asarray(p, float)[None]
+    starts, states, errors = [], [], []
+    for i, ctx in enumerate(ctxs):
+        nu = None if nuisance is None else nuisance[i][None]
+        st = shooting.fit_starts(model, ctx, P, nu) if ctx.start == "fitted" else None
+        S = model.simulate(ctx, P, nu) if st is None else model.simulate(ctx, P, nu, starts=st)
+        starts.append(None if st is None else st[0])
+        states.append(S[0])
+        errors.append({k: v[0] for k, v in ctxmod.errors(ctx, S).items()})
+    nus = None if nuisance is None else tuple(nuisance)
+    return Evaluation(model, P[0], tuple(ctxs), nus, tuple(starts), tuple(states), tuple(errors))
+
+
+def window_starts(model, p, ctx, nuisance=None) -> np.ndarray:
+    """The start offsets of every window of a fitted-start context for a parameter vector
+    (:func:`bayesid.estimation.shooting.fit_starts`, the track's own noise sds as weights): what
+    :func:`evaluate` simulates from, without the simulation.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model.
+    p : array_like, shape (n_params,)
+        The parameter vector.
+    ctx : TrackContext
+        A context of the fitted start rule.
+    nuisance : ndarray, shape (n_nuisance,), optional
+        The track's nuisances.
+
+    Returns
+    -------
+    ndarray, shape (W, 6)
+        Offsets of the :data:`bayesid.models.context.START_INDEX` components from ``ctx.s_meas``.
+
+    Raises
+    ------
+    ValueError
+        A context of another start rule.
+    """
+    if ctx.start != "fitted":
+        raise ValueError(
+            f"track {ctx.name!r}: window starts are fitted only under the fitted start rule, not {ctx.start!r}"
+        )
+    nu = None if nuisance is None else np.asarray(nuisance, float)[None]
+    return shooting.fit_starts(model, ctx, np.asarray(p, float)[None], nu)[0]
+
+
 def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None) -> Scores:
-    """Protocol scores of a fitted model on tracks (pooled over windows and tracks).
+    """Protocol scores of a fitted model on tracks (pooled over windows and tracks):
+    ``evaluate(model, fitres.p, ctxs, nuisance).scores(sd)``.
 
     With ``sd`` ({channel: sd}, SI) also ``log_likelihood`` (nats): the Gaussian log-density
     of every finite error of every scored channel, ``sum(-e^2 / (2 sd^2) - ln(sd sqrt(2 pi)))``,
@@ -789,22 +1051,11 @@ def scores(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None
         :func:`bayesid.protocol.pooled_scores` with ``per_track_rms_position_m`` (``{track
         name: m}``) and, with ``sd``, ``log_likelihood``.
     """
-    return _scores_of(ctxs, _track_errors(model, fitres, ctxs, nuisance), sd)
-
-
-def _track_errors(model, fitres: FitResult, ctxs, nuisance=None) -> list:
-    """Each track's protocol errors of the fitted model, ``[{channel: ndarray (n_samples,)}]``:
-    one simulation per track, shared by :func:`scores` and :func:`window_rms`."""
-    out = []
-    for i, ctx in enumerate(ctxs):
-        nu = None if nuisance is None else nuisance[i][None]
-        S = shooting.simulate(model, ctx, fitres.p[None], nu)
-        out.append({k: v[0] for k, v in ctxmod.errors(ctx, S).items()})
-    return out
+    return evaluate(model, fitres.p, ctxs, nuisance).scores(sd)
 
 
 def _scores_of(ctxs, errs: list, sd: dict | None) -> Scores:
-    """:func:`scores` of the tracks' errors (:func:`_track_errors`)."""
+    """:func:`scores` of the tracks' errors (:attr:`Evaluation.errors`)."""
     per_track = {}
     ll = 0.0
     for ctx, e in zip(ctxs, errs):
@@ -821,7 +1072,8 @@ def _scores_of(ctxs, errs: list, sd: dict | None) -> Scores:
 
 
 def window_rms(model, fitres: FitResult, ctxs, nuisance=None) -> np.ndarray:
-    """RMS horizontal position error of every protocol window of a set of tracks.
+    """RMS horizontal position error of every protocol window of a set of tracks:
+    ``evaluate(model, fitres.p, ctxs, nuisance).window_rms()``.
 
     Parameters
     ----------
@@ -840,11 +1092,11 @@ def window_rms(model, fitres: FitResult, ctxs, nuisance=None) -> np.ndarray:
         RMS error, m (tracks in order, windows in time order; NaN for a window without a
         finite sample).
     """
-    return _window_rms_of(ctxs, _track_errors(model, fitres, ctxs, nuisance))
+    return evaluate(model, fitres.p, ctxs, nuisance).window_rms()
 
 
 def _window_rms_of(ctxs, errs: list) -> np.ndarray:
-    """:func:`window_rms` of the tracks' errors (:func:`_track_errors`)."""
+    """:func:`window_rms` of the tracks' errors (:attr:`Evaluation.errors`)."""
     out = []
     for ctx, e in zip(ctxs, errs):
         pos2 = e["x"] ** 2 + e["y"] ** 2
@@ -852,33 +1104,6 @@ def _window_rms_of(ctxs, errs: list) -> np.ndarray:
             v = pos2[(ctx.win == w) & np.isfinite(pos2)]
             out.append(float(np.sqrt(v.mean())) if v.size else np.nan)
     return np.array(out)
-
-
-def scores_and_window_rms(model, fitres: FitResult, ctxs, nuisance=None, sd: dict | None = None) -> tuple:
-    """:func:`scores` and :func:`window_rms` of a fitted model on tracks from one simulation of
-    each track (the two separately simulate every track twice).
-
-    Parameters
-    ----------
-    model : SimulationModel
-        The model.
-    fitres : FitResult
-        The fit (its ``p``).
-    ctxs : list of TrackContext
-        The tracks.
-    nuisance : list of ndarray, optional
-        Per track nuisances.
-    sd : dict, optional
-        ``{channel: sd}``, SI, for the log-likelihood.
-
-    Returns
-    -------
-    tuple
-        ``(Scores, ndarray of shape (n_windows,))``, equal to ``scores(...)`` and
-        ``window_rms(...)``.
-    """
-    errs = _track_errors(model, fitres, ctxs, nuisance)
-    return _scores_of(ctxs, errs, sd), _window_rms_of(ctxs, errs)
 
 
 def pooled_noise_sd(tracks, floor: bool = True) -> dict:

@@ -260,8 +260,8 @@ class Effect:
         Parameters
         ----------
         evidence : dict
-            ``ctxs`` (training contexts), ``errors`` (their protocol errors,
-            :func:`~bayesid.models.context.errors` of the base fit, B = 1), ``forces``
+            ``ctxs`` (training contexts), ``errors`` (per context ``{channel: ndarray (n_samples,)}``,
+            the base fit's protocol errors, :func:`~bayesid.models.context.errors`), ``forces``
             (``(F list, motions)`` of the training tracks' missing forces, or None when inverse
             dynamics failed).
 
@@ -578,7 +578,7 @@ def drift_seed(evidence) -> np.ndarray:
     """
     num, den = np.zeros(2), 0.0
     for ctx, e in zip(evidence["ctxs"], evidence["errors"]):
-        num -= np.array([np.nansum(e["x"][0] * ctx.t_rel), np.nansum(e["y"][0] * ctx.t_rel)])
+        num -= np.array([np.nansum(e["x"] * ctx.t_rel), np.nansum(e["y"] * ctx.t_rel)])
         den += float(np.sum(ctx.t_rel**2))
     return num / den if den > 0 else np.zeros(2)
 

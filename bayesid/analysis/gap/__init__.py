@@ -27,6 +27,13 @@ below), :mod:`.support`, the typed records the steps pass on and the JSON writes
 noise floor, candidate rows, remainder, base-fit check, discovered-term rows), and the
 orchestration :mod:`.diagnose`, which returns a
 :class:`~.diagnose.Diagnosis`; the report layer (:func:`bayesid.report.write_diagnosis`) writes it.
+Every model of a diagnosis is a :class:`bayesid.estimation.windows.WindowProblem` (its contexts
+built by :func:`bayesid.estimation.windows.contexts` from the diagnosis's
+:class:`~.candidates.Setup`): the steps fit it (``problem.fit``) and read each fitted model
+from one :class:`bayesid.estimation.windows.Evaluation` per track set (scores, per-window
+errors, the simulated states *where* reads); none calls the shooting layer itself. The base
+model's two Evaluations (:class:`~.candidates.BaseStage`) serve its scores, *where*, and the
+candidates' seeds.
 
 Window start states follow the protocol's start rule (:data:`bayesid.protocol.START_RULES`):
 restarted from the measured state when u, v, r are logged, else fitted with the model being

@@ -13,12 +13,12 @@ worse than that model it is refitted once more from that model's optimum with th
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
-from ...estimation import shooting
 from ...estimation.fit import FitResult
-from ...estimation.windows import FitProblem, fit_model, heldout_nuisance, scores_and_window_rms
+from ...estimation.windows import Evaluation, WindowProblem, contexts, evaluate, heldout_nuisance
 from ...models import build_model
 from .records import CandidateRow
 from .verdict import paired_window_test
@@ -26,6 +26,7 @@ from .verdict import paired_window_test
 __all__ = [
     "Setup",
     "Stage",
+    "BaseStage",
     "score_stage",
     "candidate_starts",
     "effect_offset",
@@ -103,7 +104,7 @@ class Setup:
     train_starts : {"fitted", "kinematic"}, default "fitted"
         Under the fitted rule, how the training fits get their window starts: fitted with the
         model, or held at the tracks' own kinematics
-        (:func:`bayesid.estimation.shooting.kinematic_contexts`, with ``kinematic_sd``).
+        (:func:`bayesid.estimation.windows.contexts`, with ``kinematic_sd``).
     kinematic_sd : dict, optional
         ``{channel: noise sd}`` (SI) of x, y, psi for the kinematic starts.
     inputs : {"hold", "linear", "rate"}, default "hold"
@@ -151,15 +152,84 @@ class Setup:
             inputs=self.inputs,
             rudder_rate_deg_s=self.rudder_rate_deg_s,
         )
-        if self.rule == "fitted" and self.train_starts == "kinematic":
-            train = shooting.kinematic_contexts(m, self.train, self.fit_window_s, self.kinematic_sd)
-        else:
-            train = [m.context(t, self.fit_window_s, start=self.rule) for t in self.train]
+        held_starts = self.train_starts == "kinematic"
         return (
             m,
-            train,
-            [m.context(t, self.window_s, start=self.rule, leadin_s=self.leadin_s) for t in self.heldout],
+            contexts(
+                m, self.train, self.fit_window_s, self.rule, held_starts=held_starts, kinematic_sd=self.kinematic_sd
+            ),
+            contexts(m, self.heldout, self.window_s, self.rule, leadin_s=self.leadin_s),
         )
+
+
+@dataclass
+class BaseStage:
+    """The base model of a diagnosis fitted on the training tracks, evaluated once on them and
+    on the held-out ones, and checked.
+
+    Parameters
+    ----------
+    setup : Setup
+        The diagnosis's setup (its ``train_starts`` says how the training windows start).
+    problem : WindowProblem
+        The base model on the training contexts, weighted by the fit's channel sds (``sd_fit``).
+    cho : list of TrackContext
+        The held-out contexts.
+    fit : FitResult
+        The base fit.
+    multistart : dict or None
+        The summary of the extra starts (None without them).
+    train : Evaluation
+        The fit on the training contexts.
+    held : Evaluation
+        The fit on the held-out contexts.
+    check : BaseCheck
+        The base-fit check (:func:`~bayesid.analysis.gap.diagnose.base_fit_check`).
+    """
+
+    setup: Setup
+    problem: WindowProblem
+    cho: list
+    fit: FitResult
+    multistart: dict | None
+    train: Evaluation
+    held: Evaluation
+    check: object
+
+    @property
+    def model(self):
+        """The base model."""
+        return self.problem.model
+
+    @property
+    def ctr(self) -> list:
+        """The training contexts."""
+        return self.problem.ctxs
+
+    @property
+    def sd_fit(self) -> dict:
+        """``{channel: sd}``, the base fit's channel weights."""
+        return self.problem.sd
+
+    @cached_property
+    def train_scores(self):
+        """The training scores (:meth:`~bayesid.estimation.windows.Evaluation.scores` with ``sd_fit``)."""
+        return self.train.scores(self.sd_fit)
+
+    @cached_property
+    def held_scores(self):
+        """The held-out scores (:meth:`~bayesid.estimation.windows.Evaluation.scores` with ``sd_fit``)."""
+        return self.held.scores(self.sd_fit)
+
+    def stage(self) -> Stage:
+        """The base model as the first stage of the greedy rounds.
+
+        Returns
+        -------
+        Stage
+            Its scores and held-out window errors (its training windows not scored).
+        """
+        return Stage(self.model, self.fit, self.train_scores, self.held_scores, None, self.held.window_rms())
 
 
 def score_stage(model, fit: FitResult, ctx_train: list, ctx_held: list, sd_fit: dict) -> Stage:
@@ -185,10 +255,18 @@ def score_stage(model, fit: FitResult, ctx_train: list, ctx_held: list, sd_fit: 
         The scored model, with its per-window errors on the held-out and the training tracks.
     """
     nu_h = heldout_nuisance(model, fit, ctx_held, sd_fit) if model.n_nuisance else None
-    train, train_windows = scores_and_window_rms(model, fit, ctx_train, sd=sd_fit)
-    held, windows = scores_and_window_rms(model, fit, ctx_held, nu_h, sd=sd_fit)
-    runs = np.repeat(np.arange(len(ctx_train)), [c.W for c in ctx_train])
-    return Stage(model, fit, train, held, nu_h, windows, train_windows, runs)
+    train = evaluate(model, fit.p, ctx_train)
+    held = evaluate(model, fit.p, ctx_held, nu_h)
+    return Stage(
+        model,
+        fit,
+        train.scores(sd_fit),
+        held.scores(sd_fit),
+        nu_h,
+        held.window_rms(),
+        train.window_rms(),
+        train.window_runs(),
+    )
 
 
 def effect_offset(model, effect) -> int:
@@ -350,7 +428,7 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
     """
     effect, ref, model, sd_fit, label = task.effect, task.ref, task.model, task.sd_fit, task.label
     ctx_train, ctx_held = task.ctx_train, task.ctx_held
-    problem = FitProblem(model, ctx_train, sd_fit, max_nfev=task.max_nfev)
+    problem = WindowProblem(model, ctx_train, sd_fit, max_nfev=task.max_nfev)
     messages = []
     best = None
     for p0, nu0 in candidate_starts(effect, model, ref.fit.p[: ref.model.n_theta], task.seeds):
@@ -360,7 +438,7 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
             if nu0 is None and ref.model.n_nuisance:
                 nu0 = extended_nuisance(model, ref.model, ref.fit)
         try:
-            f = fit_model(problem, p0, nu0, bar=label)
+            f = problem.fit(p0, nu0, bar=label)
         except Exception as exc:  # noqa: BLE001 - a failed candidate is reported
             messages.append(f"{effect.name} failed: {exc}")
             continue
@@ -370,7 +448,7 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
     if nested is not None and (best is None or best.cost > ref.fit.cost):
         # a candidate that nests the model it extends cannot fit worse than it
         try:
-            f = fit_model(problem, *nested)
+            f = problem.fit(*nested)
             if best is None or f.cost < best.cost:
                 best = f
         except Exception as exc:  # noqa: BLE001

@@ -10,26 +10,25 @@ from functools import cache, partial
 
 import numpy as np
 
-from ...estimation import shooting
 from ...estimation.fit import FitResult
 from ...estimation.indices import manoeuvre_kind
 from ...estimation.multistart import multistart
 from ...estimation.options import check_rudder_rate_reading
 from ...estimation.windows import (
-    FitProblem,
+    START_Z,
+    WindowProblem,
     check_enough_data,
-    fit_model,
+    contexts,
+    evaluate,
     fit_weighted,
     pooled_noise_sd,
     scores,
-    scores_and_window_rms,
 )
-from ...models import context as ctxmod
 from ...models import model_class
 from ...models.context import INPUT_RECONSTRUCTIONS
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError, record_fields
-from .candidates import CandidateFit, Setup, Stage, candidate_row, fit_candidate
+from .candidates import BaseStage, CandidateFit, Setup, Stage, candidate_row, fit_candidate
 from .design import design, standard_predictions
 from .discovery import Discovery, discover, routed, with_terms
 from .records import BaseCheck, CandidateRow, NoiseFloor, Record, Remainder
@@ -448,8 +447,10 @@ def diagnose(
     ----------
     vehicle : Vehicle or Ship
         The nominal vehicle (its model family comes from :func:`bayesid.models.build_model`).
-    free : list of str
-        Coefficient names the fits change.
+    free : list of str or None
+        Coefficient names the fits change; None: the family's default (the ship file's ``[fit]
+        free``, the submarine's ``Yv, Yr, Nv, Nr, Ydr, Ndr``), as ``bayesid diagnose`` without
+        ``--free``.
     train : list of Track
         The training tracks.
     heldout : list of Track
@@ -509,13 +510,14 @@ def diagnose(
     opt, th = options, thresholds
     rng = np.random.default_rng(0) if rng is None else rng
     family, setup, cand_effects, sd = _diagnosis_setup(vehicle, free, train, heldout, opt, runner)
+    free = setup.free
     names_t, names_h, dt = [t.name for t in train], [t.name for t in heldout], setup.dt
     say = runner.say
     weighting = opt.weighting or family.DEFAULT_WEIGHTING
     b, alt = _checked_base(setup, sd, weighting, opt, runner)
-    base, ctr, cho, bfit, sd_fit, base_ms = (b[k] for k in ("model", "ctr", "cho", "fit", "sd_fit", "multistart"))
-    b_train, b_held, check = b["train"], b["held"], b["check"]
-    setup = b["setup"]
+    base, cho, bfit, sd_fit, base_ms = b.model, b.cho, b.fit, b.sd_fit, b.multistart
+    b_train, b_held, check = b.train_scores, b.held_scores, b.check
+    setup = b.setup
     if check.suspect:
         say(check.message)
     # A base fit bent by the missing effect can be more sensitive to start-state errors than
@@ -526,16 +528,16 @@ def diagnose(
     floor = min(
         (noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)), key=lambda d: d.heldout_rms_m
     )
-    w, forces = where(base, bfit, cho, heldout, sd, floor_by_channel=floor.by_channel)
+    w, forces = where(b.held, bfit, heldout, sd, floor_by_channel=floor.by_channel)
     if opt.discover is not None:  # Where's dominant channel decides where the search starts
         searched, why = routed(opt.discover, w, base)
         if why is not None:
             say(f"discovery: {why}")
             w["discovery_routed"] = why
             opt = replace(opt, discover=searched)
-    seeds = _seeds(cand_effects, base, bfit, ctr, train)
+    seeds = _seeds(cand_effects, b, train)
     significant = bool(b_held["rms_position_m"] > th.none_ratio * floor.heldout_rms_m)
-    base_stage = Stage(base, bfit, b_train, b_held, None, b["windows"])
+    base_stage = b.stage()
     disc_context = {"sd_fit": sd_fit, "floor_rms": floor.heldout_rms_m, "thresholds": th}
     beside, held = None, None
     if opt.discover is not None and setup.train_starts == "fitted" and (check.starts or {}).get("suspect"):
@@ -636,9 +638,9 @@ def _diagnosis_setup(vehicle, free, train: list, heldout: list, opt: DiagnoseOpt
         raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
     family = model_class(vehicle)
     dt = family.DEFAULT_DT if opt.dt is None else opt.dt
+    free = family.default_free(vehicle) if free is None else list(free)
     if opt.candidates is None:
-        base_free = family.default_free(vehicle) if free is None else free
-        names = catalogue_candidates(family, train + heldout, runner, base_free)
+        names = catalogue_candidates(family, train + heldout, runner, free)
     else:
         names = opt.candidates
     cand_effects = [family.get_effect(c) for c in names]
@@ -662,18 +664,18 @@ def _checked_base(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, 
     one's ``check.train_starts`` says which and why."""
     b = _base_stage(setup, sd, weighting, opt, runner)
     alt = None
-    if opt.train_starts == "auto" and (b["check"].starts or {}).get("suspect"):
+    if opt.train_starts == "auto" and (b.check.starts or {}).get("suspect"):
         runner.say("base fit: window starts inconsistent with the kinematics; refit with starts held at them")
         alt = _base_stage(replace(setup, train_starts="kinematic"), sd, weighting, opt, runner)
-        use = alt["check"].train_rms_at_window_m < b["check"].train_rms_at_window_m
+        use = alt.check.train_rms_at_window_m < b.check.train_rms_at_window_m
         summary = {
-            "fitted_train_rms_at_window_m": b["check"].train_rms_at_window_m,
-            "kinematic_train_rms_at_window_m": alt["check"].train_rms_at_window_m,
+            "fitted_train_rms_at_window_m": b.check.train_rms_at_window_m,
+            "kinematic_train_rms_at_window_m": alt.check.train_rms_at_window_m,
             "used": "kinematic" if use else "fitted",
         }
         if use:
             b = alt
-        b["check"] = replace(b["check"], train_starts=summary)
+        b.check = replace(b.check, train_starts=summary)
     return b, alt
 
 
@@ -752,32 +754,21 @@ def _design(found, setup: Setup, options, runner: Runner) -> tuple[list, list]:
     return [], []
 
 
-def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> dict:
-    """The base model of ``setup`` fitted (with its extra starts), scored and checked: ``{setup,
-    model, ctr, cho, fit, sd_fit, multistart, train, held, windows, check}`` (``windows``: the
-    held-out per-window RMS position errors; ValueError: too little data)."""
+def _base_stage(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, runner: Runner) -> BaseStage:
+    """The base model of ``setup`` fitted (with its extra starts), evaluated on the training and
+    held-out tracks and checked (ValueError: too little data)."""
     base, ctr, cho = setup.build(())
     fw = setup.fit_window_s
     check_enough_data(base, ctr, fw if fw is not None else max(c.ts[-1] - c.t_start[0] for c in ctr))
     runner.say("base fit" + (" (window starts held at the kinematics)" if setup.train_starts == "kinematic" else ""))
     bfit, sd_fit = fit_weighted(
-        FitProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
+        WindowProblem(base, ctr, sd, max_nfev=opt.max_nfev), weighting=weighting, bar=runner.bar("base fit")
     )
-    bfit, base_ms = _base_multistart(FitProblem(base, ctr, sd_fit, max_nfev=opt.max_nfev), bfit, opt, runner)
-    held, windows = scores_and_window_rms(base, bfit, cho, sd=sd_fit)
-    return {
-        "setup": setup,
-        "model": base,
-        "ctr": ctr,
-        "cho": cho,
-        "fit": bfit,
-        "sd_fit": sd_fit,
-        "multistart": base_ms,
-        "train": scores(base, bfit, ctr, sd=sd_fit),
-        "held": held,
-        "windows": windows,
-        "check": base_fit_check(base, bfit, setup, sd_fit, held),
-    }
+    problem = WindowProblem(base, ctr, sd_fit, max_nfev=opt.max_nfev)
+    bfit, base_ms = _base_multistart(problem, bfit, opt, runner)
+    b = BaseStage(setup, problem, cho, bfit, base_ms, problem.evaluate(bfit.p), evaluate(base, bfit.p, cho), None)
+    b.check = base_fit_check(base, bfit, setup, sd_fit, b.held_scores)
+    return b
 
 
 def _better_with_held_starts(found, held, options, context: dict, rng, runner: Runner) -> tuple:
@@ -808,16 +799,15 @@ def _better_with_held_starts(found, held, options, context: dict, rng, runner: R
     return use, ((setup_k, base_k) if better else None)
 
 
-def _held_start_base(done: dict | None, setup: Setup, fit_args: tuple) -> tuple:
+def _held_start_base(done: BaseStage | None, setup: Setup, fit_args: tuple) -> tuple:
     """The base model refitted with its training window starts held at the kinematics, for
     discovery beside round 1: ``(setup, Stage, sd_fit)``; ``done`` is that base stage when
     ``--train-starts auto`` already fitted it (and kept the fitted starts)."""
     k = done if done is not None else _base_stage(replace(setup, train_starts="kinematic"), *fit_args)
-    model, fit = k["model"], k["fit"]
-    return k["setup"], Stage(model, fit, k["train"], k["held"], None, k["windows"]), k["sd_fit"]
+    return k.setup, k.stage(), k.sd_fit
 
 
-def _base_multistart(problem: FitProblem, bfit: FitResult, opt: DiagnoseOptions, runner: Runner):
+def _base_multistart(problem: WindowProblem, bfit: FitResult, opt: DiagnoseOptions, runner: Runner):
     """The base fit from ``opt.base_starts`` extra starts (seeded apart from the diagnosis' rng,
     so that a diagnosis without them is unchanged): ``(fit, summary)``, the summary None without
     starts."""
@@ -835,7 +825,7 @@ def _base_multistart(problem: FitProblem, bfit: FitResult, opt: DiagnoseOptions,
         "distinct_optima": len(ms.distinct),
     }
     if improved:
-        bfit = fit_model(problem, np.asarray(best["p"], float), None)
+        bfit = problem.fit(np.asarray(best["p"], float), None)
     return bfit, summary
 
 
@@ -901,7 +891,7 @@ def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> BaseCh
     2. **Window starts** (fitted start rule only). Every training and held-out window's fitted
        start u, v, r against the track's own kinematics
        (:func:`bayesid.estimation.shooting.start_consistency`): a start more than
-       :data:`~bayesid.estimation.shooting.START_Z` sd away is one the vessel did not have, which
+       :data:`~bayesid.estimation.windows.START_Z` sd away is one the vessel did not have, which
        only a model far off needs; more than :data:`START_FRACTION` of the training or of the
        held-out windows so flagged makes the fit suspect (per set: one training run among many
        held-out ones is judged on its own windows).
@@ -927,8 +917,8 @@ def base_fit_check(model, fit, setup: Setup, sd_fit: dict, held: dict) -> BaseCh
         rule), ``suspect`` (bool: either test failed) and ``message``; ``multistart`` None
         (:func:`diagnose` sets it).
     """
-    ctx = [model.context(t, setup.window_s, start=setup.rule, leadin_s=setup.leadin_s) for t in setup.train]
-    train = scores(model, fit, ctx, sd=sd_fit)["rms_position_m"]
+    ctx = contexts(model, setup.train, setup.window_s, setup.rule, leadin_s=setup.leadin_s)
+    train = scores(model, fit, ctx, sd=sd_fit).rms_position_m
     ratio = held["rms_position_m"] / train if train > 0 else float("inf")
     starts = start_check(model, fit, setup, sd_fit) if setup.rule == "fitted" else None
     bad_ratio = bool(ratio > BASE_FIT_RATIO)
@@ -992,10 +982,12 @@ def start_check(model, fit, setup: Setup, sd_fit: dict) -> dict:
         |z|, as the function gives them), ``suspect`` (more than ``fraction_threshold`` of the
         windows of either set flagged) and ``message``.
     """
-    ctr = [model.context(t, setup.fit_window_s, start="fitted") for t in setup.train]
-    cho = [model.context(t, setup.window_s, start="fitted", leadin_s=setup.leadin_s) for t in setup.heldout]
-    rows = shooting.start_consistency(model, fit.p, setup.train, ctr, sd_fit, "training")
-    rows += shooting.start_consistency(model, fit.p, setup.heldout, cho, sd_fit, "held-out")
+    ctr = WindowProblem(model, contexts(model, setup.train, setup.fit_window_s, "fitted"), sd_fit)
+    cho = WindowProblem(
+        model, contexts(model, setup.heldout, setup.window_s, "fitted", leadin_s=setup.leadin_s), sd_fit
+    )
+    rows = ctr.start_consistency(fit.p, setup.train, "training")
+    rows += cho.start_consistency(fit.p, setup.heldout, "held-out")
     return summarise_starts(rows)
 
 
@@ -1015,13 +1007,13 @@ def summarise_starts(rows: list[dict]) -> dict:
         As :func:`start_check`.
     """
     z = np.array([abs(r["z"]) for r in rows])
-    n_bad = int((z > shooting.START_Z).sum())
+    n_bad = int((z > START_Z).sum())
     frac = n_bad / z.size if z.size else 0.0
     # per set: many held-out windows must not dilute a training fit that needs impossible starts
     by_set = {}
     for name in ("training", "held-out"):
         zs = np.array([abs(r["z"]) for r in rows if r["set"] == name])
-        bad = int((zs > shooting.START_Z).sum())
+        bad = int((zs > START_Z).sum())
         by_set[name] = {
             "n_windows": int(zs.size),
             "n_flagged": bad,
@@ -1043,16 +1035,16 @@ def summarise_starts(rows: list[dict]) -> dict:
     suspect = bool(over)
     msg = (
         " and ".join(f"{by_set[k]['n_flagged']} of {by_set[k]['n_windows']} {k}" for k in over)
-        + f" fitted window starts contradict the track's own kinematics by more than {shooting.START_Z:g} sd "
+        + f" fitted window starts contradict the track's own kinematics by more than {START_Z:g} sd "
         f"({eg}); the model follows these tracks only from start states the vessel did not have"
         if suspect
-        else f"window starts: {n_bad} of {z.size} more than {shooting.START_Z:g} sd from the track's kinematics"
+        else f"window starts: {n_bad} of {z.size} more than {START_Z:g} sd from the track's kinematics"
     )
     return {
         "n_windows": int(z.size),
         "n_flagged": n_bad,
         "fraction_flagged": frac,
-        "z_threshold": shooting.START_Z,
+        "z_threshold": START_Z,
         "fraction_threshold": START_FRACTION,
         "by_set": by_set,
         "median_abs_z": float(np.median(z)) if z.size else float("nan"),
@@ -1345,11 +1337,12 @@ def _signature_support(family, cand_effects, base, forces, seeds, rng) -> dict:
         return {"error": f"{type(exc).__name__}: {exc}"}
 
 
-def _seeds(effects, base, bfit, ctxs, train) -> dict:
+def _seeds(effects, b: BaseStage, train) -> dict:
     """{effect name: seed} of the candidates that have one
     (:meth:`~bayesid.models.effects.Effect.diagnosis_seed`), from the base fit's errors on the training
-    windows and the training tracks' missing forces (None when inverse dynamics fails)."""
-    errors = [ctxmod.errors(ctx, shooting.simulate(base, ctx, bfit.p[None])) for ctx in ctxs]
+    windows (its training :class:`~bayesid.estimation.windows.Evaluation`) and the training tracks'
+    missing forces (None when inverse dynamics fails)."""
+    base, bfit, ctxs, errors = b.model, b.fit, b.ctr, list(b.train.errors)
     try:  # wave frequency and per-track phases from the TRAINING tracks' missing forces
         tr_forces = [base.missing_forces(bfit, t) for t in train]
         forces = ([f[1] for f in tr_forces], [(f[0], f[2], t) for f, t in zip(tr_forces, train)])

@@ -16,8 +16,8 @@ import numpy as np
 from scipy import stats
 
 from ...data.track import STATE_NAMES, Track
-from ...estimation import shooting
-from ...models import context as ctxmod
+from ...estimation.windows import evaluate, window_starts
+from ...models.context import START_INDEX
 from ...protocol import pooled_scores, wrap
 from .records import NoiseFloor
 
@@ -108,7 +108,7 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFl
     for ctx, tr in zip(ctxs, tracks):
         s_first = ctx.s_meas[0].copy()
         if ctx.start == "fitted":  # the first segment's start as the rule estimates it
-            s_first[ctxmod.START_INDEX] += shooting.fit_starts(model, ctx, fitres.p[None])[0, 0]
+            s_first[START_INDEX] += window_starts(model, fitres.p, ctx)[0]
         whole = model.context(tr, None, s0=s_first)
         S = model.simulate(whole, fitres.p[None], measured_start=False)[0]
         for _ in range(n_rep):
@@ -120,8 +120,7 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFl
                     data[k] = wrap(vals) if k == "psi" else vals
             syn = Track(tr.t, data, name=tr.name)
             c2 = model.context(syn, ctx.window_s, start=ctx.start, leadin_s=ctx.leadin_s)
-            S2 = shooting.simulate(model, c2, fitres.p[None])
-            errs.append({k: v[0] for k, v in ctxmod.errors(c2, S2).items()})
+            errs.append(evaluate(model, fitres.p, [c2]).errors[0])
     return NoiseFloor.of(pooled_scores(errs))
 
 

@@ -9,8 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal, stats
 
-from ...estimation import shooting
-from ...models import context as ctxmod
+from ...estimation.windows import Evaluation, evaluate
 from ...protocol import pooled_scores
 
 __all__ = ["where", "ljung_box", "window_xy"]
@@ -43,8 +42,8 @@ def ljung_box(x, lags: int = 10) -> tuple[float, float]:
     return float(q), float(stats.chi2.sf(q, lags))
 
 
-def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None) -> tuple[dict, tuple | None]:
-    """Where the fitted base model misses on the tracks of ``ctxs`` (usually the held-out
+def where(evaluation: Evaluation, fitres, tracks, sd, floor_by_channel=None) -> tuple[dict, tuple | None]:
+    """Where the fitted base model misses on the tracks of an evaluation (usually the held-out
     ones): residuals per channel (with the excess over the noise floor ``floor_by_channel``),
     per operating region (``model.regions()``, plus ``model.where_samples``), per manoeuvre
     phase (straight, turning, rudder moving), and, from the missing forces X, Y, N of inverse
@@ -54,21 +53,18 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
 
     Parameters
     ----------
-    model : SimulationModel
-        The model.
+    evaluation : Evaluation
+        The fitted base model simulated once on the tracks' protocol windows
+        (:func:`bayesid.estimation.windows.evaluate`; its nuisances are *these* tracks', never the
+        fit's own, which belong to its training tracks).
     fitres : FitResult
-        The fitted base model.
-    ctxs : list of TrackContext
-        The tracks, prepared with the protocol's windows and start rule.
+        The fitted base model (its ``p`` is the evaluation's; read by the inverse dynamics).
     tracks : list of Track
-        The same tracks.
+        The tracks, parallel to the evaluation's contexts.
     sd : dict
         ``{channel: noise sd}``, SI.
     floor_by_channel : dict, optional
         ``{channel: RMS of the noise floor}``, SI.
-    nuisance : list of ndarray, optional
-        Per-track nuisances of *these* tracks (None: the model has none; a fit's own nuisances
-        belong to its training tracks and are never used here).
 
     Returns
     -------
@@ -89,7 +85,8 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
         "whiteness": {},
         "input_correlation": {},
     }
-    errs, per_sample = _per_sample(model, fitres, ctxs, tracks, nuisance)
+    model = evaluation.model
+    errs, per_sample = _per_sample(evaluation, tracks)
     pooled = pooled_scores(errs)
     for c, val in pooled["rms"].items():
         fl = None if floor_by_channel is None else floor_by_channel.get(c)
@@ -109,21 +106,16 @@ def where(model, fitres, ctxs, tracks, sd, floor_by_channel=None, nuisance=None)
     return _force_diagnostics(model, fitres, tracks, out)
 
 
-def _per_sample(model, fitres, ctxs, tracks, nuisance) -> tuple[list, list]:
+def _per_sample(evaluation: Evaluation, tracks) -> tuple[list, list]:
     """(per track {channel: errors}, per track {feature: per-sample values}) of the fitted
     model's protocol windows: drift angle, yaw rate, rudder, speed, position error, its growth
     rate, heading error, rudder moving, turning, and the model family's own features."""
-    errs, per_sample = [], []
-    for i, ctx in enumerate(ctxs):
-        nu = None if nuisance is None else nuisance[i][None]
-        S = shooting.simulate(model, ctx, fitres.p[None], nu)
-        e = {k: v[0] for k, v in ctxmod.errors(ctx, S).items()}
-        errs.append(e)
-        tr = tracks[i]
+    errs, per_sample = list(evaluation.errors), []
+    for ctx, e, S0, tr in zip(evaluation.ctxs, evaluation.errors, evaluation.states, tracks):
         u, v, r = (
             (np.asarray(tr[c], float)[ctx.idx] for c in ("u", "v", "r"))
             if all(c in tr for c in ("u", "v", "r"))
-            else (S[0, :, 6], S[0, :, 7], S[0, :, 11])
+            else (S0[:, 6], S0[:, 7], S0[:, 11])
         )
         dr = np.asarray(tr["delta_r"], float)[ctx.idx]
         drate = np.gradient(dr, ctx.ts)
@@ -142,7 +134,7 @@ def _per_sample(model, fitres, ctxs, tracks, nuisance) -> tuple[list, list]:
             rudder_moving=np.abs(drate) > np.radians(0.5),
             turning=np.abs(r) > np.radians(1.0),
         )
-        row.update(model.where_samples(tr, ctx, S))
+        row.update(evaluation.model.where_samples(tr, ctx, S0[None]))
         per_sample.append(row)
     return errs, per_sample
 
@@ -280,7 +272,7 @@ def window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin_
         The predicted x, y.
     """
     ctx = model.context(track, window_s, start=start, leadin_s=leadin_s)
-    S = shooting.simulate(model, ctx, fitres.p[None], None if nu is None else nu[None])[0]
+    S = evaluate(model, fitres.p, [ctx], None if nu is None else [nu]).states[0]
     xy = S[:, :2].copy()
     cut = np.flatnonzero(np.diff(ctx.win) != 0) + 1
     xy = np.insert(xy, cut, np.nan, axis=0)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ....estimation.laplace import fit_covariance
-from ....estimation.windows import FitProblem, fit_model
+from ....estimation.windows import WindowProblem, fit_model
 from ....models.library import term_library
 from ..candidates import Setup, Stage, score_stage
 from ..records import TermRow
@@ -100,7 +100,7 @@ def fit_term(task: TermFit) -> tuple[Stage | None, list]:
     """
     setup = with_terms(task.setup, {task.term: task.initial})
     model, ct, ch = setup.build([e for e in task.effects if e not in setup.effects])
-    problem = FitProblem(model, ct, task.sd_fit, max_nfev=task.max_nfev)
+    problem = WindowProblem(model, ct, task.sd_fit, max_nfev=task.max_nfev)
     nu0 = nuisance_start(task.ref, model)
     best, messages = None, []
     for c in dict.fromkeys((task.initial + float(task.start), task.initial)):
@@ -340,7 +340,7 @@ def _fit_on_top(values: dict, n: str, cur: Stage, ref: Stage, setup: Setup, fit_
     p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
     try:
         f = fit_model(
-            FitProblem(model, ct, sd_fit, max_nfev=max_nfev),
+            WindowProblem(model, ct, sd_fit, max_nfev=max_nfev),
             p0,
             nuisance_start(cur, model),
             starts0=warm_starts(cur.fit, ct),
