@@ -135,6 +135,7 @@ def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool) -> dic
         "velocity_log": velocity_log,
         "verdict": D["verdict"],
         "dominant_channel": D["where"].get("dominant_channel"),
+        "speed_from_positions_ratio": (D["where"].get("speed_from_positions") or {}).get("excess_ratio"),
         "routed": D["where"].get("discovery_routed"),
         "dofs": (disc.get("settings") or {}).get("dofs"),
         "found": found,
@@ -212,9 +213,16 @@ def reading(rows: list) -> list:
         )
     quiet = [r for r in rows if (r["term"] or "").startswith("X") and "X" not in (r["dofs"] or []) and r["clear"]]
     for r in quiet:
+        sog = r.get("speed_from_positions_ratio")
         lines.append(
-            f"- {r['case']}: the dominant channel was {r['dominant_channel']}, not the speed, so the search stayed in "
-            "Y and N, and found nothing."
+            f"- {r['case']}: the dominant channel was {r['dominant_channel']}, not the speed"
+            + (
+                f", and the speed over ground from the positions missed by {fmt(sog)} x its floor (under 2)"
+                if sog
+                else ""
+            )
+            + ", so the search stayed in Y and N"
+            + (f" and kept {', '.join(r['found'])}." if r["found"] else ", and found nothing.")
         )
     for r in rows:
         if r["control"] and r["verdict"] != "none":
@@ -245,7 +253,8 @@ def write_report(out: Path, rows: list, summary: dict, args) -> None:
         f"{summary['effects_named_in_clear']} of {summary['effect_clear_cases']}); a wrong name alone in "
         f"{summary['wrong_term_alone']}.",
         f"- Surge cases whose search went into X: {summary['surge_cases_routed_to_x']} of {summary['surge_clear_cases']} "
-        "(the routing needs the speed u: without a velocity log there is no u channel).",
+        "(with a velocity log when the speed u is the channel missed most; without one when the speed over ground "
+        "read from the positions is missed by at least 2 x its noise floor).",
         f"- Yaw cases routed into X: {summary['yaw_cases_routed_to_x']} (the search stays in Y and N).",
         f"- Controls clean (verdict none; the nothing-hidden control and the propulsion point the base fit "
         f"absorbs): {summary['controls_clean']} of {summary['controls']}.",
@@ -261,6 +270,7 @@ def write_report(out: Path, rows: list, summary: dict, args) -> None:
                 "case",
                 "verdict",
                 "dominant channel",
+                "speed from positions / floor",
                 "searched",
                 "kept (alternatives)",
                 "effects named",
@@ -273,6 +283,7 @@ def write_report(out: Path, rows: list, summary: dict, args) -> None:
                     r["case"],
                     r["verdict"],
                     r["dominant_channel"] or "-",
+                    fmt(r.get("speed_from_positions_ratio")),
                     ",".join(r["dofs"] or []) or "-",
                     "; ".join(f"{k} ({', '.join(v) or 'none'})" for k, v in r["alternatives"].items()) or "-",
                     ", ".join(r["effects"]) or "-",

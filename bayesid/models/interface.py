@@ -68,6 +68,10 @@ class SimulationModel(Protocol):
         :func:`bayesid.estimation.windows.fit_weighted`).
     CATALOGUE : dict
         Class level: ``{name: Effect}``, the candidate effects of the gap diagnosis.
+    SURGE_FROM_POSITIONS : bool, optional
+        Class level: where the speed u is not logged, a miss of the speed over ground read from the
+        positions routes structure discovery into the surge equation X
+        (:func:`bayesid.analysis.gap.discovery.routed`); absent: it does not.
 
     Methods
     -------

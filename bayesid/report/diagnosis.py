@@ -1021,6 +1021,18 @@ def _bic_heldout_lines(res: dict) -> list:
     return lines + ([""] if lines else [])
 
 
+def _speed_from_positions(sog: dict | None) -> list[str]:
+    """The Where section's line on the speed over ground read from the positions (no speed log)."""
+    if not sog:
+        return []
+    return [
+        f"Speed over ground read from the positions (no speed log; {fmt(sog['span_s'])} s local quadratic slopes): "
+        f"RMS error {fmt(sog['rms'])} m/s against a noise floor of {fmt(sog['floor_rms'])} m/s "
+        f"({fmt(sog['excess_ratio'])} x).",
+        "",
+    ]
+
+
 def _where_lines(res: dict) -> list:
     """The "Where" section: channels, dominant region, phases, missing forces, wind dependence
     and the residuals' spectra."""
@@ -1045,6 +1057,7 @@ def _where_lines(res: dict) -> list:
         f"{res['where']['dominant_region']['region']} (error growth {fmt(res['where']['dominant_region']['growth_ratio'])}"
         " x the mean).",
         "",
+        *_speed_from_positions(res["where"].get("speed_from_positions")),
         *(
             [f"Structure discovery: {res['where']['discovery_routed']}.", ""]
             if res["where"].get("discovery_routed")

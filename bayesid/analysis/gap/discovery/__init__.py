@@ -417,12 +417,21 @@ def _verdict(found: list, heldout_rms: float, band: float, alts: dict | None = N
 #: The channels whose miss routes structure discovery into the surge equation: the speed through
 #: the water is set by X alone (the position and heading channels by Y and N first).
 SURGE_CHANNELS = ("u",)
+#: Without a speed log: the speed over ground read from the positions
+#: (:func:`bayesid.analysis.gap.where.speed_from_positions`) missed by at least this many times its
+#: noise floor routes discovery into X too (models whose family sets ``SURGE_FROM_POSITIONS``). Set
+#: between 1.57, the largest of the synthetic KVLCC2 cases without a surge miss, and 2.8, the smallest
+#: with one (``studies/ship_surge.py`` without a velocity log, seeds 67 and 69).
+SPEED_FROM_POSITIONS_RATIO = 2.0
 
 
 def routed(options: DiscoveryOptions, where: dict | None, model) -> tuple[DiscoveryOptions, str | None]:
     """The degrees of freedom discovery searches, as *Where* points: when the channel the base
     model misses most (``where["dominant_channel"]``, the largest excess over its noise floor) is
-    the speed ``u`` (:data:`SURGE_CHANNELS`), the surge equation X joins the searched degrees of
+    the speed ``u`` (:data:`SURGE_CHANNELS`), or, where u is not logged and the model's family
+    sets ``SURGE_FROM_POSITIONS``, when the speed over ground read from the positions
+    (``where["speed_from_positions"]``) misses by at least :data:`SPEED_FROM_POSITIONS_RATIO` times
+    its floor, the surge equation X joins the searched degrees of
     freedom (first) where the model's term library offers X terms and ``options`` does not search
     it already: a model that loses speed wrongly in the turns is missing a surge force, which no
     term in Y or N supplies (the MMG surge: Yasukawa & Yoshimura 2015, J. Mar. Sci. Technol.
@@ -445,8 +454,16 @@ def routed(options: DiscoveryOptions, where: dict | None, model) -> tuple[Discov
     reason : str or None
         Why X was added (None when it was not).
     """
-    channel = (where or {}).get("dominant_channel")
-    if channel not in SURGE_CHANNELS or "X" in options.dofs:
+    where = where or {}
+    channel = where.get("dominant_channel")
+    sog = where.get("speed_from_positions") or {}
+    by_speed = channel in SURGE_CHANNELS
+    by_positions = (
+        not by_speed
+        and getattr(model, "SURGE_FROM_POSITIONS", False)
+        and (sog.get("excess_ratio") or 0.0) >= SPEED_FROM_POSITIONS_RATIO
+    )
+    if not (by_speed or by_positions) or "X" in options.dofs:
         return options, None
     try:
         offered = candidate_terms(model, options.max_order, ("X",))
@@ -454,12 +471,19 @@ def routed(options: DiscoveryOptions, where: dict | None, model) -> tuple[Discov
         return options, None
     if not offered:
         return options, None
-    ratio = ((where.get("channels") or {}).get(channel) or {}).get("excess_ratio")
-    reason = (
-        f"the base model misses the speed {channel} most"
-        + (f" ({ratio:.3g} x its noise floor)" if ratio else "")
-        + ": the surge equation X is searched too"
-    )
+    if by_speed:
+        ratio = ((where.get("channels") or {}).get(channel) or {}).get("excess_ratio")
+        reason = (
+            f"the base model misses the speed {channel} most"
+            + (f" ({ratio:.3g} x its noise floor)" if ratio else "")
+            + ": the surge equation X is searched too"
+        )
+    else:
+        reason = (
+            f"no speed log; the base model misses the speed over ground read from the positions by "
+            f"{sog['excess_ratio']:.3g} x its noise floor (at least {SPEED_FROM_POSITIONS_RATIO:g}): the surge "
+            "equation X is searched too"
+        )
     return replace(options, dofs=("X", *options.dofs)), reason
 
 
