@@ -187,6 +187,7 @@ def _identify(args, out, vehicle, free, got):
 
 def _write(res, doc, train, out) -> None:
     """``model.json``, ``report.md`` and, for a multistart fit, its turning circles and figure."""
+    from ..estimation.laplace import covariance_sentence
     from ..estimation.prediction import FittedModel, training_turns
     from ..report import write_fit_report
     from ..report.fit import budget_advice, budget_exhausted, training_turn_sentence
@@ -210,6 +211,8 @@ def _write(res, doc, train, out) -> None:
         print(f"warning: {budget_advice(doc.fit)} (see {out / 'report.md'})", file=sys.stderr)
     if res.step_check is not None and res.step_check.too_coarse:
         print(f"warning: {res.step_check.sentence()} (see {out / 'report.md'})", file=sys.stderr)
+    if covariance_sentence(res.posterior):
+        print(f"warning: {covariance_sentence(res.posterior)} (see {out / 'report.md'})", file=sys.stderr)
     for turn in doc.training_turns or []:
         if turn["reproduced"] is False:
             print(f"warning: {training_turn_sentence(turn)} (see {out / 'report.md'})", file=sys.stderr)

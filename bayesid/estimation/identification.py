@@ -35,7 +35,7 @@ from . import retiming as rt
 from . import windows as wf
 from .calibration import Calibration, leave_one_run_out
 from .fit import FitResult
-from .laplace import ar1_inflation, fit_covariance
+from .laplace import CovarianceWarning, ar1_inflation, covariance_sentence, fit_covariance
 from .multistart import MultistartResult, multistart
 from .options import CalibrationOptions, FitOptions
 from .stepcheck import MAX_HALVINGS, StepCheck, StepWarning, step_check
@@ -173,6 +173,9 @@ def identify(
     StepWarning
         The model step too coarse for the data (:attr:`~bayesid.estimation.stepcheck.StepCheck.too_coarse`)
         at the step the fit ends at.
+    CovarianceWarning
+        The fit's Laplace covariance cut directions the tracks do not determine, so its sds
+        understate the uncertainty (:func:`bayesid.estimation.laplace.covariance_sentence`).
 
     Examples
     --------
@@ -209,6 +212,8 @@ def identify(
     check.steps_tried = tried
     if check.too_coarse:
         warnings.warn(in_api_terms(check.sentence()), StepWarning, stacklevel=2)
+    if covariance_sentence(st.post):
+        warnings.warn(covariance_sentence(st.post), CovarianceWarning, stacklevel=2)
     model, f, gp, prior_info = st.model, st.f, st.gp, st.prior_info
     calib = None
     if calibration is not None and len(train) >= 3:

@@ -19,11 +19,31 @@ import math
 
 import numpy as np
 
+from ..data.validate import BayesidWarning
 from ..models.context import errors
 from . import shooting
 from .fit import FitResult
 
-__all__ = ["ar1_inflation", "gauss_newton_covariance", "fit_covariance", "psd_covariance", "weak_directions"]
+__all__ = [
+    "ar1_inflation",
+    "gauss_newton_covariance",
+    "fit_covariance",
+    "psd_covariance",
+    "weak_directions",
+    "covariance_sentence",
+    "CovarianceWarning",
+    "COVARIANCE_RCOND",
+]
+
+#: Eigenvalues of ``J^T J`` under this share of the largest are cut by the pseudo-inverse of a fit
+#: without a prior (:func:`gauss_newton_covariance`): those directions get zero variance. A Jacobian
+#: condition number above ``1 / sqrt(COVARIANCE_RCOND)`` (1e6) cuts at least one.
+COVARIANCE_RCOND = 1e-12
+
+
+class CovarianceWarning(BayesidWarning):
+    """A fit whose Laplace covariance cut directions of the parameters the tracks do not determine
+    (:func:`covariance_sentence`): its sds understate the uncertainty."""
 
 
 def gauss_newton_covariance(
@@ -31,7 +51,7 @@ def gauss_newton_covariance(
     prior_precision: np.ndarray | None = None,
     residual_variance: float = 1.0,
     inflation: float = 1.0,
-    rcond: float = 1e-12,
+    rcond: float = COVARIANCE_RCOND,
 ) -> np.ndarray:
     """Laplace covariance ``(J^T J + diag(prior_precision))^-1 * residual_variance * inflation``.
 
@@ -133,27 +153,69 @@ def fit_covariance(fitres: FitResult, ctxs, prior=None, data_scale: tuple | None
     cov : ndarray, shape (n_params, n_params)
         The covariance (:func:`psd_covariance`).
     info : dict
-        ``residual_variance``, ``ar1_inflation``, ``condition_number`` (of the data Jacobian)
-        and ``weak_directions`` (:func:`weak_directions`).
+        ``residual_variance``, ``ar1_inflation``, ``condition_number`` (of the data Jacobian),
+        ``directions_cut`` (the directions the pseudo-inverse gave zero variance, eigenvalues of
+        ``J^T J`` under :data:`COVARIANCE_RCOND` of the largest; with a prior, whose matrix is
+        inverted, those of a singular matrix, a free coefficient with neither data nor a prior,
+        whose pseudo-inverse is taken then), ``sds_meaningful`` (none cut) and ``weak_directions``
+        (:func:`weak_directions`).
     """
     n = fitres.model.n_params
     J = fitres.jac[:, :n]
     J = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    cut = None
     if prior is not None:
         J = J[: J.shape[0] - prior.idx.size]  # the data rows
         s2, infl = data_scale
-        cov = psd_covariance(gauss_newton_covariance(J / math.sqrt(s2 * infl), prior_precision=prior.precision(n)))
+        Jw = J / math.sqrt(s2 * infl)
+        try:
+            cov = psd_covariance(gauss_newton_covariance(Jw, prior_precision=prior.precision(n)))
+            cut = 0
+        except np.linalg.LinAlgError:  # a free coefficient neither the data nor a prior determine
+            H = Jw.T @ Jw + np.diag(prior.precision(n))
+            lam = np.linalg.eigvalsh(0.5 * (H + H.T))
+            cut = int(np.sum(lam <= COVARIANCE_RCOND * max(lam.max(), 0.0)))
+            cov = psd_covariance(np.linalg.pinv(H, rcond=COVARIANCE_RCOND, hermitian=True))
     else:
         s2 = fitres.cost / max(fitres.n_residuals - J.shape[1], 1)
         infl = ar1_inflation(fitres, ctxs)
         cov = psd_covariance(gauss_newton_covariance(J, residual_variance=s2, inflation=infl))
     sv = np.linalg.svd(J, compute_uv=False)
+    if cut is None:
+        cut = int(np.sum(sv**2 <= COVARIANCE_RCOND * sv[0] ** 2)) if sv.size else 0
     return cov, {
         "residual_variance": s2,
         "ar1_inflation": infl,
         "condition_number": float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf"),
+        "directions_cut": cut,
+        "sds_meaningful": cut == 0,
         "weak_directions": weak_directions(J, fitres.model.scales()),
     }
+
+
+def covariance_sentence(info: dict) -> str | None:
+    """What a fit's covariance summary says about its sds, when they cannot be trusted.
+
+    Parameters
+    ----------
+    info : dict
+        The summary of :func:`fit_covariance` (``directions_cut``, ``condition_number``).
+
+    Returns
+    -------
+    str or None
+        The sentence when the pseudo-inverse cut a direction (its sds understate the
+        uncertainty); None otherwise, and for a summary written before the count existed.
+    """
+    cut = int(info.get("directions_cut") or 0)
+    if not cut:
+        return None
+    return (
+        f"the Laplace covariance is near-singular (Jacobian condition number {info['condition_number']:.3g}): "
+        f"{cut} direction(s) of the parameters the tracks do not determine got zero variance, so every sd "
+        "understates the uncertainty and no interval from it holds; free fewer coefficients, or add runs that "
+        "excite them, or give priors"
+    )
 
 
 def psd_covariance(cov) -> np.ndarray:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..estimation.laplace import covariance_sentence
 from ..estimation.prediction import TURN_TOLERANCE
 from .imo import fit_imo_lines
 from .markdown import fmt, md_table, warning_lines
@@ -190,7 +191,8 @@ def _ar1_sentence(post: dict) -> str:
     """The Laplace posterior and its AR(1) inflation in words
     (:func:`bayesid.estimation.laplace.ar1_inflation`)."""
     infl = post["ar1_inflation"]
-    return (
+    bad = covariance_sentence(post)
+    return (f"**Covariance:** {bad[0].upper() + bad[1:]}. " if bad else "") + (
         "Posterior: Laplace approximation (Gauss-Newton covariance at the optimum, scaled by the residual "
         f"variance) x AR(1) inflation {fmt(infl)}; Jacobian condition number {fmt(post['condition_number'])}. "
         "The inflation is there because the simulation errors of neighbouring samples in a window are correlated: "
