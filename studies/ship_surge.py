@@ -195,7 +195,16 @@ def reading(rows: list) -> list:
         lines.append(
             f"- {r['case']}: {r['routed'] or 'routed into X'}; discovery kept {kept}, the held-out "
             f"excess shrank by {fmt(r['excess_shrink'])}"
-            + ("" if r["named"] else f"; the hidden {r['term']} was neither kept nor among the alternatives")
+            + (
+                ""
+                if r["named"] or r["term"] is None
+                else f"; the hidden {r['term']} was neither kept nor among the alternatives"
+            )
+            + (
+                f"; the hidden effect {r['effect']} is {'named' if r['named'] else 'not named'} by the verdict"
+                if r["effect"] is not None
+                else ""
+            )
             + "."
         )
     for r in rows:
