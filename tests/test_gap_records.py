@@ -92,6 +92,8 @@ def test_each_record_reads_as_the_dict_it_writes_in_the_old_key_order(diagnosis)
         keys = KEYS[type(rec)]
         if isinstance(rec, BaseCheck) and rec.train_starts is not None:
             keys = (*keys[:-1], "train_starts", "multistart")
+        if isinstance(rec, CandidateRow) and rec.failed_fit is not None:  # issue 69: only where a fit failed
+            keys = (*keys, "failed_fit")
         if isinstance(rec, TermRow) and not rec.refitted:  # every fit failed: as refit_row wrote it
             keys = (*keys[:8], "kept", "reason", "refitted_as")
         assert tuple(out) == keys, type(rec).__name__

@@ -905,6 +905,12 @@ def _how_far_lines(res: dict) -> list:
     ]
 
 
+def _failed_fit_lines(res: dict) -> list:
+    """A sentence for each candidate whose fit failed (``CandidateRow.failed_fit``)."""
+    rows = [r for r in map(partial(_record, CandidateRow), res["ranking"]) if r.failed_fit]
+    return [""] + [f"- **{r.effect}: fit failed**: {r.failed_fit}." for r in rows] if rows else []
+
+
 def _undetermined_lines(res: dict) -> list:
     """A paragraph naming the candidates whose parameters the training runs do not determine
     (``CandidateRow.undetermined``): their fitted values and held-out tests say nothing either way,
@@ -951,13 +957,14 @@ def _which_lines(res: dict) -> list:
                     fmt(r.excess_removed),
                     fmt(r.window_p_value),
                     fmt(r.delta_bic, 4),
-                    r.role or "-",
+                    r.role or ("fit failed" if r.failed_fit else "-"),
                     ", ".join(f"{k} {fmt(v)}" for k, v in r.parameters.items() if k != "per_track_nuisance"),
                 ]
                 for r in map(partial(_record, CandidateRow), res["ranking"])
             ],
         ),
         *_undetermined_lines(res),
+        *_failed_fit_lines(res),
         "",
         *attribution_lines(res),
         "",
@@ -993,6 +1000,8 @@ def _bic_heldout_lines(res: dict) -> list:
     th = res["thresholds"]
     lines = []
     for r in res["ranking"]:
+        if r.get("failed_fit"):  # said in its own sentence: a failed fit is not evidence
+            continue
         p = r.get("window_p_value")
         gain = r["heldout_shrinkage"] > 0 and (
             (p is not None and p < th["partial_p"]) or r["excess_removed"] >= th["explain_fraction"]

@@ -35,6 +35,7 @@ __all__ = [
     "CandidateFit",
     "fit_candidate",
     "candidate_row",
+    "failed_fit",
 ]
 
 
@@ -533,6 +534,40 @@ def undetermined_parameters(effect, sds: dict | None) -> list[str]:
     return [p for p, sc in zip(effect.params, effect.scale) if sds.get(p, 0.0) > UNDETERMINED_SCALES * abs(sc)]
 
 
+#: A candidate that nests the model it extends failed its fit when its training cost ends above that
+#: model's by more than this share (:func:`candidate_row`): the nested start reproduces the model.
+FAILED_FIT_SHARE = 1e-6
+
+
+def failed_fit(effect, st: Stage, ref: Stage) -> str | None:
+    """Why a candidate's fit failed, or None: an effect with a ``neutral`` value nests the model it
+    extends, so its best fit can only end at or under that model's training cost; one that ends
+    above it by more than :data:`FAILED_FIT_SHARE` did not converge (issue 69: on 5 Hz AUV runs a
+    delay's training ΔBIC read +6,142), and its ΔBIC and held-out scores are not evidence.
+
+    Parameters
+    ----------
+    effect : Effect
+        The candidate effect.
+    st : Stage
+        The fitted candidate.
+    ref : Stage
+        The model it extends.
+
+    Returns
+    -------
+    str or None
+        The sentence, or None when the fit is not known to have failed.
+    """
+    if effect.neutral is None or not st.fit.cost > ref.fit.cost * (1.0 + FAILED_FIT_SHARE):
+        return None
+    return (
+        f"its fit ended at a training cost of {st.fit.cost:.6g}, above the {ref.fit.cost:.6g} of the model it extends, "
+        "which it contains with the effect at its neutral value: the fit failed (a local optimum), and its ΔBIC and "
+        "held-out scores are not evidence about the effect"
+    )
+
+
 def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: float) -> CandidateRow:
     """The ranking's record of a fitted candidate against the model it extends.
 
@@ -556,7 +591,8 @@ def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: floa
         excess over the floor it removes (``excess_removed``) and of the base model's
         (``share_of_excess``), held-out shrinkage, its parameters, heading RMS (deg), the paired
         window test's p-value, cost (``nfev``, ``fit_seconds``); ``role`` None (the round's
-        verdict sets it, :func:`~bayesid.analysis.gap.verdict.assign_roles`).
+        verdict sets it, :func:`~bayesid.analysis.gap.verdict.assign_roles`); ``failed_fit``
+        (:func:`failed_fit`).
     """
     excess = ref.held["rms_position_m"] - floor_rms
     gain = ref.held["rms_position_m"] - st.held["rms_position_m"]
@@ -576,4 +612,5 @@ def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: floa
         fit_seconds=st.fit.wall_s,
         parameter_sd=sds,
         undetermined=undetermined_parameters(effect, sds),
+        failed_fit=failed_fit(effect, st, ref),
     )

@@ -206,6 +206,11 @@ class CandidateRow(Record):
         The parameters whose sd exceeds :data:`~bayesid.analysis.gap.candidates.UNDETERMINED_SCALES`
         times the effect's typical size (``Effect.scale``): the training runs do not determine
         them, and the candidate's fitted values and held-out test say nothing either way.
+    failed_fit : str or None
+        Why the fit failed, when the effect nests the model it extends (its ``neutral`` value
+        reproduces it) and the fit still ended above that model's training cost: a failed fit, not
+        evidence against the effect (:func:`~bayesid.analysis.gap.candidates.candidate_row`); None
+        (left out of the JSON) otherwise.
     """
 
     effect: str
@@ -223,8 +228,9 @@ class CandidateRow(Record):
     role: str | None = None
     parameter_sd: dict | None = None
     undetermined: list = field(default_factory=list)
+    failed_fit: str | None = None
 
-    _OPTIONAL: ClassVar[tuple] = ("parameter_sd",)
+    _OPTIONAL: ClassVar[tuple] = ("parameter_sd", "failed_fit")
     _WHAT: ClassVar[str] = "candidate"
 
 

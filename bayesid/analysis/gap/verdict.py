@@ -313,7 +313,9 @@ def assign_roles(results: list, significant: bool, band: float, th: Thresholds) 
     """
     for i, r in enumerate(results):
         role = (
-            "cause"
+            None
+            if getattr(r, "failed_fit", None)  # a failed fit is not evidence either way
+            else "cause"
             if is_cause(r, significant, band, th)
             else "contributor"
             if is_contributor(r, significant, th)
