@@ -53,6 +53,8 @@ __all__ = [
     "diagnose",
     "discovery_beside_round_one",
     "base_fit_check",
+    "discovered_terms",
+    "worse_on_other_kinds",
     "BASE_FIT_RATIO",
 ]
 
@@ -163,8 +165,10 @@ class Diagnosis:
         What every model of the diagnosis shares (vehicle, free coefficients, tracks, windows);
         not in :meth:`to_dict`.
     discovered_terms : list, optional
-        The top-level ``discovered`` list of a diagnosis read back from its JSON
-        (:meth:`from_dict`; ``discovered`` is then None); :meth:`to_dict` writes it as read.
+        The top-level ``discovered`` list (:func:`discovered_terms`), computed once by
+        :func:`diagnose` or read back from the JSON (:meth:`from_dict`; ``discovered`` is then
+        None); :meth:`to_dict` writes it as it is, so a diagnosis computed and one read back take
+        the same path.
     """
 
     verdict: str
@@ -217,15 +221,7 @@ class Diagnosis:
             top-level list of discovered terms.
         """
         out = {f.name: _plain(getattr(self, f.name)) for f in fields(self) if f.name not in self._HIDDEN}
-        if self.discovered is None:  # read back from JSON: the list as it was written
-            out["discovered"] = [dict(i) for i in self.discovered_terms or []]
-            return out
-        # issue 40's contract: the terms at the top level, the final model's with kept: true
-        out["discovered"] = self.discovered.terms()
-        within = set(self.manoeuvre_kinds.get("heldout", [])) <= set(self.manoeuvre_kinds.get("train", []))
-        for item in out["discovered"]:  # a held-out test of the same kinds says nothing of the others
-            item["tested_only_within_training_manoeuvres"] = bool(self.manoeuvre_kinds) and within
-            item["worse_on_other_kinds"] = self._worse_on_other_kinds(item) if item["kept"] else []
+        out["discovered"] = [dict(i) for i in self.discovered_terms or []]
         return out
 
     @classmethod
@@ -259,26 +255,78 @@ class Diagnosis:
             args["base_check"] = BaseCheck.from_dict(args["base_check"])
         return cls(**args, discovered_terms=list(d.get("discovered") or []))
 
-    def _worse_on_other_kinds(self, item: dict) -> list:
-        """The held-out runs of a kind the training runs lack on which a kept term's single-term
-        refit predicts worse than the reference model by more than the separation margin
-        (``thresholds["separation_margin"]``, 10 %; a smaller excess is within what refits of
-        equally good structures differ by): ``[{"run", "kind", "rms_m", "reference_rms_m"}]``
-        (a term chosen on one kind of run that does not carry to another)."""
-        ref = getattr(getattr(self.discovered, "reference", None), "held", None) or {}
-        base = ref.get("per_track_rms_position_m", {})
-        mine = item.get("heldout_rms_by_run_m") or {}
-        train = set(self.manoeuvre_kinds.get("train", []))
-        margin = float(
-            (getattr(self, "thresholds", None) or {}).get("separation_margin", Thresholds().separation_margin)
+
+def discovered_terms(found, heldout_tracks: list, manoeuvre_kinds: dict, thresholds: dict) -> list:
+    """The top-level ``discovered`` list of a diagnosis (issue 40's contract): every refitted term
+    of discovery (:meth:`~bayesid.analysis.gap.discovery.Discovery.terms`), the final model's with
+    ``kept: true``, each with ``tested_only_within_training_manoeuvres`` (every held-out run is of
+    a kind the training runs have: the held-out test says nothing of the other kinds) and, when
+    kept, ``worse_on_other_kinds`` (:func:`worse_on_other_kinds`).
+
+    Parameters
+    ----------
+    found : Discovery or None
+        Structure discovery's result (None: no discovery ran).
+    heldout_tracks : list of str
+        The held-out runs' names.
+    manoeuvre_kinds : dict
+        ``{"train": [kind], "heldout": [kind]}`` (:func:`~bayesid.estimation.indices.manoeuvre_kind`).
+    thresholds : dict
+        The diagnosis's thresholds (``separation_margin``).
+
+    Returns
+    -------
+    list of dict
+        The terms (empty without discovery).
+    """
+    if found is None:
+        return []
+    out = found.terms()
+    within = set(manoeuvre_kinds.get("heldout", [])) <= set(manoeuvre_kinds.get("train", []))
+    reference = getattr(getattr(found, "reference", None), "held", None) or {}
+    for item in out:  # a held-out test of the same kinds says nothing of the others
+        item["tested_only_within_training_manoeuvres"] = bool(manoeuvre_kinds) and within
+        item["worse_on_other_kinds"] = (
+            worse_on_other_kinds(item, reference, heldout_tracks, manoeuvre_kinds, thresholds) if item["kept"] else []
         )
-        out = []
-        for run, kind in zip(self.heldout_tracks, self.manoeuvre_kinds.get("heldout", [])):
-            if kind in train or run not in mine or run not in base:
-                continue
-            if mine[run] > base[run] * (1.0 + margin):
-                out.append({"run": run, "kind": kind, "rms_m": mine[run], "reference_rms_m": base[run]})
-        return out
+    return out
+
+
+def worse_on_other_kinds(item: dict, reference, heldout_tracks: list, manoeuvre_kinds: dict, thresholds: dict) -> list:
+    """The held-out runs of a kind the training runs lack on which a kept term's single-term refit
+    predicts worse than the reference model by more than the separation margin
+    (``thresholds["separation_margin"]``, 10 %; a smaller excess is within what refits of equally
+    good structures differ by): a term chosen on one kind of run that does not carry to another.
+
+    Parameters
+    ----------
+    item : dict
+        A term of :func:`discovered_terms` (``heldout_rms_by_run_m``).
+    reference : Mapping
+        The reference model's held-out scores (``per_track_rms_position_m``).
+    heldout_tracks : list of str
+        The held-out runs' names, parallel to ``manoeuvre_kinds["heldout"]``.
+    manoeuvre_kinds : dict
+        ``{"train": [kind], "heldout": [kind]}``.
+    thresholds : dict
+        ``separation_margin`` (default :class:`Thresholds`'s).
+
+    Returns
+    -------
+    list of dict
+        ``[{"run", "kind", "rms_m", "reference_rms_m"}]``.
+    """
+    base = (reference or {}).get("per_track_rms_position_m", {})
+    mine = item.get("heldout_rms_by_run_m") or {}
+    train = set(manoeuvre_kinds.get("train", []))
+    margin = float((thresholds or {}).get("separation_margin", Thresholds().separation_margin))
+    out = []
+    for run, kind in zip(heldout_tracks, manoeuvre_kinds.get("heldout", [])):
+        if kind in train or run not in mine or run not in base:
+            continue
+        if mine[run] > base[run] * (1.0 + margin):
+            out.append({"run": run, "kind": kind, "rms_m": mine[run], "reference_rms_m": base[run]})
+    return out
 
 
 #: How the training fits of a diagnosis get their window starts (:class:`DiagnoseOptions`).
@@ -576,6 +624,7 @@ def diagnose(
         search, significant, remainder_sig, (setup, opt, disc_context, held), rng, runner
     )
     designed, predictions = _design(found, setup, opt.design, runner)
+    kinds = {"train": [manoeuvre_kind(t) for t in train], "heldout": [manoeuvre_kind(t) for t in heldout]}
     return Diagnosis(
         verdict=verdict,
         effects_added=chosen,
@@ -613,11 +662,12 @@ def diagnose(
         base_check=replace(check, multistart=base_ms),
         design=designed,
         predictions=predictions,
-        manoeuvre_kinds={"train": [manoeuvre_kind(t) for t in train], "heldout": [manoeuvre_kind(t) for t in heldout]},
+        manoeuvre_kinds=kinds,
         base=base_stage,
         after=after,
         discovered=found,
         setup=setup,
+        discovered_terms=discovered_terms(found, names_h, kinds, th.as_dict()),
     )
 
 
