@@ -609,8 +609,21 @@ class TrackContext:
         Returns
         -------
         ndarray, shape (B, n_steps, 4)
-            The inputs per step.
+            The inputs per step. Rows whose input effects have the same parameters (a
+            finite-difference Jacobian perturbs one parameter per row) are computed once: each row's
+            inputs depend on its own parameters alone, so the result is the same to the bit.
         """
+        acting = [
+            i
+            for i, (e, q) in enumerate(zip(effects, qs))
+            if e.delay(q) is not None or e.actuator(q) is not None or type(e).input_map is not Effect.input_map
+        ]
+        if acting and B > 1 and self.row_inputs is None and self._rows is None:
+            key = np.concatenate([np.asarray(qs[i], float).reshape(B, -1) for i in acting], axis=1)
+            _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+            if first.size < B:
+                sub = self.inputs(effects, [np.asarray(q)[first] for q in qs], first.size)
+                return sub[np.asarray(inv).ravel()]
         delay, servo = None, None
         for e, q in zip(effects, qs):
             delay = e.delay(q) if e.delay(q) is not None else delay
