@@ -125,6 +125,10 @@ def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool) -> dic
     after = (D.get("gap_discovered") or {}).get("heldout_rms_m") or D["gap_after"]["heldout_rms_m"]
     floor = D["noise_floor"]["heldout_rms_m"]
     ranking = [(r["effect"], r["share_of_excess"]) for r in D.get("ranking") or []]
+    rows = [
+        {k: r.get(k) for k in ("effect", "share_of_excess", "delta_bic", "window_p_value", "role", "failed_fit")}
+        for r in D.get("ranking") or []
+    ]
     return {
         "case": f"{structure['name']}, {'velocity log' if velocity_log else 'no velocity log'}",
         "structure": structure["name"],
@@ -142,6 +146,7 @@ def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool) -> dic
         "alternatives": alts,
         "effects": chosen,
         "effect_ranking": ranking,
+        "effect_rows": rows,
         "named": bool(named),
         "wrong_alone": bool(found or chosen)
         and not named
@@ -211,10 +216,17 @@ def reading(rows: list) -> list:
         if r["effect"] is None or not r["clear"]:
             continue
         rank = ", ".join(f"{e} {fmt(x)}" for e, x in r["effect_ranking"][:3])
+        mine = next((x for x in r.get("effect_rows") or [] if x["effect"] == r["effect"]), None)
+        why = (
+            f"; its training ΔBIC {fmt(mine['delta_bic'], 4)}, window test p {fmt(mine['window_p_value'])}"
+            + (f", fit failed: {mine['failed_fit']}" if mine.get("failed_fit") else "")
+            if mine is not None and not r["named"]
+            else ""
+        )
         said = (
             f"the verdict names {r['effect']}"
             if r["named"]
-            else f"the verdict does not name {r['effect']} (it names {', '.join(r['effects']) or 'no effect'})"
+            else f"the verdict does not name {r['effect']} (it names {', '.join(r['effects']) or 'no effect'}{why})"
         )
         lines.append(
             f"- {r['case']}: {said}; the catalogue's best shares of the held-out excess: {rank}; "
