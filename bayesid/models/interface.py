@@ -86,6 +86,13 @@ class SimulationModel(Protocol):
         Class level: raise KeyError naming ``option`` and an unknown coefficient of ``names``.
     get_effect(name)
         Class level: a catalogue effect by name; ValueError naming an unknown one.
+    term_library()
+        Optional: the family's candidate model terms for structure discovery, a
+        :class:`bayesid.models.library.TermLibrary` bound to the model's vehicle (the prime-form
+        products discovery may add in X, Y and N, and how each is written into a vehicle file); a
+        family without it is refused by discovery with
+        :class:`~bayesid.models.library.NoTermLibraryError`, never searched in another family's
+        terms.
     """
 
     vehicle: object
