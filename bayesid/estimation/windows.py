@@ -45,6 +45,7 @@ __all__ = [
     "WindowProblem",
     "contexts",
     "START_Z",
+    "warm_starts",
     "window_residuals",
     "channel_weights",
     "check_channels",
@@ -675,6 +676,34 @@ def contexts(
             raise ValueError("window starts held at the kinematics need kinematic_sd (the noise sds of x, y, psi)")
         return shooting.kinematic_contexts(model, tracks, window_s, kinematic_sd)
     return [model.context(t, window_s, start=start, leadin_s=leadin_s) for t in tracks]
+
+
+def warm_starts(fit, ctxs) -> list | None:
+    """A fit's window start offsets when they fit ``ctxs``'s windows (same tracks, same windows),
+    else None: a model evaluated at another fit's parameters with cold start states can land in
+    another optimum of the start-state problem (a base fit bent to follow its tracks: cost 8.6e7
+    cold against 1.9e4 at the fit's own starts, sim_to_real's constant-yaw-moment case).
+
+    Parameters
+    ----------
+    fit : FitResult
+        The fit whose ``window_starts`` are carried over.
+    ctxs : list
+        The contexts of the new fit.
+
+    Returns
+    -------
+    list or None
+        Per track, None (measured starts) or the (W, 6) fitted start offsets; None when they do
+        not fit ``ctxs``.
+    """
+    starts = getattr(fit, "window_starts", None)
+    if starts is None or len(starts) != len(ctxs):
+        return None
+    for s, c in zip(starts, ctxs):
+        if (s is None) != (c.start != "fitted") or (s is not None and np.shape(s) != (c.W, 6)):
+            return None
+    return starts
 
 
 def fit_model(

@@ -18,7 +18,7 @@ from functools import cached_property
 import numpy as np
 
 from ...estimation.fit import FitResult
-from ...estimation.windows import Evaluation, WindowProblem, contexts, evaluate, heldout_nuisance
+from ...estimation.windows import Evaluation, WindowProblem, contexts, evaluate, heldout_nuisance, warm_starts
 from ...models import build_model
 from .records import CandidateRow
 from .verdict import paired_window_test
@@ -449,7 +449,9 @@ def fit_candidate(task: CandidateFit) -> tuple[Stage | None, list]:
     if nested is not None and (best is None or best.cost > ref.fit.cost):
         # a candidate that nests the model it extends cannot fit worse than it
         try:
-            f = problem.fit(*nested)
+            # from the reference fit's window starts too, where the candidate's cost equals the
+            # reference's: a cold start of the start-state problem can land in another optimum
+            f = problem.fit(*nested, starts0=warm_starts(ref.fit, ctx_train))
             if best is None or f.cost < best.cost:
                 best = f
         except Exception as exc:  # noqa: BLE001

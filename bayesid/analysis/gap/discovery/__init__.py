@@ -59,6 +59,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ....estimation.windows import warm_starts
 from ....models.library import MAX_ORDER as MAX_ORDER
 from ....models.library import NoTermLibraryError
 from ....tasks import Runner, Task, TaskError, record_fields
@@ -94,7 +95,6 @@ from .library import (
     nuisance_start,
     reference_values,
     untied_candidates,
-    warm_starts,
     with_terms,
 )
 from .options import DOFS, DiscoveryOptions

@@ -12,12 +12,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ....estimation.laplace import fit_covariance
-from ....estimation.windows import WindowProblem, fit_model
+from ....estimation.windows import WindowProblem, fit_model, warm_starts
 from ....models.library import term_library
 from ..candidates import Setup, Stage, score_stage
 from ..records import TermRow
 from ..verdict import Thresholds, is_contributor, paired_window_test, run_separation_test
-from .library import extended_start, nuisance_start, warm_starts, with_terms
+from .library import extended_start, nuisance_start, with_terms
 
 __all__ = [
     "TermFit",

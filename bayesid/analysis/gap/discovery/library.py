@@ -4,7 +4,7 @@ from its family's term library (:func:`candidate_terms`), the tied coefficients 
 (:func:`reference_values`), a setup with terms added (:func:`with_terms`), the reference model
 with every candidate added (:func:`augmented_model`) and the reference fit's parameters, window
 starts and nuisances carried over to an extended model (:func:`extended_start`,
-:func:`warm_starts`, :func:`nuisance_start`)."""
+:func:`~bayesid.estimation.windows.warm_starts`, :func:`nuisance_start`)."""
 
 from __future__ import annotations
 
@@ -23,7 +23,6 @@ __all__ = [
     "with_terms",
     "augmented_model",
     "extended_start",
-    "warm_starts",
     "nuisance_start",
 ]
 
@@ -187,34 +186,6 @@ def extended_start(ref: Stage, model, values: list) -> np.ndarray:
     known = dict(zip(ref.model.param_names, ref.fit.p))
     new = iter(np.asarray(values, float))
     return np.array([known[n] if n in known else next(new) for n in model.param_names], float)
-
-
-def warm_starts(fit, ctxs) -> list | None:
-    """A fit's window start offsets when they fit ``ctxs``'s windows (same tracks, same windows),
-    else None: a model evaluated at another fit's parameters with cold start states can land in
-    another optimum of the start-state problem (a base fit bent to follow its tracks: cost 8.6e7
-    cold against 1.9e4 at the fit's own starts, sim_to_real's constant-yaw-moment case).
-
-    Parameters
-    ----------
-    fit : FitResult
-        The fit whose ``window_starts`` are carried over.
-    ctxs : list
-        The contexts of the new fit.
-
-    Returns
-    -------
-    list or None
-        Per track, None (measured starts) or the (W, 6) fitted start offsets; None when they do
-        not fit ``ctxs``.
-    """
-    starts = getattr(fit, "window_starts", None)
-    if starts is None or len(starts) != len(ctxs):
-        return None
-    for s, c in zip(starts, ctxs):
-        if (s is None) != (c.start != "fitted") or (s is not None and np.shape(s) != (c.W, 6)):
-            return None
-    return starts
 
 
 def nuisance_start(ref: Stage, model) -> list | None:

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ....estimation.windows import WindowObjective
+from ....estimation.windows import WindowObjective, warm_starts
 from ....models.library import term_library
 from ...sindy import block_ensemble_stlsq
 from ..candidates import Setup, Stage
-from .library import augmented_model, extended_start, nuisance_start, reference_values, warm_starts
+from .library import augmented_model, extended_start, nuisance_start, reference_values
 from .options import DiscoveryOptions
 
 __all__ = [
