@@ -390,7 +390,8 @@ TURN_AGREEMENT = 0.2
 
 def _noise_sd2(y) -> float:
     """A signal's sample noise, robustly, from its second differences (1.4826 MAD / sqrt 6; the
-    estimator of :func:`bayesid.protocol.estimate_noise`, which this layer does not import)."""
+    first estimate of :func:`bayesid.protocol.estimate_noise`, which this layer does not import:
+    in a coarse log it reads some of the motion too, which the checks here allow for)."""
     d = np.diff(np.asarray(y, float), 2)
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(6.0)) if d.size > 2 else 0.0
 
