@@ -28,7 +28,12 @@ def add_parser(sub) -> None:
     opt.add_tracks(d, "--train", "training Track CSVs")
     opt.add_tracks(d, "--heldout", "held-out Track CSVs")
     opt.add_score_window(d)
-    opt.add_dt(d, None, "model integration step, s (none: 0.5; ships 0.2)")
+    opt.add_dt(
+        d,
+        None,
+        "model integration step, s (none: 0.2 ships, 0.5 submarines, halved for a small or fast one until it is at "
+        "most 0.18 of its length over its nominal speed)",
+    )
     opt.add_fit_window(
         d,
         opt.NON_NEGATIVE,
@@ -94,7 +99,7 @@ def run(args) -> int:
         The exit code (0).
     """
     from ..analysis.gap.discovery import check_compare
-    from ..models import build_model, load_any_vehicle, model_class
+    from ..models import build_model, default_dt, load_any_vehicle, model_class
 
     check_outputs(args)
     vehicle = load_any_vehicle(args.vehicle)
@@ -111,7 +116,7 @@ def run(args) -> int:
             args,
             candidates=cands,
             fit_window_s=args.fit_window if args.fit_window else None,
-            dt=args.dt if args.dt is not None else family.DEFAULT_DT,
+            dt=args.dt if args.dt is not None else default_dt(vehicle),
             mode=args.mode,
             max_effects=args.max_effects,
             weighting=args.weighting or None,

@@ -37,7 +37,8 @@ def add_parser(sub) -> None:
     opt.add_dt(
         f,
         None,
-        "model step, s (none: 0.2 ships, 0.5 submarines), or 'auto': from the family's, halved and refitted while "
+        "model step, s (none: 0.2 ships, 0.5 submarines, halved for a small or fast one until it is at most 0.18 "
+        "of its length over its nominal speed), or 'auto': from that, halved and refitted while "
         "halving it moves the estimate by more than 0.5 sd (every fit reports that check)",
         auto=True,
     )

@@ -51,7 +51,7 @@ class FitOptions:
     window_s : float, optional
         The multiple-shooting window (s), positive; None: the family's ``default_fit_window``.
     dt : float, optional
-        The model step (s), positive; None: the family's ``DEFAULT_DT``.
+        The model step (s), positive; None: the vehicle's default (:func:`bayesid.models.default_dt`).
     refine_step : bool, default False
         Halve the model step and refit while halving it would move the estimate by more than
         :data:`bayesid.estimation.stepcheck.STEP_SHIFT_SD` sd along some direction (``bayesid fit --dt

@@ -20,7 +20,7 @@ from .submarine import EffectModel
 # after the imports is in time (see bayesid._numba)
 drop_stale_caches()
 
-__all__ = ["FAMILIES", "SimulationModel", "build_model", "load_any_vehicle", "model_class"]
+__all__ = ["FAMILIES", "SimulationModel", "build_model", "default_dt", "load_any_vehicle", "model_class"]
 
 #: vehicle description type -> model class (a new vessel family registers here)
 FAMILIES = {Vehicle: EffectModel, Ship: ShipModel}
@@ -52,6 +52,30 @@ def model_class(vehicle):
     )
 
 
+def default_dt(vehicle) -> float:
+    """The model step of a vehicle when the user gives none: its family's ``default_dt(vehicle)``
+    where the family has one (a submarine's shortens with the vehicle's time unit ``L / U``:
+    :meth:`bayesid.models.submarine.EffectModel.default_dt`), else its ``DEFAULT_DT``.
+
+    Parameters
+    ----------
+    vehicle : Vehicle or Ship
+        The vehicle.
+
+    Returns
+    -------
+    float
+        The step, s.
+
+    Raises
+    ------
+    TypeError
+        For a vehicle description of no registered family.
+    """
+    cls = model_class(vehicle)
+    return cls.default_dt(vehicle) if hasattr(cls, "default_dt") else cls.DEFAULT_DT
+
+
 def build_model(
     vehicle,
     free=None,
@@ -76,7 +100,8 @@ def build_model(
     effects : sequence of Effect or str, default ()
         The effects added to the model (catalogue names or :class:`~bayesid.models.effects.Effect`).
     dt : float, optional
-        Model step, s; default the family's ``DEFAULT_DT`` (0.2 s ship, 0.5 s submarine).
+        Model step, s; default :func:`default_dt` (0.2 s ship; 0.5 s submarine, shorter for a
+        small or fast one).
     mode : {"horizontal", "6dof"}, default "horizontal"
         Degrees of freedom of a submarine model (a ship is always 3-DOF).
     kernel : {"generated", "interpreted"}, default "generated"
@@ -108,7 +133,9 @@ def build_model(
     if inputs not in INPUT_RECONSTRUCTIONS:
         raise ValueError(f"inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {inputs!r}")
     cls = model_class(vehicle)
-    model = cls.for_vehicle(vehicle, free, effects, dt=cls.DEFAULT_DT if dt is None else dt, mode=mode, kernel=kernel)
+    model = cls.for_vehicle(
+        vehicle, free, effects, dt=default_dt(vehicle) if dt is None else dt, mode=mode, kernel=kernel
+    )
     model.inputs = inputs
     if inputs == "rate":
         rate = rudder_rate_deg_s if rudder_rate_deg_s is not None else getattr(cls, "gear_rate_deg_s", _none)(vehicle)

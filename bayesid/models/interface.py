@@ -80,6 +80,9 @@ class SimulationModel(Protocol):
         ``scoring_window_s``.
     default_free(vehicle)
         Class level: the default free list of a vehicle.
+    default_dt(vehicle)
+        Optional, class level: the model step (s) of a vehicle when the user gives none
+        (:func:`bayesid.models.default_dt`; absent: ``DEFAULT_DT``).
     gear_rate_deg_s(vehicle)
         Optional, class level: the steering gear's rate its vehicle file gives (deg/s), or None.
     check_free(vehicle, names, option)

@@ -60,6 +60,9 @@ class EffectModel(ParameterLayout):
     """
 
     DEFAULT_DT = 0.5
+    #: The model step per time unit ``L / U`` of the vehicle: :data:`DEFAULT_DT` over that of the
+    #: vehicle it was chosen for, NPS AUV II (5.3 m at 1.885 m/s, 2.81 s)
+    DT_PER_TIME_UNIT = DEFAULT_DT / (5.3 / 1.885)
     DEFAULT_WEIGHTING = "noise"
     #: the horizontal-plane coefficients freed when the user names none
     DEFAULT_FREE = ("Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr")
@@ -91,6 +94,34 @@ class EffectModel(ParameterLayout):
             The model.
         """
         return cls(vehicle, free or (), effects, mode=mode, dt=dt, kernel=kernel)
+
+    @classmethod
+    def default_dt(cls, vehicle) -> float:
+        """The model step of a vehicle when the user gives none: :data:`DEFAULT_DT`, halved until it
+        is at most :data:`DT_PER_TIME_UNIT` of the vehicle's time unit ``L / U`` (length over
+        nominal speed). The fixed-step RK4 of the kernels diverges when the step is long against the
+        vehicle's fastest sway-yaw time constant, which scales with ``L / U``: REMUS 100 (1.33 m at
+        1.54 m/s) flown at the 0.5 s chosen for NPS AUV II gives non-finite states within a 90 s
+        zigzag or turn, at 0.2 s and finer none (``tests/test_default_step.py``).
+
+        Parameters
+        ----------
+        vehicle : Vehicle
+            The vehicle (its ``L``, m, and ``nominal_speed``, m/s).
+
+        Returns
+        -------
+        float
+            The step, s: 0.5 for NPS AUV II and every vehicle as slow for its length, 0.125 for
+            REMUS 100.
+        """
+        dt = cls.DEFAULT_DT
+        L, U = float(getattr(vehicle, "L", 0.0) or 0.0), float(getattr(vehicle, "nominal_speed", 0.0) or 0.0)
+        if L > 0.0 and U > 0.0:
+            limit = cls.DT_PER_TIME_UNIT * L / U * (1.0 + 1e-9)
+            while dt > limit and dt > 1e-3:
+                dt /= 2.0
+        return dt
 
     @staticmethod
     def default_fit_window(scoring_window_s):

@@ -24,7 +24,7 @@ from ...estimation.windows import (
     pooled_noise_sd,
     scores,
 )
-from ...models import model_class
+from ...models import default_dt, model_class
 from ...models.context import INPUT_RECONSTRUCTIONS
 from ...protocol import start_settings
 from ...tasks import Runner, Task, TaskError, record_fields
@@ -34,6 +34,7 @@ from .discovery import Discovery, discover, routed, with_terms
 from .records import BaseCheck, CandidateRow, NoiseFloor, Record, Remainder
 from .support import signature_regression
 from .verdict import (
+    DivergedSimulation,
     Thresholds,
     assign_roles,
     contribution,
@@ -351,7 +352,7 @@ class DiagnoseOptions:
         ``default_fit_window(window_s)`` (ship :data:`bayesid.models.ship.FIT_WINDOW_S`,
         submarine ``window_s``).
     dt : float, optional
-        The model step (s); None: the family's ``DEFAULT_DT``.
+        The model step (s); None: the vehicle's default (:func:`bayesid.models.default_dt`).
     mode : str, default "horizontal"
         The submarine equations (``"horizontal"``, ``"6dof"``, ...).
     max_nfev : int, default 60
@@ -573,9 +574,16 @@ def diagnose(
     nominal = FitResult.fixed(base, base.start(), len(train), "nominal")
     # the noise itself, not the weights' lower bound (a 1 mm carriage track is not 1 cm noise)
     sd_raw = pooled_noise_sd(train + heldout, floor=False)
-    floor = min(
-        (noise_floor(base, f, cho, heldout, sd_raw, rng) for f in (bfit, nominal)), key=lambda d: d.heldout_rms_m
-    )
+    floors, diverged = [], None
+    for f in (bfit, nominal):
+        try:
+            floors.append(noise_floor(base, f, cho, heldout, sd_raw, rng))
+        except DivergedSimulation as exc:  # the other one may hold (a base fit bent far off)
+            say(str(exc))
+            diverged = exc
+    if not floors:
+        raise diverged
+    floor = min(floors, key=lambda d: d.heldout_rms_m)
     w, forces = where(b.held, bfit, heldout, sd, floor_by_channel=floor.by_channel)
     if opt.discover is not None:  # Where's dominant channel decides where the search starts
         searched, why = routed(opt.discover, w, base)
@@ -687,7 +695,7 @@ def _diagnosis_setup(vehicle, free, train: list, heldout: list, opt: DiagnoseOpt
     if overlap or any(a is b for a in train for b in heldout):
         raise ValueError(f"training and held-out tracks overlap: {sorted(overlap)}")
     family = model_class(vehicle)
-    dt = family.DEFAULT_DT if opt.dt is None else opt.dt
+    dt = default_dt(vehicle) if opt.dt is None else opt.dt
     free = family.default_free(vehicle) if free is None else list(free)
     if opt.candidates is None:
         names = catalogue_candidates(family, train + heldout, runner, free)

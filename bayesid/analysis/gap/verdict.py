@@ -23,6 +23,7 @@ from .records import NoiseFloor
 
 __all__ = [
     "Thresholds",
+    "DivergedSimulation",
     "noise_floor",
     "paired_window_test",
     "run_separation_test",
@@ -75,6 +76,11 @@ class Thresholds:
         }
 
 
+class DivergedSimulation(ValueError):
+    """A model's simulation of a whole track gave non-finite states (:func:`noise_floor`): the
+    fixed-step integration diverged, a step too coarse for the vehicle or a fit far off."""
+
+
 def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFloor:
     """The protocol's error for a perfect model at the measured noise level: simulate the fitted
     model on each held-out track's inputs from its first measured state (as the start rule
@@ -103,6 +109,11 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFl
     NoiseFloor
         Position RMS, heading RMS and RMS by channel of the pooled scores
         (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks.
+
+    Raises
+    ------
+    DivergedSimulation
+        A whole-track simulation with non-finite states (naming the track, the time and the step).
     """
     errs = []
     for ctx, tr in zip(ctxs, tracks):
@@ -111,6 +122,12 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFl
             s_first[START_INDEX] += window_starts(model, fitres.p, ctx)[0]
         whole = model.context(tr, None, s0=s_first)
         S = model.simulate(whole, fitres.p[None], measured_start=False)[0]
+        bad = ~np.isfinite(S).all(axis=1)
+        if bad.any():
+            raise DivergedSimulation(
+                f"simulating held-out track {tr.name!r} whole from its first state, the model's states are not finite from t = {whole.ts[np.argmax(bad)]:.1f} s at the model step of "
+                f"{model.dt:g} s: a step too coarse for the vehicle (give a smaller dt, --dt) or a fit far off"
+            )
         for _ in range(n_rep):
             data = {k: np.asarray(tr[k], float).copy() for k in tr.data}
             for i, k in enumerate(STATE_NAMES):
