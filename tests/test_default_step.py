@@ -61,3 +61,20 @@ def test_a_diverging_simulation_names_the_track_and_the_step_not_a_window(remus_
     with pytest.raises(DivergedSimulation, match=r"zigzag.*not finite from t = .* model step of 0.5 s"):
         noise_floor(m, nominal, ctxs, runs, sd, np.random.default_rng(0))
     assert isinstance(DivergedSimulation("x"), ValueError)  # the commands exit 2 with the sentence
+
+
+def test_a_vehicle_file_without_crossflow_data_leaves_the_crossflow_candidate_out():
+    # the newcomer's next failure: the default catalogue's crossflow candidate on a file without a
+    # [crossflow] section stopped the diagnosis in round 1
+    from bayesid.analysis.gap.diagnose import catalogue_candidates
+    from bayesid.models import model_class
+    from bayesid.tasks import Runner
+
+    veh, said = load_any_vehicle(str(REMUS)), []
+    family = model_class(veh)
+    names = catalogue_candidates(family, [], Runner(progress=said.append), vehicle=veh)
+    assert "crossflow" not in names and "current" in names
+    assert said == ["the vehicle file has no [crossflow] section: the crossflow candidate is left out"]
+    assert "crossflow" in catalogue_candidates(family, [], vehicle=load_vehicle("nps_auv2"))
+    with pytest.raises(ValueError, match=r"remus100: the vehicle file has no \[crossflow\] section"):
+        build_model(veh, FREE, ["crossflow"])

@@ -193,7 +193,7 @@ def test_the_command_leaves_the_same_effects_out_and_says_so_once(ship_runs, tmp
         assert got == [c for c in catalogue if c not in left_out]
     # excluding an effect the columns already left out is said and skipped: what was asked for holds
     assert main([*base, "--exclude", "wind", "--out", str(tmp_path / "dw")]) == 0
-    assert "--exclude wind: already left out (the tracks lack its columns)" in capsys.readouterr().out
+    assert "--exclude wind: already left out (said above)" in capsys.readouterr().out
     got = json.loads((tmp_path / "dw" / "diagnosis.json").read_text())["settings"]["candidates"]
     assert got == [c for c in catalogue if c != "wind"]
     # a name of no effect in the catalogue is refused, naming it (exit 2)

@@ -108,7 +108,7 @@ def run(args) -> int:
     got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     train, held = got["--train"], got["--heldout"]
     with naming_files(got):
-        cands = _candidates(args, family, train + held, free)
+        cands = _candidates(args, family, train + held, free, vehicle)
         found, design = opt.discovery_options(args)
         if not args.no_discover:
             check_compare(build_model(vehicle, free, mode=args.mode), found)
@@ -253,7 +253,7 @@ def _vehicle_values(res, vehicle) -> tuple[dict, list]:
     return values, named
 
 
-def _candidates(args, family, tracks, free=()) -> list | None:
+def _candidates(args, family, tracks, free=(), vehicle=None) -> list | None:
     """The candidate effects: ``--candidates``, or None without ``--exclude``: the catalogue less
     the effects whose columns not every track has, left to :func:`~bayesid.analysis.gap.diagnose`
     (which says them); less ``--exclude``. An excluded effect of the catalogue that the tracks'
@@ -275,12 +275,12 @@ def _candidates(args, family, tracks, free=()) -> list | None:
                     f"(--free or the vehicle file's [fit] free): leave {', '.join(clash)} out of --free to test it"
                 )
     else:  # the catalogue as diagnose() takes it, said as its progress is
-        cands = catalogue_candidates(family, tracks, tasks.Runner(progress=_progress), free)
+        cands = catalogue_candidates(family, tracks, tasks.Runner(progress=_progress), free, vehicle)
     for c in opt.split_names(args.exclude, "--exclude"):
         if c in cands:
             cands.remove(c)
         elif not args.candidates and c in family.CATALOGUE:
-            _progress(f"--exclude {c}: already left out (the tracks lack its columns)")
+            _progress(f"--exclude {c}: already left out (said above)")
         else:
             raise ValueError(f"--exclude {c}: not among the candidates {cands}")
     return cands

@@ -83,6 +83,10 @@ class SimulationModel(Protocol):
     default_dt(vehicle)
         Optional, class level: the model step (s) of a vehicle when the user gives none
         (:func:`bayesid.models.default_dt`; absent: ``DEFAULT_DT``).
+    effect_unsupported(effect, vehicle)
+        Optional, class level: why the vehicle cannot carry a catalogue effect (a sentence), or
+        None; the default catalogue leaves such an effect out
+        (:func:`bayesid.analysis.gap.diagnose.catalogue_candidates`).
     gear_rate_deg_s(vehicle)
         Optional, class level: the steering gear's rate its vehicle file gives (deg/s), or None.
     check_free(vehicle, names, option)

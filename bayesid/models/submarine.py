@@ -95,6 +95,28 @@ class EffectModel(ParameterLayout):
         """
         return cls(vehicle, free or (), effects, mode=mode, dt=dt, kernel=kernel)
 
+    @staticmethod
+    def effect_unsupported(effect, vehicle) -> str | None:
+        """Why a vehicle cannot carry an effect, or None: the crossflow effect scales the vehicle
+        file's cross-flow drag integral, which needs its ``[crossflow]`` section (a file without it,
+        the docs' REMUS 100, made the default catalogue's diagnosis fail in round 1).
+
+        Parameters
+        ----------
+        effect : Effect
+            The effect.
+        vehicle : Vehicle
+            The vehicle.
+
+        Returns
+        -------
+        str or None
+            The reason, e.g. ``"the vehicle file has no [crossflow] section"``.
+        """
+        if effect.name == "crossflow" and getattr(vehicle, "crossflow", None) is None:
+            return "the vehicle file has no [crossflow] section"
+        return None
+
     @classmethod
     def default_dt(cls, vehicle) -> float:
         """The model step of a vehicle when the user gives none: :data:`DEFAULT_DT`, halved until it
@@ -204,8 +226,10 @@ class EffectModel(ParameterLayout):
         names = [e.name for e in self.effects]
         if len(set(names)) != len(names):
             raise ValueError(f"effect listed twice in {names}")
-        if any(e.name == "crossflow" for e in self.effects) and vehicle.crossflow is None:
-            raise ValueError(f"vehicle {vehicle.id} has no [crossflow] section for the crossflow effect")
+        for e in self.effects:
+            why = self.effect_unsupported(e, vehicle)
+            if why:
+                raise ValueError(f"vehicle {vehicle.id}: {why}, which the {e.name} effect needs")
         self.mode = "6dof" if any(e.mode == "6dof" for e in self.effects) else mode
         dummy = Manoeuvre("protocol", self.dt, np.zeros((1, 4)), np.zeros(12))
         self.sim = Simulator(vehicle, dummy, free, self.mode, kernel=kernel)

@@ -439,12 +439,13 @@ class DiagnoseOptions:
         object.__setattr__(self, "base_effects", tuple(self.base_effects))
 
 
-def catalogue_candidates(family, tracks: list, runner: Runner = Runner(), free=()) -> list[str]:
+def catalogue_candidates(family, tracks: list, runner: Runner = Runner(), free=(), vehicle=None) -> list[str]:
     """The effects of a model family's catalogue that the tracks can inform: those whose
-    columns (``needs_columns``, e.g. the measured wind) every track has, and (a family with
-    ``effect_clash``, the ship) that set no coefficient the base model fits. The candidates of
-    :func:`diagnose` when ``DiagnoseOptions.candidates`` is None (and of ``bayesid diagnose``
-    without ``--candidates``).
+    columns (``needs_columns``, e.g. the measured wind) every track has, (a family with
+    ``effect_clash``, the ship) that set no coefficient the base model fits, and (a family with
+    ``effect_unsupported``, the submarine) that the vehicle file can carry (the crossflow effect
+    needs its ``[crossflow]`` section). The candidates of :func:`diagnose` when
+    ``DiagnoseOptions.candidates`` is None (and of ``bayesid diagnose`` without ``--candidates``).
 
     Parameters
     ----------
@@ -457,6 +458,8 @@ def catalogue_candidates(family, tracks: list, runner: Runner = Runner(), free=(
         coefficients it sets.
     free : iterable of str, default ()
         The base model's free coefficients.
+    vehicle : Vehicle or Ship, optional
+        The vehicle (None: no effect is left out for it).
 
     Returns
     -------
@@ -467,7 +470,12 @@ def catalogue_candidates(family, tracks: list, runner: Runner = Runner(), free=(
     for name, effect in family.CATALOGUE.items():
         need = effect.needs_columns
         clash = family.effect_clash(effect, free) if hasattr(family, "effect_clash") else []
-        if clash:
+        why = None
+        if vehicle is not None and hasattr(family, "effect_unsupported"):
+            why = family.effect_unsupported(effect, vehicle)
+        if why:
+            runner.say(f"{why}: the {name} candidate is left out")
+        elif clash:
             runner.say(
                 f"the base model fits {', '.join(clash)}, which the {name} effect sets: the {name} candidate is "
                 "left out (free its coefficient from the base fit to test it)"
@@ -698,7 +706,7 @@ def _diagnosis_setup(vehicle, free, train: list, heldout: list, opt: DiagnoseOpt
     dt = default_dt(vehicle) if opt.dt is None else opt.dt
     free = family.default_free(vehicle) if free is None else list(free)
     if opt.candidates is None:
-        names = catalogue_candidates(family, train + heldout, runner, free)
+        names = catalogue_candidates(family, train + heldout, runner, free, vehicle)
     else:
         names = opt.candidates
     cand_effects = [family.get_effect(c) for c in names]
