@@ -57,9 +57,12 @@ STUDIES = (
     "closing_the_loop",
     "posterior",
     "real_ships",
+    "ship_surge",
+    "esso_turns",
+    "newcomer_auv",
 )
 #: Studies that need the real data (skipped without it).
-NEEDS_DATA = {"real_ships", "kvlcc2_structures", "fit_sensitivity"}
+NEEDS_DATA = {"real_ships", "kvlcc2_structures", "fit_sensitivity", "esso_turns"}
 
 
 # ---------------------------------------------------------------- the synthetic runs (old tree)

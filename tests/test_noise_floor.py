@@ -83,3 +83,25 @@ def test_the_newcomers_auv_at_5_hz_reads_its_heading_noise_within_2_x():
         est = estimate_noise(_logged(clean, 4, noise, seed=10 + i), CHANNELS, floor=False)
         for k in CHANNELS:
             assert noise[k] / 2 < est[k] < 2 * noise[k], (m.name, k, est[k] / noise[k])
+
+
+def test_a_verdict_the_noise_floor_decides_says_so():
+    # the newcomer's AUV at 5 s windows: gap ratio 1.35, verdict none, while the current improved the
+    # held-out windows with p = 0.0073 (reports/newcomer_auv): "none" there is "these logs cannot tell"
+    from test_failed_fit import _row
+
+    from bayesid.analysis.gap.verdict import Thresholds
+    from bayesid.report.diagnosis import _floor_decides_lines
+
+    current = _row(effect="current", window_p_value=0.0073, delta_bic=-6.9e7, share_of_excess=0.61)
+    rows = [current, _row(window_p_value=0.09), _row(effect="actuator", window_p_value=0.001, failed_fit="x")]
+    res = {
+        "significant_gap": False,
+        "gap_ratio": 1.35,
+        "thresholds": Thresholds().as_dict(),
+        "ranking": [r.to_dict() for r in rows],
+    }
+    text = "\n".join(_floor_decides_lines(res))
+    assert "The noise floor, not the model, decides this verdict" in text and "gap ratio 1.35" in text
+    assert "current (window test p = 0.0073" in text and "delay" not in text and "actuator" not in text
+    assert _floor_decides_lines({**res, "significant_gap": True}) == []  # a significant gap: the rules decide

@@ -911,6 +911,52 @@ def _failed_fit_lines(res: dict) -> list:
     return [""] + [f"- **{r.effect}: fit failed**: {r.failed_fit}." for r in rows] if rows else []
 
 
+def _floor_decides_lines(res: dict) -> list:
+    """A paragraph for a verdict the noise floor decides (issue 69): the gap is within the floor
+    band, so nothing is named, while a candidate improves the held-out windows significantly
+    (paired window test under ``partial_p``, training ΔBIC under ``bic_threshold``, a sound fit):
+    the logs cannot separate that effect from the floor's own error, which a reader of "none" must
+    know.
+
+    Parameters
+    ----------
+    res : dict
+        The diagnosis (``significant_gap``, ``gap_ratio``, ``ranking``, ``thresholds``).
+
+    Returns
+    -------
+    list of str
+        The lines (none when the gap is significant or no candidate qualifies).
+    """
+    if res.get("significant_gap", True):
+        return []
+    th = res["thresholds"]
+    rows = [
+        r
+        for r in map(partial(_record, CandidateRow), res["ranking"])
+        if not r.failed_fit
+        and r.window_p_value is not None
+        and r.window_p_value < th["partial_p"]
+        and r.delta_bic <= th["bic_threshold"]
+    ]
+    if not rows:
+        return []
+    said = "; ".join(
+        f"{r.effect} (window test p = {fmt(r.window_p_value)}, training ΔBIC {fmt(r.delta_bic)}, "
+        f"{fmt(r.share_of_excess)} of the excess)"
+        for r in rows
+    )
+    return [
+        "",
+        f"**The noise floor, not the model, decides this verdict.** The held-out error is within "
+        f"{th['none_ratio']:g} x the noise floor (gap ratio {fmt(res['gap_ratio'])}), so no effect is named; yet "
+        f"{said} improves the held-out windows significantly. A perfect model scores the floor on these windows "
+        "from start states read off noisy logs: these logs cannot separate that effect from the floor's own error. "
+        "A velocity log, more precise positions, more held-out runs or windows over which the effect outgrows the "
+        "start-state error would.",
+    ]
+
+
 def _undetermined_lines(res: dict) -> list:
     """A paragraph naming the candidates whose parameters the training runs do not determine
     (``CandidateRow.undetermined``): their fitted values and held-out tests say nothing either way,
@@ -963,6 +1009,7 @@ def _which_lines(res: dict) -> list:
                 for r in map(partial(_record, CandidateRow), res["ranking"])
             ],
         ),
+        *_floor_decides_lines(res),
         *_undetermined_lines(res),
         *_failed_fit_lines(res),
         "",
