@@ -125,8 +125,9 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFl
         bad = ~np.isfinite(S).all(axis=1)
         if bad.any():
             raise DivergedSimulation(
-                f"simulating held-out track {tr.name!r} whole from its first state, the model's states are not finite from t = {whole.ts[np.argmax(bad)]:.1f} s at the model step of "
-                f"{model.dt:g} s: a step too coarse for the vehicle (give a smaller dt, --dt) or a fit far off"
+                f"simulating held-out track {tr.name!r} whole from its first state, the model's states are not "
+                f"finite from t = {whole.ts[np.argmax(bad)]:.1f} s at the model step of {model.dt:g} s: a step too "
+                "coarse for the vehicle (give a smaller dt, --dt) or a fit far off"
             )
         for _ in range(n_rep):
             data = {k: np.asarray(tr[k], float).copy() for k in tr.data}
