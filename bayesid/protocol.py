@@ -163,9 +163,9 @@ def estimate_noise(track: Track, channels=None, floor: bool = True) -> dict:
     (:func:`difference_noise_sd`). In a coarse log (under about 7 Hz), where a manoeuvre's own
     curvature enters the second differences (at 1-5 Hz a zigzag's yaw acceleration in a quiet
     sensor's log), the fourth, then the sixth differences take over (Hall, Kay & Titterington
-    1990, Biometrika 77(3)). Assumes samples that are roughly uniform in time; headings are unwrapped first. The
-    result is floored at :data:`NOISE_FLOOR` (the weights of a fit) unless ``floor`` is False
-    (the noise level itself, e.g. to simulate it).
+    1990, Biometrika 77(3)). Assumes samples that are roughly uniform in time; headings are
+    unwrapped first. The result is floored at :data:`NOISE_FLOOR` (the weights of a fit) unless
+    ``floor`` is False (the noise level itself, e.g. to simulate it).
 
     Parameters
     ----------

@@ -66,18 +66,11 @@ def write_logs(folder: Path, seed: int) -> dict:
     """The four runs as CSV files, the heading wrapped and unwrapped: ``{"wrapped": [paths],
     "unwrapped": [paths]}``."""
     from bayesid.data.track import Track, write_csv
-    from bayesid.models import load_any_vehicle
     from bayesid.models import manoeuvres as mv
     from bayesid.models.world import LogOptions, world_track
 
-    truth = load_any_vehicle(str(REMUS))
-    speed, towards = CURRENT
-    cur = {
-        "current": {
-            "current_north_mps": speed * math.cos(math.radians(towards)),
-            "current_east_mps": speed * math.sin(math.radians(towards)),
-        }
-    }
+    truth = load_truth()
+    cur = {"current": dict(zip(("current_north_mps", "current_east_mps"), _current_components()))}
     log = LogOptions(noise=NOISE, sample_every=4, hold_inputs=True)
     rng = np.random.default_rng(seed)
     out = {"wrapped": [], "unwrapped": []}
@@ -100,9 +93,7 @@ def write_logs(folder: Path, seed: int) -> dict:
 
 def user_vehicle():
     """The user's file: the docs' REMUS 100 with :data:`USER_ERRORS`."""
-    from bayesid.models import load_any_vehicle
-
-    truth = load_any_vehicle(str(REMUS))
+    truth = load_truth()
     return truth.with_coefficients({k: truth.coefficients[k] * f for k, f in USER_ERRORS.items()})
 
 
@@ -238,7 +229,7 @@ def run(args, out: Path, log) -> dict:
     for w in WINDOWS:
         log(f"diagnosis, windows {_label(w)}")
         diags[_label(w)] = diagnosis_of(tracks["wrapped"][:2], tracks["wrapped"][2:], w, args, out, log)
-    truth = user_vehicle()
+    user = user_vehicle()
     return {
         "quick": bool(args.quick),
         "settings": {
@@ -251,7 +242,7 @@ def run(args, out: Path, log) -> dict:
             "seed": args.seed,
         },
         "true_coefficients": {k: load_truth().coefficients[k] for k in FREE},
-        "user_coefficients": {k: truth.coefficients[k] for k in FREE},
+        "user_coefficients": {k: user.coefficients[k] for k in FREE},
         "noise_estimates": noise,
         "psi_read_max_abs_diff_rad": psi_diff,
         "actuator_neutral_max_state_diff": neutral,
@@ -280,6 +271,7 @@ def actuator_neutral_gap(tracks) -> dict:
 
 
 def load_truth():
+    """The docs' REMUS 100 file: the world's vehicle."""
     from bayesid.models import load_any_vehicle
 
     return load_any_vehicle(str(REMUS))
@@ -404,8 +396,10 @@ def render(R: dict) -> str:
 
 def _targets(R: dict) -> list:
     """The issue's targets, each read from the results."""
+    from bayesid.analysis.gap.verdict import Thresholds
     from bayesid.report.markdown import fmt
 
+    th = Thresholds()  # the diagnoses' (default) thresholds
     psi = [n["psi_over_truth"] for n in R["noise_estimates"]]
     out = ["## Against the issue's targets", ""]
     same = R["wrapped_against_unwrapped"]
@@ -432,8 +426,8 @@ def _targets(R: dict) -> list:
             if d["verdict"].startswith("none")
             and not r["failed_fit"]
             and r["window_p_value"] is not None
-            and r["window_p_value"] < 0.01
-            and r["delta_bic"] <= -10.0
+            and r["window_p_value"] < th.partial_p
+            and r["delta_bic"] <= th.bic_threshold
         ]
         said = (
             f"; the report says the noise floor, not the model, decides the verdict, naming {', '.join(floor)}"
