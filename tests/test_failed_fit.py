@@ -58,8 +58,9 @@ def test_a_failed_fit_gets_no_role_and_the_report_says_why_instead_of_weighing_i
 def test_the_nested_refit_starts_at_the_reference_and_cannot_end_above_it():
     # a delay's own starts (0.2 s), cut to one iteration, end above the reference fit; the nested
     # start (the reference with the delay at 0, from the reference's window starts) begins at the
-    # reference's cost, so the candidate kept can end no higher than the model it contains. From
-    # cold window starts it begins elsewhere (here 74818.22 against 74818.56; on sim_to_real's
+    # reference's cost (to 6e-7: its first evaluation fits the window starts once more from the
+    # reference's), so the candidate kept can end no higher than the model it contains. From cold
+    # window starts it begins elsewhere (here 74131.74 against 74132.16, 5.6e-6; on sim_to_real's
     # constant-yaw-moment case 8.6e7 against 1.9e4), and a nesting candidate read +6,142 in
     # training ΔBIC on 5 Hz AUV runs (issue 69)
     from test_discovery import NOISE, _runs
@@ -80,6 +81,6 @@ def test_the_nested_refit_starts_at_the_reference_and_cannot_end_above_it():
     ct = [model.context(t, 30.0, start="fitted", leadin_s=10.0) for t in train]
     ch = [model.context(t, 30.0, start="fitted", leadin_s=10.0) for t in held]
     st, _ = fit_candidate(CandidateFit(delay, ref, model, ct, ch, sd, {}, max_nfev=1))
-    assert st.fit.start_cost == pytest.approx(ref.fit.cost, rel=1e-7)  # the nested start, kept
+    assert st.fit.start_cost == pytest.approx(ref.fit.cost, rel=2e-6)  # the nested start, kept
     assert st.fit.cost <= ref.fit.cost * (1 + FAILED_FIT_SHARE)
     assert failed_fit(delay, st, ref) is None

@@ -165,11 +165,17 @@ class WindowObjective:
 
     Contexts with the fitted start rule have their window start states estimated with the
     parameters (6 per window, counted in the result's ``k``), eliminated by variable
-    projection: every evaluation fits them for its parameters, warm-started at the last optimum
-    (so :meth:`residuals` keeps state: ``cache_residuals`` is False); the Jacobian holds them at
-    that optimum and projects their directions out window by window (Kaufman 1975), or, where
-    they come from a lead-in rather than the fitted samples themselves, re-fits them for every
-    perturbed vector.
+    projection: every evaluation fits them for its parameters (so :meth:`residuals` keeps state:
+    ``cache_residuals`` is False); the Jacobian holds them at that optimum and projects their
+    directions out window by window (Kaufman 1975), or, where they come from a lead-in rather
+    than the fitted samples themselves, re-fits them for every perturbed vector.
+
+    The solver takes a Jacobian only at the points it accepts, and the objective keeps the start
+    states of the last such point. Every evaluation is warm-started from them, not from the trial
+    evaluated last: a rejected trial's start states, read as the next trial's first guess, made
+    trust-region fits of a REMUS 100 at 5 s windows stop after one iteration at 29 x the cost
+    they reach this way (issue 69). :meth:`residuals` at the accepted point returns what the
+    solver saw there, so a fit's reported cost and ``window_starts`` are those of its optimum.
 
     Parameters
     ----------
@@ -245,7 +251,8 @@ class WindowObjective:
         self.vp = any(c.start == "fitted" for c in self.ctxs)
         self.n_starts = sum(6 * c.W for c in self.ctxs if c.start == "fitted")
         self.lead_in = any(c.start == "fitted" and c.lead_steps > 0 for c in self.ctxs)
-        self._last = {"x": None, "starts": [None] * T, "jd": [None] * T}
+        self._last = {"x": None, "starts": [None] * T, "jd": [None] * T, "r": None}
+        self._accepted = None  # a copy of ``_last`` at the last point whose Jacobian was taken
 
     def warm_start(self, starts) -> None:
         """Start the window start-state fits from given offsets instead of the measured guess.
@@ -263,6 +270,7 @@ class WindowObjective:
         """
         if len(starts) != self.T:
             raise ValueError(f"warm start for {len(starts)} tracks, the objective has {self.T}")
+        self._accepted = None  # the given offsets, not an earlier fit's, start the next evaluation
         for i, (ctx, s) in enumerate(zip(self.ctxs, starts)):
             if s is None or ctx.start != "fitted":
                 continue
@@ -299,7 +307,7 @@ class WindowObjective:
             if ctx.start != "fitted":
                 out.append(None)
                 continue
-            s0 = self._last["starts"][i]
+            s0 = (self._last if self._accepted is None else self._accepted)["starts"][i]
             s0 = None if s0 is None else np.repeat(s0[:1], P.shape[0], axis=0)
             res = shooting.fit_starts(self.model, ctx, P, nus[i], self.wts[i], starts0=s0, return_jacobian=want_jac)
             if want_jac:
@@ -358,10 +366,15 @@ class WindowObjective:
         """
         if not self.vp:
             return self.residuals_batch(x)[0][0], False
+        acc = self._accepted
+        if acc is not None and np.array_equal(acc["x"], x):  # the accepted point, as the solver saw it
+            self._last = {k: list(v) if isinstance(v, list) else v for k, v in acc.items()}
+            return acc["r"].copy(), False
         P, nus = self.split_rows(x[None])
         st = self._fit_starts(P, nus, want_jac=True)
-        self._last["x"], self._last["starts"] = x.copy(), st
-        return self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, st)[0], P)[0], False
+        r = self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, st)[0], P)[0]
+        self._last.update(x=x.copy(), starts=st, r=r)
+        return r, False
 
     def jacobian(self, x, r0=None):
         """Residuals and forward-difference Jacobian from one batched simulation of n + 1 vectors
@@ -391,6 +404,7 @@ class WindowObjective:
             return R[0], ((R[1:] - R[0]) / (sign * h)[:, None]).T
         if self._last["x"] is None or not np.array_equal(self._last["x"], x):
             self.residuals(x)
+        self._accepted = {k: list(v) if isinstance(v, list) else v for k, v in self._last.items()}
         held = (
             None
             if self.lead_in
