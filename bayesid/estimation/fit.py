@@ -22,6 +22,9 @@ An objective is any object with
 * ``n_residuals`` : int, length of the residual vector;
 * ``result_fields(x)`` : dict of the :class:`FitResult` fields that describe ``x`` in the
   objective's own terms (``p``, ``theta``, ``model``, ``nuisance``, ``k`` ...).
+* optionally ``accepted_residuals(x)`` : for a stateful objective, the residuals at ``x`` as the
+  solver saw them when ``x`` is the last point it accepted (else None); the fit reports its cost
+  from them rather than from an evaluation that may land elsewhere.
 
 Solvers: SLSQP (``method="slsqp"``; the paper's SQP, Furlong et al. 2003, Sec. 3) and
 trust-region reflective least squares (``method="least_squares"``, scipy's ``trf``), both with the
@@ -447,8 +450,11 @@ def _result(objective, mon, x, bounds, iterates, solved) -> FitResult:
     """The :class:`FitResult` of a finished solve: costs of the iterates, counters, wall times."""
     res, label, success, nit, jac_out = solved
     lo, hi = bounds
-    if not objective.cache_residuals:  # a stateful objective: its residuals at the optimum as the solver left it
-        r_final = objective.residuals(x)[0]
+    if not objective.cache_residuals:  # a stateful objective: its residuals at the optimum as the solver saw them
+        accepted = getattr(objective, "accepted_residuals", None)
+        r_final = accepted(x) if accepted is not None else None
+        if r_final is None:
+            r_final = objective.residuals(x)[0]
     wall = time.perf_counter() - mon.t0
     sim_s = objective.sim_seconds - mon.sim0  # before the bookkeeping evaluations below
     n_sims = objective.n_simulations - mon.n0

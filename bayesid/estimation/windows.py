@@ -174,8 +174,8 @@ class WindowObjective:
     states of the last such point. Every evaluation is warm-started from them, not from the trial
     evaluated last: a rejected trial's start states, read as the next trial's first guess, made
     trust-region fits of a REMUS 100 at 5 s windows stop after one iteration at 29 x the cost
-    they reach this way (issue 69). :meth:`residuals` at the accepted point returns what the
-    solver saw there, so a fit's reported cost and ``window_starts`` are those of its optimum.
+    they reach this way (issue 69). :meth:`accepted_residuals` gives back what the solver saw at
+    its optimum, so a fit's reported cost and ``window_starts`` are those of that point.
 
     Parameters
     ----------
@@ -366,15 +366,32 @@ class WindowObjective:
         """
         if not self.vp:
             return self.residuals_batch(x)[0][0], False
-        acc = self._accepted
-        if acc is not None and np.array_equal(acc["x"], x):  # the accepted point, as the solver saw it
-            self._last = {k: list(v) if isinstance(v, list) else v for k, v in acc.items()}
-            return acc["r"].copy(), False
         P, nus = self.split_rows(x[None])
         st = self._fit_starts(P, nus, want_jac=True)
         r = self._with_prior(window_residuals(self.model, self.ctxs, self.wts, P, nus, st)[0], P)[0]
         self._last.update(x=x.copy(), starts=st, r=r)
         return r, False
+
+    def accepted_residuals(self, x):
+        """The residuals of the last accepted point (the last whose Jacobian was taken) as the
+        solver saw them, with its start states made current again, when ``x`` is that point;
+        else None. A caller that changed the contexts since (a retiming) evaluates anew with
+        :meth:`residuals`.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+            Variables.
+
+        Returns
+        -------
+        ndarray, shape (n_res,), or None
+        """
+        acc = self._accepted
+        if acc is None or not np.array_equal(acc["x"], x):
+            return None
+        self._last = {k: list(v) if isinstance(v, list) else v for k, v in acc.items()}
+        return acc["r"].copy()
 
     def jacobian(self, x, r0=None):
         """Residuals and forward-difference Jacobian from one batched simulation of n + 1 vectors
