@@ -1,9 +1,12 @@
 """studies/posterior.py --quick runs every case and writes issue 9's keys."""
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 KEYS = (
@@ -22,14 +25,21 @@ KEYS = (
 )
 
 
-def test_posterior_quick(tmp_path):
-    out = tmp_path / "posterior"
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    """One ``--quick`` run of every case (seed 2003), shared by the tests of this file."""
+    out = tmp_path_factory.mktemp("posterior") / "posterior"
     subprocess.run(
         [sys.executable, str(ROOT / "studies" / "posterior.py"), "--quick", "--out", str(out)],
         check=True,
         cwd=ROOT,
         timeout=900,
     )
+    return out
+
+
+def test_posterior_quick(quick_run):
+    out = quick_run
     res = json.loads((out / "results.json").read_text())
     for case in ("case1", "case2", "case3", "case3b"):
         for key in KEYS:
@@ -53,10 +63,13 @@ def test_posterior_quick(tmp_path):
     assert len(list((out / "figures").glob("*.png"))) >= 4 * 5 + 1
 
 
-def test_a_checkpoint_reused_with_another_seed_is_not_reported_as_that_seed(tmp_path):
+def test_a_checkpoint_reused_with_another_seed_is_not_reported_as_that_seed(quick_run, tmp_path):
     out = tmp_path / "post"
+    # the shared run's case 1 checkpoint (seed 2003), as a run of --cases 1 leaves it
+    shutil.copytree(
+        quick_run, out, ignore=lambda d, names: [n for n in names if n.startswith("case") and "case1_" not in n]
+    )
     cmd = [sys.executable, str(ROOT / "studies" / "posterior.py"), "--quick", "--cases", "1", "--out", str(out)]
-    subprocess.run(cmd, check=True, cwd=ROOT, timeout=600)
     r = subprocess.run(cmd + ["--seed", "7"], cwd=ROOT, timeout=600, capture_output=True, text=True)
     assert r.returncode == 2 and "seed" in r.stderr and "Traceback" not in r.stderr, r.stderr[-2000:]
     assert "seed 2003" in (out / "report.md").read_text()  # the old report is untouched
