@@ -277,7 +277,7 @@ def test_discover_command_writes_a_vehicle_file_that_loads_and_fits(tmp_path):
     des = subprocess.run(
         py
         + ["design", "--model", str(tmp_path / "fit" / "model.json"), "--train", *tr_csv, "--heldout", *ho_csv]
-        + ["--max-nfev", "20", "--out", str(tmp_path / "des")],
+        + ["--max-nfev", "5", "--out", str(tmp_path / "des")],
         capture_output=True,
         text=True,
     )
