@@ -158,6 +158,11 @@ def window_residuals(model, ctxs, wts, P, nus, starts=None) -> tuple[np.ndarray,
     return np.concatenate(out, axis=1), diverged
 
 
+def _state_copy(state: dict) -> dict:
+    """A copy of a :class:`WindowObjective`'s evaluation state whose per-track lists are its own."""
+    return {k: list(v) if isinstance(v, list) else v for k, v in state.items()}
+
+
 class WindowObjective:
     """The multiple-shooting objective of a model on tracks (module docstring), in the variables
     ``x = [p (n_params), nuisance_1, ..., nuisance_T]`` (only the nuisances when the parameters
@@ -390,7 +395,7 @@ class WindowObjective:
         acc = self._accepted
         if acc is None or not np.array_equal(acc["x"], x):
             return None
-        self._last = {k: list(v) if isinstance(v, list) else v for k, v in acc.items()}
+        self._last = _state_copy(acc)
         return acc["r"].copy()
 
     def jacobian(self, x, r0=None):
@@ -421,7 +426,7 @@ class WindowObjective:
             return R[0], ((R[1:] - R[0]) / (sign * h)[:, None]).T
         if self._last["x"] is None or not np.array_equal(self._last["x"], x):
             self.residuals(x)
-        self._accepted = {k: list(v) if isinstance(v, list) else v for k, v in self._last.items()}
+        self._accepted = _state_copy(self._last)
         held = (
             None
             if self.lead_in
