@@ -391,6 +391,7 @@ class WindowObjective:
         Returns
         -------
         ndarray, shape (n_res,), or None
+            The residuals the solver saw at ``x``, or None when ``x`` is not the accepted point.
         """
         acc = self._accepted
         if acc is None or not np.array_equal(acc["x"], x):
