@@ -51,7 +51,8 @@ RETRY_GAIN = 0.5
 #: fitted offsets (their speed kept), then of the measured guess (its speed kept). The first alone
 #: keeps a speed the first fit drove backwards: on 5 Hz REMUS 100 logs with 0.5 m of position
 #: noise, a perfect model's fitted starts then missed by more than 2 m in 19 % of 5 s windows
-#: (u fitted near -1.1 m/s against a true +1.1); with the second, 7 % (``benchmarks/start_fits.py``).
+#: (u fitted near -1.1 m/s against a true +1.1); with the second, 9 % (31 % and 8 % of 15 s
+#: windows; ``reports/benchmark_start_fits.txt``).
 RETRY_GUESSES = ("fitted", "measured")
 
 
