@@ -66,17 +66,22 @@ def window_errors(model, p, ctxs) -> np.ndarray:
     return np.concatenate([np.asarray(evaluate(model, p, [c]).window_rms()).ravel() for c in ctxs])
 
 
+def newcomer_case() -> tuple:
+    """(model, tracks): the newcomer's REMUS 100 model (no effects, the study's free set) and its
+    four wrapped-heading logs."""
+    from newcomer_auv import FREE, user_vehicle
+
+    logs = ROOT / "reports" / "newcomer_auv" / "logs" / "wrapped"
+    return build_model(user_vehicle(), list(FREE), [], None), [read_csv(p) for p in sorted(logs.glob("*.csv"))]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--windows", default="5,15")
     args = ap.parse_args(argv)
-    from newcomer_auv import FREE, user_vehicle
-
     warnings.simplefilter("ignore")
-    logs = ROOT / "reports" / "newcomer_auv" / "logs" / "wrapped"
-    tracks = [read_csv(p) for p in sorted(logs.glob("*.csv"))]
-    model = build_model(user_vehicle(), list(FREE), [], None)
+    model, tracks = newcomer_case()
     p = model.start()
     keep = shooting.RETRY_GUESSES
     lines = []

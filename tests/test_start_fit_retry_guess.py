@@ -24,13 +24,7 @@ def _benchmark():
 
 def test_the_measured_guess_rescues_the_windows_the_fitted_guess_leaves_far_off(monkeypatch):
     bm = _benchmark()
-    from newcomer_auv import FREE, user_vehicle
-
-    from bayesid.data.track import read_csv
-    from bayesid.models import build_model
-
-    tracks = [read_csv(p) for p in sorted((ROOT / "reports" / "newcomer_auv" / "logs" / "wrapped").glob("*.csv"))]
-    model = build_model(user_vehicle(), list(FREE), [], None)
+    model, tracks = bm.newcomer_case()
     p = model.start()
     copies = bm.noisy_copies(model, p, tracks, 5.0, seed=0)
     got = {"new": bm.window_errors(model, p, copies)}  # the package's retries
@@ -45,13 +39,8 @@ def test_the_measured_guess_rescues_the_windows_the_fitted_guess_leaves_far_off(
 def test_on_noise_free_logs_no_window_is_retried_and_both_settings_agree(monkeypatch):
     # the retries touch only windows left above RETRY_COST: from noise-free logs none is
     bm = _benchmark()
-    from newcomer_auv import FREE, user_vehicle
-
-    from bayesid.data.track import read_csv
-    from bayesid.models import build_model
-
-    tracks = [read_csv(p) for p in sorted((ROOT / "reports" / "newcomer_auv" / "logs" / "wrapped").glob("*.csv"))[:1]]
-    model = build_model(user_vehicle(), list(FREE), [], None)
+    model, tracks = bm.newcomer_case()
+    tracks = tracks[:1]
     monkeypatch.setattr(bm, "NOISE", {})
     copies = bm.noisy_copies(model, model.start(), tracks, 5.0, seed=0)
     got = {}
