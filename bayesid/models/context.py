@@ -316,6 +316,13 @@ class TrackContext:
             self.starts = np.concatenate([[0], np.cumsum(ends - self.seg_step)]).astype(np.int64)
         self._ends = ends
         self.t_seg = self.t_grid[self.seg_step]
+        # the lead-in's own layout: the start fit reads only the samples before each window
+        # start, so its simulations stop there (the steps before a window start do not depend on
+        # the steps after it: the same states, a fraction of the work)
+        self.lead_starts = None
+        if self.start == "fitted" and self.lead_steps > 0:
+            self._lead_vmap = np.concatenate([np.arange(a, b) for a, b in zip(self.seg_step, steps)]).astype(np.int64)
+            self.lead_starts = np.concatenate([[0], np.cumsum(steps - self.seg_step)]).astype(np.int64)
         # samples scored: inside a window (from its start to its end, the next window's start
         # excluded)
         cand = np.flatnonzero(t >= self.t_start[0] - 1e-9)
@@ -502,16 +509,18 @@ class TrackContext:
         """Steps the kernels integrate (segments end to end)."""
         return int(self.starts[-1])
 
-    def _rows(self, ts, win):
+    def _rows(self, ts, win, starts=None):
         """(output row of the step at or before each time, fraction of the step) for samples at
-        times ``ts`` simulated by windows ``win``."""
+        times ``ts`` simulated by windows ``win``, in the layout of ``starts`` (default the
+        windows')."""
         dt = self.model.dt
         g = (ts - self.t0) / dt
         ends = self._ends
         k = np.minimum(np.floor(g + 1e-9).astype(np.int64), ends[win] - 1)
         k = np.maximum(k, self.seg_step[win])
         frac = np.clip(g - k, 0.0, 1.0)
-        return self.starts[win] + (k - self.seg_step[win]) + win, frac
+        starts = self.starts if starts is None else starts
+        return starts[win] + (k - self.seg_step[win]) + win, frac
 
     def _lead_samples(self, track, t):
         """Samples that estimate each window's start state under the fitted rule: the lead-in
@@ -532,7 +541,7 @@ class TrackContext:
         row, frac = self._rows(sel_t, win)
         # weights of the start fit: the noise sd of each channel, from the track itself
         sd = estimate_noise(track, self.channels)
-        return {
+        out = {
             "ts": sel_t,
             "win": win,
             "row": row,
@@ -541,20 +550,45 @@ class TrackContext:
             "meas": meas,
             "sd": sd,
         }
+        if self.lead_starts is not None:  # the rows of the lead-in's own layout (:meth:`layout`)
+            out["row_lead"] = self._rows(sel_t, win, self.lead_starts)[0]
+        return out
 
-    def gather(self, a):
-        """Lay a per-step array out on the kernels' virtual step axis.
+    def layout(self, samples: str = "scored") -> np.ndarray:
+        """Where each window's segment starts on the kernels' virtual step axis, for a
+        simulation read at ``samples``: the windows' segments, or for ``"lead"`` under the fitted
+        rule with a lead-in, the lead-ins alone (from the segment start to the window start).
+
+        Parameters
+        ----------
+        samples : {"scored", "lead"}, default "scored"
+            The samples the simulation is read at (:func:`sample_rows`).
+
+        Returns
+        -------
+        ndarray, shape (W + 1,)
+            Segment starts; the kernels' output has ``starts[-1] + W`` rows. Pass the same
+            ``samples`` to :meth:`gather`.
+        """
+        return self.lead_starts if samples == "lead" and self.lead_starts is not None else self.starts
+
+    def gather(self, a, samples: str = "scored"):
+        """Lay a per-step array out on the kernels' virtual step axis (of :meth:`layout`).
 
         Parameters
         ----------
         a : ndarray, shape (B, n_steps, ...)
             Per-step values.
+        samples : {"scored", "lead"}, default "scored"
+            The samples the simulation is read at, as passed to :meth:`layout`.
 
         Returns
         -------
         ndarray, shape (B, n_virtual, ...)
             ``a`` itself when the layout is the real grid, else a contiguous copy.
         """
+        if samples == "lead" and self.lead_starts is not None:
+            return np.ascontiguousarray(a[:, self._lead_vmap])
         return a if self.vmap is None else np.ascontiguousarray(a[:, self.vmap])
 
     def average_inputs(self, delay, fine=False):
@@ -711,8 +745,9 @@ def sample_rows(ctx: TrackContext, out: np.ndarray, samples: str, angles: slice)
     ----------
     ctx : TrackContext
         The prepared track.
-    out : ndarray, shape (B, n_virtual + W, n_state)
-        The kernel's output rows.
+    out : ndarray, shape (B, starts[-1] + W, n_state)
+        The kernel's output rows, in the layout ``starts = ctx.layout(samples)`` (for ``"lead"``
+        also the windows' layout ``ctx.starts``: a model that simulates whole windows).
     samples : {"scored", "lead"}
         The scored samples or those that estimate the start states.
     angles : slice
@@ -733,7 +768,9 @@ def sample_rows(ctx: TrackContext, out: np.ndarray, samples: str, angles: slice)
     if samples == "lead":
         if ctx.lead is None:
             raise ValueError(f"track {ctx.name!r}: no lead-in samples (start rule {ctx.start!r})")
-        row, frac, t_rel = ctx.lead["row"], ctx.lead["frac"], ctx.lead["t_rel"]
+        # the lead-in's own layout (ctx.layout("lead")) or the windows' (a model that simulates whole windows)
+        short = ctx.lead_starts is not None and out.shape[1] == ctx.lead_starts[-1] + ctx.W
+        row, frac, t_rel = ctx.lead["row_lead" if short else "row"], ctx.lead["frac"], ctx.lead["t_rel"]
     elif samples == "scored":
         row, frac, t_rel = ctx.row, ctx.frac, ctx.t_rel
     else:

@@ -353,13 +353,14 @@ class EffectModel(ParameterLayout):
                 e.to_model(s0, q)
         if self.mode == "horizontal":
             s0[:, :, [2, 3, 4, 8, 9, 10]] = 0.0
-        out = np.empty((B, ctx.n_virtual + ctx.W, 12))
+        seg = ctx.layout(samples)  # the lead-in samples need only the lead-ins simulated
+        out = np.empty((B, seg[-1] + ctx.W, 12))
         status = np.empty((B, ctx.W), dtype=np.int64)
         sim.kernel.simulate_windows(
             np.ascontiguousarray(s0),
-            ctx.starts,
-            ctx.gather(inputs),
-            ctx.gather(exo),
+            seg,
+            ctx.gather(inputs, samples),
+            ctx.gather(exo, samples),
             ecoef,
             self.dt,
             np.ascontiguousarray(vp),

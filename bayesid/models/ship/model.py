@@ -408,14 +408,15 @@ class ShipModel(ParameterLayout):
             c, s = np.cos(s0[..., 2]), np.sin(s0[..., 2])
             s0[..., 3] -= c * cur[:, None, 0] + s * cur[:, None, 1]
             s0[..., 4] -= -s * cur[:, None, 0] + c * cur[:, None, 1]
-        out = np.empty((B, ctx.n_virtual + ctx.W, 6))
+        seg = ctx.layout(samples)  # the lead-in samples need only the lead-ins simulated
+        out = np.empty((B, seg[-1] + ctx.W, 6))
         status = np.empty((B, ctx.W), dtype=np.int64)
         run = shipkernel.kernel(self.kernel_kind, self._terms)
         run(
             np.ascontiguousarray(s0),
-            ctx.starts,
-            ctx.gather(inp),
-            ctx.gather(ctx.wind[None])[0],
+            seg,
+            ctx.gather(inp, samples),
+            ctx.gather(ctx.wind[None], samples)[0],
             np.ascontiguousarray(cur),
             np.ascontiguousarray(prm),
             self.dt,

@@ -1,0 +1,104 @@
+"""Benchmark: the fitted start rule's start fits with each simulation stopped at its window start
+(``TrackContext.layout("lead")``, new) against every window simulated to its end (old), in one run.
+
+The start fit (:func:`bayesid.estimation.shooting.fit_starts`) reads only the lead-in samples
+before each window start, yet every one of its simulations used to run each window to its end.
+The steps before a window start do not depend on those after it, so the offsets must be
+identical; the script checks that they are, to the last bit, and prints the time ratio.
+
+Workloads (the diagnosis's lead-in of :func:`bayesid.analysis.gap.diagnose.start_settings`, 60 s
+windows, fitted starts):
+
+* ``nps`` -- the three training and four held-out runs of ``benchmarks/diagnose.py``'s NPS AUV II
+  case (5 Hz, no velocity log), at the nominal coefficients;
+* ``remus`` -- the newcomer's four REMUS 100 logs (``reports/newcomer_auv/logs/wrapped``);
+* ``kvlcc2`` -- a 20/20 zigzag and a 35 deg turn of the packaged KVLCC2, positions and heading only.
+
+    python benchmarks/lead_layout.py [--repeat 3]
+
+The last lines are machine-readable: ``ratio_<case>`` (old time / new time) and
+``identical_<case>``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "studies"))
+
+from bayesid.analysis.gap.diagnose import start_settings  # noqa: E402
+from bayesid.data.track import Track  # noqa: E402
+from bayesid.estimation import shooting  # noqa: E402
+from bayesid.models import build_model  # noqa: E402
+
+
+def _cases() -> dict:
+    """{case: (model, tracks)}."""
+    from diagnose import _nps_case
+    from start_fits import newcomer_case
+
+    from bayesid.models.ship import load_ship
+    from bayesid.models.ship.trials import propulsion_point, service_condition, simulate_trial
+
+    veh, free, train, held, _ = _nps_case()
+    ship = load_ship("kvlcc2_7m")
+    speed, rpm = propulsion_point(ship, service_condition(ship)["speed"])
+    runs = [simulate_trial(ship, k, a, speed=speed, rpm=rpm) for k, a in (("zigzag", 20.0), ("turn", -35.0))]
+    ship_tracks = [
+        Track(r.track.t, {c: r.track[c] for c in ("x", "y", "psi", "delta_r", "n")}, name=r.name) for r in runs
+    ]
+    return {
+        "nps": (build_model(veh, free), train + held),
+        "remus": newcomer_case(),
+        "kvlcc2": (build_model(ship, None), ship_tracks),
+    }
+
+
+def _fit_all(model, ctxs, whole: bool) -> tuple[list, float]:
+    """Every context's start offsets at the model's start, and the wall time."""
+    saved = [c.lead_starts for c in ctxs]
+    if whole:
+        for c in ctxs:
+            c.lead_starts = None
+    p = model.start()[None]
+    try:
+        t = time.perf_counter()
+        out = [shooting.fit_starts(model, c, p) for c in ctxs]
+        return out, time.perf_counter() - t
+    finally:
+        for c, s in zip(ctxs, saved):
+            c.lead_starts = s
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs of each setting (the fastest is kept)")
+    args = ap.parse_args(argv)
+    lines = []
+    print("case     windows  lead steps / window steps  old s   new s   old:new  identical")
+    for name, (model, tracks) in _cases().items():
+        _, lead = start_settings("fitted", tracks, 60.0, model.dt, None)
+        ctxs = [model.context(tr, 60.0, start="fitted", leadin_s=lead) for tr in tracks]
+        _fit_all(model, ctxs, False)  # compile and warm up
+        old = min((_fit_all(model, ctxs, True) for _ in range(args.repeat)), key=lambda r: r[1])
+        new = min((_fit_all(model, ctxs, False) for _ in range(args.repeat)), key=lambda r: r[1])
+        same = all(np.array_equal(a, b) for a, b in zip(old[0], new[0]))
+        W = sum(c.W for c in ctxs)
+        steps = sum(c.lead_starts[-1] for c in ctxs), sum(c.n_virtual for c in ctxs)
+        ratio = old[1] / new[1]
+        print(f"{name:8s} {W:7d}  {steps[0]:10d} / {steps[1]:<12d}  {old[1]:6.2f}  {new[1]:6.2f}  {ratio:7.2f}  {same}")
+        lines += [f"ratio_{name} {ratio:.3f}", f"identical_{name} {same}"]
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
