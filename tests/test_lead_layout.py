@@ -82,3 +82,37 @@ def test_without_a_lead_in_the_start_fit_reads_the_whole_windows():
     ctx = model.context(tracks[0], 40.0, start="fitted", leadin_s=0.0)
     assert ctx.lead_starts is None
     assert np.array_equal(ctx.layout("lead"), ctx.starts)
+
+
+def test_a_prepared_simulation_is_the_simulation_and_is_refused_for_another_track_rows_or_inputs():
+    veh, tracks = _nps_tracks()
+    model = build_model(veh, ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"], ["delay", "current"])
+    ctx, other = (model.context(tr, 40.0, start="fitted", leadin_s=10.0) for tr in tracks)
+    P = model.start()[None].repeat(2, axis=0) * np.array([[1.0], [1.05]])
+    D = 0.01 * np.random.default_rng(3).normal(size=(2, ctx.W, 6))
+    prep = model.prepare(ctx, P)
+    for samples in ("lead", "scored"):
+        a = model.simulate(ctx, P, starts=D, samples=samples)
+        b = model.simulate(ctx, P, starts=D, samples=samples, prepared=prep)
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="prepared for another track"):
+        model.simulate(other, P, prepared=prep)
+    with pytest.raises(ValueError, match="prepared for another track"):
+        model.simulate(ctx, P * 1.01, prepared=prep)
+    ctx.inputs_version += 1  # as TrackContext.retime does when it rebuilds the inputs
+    with pytest.raises(ValueError, match="prepared for another track"):
+        model.simulate(ctx, P, prepared=prep)
+
+
+def test_the_start_fit_prepares_its_rows_once_and_finds_the_same_offsets(monkeypatch):
+    veh, tracks = _nps_tracks()
+    model = build_model(veh, ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"])
+    ctx = model.context(tracks[0], 40.0, start="fitted", leadin_s=10.0)
+    P = model.start()[None] * 1.03
+    calls = []
+    real = model.prepare
+    monkeypatch.setattr(model, "prepare", lambda *a: calls.append(1) or real(*a), raising=False)
+    with_prep = shooting.fit_starts(model, ctx, P)
+    assert len(calls) == 2  # the rows, and the rows of the finite-difference batch
+    monkeypatch.setattr(shooting, "_prepare", lambda *a: None)
+    np.testing.assert_array_equal(with_prep, shooting.fit_starts(model, ctx, P))

@@ -63,7 +63,7 @@ def _weights(ctx, weights):
     return {c: 1.0 / ctx.lead["sd"][c] for c in ctx.channels}
 
 
-def lead_residuals(model, ctx, P, nu, starts, weights) -> np.ndarray:
+def lead_residuals(model, ctx, P, nu, starts, weights, prepared=None) -> np.ndarray:
     """Weighted residuals over the start samples ``ctx.lead``.
 
     Parameters
@@ -80,6 +80,8 @@ def lead_residuals(model, ctx, P, nu, starts, weights) -> np.ndarray:
         Start offsets (:data:`START_INDEX` components).
     weights : dict
         ``{channel: 1/sd}`` of the channels used.
+    prepared : Prepared, optional
+        ``model.prepare(ctx, P, nu)`` (:func:`_prepare`), shared by the simulations of one fit.
 
     Returns
     -------
@@ -87,7 +89,10 @@ def lead_residuals(model, ctx, P, nu, starts, weights) -> np.ndarray:
         The residuals, channels in the order of ``ctx.channels`` restricted to ``weights``;
         PENALTY where a window diverged.
     """
-    S = model.simulate(ctx, P, nu, starts=starts, samples="lead")
+    if prepared is None:
+        S = model.simulate(ctx, P, nu, starts=starts, samples="lead")
+    else:
+        S = model.simulate(ctx, P, nu, starts=starts, samples="lead", prepared=prepared)
     out = []
     for c, e in errors(ctx, S, samples="lead").items():
         if c in weights:
@@ -95,6 +100,13 @@ def lead_residuals(model, ctx, P, nu, starts, weights) -> np.ndarray:
             r[~np.isfinite(r)] = PENALTY
             out.append(r)
     return np.concatenate(out, axis=1) if out else np.zeros((S.shape[0], 0))
+
+
+def _prepare(model, ctx, P, nu):
+    """``model.prepare(ctx, P, nu)``, or None for a model without it (an optional method of the
+    :class:`~bayesid.models.interface.SimulationModel` contract)."""
+    prepare = getattr(model, "prepare", None)
+    return None if prepare is None else prepare(ctx, P, nu)
 
 
 def _row_windows(ctx, weights) -> np.ndarray:
@@ -159,7 +171,11 @@ def fit_starts(
     rwin = _row_windows(ctx, w)
     G = sparse.csr_matrix((np.ones(rwin.size), (rwin, np.arange(rwin.size))), shape=(W, rwin.size))
     D = np.zeros((B, W, 6)) if starts0 is None else np.array(starts0, float)
-    lm = (model, ctx, P, nu, w, G)
+    # the rows' coefficients, inputs and forces prepared once for every simulation of the fit
+    nu7 = None if nu is None else np.repeat(np.atleast_2d(nu), 7, axis=0)
+    P7 = np.repeat(P, 7, axis=0)
+    prep = (_prepare(model, ctx, P, nu), _prepare(model, ctx, P7, nu7))
+    lm = (model, ctx, P, nu, w, G, prep)
     D, cost, J = _levenberg_marquardt(lm, D)
     # a window whose fit ended far above the noise: again from the zero-sideslip guesses, kept when much better
     rows = np.maximum(np.asarray(G.sum(axis=1)).ravel(), 1.0)
@@ -210,7 +226,8 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
     Parameters
     ----------
     lm : tuple
-        ``(model, ctx, P, nu, weights, G)``: G the sparse (W, n_rows) sum of the rows of each window.
+        ``(model, ctx, P, nu, weights, G, prepared)``: G the sparse (W, n_rows) sum of the rows of
+        each window; ``prepared`` the :func:`_prepare` of ``P`` and of its rows repeated 7 times.
     D : ndarray, shape (B, W, 6)
         First offsets.
 
@@ -223,7 +240,7 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
     J : ndarray, shape (6, B, n_rows)
         The Jacobian at the last linearisation.
     """
-    model, ctx, P, nu, w, G = lm
+    model, ctx, P, nu, w, G, (prep, prep7) = lm
     B, W = D.shape[:2]
     P7 = np.repeat(P, 7, axis=0)
     nu7 = None if nu is None else np.repeat(np.atleast_2d(nu), 7, axis=0)
@@ -231,7 +248,7 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
     def window_cost(r):
         return np.asarray((G @ (r * r).T).T)  # (B, W)
 
-    r = lead_residuals(model, ctx, P, nu, D, w)
+    r = lead_residuals(model, ctx, P, nu, D, w, prep)
     cost = window_cost(r)
     lam = np.full((B, W), 1e-3)
     J = np.zeros((6, B, G.shape[1]))
@@ -240,7 +257,7 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
         Dp = np.repeat(D, 7, axis=0).reshape(B, 7, W, 6)
         for j in range(6):
             Dp[:, j + 1, :, j] += START_STEP[j]
-        R = lead_residuals(model, ctx, P7, nu7, Dp.reshape(B * 7, W, 6), w).reshape(B, 7, -1)
+        R = lead_residuals(model, ctx, P7, nu7, Dp.reshape(B * 7, W, 6), w, prep7).reshape(B, 7, -1)
         J = np.transpose((R[:, 1:] - R[:, :1]) / START_STEP[None, :, None], (1, 0, 2))  # (6, B, n)
         bad = ~np.isfinite(J) | (np.abs(R[:, 1:]).transpose(1, 0, 2) >= PENALTY)
         J[bad] = 0.0
@@ -261,7 +278,7 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
                 step = -np.einsum("bwij,bwj->bwi", np.linalg.pinv(M), g)
             step[~np.isfinite(step)] = 0.0
             Dt = D + step
-            rt = lead_residuals(model, ctx, P, nu, Dt, w)
+            rt = lead_residuals(model, ctx, P, nu, Dt, w, prep)
             ct = window_cost(rt)
             acc = ct < cost
             D = np.where(acc[..., None], Dt, D)

@@ -357,6 +357,8 @@ class TrackContext:
         self._tk, self._ck, self._uk = self._input_integral(track, t, inputs, getattr(model, "rudder_rate_deg_s", None))
         self._rows = None
         self.lone_at = None
+        #: Bumped when the inputs are rebuilt (:meth:`retime`): a :class:`Prepared` of before is refused.
+        self.inputs_version = 0
         self.substeps = int(substeps)
         self.step_inputs = self.average_inputs(np.zeros(1))[0]
         self.row_inputs = None
@@ -447,6 +449,7 @@ class TrackContext:
         self._tk, self._ck, self._uk = self._input_integral(self.track, t, "rate", rate, lone_at)
         self.lone_at = None if lone_at is None else dict(lone_at)
         self.step_inputs = self.average_inputs(np.zeros(1))[0]
+        self.inputs_version += 1
 
     @staticmethod
     def _input_integral(
@@ -713,6 +716,49 @@ def _linear_integral(tq, tk, ck, uk) -> np.ndarray:
 START_INDEX = np.array([0, 1, 5, 6, 7, 11])
 
 
+class Prepared:
+    """What a model's simulation of one track computes before its start states: the coefficient
+    rows, mass matrices, inputs and exogenous forces of parameter rows ``P`` on ``ctx``
+    (``model.prepare``). A start-state fit simulates the same rows on the same track from many
+    start states (:func:`bayesid.estimation.shooting.fit_starts`) and prepares them once.
+
+    Parameters
+    ----------
+    ctx : TrackContext
+        The track.
+    P : ndarray, shape (B, n_params)
+        The parameter rows.
+    nuisance : ndarray or None
+        The track's nuisance rows.
+    parts : dict
+        The model's own arrays (read only by the model that made them).
+    """
+
+    __slots__ = ("ctx", "P", "nuisance", "parts", "_inputs_version")
+
+    def __init__(self, ctx: TrackContext, P, nuisance, parts: dict):
+        self.ctx, self.P, self.nuisance, self.parts = ctx, P, nuisance, parts
+        self._inputs_version = ctx.inputs_version
+
+    def check(self, ctx: TrackContext, P, nuisance) -> None:
+        """Raise ValueError unless this preparation is of ``ctx`` (its inputs unchanged since),
+        ``P`` and ``nuisance``."""
+        same_nu = (self.nuisance is None and nuisance is None) or (
+            self.nuisance is not None
+            and nuisance is not None
+            and np.array_equal(self.nuisance, np.atleast_2d(nuisance))
+        )
+        if not (
+            ctx is self.ctx
+            and ctx.inputs_version == self._inputs_version
+            and np.array_equal(np.atleast_2d(np.asarray(P, float)), self.P)
+            and same_nu
+        ):
+            raise ValueError(
+                f"track {ctx.name!r}: the simulation was prepared for another track, other parameter rows or inputs"
+            )
+
+
 def start_states(ctx: TrackContext, B: int, starts=None) -> np.ndarray:
     """Window-start states of a context (measured frame) plus the fitted offsets.
 
@@ -816,6 +862,7 @@ def errors(ctx: TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
 
 __all__ = [
     "TrackContext",
+    "Prepared",
     "INPUT_RECONSTRUCTIONS",
     "lone_moves",
     "rate_limited_knots",

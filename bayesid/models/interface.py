@@ -93,6 +93,11 @@ class SimulationModel(Protocol):
         Class level: raise KeyError naming ``option`` and an unknown coefficient of ``names``.
     get_effect(name)
         Class level: a catalogue effect by name; ValueError naming an unknown one.
+    prepare(ctx, P, nuisance=None)
+        Optional: the part of :meth:`simulate` that does not depend on the start states, a
+        :class:`bayesid.models.context.Prepared` that :meth:`simulate` then takes as
+        ``prepared=`` (the start fits simulate the same rows from many start states,
+        :func:`bayesid.estimation.shooting.fit_starts`); absent: every simulation prepares anew.
     term_library()
         Optional: the family's candidate model terms for structure discovery, a
         :class:`bayesid.models.library.TermLibrary` bound to the model's vehicle (the prime-form

@@ -17,7 +17,7 @@ from ..data import terms
 from ..data.track import Track
 from ..protocol import wrap
 from . import inverse
-from .context import TrackContext, sample_rows, start_states
+from .context import Prepared, TrackContext, sample_rows, start_states
 from .effects import CATALOGUE, Effect, get, signature_dict
 from .interface import ParameterLayout
 from .library import MAX_ORDER, TermLibrary, motion_products
@@ -293,33 +293,24 @@ class EffectModel(ParameterLayout):
         """
         return TrackContext(self, track, window_s, span_s, s0=s0, start=start, leadin_s=leadin_s)
 
-    def simulate(
-        self, ctx: TrackContext, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
-    ) -> np.ndarray:
-        """Predicted measurements at the track's scored samples.
+    def prepare(self, ctx: TrackContext, P, nuisance=None) -> Prepared:
+        """The part of :meth:`simulate` that does not depend on the start states: coefficient
+        rows, mass matrices and their inverses, the effects' changes, the step inputs and the
+        exogenous forces of ``P`` on ``ctx``, for many simulations from other start states.
 
         Parameters
         ----------
         ctx : TrackContext
-            The prepared track (:meth:`context`).
+            The prepared track.
         P : array_like, shape (B, n_params) or (n_params,)
             Parameter vectors.
         nuisance : array_like, shape (B, n_nuisance), optional
             Per-track parameters of this track (default zeros).
-        measured_start : bool, default True
-            Map the window-start states through the effects' sensor models (False:
-            ``ctx.s_meas`` are already model states, e.g. the true initial state).
-        starts : array_like, shape (B, W, 6), optional
-            Offsets added to the start state of every window (segment) in the measured frame,
-            components :data:`~bayesid.models.context.START_INDEX` (x, y, psi, u, v, r); the
-            fitted start rule (:mod:`bayesid.estimation.shooting`). Default none.
-        samples : {"scored", "lead"}, default "scored"
-            The window samples, or the samples that estimate the start states (``ctx.lead``).
 
         Returns
         -------
-        ndarray, shape (B, n_samples, 12)
-            States as the sensors would report them (NaN in a diverged window).
+        Prepared
+            Passed to :meth:`simulate` as ``prepared`` with the same ``ctx``, ``P`` and ``nuisance``.
         """
         th, qs = self.split_params(P)
         B = th.shape[0]
@@ -347,6 +338,58 @@ class EffectModel(ParameterLayout):
                 ecoef[:, j : j + k] = coef
                 j += k
             jn += e.n_nuisance
+        parts = {"qs": qs, "B": B, "vp": vp, "tcoef": tcoef, "Minv": Minv, "inputs": inputs, "exo": exo, "ecoef": ecoef}
+        return Prepared(
+            ctx, np.atleast_2d(np.asarray(P, float)), None if nuisance is None else np.atleast_2d(nuisance), parts
+        )
+
+    def simulate(
+        self,
+        ctx: TrackContext,
+        P,
+        nuisance=None,
+        measured_start: bool = True,
+        starts=None,
+        samples: str = "scored",
+        prepared: Prepared | None = None,
+    ) -> np.ndarray:
+        """Predicted measurements at the track's scored samples.
+
+        Parameters
+        ----------
+        ctx : TrackContext
+            The prepared track (:meth:`context`).
+        P : array_like, shape (B, n_params) or (n_params,)
+            Parameter vectors.
+        nuisance : array_like, shape (B, n_nuisance), optional
+            Per-track parameters of this track (default zeros).
+        measured_start : bool, default True
+            Map the window-start states through the effects' sensor models (False:
+            ``ctx.s_meas`` are already model states, e.g. the true initial state).
+        starts : array_like, shape (B, W, 6), optional
+            Offsets added to the start state of every window (segment) in the measured frame,
+            components :data:`~bayesid.models.context.START_INDEX` (x, y, psi, u, v, r); the
+            fitted start rule (:mod:`bayesid.estimation.shooting`). Default none.
+        samples : {"scored", "lead"}, default "scored"
+            The window samples, or the samples that estimate the start states (``ctx.lead``).
+        prepared : Prepared, optional
+            :meth:`prepare` of this ``ctx``, ``P`` and ``nuisance`` (default: prepared here).
+
+        Returns
+        -------
+        ndarray, shape (B, n_samples, 12)
+            States as the sensors would report them (NaN in a diverged window).
+
+        Raises
+        ------
+        ValueError
+            ``prepared`` of another track, other rows or inputs.
+        """
+        pr = self.prepare(ctx, P, nuisance) if prepared is None else prepared
+        if prepared is not None:
+            prepared.check(ctx, P, nuisance)
+        qs, B, vp, tcoef, Minv = pr.parts["qs"], pr.parts["B"], pr.parts["vp"], pr.parts["tcoef"], pr.parts["Minv"]
+        inputs, exo, ecoef, sim = pr.parts["inputs"], pr.parts["exo"], pr.parts["ecoef"], self.sim
         s0 = start_states(ctx, B, starts)
         if measured_start:
             for e, q in reversed(list(zip(self.effects, qs))):

@@ -12,7 +12,7 @@ import numpy as np
 from ...data.track import Track
 from ...protocol import wrap
 from .. import inverse
-from ..context import TrackContext, sample_rows, start_states
+from ..context import Prepared, TrackContext, sample_rows, start_states
 from ..effects import signature_dict
 from ..interface import ParameterLayout
 from . import hullterms
@@ -367,8 +367,49 @@ class ShipModel(ParameterLayout):
             e.kernel(kp, q)
         return kp["prm"], kp["cur"], kp["delay"]
 
+    def prepare(self, ctx, P, nuisance=None) -> Prepared:
+        """The part of :meth:`simulate` that does not depend on the start states: the kernel's
+        parameter rows, the current and the step inputs of ``P`` on ``ctx``, for many
+        simulations from other start states.
+
+        Parameters
+        ----------
+        ctx : TrackContext
+            The prepared track (:meth:`context`).
+        P : array_like, shape (B, n_params)
+            Parameter vectors.
+        nuisance : array_like, optional
+            Unused (a ship model has no per-track parameters).
+
+        Returns
+        -------
+        Prepared
+            Passed to :meth:`simulate` as ``prepared`` with the same ``ctx``, ``P`` and ``nuisance``.
+        """
+        prm, cur, delay = self.kernel_params(P)
+        B = prm.shape[0]
+        if delay is not None:
+            U = ctx.average_inputs(np.asarray(delay, float))
+        else:  # the track's own inputs broadcast over the rows (no copy), or each row's
+            U = ctx.step_inputs[None] if getattr(ctx, "row_inputs", None) is None else ctx.held_inputs(B)
+        inp = np.empty((B, ctx.n_steps, 2))
+        inp[:, :, 0] = U[:, :, 0]
+        inp[:, :, 1] = U[:, :, 3] / 60.0
+        _, qs = self.split_params(P)
+        parts = {"prm": prm, "cur": cur, "inp": inp, "qs": qs}
+        return Prepared(
+            ctx, np.atleast_2d(np.asarray(P, float)), None if nuisance is None else np.atleast_2d(nuisance), parts
+        )
+
     def simulate(
-        self, ctx, P, nuisance=None, measured_start: bool = True, starts=None, samples: str = "scored"
+        self,
+        ctx,
+        P,
+        nuisance=None,
+        measured_start: bool = True,
+        starts=None,
+        samples: str = "scored",
+        prepared: Prepared | None = None,
     ) -> np.ndarray:
         """Predicted measurements at the track's scored samples.
 
@@ -387,22 +428,25 @@ class ShipModel(ParameterLayout):
             :meth:`bayesid.models.submarine.EffectModel.simulate`.
         samples : {"scored", "lead"}, default "scored"
             As in :meth:`bayesid.models.submarine.EffectModel.simulate`.
+        prepared : Prepared, optional
+            :meth:`prepare` of this ``ctx``, ``P`` and ``nuisance`` (default: prepared here).
 
         Returns
         -------
         ndarray, shape (B, n_samples, 12)
             In :data:`~bayesid.data.track.STATE_NAMES` order (u, v over ground; NaN in a
             diverged window).
+
+        Raises
+        ------
+        ValueError
+            ``prepared`` of another track, other rows or inputs.
         """
-        prm, cur, delay = self.kernel_params(P)
+        pr = self.prepare(ctx, P, nuisance) if prepared is None else prepared
+        if prepared is not None:
+            prepared.check(ctx, P, nuisance)
+        prm, cur, inp, qs = pr.parts["prm"], pr.parts["cur"], pr.parts["inp"], pr.parts["qs"]
         B = prm.shape[0]
-        if delay is not None:
-            U = ctx.average_inputs(np.asarray(delay, float))
-        else:  # the track's own inputs broadcast over the rows (no copy), or each row's
-            U = ctx.step_inputs[None] if getattr(ctx, "row_inputs", None) is None else ctx.held_inputs(B)
-        inp = np.empty((B, ctx.n_steps, 2))
-        inp[:, :, 0] = U[:, :, 0]
-        inp[:, :, 1] = U[:, :, 3] / 60.0
         s0 = start_states(ctx, B, starts)[:, :, [0, 1, 5, 6, 7, 11]]
         if measured_start:  # measured velocities are over ground: remove the current
             c, s = np.cos(s0[..., 2]), np.sin(s0[..., 2])
@@ -429,7 +473,6 @@ class ShipModel(ParameterLayout):
         S6[..., 4] += -s * cur[:, None, 0] + c * cur[:, None, 1]
         S = np.zeros(S6.shape[:2] + (12,))
         S[..., [0, 1, 5, 6, 7, 11]] = S6
-        _, qs = self.split_params(P)
         for e, q in zip(self.effects, qs):  # sensor models (the other ship effects act in the kernel)
             e.to_measured(S, t_rel, q)
         S[..., 5] = wrap(S[..., 5])
