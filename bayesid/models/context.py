@@ -741,8 +741,22 @@ class Prepared:
         self._inputs_version = ctx.inputs_version
 
     def check(self, ctx: TrackContext, P, nuisance) -> None:
-        """Raise ValueError unless this preparation is of ``ctx`` (its inputs unchanged since),
-        ``P`` and ``nuisance``."""
+        """Refuse a simulation this preparation is not of.
+
+        Parameters
+        ----------
+        ctx : TrackContext
+            The track simulated (the one prepared, its inputs not rebuilt since).
+        P : array_like, shape (B, n_params)
+            The parameter rows simulated.
+        nuisance : array_like or None
+            The nuisance rows simulated.
+
+        Raises
+        ------
+        ValueError
+            Another track, other rows or nuisances, or inputs rebuilt since (:meth:`TrackContext.retime`).
+        """
         same_nu = (self.nuisance is None and nuisance is None) or (
             self.nuisance is not None
             and nuisance is not None
