@@ -120,3 +120,45 @@ def test_bayesid_fit_reports_a_training_turn_it_cannot_reproduce(turns, tmp_path
     assert turn["reproduced"] is False and turn["suspect"] == "speed in the turn"
     report = (out / "report.md").read_text()
     assert "## The training turning circles" in report and "does not reproduce its own training turn" in report
+
+
+def _with_wind(track, speed_mps: float, from_rad: float = 0.5):
+    from bayesid.data.track import Track
+
+    data = {k: np.asarray(track[k], float) for k in track.data}
+    data["wind_speed"] = np.full(track.n_samples, speed_mps)
+    data["wind_dir"] = np.full(track.n_samples, from_rad)
+    return Track(track.t, data, name=track.name)
+
+
+def test_a_logged_wind_the_model_lacks_is_suspected_before_the_surge(kvlcc2, turns):
+    import dataclasses
+
+    from bayesid.estimation.prediction import WIND_SUSPECT_RATIO, training_turns
+    from bayesid.models.ship.dynamics import wind_to_resistance
+
+    ship, _, _ = kvlcc2
+    # the tank's KVLCC2 has no windage: give it a superstructure's
+    windy = dataclasses.replace(ship, particulars={**ship.particulars, "A_front": 0.12, "A_lateral": 0.45})
+    model = build_model(windy, windy.free)
+    nominal = FittedModel(model, np.asarray(model.start(), float), None)
+    calm, gale = turns["Xvr"], _with_wind(turns["Xvr"], 20.0)
+    assert wind_to_resistance(windy, calm) is None and wind_to_resistance(ship, gale) is None  # no wind, no windage
+    ratio = wind_to_resistance(windy, gale)
+    assert ratio > WIND_SUSPECT_RATIO
+    # the true wind alone (no u, v logged): the force goes with the wind speed squared
+    bare = {k: gale[k] for k in gale.data if k not in ("u", "v")}
+    half = {**bare, "wind_speed": bare["wind_speed"] / 2}
+    from bayesid.data.track import Track
+
+    r1, r2 = (wind_to_resistance(windy, Track(gale.t, d, name="w")) for d in (bare, half))
+    assert r1 == pytest.approx(4.0 * r2, rel=1e-9)
+    (t,) = training_turns(nominal, [gale])
+    assert t["reproduced"] is False and t["suspect"] == "wind" and t["wind_to_resistance"] == pytest.approx(ratio)
+    (t,) = training_turns(nominal, [calm])
+    assert t["suspect"] == "speed in the turn" and "wind_to_resistance" not in t
+    (t,) = training_turns(nominal, [_with_wind(turns["Xvr"], 0.3)])  # a breeze: the surge again
+    assert t["suspect"] == "speed in the turn" and t["wind_to_resistance"] < WIND_SUSPECT_RATIO
+    with_wind = build_model(windy, windy.free, ["wind"])
+    (t,) = training_turns(FittedModel(with_wind, np.asarray(with_wind.start(), float), None), [gale])
+    assert t["suspect"] != "wind" and "wind_to_resistance" not in t

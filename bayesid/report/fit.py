@@ -112,6 +112,10 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
 
 
 _SUSPECTS = {
+    "wind": (
+        "the run logs a wind that pushes with a large share of the hull's resistance and the model has no wind "
+        "effect, so the wind is the first suspect: fit with the wind effect (--effects wind) before judging the surge"
+    ),
     "speed in the turn": (
         "the speed in the turn is off too, so the surge equation is the first suspect (hull resistance in the turn, "
         "the propeller's inflow and thrust deduction, the rudder's drag)"

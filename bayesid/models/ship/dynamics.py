@@ -352,4 +352,70 @@ def apparent_wind(track: Track, u, v, psi, t=None) -> tuple[np.ndarray, np.ndarr
     return np.hypot(ax, ay), np.arctan2(-ay, -ax)
 
 
-__all__ = ["simulate_windows", "accelerations", "forces", "mass_matrix", "wind_components", "apparent_wind"]
+#: The head-wind longitudinal force coefficient C_X used when the vessel file gives no ``[wind]``
+#: ``Cx1``: merchant ships measure about 0.5 to 1 (Isherwood 1973, Trans. RINA 115:327-338).
+TYPICAL_WIND_CX = 0.7
+
+
+def wind_to_resistance(ship, track: Track) -> float | None:
+    """How large the logged wind's surge force is against the hull's resistance: the RMS over the
+    run of the head-wind force ``0.5 rho_air V_A^2 A_front |C_X|`` over the straight-running
+    resistance at the approach speed ``0.5 rho L d |X'uu| U0^2`` (MMG prime form, Yasukawa &
+    Yoshimura 2015, J. Mar. Sci. Technol. 20:37, eq. 6; the wind force as in the kernel's wind
+    block). ``V_A`` is the apparent wind (:func:`apparent_wind`; the true wind where the track
+    logs no u, v); ``U0`` the 90th percentile of the logged speed through the run.
+
+    A ratio of 0.25 moves a steady speed set by that resistance by about 12 % (the force goes
+    with U^2): a speed in the turn off by more than that is the wind's before it is the surge
+    equation's.
+
+    Parameters
+    ----------
+    ship : Ship
+        The vessel (particulars, ``Xuu`` and the ``[wind]`` start ``Cx1``; :data:`TYPICAL_WIND_CX`
+        where it gives none).
+    track : Track
+        The run; its ``wind_speed`` and ``wind_dir`` columns.
+
+    Returns
+    -------
+    float or None
+        The ratio; None when the track logs no wind, the ship has no frontal windage area or
+        resistance, or the run has no speed.
+    """
+    t = np.asarray(track.t, float)
+    w = wind_components(track, t)
+    area = float(ship.particulars.get("A_front", 0.0))
+    xuu = abs(float(ship.coefficients.get("Xuu", 0.0)))
+    if not np.any(w) or area <= 0.0 or xuu <= 0.0:
+        return None
+    if all(k in track for k in ("u", "v", "psi")):
+        u, v = np.asarray(track["u"], float), np.asarray(track["v"], float)
+        va, _ = apparent_wind(track, u, v, np.asarray(track["psi"], float))
+        speed = np.hypot(u, v)
+    else:
+        va = np.hypot(w[:, 0], w[:, 1])
+        speed = np.hypot(np.gradient(np.asarray(track["x"], float), t), np.gradient(np.asarray(track["y"], float), t))
+    ok = np.isfinite(va) & np.isfinite(speed)
+    if not ok.any():
+        return None
+    u0 = float(np.percentile(speed[ok], 90))
+    if u0 <= 0.0:
+        return None
+    cx = abs(float(ship.wind_start.get("Cx1") or 0.0)) or TYPICAL_WIND_CX
+    rho_air = float(ship.particulars.get("rho_air", 1.225))
+    wind = 0.5 * rho_air * area * cx * np.sqrt(np.mean(va[ok] ** 4))
+    hull = 0.5 * float(ship.particulars["rho"]) * ship.L * float(ship.particulars["d"]) * xuu * u0**2
+    return float(wind / hull)
+
+
+__all__ = [
+    "simulate_windows",
+    "accelerations",
+    "forces",
+    "mass_matrix",
+    "wind_components",
+    "apparent_wind",
+    "wind_to_resistance",
+    "TYPICAL_WIND_CX",
+]
