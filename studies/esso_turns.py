@@ -154,7 +154,15 @@ def _turn_rows(doc) -> list:
     for which in ("base", "after_effects"):
         for t in doc["turns"][which]:
             m, p = t["measured"], t["predicted"]
-            rows.append([which, t["run"], *(f"{fmt(m.get(k))} / {fmt(p.get(k))}" for k in INDICES)])
+            rows.append(
+                [
+                    which,
+                    t["run"],
+                    *(f"{fmt(m.get(k))} / {fmt(p.get(k))}" for k in INDICES),
+                    t["suspect"] or "-",
+                    fmt(t.get("wind_to_resistance")),
+                ]
+            )
     return rows
 
 
@@ -193,9 +201,12 @@ def write_report(out: Path, doc: dict, args) -> None:
         "",
         "Each held-out turn run whole from its measured first state with its logged inputs, by the base model and "
         "by the model with the named effects (kept terms not included); a run the index reader does not read as a "
-        "turning circle is left out.",
+        "turning circle is left out. *Suspect*: the component :func:`bayesid.estimation.prediction.training_turns` "
+        "suspects where the tactical or steady diameter is more than 5 % off (``wind`` where the run's logged wind "
+        "pushes with at least 0.25 of the hull's resistance, *wind / resistance*, and the model has no wind effect; "
+        "else the speed in the turn or the turning forces by the speed loss).",
         "",
-        md_table(["model", "run", *INDICES], _turn_rows(doc)),
+        md_table(["model", "run", *INDICES, "suspect", "wind / resistance"], _turn_rows(doc)),
         "",
     ]
     (out / "report.md").write_text("\n".join(lines))
