@@ -1,0 +1,97 @@
+"""Benchmark (issue 67): does the fitted Esso Osaka model reproduce the turn it was trained on, and what
+does it miss? The packaged ``esso_osaka_3m`` model fitted to every zigzag and random run plus one
+turning run of the pond tests (``../shared/data/real/esso-osaka-frt``), without the wind effect
+(15 s and 60 s fit windows: the window start resets the speed, so a longer window makes the fit see
+the speed decay in the turn) and with it; each fit's turning circles then predicted whole from the
+measured first state (:func:`bayesid.estimation.prediction.training_turns`): the training turn
+and the three other turns the index reader reads. Also: each turn's logged wind against the hull's
+resistance (:func:`bayesid.models.ship.dynamics.wind_to_resistance`).
+
+    python benchmarks/esso_training_turn.py [--turn turn_14-Oct-2020_15_06_53] [--data ../shared/data/real]
+
+Per fit and turn: the tactical and steady turning diameters' errors, the speed loss in the steady
+turn (1 - u/U0) measured / predicted, and the suspected component. The last lines are
+machine-readable: ``speed_loss_<fit>`` (the training turn's predicted speed loss) and
+``speed_loss_measured``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bayesid import FitOptions, identify  # noqa: E402
+from bayesid.data import datasets  # noqa: E402
+from bayesid.estimation.prediction import FittedModel, training_turns  # noqa: E402
+from bayesid.models import ship  # noqa: E402
+from bayesid.models.ship.dynamics import wind_to_resistance  # noqa: E402
+
+#: The turns besides the training one whose measured and predicted circles the index reader reads.
+JUDGED = (
+    "turn_14-Oct-2020_15_06_53",
+    "turn_14-Oct-2020_15_21_57",
+    "turn_14-Sep-2020_13_39_32",
+    "turn_14-Sep-2020_15_47_33",
+)
+FITS = (("no wind, 15 s", (), 15.0), ("no wind, 60 s", (), 60.0), ("wind, 15 s", ("wind",), 15.0))
+
+
+def _pct(v) -> str:
+    return "-" if v is None else f"{100 * v:+.1f} %"
+
+
+def _f(v) -> str:
+    return "-" if v is None else f"{v:.3f}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--turn", default=JUDGED[0], help="the turning run added to the training runs")
+    ap.add_argument("--data", default=str(ROOT / ".." / "shared" / "data" / "real"))
+    args = ap.parse_args(argv)
+    esso_dir = Path(args.data) / "esso-osaka-frt"
+    if not esso_dir.is_dir():
+        print(f"real data not found under {args.data}: nothing to do")
+        return 0
+    warnings.filterwarnings("ignore", module="bayesid")  # the coarse-rudder warnings of every random run
+    runs = [p for p in datasets.list_runs(esso_dir, "esso-osaka") if "turn_cut" not in p.name]
+    tracks = {t.name: t for t in (datasets.read_run(p, "esso-osaka") for p in runs)}
+    train = [t for n, t in tracks.items() if n.startswith(("zigzag", "random"))]
+    esso = ship.load_ship("esso_osaka_3m")
+    judged = [tracks[n] for n in JUDGED]
+    print("wind / resistance of the turns: " + ", ".join(f"{t.name} {_f(wind_to_resistance(esso, t))}" for t in judged))
+    last = []
+    for label, effects, window in FITS:
+        t0 = time.perf_counter()
+        opt = FitOptions(free=tuple(esso.free), effects=effects, window_s=window, dt=0.2, max_nfev=30, start="measured")
+        res = identify(esso, train + [tracks[args.turn]], opt, calibration=None)
+        print(
+            f"\n{label}: {len(train)} runs + {args.turn}; fit {time.perf_counter() - t0:.0f} s, cost {res.fit.cost:.4g}"
+        )
+        print("  run                          tactical   steady   speed loss meas / pred  suspect")
+        for t in training_turns(FittedModel(res.model, np.asarray(res.fit.p, float), None), judged):
+            r = t["rel_error"]
+            tag = "TRAIN" if t["run"] == args.turn else "held "
+            print(
+                f"  {tag} {t['run']}  {_pct(r['tactical_diameter_m']):>8s} {_pct(r['steady_turning_diameter_m']):>8s}"
+                f"   {_f(t['measured']['speed_loss'])} / {_f(t['predicted']['speed_loss'])}   {t['suspect'] or '-'}"
+            )
+            if t["run"] == args.turn:
+                key = label.replace(", ", "_").replace(" ", "_")
+                last.append(f"speed_loss_{key} {_f(t['predicted']['speed_loss'])}")
+                measured = t["measured"]["speed_loss"]
+    print()
+    print("\n".join(last + [f"speed_loss_measured {_f(measured)}"]))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
