@@ -34,7 +34,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-import pysindy as ps
 from threadpoolctl import threadpool_limits
 
 from ..data import terms
@@ -226,9 +225,12 @@ def legacy_seed(rng: np.random.Generator):
         np.random.set_state(saved)
 
 
-def _stlsq(threshold: float, alpha: float = 0.0, unbias: bool = True) -> ps.STLSQ:
+def _stlsq(threshold: float, alpha: float = 0.0, unbias: bool = True):
     """pysindy ``STLSQ`` on already normalised columns, 20 iterations: the one sparse regression
-    of both ensembles."""
+    of both ensembles (pysindy and scikit-learn imported here, when a regression is first run:
+    0.5 s of every command's start-up otherwise)."""
+    import pysindy as ps
+
     return ps.STLSQ(threshold=threshold, alpha=alpha, normalize_columns=False, unbias=unbias, max_iter=20)
 
 
@@ -273,6 +275,8 @@ def ensemble_stlsq(
     ndarray, shape (n_models, K)
         Coefficients; the inclusion probability of a column is the share of non-zero rows.
     """
+    import pysindy as ps
+
     stl = _stlsq(float(threshold), float(alpha), unbias=True)
     ens = ps.EnsembleOptimizer(stl, bagging=True, n_models=int(n_models), replace=True)
     with legacy_seed(rng), _quiet_one_thread():

@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pysindy as ps
 from scipy.signal import savgol_filter
 
 from ..data import terms
@@ -125,7 +124,11 @@ def _window_samples(window_s: float, dt: float, polyorder: int, n: int) -> int:
     return w
 
 
-def _sfd(window: int, polyorder: int) -> ps.SmoothedFiniteDifference:
+def _sfd(window: int, polyorder: int):
+    """A pysindy ``SmoothedFiniteDifference`` (pysindy and scikit-learn imported here, when a
+    derivative is first asked for: 0.7 s of every command's start-up otherwise)."""
+    import pysindy as ps
+
     # A fresh smoother_kws dict each time: pysindy mutates its (shared) default dict.
     kws = {"window_length": window, "polyorder": polyorder}
     return ps.SmoothedFiniteDifference(smoother_kws=kws)
@@ -325,6 +328,8 @@ def estimate_motion(
         held = held_inputs(require_column(track, "delta_r", "rudder")[:, None], input_hold)
         dr_s = motion_filter(sum(held) / len(held), motion)
         motion["dr"] = dr_s[:, 0]
+        import pysindy as ps
+
         motion["dr_dot"] = np.asarray(ps.FiniteDifference()(dr_s, t))[:, 0]
     return motion
 
