@@ -773,6 +773,38 @@ class Prepared:
             )
 
 
+def prepared_for(model, ctx: TrackContext, P, nuisance, prepared: Prepared | None) -> Prepared:
+    """``prepared`` checked against the simulation asked for, or ``model.prepare`` of it.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model, with a ``prepare`` method.
+    ctx : TrackContext
+        The track.
+    P : array_like, shape (B, n_params)
+        The parameter rows.
+    nuisance : array_like or None
+        The nuisance rows.
+    prepared : Prepared or None
+        A preparation passed to ``model.simulate``.
+
+    Returns
+    -------
+    Prepared
+        The preparation to simulate with.
+
+    Raises
+    ------
+    ValueError
+        ``prepared`` of another track, other rows or nuisances, or inputs rebuilt since.
+    """
+    if prepared is None:
+        return model.prepare(ctx, P, nuisance)
+    prepared.check(ctx, P, nuisance)
+    return prepared
+
+
 def start_states(ctx: TrackContext, B: int, starts=None) -> np.ndarray:
     """Window-start states of a context (measured frame) plus the fitted offsets.
 
@@ -877,6 +909,7 @@ def errors(ctx: TrackContext, S: np.ndarray, samples: str = "scored") -> dict:
 __all__ = [
     "TrackContext",
     "Prepared",
+    "prepared_for",
     "INPUT_RECONSTRUCTIONS",
     "lone_moves",
     "rate_limited_knots",

@@ -17,7 +17,7 @@ from ..data import terms
 from ..data.track import Track
 from ..protocol import wrap
 from . import inverse
-from .context import Prepared, TrackContext, sample_rows, start_states
+from .context import Prepared, TrackContext, prepared_for, sample_rows, start_states
 from .effects import CATALOGUE, Effect, get, signature_dict
 from .interface import ParameterLayout
 from .library import MAX_ORDER, TermLibrary, motion_products
@@ -385,9 +385,7 @@ class EffectModel(ParameterLayout):
         ValueError
             ``prepared`` of another track, other rows or inputs.
         """
-        pr = self.prepare(ctx, P, nuisance) if prepared is None else prepared
-        if prepared is not None:
-            prepared.check(ctx, P, nuisance)
+        pr = prepared_for(self, ctx, P, nuisance, prepared)
         qs, B, vp, tcoef, Minv = pr.parts["qs"], pr.parts["B"], pr.parts["vp"], pr.parts["tcoef"], pr.parts["Minv"]
         inputs, exo, ecoef, sim = pr.parts["inputs"], pr.parts["exo"], pr.parts["ecoef"], self.sim
         s0 = start_states(ctx, B, starts)

@@ -12,7 +12,7 @@ import numpy as np
 from ...data.track import Track
 from ...protocol import wrap
 from .. import inverse
-from ..context import Prepared, TrackContext, sample_rows, start_states
+from ..context import Prepared, TrackContext, prepared_for, sample_rows, start_states
 from ..effects import signature_dict
 from ..interface import ParameterLayout
 from . import hullterms
@@ -442,9 +442,7 @@ class ShipModel(ParameterLayout):
         ValueError
             ``prepared`` of another track, other rows or inputs.
         """
-        pr = self.prepare(ctx, P, nuisance) if prepared is None else prepared
-        if prepared is not None:
-            prepared.check(ctx, P, nuisance)
+        pr = prepared_for(self, ctx, P, nuisance, prepared)
         prm, cur, inp, qs = pr.parts["prm"], pr.parts["cur"], pr.parts["inp"], pr.parts["qs"]
         B = prm.shape[0]
         s0 = start_states(ctx, B, starts)[:, :, [0, 1, 5, 6, 7, 11]]
