@@ -2,7 +2,9 @@
 does it miss? The packaged ``esso_osaka_3m`` model fitted to every zigzag and random run plus one
 turning run of the pond tests (``../shared/data/real/esso-osaka-frt``), without the wind effect
 (15 s and 60 s fit windows: the window start resets the speed, so a longer window makes the fit see
-the speed decay in the turn) and with it; each fit's turning circles then predicted whole from the
+the speed decay in the turn), with it, and with it and each of the ship catalogue's surge and
+propeller effects (the MMG 2015 wake in a turn, the thrust deduction, the rudder's resistance) or the
+current; each fit's turning circles then predicted whole from the
 measured first state (:func:`bayesid.estimation.prediction.training_turns`): the training turn
 and the three other turns the index reader reads. Also: each turn's logged wind against the hull's
 resistance (:func:`bayesid.models.ship.dynamics.wind_to_resistance`).
@@ -41,7 +43,16 @@ JUDGED = (
     "turn_14-Sep-2020_13_39_32",
     "turn_14-Sep-2020_15_47_33",
 )
-FITS = (("no wind, 15 s", (), 15.0), ("no wind, 60 s", (), 60.0), ("wind, 15 s", ("wind",), 15.0))
+FITS = (
+    ("no wind, 15 s", (), 15.0),
+    ("no wind, 60 s", (), 60.0),
+    ("wind, 15 s", ("wind",), 15.0),
+    # with the wind, each of the ship catalogue's surge and propeller effects in turn (and the current)
+    ("wind+wake_in_turn, 15 s", ("wind", "wake_in_turn"), 15.0),
+    ("wind+thrust_deduction, 15 s", ("wind", "thrust_deduction"), 15.0),
+    ("wind+rudder_resistance, 15 s", ("wind", "rudder_resistance"), 15.0),
+    ("wind+current, 15 s", ("wind", "current"), 15.0),
+)
 
 
 def _pct(v) -> str:
@@ -85,7 +96,7 @@ def main(argv=None) -> int:
                 f"   {_f(t['measured']['speed_loss'])} / {_f(t['predicted']['speed_loss'])}   {t['suspect'] or '-'}"
             )
             if t["run"] == args.turn:
-                key = label.replace(", ", "_").replace(" ", "_")
+                key = label.replace(", ", "_").replace(" ", "_").replace("+", "_")
                 last.append(f"speed_loss_{key} {_f(t['predicted']['speed_loss'])}")
                 measured = t["measured"]["speed_loss"]
     print()
