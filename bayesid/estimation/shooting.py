@@ -240,18 +240,20 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
     J : ndarray, shape (6, B, n_rows)
         The Jacobian at the last linearisation.
     """
-    model, ctx, P, nu, w, G, (_prep, prep7) = lm
+    model, ctx, P, nu, w, G, (prep, prep7) = lm
     B, W = D.shape[:2]
     P7 = np.repeat(P, 7, axis=0)
     nu7 = None if nu is None else np.repeat(np.atleast_2d(nu), 7, axis=0)
-    rwin = G.tocsc().indices  # the window of each residual row (one per column of G)
 
     def window_cost(r):
         return np.asarray((G @ (r * r).T).T)  # (B, W)
 
-    def linearised(D):
-        """Residuals at ``D`` and their Jacobian by the offsets, from one batch: the 6 perturbed
-        start vectors of every window beside the base, rows b*7 + j (j = 0: base)."""
+    r = lead_residuals(model, ctx, P, nu, D, w, prep)
+    cost = window_cost(r)
+    lam = np.full((B, W), 1e-3)
+    J = np.zeros((6, B, G.shape[1]))
+    for _ in range(LM_ITERATIONS):
+        # the 6 perturbed start vectors of every window in one batch: rows b*7 + j (j = 0: base)
         Dp = np.repeat(D, 7, axis=0).reshape(B, 7, W, 6)
         for j in range(6):
             Dp[:, j + 1, :, j] += START_STEP[j]
@@ -259,17 +261,7 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
         J = np.transpose((R[:, 1:] - R[:, :1]) / START_STEP[None, :, None], (1, 0, 2))  # (6, B, n)
         bad = ~np.isfinite(J) | (np.abs(R[:, 1:]).transpose(1, 0, 2) >= PENALTY)
         J[bad] = 0.0
-        return R[:, 0], J
-
-    # Each trial point is simulated with its perturbations: where a window accepts its step, the
-    # next iteration's linearisation is already there (the windows are simulated independently,
-    # so a window's rows do not depend on the others' offsets), one batch per step instead of two.
-    r_next, J_next = linearised(D)
-    cost = window_cost(r_next)
-    lam = np.full((B, W), 1e-3)
-    J = J_next
-    for _ in range(LM_ITERATIONS):
-        J, r = J_next, r_next
+        r = R[:, 0]
         A = np.empty((B, W, 6, 6))
         g = np.empty((B, W, 6))
         for b in range(B):
@@ -286,16 +278,13 @@ def _levenberg_marquardt(lm: tuple, D: np.ndarray) -> tuple:
                 step = -np.einsum("bwij,bwj->bwi", np.linalg.pinv(M), g)
             step[~np.isfinite(step)] = 0.0
             Dt = D + step
-            rt, Jt = linearised(Dt)
+            rt = lead_residuals(model, ctx, P, nu, Dt, w, prep)
             ct = window_cost(rt)
             acc = ct < cost
             D = np.where(acc[..., None], Dt, D)
             gain = np.where(acc, (cost - ct) / np.maximum(cost, 1e-300), 0.0)
             cost = np.where(acc, ct, cost)
             lam = np.where(acc, lam / 3.0, lam * 4.0)
-            rows = acc[:, rwin]  # (B, n_rows): the rows of the windows that moved
-            r_next = np.where(rows, rt, r_next)
-            J_next = np.where(rows[None], Jt, J_next)
             if acc.any():
                 improved = bool(np.max(gain) > LM_TOLERANCE)
                 break
