@@ -65,7 +65,11 @@ def test_a_missing_surge_term_is_found_once_the_speed_routes_discovery_into_x(su
     assert d["discovery"]["settings"]["dofs"] == ["X", "Y", "N"]
     found = d["discovery"]["found"]
     named = set(found) | {a["term"] for k in found for a in d["discovery"]["alternatives"].get(k, [])}
-    assert "Xvvvv" in named, (found, d["discovery"]["alternatives"])  # measured: Xvvvr kept, Xvvvv beside it
+    assert "Xvvvv" in named, (found, d["discovery"]["alternatives"])  # measured: Xvabsvrabsr kept, Xvvvv beside it
+    # the fourth-order products level with the kept one in the score test are refitted beside it, and
+    # those that pass the kept test are named with it (measured: six, all kept, all named)
+    tied = [r["term"] for r in d["discovery"]["discovered"] if r.get("refitted_as") == "tied" and r["kept"]]
+    assert len(tied) >= 3 and set(tied) <= named, (tied, named)
     assert all(k.startswith("X") for k in found)  # no sway or yaw term alone
 
 
@@ -126,3 +130,16 @@ def test_without_a_speed_log_the_speed_over_ground_read_from_the_positions_route
     got, why = routed(DiscoveryOptions(), d.where, d.base.model)
     assert (got.dofs[0] == "X") is routes
     assert (why is not None and "speed over ground read from the positions" in why) is routes
+
+
+def test_a_kept_terms_companions_are_the_members_of_its_group_the_score_test_ranks_level_with_it():
+    from bayesid.analysis.gap.discovery.selection import TIED_SHARE, tied_companions
+
+    sel = {"groups": {"Xvvabsvabsr": ["Xvvvr", "Xvvvv", "Xvvrr", "Xrrrr"], "Nrrr": []}}
+    r2 = {"Xvvabsvabsr": 0.0413, "Xvvvr": 0.0412, "Xvvvv": 0.0390, "Xvvrr": 0.0395, "Xrrrr": 0.0268, "Nv": 0.05}
+    # the ship_surge case's shares: Xvvvv 6th of the group in the score test, level with the kept term
+    assert tied_companions(sel, r2, "Xvvabsvabsr") == ["Xvvvr", "Xvvrr", "Xvvvv"]
+    assert tied_companions(sel, r2, "Xvvabsvabsr", n=1) == ["Xvvvr"]
+    assert "Xrrrr" not in tied_companions(sel, r2, "Xvvabsvabsr") and 0.0268 < TIED_SHARE * 0.0413
+    assert tied_companions(sel, r2, "Nrrr") == [] and tied_companions(sel, r2, "Xabsr") == []
+    assert tied_companions(sel, {**r2, "Xvvabsvabsr": 0.0}, "Xvvabsvabsr") == []

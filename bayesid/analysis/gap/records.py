@@ -374,7 +374,9 @@ class TermRow(Record):
     refitted_as : str or None
         ``"selected"`` by the ensemble, ``"alternative"`` by the score test, ``"mimicked"`` (set
         aside as mimicked by the selection and refitted all the same,
-        :func:`~bayesid.analysis.gap.discovery.selection.mimicked_refits`) or ``"compared"``
+        :func:`~bayesid.analysis.gap.discovery.selection.mimicked_refits`), ``"tied"`` (a member of
+        a kept term's collinear group the score test ranks level with it,
+        :func:`~bayesid.analysis.gap.discovery.selection.tied_companions`) or ``"compared"``
         (asked for, ``DiscoveryOptions.compare``: an earlier round's terms); None for a term
         refitted on top of others (left out of the JSON).
     kept : bool or None

@@ -108,6 +108,7 @@ from .selection import (
     refit_candidates,
     score_test,
     select_terms,
+    tied_companions,
 )
 
 __all__ = [
@@ -294,7 +295,8 @@ class Discovery:
             ``coefficient_sd`` (prime, its single-term refit), ``heldout_rms_m``,
             ``window_p_value`` (against the reference model), ``inclusion_probability``,
             ``refitted_as`` (``"selected"`` by the ensemble, ``"alternative"`` by the score
-            test, ``"mimicked"`` or ``"compared"``: asked for, ``DiscoveryOptions.compare``), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
+            test, ``"mimicked"``, ``"tied"`` (level with a kept term in the score test) or
+            ``"compared"``: asked for, ``DiscoveryOptions.compare``), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
             ``separated`` (kept terms: :attr:`separated`; others: empty), ``separable`` (kept terms: no alternative survives; others: None) and
             ``heldout_rms_by_run_m`` (kept terms: ``{held-out run: position RMS, m}`` of the
             single-term refit, or of the model it was added to others in, :attr:`combined_stages`;
@@ -597,7 +599,8 @@ def discover(
     except ValueError as exc:  # no inverse dynamics: the output-space selection stands alone
         forces = {"error": str(exc)}
     cands = refit_candidates(sel, options)
-    pool = alternative_pool(score_test(problem, names), sel, cands, options)
+    r2 = score_test(problem, names)
+    pool = alternative_pool(r2, sel, cands, options)
     # the likeliest terms the selection set aside as mimicked: the output-error refit may still see them
     mimicked = (
         [n for n in mimicked_refits(sel, options.n_alternatives) if n not in (*cands, *pool)] if significant else []
@@ -621,17 +624,19 @@ def discover(
         for n in refit
     }
     discovered, fitted = _refit_terms(how, fit_args, initial, judge, runner)
-    # a kept term the selection had set aside as mimicked competes with the others its mimic reproduces
-    companions = [
-        c
-        for r in discovered
-        if r.kept and r.refitted_as == "mimicked"
-        for c in mimicked_companions(sel, r.term, 2 * options.n_alternatives)
-        if c not in how
-    ]
-    if companions:
-        runner.say(f"discovery: and the terms mimicked alike, {', '.join(dict.fromkeys(companions))}")
-        more = dict.fromkeys(companions, "mimicked")
+    # a kept term competes with the terms it stands for: those its mimic reproduces alike (set aside as
+    # mimicked) or, for the others, the members of its collinear group the score test ranks level with it
+    more = {}
+    for r in (r for r in discovered if r.kept and options.n_alternatives > 0):
+        if r.refitted_as == "mimicked":
+            more.update(dict.fromkeys(mimicked_companions(sel, r.term, 2 * options.n_alternatives), "mimicked"))
+        else:
+            more.update(dict.fromkeys(tied_companions(sel, r2, r.term), "tied"))
+    more = {c: h for c, h in more.items() if c not in how}
+    if more:
+        for h, words in (("mimicked", "the terms mimicked alike"), ("tied", "the terms the score test ties")):
+            if h in more.values():
+                runner.say(f"discovery: and {words}, {', '.join(c for c in more if more[c] == h)}")
         initial = {**initial, **reference_values(ref, list(more))}
         rows, stages_more = _refit_terms(more, fit_args, initial, judge, runner)
         discovered, fitted = [*discovered, *rows], {**fitted, **stages_more}

@@ -27,6 +27,9 @@ __all__ = [
     "alternative_pool",
     "mimicked_refits",
     "mimicked_companions",
+    "tied_companions",
+    "TIED_SHARE",
+    "MAX_TIED",
 ]
 
 
@@ -416,6 +419,50 @@ def mimicked_refits(sel: dict, n: int) -> list[str]:
     for t, m in (sel.get("mimicked_by") or {}).items():
         out.setdefault(m["parameter"], t)
     return list(out.values())[: max(int(n), 0)]
+
+
+#: A kept term's collinear companions (:func:`tied_companions`) explain at least this fraction of the
+#: share of the missing force the kept term explains in the linearised score test
+TIED_SHARE = 0.9
+#: At most this many tied companions per kept term
+MAX_TIED = 8
+
+
+def tied_companions(sel: dict, r2: dict, term: str, n: int = MAX_TIED) -> list[str]:
+    """The members of ``term``'s collinear group (regression columns with cosine at least
+    ``group_cos``, :func:`select_terms`) that the linearised score test (:func:`score_test`) cannot
+    rank below it: each explains at least :data:`TIED_SHARE` of the share ``term`` explains. A term
+    kept after its refit has them as its competitors, and only their refits can say whether the
+    runs separate them from it; the selection refits one member of a group (:func:`refit_candidates`)
+    and the score test's best few per degree of freedom (:func:`alternative_pool`), so without
+    them a kept term could be named alone, or beside the wrong companions, by the noise's choice
+    of a representative. On synthetic KVLCC2 runs with a hidden fourth-order hull surge term
+    (``studies/ship_surge.py``) the eleven even fourth-order X products lie in one group and
+    their shares differ by under 6 %: a hidden ``Xvvrr`` was kept as itself with one noise seed
+    and as ``Xvvvv`` with another, alone.
+
+    Parameters
+    ----------
+    sel : dict
+        :func:`select_terms` (``groups``).
+    r2 : dict
+        :func:`score_test`: ``{term: share of the missing force explained}``.
+    term : str
+        A kept term.
+    n : int, default MAX_TIED
+        At most this many.
+
+    Returns
+    -------
+    list of str
+        The companions, largest share first, without ``term``; empty when its score is not
+        positive or it has no group.
+    """
+    s = float(r2.get(term, 0.0))
+    if s <= 0.0:
+        return []
+    tied = [m for m in (sel.get("groups") or {}).get(term, []) if r2.get(m, 0.0) >= TIED_SHARE * s]
+    return sorted(tied, key=lambda m: (-r2[m], len(m), m))[: max(int(n), 0)]
 
 
 def mimicked_companions(sel: dict, term: str, n: int) -> list[str]:
