@@ -375,7 +375,7 @@ class TermRow(Record):
         ``"selected"`` by the ensemble, ``"alternative"`` by the score test, ``"mimicked"`` (set
         aside as mimicked by the selection and refitted all the same,
         :func:`~bayesid.analysis.gap.discovery.selection.mimicked_refits`), ``"tied"`` (a member of
-        a kept term's collinear group the score test ranks level with it,
+        a kept term's collinear group explaining at least half its share in the score test,
         :func:`~bayesid.analysis.gap.discovery.selection.tied_companions`) or ``"compared"``
         (asked for, ``DiscoveryOptions.compare``: an earlier round's terms); None for a term
         refitted on top of others (left out of the JSON).

@@ -295,7 +295,7 @@ class Discovery:
             ``coefficient_sd`` (prime, its single-term refit), ``heldout_rms_m``,
             ``window_p_value`` (against the reference model), ``inclusion_probability``,
             ``refitted_as`` (``"selected"`` by the ensemble, ``"alternative"`` by the score
-            test, ``"mimicked"``, ``"tied"`` (level with a kept term in the score test) or
+            test, ``"mimicked"``, ``"tied"`` (in a kept term's collinear group, at least half its score-test share) or
             ``"compared"``: asked for, ``DiscoveryOptions.compare``), ``alternatives`` (kept terms: :attr:`alternatives`; others: empty),
             ``separated`` (kept terms: :attr:`separated`; others: empty), ``separable`` (kept terms: no alternative survives; others: None) and
             ``heldout_rms_by_run_m`` (kept terms: ``{held-out run: position RMS, m}`` of the
@@ -625,7 +625,7 @@ def discover(
     }
     discovered, fitted = _refit_terms(how, fit_args, initial, judge, runner)
     # a kept term competes with the terms it stands for: those its mimic reproduces alike (set aside as
-    # mimicked) or, for the others, the members of its collinear group the score test ranks level with it
+    # mimicked) or, for the others, the members of its collinear group with at least half its score-test share
     more = {}
     for r in (r for r in discovered if r.kept and options.n_alternatives > 0):
         if r.refitted_as == "mimicked":
@@ -634,7 +634,7 @@ def discover(
             more.update(dict.fromkeys(tied_companions(sel, r2, r.term), "tied"))
     more = {c: h for c, h in more.items() if c not in how}
     if more:
-        for h, words in (("mimicked", "the terms mimicked alike"), ("tied", "the terms the score test ties")):
+        for h, words in (("mimicked", "the terms mimicked alike"), ("tied", "the terms of its collinear group")):
             if h in more.values():
                 runner.say(f"discovery: and {words}, {', '.join(c for c in more if more[c] == h)}")
         initial = {**initial, **reference_values(ref, list(more))}
