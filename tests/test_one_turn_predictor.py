@@ -162,3 +162,23 @@ def test_a_logged_wind_the_model_lacks_is_suspected_before_the_surge(kvlcc2, tur
     with_wind = build_model(windy, windy.free, ["wind"])
     (t,) = training_turns(FittedModel(with_wind, np.asarray(with_wind.start(), float), None), [gale])
     assert t["suspect"] != "wind" and "wind_to_resistance" not in t
+
+
+def test_a_coefficient_the_fit_left_on_a_bound_is_said_and_named_beside_a_missed_turn():
+    from bayesid.report.fit import _bound_lines, _training_turn_lines
+
+    doc = {"fit": {"at_bound": ["wP"]}, "param_names": ["Xuu", "wP"], "p": [-0.0087, 0.0]}
+    (line, _) = _bound_lines(doc)
+    assert line.startswith("**At a bound:** wP = 0.") and "model form strains" in line
+    assert _bound_lines({"fit": {}, "param_names": [], "p": []}) == []
+    missed = {
+        "run": "turn_a",
+        "measured": {"tactical_diameter_m": 12.6, "steady_turning_diameter_m": 10.9, "speed_loss": 0.44},
+        "predicted": {"tactical_diameter_m": 10.1, "steady_turning_diameter_m": 10.0, "speed_loss": 0.41},
+        "rel_error": {"tactical_diameter_m": -0.2, "steady_turning_diameter_m": -0.077, "speed_loss": None},
+        "reproduced": False,
+        "suspect": "turning forces",
+    }
+    text = "\n".join(_training_turn_lines([missed], ["wP"]))
+    assert "does not reproduce its own training turn turn_a" in text and "also left wP on a bound" in text
+    assert "on a bound" not in "\n".join(_training_turn_lines([dict(missed, reproduced=True)], ["wP"]))

@@ -89,7 +89,8 @@ class ModelDocument:
     provenance : dict
         Package version, vehicle file hash and values, input hashes, warnings, command.
     fit : dict
-        ``ssr``, ``n_residuals``, ``nfev``, ``success``, ``message``, ``seconds``, ``bic``.
+        ``ssr``, ``n_residuals``, ``nfev``, ``success``, ``message``, ``seconds``, ``bic``, and
+        ``at_bound`` (the coefficients the fit left on a bound, when any).
     multistart : dict, optional
         The multistart summary, when the fit had extra starts.
     training_turns : list of dict, optional
@@ -197,6 +198,7 @@ class ModelDocument:
                 "message": f.message,
                 "seconds": f.wall_s,
                 "bic": f.bic,
+                **({"at_bound": list(f.at_bound)} if f.at_bound else {}),
                 **({} if getattr(result, "step_check", None) is None else {"step_check": result.step_check.to_dict()}),
                 **({} if getattr(result, "retimed_moves", None) is None else {"retimed_moves": result.retimed_moves}),
             },

@@ -95,6 +95,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         f"({doc['fit_window_s']} s windows). Fit: {doc['fit']['nfev']} evaluations, {doc['fit']['message']}",
         "",
         *([f"**Budget ran out**: {budget_advice(doc['fit'])}.", ""] if budget_exhausted(doc["fit"]) else []),
+        *_bound_lines(doc),
         *_step_lines(doc["fit"]),
         *_retime_lines(doc["fit"]),
         _ar1_sentence(doc["posterior"]),
@@ -104,7 +105,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
     ]
     lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
     lines += fit_imo_lines(doc)  # ships: the IMO criteria of the training runs
-    lines += _training_turn_lines(doc.get("training_turns"))
+    lines += _training_turn_lines(doc.get("training_turns"), doc["fit"].get("at_bound"))
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)
@@ -153,8 +154,24 @@ def training_turn_sentence(turn: dict) -> str:
     )
 
 
-def _training_turn_lines(turns: list | None) -> list:
-    """The training turning circles as measured and as the fitted model flies them."""
+def _bound_lines(doc: dict) -> list:
+    """The coefficients the fit left on a bound, with what that means (none when none is)."""
+    names = doc["fit"].get("at_bound") or []
+    if not names:
+        return []
+    value = dict(zip(doc["param_names"], doc["p"]))
+    got = ", ".join(f"{n} = {fmt(value.get(n), 4)}" for n in names)
+    return [
+        f"**At a bound:** {got}. The runs ask for a value beyond the range the coefficient's physics allows: its "
+        "estimate and sd are the bound's, not the data's, and the model form strains there (another component "
+        "does what this one cannot); read the other coefficients with that in mind.",
+        "",
+    ]
+
+
+def _training_turn_lines(turns: list | None, at_bound: list | None = None) -> list:
+    """The training turning circles as measured and as the fitted model flies them; ``at_bound``:
+    the coefficients the fit left on a bound, named beside a turn the model misses."""
     if not turns:
         return []
     keys = ("advance_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
@@ -165,6 +182,11 @@ def _training_turn_lines(turns: list | None) -> list:
             e = t["rel_error"].get(k)
             rows.append([t["run"], k.replace("_", " "), fmt(m), fmt(q), "-" if e is None else f"{100 * e:+.1f} %"])
     said = [training_turn_sentence(t) for t in turns if t["reproduced"] is False]
+    if said and at_bound:
+        said.append(
+            f"the fit also left {', '.join(at_bound)} on a bound (above): the same strain of the model form may show "
+            "in both"
+        )
     said += [
         f"the index reader does not read the model's run of {t['run']} as a turning circle, while it reads the "
         f"measured run as one ({t['predicted_unread']}): whether the model misses this turn is not said here"
