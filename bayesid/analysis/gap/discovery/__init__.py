@@ -625,12 +625,14 @@ def discover(
     }
     discovered, fitted = _refit_terms(how, fit_args, initial, judge, runner)
     # a kept term competes with the terms it stands for: those its mimic reproduces alike (set aside as
-    # mimicked) or, for the others, the members of its collinear group with at least half its score-test share
+    # mimicked) or, for a term of the score test's pool, the members of its collinear group with at least half
+    # its score-test share (the ensemble's own picks already stand for their groups, whose probable members
+    # are refitted beside them)
     more = {}
     for r in (r for r in discovered if r.kept and options.n_alternatives > 0):
         if r.refitted_as == "mimicked":
             more.update(dict.fromkeys(mimicked_companions(sel, r.term, 2 * options.n_alternatives), "mimicked"))
-        else:
+        elif r.refitted_as == "alternative":
             more.update(dict.fromkeys(tied_companions(sel, r2, r.term), "tied"))
     more = {c: h for c, h in more.items() if c not in how}
     if more:
