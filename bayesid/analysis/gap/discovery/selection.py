@@ -438,10 +438,9 @@ def tied_companions(sel: dict, r2: dict, term: str, n: int = MAX_TIED) -> list[s
     can say whether the runs separate them from it; without them it could be named alone, or beside
     the wrong companions, by the noise's choice of a representative. (A term the ensemble selects
     stands for its group by the selection's own choice, :func:`refit_candidates`, and the group's
-    probable members are refitted beside it; refitting every tied member of those too, on the
-    synthetic cases of ``studies/closing_the_loop.py``, doubled the alternatives the designed run
-    had to separate, 30 -> 58, and the hidden term was named alone after the loop in 8 cases
-    instead of 11.) On synthetic KVLCC2 runs with a hidden fourth-order hull surge term
+    probable members are refitted beside it; refitting the tied members of those too, the
+    synthetic cases of ``studies/closing_the_loop.py`` named a wrong term alone after the loop
+    once.) On synthetic KVLCC2 runs with a hidden fourth-order hull surge term
     (``studies/ship_surge.py``) the eleven even fourth-order X products lie in one group and
     their shares differ by 6-25 %, in an order that changes with the noise: a hidden ``Xvvrr`` was
     kept as itself with one noise seed and as ``Xvvvv`` with another, alone (with the other
