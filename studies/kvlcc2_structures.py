@@ -13,7 +13,7 @@ Method
   and the design of the separating run (``DiagnoseOptions.design``: the menu of standard runs
   from the training runs' approach condition, ranked first by the pairs of the kept term and an
   alternative the run test could decide on them within eight windows, then by the smallest
-  J divergence of the kept term's and an alternative's predictive distributions, Box & Hill 1967).
+  pairwise J divergence of the alternatives' predictive distributions, Box & Hill 1967).
 - Structures: the model without a discovered term, each kept term, and each of its alternatives,
   one term at a time; each refitted with every free coefficient on all 13 HSVA zigzags (what
   ``bayesid fit`` does on the ``--write-vehicle`` file), 15 s fit windows, measured starts.
@@ -385,7 +385,7 @@ def write_report(out: Path, res: dict, args) -> None:
         lines += [
             "The runs that would separate them best (first the runs on which the run test could decide a pair of "
             "the kept term within eight windows, then by the J divergence of the models' predictive distributions, "
-            "nats, the smallest over the kept term's pairs; with no alternative, the kept term's model against the model without "
+            "nats, the smallest over the pairs; with no alternative, the kept term's model against the model without "
             "it, the run of another kind that would test the term):",
             "",
             md_table(

@@ -68,8 +68,8 @@ def run(args) -> int:
             "design": rows,
             "discovered": res.to_dict()["discovered"],
             "criterion": "the pairs of the kept term and an alternative the run-by-run test could decide on the "
-            "run within max_windows windows (decidable_pairs), then the smallest J divergence (nats) of the kept "
-            "term's and an alternative's Gaussian predictive distributions (Box & Hill 1967, Technometrics 9:57-71)",
+            "run within max_windows windows (decidable_pairs), then the smallest pairwise J divergence (nats) of "
+            "the alternatives' Gaussian predictive distributions (Box & Hill 1967, Technometrics 9:57-71)",
             "version": __version__,
             "command": "bayesid " + " ".join(sys.argv[1:]),
             "seed": args.seed,

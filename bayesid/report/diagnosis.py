@@ -493,7 +493,7 @@ def _design_lines(res: dict) -> list:
         "distributions of x, y and heading (the measurement noise of the training runs, or the alternatives' "
         "largest held-out error when larger, plus the spread over parameter draws from each refit's Laplace "
         "covariance), summed over samples 1 s apart of the protocol windows, each window started from the kept "
-        "term's model; the run's value is its worst pair's among those of the kept term and an alternative (Box & Hill 1967, Technometrics 9:57-71, with equal "
+        "term's model; the run's value is its worst pair's (Box & Hill 1967, Technometrics 9:57-71, with equal "
         "prior probabilities). It is the expected log Bayes factor for the right one of a pair if the samples' "
         "errors were independent; they are correlated within a window, so read it as a ranking, and check it as "
         "studies/closing_the_loop.py does: add the top run to `--heldout` "
