@@ -377,23 +377,6 @@ def test_runs_are_ranked_on_the_pairs_some_run_separates_and_the_others_are_name
     assert ranked[0]["name"] == "zigzag" and ranked[0]["separation"] == 6.0
 
 
-def test_with_a_kept_term_the_runs_are_ranked_on_its_own_pairs():
-    # the kept term A; B and C two alternatives the zigzag separates from A best, but not from each other
-    rows = [
-        {"name": "turn", "pairs": {"A vs B": 90.0, "A vs C": 80.0, "B vs C": 70.0}},
-        {"name": "zigzag", "pairs": {"A vs B": 400.0, "A vs C": 300.0, "B vs C": 25.0}},
-    ]
-    for r in rows:
-        r["separation"], r["worst_pair"] = min((v, k) for k, v in r["pairs"].items())
-    assert dz.rank_by_separable_pairs([dict(r) for r in rows], 20.0)[0]["name"] == "turn"  # every pair
-    ranked = dz.rank_by_separable_pairs([dict(r) for r in rows], 20.0, kept="A")
-    assert ranked[0]["name"] == "zigzag" and ranked[0]["worst_pair"] == "A vs C"
-    assert ranked[0]["separation"] == 300.0 and ranked[0]["pairs"]["B vs C"] == 25.0  # still reported
-    # nothing separable: every pair ranks the runs, as without a kept term
-    ranked = dz.rank_by_separable_pairs([dict(r) for r in rows], 500.0, kept="A")
-    assert ranked[0]["name"] == "turn" and ranked[0]["worst_pair"] == "B vs C"
-
-
 def test_runs_the_run_test_could_decide_come_before_larger_divergences():
     """A run whose divergence is large but whose expected window error ratio is within the run
     test's margin would not change the decision: the design asks first for the run on which the

@@ -31,16 +31,11 @@ their rudder rate and within the vehicle's rudder limit (:func:`within_limits`):
    9:57-71, Sec. 3; the mean term alone is Hunter & Reiner's 1965 criterion). It is the expected
    log Bayes factor in favour of the right model of the two, in nats, if one of them is right:
    5 nats is a Bayes factor of about 150;
-5. a run tests the kept term only as well as its worst pair with it: runs are ranked by the
-   smallest divergence between the kept term and an alternative, and each row says which pair
-   that is; a pair that no run of the menu separates (below
-   ``DiscriminationOptions.min_separation`` on every run) is reported as not separable by the
-   standard manoeuvres and the runs are ranked by the other pairs
-   (:func:`rank_by_separable_pairs`). The pairs of two alternatives are reported, not ranked by:
-   the next round decides between the kept term and each alternative, and with many near-twin
-   alternatives (a kept term's tied companions, :func:`~bayesid.analysis.gap.discovery.selection.tied_companions`)
-   the smallest divergence over all pairs picked runs for two alternatives the kept term's
-   verdict does not depend on;
+5. a run separates the set only as well as its worst pair: runs are ranked by the smallest
+   pairwise divergence, and each row says which pair that is; a pair that no run of the menu
+   separates (below ``DiscriminationOptions.min_separation`` on every run) is reported as not separable
+   by the standard manoeuvres and the runs are ranked by the other pairs
+   (:func:`rank_by_separable_pairs`);
 6. the diagnosis decides with the run-by-run separation test
    (:func:`bayesid.analysis.gap.verdict.run_separation_test`), whose power grows with the
    run's windows: for the best runs, the expected window error ratio of the kept term and each
@@ -413,8 +408,8 @@ def design(
     -------
     list of dict
         Best first: ``kind``, ``rudder_deg``, ``check_deg``, ``side``, ``rpm``, ``duration_s``,
-        ``name``, ``separation`` (the smallest divergence, nats, of the kept term and an
-        alternative, over the pairs some run of the menu separates: :func:`rank_by_separable_pairs`), ``worst_pair``,
+        ``name``, ``separation`` (the smallest pairwise divergence, nats, over the pairs some
+        run of the menu separates: :func:`rank_by_separable_pairs`), ``worst_pair``,
         ``pairs`` (``{"A vs B": divergence}``), ``menu_inseparable`` (``{"A vs B": {"best_run",
         "separation"}}``: the pairs no run of the menu separates by more than
         ``options.min_separation``, the same on every row), ``max_position_difference_m`` (largest distance
@@ -469,9 +464,7 @@ def design(
         for r in (_evaluate(run, scoring, rng) for run in menu(approach, options.max_rudder_deg, options.duration_s))
         if r is not None
     ]
-    out = rank_by_decidable_pairs(
-        rank_by_separable_pairs(out, options.min_separation, kept=next(iter(stages))), options.max_windows
-    )
+    out = rank_by_decidable_pairs(rank_by_separable_pairs(out, options.min_separation), options.max_windows)
     if options.duration_s is None and setup.window_s and options.sized_rows:
         inseparable = set(out[0]["menu_inseparable"]) if out else set()
         out[: options.sized_rows] = [
@@ -589,8 +582,6 @@ def _sized(row: dict, sc: _Scoring, rng, inseparable: set, max_windows: int) -> 
         row["run_test"]["sized_from_s"] = first["duration_s"]
         row["menu_inseparable"] = first["menu_inseparable"]
         keep = [k for k in row["pairs"] if k not in inseparable and np.isfinite(row["pairs"][k])]
-        own = [k for k in keep if k.startswith(f"{next(iter(sc.stages))} vs ")]  # the kept term's (5.)
-        keep = own or keep
         if keep:
             row["worst_pair"] = min(keep, key=row["pairs"].get)
             row["separation"] = float(row["pairs"][row["worst_pair"]])
@@ -780,7 +771,7 @@ def rank_by_decidable_pairs(rows: list, max_windows: int) -> list:
     return sorted(rows, key=lambda r: (-len(r["decidable_pairs"]), -r["separation"]))
 
 
-def rank_by_separable_pairs(rows: list, min_separation: float, kept: str | None = None) -> list:
+def rank_by_separable_pairs(rows: list, min_separation: float) -> list:
     """Rank designed runs by their worst pair among the pairs some run separates.
 
     A pair of alternatives whose divergence stays below ``min_separation`` on every run of the
@@ -796,9 +787,6 @@ def rank_by_separable_pairs(rows: list, min_separation: float, kept: str | None 
         Designed runs, each with ``pairs`` (``{"A vs B": divergence, nats}``).
     min_separation : float
         The divergence (nats) a pair's best run must exceed to count as separable.
-    kept : str, optional
-        The kept term's label: the runs are ranked by its pairs (``"kept vs B"``) only, where
-        any of them is separable (module docstring, 5.); None ranks by every pair.
 
     Returns
     -------
@@ -812,9 +800,7 @@ def rank_by_separable_pairs(rows: list, min_separation: float, kept: str | None 
             if np.isfinite(v) and (pair not in best or v > best[pair][1]):
                 best[pair] = (r["name"], float(v))
     inseparable = {k: {"best_run": b[0], "separation": b[1]} for k, b in best.items() if b[1] < min_separation}
-    separable = [k for k in best if k not in inseparable]
-    own = [k for k in separable if kept is not None and k.startswith(f"{kept} vs ")]
-    ranked = own or separable or list(best)
+    ranked = [k for k in best if k not in inseparable] or list(best)
     for r in rows:
         finite = {k: r["pairs"][k] for k in ranked if np.isfinite(r["pairs"].get(k, np.nan))}
         worst = min(finite, key=finite.get) if finite else r["worst_pair"]
