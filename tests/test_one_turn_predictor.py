@@ -171,6 +171,9 @@ def test_a_coefficient_the_fit_left_on_a_bound_is_said_and_named_beside_a_missed
     (line, _) = _bound_lines(doc)
     assert line.startswith("**At a bound:** wP = 0.") and "model form strains" in line
     assert _bound_lines({"fit": {}, "param_names": [], "p": []}) == []
+    # an effect's parameter on its bound (a delay of 0 s) is not a strain of the model form
+    (effect, _) = _bound_lines({"fit": {"at_bound": ["delay.delay_s"]}, "param_names": ["delay.delay_s"], "p": [0.0]})
+    assert effect.startswith("Effect parameters on a bound: delay.delay_s = 0") and "strains" not in effect
     missed = {
         "run": "turn_a",
         "measured": {"tactical_diameter_m": 12.6, "steady_turning_diameter_m": 10.9, "speed_loss": 0.44},

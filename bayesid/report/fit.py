@@ -105,7 +105,8 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
     ]
     lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
     lines += fit_imo_lines(doc)  # ships: the IMO criteria of the training runs
-    lines += _training_turn_lines(doc.get("training_turns"), doc["fit"].get("at_bound"))
+    coefs_at_bound = [n for n in doc["fit"].get("at_bound") or [] if "." not in n]
+    lines += _training_turn_lines(doc.get("training_turns"), coefs_at_bound)
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)
@@ -155,18 +156,30 @@ def training_turn_sentence(turn: dict) -> str:
 
 
 def _bound_lines(doc: dict) -> list:
-    """The coefficients the fit left on a bound, with what that means (none when none is)."""
+    """The parameters the fit left on a bound, with what that means (none when none is): a model
+    coefficient there strains the model form; an effect's parameter (``effect.name``) on its bound
+    may be the effect's own neutral value (a delay of 0 s)."""
     names = doc["fit"].get("at_bound") or []
-    if not names:
-        return []
     value = dict(zip(doc["param_names"], doc["p"]))
-    got = ", ".join(f"{n} = {fmt(value.get(n), 4)}" for n in names)
-    return [
-        f"**At a bound:** {got}. The runs ask for a value beyond the range the coefficient's physics allows: its "
-        "estimate and sd are the bound's, not the data's, and the model form strains there (another component "
-        "does what this one cannot); read the other coefficients with that in mind.",
-        "",
-    ]
+    coefs = [n for n in names if "." not in n]
+    effects = [n for n in names if "." in n]
+    out = []
+    if coefs:
+        out += [
+            f"**At a bound:** {', '.join(f'{n} = {fmt(value.get(n), 4)}' for n in coefs)}. The runs ask for a value "
+            "beyond the range the coefficient's physics allows: its estimate and sd are the bound's, not the data's, "
+            "and the model form strains there (another component does what this one cannot); read the other "
+            "coefficients with that in mind.",
+            "",
+        ]
+    if effects:
+        out += [
+            f"Effect parameters on a bound: {', '.join(f'{n} = {fmt(value.get(n), 4)}' for n in effects)} (at the "
+            "effect's neutral value, e.g. a delay of 0 s, the runs do not ask for the effect; elsewhere they ask for "
+            "more than its catalogued range).",
+            "",
+        ]
+    return out
 
 
 def _training_turn_lines(turns: list | None, at_bound: list | None = None) -> list:
