@@ -214,6 +214,13 @@ def _write(res, doc, train, out) -> None:
         print(f"warning: {res.step_check.sentence()} (see {out / 'report.md'})", file=sys.stderr)
     if covariance_sentence(res.posterior):
         print(f"warning: {covariance_sentence(res.posterior)} (see {out / 'report.md'})", file=sys.stderr)
+    bound = [n for n in res.fit.at_bound or [] if "." not in n]  # a model coefficient, not an effect's
+    if bound:
+        print(
+            f"warning: the fit left {', '.join(bound)} on a bound: the runs ask for more than its range allows, and "
+            f"its estimate and sd are the bound's (see {out / 'report.md'})",
+            file=sys.stderr,
+        )
     for turn in doc.training_turns or []:
         if turn["reproduced"] is False:
             print(f"warning: {training_turn_sentence(turn)} (see {out / 'report.md'})", file=sys.stderr)
