@@ -191,7 +191,7 @@ def _write(res, doc, train, out) -> None:
     from ..estimation.laplace import covariance_sentence
     from ..estimation.prediction import FittedModel, training_turns
     from ..report import write_fit_report
-    from ..report.fit import budget_advice, budget_exhausted, training_turn_sentence
+    from ..report.fit import budget_advice, budget_exhausted, coefficients_at_bound, training_turn_sentence
 
     circles = None
     if res.multistart is not None:
@@ -214,7 +214,7 @@ def _write(res, doc, train, out) -> None:
         print(f"warning: {res.step_check.sentence()} (see {out / 'report.md'})", file=sys.stderr)
     if covariance_sentence(res.posterior):
         print(f"warning: {covariance_sentence(res.posterior)} (see {out / 'report.md'})", file=sys.stderr)
-    bound = [n for n in res.fit.at_bound or [] if "." not in n]  # a model coefficient, not an effect's
+    bound = coefficients_at_bound(res.fit.at_bound)
     if bound:
         print(
             f"warning: the fit left {', '.join(bound)} on a bound: the runs ask for more than its range allows, and "

@@ -105,8 +105,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
     ]
     lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
     lines += fit_imo_lines(doc)  # ships: the IMO criteria of the training runs
-    coefs_at_bound = [n for n in doc["fit"].get("at_bound") or [] if "." not in n]
-    lines += _training_turn_lines(doc.get("training_turns"), coefs_at_bound)
+    lines += _training_turn_lines(doc.get("training_turns"), coefficients_at_bound(doc["fit"].get("at_bound")))
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)
@@ -155,14 +154,31 @@ def training_turn_sentence(turn: dict) -> str:
     )
 
 
+def coefficients_at_bound(names) -> list:
+    """The model coefficients among the parameters a fit left on a bound (``FitResult.at_bound``,
+    ``model.json``'s ``fit.at_bound``): an effect's parameters, named ``effect.name``, left out.
+
+    Parameters
+    ----------
+    names : list of str or None
+        Parameter names.
+
+    Returns
+    -------
+    list of str
+        The coefficients, in order.
+    """
+    return [n for n in names or [] if "." not in n]
+
+
 def _bound_lines(doc: dict) -> list:
     """The parameters the fit left on a bound, with what that means (none when none is): a model
     coefficient there strains the model form; an effect's parameter (``effect.name``) on its bound
     may be the effect's own neutral value (a delay of 0 s)."""
     names = doc["fit"].get("at_bound") or []
     value = dict(zip(doc["param_names"], doc["p"]))
-    coefs = [n for n in names if "." not in n]
-    effects = [n for n in names if "." in n]
+    coefs = coefficients_at_bound(names)
+    effects = [n for n in names if n not in coefs]
     out = []
     if coefs:
         out += [
