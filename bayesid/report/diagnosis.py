@@ -1089,6 +1089,36 @@ def _speed_from_positions(sog: dict | None) -> list[str]:
     ]
 
 
+def _thrust_lines(th: dict | None) -> list[str]:
+    """The Where section's lines on the propeller against the logged thrust
+    (:func:`bayesid.analysis.gap.where.where`'s ``thrust``)."""
+    if not th:
+        return []
+    share = th["propeller_share"]
+    if share is None:
+        reading = ""
+    elif share > 0:
+        reading = (
+            f" The thrust error carries {fmt(share)} of the missing surge force's mean square: part of the surge"
+            " miss is the propeller's (its propulsion point, or the wake in a turn where the deficit grows with"
+            " |beta_P|)."
+        )
+    else:
+        reading = (
+            " With the logged thrust the surge balance is no better: the fit has absorbed the thrust error in"
+            " other surge terms (the resistance Xuu), or the surge miss is the hull's or the rudder's."
+        )
+    return [
+        f"The propeller against the logged thrust ({th['tracks']} held-out track(s)): the model's thrust "
+        f"{fmt(th['model_mean_n'])} N against {fmt(th['logged_mean_n'])} N logged on average "
+        f"({fmt(None if th['bias_fraction'] is None else 100.0 * th['bias_fraction'])} %), RMS error {fmt(th['rms_n'])} N; the deficit (logged - model) "
+        f"correlates with |beta_P| at {fmt(th['error_corr_abs_beta_p'])}. The missing surge force's RMS is "
+        f"{fmt(th['missing_x_rms_n'])} N, {fmt(th['missing_x_rms_logged_thrust_n'])} N with the logged thrust "
+        f"in place of the model's.{reading}",
+        "",
+    ]
+
+
 def _where_lines(res: dict) -> list:
     """The "Where" section: channels, dominant region, phases, missing forces, wind dependence
     and the residuals' spectra."""
@@ -1147,6 +1177,7 @@ def _where_lines(res: dict) -> list:
             + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["wind_correlation"].items()),
             "",
         ]
+    lines += _thrust_lines(res["where"].get("thrust"))
     for k, v in res["where"].get("spectrum", {}).items():
         wb = res["where"]["whiteness"].get(k, {})
         ic = res["where"]["input_correlation"].get(k, {})

@@ -79,7 +79,8 @@ def where(evaluation: Evaluation, fitres, tracks, sd, floor_by_channel=None) -> 
         JSON-able: ``channels``, ``dominant_channel``, ``regions``, ``dominant_region``,
         ``phases``, ``forces``, ``spectrum``, ``whiteness``, ``input_correlation`` (and
         ``wind_correlation`` for ships with a measured wind; ``speed_from_positions``,
-        :func:`speed_from_positions`, when the tracks do not log the speed u).
+        :func:`speed_from_positions`, when the tracks do not log the speed u; ``thrust``,
+        :func:`_thrust_check`, when they log the propeller's thrust).
     forces : tuple or None
         ``(F list (n, 3) per track, [(motion, inputs, track)])``, or None when inverse dynamics
         failed -- the error is then in the summary under ``forces``.
@@ -310,6 +311,9 @@ def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | 
                     kk = np.argmax(np.abs(cc[m]))
                     corr[name] = {"max_abs_corr": float(abs(cc[m][kk])), "lag_s": float(lags[m][kk])}
             out["input_correlation"][k] = corr
+        thrust = _thrust_check(model, fitres, motions, Fs)
+        if thrust:
+            out["thrust"] = thrust
         sig = [model.signature_columns(mo, inp, tr) for (mo, inp, tr) in motions]
         if all("wind" in c for c in sig):  # dependence of the missing forces on the apparent wind
             out["wind_correlation"] = {}
@@ -319,6 +323,54 @@ def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | 
                 out["wind_correlation"][k] = float(np.corrcoef(a, b)[0, 1]) if a.std() > 0 else None
         return out, (Fs, motions)
     return out, None
+
+
+def _thrust_check(model, fitres, motions: list, Fs: list) -> dict | None:
+    """The fitted model's propeller thrust against the logged one, on the tracks that log it
+    (``model.logged_thrust``, ships only), and how much of the missing surge force the thrust
+    error carries: the missing X with the logged thrust in place of the model's is
+    ``X - (1 - tP) (T_logged - T_model)`` (Yasukawa & Yoshimura 2015, eq. 9).
+
+    Returns
+    -------
+    dict or None
+        None when the model has no propeller check or no track logs a thrust; else ``tracks``,
+        ``logged_mean_n``, ``model_mean_n``, ``bias_fraction`` (model / logged mean - 1),
+        ``rms_n`` (model - logged), ``error_corr_abs_beta_p`` (the correlation of the thrust deficit,
+        logged - model, with the size of the propeller's drift angle |beta_P|: the wake in a turn), ``missing_x_rms_n``,
+        ``missing_x_rms_logged_thrust_n`` and ``propeller_share`` (1 - their squared ratio: the
+        share of the missing surge force's mean square the thrust error carries; negative when
+        the logged thrust makes the surge balance worse, i.e. the fit absorbed the thrust error in
+        other surge terms).
+    """
+    check = getattr(model, "logged_thrust", None)
+    if check is None:
+        return None
+    rows = []
+    for (_, _, tr), F in zip(motions, Fs):
+        d = check(fitres, tr)
+        if d is not None:
+            rows.append((d, F[:, 0]))
+    if not rows:
+        return None
+    logged = np.concatenate([d["logged"] for d, _ in rows])
+    modelled = np.concatenate([d["model"] for d, _ in rows])
+    beta = np.concatenate([np.abs(d["beta_p"]) for d, _ in rows])
+    X = np.concatenate([x for _, x in rows])
+    X_logged = np.concatenate([x - (1.0 - d["t_p"]) * (d["logged"] - d["model"]) for d, x in rows])
+    err = modelled - logged
+    a, b = float(np.sqrt(np.mean(X**2))), float(np.sqrt(np.mean(X_logged**2)))
+    return {
+        "tracks": len(rows),
+        "logged_mean_n": float(np.mean(logged)),
+        "model_mean_n": float(np.mean(modelled)),
+        "bias_fraction": float(np.mean(modelled) / np.mean(logged) - 1.0) if np.mean(logged) else None,
+        "rms_n": float(np.sqrt(np.mean(err**2))),
+        "error_corr_abs_beta_p": float(np.corrcoef(-err, beta)[0, 1]) if err.std() > 0 and beta.std() > 0 else None,
+        "missing_x_rms_n": a,
+        "missing_x_rms_logged_thrust_n": b,
+        "propeller_share": 1.0 - (b / a) ** 2 if a > 0 else None,
+    }
 
 
 def window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin_s=0.0):

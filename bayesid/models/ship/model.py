@@ -17,10 +17,10 @@ from ..effects import signature_dict
 from ..interface import ParameterLayout
 from . import hullterms
 from . import kernel as shipkernel
-from .dynamics import accelerations, apparent_wind, mass_matrix, wind_components
+from .dynamics import accelerations, apparent_wind, forces, mass_matrix, wind_components
 from .effects import SHIP_CATALOGUE, get_effect
 from .fileformat import Ship
-from .layout import COEFFICIENT_INDEX, WIND
+from .layout import COEFFICIENT_INDEX, NP, PARTICULAR_INDEX, WIND
 from .library import ShipTerms
 from .seed import equation_error_seed
 
@@ -529,6 +529,60 @@ class ShipModel(ParameterLayout):
         )
         M = mass_matrix(prm[0])
         return motion, (acc - a_model) @ M.T, inp
+
+    def logged_thrust(self, fitres, track: Track) -> dict | None:
+        """The fitted model's propeller thrust along a track that logs the thrust, beside the logged one.
+
+        The model's thrust ``T = rho n^2 D^4 KT(J)``, ``J = u (1 - w_P) / (n D)`` with the wake of the
+        model (Yasukawa & Yoshimura 2015, J. Mar. Sci. Technol. 20:37-52, eqs. 9-12, and eq. 16 where
+        the model has the MMG wake in a turn) is evaluated by the compiled kernel at the smoothed
+        motion of :meth:`missing_forces` (the same samples), on a copy of the kernel parameters whose
+        other surge forces are zero (``Xuu = Xvv = Xvr = Xrr = 0``, ``tP = 0``, ``tR = 1``, no wind, no
+        extra hull terms): its X is the thrust.
+
+        Parameters
+        ----------
+        fitres : FitResult
+            A fit of this model (its ``p`` is read).
+        track : Track
+            The track; its ``thrust`` column (N) is the logged thrust.
+
+        Returns
+        -------
+        dict or None
+            None when the track has no ``thrust`` column; else ``t`` (n,) s, ``logged`` (n,) N (the
+            column interpolated), ``model`` (n,) N, ``beta_p`` (n,) rad (the propeller's drift angle
+            ``atan(-(v + xP L r) / |u|)``) and ``t_p`` (the model's thrust deduction: the thrust
+            error's share of the surge force is ``(1 - t_p)`` times it).
+        """
+        if "thrust" not in track:
+            return None
+        motion, states, inp, wind, _ = self._motion(track)
+        prm, _, _ = self.kernel_params(np.asarray(fitres.p, float)[None])
+        full = prm[0]
+        only = np.array(full[:NP], dtype=float)  # no extra hull terms
+        for name, value in (("Xuu", 0.0), ("Xvv", 0.0), ("Xvr", 0.0), ("Xrr", 0.0), ("tP", 0.0), ("tR", 1.0)):
+            only[COEFFICIENT_INDEX[name]] = value
+        for name in ("A_front", "A_lateral"):
+            only[PARTICULAR_INDEX[name]] = 0.0
+        F = np.empty((states.shape[0], 3))
+        forces(
+            np.ascontiguousarray(states),
+            np.ascontiguousarray(inp),
+            np.zeros((states.shape[0], 2)),
+            np.zeros(2),
+            only,
+            F,
+        )
+        xp = full[COEFFICIENT_INDEX["xP"]]
+        L = full[PARTICULAR_INDEX["L"]]
+        return {
+            "t": motion["t"],
+            "logged": np.interp(motion["t"], track.t, np.asarray(track["thrust"], float)),
+            "model": F[:, 0],
+            "beta_p": np.arctan2(-(states[:, 4] + xp * L * states[:, 5]), np.abs(states[:, 3])),
+            "t_p": float(full[COEFFICIENT_INDEX["tP"]]),
+        }
 
     def seed(self, tracks):
         """The equation-error seed (:func:`~bayesid.models.ship.seed.equation_error_seed`).
