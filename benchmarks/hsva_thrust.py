@@ -168,9 +168,7 @@ def main() -> int:
     train = [r for r in runs if r[4] <= 15.5]
     test = [r for r in runs if r[4] > 15.5]
     last = []
-    print(
-        f"# python benchmarks/hsva_thrust.py   ({len(runs)} HSVA runs; train: {len(train)} of 5-15 deg, test: {len(test)} of 20-35 deg)"
-    )
+    print(f"{len(runs)} HSVA runs; train: {len(train)} of 5-15 deg, test: {len(test)} of 20-35 deg")
     print(f"open-water curve of the data set (J <= 0.7): k0 {hsva['k0']:.4f} k1 {hsva['k1']:.4f} k2 {hsva['k2']:.4f};")
     c = ship.coefficients
     print(
