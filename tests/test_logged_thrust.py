@@ -41,11 +41,11 @@ def test_the_models_thrust_is_the_mmg_thrust_along_the_logged_motion(zigzag):
     ship, tr = zigzag
     model = ShipModel(ship)
     d = model.logged_thrust(SimpleNamespace(p=model.start()), tr)
-    assert d["model"].shape == d["logged"].shape == d["t"].shape
+    assert d.model.shape == d.logged.shape == d.t.shape
     # the truth's own thrust: equal to the oracle's (the column) to the smoothing of the motion
-    assert np.max(np.abs(d["model"] / d["logged"] - 1.0)) < 0.01
-    assert d["t_p"] == pytest.approx(ship.coefficients["tP"])
-    assert np.max(np.abs(d["beta_p"])) > math.radians(3.0)  # the zigzag drifts the propeller
+    assert np.max(np.abs(d.model / d.logged - 1.0)) < 0.01
+    assert d.t_p == pytest.approx(ship.coefficients["tP"])
+    assert np.max(np.abs(d.beta_p)) > math.radians(3.0)  # the zigzag drifts the propeller
 
 
 def test_no_thrust_column_no_check(zigzag):

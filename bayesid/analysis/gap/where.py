@@ -353,11 +353,11 @@ def _thrust_check(model, fitres, motions: list, Fs: list) -> dict | None:
             rows.append((d, F[:, 0]))
     if not rows:
         return None
-    logged = np.concatenate([d["logged"] for d, _ in rows])
-    modelled = np.concatenate([d["model"] for d, _ in rows])
-    beta = np.concatenate([np.abs(d["beta_p"]) for d, _ in rows])
+    logged = np.concatenate([d.logged for d, _ in rows])
+    modelled = np.concatenate([d.model for d, _ in rows])
+    beta = np.concatenate([np.abs(d.beta_p) for d, _ in rows])
     X = np.concatenate([x for _, x in rows])
-    X_logged = np.concatenate([x - (1.0 - d["t_p"]) * (d["logged"] - d["model"]) for d, x in rows])
+    X_logged = np.concatenate([x - (1.0 - d.t_p) * (d.logged - d.model) for d, x in rows])
     err = modelled - logged
     a, b = float(np.sqrt(np.mean(X**2))), float(np.sqrt(np.mean(X_logged**2)))
     return {

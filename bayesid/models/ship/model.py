@@ -6,6 +6,7 @@ implementation of :class:`bayesid.models.interface.SimulationModel`, with its de
 from __future__ import annotations
 
 import difflib
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -67,6 +68,31 @@ def _unknown_message(ship, name: str) -> str:
     close = difflib.get_close_matches(name, list(ship.coefficients), n=3)
     hint = f" (did you mean {', '.join(close)}?)" if close else ""
     return f"unknown ship coefficient {name!r}{hint}"
+
+
+@dataclass(frozen=True)
+class LoggedThrust:
+    """The propeller's thrust along a track that logs it (:meth:`ShipModel.logged_thrust`).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Times of the smoothed motion, s.
+    logged : ndarray, shape (n,)
+        The logged thrust there, N (the column interpolated).
+    model : ndarray, shape (n,)
+        The model's thrust, N.
+    beta_p : ndarray, shape (n,)
+        The propeller's drift angle ``atan(-(v + xP L r) / |u|)``, rad.
+    t_p : float
+        The model's thrust deduction: a thrust error ``dT`` is a surge force error ``(1 - t_p) dT``.
+    """
+
+    t: np.ndarray
+    logged: np.ndarray
+    model: np.ndarray
+    beta_p: np.ndarray
+    t_p: float
 
 
 class ShipModel(ParameterLayout):
@@ -530,7 +556,7 @@ class ShipModel(ParameterLayout):
         M = mass_matrix(prm[0])
         return motion, (acc - a_model) @ M.T, inp
 
-    def logged_thrust(self, fitres, track: Track) -> dict | None:
+    def logged_thrust(self, fitres, track: Track) -> LoggedThrust | None:
         """The fitted model's propeller thrust along a track that logs the thrust, beside the logged one.
 
         The model's thrust ``T = rho n^2 D^4 KT(J)``, ``J = u (1 - w_P) / (n D)`` with the wake of the
@@ -549,11 +575,8 @@ class ShipModel(ParameterLayout):
 
         Returns
         -------
-        dict or None
-            None when the track has no ``thrust`` column; else ``t`` (n,) s, ``logged`` (n,) N (the
-            column interpolated), ``model`` (n,) N, ``beta_p`` (n,) rad (the propeller's drift angle
-            ``atan(-(v + xP L r) / |u|)``) and ``t_p`` (the model's thrust deduction: the thrust
-            error's share of the surge force is ``(1 - t_p)`` times it).
+        LoggedThrust or None
+            None when the track has no ``thrust`` column.
         """
         if "thrust" not in track:
             return None
@@ -576,13 +599,13 @@ class ShipModel(ParameterLayout):
         )
         xp = full[COEFFICIENT_INDEX["xP"]]
         L = full[PARTICULAR_INDEX["L"]]
-        return {
-            "t": motion["t"],
-            "logged": np.interp(motion["t"], track.t, np.asarray(track["thrust"], float)),
-            "model": F[:, 0],
-            "beta_p": np.arctan2(-(states[:, 4] + xp * L * states[:, 5]), np.abs(states[:, 3])),
-            "t_p": float(full[COEFFICIENT_INDEX["tP"]]),
-        }
+        return LoggedThrust(
+            t=motion["t"],
+            logged=np.interp(motion["t"], track.t, np.asarray(track["thrust"], float)),
+            model=F[:, 0],
+            beta_p=np.arctan2(-(states[:, 4] + xp * L * states[:, 5]), np.abs(states[:, 3])),
+            t_p=float(full[COEFFICIENT_INDEX["tP"]]),
+        )
 
     def seed(self, tracks):
         """The equation-error seed (:func:`~bayesid.models.ship.seed.equation_error_seed`).
@@ -685,4 +708,4 @@ class ShipModel(ParameterLayout):
         return ShipTerms(self.vehicle)
 
 
-__all__ = ["ShipModel", "FIT_WINDOW_S", "BOUNDS"]
+__all__ = ["ShipModel", "LoggedThrust", "FIT_WINDOW_S", "BOUNDS"]
