@@ -14,7 +14,7 @@ old one a ``git worktree`` of ``--old``, default ``HEAD``), on the same input fi
 
 Every ``.json`` either revision writes is compared after dropping the keys that record when, how
 long, where and by what the run was made (:data:`VOLATILE`), with the output folder's path replaced
-by ``<OUT>``. The differences are listed by file and key path; the last lines are
+by ``<OUT>``; so is every diagnosis's ``report.md``, line by line. The differences are listed by file and key path; the last lines are
 machine-readable: ``identical <n files>``, ``different <n files>``, ``missing <n files>``.
 
     python benchmarks/outputs_unchanged.py [--old REV] [--only cli,furlong2003,...] [--keep DIR] [--old-only] [--compare-only]
@@ -188,17 +188,40 @@ def _differences(a, b, path: str = "") -> list[str]:
     return [] if same else [f"{path}: {str(a)[:60]} -> {str(b)[:60]}"]
 
 
+def _text_differences(a: Path, b: Path, old: Path, new: Path) -> list[str]:
+    """The lines of two text reports that differ (output folders and trees replaced)."""
+    A = _clean(a.read_text(), str(old)).splitlines()
+    B = _clean(b.read_text(), str(new)).splitlines()
+    if len(A) != len(B):
+        return [f"{len(A)} lines old, {len(B)} new"] + [
+            f"line {i + 1}: {x[:60]!r} -> {y[:60]!r}" for i, (x, y) in enumerate(zip(A, B)) if x != y
+        ][:5]
+    return [f"line {i + 1}: {x[:60]!r} -> {y[:60]!r}" for i, (x, y) in enumerate(zip(A, B)) if x != y]
+
+
 def compare(old: Path, new: Path) -> tuple[int, int, int]:
-    """Print each JSON file's differences; (identical, different, missing) file counts."""
+    """Print each JSON file's differences, and each diagnosis report's (``report.md`` beside a
+    ``diagnosis.json``) line by line; (identical, different, missing) file counts."""
     names = sorted(
         {p.relative_to(old) for p in old.rglob("*.json")} | {p.relative_to(new) for p in new.rglob("*.json")}
     )
+    names += [n.parent / "report.md" for n in names if n.name == "diagnosis.json"]
     same = diff = missing = 0
     for rel in names:
         a, b = old / rel, new / rel
         if not (a.exists() and b.exists()):
             print(f"{rel}: only in {'old' if a.exists() else 'new'}")
             missing += 1
+            continue
+        if rel.suffix == ".md":
+            d = _text_differences(a, b, old, new)
+            if d:
+                diff += 1
+                print(f"{rel}: {len(d)} differences")
+                for line in d[:12]:
+                    print(f"    {line}")
+            else:
+                same += 1
             continue
         try:
             A = _clean(json.loads(a.read_text()), str(old))
