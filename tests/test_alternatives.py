@@ -458,10 +458,10 @@ def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
     rows[1].update(kind="pull_out", side="port", rudder_deg=20, check_deg=None, rpm=600, duration_s=90)
     rows[1].update(separation=3.0, worst_pair="A vs B", max_position_difference_m=1.0)
     rows[0].update(rows[1] | {"name": rows[0]["name"], "inputs_csv": "design_runs/1_zigzag_20_20_port.csv"})
-    text = "\n".join(_design_lines({"design": rows}))
+    text = "\n".join(_design_lines(rows))
     assert "`design_runs/1_zigzag_20_20_port.csv`" in text and "Not separable" not in text
     rows[0]["menu_inseparable"] = {"Nvvr vs Nvabsvabsr": {"best_run": "zigzag 20/20 port", "separation": 6.8}}
-    text = "\n".join(_design_lines({"design": rows}))
+    text = "\n".join(_design_lines(rows))
     assert "**Not separable by the standard manoeuvres**: no run of the menu separates Nvvr from Nvabsvabsr" in text
     # a run lengthened for the run test says from what, and the windows its hardest separable pair needs
     rows[0].update(duration_s=480, run_test={"sized_from_s": 180, "pairs": {}})
@@ -470,7 +470,7 @@ def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
         "K vs B": {"expected_ratio": 1.5, "windows_needed": 6.2},
         "K vs C": {"expected_ratio": 1.05, "windows_needed": "inf"},
     }
-    row = next(x for x in "\n".join(_design_lines({"design": rows})).splitlines() if x.startswith("| pull out"))
+    row = next(x for x in "\n".join(_design_lines(rows)).splitlines() if x.startswith("| pull out"))
     assert "| 480 (from 180) |" in row and "| 41 (x1.19, K vs A); 1 of 3 pairs within the margin |" in row
 
 

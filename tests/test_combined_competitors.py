@@ -8,6 +8,7 @@ import json
 from types import SimpleNamespace
 
 import numpy as np
+from diagnosis_view import diagnosis_view
 
 from bayesid.analysis.gap import discovery as dv
 from bayesid.analysis.gap.candidates import Stage
@@ -100,7 +101,7 @@ def test_the_report_says_the_competitors_were_refitted_in_the_place_of_the_added
     assert dv.Discovery.from_dict(doc).to_dict() == doc
     items = {i["term"]: i for i in d.terms()}
     assert items["Nrdrdr"]["heldout_rms_on_top_m"] == 0.3 and "heldout_rms_on_top_m" not in items["Nvvr"]
-    text = "\n".join(_alternatives_lines({"discovered": list(items.values())}))
+    text = "\n".join(_alternatives_lines(diagnosis_view(discovered=list(items.values()))))
     assert "**Nrdrdr** (held-out 0.3 m) is not separable" in text
     assert "Nrdrdr was added on top of Nvvr: each competitor above was refitted in its place" in text
 

@@ -8,6 +8,7 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import pytest
+from diagnosis_view import diagnosis_view
 
 from bayesid.analysis.gap.candidates import FAILED_FIT_SHARE, failed_fit
 from bayesid.analysis.gap.records import CandidateRow
@@ -47,11 +48,13 @@ def test_a_failed_fit_gets_no_role_and_the_report_says_why_instead_of_weighing_i
     assert CandidateRow.from_dict(failed.to_dict()).to_dict() == failed.to_dict()
     assert "failed_fit" not in _row().to_dict()  # the JSON of a sound fit is as before
     res = {"ranking": [r.to_dict() for r in rows], "thresholds": Thresholds().as_dict()}
-    text = "\n".join(_failed_fit_lines(res))
+    text = "\n".join(_failed_fit_lines(diagnosis_view(**res)))
     assert "**delay: fit failed**" in text and "**current: fit failed**" in text
-    assert "disagree on delay" not in "\n".join(_bic_heldout_lines(res))  # a positive ΔBIC is not read as evidence
+    assert "disagree on delay" not in "\n".join(
+        _bic_heldout_lines(diagnosis_view(**res))
+    )  # a positive ΔBIC is not read as evidence
     assert "disagree on delay" in "\n".join(
-        _bic_heldout_lines({**res, "ranking": [dict(res["ranking"][1], failed_fit=None)]})
+        _bic_heldout_lines(diagnosis_view(**{**res, "ranking": [dict(res["ranking"][1], failed_fit=None)]}))
     )
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from diagnosis_view import diagnosis_view
 
 from bayesid.analysis.gap import discovery as dv
 from bayesid.report.diagnosis import _discovery_lines
@@ -23,7 +24,7 @@ def _report(residuals: dict, free=("Nv", "Nr", "Nvvr", "dR0")) -> str:
         "residuals": {"forces": {}, "explained": 0.1, "projected_rms": 0.4, **residuals},
         "discovered": [],
     }
-    return "\n".join(_discovery_lines({"discovery": D}))
+    return "\n".join(_discovery_lines(diagnosis_view(discovery=D)))
 
 
 def _by(parameter, cosine, shift_effect, span=0.999):
@@ -240,7 +241,7 @@ def test_a_constant_yaw_moment_the_selection_sets_aside_is_refitted_and_kept():
     assert abs(row["coefficient"] / 0.003 - 1) < 0.1
     assert D["found"][0] == "N0" and d.verdict.startswith("unexplained -> discovered: N0"), d.verdict
     assert D["heldout_rms_after_m"] < 0.2 * D["heldout_rms_before_m"]
-    text = "\n".join(_discovery_lines({"discovery": D}))
+    text = "\n".join(_discovery_lines(diagnosis_view(discovery=D)))
     assert "N0 is mimicked by dR0" in text and "refitted all the same, every coefficient free (N0 0.00" in text
     # without the refits of mimicked terms (the default), nothing is kept: what the refit adds
     plain = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=dv.DiscoveryOptions(), design=None)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from diagnosis_view import diagnosis_view
 
 from bayesid.data.track import Track
 from bayesid.data.vehicle import load_vehicle
@@ -101,7 +102,9 @@ def test_a_verdict_the_noise_floor_decides_says_so():
         "thresholds": Thresholds().as_dict(),
         "ranking": [r.to_dict() for r in rows],
     }
-    text = "\n".join(_floor_decides_lines(res))
+    text = "\n".join(_floor_decides_lines(diagnosis_view(**res)))
     assert "The noise floor, not the model, decides this verdict" in text and "gap ratio 1.35" in text
     assert "current (window test p = 0.0073" in text and "delay" not in text and "actuator" not in text
-    assert _floor_decides_lines({**res, "significant_gap": True}) == []  # a significant gap: the rules decide
+    assert (
+        _floor_decides_lines(diagnosis_view(**{**res, "significant_gap": True})) == []
+    )  # a significant gap: the rules decide

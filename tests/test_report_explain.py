@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from diagnosis_view import diagnosis_view
 
 from bayesid import cli
 from bayesid.data.track import write_csv
@@ -207,14 +208,16 @@ def test_criterion_text_says_which_way_a_test_failed():
 
 
 def _ranked(effect, held, shrink, p, dbic, removed):
-    return {
-        "effect": effect,
-        "heldout_rms_m": held,
-        "heldout_shrinkage": shrink,
-        "window_p_value": p,
-        "delta_bic": dbic,
-        "excess_removed": removed,
-    }
+    from test_failed_fit import _row
+
+    return _row(
+        effect=effect,
+        heldout_rms_m=held,
+        heldout_shrinkage=shrink,
+        window_p_value=p,
+        delta_bic=dbic,
+        excess_removed=removed,
+    ).to_dict()
 
 
 def test_a_sentence_where_bic_and_the_heldout_windows_disagree():
@@ -231,7 +234,7 @@ def test_a_sentence_where_bic_and_the_heldout_windows_disagree():
             _ranked("waves", 0.30, 0.4, 0.05, -900.0, 0.4),  # BIC yes, a held-out gain that is not significant
         ],
     }
-    text = "\n".join(_bic_heldout_lines(res))
+    text = "\n".join(_bic_heldout_lines(diagnosis_view(**res)))
     assert "disagree on thrust" in text and "no held-out gain" in text and "0.481 m -> 0.52 m" in text
     waves = next(ln for ln in text.splitlines() if "disagree on waves" in ln)
     assert "held-out gain is not significant" in waves and "no held-out gain" not in waves

@@ -7,6 +7,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+from diagnosis_view import diagnosis_view
 from test_gap_userdata import FREE, user_world
 
 from bayesid.analysis import gap
@@ -63,11 +64,11 @@ def test_the_report_says_the_runs_cannot_tell_and_the_record_keeps_the_sds():
         undetermined=["current_north_mps"],
     )
     assert CandidateRow.from_dict(row.to_dict()).to_dict() == row.to_dict()
-    text = "\n".join(_undetermined_lines({"ranking": [row.to_dict()]}))
+    text = "\n".join(_undetermined_lines(diagnosis_view(ranking=[row.to_dict()])))
     assert "Not determined by the training runs: current (current_north_mps 0.09 +- 5.6)" in text
     assert "cannot tell" in text and "current_east_mps" not in text
     quiet = dict(row.to_dict(), undetermined=[])
-    assert _undetermined_lines({"ranking": [quiet]}) == []
+    assert _undetermined_lines(diagnosis_view(ranking=[quiet])) == []
 
 
 def test_a_current_the_runs_determine_is_not_flagged():

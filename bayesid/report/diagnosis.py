@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..analysis.gap.candidates import UNDETERMINED_SCALES
 from ..analysis.gap.records import BaseCheck, CandidateRow, NoiseFloor, Remainder, TermRow
+from ..analysis.gap.verdict import Thresholds
 from .markdown import fmt, md_table, warning_lines
 from .study import write_json
 
@@ -45,14 +46,13 @@ def channel_value(channel: str, value) -> str:
     return f"{fmt(f * float(value))} {unit}".rstrip()
 
 
-def attribution_lines(res: dict) -> list[str]:
+def attribution_lines(diag) -> list[str]:
     """The verdict of a diagnosis in words: cause, contributors (with their shares) and the remainder.
 
     Parameters
     ----------
-    res : dict
-        A diagnosis as :meth:`bayesid.analysis.gap.Diagnosis.to_dict` gives it (its ``remainder``
-        a :class:`~bayesid.analysis.gap.records.Remainder` or its JSON object).
+    diag : bayesid.analysis.gap.Diagnosis
+        The diagnosis (computed, or read back with :meth:`~bayesid.analysis.gap.Diagnosis.from_dict`).
 
     Returns
     -------
@@ -60,22 +60,29 @@ def attribution_lines(res: dict) -> list[str]:
         Markdown lines.
     """
     out = []
-    if res.get("cause"):
-        out.append(f"Cause: **{res['cause']}** (with it the held-out error is inside the noise-floor band).")
-    for c in res.get("contributors", []):
+    if diag.cause:
+        out.append(f"Cause: **{diag.cause}** (with it the held-out error is inside the noise-floor band).")
+    for c in diag.contributors:
         out.append(
             f"- Contributor **{c['effect']}** ({'added' if c['added'] else 'not added'}): removes "
             f"{fmt(c['share_of_excess'])} of the base model's excess (held-out {fmt(c['heldout_rms_m'])} m; "
             f"paired window test p = {fmt(c['window_p_value'])}, ΔBIC {fmt(c['delta_bic'], 4)})."
         )
-    rem = _record(Remainder, res.get("remainder"))
-    if rem and res["significant_gap"]:
+    rem = _record(Remainder, diag.remainder)
+    if rem and diag.significant_gap:
         out.append(
             f"Remainder: {fmt(rem.fraction_of_excess)} of the excess over the floor "
             f"(held-out {fmt(rem.heldout_rms_m)} m), "
             + ("still significant: no candidate explains it." if rem.significant else "inside the band.")
         )
     return out
+
+
+def _thresholds(diag) -> Thresholds:
+    """The diagnosis's thresholds as :class:`~bayesid.analysis.gap.verdict.Thresholds` (a JSON
+    object read back as its fields; one written before a threshold existed has its default)."""
+    th = diag.thresholds
+    return th if isinstance(th, Thresholds) else Thresholds(**th)
 
 
 def _record(kind: type, value):
@@ -114,48 +121,49 @@ def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | 
         for i, r in enumerate(res.get("design") or [], 1)
     ]
     write_json(out / "diagnosis.json", res)
-    figs = _figures(diag, res, out, heldout) + _discovery_figures(diag, res, out, heldout)
-    lines = [*_summary_lines(res, command), *_how_far_lines(res), *_which_lines(res)]
-    lines += [*_discovery_lines(res), *_alternatives_lines(res), *_predictions_lines(res), *_design_lines(res)]
-    lines += _where_lines(res)
+    design = res["design"]
+    figs = _figures(diag, out, heldout) + _discovery_figures(diag, design, out, heldout)
+    lines = [*_summary_lines(diag, res.get("warnings") or [], command), *_how_far_lines(diag), *_which_lines(diag)]
+    lines += [*_discovery_lines(diag), *_alternatives_lines(diag), *_predictions_lines(diag), *_design_lines(design)]
+    lines += _where_lines(diag)
     lines += ["", *[f"![{p.stem}](figures/{p.name})" for p in figs], ""]
     (out / "report.md").write_text("\n".join(lines))
 
 
-def _figures(diag, res: dict, out: Path, heldout: list) -> list:
+def _figures(diag, out: Path, heldout: list) -> list:
     """The diagnosis' figures (ranking, channels, regions, the first held-out track's windows
     before and after the effects added); returns their paths."""
     from . import plots
 
     figs = []
-    if res["ranking"]:
+    if diag.ranking:
         figs.append(
             plots.gap_ranking(
-                res["ranking"],
-                res["gap_before"]["heldout_rms_m"],
-                _record(NoiseFloor, res["noise_floor"]).heldout_rms_m,
+                diag.ranking,
+                diag.gap_before["heldout_rms_m"],
+                _record(NoiseFloor, diag.noise_floor).heldout_rms_m,
                 out / "figures" / "ranking.png",
-                band_ratio=res["thresholds"]["none_ratio"],
+                band_ratio=_thresholds(diag).none_ratio,
             )
         )
-    figs.append(plots.gap_channels(res["where"], out / "figures" / "channels.png"))
-    figs.append(plots.gap_regions(res["where"], out / "figures" / "regions.png"))
+    figs.append(plots.gap_channels(diag.where, out / "figures" / "channels.png"))
+    figs.append(plots.gap_regions(diag.where, out / "figures" / "regions.png"))
     if diag.base is not None and heldout:
-        after = diag.after if _added(res) else None
-        figs.append(_window_figure(diag.base, after, res, heldout[0], out / "figures" / "heldout_track.png"))
+        after = diag.after if _added(diag) else None
+        figs.append(_window_figure(diag.base, after, diag, heldout[0], out / "figures" / "heldout_track.png"))
     return figs
 
 
-def _added(res: dict) -> list:
+def _added(diag) -> list:
     """What the model after the rounds has on top of the base model, in the order added: the
     discovered terms when they took round 1 (``discovery_first``), then the effects."""
-    first = res.get("discovery_first") or {}
-    return [*(first["found"] if first.get("took_round") else []), *res["effects_added"]]
+    first = diag.discovery_first or {}
+    return [*(first["found"] if first.get("took_round") else []), *diag.effects_added]
 
 
-def _first_round_lines(res: dict) -> list:
+def _first_round_lines(diag) -> list:
     """Discovery beside round 1: its terms on the base model against round 1's best effect."""
-    F = res.get("discovery_first") or {}
+    F = diag.discovery_first or {}
     if not F:
         return []
     if F["found"]:
@@ -188,12 +196,12 @@ def _first_round_lines(res: dict) -> list:
     ]
 
 
-def _window_figure(before, after, res: dict, track, path, labels=("base model", "with top effect")):
+def _window_figure(before, after, diag, track, path, labels=("base model", "with top effect")):
     """The protocol windows of a held-out track predicted by two stages (``after`` may be None)."""
     from ..analysis.gap import window_xy
     from . import plots
 
-    st = res["settings"]
+    st = diag.settings
     w, rule, lead = st["window_s"], st["start_rule"], st["leadin_s"]
     meas, xy_before = window_xy(before.model, before.fit, track, w, start=rule, leadin_s=lead)
     xy_after = None
@@ -203,12 +211,12 @@ def _window_figure(before, after, res: dict, track, path, labels=("base model", 
     return plots.window_tracks(meas, xy_before, xy_after, path, title=f"{track.name}: {w} s windows", labels=labels)
 
 
-def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
+def _discovery_figures(diag, design: list, out: Path, heldout: list) -> list:
     """Structure discovery's figures: per held-out window the RMS position error before and after
     the kept terms, and the first held-out track's windows with them."""
     from . import plots
 
-    D = res.get("discovery") or {}
+    D = diag.discovery or {}
     found = getattr(diag, "discovered", None)
     if not D or found is None:
         return []
@@ -231,9 +239,9 @@ def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
     if found.after is not None and heldout:
         path = out / "figures" / "discovery_track.png"
         labels = ("reference model", "with " + "+".join(D["found"]))
-        figs.append(_window_figure(found.reference or diag.after, found.after, res, heldout[0], path, labels))
-    if res.get("design"):
-        ax = plots.plot_alternatives(res["design"][0])
+        figs.append(_window_figure(found.reference or diag.after, found.after, diag, heldout[0], path, labels))
+    if design:
+        ax = plots.plot_alternatives(design[0])
         path = out / "figures" / "design_top.png"
         ax.figure.savefig(path, dpi=120, bbox_inches="tight")
         plots.plt.close(ax.figure)
@@ -241,13 +249,13 @@ def _discovery_figures(diag, res: dict, out: Path, heldout: list) -> list:
     return figs
 
 
-def _alternatives_lines(res: dict) -> list:
+def _alternatives_lines(diag) -> list:
     """Which structures the runs cannot separate from each kept term, and whether the held-out
     test reached beyond the training manoeuvres."""
-    kept = [d for d in res.get("discovered") or [] if d["kept"]]
+    kept = [d for d in diag.discovered_terms or [] if d["kept"]]
     if not kept:
         return []
-    kinds = res.get("manoeuvre_kinds") or {}
+    kinds = diag.manoeuvre_kinds or {}
     lines = ["## Which term, really (alternatives the runs cannot separate)", ""]
     for d in kept:
         if d["separable"]:
@@ -303,9 +311,9 @@ def _alternatives_lines(res: dict) -> list:
     return [*lines, ""]
 
 
-def _predictions_lines(res: dict) -> list:
+def _predictions_lines(diag) -> list:
     """The standard manoeuvres as the base model and each alternative predict them."""
-    runs = res.get("predictions") or []
+    runs = diag.predictions or []
     if not runs:
         return []
     models = list(runs[0]["models"])
@@ -430,9 +438,9 @@ def run_test_cell(r: dict) -> str:
     return "; ".join(cells)
 
 
-def _design_lines(res: dict) -> list:
-    """The runs that would separate the alternatives, best first."""
-    rows = res.get("design") or []
+def _design_lines(rows: list) -> list:
+    """The runs that would separate the alternatives, best first (the rows as ``diagnosis.json``
+    writes them: ``inputs_csv`` in place of the input schedule)."""
     if not rows:
         return []
     from ..analysis.gap.diagnose import WITHOUT_TERMS
@@ -705,19 +713,19 @@ def _compared_lines(D: dict) -> list:
     ]
 
 
-def _discovery_lines(res: dict) -> list:
+def _discovery_lines(diag) -> list:
     """The structure-discovery section: every refitted term with its numbers, the missing force
     per degree of freedom against the best library terms, and what was tried."""
-    D = res.get("discovery") or {}
+    D = diag.discovery or {}
     if not D:
         return []
     R = D["residuals"]
     lines = [
         "## What the model lacks (structure discovery)",
         "",
-        *_first_round_lines(res),
+        *_first_round_lines(diag),
         # after the rounds; beside round 1 the sentence above says it
-        *([] if (res.get("discovery_first") or {}).get("took_round") else _held_starts_lines(D.get("settings", {}))),
+        *([] if (diag.discovery_first or {}).get("took_round") else _held_starts_lines(D.get("settings", {}))),
         f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
         f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
         f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "
@@ -827,39 +835,39 @@ def _base_check_lines(check: BaseCheck | dict | None) -> list:
     return [*switch, "Base-fit check: " + check.message + ".", ""]
 
 
-def _summary_lines(res: dict, command: str) -> list:
+def _summary_lines(diag, warnings: list, command: str) -> list:
     """Title, command, input warnings, verdict and settings."""
     return [
         "# Gap diagnosis",
         "",
         f"`{command}`" if command else "",
         "",
-        *warning_lines(res.get("warnings") or []),
-        *_base_check_lines(res.get("base_check")),
-        *_multistart_lines(getattr(_record(BaseCheck, res.get("base_check")), "multistart", None)),
-        f"**Verdict: {res['verdict']}**"
-        + (f" (effects added: {', '.join(res['effects_added'])})" if res["effects_added"] else ""),
+        *warning_lines(warnings),
+        *_base_check_lines(diag.base_check),
+        *_multistart_lines(getattr(_record(BaseCheck, diag.base_check), "multistart", None)),
+        f"**Verdict: {diag.verdict}**"
+        + (f" (effects added: {', '.join(diag.effects_added)})" if diag.effects_added else ""),
         "",
-        f"Training tracks: {', '.join(res['train_tracks'])}; held-out: {', '.join(res['heldout_tracks'])}. "
-        f"Free coefficients: {', '.join(res['settings']['free']) or 'none'}. Protocol windows: "
-        f"{res['settings']['window_s']} s; model step {res['settings']['dt']} s; channel weights of the fits: "
-        f"{res['settings'].get('weighting', 'noise')} sds ({', '.join(f'{k} {channel_value(k, v)}' for k, v in res.get('fit_sd', {}).items())}).",
+        f"Training tracks: {', '.join(diag.train_tracks)}; held-out: {', '.join(diag.heldout_tracks)}. "
+        f"Free coefficients: {', '.join(diag.settings['free']) or 'none'}. Protocol windows: "
+        f"{diag.settings['window_s']} s; model step {diag.settings['dt']} s; channel weights of the fits: "
+        f"{diag.settings.get('weighting', 'noise')} sds ({', '.join(f'{k} {channel_value(k, v)}' for k, v in diag.fit_sd.items())}).",
         "",
     ]
 
 
-def _how_far_lines(res: dict) -> list:
+def _how_far_lines(diag) -> list:
     """The "How far" section: base model against the model with the effects added (and with
     the terms discovery kept after the rounds, when it kept any)."""
-    gb, ga, gd = res["gap_before"], res["gap_after"], res.get("gap_discovered") or {}
-    added = _added(res)
+    gb, ga, gd = diag.gap_before, diag.gap_after, diag.gap_discovered or {}
+    added = _added(diag)
     rows = [("base model", gb), ("with " + ("+".join(added) or "nothing"), ga)]
-    D = res.get("discovery") or {}
+    D = diag.discovery or {}
     found, shrink = D.get("found") or [], []
     if gd and found:
         # discovery's search on the base refitted with its training window starts held: its training
         # RMS is under those starts, not the fitted ones of the rows above
-        held = (D.get("settings") or {}).get("train_starts") == "kinematic" and res.get("settings", {}).get(
+        held = (D.get("settings") or {}).get("train_starts") == "kinematic" and diag.settings.get(
             "train_starts"
         ) != "kinematic"
         how = "; training window starts held at the kinematics, its train RMS under them" if held else ""
@@ -896,22 +904,22 @@ def _how_far_lines(res: dict) -> list:
         "Log-likelihood: Gaussian at the fits' channel sds, samples treated as independent (a "
         "before/after comparison on the same samples, not a calibrated likelihood).",
         "",
-        f"Held-out shrinkage {fmt(res['heldout_shrinkage'])} (fraction of the base model's held-out RMS removed); "
-        f"noise floor (perfect model at the estimated noise) {fmt(_record(NoiseFloor, res['noise_floor']).heldout_rms_m)} m; gap ratio "
-        f"{fmt(res['gap_ratio'])} (held-out RMS / noise floor, dimensionless; significant above "
-        f"{res['thresholds']['none_ratio']}).",
+        f"Held-out shrinkage {fmt(diag.heldout_shrinkage)} (fraction of the base model's held-out RMS removed); "
+        f"noise floor (perfect model at the estimated noise) {fmt(_record(NoiseFloor, diag.noise_floor).heldout_rms_m)} m; gap ratio "
+        f"{fmt(diag.gap_ratio)} (held-out RMS / noise floor, dimensionless; significant above "
+        f"{_thresholds(diag).none_ratio}).",
         "",
         *shrink,
     ]
 
 
-def _failed_fit_lines(res: dict) -> list:
+def _failed_fit_lines(diag) -> list:
     """A sentence for each candidate whose fit failed (``CandidateRow.failed_fit``)."""
-    rows = [r for r in map(partial(_record, CandidateRow), res["ranking"]) if r.failed_fit]
+    rows = [r for r in map(partial(_record, CandidateRow), diag.ranking) if r.failed_fit]
     return [""] + [f"- **{r.effect}: fit failed**: {r.failed_fit}." for r in rows] if rows else []
 
 
-def _floor_decides_lines(res: dict) -> list:
+def _floor_decides_lines(diag) -> list:
     """A paragraph for a verdict the noise floor decides (issue 69): the gap is within the floor
     band, so nothing is named, while a candidate improves the held-out windows significantly
     (paired window test under ``partial_p``, training ΔBIC under ``bic_threshold``, a sound fit):
@@ -928,16 +936,16 @@ def _floor_decides_lines(res: dict) -> list:
     list of str
         The lines (none when the gap is significant or no candidate qualifies).
     """
-    if res.get("significant_gap", True):
+    if diag.significant_gap:
         return []
-    th = res["thresholds"]
+    th = _thresholds(diag)
     rows = [
         r
-        for r in map(partial(_record, CandidateRow), res["ranking"])
+        for r in map(partial(_record, CandidateRow), diag.ranking)
         if not r.failed_fit
         and r.window_p_value is not None
-        and r.window_p_value < th["partial_p"]
-        and r.delta_bic <= th["bic_threshold"]
+        and r.window_p_value < th.partial_p
+        and r.delta_bic <= th.bic_threshold
     ]
     if not rows:
         return []
@@ -949,7 +957,7 @@ def _floor_decides_lines(res: dict) -> list:
     return [
         "",
         f"**The noise floor, not the model, decides this verdict.** The held-out error is within "
-        f"{th['none_ratio']:g} x the noise floor (gap ratio {fmt(res['gap_ratio'])}), so no effect is named; yet "
+        f"{th.none_ratio:g} x the noise floor (gap ratio {fmt(diag.gap_ratio)}), so no effect is named; yet "
         f"{said} improves the held-out windows significantly. A perfect model scores the floor on these windows "
         "from start states read off noisy logs: these logs cannot separate that effect from the floor's own error. "
         "A velocity log, more precise positions, more held-out runs or windows over which the effect outgrows the "
@@ -957,11 +965,11 @@ def _floor_decides_lines(res: dict) -> list:
     ]
 
 
-def _undetermined_lines(res: dict) -> list:
+def _undetermined_lines(diag) -> list:
     """A paragraph naming the candidates whose parameters the training runs do not determine
     (``CandidateRow.undetermined``): their fitted values and held-out tests say nothing either way,
     so a verdict of none is "these runs cannot tell" for them, not "nothing is missing"."""
-    rows = [r for r in map(partial(_record, CandidateRow), res["ranking"]) if r.undetermined]
+    rows = [r for r in map(partial(_record, CandidateRow), diag.ranking) if r.undetermined]
     if not rows:
         return []
     said = [
@@ -980,9 +988,10 @@ def _undetermined_lines(res: dict) -> list:
     ]
 
 
-def _which_lines(res: dict) -> list:
+def _which_lines(diag) -> list:
     """The "Which" section: the ranking of the candidate effects, the verdict in words, the rules
     and the sparse-regression support."""
+    th = _thresholds(diag)
     return [
         "## Which",
         "",
@@ -1006,71 +1015,65 @@ def _which_lines(res: dict) -> list:
                     r.role or ("fit failed" if r.failed_fit else "-"),
                     ", ".join(f"{k} {fmt(v)}" for k, v in r.parameters.items() if k != "per_track_nuisance"),
                 ]
-                for r in map(partial(_record, CandidateRow), res["ranking"])
+                for r in map(partial(_record, CandidateRow), diag.ranking)
             ],
         ),
-        *_floor_decides_lines(res),
-        *_undetermined_lines(res),
-        *_failed_fit_lines(res),
+        *_floor_decides_lines(diag),
+        *_undetermined_lines(diag),
+        *_failed_fit_lines(diag),
         "",
-        *attribution_lines(res),
+        *attribution_lines(diag),
         "",
-        *_bic_heldout_lines(res),
+        *_bic_heldout_lines(diag),
         f"Rules: an effect is the cause if, added, the held-out error falls within "
-        f"{res['thresholds']['none_ratio']} x the floor, it removes >= {res['thresholds']['explain_fraction']} "
-        f"of the excess and its ΔBIC <= {res['thresholds']['bic_threshold']}; a contributor improves the "
-        f"held-out windows (paired Wilcoxon p < {res['thresholds']['partial_p']}, ΔBIC <= "
-        f"{res['thresholds']['bic_threshold']}) without closing the gap and is added, the next round trying the "
+        f"{th.none_ratio} x the floor, it removes >= {th.explain_fraction} "
+        f"of the excess and its ΔBIC <= {th.bic_threshold}; a contributor improves the "
+        f"held-out windows (paired Wilcoxon p < {th.partial_p}, ΔBIC <= "
+        f"{th.bic_threshold}) without closing the gap and is added, the next round trying the "
         "others on top of it; `+unexplained` marks a remainder still above the band; `none`: the gap is not "
-        f"significant. Window starts: {res['settings'].get('start_rule', 'measured')} rule"
-        + (
-            f" (lead-in {fmt(res['settings'].get('leadin_s'))} s)"
-            if res["settings"].get("start_rule") == "fitted"
-            else ""
-        )
+        f"significant. Window starts: {diag.settings.get('start_rule', 'measured')} rule"
+        + (f" (lead-in {fmt(diag.settings.get('leadin_s'))} s)" if diag.settings.get("start_rule") == "fitted" else "")
         + ".",
         "",
         "Sparse-regression support (ensemble STLSQ inclusion probability of each effect's force "
         "signature in the missing forces; sensor bias leaves none): "
-        + ", ".join(f"{k} {fmt(v)}" for k, v in res["sindy_support"].items() if not isinstance(v, str)),
+        + ", ".join(f"{k} {fmt(v)}" for k, v in diag.sindy_support.items() if not isinstance(v, str)),
         "",
     ]
 
 
-def _bic_heldout_lines(res: dict) -> list:
+def _bic_heldout_lines(diag) -> list:
     """A sentence for each candidate on which the training ΔBIC and the held-out windows disagree:
     strongly favoured by BIC (ΔBIC at most the threshold) without a held-out gain, or a held-out
     gain (positive shrinkage and the window test or the excess removed) that BIC does not support.
-    Reads the ranking's rows by key: :class:`~bayesid.analysis.gap.records.CandidateRow` records or
-    dicts with the keys used (``effect``, ``heldout_rms_m``, ``heldout_shrinkage``,
-    ``excess_removed``, ``delta_bic``, ``window_p_value``)."""
-    th = res["thresholds"]
+    Reads the ranking's rows as :class:`~bayesid.analysis.gap.records.CandidateRow` records."""
+    th = _thresholds(diag)
     lines = []
-    for r in res["ranking"]:
-        if r.get("failed_fit"):  # said in its own sentence: a failed fit is not evidence
+    for r in map(partial(_record, CandidateRow), diag.ranking):
+        if r.failed_fit:  # said in its own sentence: a failed fit is not evidence
             continue
-        p = r.get("window_p_value")
-        gain = r["heldout_shrinkage"] > 0 and (
-            (p is not None and p < th["partial_p"]) or r["excess_removed"] >= th["explain_fraction"]
+        p = r.window_p_value
+        gain = r.heldout_shrinkage > 0 and (
+            (p is not None and p < th.partial_p) or r.excess_removed >= th.explain_fraction
         )
-        favoured = r["delta_bic"] <= th["bic_threshold"]
-        shrink = r["heldout_shrinkage"]
-        ref = r["heldout_rms_m"] / (1.0 - shrink) if shrink != 1 else None
-        held = f"held-out RMS {fmt(ref)} m -> {fmt(r['heldout_rms_m'])} m, window test p = {fmt(p)}"
+        favoured = r.delta_bic <= th.bic_threshold
+        shrink = r.heldout_shrinkage
+        ref = r.heldout_rms_m / (1.0 - shrink) if shrink != 1 else None
+        held = f"held-out RMS {fmt(ref)} m -> {fmt(r.heldout_rms_m)} m, window test p = {fmt(p)}"
         if favoured and not gain:
             lines.append(
-                f"- **BIC and held-out disagree on {r['effect']}**: training ΔBIC {fmt(r['delta_bic'], 4)} favours it "
+                f"- **BIC and held-out disagree on {r.effect}**: training ΔBIC {fmt(r.delta_bic, 4)} favours it "
                 f"strongly, but "
                 + ("its held-out gain is not significant" if shrink > 0 else "it brings no held-out gain")
-                + f" ({held}; needs p < {th['partial_p']} or {th['explain_fraction']} of the excess removed). The "
+                + f" ({held}; needs p < {th.partial_p} or {th.explain_fraction} of the excess removed). The "
                 "training runs' improvement does not carry over to unseen runs reliably: its parameters fit something "
                 "particular to the training runs (overfitting, or an effect that differs from run to run), so it is "
                 "not added."
             )
         elif gain and not favoured:
             lines.append(
-                f"- **BIC and held-out disagree on {r['effect']}**: it improves the held-out windows ({held}), but "
-                f"training ΔBIC {fmt(r['delta_bic'], 4)} does not support it (needs <= {th['bic_threshold']}): the "
+                f"- **BIC and held-out disagree on {r.effect}**: it improves the held-out windows ({held}), but "
+                f"training ΔBIC {fmt(r.delta_bic, 4)} does not support it (needs <= {th.bic_threshold}): the "
                 "training runs alone do not pay for its parameters. More or richer training runs would decide; it is "
                 "not added on this evidence."
             )
@@ -1119,7 +1122,7 @@ def _thrust_lines(th: dict | None) -> list[str]:
     ]
 
 
-def _where_lines(res: dict) -> list:
+def _where_lines(diag) -> list:
     """The "Where" section: channels, dominant region, phases, missing forces, wind dependence
     and the residuals' spectra."""
     lines = [
@@ -1135,22 +1138,22 @@ def _where_lines(res: dict) -> list:
                     channel_value(c, d.get("floor_rms")),
                     fmt(d.get("excess_ratio")),
                 ]
-                for c, d in res["where"]["channels"].items()
+                for c, d in diag.where["channels"].items()
             ],
         ),
         "",
-        f"Dominant channel: {res['where']['dominant_channel']}; dominant region: "
-        f"{res['where']['dominant_region']['region']} (error growth {fmt(res['where']['dominant_region']['growth_ratio'])}"
+        f"Dominant channel: {diag.where['dominant_channel']}; dominant region: "
+        f"{diag.where['dominant_region']['region']} (error growth {fmt(diag.where['dominant_region']['growth_ratio'])}"
         " x the mean).",
         "",
-        *_speed_from_positions(res["where"].get("speed_from_positions")),
+        *_speed_from_positions(diag.where.get("speed_from_positions")),
         *(
-            [f"Structure discovery: {res['where']['discovery_routed']}.", ""]
-            if res["where"].get("discovery_routed")
+            [f"Structure discovery: {diag.where['discovery_routed']}.", ""]
+            if diag.where.get("discovery_routed")
             else []
         ),
     ]
-    ph = res["where"]["phases"]
+    ph = diag.where["phases"]
     lines += [
         "Phases: "
         + "; ".join(
@@ -1159,28 +1162,28 @@ def _where_lines(res: dict) -> list:
         ),
         "",
     ]
-    if res["where"].get("forces"):
+    if diag.where.get("forces"):
         lines += [
             "Missing forces (RMS, inverse dynamics of the first held-out track's smoothed motion minus "
             "the fitted model): "
             + ", ".join(
                 f"{k} {fmt(v)} {FORCE_UNITS.get(k, '')}".rstrip()
-                for k, v in res["where"]["forces"].items()
+                for k, v in diag.where["forces"].items()
                 if not isinstance(v, str)
             ),
             "",
         ]
-    if res["where"].get("wind_correlation"):
+    if diag.where.get("wind_correlation"):
         lines += [
             "Apparent-wind dependence: correlation of the missing X, Y, N with the wind-load signatures "
             "(0.5 rho_a VA^2 A cos g, sin g) over the held-out tracks: "
-            + ", ".join(f"{k} {fmt(v)}" for k, v in res["where"]["wind_correlation"].items()),
+            + ", ".join(f"{k} {fmt(v)}" for k, v in diag.where["wind_correlation"].items()),
             "",
         ]
-    lines += _thrust_lines(res["where"].get("thrust"))
-    for k, v in res["where"].get("spectrum", {}).items():
-        wb = res["where"]["whiteness"].get(k, {})
-        ic = res["where"]["input_correlation"].get(k, {})
+    lines += _thrust_lines(diag.where.get("thrust"))
+    for k, v in diag.where.get("spectrum", {}).items():
+        wb = diag.where["whiteness"].get(k, {})
+        ic = diag.where["input_correlation"].get(k, {})
         lines.append(
             f"- {k}: spectral peak at {fmt(v['peak_period_s'])} s ({fmt(v['peak_to_median'])} x median); "
             f"Ljung-Box p = {fmt(wb.get('p_value'))}; "

@@ -1,0 +1,26 @@
+"""A diagnosis as the report's section writers (:mod:`bayesid.report.diagnosis`) read it, built
+from the few fields a test gives: every other field at the :class:`~bayesid.analysis.gap.Diagnosis`
+dataclass's default (the thresholds at :class:`~bayesid.analysis.gap.verdict.Thresholds`'s, the
+gap significant)."""
+
+from __future__ import annotations
+
+from dataclasses import MISSING, fields
+from types import SimpleNamespace
+
+from bayesid.analysis.gap import Diagnosis
+from bayesid.analysis.gap.verdict import Thresholds
+
+
+def diagnosis_view(**given) -> SimpleNamespace:
+    """The fields ``given`` (``discovered``: the top-level list, as ``diagnosis.json`` names it)
+    over the defaults; a field with no default and not given is absent (reading it fails)."""
+    out = {"thresholds": Thresholds(), "significant_gap": True}
+    for f in fields(Diagnosis):
+        if f.default_factory is not MISSING:
+            out[f.name] = f.default_factory()
+        elif f.default is not MISSING:
+            out[f.name] = f.default
+    if "discovered" in given:
+        given["discovered_terms"] = given.pop("discovered")
+    return SimpleNamespace(**{**out, **given})
