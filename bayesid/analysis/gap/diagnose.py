@@ -7,6 +7,7 @@ import math
 import time
 from dataclasses import dataclass, field, fields, replace
 from functools import cache, partial
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -630,12 +631,12 @@ def diagnose(
         runner,
         beside=beside,
     )
-    after = search["after"]
-    chosen, roles, ranking = search["chosen"], search["roles"], search["ranking"]
+    after = search.after
+    chosen, roles, ranking = search.chosen, search.roles, search.ranking
     contributors, remainder = _outcome(search, floor, b_held, significant, th)
     remainder_sig = remainder.significant
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
-    first = search["discovery_first"]
+    first = search.discovery_first
     verdict, found, gap_discovered = _discovery_after_rounds(
         search, significant, remainder_sig, (setup, opt, disc_context, held), rng, runner
     )
@@ -648,7 +649,7 @@ def diagnose(
         contributors=contributors,
         remainder=remainder,
         ranking=ranking,
-        rounds=search["rounds"],
+        rounds=search.rounds,
         gap_before=gap_summary(b_train, b_held),
         gap_after=gap_summary(after.train, after.held),
         heldout_shrinkage=1 - after.held["rms_position_m"] / b_held["rms_position_m"],
@@ -671,7 +672,7 @@ def diagnose(
         settings=dict(_settings(opt, setup, cand_effects, weighting), free=list(free), dt=dt),
         thresholds=th.as_dict(),
         seconds=time.perf_counter() - t_start,
-        round_seconds=search["seconds"],
+        round_seconds=search.seconds,
         discovery=found.to_dict() if found is not None else {},
         discovery_first=first.summary if first is not None else {},
         gap_discovered=gap_discovered,
@@ -745,7 +746,7 @@ def _checked_base(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, 
     return b, alt
 
 
-def _discovery_after_rounds(search: dict, significant: bool, remainder_sig: bool, ctx: tuple, rng, runner) -> tuple:
+def _discovery_after_rounds(search: Rounds, significant: bool, remainder_sig: bool, ctx: tuple, rng, runner) -> tuple:
     """The verdict after the greedy rounds and the discovery that goes with it: ``(verdict,
     Discovery or None, gap summary with the discovered terms)``. Discovery's terms came first
     when its model took round 1 (the effects on top of them); otherwise discovery runs on the
@@ -753,7 +754,7 @@ def _discovery_after_rounds(search: dict, significant: bool, remainder_sig: bool
     window starts too). ``ctx``: ``(Setup, DiagnoseOptions, discovery context, held-start base
     or None)``."""
     setup, opt, disc_context, held = ctx
-    after, chosen, first = search["after"], search["chosen"], search["discovery_first"]
+    after, chosen, first = search.after, search.chosen, search.discovery_first
     found = first.discovery if first is not None and first.took_round else None
     if found is not None:  # discovery's terms came first, the effects on top of them
         verdict = found.verdict.replace("+unexplained", "")
@@ -896,11 +897,11 @@ def _base_multistart(problem: WindowProblem, bfit: FitResult, opt: DiagnoseOptio
 
 
 def _outcome(
-    search: dict, floor: NoiseFloor, b_held: dict, significant: bool, th: Thresholds
+    search: Rounds, floor: NoiseFloor, b_held: dict, significant: bool, th: Thresholds
 ) -> tuple[list, Remainder]:
     """The contributors (every effect that improves the held-out windows significantly without
     closing the gap, added or not: round 1 alone, or as added in its round) and the remainder."""
-    after, chosen, roles, ranking = search["after"], search["chosen"], search["roles"], search["ranking"]
+    after, chosen, roles, ranking = search.after, search.chosen, search.roles, search.ranking
     floor_rms = floor.heldout_rms_m
     excess0 = b_held["rms_position_m"] - floor_rms
     contributors = [contribution(roles[e], added=True) for e in chosen if roles[e].role == "contributor"]
@@ -1149,11 +1150,9 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
 
     Returns
     -------
-    dict
-        ``ranking`` (round 1, :class:`CandidateRow`), ``rounds``, ``chosen``, ``roles`` (``{effect
-        added: its CandidateRow}``), ``after`` (the last stage),
-        ``seconds`` (wall time of each round) and ``discovery_first`` (:class:`FirstRound` or
-        None).
+    Rounds
+        The ranking, every round, the effects chosen and their rows, the last stage, the rounds'
+        wall times and discovery beside round 1.
     """
     sd_fit, seeds, max_nfev = fit_args
     floor, significant, th = judge
@@ -1225,22 +1224,45 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
         current = stages[top.effect]
         if current.held["rms_position_m"] <= band:
             break
-    return {
-        "ranking": ranking,
-        "rounds": rounds,
-        "chosen": chosen,
-        "roles": roles,
-        "after": current,
-        "seconds": seconds,
-        "discovery_first": first,
-    }
+    return Rounds(ranking, rounds, chosen, roles, current, seconds, first)
 
 
-def _best_effect(results: list) -> dict | None:
+@dataclass(frozen=True)
+class Rounds:
+    """What the greedy rounds of candidate effects leave (:func:`_greedy_rounds`).
+
+    Parameters
+    ----------
+    ranking : list of CandidateRow
+        Round 1's candidates, best first.
+    rounds : list of list of CandidateRow
+        Every round's candidates.
+    chosen : list of str
+        The effects added, in the order added.
+    roles : dict
+        ``{effect added: its CandidateRow}``.
+    after : Stage
+        The last stage (the model after the rounds).
+    seconds : list of float
+        Wall time of each round.
+    discovery_first : FirstRound or None
+        Discovery beside round 1.
+    """
+
+    ranking: list
+    rounds: list
+    chosen: list
+    roles: dict
+    after: Stage
+    seconds: list
+    discovery_first: FirstRound | None
+
+
+def _best_effect(results: list) -> CandidateRow | None:
     """The effect a round adds: the best-ranked cause (it closes the gap), else the best-ranked
     contributor (the next round looks for what explains the rest), else None."""
-    return next((r for r in results if r["role"] == "cause"), None) or next(
-        (r for r in results if r["role"] == "contributor"), None
+    return next((r for r in results if r.role == "cause"), None) or next(
+        (r for r in results if r.role == "contributor"), None
     )
 
 
@@ -1308,7 +1330,7 @@ def discovery_beside_round_one(
         The diagnosis' setup.
     base : Stage
         The base model, fitted and scored.
-    results : list of dict
+    results : list of CandidateRow
         Round 1's ranked candidates (with their roles).
     stages : dict
         ``{effect name: Stage}`` of round 1's fitted candidates.
@@ -1336,7 +1358,7 @@ def discovery_beside_round_one(
     context = dict(context)
     held_starts = context.pop("held_starts", None)
     th = context.get("thresholds", Thresholds())
-    runner.say(f"structure discovery beside round 1 (on the base model, against {top['effect']})")
+    runner.say(f"structure discovery beside round 1 (on the base model, against {top.effect})")
     found = discover(
         setup, base, list(base.model.effects), options, dict(context, significant=True), rng=rng, runner=runner
     )
@@ -1345,7 +1367,7 @@ def discovery_beside_round_one(
         found, held = _better_with_held_starts(found, held_starts, options, context, rng, runner)
         if held is not None:
             setup, own = held
-    rival = stages[top["effect"]]
+    rival = stages[top.effect]
     p, share, role = None, None, None
     if found.found:
         floor_rms = float(context.get("floor_rms", 0.0))
@@ -1359,15 +1381,16 @@ def discovery_beside_round_one(
             "delta_bic": found.after.fit.bic - own.fit.bic,
         }
         role = "cause" if is_cause(row, True, th.none_ratio * floor_rms, th) else "contributor"
-        rows = [*results, {"effect": None, "heldout_rms_m": after, "role": role}]
-        rows.sort(key=lambda d: (not np.isfinite(d["heldout_rms_m"]), d["heldout_rms_m"]))
-    took = role is not None and _best_effect(rows)["effect"] is None
+        # discovery's model ranked among round 1's rows as an effect named None
+        rows = [*results, SimpleNamespace(effect=None, heldout_rms_m=after, role=role)]
+        rows.sort(key=lambda d: (not np.isfinite(d.heldout_rms_m), d.heldout_rms_m))
+    took = role is not None and _best_effect(rows).effect is None
     summary = {
         "found": list(found.found),
         "verdict": found.verdict,
         "heldout_rms_m": found.heldout_rms_after_m,
-        "effect": top["effect"],
-        "effect_role": top["role"],
+        "effect": top.effect,
+        "effect_role": top.role,
         "effect_heldout_rms_m": rival.held["rms_position_m"],
         "role": role,
         "window_p_value": p,
