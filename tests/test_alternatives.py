@@ -83,9 +83,9 @@ def test_one_designed_run_separates_two_structures_that_the_pooled_window_test_c
     kept, other, runs = _two_structures(rng, 2.0)
     assert dv.paired_window_test(other, kept) > 0.01  # 3 windows of 18: the pooled ranks do not move
     res = dv.run_separation_test(kept, other, runs)
-    assert res["p_second_worse"] < 0.01 and res["run_second_worse"] == 3
-    assert res["ratio_by_run"][3] == pytest.approx(2.0)
-    assert res["p_first_worse"] > 0.5
+    assert res.p_second_worse < 0.01 and res.run_second_worse == 3
+    assert res.ratio_by_run[3] == pytest.approx(2.0)
+    assert res.p_first_worse > 0.5
     rows = [
         {"term": "Nvvr", "kept": True, "heldout_rms_after_m": 0.40},
         {"term": "Nvabsvabsr", "kept": True, "heldout_rms_after_m": 0.45},
@@ -103,7 +103,7 @@ def test_a_run_where_two_structures_agree_within_the_margin_separates_nothing(de
     hits = 0
     for seed in range(200):
         kept, other, runs = _two_structures(np.random.default_rng(seed), designed)
-        hits += dv.run_separation_test(kept, other, runs)["p_second_worse"] < 0.01
+        hits += dv.run_separation_test(kept, other, runs).p_second_worse < 0.01
     assert hits <= 4  # the level (1 %), with room for sampling
 
 

@@ -45,7 +45,7 @@ def test_the_sized_run_gives_the_run_test_its_power(ratio, sd):
             sizes = [6, 6, 6, windows]
             d = np.concatenate([rng.normal(0.0, sd, 6) for _ in range(3)] + [rng.normal(math.log(ratio), sd, windows)])
             runs = np.repeat(np.arange(4), sizes)
-            hits += run_separation_test(np.ones(d.size), np.exp(d), runs)["p_second_worse"] < 0.01
+            hits += run_separation_test(np.ones(d.size), np.exp(d), runs).p_second_worse < 0.01
         found[windows] = hits / 400
     assert 0.7 <= found[n] <= 0.95, (n, found)
     assert found[max(2, n // 3)] < found[n] - 0.2, found

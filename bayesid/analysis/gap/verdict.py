@@ -31,6 +31,7 @@ __all__ = [
     "assign_roles",
     "contribution",
     "verdict_of",
+    "RunSeparation",
 ]
 
 
@@ -164,7 +165,32 @@ def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
     return float(stats.wilcoxon(before[ok], after[ok], alternative="greater").pvalue)
 
 
-def run_separation_test(first: np.ndarray, second: np.ndarray, runs: np.ndarray, margin: float = 0.1) -> dict:
+@dataclass(frozen=True)
+class RunSeparation:
+    """The run-by-run test of two models' window errors (:func:`run_separation_test`).
+
+    Parameters
+    ----------
+    p_second_worse, p_first_worse : float
+        Bonferroni-adjusted p-values that some run's second (first) model errors exceed the
+        other's by more than the margin (1.0 when untestable).
+    run_second_worse, run_first_worse : int or None
+        The run of the smallest p, or None.
+    ratio_by_run : dict
+        ``{run: geometric-mean window error ratio second / first}``.
+    df : int
+        Degrees of freedom of the pooled within-run variance.
+    """
+
+    p_second_worse: float
+    p_first_worse: float
+    run_second_worse: int | None
+    run_first_worse: int | None
+    ratio_by_run: dict
+    df: int
+
+
+def run_separation_test(first: np.ndarray, second: np.ndarray, runs: np.ndarray, margin: float = 0.1) -> RunSeparation:
     """Whether some run tells two models apart: one-sided tests, run by run, that the second
     model's window errors exceed the first's by more than ``margin`` (and the converse).
 
@@ -189,11 +215,9 @@ def run_separation_test(first: np.ndarray, second: np.ndarray, runs: np.ndarray,
 
     Returns
     -------
-    dict
-        ``p_second_worse`` and ``p_first_worse`` (Bonferroni-adjusted, 1.0 when untestable),
-        ``run_second_worse`` and ``run_first_worse`` (the index of the run of the smallest
-        p, or None), ``ratio_by_run`` (``{run: geometric-mean error ratio second / first}``)
-        and ``df`` (degrees of freedom of the pooled variance).
+    RunSeparation
+        The two one-sided p-values, the runs they were found on, the error ratio of each run
+        and the degrees of freedom.
 
     Raises
     ------
@@ -208,26 +232,20 @@ def run_separation_test(first: np.ndarray, second: np.ndarray, runs: np.ndarray,
     groups = [d[g == r] for r in np.unique(g)]
     labels = list(np.unique(g))
     df = int(sum(x.size - 1 for x in groups))
-    out = {
-        "p_second_worse": 1.0,
-        "p_first_worse": 1.0,
-        "run_second_worse": None,
-        "run_first_worse": None,
-        "ratio_by_run": {int(r): float(np.exp(x.mean())) for r, x in zip(labels, groups)},
-        "df": df,
-    }
+    ratios = {int(r): float(np.exp(x.mean())) for r, x in zip(labels, groups)}
     if df < 2:
-        return out
+        return RunSeparation(1.0, 1.0, None, None, ratios, df)
     sd = float(np.sqrt(sum(((x - x.mean()) ** 2).sum() for x in groups) / df))
     sd = max(sd, 1e-12)
     step = np.log1p(margin)
-    for sign, key in ((1.0, "second_worse"), (-1.0, "first_worse")):
+    found = []  # (p, run): the second model worse, then the first
+    for sign in (1.0, -1.0):
         t = np.array([(sign * x.mean() - step) / (sd / np.sqrt(x.size)) for x in groups])
         p = stats.t.sf(t, df)
         i = int(np.argmin(p))
-        out[f"p_{key}"] = float(min(1.0, p[i] * len(groups)))
-        out[f"run_{key}"] = int(labels[i])
-    return out
+        found.append((float(min(1.0, p[i] * len(groups))), int(labels[i])))
+    (p2, r2), (p1, r1) = found
+    return RunSeparation(p2, p1, r2, r1, ratios, df)
 
 
 def gap_summary(train: dict, held: dict) -> dict:

@@ -16,7 +16,7 @@ from ....estimation.windows import WindowProblem, fit_model, warm_starts
 from ....models.library import term_library
 from ..candidates import Setup, Stage, score_stage
 from ..records import TermRow
-from ..verdict import Thresholds, is_contributor, paired_window_test, run_separation_test
+from ..verdict import RunSeparation, Thresholds, is_contributor, paired_window_test, run_separation_test
 from .library import extended_start, nuisance_start, with_terms
 
 __all__ = [
@@ -255,10 +255,10 @@ def worst_run(ref: Stage, st: Stage, runs: tuple | None, margin: float) -> dict 
     if gone is not None:
         return {"run": _run_name(names, gone), "error_ratio": None, "p_value": 0.0, "diverged": True}
     res = run_separation_test(a, b, np.asarray(idx), margin)
-    i = res["run_second_worse"]
+    i = res.run_second_worse
     if i is None:
         return None
-    return {"run": _run_name(names, i), "error_ratio": res["ratio_by_run"].get(i), "p_value": res["p_second_worse"]}
+    return {"run": _run_name(names, i), "error_ratio": res.ratio_by_run.get(i), "p_value": res.p_second_worse}
 
 
 def _passes(row, significant: bool, th: Thresholds) -> bool:
@@ -563,7 +563,7 @@ def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None
                 if not wa.shape == wb.shape == idx.shape:
                     continue
                 res = run_separation_test(wa, wb, idx, th.separation_margin)
-                b_worse, a_worse = res["p_second_worse"] < th.partial_p, res["p_first_worse"] < th.partial_p
+                b_worse, a_worse = res.p_second_worse < th.partial_p, res.p_first_worse < th.partial_p
                 # a prediction that diverges on a run the other one predicts is the worse one there
                 b_worse = b_worse or diverged_run(wa, wb, idx) is not None
                 a_worse = a_worse or diverged_run(wb, wa, idx) is not None
@@ -667,35 +667,29 @@ def compare_structures(
                 continue
             aw = np.asarray(stages[a].windows)
             p = paired_window_test(aw, kw)
-            run = {
-                "p_second_worse": None,
-                "p_first_worse": 1.0,
-                "run_second_worse": None,
-                "run_first_worse": None,
-                "ratio_by_run": {},
-            }
+            run = RunSeparation(None, 1.0, None, None, {}, 0)  # no runs: no run test
             if runs is not None and len(runs) == len(kw) == len(aw):
                 run = run_separation_test(kw, aw, np.asarray(runs), th.separation_margin)
             # a prediction that diverges on a run the other one predicts is the worse one there
             a_gone = diverged_run(kw, aw, runs) if runs is not None else None
             k_gone = diverged_run(aw, kw, runs) if runs is not None else None
             if k_gone is not None:  # the kept term's prediction diverges where the competitor's does not
-                run = {**run, "run_first_worse": k_gone, "p_first_worse": 0.0}
+                run = replace(run, run_first_worse=k_gone, p_first_worse=0.0)
             elif a_gone is not None:
-                run = {**run, "run_second_worse": a_gone, "p_second_worse": 0.0, "p_first_worse": 1.0}
-            i = run["run_second_worse"]
-            by_run = run["ratio_by_run"]
+                run = replace(run, run_second_worse=a_gone, p_second_worse=0.0, p_first_worse=1.0)
+            i = run.run_second_worse
+            by_run = run.ratio_by_run
             by_heldout = k_gone is None and (
                 p < th.partial_p
                 or (
-                    run["p_second_worse"] is not None
-                    and run["p_second_worse"] < th.partial_p
-                    and run["p_first_worse"] >= th.partial_p
+                    run.p_second_worse is not None
+                    and run.p_second_worse < th.partial_p
+                    and run.p_first_worse >= th.partial_p
                 )
             )
             trn = training_separation(stages[k], stages[a], th, train_names)
             heldout_favours_a = a_gone is None and (
-                run["p_first_worse"] < th.partial_p or paired_window_test(kw, aw) < th.partial_p
+                run.p_first_worse < th.partial_p or paired_window_test(kw, aw) < th.partial_p
             )
             by_training = not by_heldout and not heldout_favours_a and trn["separated"]
             separated = by_heldout or by_training
@@ -706,13 +700,13 @@ def compare_structures(
                     "coefficient": r.get("coefficient"),
                     "heldout_rms_m": r["heldout_rms_after_m"],
                     "window_p_value": p,
-                    "run_p_value": run["p_second_worse"],
+                    "run_p_value": run.p_second_worse,
                     "separating_run": None if i is None else _run_name(run_names, i),
                     "run_error_ratio": by_run.get(i) if i is not None else None,
                     "kept_worse_run": None
-                    if run["run_first_worse"] is None or run["p_first_worse"] >= th.partial_p
-                    else _run_name(run_names, run["run_first_worse"]),
-                    "kept_worse_run_p_value": run["p_first_worse"] if runs is not None else None,
+                    if run.run_first_worse is None or run.p_first_worse >= th.partial_p
+                    else _run_name(run_names, run.run_first_worse),
+                    "kept_worse_run_p_value": run.p_first_worse if runs is not None else None,
                     "separable": bool(separated),
                     "heldout_rms_by_run_m": heldout_rms_by_run(stages[a]),
                     "train_window_p_value": trn["p_window"],
@@ -765,15 +759,15 @@ def training_separation(kept: Stage, other: Stage, th: Thresholds, names=None) -
     kw, aw, runs = np.asarray(kw, float), np.asarray(aw, float), np.asarray(runs)
     pooled = run_separation_test(kw, aw, np.zeros(len(runs), int), th.separation_margin)
     run = run_separation_test(kw, aw, runs, th.separation_margin)
-    i = run["run_second_worse"]
-    worse = pooled["p_second_worse"] < th.partial_p or run["p_second_worse"] < th.partial_p
-    better = pooled["p_first_worse"] < th.partial_p or run["p_first_worse"] < th.partial_p
+    i = run.run_second_worse
+    worse = pooled.p_second_worse < th.partial_p or run.p_second_worse < th.partial_p
+    better = pooled.p_first_worse < th.partial_p or run.p_first_worse < th.partial_p
     out.update(
         separated=bool(worse and not better),
-        p_window=float(pooled["p_second_worse"]),
-        p_run=float(run["p_second_worse"]),
+        p_window=float(pooled.p_second_worse),
+        p_run=float(run.p_second_worse),
         run=None if i is None else _run_name(names, i),
-        ratio=run["ratio_by_run"].get(i) if i is not None else None,
+        ratio=run.ratio_by_run.get(i) if i is not None else None,
     )
     return out
 
