@@ -249,7 +249,7 @@ def test_training_windows_that_agree_within_the_margin_separate_at_about_the_lev
     for seed in range(200):
         (_, t), (_, tb), truns = _tied_heldout_training_apart(np.random.default_rng(seed), ratio)
         k, o = _trained(np.ones(6), t, truns), _trained(np.ones(6), tb, truns)
-        hits += dv.training_separation(k, o, Thresholds())["separated"]
+        hits += dv.training_separation(k, o, Thresholds()).separated
     assert hits <= 6  # the pooled and the run-by-run test at 1 % each, with room for sampling
 
 

@@ -32,6 +32,7 @@ __all__ = [
     "dominance_order",
     "compare_structures",
     "training_separation",
+    "TrainingSeparation",
     "alternatives",
     "separated",
     "window_runs",
@@ -568,8 +569,8 @@ def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None
                 b_worse = b_worse or diverged_run(wa, wb, idx) is not None
                 a_worse = a_worse or diverged_run(wb, wa, idx) is not None
                 if not b_worse and not a_worse:  # the held-out runs tie them: do the training runs?
-                    b_worse = training_separation(stages[a], stages[b], th)["separated"]
-                    a_worse = training_separation(stages[b], stages[a], th)["separated"]
+                    b_worse = training_separation(stages[a], stages[b], th).separated
+                    a_worse = training_separation(stages[b], stages[a], th).separated
                 if b_worse and not a_worse:
                     beaten[b] += 1
                 elif a_worse and not b_worse:
@@ -691,7 +692,7 @@ def compare_structures(
             heldout_favours_a = a_gone is None and (
                 run.p_first_worse < th.partial_p or paired_window_test(kw, aw) < th.partial_p
             )
-            by_training = not by_heldout and not heldout_favours_a and trn["separated"]
+            by_training = not by_heldout and not heldout_favours_a and trn.separated
             separated = by_heldout or by_training
             out[k].append(
                 {
@@ -709,10 +710,10 @@ def compare_structures(
                     "kept_worse_run_p_value": run.p_first_worse if runs is not None else None,
                     "separable": bool(separated),
                     "heldout_rms_by_run_m": heldout_rms_by_run(stages[a]),
-                    "train_window_p_value": trn["p_window"],
-                    "train_run_p_value": trn["p_run"],
-                    "train_separating_run": trn["run"],
-                    "train_error_ratio": trn["ratio"],
+                    "train_window_p_value": trn.p_window,
+                    "train_run_p_value": trn.p_run,
+                    "train_separating_run": trn.run,
+                    "train_error_ratio": trn.ratio,
                     "separated_by": "heldout" if by_heldout else "training" if by_training else None,
                     "favoured": bool(heldout_favours_a),
                 }
@@ -721,7 +722,31 @@ def compare_structures(
     return out
 
 
-def training_separation(kept: Stage, other: Stage, th: Thresholds, names=None) -> dict:
+@dataclass(frozen=True)
+class TrainingSeparation:
+    """Whether the training runs show one refit worse than another (:func:`training_separation`).
+
+    Parameters
+    ----------
+    separated : bool
+        The training runs show ``other`` worse and neither test favours it.
+    p_window, p_run : float or None
+        The pooled and the run-by-run test's p that ``other`` is worse (None without training
+        windows).
+    run : str or int or None
+        The training run of the run test's strongest evidence.
+    ratio : float or None
+        Its geometric-mean window error ratio ``other / kept``.
+    """
+
+    separated: bool = False
+    p_window: float | None = None
+    p_run: float | None = None
+    run: str | int | None = None
+    ratio: float | None = None
+
+
+def training_separation(kept: Stage, other: Stage, th: Thresholds, names=None) -> TrainingSeparation:
     """Whether the training runs show ``other`` to be worse than ``kept``: its fitted model
     follows the training windows significantly worse.
 
@@ -745,31 +770,26 @@ def training_separation(kept: Stage, other: Stage, th: Thresholds, names=None) -
 
     Returns
     -------
-    dict
-        ``separated`` (bool), ``p_window`` and ``p_run`` (the pooled and the run-by-run test's
-        p that ``other`` is worse; None without training windows), ``run`` (the training run of
-        the run test's strongest evidence, or None) and ``ratio`` (its geometric-mean window
-        error ratio ``other / kept``).
+    TrainingSeparation
+        Whether they are separated, the two tests' p-values, the run and its error ratio.
     """
     kw, aw = getattr(kept, "train_windows", None), getattr(other, "train_windows", None)
     runs = getattr(kept, "train_runs", None)
-    out = {"separated": False, "p_window": None, "p_run": None, "run": None, "ratio": None}
     if kw is None or aw is None or runs is None or not len(kw) == len(aw) == len(runs):
-        return out
+        return TrainingSeparation()
     kw, aw, runs = np.asarray(kw, float), np.asarray(aw, float), np.asarray(runs)
     pooled = run_separation_test(kw, aw, np.zeros(len(runs), int), th.separation_margin)
     run = run_separation_test(kw, aw, runs, th.separation_margin)
     i = run.run_second_worse
     worse = pooled.p_second_worse < th.partial_p or run.p_second_worse < th.partial_p
     better = pooled.p_first_worse < th.partial_p or run.p_first_worse < th.partial_p
-    out.update(
+    return TrainingSeparation(
         separated=bool(worse and not better),
         p_window=float(pooled.p_second_worse),
         p_run=float(run.p_second_worse),
         run=None if i is None else _run_name(names, i),
         ratio=run.ratio_by_run.get(i) if i is not None else None,
     )
-    return out
 
 
 def _run_name(names, i: int) -> str:
