@@ -19,6 +19,7 @@ import pytest
 
 from bayesid.analysis import gap
 from bayesid.analysis.gap import discovery as dv
+from bayesid.analysis.gap.discovery.selection import LinearisedProblem
 from bayesid.data.track import Track, write_csv
 from bayesid.estimation import shooting
 from bayesid.estimation import windows as wf
@@ -112,12 +113,12 @@ def test_collinear_candidates_are_one_group_and_share_the_inclusion():
     a = np.sin(np.linspace(0, 40, n))
     X = np.column_stack([a, a + 0.01 * rng.normal(size=n), rng.normal(size=n)])
     y = 2.0 * a + 0.3 * rng.normal(size=n)
-    problem = {"y": y, "X": X, "size": np.ones(3), "blocks": np.array_split(np.arange(n), 40), "rms": 1.0}
+    problem = LinearisedProblem(y, X, np.ones(3), np.array_split(np.arange(n), 40), 1.0)
     sel = dv.select_terms(problem, ["Na", "Nb", "Nc"], dv.DiscoveryOptions(n_models=40), np.random.default_rng(1))
-    assert sel["groups"]["Na"] == ["Nb"] and sel["groups"]["Nb"] == ["Na"]
-    assert sel["group_probability"]["Na"] == 1.0
-    assert sel["group_probability"]["Na"] >= max(sel["inclusion"]["Na"], sel["inclusion"]["Nb"])
-    assert sel["inclusion"]["Nc"] < 0.2
+    assert sel.groups["Na"] == ["Nb"] and sel.groups["Nb"] == ["Na"]
+    assert sel.group_probability["Na"] == 1.0
+    assert sel.group_probability["Na"] >= max(sel.inclusion["Na"], sel.inclusion["Nb"])
+    assert sel.inclusion["Nc"] < 0.2
     # one refit per group, by the member that carries the most
     assert len([c for c in dv._candidates(sel, dv.DiscoveryOptions()) if c in ("Na", "Nb")]) == 1
 

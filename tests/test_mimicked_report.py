@@ -5,11 +5,13 @@ free parameter whose column is closest to its own, and how to test it (a constan
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from diagnosis_view import diagnosis_view
 
 from bayesid.analysis.gap import discovery as dv
+from bayesid.analysis.gap.discovery.selection import LinearisedProblem, Selection
 from bayesid.report.diagnosis import _discovery_lines
 
 
@@ -81,28 +83,26 @@ def test_select_terms_attributes_a_constant_column_to_the_free_coefficient_it_is
     shift = np.array([0.001, 0.05, 0.0])
     rms = float(np.sqrt(np.mean(r**2)))
     y, X = dv._project(S, -r, C)
-    problem = {
-        "y": y,
-        "X": X,
-        "size": np.sqrt(np.mean(C**2, axis=0)),
-        "blocks": np.array_split(np.arange(n), 40),
-        "rms": rms,
-        "mimics": dv._mimics(S, ["Nr", "dR0", "Yv"], C, names, shift, rms),
-    }
+    problem = LinearisedProblem(
+        y,
+        X,
+        np.sqrt(np.mean(C**2, axis=0)),
+        np.array_split(np.arange(n), 40),
+        rms,
+        dv._mimics(S, ["Nr", "dR0", "Yv"], C, names, shift, rms),
+    )
     sel = dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(1))
-    assert sel["mimicked"] == ["N0", "Nvvv"]
-    assert list(sel["mimicked_by"]) == ["N0", "Nvvv"]
-    m = sel["mimicked_by"]["N0"]
-    assert m["parameter"] == "dR0" and 0.99 < m["cosine"] < sel["mimicked_by"]["Nvvv"]["cosine"]
+    assert sel.mimicked == ["N0", "Nvvv"]
+    assert list(sel.mimicked_by) == ["N0", "Nvvv"]
+    m = sel.mimicked_by["N0"]
+    assert m["parameter"] == "dR0" and 0.99 < m["cosine"] < sel.mimicked_by["Nvvv"]["cosine"]
     assert m["span_cosine"] > 0.995 and m["shift"] == 0.05
     assert math.isclose(m["shift_effect"], 0.05 * np.sqrt(np.mean(S[:, 1] ** 2)) / rms)
-    assert sel["mimicked_by"]["Nvvv"]["parameter"] == "Nr"
-    assert "Nx" not in sel["mimicked_by"]
+    assert sel.mimicked_by["Nvvv"]["parameter"] == "Nr"
+    assert "Nx" not in sel.mimicked_by
     # without the mimics (a hand-built problem) nothing is attributed, the rest as before
-    del problem["mimics"]
-    assert (
-        dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(1))["mimicked_by"] == {}
-    )
+    problem = replace(problem, mimics={})
+    assert dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(1)).mimicked_by == {}
 
 
 def _n0_zigzags():
@@ -138,11 +138,11 @@ def test_a_hidden_constant_yaw_moment_is_attributed_to_the_neutral_rudder_angle(
     d = diagnose(kv, list(kv.free), runs[:2], runs[2:], options, rng=np.random.default_rng(0))
     names = dv.candidate_terms(d.base.model, dv.MAX_ORDER, ("Y", "N"))
     problem = dv.linearised_problem(d.setup, d.base, (), names, d.fit_sd)
-    m = problem["mimics"]["N0"]
+    m = problem.mimics["N0"]
     assert m["parameter"] == "dR0" and m["cosine"] > 0.95 and m["shift"] > 0
-    assert m["shift_effect"] == max(v["shift_effect"] for v in problem["mimics"].values())
+    assert m["shift_effect"] == max(v["shift_effect"] for v in problem.mimics.values())
     sel = dv.select_terms(problem, names, dv.DiscoveryOptions(n_models=20), np.random.default_rng(0))
-    assert "N0" in sel["mimicked"] and next(iter(sel["mimicked_by"])) == "N0"
+    assert "N0" in sel.mimicked and next(iter(sel.mimicked_by)) == "N0"
 
 
 def test_one_mimicked_term_per_mimic_is_refitted_likeliest_first():
@@ -158,10 +158,10 @@ def test_one_mimicked_term_per_mimic_is_refitted_likeliest_first():
         "N0": _by("dR0", 0.946, 1.2),
         "Nrrr": _by("Nr", 0.62, 1.0),
     }
-    sel = {"mimicked": list(by), "mimicked_by": by}
+    sel = Selection(mimicked=list(by), mimicked_by=by)
     assert mimicked_refits(sel, 2) == ["Nabsvr", "Y0"]
     assert mimicked_refits(sel, 9) == ["Nabsvr", "Y0", "N0", "Nrrr"]
-    assert mimicked_refits(sel, 0) == [] and mimicked_refits({"mimicked": []}, 2) == []
+    assert mimicked_refits(sel, 0) == [] and mimicked_refits(Selection(), 2) == []
 
 
 def test_a_kept_mimicked_term_competes_with_the_others_its_mimic_reproduces():
@@ -177,7 +177,7 @@ def test_a_kept_mimicked_term_competes_with_the_others_its_mimic_reproduces():
         "Nvrr": _by("Nv", 0.97, 3.0),
         "Nvvv": _by("Nv", 0.96, 3.0),
     }
-    sel = {"mimicked": list(by), "mimicked_by": by}
+    sel = Selection(mimicked=list(by), mimicked_by=by)
     assert mimicked_companions(sel, "Nvabsr", 2) == ["Nvvr", "Nvrr"]
     assert mimicked_companions(sel, "Nvabsr", 9) == ["Nvvr", "Nvrr", "Nvvv"]
     assert mimicked_companions(sel, "Yvvr", 2) == [] and mimicked_companions(sel, "N0", 2) == []

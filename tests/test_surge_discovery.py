@@ -133,9 +133,9 @@ def test_without_a_speed_log_the_speed_over_ground_read_from_the_positions_route
 
 
 def test_a_kept_terms_companions_are_the_members_of_its_group_the_score_test_ranks_level_with_it():
-    from bayesid.analysis.gap.discovery.selection import TIED_SHARE, tied_companions
+    from bayesid.analysis.gap.discovery.selection import TIED_SHARE, Selection, tied_companions
 
-    sel = {"groups": {"Xvvabsvabsr": ["Xvvvr", "Xvvvv", "Xvvrr", "Xrrrr"], "Nrrr": []}}
+    sel = Selection(groups={"Xvvabsvabsr": ["Xvvvr", "Xvvvv", "Xvvrr", "Xrrrr"], "Nrrr": []})
     r2 = {"Xvvabsvabsr": 0.0413, "Xvvvr": 0.0412, "Xvvvv": 0.0390, "Xvvrr": 0.0395, "Xrrrr": 0.0150, "Nv": 0.05}
     # the ship_surge case's shares: Xvvvv 6th of the group in the score test
     assert tied_companions(sel, r2, "Xvvabsvabsr") == ["Xvvvr", "Xvvrr", "Xvvvv"]

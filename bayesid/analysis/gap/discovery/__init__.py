@@ -369,7 +369,7 @@ def _refit_terms(how: dict, fit_args: tuple, initial: dict, judge: tuple, runner
     sel, floor_rms, runs, th, significant = judge
     ref = fit_args[0]
     names = list(how)
-    tasks = [Task(n, {"term": n}, (TermFit(n, sel["coefficient"].get(n, 0.0), *fit_args, initial[n]),)) for n in names]
+    tasks = [Task(n, {"term": n}, (TermFit(n, sel.coefficient.get(n, 0.0), *fit_args, initial[n]),)) for n in names]
     outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
     rows, stages = [], {}
     for n, out in zip(names, outs):
@@ -667,7 +667,7 @@ def discover(
             found, chain, compared, rivals, (ref, setup, *combined_args), train_names
         )
     alts = alternatives(compared)
-    inclusion = dict(sorted(((k, v) for k, v in sel["inclusion"].items() if v > 0), key=lambda kv: -kv[1]))
+    inclusion = dict(sorted(((k, v) for k, v in sel.inclusion.items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
         found=found,
         verdict=_verdict(found, (after or ref).held["rms_position_m"], th.none_ratio * floor_rms, alts),
@@ -675,10 +675,10 @@ def discover(
         inclusion=inclusion,
         residuals={
             "forces": forces,
-            "explained": sel["explained"],
-            "projected_rms": sel["projected_rms"],
-            "mimicked": sel["mimicked"],
-            "mimicked_by": sel["mimicked_by"],
+            "explained": sel.explained,
+            "projected_rms": sel.projected_rms,
+            "mimicked": sel.mimicked,
+            "mimicked_by": sel.mimicked_by,
         },
         library_size=len(names),
         heldout_rms_before_m=ref.held["rms_position_m"],

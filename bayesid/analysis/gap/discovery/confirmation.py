@@ -18,6 +18,7 @@ from ..candidates import Setup, Stage, score_stage
 from ..records import TermRow
 from ..verdict import RunSeparation, Thresholds, is_contributor, paired_window_test, run_separation_test
 from .library import extended_start, nuisance_start, with_terms
+from .selection import Selection
 
 __all__ = [
     "TermFit",
@@ -128,7 +129,7 @@ def refit_row(
     term: str,
     st: Stage | None,
     ref: Stage,
-    sel: dict | None,
+    sel: Selection | None,
     floor_rms: float,
     sd: float | None = None,
     runs: tuple | None = None,
@@ -144,7 +145,7 @@ def refit_row(
         Its refit (None: every fit failed).
     ref : Stage
         The model it extends.
-    sel : dict or None
+    sel : Selection or None
         The selection's numbers (:func:`~.selection.select_terms`); None for a term refitted on
         top of others.
     floor_rms : float
@@ -163,14 +164,14 @@ def refit_row(
         The row of :attr:`bayesid.analysis.gap.discovery.Discovery.discovered` (without
         ``kept`` and ``reason`` unless every fit failed: :func:`decide` sets them).
     """
-    sel = sel or {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}}
+    sel = sel or Selection()
     row = TermRow(
         term=term,
         dof=term_library(ref.model).dof(term),
-        inclusion_probability=sel["inclusion"].get(term, 0.0),
-        group_inclusion_probability=sel["group_probability"].get(term, 0.0),
-        group=sel["groups"].get(term, []),
-        regression_coefficient=sel["coefficient"].get(term, 0.0),
+        inclusion_probability=sel.inclusion.get(term, 0.0),
+        group_inclusion_probability=sel.group_probability.get(term, 0.0),
+        group=sel.groups.get(term, []),
+        regression_coefficient=sel.coefficient.get(term, 0.0),
         heldout_rms_before_m=ref.held["rms_position_m"],
         train_rms_before_m=ref.train["rms_position_m"],
     )

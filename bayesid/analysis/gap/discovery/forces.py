@@ -168,14 +168,14 @@ def _lowpass(rows: list, seconds: float) -> list[dict]:
     return out
 
 
-def force_summary(rows: list, sel: dict, names: list, options: DiscoveryOptions) -> dict:
+def force_summary(rows: list, sel, names: list, options: DiscoveryOptions) -> dict:
     """The missing force per degree of freedom against the best candidates (for the report).
 
     Parameters
     ----------
     rows : list of dict
         :func:`force_residuals`.
-    sel : dict
+    sel : Selection
         :func:`~.selection.select_terms`.
     names : list of str
         The candidates (columns of the rows).
@@ -199,13 +199,13 @@ def force_summary(rows: list, sel: dict, names: list, options: DiscoveryOptions)
     for g in options.dofs:
         j = DOFS.index(g)
         y = F[:, j]
-        top = sorted((n for n in names if n[0] == g), key=lambda n: -sel["inclusion"].get(n, 0.0))[:5]
+        top = sorted((n for n in names if n[0] == g), key=lambda n: -sel.inclusion.get(n, 0.0))[:5]
         rows_top = []
         for n in top:
             c = C[:, names.index(n)]
             cc = float(c @ c)
             r2 = float((c @ y) ** 2 / (cc * (y @ y))) if cc > 0 and y @ y > 0 else 0.0
-            rows_top.append({"term": n, "inclusion_probability": sel["inclusion"].get(n, 0.0), "force_r2": r2})
+            rows_top.append({"term": n, "inclusion_probability": sel.inclusion.get(n, 0.0), "force_r2": r2})
         out[g] = {
             "rms": float(np.sqrt(np.mean(y**2))),
             "noise_rms": None if null is None else float(np.sqrt(np.mean(null[:, j] ** 2))),

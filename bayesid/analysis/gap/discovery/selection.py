@@ -8,6 +8,8 @@ the most probable groups (:func:`refit_candidates`) and their alternatives
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from ....estimation.windows import WindowObjective, warm_starts
@@ -18,6 +20,8 @@ from .library import augmented_model, extended_start, nuisance_start, reference_
 from .options import DiscoveryOptions
 
 __all__ = [
+    "LinearisedProblem",
+    "Selection",
     "linearised_problem",
     "project_out",
     "mimics",
@@ -33,7 +37,76 @@ __all__ = [
 ]
 
 
-def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: dict, window_s=None) -> dict:
+@dataclass(frozen=True)
+class LinearisedProblem:
+    """The output-error problem linearised in the candidates' coefficients (:func:`linearised_problem`).
+
+    Parameters
+    ----------
+    y : ndarray, shape (n,)
+        Minus the projected weighted residuals.
+    X : ndarray, shape (n, K)
+        The projected candidate columns.
+    size : ndarray, shape (K,)
+        The columns' RMS before the projection.
+    blocks : list of ndarray
+        Row indices of each window (the block bootstrap's blocks).
+    rms : float
+        The residuals' RMS before the projection.
+    mimics : dict, default {}
+        ``{candidate: {"parameter", "cosine", "shift", "shift_effect"}}`` (:func:`mimics`).
+    """
+
+    y: np.ndarray
+    X: np.ndarray
+    size: np.ndarray
+    blocks: list
+    rms: float
+    mimics: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The ensemble's selection of the candidate terms (:func:`select_terms`); every field
+    defaults to empty (nothing selected).
+
+    Parameters
+    ----------
+    inclusion : dict
+        ``{term: inclusion probability}``.
+    group_probability : dict
+        ``{term: probability that the ensemble picks it or a term of its collinear group}``.
+    groups : dict
+        ``{term: [collinear terms]}``.
+    coefficient : dict
+        ``{term: median prime coefficient over the models that select it}``.
+    share : dict
+        ``{term: median share of the residual RMS}``.
+    mimicked : list of str
+        The terms a refit of the free coefficients reproduces.
+    mimicked_by : dict
+        ``{mimicked term: {"parameter", "cosine", "shift", "shift_effect", "span_cosine"}}``,
+        likeliest stand-ins first.
+    explained : float
+        Share of the projected residual's variance the median model explains.
+    projected_rms : float
+        The residual's RMS after the projection / before it.
+    """
+
+    inclusion: dict = field(default_factory=dict)
+    group_probability: dict = field(default_factory=dict)
+    groups: dict = field(default_factory=dict)
+    coefficient: dict = field(default_factory=dict)
+    share: dict = field(default_factory=dict)
+    mimicked: list = field(default_factory=list)
+    mimicked_by: dict = field(default_factory=dict)
+    explained: float = 0.0
+    projected_rms: float = 0.0
+
+
+def linearised_problem(
+    setup: Setup, ref: Stage, effects, names: list, sd_fit: dict, window_s=None
+) -> LinearisedProblem:
     """The output-error problem of the training tracks, linearised at the reference fit in the
     candidates' coefficients (all at 0).
 
@@ -74,13 +147,10 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
 
     Returns
     -------
-    dict
-        ``y`` (n,): minus the projected residuals; ``X`` (n, K): the projected candidate columns;
-        ``size`` (K,): the columns' RMS before the projection; ``blocks``: row indices of each
-        window (the block bootstrap's blocks); ``rms``: the residuals' RMS before the
-        projection; ``mimics``: ``{candidate: {"parameter", "cosine", "shift",
-        "shift_effect"}}``, the free parameter whose column is closest to the candidate's and how
-        far the fit moved it (:func:`mimics`).
+    LinearisedProblem
+        The projected residuals and candidate columns, the columns' sizes, the windows' rows,
+        the residuals' RMS and each candidate's mimic: the free parameter whose column is closest
+        to the candidate's and how far the fit moved it (:func:`mimics`).
     """
     if window_s is None:
         window_s = setup.fit_window_s if setup.rule == "measured" else setup.window_s
@@ -116,14 +186,9 @@ def linearised_problem(setup: Setup, ref: Stage, effects, names: list, sd_fit: d
         for wi in np.unique(ctx.win):
             blocks.append(o + rows[:, ctx.win == wi].ravel())
         o += rows.size
-    return {
-        "y": y,
-        "X": X,
-        "size": size,
-        "blocks": blocks,
-        "rms": rms,
-        "mimics": mimics(J[:, other], [obj.names[j] for j in other], Jc, names, shift[other], rms),
-    }
+    return LinearisedProblem(
+        y, X, size, blocks, rms, mimics(J[:, other], [obj.names[j] for j in other], Jc, names, shift[other], rms)
+    )
 
 
 def project_out(S: np.ndarray | None, *arrays) -> tuple:
@@ -208,7 +273,7 @@ def _groups(Xn: np.ndarray, cos: float) -> list[list[int]]:
     return [list(np.flatnonzero(G[j] >= cos)) for j in range(Xn.shape[1])]
 
 
-def select_terms(problem: dict, names: list, options: DiscoveryOptions, rng) -> dict:
+def select_terms(problem: LinearisedProblem, names: list, options: DiscoveryOptions, rng) -> Selection:
     """Ensemble STLSQ of the projected output residuals on the candidates' projected columns
     (:func:`linearised_problem`), with a block bootstrap over the fit windows.
 
@@ -219,7 +284,7 @@ def select_terms(problem: dict, names: list, options: DiscoveryOptions, rng) -> 
 
     Parameters
     ----------
-    problem : dict
+    problem : LinearisedProblem
         :func:`linearised_problem`.
     names : list of str
         The candidates.
@@ -230,58 +295,61 @@ def select_terms(problem: dict, names: list, options: DiscoveryOptions, rng) -> 
 
     Returns
     -------
-    dict
-        ``inclusion`` ``{term: probability}``, ``group_probability`` ``{term: probability}``,
-        ``groups`` ``{term: [collinear terms]}``, ``coefficient`` ``{term: median prime
-        coefficient over the models that select it}``, ``share`` ``{term: median share of the
-        residual RMS}``, ``mimicked`` (names), ``mimicked_by`` (``{mimicked term: {"parameter":
-        its mimic, the free parameter whose column is closest to the term's, "cosine": |cosine|
-        of the two, "shift": how far the fit moved the mimic from its start, "shift_effect": that
-        move's change of the training residuals over their RMS, "span_cosine": the term's
-        column's cosine with the span of all the free parameters'}}``, by ``shift_effect`` times
-        ``cosine``, largest first; empty without ``problem["mimics"]``), ``explained`` (share of
-        the projected residual's variance the median model explains) and ``projected_rms`` (the
-        residual's RMS after the projection / before it).
+    Selection
+        The inclusion and group probabilities, groups, coefficients and shares of the live
+        candidates; the mimicked ones with their mimics (``mimicked_by``: the free parameter whose
+        column is closest to the term's, the |cosine| of the two, how far the fit moved the mimic
+        from its start, that move's change of the training residuals over their RMS and the
+        term's column's cosine with the span of all the free parameters', by ``shift_effect``
+        times ``cosine``, largest first; empty without ``problem.mimics``); the share of the
+        projected residual's variance the median model explains and the residual's RMS after the
+        projection / before it.
     """
-    X, y = problem["X"], problem["y"]
+    X, y = problem.X, problem.y
     rx = np.sqrt(np.mean(X**2, axis=0))
-    live = rx > 0.1 * problem["size"]
-    out = {"inclusion": {}, "group_probability": {}, "groups": {}, "coefficient": {}, "share": {}}
-    out["mimicked"] = [n for n, ok, sz in zip(names, live, problem["size"]) if not ok and sz > 0]
-    out["mimicked_by"] = _mimicked_by(out["mimicked"], problem, rx, names)
+    live = rx > 0.1 * problem.size
+    mimicked = [n for n, ok, sz in zip(names, live, problem.size) if not ok and sz > 0]
     ry = float(np.sqrt(np.mean(y**2)))
-    out["projected_rms"] = ry / problem["rms"] if problem["rms"] > 0 else 0.0
-    out["explained"] = 0.0
+    quiet = Selection(
+        mimicked=mimicked,
+        mimicked_by=_mimicked_by(mimicked, problem, rx, names),
+        projected_rms=ry / problem.rms if problem.rms > 0 else 0.0,
+    )
     idx = np.flatnonzero(live)
     if ry == 0 or idx.size == 0:
-        return out
+        return quiet
     Xn, yn = X[:, idx] / rx[idx], y / ry
-    xi = block_ensemble_stlsq(Xn, yn, problem["blocks"], rng, options.threshold, options.ridge, options.n_models)
+    xi = block_ensemble_stlsq(Xn, yn, problem.blocks, rng, options.threshold, options.ridge, options.n_models)
     sel = xi != 0.0
     groups = _groups(Xn, options.group_cos)
     med = np.median(xi, axis=0)
-    out["explained"] = float(1 - np.mean((yn - Xn @ med) ** 2))
+    out = Selection(
+        mimicked=quiet.mimicked,
+        mimicked_by=quiet.mimicked_by,
+        explained=float(1 - np.mean((yn - Xn @ med) ** 2)),
+        projected_rms=quiet.projected_rms,
+    )
     for a, k in enumerate(idx):
         n = names[k]
-        out["inclusion"][n] = float(sel[:, a].mean())
-        out["group_probability"][n] = float(sel[:, groups[a]].any(axis=1).mean())
-        out["groups"][n] = [names[idx[b]] for b in groups[a] if b != a]
+        out.inclusion[n] = float(sel[:, a].mean())
+        out.group_probability[n] = float(sel[:, groups[a]].any(axis=1).mean())
+        out.groups[n] = [names[idx[b]] for b in groups[a] if b != a]
         nz = xi[sel[:, a], a]
-        out["coefficient"][n] = float(np.median(nz) * ry / rx[k]) if nz.size else 0.0
-        out["share"][n] = float(np.median(np.abs(nz))) if nz.size else 0.0
+        out.coefficient[n] = float(np.median(nz) * ry / rx[k]) if nz.size else 0.0
+        out.share[n] = float(np.median(np.abs(nz))) if nz.size else 0.0
     return out
 
 
-def _mimicked_by(mimicked: list, problem: dict, rx: np.ndarray, names: list) -> dict:
-    """The mimicked candidates with their mimics (``problem["mimics"]``) and ``span_cosine``
+def _mimicked_by(mimicked: list, problem: LinearisedProblem, rx: np.ndarray, names: list) -> dict:
+    """The mimicked candidates with their mimics (``problem.mimics``) and ``span_cosine``
     (the term's column's cosine with the span of every free parameter's, from the share the
     projection leaves), most likely stand-ins first: by ``shift_effect`` times ``cosine`` (the
     refit's move of the mimic along the term's column), or by ``cosine`` without shifts."""
-    by_term = problem.get("mimics") or {}
+    by_term = problem.mimics or {}
     out = {}
     for n in sorted((n for n in mimicked if n in by_term), key=lambda n: -_stand_in(by_term[n])):
         k = names.index(n)
-        left = float(rx[k] / problem["size"][k])
+        left = float(rx[k] / problem.size[k])
         out[n] = {**by_term[n], "span_cosine": float(np.sqrt(max(0.0, 1.0 - left**2)))}
     return out
 
@@ -291,7 +359,7 @@ def _stand_in(m: dict) -> float:
     return m["cosine"] * m.get("shift_effect", 1.0)
 
 
-def score_test(problem: dict, names: list) -> dict:
+def score_test(problem: LinearisedProblem, names: list) -> dict:
     """The share of the projected output residual each candidate's projected column explains
     alone (the squared cosine of the two: Rao's score statistic over the residual's sum of
     squares, the first Gauss-Newton step of adding that term alone).
@@ -308,7 +376,7 @@ def score_test(problem: dict, names: list) -> dict:
     dict
         ``{term: share in [0, 1]}``.
     """
-    X, y = problem["X"], problem["y"]
+    X, y = problem.X, problem.y
     yy = float(y @ y)
     xx = np.einsum("ij,ij->j", X, X)
     xy = X.T @ y
@@ -317,14 +385,14 @@ def score_test(problem: dict, names: list) -> dict:
     return {n: float(v) for n, v in zip(names, r2)}
 
 
-def refit_candidates(sel: dict, options: DiscoveryOptions) -> list[str]:
+def refit_candidates(sel: Selection, options: DiscoveryOptions) -> list[str]:
     """The groups refitted, most probable first (ties: the larger share of the missing force):
     each group above ``min_probability`` by the member that carries the most of the missing
     force in the ensemble (inclusion probability x share; the shorter name on ties).
 
     Parameters
     ----------
-    sel : dict
+    sel : Selection
         :func:`select_terms`.
     options : DiscoveryOptions
         ``min_probability`` and ``max_candidates``.
@@ -334,22 +402,22 @@ def refit_candidates(sel: dict, options: DiscoveryOptions) -> list[str]:
     list of str
         One term per group refitted, at most ``max_candidates``.
     """
-    score = {n: sel["inclusion"][n] * sel["share"][n] for n in sel["inclusion"]}
-    ranked = sorted(sel["group_probability"], key=lambda n: (-sel["group_probability"][n], -score[n]))
+    score = {n: sel.inclusion[n] * sel.share[n] for n in sel.inclusion}
+    ranked = sorted(sel.group_probability, key=lambda n: (-sel.group_probability[n], -score[n]))
     chosen, covered = [], set()
     for n in ranked:
-        if sel["group_probability"][n] < options.min_probability or len(chosen) >= options.max_candidates:
+        if sel.group_probability[n] < options.min_probability or len(chosen) >= options.max_candidates:
             break
         if n in covered:
             continue
-        group = [n, *(m for m in sel["groups"][n] if m not in covered)]
+        group = [n, *(m for m in sel.groups[n] if m not in covered)]
         best = max(group, key=lambda m: (score.get(m, 0.0), -len(m)))
         chosen.append(best)
-        covered |= {*group, *sel["groups"].get(best, [])}
+        covered |= {*group, *sel.groups.get(best, [])}
     return chosen
 
 
-def alternative_pool(r2: dict, sel: dict, chosen: list, options: DiscoveryOptions) -> list[str]:
+def alternative_pool(r2: dict, sel: Selection, chosen: list, options: DiscoveryOptions) -> list[str]:
     """Candidates refitted beside the selected ones (none when nothing is selected): first the
     terms the ensemble itself selects (inclusion probability >= ``min_probability``) that were
     not refitted because a collinear group member stood for them (at most ``2 n_alternatives``,
@@ -362,7 +430,7 @@ def alternative_pool(r2: dict, sel: dict, chosen: list, options: DiscoveryOption
     ----------
     r2 : dict
         :func:`score_test`.
-    sel : dict
+    sel : Selection
         :func:`select_terms`.
     chosen : list of str
         The selected terms (:func:`refit_candidates`).
@@ -376,10 +444,10 @@ def alternative_pool(r2: dict, sel: dict, chosen: list, options: DiscoveryOption
     """
     if not chosen or options.n_alternatives <= 0:
         return []
-    mimicked = set(sel["mimicked"])
+    mimicked = set(sel.mimicked)
     probable = sorted(
-        (n for n, p in sel["inclusion"].items() if p >= options.min_probability and n not in chosen),
-        key=lambda n: (-sel["inclusion"][n], len(n), n),
+        (n for n, p in sel.inclusion.items() if p >= options.min_probability and n not in chosen),
+        key=lambda n: (-sel.inclusion[n], len(n), n),
     )
     out = probable[: 2 * options.n_alternatives]
     floor = 0.5 * max(r2.get(n, 0.0) for n in chosen)
@@ -392,7 +460,7 @@ def alternative_pool(r2: dict, sel: dict, chosen: list, options: DiscoveryOption
     return out
 
 
-def mimicked_refits(sel: dict, n: int) -> list[str]:
+def mimicked_refits(sel: Selection, n: int) -> list[str]:
     """The candidates set aside as mimicked that are refitted all the same: one per mimic (the
     term it likeliest stands in for), likeliest first.
 
@@ -405,7 +473,7 @@ def mimicked_refits(sel: dict, n: int) -> list[str]:
 
     Parameters
     ----------
-    sel : dict
+    sel : Selection
         :func:`select_terms` (``mimicked_by``, likeliest stand-ins first).
     n : int
         At most this many.
@@ -416,7 +484,7 @@ def mimicked_refits(sel: dict, n: int) -> list[str]:
         The terms, one per mimic, likeliest first.
     """
     out: dict = {}  # one term per mimic: the same mimic twice tests one likeness twice
-    for t, m in (sel.get("mimicked_by") or {}).items():
+    for t, m in sel.mimicked_by.items():
         out.setdefault(m["parameter"], t)
     return list(out.values())[: max(int(n), 0)]
 
@@ -429,7 +497,7 @@ TIED_SHARE = 0.5
 MAX_TIED = 8
 
 
-def tied_companions(sel: dict, r2: dict, term: str, n: int = MAX_TIED) -> list[str]:
+def tied_companions(sel: Selection, r2: dict, term: str, n: int = MAX_TIED) -> list[str]:
     """The members of ``term``'s collinear group (regression columns with cosine at least
     ``group_cos``, :func:`select_terms`) that the linearised score test (:func:`score_test`) does not
     set aside: each explains at least :data:`TIED_SHARE` of the share ``term`` explains. A term
@@ -448,7 +516,7 @@ def tied_companions(sel: dict, r2: dict, term: str, n: int = MAX_TIED) -> list[s
 
     Parameters
     ----------
-    sel : dict
+    sel : Selection
         :func:`select_terms` (``groups``).
     r2 : dict
         :func:`score_test`: ``{term: share of the missing force explained}``.
@@ -466,11 +534,11 @@ def tied_companions(sel: dict, r2: dict, term: str, n: int = MAX_TIED) -> list[s
     s = float(r2.get(term, 0.0))
     if s <= 0.0:
         return []
-    tied = [m for m in (sel.get("groups") or {}).get(term, []) if r2.get(m, 0.0) >= TIED_SHARE * s]
+    tied = [m for m in sel.groups.get(term, []) if r2.get(m, 0.0) >= TIED_SHARE * s]
     return sorted(tied, key=lambda m: (-r2[m], len(m), m))[: max(int(n), 0)]
 
 
-def mimicked_companions(sel: dict, term: str, n: int) -> list[str]:
+def mimicked_companions(sel: Selection, term: str, n: int) -> list[str]:
     """The other candidates set aside as mimicked by the same free parameter as ``term``,
     likeliest first: a kept term of :func:`mimicked_refits` has them as its competitors (their
     columns all lie near their mimic's), and only their refits can say whether the runs
@@ -480,7 +548,7 @@ def mimicked_companions(sel: dict, term: str, n: int) -> list[str]:
 
     Parameters
     ----------
-    sel : dict
+    sel : Selection
         :func:`select_terms` (``mimicked_by``).
     term : str
         A mimicked term.
@@ -492,7 +560,7 @@ def mimicked_companions(sel: dict, term: str, n: int) -> list[str]:
     list of str
         The companions, without ``term``; empty when ``term`` is not mimicked.
     """
-    by = sel.get("mimicked_by") or {}
+    by = sel.mimicked_by
     if term not in by:
         return []
     p = by[term]["parameter"]
