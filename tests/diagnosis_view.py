@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 from bayesid.analysis.gap import Diagnosis
 from bayesid.analysis.gap.verdict import Thresholds
+from bayesid.protocol import Scores
 
 
 def diagnosis_view(**given) -> SimpleNamespace:
@@ -24,3 +25,9 @@ def diagnosis_view(**given) -> SimpleNamespace:
     if "discovered" in given:
         given["discovered_terms"] = given.pop("discovered")
     return SimpleNamespace(**{**out, **given})
+
+
+def scores(rms_position_m: float, **optional) -> Scores:
+    """A stage's protocol scores with only the position RMS (m) a test sets, and its optional
+    fields (``per_track_rms_position_m``, ``log_likelihood``)."""
+    return Scores({}, float(rms_position_m), float("nan"), float("nan"), 0, **optional)

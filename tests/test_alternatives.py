@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from conftest import n0_against_nabsdr
+from diagnosis_view import scores
 
 from bayesid.analysis.gap import design as dz
 from bayesid.analysis.gap import discovery as dv
@@ -156,7 +157,7 @@ def test_a_kept_term_a_held_out_run_shows_worse_than_another_goes_after_it():
     kept, other, runs = _two_structures(rng, 2.0)  # "other" worse on the designed run only
     kept[15:], other[15:] = kept[15:] / 5.0, other[15:] / 5.0  # a run the models predict well
     other[:15] *= 0.97  # within the margin elsewhere
-    ms = lambda w: Stage(None, None, {}, {"rms_position_m": float(np.sqrt(np.mean(w**2)))}, None, w)  # noqa: E731
+    ms = lambda w: Stage(None, None, {}, scores(float(np.sqrt(np.mean(w**2)))), None, w)  # noqa: E731
     stages = {"Nvabsvabsr": ms(other), "Nvvr": ms(kept)}
     assert stages["Nvabsvabsr"].held["rms_position_m"] < stages["Nvvr"].held["rms_position_m"]
     names = ["z1", "z2", "z3", "designed"]
@@ -175,7 +176,7 @@ def _trained(held, train=None, runs=None):
     held = np.asarray(held, float)
     rms = float(np.sqrt(np.mean(held**2)))
     tw = None if train is None else np.asarray(train, float)
-    return Stage(None, None, {}, {"rms_position_m": rms}, None, held, tw, runs)
+    return Stage(None, None, {}, scores(rms), None, held, tw, runs)
 
 
 def _tied_heldout_training_apart(rng, ratio):

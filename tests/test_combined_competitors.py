@@ -8,7 +8,7 @@ import json
 from types import SimpleNamespace
 
 import numpy as np
-from diagnosis_view import diagnosis_view
+from diagnosis_view import diagnosis_view, scores
 
 from bayesid.analysis.gap import discovery as dv
 from bayesid.analysis.gap.candidates import Stage
@@ -29,8 +29,8 @@ def _stage(model, windows, coefficients, cost):
     w = np.asarray(windows, float)
     rms = float(np.sqrt(np.mean(w**2)))
     fit = SimpleNamespace(coefficients=lambda: dict(coefficients), cost=cost, bic=1000.0 * cost, p=np.zeros(3))
-    held = {"rms_position_m": rms, "per_track_rms_position_m": {"z": rms}}
-    return Stage(model, fit, {"rms_position_m": rms}, held, None, w)
+    held = scores(rms, per_track_rms_position_m={"z": rms})
+    return Stage(model, fit, scores(rms), held, None, w)
 
 
 def test_the_second_terms_competitors_are_refitted_on_top_of_the_first(monkeypatch):

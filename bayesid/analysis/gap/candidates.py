@@ -596,19 +596,19 @@ def candidate_row(effect, st: Stage, ref: Stage, floor_rms: float, excess0: floa
         verdict sets it, :func:`~bayesid.analysis.gap.verdict.assign_roles`); ``failed_fit``
         (:func:`failed_fit`).
     """
-    excess = ref.held["rms_position_m"] - floor_rms
-    gain = ref.held["rms_position_m"] - st.held["rms_position_m"]
+    excess = ref.held.rms_position_m - floor_rms
+    gain = ref.held.rms_position_m - st.held.rms_position_m
     sds = parameter_sds(st.fit, effect)
     return CandidateRow(
         effect=effect.name,
-        heldout_rms_m=st.held["rms_position_m"],
-        train_rms_m=st.train["rms_position_m"],
+        heldout_rms_m=st.held.rms_position_m,
+        train_rms_m=st.train.rms_position_m,
         delta_bic=st.fit.bic - ref.fit.bic,
         excess_removed=gain / excess if excess > 0 else 0.0,
         share_of_excess=gain / excess0 if excess0 > 0 else 0.0,
-        heldout_shrinkage=1 - st.held["rms_position_m"] / ref.held["rms_position_m"],
+        heldout_shrinkage=1 - st.held.rms_position_m / ref.held.rms_position_m,
         parameters=st.fit.effect_parameters()[effect.name],
-        heading_rms_deg=st.held["rms_heading_deg"],
+        heading_rms_deg=st.held.rms_heading_deg,
         window_p_value=paired_window_test(ref.windows, st.windows),
         nfev=st.fit.n_simulations,
         fit_seconds=st.fit.wall_s,

@@ -652,7 +652,7 @@ def diagnose(
         rounds=search.rounds,
         gap_before=gap_summary(b_train, b_held),
         gap_after=gap_summary(after.train, after.held),
-        heldout_shrinkage=1 - after.held["rms_position_m"] / b_held["rms_position_m"],
+        heldout_shrinkage=1 - after.held.rms_position_m / b_held["rms_position_m"],
         noise_floor=floor,
         gap_ratio=b_held["rms_position_m"] / floor.heldout_rms_m,
         significant_gap=significant,
@@ -908,7 +908,7 @@ def _outcome(
     contributors += [
         contribution(r, added=False) for r in ranking if r.role == "contributor" and r.effect not in chosen
     ]
-    held = after.held["rms_position_m"]
+    held = after.held.rms_position_m
     remainder = Remainder(
         heldout_rms_m=held,
         fraction_of_excess=(held - floor_rms) / excess0 if excess0 > 0 else 0.0,
@@ -1159,7 +1159,7 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
     first = None
     say = runner.say
     band = th.none_ratio * floor.heldout_rms_m
-    excess0 = base_stage.held["rms_position_m"] - floor.heldout_rms_m
+    excess0 = base_stage.held.rms_position_m - floor.heldout_rms_m
     ranking, rounds, chosen, roles, seconds = [], [], [], {}, []
     current = base_stage
     parallel = runner.scheduler is not None or int(runner.jobs) > 1
@@ -1214,7 +1214,7 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
             first = beside(results, stages)
             if first is not None and first.took_round:  # the effects are tried on top of its terms
                 setup, current = first.setup, first.discovery.after
-                if current.held["rms_position_m"] <= band:
+                if current.held.rms_position_m <= band:
                     break
                 continue
         if top is None:
@@ -1222,7 +1222,7 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
         chosen.append(top.effect)
         roles[top.effect] = top
         current = stages[top.effect]
-        if current.held["rms_position_m"] <= band:
+        if current.held.rms_position_m <= band:
             break
     return Rounds(ranking, rounds, chosen, roles, current, seconds, first)
 
@@ -1371,13 +1371,13 @@ def discovery_beside_round_one(
     p, share, role = None, None, None
     if found.found:
         floor_rms = float(context.get("floor_rms", 0.0))
-        before, after = rival.held["rms_position_m"], found.after.held["rms_position_m"]
+        before, after = rival.held.rms_position_m, found.after.held.rms_position_m
         p = paired_window_test(rival.windows, found.after.windows)
         share = (before - after) / (before - floor_rms) if before > floor_rms else 0.0
-        excess0 = base.held["rms_position_m"] - floor_rms
+        excess0 = base.held.rms_position_m - floor_rms
         row = {
             "heldout_rms_m": after,
-            "excess_removed": (base.held["rms_position_m"] - after) / excess0 if excess0 > 0 else 0.0,
+            "excess_removed": (base.held.rms_position_m - after) / excess0 if excess0 > 0 else 0.0,
             "delta_bic": found.after.fit.bic - own.fit.bic,
         }
         role = "cause" if is_cause(row, True, th.none_ratio * floor_rms, th) else "contributor"
@@ -1391,7 +1391,7 @@ def discovery_beside_round_one(
         "heldout_rms_m": found.heldout_rms_after_m,
         "effect": top.effect,
         "effect_role": top.role,
-        "effect_heldout_rms_m": rival.held["rms_position_m"],
+        "effect_heldout_rms_m": rival.held.rms_position_m,
         "role": role,
         "window_p_value": p,
         "share_of_effect_excess": share,

@@ -338,7 +338,7 @@ class Discovery:
                 }
             )
             if on_top is not None:
-                out[-1]["heldout_rms_on_top_m"] = on_top.held["rms_position_m"]
+                out[-1]["heldout_rms_on_top_m"] = on_top.held.rms_position_m
         return out
 
 
@@ -670,7 +670,7 @@ def discover(
     inclusion = dict(sorted(((k, v) for k, v in sel.inclusion.items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(
         found=found,
-        verdict=_verdict(found, (after or ref).held["rms_position_m"], th.none_ratio * floor_rms, alts),
+        verdict=_verdict(found, (after or ref).held.rms_position_m, th.none_ratio * floor_rms, alts),
         discovered=discovered,
         inclusion=inclusion,
         residuals={
@@ -681,8 +681,8 @@ def discover(
             "mimicked_by": sel.mimicked_by,
         },
         library_size=len(names),
-        heldout_rms_before_m=ref.held["rms_position_m"],
-        heldout_rms_after_m=(after or ref).held["rms_position_m"],
+        heldout_rms_before_m=ref.held.rms_position_m,
+        heldout_rms_after_m=(after or ref).held.rms_position_m,
         after_coefficients=(after or ref).fit.coefficients(),
         windows_before_m=[float(x) for x in ref.windows],
         windows_after_m=[float(x) for x in (after or ref).windows],

@@ -172,19 +172,19 @@ def refit_row(
         group_inclusion_probability=sel.group_probability.get(term, 0.0),
         group=sel.groups.get(term, []),
         regression_coefficient=sel.coefficient.get(term, 0.0),
-        heldout_rms_before_m=ref.held["rms_position_m"],
-        train_rms_before_m=ref.train["rms_position_m"],
+        heldout_rms_before_m=ref.held.rms_position_m,
+        train_rms_before_m=ref.train.rms_position_m,
     )
     if st is None:
         return replace(row, kept=False, reason="every fit failed")
-    before, after = ref.held["rms_position_m"], st.held["rms_position_m"]
+    before, after = ref.held.rms_position_m, st.held.rms_position_m
     excess = before - floor_rms
     return replace(
         row,
         coefficient=st.fit.coefficients()[term],
         coefficient_sd=sd,
         heldout_rms_after_m=after,
-        train_rms_after_m=st.train["rms_position_m"],
+        train_rms_after_m=st.train.rms_position_m,
         shrinkage=1 - after / before,  # also written as heldout_shrinkage (TermRow's alias)
         delta_bic=st.fit.bic - ref.fit.bic,
         # the refit starts at the reference (the term at 0): ending above it is a failed fit
@@ -386,7 +386,7 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
     found, chain = [order[0]], [stages[order[0]]]
     for n in order[1:]:
         cur = chain[-1]
-        if cur.held["rms_position_m"] <= th.none_ratio * floor_rms:
+        if cur.held.rms_position_m <= th.none_ratio * floor_rms:
             break  # the gap is closed: a further term would fit noise
         values = {k: cur.fit.coefficients()[k] for k in found}
         st = _fit_on_top(values, n, cur, ref, setup, fit_args, initial)
@@ -576,7 +576,7 @@ def dominance_order(kept: list, stages: dict, th: Thresholds, runs: tuple | None
                     beaten[b] += 1
                 elif a_worse and not b_worse:
                     beaten[a] += 1
-    return sorted(kept, key=lambda n: (beaten[n], stages[n].held["rms_position_m"]))
+    return sorted(kept, key=lambda n: (beaten[n], stages[n].held.rms_position_m))
 
 
 def compare_structures(
