@@ -248,13 +248,15 @@ class Diagnosis:
         ValueError
             A key the diagnosis does not have, or a required one missing (named).
         """
+        readers = {  # the records' fields, read back as records
+            "remainder": Remainder.from_dict,
+            "noise_floor": NoiseFloor.from_dict,
+            "ranking": lambda rows: [CandidateRow.from_dict(r) for r in rows],
+            "rounds": lambda rounds: [[CandidateRow.from_dict(r) for r in rnd] for rnd in rounds],
+            "base_check": lambda c: BaseCheck.from_dict(c) if c else c,
+        }
         args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
-        args["remainder"] = Remainder.from_dict(args["remainder"])
-        args["noise_floor"] = NoiseFloor.from_dict(args["noise_floor"])
-        args["ranking"] = [CandidateRow.from_dict(r) for r in args["ranking"]]
-        args["rounds"] = [[CandidateRow.from_dict(r) for r in rnd] for rnd in args["rounds"]]
-        if args.get("base_check"):
-            args["base_check"] = BaseCheck.from_dict(args["base_check"])
+        args = {k: readers[k](v) if k in readers else v for k, v in args.items()}
         return cls(**args, discovered_terms=list(d.get("discovered") or []))
 
 
