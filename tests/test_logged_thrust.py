@@ -66,17 +66,17 @@ def test_a_propeller_short_of_thrust_is_seen_and_carries_the_missing_surge_force
     fit = SimpleNamespace(p=weak.start())
     motion, F, inputs = weak.missing_forces(fit, tr)
     th = _thrust_check(weak, fit, [(motion, inputs, tr)], [F])
-    assert th["tracks"] == 1
-    assert th["bias_fraction"] == pytest.approx(-0.2, abs=0.01)
-    assert th["missing_x_rms_logged_thrust_n"] < 0.2 * th["missing_x_rms_n"]
-    assert th["propeller_share"] > 0.9
+    assert th.tracks == 1
+    assert th.bias_fraction == pytest.approx(-0.2, abs=0.01)
+    assert th.missing_x_rms_logged_thrust_n < 0.2 * th.missing_x_rms_n
+    assert th.propeller_share > 0.9
     # the truth itself: no deficit, and the logged thrust changes nothing
     true = ShipModel(ship)
     fit = SimpleNamespace(p=true.start())
     motion, F, inputs = true.missing_forces(fit, tr)
     th = _thrust_check(true, fit, [(motion, inputs, tr)], [F])
-    assert abs(th["bias_fraction"]) < 0.005
-    assert th["rms_n"] < 0.01 * th["logged_mean_n"]
+    assert abs(th.bias_fraction) < 0.005
+    assert th.rms_n < 0.01 * th.logged_mean_n
 
 
 def test_the_report_says_whose_the_surge_miss_is():

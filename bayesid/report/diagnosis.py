@@ -8,7 +8,7 @@ from functools import partial
 from pathlib import Path
 
 from ..analysis.gap.candidates import UNDETERMINED_SCALES
-from ..analysis.gap.records import BaseCheck, CandidateRow, NoiseFloor, Remainder, TermRow
+from ..analysis.gap.records import BaseCheck, CandidateRow, Contribution, NoiseFloor, Remainder, TermRow, ThrustCheck
 from ..analysis.gap.verdict import Thresholds
 from .markdown import fmt, md_table, warning_lines
 from .study import write_json
@@ -62,11 +62,11 @@ def attribution_lines(diag) -> list[str]:
     out = []
     if diag.cause:
         out.append(f"Cause: **{diag.cause}** (with it the held-out error is inside the noise-floor band).")
-    for c in diag.contributors:
+    for c in map(partial(_record, Contribution), diag.contributors):
         out.append(
-            f"- Contributor **{c['effect']}** ({'added' if c['added'] else 'not added'}): removes "
-            f"{fmt(c['share_of_excess'])} of the base model's excess (held-out {fmt(c['heldout_rms_m'])} m; "
-            f"paired window test p = {fmt(c['window_p_value'])}, ΔBIC {fmt(c['delta_bic'], 4)})."
+            f"- Contributor **{c.effect}** ({'added' if c.added else 'not added'}): removes "
+            f"{fmt(c.share_of_excess)} of the base model's excess (held-out {fmt(c.heldout_rms_m)} m; "
+            f"paired window test p = {fmt(c.window_p_value)}, ΔBIC {fmt(c.delta_bic, 4)})."
         )
     rem = _record(Remainder, diag.remainder)
     if rem and diag.significant_gap:
@@ -1092,12 +1092,13 @@ def _speed_from_positions(sog: dict | None) -> list[str]:
     ]
 
 
-def _thrust_lines(th: dict | None) -> list[str]:
+def _thrust_lines(check: ThrustCheck | dict | None) -> list[str]:
     """The Where section's lines on the propeller against the logged thrust
-    (:func:`bayesid.analysis.gap.where.where`'s ``thrust``)."""
-    if not th:
+    (:func:`bayesid.analysis.gap.where.where`'s ``thrust``, or its JSON object)."""
+    th = _record(ThrustCheck, check)
+    if th is None:
         return []
-    share = th["propeller_share"]
+    share = th.propeller_share
     if share is None:
         reading = ""
     elif share > 0:
@@ -1112,11 +1113,11 @@ def _thrust_lines(th: dict | None) -> list[str]:
             " other surge terms (the resistance Xuu), or the surge miss is the hull's or the rudder's."
         )
     return [
-        f"The propeller against the logged thrust ({th['tracks']} held-out track(s)): the model's thrust "
-        f"{fmt(th['model_mean_n'])} N against {fmt(th['logged_mean_n'])} N logged on average "
-        f"({fmt(None if th['bias_fraction'] is None else 100.0 * th['bias_fraction'])} %), RMS error {fmt(th['rms_n'])} N; the deficit (logged - model) "
-        f"correlates with |beta_P| at {fmt(th['error_corr_abs_beta_p'])}. The missing surge force's RMS is "
-        f"{fmt(th['missing_x_rms_n'])} N, {fmt(th['missing_x_rms_logged_thrust_n'])} N with the logged thrust "
+        f"The propeller against the logged thrust ({th.tracks} held-out track(s)): the model's thrust "
+        f"{fmt(th.model_mean_n)} N against {fmt(th.logged_mean_n)} N logged on average "
+        f"({fmt(None if th.bias_fraction is None else 100.0 * th.bias_fraction)} %), RMS error {fmt(th.rms_n)} N; the deficit (logged - model) "
+        f"correlates with |beta_P| at {fmt(th.error_corr_abs_beta_p)}. The missing surge force's RMS is "
+        f"{fmt(th.missing_x_rms_n)} N, {fmt(th.missing_x_rms_logged_thrust_n)} N with the logged thrust "
         f"in place of the model's.{reading}",
         "",
     ]

@@ -32,7 +32,7 @@ from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import BaseStage, CandidateFit, Setup, Stage, candidate_row, fit_candidate
 from .design import design, standard_predictions
 from .discovery import Discovery, discover, routed, with_terms
-from .records import BaseCheck, CandidateRow, NoiseFloor, Record, Remainder
+from .records import BaseCheck, CandidateRow, Contribution, NoiseFloor, Record, Remainder
 from .support import signature_regression
 from .verdict import (
     DivergedSimulation,
@@ -75,7 +75,7 @@ class Diagnosis:
         The effects added, in the order added.
     cause : str or None
         The effect that closes the gap, or None.
-    contributors : list of dict
+    contributors : list of Contribution
         Every effect that passed the contributor test (added or not), with its share, p-value,
         ΔBIC and parameters.
     remainder : Remainder
@@ -254,6 +254,7 @@ class Diagnosis:
             "ranking": lambda rows: [CandidateRow.from_dict(r) for r in rows],
             "rounds": lambda rounds: [[CandidateRow.from_dict(r) for r in rnd] for rnd in rounds],
             "base_check": lambda c: BaseCheck.from_dict(c) if c else c,
+            "contributors": lambda cs: [Contribution.from_dict(c) for c in cs],
         }
         args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
         args = {k: readers[k](v) if k in readers else v for k, v in args.items()}

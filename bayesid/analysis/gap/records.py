@@ -17,7 +17,7 @@ from typing import ClassVar
 from ...protocol import Scores
 from ...tasks import record_fields
 
-__all__ = ["Record", "NoiseFloor", "CandidateRow", "Remainder", "BaseCheck", "TermRow"]
+__all__ = ["Record", "NoiseFloor", "CandidateRow", "Remainder", "Contribution", "ThrustCheck", "BaseCheck", "TermRow"]
 
 #: The strings strict JSON writes for non-finite floats (:func:`bayesid.tasks.jsonable`).
 _NON_FINITE = ("nan", "inf", "-inf")
@@ -254,6 +254,79 @@ class Remainder(Record):
     significant: bool
 
     _WHAT: ClassVar[str] = "remainder"
+
+
+@dataclass(frozen=True, eq=False)
+class Contribution(Record):
+    """An effect that improves the held-out windows significantly without closing the gap, added
+    or not (``Diagnosis.contributors``; :func:`bayesid.analysis.gap.verdict.contribution`).
+
+    Parameters
+    ----------
+    effect : str
+        The effect.
+    added : bool
+        Whether it was added to the model.
+    share_of_excess : float
+        The share of the base model's excess over the floor it removes.
+    heldout_rms_m : float
+        Held-out RMS position error with it, m.
+    window_p_value : float
+        The paired window test's p against the model it extends.
+    delta_bic : float
+        Its training ΔBIC.
+    parameters : dict
+        Its fitted parameters.
+    """
+
+    effect: str
+    added: bool
+    share_of_excess: float
+    heldout_rms_m: float
+    window_p_value: float
+    delta_bic: float
+    parameters: dict
+
+    _WHAT: ClassVar[str] = "contributor"
+
+
+@dataclass(frozen=True, eq=False)
+class ThrustCheck(Record):
+    """The fitted model's propeller thrust against a logged one (``Diagnosis.where["thrust"]``;
+    :func:`bayesid.analysis.gap.where.where`).
+
+    Parameters
+    ----------
+    tracks : int
+        The tracks that log the thrust.
+    logged_mean_n, model_mean_n : float
+        The logged and the model's mean thrust, N.
+    bias_fraction : float or None
+        Model / logged mean - 1.
+    rms_n : float
+        RMS of model - logged thrust, N.
+    error_corr_abs_beta_p : float or None
+        Correlation of the thrust deficit (logged - model) with the propeller's drift angle's size.
+    missing_x_rms_n : float
+        The missing surge force's RMS (inverse dynamics), N.
+    missing_x_rms_logged_thrust_n : float
+        The same with the logged thrust in place of the model's, N.
+    propeller_share : float or None
+        1 - the squared ratio of the two: the share of the missing surge force's mean square the
+        thrust error carries (negative: the fit absorbed the thrust error in other surge terms).
+    """
+
+    tracks: int
+    logged_mean_n: float
+    model_mean_n: float
+    bias_fraction: float | None
+    rms_n: float
+    error_corr_abs_beta_p: float | None
+    missing_x_rms_n: float
+    missing_x_rms_logged_thrust_n: float
+    propeller_share: float | None
+
+    _WHAT: ClassVar[str] = "thrust check"
 
 
 @dataclass(frozen=True, eq=False)

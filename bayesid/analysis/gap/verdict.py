@@ -19,7 +19,7 @@ from ...data.track import STATE_NAMES, Track
 from ...estimation.windows import evaluate, window_starts
 from ...models.context import START_INDEX
 from ...protocol import pooled_scores, wrap
-from .records import NoiseFloor
+from .records import CandidateRow, Contribution, NoiseFloor
 
 __all__ = [
     "Thresholds",
@@ -360,31 +360,25 @@ def assign_roles(results: list, significant: bool, band: float, th: Thresholds) 
         results[i] = replace(r, role=role)
 
 
-def contribution(r: dict, added: bool) -> dict:
+def contribution(r: CandidateRow, added: bool) -> Contribution:
     """The report's record of a contributor.
 
     Parameters
     ----------
-    r : dict
+    r : CandidateRow
         The ranked candidate.
     added : bool
         Whether it was added to the model.
 
     Returns
     -------
-    dict
-        ``effect``, ``added``, ``share_of_excess``, ``heldout_rms_m``, ``window_p_value``,
-        ``delta_bic``, ``parameters``.
+    Contribution
+        Its effect, whether added, its share of the excess, held-out RMS, window test, ΔBIC and
+        parameters.
     """
-    return {
-        "effect": r["effect"],
-        "added": added,
-        "share_of_excess": r["share_of_excess"],
-        "heldout_rms_m": r["heldout_rms_m"],
-        "window_p_value": r["window_p_value"],
-        "delta_bic": r["delta_bic"],
-        "parameters": r["parameters"],
-    }
+    return Contribution(
+        r.effect, added, r.share_of_excess, r.heldout_rms_m, r.window_p_value, r.delta_bic, r.parameters
+    )
 
 
 def verdict_of(significant: bool, chosen: list, remainder_significant: bool) -> str:

@@ -13,6 +13,7 @@ from scipy import signal, stats
 
 from ...estimation.windows import Evaluation, evaluate
 from ...protocol import pooled_scores
+from .records import ThrustCheck
 
 __all__ = ["where", "ljung_box", "window_xy", "speed_from_positions", "SPEED_SPAN_S"]
 
@@ -312,8 +313,8 @@ def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | 
                     corr[name] = {"max_abs_corr": float(abs(cc[m][kk])), "lag_s": float(lags[m][kk])}
             out["input_correlation"][k] = corr
         thrust = _thrust_check(model, fitres, motions, Fs)
-        if thrust:
-            out["thrust"] = thrust
+        if thrust is not None:
+            out["thrust"] = thrust.to_dict()
         sig = [model.signature_columns(mo, inp, tr) for (mo, inp, tr) in motions]
         if all("wind" in c for c in sig):  # dependence of the missing forces on the apparent wind
             out["wind_correlation"] = {}
@@ -325,7 +326,7 @@ def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | 
     return out, None
 
 
-def _thrust_check(model, fitres, motions: list, Fs: list) -> dict | None:
+def _thrust_check(model, fitres, motions: list, Fs: list) -> ThrustCheck | None:
     """The fitted model's propeller thrust against the logged one, on the tracks that log it
     (``model.logged_thrust``, ships only), and how much of the missing surge force the thrust
     error carries: the missing X with the logged thrust in place of the model's is
@@ -333,15 +334,8 @@ def _thrust_check(model, fitres, motions: list, Fs: list) -> dict | None:
 
     Returns
     -------
-    dict or None
-        None when the model has no propeller check or no track logs a thrust; else ``tracks``,
-        ``logged_mean_n``, ``model_mean_n``, ``bias_fraction`` (model / logged mean - 1),
-        ``rms_n`` (model - logged), ``error_corr_abs_beta_p`` (the correlation of the thrust deficit,
-        logged - model, with the size of the propeller's drift angle |beta_P|: the wake in a turn), ``missing_x_rms_n``,
-        ``missing_x_rms_logged_thrust_n`` and ``propeller_share`` (1 - their squared ratio: the
-        share of the missing surge force's mean square the thrust error carries; negative when
-        the logged thrust makes the surge balance worse, i.e. the fit absorbed the thrust error in
-        other surge terms).
+    ThrustCheck or None
+        None when the model has no propeller check or no track logs a thrust.
     """
     check = getattr(model, "logged_thrust", None)
     if check is None:
@@ -360,17 +354,17 @@ def _thrust_check(model, fitres, motions: list, Fs: list) -> dict | None:
     X_logged = np.concatenate([x - (1.0 - d.t_p) * (d.logged - d.model) for d, x in rows])
     err = modelled - logged
     a, b = float(np.sqrt(np.mean(X**2))), float(np.sqrt(np.mean(X_logged**2)))
-    return {
-        "tracks": len(rows),
-        "logged_mean_n": float(np.mean(logged)),
-        "model_mean_n": float(np.mean(modelled)),
-        "bias_fraction": float(np.mean(modelled) / np.mean(logged) - 1.0) if np.mean(logged) else None,
-        "rms_n": float(np.sqrt(np.mean(err**2))),
-        "error_corr_abs_beta_p": float(np.corrcoef(-err, beta)[0, 1]) if err.std() > 0 and beta.std() > 0 else None,
-        "missing_x_rms_n": a,
-        "missing_x_rms_logged_thrust_n": b,
-        "propeller_share": 1.0 - (b / a) ** 2 if a > 0 else None,
-    }
+    return ThrustCheck(
+        tracks=len(rows),
+        logged_mean_n=float(np.mean(logged)),
+        model_mean_n=float(np.mean(modelled)),
+        bias_fraction=float(np.mean(modelled) / np.mean(logged) - 1.0) if np.mean(logged) else None,
+        rms_n=float(np.sqrt(np.mean(err**2))),
+        error_corr_abs_beta_p=float(np.corrcoef(-err, beta)[0, 1]) if err.std() > 0 and beta.std() > 0 else None,
+        missing_x_rms_n=a,
+        missing_x_rms_logged_thrust_n=b,
+        propeller_share=1.0 - (b / a) ** 2 if a > 0 else None,
+    )
 
 
 def window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin_s=0.0):
