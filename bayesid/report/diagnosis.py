@@ -8,7 +8,16 @@ from functools import partial
 from pathlib import Path
 
 from ..analysis.gap.candidates import UNDETERMINED_SCALES
-from ..analysis.gap.records import BaseCheck, CandidateRow, Contribution, NoiseFloor, Remainder, TermRow, ThrustCheck
+from ..analysis.gap.records import (
+    BaseCheck,
+    CandidateRow,
+    Contribution,
+    FirstRoundSummary,
+    NoiseFloor,
+    Remainder,
+    TermRow,
+    ThrustCheck,
+)
 from ..analysis.gap.verdict import Thresholds
 from .markdown import fmt, md_table, warning_lines
 from .study import write_json
@@ -157,27 +166,33 @@ def _figures(diag, out: Path, heldout: list) -> list:
 def _added(diag) -> list:
     """What the model after the rounds has on top of the base model, in the order added: the
     discovered terms when they took round 1 (``discovery_first``), then the effects."""
-    first = diag.discovery_first or {}
-    return [*(first["found"] if first.get("took_round") else []), *diag.effects_added]
+    first = _record(FirstRoundSummary, diag.discovery_first)
+    return [*(first.found if _took_round(diag) else []), *diag.effects_added]
+
+
+def _took_round(diag) -> bool:
+    """Whether discovery's terms on the base model took round 1 (``discovery_first``)."""
+    first = _record(FirstRoundSummary, diag.discovery_first)
+    return first is not None and first.took_round
 
 
 def _first_round_lines(diag) -> list:
     """Discovery beside round 1: its terms on the base model against round 1's best effect."""
-    F = diag.discovery_first or {}
-    if not F:
+    F = _record(FirstRoundSummary, diag.discovery_first)
+    if F is None:
         return []
-    if F["found"]:
+    if F.found:
         kept = (
-            f"{'+'.join(F['found'])} (held-out {fmt(F['heldout_rms_m'])} m, as a {F['role']}; paired window test "
-            f"against the effect p = {fmt(F['window_p_value'])}, {fmt(F['share_of_effect_excess'])} of its excess "
+            f"{'+'.join(F.found)} (held-out {fmt(F.heldout_rms_m)} m, as a {F.role}; paired window test "
+            f"against the effect p = {fmt(F.window_p_value)}, {fmt(F.share_of_effect_excess)} of its excess "
             "over the floor removed)"
         )
     else:
-        kept = f"no term (the base model's held-out {fmt(F['heldout_rms_m'])} m)"
+        kept = f"no term (the base model's held-out {fmt(F.heldout_rms_m)} m)"
     on = "the base model"
-    if F.get("train_starts") == "kinematic":
+    if F.train_starts == "kinematic":
         on = "the base model refitted with its training window starts held at the kinematics"
-    other = F.get("other_starts")
+    other = F.other_starts
     if other:  # the start check flagged the fitted starts: discovery ran on both base fits
         kept += (
             f"; on the base model with {'fitted' if other['train_starts'] == 'fitted' else 'held'} window starts it "
@@ -185,11 +200,11 @@ def _first_round_lines(diag) -> list:
         )
     return [
         f"Beside round 1, discovery on {on} kept {kept} "
-        f"against round 1's {F['effect_role']} **{F['effect']}** ({fmt(F['effect_heldout_rms_m'])} m), ranked "
+        f"against round 1's {F.effect_role} **{F.effect}** ({fmt(F.effect_heldout_rms_m)} m), ranked "
         "by the rounds' rule (a cause first, then the lower held-out RMS): "
         + (
             "the terms took round 1 and the effects were tried on top of them; the discovery below is that one."
-            if F["took_round"]
+            if F.took_round
             else "the effect took round 1; the discovery below ran after the rounds."
         ),
         "",
@@ -725,7 +740,7 @@ def _discovery_lines(diag) -> list:
         "",
         *_first_round_lines(diag),
         # after the rounds; beside round 1 the sentence above says it
-        *([] if (diag.discovery_first or {}).get("took_round") else _held_starts_lines(D.get("settings", {}))),
+        *([] if _took_round(diag) else _held_starts_lines(D.get("settings", {}))),
         f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
         f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
         f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "

@@ -32,7 +32,7 @@ from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import BaseStage, CandidateFit, Setup, Stage, candidate_row, fit_candidate
 from .design import design, standard_predictions
 from .discovery import Discovery, discover, routed, with_terms
-from .records import BaseCheck, CandidateRow, Contribution, NoiseFloor, Record, Remainder
+from .records import BaseCheck, CandidateRow, Contribution, FirstRoundSummary, NoiseFloor, Record, Remainder
 from .support import signature_regression
 from .verdict import (
     DivergedSimulation,
@@ -125,7 +125,7 @@ class Diagnosis:
         Structure discovery (:mod:`bayesid.analysis.gap.discovery`; ``discovered`` lists every
         refitted term) on the model after the effects, or on the base model when its terms took
         round 1 (``discovery_first``); ``{}`` when it was not run.
-    discovery_first : dict
+    discovery_first : FirstRoundSummary or dict
         Discovery beside round 1 (:func:`discovery_beside_round_one`): whether discovery's terms
         on the base model beat round 1's best catalogue effect, with both held-out RMS and the
         paired window test; ``{}`` when round 1 had no effect to add or discovery was not run.
@@ -199,7 +199,7 @@ class Diagnosis:
     seconds: float
     round_seconds: list = field(default_factory=list)
     discovery: dict = field(default_factory=dict)
-    discovery_first: dict = field(default_factory=dict)
+    discovery_first: FirstRoundSummary | dict = field(default_factory=dict)
     gap_discovered: dict = field(default_factory=dict)
     base_check: BaseCheck | dict = field(default_factory=dict)
     design: list = field(default_factory=list)
@@ -255,6 +255,7 @@ class Diagnosis:
             "rounds": lambda rounds: [[CandidateRow.from_dict(r) for r in rnd] for rnd in rounds],
             "base_check": lambda c: BaseCheck.from_dict(c) if c else c,
             "contributors": lambda cs: [Contribution.from_dict(c) for c in cs],
+            "discovery_first": lambda f: FirstRoundSummary.read(f) if f else f,
         }
         args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
         args = {k: readers[k](v) if k in readers else v for k, v in args.items()}
@@ -1282,14 +1283,14 @@ class FirstRound:
     setup : Setup or None
         The diagnosis' setup with the kept terms added (free, at their fitted values) when they
         took the round, else None.
-    summary : dict
-        The JSON-able comparison (``Diagnosis.discovery_first``).
+    summary : FirstRoundSummary
+        The comparison (``Diagnosis.discovery_first``).
     """
 
     discovery: Discovery
     took_round: bool
     setup: Setup | None
-    summary: dict
+    summary: FirstRoundSummary
 
 
 def discovery_beside_round_one(
@@ -1388,27 +1389,29 @@ def discovery_beside_round_one(
         rows = [*results, SimpleNamespace(effect=None, heldout_rms_m=after, role=role)]
         rows.sort(key=lambda d: (not np.isfinite(d.heldout_rms_m), d.heldout_rms_m))
     took = role is not None and _best_effect(rows).effect is None
-    summary = {
-        "found": list(found.found),
-        "verdict": found.verdict,
-        "heldout_rms_m": found.heldout_rms_after_m,
-        "effect": top.effect,
-        "effect_role": top.role,
-        "effect_heldout_rms_m": rival.held.rms_position_m,
-        "role": role,
-        "window_p_value": p,
-        "share_of_effect_excess": share,
-        "took_round": took,
-        "seconds": time.perf_counter() - tic,
-        "train_starts": found.settings.get("train_starts", "fitted"),
-    }
-    if "other_starts" in found.settings:  # the search on the other base fit's starts
-        summary["other_starts"] = found.settings["other_starts"]
-    if not took:  # the kept terms' numbers; the discovery in the report is the one after the rounds
-        summary["discovered"] = [
+    summary = FirstRoundSummary(
+        found=list(found.found),
+        verdict=found.verdict,
+        heldout_rms_m=found.heldout_rms_after_m,
+        effect=top.effect,
+        effect_role=top.role,
+        effect_heldout_rms_m=rival.held.rms_position_m,
+        role=role,
+        window_p_value=p,
+        share_of_effect_excess=share,
+        took_round=took,
+        seconds=time.perf_counter() - tic,
+        train_starts=found.settings.get("train_starts", "fitted"),
+        # the search on the other base fit's starts
+        other_starts=found.settings.get("other_starts"),
+        # the kept terms' numbers; the discovery in the report is the one after the rounds
+        discovered=None
+        if took
+        else [
             {k: r.get(k) for k in ("term", "heldout_rms_after_m", "shrinkage", "delta_bic", "kept")}
             for r in found.discovered
-        ]
+        ],
+    )
     terms = {n: found.after_coefficients[n] for n in found.found}
     return FirstRound(found, took, with_terms(setup, terms) if took else None, summary)
 

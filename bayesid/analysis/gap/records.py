@@ -17,7 +17,17 @@ from typing import ClassVar
 from ...protocol import Scores
 from ...tasks import record_fields
 
-__all__ = ["Record", "NoiseFloor", "CandidateRow", "Remainder", "Contribution", "ThrustCheck", "BaseCheck", "TermRow"]
+__all__ = [
+    "Record",
+    "NoiseFloor",
+    "CandidateRow",
+    "Remainder",
+    "Contribution",
+    "ThrustCheck",
+    "FirstRoundSummary",
+    "BaseCheck",
+    "TermRow",
+]
 
 #: The strings strict JSON writes for non-finite floats (:func:`bayesid.tasks.jsonable`).
 _NON_FINITE = ("nan", "inf", "-inf")
@@ -327,6 +337,59 @@ class ThrustCheck(Record):
     propeller_share: float | None
 
     _WHAT: ClassVar[str] = "thrust check"
+
+
+@dataclass(frozen=True, eq=False)
+class FirstRoundSummary(Record):
+    """Discovery beside round 1 against round 1's best effect (``Diagnosis.discovery_first``;
+    :func:`bayesid.analysis.gap.diagnose.discovery_beside_round_one`).
+
+    Parameters
+    ----------
+    found : list of str
+        The terms discovery kept on the base model.
+    verdict : str
+        Its verdict.
+    heldout_rms_m : float
+        Held-out RMS position error with them, m.
+    effect, effect_role : str
+        Round 1's best effect and its role.
+    effect_heldout_rms_m : float
+        Held-out RMS position error with that effect, m.
+    role : str or None
+        The terms' role by the rounds' rules (None: nothing kept).
+    window_p_value, share_of_effect_excess : float or None
+        The paired window test of the terms' model against the effect's, and the share of the
+        effect's excess over the floor the terms remove.
+    took_round : bool
+        Whether the terms took round 1.
+    seconds : float
+        Wall time.
+    train_starts : str
+        The base fit's training window starts the search ran on (``"fitted"``, ``"kinematic"``).
+    other_starts : dict, optional
+        The search on the other base fit's starts (its starts, terms and held-out RMS).
+    discovered : list of dict, optional
+        The kept terms' numbers when they did not take the round.
+    """
+
+    found: list
+    verdict: str
+    heldout_rms_m: float
+    effect: str
+    effect_role: str
+    effect_heldout_rms_m: float
+    role: str | None
+    window_p_value: float | None
+    share_of_effect_excess: float | None
+    took_round: bool
+    seconds: float
+    train_starts: str
+    other_starts: dict | None = None
+    discovered: list | None = None
+
+    _OPTIONAL: ClassVar[tuple] = ("other_starts", "discovered")
+    _WHAT: ClassVar[str] = "discovery beside round 1"
 
 
 @dataclass(frozen=True, eq=False)
