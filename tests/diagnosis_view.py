@@ -9,6 +9,7 @@ from dataclasses import MISSING, fields
 from types import SimpleNamespace
 
 from bayesid.analysis.gap import Diagnosis
+from bayesid.analysis.gap.discovery import Discovery
 from bayesid.analysis.gap.verdict import Thresholds
 from bayesid.protocol import Scores
 
@@ -31,3 +32,24 @@ def scores(rms_position_m: float, **optional) -> Scores:
     """A stage's protocol scores with only the position RMS (m) a test sets, and its optional
     fields (``per_track_rms_position_m``, ``log_likelihood``)."""
     return Scores({}, float(rms_position_m), float("nan"), float("nan"), 0, **optional)
+
+
+def discovery_view(**given) -> Discovery:
+    """A structure discovery with the fields a test gives, every other one empty (no term found,
+    nothing refitted, NaN errors)."""
+    empty = dict(
+        found=[],
+        verdict="",
+        discovered=[],
+        inclusion={},
+        residuals={},
+        library_size=0,
+        heldout_rms_before_m=float("nan"),
+        heldout_rms_after_m=float("nan"),
+        after_coefficients={},
+        windows_before_m=[],
+        windows_after_m=[],
+        settings={},
+        seconds=0.0,
+    )
+    return Discovery(**{**empty, **given})

@@ -79,6 +79,8 @@ def test_a_compared_term_the_selection_passes_over_is_refitted_and_judged():
 
 
 def test_the_report_says_what_became_of_each_compared_term():
+    from diagnosis_view import discovery_view
+
     from bayesid.report.diagnosis import _compared_lines
 
     D = {
@@ -96,11 +98,11 @@ def test_the_report_says_what_became_of_each_compared_term():
             {"term": "Nvabsvabsr", "kept": True},
         ],
     }
-    text = "\n".join(_compared_lines(D))
+    text = "\n".join(_compared_lines(discovery_view(**D)))
     assert "Nvabsvabsr: kept;" in text
     assert "Nvvr: an alternative of Nvabsvabsr (the runs do not separate them)" in text
     assert "Nvrr: set apart from Nvabsvabsr by the held-out runs, run designed_turn, error ratio 1.62" in text
     assert "Nrrr: set apart from Nvabsvabsr by the training runs, run z20, error ratio 1.3" in text
     assert "Yvvr: not kept: fits the training runs but not the held-out ones" in text
     assert "Nvvv: not refitted." in text
-    assert _compared_lines({"settings": {}}) == []
+    assert _compared_lines(discovery_view()) == []

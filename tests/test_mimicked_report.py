@@ -8,7 +8,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from diagnosis_view import diagnosis_view
+from diagnosis_view import diagnosis_view, discovery_view
 
 from bayesid.analysis.gap import discovery as dv
 from bayesid.analysis.gap.discovery.selection import LinearisedProblem, Selection
@@ -26,7 +26,7 @@ def _report(residuals: dict, free=("Nv", "Nr", "Nvvr", "dR0")) -> str:
         "residuals": {"forces": {}, "explained": 0.1, "projected_rms": 0.4, **residuals},
         "discovered": [],
     }
-    return "\n".join(_discovery_lines(diagnosis_view(discovery=D)))
+    return "\n".join(_discovery_lines(diagnosis_view(discovery=discovery_view(**D))))
 
 
 def _by(parameter, cosine, shift_effect, span=0.999):

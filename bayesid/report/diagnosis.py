@@ -8,6 +8,7 @@ from functools import partial
 from pathlib import Path
 
 from ..analysis.gap.candidates import UNDETERMINED_SCALES
+from ..analysis.gap.discovery import Discovery
 from ..analysis.gap.records import (
     BaseCheck,
     CandidateRow,
@@ -170,6 +171,15 @@ def _added(diag) -> list:
     return [*(first.found if _took_round(diag) else []), *diag.effects_added]
 
 
+def _discovery(diag) -> Discovery | None:
+    """Structure discovery after the rounds (``Diagnosis.discovery``, or its JSON object) as its
+    record (:meth:`~bayesid.analysis.gap.discovery.Discovery.from_dict`), None when it was not run."""
+    D = diag.discovery
+    if not D:
+        return None
+    return D if isinstance(D, Discovery) else Discovery.from_dict(D)
+
+
 def _took_round(diag) -> bool:
     """Whether discovery's terms on the base model took round 1 (``discovery_first``)."""
     first = _record(FirstRoundSummary, diag.discovery_first)
@@ -231,29 +241,29 @@ def _discovery_figures(diag, design: list, out: Path, heldout: list) -> list:
     the kept terms, and the first held-out track's windows with them."""
     from . import plots
 
-    D = diag.discovery or {}
+    D = _discovery(diag)
     found = getattr(diag, "discovered", None)
-    if not D or found is None:
+    if D is None or found is None:
         return []
-    after, label = D["windows_after_m"], "with " + "+".join(D["found"])
-    if not D["found"]:  # nothing kept: the best refitted term, to show why
-        fitted = [r for r in map(partial(_record, TermRow), D["discovered"]) if r.heldout_windows_after_m]
+    after, label = D.windows_after_m, "with " + "+".join(D.found)
+    if not D.found:  # nothing kept: the best refitted term, to show why
+        fitted = [r for r in map(partial(_record, TermRow), D.discovered) if r.heldout_windows_after_m]
         if not fitted:
             return []
         best = min(fitted, key=lambda r: r.heldout_rms_after_m)
         after, label = best.heldout_windows_after_m, f"with {best.term} (best refitted, not kept)"
     figs = [
         plots.window_scatter(
-            D["windows_before_m"],
+            D.windows_before_m,
             after,
             out / "figures" / "discovery_windows.png",
-            title="Held-out windows: " + (D["verdict"] or ""),
+            title="Held-out windows: " + (D.verdict or ""),
             labels=("reference model", label),
         )
     ]
     if found.after is not None and heldout:
         path = out / "figures" / "discovery_track.png"
-        labels = ("reference model", "with " + "+".join(D["found"]))
+        labels = ("reference model", "with " + "+".join(D.found))
         figs.append(_window_figure(found.reference or diag.after, found.after, diag, heldout[0], path, labels))
     if design:
         ax = plots.plot_alternatives(design[0])
@@ -692,14 +702,14 @@ def _mimicked_text(R: dict, free, shown: int = 5, refit_rows=()) -> str:
     return "".join(out)
 
 
-def _compared_fate(D: dict, term: str) -> str:
+def _compared_fate(D: Discovery, term: str) -> str:
     """What became of a term asked for with ``--compare`` (the discovery entry ``D``)."""
-    if term in D.get("found", []):
+    if term in D.found:
         return "kept"
-    for k, alts in (D.get("alternatives") or {}).items():
+    for k, alts in D.alternatives.items():
         if any(a["term"] == term for a in alts):
             return f"an alternative of {k} (the runs do not separate them)"
-    for k, seps in (D.get("separated") or {}).items():
+    for k, seps in D.separated.items():
         a = next((a for a in seps if a["term"] == term), None)
         if a is not None:
             by = a.get("separated_by") or "held-out"
@@ -707,17 +717,17 @@ def _compared_fate(D: dict, term: str) -> str:
             ratio = a.get("run_error_ratio") if by == "heldout" else a.get("train_error_ratio")
             where = f", run {run}" + (f", error ratio {fmt(ratio)}" if ratio is not None else "") if run else ""
             return f"set apart from {k} by the {'training' if by == 'training' else 'held-out'} runs{where}"
-    row = next((r for r in D.get("discovered", []) if r["term"] == term), None)
+    row = next((r for r in D.discovered if r["term"] == term), None)
     if row is None:
         return "not refitted"
     if row.get("kept"):
-        return "passed the kept test alone but not on top of " + "+".join(D.get("found", []))
+        return "passed the kept test alone but not on top of " + "+".join(D.found)
     return "not kept: " + (row.get("reason") or "failed the kept test")
 
 
-def _compared_lines(D: dict) -> list:
+def _compared_lines(D: Discovery) -> list:
     """The fate of each term asked for with ``--compare`` (``settings.compare``), when any."""
-    asked = list((D.get("settings") or {}).get("compare") or [])
+    asked = list(D.settings.get("compare") or [])
     if not asked:
         return []
     return [
@@ -731,20 +741,20 @@ def _compared_lines(D: dict) -> list:
 def _discovery_lines(diag) -> list:
     """The structure-discovery section: every refitted term with its numbers, the missing force
     per degree of freedom against the best library terms, and what was tried."""
-    D = diag.discovery or {}
-    if not D:
+    D = _discovery(diag)
+    if D is None:
         return []
-    R = D["residuals"]
+    R = D.residuals
     lines = [
         "## What the model lacks (structure discovery)",
         "",
         *_first_round_lines(diag),
         # after the rounds; beside round 1 the sentence above says it
-        *([] if _took_round(diag) else _held_starts_lines(D.get("settings", {}))),
-        f"**{D['verdict']}** (held-out RMS {fmt(D['heldout_rms_before_m'])} m -> {fmt(D['heldout_rms_after_m'])} m). "
-        f"Library: {D['library_size']} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
-        f"{D['settings']['max_order']}, and constants, in {', '.join(D['settings']['dofs'])}); "
-        + _mimicked_text(R, D["settings"].get("free", []), refit_rows=D["discovered"])
+        *([] if _took_round(diag) else _held_starts_lines(D.settings)),
+        f"**{D.verdict}** (held-out RMS {fmt(D.heldout_rms_before_m)} m -> {fmt(D.heldout_rms_after_m)} m). "
+        f"Library: {D.library_size} candidate terms (products of v, r, |v|, |r|, rudder and |rudder| up to order "
+        f"{D.settings['max_order']}, and constants, in {', '.join(D.settings['dofs'])}); "
+        + _mimicked_text(R, D.settings.get("free", []), refit_rows=D.discovered)
         + f"{fmt(R['projected_rms'])} of the training residual's RMS is beyond any refit of the free coefficients; "
         f"the ensemble's median model explains {fmt(R['explained'])} of that.",
         "",
@@ -774,12 +784,12 @@ def _discovery_lines(diag) -> list:
                     "yes" if r.kept else "no",
                     r.reason,
                 ]
-                for r in map(partial(_record, TermRow), D["discovered"])
+                for r in map(partial(_record, TermRow), D.discovered)
             ],
         )
-        if D["discovered"]
+        if D.discovered
         else "No candidate reached the inclusion probability at which it is refitted "
-        f"({D['settings']['min_probability']}).",
+        f"({D.settings['min_probability']}).",
         "",
         *_compared_lines(D),
         "Method: the training residuals of the output-error fit, linearised in every candidate's "
@@ -877,14 +887,12 @@ def _how_far_lines(diag) -> list:
     gb, ga, gd = diag.gap_before, diag.gap_after, diag.gap_discovered or {}
     added = _added(diag)
     rows = [("base model", gb), ("with " + ("+".join(added) or "nothing"), ga)]
-    D = diag.discovery or {}
-    found, shrink = D.get("found") or [], []
+    D = _discovery(diag)
+    found, shrink = (D.found if D is not None else []), []
     if gd and found:
         # discovery's search on the base refitted with its training window starts held: its training
         # RMS is under those starts, not the fitted ones of the rows above
-        held = (D.get("settings") or {}).get("train_starts") == "kinematic" and diag.settings.get(
-            "train_starts"
-        ) != "kinematic"
+        held = D.settings.get("train_starts") == "kinematic" and diag.settings.get("train_starts") != "kinematic"
         how = "; training window starts held at the kinematics, its train RMS under them" if held else ""
         rows.append((f"with {'+'.join([*added, *found])} ({'+'.join(found)} discovered{how})", gd))
         gain = 1 - gd["heldout_rms_m"] / gb["heldout_rms_m"]
