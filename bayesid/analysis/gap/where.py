@@ -86,38 +86,28 @@ def where(evaluation: Evaluation, fitres, tracks, sd, floor_by_channel=None) -> 
         ``(F list (n, 3) per track, [(motion, inputs, track)])``, or None when inverse dynamics
         failed -- the error is then in the summary under ``forces``.
     """
-    out = {
-        "channels": {},
-        "regions": {},
-        "phases": {},
-        "spectrum": {},
-        "forces": {},
-        "whiteness": {},
-        "input_correlation": {},
-    }
     model = evaluation.model
     errs, per_sample = _per_sample(evaluation, tracks)
     pooled = pooled_scores(errs)
-    for c, val in pooled["rms"].items():
+    channels = {}
+    for c, val in pooled.rms.items():
         fl = None if floor_by_channel is None else floor_by_channel.get(c)
-        out["channels"][c] = {
-            "rms": val,
-            "noise_sd": sd.get(c),
-            "floor_rms": fl,
-            "excess_ratio": (val / fl) if fl else None,
-        }
-    out["channels"]["position"] = {"rms": pooled["rms_position_m"]}
-    if "u" not in pooled["rms"]:  # no speed log: the speed over ground read from the positions
+        channels[c] = {"rms": val, "noise_sd": sd.get(c), "floor_rms": fl, "excess_ratio": (val / fl) if fl else None}
+    channels["position"] = {"rms": pooled.rms_position_m}
+    speed = {}
+    if "u" not in pooled.rms:  # no speed log: the speed over ground read from the positions
         sd_xy = [sd[c] for c in ("x", "y") if c in sd]
         if sd_xy:
-            out["speed_from_positions"] = speed_from_positions(evaluation, math.sqrt(np.mean(np.square(sd_xy))))
-    ex = {c: d["excess_ratio"] for c, d in out["channels"].items() if d.get("excess_ratio")}
-    out["dominant_channel"] = max(ex, key=ex.get) if ex else None
+            speed = {"speed_from_positions": speed_from_positions(evaluation, math.sqrt(np.mean(np.square(sd_xy))))}
+    ex = {c: d.get("excess_ratio") for c, d in channels.items() if d.get("excess_ratio")}
     common = set.intersection(*(set(p) for p in per_sample))
     cat = {k: np.concatenate([p[k] for p in per_sample]) for k in per_sample[0] if k in common}
-    out["regions"], out["dominant_region"] = _regions(model.regions(), cat)
-    out["phases"] = _phases(cat)
-    return _force_diagnostics(model, fitres, tracks, out)
+    regions, dominant_region = _regions(model.regions(), cat)
+    found, extra, forces = _force_diagnostics(model, fitres, tracks)
+    # the keys in the order diagnosis.json has always had them
+    summary = {"channels": channels, "regions": regions, "phases": _phases(cat), **found, **speed}
+    summary.update(dominant_channel=max(ex, key=ex.get) if ex else None, dominant_region=dominant_region, **extra)
+    return summary, forces
 
 
 def speed_from_positions(evaluation: Evaluation, position_sd: float, span_s: float = SPEED_SPAN_S) -> dict | None:
@@ -269,21 +259,25 @@ def _phases(cat: dict) -> dict:
     return out
 
 
-def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | None]:
+def _force_diagnostics(model, fitres, tracks) -> tuple[dict, dict, tuple | None]:
     """The missing forces' RMS, spectrum, whiteness and input correlation (first track with
-    velocities) and wind correlation added to ``out``; returns (out, (forces, motions) or None)."""
+    velocities), the propeller against a logged thrust and the wind correlation: ``(found, extra,
+    (forces, motions) or None)``, ``found`` with ``spectrum``, ``forces``, ``whiteness`` and
+    ``input_correlation`` (empty, or ``forces`` with the ``error``, when inverse dynamics fails),
+    ``extra`` with ``thrust`` and ``wind_correlation`` where they apply."""
+    spectrum, forces, whiteness, input_corr, extra = {}, {}, {}, {}, {}
     Fs, motions = [], []
-    for i, tr in enumerate(tracks):
+    for tr in tracks:
         try:
             motion, F, inputs = model.missing_forces(fitres, tr)
         except Exception as exc:  # noqa: BLE001 - reported, not hidden
-            out["forces"]["error"] = f"{type(exc).__name__}: {exc}"
+            forces = {"error": f"{type(exc).__name__}: {exc}"}
             break
         Fs.append(F)
         motions.append((motion, inputs, tr))
     if Fs:
         Fcat = np.vstack(Fs)
-        out["forces"] = {k: float(np.sqrt(np.mean(Fcat[:, j] ** 2))) for j, k in enumerate("XYN")}
+        forces = {k: float(np.sqrt(np.mean(Fcat[:, j] ** 2))) for j, k in enumerate("XYN")}
         motion, inputs, tr = motions[0]
         t = motion["t"]
         fs = 1.0 / np.median(np.diff(t))
@@ -291,14 +285,14 @@ def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | 
             f, pxx = signal.welch(Fs[0][:, j] - Fs[0][:, j].mean(), fs=fs, nperseg=min(len(t), int(256 * fs / 2)))
             sel = f > 0.02
             kk = np.argmax(pxx[sel])
-            out["spectrum"][k] = {
+            spectrum[k] = {
                 "peak_period_s": float(1.0 / f[sel][kk]),
                 "peak_frequency_hz": float(f[sel][kk]),
                 "peak_to_median": float(pxx[sel][kk] / np.median(pxx[sel])),
             }
             dec = max(1, int(round(motion["window_s"] * fs)))
             qv, pv = ljung_box(Fs[0][::dec, j])
-            out["whiteness"][k] = {"ljung_box_q": qv, "p_value": pv, "decimation": dec}
+            whiteness[k] = {"ljung_box_q": qv, "p_value": pv, "decimation": dec}
             corr = {}
             dr = np.interp(t, tr.t, inputs[:, 0])
             for name, sig in (("delta_r", dr), ("delta_r_rate", np.gradient(dr, t))):
@@ -311,19 +305,19 @@ def _force_diagnostics(model, fitres, tracks, out: dict) -> tuple[dict, tuple | 
                     m = np.abs(lags) <= 10
                     kk = np.argmax(np.abs(cc[m]))
                     corr[name] = {"max_abs_corr": float(abs(cc[m][kk])), "lag_s": float(lags[m][kk])}
-            out["input_correlation"][k] = corr
+            input_corr[k] = corr
         thrust = _thrust_check(model, fitres, motions, Fs)
         if thrust is not None:
-            out["thrust"] = thrust.to_dict()
+            extra.update(thrust=thrust.to_dict())
         sig = [model.signature_columns(mo, inp, tr) for (mo, inp, tr) in motions]
         if all("wind" in c for c in sig):  # dependence of the missing forces on the apparent wind
-            out["wind_correlation"] = {}
+            wind = {}
             for j, k in enumerate("XYN"):
                 a = np.concatenate([c["wind"][min(j, 2)][:, j] for c in sig])
-                b = Fcat[:, j]
-                out["wind_correlation"][k] = float(np.corrcoef(a, b)[0, 1]) if a.std() > 0 else None
-        return out, (Fs, motions)
-    return out, None
+                wind[k] = float(np.corrcoef(a, Fcat[:, j])[0, 1]) if a.std() > 0 else None
+            extra.update(wind_correlation=wind)
+    found = {"spectrum": spectrum, "forces": forces, "whiteness": whiteness, "input_correlation": input_corr}
+    return found, extra, ((Fs, motions) if Fs else None)
 
 
 def _thrust_check(model, fitres, motions: list, Fs: list) -> ThrustCheck | None:
