@@ -612,7 +612,7 @@ def diagnose(
     if opt.discover is not None and setup.train_starts == "fitted" and (check.starts or {}).get("suspect"):
         # fitted training starts that contradict the kinematics absorb part of what the model lacks:
         # discovery on the base model also searches the base refitted with them held (computed once)
-        held = cache(partial(_held_start_base, alt, setup, (sd, weighting, opt, runner)))
+        held = cache(partial(_held_start_base, alt, setup, sd=sd, weighting=weighting, opt=opt, runner=runner))
     if opt.discover is not None and significant:
         # its own stream, spawned without drawing from rng: a diagnosis where round 1 adds
         # nothing gets the same numbers as before this stage existed
@@ -629,8 +629,8 @@ def diagnose(
         setup,
         cand_effects,
         base_stage,
-        (sd_fit, seeds, opt.max_nfev),
-        (floor, significant, th),
+        CandidateFits(sd_fit, seeds, opt.max_nfev),
+        Judge(floor, significant, th),
         opt.max_effects,
         runner,
         beside=beside,
@@ -642,7 +642,7 @@ def diagnose(
     support = _signature_support(family, cand_effects, base, forces, seeds, rng)
     first = search.discovery_first
     verdict, found, gap_discovered = _discovery_after_rounds(
-        search, significant, remainder_sig, (setup, opt, disc_context, held), rng, runner
+        search, significant, remainder_sig, setup, opt, disc_context, held, rng, runner
     )
     designed, predictions = _design(found, setup, opt.design, runner)
     kinds = {"train": [manoeuvre_kind(t) for t in train], "heldout": [manoeuvre_kind(t) for t in heldout]}
@@ -750,14 +750,22 @@ def _checked_base(setup: Setup, sd: dict, weighting: str, opt: DiagnoseOptions, 
     return b, alt
 
 
-def _discovery_after_rounds(search: Rounds, significant: bool, remainder_sig: bool, ctx: tuple, rng, runner) -> tuple:
+def _discovery_after_rounds(
+    search: Rounds,
+    significant: bool,
+    remainder_sig: bool,
+    setup: Setup,
+    opt: DiagnoseOptions,
+    disc_context: dict,
+    held,
+    rng,
+    runner,
+) -> tuple:
     """The verdict after the greedy rounds and the discovery that goes with it: ``(verdict,
     Discovery or None, gap summary with the discovered terms)``. Discovery's terms came first
     when its model took round 1 (the effects on top of them); otherwise discovery runs on the
     model after the effects while its remainder is significant (on the base model: with held
-    window starts too). ``ctx``: ``(Setup, DiagnoseOptions, discovery context, held-start base
-    or None)``."""
-    setup, opt, disc_context, held = ctx
+    window starts too). ``held``: the held-start base (a callable) or None."""
     after, chosen, first = search.after, search.chosen, search.discovery_first
     found = first.discovery if first is not None and first.took_round else None
     if found is not None:  # discovery's terms came first, the effects on top of them
@@ -870,11 +878,11 @@ def _better_with_held_starts(found, held, options, context: dict, rng, runner: R
     return use, ((setup_k, base_k) if better else None)
 
 
-def _held_start_base(done: BaseStage | None, setup: Setup, fit_args: tuple) -> tuple:
+def _held_start_base(done: BaseStage | None, setup: Setup, *, sd: dict, weighting: str, opt, runner: Runner) -> tuple:
     """The base model refitted with its training window starts held at the kinematics, for
     discovery beside round 1: ``(setup, Stage, sd_fit)``; ``done`` is that base stage when
     ``--train-starts auto`` already fitted it (and kept the fitted starts)."""
-    k = done if done is not None else _base_stage(replace(setup, train_starts="kinematic"), *fit_args)
+    k = done if done is not None else _base_stage(replace(setup, train_starts="kinematic"), sd, weighting, opt, runner)
     return k.setup, k.stage(), k.sd_fit
 
 
@@ -1125,7 +1133,9 @@ def summarise_starts(rows: list[dict]) -> dict:
     }
 
 
-def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects, runner, beside=None) -> dict:
+def _greedy_rounds(
+    setup, cand_effects, base_stage, fits: CandidateFits, judge: Judge, max_effects, runner, beside=None
+) -> Rounds:
     """The candidate rounds of :func:`diagnose`: each round fits every effect not yet chosen on
     top of the chosen ones (as tasks), ranks them on the held-out windows and adds the best cause
     (which ends the search) or the best contributor. With ``beside``, discovery's terms compete
@@ -1140,11 +1150,10 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
         The candidates.
     base_stage : Stage
         The base model.
-    fit_args : tuple
-        ``(channel weights, seeds, iterations)``.
-    judge : tuple
-        ``(floor, significant, thresholds)``: the :class:`NoiseFloor`, whether the gap is
-        significant and the verdict's thresholds.
+    fits : CandidateFits
+        How each candidate is fitted (channel weights, seeds, iterations).
+    judge : Judge
+        The noise floor, whether the gap is significant, and the verdict's thresholds.
     max_effects : int
         Greedy rounds.
     runner : Runner
@@ -1158,8 +1167,8 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
         The ranking, every round, the effects chosen and their rows, the last stage, the rounds'
         wall times and discovery beside round 1.
     """
-    sd_fit, seeds, max_nfev = fit_args
-    floor, significant, th = judge
+    sd_fit, seeds, max_nfev = fits.sd_fit, fits.seeds, fits.max_nfev
+    floor, significant, th = judge.floor, judge.significant, judge.thresholds
     first = None
     say = runner.say
     band = th.none_ratio * floor.heldout_rms_m
@@ -1229,6 +1238,44 @@ def _greedy_rounds(setup, cand_effects, base_stage, fit_args, judge, max_effects
         if current.held.rms_position_m <= band:
             break
     return Rounds(ranking, rounds, chosen, roles, current, seconds, first)
+
+
+@dataclass(frozen=True)
+class CandidateFits:
+    """How the rounds fit each candidate effect (:func:`_greedy_rounds`).
+
+    Parameters
+    ----------
+    sd_fit : dict
+        The channel weights of the fits, SI.
+    seeds : dict
+        ``{effect: start values}`` of the effects' parameters.
+    max_nfev : int
+        Iterations of each fit.
+    """
+
+    sd_fit: dict
+    seeds: dict
+    max_nfev: int
+
+
+@dataclass(frozen=True)
+class Judge:
+    """What the rounds judge the candidates by (:func:`_greedy_rounds`).
+
+    Parameters
+    ----------
+    floor : NoiseFloor
+        The noise floor.
+    significant : bool
+        Whether the base model's gap is significant.
+    thresholds : Thresholds
+        The verdict's thresholds.
+    """
+
+    floor: NoiseFloor
+    significant: bool
+    thresholds: Thresholds
 
 
 @dataclass(frozen=True)
