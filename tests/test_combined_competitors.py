@@ -61,7 +61,7 @@ def test_the_second_terms_competitors_are_refitted_on_top_of_the_first(monkeypat
         chain,
         single,
         ["Nvvr", "Nvdrdr", "Yvvr"],
-        (ref, None, ((), {}, 10), (0.1, Thresholds(), runs), dict.fromkeys(TERMS, 0.0)),
+        cf.Refits(ref, None, (), {}, 10, 0.1, Thresholds(), runs, dict.fromkeys(TERMS, 0.0)),
     )
     # each competitor refitted once, on top of the first term as the combination fitted it
     assert [c[1] for c in calls] == ["Nvdrdr", "Yvvr"]
@@ -161,7 +161,7 @@ def test_a_surrogate_added_first_is_dropped_once_the_term_it_stood_for_joins_it(
     singles = {t: st[(t,)] for t in found}
     ref = _stage(m, 0.9 + noise, {}, 1.0)
     runs = (np.zeros(n, int), ["z"])
-    fits = (ref, None, ((), {}, 10), (0.1, Thresholds(), runs), dict.fromkeys(TERMS, 0.0))
+    fits = cf.Refits(ref, None, (), {}, 10, 0.1, Thresholds(), runs, dict.fromkeys(TERMS, 0.0))
     kept, new_chain, dropped = cf.prune(found, chain, singles, fits)
     assert kept == ["Nvvr", "Nrdrdr"] and dropped == ["Yvvr"]
     assert new_chain == [st[("Nvvr",)], st[("Nvvr", "Nrdrdr")]]

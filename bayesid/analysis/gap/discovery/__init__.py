@@ -70,6 +70,7 @@ from ..verdict import is_contributor as is_contributor
 from ..verdict import paired_window_test as paired_window_test
 from ..verdict import run_separation_test as run_separation_test
 from .confirmation import (
+    Refits,
     TermFit,
     alternatives,
     combine,
@@ -99,6 +100,7 @@ from .library import (
 )
 from .options import DOFS, DiscoveryOptions
 from .selection import (
+    Selection,
     alternative_pool,
     linearised_problem,
     mimicked_companions,
@@ -342,7 +344,7 @@ class Discovery:
         return out
 
 
-def _refit_terms(how: dict, fit_args: tuple, initial: dict, judge: tuple, runner: Runner) -> tuple[list, dict]:
+def _refit_terms(how: dict, refits: Refits, sel: Selection, significant: bool, runner: Runner) -> tuple[list, dict]:
     """Refit each term on top of the reference model (tasks of :func:`fit_term`) and decide its
     row by the kept test.
 
@@ -350,12 +352,13 @@ def _refit_terms(how: dict, fit_args: tuple, initial: dict, judge: tuple, runner
     ----------
     how : dict
         ``{term: refitted_as}``, in the order refitted.
-    fit_args : tuple
-        ``(ref, setup, effects, sd_fit, max_nfev)`` of :class:`TermFit`.
-    initial : dict
-        ``{term: value in the reference model}``.
-    judge : tuple
-        ``(selection, floor_rms, (run of each held-out window, run names), thresholds, significant)``.
+    refits : Refits
+        The reference model, its setup, how a term is fitted (:class:`TermFit`) and judged, and
+        each term's value in the reference.
+    sel : Selection
+        The ensemble's selection (each term's regression value starts its refit).
+    significant : bool
+        Whether the reference model's gap is significant.
     runner : Runner
         Runs the fits; progress messages.
 
@@ -366,10 +369,27 @@ def _refit_terms(how: dict, fit_args: tuple, initial: dict, judge: tuple, runner
     stages : dict
         ``{term: Stage}`` of every refit that converged.
     """
-    sel, floor_rms, runs, th, significant = judge
-    ref = fit_args[0]
+    ref, th = refits.ref, refits.thresholds
     names = list(how)
-    tasks = [Task(n, {"term": n}, (TermFit(n, sel.coefficient.get(n, 0.0), *fit_args, initial[n]),)) for n in names]
+    tasks = [
+        Task(
+            n,
+            {"term": n},
+            (
+                TermFit(
+                    n,
+                    sel.coefficient.get(n, 0.0),
+                    ref,
+                    refits.setup,
+                    refits.effects,
+                    refits.sd_fit,
+                    refits.max_nfev,
+                    refits.initial[n],
+                ),
+            ),
+        )
+        for n in names
+    ]
     outs = Runner(runner.jobs, runner.scheduler).run(fit_term, tasks) if tasks else []
     rows, stages = [], {}
     for n, out in zip(names, outs):
@@ -379,7 +399,7 @@ def _refit_terms(how: dict, fit_args: tuple, initial: dict, judge: tuple, runner
             if isinstance(m, str):
                 runner.say(f"discovery: {m}")
         sd = next((m[1] for m in msgs if isinstance(m, tuple)), None)
-        row = refit_row(n, st, ref, sel, floor_rms, sd, runs, th.separation_margin)
+        row = refit_row(n, st, ref, sel, refits.floor_rms, sd, refits.runs, th.separation_margin)
         rows.append(decide(replace(row, refitted_as=how[n]), significant, th))
         if st is not None:
             stages[n] = st
@@ -616,14 +636,15 @@ def discover(
         runner.say(f"discovery: and, set aside as mimicked, {', '.join(mimicked)}")
     if asked:
         runner.say(f"discovery: and, as asked (compare), {', '.join(asked)}")
-    fit_args = (ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev)
     runs, run_names = window_runs(setup, ref.model)
-    judge = (sel, floor_rms, (runs, run_names), th, significant)
+    refits = Refits(
+        ref, setup, tuple(effects), ctx["sd_fit"], options.max_nfev, floor_rms, th, (runs, run_names), initial
+    )
     how = {
         n: "alternative" if n in pool else "mimicked" if n in mimicked else "compared" if n in asked else "selected"
         for n in refit
     }
-    discovered, fitted = _refit_terms(how, fit_args, initial, judge, runner)
+    discovered, fitted = _refit_terms(how, refits, sel, significant, runner)
     # a kept term competes with the terms it stands for: those its mimic reproduces alike (set aside as
     # mimicked) or, for a term of the score test's pool, the members of its collinear group with at least half
     # its score-test share (the ensemble's own picks already stand for their groups, whose probable members
@@ -639,18 +660,17 @@ def discover(
         for h, words in (("mimicked", "the terms mimicked alike"), ("tied", "the terms of its collinear group")):
             if h in more.values():
                 runner.say(f"discovery: and {words}, {', '.join(c for c in more if more[c] == h)}")
-        initial = {**initial, **reference_values(ref, list(more))}
-        rows, stages_more = _refit_terms(more, fit_args, initial, judge, runner)
+        refits = replace(refits, initial={**refits.initial, **reference_values(ref, list(more))})
+        rows, stages_more = _refit_terms(more, refits, sel, significant, runner)
         discovered, fitted = [*discovered, *rows], {**fitted, **stages_more}
     stages = {r.term: fitted[r.term] for r in discovered if r.kept}
     found, chain = [], [None]
-    combined_args = ((tuple(effects), ctx["sd_fit"], options.max_nfev), (floor_rms, th, (runs, run_names)), initial)
     dropped = []
     if stages:
-        found, chain = combine(list(stages), stages, ref, setup, *combined_args)
+        found, chain = combine(list(stages), stages, refits)
     if len(found) > 1:
         # a term added early that the later ones make redundant goes (backward elimination)
-        found, chain, dropped = prune(found, chain, stages, (ref, setup, *combined_args))
+        found, chain, dropped = prune(found, chain, stages, refits)
         if dropped:
             runner.say(f"discovery: {', '.join(dropped)} no longer needed on top of {'+'.join(found)}: dropped")
     after = chain[-1]
@@ -663,9 +683,7 @@ def discover(
         rank = {r.term: (not r.kept, r.heldout_rms_after_m or np.inf) for r in discovered if r.term in fitted}
         rivals = sorted((n for n in rank if n not in found), key=rank.get)[:MAX_COMBINED_RIVALS]
         runner.say(f"discovery: refitting {', '.join(rivals) or 'nothing'} in the place of {', '.join(found[1:])}")
-        compared, combined = combined_competitors(
-            found, chain, compared, rivals, (ref, setup, *combined_args), train_names
-        )
+        compared, combined = combined_competitors(found, chain, compared, rivals, refits, train_names)
     alts = alternatives(compared)
     inclusion = dict(sorted(((k, v) for k, v in sel.inclusion.items() if v > 0), key=lambda kv: -kv[1]))
     return Discovery(

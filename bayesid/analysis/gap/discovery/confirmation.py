@@ -34,6 +34,7 @@ __all__ = [
     "compare_structures",
     "training_separation",
     "TrainingSeparation",
+    "Refits",
     "alternatives",
     "separated",
     "window_runs",
@@ -330,19 +331,57 @@ def _kept_and_reason(row, significant: bool, th: Thresholds) -> tuple[bool, str]
     return kept, f"held-out gain not significant (window test p = {row['window_p_value']:.3g})"
 
 
-def _fit_on_top(values: dict, n: str, cur: Stage, ref: Stage, setup: Setup, fit_args: tuple, initial: dict):
+@dataclass(frozen=True)
+class Refits:
+    """What the refits of one discovery share: the reference model and its setup, how a term is
+    fitted and how it is judged (:func:`combine`, :func:`prune`, :func:`combined_competitors`).
+
+    Parameters
+    ----------
+    ref : Stage
+        The reference model.
+    setup : Setup
+        Its setup.
+    effects : tuple of Effect
+        Its effects.
+    sd_fit : dict
+        The channel weights of the fits.
+    max_nfev : int
+        Iterations of each fit.
+    floor_rms : float
+        The noise floor's held-out RMS, m.
+    thresholds : Thresholds
+        The verdict's thresholds.
+    runs : tuple or None
+        ``(run of each held-out window, run names)`` (:func:`window_runs`).
+    initial : dict
+        Each term's value in the reference (:func:`~.library.reference_values`).
+    """
+
+    ref: Stage
+    setup: Setup
+    effects: tuple
+    sd_fit: dict
+    max_nfev: int
+    floor_rms: float
+    thresholds: Thresholds
+    runs: tuple | None
+    initial: dict
+
+
+def _fit_on_top(values: dict, n: str, cur: Stage, refits: Refits):
     """Term ``n`` refitted on top of the terms ``values`` (``{term: value in cur}``) of the
     model ``cur``, every coefficient re-identified from ``cur``'s: the scored stage, or None when
     the fit fails."""
-    effects, sd_fit, max_nfev = fit_args
-    trial = with_terms(setup, {**values, n: initial[n]})
-    model, ct, ch = trial.build([e for e in effects if e not in setup.effects])
-    p0 = extended_start(ref, model, [*values.values(), initial[n]])
+    setup, ref, sd_fit = refits.setup, refits.ref, refits.sd_fit
+    trial = with_terms(setup, {**values, n: refits.initial[n]})
+    model, ct, ch = trial.build([e for e in refits.effects if e not in setup.effects])
+    p0 = extended_start(ref, model, [*values.values(), refits.initial[n]])
     n_ref = ref.model.n_theta
     p0[: n_ref + len(values)] = cur.fit.p[: n_ref + len(values)]
     try:
         f = fit_model(
-            WindowProblem(model, ct, sd_fit, max_nfev=max_nfev),
+            WindowProblem(model, ct, sd_fit, max_nfev=refits.max_nfev),
             p0,
             nuisance_start(cur, model),
             starts0=warm_starts(cur.fit, ct),
@@ -352,7 +391,7 @@ def _fit_on_top(values: dict, n: str, cur: Stage, ref: Stage, setup: Setup, fit_
     return score_stage(model, f, ct, ch, sd_fit)
 
 
-def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple, floor: tuple, initial: dict):
+def combine(kept: list, stages: dict, refits: Refits):
     """Add the kept terms together, best first (:func:`dominance_order`): each further term is refitted on top of those
     added (all coefficients re-identified) and stays only if it passes the kept test
     (:func:`decide`) against them while their held-out error is still above the floor band.
@@ -363,16 +402,8 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
         The terms that passed the kept test alone (at least one).
     stages : dict
         ``{term: Stage}`` of their single-term refits.
-    ref : Stage
-        The reference model.
-    setup : Setup
-        The reference model's setup.
-    fit_args : tuple
-        ``(effects, channel weights, iterations)`` of the fits.
-    floor : tuple
-        ``(noise floor RMS, thresholds, runs)`` with ``runs`` as :func:`window_runs` returns it.
-    initial : dict
-        Each term's value in the reference (:func:`~.library.reference_values`).
+    refits : Refits
+        The reference model, its setup, the fits and the judgement.
 
     Returns
     -------
@@ -381,7 +412,7 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
     chain : list of Stage
         ``chain[i]`` is the model with ``found[: i + 1]`` (``chain[-1]`` the final model).
     """
-    floor_rms, th, runs = floor
+    floor_rms, th, runs = refits.floor_rms, refits.thresholds, refits.runs
     order = dominance_order(kept, stages, th, runs)
     found, chain = [order[0]], [stages[order[0]]]
     for n in order[1:]:
@@ -389,7 +420,7 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
         if cur.held.rms_position_m <= th.none_ratio * floor_rms:
             break  # the gap is closed: a further term would fit noise
         values = {k: cur.fit.coefficients()[k] for k in found}
-        st = _fit_on_top(values, n, cur, ref, setup, fit_args, initial)
+        st = _fit_on_top(values, n, cur, refits)
         if st is None:
             continue
         row = refit_row(n, st, cur, None, floor_rms, runs=runs, margin=th.separation_margin)
@@ -399,7 +430,7 @@ def combine(kept: list, stages: dict, ref: Stage, setup: Setup, fit_args: tuple,
     return found, chain
 
 
-def prune(found: list, chain: list, stages: dict, fits: tuple) -> tuple[list, list, list]:
+def prune(found: list, chain: list, stages: dict, refits: Refits) -> tuple[list, list, list]:
     """Backward elimination after :func:`combine`: a term of the combination that no longer passes
     the kept test on top of all the others (the model without it, every coefficient refitted,
     against the model with it) is dropped, the weakest first (largest window p), until every
@@ -417,8 +448,8 @@ def prune(found: list, chain: list, stages: dict, fits: tuple) -> tuple[list, li
         :func:`combine`'s terms and models (``chain[i]`` with ``found[: i + 1]``).
     stages : dict
         ``{term: Stage}`` of the single-term refits (every term of ``found`` among them).
-    fits : tuple
-        ``(ref, setup, fit_args, floor, initial)`` as :func:`combined_competitors` takes it.
+    refits : Refits
+        The reference model, its setup, the fits and the judgement.
 
     Returns
     -------
@@ -430,17 +461,14 @@ def prune(found: list, chain: list, stages: dict, fits: tuple) -> tuple[list, li
     dropped : list of str
         The terms dropped, in the order dropped.
     """
-    ref, setup, fit_args, floor, initial = fits
-    floor_rms, th, runs = floor
+    floor_rms, th, runs = refits.floor_rms, refits.thresholds, refits.runs
     memo = {tuple(found[: i + 1]): st for i, st in enumerate(chain)} | {(t,): stages[t] for t in found}
 
     def model_of(terms: tuple):
         if terms not in memo:
             below = model_of(terms[:-1])
             values = None if below is None else {k: below.fit.coefficients()[k] for k in terms[:-1]}
-            memo[terms] = (
-                None if below is None else _fit_on_top(values, terms[-1], below, ref, setup, fit_args, initial)
-            )
+            memo[terms] = None if below is None else _fit_on_top(values, terms[-1], below, refits)
         return memo[terms]
 
     dropped = []
@@ -451,8 +479,8 @@ def prune(found: list, chain: list, stages: dict, fits: tuple) -> tuple[list, li
             if full is None or without is None:
                 continue
             row = refit_row(t, full, without, None, floor_rms, runs=runs, margin=th.separation_margin)
-            if not _passes(row, True, th) and (weakest is None or row["window_p_value"] > weakest[1]):
-                weakest = (t, row["window_p_value"])
+            if not _passes(row, True, th) and (weakest is None or row.window_p_value > weakest[1]):
+                weakest = (t, row.window_p_value)
         if weakest is None:
             break
         found = [k for k in found if k != weakest[0]]
@@ -461,7 +489,7 @@ def prune(found: list, chain: list, stages: dict, fits: tuple) -> tuple[list, li
 
 
 def combined_competitors(
-    found: list, chain: list, compared: dict, competitors: list, fits: tuple, train_names=None
+    found: list, chain: list, compared: dict, competitors: list, refits: Refits, train_names=None
 ) -> tuple[dict, dict]:
     """The competitors of each term added on top of others (``found[i]``, ``i >= 1``), refitted in
     its place: on top of ``found[:i]``, the model it was judged against.
@@ -482,12 +510,8 @@ def combined_competitors(
         (``i >= 1``) are replaced.
     competitors : list of str
         Refitted terms that may compete for a place; the terms of ``found`` are skipped.
-    fits : tuple
-        ``(ref, setup, fit_args, floor, initial)``, :func:`combine`'s arguments after ``stages``:
-        the reference model (Stage), its setup (Setup), ``(effects, channel weights,
-        iterations)`` of the fits, ``(noise floor RMS, thresholds, runs)`` with ``runs`` as
-        :func:`window_runs` returns it, and each term's value in the reference
-        (:func:`~.library.reference_values`).
+    refits : Refits
+        The reference model, its setup, the fits and the judgement (as :func:`combine`).
     train_names : list of str, optional
         The training runs' names.
 
@@ -500,8 +524,7 @@ def combined_competitors(
         ``{found[i]: {term: Stage}}``: ``found[i]``'s model (``chain[i]``) and each competitor's
         refit in its place, for the design.
     """
-    ref, setup, fit_args, floor, initial = fits
-    floor_rms, th, runs = floor
+    floor_rms, th, runs = refits.floor_rms, refits.thresholds, refits.runs
     out, stages = dict(compared), {}
     for i in range(1, len(found)):
         k, below = found[i], chain[i - 1]
@@ -512,9 +535,9 @@ def combined_competitors(
         ]
         fitted = {k: chain[i]}
         for a in dict.fromkeys(competitors):
-            if a in found or a not in initial:
+            if a in found or a not in refits.initial:
                 continue
-            st = _fit_on_top(values, a, below, ref, setup, fit_args, initial)
+            st = _fit_on_top(values, a, below, refits)
             if st is None:
                 continue
             rows.append(
