@@ -24,9 +24,15 @@ free coefficients. It
 
 The package is split by question: :mod:`.where`, :mod:`.candidates`, :mod:`.verdict` (the rules
 below), :mod:`.support`, the typed records the steps pass on and the JSON writes (:mod:`.records`:
-noise floor, candidate rows, remainder, base-fit check, discovered-term rows), and the
-orchestration :mod:`.diagnose`, which returns a
-:class:`~.diagnose.Diagnosis`; the report layer (:func:`bayesid.report.write_diagnosis`) writes it.
+noise floor, candidate rows, remainder, contributions, the logged-thrust check, the first round
+beside discovery, base-fit check, discovered-term rows; each read back from its JSON by
+``from_dict``), and the orchestration :mod:`.diagnose`, which returns a
+:class:`~.diagnose.Diagnosis`; the report layer (:func:`bayesid.report.write_diagnosis`) writes it,
+reading the records by attribute. What travels between the steps travels as named records too,
+not packed in tuples: the verdict's :class:`~.verdict.Thresholds` and
+:class:`~.verdict.RunSeparation`, the rounds' :class:`~.diagnose.CandidateFits`,
+:class:`~.diagnose.Judge` and :class:`~.diagnose.Rounds`, discovery's
+:class:`~.discovery.selection.Selection` and :class:`~.discovery.confirmation.Refits`.
 Every model of a diagnosis is a :class:`bayesid.estimation.windows.WindowProblem` (its contexts
 built by :func:`bayesid.estimation.windows.contexts` from the diagnosis's
 :class:`~.candidates.Setup`): the steps fit it (``problem.fit``) and read each fitted model
