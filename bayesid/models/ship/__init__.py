@@ -14,14 +14,19 @@ Hull forces (``q = 0.5 rho L d``; prime coefficients in the MMG system)::
     NH = q L (Nv u v + Nr U r L)        - 0.5 rho d Ncf  int x (v + x r)|v + x r| dx
 
 plus the MMG coupling terms ``Yvvr v'^2 r' U^2``, ``Yvrr v' r'^2 U^2`` (and ``Nvvr``, ``Nvrr``)
-written ``q Yvvr v^2 (rL) / Ut`` with ``Ut = sqrt(u^2 + v^2 + (rL)^2)`` (equal to MMG's ``U`` to
-second order in ``r'`` going ahead, and bounded by ``Ut^2`` at every speed),
+written ``q Yvvr v^2 (rL) / Ut`` with ``Ut = sqrt(u^2 + v^2 + (rL)^2)`` (``Ut = U sqrt(1 + r'^2)``:
+close to MMG's ``U`` in gentle manoeuvres, and bounded by ``Ut^2`` at every speed; but in a hard turn
+it is not: at the ``r'`` of 0.9-1.3 of a 35 deg turn the coupling terms are 0.6-0.75 of MMG's, which
+tightens the steady turn, ``benchmarks/shipmmg_turn.py``),
 with ``U = sqrt(u^2 + v^2)`` and the integrals over ``x`` in ``[-L/2, L/2]`` (16-point
 Gauss-Legendre). For a ship going ahead (``u = U``) the linear terms are the MMG ones
 (``Y'v v' U^2 = Yv U v``). The cubic MMG terms (``v'^3 U^2 = v^3 / U``) are singular in ``r``
 at ``U -> 0``; they are replaced by the cross-flow drag integral (Oltmann & Sharma 1984;
 Yoshimura's low-speed MMG), which is finite at every speed, including pure sway, rotation on
-the spot and going astern (the berthing runs). The factors ``U`` / ``u`` follow the fore-aft
+the spot and going astern (the berthing runs). The two forms are not alike in a hard turn: the
+packaged KVLCC2 file's ``Ycf`` 0.45, ``Ncf`` 0.25 in place of MMG 2015's cubic terms is the largest
+single reason its 35 deg turn's steady diameter is 0.51 of the tactical one where the MMG model with
+the published coefficients gives 0.72-0.74 (``benchmarks/shipmmg_turn.py``). The factors ``U`` / ``u`` follow the fore-aft
 mirror symmetry (``u -> -u``, ``r -> -r``): sway force even in ``u``, yaw moment odd.
 ``Xuu = -R'0``, so the resistance opposes the motion astern too.
 
