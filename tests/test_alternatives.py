@@ -520,7 +520,7 @@ def test_a_kept_term_that_predicts_a_run_of_another_kind_worse_is_flagged():
     reference = {"per_track_rms_position_m": {"z1": 0.5, "turn": 0.3, "z2": 0.6}}
     kinds = {"train": ["zigzag", "zigzag"], "heldout": ["zigzag", "turning_circle", "zigzag"]}
     worse = partial(worse_on_other_kinds, reference=reference, heldout_tracks=["z1", "turn", "z2"])
-    worse = partial(worse, manoeuvre_kinds=kinds, thresholds={})
+    worse = partial(worse, manoeuvre_kinds=kinds, thresholds=None)
     # better on the zigzags it was chosen on, worse on the turn
     item = {"term": "Nvdrabsdr", "heldout_rms_by_run_m": {"z1": 0.2, "turn": 0.45, "z2": 0.25}}
     flagged = worse(item)

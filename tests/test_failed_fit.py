@@ -47,7 +47,7 @@ def test_a_failed_fit_gets_no_role_and_the_report_says_why_instead_of_weighing_i
     assert rows[0].role == "contributor" and rows[1].role is None and rows[2].role is None
     assert CandidateRow.from_dict(failed.to_dict()).to_dict() == failed.to_dict()
     assert "failed_fit" not in _row().to_dict()  # the JSON of a sound fit is as before
-    res = {"ranking": [r.to_dict() for r in rows], "thresholds": Thresholds().as_dict()}
+    res = {"ranking": [r.to_dict() for r in rows], "thresholds": Thresholds()}
     text = "\n".join(_failed_fit_lines(diagnosis_view(**res)))
     assert "**delay: fit failed**" in text and "**current: fit failed**" in text
     assert "disagree on delay" not in "\n".join(

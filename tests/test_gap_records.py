@@ -18,6 +18,7 @@ from bayesid.analysis.gap import discovery as dv
 from bayesid.analysis.gap.diagnose import Diagnosis
 from bayesid.analysis.gap.discovery.confirmation import decide, refit_row
 from bayesid.analysis.gap.records import BaseCheck, CandidateRow, NoiseFloor, Record, Remainder, TermRow
+from bayesid.analysis.gap.verdict import Thresholds
 from bayesid.tasks import jsonable
 
 RECORDS = [NoiseFloor, CandidateRow, Remainder, BaseCheck, TermRow]
@@ -116,6 +117,9 @@ def test_a_diagnosis_and_its_discovery_read_back_with_their_records(diagnosis):
     back = Diagnosis.from_dict(json.loads(text))
     assert isinstance(back.noise_floor, NoiseFloor) and isinstance(back.remainder, Remainder)
     assert isinstance(back.base_check, BaseCheck)
+    assert isinstance(back.thresholds, Thresholds) and back.thresholds == diagnosis.thresholds
+    with pytest.raises(ValueError, match=r"thresholds: unknown key\(s\) \['none_ration'\]"):
+        Thresholds.from_dict({"none_ration": 1.5})
     assert all(isinstance(r, CandidateRow) for rnd in back.rounds for r in rnd)
     assert [r.effect for r in back.ranking] == [r.effect for r in diagnosis.ranking]
     assert _text(back.to_dict()) == text

@@ -99,7 +99,7 @@ def test_a_verdict_the_noise_floor_decides_says_so():
     res = {
         "significant_gap": False,
         "gap_ratio": 1.35,
-        "thresholds": Thresholds().as_dict(),
+        "thresholds": Thresholds(),
         "ranking": [r.to_dict() for r in rows],
     }
     text = "\n".join(_floor_decides_lines(diagnosis_view(**res)))

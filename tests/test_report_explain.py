@@ -15,6 +15,7 @@ import pytest
 from diagnosis_view import diagnosis_view
 
 from bayesid import cli
+from bayesid.analysis.gap.verdict import Thresholds
 from bayesid.data.track import write_csv
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import manoeuvres as mv
@@ -223,7 +224,7 @@ def _ranked(effect, held, shrink, p, dbic, removed):
 def test_a_sentence_where_bic_and_the_heldout_windows_disagree():
     from bayesid.report.diagnosis import _bic_heldout_lines
 
-    th = {"bic_threshold": -10.0, "partial_p": 0.01, "explain_fraction": 0.5}
+    th = Thresholds(bic_threshold=-10.0, partial_p=0.01, explain_fraction=0.5)
     res = {
         "thresholds": th,
         "ranking": [

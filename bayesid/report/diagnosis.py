@@ -19,7 +19,6 @@ from ..analysis.gap.records import (
     TermRow,
     ThrustCheck,
 )
-from ..analysis.gap.verdict import Thresholds
 from .markdown import fmt, md_table, warning_lines
 from .study import write_json
 
@@ -88,13 +87,6 @@ def attribution_lines(diag) -> list[str]:
     return out
 
 
-def _thresholds(diag) -> Thresholds:
-    """The diagnosis's thresholds as :class:`~bayesid.analysis.gap.verdict.Thresholds` (a JSON
-    object read back as its fields; one written before a threshold existed has its default)."""
-    th = diag.thresholds
-    return th if isinstance(th, Thresholds) else Thresholds(**th)
-
-
 def _record(kind: type, value):
     """``value`` as a record of ``kind`` (a record of the diagnosis, or its JSON object read back:
     :meth:`~bayesid.analysis.gap.records.Record.from_dict`); None for an empty or missing one."""
@@ -153,7 +145,7 @@ def _figures(diag, out: Path, heldout: list) -> list:
                 diag.gap_before["heldout_rms_m"],
                 _record(NoiseFloor, diag.noise_floor).heldout_rms_m,
                 out / "figures" / "ranking.png",
-                band_ratio=_thresholds(diag).none_ratio,
+                band_ratio=diag.thresholds.none_ratio,
             )
         )
     figs.append(plots.gap_channels(diag.where, out / "figures" / "channels.png"))
@@ -930,7 +922,7 @@ def _how_far_lines(diag) -> list:
         f"Held-out shrinkage {fmt(diag.heldout_shrinkage)} (fraction of the base model's held-out RMS removed); "
         f"noise floor (perfect model at the estimated noise) {fmt(_record(NoiseFloor, diag.noise_floor).heldout_rms_m)} m; gap ratio "
         f"{fmt(diag.gap_ratio)} (held-out RMS / noise floor, dimensionless; significant above "
-        f"{_thresholds(diag).none_ratio}).",
+        f"{diag.thresholds.none_ratio}).",
         "",
         *shrink,
     ]
@@ -961,7 +953,7 @@ def _floor_decides_lines(diag) -> list:
     """
     if diag.significant_gap:
         return []
-    th = _thresholds(diag)
+    th = diag.thresholds
     rows = [
         r
         for r in map(partial(_record, CandidateRow), diag.ranking)
@@ -1014,7 +1006,7 @@ def _undetermined_lines(diag) -> list:
 def _which_lines(diag) -> list:
     """The "Which" section: the ranking of the candidate effects, the verdict in words, the rules
     and the sparse-regression support."""
-    th = _thresholds(diag)
+    th = diag.thresholds
     return [
         "## Which",
         "",
@@ -1070,7 +1062,7 @@ def _bic_heldout_lines(diag) -> list:
     strongly favoured by BIC (ΔBIC at most the threshold) without a held-out gain, or a held-out
     gain (positive shrinkage and the window test or the excess removed) that BIC does not support.
     Reads the ranking's rows as :class:`~bayesid.analysis.gap.records.CandidateRow` records."""
-    th = _thresholds(diag)
+    th = diag.thresholds
     lines = []
     for r in map(partial(_record, CandidateRow), diag.ranking):
         if r.failed_fit:  # said in its own sentence: a failed fit is not evidence

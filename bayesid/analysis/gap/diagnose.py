@@ -115,8 +115,8 @@ class Diagnosis:
         Names of the held-out tracks.
     settings : dict
         What was run.
-    thresholds : dict
-        The verdict's thresholds.
+    thresholds : Thresholds
+        The verdict's thresholds (in the JSON as :meth:`~.verdict.Thresholds.as_dict`).
     seconds : float
         Wall time.
     round_seconds : list of float
@@ -195,7 +195,7 @@ class Diagnosis:
     train_tracks: list
     heldout_tracks: list
     settings: dict
-    thresholds: dict
+    thresholds: Thresholds
     seconds: float
     round_seconds: list = field(default_factory=list)
     discovery: dict = field(default_factory=dict)
@@ -256,13 +256,14 @@ class Diagnosis:
             "base_check": lambda c: BaseCheck.from_dict(c) if c else c,
             "contributors": lambda cs: [Contribution.from_dict(c) for c in cs],
             "discovery_first": lambda f: FirstRoundSummary.read(f) if f else f,
+            "thresholds": Thresholds.from_dict,
         }
         args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
         args = {k: readers[k](v) if k in readers else v for k, v in args.items()}
         return cls(**args, discovered_terms=list(d.get("discovered") or []))
 
 
-def discovered_terms(found, heldout_tracks: list, manoeuvre_kinds: dict, thresholds: dict) -> list:
+def discovered_terms(found, heldout_tracks: list, manoeuvre_kinds: dict, thresholds: Thresholds) -> list:
     """The top-level ``discovered`` list of a diagnosis (issue 40's contract): every refitted term
     of discovery (:meth:`~bayesid.analysis.gap.discovery.Discovery.terms`), the final model's with
     ``kept: true``, each with ``tested_only_within_training_manoeuvres`` (every held-out run is of
@@ -277,7 +278,7 @@ def discovered_terms(found, heldout_tracks: list, manoeuvre_kinds: dict, thresho
         The held-out runs' names.
     manoeuvre_kinds : dict
         ``{"train": [kind], "heldout": [kind]}`` (:func:`~bayesid.estimation.indices.manoeuvre_kind`).
-    thresholds : dict
+    thresholds : Thresholds
         The diagnosis's thresholds (``separation_margin``).
 
     Returns
@@ -298,10 +299,12 @@ def discovered_terms(found, heldout_tracks: list, manoeuvre_kinds: dict, thresho
     return out
 
 
-def worse_on_other_kinds(item: dict, reference, heldout_tracks: list, manoeuvre_kinds: dict, thresholds: dict) -> list:
+def worse_on_other_kinds(
+    item: dict, reference, heldout_tracks: list, manoeuvre_kinds: dict, thresholds: Thresholds | None = None
+) -> list:
     """The held-out runs of a kind the training runs lack on which a kept term's single-term refit
     predicts worse than the reference model by more than the separation margin
-    (``thresholds["separation_margin"]``, 10 %; a smaller excess is within what refits of equally
+    (``thresholds.separation_margin``, 10 %; a smaller excess is within what refits of equally
     good structures differ by): a term chosen on one kind of run that does not carry to another.
 
     Parameters
@@ -314,8 +317,8 @@ def worse_on_other_kinds(item: dict, reference, heldout_tracks: list, manoeuvre_
         The held-out runs' names, parallel to ``manoeuvre_kinds["heldout"]``.
     manoeuvre_kinds : dict
         ``{"train": [kind], "heldout": [kind]}``.
-    thresholds : dict
-        ``separation_margin`` (default :class:`Thresholds`'s).
+    thresholds : Thresholds, optional
+        Its ``separation_margin`` counts (default :class:`Thresholds`'s).
 
     Returns
     -------
@@ -325,7 +328,7 @@ def worse_on_other_kinds(item: dict, reference, heldout_tracks: list, manoeuvre_
     base = (reference or {}).get("per_track_rms_position_m", {})
     mine = item.get("heldout_rms_by_run_m") or {}
     train = set(manoeuvre_kinds.get("train", []))
-    margin = float((thresholds or {}).get("separation_margin", Thresholds().separation_margin))
+    margin = float((thresholds or Thresholds()).separation_margin)
     out = []
     for run, kind in zip(heldout_tracks, manoeuvre_kinds.get("heldout", [])):
         if kind in train or run not in mine or run not in base:
@@ -674,7 +677,7 @@ def diagnose(
         train_tracks=names_t,
         heldout_tracks=names_h,
         settings=dict(_settings(opt, setup, cand_effects, weighting), free=list(free), dt=dt),
-        thresholds=th.as_dict(),
+        thresholds=th,
         seconds=time.perf_counter() - t_start,
         round_seconds=search.seconds,
         discovery=found.to_dict() if found is not None else {},
@@ -688,7 +691,7 @@ def diagnose(
         after=after,
         discovered=found,
         setup=setup,
-        discovered_terms=discovered_terms(found, names_h, kinds, th.as_dict()),
+        discovered_terms=discovered_terms(found, names_h, kinds, th),
     )
 
 
@@ -1506,6 +1509,8 @@ def _plain(v):
     """``v`` as JSON: a record as its object, in lists too."""
     if isinstance(v, Record):
         return v.to_dict()
+    if isinstance(v, Thresholds):
+        return v.as_dict()
     if isinstance(v, list):
         return [_plain(x) for x in v]
     return v

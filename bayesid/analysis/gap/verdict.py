@@ -10,7 +10,7 @@ Raftery 1995, JASA 90(430)).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from scipy import stats
@@ -75,6 +75,30 @@ class Thresholds:
             "partial_p": self.partial_p,
             "separation_margin": self.separation_margin,
         }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Thresholds:
+        """The thresholds read back from :meth:`as_dict` (a threshold the object lacks, written
+        before it existed, keeps its default).
+
+        Parameters
+        ----------
+        d : dict
+            ``{name: value}``.
+
+        Returns
+        -------
+        Thresholds
+
+        Raises
+        ------
+        ValueError
+            A name that is not a threshold (named).
+        """
+        unknown = sorted(set(d) - {f.name for f in fields(cls)})
+        if unknown:
+            raise ValueError(f"thresholds: unknown key(s) {unknown}; known: {[f.name for f in fields(cls)]}")
+        return cls(**d)
 
 
 class DivergedSimulation(ValueError):
