@@ -39,7 +39,8 @@ def _case(ship_id, seed, B=7, windage=True):
         base[[layout.PARTICULAR_INDEX["A_front"], layout.PARTICULAR_INDEX["A_lateral"]]] = [0.5, 2.0]
     prm = np.repeat(base[None], B, axis=0)
     o = len(layout.PARTICULARS)
-    prm[:, o:] *= 1.0 + 0.1 * rng.standard_normal((B, len(layout.COEFFICIENTS)))
+    nc = len(layout.COEFFICIENTS)
+    prm[:, o : o + nc] *= 1.0 + 0.1 * rng.standard_normal((B, nc))  # the form slots stay as the file has them
     W, n = STARTS.size - 1, STARTS[-1]
     s0 = np.zeros((B, W, 6))
     s0[..., 0:2] = rng.normal(0.0, 5.0, (B, W, 2))
@@ -89,6 +90,17 @@ def test_rows_with_and_without_windage_in_one_call():
     args = _case("esso_osaka_3m", 4, B=6)
     args[5][::2, [layout.PARTICULAR_INDEX["A_front"], layout.PARTICULAR_INDEX["A_lateral"]]] = 0.0
     _assert_agree(args)
+
+
+def test_rows_of_either_coupling_form_in_one_call():
+    """Every other row with MMG 2015's coupling speed U (``[form] coupling_speed = "U"``): the two
+    kernels agree, and those rows differ from the package's form ``Ut`` (the slot is read)."""
+    args = _case("kvlcc2_7m", 6, B=6)
+    ut, _ = _assert_agree(args)
+    args[5][::2, layout.FORM_INDEX["coupling_rL"]] = 0.0
+    mixed, _ = _assert_agree(args)
+    np.testing.assert_array_equal(mixed[1::2], ut[1::2])
+    assert np.nanmax(np.abs(mixed[::2, :, 5] - ut[::2, :, 5])) > 1e-4
 
 
 def test_diverging_rows_get_the_same_status_and_nan_layout():

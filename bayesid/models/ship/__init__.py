@@ -17,7 +17,8 @@ plus the MMG coupling terms ``Yvvr v'^2 r' U^2``, ``Yvrr v' r'^2 U^2`` (and ``Nv
 written ``q Yvvr v^2 (rL) / Ut`` with ``Ut = sqrt(u^2 + v^2 + (rL)^2)`` (``Ut = U sqrt(1 + r'^2)``:
 close to MMG's ``U`` in gentle manoeuvres, and bounded by ``Ut^2`` at every speed; but in a hard turn
 it is not: at the ``r'`` of 0.9-1.3 of a 35 deg turn the coupling terms are 0.6-0.75 of MMG's, which
-tightens the steady turn, ``benchmarks/shipmmg_turn.py``),
+tightens the steady turn, ``benchmarks/shipmmg_turn.py``; a ship file's ``[form] coupling_speed =
+"U"`` divides them by MMG's ``U`` instead, :data:`~bayesid.models.ship.layout.FORMS`),
 with ``U = sqrt(u^2 + v^2)`` and the integrals over ``x`` in ``[-L/2, L/2]`` (16-point
 Gauss-Legendre). For a ship going ahead (``u = U``) the linear terms are the MMG ones
 (``Y'v v' U^2 = Yv U v``). The cubic MMG terms (``v'^3 U^2 = v^3 / U``) are singular in ``r``

@@ -37,7 +37,7 @@ def _forces(s, dlt, n, wn, we, cn, ce, p, gx, gw, F):
     X = q * (Xuu * u * abs(u) + Xvv * v * v + Xvr * v * r * L + Xrr * r * r * L * L)
     Y = q * (Yv * U * v + Yr * u * r * L)
     N = q * L * (Nv * u * v + Nr * U * r * L)
-    Ut = math.sqrt(u * u + v * v + r * r * L * L)
+    Ut = math.sqrt(u * u + v * v + p[NP - 1] * r * r * L * L)  # layout.FORM_SLOTS: coupling_rL
     if Ut > 1e-9:
         rl = r * L
         Y += q * (Yvvr * v * v * rl + Yvrr * v * rl * rl) / Ut

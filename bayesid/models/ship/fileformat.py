@@ -18,7 +18,7 @@ import numpy as np
 from ...data.priors import parse_prior_section
 from ...data.vehicle import VehicleFileError, docs_example_hint
 from . import hullterms
-from .layout import COEFFICIENTS, FOLLOWS, PARTICULARS, WIND
+from .layout import COEFFICIENTS, FOLLOWS, FORMS, PARTICULARS, WIND, form_slots
 
 
 class ShipFileError(VehicleFileError):
@@ -71,6 +71,10 @@ class Ship:
         The steering gear's largest rudder angle either side, deg (``[limits] rudder_max_deg``;
         None when the file gives none: no limit). ``bayesid simulate`` refuses a rudder order
         beyond it, :func:`bayesid.data.validate.check_track` warns of a track beyond it.
+    form : dict
+        ``{key: choice}``: the model-form choices of the file's ``[form]`` section
+        (:data:`~bayesid.models.ship.layout.FORMS`; a key left out has its default, so ``{}`` is
+        the package's form).
     """
 
     id: str
@@ -87,6 +91,7 @@ class Ship:
     scale: float | None = None
     follows: dict = field(default_factory=dict)
     rudder_max_deg: float | None = None
+    form: dict = field(default_factory=dict)
 
     @property
     def file_path(self) -> str:
@@ -169,8 +174,9 @@ class Ship:
         return hullterms.extra_terms(self.coefficients)
 
     def params(self, coefficients: dict | None = None) -> np.ndarray:
-        """Kernel parameter vector (particulars, then the listed coefficients, then the extra hull
-        terms, :func:`bayesid.models.ship.hullterms.encode`).
+        """Kernel parameter vector (particulars, then the listed coefficients, then the model-form
+        slots, :func:`~bayesid.models.ship.layout.form_slots`, then the extra hull terms,
+        :func:`bayesid.models.ship.hullterms.encode`).
 
         Parameters
         ----------
@@ -185,7 +191,11 @@ class Ship:
         over = coefficients or {}
         c = dict(self.coefficients, **over)
         c.update({k: c[src] for k, src in self.tied.items() if k not in over})
-        head = np.array([float(self.particulars[k]) for k in PARTICULARS] + [float(c[k]) for k in COEFFICIENTS])
+        head = np.array(
+            [float(self.particulars[k]) for k in PARTICULARS]
+            + [float(c[k]) for k in COEFFICIENTS]
+            + form_slots(self.form)
+        )
         return np.concatenate([head, hullterms.encode(self.hull_terms, c)])
 
     def with_coefficients(self, values: dict) -> Ship:
@@ -221,7 +231,29 @@ class Ship:
             free=list(self.free),
             prior=dict(self.prior),
             follows=follows,
+            form=dict(self.form),
         )
+
+    def with_form(self, **choices) -> Ship:
+        """Copy with some model-form choices replaced (a ship file's ``[form]`` section).
+
+        Parameters
+        ----------
+        **choices : str
+            ``key=choice`` of :data:`~bayesid.models.ship.layout.FORMS`, e.g.
+            ``coupling_speed="U"`` (MMG 2015's coupling terms).
+
+        Returns
+        -------
+        Ship
+            The copy.
+
+        Raises
+        ------
+        ShipFileError
+            An unknown key or choice (named, with the choices).
+        """
+        return replace(self, form=_form(self.source or self.id, {**self.form, **choices}))
 
 
 def empirical_added_mass(p: dict) -> dict:
@@ -344,10 +376,26 @@ def _rudder_max(p, sec) -> float | None:
     return float(v)
 
 
+def _form(p, sec) -> dict:
+    """The ``[form]`` section of file ``p`` (:data:`~bayesid.models.ship.layout.FORMS`), checked."""
+    if not isinstance(sec, dict):
+        raise ShipFileError(f'{p}: form = {sec!r} must be a section [form] (coupling_speed = "U", ...)')
+    for k, v in sec.items():
+        if k not in FORMS:
+            raise ShipFileError(f"{p}: [form] unknown key {k!r}; known: {', '.join(FORMS)}")
+        if v not in FORMS[k]:
+            raise ShipFileError(
+                f"{p}: [form] {k} = {v!r}; the choices are {', '.join(repr(c) for c in FORMS[k])} "
+                f"(default {FORMS[k][0]!r})"
+            )
+    return dict(sec)
+
+
 def load_ship(path_or_id) -> Ship:
     """Load a ship vehicle file (TOML with ``[vehicle] kind = "ship3dof"``, ``[particulars]``
     (with an optional ``scale``: the model scale), ``[coefficients]``, optional ``[wind]``,
-    ``[limits]`` (``rudder_max_deg``), ``[fit] free`` and ``[prior]``).
+    ``[limits]`` (``rudder_max_deg``), ``[form]`` (:data:`~bayesid.models.ship.layout.FORMS`),
+    ``[fit] free`` and ``[prior]``).
 
     Parameters
     ----------
@@ -366,8 +414,8 @@ def load_ship(path_or_id) -> Ship:
     ShipFileError
         Missing section or particular, non-finite or non-positive value (``[particulars] scale``
         included, when given), a negative ``gR`` or ``gRm``, a ``[limits] rudder_max_deg`` outside
-        (0, 90] deg, unknown key or coefficient name, a kind other than ``"ship3dof"`` (the message
-        names the file, section and key).
+        (0, 90] deg, unknown key or coefficient name, a ``[form]`` key or choice the package does not
+        have, a kind other than ``"ship3dof"`` (the message names the file, section and key).
     """
     p = _resolve(path_or_id)
     try:
@@ -387,6 +435,7 @@ def load_ship(path_or_id) -> Ship:
     part, given = {}, dict(doc["particulars"])
     scale = _scale(p, given.pop("scale", None))
     rudder_max_deg = _rudder_max(p, doc.get("limits", {}))
+    form = _form(p, doc.get("form", {}))
     for k in PARTICULARS:
         if k not in given:
             raise ShipFileError(f"{p}: missing [particulars] {k}")
@@ -450,6 +499,7 @@ def load_ship(path_or_id) -> Ship:
         scale=scale,
         follows=follows,
         rudder_max_deg=rudder_max_deg,
+        form=form,
     )
 
 

@@ -71,7 +71,7 @@ from ..._numba import use_package_threading_layer
 from ..codegen import load_module
 from . import dynamics
 from .hullterms import TERM_WIDTH
-from .layout import GAUSS_W, GAUSS_X, NP
+from .layout import FORM_INDEX, GAUSS_W, GAUSS_X, NP
 
 KINDS = ("generated", "interpreted")
 #: parameter rows each thread advances together (interleaved; see the module docstring)
@@ -82,7 +82,8 @@ LANES = 2
 # om*/op* one minus/plus a coefficient, c* the constant leading factor of a force term, i* a
 # reciprocal, mmx = m + mx, mmy = m + my, M11, M12, M22 the (v, r) block of the inverse mass
 # matrix, cn, ce the current (m/s, north and east).
-_ROW = """\
+_ROW = (
+    """\
 L = p[0]
 d = p[2]
 m = p[3]
@@ -137,6 +138,9 @@ gRm = p[55]
 C1w = p[56]
 C2w = p[57]
 C2wm = p[58]
+"""
+    + f"kUt = p[{FORM_INDEX['coupling_rL']}]\n"
+    + """\
 wform = C1w > 0.0
 omwP0 = 1.0 - wP0
 q = 0.5 * rho * L * d
@@ -173,6 +177,7 @@ M12 = -xGm / det
 M22 = mmy / det
 cn = cur[b, 0]
 ce = cur[b, 1]"""
+)
 
 # Per-step constants of a lane (inputs held over the step; k is the step index): the rudder
 # angle dm in the MMG sign convention, the propeller's sign, thrust and slipstream factors, the
@@ -255,7 +260,7 @@ U = math.sqrt(u * u + v * v)
 X = q * (Xuu * u * abs(u) + Xvv * v * v + Xvr * v * r * L + Xrr * r * r * L * L)
 Y = q * (Yv * U * v + Yr * u * r * L)
 N = qL * (Nv * u * v + Nr * U * r * L)
-Ut = math.sqrt(u * u + v * v + r * r * L * L)
+Ut = math.sqrt(u * u + v * v + kUt * r * r * L * L)
 if Ut > 1e-9:
     rl = r * L
     iUt = 1.0 / Ut

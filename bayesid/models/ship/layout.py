@@ -1,5 +1,5 @@
-"""The parameter vector of the ship's compiled kernels: particulars, then MMG coefficients, in a
-fixed order, and the quadrature of the hull cross-flow integral. The interpreted kernels
+"""The parameter vector of the ship's compiled kernels: particulars, then MMG coefficients, then
+the model-form slots, in a fixed order, and the quadrature of the hull cross-flow integral. The interpreted kernels
 (:mod:`bayesid.models.ship.dynamics`), the generated one (:mod:`bayesid.models.ship.kernel`), the
 ship file (:mod:`bayesid.models.ship.fileformat`) and the model all read this layout.
 """
@@ -85,11 +85,41 @@ FOLLOWS = {"gRm": "gR", "C2m": "C2"}
 #: ``beta_P < 0``. ``C1 = 0`` (a ship file without them) keeps the form ``w_P = wP exp(-4 beta_P^2)``.
 WAKE_IN_TURN = ("C1", "C2", "C2m")
 WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3")
-NP = len(PARTICULARS) + len(COEFFICIENTS)
+#: Model-form choices of a ship file's ``[form]`` section: ``{key: (default, the other choices)}``.
+#: ``coupling_speed``: the speed the hull's coupling terms ``Yvvr``, ``Yvrr``, ``Nvvr``, ``Nvrr``
+#: are divided by, ``"Ut"`` = ``sqrt(u^2 + v^2 + (rL)^2)`` (the package's form, bounded at every
+#: speed) or ``"U"`` = ``sqrt(u^2 + v^2)`` (MMG 2015's ``v'^2 r' U^2``, Yasukawa & Yoshimura 2015,
+#: eq. 7; in a 35 deg turn the package's form gives these terms 0.6-0.75 of MMG's,
+#: ``benchmarks/shipmmg_turn.py``). Not coefficients: no fit changes them.
+FORMS = {"coupling_speed": ("Ut", "U")}
+#: The kernel's numbers of the forms, after the coefficients: ``coupling_rL`` is the weight of
+#: ``(rL)^2`` in the coupling speed (1 for ``"Ut"``, 0 for ``"U"``).
+FORM_SLOTS = ("coupling_rL",)
+NP = len(PARTICULARS) + len(COEFFICIENTS) + len(FORM_SLOTS)
 #: Position of each particular in the parameter vector.
 PARTICULAR_INDEX = {n: i for i, n in enumerate(PARTICULARS)}
 #: Position of each coefficient in the parameter vector.
 COEFFICIENT_INDEX = {n: len(PARTICULARS) + i for i, n in enumerate(COEFFICIENTS)}
+#: Position of each form slot in the parameter vector.
+FORM_INDEX = {n: len(PARTICULARS) + len(COEFFICIENTS) + i for i, n in enumerate(FORM_SLOTS)}
+
+
+def form_slots(form: dict) -> list[float]:
+    """The kernel's numbers of a ship's model-form choices (:data:`FORMS`, :data:`FORM_SLOTS`).
+
+    Parameters
+    ----------
+    form : dict
+        ``{key: choice}`` of :data:`FORMS` (a key left out has its default).
+
+    Returns
+    -------
+    list of float
+        One number per :data:`FORM_SLOTS` entry.
+    """
+    coupling = form.get("coupling_speed", FORMS["coupling_speed"][0])
+    return [1.0 if coupling == "Ut" else 0.0]
+
 
 #: Gauss-Legendre nodes (on [-1, 1]) and weights of the hull cross-flow integral, 16 points: the
 #: stations are ``x = h * GAUSS_X`` with ``h`` the half length (see ``_forces``). Shared by the
@@ -104,6 +134,10 @@ __all__ = [
     "FOLLOWS",
     "WIND",
     "WAKE_IN_TURN",
+    "FORMS",
+    "FORM_SLOTS",
+    "FORM_INDEX",
+    "form_slots",
     "NP",
     "PARTICULAR_INDEX",
     "COEFFICIENT_INDEX",
