@@ -215,22 +215,15 @@ def compare(old: Path, new: Path) -> tuple[int, int, int]:
             continue
         if rel.suffix == ".md":
             d = _text_differences(a, b, old, new)
-            if d:
+        else:
+            try:
+                A = _clean(json.loads(a.read_text()), str(old))
+                B = _clean(json.loads(b.read_text()), str(new))
+            except json.JSONDecodeError as e:
+                print(f"{rel}: not JSON ({e})")
                 diff += 1
-                print(f"{rel}: {len(d)} differences")
-                for line in d[:12]:
-                    print(f"    {line}")
-            else:
-                same += 1
-            continue
-        try:
-            A = _clean(json.loads(a.read_text()), str(old))
-            B = _clean(json.loads(b.read_text()), str(new))
-        except json.JSONDecodeError as e:
-            print(f"{rel}: not JSON ({e})")
-            diff += 1
-            continue
-        d = _differences(A, B)
+                continue
+            d = _differences(A, B)
         if d:
             diff += 1
             print(f"{rel}: {len(d)} differences")
