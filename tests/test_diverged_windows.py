@@ -5,6 +5,7 @@ diverged window simply dropped out and a term that blows up on the designed run 
 from __future__ import annotations
 
 import numpy as np
+from diagnosis_view import scores
 
 from bayesid.analysis.gap import discovery as dv
 from bayesid.analysis.gap.candidates import Stage
@@ -15,8 +16,9 @@ RUNS = np.repeat(np.arange(4), [5, 5, 5, 3])
 NAMES = ["z10", "z20", "t15", "designed"]
 
 
-def _stage(windows):
-    return Stage(None, None, {}, {}, None, np.asarray(windows, float))
+def _stage(windows, held_rms_m=float("nan")):
+    """A refit with held-out window errors ``windows`` (its pooled held-out RMS ``held_rms_m``)."""
+    return Stage(None, None, scores(float("nan")), scores(held_rms_m), None, np.asarray(windows, float))
 
 
 def _windows(rng, level=0.3):
@@ -80,7 +82,5 @@ def test_a_competitor_that_diverges_is_separated_and_a_kept_term_that_diverges_i
     (entry,) = dv.alternatives(fav)["Nvvr"]
     assert entry["favoured"] and entry["kept_worse_run"] == "designed"
     # and among kept terms, the one that diverges goes after the other
-    stages = {"Nvvr": _stage(gone), "Nvabsvabsr": _stage(kept)}
-    for s, w in zip(stages.values(), (gone, kept)):
-        s.held["rms_position_m"] = float(np.nanmean(w))
+    stages = {"Nvvr": _stage(gone, float(np.nanmean(gone))), "Nvabsvabsr": _stage(kept, float(np.nanmean(kept)))}
     assert dv.dominance_order(["Nvvr", "Nvabsvabsr"], stages, th, (RUNS, NAMES)) == ["Nvabsvabsr", "Nvvr"]
