@@ -18,7 +18,7 @@ Method
   the base model and the model with the named effects predict against the measured ones (advance,
   tactical and steady diameters, speed loss; each held-out turn from its own measured approach).
 
-    python studies/esso_turns.py [--quick] [--out DIR] [--data DIR]
+    python studies/esso_turns.py [--quick] [--out DIR] [--data DIR] [--coupling-speed U]
 """
 
 from __future__ import annotations
@@ -58,6 +58,12 @@ def main() -> int:
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"))
     ap.add_argument("--max-nfev", type=int, default=30)
     ap.add_argument("--seed", type=int, default=67)
+    ap.add_argument(
+        "--coupling-speed",
+        choices=("Ut", "U"),
+        default="Ut",
+        help="the hull's coupling terms over the package's Ut (default) or MMG 2015's U (a ship file's [form])",
+    )
     args = ap.parse_args()
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.analysis.gap.diagnose import catalogue_candidates
@@ -82,6 +88,8 @@ def main() -> int:
         train, held, args.max_nfev = train[:2], held[:1], min(args.max_nfev, 4)
         train = [t.slice_time(t.t[0], t.t[0] + 200.0) for t in train]
     esso = ship.load_ship("esso_osaka_3m")
+    if args.coupling_speed != "Ut":
+        esso = esso.with_form(coupling_speed=args.coupling_speed)
     said = []
     cands = catalogue_candidates(ship.ShipModel, train + held, Runner(progress=said.append), free=esso.free)
     if args.quick:
@@ -116,6 +124,7 @@ def main() -> int:
     }
     doc = {
         "quick": bool(args.quick),
+        **({"coupling_speed": args.coupling_speed} if args.coupling_speed != "Ut" else {}),
         "train_runs": [t.name for t in train],
         "heldout_runs": [t.name for t in held],
         "candidates": cands,
@@ -176,10 +185,22 @@ def write_report(out: Path, doc: dict, args) -> None:
     lines = [
         "# Real turns held out: Esso Osaka",
         "",
-        "`python studies/esso_turns.py" + (" --quick" if args.quick else "") + "`",
+        "`python studies/esso_turns.py"
+        + (" --quick" if args.quick else "")
+        + (f" --coupling-speed {args.coupling_speed}" if args.coupling_speed != "Ut" else "")
+        + "`",
         "",
         __doc__.split("Method\n------\n")[1].split("\n    python")[0].strip(),
         "",
+        *(
+            [
+                f"- Form: the hull's coupling terms over MMG 2015's U (``[form] coupling_speed = "
+                f'"{args.coupling_speed}"``), in place of the packaged file\'s Ut.',
+                "",
+            ]
+            if args.coupling_speed != "Ut"
+            else []
+        ),
         "## Result",
         "",
         f"- Training: {len(doc['train_runs'])} runs (zigzag and random); held out: {len(doc['heldout_runs'])} "
