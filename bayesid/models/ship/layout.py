@@ -89,7 +89,7 @@ WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3")
 #: ``coupling_speed``: the speed the hull's coupling terms ``Yvvr``, ``Yvrr``, ``Nvvr``, ``Nvrr``
 #: are divided by, ``"Ut"`` = ``sqrt(u^2 + v^2 + (rL)^2)`` (the package's form, bounded at every
 #: speed) or ``"U"`` = ``sqrt(u^2 + v^2)`` (MMG 2015's ``v'^2 r' U^2``, Yasukawa & Yoshimura 2015,
-#: eq. 7; in a 35 deg turn the package's form gives these terms 0.6-0.75 of MMG's,
+#: the hull forces, eqs. 6-8 as the package cites them; in a 35 deg turn the package's form gives these terms 0.6-0.75 of MMG's,
 #: ``benchmarks/shipmmg_turn.py``). Not coefficients: no fit changes them.
 FORMS = {"coupling_speed": ("Ut", "U")}
 #: The kernel's numbers of the forms, after the coefficients: ``coupling_rL`` is the weight of
