@@ -85,7 +85,7 @@ def diagnose_split(kv, train, held, args, out, log, folder: str = "diagnosis", c
         train,
         held,
         DiagnoseOptions(
-            candidates=catalogue_candidates(ship.ShipModel, train + held, free=kv.free),
+            candidates=catalogue_candidates(ship.ShipModel, train + held, free=kv.free, vehicle=kv),
             window_s=60.0,
             fit_window_s=ship.FIT_WINDOW_S,
             dt=0.2,

@@ -593,7 +593,7 @@ def main() -> int:
         train, held = ([t.slice_time(t.t[0], t.t[0] + QUICK_ESSO_S) for t in ts] for ts in (train, held))
     esso = ship.load_ship("esso_osaka_3m")
     # a smoke test tries two effects of the catalogue on each vessel, the full run all of them
-    e_cands = catalogue_candidates(ShipModel, train + held, free=esso.free)[: 2 if args.quick else None]
+    e_cands = catalogue_candidates(ShipModel, train + held, free=esso.free, vehicle=esso)[: 2 if args.quick else None]
     e_doc, e_res, e_base, e_after, _ = evaluate("esso_osaka", esso, train, held, e_cands, args, out, log)
     figs = [
         track_figure(
@@ -623,7 +623,7 @@ def main() -> int:
     if args.quick:
         ktrain, kheld = ktrain[:3], kheld[:1]
     kv = ship.load_ship("kvlcc2_7m")
-    k_cands = catalogue_candidates(ShipModel, ktrain + kheld, free=kv.free)[: 2 if args.quick else None]
+    k_cands = catalogue_candidates(ShipModel, ktrain + kheld, free=kv.free, vehicle=kv)[: 2 if args.quick else None]
     k_doc, k_res, k_base, k_after, k_diag = evaluate("kvlcc2_hsva", kv, ktrain, kheld, k_cands, args, out, log)
     am, af, cov = k_after
     k_approach = turn_approach(ktracks)

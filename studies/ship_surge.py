@@ -13,15 +13,16 @@ Method
   model's ``wP exp(-4 beta_P^2)``; the catalogue's ``wake_in_turn``); the thrust deduction
   (``tP`` 0.22 -> 0.32; ``thrust_deduction``); a propulsion-point shift (``wP`` 0.40 -> 0.30:
   the base model fits ``wP``, so it should absorb it: a control that must stay clean); a yaw term
-  (``Nrrr`` -0.03: a miss that is not in the surge, whose search must stay in Y and N) and nothing
-  (the control).
+  (``Nrrr`` -0.03: a miss that is not in the surge, whose search must stay in Y and N), nothing
+  (the control) and a model form: MMG 2015's coupling speed ``U`` for the hull's coupling terms in
+  place of the package's ``Ut`` (``[form] coupling_speed = "U"``; the catalogue's ``coupling_speed``).
 - Runs (``bayesid.models.ship.trials``, rudder at 15.8 deg/s, 2 Hz, 2 cm / 0.1 deg noise and
   5 mm/s, 0.05 deg/s on the velocity log): three zigzags to train (10/10 port, 20/20 starboard,
   35/35 port, 200 s each), two 35 deg turning circles and a 20 deg pull-out held out.
 - Each case with and without the velocity log (u, v, r), diagnosed by ``bayesid diagnose`` as a
   user runs it: the ship catalogue less the wind (the runs log none) and less the shifts of ``wP``
-  and ``Xuu``, which the base model fits (current, delay, wake in a turn, rudder resistance,
-  thrust deduction, sensor lag), 60 s scoring windows, two alternatives per degree of freedom, no
+  and ``Xuu``, which the base model fits (current, delay, wake in a turn, coupling speed, rudder
+  resistance, thrust deduction, sensor lag), 60 s scoring windows, two alternatives per degree of freedom, no
   design, ``--max-nfev 30``.
 - Scores: a hidden term is *named* when it is kept, or among the alternatives of a kept term; a
   hidden effect when the verdict names it (cause or contributor); a case is *clear* when the base
@@ -70,18 +71,21 @@ STRUCTURES = (
     {"name": "propulsion point (wP 0.30)", "hidden": {"wP": 0.30}, "control": True},
     {"name": "yaw Nrrr", "hidden": {"Nrrr": -0.03}, "term": "Nrrr"},
     {"name": "control", "hidden": {}, "control": True},
+    {"name": "coupling speed (MMG's U)", "hidden": {}, "form": {"coupling_speed": "U"}, "effect": "coupling_speed"},
 )
 QUICK = (0,)
 
 
-def tracks(hidden: dict, velocity_log: bool, seed: int, duration: float, folder: Path) -> dict:
-    """The runs of a truth with ``hidden`` written as CSV files: ``{name: path}``."""
+def tracks(hidden: dict, velocity_log: bool, seed: int, duration: float, folder: Path, form=None) -> dict:
+    """The runs of a truth with ``hidden`` coefficients and ``form`` choices (a ship file's
+    ``[form]``) written as CSV files: ``{name: path}``."""
     from bayesid.data.track import Track, write_csv
     from bayesid.models.ship import load_ship
     from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
 
     base = load_ship("kvlcc2_7m")
     truth = base.with_coefficients(hidden) if hidden else base
+    truth = truth.with_form(**form) if form else truth
     speed, rpm = propulsion_point(base, 1.179)
     rng = np.random.default_rng(seed)
     out = {}
@@ -103,7 +107,7 @@ def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool) -> dic
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:
-        paths = tracks(structure["hidden"], velocity_log, seed, 120.0 if quick else 200.0, Path(d))
+        paths = tracks(structure["hidden"], velocity_log, seed, 120.0 if quick else 200.0, Path(d), structure.get("form"))
         train = [str(p) for n, p in paths.items() if not n.endswith("_held")]
         held = [str(p) for n, p in paths.items() if n.endswith("_held")]
         argv = ["-q", "diagnose", "--vehicle", "kvlcc2_7m", "--train", *train, "--heldout", *held]

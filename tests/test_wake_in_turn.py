@@ -144,7 +144,8 @@ def test_a_named_wake_in_a_turn_written_by_write_vehicle_loads_and_fits(tmp_path
     kv = ship.load_ship("kvlcc2_7m")
     effects = {"wake_in_turn": {"C1": 1.8, "C2": 1.5, "C2m": 1.2}, "rudder_resistance": {"dtR": -0.1}, "delay": {}}
     res = SimpleNamespace(discovered=None, after_fit={"coefficients": {}, "effects": effects})
-    values, named = _vehicle_values(res, kv)
+    values, forms, named = _vehicle_values(res, kv)
+    assert forms == {}
     assert values == {"C1": 1.8, "C2": 1.5, "C2m": 1.2, "tR": pytest.approx(kv.coefficients["tR"] - 0.1)}
     assert named == ["the wake_in_turn effect (C1, C2, C2m)", "the rudder_resistance effect (tR)"]
     path = write_vehicle_with_terms(KVLCC2_FILE, values, tmp_path / "kv_wake.toml", "test")

@@ -218,25 +218,26 @@ def run_and_write(args, vehicle, free, got: dict, options):
             f"{found.heldout_rms_after_m:.3f} m"
         )
     if args.write_vehicle:
-        values, named = _vehicle_values(res, vehicle)
-        if not values:
+        values, forms, named = _vehicle_values(res, vehicle)
+        if not values and not forms:
             print(f"--write-vehicle: no term was kept and no model form named, {args.write_vehicle} not written")
         else:
             note = f"discovered by bayesid ({Path(args.out) / 'diagnosis.json'}); a start value for bayesid fit"
             src = vehicle.file_path
-            path = write_vehicle_with_terms(src, values, args.write_vehicle, note, args.overwrite)
+            path = write_vehicle_with_terms(src, values, args.write_vehicle, note, args.overwrite, forms)
             print(f"wrote {path}: {src} with {', '.join(named)} added")
     return res
 
 
-def _vehicle_values(res, vehicle) -> tuple[dict, list]:
-    """The coefficients ``--write-vehicle`` writes: the kept terms at the final model's values
-    (the effects may have been fitted on top of them), and the vehicle-file coefficients of the
-    named effects that have them (``vehicle_coefficients``: the ship's wake in a turn, a shifted MMG
-    coefficient); with what they are, for the message."""
+def _vehicle_values(res, vehicle) -> tuple[dict, dict, list]:
+    """What ``--write-vehicle`` writes: the coefficients (the kept terms at the final model's
+    values, the effects may have been fitted on top of them, and the vehicle-file coefficients of
+    the named effects that have them, ``vehicle_coefficients``: the ship's wake in a turn, a shifted
+    MMG coefficient), the model-form choices of the named effects that are forms (``vehicle_form``:
+    the ship's coupling speed), and what they are, for the message."""
     from ..models import model_class
 
-    values, named = {}, []
+    values, forms, named = {}, {}, []
     found = res.discovered
     if found is not None and found.found:
         final = res.after_fit["coefficients"]
@@ -250,7 +251,11 @@ def _vehicle_values(res, vehicle) -> tuple[dict, list]:
             got = effect.vehicle_coefficients(q, vehicle)
             values.update(got)
             named.append(f"the {name} effect ({', '.join(got)})")
-    return values, named
+        if hasattr(effect, "vehicle_form"):
+            got = effect.vehicle_form([params[k] for k in effect.params], vehicle)
+            forms.update(got)
+            named.append(f"the {name} effect ([form] {', '.join(f'{k} = {v!r}' for k, v in got.items())})")
+    return values, forms, named
 
 
 def _candidates(args, family, tracks, free=(), vehicle=None) -> list | None:

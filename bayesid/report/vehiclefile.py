@@ -2,7 +2,9 @@
 ``bayesid discover --write-vehicle``): the source file's text, unchanged, with each kept term
 inserted at the top of ``[coefficients]`` (its refitted value, a comment saying where it comes
 from; a term the section already gives, at 0, gets its value replaced in place) and appended to
-a ship file's ``[fit] free`` list, so ``bayesid fit`` re-identifies it with the others."""
+a ship file's ``[fit] free`` list, so ``bayesid fit`` re-identifies it with the others. A named
+model form (a ship's ``[form] coupling_speed``) is written into the ``[form]`` section, which is
+added at the end of the file when the source has none."""
 
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ __all__ = ["vehicle_with_terms", "write_vehicle_with_terms"]
 _FREE = re.compile(r"^(free\s*=\s*\[)([^\]]*)(\])", re.M)
 
 
-def vehicle_with_terms(source_text: str, terms: dict, note: str) -> str:
+def vehicle_with_terms(source_text: str, terms: dict, note: str, forms: dict | None = None) -> str:
     """The text of a vehicle file with terms added.
 
     A term the file's ``[coefficients]`` already gives (a listed coefficient at 0, such as a
@@ -29,6 +31,8 @@ def vehicle_with_terms(source_text: str, terms: dict, note: str) -> str:
         ``{name: prime value}`` of the terms to add.
     note : str
         The comment written after each added or replaced line.
+    forms : dict, optional
+        ``{key: choice}`` of the ``[form]`` section to set (a ship's model-form choices).
 
     Returns
     -------
@@ -59,10 +63,36 @@ def vehicle_with_terms(source_text: str, terms: dict, note: str) -> str:
         items = [x.strip() for x in m.group(2).split(",") if x.strip()]
         items += [f'"{n}"' for n in terms if f'"{n}"' not in items]
         text = text[: m.start()] + m.group(1) + ", ".join(items) + m.group(3) + text[m.end() :]
-    return text
+    return _with_forms(text, forms or {}, note)
 
 
-def write_vehicle_with_terms(source, terms: dict, path, note: str, overwrite: bool = False) -> Path:
+def _with_forms(text: str, forms: dict, note: str) -> str:
+    """``text`` with the ``[form]`` keys of ``forms`` set: replaced in place where the section
+    gives them, else added at its top; the section appended when the file has none."""
+    if not forms:
+        return text
+    lines = text.rstrip("\n").splitlines()
+    line = {k: f"{k} = {_toml_value(v)}  # {note}" for k, v in forms.items()}
+    at = next((i for i, ln in enumerate(lines) if ln.strip() == "[form]"), None)
+    if at is None:
+        return "\n".join(lines + ["", "[form]"] + list(line.values())) + "\n"
+    end = next((i for i in range(at + 1, len(lines)) if lines[i].lstrip().startswith("[")), len(lines))
+    todo = dict(line)
+    for i in range(at + 1, end):
+        m = re.match(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=", lines[i])
+        if m is not None and m.group(1) in todo:
+            lines[i] = todo.pop(m.group(1))
+    return "\n".join(lines[: at + 1] + list(todo.values()) + lines[at + 1 :]) + "\n"
+
+
+def _toml_value(v) -> str:
+    """A string or number as TOML writes it."""
+    return f'"{v}"' if isinstance(v, str) else repr(float(v))
+
+
+def write_vehicle_with_terms(
+    source, terms: dict, path, note: str, overwrite: bool = False, forms: dict | None = None
+) -> Path:
     """Write a vehicle file with terms added and check that it loads.
 
     Parameters
@@ -77,6 +107,8 @@ def write_vehicle_with_terms(source, terms: dict, path, note: str, overwrite: bo
         The comment of each added line.
     overwrite : bool, default False
         Replace an existing file.
+    forms : dict, optional
+        ``{key: choice}`` of the ``[form]`` section (:func:`vehicle_with_terms`).
 
     Returns
     -------
@@ -95,7 +127,7 @@ def write_vehicle_with_terms(source, terms: dict, path, note: str, overwrite: bo
     path = Path(path)
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists: give another --write-vehicle path or --overwrite")
-    text = vehicle_with_terms(Path(source).read_text(), terms, note)
+    text = vehicle_with_terms(Path(source).read_text(), terms, note, forms)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     try:

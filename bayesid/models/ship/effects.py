@@ -7,7 +7,8 @@ missed most): the MMG 2015 wake in a turn (:class:`ShipWakeInTurn`, a model form
 ``wP exp(-4 beta_P^2)``) and shifts of one MMG coefficient the base model holds at its captive-test
 value (:class:`ShipCoefficientShift`): the rudder's resistance in a turn (``tR``), the thrust
 deduction (``tP``), the propulsion point (the effective wake ``wP``: rpm against speed) and the hull
-resistance (``Xuu = -R'0``). A shift of a coefficient the base model fits is not identifiable: the
+resistance (``Xuu = -R'0``). The hull's coupling terms in a hard turn: MMG 2015's coupling speed
+in place of the package's (:class:`ShipCouplingSpeed`, a model form). A shift of a coefficient the base model fits is not identifiable: the
 model refuses it (:class:`~bayesid.models.ship.model.ShipModel`) and
 :func:`~bayesid.analysis.gap.diagnose.catalogue_candidates` leaves it out, saying why.
 """
@@ -20,7 +21,7 @@ import numpy as np
 
 from ..effects import Effect, SensorLag, delay_starts, drift_seed, drift_starts
 from .dynamics import apparent_wind
-from .layout import COEFFICIENT_INDEX, WAKE_IN_TURN, WIND
+from .layout import COEFFICIENT_INDEX, FORM_INDEX, WAKE_IN_TURN, WIND, coupling_rl_weight
 
 
 class ShipWind(Effect):
@@ -192,6 +193,79 @@ class ShipWakeInTurn(Effect):
         return {k: float(x) for k, x in zip(WAKE_IN_TURN, q)}
 
 
+class ShipCouplingSpeed(Effect):
+    """MMG 2015's coupling speed in place of the ship file's: the hull's coupling terms ``Yvvr``,
+    ``Yvrr``, ``Nvvr``, ``Nvrr`` divided by ``sqrt(u^2 + v^2 + (1 - c) k (rL)^2)``, ``k`` the
+    file's weight of ``(rL)^2`` (``[form] coupling_speed``: 1 for the package's ``"Ut"``), ``c`` the
+    effect's one parameter. ``c = 0`` (``neutral``) is the file's form, ``c = 1`` MMG 2015's
+    ``U = sqrt(u^2 + v^2)`` (Yasukawa & Yoshimura 2015, J. Mar. Sci. Technol. 20:37-52, eqs. 6-8:
+    ``v'^2 r'`` and ``v' r'^2`` made dimensional by ``U^2``). In a 35 deg turn the package's form gives
+    these terms 0.6-0.75 of MMG's and turns tighter (``benchmarks/shipmmg_turn.py``); zigzags hardly
+    tell the two apart (``benchmarks/kvlcc2_hull_form.py``). A model form that nests the base model:
+    the diagnosis judges it on the held-out runs like any candidate, and ``--write-vehicle`` writes
+    the fitted form into the file's ``[form]`` section (:meth:`vehicle_form`).
+
+    Parameters
+    ----------
+    name, params : str, tuple of str
+        Catalogue key and parameter names (the fields of :class:`~bayesid.models.effects.Effect`;
+        the instance of :data:`SHIP_CATALOGUE` sets them all).
+    lo, hi, start, scale : tuple of float
+        Bounds, start values and typical sizes of the parameter.
+    magnitudes, source, description : tuple of dict, str, str
+        Benchmark levels, the reasoning behind the values, a one-line description.
+    n_nuisance, nuisance_lo, nuisance_hi : int, float, float
+        Per-track parameters and their bounds.
+    mode, input_effect, exo_columns, signature, neutral, needs_columns : object
+        The other fields of :class:`~bayesid.models.effects.Effect`.
+    """
+
+    #: the ship file's coefficients the effect sets: none (the form is not a coefficient)
+    sets = ()
+
+    def kernel(self, kp, q):
+        kp["prm"][:, FORM_INDEX["coupling_rL"]] *= 1.0 - q[:, 0]
+
+    @staticmethod
+    def unsupported(ship) -> str | None:
+        """Why the effect cannot change ``ship``'s model, or None.
+
+        Parameters
+        ----------
+        ship : Ship
+            The ship.
+
+        Returns
+        -------
+        str or None
+            A file whose coupling speed is already MMG's ``U``, or without coupling terms, says so.
+        """
+        where = ship.source or ship.id
+        if coupling_rl_weight(ship.form.get("coupling_speed", "Ut")) == 0.0:
+            return f"{where}: [form] coupling_speed is already MMG 2015's U"
+        if not any(ship.coefficients.get(k, 0.0) for k in ("Yvvr", "Yvrr", "Nvvr", "Nvrr")):
+            return f"{where} gives no coupling term (Yvvr, Yvrr, Nvvr, Nvrr)"
+        return None
+
+    def vehicle_form(self, q, vehicle) -> dict:
+        """The ship file's ``[form]`` choice of fitted ``q``.
+
+        Parameters
+        ----------
+        q : array_like, shape (1,)
+            ``c``, MMG's share of the coupling speed.
+        vehicle : Ship
+            The ship: its own weight of ``(rL)^2``.
+
+        Returns
+        -------
+        dict
+            ``{"coupling_speed": "U"}`` at ``c = 1``, ``"Ut"`` at a weight of 1, else the weight.
+        """
+        w = coupling_rl_weight(vehicle.form.get("coupling_speed", "Ut")) * (1.0 - float(q[0]))
+        return {"coupling_speed": "U" if w <= 0.0 else "Ut" if w >= 1.0 else round(w, 4)}
+
+
 @dataclass(frozen=True, eq=False)
 class ShipCoefficientShift(Effect):
     """A shift of one MMG coefficient that the base model holds at its captive-test (or file)
@@ -301,6 +375,20 @@ SHIP_CATALOGUE = {
         description="the MMG 2015 wake in a turn, 1 - w_P = (1 - wP)(1 + (1 - exp(-C1|beta_P|))(C2 - 1)), "
         "C2 for beta_P > 0 and C2m for beta_P < 0, in place of wP exp(-4 beta_P^2)",
         source=f"{_MMG}, eq. 16; start values their KVLCC2 L7 (C1 2.0, C2 1.6 and 1.1)",
+    ),
+    "coupling_speed": ShipCouplingSpeed(
+        "coupling_speed",
+        ("c_U",),
+        (0.0,),
+        (1.0,),
+        (1.0,),
+        (0.3,),
+        neutral=(0.0,),
+        description="MMG 2015's coupling speed: the hull's coupling terms Yvvr, Yvrr, Nvvr, Nvrr divided by "
+        "sqrt(u^2 + v^2 + (1 - c_U)(rL)^2), c_U = 1 being MMG's U = sqrt(u^2 + v^2) in place of the package's "
+        "sqrt(u^2 + v^2 + (rL)^2)",
+        source=f"{_MMG}, eqs. 6-8; the package's form stays finite at zero speed and gives these terms "
+        "0.6-0.75 of MMG's in a hard turn (benchmarks/shipmmg_turn.py)",
     ),
     "rudder_resistance": ShipCoefficientShift(
         "rudder_resistance",

@@ -383,10 +383,13 @@ def _form(p, sec) -> dict:
     for k, v in sec.items():
         if k not in FORMS:
             raise ShipFileError(f"{p}: [form] unknown key {k!r}; known: {', '.join(FORMS)}")
-        if v not in FORMS[k]:
+        weight = k == "coupling_speed" and isinstance(v, (int, float)) and not isinstance(v, bool)
+        if weight and not 0.0 <= v <= 1.0:
+            raise ShipFileError(f"{p}: [form] {k} = {v!r}; a weight of (rL)^2 must lie in [0, 1] (1 is 'Ut', 0 is 'U')")
+        if not weight and v not in FORMS[k]:
             raise ShipFileError(
                 f"{p}: [form] {k} = {v!r}; the choices are {', '.join(repr(c) for c in FORMS[k])} "
-                f"(default {FORMS[k][0]!r})"
+                f"(default {FORMS[k][0]!r}) or a weight of (rL)^2 in [0, 1]"
             )
     return dict(sec)
 

@@ -90,7 +90,9 @@ WIND = ("Cx1", "Cx3", "Cy1", "Cy3", "Cn1", "Cn2", "Cn3")
 #: are divided by, ``"Ut"`` = ``sqrt(u^2 + v^2 + (rL)^2)`` (the package's form, bounded at every
 #: speed) or ``"U"`` = ``sqrt(u^2 + v^2)`` (MMG 2015's ``v'^2 r' U^2``, Yasukawa & Yoshimura 2015,
 #: the hull forces, eqs. 6-8 as the package cites them; in a 35 deg turn the package's form gives these terms 0.6-0.75 of MMG's,
-#: ``benchmarks/shipmmg_turn.py``). Not coefficients: no fit changes them.
+#: ``benchmarks/shipmmg_turn.py``). A number in [0, 1] is the weight of ``(rL)^2`` between the
+#: two (1 is ``"Ut"``, 0 is ``"U"``): the ``coupling_speed`` effect's fitted form, which
+#: ``bayesid diagnose --write-vehicle`` writes. Not coefficients: no fit of the base model changes them.
 FORMS = {"coupling_speed": ("Ut", "U")}
 #: The kernel's numbers of the forms, after the coefficients: ``coupling_rL`` is the weight of
 #: ``(rL)^2`` in the coupling speed (1 for ``"Ut"``, 0 for ``"U"``).
@@ -117,8 +119,25 @@ def form_slots(form: dict) -> list[float]:
     list of float
         One number per :data:`FORM_SLOTS` entry.
     """
-    coupling = form.get("coupling_speed", FORMS["coupling_speed"][0])
-    return [1.0 if coupling == "Ut" else 0.0]
+    return [coupling_rl_weight(form.get("coupling_speed", FORMS["coupling_speed"][0]))]
+
+
+def coupling_rl_weight(choice) -> float:
+    """The weight of ``(rL)^2`` in the coupling speed of a ``[form] coupling_speed`` choice.
+
+    Parameters
+    ----------
+    choice : str or float
+        ``"Ut"`` (1), ``"U"`` (0) or the weight itself, in [0, 1].
+
+    Returns
+    -------
+    float
+        The weight.
+    """
+    if isinstance(choice, str):
+        return 1.0 if choice == "Ut" else 0.0
+    return float(choice)
 
 
 #: Gauss-Legendre nodes (on [-1, 1]) and weights of the hull cross-flow integral, 16 points: the
@@ -137,6 +156,7 @@ __all__ = [
     "FORMS",
     "FORM_SLOTS",
     "FORM_INDEX",
+    "coupling_rl_weight",
     "form_slots",
     "NP",
     "PARTICULAR_INDEX",

@@ -248,6 +248,26 @@ class ShipModel(ParameterLayout):
                 raise KeyError(f"{option}: {_unknown_message(ship, k)}")
 
     @staticmethod
+    def effect_unsupported(effect, ship) -> str | None:
+        """Why an effect cannot change ``ship``'s model (the coupling speed of a file that already
+        has MMG's, or no coupling terms), or None.
+
+        Parameters
+        ----------
+        effect : Effect
+            A ship effect.
+        ship : Ship
+            The ship.
+
+        Returns
+        -------
+        str or None
+            The reason, naming the file; None when the effect applies.
+        """
+        check = getattr(effect, "unsupported", None)
+        return check(ship) if check is not None else None
+
+    @staticmethod
     def effect_clash(effect, free) -> list:
         """The free coefficients an effect sets: a model with both has a parameter twice (the
         fit cannot tell them apart).
