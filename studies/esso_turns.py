@@ -91,7 +91,9 @@ def main() -> int:
     if args.coupling_speed != "Ut":
         esso = esso.with_form(coupling_speed=args.coupling_speed)
     said = []
-    cands = catalogue_candidates(ship.ShipModel, train + held, Runner(progress=said.append), free=esso.free, vehicle=esso)
+    cands = catalogue_candidates(
+        ship.ShipModel, train + held, Runner(progress=said.append), free=esso.free, vehicle=esso
+    )
     if args.quick:
         cands = [c for c in cands if c in ("wake_in_turn", "rudder_resistance")]
     log = lambda m: print(m, flush=True)  # noqa: E731

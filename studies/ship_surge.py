@@ -107,7 +107,9 @@ def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool) -> dic
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:
-        paths = tracks(structure["hidden"], velocity_log, seed, 120.0 if quick else 200.0, Path(d), structure.get("form"))
+        paths = tracks(
+            structure["hidden"], velocity_log, seed, 120.0 if quick else 200.0, Path(d), structure.get("form")
+        )
         train = [str(p) for n, p in paths.items() if not n.endswith("_held")]
         held = [str(p) for n, p in paths.items() if n.endswith("_held")]
         argv = ["-q", "diagnose", "--vehicle", "kvlcc2_7m", "--train", *train, "--heldout", *held]

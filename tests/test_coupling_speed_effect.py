@@ -81,7 +81,8 @@ def test_write_vehicle_writes_the_fitted_form_which_loads_and_simulates_as_the_e
     free = ["Yv", "Nr"]
     th = ship.ShipModel(kv, free).start(None)
     np.testing.assert_array_equal(
-        _kernel_row(ship.ShipModel(written, free), th), _kernel_row(ship.ShipModel(kv, free, ["coupling_speed"]), np.r_[th, 0.4])
+        _kernel_row(ship.ShipModel(written, free), th),
+        _kernel_row(ship.ShipModel(kv, free, ["coupling_speed"]), np.r_[th, 0.4]),
     )
     # written again with MMG's form in full: the [form] line is replaced, not doubled
     again = write_vehicle_with_terms(path, {}, tmp_path / "kv_u.toml", "again", forms={"coupling_speed": "U"})

@@ -119,11 +119,13 @@ _SUSPECTS = {
     ),
     "speed in the turn": (
         "the speed in the turn is off too, so the surge equation is the first suspect (hull resistance in the turn, "
-        "the propeller's inflow and thrust deduction, the rudder's drag)"
+        "the propeller's inflow and thrust deduction, the rudder's drag: bayesid diagnose tests them as the "
+        "hull_resistance, wake_in_turn, thrust_deduction and rudder_resistance effects and the X terms of discovery)"
     ),
     "turning forces": (
         "the speed in the turn is right, so the sway force and yaw moment of the hull and rudder in the turn are the "
-        "first suspects"
+        "first suspects (bayesid diagnose tests the hull's coupling form in a hard turn as the coupling_speed effect, "
+        "and the Y and N terms of discovery)"
     ),
 }
 
