@@ -103,7 +103,7 @@ def case_data(case: dict, seed: int, quick: bool):
     return veh, free, train, held
 
 
-def fly(case: dict, vehicle, free: list, row: dict, approach, rng, t0: float):
+def fly(case: dict, vehicle, free: list, row, approach, rng, t0: float):
     """The designed run ``row`` flown by the truth from ``approach``
     (:class:`bayesid.models.runs.Approach`): logged at the case's rate with its noise."""
     from bayesid.data.track import Track
@@ -112,7 +112,7 @@ def fly(case: dict, vehicle, free: list, row: dict, approach, rng, t0: float):
 
     truth = vehicle.with_coefficients(case["hidden"]) if case["hidden"] else vehicle
     model = build_model(truth, free)
-    u = row["inputs"]
+    u = row.inputs
     sim = simulate_run(model, model.start(), input_track(u["t"], u["delta_r"], u["n"], approach), approach)
     if sim is None:
         return None
@@ -212,6 +212,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.analysis.gap.design import DiscriminationOptions
     from bayesid.analysis.gap.discovery import DiscoveryOptions
+    from bayesid.analysis.gap.records import pair_label
     from bayesid.models.runs import approach_condition
 
     t_start = time.perf_counter()
@@ -235,7 +236,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
         "nonforce": case.get("nonforce"),
         "seed": seed,
         "round1": first,
-        "design": [{k: v for k, v in r.items() if k not in ("predicted", "inputs")} for r in d1.design],
+        "design": [replace(r, predicted=None, inputs=None).to_dict() for r in d1.design],
         "round2": None,
         "round2_train": None,
         "designed_run": None,
@@ -246,12 +247,12 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
         run = fly(case, veh, free, top, approach_condition(train), np.random.default_rng(seed + 1), clock)
         if run is not None:
             out["designed_run"] = {
-                "name": top["name"],
-                "separation": top["separation"],
+                "name": top.name,
+                "separation": top.separation,
                 "samples": run.n_samples,
-                "duration_s": top["duration_s"],
-                "run_test": top.get("run_test"),
-                "decidable_pairs": top.get("decidable_pairs", []),
+                "duration_s": top.duration_s,
+                "run_test": top.run_test.to_dict(),
+                "decidable_pairs": [pair_label(p) for p in top.decidable_pairs or []],
             }
             # round 1's kept terms and alternatives are judged again on the new run (``--compare``)
             asked = [*first["kept"], *(a for k in first["kept"] for a in first["alternatives"][k])]
@@ -313,9 +314,13 @@ def _menu_inseparable(r: dict) -> dict:
     (:func:`bayesid.analysis.gap.design.rank_by_separable_pairs` over the ranked runs' pairwise
     divergences, at the design's threshold)."""
     from bayesid.analysis.gap.design import DiscriminationOptions, rank_by_separable_pairs
+    from bayesid.analysis.gap.records import DesignedRun, pair_label
 
-    rows = [dict(x) for x in r.get("design") or [] if x.get("pairs")]
-    return rank_by_separable_pairs(rows, DiscriminationOptions().min_separation)[0]["menu_inseparable"] if rows else {}
+    rows = [DesignedRun.from_dict(x) for x in r.get("design") or [] if x.get("pairs")]
+    if not rows:
+        return {}
+    ranked = rank_by_separable_pairs(rows, DiscriminationOptions().min_separation)
+    return {pair_label(k): v for k, v in ranked[0].menu_inseparable.items()}
 
 
 def _resolved_up_to_menu(r: dict, key: str) -> bool:

@@ -327,6 +327,7 @@ def _steady_lines(res: dict) -> list:
 
 
 def write_report(out: Path, res: dict, args) -> None:
+    from bayesid.analysis.gap.records import DesignedRun, pair_label
     from bayesid.report import fmt, md_table
     from bayesid.report.diagnosis import design_duration_cell, run_test_cell
 
@@ -393,13 +394,13 @@ def write_report(out: Path, res: dict, args) -> None:
                 [
                     [
                         i + 1,
-                        r["name"],
+                        r.name,
                         design_duration_cell(r),
-                        fmt(r["separation"]),
-                        r.get("worst_pair") or "-",
+                        fmt(r.separation),
+                        pair_label(r.worst_pair),
                         run_test_cell(r),
                     ]
-                    for i, r in enumerate(D["design"][:5])
+                    for i, r in enumerate(DesignedRun.from_dict(x) for x in D["design"][:5])
                 ],
             ),
             "",

@@ -5,6 +5,8 @@ held-out test covers."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 from types import SimpleNamespace
 
@@ -16,10 +18,12 @@ from diagnosis_view import scores
 from bayesid.analysis.gap import design as dz
 from bayesid.analysis.gap import discovery as dv
 from bayesid.analysis.gap.candidates import Setup, Stage
+from bayesid.analysis.gap.records import DesignedRun, PairOutlook, RunTestOutlook
 from bayesid.analysis.gap.verdict import Thresholds
 from bayesid.data.track import Track
 from bayesid.models import runs as mr
 from bayesid.models import ship
+from bayesid.tasks import jsonable
 
 
 def _stage(windows):
@@ -359,23 +363,47 @@ def test_the_designed_runs_separate_two_structures_and_none_separates_a_model_fr
     assert set(rows[0]["predicted"]) == set(stages)
 
 
+def _designed(name, separation=0.0, pairs=None, outlook=None, inseparable=None, **run):
+    """A designed run (:class:`DesignedRun`) with only what a test reads set."""
+    pairs = pairs or {}
+    worst = min(((v, k) for k, v in pairs.items() if np.isfinite(v)), default=(separation, ("K", "A")))
+    fields = dict(kind="turning_circle", rudder_deg=35.0, check_deg=None, side="port", rpm=600.0, duration_s=90.0)
+    fields.update(run)
+    return DesignedRun(
+        name=name,
+        separation=worst[0] if pairs else separation,
+        worst_pair=worst[1],
+        pairs=pairs,
+        max_position_difference_m=1.0,
+        run_test=outlook or RunTestOutlook(3, 0.2, {}),
+        menu_inseparable=inseparable,
+        **fields,
+    )
+
+
 def test_runs_are_ranked_on_the_pairs_some_run_separates_and_the_others_are_named():
+    AB, AC, BC = ("A", "B"), ("A", "C"), ("B", "C")
     rows = [
-        {"name": "turn", "pairs": {"A vs B": 900.0, "A vs C": 4.0, "B vs C": 800.0}},
-        {"name": "zigzag", "pairs": {"A vs B": 50.0, "A vs C": 6.0, "B vs C": 60.0}},
-        {"name": "pull-out", "pairs": {"A vs B": 300.0, "A vs C": 1.0, "B vs C": float("nan")}},
+        _designed("turn", pairs={AB: 900.0, AC: 4.0, BC: 800.0}),
+        _designed("zigzag", pairs={AB: 50.0, AC: 6.0, BC: 60.0}),
+        _designed("pull-out", pairs={AB: 300.0, AC: 1.0, BC: float("nan")}),
     ]
-    for r in rows:
-        r["separation"], r["worst_pair"] = min((v, k) for k, v in r["pairs"].items() if np.isfinite(v))
     ranked = dz.rank_by_separable_pairs(rows, 20.0)
-    assert [r["name"] for r in ranked] == ["turn", "pull-out", "zigzag"]
-    assert ranked[0]["worst_pair"] == "B vs C" and ranked[0]["separation"] == 800.0
-    assert ranked[1]["worst_pair"] == "A vs B"  # B vs C not simulated on it
-    assert all(r["menu_inseparable"] == {"A vs C": {"best_run": "zigzag", "separation": 6.0}} for r in ranked)
+    assert [r.name for r in ranked] == ["turn", "pull-out", "zigzag"]
+    assert ranked[0].worst_pair == BC and ranked[0].separation == 800.0
+    assert ranked[1].worst_pair == AB  # B vs C not simulated on it
+    assert all(r.menu_inseparable == {AC: {"best_run": "zigzag", "separation": 6.0}} for r in ranked)
+    assert rows[0].menu_inseparable is None  # the ranking returns new rows, the old ones stay
+    # the JSON keys the pairs "A vs B", and reads them back
+    assert ranked[0].to_dict()["menu_inseparable"] == {"A vs C": {"best_run": "zigzag", "separation": 6.0}}
+    assert ranked[0].to_dict()["worst_pair"] == "B vs C"
+    assert DesignedRun.from_dict(json.loads(json.dumps(jsonable(ranked[2].to_dict())))).to_dict().keys() == (
+        ranked[2].to_dict().keys()
+    )
     # nothing separable: ranked on every pair, each named
     ranked = dz.rank_by_separable_pairs(rows, 1e4)
-    assert set(ranked[0]["menu_inseparable"]) == {"A vs B", "A vs C", "B vs C"}
-    assert ranked[0]["name"] == "zigzag" and ranked[0]["separation"] == 6.0
+    assert set(ranked[0].menu_inseparable) == {AB, AC, BC}
+    assert ranked[0].name == "zigzag" and ranked[0].separation == 6.0
 
 
 def test_runs_the_run_test_could_decide_come_before_larger_divergences():
@@ -384,27 +412,24 @@ def test_runs_the_run_test_could_decide_come_before_larger_divergences():
     run test could separate the kept term from its alternatives within max_windows windows."""
 
     def row(name, separation, needed, inseparable=()):
-        return {
-            "name": name,
-            "separation": separation,
-            "run_test": {"pairs": {f"K vs {k}": {"windows_needed": w} for k, w in needed.items()}},
-            "menu_inseparable": {p: {} for p in inseparable},
-        }
+        outlook = RunTestOutlook(3, 0.2, {("K", k): PairOutlook(1.2, w) for k, w in needed.items()})
+        return _designed(name, separation, outlook=outlook, inseparable={("K", p): {} for p in inseparable})
 
     rows = [
         row("turn 35", 900.0, {"A": float("inf"), "B": 40.0}),  # large divergence, nothing decidable
         row("turn 18", 120.0, {"A": 6.0, "B": 9.0}),  # one pair within 8 windows
         row("pull-out", 200.0, {"A": 7.5, "B": None}),  # one pair; larger divergence than turn 18
-        row("zigzag", 50.0, {"A": 3.0, "B": 2.0}, inseparable=["K vs B"]),  # B: no run separates it
+        row("zigzag", 50.0, {"A": 3.0, "B": 2.0}, inseparable=["B"]),  # B: no run separates it
     ]
     ranked = dz.rank_by_decidable_pairs(rows, 8)
-    assert [r["name"] for r in ranked] == ["pull-out", "turn 18", "zigzag", "turn 35"]
-    assert ranked[0]["decidable_pairs"] == ["K vs A"] and ranked[-1]["decidable_pairs"] == []
-    assert ranked[2]["decidable_pairs"] == ["K vs A"]  # the menu-inseparable pair does not count
+    assert [r.name for r in ranked] == ["pull-out", "turn 18", "zigzag", "turn 35"]
+    assert ranked[0].decidable_pairs == [("K", "A")] and ranked[-1].decidable_pairs == []
+    assert ranked[2].decidable_pairs == [("K", "A")]  # the menu-inseparable pair does not count
+    assert ranked[0].to_dict()["decidable_pairs"] == ["K vs A"]
     # with room for more windows turn 18 decides both pairs and comes first
-    assert [r["name"] for r in dz.rank_by_decidable_pairs(rows, 10)][:2] == ["turn 18", "pull-out"]
+    assert [r.name for r in dz.rank_by_decidable_pairs(rows, 10)][:2] == ["turn 18", "pull-out"]
     # nothing decidable anywhere: the divergence ranks the runs, as before
-    assert [r["name"] for r in dz.rank_by_decidable_pairs(rows, 1)] == ["turn 35", "pull-out", "turn 18", "zigzag"]
+    assert [r.name for r in dz.rank_by_decidable_pairs(rows, 1)] == ["turn 35", "pull-out", "turn 18", "zigzag"]
 
 
 def _n0_against_nabsdr():
@@ -445,10 +470,10 @@ def test_the_top_designed_run_flown_by_the_truth_rejects_the_wrong_structure():
 def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
     from bayesid.report.diagnosis import _design_lines, _write_design_runs
 
-    rows = [
-        {"name": "zigzag 20/20 port", "inputs": {"t": [0.0, 0.1], "delta_r": [0.0, 0.01], "n": [600.0, 600.0]}},
-        {"name": "pull out 20 deg port"},
-    ]
+    pull = dict(kind="pull_out", side="port", rudder_deg=20, check_deg=None, rpm=600, duration_s=90)
+    inputs = {"t": [0.0, 0.1], "delta_r": [0.0, 0.01], "n": [600.0, 600.0]}
+    rows = [_designed("zigzag 20/20 port", 3.0, **pull), _designed("pull out 20 deg port", 3.0, **pull)]
+    rows[0] = dataclasses.replace(rows[0], inputs=inputs)
     _write_design_runs(rows, tmp_path)
     path = tmp_path / "design_runs" / "1_zigzag_20_20_port.csv"
     lines = path.read_text().splitlines()  # a comment line, then a plain header row
@@ -456,21 +481,25 @@ def test_the_report_writes_the_top_runs_input_schedules(tmp_path):
     data = np.loadtxt(path, delimiter=",", skiprows=2)
     assert data.shape == (2, 3) and data[1, 1] == pytest.approx(0.01)
     assert not (tmp_path / "design_runs" / "2_pull_out_20_deg_port.csv").exists()
-    rows[1].update(kind="pull_out", side="port", rudder_deg=20, check_deg=None, rpm=600, duration_s=90)
-    rows[1].update(separation=3.0, worst_pair="A vs B", max_position_difference_m=1.0)
-    rows[0].update(rows[1] | {"name": rows[0]["name"], "inputs_csv": "design_runs/1_zigzag_20_20_port.csv"})
+    rows[0] = dataclasses.replace(rows[0], inputs=None, inputs_csv="design_runs/1_zigzag_20_20_port.csv")
     text = "\n".join(_design_lines(rows))
     assert "`design_runs/1_zigzag_20_20_port.csv`" in text and "Not separable" not in text
-    rows[0]["menu_inseparable"] = {"Nvvr vs Nvabsvabsr": {"best_run": "zigzag 20/20 port", "separation": 6.8}}
+    insep = {("Nvvr", "Nvabsvabsr"): {"best_run": "zigzag 20/20 port", "separation": 6.8}}
+    rows[0] = dataclasses.replace(rows[0], menu_inseparable=insep)
     text = "\n".join(_design_lines(rows))
     assert "**Not separable by the standard manoeuvres**: no run of the menu separates Nvvr from Nvabsvabsr" in text
     # a run lengthened for the run test says from what, and the windows its hardest separable pair needs
-    rows[0].update(duration_s=480, run_test={"sized_from_s": 180, "pairs": {}})
-    rows[0]["run_test"]["pairs"] = {
-        "K vs A": {"expected_ratio": 1.19, "windows_needed": 40.4},
-        "K vs B": {"expected_ratio": 1.5, "windows_needed": 6.2},
-        "K vs C": {"expected_ratio": 1.05, "windows_needed": "inf"},
-    }
+    outlook = RunTestOutlook(
+        8,
+        0.2,
+        {
+            ("K", "A"): PairOutlook(1.19, 40.4),
+            ("K", "B"): PairOutlook(1.5, 6.2),
+            ("K", "C"): PairOutlook(1.05, float("inf")),
+        },
+        sized_from_s=180,
+    )
+    rows[0] = dataclasses.replace(rows[0], duration_s=480, run_test=outlook)
     row = next(x for x in "\n".join(_design_lines(rows)).splitlines() if x.startswith("| pull out"))
     assert "| 480 (from 180) |" in row and "| 41 (x1.19, K vs A); 1 of 3 pairs within the margin |" in row
 

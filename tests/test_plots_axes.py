@@ -12,6 +12,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import matplotlib
 
@@ -61,8 +62,8 @@ def _cases() -> dict:
     S[:, :, 0], S[:, :, 1] = x, y + np.arange(3)[:, None]
     summary = {"sorted_costs": [1.0, 1.001, 1.5], "cost_tolerance": 0.01}
     summary |= {"n_near_best": 2, "n_starts": 3, "n_distinct_near_best": 1}
-    row = {"name": "zigzag", "separation": 1.5, "worst_pair": "Nr-Yr"}
-    row["predicted"] = {"Nr": {"x": x, "y": y}, "without Nr": {"x": x + 1, "y": y}}
+    alternatives = {"Nr": {"x": x, "y": y}, "without Nr": {"x": x + 1, "y": y}}
+    row = SimpleNamespace(name="zigzag", separation=1.5, worst_pair=("Nr", "Yr"), predicted=alternatives)
     margin = {"mean": 1.0, "lower": 0.9, "upper": 1.1, "truth": 1.0, "prior_lo": 0.5, "prior_hi": 1.5}
     return {
         "track_xy": (({"a": track, "b": track},), {"title": "tracks"}, None),

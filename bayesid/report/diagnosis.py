@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -13,11 +14,13 @@ from ..analysis.gap.records import (
     BaseCheck,
     CandidateRow,
     Contribution,
+    DesignedRun,
     FirstRoundSummary,
     NoiseFloor,
     Remainder,
     TermRow,
     ThrustCheck,
+    pair_label,
 )
 from .markdown import fmt, md_table, warning_lines
 from .study import write_json
@@ -115,15 +118,14 @@ def write_diagnosis(diag, out, heldout: list, command: str = "", inputs: dict | 
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     res = dict(diag.to_dict(), **(inputs or {}))
-    _write_design_runs(res.get("design") or [], out)
+    _write_design_runs(diag.design, out)
     # the designed runs' input schedules are in their CSV files, not repeated in the JSON
-    res["design"] = [
-        {k: v for k, v in r.items() if k != "inputs"}
-        | ({"inputs_csv": _design_run_name(i, r)} if r.get("inputs") else {})
-        for i, r in enumerate(res.get("design") or [], 1)
+    design = [
+        replace(r, inputs=None, inputs_csv=_design_run_name(i, r) if r.inputs else None)
+        for i, r in enumerate(diag.design, 1)
     ]
+    res["design"] = [r.to_dict() for r in design]
     write_json(out / "diagnosis.json", res)
-    design = res["design"]
     figs = _figures(diag, out, heldout) + _discovery_figures(diag, design, out, heldout)
     lines = [*_summary_lines(diag, res.get("warnings") or [], command), *_how_far_lines(diag), *_which_lines(diag)]
     lines += [*_discovery_lines(diag), *_alternatives_lines(diag), *_predictions_lines(diag), *_design_lines(design)]
@@ -403,31 +405,31 @@ def _widest_run(kept: dict, alt: dict) -> str:
     return f"; most apart on {r}: {fmt(a[r])} against {fmt(k[r])} m"
 
 
-def design_duration_cell(r: dict) -> str:
+def design_duration_cell(r: DesignedRun) -> str:
     """The duration cell of a designed run in the report's table.
 
     Parameters
     ----------
-    r : dict
-        A row of ``diagnosis.json["design"]`` (``duration_s``; ``run_test.sized_from_s``).
+    r : DesignedRun
+        A designed run (``duration_s``; ``run_test.sized_from_s``).
 
     Returns
     -------
     str
         ``480 (from 180)`` for a run lengthened for the run test, else its duration, s.
     """
-    sized = (r.get("run_test") or {}).get("sized_from_s")
-    return f"{fmt(r['duration_s'])} (from {fmt(sized)})" if sized else fmt(r["duration_s"])
+    sized = r.run_test.sized_from_s
+    return f"{fmt(r.duration_s)} (from {fmt(sized)})" if sized else fmt(r.duration_s)
 
 
-def run_test_cell(r: dict) -> str:
+def run_test_cell(r: DesignedRun) -> str:
     """The run test's outlook on a designed run, over the pairs of the kept term and an alternative.
 
     Parameters
     ----------
-    r : dict
-        A row of ``diagnosis.json["design"]`` (``run_test.pairs``: ``expected_ratio``,
-        ``windows_needed``, :func:`bayesid.analysis.gap.design.run_test_windows`).
+    r : DesignedRun
+        A designed run (``run_test.pairs``: ``expected_ratio``, ``windows_needed``,
+        :func:`bayesid.analysis.gap.design.run_test_windows`).
 
     Returns
     -------
@@ -436,33 +438,30 @@ def run_test_cell(r: dict) -> str:
         pair, and how many pairs lie within the test's margin (``41 (x1.19, K vs A); 2 of 3 pairs
         within the margin``; ``within the margin (x1.08)`` for a single pair; ``-`` without).
     """
-    pairs = (r.get("run_test") or {}).get("pairs") or {}
+    pairs = r.run_test.pairs
     if not pairs:
         return "-"
-    need = {
-        k: math.inf if v.get("windows_needed") in (None, "inf") else float(v["windows_needed"])
-        for k, v in pairs.items()
-    }
+    need = {k: math.inf if v.windows_needed is None else float(v.windows_needed) for k, v in pairs.items()}
     finite = [k for k in need if math.isfinite(need[k])]
     cells = []
     if finite:
         k = max(finite, key=need.get)
-        cells.append(f"{math.ceil(need[k])} (x{fmt(pairs[k]['expected_ratio'])}, {k})")
+        cells.append(f"{math.ceil(need[k])} (x{fmt(pairs[k].expected_ratio)}, {pair_label(k)})")
     if len(need) == 1 and not finite:
-        cells.append(f"within the margin (x{fmt(next(iter(pairs.values()))['expected_ratio'])})")
+        cells.append(f"within the margin (x{fmt(next(iter(pairs.values())).expected_ratio)})")
     elif len(finite) < len(need):
         cells.append(f"{len(need) - len(finite)} of {len(need)} pairs within the margin")
     return "; ".join(cells)
 
 
 def _design_lines(rows: list) -> list:
-    """The runs that would separate the alternatives, best first (the rows as ``diagnosis.json``
-    writes them: ``inputs_csv`` in place of the input schedule)."""
+    """The runs that would separate the alternatives, best first (:class:`DesignedRun` as
+    ``diagnosis.json`` writes them: ``inputs_csv`` in place of the input schedule)."""
     if not rows:
         return []
     from ..analysis.gap.diagnose import WITHOUT_TERMS
 
-    against_base = any(WITHOUT_TERMS in (r.get("worst_pair") or "") for r in rows)
+    against_base = any(WITHOUT_TERMS in r.worst_pair for r in rows)
     head = (
         [
             "## The run that would test it beyond the training manoeuvres",
@@ -492,15 +491,15 @@ def _design_lines(rows: list) -> list:
             ],
             [
                 [
-                    r["kind"].replace("_", " "),
-                    r["side"],
-                    fmt(r["rudder_deg"]),
-                    fmt(r["check_deg"]),
-                    fmt(r["rpm"]),
+                    r.kind.replace("_", " "),
+                    r.side,
+                    fmt(r.rudder_deg),
+                    fmt(r.check_deg),
+                    fmt(r.rpm),
                     design_duration_cell(r),
-                    fmt(r["separation"]),
-                    r["worst_pair"],
-                    fmt(r["max_position_difference_m"]),
+                    fmt(r.separation),
+                    pair_label(r.worst_pair),
+                    fmt(r.max_position_difference_m),
                     run_test_cell(r),
                 ]
                 for r in rows
@@ -526,22 +525,18 @@ def _design_lines(rows: list) -> list:
         "alternatives above are refitted on the new run whatever its selection picks.",
         "",
         *_inseparable_lines(rows),
-        *(
-            f"- Input schedule of run {i} ({r['name']}): `{r['inputs_csv']}`"
-            for i, r in enumerate(rows, 1)
-            if r.get("inputs_csv")
-        ),
+        *(f"- Input schedule of run {i} ({r.name}): `{r.inputs_csv}`" for i, r in enumerate(rows, 1) if r.inputs_csv),
         "",
     ]
 
 
 def _inseparable_lines(rows: list) -> list:
     """The pairs of alternatives that no run of the design's menu separates."""
-    pairs = (rows[0].get("menu_inseparable") or {}) if rows else {}
+    pairs = (rows[0].menu_inseparable or {}) if rows else {}
     if not pairs:
         return []
     items = "; ".join(
-        f"{p.replace(' vs ', ' from ')} (best {fmt(v['separation'])} nats, {v['best_run']})" for p, v in pairs.items()
+        f"{a} from {b} (best {fmt(v['separation'])} nats, {v['best_run']})" for (a, b), v in pairs.items()
     )
     return [
         f"**Not separable by the standard manoeuvres**: no run of the menu separates {items}, below the "
@@ -552,9 +547,9 @@ def _inseparable_lines(rows: list) -> list:
     ]
 
 
-def _design_run_name(rank: int, row: dict) -> str:
+def _design_run_name(rank: int, row: DesignedRun) -> str:
     """The file name of a designed run's input schedule, e.g. ``design_runs/1_zigzag_20_20_port.csv``."""
-    slug = "".join(c if c.isalnum() else "_" for c in row["name"]).strip("_")
+    slug = "".join(c if c.isalnum() else "_" for c in row.name).strip("_")
     return f"design_runs/{rank}_{'_'.join(filter(None, slug.split('_')))}.csv"
 
 
@@ -564,17 +559,17 @@ def _write_design_runs(rows: list, out: Path) -> None:
     import numpy as np
 
     for i, r in enumerate(rows, 1):
-        if not r.get("inputs"):
+        if not r.inputs:
             continue
         path = out / _design_run_name(i, r)
         path.parent.mkdir(parents=True, exist_ok=True)
-        u = r["inputs"]
+        u = r.inputs
         # a comment line, then a plain header row (pandas.read_csv(path, comment="#") reads it)
         np.savetxt(
             path,
             np.column_stack([u["t"], u["delta_r"], u["n"]]),
             delimiter=",",
-            header=f"# designed run {i}: {r['name']} (rudder + to port, rad; zigzag switches as the kept model "
+            header=f"# designed run {i}: {r.name} (rudder + to port, rad; zigzag switches as the kept model "
             "steers)\nt,delta_r,n",
             comments="",
             fmt="%.6g",

@@ -1871,16 +1871,16 @@ def simulated_run(track, path=None, title: str = "", indices=None, *, axes=None)
     return _done(fig, axes, path)
 
 
-def plot_alternatives(row: dict, ax=None, *, path=None):
+def plot_alternatives(row, ax=None, *, path=None):
     """The alternatives' predicted tracks of one designed run (earth frame: x north, y east,
     plotted y against x), over the diagnosis's protocol windows started from the kept term's
     model.
 
     Parameters
     ----------
-    row : dict
-        A row of ``Diagnosis.design`` with ``predicted`` (``{label: {"t", "x", "y", "psi"}}``),
-        ``name`` and ``separation``.
+    row : DesignedRun
+        A run of ``Diagnosis.design`` with ``predicted`` (``{label: {"t", "x", "y", "psi"}}``),
+        ``name``, ``separation`` and ``worst_pair``.
     ax : matplotlib.axes.Axes, optional
         The axes drawn on (default: new axes on a new figure).
     path : str or Path, optional
@@ -1892,7 +1892,7 @@ def plot_alternatives(row: dict, ax=None, *, path=None):
         The axes drawn on; with ``path``, ``path`` (the PNG written).
     """
     fig, ax = _axes(ax, (6, 5))
-    for i, (label, p) in enumerate(row["predicted"].items()):
+    for i, (label, p) in enumerate(row.predicted.items()):
         ax.plot(
             p["y"],
             p["x"],
@@ -1903,6 +1903,6 @@ def plot_alternatives(row: dict, ax=None, *, path=None):
     ax.set_xlabel("y, east (m)")
     ax.set_ylabel("x, north (m)")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(f"{row['name']}: separation {row['separation']:.3g} nats ({row['worst_pair']})", fontsize=9)
+    ax.set_title(f"{row.name}: separation {row.separation:.3g} nats ({' vs '.join(row.worst_pair)})", fontsize=9)
     ax.legend(fontsize=8)
     return _done(fig, ax, path)

@@ -25,8 +25,9 @@ free coefficients. It
 The package is split by question: :mod:`.where`, :mod:`.candidates`, :mod:`.verdict` (the rules
 below), :mod:`.support`, the typed records the steps pass on and the JSON writes (:mod:`.records`:
 noise floor, candidate rows, remainder, contributions, the logged-thrust check, the first round
-beside discovery, base-fit check, discovered-term rows; each read back from its JSON by
-``from_dict``), and the orchestration :mod:`.diagnose`, which returns a
+beside discovery, base-fit check, discovered-term rows, the design's runs with the run test's
+outlook, their pairs of alternatives keyed ``(a, b)`` and written ``"A vs B"``; each read back from
+its JSON by ``from_dict``), and the orchestration :mod:`.diagnose`, which returns a
 :class:`~.diagnose.Diagnosis`; the report layer (:func:`bayesid.report.write_diagnosis`) writes it,
 reading the records by attribute. What travels between the steps travels as named records too,
 not packed in tuples: the verdict's :class:`~.verdict.Thresholds` and

@@ -76,6 +76,7 @@ from ...models.runs import (
     run_inputs,
     simulate_run,
 )
+from .records import DesignedRun, PairOutlook, RunTestOutlook
 
 __all__ = [
     "DiscriminationOptions",
@@ -382,7 +383,7 @@ def standard_predictions(
 
 def design(
     stages: dict, setup, options: DiscriminationOptions = DiscriminationOptions(), *, rng=None, thresholds=None
-) -> list[dict]:
+) -> list[DesignedRun]:
     """Rank the menu's runs by how well they separate alternative model structures (module
     docstring: first by the pairs the run-by-run test could decide on them, then by the Box-Hill
     divergence), and size the best for that test (:func:`run_test_windows`).
@@ -406,22 +407,17 @@ def design(
 
     Returns
     -------
-    list of dict
-        Best first: ``kind``, ``rudder_deg``, ``check_deg``, ``side``, ``rpm``, ``duration_s``,
-        ``name``, ``separation`` (the smallest pairwise divergence, nats, over the pairs some
-        run of the menu separates: :func:`rank_by_separable_pairs`), ``worst_pair``,
-        ``pairs`` (``{"A vs B": divergence}``), ``menu_inseparable`` (``{"A vs B": {"best_run",
-        "separation"}}``: the pairs no run of the menu separates by more than
-        ``options.min_separation``, the same on every row), ``max_position_difference_m`` (largest distance
-        between two alternatives' predicted positions at one sample), ``run_test`` (the run
-        test's outlook on this run: ``windows``, ``log_sd`` (the held-out runs' within-run sd of
-        log window-error ratios, None when too few windows), ``pairs``: ``{"A vs B":
-        {"expected_ratio", "windows_needed"}}`` for the kept term against each alternative, and
-        ``sized_from_s``: the menu's duration when sizing lengthened the run, else None),
-        ``decidable_pairs`` (the pairs the run test could decide on it, :func:`decidable_pairs`),
-        ``inputs`` (``{"t" s, "delta_r" rad, "n" rpm}``: the run's input schedule,
-        :func:`bayesid.models.runs.run_inputs`) and ``predicted`` (``{label: {"t", "x", "y", "psi"}}``, the
-        estimates' predictions over the windows, for the figure).
+    list of DesignedRun
+        Best first (:class:`~bayesid.analysis.gap.records.DesignedRun`): the run, its
+        ``separation`` (the smallest pairwise divergence, nats, over the pairs some run of the menu
+        separates: :func:`rank_by_separable_pairs`) and ``worst_pair``, every pair's divergence
+        (``pairs``, keyed ``(a, b)``), ``menu_inseparable`` (the pairs no run of the menu separates
+        by more than ``options.min_separation``, the same on every row), the largest distance
+        between two alternatives' predicted positions, the run test's outlook (``run_test``: the
+        kept term against each alternative, the windows it needs, and the menu's duration when
+        sizing lengthened the run), ``decidable_pairs`` (:func:`decidable_pairs`), the input
+        schedule (``inputs``, :func:`bayesid.models.runs.run_inputs`) and the estimates'
+        predictions over the windows (``predicted``, for the figure).
 
     Raises
     ------
@@ -466,7 +462,7 @@ def design(
     ]
     out = rank_by_decidable_pairs(rank_by_separable_pairs(out, options.min_separation), options.max_windows)
     if options.duration_s is None and setup.window_s and options.sized_rows:
-        inseparable = set(out[0]["menu_inseparable"]) if out else set()
+        inseparable = set(out[0].menu_inseparable) if out else set()
         out[: options.sized_rows] = [
             _sized(r, scoring, rng, inseparable, options.max_windows) for r in out[: options.sized_rows]
         ]
@@ -491,7 +487,7 @@ class _Scoring:
     power: float
 
 
-def _evaluate(run: ManoeuvreRun, sc: _Scoring, rng) -> dict | None:
+def _evaluate(run: ManoeuvreRun, sc: _Scoring, rng) -> DesignedRun | None:
     """One menu run's row of :func:`design` (before ranking), None when the kept model diverges
     on it or no pair is finite."""
     labels = list(sc.stages)
@@ -504,7 +500,7 @@ def _evaluate(run: ManoeuvreRun, sc: _Scoring, rng) -> dict | None:
     pairs = {}
     for i, a in enumerate(labels):
         for b in labels[i + 1 :]:
-            pairs[f"{a} vs {b}"] = separation(pred[a], pred[b], sc.noise_var, sc.sample_s)
+            pairs[(a, b)] = separation(pred[a], pred[b], sc.noise_var, sc.sample_s)
     finite = {k: v for k, v in pairs.items() if np.isfinite(v)}
     if not finite:
         return None
@@ -514,28 +510,28 @@ def _evaluate(run: ManoeuvreRun, sc: _Scoring, rng) -> dict | None:
     pos = np.stack([p[1][:, :2] for p in pred.values()])
     gap = np.sqrt(((pos[:, None] - pos[None]) ** 2).sum(axis=-1)).max(axis=(0, 1))
     win = best.model.context(ref, sc.window_s).win
-    return {
-        "kind": run.kind,
-        "rudder_deg": run.rudder_deg,
-        "check_deg": run.check_deg,
-        "side": run.side,
-        "rpm": run.rpm,
-        "duration_s": run.duration_s,
-        "name": run.name,
-        "separation": finite[worst],
-        "worst_pair": worst,
-        "pairs": pairs,
-        "max_position_difference_m": float(np.nanmax(gap)),
-        "run_test": _run_test_outlook(pred, win, sc),
-        "inputs": {"t": t.tolist(), "delta_r": delta.tolist(), "n": n.tolist()},
-        "predicted": {
+    return DesignedRun(
+        kind=run.kind,
+        rudder_deg=run.rudder_deg,
+        check_deg=run.check_deg,
+        side=run.side,
+        rpm=run.rpm,
+        duration_s=run.duration_s,
+        name=run.name,
+        separation=finite[worst],
+        worst_pair=worst,
+        pairs=pairs,
+        max_position_difference_m=float(np.nanmax(gap)),
+        run_test=_run_test_outlook(pred, win, sc),
+        inputs={"t": t.tolist(), "delta_r": delta.tolist(), "n": n.tolist()},
+        predicted={
             k: {"t": p[0][each_s].tolist(), **{c: p[1][each_s, j].tolist() for j, c in enumerate(_CHANNELS)}}
             for k, p in pred.items()
         },
-    }
+    )
 
 
-def _run_test_outlook(pred: dict, win: np.ndarray, sc: _Scoring) -> dict:
+def _run_test_outlook(pred: dict, win: np.ndarray, sc: _Scoring) -> RunTestOutlook:
     """The kept term (first label) against each alternative on one run: the expected window
     error ratio if either model were right and the windows the run test would need
     (:func:`expected_window_log_ratio`, :func:`run_test_windows`)."""
@@ -549,43 +545,41 @@ def _run_test_outlook(pred: dict, win: np.ndarray, sc: _Scoring) -> dict:
             if sc.log_sd is not None and np.isfinite(m)
             else None
         )
-        out[f"{labels[0]} vs {b}"] = {
-            "expected_ratio": float(np.exp(m)) if np.isfinite(m) else None,
-            "windows_needed": need,
-        }
-    return {"windows": int(np.unique(win).size), "log_sd": sc.log_sd, "pairs": out, "sized_from_s": None}
+        out[(labels[0], b)] = PairOutlook(float(np.exp(m)) if np.isfinite(m) else None, need)
+    return RunTestOutlook(int(np.unique(win).size), sc.log_sd, out)
 
 
-def _sized(row: dict, sc: _Scoring, rng, inseparable: set, max_windows: int) -> dict:
+def _sized(row: DesignedRun, sc: _Scoring, rng, inseparable: set, max_windows: int) -> DesignedRun:
     """``row`` lengthened (up to ``max_windows`` protocol windows) until the run test would see
     the kept term apart from each alternative it can separate at all, re-simulated at each
     length (a pull-out's straight leg, say, adds windows that part the models less)."""
     first = row
     for _ in range(3):
-        rt = row["run_test"]
+        rt = row.run_test
         need = [
-            v["windows_needed"]
-            for k, v in rt["pairs"].items()
-            if k not in inseparable and v["windows_needed"] is not None and np.isfinite(v["windows_needed"])
+            v.windows_needed
+            for k, v in rt.pairs.items()
+            if k not in inseparable and v.windows_needed is not None and np.isfinite(v.windows_needed)
         ]
         target = min(int(max_windows), int(math.ceil(max(need)))) if need else 0
-        if target <= rt["windows"]:
+        if target <= rt.windows:
             break
-        run = ManoeuvreRun(
-            row["kind"], row["rudder_deg"], row["check_deg"], row["side"], row["rpm"], target * float(sc.window_s)
-        )
+        run = ManoeuvreRun(row.kind, row.rudder_deg, row.check_deg, row.side, row.rpm, target * float(sc.window_s))
         longer = _evaluate(run, sc, rng)
         if longer is None:
             break
         row = longer
-    if row is not first:
-        row["run_test"]["sized_from_s"] = first["duration_s"]
-        row["menu_inseparable"] = first["menu_inseparable"]
-        keep = [k for k in row["pairs"] if k not in inseparable and np.isfinite(row["pairs"][k])]
-        if keep:
-            row["worst_pair"] = min(keep, key=row["pairs"].get)
-            row["separation"] = float(row["pairs"][row["worst_pair"]])
-    return row
+    if row is first:
+        return row
+    keep = [k for k in row.pairs if k not in inseparable and np.isfinite(row.pairs[k])]
+    worst = min(keep, key=row.pairs.get) if keep else row.worst_pair
+    return replace(
+        row,
+        run_test=replace(row.run_test, sized_from_s=first.duration_s),
+        menu_inseparable=first.menu_inseparable,
+        worst_pair=worst,
+        separation=float(row.pairs[worst]) if keep else row.separation,
+    )
 
 
 def expected_window_log_ratio(mean_a: np.ndarray, mean_b: np.ndarray, win: np.ndarray, pos_var: float) -> float:
@@ -712,10 +706,10 @@ def window_log_sd(stages: dict, setup) -> float | None:
     return float(math.sqrt(ss / df)) if df >= 2 and ss > 0 else None
 
 
-def decidable_pairs(row: dict, max_windows: int) -> list:
+def decidable_pairs(row: DesignedRun, max_windows: int) -> list:
     """The pairs of the kept term and an alternative (or the model without it) that the run-by-run
     test could decide on this run: some run of the menu separates them (not in
-    ``row["menu_inseparable"]``) and the run test needs at most ``max_windows`` protocol windows
+    ``row.menu_inseparable``) and the run test needs at most ``max_windows`` protocol windows
     to find their expected window error ratio with its power (:func:`run_test_windows`).
 
     A run whose divergence is large but whose expected window error ratio stays within the run
@@ -724,21 +718,20 @@ def decidable_pairs(row: dict, max_windows: int) -> list:
 
     Parameters
     ----------
-    row : dict
-        A designed run with ``run_test`` (``pairs``: ``{"A vs B": {"windows_needed"}}``) and,
-        optionally, ``menu_inseparable``.
+    row : DesignedRun
+        A designed run (its ``run_test`` pairs' ``windows_needed``; ``menu_inseparable``, if set).
     max_windows : int
         The most protocol windows a designed run may last (``DiscriminationOptions.max_windows``).
 
     Returns
     -------
-    list of str
-        The decidable pairs, in the order of ``row["run_test"]["pairs"]``.
+    list of tuple
+        The decidable pairs ``(kept, alternative)``, in the order of ``row.run_test.pairs``.
     """
-    inseparable = set(row.get("menu_inseparable") or {})
+    inseparable = set(row.menu_inseparable or {})
     out = []
-    for pair, v in ((row.get("run_test") or {}).get("pairs") or {}).items():
-        need = v.get("windows_needed")
+    for pair, v in row.run_test.pairs.items():
+        need = v.windows_needed
         if pair not in inseparable and need is not None and np.isfinite(need) and need <= max_windows:
             out.append(pair)
     return out
@@ -746,7 +739,7 @@ def decidable_pairs(row: dict, max_windows: int) -> list:
 
 def rank_by_decidable_pairs(rows: list, max_windows: int) -> list:
     """Rank designed runs by the number of pairs the run test could decide on them
-    (:func:`decidable_pairs`, written to each row as ``decidable_pairs``), then by their
+    (:func:`decidable_pairs`, set on each row as ``decidable_pairs``), then by their
     separation (nats, :func:`rank_by_separable_pairs`).
 
     The divergence ranks the runs by how far apart the alternatives' predictive distributions
@@ -756,19 +749,18 @@ def rank_by_decidable_pairs(rows: list, max_windows: int) -> list:
 
     Parameters
     ----------
-    rows : list of dict
-        Designed runs with ``separation`` and ``run_test``.
+    rows : list of DesignedRun
+        Designed runs.
     max_windows : int
         As :func:`decidable_pairs`.
 
     Returns
     -------
-    list of dict
-        The rows, best first.
+    list of DesignedRun
+        The rows with ``decidable_pairs`` set, best first.
     """
-    for r in rows:
-        r["decidable_pairs"] = decidable_pairs(r, max_windows)
-    return sorted(rows, key=lambda r: (-len(r["decidable_pairs"]), -r["separation"]))
+    rows = [replace(r, decidable_pairs=decidable_pairs(r, max_windows)) for r in rows]
+    return sorted(rows, key=lambda r: (-len(r.decidable_pairs), -r.separation))
 
 
 def rank_by_separable_pairs(rows: list, min_separation: float) -> list:
@@ -783,27 +775,28 @@ def rank_by_separable_pairs(rows: list, min_separation: float) -> list:
 
     Parameters
     ----------
-    rows : list of dict
-        Designed runs, each with ``pairs`` (``{"A vs B": divergence, nats}``).
+    rows : list of DesignedRun
+        Designed runs (their ``pairs``: divergences, nats).
     min_separation : float
         The divergence (nats) a pair's best run must exceed to count as separable.
 
     Returns
     -------
-    list of dict
+    list of DesignedRun
         The rows, best first, each with ``separation``, ``worst_pair`` and ``menu_inseparable``
         (``{pair: {"best_run", "separation"}}``) set.
     """
     best: dict = {}
     for r in rows:
-        for pair, v in r["pairs"].items():
+        for pair, v in r.pairs.items():
             if np.isfinite(v) and (pair not in best or v > best[pair][1]):
-                best[pair] = (r["name"], float(v))
+                best[pair] = (r.name, float(v))
     inseparable = {k: {"best_run": b[0], "separation": b[1]} for k, b in best.items() if b[1] < min_separation}
     ranked = [k for k in best if k not in inseparable] or list(best)
+    out = []
     for r in rows:
-        finite = {k: r["pairs"][k] for k in ranked if np.isfinite(r["pairs"].get(k, np.nan))}
-        worst = min(finite, key=finite.get) if finite else r["worst_pair"]
-        r["separation"], r["worst_pair"] = (float(finite[worst]) if finite else r["separation"]), worst
-        r["menu_inseparable"] = inseparable
-    return sorted(rows, key=lambda r: -r["separation"])
+        finite = {k: r.pairs[k] for k in ranked if np.isfinite(r.pairs.get(k, np.nan))}
+        worst = min(finite, key=finite.get) if finite else r.worst_pair
+        sep = float(finite[worst]) if finite else r.separation
+        out.append(replace(r, separation=sep, worst_pair=worst, menu_inseparable=inseparable))
+    return sorted(out, key=lambda r: -r.separation)

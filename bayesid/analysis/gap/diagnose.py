@@ -32,7 +32,16 @@ from ...tasks import Runner, Task, TaskError, record_fields
 from .candidates import BaseStage, CandidateFit, Setup, Stage, candidate_row, fit_candidate
 from .design import design, standard_predictions
 from .discovery import Discovery, discover, routed, with_terms
-from .records import BaseCheck, CandidateRow, Contribution, FirstRoundSummary, NoiseFloor, Record, Remainder
+from .records import (
+    BaseCheck,
+    CandidateRow,
+    Contribution,
+    DesignedRun,
+    FirstRoundSummary,
+    NoiseFloor,
+    Record,
+    Remainder,
+)
 from .support import signature_regression
 from .verdict import (
     DivergedSimulation,
@@ -137,9 +146,10 @@ class Diagnosis:
         Whether the base fit can be trusted (:func:`base_fit_check`), with ``multistart``: the
         extra starts' summary (``DiagnoseOptions.base_starts``), or None; ``{}`` in a diagnosis
         read from a JSON file that has no check.
-    design : list of dict
+    design : list of DesignedRun
         The runs that would separate the first kept term with alternatives from them, best first
-        (:func:`bayesid.analysis.gap.design.design`; the predicted tracks only in the first,
+        (:func:`bayesid.analysis.gap.design.design`,
+        :class:`~bayesid.analysis.gap.records.DesignedRun`; the predicted tracks only in the first,
         the input schedules in the first three);
         empty when every kept term is separable or discovery was not run.
     predictions : list of dict
@@ -202,7 +212,7 @@ class Diagnosis:
     discovery_first: FirstRoundSummary | dict = field(default_factory=dict)
     gap_discovered: dict = field(default_factory=dict)
     base_check: BaseCheck | dict = field(default_factory=dict)
-    design: list = field(default_factory=list)
+    design: list[DesignedRun] = field(default_factory=list)
     predictions: list = field(default_factory=list)
     manoeuvre_kinds: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
@@ -257,6 +267,7 @@ class Diagnosis:
             "contributors": lambda cs: [Contribution.from_dict(c) for c in cs],
             "discovery_first": lambda f: FirstRoundSummary.read(f) if f else f,
             "thresholds": Thresholds.from_dict,
+            "design": lambda rows: [DesignedRun.from_dict(r) for r in rows],
         }
         args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
         args = {k: readers[k](v) if k in readers else v for k, v in args.items()}
@@ -828,8 +839,10 @@ def _design(found, setup: Setup, options, runner: Runner) -> tuple[list, list]:
             continue
         rows = design(stages, setup, options)
         # the predicted tracks for the top run's figure, the input schedules of the top three
-        drop = [set(), {"predicted"}, {"predicted"}] + [{"predicted", "inputs"}] * len(rows)
-        rows = [{key: v for key, v in r.items() if key not in drop[i]} for i, r in enumerate(rows)]
+        rows = [
+            r if i == 0 else replace(r, predicted=None) if i < 3 else replace(r, predicted=None, inputs=None)
+            for i, r in enumerate(rows)
+        ]
         runner.say("design: the standard manoeuvres as the base model and each alternative predict them")
         models = {"base model": found.reference, **{n: st for n, st in stages.items() if n != WITHOUT_TERMS}}
         return rows, standard_predictions(models, setup, options)

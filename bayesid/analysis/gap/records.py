@@ -1,6 +1,7 @@
 """The typed records of the gap diagnosis: the noise floor (:class:`NoiseFloor`), a ranked
 candidate effect (:class:`CandidateRow`), what the rounds leave (:class:`Remainder`), the base-fit
-check (:class:`BaseCheck`) and a refitted term of structure discovery (:class:`TermRow`).
+check (:class:`BaseCheck`), a refitted term of structure discovery (:class:`TermRow`) and a run of
+the design (:class:`DesignedRun`, with the run test's outlook, :class:`RunTestOutlook`).
 
 Each is a frozen dataclass that also reads as the JSON dict it writes (``row["heldout_rms_m"]``,
 ``dict(row)``, ``row.get(...)``), as :class:`bayesid.protocol.Scores` does: :meth:`Record.to_dict`
@@ -27,6 +28,11 @@ __all__ = [
     "FirstRoundSummary",
     "BaseCheck",
     "TermRow",
+    "PairOutlook",
+    "RunTestOutlook",
+    "DesignedRun",
+    "pair_label",
+    "pair_of",
 ]
 
 #: The strings strict JSON writes for non-finite floats (:func:`bayesid.tasks.jsonable`).
@@ -66,7 +72,7 @@ class Record(Mapping):
         dict
             ``{key: value}`` in the order the diagnosis has always written them.
         """
-        return {k: _copy(self[k]) for k in self._keys()}
+        return {k: _copy(self._value(k)) for k in self._keys()}
 
     @classmethod
     def from_dict(cls, d: Mapping):
@@ -114,9 +120,12 @@ class Record(Mapping):
             return dict(d)
         return rec if list(rec) == list(d) else dict(d)
 
+    def _value(self, key: str):
+        return getattr(self, self._ALIASES.get(key, key))
+
     def __getitem__(self, key: str):
         if key in self._keys():
-            return getattr(self, self._ALIASES.get(key, key))
+            return self._value(key)
         raise KeyError(key)
 
     def __iter__(self):
@@ -571,3 +580,249 @@ class TermRow(Record):
         keys = tuple(k for k in keys if k not in REFIT_FIELDS and k not in self._ALIASES)
         late = tuple(k for k in keys if k == "refitted_as")
         return tuple(k for k in keys if k != "refitted_as") + late
+
+
+def pair_label(pair: tuple) -> str:
+    """The JSON key of a pair of alternatives, ``"A vs B"``.
+
+    Parameters
+    ----------
+    pair : tuple of str
+        ``(a, b)``.
+
+    Returns
+    -------
+    str
+        ``"a vs b"``.
+    """
+    return f"{pair[0]} vs {pair[1]}"
+
+
+def pair_of(label: str) -> tuple:
+    """The pair of a JSON key :func:`pair_label` wrote.
+
+    Parameters
+    ----------
+    label : str
+        ``"A vs B"``.
+
+    Returns
+    -------
+    tuple of str
+        ``(A, B)``.
+
+    Raises
+    ------
+    ValueError
+        A key without `` vs `` (named).
+    """
+    a, sep, b = str(label).partition(" vs ")
+    if not sep:
+        raise ValueError(f"designed run: {label!r} is not a pair 'A vs B'")
+    return a, b
+
+
+def _pairs_json(pairs: dict, value=lambda v: v) -> dict:
+    return {pair_label(k): value(v) for k, v in pairs.items()}
+
+
+def _pairs_read(d: Mapping, value=lambda v: v) -> dict:
+    return {pair_of(k): value(v) for k, v in d.items()}
+
+
+@dataclass(frozen=True, eq=False)
+class PairOutlook(Record):
+    """The run test's outlook on one pair of a designed run (the kept term against an
+    alternative; :func:`bayesid.analysis.gap.design.run_test_windows`).
+
+    Parameters
+    ----------
+    expected_ratio : float or None
+        The expected window error ratio if either model is right (None where not finite).
+    windows_needed : float or None
+        The protocol windows the run test needs to find it with its power (``inf``: never;
+        None without the held-out runs' scatter).
+    """
+
+    expected_ratio: float | None
+    windows_needed: float | None
+
+    _WHAT: ClassVar[str] = "run-test outlook of a pair"
+
+
+@dataclass(frozen=True, eq=False)
+class RunTestOutlook(Record):
+    """The run test's outlook on a designed run (:func:`bayesid.analysis.gap.design.design`).
+
+    Parameters
+    ----------
+    windows : int
+        The run's protocol windows.
+    log_sd : float or None
+        The held-out runs' within-run sd of log window-error ratios (None: too few windows).
+    pairs : dict
+        ``{(kept, alternative): PairOutlook}``; written with ``"A vs B"`` keys.
+    sized_from_s : float or None
+        The menu's duration when sizing lengthened the run, s; None when it did not.
+    """
+
+    windows: int
+    log_sd: float | None
+    pairs: dict
+    sized_from_s: float | None = None
+
+    _WHAT: ClassVar[str] = "run-test outlook"
+
+    def __getitem__(self, key: str):  # the mapping reads as the JSON, pairs keyed "A vs B"
+        return self.to_dict()[key]
+
+    def to_dict(self) -> dict:
+        """The outlook as its JSON object (pairs keyed ``"A vs B"``).
+
+        Returns
+        -------
+        dict
+            ``windows``, ``log_sd``, ``pairs``, ``sized_from_s``.
+        """
+        d = super().to_dict()
+        d["pairs"] = _pairs_json(self.pairs, lambda v: v.to_dict())
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping):
+        """The outlook of a JSON object :meth:`to_dict` wrote.
+
+        Parameters
+        ----------
+        d : Mapping
+            The JSON object.
+
+        Returns
+        -------
+        RunTestOutlook
+            The outlook, its pairs keyed ``(a, b)``.
+
+        Raises
+        ------
+        ValueError
+            A key it lacks or does not have, or a pair key not ``"A vs B"`` (named).
+        """
+        d = dict(d)
+        if "pairs" in d:
+            d["pairs"] = _pairs_read(d["pairs"], PairOutlook.from_dict)
+        return super().from_dict(d)
+
+
+@dataclass(frozen=True, eq=False)
+class DesignedRun(Record):
+    """A run of the design's menu, scored (:func:`bayesid.analysis.gap.design.design`): how well it
+    separates the alternatives, and what the run test could decide on it.
+
+    Parameters
+    ----------
+    kind, rudder_deg, check_deg, side, rpm, duration_s, name : object
+        The run (:class:`bayesid.models.runs.ManoeuvreRun`): kind, rudder angle (deg), check angle
+        (deg, a zigzag's; None otherwise), side, rpm, duration (s) and its name.
+    separation : float
+        The smallest divergence (nats) over the pairs that rank the runs
+        (:func:`~bayesid.analysis.gap.design.rank_by_separable_pairs`).
+    worst_pair : tuple of str
+        That pair.
+    pairs : dict
+        ``{(a, b): divergence}``, nats (NaN where not finite).
+    max_position_difference_m : float
+        The largest distance between two alternatives' predicted positions at one sample, m.
+    run_test : RunTestOutlook
+        The run test's outlook on this run.
+    inputs : dict or None
+        ``{"t" s, "delta_r" rad, "n" rpm}``: the input schedule (kept for the best runs).
+    predicted : dict or None
+        ``{label: {"t", "x", "y", "psi"}}``: the predictions, for the figure (the best run's).
+    menu_inseparable : dict or None
+        ``{(a, b): {"best_run", "separation"}}``: the pairs no run of the menu separates; set by
+        the ranking.
+    decidable_pairs : list of tuple or None
+        The pairs the run test could decide on this run
+        (:func:`~bayesid.analysis.gap.design.decidable_pairs`); set by the ranking.
+    inputs_csv : str or None
+        The file of the input schedule, relative to the diagnosis's folder, where the report
+        wrote it (``diagnosis.json`` holds it in place of ``inputs``).
+
+    Notes
+    -----
+    Every pair is written as ``"A vs B"`` (:func:`pair_label`) in the JSON.
+    """
+
+    kind: str
+    rudder_deg: float
+    check_deg: float | None
+    side: str
+    rpm: float
+    duration_s: float
+    name: str
+    separation: float
+    worst_pair: tuple
+    pairs: dict
+    max_position_difference_m: float
+    run_test: RunTestOutlook
+    inputs: dict | None = None
+    predicted: dict | None = None
+    menu_inseparable: dict | None = None
+    decidable_pairs: list | None = None
+    inputs_csv: str | None = None
+
+    _OPTIONAL: ClassVar[tuple] = ("inputs", "predicted", "menu_inseparable", "decidable_pairs", "inputs_csv")
+    _WHAT: ClassVar[str] = "designed run"
+
+    def __getitem__(self, key: str):  # the mapping reads as the JSON, pairs keyed "A vs B"
+        return self.to_dict()[key]
+
+    def to_dict(self) -> dict:
+        """The run as its JSON object, the pairs keyed ``"A vs B"``.
+
+        Returns
+        -------
+        dict
+            The fields in order, the None ones of ``_OPTIONAL`` left out.
+        """
+        d = super().to_dict()
+        d["worst_pair"] = pair_label(self.worst_pair)
+        d["pairs"] = _pairs_json(self.pairs)
+        d["run_test"] = self.run_test.to_dict()
+        if self.menu_inseparable is not None:
+            d["menu_inseparable"] = _pairs_json(self.menu_inseparable, dict)
+        if self.decidable_pairs is not None:
+            d["decidable_pairs"] = [pair_label(p) for p in self.decidable_pairs]
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping):
+        """The run of a JSON object :meth:`to_dict` wrote (``diagnosis.json``'s ``design`` rows).
+
+        Parameters
+        ----------
+        d : Mapping
+            The JSON object.
+
+        Returns
+        -------
+        DesignedRun
+            The run, its pairs keyed ``(a, b)``.
+
+        Raises
+        ------
+        ValueError
+            A key it lacks or does not have, or a pair key not ``"A vs B"`` (named).
+        """
+        d = dict(d)
+        if "worst_pair" in d:
+            d["worst_pair"] = pair_of(d["worst_pair"])
+        if "pairs" in d:
+            d["pairs"] = _pairs_read(d["pairs"], _float)
+        if "run_test" in d:
+            d["run_test"] = RunTestOutlook.from_dict(d["run_test"])
+        if d.get("menu_inseparable") is not None:
+            d["menu_inseparable"] = _pairs_read(d["menu_inseparable"], dict)
+        if d.get("decidable_pairs") is not None:
+            d["decidable_pairs"] = [pair_of(p) for p in d["decidable_pairs"]]
+        return super().from_dict(d)

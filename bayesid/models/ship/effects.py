@@ -238,13 +238,13 @@ class ShipCouplingSpeed(Effect):
         Returns
         -------
         str or None
-            A file whose coupling speed is already MMG's ``U``, or without coupling terms, says so.
+            A ship whose coupling speed is already MMG's ``U``, or without coupling terms, says so
+            (naming its id).
         """
-        where = ship.source or ship.id
         if coupling_rl_weight(ship.form.get("coupling_speed", "Ut")) == 0.0:
-            return f"{where}: [form] coupling_speed is already MMG 2015's U"
+            return f"{ship.id}: its coupling speed is already MMG 2015's U ([form] coupling_speed)"
         if not any(ship.coefficients.get(k, 0.0) for k in ("Yvvr", "Yvrr", "Nvvr", "Nvrr")):
-            return f"{where} gives no coupling term (Yvvr, Yvrr, Nvvr, Nvrr)"
+            return f"{ship.id}: no coupling term (Yvvr, Yvrr, Nvvr, Nvrr) in its coefficients"
         return None
 
     def vehicle_form(self, q, vehicle) -> dict:
