@@ -3,8 +3,9 @@ does it miss? The packaged ``esso_osaka_3m`` model fitted to every zigzag and ra
 turning run of the pond tests (``../shared/data/real/esso-osaka-frt``), without the wind effect
 (15 s and 60 s fit windows: the window start resets the speed, so a longer window makes the fit see
 the speed decay in the turn), with it, and with it and each of the ship catalogue's surge and
-propeller effects (the MMG 2015 wake in a turn, the thrust deduction, the rudder's resistance) or the
-current; with the wind and more of the surge balance free (a fourth-order hull surge term, the
+propeller effects (the MMG 2015 wake in a turn, the thrust deduction, the rudder's resistance), the
+current or MMG 2015's coupling speed of the hull's coupling terms (the catalogue's ``coupling_speed``,
+fitted to the four turns alone too); with the wind and more of the surge balance free (a fourth-order hull surge term, the
 rudder's and the propeller's deductions ``tR`` and ``tP``, the slope ``k1`` of the propeller's open-water
 curve); and, to tell a training set that weighs the turn down from a form that cannot hold it, with
 the wind fitted to the four turns alone. Each fit's turning circles are then predicted whole from
@@ -57,6 +58,8 @@ FITS = (
     ("wind+thrust_deduction, 15 s", ("wind", "thrust_deduction"), 15.0, (), "zigzags+turn"),
     ("wind+rudder_resistance, 15 s", ("wind", "rudder_resistance"), 15.0, (), "zigzags+turn"),
     ("wind+current, 15 s", ("wind", "current"), 15.0, (), "zigzags+turn"),
+    # the hull's coupling terms with MMG 2015's coupling speed (the catalogue's model form)
+    ("wind+coupling_speed, 15 s", ("wind", "coupling_speed"), 15.0, (), "zigzags+turn"),
     # with the wind, more of the surge balance free: the MMG hull's fourth-order surge term, both
     # deductions, the open-water curve's slope
     ("wind, Xvvvv free, 15 s", ("wind",), 15.0, ("Xvvvv",), "zigzags+turn"),
@@ -65,6 +68,7 @@ FITS = (
     # the four turns alone: can one parameter set hold them?
     ("turns only, wind, 15 s", ("wind",), 15.0, (), "turns"),
     ("turns only, wind, 60 s", ("wind",), 60.0, (), "turns"),
+    ("turns only, wind+coupling_speed, 15 s", ("wind", "coupling_speed"), 15.0, (), "turns"),
 )
 #: The coefficients printed beside each fit (the surge balance's; the freed ones too)
 SHOWN = ("Xuu", "wP")
@@ -107,6 +111,8 @@ def main(argv=None) -> int:
         c = res.fit.coefficients()
         at = set(res.fit.at_bound or ())
         shown = ", ".join(f"{k} {c[k]:.4g}" + (" (at its bound)" if k in at else "") for k in (*extra, *SHOWN))
+        q = dict(zip(res.model.param_names, np.asarray(res.fit.p, float)))  # the surge effects' parameters
+        shown += "".join(f", {k} {v:.4g}" for k, v in q.items() if "." in k and not k.startswith("wind."))
         print(f"\n{label}: {what}; fit {time.perf_counter() - t0:.0f} s, cost {res.fit.cost:.4g}; {shown}")
         print("  run                          tactical   steady   speed loss meas / pred  suspect")
         for t in training_turns(FittedModel(res.model, np.asarray(res.fit.p, float), None), judged):
