@@ -155,7 +155,9 @@ def measure(name, kv, train, held, max_nfev, free=None, cands=None):
     first = d.round_seconds[0]
     # discovery beside round 1 (when round 1 has an effect to add) and after the rounds: both count
     beside = d.discovery_first
-    disc = d.discovery.get("seconds", 0.0) + (beside["seconds"] if beside and not beside["took_round"] else 0.0)
+    disc = (d.discovery.seconds if d.discovery else 0.0) + (
+        beside["seconds"] if beside and not beside["took_round"] else 0.0
+    )
     ran = ("beside round 1 " + ("(took it) " if beside["took_round"] else "and after the rounds ")) if beside else ""
     print(
         f"{name}: first round ({len(cands)} candidates) {first:.1f} s, discovery {disc:.1f} s "

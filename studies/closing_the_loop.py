@@ -140,7 +140,7 @@ def _round(d, hidden: str | None, run: str | None = None) -> dict:
         "significant_gap": d.significant_gap,
         "heldout_rms_base_m": d.gap_before["heldout_rms_m"],
         "noise_floor_m": d.noise_floor["heldout_rms_m"],
-        "heldout_rms_after_m": (d.discovery or {}).get("heldout_rms_after_m"),
+        "heldout_rms_after_m": (d.discovery.to_dict() if d.discovery else {}).get("heldout_rms_after_m"),
         "kept": [i["term"] for i in kept],
         "alternatives": alts,
         "coefficients": {i["term"]: i.get("coefficient") for i in kept},
@@ -165,7 +165,9 @@ def _round(d, hidden: str | None, run: str | None = None) -> dict:
         # each single-term refit's training Delta BIC against the model it extends (the same
         # number of parameters for every alternative: a difference of training fit alone)
         "train_delta_bic": {
-            row["term"]: row.get("delta_bic") for row in ((d.discovery or {}).get("discovered") or []) if "term" in row
+            row["term"]: row.get("delta_bic")
+            for row in ((d.discovery.to_dict() if d.discovery else {}).get("discovered") or [])
+            if "term" in row
         },
         "run_rms_m": None
         if run is None or d.discovered is None
@@ -203,7 +205,7 @@ def truth_on_run(d, case: dict, vehicle, free: list, run) -> dict | None:
 def _mimicked_by(d, hidden: str | None) -> dict | None:
     """The free coefficient that absorbs the hidden term's column in the diagnosis ``d`` (its
     discovery's ``residuals.mimicked_by``), with the cosine of the two; None when not mimicked."""
-    m = (((d.discovery or {}).get("residuals") or {}).get("mimicked_by") or {}).get(hidden)
+    m = (((d.discovery.to_dict() if d.discovery else {}).get("residuals") or {}).get("mimicked_by") or {}).get(hidden)
     return None if not m else {"parameter": m["parameter"], "cosine": m["cosine"]}
 
 

@@ -163,7 +163,7 @@ def run_case(case: dict, seed: int, quick: bool) -> dict:
         DiagnoseOptions(candidates=(), window_s=window, max_nfev=nfev, discover=DiscoveryOptions(max_nfev=nfev)),
         rng=np.random.default_rng(seed),
     )
-    D = d.discovery
+    D = d.discovery.to_dict() if d.discovery else {}
     kept = [r for r in D.get("discovered", []) if r["kept"]]
     found = D.get("found", [])
     hidden = list(case["hidden"])

@@ -69,7 +69,7 @@ def test_a_compared_term_the_selection_passes_over_is_refitted_and_judged():
     found = dv.DiscoveryOptions(compare=("N0",))
     options = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=found, design=None)
     d = diagnose(kv, list(kv.free), runs[:2], runs[2:], options, rng=np.random.default_rng(0))
-    D = d.discovery
+    D = d.discovery.to_dict()
     row = next(r for r in D["discovered"] if r["term"] == "N0")
     assert row["refitted_as"] == "compared" and row["kept"], row
     assert abs(row["coefficient"] / 0.003 - 1) < 0.1

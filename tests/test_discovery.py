@@ -160,7 +160,7 @@ def test_a_term_removed_from_the_vehicle_is_named_and_recovered(velocity_log):
     # refits it with the right sign and size, and the held-out windows improve
     kv, train, held = _runs({"Nabsdr": 0.002}, velocity_log)
     d = _diagnose(kv, train, held)
-    D = d.discovery
+    D = d.discovery.to_dict()
     assert d.verdict.startswith("unexplained -> discovered: "), d.verdict
     row = next(r for r in D["discovered"] if r["kept"])
     assert "Nabsdr" in [row["term"], *row["group"]]
@@ -193,7 +193,7 @@ def test_a_control_with_nothing_missing_keeps_no_term():
     # the model is the truth: the gap is not significant, so nothing is searched and nothing kept
     kv, train, held = _runs({})
     d = _diagnose(kv, train, held)
-    assert d.verdict == "none" and d.discovery == {}
+    assert d.verdict == "none" and d.discovery is None
     # the base fit generalises: held-out and training errors under the same protocol agree
     assert not d.base_check["suspect"] and d.base_check["ratio"] < 3
 
@@ -518,7 +518,7 @@ def test_a_tied_coefficient_is_a_candidate_untied_and_named(tmp_path):
     assert "gRm" in dv.candidate_terms(ship.ShipModel(kv, free=kv.free))
     assert "gRm" not in dv.candidate_terms(ship.ShipModel(kv, free=[*kv.free, "gRm"]))
     d = _diagnose(kv, train, held)
-    D = d.discovery
+    D = d.discovery.to_dict()
     row = next(r for r in D["discovered"] if r["term"] == "gRm")
     assert row["kept"] and row["dof"] == "XYN" and row["group_inclusion_probability"] >= 0.9, row
     assert abs(row["coefficient"] / 0.3 - 1) < 0.2

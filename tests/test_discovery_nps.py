@@ -48,10 +48,10 @@ def test_a_term_a_catalogue_effect_partly_mimics_takes_round_one_from_it(tmp_pat
     d = gap.diagnose(veh, ["Yv", "Nr", "Ndr"], train, held, options, rng=np.random.default_rng(0))
     F = d.discovery_first
     assert F["effect"] == d.ranking[0]["effect"] and F["effect_role"] in ("cause", "contributor")
-    assert F["took_round"] and F["found"] == ["Nprop"] == d.discovery["found"]
+    assert F["took_round"] and F["found"] == ["Nprop"] == d.discovery.found
     assert F["heldout_rms_m"] < F["effect_heldout_rms_m"]
     assert d.verdict.startswith("discovered: Nprop"), d.verdict
-    assert d.discovery["settings"]["reference_effects"] == []  # found on the base model
+    assert d.discovery.settings["reference_effects"] == []  # found on the base model
     # the model after the rounds has the term, fitted near the world's value
     assert d.after_fit["coefficients"]["Nprop"] == pytest.approx(5e-4, rel=0.2)
     assert d.gap_after["heldout_rms_m"] <= F["heldout_rms_m"] + 1e-12
@@ -97,7 +97,7 @@ def test_a_constant_moment_outside_the_model_is_named_as_constant_not_as_growing
     assert speeds.min() < 1.3 and speeds.max() > 1.8  # the speed changes: u^2 by a factor of 2 or more
     options = gap.DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=40, discover=dv.DiscoveryOptions())
     d = gap.diagnose(veh, ["Yv", "Nr", "Ndr"], train, held, options, rng=np.random.default_rng(0))
-    D = d.discovery
+    D = d.discovery.to_dict()
     assert D["found"] == ["Nconst"], (d.verdict, D["found"])
     # measured: 23.2 -> 0.171 m held out; the true model scores 0.164 m, above the noise floor (0.049 m)
     # because the nominal model misses a noise-free zigzag of this world by 0.28 m under this protocol

@@ -51,7 +51,7 @@ def _constant_moment_runs_without_log():
 def _assert_constant_moment_group(d, found):
     # on two training runs without a log the constant sway force and yaw moments are collinear: the kept
     # term's group has Nconst (measured beside round 1: Yconst kept, group Yuu, Nprop, Nconst)
-    row = next(r for r in d.discovery["discovered"] if r["kept"] and r["term"] in found)
+    row = next(r for r in d.discovery.discovered if r["kept"] and r["term"] in found)
     assert "Nconst" in [row["term"], *row["group"]] and row["group_inclusion_probability"] >= 0.9, row
 
 
@@ -70,7 +70,7 @@ def test_discovery_beside_round_one_also_searches_the_base_fit_with_held_window_
     assert d.base_check["starts"]["by_set"]["training"]["fraction_flagged"] > 0.1
     F = d.discovery_first
     assert F["train_starts"] == "kinematic" and F["other_starts"]["train_starts"] == "fitted", F
-    assert F["took_round"] and F["found"] == d.discovery["found"], F
+    assert F["took_round"] and F["found"] == d.discovery.found, F
     assert F["heldout_rms_m"] < F["effect_heldout_rms_m"] and F["heldout_rms_m"] < F["other_starts"]["heldout_rms_m"]
     assert d.verdict.startswith("discovered: "), d.verdict
     _assert_constant_moment_group(d, F["found"])
@@ -89,21 +89,21 @@ def test_discovery_after_rounds_without_effects_also_searches_the_base_fit_with_
         candidates=(), window_s=60.0, max_nfev=40, discover=dv.DiscoveryOptions(max_candidates=3)
     )
     d = gap.diagnose(veh, ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"], train, held, options, rng=np.random.default_rng(0))
-    S = d.discovery["settings"]
+    S = d.discovery.settings
     assert S["train_starts"] == "kinematic" and S["other_starts"]["train_starts"] == "fitted", S
-    assert d.discovery["heldout_rms_after_m"] < S["other_starts"]["heldout_rms_m"]
+    assert d.discovery.heldout_rms_after_m < S["other_starts"]["heldout_rms_m"]
     assert d.verdict.startswith("unexplained -> discovered: "), d.verdict
-    _assert_constant_moment_group(d, d.discovery["found"])
+    _assert_constant_moment_group(d, d.discovery.found)
     from bayesid.report import write_diagnosis
 
     write_diagnosis(d, tmp_path, held)
     text = (tmp_path / "report.md").read_text()
     assert "also searched the base model refitted with them held" in text
     # "How far" has the model with the discovered terms beside the base model and the one without them
-    found = "+".join(d.discovery["found"])
+    found = "+".join(d.discovery.found)
     # its training RMS is under the held starts, not the fitted ones of the rows above: the row says so
     assert (
         f"| with {found} ({found} discovered; training window starts held at the kinematics, its train RMS under them) | "
         in text
     )
-    assert d.gap_discovered["heldout_rms_m"] == pytest.approx(d.discovery["heldout_rms_after_m"], rel=1e-12)
+    assert d.gap_discovered["heldout_rms_m"] == pytest.approx(d.discovery.heldout_rms_after_m, rel=1e-12)

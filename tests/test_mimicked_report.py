@@ -234,7 +234,7 @@ def test_a_constant_yaw_moment_the_selection_sets_aside_is_refitted_and_kept():
     found = dv.DiscoveryOptions(n_alternatives=1)
     options = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=found, design=None)
     d = diagnose(kv, list(kv.free), runs[:2], runs[2:], options, rng=np.random.default_rng(0))
-    D = d.discovery
+    D = d.discovery.to_dict()
     assert "N0" in D["residuals"]["mimicked"]
     row = next(r for r in D["discovered"] if r["term"] == "N0")
     assert row["refitted_as"] == "mimicked" and row["kept"], row
@@ -246,4 +246,4 @@ def test_a_constant_yaw_moment_the_selection_sets_aside_is_refitted_and_kept():
     # without the refits of mimicked terms (the default), nothing is kept: what the refit adds
     plain = DiagnoseOptions(candidates=(), window_s=60.0, max_nfev=10, discover=dv.DiscoveryOptions(), design=None)
     d0 = diagnose(kv, list(kv.free), runs[:2], runs[2:], plain, rng=np.random.default_rng(0))
-    assert d0.discovery["found"] == [] and "N0" not in [r["term"] for r in d0.discovery["discovered"]]
+    assert d0.discovery.found == [] and "N0" not in [r.term for r in d0.discovery.discovered]

@@ -130,10 +130,12 @@ class Diagnosis:
         Wall time.
     round_seconds : list of float
         Wall time of each candidate round.
-    discovery : dict
-        Structure discovery (:mod:`bayesid.analysis.gap.discovery`; ``discovered`` lists every
-        refitted term) on the model after the effects, or on the base model when its terms took
-        round 1 (``discovery_first``); ``{}`` when it was not run.
+    discovery : Discovery or None
+        Structure discovery (:class:`~bayesid.analysis.gap.discovery.Discovery`: every refitted
+        term in ``discovered``; with its models when computed, without them when read back) on
+        the model after the effects, or on the base model when its terms took round 1
+        (``discovery_first``); None when it was not run (``{}`` in the JSON). The one copy:
+        :attr:`discovered` is the same object.
     discovery_first : FirstRoundSummary or dict
         Discovery beside round 1 (:func:`discovery_beside_round_one`): whether discovery's terms
         on the base model beat round 1's best catalogue effect, with both held-out RMS and the
@@ -167,20 +169,17 @@ class Diagnosis:
         scores, nuisances) for plots; not in :meth:`to_dict`.
     after : Stage, optional
         The model after the rounds (as ``gap_after``), likewise.
-    discovered : Discovery, optional
-        Structure discovery's result with its models (:mod:`bayesid.analysis.gap.discovery`);
-        in :meth:`to_dict` as the top-level ``discovered`` list
-        (:meth:`~bayesid.analysis.gap.discovery.Discovery.terms`: every refitted term, the final
-        model's with ``kept: true``, each kept one with the ``alternatives`` the runs cannot
-        separate from it).
     setup : Setup, optional
         What every model of the diagnosis shares (vehicle, free coefficients, tracks, windows);
         not in :meth:`to_dict`.
     discovered_terms : list, optional
         The top-level ``discovered`` list (:func:`discovered_terms`), computed once by
-        :func:`diagnose` or read back from the JSON (:meth:`from_dict`; ``discovered`` is then
-        None); :meth:`to_dict` writes it as it is, so a diagnosis computed and one read back take
-        the same path.
+        :func:`diagnose` or read back from the JSON (:meth:`from_dict`) and written as it is by
+        :meth:`to_dict`, so a diagnosis computed and one read back take the same path: every
+        refitted term (:meth:`~bayesid.analysis.gap.discovery.Discovery.terms`), the final model's
+        with ``kept: true``, each kept one with the ``alternatives`` the runs cannot separate from
+        it. Stored, not recomputed: ``worse_on_other_kinds`` needs the reference model's held-out
+        scores, which the JSON does not keep.
     """
 
     verdict: str
@@ -208,7 +207,7 @@ class Diagnosis:
     thresholds: Thresholds
     seconds: float
     round_seconds: list = field(default_factory=list)
-    discovery: dict = field(default_factory=dict)
+    discovery: Discovery | None = None
     discovery_first: FirstRoundSummary | dict = field(default_factory=dict)
     gap_discovered: dict = field(default_factory=dict)
     base_check: BaseCheck | dict = field(default_factory=dict)
@@ -217,11 +216,16 @@ class Diagnosis:
     manoeuvre_kinds: dict = field(default_factory=dict)
     base: Stage = field(repr=False, default=None)
     after: Stage = field(repr=False, default=None)
-    discovered: object = field(repr=False, default=None)
     setup: Setup = field(repr=False, default=None)
     discovered_terms: list | None = field(repr=False, default=None)
 
-    _HIDDEN = ("base", "after", "discovered", "setup", "discovered_terms")
+    _HIDDEN = ("base", "after", "setup", "discovered_terms")
+
+    @property
+    def discovered(self) -> Discovery | None:
+        """Structure discovery's result: :attr:`discovery` (the name the CLI and the API have read
+        it by)."""
+        return self.discovery
 
     def to_dict(self) -> dict:
         """The JSON-able fields, in order (the models are left out).
@@ -233,15 +237,16 @@ class Diagnosis:
             top-level list of discovered terms.
         """
         out = {f.name: _plain(getattr(self, f.name)) for f in fields(self) if f.name not in self._HIDDEN}
+        out["discovery"] = self.discovery.to_dict() if self.discovery is not None else {}
         out["discovered"] = [dict(i) for i in self.discovered_terms or []]
         return out
 
     @classmethod
     def from_dict(cls, d: dict) -> Diagnosis:
         """The diagnosis read back from its JSON (``diagnosis.json``, or :meth:`to_dict`): every
-        JSON field, without the models (``base``, ``after``, ``discovered``, ``setup`` are None;
-        the top-level ``discovered`` list is kept as written and :meth:`to_dict` writes it
-        again).
+        JSON field, without the models (``base``, ``after``, ``setup`` are None, and
+        ``discovery`` has none); the top-level ``discovered`` list is kept as written and
+        :meth:`to_dict` writes it again.
 
         Parameters
         ----------
@@ -268,6 +273,7 @@ class Diagnosis:
             "discovery_first": lambda f: FirstRoundSummary.read(f) if f else f,
             "thresholds": Thresholds.from_dict,
             "design": lambda rows: [DesignedRun.from_dict(r) for r in rows],
+            "discovery": lambda D: Discovery.from_dict(D) if D else None,
         }
         args = record_fields(cls, d, "diagnosis", skip=cls._HIDDEN, extra=("discovered",))
         args = {k: readers[k](v) if k in readers else v for k, v in args.items()}
@@ -691,7 +697,7 @@ def diagnose(
         thresholds=th,
         seconds=time.perf_counter() - t_start,
         round_seconds=search.seconds,
-        discovery=found.to_dict() if found is not None else {},
+        discovery=found,
         discovery_first=first.summary if first is not None else {},
         gap_discovered=gap_discovered,
         base_check=replace(check, multistart=base_ms),
@@ -700,7 +706,6 @@ def diagnose(
         manoeuvre_kinds=kinds,
         base=base_stage,
         after=after,
-        discovered=found,
         setup=setup,
         discovered_terms=discovered_terms(found, names_h, kinds, th),
     )
