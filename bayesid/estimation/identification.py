@@ -94,6 +94,13 @@ class IdentifyResult:
     retimed_moves : dict or None
         With ``options.retime``: per training run, the start time (s) of each rudder movement
         within one log interval and its sd (:mod:`bayesid.estimation.retiming`).
+    nested_start : dict or None
+        With effects that have a ``neutral`` value (they contain the model without them): the
+        chain that keeps the fit from ending above the model without them (``_keep_nested``):
+        ``effects`` (their names), ``cost_without`` (that model's fit), ``cost_effect_start``
+        (the fit from the effects' start values), ``cost_neutral_start`` (the fit from the
+        first's optimum with the effects neutral), sums of squares at the same channel weights,
+        and ``kept`` (``"neutral"`` or ``"effect start"``); None without such effects.
     """
 
     model: object
@@ -114,6 +121,7 @@ class IdentifyResult:
     calibration: Calibration | None
     step_check: StepCheck | None = None
     retimed_moves: dict | None = None
+    nested_start: dict | None = None
 
 
 def identify(
@@ -241,6 +249,7 @@ def identify(
         calibration=calib,
         step_check=check,
         retimed_moves=st.retimed,
+        nested_start=first.nested,
     )
 
 
@@ -266,6 +275,7 @@ class _Stage:
     ms: MultistartResult | None
     rebuild: object
     retimed: dict | None = None
+    nested: dict | None = None
 
 
 def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, runner: Runner) -> _Stage:
@@ -311,6 +321,21 @@ def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, run
     problem = wf.WindowProblem(model, ctxs, sd, channels=channels, max_nfev=options.max_nfev)
     f, sd_fit = wf.fit_weighted(problem, p0, weighting=weighting, bar=runner.bar("fit"))
     problem = dataclasses.replace(problem, sd=sd_fit)
+    nested = None
+    if p_start is None:  # a refined step refits from the coarser step's optimum alone
+
+        def without():
+            m = build_model(
+                vehicle,
+                options.free,
+                [e.name for e in model.effects if e.neutral is None],
+                model.dt,
+                inputs=options.inputs,
+                rudder_rate_deg_s=options.rudder_rate_deg_s,
+            )
+            return m, [m.context(t, window_s, start=rule) for t in train]
+
+        f, p0, nested = _keep_nested(problem, f, p0, without, runner)
     ms = None
     if options.starts and p_start is None:  # a refined step refits from the multistart's best
         say(f"multistart: {options.starts} more start(s) on {runner.where()}")
@@ -343,8 +368,112 @@ def _fit_at_step(vehicle, train, options: FitOptions, channels, dt, p_start, run
         return m, cs
 
     return _Stage(
-        model, checked, f, cov, post, gp, prior_info, seed_info, sd, weighting, rule, window_s, p0, ms, rebuild, retimed
+        model,
+        checked,
+        f,
+        cov,
+        post,
+        gp,
+        prior_info,
+        seed_info,
+        sd,
+        weighting,
+        rule,
+        window_s,
+        p0,
+        ms,
+        rebuild,
+        retimed,
+        nested,
     )
+
+
+def neutral_start(model, p0):
+    """The start ``p0`` with every effect that has a catalogue ``neutral`` value at it (at
+    neutral, such an effect leaves the model without it).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The model (``[theta_free, q_1, ..., q_E]``, :class:`~bayesid.models.interface.ParameterLayout`).
+    p0 : array_like, shape (n_params,)
+        A parameter vector.
+
+    Returns
+    -------
+    ndarray, shape (n_params,) or None
+        ``p0`` with those effects neutral; None when no effect has a neutral value.
+    """
+    p, i, any_neutral = np.array(p0, float), model.n_theta, False
+    for e, n in zip(model.effects, model.n_q):
+        if e.neutral is not None:
+            p[i : i + n], any_neutral = e.neutral, True
+        i += n
+    return p if any_neutral else None
+
+
+def _kept_positions(model) -> np.ndarray:
+    """Indices of ``p`` that are not parameters of an effect with a ``neutral`` value."""
+    idx, i = list(range(model.n_theta)), model.n_theta
+    for e, n in zip(model.effects, model.n_q):
+        if e.neutral is None:
+            idx += range(i, i + n)
+        i += n
+    return np.asarray(idx, int)
+
+
+def _keep_nested(problem: wf.WindowProblem, f: FitResult, p0, without, runner: Runner) -> tuple:
+    """(fit, its start, summary) of a fit with effects that contain the model without them.
+
+    An effect with a catalogue ``neutral`` value nests the model without it, so its fit should
+    never end above that model's; but a fit from the effect's own start (``coupling_speed`` at
+    MMG's ``c_U = 1``, a 0.5 s ``sensor_lag``) can stop in a worse optimum, and so can one from
+    the neutral value with the coefficients at their start (the optimiser's path differs). The
+    chain the gap diagnosis refits with (:mod:`bayesid.analysis.gap.candidates`) removes that:
+    the model without those effects is fitted from the same coefficients, and the full model
+    again from its optimum with the effects neutral, from which a descent method cannot end
+    higher. The lower of that fit and ``f`` is kept, at the channel weights of ``problem``.
+
+    Parameters
+    ----------
+    problem : WindowProblem
+        The full model's problem (its final channel weights, no prior).
+    f : FitResult
+        Its fit from ``p0``.
+    p0 : ndarray, shape (n_params,)
+        That fit's start.
+    without : callable
+        ``without() -> (model, ctxs)``: the model without the nesting effects and its contexts.
+    runner : Runner
+        Receives the progress messages.
+
+    Returns
+    -------
+    tuple
+        ``(fit, start, summary)``; the summary (:attr:`IdentifyResult.nested_start`) is None and
+        ``f`` is returned when no effect has a neutral value.
+    """
+    model = problem.model
+    pn = neutral_start(model, p0)
+    if pn is None:
+        return f, p0, None
+    names = [e.name for e in model.effects if e.neutral is not None]
+    runner.say(f"the fit again without {', '.join(names)}, then with them from neutral at its optimum")
+    keep = _kept_positions(model)
+    base_model, base_ctxs = without()
+    fb = wf.fit_model(
+        dataclasses.replace(problem, model=base_model, ctxs=base_ctxs), pn[keep], bar=runner.bar("fit without")
+    )
+    pn[keep] = fb.p
+    fn = wf.fit_model(problem, pn, bar=runner.bar("fit from neutral"))
+    info = {
+        "effects": names,
+        "cost_without": float(fb.cost),
+        "cost_effect_start": float(f.cost),
+        "cost_neutral_start": float(fn.cost),
+        "kept": "neutral" if fn.cost < f.cost else "effect start",
+    }
+    return (fn, pn, info) if fn.cost < f.cost else (f, p0, info)
 
 
 def _timing_covariance(f: FitResult, ctxs, retiming, gp, prior_info: dict) -> tuple:

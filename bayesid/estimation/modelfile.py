@@ -201,6 +201,7 @@ class ModelDocument:
                 **({"at_bound": list(f.at_bound)} if f.at_bound else {}),
                 **({} if getattr(result, "step_check", None) is None else {"step_check": result.step_check.to_dict()}),
                 **({} if getattr(result, "retimed_moves", None) is None else {"retimed_moves": result.retimed_moves}),
+                **({} if getattr(result, "nested_start", None) is None else {"nested_start": result.nested_start}),
             },
             multistart=None if result.multistart is None else result.multistart.to_dict(),
             prior=result.prior or {"used": False},

@@ -98,6 +98,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         *_bound_lines(doc),
         *_step_lines(doc["fit"]),
         *_retime_lines(doc["fit"]),
+        *_nested_start_lines(doc["fit"]),
         _ar1_sentence(doc["posterior"]),
         "",
         *_coefficient_lines(doc),
@@ -559,6 +560,24 @@ def _retime_lines(fit: dict) -> list:
         f"Retimed: {n} rudder movement(s) within single log intervals in {len(moves)} run(s), their times estimated "
         f"with the coefficients{spread}; the coefficients' sds count what the data leave of those times "
         "(model.json fit.retimed_moves).",
+        "",
+    ]
+
+
+def _nested_start_lines(fit: dict) -> list:
+    """The two starts of a fit with effects that contain the model without them
+    (:func:`bayesid.estimation.identification.neutral_start`) in words."""
+    ns = fit.get("nested_start")
+    if not ns:
+        return []
+    names = ", ".join(ns["effects"])
+    kept = ns["kept"] == "neutral"
+    return [
+        f"Two starts: from the effects' start values the fit ended at SSR {fmt(ns['cost_effect_start'], 6)}; the model "
+        f"without {names} fitted to {fmt(ns['cost_without'], 6)} and, from its optimum with {names} neutral, the "
+        f"full model to {fmt(ns['cost_neutral_start'], 6)} (one set of channel weights). "
+        + ("That second fit is kept: the effects' start led to a worse optimum." if kept else "The first is kept.")
+        + " (model.json fit.nested_start)",
         "",
     ]
 
