@@ -134,6 +134,12 @@ def identify(
 ) -> IdentifyResult:
     """Identify the free coefficients (and effect parameters) on training tracks.
 
+    With effects that have a catalogue ``neutral`` value (they contain the model without them),
+    the fit from their start values is compared with the chain through the model without them
+    (that model's fit, then the full model from its optimum with the effects neutral), and the
+    lower kept (:attr:`IdentifyResult.nested_start`), so such a fit never ends above the model
+    without the effects for want of a start.
+
     Parameters
     ----------
     vehicle : Ship or Vehicle
