@@ -45,13 +45,19 @@ HELD = ("Z_10_10_P", "Z_20_10_S", "Z_25_05", "Z_10_05", "Z_30_05")
 CUBIC = {"Ycf": 0.0, "Ncf": 0.0, "Yvvv": -1.607, "Yrrr": 0.008, "Nvvv": -0.030, "Nrrr": -0.013}
 XVVVV = {"Xvvvv": 0.771}
 U0, RUDDER_RATE = 1.179, 15.8
-#: ``(key, label, coupling_speed, coefficients set)``
+#: MMG 2015's two flow-straightening coefficients for KVLCC2 L7 (Table 3: gamma_R 0.640 for beta_R > 0, 0.395
+#: for beta_R < 0), in place of the packaged file's one gR 0.5.
+GAMMA_R = {"gR": 0.640, "gRm": 0.395}
+#: ``(key, label, coupling_speed, coefficients set, extra free coefficients)``
 FORMS = (
-    ("packaged", "cross-flow, coupling / Ut (packaged)", "Ut", {}),
-    ("coupling_U", "cross-flow, coupling / U", "U", {}),
-    ("cubic", "cubic terms, coupling / Ut", "Ut", CUBIC),
-    ("cubic_U", "cubic terms, coupling / U (MMG 2015)", "U", CUBIC),
-    ("cubic_U_Xvvvv", "MMG 2015 + X'vvvv 0.771", "U", {**CUBIC, **XVVVV}),
+    ("packaged", "cross-flow, coupling / Ut (packaged)", "Ut", {}, ()),
+    ("coupling_U", "cross-flow, coupling / U", "U", {}, ()),
+    ("cubic", "cubic terms, coupling / Ut", "Ut", CUBIC, ()),
+    ("cubic_U", "cubic terms, coupling / U (MMG 2015)", "U", CUBIC, ()),
+    ("cubic_U_Xvvvv", "MMG 2015 + X'vvvv 0.771", "U", {**CUBIC, **XVVVV}, ()),
+    ("gRm", "packaged + gamma_R two-sided, gRm free", "Ut", GAMMA_R, ("gRm",)),
+    ("Xvvvv", "packaged + X'vvvv free", "Ut", XVVVV, ("Xvvvv",)),
+    ("gRm_Xvvvv", "packaged + gRm, X'vvvv free", "Ut", {**GAMMA_R, **XVVVV}, ("gRm", "Xvvvv")),
 )
 
 
@@ -76,7 +82,9 @@ def turn(ship, rpm: float, angle: float) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))
+    ap.add_argument("--forms", default="", help="comma-separated keys of FORMS to run (default: all; packaged always)")
     args = ap.parse_args(argv)
+    only = {k for k in args.forms.split(",") if k} | {"packaged"}
     hsva = Path(args.data) / "kvlcc2-simman-hsva"
     if not hsva.is_dir():
         print(f"real data not found under {args.data}: nothing to do")
@@ -101,13 +109,15 @@ def main(argv=None) -> int:
         print(
             "form                                   fit s  train m  held m   tactical stbd/port   steady stbd/port  ratio stbd/port  u/U0"
         )
-        for key, label, coupling, coef in FORMS:
+        for key, label, coupling, coef, extra in FORMS:
+            if args.forms and key not in only:
+                continue
             ship = base.with_coefficients(coef).with_form(coupling_speed=coupling)
             free = (
                 tuple(base.free)
                 if "Ycf" not in coef
                 else (*(k for k in base.free if k not in ("Ycf", "Ncf")), "Yvvv", "Nvvv")
-            )
+            ) + tuple(extra)
             t0 = time.perf_counter()
             res = identify(ship, train, FitOptions(free=free), calibration=None)
             secs = time.perf_counter() - t0
@@ -127,7 +137,8 @@ def main(argv=None) -> int:
             shown = ", ".join(
                 f"{k} {c[k]:.4g}"
                 for k in free
-                if k in ("Ycf", "Ncf", "Yvvv", "Nvvv", "Yvvr", "Yvrr", "Nvvr", "Nvrr", "Xuu", "wP")
+                if k
+                in ("Ycf", "Ncf", "Yvvv", "Nvvv", "Yvvr", "Yvrr", "Nvvr", "Nvrr", "Xuu", "wP", "gR", "gRm", "Xvvvv")
             )
             print(f"    {shown}")
             if held and key != "packaged":

@@ -16,7 +16,9 @@ noise of ``studies/ship_surge.py`` (2 cm, 0.1 deg, velocities 5 mm/s, 0.05 deg/s
 
 Loop 1: ``diagnose`` on the validation split of ``studies/real_ships.py`` (9 zigzags to train;
 held out Z_10_10_P, Z_20_10_S, Z_35_05, Z_15_01 and the two turns), the ship catalogue, discovery
-with two alternatives, no design. Loop 2: ``identify`` on the 13 zigzags, alone and with the
+with two alternatives, no design; again with the starboard turn in training. After each, the kept
+terms are freed in the file (what ``--write-vehicle`` writes), the chosen effects added, the model
+refitted on the training runs, and both turns predicted. Loop 2: ``identify`` on the 13 zigzags, alone and with the
 starboard turn, with the file's free set, then also with ``coupling_speed`` (``--effects``) and
 with ``Xvvvv`` free; each fit's open-loop prediction of both turns against the world's
 (:func:`bayesid.estimation.prediction.turning_band`).
@@ -137,15 +139,17 @@ def loop_fit(kv, runs: dict, label: str, names: list, args, say, effects=(), ext
     return {"label": label, "errors": errs}
 
 
-def loop_diagnose(kv, runs: dict, args, say) -> None:
-    """Loop 1: the diagnosis of the validation split with the turns held out."""
+def loop_diagnose(kv, runs: dict, args, say, train_turns: tuple = ()) -> None:
+    """Loop 1: the diagnosis of the validation split with the turns held out (``train_turns``: these
+    turns train instead), then, as ``--write-vehicle`` and ``bayesid fit`` would, the file with the
+    discovered terms refitted on the training runs and both turns predicted."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.analysis.gap.diagnose import catalogue_candidates
     from bayesid.analysis.gap.discovery import DiscoveryOptions
     from bayesid.models import ship
     from bayesid.tasks import Runner
 
-    held_names = [n for n in runs if n in HELD_ZIGZAGS or n in TURNS]
+    held_names = [n for n in runs if n in HELD_ZIGZAGS or (n in TURNS and n not in train_turns)]
     train = [runs[n] for n in runs if n not in held_names]
     held = [runs[n] for n in held_names]
     t0 = time.perf_counter()
@@ -174,11 +178,13 @@ def loop_diagnose(kv, runs: dict, args, say) -> None:
     before = D["gap_before"]["heldout_rms_m"]
     after = (D.get("gap_discovered") or {}).get("heldout_rms_m") or D["gap_after"]["heldout_rms_m"]
     say(
-        f"\nloop 1, diagnose: train {len(train)} zigzags, held out {', '.join(held_names)}; "
+        f"\nloop 1, diagnose: train {len(train)} runs ({len(train_turns)} turns), held out {', '.join(held_names)}; "
         f"{time.perf_counter() - t0:.0f} s"
     )
     say(f"  verdict {D['verdict']}; effects added {D['effects_added']}; cause {D.get('cause')}")
-    say(f"  where: dominant channel {D['where'].get('dominant_channel')}, discovery routed {D['where'].get('discovery_routed')}")
+    say(
+        f"  where: dominant channel {D['where'].get('dominant_channel')}, discovery routed {D['where'].get('discovery_routed')}"
+    )
     disc = D.get("discovery") or {}
     alts = {k: [a["term"] for a in (disc.get("alternatives") or {}).get(k, [])] for k in disc.get("found") or []}
     say(f"  discovery kept {disc.get('found')} alternatives {alts}")
@@ -191,6 +197,13 @@ def loop_diagnose(kv, runs: dict, args, say) -> None:
             f"    {r['effect']:<18} share {r.get('share_of_excess')!s:.6} dBIC {r.get('delta_bic')!s:.8} "
             f"p {r.get('window_p_value')!s:.6} role {r.get('role')}"
         )
+    terms = {it["term"]: it["coefficient"] for it in D.get("discovered") or [] if it["kept"]}
+    added = tuple(D["effects_added"])
+    if terms or added:  # the kept terms freed and the chosen effects, refitted as bayesid fit --effects would
+        kt = kv.with_coefficients(terms)
+        names = [n for n in runs if n not in held_names]
+        what = ", ".join([*(f"{t} free" for t in terms), *added])
+        loop_fit(kt, runs, f"loop 1 -> fit with {what}", names, args, say, effects=added, extra_free=tuple(terms))
 
 
 def main() -> int:
@@ -213,18 +226,23 @@ def main() -> int:
         lines.append(s)
 
     rev = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT).stdout
-    say(f"# python benchmarks/kvlcc2_mmg_world.py{' --quick' if args.quick else ''}   (git {rev.strip()}; seed {args.seed})")
+    say(
+        f"# python benchmarks/kvlcc2_mmg_world.py{' --quick' if args.quick else ''}   (git {rev.strip()}; seed {args.seed})"
+    )
     kv = load_ship("kvlcc2_7m")
     runs, speed, rpm = world_runs(args.seed, args.quick)
     say(f"world: MMG 2015 KVLCC2 L7 set, coupling speed U; approach {speed:.3f} m/s at {rpm:.1f} rpm (its own)")
     zz = [n for n in runs if n not in TURNS]
     loop_fit(kv, runs, "loop 2, zigzags only", zz, args, say)
     loop_fit(kv, runs, "loop 2, zigzags + T_35_S", [*zz, "T_35_S"], args, say)
-    loop_fit(kv, runs, "loop 2, zigzags + T_35_S, coupling_speed", [*zz, "T_35_S"], args, say, effects=("coupling_speed",))
+    loop_fit(
+        kv, runs, "loop 2, zigzags + T_35_S, coupling_speed", [*zz, "T_35_S"], args, say, effects=("coupling_speed",)
+    )
     kx = kv.with_coefficients({"Xvvvv": 0.0})  # an extra hull term: the file gives it a start to be fitted
     loop_fit(kx, runs, "loop 2, zigzags + T_35_S, Xvvvv free", [*zz, "T_35_S"], args, say, extra_free=("Xvvvv",))
     if not args.skip_diagnose:
         loop_diagnose(kv, runs, args, say)
+        loop_diagnose(kv, runs, args, say, train_turns=("T_35_S",))
     if not args.quick:
         Path(args.out).write_text("\n".join(lines) + "\n")
     return 0
