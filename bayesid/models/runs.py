@@ -30,6 +30,7 @@ __all__ = [
     "Approach",
     "ManoeuvreRun",
     "approach_condition",
+    "run_approach",
     "rudder_rate",
     "menu",
     "ramp",
@@ -192,6 +193,71 @@ def approach_condition(tracks: list) -> Approach:
         rudder_rate=max(rate, math.radians(1.0)),
         duration_s=float(np.median(lens)),
     )
+
+
+def run_approach(track, max_s: float = 10.0, min_s: float = 2.0, rudder_tol_deg: float = 1.0) -> dict | None:
+    """One run's own approach: the samples from its start until the rudder first leaves its
+    first value by more than ``rudder_tol_deg`` (at most ``max_s``; at least ``min_s``: a log
+    that starts at the execute, as the SIMMAN HSVA runs do, is read over its first ``min_s``, in
+    which a ship's speed has barely changed), their speed (the median of ``u`` when logged, else
+    the slope of a straight line through the positions, as :func:`approach_condition`), their
+    propeller speed and how fast the speed changes there.
+
+    Parameters
+    ----------
+    track : Track
+        The run (``t``, ``delta_r``, ``n``; ``u`` or ``x, y``).
+    max_s, min_s : float, default 10.0, 2.0
+        Longest and shortest approach read, s.
+    rudder_tol_deg : float, default 1.0
+        Rudder movement that ends the approach, deg.
+
+    Returns
+    -------
+    dict or None
+        ``seconds``, ``speed_m_s``, ``rpm`` (median of ``n``), ``accel_m_s2`` (slope of the
+        logged ``u``, None without it), ``rudder_moved`` (the rudder left its first value within
+        the ``min_s`` read); None when the run has no ``n`` or ``delta_r`` column or is shorter
+        than ``min_s``.
+    """
+    if "n" not in track or "delta_r" not in track:
+        return None
+    t = np.asarray(track.t, float)
+    d = np.asarray(track["delta_r"], float)
+    ok = np.isfinite(d)
+    if not ok.any():
+        return None
+    d0 = d[ok][0]
+    moved = np.flatnonzero(ok & (np.abs(d - d0) > math.radians(rudder_tol_deg)))
+    t_end = min(t[0] + max_s, t[moved[0]] if moved.size else t[-1])
+    rudder_moved = bool(t_end - t[0] < min_s)
+    t_end = max(t_end, t[0] + min_s)
+    if t[-1] < t_end:
+        return None
+    seg = t <= t_end
+    n = np.asarray(track["n"], float)[seg]
+    if not np.isfinite(n).any():
+        return None
+    accel, speed = None, None
+    if "u" in track and np.isfinite(np.asarray(track["u"], float)[seg]).sum() > 2:
+        u = np.asarray(track["u"], float)[seg]
+        good = np.isfinite(u)
+        speed = float(np.median(u[good]))
+        accel = float(np.polyfit(t[seg][good], u[good], 1)[0])
+    elif "x" in track and "y" in track:
+        x, y = np.asarray(track["x"], float)[seg], np.asarray(track["y"], float)[seg]
+        good = np.isfinite(x) & np.isfinite(y)
+        if good.sum() > 2:
+            speed = float(np.hypot(*np.polyfit(t[seg][good], np.column_stack([x[good], y[good]]), 1)[0]))
+    if speed is None:
+        return None
+    return {
+        "seconds": float(t_end - t[0]),
+        "speed_m_s": speed,
+        "rpm": float(np.nanmedian(n)),
+        "accel_m_s2": accel,
+        "rudder_moved": rudder_moved,
+    }
 
 
 def menu(approach: Approach, max_rudder_deg: float = 35.0, duration_s: float | None = None) -> list[ManoeuvreRun]:

@@ -11,6 +11,7 @@ from pathlib import Path
 from ..analysis.gap.candidates import UNDETERMINED_SCALES
 from ..analysis.gap.discovery import Discovery
 from ..analysis.gap.records import (
+    ApproachCheck,
     BaseCheck,
     CandidateRow,
     Contribution,
@@ -1133,6 +1134,36 @@ def _thrust_lines(check: ThrustCheck | dict | None) -> list[str]:
     ]
 
 
+def _approach_lines(check: ApproachCheck | dict | None) -> list[str]:
+    """The Where section's lines on each run's propulsion point against the fitted model's
+    (:func:`bayesid.analysis.gap.where.approach_check`, or its JSON object)."""
+    ap = _record(ApproachCheck, check)
+    if ap is None or not ap.sentence():
+        return []
+    rows = [
+        [
+            r["run"],
+            r["role"],
+            fmt(r["rpm"]),
+            fmt(r["speed_m_s"]),
+            fmt(r["model_speed_m_s"]),
+            f"{100.0 * r['speed_error']:+.1f}",
+            "yes" if r["steady"] else "no (left out)",
+        ]
+        for r in ap.runs
+    ]
+    head = [
+        "run",
+        "role",
+        "approach rpm",
+        "approach speed (m/s)",
+        "model's speed at that rpm (m/s)",
+        "error %",
+        "steady",
+    ]
+    return [ap.sentence(), "", md_table(head, rows), ""]
+
+
 def _where_lines(diag) -> list:
     """The "Where" section: channels, dominant region, phases, missing forces, wind dependence
     and the residuals' spectra."""
@@ -1192,6 +1223,7 @@ def _where_lines(diag) -> list:
             "",
         ]
     lines += _thrust_lines(diag.where.get("thrust"))
+    lines += _approach_lines(diag.where.get("approach"))
     for k, v in diag.where.get("spectrum", {}).items():
         wb = diag.where["whiteness"].get(k, {})
         ic = diag.where["input_correlation"].get(k, {})

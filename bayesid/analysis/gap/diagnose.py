@@ -54,7 +54,7 @@ from .verdict import (
     paired_window_test,
     verdict_of,
 )
-from .where import where
+from .where import approach_check, where
 
 __all__ = [
     "DiagnoseOptions",
@@ -618,6 +618,11 @@ def diagnose(
         raise diverged
     floor = min(floors, key=lambda d: d.heldout_rms_m)
     w, forces = where(b.held, bfit, heldout, sd, floor_by_channel=floor.by_channel)
+    approach = approach_check(base, bfit.p, train, heldout)
+    if approach is not None:
+        w["approach"] = approach.to_dict()
+        if approach.another_point:
+            say(approach.sentence().replace("**", ""))
     if opt.discover is not None:  # Where's dominant channel decides where the search starts
         searched, why = routed(opt.discover, w, base)
         if why is not None:

@@ -25,6 +25,7 @@ __all__ = [
     "Remainder",
     "Contribution",
     "ThrustCheck",
+    "ApproachCheck",
     "FirstRoundSummary",
     "BaseCheck",
     "TermRow",
@@ -346,6 +347,65 @@ class ThrustCheck(Record):
     propeller_share: float | None
 
     _WHAT: ClassVar[str] = "thrust check"
+
+
+#: A held-out run is at another propulsion point when, at its logged approach rpm, the fitted
+#: model's steady speed misses its approach speed by more than this share beyond what it misses
+#: on the training runs (whose propulsion point the base fit holds).
+APPROACH_TOLERANCE = 0.03
+#: An approach whose speed changes by more than this share over 10 s is not at equilibrium, and
+#: is left out of the medians.
+APPROACH_UNSTEADY = 0.02
+
+
+@dataclass(frozen=True, eq=False)
+class ApproachCheck(Record):
+    """Each run's propulsion point against the fitted model's (``Diagnosis.where["approach"]``;
+    :func:`bayesid.analysis.gap.where.approach_check`): at the rpm a run logs on its approach, the
+    speed the model settles at, against the approach speed the run measures. A run from another
+    basin, model, propeller or rpm control is at another point; no coefficient fitted on the
+    training runs carries that, and the model's speed drifts towards its own point on every
+    straight leg of such a run.
+
+    Parameters
+    ----------
+    runs : list of dict
+        Per run: ``run``, ``role`` (``"training"``, ``"held-out"``), ``seconds``, ``speed_m_s``,
+        ``rpm``, ``accel_m_s2`` (:func:`bayesid.models.runs.run_approach`), ``model_speed_m_s``,
+        ``speed_error`` (model / measured - 1) and ``steady`` (the speed changes by at most
+        :data:`APPROACH_UNSTEADY` over 10 s).
+    training_error, heldout_error : float or None
+        The median ``speed_error`` of the steady training and held-out approaches.
+    another_point : bool
+        The held-out median is more than :data:`APPROACH_TOLERANCE` from the training one, and
+        outside the training runs' range.
+    """
+
+    runs: list
+    training_error: float | None
+    heldout_error: float | None
+    another_point: bool
+
+    _WHAT: ClassVar[str] = "approach check"
+
+    def sentence(self) -> str:
+        """The check in words (empty when no held-out approach could be read)."""
+        if self.heldout_error is None:
+            return ""
+        n_h = sum(1 for r in self.runs if r["role"] == "held-out" and r["steady"])
+        train = "" if self.training_error is None else f", against {self.training_error:+.1%} on the training runs"
+        head = (
+            f"At the rpm each run logs on its approach, the fitted model settles at a speed {self.heldout_error:+.1%} "
+            f"off the measured approach speed of the held-out runs (median of {n_h}){train}"
+        )
+        if not self.another_point:
+            return head + ": the held-out runs are at the training runs' propulsion point."
+        return (
+            head + ": **the held-out runs are at another propulsion point** (another basin, model, propeller or "
+            "rpm control). No coefficient fitted on the training runs carries it: on every straight leg the "
+            "model's speed drifts towards its own point, so u misses there whatever the hull's terms (the "
+            "propulsion_point candidate shifts the wake for every run alike)."
+        )
 
 
 @dataclass(frozen=True, eq=False)

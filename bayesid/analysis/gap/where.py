@@ -12,10 +12,11 @@ import numpy as np
 from scipy import signal, stats
 
 from ...estimation.windows import Evaluation, evaluate
+from ...models.runs import run_approach
 from ...protocol import pooled_scores
-from .records import ThrustCheck
+from .records import APPROACH_TOLERANCE, APPROACH_UNSTEADY, ApproachCheck, ThrustCheck
 
-__all__ = ["where", "ljung_box", "window_xy", "speed_from_positions", "SPEED_SPAN_S"]
+__all__ = ["where", "approach_check", "ljung_box", "window_xy", "speed_from_positions", "SPEED_SPAN_S"]
 
 #: Span of the local quadratic (Savitzky-Golay) whose slope reads the speed over ground from the
 #: positions, s (:func:`speed_from_positions`): a few seconds, short against a turn's change of speed
@@ -359,6 +360,56 @@ def _thrust_check(model, fitres, motions: list, Fs: list) -> ThrustCheck | None:
         missing_x_rms_logged_thrust_n=b,
         propeller_share=1.0 - (b / a) ** 2 if a > 0 else None,
     )
+
+
+def approach_check(model, p, train, held) -> ApproachCheck | None:
+    """Each run's propulsion point against the fitted model's (:class:`ApproachCheck`): on each
+    run's own approach (:func:`bayesid.models.runs.run_approach`), the speed the model at ``p``
+    settles at with the rpm the run logs there (``model.steady_speed``), against the run's
+    measured approach speed.
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The fitted model; one without ``steady_speed`` (no propeller model) gives None.
+    p : array_like, shape (n_params,)
+        Its parameters.
+    train, held : list of Track
+        The training and held-out runs.
+
+    Returns
+    -------
+    ApproachCheck or None
+        None when the model has no ``steady_speed`` or no held-out run has an approach to read.
+    """
+    speed_of = getattr(model, "steady_speed", None)
+    if speed_of is None:
+        return None
+    rows = []
+    for role, tracks in (("training", train), ("held-out", held)):
+        for tr in tracks:
+            a = run_approach(tr)
+            if a is None or a["rpm"] <= 0 or a["speed_m_s"] <= 0:
+                continue
+            try:
+                ms = float(speed_of(p, a["rpm"]))
+            except ValueError:
+                continue
+            acc = a["accel_m_s2"]
+            steady = acc is None or abs(acc) * 10.0 <= APPROACH_UNSTEADY * a["speed_m_s"]
+            rows.append(
+                {"run": tr.name, "role": role, **a, "model_speed_m_s": ms, "speed_error": ms / a["speed_m_s"] - 1.0}
+                | {"steady": bool(steady)}
+            )
+    errs = {r: [x["speed_error"] for x in rows if x["role"] == r and x["steady"]] for r in ("training", "held-out")}
+    if not errs["held-out"]:
+        return None
+    tr_err = float(np.median(errs["training"])) if errs["training"] else None
+    h_err = float(np.median(errs["held-out"]))
+    other = tr_err is not None and (
+        abs(h_err - tr_err) > APPROACH_TOLERANCE and not min(errs["training"]) <= h_err <= max(errs["training"])
+    )
+    return ApproachCheck(runs=rows, training_error=tr_err, heldout_error=h_err, another_point=bool(other))
 
 
 def window_xy(model, fitres, track, window_s, nu=None, start="measured", leadin_s=0.0):

@@ -576,6 +576,34 @@ class ShipModel(ParameterLayout):
         M = mass_matrix(prm[0])
         return motion, (acc - a_model) @ M.T, inp
 
+    def steady_speed(self, p, rpm: float) -> float:
+        """The straight-ahead speed the model settles at with the propeller at ``rpm`` and the
+        rudder amidships (its self-propulsion point read the other way,
+        :func:`~bayesid.models.ship.trials.equilibrium`), at parameters ``p`` with their effects'
+        coefficient shifts (a still tank: no wind, no current).
+
+        Parameters
+        ----------
+        p : array_like, shape (n_params,)
+            A parameter vector of this model.
+        rpm : float
+            Propeller speed, rpm.
+
+        Returns
+        -------
+        float
+            Speed, m/s.
+
+        Raises
+        ------
+        ValueError
+            No equilibrium between 0.001 and 50 m/s (naming the ship).
+        """
+        from .trials import equilibrium
+
+        prm, _, _ = self.kernel_params(np.asarray(p, float)[None])
+        return equilibrium(prm[0], rpm=float(rpm), label=self.vehicle.id)[0]
+
     def logged_thrust(self, fitres, track: Track) -> LoggedThrust | None:
         """The fitted model's propeller thrust along a track that logs the thrust, beside the logged one.
 

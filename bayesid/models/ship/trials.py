@@ -109,9 +109,35 @@ def propulsion_point(ship: Ship, speed: float | None = None, rpm: float | None =
     ValueError
         Neither given, or no equilibrium within 0.001-50 m/s (0.06-6000 rpm).
     """
+    return equilibrium(ship.params(), speed=speed, rpm=rpm, label=ship.id)
+
+
+def equilibrium(prm, speed: float | None = None, rpm: float | None = None, label: str = "") -> tuple[float, float]:
+    """:func:`propulsion_point` of a kernel parameter vector (a fitted model's row,
+    :meth:`~bayesid.models.ship.model.ShipModel.kernel_params`, with its effects' shifts).
+
+    Parameters
+    ----------
+    prm : ndarray, shape (NP + extra hull terms,)
+        Kernel parameters (:meth:`~bayesid.models.ship.fileformat.Ship.params` layout).
+    speed, rpm : float, optional
+        As :func:`propulsion_point`.
+    label : str, optional
+        Names the ship in the error.
+
+    Returns
+    -------
+    tuple of float
+        ``(speed, rpm)``, as :func:`propulsion_point`.
+
+    Raises
+    ------
+    ValueError
+        As :func:`propulsion_point`.
+    """
     if speed is not None and rpm is not None:
         return float(speed), float(rpm)
-    prm = ship.params()
+    prm = np.asarray(prm, float)
     if speed is not None:
         f = lambda n: _surge_force(prm, speed, n)  # noqa: E731
         lo, hi = 0.06, 6000.0
@@ -123,7 +149,7 @@ def propulsion_point(ship: Ship, speed: float | None = None, rpm: float | None =
     else:
         raise ValueError("give a speed or a propeller speed")
     if not np.sign(f(lo)) * np.sign(f(hi)) < 0:
-        raise ValueError(f"{ship.id}: {what} (the model's surge force does not change sign)")
+        raise ValueError(f"{label}: {what} (the model's surge force does not change sign)")
     x = float(brentq(f, lo, hi, xtol=1e-10, rtol=1e-12))
     return (float(speed), x) if speed is not None else (x, float(rpm))
 
@@ -442,6 +468,7 @@ __all__ = [
     "KINDS",
     "SERVICE_KEYS",
     "Trial",
+    "equilibrium",
     "propulsion_point",
     "service_condition",
     "simulate_trial",

@@ -1,0 +1,72 @@
+"""Each run's propulsion point against the fitted model's (issue 67: "is it the basin's propulsion
+point?"). Runs of a KVLCC2 whose wake fraction is 0.20 (another basin's propulsion point: the
+rpm that holds 1.179 m/s is higher) against the packaged model (wP 0.40): at the rpm those runs log
+on their approach, the packaged model settles faster than they go, and the check says
+the held-out runs are at another propulsion point; runs at the packaged model's own point are
+not. A run that accelerates on its approach is left out of the medians."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bayesid.analysis.gap.records import ApproachCheck
+from bayesid.analysis.gap.where import approach_check
+from bayesid.data.track import Track
+from bayesid.models import ship
+from bayesid.models.runs import run_approach
+from bayesid.models.ship.trials import T_EXECUTE, TrialOptions, propulsion_point, simulate_trial
+from bayesid.report.diagnosis import _approach_lines
+
+
+@pytest.fixture(scope="module")
+def kv():
+    return ship.load_ship("kvlcc2_7m")
+
+
+def _runs(vessel, prefix):
+    speed, rpm = propulsion_point(vessel, 1.179)
+    opts = TrialOptions(dt=0.1, sample_every=2, duration=40.0, rudder_rate_deg_s=15.8)
+    out = []
+    for kind, angle in (("zigzag", 10.0), ("turn", -35.0)):
+        tr = simulate_trial(vessel, kind, angle, speed=speed, rpm=rpm, options=opts).track
+        out.append(Track(tr.t, dict(tr.data), name=f"{prefix}_{kind}"))
+    return out, rpm
+
+
+def test_run_approach_reads_the_samples_before_the_first_rudder_order(kv):
+    (zz, _), rpm = _runs(kv, "a")
+    a = run_approach(zz)
+    assert a["seconds"] == pytest.approx(min(T_EXECUTE, 10.0), abs=0.25)  # the trials execute at 10 s
+    assert a["speed_m_s"] == pytest.approx(1.179, rel=1e-6) and a["rpm"] == pytest.approx(rpm)
+    assert abs(a["accel_m_s2"]) < 1e-6
+    assert run_approach(Track(zz.t, {k: v for k, v in zz.data.items() if k != "n"}, name="no_n")) is None
+
+
+def test_held_out_runs_at_another_propulsion_point_are_named(kv):
+    model = ship.ShipModel(kv, kv.free)
+    p = model.start()
+    home, rpm_home = _runs(kv, "home")
+    away, rpm_away = _runs(kv.with_coefficients({"wP": 0.20}), "away")
+    assert rpm_away > rpm_home  # a smaller wake fraction: a faster inflow, more rpm for the same speed
+    check = approach_check(model, p, home, away)
+    assert check.training_error == pytest.approx(0.0, abs=1e-6)
+    assert check.heldout_error > 0.05 and check.another_point
+    assert "another propulsion point" in check.sentence()
+    same = approach_check(model, p, home[:1], home[1:])
+    assert not same.another_point and "the training runs' propulsion point" in same.sentence()
+    # the JSON object reads back and renders the same table
+    back = ApproachCheck.from_dict(check.to_dict())
+    assert _approach_lines(back) == _approach_lines(check.to_dict())
+    assert "away_turn" in "\n".join(_approach_lines(back))
+
+
+def test_an_accelerating_approach_is_left_out(kv):
+    model = ship.ShipModel(kv, kv.free)
+    home, _ = _runs(kv, "home")
+    tr = home[0]
+    u = np.asarray(tr["u"], float) + 0.02 * (tr.t - tr.t[0])  # +0.2 m/s over 10 s
+    fast = Track(tr.t, dict(tr.data, u=u), name="accelerating")
+    check = approach_check(model, model.start(), home[1:], [fast])
+    assert check is None  # its only held-out approach is not steady: nothing to say
+    assert approach_check(ship.ShipModel(kv, kv.free), model.start(), home, []) is None
