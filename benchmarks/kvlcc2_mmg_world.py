@@ -18,7 +18,10 @@ Loop 1: ``diagnose`` on the validation split of ``studies/real_ships.py`` (9 zig
 held out Z_10_10_P, Z_20_10_S, Z_35_05, Z_15_01 and the two turns), the ship catalogue, discovery
 with two alternatives, no design; again with the starboard turn in training. After each, the kept
 terms are freed in the file (what ``--write-vehicle`` writes), the chosen effects added, the model
-refitted on the training runs, and both turns predicted. Loop 2: ``identify`` on the 13 zigzags, alone and with the
+refitted on the training runs, and both turns predicted. Last, loop 1 with the turns from
+"another basin": the world's hull with the packaged file's 0.204 m propeller in place of 0.216 m, at
+its own self-propulsion point (more rpm for the same approach), where Where's approach check should
+say the held-out runs are at another propulsion point. Loop 2: ``identify`` on the 13 zigzags, alone and with the
 starboard turn, with the file's free set, then also with ``coupling_speed`` (``--effects``) and
 with ``Xvvvv`` free; each fit's open-loop prediction of both turns against the world's
 (:func:`bayesid.estimation.prediction.turning_band`).
@@ -65,15 +68,30 @@ ZIGZAGS = {
 HELD_ZIGZAGS = ("Z_10_10_P", "Z_20_10_S", "Z_35_05", "Z_15_01")
 TURNS = {"T_35_S": -35.0, "T_35_P": 35.0}
 INDICES = ("advance_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
+#: Another basin's model of the hull: the packaged file's (HSVA's) propeller diameter in place of the
+#: world's 0.216 m, so its turns run at another propulsion point (rpm against speed).
+OTHER_BASIN = {"D_prop": 0.204}
 
 
-def world_runs(seed: int, quick: bool) -> dict:
-    """``{name: Track}``: the world's runs with noise."""
+def turn_rpms(runs: dict) -> str:
+    """The turns' logged approach rpm, as text."""
+    return ", ".join(f"{float(np.median(np.asarray(runs[n]['n'])[:20])):.1f}" for n in TURNS)
+
+
+def world_runs(seed: int, quick: bool, turn_particulars: dict | None = None) -> dict:
+    """``{name: Track}``: the world's runs with noise; with ``turn_particulars``, the turns are
+    another basin's: the world's model with these particulars (its own propeller), at its own
+    self-propulsion point for the same approach speed."""
+    import dataclasses
+
     from bayesid.data.track import Track
     from bayesid.models.ship import load_ship
     from bayesid.models.ship.trials import TrialOptions, propulsion_point, simulate_trial
 
     world = bayesid_ship_iii(load_ship("kvlcc2_7m")).with_form(coupling_speed="U")
+    other = world
+    if turn_particulars:
+        other = dataclasses.replace(world, particulars=dict(world.particulars, **turn_particulars))
     speed, rpm = propulsion_point(world, 1.179)
     rng = np.random.default_rng(seed)
     names = list(ZIGZAGS) if not quick else ["Z_10_10_P", "Z_20_10_S", "Z_20_05", "Z_35_05"]
@@ -85,7 +103,9 @@ def world_runs(seed: int, quick: bool) -> dict:
             a, c, side = ZIGZAGS[name]
             kind, angle, check, dur = "zigzag", side * a, c, 100.0 if quick else 150.0
         opts = TrialOptions(dt=0.05, sample_every=2, rudder_rate_deg_s=15.8, duration=dur)
-        tr = simulate_trial(world, kind, angle, check_deg=check, speed=speed, rpm=rpm, options=opts).track
+        vessel = other if name in TURNS else world
+        n_run = propulsion_point(vessel, speed)[1]
+        tr = simulate_trial(vessel, kind, angle, check_deg=check, speed=speed, rpm=n_run, options=opts).track
         data = {k: np.asarray(tr[k], float) + rng.normal(0, NOISE[k], tr.t.size) for k in NOISE}
         data.update(delta_r=np.asarray(tr["delta_r"], float), n=np.asarray(tr["n"], float))
         out[name] = Track(np.asarray(tr.t, float), data, name=name, meta=tr.meta)
@@ -185,6 +205,11 @@ def loop_diagnose(kv, runs: dict, args, say, train_turns: tuple = ()) -> None:
     say(
         f"  where: dominant channel {D['where'].get('dominant_channel')}, discovery routed {D['where'].get('discovery_routed')}"
     )
+    ap = D["where"].get("approach")
+    if ap:
+        from bayesid.analysis.gap.records import ApproachCheck
+
+        say(f"  approach: {ApproachCheck.from_dict(ap).sentence().replace('**', '')}")
     disc = D.get("discovery") or {}
     alts = {k: [a["term"] for a in (disc.get("alternatives") or {}).get(k, [])] for k in disc.get("found") or []}
     say(f"  discovery kept {disc.get('found')} alternatives {alts}")
@@ -243,6 +268,12 @@ def main() -> int:
     if not args.skip_diagnose:
         loop_diagnose(kv, runs, args, say)
         loop_diagnose(kv, runs, args, say, train_turns=("T_35_S",))
+        other, _, _ = world_runs(args.seed, args.quick, turn_particulars=OTHER_BASIN)
+        say(
+            f"\nthe turns from another basin: the world's hull with a {OTHER_BASIN['D_prop']} m propeller at its own "
+            f"self-propulsion point ({turn_rpms(other)} rpm against {rpm:.1f} for the same approach)"
+        )
+        loop_diagnose(kv, other, args, say)
     if not args.quick:
         Path(args.out).write_text("\n".join(lines) + "\n")
     return 0

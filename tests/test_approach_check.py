@@ -55,6 +55,11 @@ def test_held_out_runs_at_another_propulsion_point_are_named(kv):
     assert "another propulsion point" in check.sentence()
     same = approach_check(model, p, home[:1], home[1:])
     assert not same.another_point and "the training runs' propulsion point" in same.sentence()
+    # one held-out run from each: only the other basin's is at another point, and only it is matched
+    mixed = approach_check(model, p, home[:1], [home[1], away[0]])
+    assert mixed.off_runs == ["away_zigzag"] and "held-out run(s) away_zigzag" in mixed.sentence()
+    kept, matched = mixed.matched([home[1], away[0]])
+    assert kept is home[1] and matched is not away[0]
     # the JSON object reads back and renders the same table
     back = ApproachCheck.from_dict(check.to_dict())
     assert _approach_lines(back) == _approach_lines(check.to_dict())
@@ -70,3 +75,51 @@ def test_an_accelerating_approach_is_left_out(kv):
     check = approach_check(model, model.start(), home[1:], [fast])
     assert check is None  # its only held-out approach is not steady: nothing to say
     assert approach_check(ship.ShipModel(kv, kv.free), model.start(), home, []) is None
+
+
+def test_matching_the_rpm_of_runs_at_another_point_restores_their_speed(kv):
+    model = ship.ShipModel(kv, kv.free)
+    p = model.start()
+    home, _ = _runs(kv, "home")
+    away, _ = _runs(kv.with_coefficients({"wP": 0.20}), "away")
+    check = approach_check(model, p, home, away)
+    matched = check.matched(away)
+    for tr, m in zip(away, matched):
+        k = np.asarray(m["n"]) / np.asarray(tr["n"])
+        assert np.allclose(k, k[0]) and k[0] < 1.0  # one factor per run: less rpm for the packaged model
+        # at the matched rpm the packaged model holds the run's approach speed
+        assert model.steady_speed(p, float(np.asarray(m["n"])[0])) == pytest.approx(1.179, rel=1e-6)
+    scored = check.with_scores(1.0, 0.4, 0.2)
+    assert scored.share_of_excess == pytest.approx(0.75)
+    assert "from 1 m to 0.4 m" in scored.sentence() and "75% of the excess" in scored.sentence()
+    assert ApproachCheck.from_dict(scored.to_dict()).share_of_excess == pytest.approx(0.75)
+    assert "share_of_excess" not in check.to_dict()  # unscored: the optional fields stay out
+
+
+def test_the_diagnosis_reports_held_out_runs_at_another_point(kv):
+    """End to end on the smallest runs: two 40 s runs to train, two held out from another point:
+    the same ship whose rpm log reads 8 % high (another propeller, or the rpm's scaling), so that
+    matching the rpm to the approach is the whole difference."""
+    import warnings
+
+    import bayesid
+    from bayesid.tasks import Runner
+
+    home, _ = _runs(kv, "home")
+    away = [Track(t.t, dict(t.data, n=1.08 * np.asarray(t["n"])), name=t.name.replace("home", "away")) for t in home]
+    said = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = bayesid.diagnose(
+            kv,
+            ["Xuu", "Yv", "Nr"],
+            home,
+            away,
+            bayesid.DiagnoseOptions(candidates=(), window_s=20.0, fit_window_s=20.0, max_nfev=5, start="measured"),
+            rng=np.random.default_rng(0),
+            runner=Runner(progress=said.append),
+        )
+    ap = ApproachCheck.from_dict(d.where["approach"])
+    assert ap.another_point and ap.share_of_excess > 0.9
+    assert ap.heldout_rms_m == pytest.approx(d.gap_before["heldout_rms_m"])
+    assert any("another propulsion point" in m for m in said)

@@ -1148,7 +1148,8 @@ def _approach_lines(check: ApproachCheck | dict | None) -> list[str]:
             fmt(r["speed_m_s"]),
             fmt(r["model_speed_m_s"]),
             f"{100.0 * r['speed_error']:+.1f}",
-            "yes" if r["steady"] else "no (left out)",
+            "yes" if r["steady"] else "no (not judged)",
+            "**yes**" if r.get("off") else ("no" if r["role"] == "held-out" else "-"),
         ]
         for r in ap.runs
     ]
@@ -1160,6 +1161,7 @@ def _approach_lines(check: ApproachCheck | dict | None) -> list[str]:
         "model's speed at that rpm (m/s)",
         "error %",
         "steady",
+        "another point",
     ]
     return [ap.sentence(), "", md_table(head, rows), ""]
 

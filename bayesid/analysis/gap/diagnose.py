@@ -620,6 +620,10 @@ def diagnose(
     w, forces = where(b.held, bfit, heldout, sd, floor_by_channel=floor.by_channel)
     approach = approach_check(base, bfit.p, train, heldout)
     if approach is not None:
+        if approach.another_point and not base.n_nuisance:  # how much of the gap the other point carries
+            ctx_m = contexts(base, approach.matched(heldout), setup.window_s, setup.rule, leadin_s=setup.leadin_s)
+            matched = evaluate(base, bfit.p, ctx_m).scores(sd_fit)
+            approach = approach.with_scores(b_held["rms_position_m"], matched["rms_position_m"], floor.heldout_rms_m)
         w["approach"] = approach.to_dict()
         if approach.another_point:
             say(approach.sentence().replace("**", ""))

@@ -12,9 +12,12 @@ back.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import ClassVar
 
+import numpy as np
+
+from ...data.track import Track
 from ...protocol import Scores
 from ...tasks import record_fields
 
@@ -351,10 +354,10 @@ class ThrustCheck(Record):
 
 #: A held-out run is at another propulsion point when, at its logged approach rpm, the fitted
 #: model's steady speed misses its approach speed by more than this share beyond what it misses
-#: on the training runs (whose propulsion point the base fit holds).
+#: on the training runs (whose propulsion point the base fit holds), and outside their range.
 APPROACH_TOLERANCE = 0.03
 #: An approach whose speed changes by more than this share over 10 s is not at equilibrium, and
-#: is left out of the medians.
+#: is not judged.
 APPROACH_UNSTEADY = 0.02
 
 
@@ -371,41 +374,130 @@ class ApproachCheck(Record):
     ----------
     runs : list of dict
         Per run: ``run``, ``role`` (``"training"``, ``"held-out"``), ``seconds``, ``speed_m_s``,
-        ``rpm``, ``accel_m_s2`` (:func:`bayesid.models.runs.run_approach`), ``model_speed_m_s``,
-        ``speed_error`` (model / measured - 1) and ``steady`` (the speed changes by at most
-        :data:`APPROACH_UNSTEADY` over 10 s).
-    training_error, heldout_error : float or None
-        The median ``speed_error`` of the steady training and held-out approaches.
+        ``rpm``, ``accel_m_s2``, ``rudder_moved`` (:func:`bayesid.models.runs.run_approach`),
+        ``model_speed_m_s``, ``speed_error`` (model / measured - 1) and ``steady`` (the speed
+        changes by at most :data:`APPROACH_UNSTEADY` over 10 s). Held-out rows also
+        ``matched_rpm`` (the rpm the model needs for the run's approach speed) and ``off`` (a
+        steady approach more than :data:`APPROACH_TOLERANCE` from the training runs' median
+        ``speed_error`` and outside their range: another propulsion point).
+    training_error : float or None
+        The median ``speed_error`` of the steady training approaches.
+    heldout_error : float or None
+        The median ``speed_error`` of the held-out runs at another point, or of every steady
+        held-out approach when none is.
     another_point : bool
-        The held-out median is more than :data:`APPROACH_TOLERANCE` from the training one, and
-        outside the training runs' range.
+        Some held-out run is at another point.
+    heldout_rms_m, matched_heldout_rms_m : float, optional
+        The base model's held-out RMS position error with the logged rpm, and with the rpm of
+        each run at another point scaled to its ``matched_rpm`` (its propulsion point matched to
+        its own approach, the first seconds the window protocol also starts from), m.
+    floor_rms_m : float, optional
+        The held-out noise floor, m.
+    share_of_excess : float, optional
+        ``(heldout - matched) / (heldout - floor)``: the share of the held-out excess the other
+        propulsion point carries.
     """
 
     runs: list
     training_error: float | None
     heldout_error: float | None
     another_point: bool
+    heldout_rms_m: float | None = None
+    matched_heldout_rms_m: float | None = None
+    floor_rms_m: float | None = None
+    share_of_excess: float | None = None
 
+    _OPTIONAL: ClassVar[tuple] = ("heldout_rms_m", "matched_heldout_rms_m", "floor_rms_m", "share_of_excess")
     _WHAT: ClassVar[str] = "approach check"
+
+    @property
+    def off_runs(self) -> list:
+        """The held-out runs at another propulsion point."""
+        return [r["run"] for r in self.runs if r["role"] == "held-out" and r.get("off")]
+
+    def matched(self, tracks: list) -> list:
+        """The held-out tracks with the rpm of each run at another point matched to its approach:
+        the run's ``n`` scaled by ``matched_rpm / rpm`` (the others as they are).
+
+        Parameters
+        ----------
+        tracks : list of Track
+            The held-out tracks (the rows' ``run`` names).
+
+        Returns
+        -------
+        list of Track
+            Copies where a run is matched.
+        """
+        factor = {
+            r["run"]: r["matched_rpm"] / r["rpm"]
+            for r in self.runs
+            if r["role"] == "held-out" and r.get("off") and r.get("matched_rpm")
+        }
+        out = []
+        for tr in tracks:
+            k = factor.get(tr.name)
+            if k is None:
+                out.append(tr)
+                continue
+            data = dict(tr.data, n=np.asarray(tr["n"], float) * k)
+            out.append(Track(tr.t, data, name=tr.name, units=dict(tr.units), meta=dict(tr.meta)))
+        return out
+
+    def with_scores(self, heldout_rms_m: float, matched_heldout_rms_m: float, floor_rms_m: float) -> ApproachCheck:
+        """The check with the held-out scores of the base model with the logged and the matched rpm.
+
+        Parameters
+        ----------
+        heldout_rms_m, matched_heldout_rms_m, floor_rms_m : float
+            As the fields, m.
+
+        Returns
+        -------
+        ApproachCheck
+            A copy with ``share_of_excess`` (None when the held-out error is within the floor).
+        """
+        excess = heldout_rms_m - floor_rms_m
+        share = (heldout_rms_m - matched_heldout_rms_m) / excess if excess > 0 else None
+        return replace(
+            self,
+            heldout_rms_m=float(heldout_rms_m),
+            matched_heldout_rms_m=float(matched_heldout_rms_m),
+            floor_rms_m=float(floor_rms_m),
+            share_of_excess=None if share is None else float(share),
+        )
 
     def sentence(self) -> str:
         """The check in words (empty when no held-out approach could be read)."""
         if self.heldout_error is None:
             return ""
-        n_h = sum(1 for r in self.runs if r["role"] == "held-out" and r["steady"])
         train = "" if self.training_error is None else f", against {self.training_error:+.1%} on the training runs"
-        head = (
-            f"At the rpm each run logs on its approach, the fitted model settles at a speed {self.heldout_error:+.1%} "
-            f"off the measured approach speed of the held-out runs (median of {n_h}){train}"
-        )
         if not self.another_point:
-            return head + ": the held-out runs are at the training runs' propulsion point."
-        return (
-            head + ": **the held-out runs are at another propulsion point** (another basin, model, propeller or "
-            "rpm control). No coefficient fitted on the training runs carries it: on every straight leg the "
-            "model's speed drifts towards its own point, so u misses there whatever the hull's terms (the "
-            "propulsion_point candidate shifts the wake for every run alike)."
+            n_h = sum(1 for r in self.runs if r["role"] == "held-out" and r["steady"])
+            return (
+                f"At the rpm each run logs on its approach, the fitted model settles at a speed "
+                f"{self.heldout_error:+.1%} off the measured approach speed of the held-out runs (median of {n_h})"
+                f"{train}: the held-out runs are at the training runs' propulsion point."
+            )
+        off = self.off_runs
+        names = ", ".join(off[:5]) + (f" and {len(off) - 5} more" if len(off) > 5 else "")
+        text = (
+            f"At the rpm they log on their approach, the fitted model settles at a speed {self.heldout_error:+.1%} off "
+            f"the measured approach speed of held-out run(s) {names}{train}: **{'it is' if len(off) == 1 else 'they are'}"
+            " at another propulsion point** (another basin, model, propeller or rpm control). No coefficient fitted "
+            "on the training runs carries it: on every straight leg the model's speed drifts towards its own point, "
+            "so u misses there whatever the hull's terms (the propulsion_point candidate shifts the wake for every "
+            "run alike)."
         )
+        if self.matched_heldout_rms_m is not None:
+            share = "" if self.share_of_excess is None else f": {self.share_of_excess:.0%} of the excess over the floor"
+            text += (
+                f" With the rpm of {'that run' if len(off) == 1 else 'those runs'} set to what the model needs for "
+                f"{'its' if len(off) == 1 else 'their'} own approach speed, the base model's held-out RMS goes from "
+                f"{self.heldout_rms_m:.3g} m to {self.matched_heldout_rms_m:.3g} m (floor {self.floor_rms_m:.3g} m)"
+                f"{share}."
+            )
+        return text
 
 
 @dataclass(frozen=True, eq=False)

@@ -366,7 +366,10 @@ def approach_check(model, p, train, held) -> ApproachCheck | None:
     """Each run's propulsion point against the fitted model's (:class:`ApproachCheck`): on each
     run's own approach (:func:`bayesid.models.runs.run_approach`), the speed the model at ``p``
     settles at with the rpm the run logs there (``model.steady_speed``), against the run's
-    measured approach speed.
+    measured approach speed; a held-out run whose error is more than
+    :data:`~bayesid.analysis.gap.records.APPROACH_TOLERANCE` from the training runs' median and
+    outside their range is at another propulsion point, and gets the rpm the model needs for its
+    approach speed (``model.self_propulsion_rpm``).
 
     Parameters
     ----------
@@ -397,18 +400,29 @@ def approach_check(model, p, train, held) -> ApproachCheck | None:
                 continue
             acc = a["accel_m_s2"]
             steady = acc is None or abs(acc) * 10.0 <= APPROACH_UNSTEADY * a["speed_m_s"]
-            rows.append(
-                {"run": tr.name, "role": role, **a, "model_speed_m_s": ms, "speed_error": ms / a["speed_m_s"] - 1.0}
-                | {"steady": bool(steady)}
-            )
+            row = {"run": tr.name, "role": role, **a, "model_speed_m_s": ms, "speed_error": ms / a["speed_m_s"] - 1.0}
+            row["steady"] = bool(steady)
+            if role == "held-out":
+                try:
+                    row["matched_rpm"] = float(model.self_propulsion_rpm(p, a["speed_m_s"]))
+                except ValueError:
+                    row["matched_rpm"] = None
+            rows.append(row)
     errs = {r: [x["speed_error"] for x in rows if x["role"] == r and x["steady"]] for r in ("training", "held-out")}
     if not errs["held-out"]:
         return None
     tr_err = float(np.median(errs["training"])) if errs["training"] else None
-    h_err = float(np.median(errs["held-out"]))
-    other = tr_err is not None and (
-        abs(h_err - tr_err) > APPROACH_TOLERANCE and not min(errs["training"]) <= h_err <= max(errs["training"])
-    )
+    for r in rows:
+        if r["role"] == "held-out":
+            r["off"] = bool(
+                tr_err is not None
+                and r["steady"]
+                and abs(r["speed_error"] - tr_err) > APPROACH_TOLERANCE
+                and not min(errs["training"]) <= r["speed_error"] <= max(errs["training"])
+            )
+    off = [r["speed_error"] for r in rows if r.get("off")]
+    h_err = float(np.median(off if off else errs["held-out"]))
+    other = bool(off)
     return ApproachCheck(runs=rows, training_error=tr_err, heldout_error=h_err, another_point=bool(other))
 
 

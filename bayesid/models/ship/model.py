@@ -604,6 +604,33 @@ class ShipModel(ParameterLayout):
         prm, _, _ = self.kernel_params(np.asarray(p, float)[None])
         return equilibrium(prm[0], rpm=float(rpm), label=self.vehicle.id)[0]
 
+    def self_propulsion_rpm(self, p, speed: float) -> float:
+        """The propeller speed that holds ``speed`` straight ahead, rudder amidships (the
+        model's self-propulsion point, :func:`~bayesid.models.ship.trials.equilibrium`), at
+        parameters ``p`` with their effects' coefficient shifts (a still tank).
+
+        Parameters
+        ----------
+        p : array_like, shape (n_params,)
+            A parameter vector of this model.
+        speed : float
+            Speed, m/s.
+
+        Returns
+        -------
+        float
+            Propeller speed, rpm.
+
+        Raises
+        ------
+        ValueError
+            No equilibrium between 0.06 and 6000 rpm (naming the ship).
+        """
+        from .trials import equilibrium
+
+        prm, _, _ = self.kernel_params(np.asarray(p, float)[None])
+        return equilibrium(prm[0], speed=float(speed), label=self.vehicle.id)[1]
+
     def logged_thrust(self, fitres, track: Track) -> LoggedThrust | None:
         """The fitted model's propeller thrust along a track that logs the thrust, beside the logged one.
 
