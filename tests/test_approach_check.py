@@ -123,3 +123,30 @@ def test_the_diagnosis_reports_held_out_runs_at_another_point(kv):
     assert ap.another_point and ap.share_of_excess > 0.9
     assert ap.heldout_rms_m == pytest.approx(d.gap_before["heldout_rms_m"])
     assert any("another propulsion point" in m for m in said)
+
+
+def test_predict_warns_about_a_run_at_another_propulsion_point(kv, tmp_path, capsys):
+    import json
+
+    from bayesid import cli
+    from bayesid.data.track import write_csv
+
+    home, _ = _runs(kv, "home")
+    away = [Track(t.t, dict(t.data, n=1.08 * np.asarray(t["n"])), name=t.name.replace("home", "away")) for t in home]
+    files = {}
+    for tr in home + away:
+        files[tr.name] = tmp_path / f"{tr.name}.csv"
+        write_csv(tr, files[tr.name])
+    fit = ["fit", "--vehicle", "kvlcc2_7m", "--train", str(files["home_zigzag"]), "--free", "Yv,Nr"]
+    assert cli.main(["-q", *fit, "--max-nfev", "3", "--calibration", "none", "--out", str(tmp_path / "f")]) == 0
+    pred = ["predict", "--model", str(tmp_path / "f" / "model.json"), "--draws", "0"]
+    assert (
+        cli.main(
+            ["-q", *pred, "--track", str(files["away_zigzag"]), str(files["home_turn"]), "--out", str(tmp_path / "p")]
+        )
+        == 0
+    )
+    err = capsys.readouterr().err
+    assert "away_zigzag: at the" in err and "another propulsion point" in err and "home_turn: at the" not in err
+    rows = {r["run"]: r for r in json.loads((tmp_path / "p" / "predict.json").read_text())["approach"]}
+    assert rows["away_zigzag"]["speed_error"] > 0.03 and "warning" not in rows["home_turn"]

@@ -70,7 +70,9 @@ def run(args) -> int:
     _warn(doc, got, window)
     with naming_files(got):
         pr, whole, indices, bands = _predict(args, (model, p, cov), doc, tracks, window, out)
-        for w in model_excursion(doc, whole, tracks, getattr(model.vehicle, "L", None)):
+        approach = approach_rows(model, p, tracks)
+        excursions = model_excursion(doc, whole, tracks, getattr(model.vehicle, "L", None))
+        for w in excursions + [r["warning"] for r in approach if r.get("warning")]:
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
         _figures(pr, bands, indices, doc, tracks, window, out)
@@ -88,6 +90,7 @@ def run(args) -> int:
             "window_distribution": window_distribution(pr.windows),
             "whole_run": {"pooled": whole.pooled, "per_track": whole.per_track},
             "indices": indices,
+            **({"approach": approach} if approach else {}),
             "n_draws": args.draws,
             "bands": bands,
         }
@@ -127,6 +130,58 @@ def _warn(doc, got: dict, window) -> None:
             )
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
+
+
+def approach_rows(model, p, tracks) -> list[dict]:
+    """Each track's propulsion point against the model's (ships): at the rpm the run logs on its
+    approach (:func:`bayesid.models.runs.run_approach`), the speed the model settles at
+    (``model.steady_speed``) against the measured approach speed, with a ``warning`` where they
+    differ by more than :data:`~bayesid.analysis.gap.records.APPROACH_TOLERANCE` on a steady
+    approach (a run at another propulsion point: another basin, model, propeller or rpm control).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The fitted model (one without ``steady_speed`` gives no rows).
+    p : ndarray, shape (n_params,)
+        Its parameters.
+    tracks : list of Track
+        The runs.
+
+    Returns
+    -------
+    list of dict
+        Per run with an approach: ``run``, the :func:`run_approach` reading, ``model_speed_m_s``,
+        ``speed_error``, ``steady`` and, when off, ``warning``.
+    """
+    from ..analysis.gap.records import APPROACH_TOLERANCE, APPROACH_UNSTEADY
+    from ..models.runs import run_approach
+
+    speed_of = getattr(model, "steady_speed", None)
+    if speed_of is None:
+        return []
+    rows = []
+    for tr in tracks:
+        a = run_approach(tr)
+        if a is None or a["rpm"] <= 0 or a["speed_m_s"] <= 0:
+            continue
+        try:
+            ms = float(speed_of(p, a["rpm"]))
+        except ValueError:
+            continue
+        err = ms / a["speed_m_s"] - 1.0
+        acc = a["accel_m_s2"]
+        steady = acc is None or abs(acc) * 10.0 <= APPROACH_UNSTEADY * a["speed_m_s"]
+        row = {"run": tr.name, **a, "model_speed_m_s": ms, "speed_error": err, "steady": bool(steady)}
+        if steady and abs(err) > APPROACH_TOLERANCE:
+            row["warning"] = (
+                f"{tr.name}: at the {a['rpm']:.4g} rpm it logs on its approach the model settles at {ms:.3g} m/s "
+                f"against {a['speed_m_s']:.3g} m/s measured ({err:+.1%}): the run is at another propulsion point "
+                "than the model's (another basin, model, propeller or rpm control), so the predicted speed, and the "
+                "turning indices that rest on it (steady turning diameter, speed loss), carry that difference"
+            )
+        rows.append(row)
+    return rows
 
 
 def _start_note(asked: str, rule: str, tracks) -> dict:
