@@ -16,7 +16,7 @@ from bayesid.data.track import Track
 from bayesid.models import ship
 from bayesid.models.runs import run_approach
 from bayesid.models.ship.trials import T_EXECUTE, TrialOptions, propulsion_point, simulate_trial
-from bayesid.report.diagnosis import _approach_lines
+from bayesid.report.diagnosis import _another_point_lines, _approach_lines
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +64,9 @@ def test_held_out_runs_at_another_propulsion_point_are_named(kv):
     back = ApproachCheck.from_dict(check.to_dict())
     assert _approach_lines(back) == _approach_lines(check.to_dict())
     assert "away_turn" in "\n".join(_approach_lines(back))
+    beside = "\n".join(_another_point_lines(back))
+    assert "held-out run(s) away_zigzag, away_turn at another propulsion point" in beside
+    assert _another_point_lines(same.to_dict()) == []
 
 
 def test_an_accelerating_approach_is_left_out(kv):

@@ -861,10 +861,29 @@ def _summary_lines(diag, warnings: list, command: str) -> list:
         f"**Verdict: {diag.verdict}**"
         + (f" (effects added: {', '.join(diag.effects_added)})" if diag.effects_added else ""),
         "",
+        *_another_point_lines(diag.where.get("approach")),
         f"Training tracks: {', '.join(diag.train_tracks)}; held-out: {', '.join(diag.heldout_tracks)}. "
         f"Free coefficients: {', '.join(diag.settings['free']) or 'none'}. Protocol windows: "
         f"{diag.settings['window_s']} s; model step {diag.settings['dt']} s; channel weights of the fits: "
         f"{diag.settings.get('weighting', 'noise')} sds ({', '.join(f'{k} {channel_value(k, v)}' for k, v in diag.fit_sd.items())}).",
+        "",
+    ]
+
+
+def _another_point_lines(check) -> list:
+    """Beside the verdict: held-out runs at another propulsion point than the training runs'
+    (Where's approach check), which no candidate can carry."""
+    ap = _record(ApproachCheck, check)
+    if ap is None or not ap.another_point:
+        return []
+    share = (
+        ""
+        if ap.share_of_excess is None
+        else f"; matching their rpm to their approach removes {ap.share_of_excess:.0%} of the held-out excess"
+    )
+    return [
+        f"**Also: held-out run(s) {', '.join(ap.off_runs)} at another propulsion point** than the training runs' "
+        f"(the model at their logged rpm settles {ap.heldout_error:+.1%} off their approach speed{share}; see Where).",
         "",
     ]
 
