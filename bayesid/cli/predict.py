@@ -133,9 +133,9 @@ def _warn(doc, got: dict, window) -> None:
 
 
 def approach_rows(model, p, tracks) -> list[dict]:
-    """Each track's propulsion point against the model's (ships): at the rpm the run logs on its
-    approach (:func:`bayesid.models.runs.run_approach`), the speed the model settles at
-    (``model.steady_speed``) against the measured approach speed, with a ``warning`` where they
+    """Each track's propulsion point against the model's (ships,
+    :func:`bayesid.analysis.gap.where.approach_row`): at the rpm the run logs on its approach, the
+    speed the model settles at against the measured approach speed, with a ``warning`` where they
     differ by more than :data:`~bayesid.analysis.gap.records.APPROACH_TOLERANCE` on a steady
     approach (a run at another propulsion point: another basin, model, propeller or rpm control).
 
@@ -151,34 +151,27 @@ def approach_rows(model, p, tracks) -> list[dict]:
     Returns
     -------
     list of dict
-        Per run with an approach: ``run``, the :func:`run_approach` reading, ``model_speed_m_s``,
-        ``speed_error``, ``steady`` and, when off, ``warning``.
+        Per run with an approach: the :func:`~bayesid.analysis.gap.where.approach_row` and, when
+        off, ``warning``.
     """
-    from ..analysis.gap.records import APPROACH_TOLERANCE, APPROACH_UNSTEADY
-    from ..models.runs import run_approach
+    from ..analysis.gap.records import APPROACH_TOLERANCE
+    from ..analysis.gap.where import approach_row
 
-    speed_of = getattr(model, "steady_speed", None)
-    if speed_of is None:
+    if getattr(model, "steady_speed", None) is None:
         return []
     rows = []
     for tr in tracks:
-        a = run_approach(tr)
-        if a is None or a["rpm"] <= 0 or a["speed_m_s"] <= 0:
+        row = approach_row(model, p, tr)
+        if row is None:
             continue
-        try:
-            ms = float(speed_of(p, a["rpm"]))
-        except ValueError:
-            continue
-        err = ms / a["speed_m_s"] - 1.0
-        acc = a["accel_m_s2"]
-        steady = acc is None or abs(acc) * 10.0 <= APPROACH_UNSTEADY * a["speed_m_s"]
-        row = {"run": tr.name, **a, "model_speed_m_s": ms, "speed_error": err, "steady": bool(steady)}
-        if steady and abs(err) > APPROACH_TOLERANCE:
+        err = row["speed_error"]
+        if row["steady"] and abs(err) > APPROACH_TOLERANCE:
             row["warning"] = (
-                f"{tr.name}: at the {a['rpm']:.4g} rpm it logs on its approach the model settles at {ms:.3g} m/s "
-                f"against {a['speed_m_s']:.3g} m/s measured ({err:+.1%}): the run is at another propulsion point "
-                "than the model's (another basin, model, propeller or rpm control), so the predicted speed, and the "
-                "turning indices that rest on it (steady turning diameter, speed loss), carry that difference"
+                f"{tr.name}: at the {row['rpm']:.4g} rpm it logs on its approach the model settles at "
+                f"{row['model_speed_m_s']:.3g} m/s against {row['speed_m_s']:.3g} m/s measured ({err:+.1%}): the run is "
+                "at another propulsion point than the model's (another basin, model, propeller or rpm control), so the "
+                "predicted speed, and the turning indices that rest on it (steady turning diameter, speed loss), carry "
+                "that difference"
             )
         rows.append(row)
     return rows
