@@ -153,3 +153,38 @@ def test_predict_warns_about_a_run_at_another_propulsion_point(kv, tmp_path, cap
     assert "away_zigzag: at the" in err and "another propulsion point" in err and "home_turn: at the" not in err
     rows = {r["run"]: r for r in json.loads((tmp_path / "p" / "predict.json").read_text())["approach"]}
     assert rows["away_zigzag"]["speed_error"] > 0.03 and "warning" not in rows["home_turn"]
+
+
+def test_a_fit_on_runs_at_two_propulsion_points_says_so(kv, tmp_path, capsys):
+    import json
+
+    from bayesid import cli
+    from bayesid.data.track import write_csv
+    from bayesid.estimation.identification import identify
+    from bayesid.estimation.options import FitOptions
+    from bayesid.models.runs import PropulsionPointWarning
+
+    home, rpm = _runs(kv, "home")
+    opts_t = TrialOptions(dt=0.1, sample_every=2, duration=40.0, rudder_rate_deg_s=15.8)
+    other = simulate_trial(kv, "turn", 20.0, speed=1.179, rpm=rpm, options=opts_t).track
+    away = Track(other.t, dict(other.data, n=1.10 * np.asarray(other["n"])), name="away_turn")  # rpm log 10 % high
+    opts = FitOptions(free=("Yv", "Nr"), max_nfev=3, window_s=20.0)
+    with pytest.warns(PropulsionPointWarning, match="away_turn are at another propulsion point"):
+        res = identify(kv, [*home, away], opts, calibration=None)
+    assert res.training_points["apart"] == ["away_turn"]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PropulsionPointWarning)
+        same = identify(kv, home, opts, calibration=None)
+    assert same.training_points["apart"] == []
+    files = []
+    for tr in [*home, away]:
+        files.append(str(tmp_path / f"{tr.name}.csv"))
+        write_csv(tr, files[-1])
+    argv = ["-q", "fit", "--vehicle", "kvlcc2_7m", "--train", *files, "--free", "Yv,Nr", "--max-nfev", "3"]
+    assert cli.main([*argv, "--calibration", "none", "--out", str(tmp_path / "f")]) == 0
+    assert "away_turn are at another propulsion point" in capsys.readouterr().err
+    doc = json.loads((tmp_path / "f" / "model.json").read_text())
+    assert doc["fit"]["training_points"]["apart"] == ["away_turn"]
+    assert "**Propulsion points:** Training run(s) away_turn" in (tmp_path / "f" / "report.md").read_text()

@@ -221,6 +221,9 @@ def _write(res, doc, train, out) -> None:
             f"its estimate and sd are the bound's (see {out / 'report.md'})",
             file=sys.stderr,
         )
+    points = res.training_points or {}
+    if points.get("apart"):
+        print(f"warning: {points['sentence']} (see {out / 'report.md'})", file=sys.stderr)
     for turn in doc.training_turns or []:
         if turn["reproduced"] is False:
             print(f"warning: {training_turn_sentence(turn)} (see {out / 'report.md'})", file=sys.stderr)

@@ -134,9 +134,9 @@ def _warn(doc, got: dict, window) -> None:
 
 def approach_rows(model, p, tracks) -> list[dict]:
     """Each track's propulsion point against the model's (ships,
-    :func:`bayesid.analysis.gap.where.approach_row`): at the rpm the run logs on its approach, the
+    :func:`bayesid.models.runs.approach_row`): at the rpm the run logs on its approach, the
     speed the model settles at against the measured approach speed, with a ``warning`` where they
-    differ by more than :data:`~bayesid.analysis.gap.records.APPROACH_TOLERANCE` on a steady
+    differ by more than :data:`~bayesid.models.runs.APPROACH_TOLERANCE` on a steady
     approach (a run at another propulsion point: another basin, model, propeller or rpm control).
 
     Parameters
@@ -151,11 +151,10 @@ def approach_rows(model, p, tracks) -> list[dict]:
     Returns
     -------
     list of dict
-        Per run with an approach: the :func:`~bayesid.analysis.gap.where.approach_row` and, when
+        Per run with an approach: the :func:`~bayesid.models.runs.approach_row` and, when
         off, ``warning``.
     """
-    from ..analysis.gap.records import APPROACH_TOLERANCE
-    from ..analysis.gap.where import approach_row
+    from ..models.runs import APPROACH_TOLERANCE, approach_row
 
     if getattr(model, "steady_speed", None) is None:
         return []

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..data.validate import TrackWarning, check_track, in_api_terms
 from ..models import build_model
+from ..models.runs import PropulsionPointWarning, training_points
 from ..protocol import resolve_start, start_settings
 from ..tasks import Runner
 from . import retiming as rt
@@ -94,6 +95,11 @@ class IdentifyResult:
     retimed_moves : dict or None
         With ``options.retime``: per training run, the start time (s) of each rudder movement
         within one log interval and its sd (:mod:`bayesid.estimation.retiming`).
+    training_points : dict or None
+        Whether the training runs share one propulsion point (ships;
+        :func:`bayesid.models.runs.training_points`): each steady approach's model speed against
+        its measured one, and the runs ``apart`` from the others; None without two steady
+        approaches.
     nested_start : dict or None
         With effects that have a ``neutral`` value (they contain the model without them): the
         chain that keeps the fit from ending above the model without them (``_keep_nested``):
@@ -122,6 +128,7 @@ class IdentifyResult:
     step_check: StepCheck | None = None
     retimed_moves: dict | None = None
     nested_start: dict | None = None
+    training_points: dict | None = None
 
 
 def identify(
@@ -190,6 +197,8 @@ def identify(
     CovarianceWarning
         The fit's Laplace covariance cut directions the tracks do not determine, so its sds
         understate the uncertainty (:func:`bayesid.estimation.laplace.covariance_sentence`).
+    PropulsionPointWarning
+        Training runs at different propulsion points (:func:`bayesid.models.runs.training_points`).
 
     Examples
     --------
@@ -228,6 +237,9 @@ def identify(
         warnings.warn(in_api_terms(check.sentence()), StepWarning, stacklevel=2)
     if covariance_sentence(st.post):
         warnings.warn(covariance_sentence(st.post), CovarianceWarning, stacklevel=2)
+    points = training_points(st.model, st.f.p, train)
+    if points is not None and points["apart"]:
+        warnings.warn(points["sentence"], PropulsionPointWarning, stacklevel=2)
     model, f, gp, prior_info = st.model, st.f, st.gp, st.prior_info
     calib = None
     if calibration is not None and len(train) >= 3:
@@ -256,6 +268,7 @@ def identify(
         step_check=check,
         retimed_moves=st.retimed,
         nested_start=first.nested,
+        training_points=points,
     )
 
 

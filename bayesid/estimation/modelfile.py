@@ -202,6 +202,11 @@ class ModelDocument:
                 **({} if getattr(result, "step_check", None) is None else {"step_check": result.step_check.to_dict()}),
                 **({} if getattr(result, "retimed_moves", None) is None else {"retimed_moves": result.retimed_moves}),
                 **({} if getattr(result, "nested_start", None) is None else {"nested_start": result.nested_start}),
+                **(
+                    {"training_points": result.training_points}
+                    if (getattr(result, "training_points", None) or {}).get("apart")
+                    else {}
+                ),
             },
             multistart=None if result.multistart is None else result.multistart.to_dict(),
             prior=result.prior or {"used": False},

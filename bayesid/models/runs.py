@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.track import STATE_NAMES, Track
+from ..data.validate import BayesidWarning
 
 __all__ = [
     "KINDS",
@@ -31,6 +32,11 @@ __all__ = [
     "ManoeuvreRun",
     "approach_condition",
     "run_approach",
+    "approach_row",
+    "training_points",
+    "PropulsionPointWarning",
+    "APPROACH_TOLERANCE",
+    "APPROACH_UNSTEADY",
     "rudder_rate",
     "menu",
     "ramp",
@@ -45,6 +51,13 @@ __all__ = [
 
 #: The runs :func:`open_loop_inputs` schedules (a zigzag's switches by :func:`zigzag_rudders`).
 KINDS = ("turning_circle", "pull_out", "zigzag", "spiral_steps", "speed_change", "prbs")
+#: A run is at another propulsion point than others when, at its logged approach rpm, a model's
+#: steady speed misses its approach speed by more than this share beyond what it misses on the
+#: others (:func:`approach_row`).
+APPROACH_TOLERANCE = 0.03
+#: An approach whose speed changes by more than this share over 10 s is not at equilibrium, and
+#: is not judged.
+APPROACH_UNSTEADY = 0.02
 #: Time of the first order from the start of a run, s.
 T_EXECUTE = 5.0
 
@@ -258,6 +271,97 @@ def run_approach(track, max_s: float = 10.0, min_s: float = 2.0, rudder_tol_deg:
         "accel_m_s2": accel,
         "rudder_moved": rudder_moved,
     }
+
+
+def approach_row(model, p, track) -> dict | None:
+    """One run's propulsion point against the model's: its own approach
+    (:func:`run_approach`) and the speed the model at ``p`` settles at with
+    the rpm the run logs there (``model.steady_speed``).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        A model with ``steady_speed`` (a ship's).
+    p : array_like, shape (n_params,)
+        Its parameters.
+    track : Track
+        The run.
+
+    Returns
+    -------
+    dict or None
+        ``run``, the :func:`run_approach` reading, ``model_speed_m_s``, ``speed_error`` (model /
+        measured - 1) and ``steady`` (the speed changes by at most
+        :data:`APPROACH_UNSTEADY` over 10 s); None when the run has
+        no approach to read, is not moving ahead, or the model has no equilibrium at its rpm.
+    """
+    a = run_approach(track)
+    if a is None or a["rpm"] <= 0 or a["speed_m_s"] <= 0:
+        return None
+    try:
+        ms = float(model.steady_speed(p, a["rpm"]))
+    except ValueError:
+        return None
+    acc = a["accel_m_s2"]
+    steady = acc is None or abs(acc) * 10.0 <= APPROACH_UNSTEADY * a["speed_m_s"]
+    return {
+        "run": track.name,
+        **a,
+        "model_speed_m_s": ms,
+        "speed_error": ms / a["speed_m_s"] - 1.0,
+        "steady": bool(steady),
+    }
+
+
+class PropulsionPointWarning(BayesidWarning):
+    """Training runs at different propulsion points (:func:`training_points`): one propeller
+    model holds them all, so the fit compromises between them."""
+
+
+def training_points(model, p, tracks) -> dict | None:
+    """Whether the training runs share one propulsion point: each steady approach's
+    :func:`approach_row` under the fitted model, and the runs whose ``speed_error`` is more than
+    :data:`APPROACH_TOLERANCE` from the median of them all (runs from another basin, model,
+    propeller or rpm control among the others: the fit's one propeller model compromises between
+    them, and every run's speed carries it).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The fitted model (one without ``steady_speed`` gives None).
+    p : array_like, shape (n_params,)
+        Its parameters.
+    tracks : list of Track
+        The training runs.
+
+    Returns
+    -------
+    dict or None
+        ``runs`` (the rows, each with ``apart``), ``median_error``, ``apart`` (the names) and
+        ``sentence``; None when fewer than two runs have a steady approach or the model has no
+        ``steady_speed``.
+    """
+    if getattr(model, "steady_speed", None) is None:
+        return None
+    rows = [r for r in (approach_row(model, p, tr) for tr in tracks) if r is not None]
+    steady = [r["speed_error"] for r in rows if r["steady"]]
+    if len(steady) < 2:
+        return None
+    med = float(np.median(steady))
+    for r in rows:
+        r["apart"] = bool(r["steady"] and abs(r["speed_error"] - med) > APPROACH_TOLERANCE)
+    apart = [r["run"] for r in rows if r["apart"]]
+    sentence = ""
+    if apart:
+        errs = ", ".join(f"{r['run']} {r['speed_error']:+.1%}" for r in rows if r["apart"])
+        sentence = (
+            f"training run(s) {', '.join(apart)} are at another propulsion point than the others: at the rpm each "
+            f"logs on its approach the fitted model settles off its approach speed by {errs}, against a median of "
+            f"{med:+.1%} (another basin, model, propeller or rpm control). One propeller model holds them all, so "
+            "the fit compromises between them and every run's speed in the turns carries it: fit those runs apart, "
+            "or leave them out"
+        )
+    return {"runs": rows, "median_error": med, "apart": apart, "sentence": sentence}
 
 
 def menu(approach: Approach, max_rudder_deg: float = 35.0, duration_s: float | None = None) -> list[ManoeuvreRun]:

@@ -99,6 +99,7 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
         *_step_lines(doc["fit"]),
         *_retime_lines(doc["fit"]),
         *_nested_start_lines(doc["fit"]),
+        *_training_points_lines(doc["fit"]),
         _ar1_sentence(doc["posterior"]),
         "",
         *_coefficient_lines(doc),
@@ -562,6 +563,15 @@ def _retime_lines(fit: dict) -> list:
         "(model.json fit.retimed_moves).",
         "",
     ]
+
+
+def _training_points_lines(fit: dict) -> list:
+    """Training runs at different propulsion points (:func:`bayesid.models.runs.training_points`)."""
+    tp = fit.get("training_points")
+    if not tp or not tp.get("apart"):
+        return []
+    s = tp["sentence"]
+    return [f"**Propulsion points:** {s[0].upper() + s[1:]}. (model.json fit.training_points)", ""]
 
 
 def _nested_start_lines(fit: dict) -> list:

@@ -352,15 +352,6 @@ class ThrustCheck(Record):
     _WHAT: ClassVar[str] = "thrust check"
 
 
-#: A held-out run is at another propulsion point when, at its logged approach rpm, the fitted
-#: model's steady speed misses its approach speed by more than this share beyond what it misses
-#: on the training runs (whose propulsion point the base fit holds), and outside their range.
-APPROACH_TOLERANCE = 0.03
-#: An approach whose speed changes by more than this share over 10 s is not at equilibrium, and
-#: is not judged.
-APPROACH_UNSTEADY = 0.02
-
-
 @dataclass(frozen=True, eq=False)
 class ApproachCheck(Record):
     """Each run's propulsion point against the fitted model's (``Diagnosis.where["approach"]``;
@@ -376,9 +367,9 @@ class ApproachCheck(Record):
         Per run: ``run``, ``role`` (``"training"``, ``"held-out"``), ``seconds``, ``speed_m_s``,
         ``rpm``, ``accel_m_s2``, ``rudder_moved`` (:func:`bayesid.models.runs.run_approach`),
         ``model_speed_m_s``, ``speed_error`` (model / measured - 1) and ``steady`` (the speed
-        changes by at most :data:`APPROACH_UNSTEADY` over 10 s). Held-out rows also
+        changes by at most :data:`~bayesid.models.runs.APPROACH_UNSTEADY` over 10 s). Held-out rows also
         ``matched_rpm`` (the rpm the model needs for the run's approach speed) and ``off`` (a
-        steady approach more than :data:`APPROACH_TOLERANCE` from the training runs' median
+        steady approach more than :data:`~bayesid.models.runs.APPROACH_TOLERANCE` from the training runs' median
         ``speed_error`` and outside their range: another propulsion point).
     training_error : float or None
         The median ``speed_error`` of the steady training approaches.

@@ -12,11 +12,11 @@ import numpy as np
 from scipy import signal, stats
 
 from ...estimation.windows import Evaluation, evaluate
-from ...models.runs import run_approach
+from ...models.runs import APPROACH_TOLERANCE, approach_row
 from ...protocol import pooled_scores
-from .records import APPROACH_TOLERANCE, APPROACH_UNSTEADY, ApproachCheck, ThrustCheck
+from .records import ApproachCheck, ThrustCheck
 
-__all__ = ["where", "approach_check", "approach_row", "ljung_box", "window_xy", "speed_from_positions", "SPEED_SPAN_S"]
+__all__ = ["where", "approach_check", "ljung_box", "window_xy", "speed_from_positions", "SPEED_SPAN_S"]
 
 #: Span of the local quadratic (Savitzky-Golay) whose slope reads the speed over ground from the
 #: positions, s (:func:`speed_from_positions`): a few seconds, short against a turn's change of speed
@@ -362,52 +362,12 @@ def _thrust_check(model, fitres, motions: list, Fs: list) -> ThrustCheck | None:
     )
 
 
-def approach_row(model, p, track) -> dict | None:
-    """One run's propulsion point against the model's: its own approach
-    (:func:`bayesid.models.runs.run_approach`) and the speed the model at ``p`` settles at with
-    the rpm the run logs there (``model.steady_speed``).
-
-    Parameters
-    ----------
-    model : SimulationModel
-        A model with ``steady_speed`` (a ship's).
-    p : array_like, shape (n_params,)
-        Its parameters.
-    track : Track
-        The run.
-
-    Returns
-    -------
-    dict or None
-        ``run``, the :func:`run_approach` reading, ``model_speed_m_s``, ``speed_error`` (model /
-        measured - 1) and ``steady`` (the speed changes by at most
-        :data:`~bayesid.analysis.gap.records.APPROACH_UNSTEADY` over 10 s); None when the run has
-        no approach to read, is not moving ahead, or the model has no equilibrium at its rpm.
-    """
-    a = run_approach(track)
-    if a is None or a["rpm"] <= 0 or a["speed_m_s"] <= 0:
-        return None
-    try:
-        ms = float(model.steady_speed(p, a["rpm"]))
-    except ValueError:
-        return None
-    acc = a["accel_m_s2"]
-    steady = acc is None or abs(acc) * 10.0 <= APPROACH_UNSTEADY * a["speed_m_s"]
-    return {
-        "run": track.name,
-        **a,
-        "model_speed_m_s": ms,
-        "speed_error": ms / a["speed_m_s"] - 1.0,
-        "steady": bool(steady),
-    }
-
-
 def approach_check(model, p, train, held) -> ApproachCheck | None:
     """Each run's propulsion point against the fitted model's (:class:`ApproachCheck`): on each
     run's own approach (:func:`bayesid.models.runs.run_approach`), the speed the model at ``p``
     settles at with the rpm the run logs there (``model.steady_speed``), against the run's
     measured approach speed; a held-out run whose error is more than
-    :data:`~bayesid.analysis.gap.records.APPROACH_TOLERANCE` from the training runs' median and
+    :data:`~bayesid.models.runs.APPROACH_TOLERANCE` from the training runs' median and
     outside their range is at another propulsion point, and gets the rpm the model needs for its
     approach speed (``model.self_propulsion_rpm``).
 
