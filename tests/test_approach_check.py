@@ -151,8 +151,19 @@ def test_predict_warns_about_a_run_at_another_propulsion_point(kv, tmp_path, cap
     )
     err = capsys.readouterr().err
     assert "away_zigzag: at the" in err and "another propulsion point" in err and "home_turn: at the" not in err
-    rows = {r["run"]: r for r in json.loads((tmp_path / "p" / "predict.json").read_text())["approach"]}
+    res = json.loads((tmp_path / "p" / "predict.json").read_text())
+    rows = {r["run"]: r for r in res["approach"]}
     assert rows["away_zigzag"]["speed_error"] > 0.03 and "warning" not in rows["home_turn"]
+    # --propeller approach drives each run at the rpm the model needs for its approach: the run read
+    # 8 % high is driven at 1 / 1.08 of its log, and predicted as well as its twin at the model's point
+    more = ["--propeller", "approach", "--out", str(tmp_path / "q")]
+    assert cli.main(["-q", *pred, "--track", str(files["away_zigzag"]), str(files["home_turn"]), *more]) == 0
+    res2 = json.loads((tmp_path / "q" / "predict.json").read_text())
+    fac = {r["run"]: r["rpm_factor"] for r in res2["approach"]}
+    assert fac["away_zigzag"] == pytest.approx(fac["home_turn"] / 1.08, rel=1e-9) and res2["propeller"] == "approach"
+    before = res["per_track"]["away_zigzag"]["rms_position_m"]
+    after = res2["per_track"]["away_zigzag"]["rms_position_m"]
+    assert after < 0.5 * before
 
 
 def test_a_fit_on_runs_at_two_propulsion_points_says_so(kv, tmp_path, capsys):

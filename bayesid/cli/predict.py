@@ -38,6 +38,14 @@ def add_parser(sub) -> None:
     opt.add_out(pp, "output folder")
     opt.add_overwrite(pp)
     pp.add_argument(
+        "--propeller",
+        choices=("logged", "approach"),
+        default="logged",
+        help="the propeller speed the model is driven with: the logged rpm (default), or, for a ship, each run's "
+        "logged rpm scaled to what the model needs for the run's own approach speed (a run from another basin, "
+        "model or propeller, whose propulsion point is not the model's; predict.json records the factors)",
+    )
+    pp.add_argument(
         "--allow-changed-vehicle",
         action="store_true",
         help="predict even if the vehicle file changed after the fit (a warning is printed)",
@@ -69,10 +77,13 @@ def run(args) -> int:
     window = None if args.window <= 0 else args.window
     _warn(doc, got, window)
     with naming_files(got):
-        pr, whole, indices, bands = _predict(args, (model, p, cov), doc, tracks, window, out)
         approach = approach_rows(model, p, tracks)
+        if args.propeller == "approach":
+            tracks = matched_to_approach(model, approach, tracks, got["_warnings"])
+        pr, whole, indices, bands = _predict(args, (model, p, cov), doc, tracks, window, out)
         excursions = model_excursion(doc, whole, tracks, getattr(model.vehicle, "L", None))
-        for w in excursions + [r["warning"] for r in approach if r.get("warning")]:
+        notes = [] if args.propeller == "approach" else [r["warning"] for r in approach if r.get("warning")]
+        for w in excursions + notes:
             print(f"warning: {w}", file=sys.stderr)
             got["_warnings"].append(w)
         _figures(pr, bands, indices, doc, tracks, window, out)
@@ -91,6 +102,7 @@ def run(args) -> int:
             "whole_run": {"pooled": whole.pooled, "per_track": whole.per_track},
             "indices": indices,
             **({"approach": approach} if approach else {}),
+            "propeller": args.propeller,
             "n_draws": args.draws,
             "bands": bands,
         }
@@ -151,8 +163,9 @@ def approach_rows(model, p, tracks) -> list[dict]:
     Returns
     -------
     list of dict
-        Per run with an approach: the :func:`~bayesid.models.runs.approach_row` and, when
-        off, ``warning``.
+        Per run with an approach: the :func:`~bayesid.models.runs.approach_row`,
+        ``matched_rpm`` (the rpm the model needs for the approach speed) and, when off,
+        ``warning``.
     """
     from ..models.runs import APPROACH_TOLERANCE, approach_row
 
@@ -164,6 +177,10 @@ def approach_rows(model, p, tracks) -> list[dict]:
         if row is None:
             continue
         err = row["speed_error"]
+        try:
+            row["matched_rpm"] = float(model.self_propulsion_rpm(p, row["speed_m_s"]))
+        except ValueError:
+            row["matched_rpm"], row["steady"] = None, False
         if row["steady"] and abs(err) > APPROACH_TOLERANCE:
             row["warning"] = (
                 f"{tr.name}: at the {row['rpm']:.4g} rpm it logs on its approach the model settles at "
@@ -174,6 +191,56 @@ def approach_rows(model, p, tracks) -> list[dict]:
             )
         rows.append(row)
     return rows
+
+
+def matched_to_approach(model, rows: list, tracks: list, warnings_out: list) -> list:
+    """``--propeller approach``: each track with a steady approach driven at its logged rpm scaled
+    to what the model needs for the run's own approach speed (``model.self_propulsion_rpm``); the
+    factor is written into its row (``rpm_factor``). A track without a steady approach keeps its
+    logged rpm, with a warning (added to ``warnings_out`` and printed).
+
+    Parameters
+    ----------
+    model : SimulationModel
+        The fitted model (a ship's).
+    rows : list of dict
+        :func:`approach_rows` of the tracks (updated in place).
+    tracks : list of Track
+        The tracks.
+    warnings_out : list of str
+        Receives the warnings.
+
+    Returns
+    -------
+    list of Track
+        The tracks, copies where the rpm was scaled.
+    """
+    import numpy as np
+
+    from ..data.track import Track
+
+    by_run = {r["run"]: r for r in rows}
+    out = []
+    for tr in tracks:
+        r = by_run.get(tr.name)
+        if r is None or not r["steady"] or not r.get("matched_rpm"):
+            w = f"{tr.name}: no steady approach to match the propeller to: driven at its logged rpm (--propeller approach)"
+            print(f"warning: {w}", file=sys.stderr)
+            warnings_out.append(w)
+            out.append(tr)
+            continue
+        k = r["matched_rpm"] / r["rpm"]
+        r["rpm_factor"] = k
+        out.append(
+            Track(
+                tr.t,
+                dict(tr.data, n=np.asarray(tr["n"], float) * k),
+                name=tr.name,
+                units=dict(tr.units),
+                meta=dict(tr.meta),
+            )
+        )
+    return out
 
 
 def _start_note(asked: str, rule: str, tracks) -> dict:
