@@ -73,6 +73,11 @@ INDICES = ("advance_m", "tactical_diameter_m", "steady_turning_diameter_m", "spe
 OTHER_BASIN = {"D_prop": 0.204}
 
 
+def _g(x, digits: int = 3) -> str:
+    """A number to ``digits`` significant digits ("-" for None)."""
+    return "-" if x is None else f"{x:.{digits}g}"
+
+
 def turn_rpms(runs: dict) -> str:
     """The turns' logged approach rpm, as text."""
     return ", ".join(f"{float(np.median(np.asarray(runs[n]['n'])[:20])):.1f}" for n in TURNS)
@@ -219,8 +224,8 @@ def loop_diagnose(kv, runs: dict, args, say, train_turns: tuple = ()) -> None:
     )
     for r in D.get("ranking") or []:
         say(
-            f"    {r['effect']:<18} share {r.get('share_of_excess')!s:.6} dBIC {r.get('delta_bic')!s:.8} "
-            f"p {r.get('window_p_value')!s:.6} role {r.get('role')}"
+            f"    {r['effect']:<18} share {_g(r.get('share_of_excess'))} dBIC {_g(r.get('delta_bic'), 5)} "
+            f"p {_g(r.get('window_p_value'))} role {r.get('role')}"
         )
     terms = {it["term"]: it["coefficient"] for it in D.get("discovered") or [] if it["kept"]}
     added = tuple(D["effects_added"])
