@@ -198,4 +198,22 @@ def test_a_fit_on_runs_at_two_propulsion_points_says_so(kv, tmp_path, capsys):
     assert "away_turn are at another propulsion point" in capsys.readouterr().err
     doc = json.loads((tmp_path / "f" / "model.json").read_text())
     assert doc["fit"]["training_points"]["apart"] == ["away_turn"]
-    assert "**Propulsion points:** Training run(s) away_turn" in (tmp_path / "f" / "report.md").read_text()
+    report = (tmp_path / "f" / "report.md").read_text()
+    assert "**Propulsion points:** Training run(s) away_turn" in report
+
+
+def test_a_missed_training_turn_at_another_propulsion_point_is_said_so():
+    from bayesid.report.fit import _training_turn_lines
+
+    ind = {"tactical_diameter_m": 20.0, "steady_turning_diameter_m": 15.0}
+    turn = {
+        "run": "away_turn",
+        "reproduced": False,
+        "measured": ind,
+        "predicted": {k: 0.8 * v for k, v in ind.items()},
+        "rel_error": {k: -0.2 for k in ind},
+        "suspect": "speed in the turn",
+    }
+    said = "\n".join(_training_turn_lines([turn], None, ["away_turn"]))
+    assert "away_turn is at another propulsion point than the other training runs" in said
+    assert "another propulsion point" not in "\n".join(_training_turn_lines([turn], None, ["home_turn"]))

@@ -107,7 +107,8 @@ def write_fit_report(doc: dict, out, command: str = "", training_figures: list |
     ]
     lines += _prior_lines(doc) + _weak_direction_lines(doc) + _calibration_lines(doc)
     lines += fit_imo_lines(doc)  # ships: the IMO criteria of the training runs
-    lines += _training_turn_lines(doc.get("training_turns"), coefficients_at_bound(doc["fit"].get("at_bound")))
+    apart = (doc["fit"].get("training_points") or {}).get("apart") or []
+    lines += _training_turn_lines(doc.get("training_turns"), coefficients_at_bound(doc["fit"].get("at_bound")), apart)
     ms = doc.get("multistart")
     if ms:
         lines += _multistart_lines(ms)
@@ -202,9 +203,11 @@ def _bound_lines(doc: dict) -> list:
     return out
 
 
-def _training_turn_lines(turns: list | None, at_bound: list | None = None) -> list:
+def _training_turn_lines(turns: list | None, at_bound: list | None = None, apart: list | None = None) -> list:
     """The training turning circles as measured and as the fitted model flies them; ``at_bound``:
-    the coefficients the fit left on a bound, named beside a turn the model misses."""
+    the coefficients the fit left on a bound, named beside a turn the model misses; ``apart``: the
+    training runs at another propulsion point than the others (``fit.training_points``), named
+    first where one is a missed turn."""
     if not turns:
         return []
     keys = ("advance_m", "tactical_diameter_m", "steady_turning_diameter_m", "speed_loss")
@@ -215,6 +218,12 @@ def _training_turn_lines(turns: list | None, at_bound: list | None = None) -> li
             e = t["rel_error"].get(k)
             rows.append([t["run"], k.replace("_", " "), fmt(m), fmt(q), "-" if e is None else f"{100 * e:+.1f} %"])
     said = [training_turn_sentence(t) for t in turns if t["reproduced"] is False]
+    said += [
+        f"{t['run']} is at another propulsion point than the other training runs (above): one propeller model holds "
+        "them all, so the speed in this turn carries the compromise before any hull term"
+        for t in turns
+        if t["reproduced"] is False and t["run"] in (apart or [])
+    ]
     if said and at_bound:
         said.append(
             f"the fit also left {', '.join(at_bound)} on a bound (above): the same strain of the model form may show "
