@@ -215,5 +215,5 @@ def test_a_missed_training_turn_at_another_propulsion_point_is_said_so():
         "suspect": "speed in the turn",
     }
     said = "\n".join(_training_turn_lines([turn], None, ["away_turn"]))
-    assert "away_turn is at another propulsion point than the other training runs" in said
+    assert "The training run away_turn is at another propulsion point than the others" in said
     assert "another propulsion point" not in "\n".join(_training_turn_lines([turn], None, ["home_turn"]))

@@ -219,7 +219,7 @@ def _training_turn_lines(turns: list | None, at_bound: list | None = None, apart
             rows.append([t["run"], k.replace("_", " "), fmt(m), fmt(q), "-" if e is None else f"{100 * e:+.1f} %"])
     said = [training_turn_sentence(t) for t in turns if t["reproduced"] is False]
     said += [
-        f"{t['run']} is at another propulsion point than the other training runs (above): one propeller model holds "
+        f"the training run {t['run']} is at another propulsion point than the others (above): one propeller model holds "
         "them all, so the speed in this turn carries the compromise before any hull term"
         for t in turns
         if t["reproduced"] is False and t["run"] in (apart or [])
