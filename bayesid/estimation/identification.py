@@ -80,7 +80,8 @@ class IdentifyResult:
     window_s : float
         The multiple-shooting window (s).
     p0 : ndarray, shape (n_params,)
-        The start of the fit (nominal or equation-error seed).
+        The start of the fit (nominal or equation-error seed; when the chain of ``nested_start``
+        was kept, the optimum of the model without the nesting effects with them at neutral).
     multistart : MultistartResult or None
         The multistart, when extra starts were asked for.
     prior : dict
@@ -445,9 +446,9 @@ def _keep_nested(problem: wf.WindowProblem, f: FitResult, p0, without, runner: R
     """(fit, its start, summary) of a fit with effects that contain the model without them.
 
     An effect with a catalogue ``neutral`` value nests the model without it, so its fit should
-    never end above that model's; but a fit from the effect's own start (``coupling_speed`` at
-    MMG's ``c_U = 1``, a 0.5 s ``sensor_lag``) can stop in a worse optimum, and so can one from
-    the neutral value with the coefficients at their start (the optimiser's path differs). The
+    never end above that model's; but a fit from the effect's own start can stop in a worse
+    optimum (``coupling_speed`` from MMG's ``c_U = 1`` on a KVLCC2 flown with the file's form:
+    SSR 11465 against 11048 without the effect, ``tests/test_identify_nested_start.py``). The
     chain the gap diagnosis refits with (:mod:`bayesid.analysis.gap.candidates`) removes that:
     the model without those effects is fitted from the same coefficients, and the full model
     again from its optimum with the effects neutral, from which a descent method cannot end
