@@ -217,3 +217,15 @@ def test_a_missed_training_turn_at_another_propulsion_point_is_said_so():
     said = "\n".join(_training_turn_lines([turn], None, ["away_turn"]))
     assert "The training run away_turn is at another propulsion point than the others" in said
     assert "another propulsion point" not in "\n".join(_training_turn_lines([turn], None, ["home_turn"]))
+
+
+def test_an_approach_read_from_positions_alone_is_judged_steady_or_not(kv):
+    (zz, _), _ = _runs(kv, "a")
+    pos = Track(zz.t, {k: v for k, v in zz.data.items() if k not in ("u", "v", "r")}, name="positions")
+    a = run_approach(pos)
+    assert a["speed_m_s"] == pytest.approx(1.179, rel=1e-3) and abs(a["accel_m_s2"]) < 1e-3
+    t = np.asarray(zz.t) - zz.t[0]
+    x = np.asarray(zz["x"]) + 0.5 * 0.05 * t**2 * np.cos(np.asarray(zz["psi"]))  # speeding up at 0.05 m/s^2
+    y = np.asarray(zz["y"]) + 0.5 * 0.05 * t**2 * np.sin(np.asarray(zz["psi"]))
+    fast = run_approach(Track(zz.t, dict(pos.data, x=x, y=y), name="speeding_up"))
+    assert fast["accel_m_s2"] == pytest.approx(0.05, rel=0.05)

@@ -55,7 +55,7 @@ KINDS = ("turning_circle", "pull_out", "zigzag", "spiral_steps", "speed_change",
 #: steady speed misses its approach speed by more than this share beyond what it misses on the
 #: others (:func:`approach_row`).
 APPROACH_TOLERANCE = 0.03
-#: An approach whose speed changes by more than this share over 10 s is not at equilibrium, and
+#: An approach whose speed changes by more than this share over the samples read is not at equilibrium, and
 #: is not judged.
 APPROACH_UNSTEADY = 0.02
 #: Time of the first order from the start of a run, s.
@@ -229,7 +229,8 @@ def run_approach(track, max_s: float = 10.0, min_s: float = 2.0, rudder_tol_deg:
     -------
     dict or None
         ``seconds``, ``speed_m_s``, ``rpm`` (median of ``n``), ``accel_m_s2`` (slope of the
-        logged ``u``, None without it), ``rudder_moved`` (the rudder left its first value within
+        logged ``u``, or the along-track acceleration of a quadratic through the positions),
+        ``rudder_moved`` (the rudder left its first value within
         the ``min_s`` read); None when the run has no ``n`` or ``delta_r`` column or is shorter
         than ``min_s``.
     """
@@ -260,8 +261,12 @@ def run_approach(track, max_s: float = 10.0, min_s: float = 2.0, rudder_tol_deg:
     elif "x" in track and "y" in track:
         x, y = np.asarray(track["x"], float)[seg], np.asarray(track["y"], float)[seg]
         good = np.isfinite(x) & np.isfinite(y)
-        if good.sum() > 2:
-            speed = float(np.hypot(*np.polyfit(t[seg][good], np.column_stack([x[good], y[good]]), 1)[0]))
+        if good.sum() > 3:
+            ts = t[seg][good]
+            xy = np.column_stack([x[good], y[good]])
+            speed = float(np.hypot(*np.polyfit(ts, xy, 1)[0]))
+            c2, c1, _ = np.polyfit(ts - ts.mean(), xy, 2)  # the along-track acceleration at the middle
+            accel = float(2.0 * (c1 @ c2) / max(float(np.hypot(*c1)), 1e-9))
     if speed is None:
         return None
     return {
@@ -292,7 +297,7 @@ def approach_row(model, p, track) -> dict | None:
     dict or None
         ``run``, the :func:`run_approach` reading, ``model_speed_m_s``, ``speed_error`` (model /
         measured - 1) and ``steady`` (the speed changes by at most
-        :data:`APPROACH_UNSTEADY` over 10 s); None when the run has
+        :data:`APPROACH_UNSTEADY` over the samples read); None when the run has
         no approach to read, is not moving ahead, or the model has no equilibrium at its rpm.
     """
     a = run_approach(track)
@@ -303,7 +308,7 @@ def approach_row(model, p, track) -> dict | None:
     except ValueError:
         return None
     acc = a["accel_m_s2"]
-    steady = acc is None or abs(acc) * 10.0 <= APPROACH_UNSTEADY * a["speed_m_s"]
+    steady = acc is None or abs(acc) * a["seconds"] <= APPROACH_UNSTEADY * a["speed_m_s"]
     return {
         "run": track.name,
         **a,

@@ -367,7 +367,7 @@ class ApproachCheck(Record):
         Per run: ``run``, ``role`` (``"training"``, ``"held-out"``), ``seconds``, ``speed_m_s``,
         ``rpm``, ``accel_m_s2``, ``rudder_moved`` (:func:`bayesid.models.runs.run_approach`),
         ``model_speed_m_s``, ``speed_error`` (model / measured - 1) and ``steady`` (the speed
-        changes by at most :data:`~bayesid.models.runs.APPROACH_UNSTEADY` over 10 s). Held-out rows also
+        changes by at most :data:`~bayesid.models.runs.APPROACH_UNSTEADY` over the samples read). Held-out rows also
         ``matched_rpm`` (the rpm the model needs for the run's approach speed) and ``off`` (a
         steady approach more than :data:`~bayesid.models.runs.APPROACH_TOLERANCE` from the training runs' median
         ``speed_error`` and outside their range: another propulsion point).
