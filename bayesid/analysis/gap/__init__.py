@@ -9,7 +9,9 @@ free coefficients. It
    :func:`bayesid.estimation.windows.fit_weighted`);
 2. **where**: residuals per channel, per operating region (drift angle, yaw rate, rudder angle,
    speed), per manoeuvre phase, their spectrum, the missing forces X, Y, N from inverse
-   dynamics, Ljung-Box whiteness and cross-correlation with the inputs and their rates
+   dynamics, Ljung-Box whiteness and cross-correlation with the inputs and their rates, and for
+   a ship each run's propulsion point against the model's (:func:`.where.approach_check`: held-out
+   runs from another basin, model or propeller, which no fitted coefficient carries)
    (:mod:`.where`);
 3. **which**: refits the model with each catalogue effect in turn (the effect's parameters and
    all free coefficients) and ranks the candidates by held-out RMS position error, with the
@@ -24,7 +26,7 @@ free coefficients. It
 
 The package is split by question: :mod:`.where`, :mod:`.candidates`, :mod:`.verdict` (the rules
 below), :mod:`.support`, the typed records the steps pass on and the JSON writes (:mod:`.records`:
-noise floor, candidate rows, remainder, contributions, the logged-thrust check, the first round
+noise floor, candidate rows, remainder, contributions, the logged-thrust and approach checks, the first round
 beside discovery, base-fit check, discovered-term rows, the design's runs with the run test's
 outlook, their pairs of alternatives keyed ``(a, b)`` and written ``"A vs B"``; each read back from
 its JSON by ``from_dict``), and the orchestration :mod:`.diagnose`, which returns a
@@ -82,7 +84,7 @@ from .candidates import Stage
 from .diagnose import DiagnoseOptions, Diagnosis, diagnose
 from .support import signature_regression
 from .verdict import Thresholds, noise_floor, paired_window_test
-from .where import ljung_box, where, window_xy
+from .where import approach_check, ljung_box, where, window_xy
 
 __all__ = [
     "DiagnoseOptions",
@@ -95,5 +97,6 @@ __all__ = [
     "paired_window_test",
     "signature_regression",
     "where",
+    "approach_check",
     "window_xy",
 ]
