@@ -96,11 +96,6 @@ class IdentifyResult:
     retimed_moves : dict or None
         With ``options.retime``: per training run, the start time (s) of each rudder movement
         within one log interval and its sd (:mod:`bayesid.estimation.retiming`).
-    training_points : dict or None
-        Whether the training runs share one propulsion point (ships;
-        :func:`bayesid.models.runs.training_points`): each steady approach's model speed against
-        its measured one, and the runs ``apart`` from the others; None without two steady
-        approaches.
     nested_start : dict or None
         With effects that have a ``neutral`` value (they contain the model without them): the
         chain that keeps the fit from ending above the model without them (``_keep_nested``):
@@ -108,6 +103,11 @@ class IdentifyResult:
         (the fit from the effects' start values), ``cost_neutral_start`` (the fit from the
         first's optimum with the effects neutral), sums of squares at the same channel weights,
         and ``kept`` (``"neutral"`` or ``"effect start"``); None without such effects.
+    training_points : dict or None
+        Whether the training runs share one propulsion point (ships;
+        :func:`bayesid.models.runs.training_points`): each steady approach's model speed against
+        its measured one, and the runs ``apart`` from the others; None without two steady
+        approaches.
     """
 
     model: object

@@ -459,7 +459,15 @@ class ApproachCheck(Record):
         )
 
     def sentence(self) -> str:
-        """The check in words (empty when no held-out approach could be read)."""
+        """The check in words.
+
+        Returns
+        -------
+        str
+            Whether the held-out runs are at the training runs' propulsion point, naming those
+            that are not and (when scored) the share of the excess their point carries; empty
+            when no held-out approach could be read.
+        """
         if self.heldout_error is None:
             return ""
         train = "" if self.training_error is None else f", against {self.training_error:+.1%} on the training runs"
