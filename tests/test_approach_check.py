@@ -96,6 +96,9 @@ def test_matching_the_rpm_of_runs_at_another_point_restores_their_speed(kv):
     assert scored.share_of_excess == pytest.approx(0.75)
     assert "from 1 m to 0.4 m" in scored.sentence() and "75% of the excess" in scored.sentence()
     assert ApproachCheck.from_dict(scored.to_dict()).share_of_excess == pytest.approx(0.75)
+    worse = check.with_scores(1.0, 1.2, 0.2)  # matching the rpm made it worse: not the rpm's scale alone
+    assert worse.share_of_excess == pytest.approx(-0.25) and "makes it worse" in worse.sentence()
+    assert "makes the held-out error worse" in "\n".join(_another_point_lines(worse))
     assert "share_of_excess" not in check.to_dict()  # unscored: the optional fields stay out
 
 

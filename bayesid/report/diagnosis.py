@@ -876,10 +876,13 @@ def _another_point_lines(check) -> list:
     ap = _record(ApproachCheck, check)
     if ap is None or not ap.another_point:
         return []
+    sh = ap.share_of_excess
     share = (
         ""
-        if ap.share_of_excess is None
-        else f"; matching their rpm to their approach removes {ap.share_of_excess:.0%} of the held-out excess"
+        if sh is None
+        else f"; matching their rpm to their approach removes {sh:.0%} of the held-out excess"
+        if sh >= 0
+        else "; matching their rpm to their approach makes the held-out error worse"
     )
     return [
         f"**Also: held-out run(s) {', '.join(ap.off_runs)} at another propulsion point** than the training runs' "

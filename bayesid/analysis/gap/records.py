@@ -489,12 +489,21 @@ class ApproachCheck(Record):
             "run alike)."
         )
         if self.matched_heldout_rms_m is not None:
-            share = "" if self.share_of_excess is None else f": {self.share_of_excess:.0%} of the excess over the floor"
+            share = self.share_of_excess
+            if share is None:
+                reading = "."
+            elif share >= 0:
+                reading = f": {share:.0%} of the excess over the floor."
+            else:
+                reading = (
+                    ": matching the rpm makes it worse, so the other point is not the rpm's scale alone (the "
+                    "propeller's loading, and the rudder's inflow with it, differ too)."
+                )
             text += (
                 f" With the rpm of {'that run' if len(off) == 1 else 'those runs'} set to what the model needs for "
                 f"{'its' if len(off) == 1 else 'their'} own approach speed, the base model's held-out RMS goes from "
                 f"{self.heldout_rms_m:.3g} m to {self.matched_heldout_rms_m:.3g} m (floor {self.floor_rms_m:.3g} m)"
-                f"{share}."
+                f"{reading}"
             )
         return text
 
