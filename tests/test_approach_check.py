@@ -232,3 +232,28 @@ def test_an_approach_read_from_positions_alone_is_judged_steady_or_not(kv):
     y = np.asarray(zz["y"]) + 0.5 * 0.05 * t**2 * np.sin(np.asarray(zz["psi"]))
     fast = run_approach(Track(zz.t, dict(pos.data, x=x, y=y), name="speeding_up"))
     assert fast["accel_m_s2"] == pytest.approx(0.05, rel=0.05)
+
+
+def test_runs_at_another_point_and_another_speed_name_the_other_explanation(kv):
+    from bayesid.models.runs import other_speed_note
+
+    assert other_speed_note([1.17], [1.18, 1.18]) == ""
+    assert "not the others' (1.18 m/s)" in other_speed_note([0.9], [1.18, 1.18])
+    model = ship.ShipModel(kv, kv.free)
+    home, _ = _runs(kv, "home")
+    speed, rpm = propulsion_point(kv, 0.9)
+    opts = TrialOptions(dt=0.1, sample_every=2, duration=40.0, rudder_rate_deg_s=15.8)
+    slow = simulate_trial(kv, "turn", 20.0, speed=speed, rpm=rpm, options=opts).track
+    slow = Track(slow.t, dict(slow.data, n=1.08 * np.asarray(slow["n"])), name="slow_turn")
+    check = approach_check(model, model.start(), home, [slow])
+    assert check.another_point and "a resistance or thrust curve the model misses" in check.sentence()
+    same_speed = approach_check(model, model.start(), home[:1], home[1:] + [away_at_speed(kv, 1.179)])
+    assert same_speed.another_point and "resistance or thrust curve" not in same_speed.sentence()
+
+
+def away_at_speed(kv, speed):
+    """A 20 deg turn at ``speed`` whose rpm log reads 8 % high."""
+    s, rpm = propulsion_point(kv, speed)
+    opts = TrialOptions(dt=0.1, sample_every=2, duration=40.0, rudder_rate_deg_s=15.8)
+    tr = simulate_trial(kv, "turn", -20.0, speed=s, rpm=rpm, options=opts).track
+    return Track(tr.t, dict(tr.data, n=1.08 * np.asarray(tr["n"])), name="away_turn20")

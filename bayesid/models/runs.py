@@ -37,6 +37,8 @@ __all__ = [
     "PropulsionPointWarning",
     "APPROACH_TOLERANCE",
     "APPROACH_UNSTEADY",
+    "APPROACH_OTHER_SPEED",
+    "other_speed_note",
     "rudder_rate",
     "menu",
     "ramp",
@@ -58,6 +60,10 @@ APPROACH_TOLERANCE = 0.03
 #: An approach whose speed changes by more than this share over the samples read is not at equilibrium, and
 #: is not judged.
 APPROACH_UNSTEADY = 0.02
+#: Runs whose approach speeds differ by more than this share are not at one speed: a miss of the
+#: model's resistance or thrust curve at one of the speeds explains a difference of their
+#: propulsion points as well (:func:`other_speed_note`).
+APPROACH_OTHER_SPEED = 0.10
 #: Time of the first order from the start of a run, s.
 T_EXECUTE = 5.0
 
@@ -366,7 +372,38 @@ def training_points(model, p, tracks) -> dict | None:
             "the fit compromises between them and every run's speed in the turns carries it: fit those runs apart, "
             "or leave them out"
         )
+        ref = [r["speed_m_s"] for r in rows if r["steady"] and not r["apart"]]
+        sentence += other_speed_note([r["speed_m_s"] for r in rows if r["apart"]], ref)
     return {"runs": rows, "median_error": med, "apart": apart, "sentence": sentence}
+
+
+def other_speed_note(speeds, reference) -> str:
+    """The other explanation of runs at another propulsion point when they are not at the others'
+    speed: the model's resistance or thrust curve missing one of the speeds.
+
+    Parameters
+    ----------
+    speeds : sequence of float
+        The approach speeds of the runs at another point, m/s.
+    reference : sequence of float
+        The approach speeds of the runs they are compared with, m/s.
+
+    Returns
+    -------
+    str
+        ``"; ..."`` when some speed differs from the reference median by more than
+        :data:`APPROACH_OTHER_SPEED`, else empty.
+    """
+    if not len(speeds) or not len(reference):
+        return ""
+    u0 = float(np.median(reference))
+    if u0 <= 0 or max(abs(u / u0 - 1.0) for u in speeds) <= APPROACH_OTHER_SPEED:
+        return ""
+    return (
+        f"; but their approach speeds ({', '.join(f'{u:.3g}' for u in speeds)} m/s) are not the others' "
+        f"({u0:.3g} m/s), so a resistance or thrust curve the model misses at one of the speeds explains the "
+        "difference as well"
+    )
 
 
 def menu(approach: Approach, max_rudder_deg: float = 35.0, duration_s: float | None = None) -> list[ManoeuvreRun]:

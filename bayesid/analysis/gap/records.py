@@ -18,6 +18,7 @@ from typing import ClassVar
 import numpy as np
 
 from ...data.track import Track
+from ...models.runs import other_speed_note
 from ...protocol import Scores
 from ...tasks import record_fields
 
@@ -480,13 +481,17 @@ class ApproachCheck(Record):
             )
         off = self.off_runs
         names = ", ".join(off[:5]) + (f" and {len(off) - 5} more" if len(off) > 5 else "")
+        speeds = other_speed_note(
+            [r["speed_m_s"] for r in self.runs if r.get("off")],
+            [r["speed_m_s"] for r in self.runs if r["role"] == "training" and r["steady"]],
+        )
         text = (
             f"At the rpm they log on their approach, the fitted model settles at a speed {self.heldout_error:+.1%} off "
             f"the measured approach speed of held-out run(s) {names}{train}: **{'it is' if len(off) == 1 else 'they are'}"
             " at another propulsion point** (another basin, model, propeller or rpm control). No coefficient fitted "
             "on the training runs carries it: on every straight leg the model's speed drifts towards its own point, "
             "so u misses there whatever the hull's terms (the propulsion_point candidate shifts the wake for every "
-            "run alike)."
+            f"run alike){speeds}."
         )
         if self.matched_heldout_rms_m is not None:
             share = self.share_of_excess
