@@ -165,6 +165,9 @@ def test_fit_records_provenance_and_predict_refuses_a_changed_vehicle(csvs, tmp_
         "0",
     ]
     assert _run(pred + ["--out", tmp_path / "p0"], capsys)[0] == 0
+    # matching the propeller to the approach needs a propeller model: refused, naming the option, nothing written
+    rc, msg = _run(pred + ["--propeller", "approach", "--out", tmp_path / "pa"], capsys)
+    assert rc == 2 and "--propeller approach" in msg and "no propeller model" in msg and not (tmp_path / "pa").exists()
     veh_file.write_text(veh_file.read_text().replace("Yv = -1.0e-1", "Yv = -1.2e-1"))
     rc, msg = _run(pred + ["--out", tmp_path / "p1"], capsys)
     assert rc == 2 and "changed after the fit" in msg
