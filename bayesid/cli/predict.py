@@ -69,13 +69,13 @@ def run(args) -> int:
     from ..report import write_json, write_predict_report
     from ..report.predict import window_distribution
 
+    out = check_out(args.out, "predict", args.overwrite)
     model, p, cov, doc = load_model(args.model)
     if args.propeller == "approach" and getattr(model, "steady_speed", None) is None:
         raise ValueError(
             f"--propeller approach: {args.model} has no propeller model to match (only a ship's model has one); "
             "predict it with the logged rpm"
         )
-    out = check_out(args.out, "predict", args.overwrite)
     check_vehicle_unchanged(doc, model.vehicle, args.model, args.allow_changed_vehicle)
     got = read_tracks([("--track", args.track)], model.vehicle)
     tracks = got["--track"]
