@@ -178,14 +178,12 @@ def approach_rows(model, p, tracks) -> list[dict]:
         return []
     rows = []
     for tr in tracks:
-        row = approach_row(model, p, tr)
+        row = approach_row(model, p, tr, matched=True)
         if row is None:
             continue
         err = row["speed_error"]
-        try:
-            row["matched_rpm"] = float(model.self_propulsion_rpm(p, row["speed_m_s"]))
-        except ValueError:
-            row["matched_rpm"], row["steady"] = None, False
+        if row["matched_rpm"] is None:  # no equilibrium at its approach speed: not judged
+            row["steady"] = False
         if row["steady"] and abs(err) > APPROACH_TOLERANCE:
             row["warning"] = (
                 f"{tr.name}: at the {row['rpm']:.4g} rpm it logs on its approach the model settles at "
@@ -220,9 +218,7 @@ def matched_to_approach(model, rows: list, tracks: list, warnings_out: list) -> 
     list of Track
         The tracks, copies where the rpm was scaled.
     """
-    import numpy as np
-
-    from ..data.track import Track
+    from ..models.runs import with_rpm_scaled
 
     by_run = {r["run"]: r for r in rows}
     out = []
@@ -234,17 +230,8 @@ def matched_to_approach(model, rows: list, tracks: list, warnings_out: list) -> 
             warnings_out.append(w)
             out.append(tr)
             continue
-        k = r["matched_rpm"] / r["rpm"]
-        r["rpm_factor"] = k
-        out.append(
-            Track(
-                tr.t,
-                dict(tr.data, n=np.asarray(tr["n"], float) * k),
-                name=tr.name,
-                units=dict(tr.units),
-                meta=dict(tr.meta),
-            )
-        )
+        r["rpm_factor"] = r["matched_rpm"] / r["rpm"]
+        out.append(with_rpm_scaled(tr, r["rpm_factor"]))
     return out
 
 

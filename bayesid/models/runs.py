@@ -33,6 +33,7 @@ __all__ = [
     "approach_condition",
     "run_approach",
     "approach_row",
+    "with_rpm_scaled",
     "training_points",
     "PropulsionPointWarning",
     "APPROACH_TOLERANCE",
@@ -284,7 +285,7 @@ def run_approach(track, max_s: float = 10.0, min_s: float = 2.0, rudder_tol_deg:
     }
 
 
-def approach_row(model, p, track) -> dict | None:
+def approach_row(model, p, track, matched: bool = False) -> dict | None:
     """One run's propulsion point against the model's: its own approach
     (:func:`run_approach`) and the speed the model at ``p`` settles at with
     the rpm the run logs there (``model.steady_speed``).
@@ -297,6 +298,9 @@ def approach_row(model, p, track) -> dict | None:
         Its parameters.
     track : Track
         The run.
+    matched : bool, default False
+        Also ``matched_rpm``: the rpm the model needs for the run's approach speed
+        (``model.self_propulsion_rpm``; None when it has no equilibrium there).
 
     Returns
     -------
@@ -315,13 +319,39 @@ def approach_row(model, p, track) -> dict | None:
         return None
     acc = a["accel_m_s2"]
     steady = acc is None or abs(acc) * a["seconds"] <= APPROACH_UNSTEADY * a["speed_m_s"]
-    return {
+    row = {
         "run": track.name,
         **a,
         "model_speed_m_s": ms,
         "speed_error": ms / a["speed_m_s"] - 1.0,
         "steady": bool(steady),
     }
+    if matched:
+        try:
+            row["matched_rpm"] = float(model.self_propulsion_rpm(p, a["speed_m_s"]))
+        except ValueError:
+            row["matched_rpm"] = None
+    return row
+
+
+def with_rpm_scaled(track, factor: float):
+    """A copy of a run with its propeller speed ``n`` scaled by ``factor`` (driving it at another
+    propulsion point, :func:`approach_row`'s ``matched_rpm`` over its logged rpm).
+
+    Parameters
+    ----------
+    track : Track
+        The run (with ``n``).
+    factor : float
+        The scale of ``n``.
+
+    Returns
+    -------
+    Track
+        The copy (name, units and metadata kept).
+    """
+    data = dict(track.data, n=np.asarray(track["n"], float) * factor)
+    return Track(track.t, data, name=track.name, units=dict(track.units), meta=dict(track.meta))
 
 
 class PropulsionPointWarning(BayesidWarning):

@@ -15,10 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import ClassVar
 
-import numpy as np
-
-from ...data.track import Track
-from ...models.runs import other_speed_note
+from ...models.runs import other_speed_note, with_rpm_scaled
 from ...protocol import Scores
 from ...tasks import record_fields
 
@@ -426,15 +423,7 @@ class ApproachCheck(Record):
             for r in self.runs
             if r["role"] == "held-out" and r.get("off") and r.get("matched_rpm")
         }
-        out = []
-        for tr in tracks:
-            k = factor.get(tr.name)
-            if k is None:
-                out.append(tr)
-                continue
-            data = dict(tr.data, n=np.asarray(tr["n"], float) * k)
-            out.append(Track(tr.t, data, name=tr.name, units=dict(tr.units), meta=dict(tr.meta)))
-        return out
+        return [tr if tr.name not in factor else with_rpm_scaled(tr, factor[tr.name]) for tr in tracks]
 
     def with_scores(self, heldout_rms_m: float, matched_heldout_rms_m: float, floor_rms_m: float) -> ApproachCheck:
         """The check with the held-out scores of the base model with the logged and the matched rpm.

@@ -390,16 +390,9 @@ def approach_check(model, p, train, held) -> ApproachCheck | None:
     rows = []
     for role, tracks in (("training", train), ("held-out", held)):
         for tr in tracks:
-            row = approach_row(model, p, tr)
-            if row is None:
-                continue
-            row = {"run": row.pop("run"), "role": role, **row}
-            if role == "held-out":
-                try:
-                    row["matched_rpm"] = float(model.self_propulsion_rpm(p, row["speed_m_s"]))
-                except ValueError:
-                    row["matched_rpm"] = None
-            rows.append(row)
+            row = approach_row(model, p, tr, matched=role == "held-out")
+            if row is not None:
+                rows.append({"run": row.pop("run"), "role": role, **row})
     errs = {r: [x["speed_error"] for x in rows if x["role"] == r and x["steady"]] for r in ("training", "held-out")}
     if not errs["held-out"]:
         return None
