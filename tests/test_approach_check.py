@@ -14,7 +14,7 @@ from bayesid.analysis.gap.records import ApproachCheck
 from bayesid.analysis.gap.where import approach_check
 from bayesid.data.track import Track
 from bayesid.models import ship
-from bayesid.models.runs import run_approach
+from bayesid.models.runs import approach_row, run_approach
 from bayesid.models.ship.trials import T_EXECUTE, TrialOptions, propulsion_point, simulate_trial
 from bayesid.report.diagnosis import _another_point_lines, _approach_lines
 
@@ -257,3 +257,17 @@ def away_at_speed(kv, speed):
     opts = TrialOptions(dt=0.1, sample_every=2, duration=40.0, rudder_rate_deg_s=15.8)
     tr = simulate_trial(kv, "turn", -20.0, speed=s, rpm=rpm, options=opts).track
     return Track(tr.t, dict(tr.data, n=1.08 * np.asarray(tr["n"])), name="away_turn20")
+
+
+def test_a_run_starting_from_rest_with_the_propeller_ordered_is_not_judged(kv):
+    """The Esso Osaka turns start at a few mm/s with the propeller at 600 rpm (no equilibrium): one
+    read as steady over its first 2 s was named at +3843 % before the model's speed had to be within
+    half of the run's."""
+    model = ship.ShipModel(kv, kv.free)
+    home, _ = _runs(kv, "home")
+    tr = home[1]
+    u = np.full(tr.t.size, 0.011)
+    rest = Track(tr.t, dict(tr.data, u=u, x=np.asarray(tr["x"])[0] + 0.011 * (tr.t - tr.t[0])), name="from_rest")
+    row = approach_row(model, model.start(), rest)
+    assert row["speed_error"] > 10 and not row["steady"]
+    assert approach_check(model, model.start(), home, [rest]) is None

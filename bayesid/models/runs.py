@@ -39,6 +39,7 @@ __all__ = [
     "APPROACH_TOLERANCE",
     "APPROACH_UNSTEADY",
     "APPROACH_OTHER_SPEED",
+    "APPROACH_UNDER_WAY",
     "other_speed_note",
     "rudder_rate",
     "menu",
@@ -61,6 +62,11 @@ APPROACH_TOLERANCE = 0.03
 #: An approach whose speed changes by more than this share over the samples read is not at equilibrium, and
 #: is not judged.
 APPROACH_UNSTEADY = 0.02
+#: A run whose approach speed is off the model's steady speed at its rpm by more than this share is
+#: not under way at that rpm (starting from rest with the propeller just ordered, or stopping), so
+#: its approach says nothing of its propulsion point and is not judged (a basin's point differs by
+#: a few tens of per cent at most).
+APPROACH_UNDER_WAY = 0.5
 #: Runs whose approach speeds differ by more than this share are not at one speed: a miss of the
 #: model's resistance or thrust curve at one of the speeds explains a difference of their
 #: propulsion points as well (:func:`other_speed_note`).
@@ -307,7 +313,8 @@ def approach_row(model, p, track, matched: bool = False) -> dict | None:
     dict or None
         ``run``, the :func:`run_approach` reading, ``model_speed_m_s``, ``speed_error`` (model /
         measured - 1) and ``steady`` (the speed changes by at most
-        :data:`APPROACH_UNSTEADY` over the samples read); None when the run has
+        :data:`APPROACH_UNSTEADY` over the samples read, and the run is under way at its rpm:
+        ``|speed_error| <=`` :data:`APPROACH_UNDER_WAY`); None when the run has
         no approach to read, is not moving ahead, or the model has no equilibrium at its rpm.
     """
     a = run_approach(track)
@@ -317,15 +324,10 @@ def approach_row(model, p, track, matched: bool = False) -> dict | None:
         ms = float(model.steady_speed(p, a["rpm"]))
     except ValueError:
         return None
-    acc = a["accel_m_s2"]
-    steady = acc is None or abs(acc) * a["seconds"] <= APPROACH_UNSTEADY * a["speed_m_s"]
-    row = {
-        "run": track.name,
-        **a,
-        "model_speed_m_s": ms,
-        "speed_error": ms / a["speed_m_s"] - 1.0,
-        "steady": bool(steady),
-    }
+    acc, err = a["accel_m_s2"], ms / a["speed_m_s"] - 1.0
+    settled = acc is None or abs(acc) * a["seconds"] <= APPROACH_UNSTEADY * a["speed_m_s"]
+    steady = settled and abs(err) <= APPROACH_UNDER_WAY
+    row = {"run": track.name, **a, "model_speed_m_s": ms, "speed_error": err, "steady": bool(steady)}
     if matched:
         try:
             row["matched_rpm"] = float(model.self_propulsion_rpm(p, a["speed_m_s"]))
