@@ -55,6 +55,7 @@ def test_every_window_of_the_true_model_reaches_the_noise(case, monkeypatch):
     pred = predict(model, model.start(), [track], 30.0, start="fitted", leadin_s=10.0)
     assert max(w["rms_position_m"] for w in pred.windows) < 0.6, pred.windows
     monkeypatch.setattr(shooting, "RETRY_COST", np.inf)
+    monkeypatch.setattr(shooting, "CONTINUATION_FRACTIONS", ())  # the first fit alone
     first = shooting.fit_starts(model, ctx, model.start()[None])
     cost = _lead_cost(model, ctx, first)
     stuck = cost > 9.0
