@@ -18,6 +18,7 @@ import pytest  # noqa: E402
 
 from bayesid import cli  # noqa: E402
 from bayesid.estimation.indices import manoeuvre_indices  # noqa: E402
+from bayesid.models.runs import canonical_kind  # noqa: E402
 from bayesid.models.ship import load_ship  # noqa: E402
 from bayesid.models.ship.trials import TrialOptions, propulsion_point, service_condition, simulate_trial  # noqa: E402
 from bayesid.report import plots  # noqa: E402
@@ -192,7 +193,8 @@ def test_simulate_writes_the_printed_indices_to_json_and_a_figure(tmp_path, caps
     doc = json.loads((tmp_path / "run.json").read_text())
     assert (tmp_path / "run.png").stat().st_size > 10_000
     assert doc["vehicle"]["id"] == "kvlcc2_7m"
-    assert doc["manoeuvre"]["name"] == manoeuvre and doc["manoeuvre"]["angle_deg"] == angle
+    # the summary names the manoeuvre in the package's one vocabulary (``turn`` is an alias)
+    assert doc["manoeuvre"]["name"] == canonical_kind(manoeuvre) and doc["manoeuvre"]["angle_deg"] == angle
     assert doc["bayesid_version"] and doc["command"].startswith("bayesid ")
     assert doc["indices"]["kind"] == ("zigzag" if manoeuvre == "zigzag" else "turning")
     by_name = {v["name"]: v for v in doc["indices"]["values"].values()}

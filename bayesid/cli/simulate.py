@@ -13,14 +13,16 @@ from pathlib import Path
 
 from ..data.track import write_csv
 from ..estimation import indices as ix
+from ..models.runs import KIND_ALIASES, canonical_kind
 from ..models.simulate import MODES
 from . import options as opt
 from .outputs import check_out
 
 #: Longest simulation ``bayesid simulate`` runs (model steps): 1e6 s at 0.1 s.
 MAX_SIMULATE_STEPS = 10_000_000
-#: The manoeuvres (``--manoeuvre``).
-MANOEUVRES = ("spiral", "turn", "zigzag", "pull-out", "straight")
+#: The manoeuvres (``--manoeuvre``): kinds of :data:`bayesid.models.runs.MANOEUVRE_KINDS`; the
+#: aliases of :data:`bayesid.models.runs.KIND_ALIASES` (``turn``, ``pull-out``) are accepted too.
+MANOEUVRES = ("spiral", "turning_circle", "zigzag", "pull_out", "straight")
 #: How the indices are printed: (key, label, unit).
 _PRINTED = (
     ("first_overshoot_deg", "first overshoot", "deg"),
@@ -50,11 +52,11 @@ def add_parser(sub) -> None:
     opt.add_vehicle(s, "packaged id (nps_auv2, kvlcc2_7m, esso_osaka_3m) or a vehicle TOML", default="nps_auv2")
     s.add_argument(
         "--manoeuvre",
-        choices=MANOEUVRES,
+        choices=MANOEUVRES + tuple(a for a, k in KIND_ALIASES.items() if k in MANOEUVRES),
         default="spiral",
         help="spiral: a submarine's the paper's inward spiral, a ship's the direct/reverse spiral (steady "
-        "yaw rate per rudder angle); turn: turning circle; zigzag: heading-triggered; pull-out: a "
-        "steady turn, then rudder amidships; straight",
+        "yaw rate per rudder angle); turning_circle (or turn); zigzag: heading-triggered; pull_out (or "
+        "pull-out): a steady turn, then rudder amidships; straight",
     )
     opt.add_number(
         s,
@@ -190,6 +192,7 @@ def run(args) -> int:
         An option that does not apply to the vehicle or manoeuvre, or a bad value, naming the
         option; a simulation that diverges.
     """
+    args.manoeuvre = canonical_kind(args.manoeuvre, MANOEUVRES)
     paths = output_paths(args.out, not args.no_figure)
     check_out(args.out, "simulate", args.overwrite)
     for what, path in paths.items():  # refused when it exists, as the CSV always was
@@ -263,7 +266,10 @@ def _write_summary(args, settings: dict, indices: dict, paths: dict) -> None:
 
 #: The manoeuvres whose rudder order is ``--angle`` (a spiral's largest step for a ship; a
 #: submarine's spiral is the paper's, at its own angles).
-_ANGLE_MANOEUVRES = {"ship": ("spiral", "turn", "zigzag", "pull-out"), "submarine": ("turn", "zigzag", "pull-out")}
+_ANGLE_MANOEUVRES = {
+    "ship": ("spiral", "turning_circle", "zigzag", "pull_out"),
+    "submarine": ("turning_circle", "zigzag", "pull_out"),
+}
 
 
 def _check_angle(args, family: str, vessel_id: str, limit_deg: float | None) -> None:
@@ -306,7 +312,7 @@ def _ship(args, every):
         raise ValueError("--duration does not apply to a ship's spiral; --hold sets each step's time")
     trial = simulate_trial(
         vessel,
-        args.manoeuvre.replace("-", "_"),
+        args.manoeuvre,
         args.angle,
         check_deg=args.check,
         speed=speed,
@@ -347,11 +353,11 @@ def _submarine(args, every):
         rpm = args.speed / vehicle.steady_speed(1.0)  # the steady speed is linear in rpm
     if args.rudder_rate not in (None, 0.0) and args.manoeuvre != "zigzag":
         raise ValueError(f"--rudder-rate applies to a submarine's zigzag, not its {args.manoeuvre}")
-    if args.hold is not None and args.manoeuvre != "pull-out":
+    if args.hold is not None and args.manoeuvre != "pull_out":
         raise ValueError(f"--hold applies to a submarine's pull-out, not its {args.manoeuvre}")
     if args.manoeuvre == "spiral":
         m = mv.spiral(vehicle, dt=args.dt, rpm=rpm)
-    elif args.manoeuvre == "turn":
+    elif args.manoeuvre == "turning_circle":
         m = mv.turning_circle(vehicle, args.angle, dt=args.dt, duration=args.duration or 150.0, rpm=rpm)
     elif args.manoeuvre == "zigzag":
         m = mv.zigzag(
@@ -364,7 +370,7 @@ def _submarine(args, every):
             first_sign=1 if args.angle >= 0 else -1,
             options=mv.ZigzagOptions(rate_deg_s=args.rudder_rate or 0.0),
         )
-    elif args.manoeuvre == "pull-out":
+    elif args.manoeuvre == "pull_out":
         hold = args.hold or 60.0
         m = mv.pull_out(
             vehicle, args.angle, t_hold=hold, duration=args.duration or max(180.0, 10.0 + 2 * hold), dt=args.dt, rpm=rpm
@@ -431,10 +437,10 @@ def _report(track, manoeuvre: str, check_deg: float | None = None) -> dict:
             "steady_yaw_rates": [{k: _finite(v) for k, v in row.items()} for row in rows],
         }
     raw = None
-    if manoeuvre == "pull-out":
+    if manoeuvre == "pull_out":
         got = ix.pull_out_rates(t, delta, r)
-        kind = "pull-out"
-    elif manoeuvre in ("turn", "zigzag"):
+        kind = "pull_out"
+    elif manoeuvre in ("turning_circle", "zigzag"):
         got = raw = ix.manoeuvre_indices(t, track["x"], track["y"], track["psi"], delta, check_deg=check_deg)
         kind = got["kind"]
     else:

@@ -7,10 +7,13 @@ manoeuvre are made of, for a submarine (:mod:`bayesid.models.submarine`) and a s
 (:mod:`bayesid.models.ship`) alike: every function takes a :class:`~bayesid.models.SimulationModel`
 and parameter rows, and simulates the rows together (one batched simulation per pass).
 
-The kinds of run (:data:`KINDS`) are the names :func:`bayesid.estimation.indices.manoeuvre_kind`
-reads a logged run as, where it reads one: ``turning_circle``, ``zigzag``, ``pull_out``;
-procedures: ITTC Recommended Procedure 7.5-04-02-01 (2017), "Full Scale Manoeuvring Trials",
-Sec. 2.2.1 (turning circle), 2.2.2 (zigzag), 2.2.6 (pull-out).
+The package's one vocabulary of manoeuvre kinds is :data:`MANOEUVRE_KINDS`: what ``bayesid
+simulate`` runs, what the ship trials (:mod:`bayesid.models.ship.trials`) and the design's menu
+(:data:`KINDS`, the runs :func:`open_loop_inputs` schedules) are, and what
+:func:`bayesid.estimation.indices.manoeuvre_kind` reads a logged run as. Older and shorter names
+(``turn``, ``pull-out``) are accepted where a user names a kind (:func:`canonical_kind`).
+Procedures: ITTC Recommended Procedure 7.5-04-02-01 (2017), "Full Scale Manoeuvring Trials",
+Sec. 2.2.1 (turning circle), 2.2.2 (zigzag), 2.2.4 (spiral), 2.2.6 (pull-out).
 
 Sign convention: the package's rudder is positive to port; ``side="port"`` is a positive first
 rudder angle.
@@ -28,6 +31,9 @@ from ..data.validate import BayesidWarning
 
 __all__ = [
     "KINDS",
+    "MANOEUVRE_KINDS",
+    "KIND_ALIASES",
+    "canonical_kind",
     "Approach",
     "ManoeuvreRun",
     "approach_condition",
@@ -53,6 +59,24 @@ __all__ = [
     "free_run_states",
 ]
 
+#: The manoeuvre kinds of the package, one name each (ITTC 7.5-04-02-01 Sec. 2.2):
+#: ``turning_circle``, ``zigzag``, ``pull_out``; ``spiral`` (the spiral test: a ship's
+#: direct/reverse spiral, a submarine's inward spiral of Furlong's paper); ``spiral_steps`` (the
+#: design's short spiral: five rudder steps from one side through zero to the other);
+#: ``speed_change``, ``prbs`` (a pseudo-random rudder sequence); ``straight``.
+MANOEUVRE_KINDS = (
+    "turning_circle",
+    "zigzag",
+    "pull_out",
+    "spiral",
+    "spiral_steps",
+    "speed_change",
+    "prbs",
+    "straight",
+)
+#: Other names a user may give for a kind of :data:`MANOEUVRE_KINDS` (``bayesid simulate
+#: --manoeuvre turn`` before the vocabulary was one).
+KIND_ALIASES = {"turn": "turning_circle", "turning-circle": "turning_circle", "pull-out": "pull_out"}
 #: The runs :func:`open_loop_inputs` schedules (a zigzag's switches by :func:`zigzag_rudders`).
 KINDS = ("turning_circle", "pull_out", "zigzag", "spiral_steps", "speed_change", "prbs")
 #: A run is at another propulsion point than others when, at its logged approach rpm, a model's
@@ -436,6 +460,36 @@ def other_speed_note(speeds, reference) -> str:
         f"({u0:.3g} m/s), so a resistance or thrust curve the model misses at one of the speeds explains the "
         "difference as well"
     )
+
+
+def canonical_kind(name: str, known=MANOEUVRE_KINDS, what: str = "manoeuvre") -> str:
+    """The name of :data:`MANOEUVRE_KINDS` a user's manoeuvre name stands for (itself, or the kind
+    of :data:`KIND_ALIASES`).
+
+    Parameters
+    ----------
+    name : str
+        A kind or an alias (``"turn"``, ``"pull-out"``).
+    known : tuple of str, default :data:`MANOEUVRE_KINDS`
+        The kinds accepted here (a subset where a caller runs only some).
+    what : str, default "manoeuvre"
+        Names the caller's vocabulary in the error.
+
+    Returns
+    -------
+    str
+        The kind.
+
+    Raises
+    ------
+    ValueError
+        A name that is no kind of ``known`` nor an alias of one, listing the names accepted.
+    """
+    kind = KIND_ALIASES.get(name, name)
+    if kind not in known:
+        names = list(known) + [a for a, k in KIND_ALIASES.items() if k in known]
+        raise ValueError(f"unknown {what} {name!r}; known: {', '.join(names)}")
+    return kind
 
 
 def menu(approach: Approach, max_rudder_deg: float = 35.0, duration_s: float | None = None) -> list[ManoeuvreRun]:

@@ -23,19 +23,21 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ...data.track import Track
+from ..runs import canonical_kind
 from .dynamics import accelerations, forces
 from .fileformat import Ship, ShipFileError
 
 #: The keys of a ship file's optional ``[service]`` section: approach speed (m/s, the file's
 #: scale), propeller speed (rpm) at it, and the steering gear's rate (deg/s).
 SERVICE_KEYS = ("speed", "rpm", "rudder_rate_deg_s")
-#: The manoeuvres :func:`simulate_trial` runs.
-KINDS = ("turn", "zigzag", "pull_out", "spiral", "straight")
+#: The manoeuvres :func:`simulate_trial` runs (names of :data:`bayesid.models.runs.MANOEUVRE_KINDS`;
+#: the aliases of :data:`bayesid.models.runs.KIND_ALIASES`, ``turn`` among them, are accepted).
+KINDS = ("turning_circle", "zigzag", "pull_out", "spiral", "straight")
 #: Straight approach before the first rudder order, s.
 T_EXECUTE = 10.0
 #: Default lengths of the runs after the execute, in ship-length times ``L / U``: long enough for
 #: 540 deg of a 35 deg turn or four zigzag reversals of a full-form ship (KVLCC2: 60 L/U = 356 s).
-RUN_SHIP_LENGTHS = {"turn": 60.0, "zigzag": 60.0, "pull_out": 40.0, "straight": 10.0}
+RUN_SHIP_LENGTHS = {"turning_circle": 60.0, "zigzag": 60.0, "pull_out": 40.0, "straight": 10.0}
 #: Default hold of each spiral step, ship-length times (KVLCC2: 119 s, within 1 % of the steady
 #: yaw rate away from the loop).
 SPIRAL_HOLD_SHIP_LENGTHS = 20.0
@@ -319,7 +321,7 @@ def simulate_trial(
     """Simulate a standard manoeuvre of a ship from a straight approach.
 
     The run starts going straight at ``speed`` with the propeller at ``rpm`` (constant
-    throughout); the first rudder order is given at :data:`T_EXECUTE` s. ``turn``: the rudder
+    throughout); the first rudder order is given at :data:`T_EXECUTE` s. ``turning_circle``: the rudder
     put to ``angle_deg`` and held. ``zigzag``: to ``angle_deg``, reversed each time the heading
     has changed by ``check_deg`` from the execute heading (closed loop). ``pull_out``: held for
     ``hold`` s, then returned to amidships. ``spiral``: the steps of :func:`spiral_steps`, each
@@ -329,8 +331,8 @@ def simulate_trial(
     ----------
     ship : Ship
         The ship.
-    kind : {"turn", "zigzag", "pull_out", "spiral", "straight"}
-        The manoeuvre.
+    kind : {"turning_circle", "zigzag", "pull_out", "spiral", "straight"}
+        The manoeuvre (:data:`KINDS`; ``"turn"`` and ``"pull-out"`` are accepted too).
     angle_deg : float
         Rudder angle, deg, + to port (a negative angle turns, or starts a zigzag, to starboard).
     check_deg : float, optional
@@ -356,12 +358,11 @@ def simulate_trial(
     """
     dt, sample_every, duration, hold = options.dt, options.sample_every, options.duration, options.hold
     rudder_rate_deg_s = options.rudder_rate_deg_s
-    if kind not in KINDS:
-        raise ValueError(f"unknown ship manoeuvre {kind!r}; known: {', '.join(KINDS)}")
+    kind = canonical_kind(kind, KINDS, "ship manoeuvre")
     if not speed > 0 or not dt > 0:
         raise ValueError(f"speed ({speed}) and step ({dt}) must be positive")
-    if kind in ("turn", "zigzag", "pull_out", "spiral") and angle_deg == 0:
-        raise ValueError(f"a {kind.replace('_', '-')} needs a rudder angle other than 0")
+    if kind in ("turning_circle", "zigzag", "pull_out", "spiral") and angle_deg == 0:
+        raise ValueError(f"a {_WORDS.get(kind, kind)} needs a rudder angle other than 0")
     check_deg = abs(angle_deg) if check_deg is None else float(check_deg)
     if kind == "zigzag" and not check_deg > 0:
         raise ValueError(f"the zigzag's check heading must be positive, not {check_deg:g} deg")
@@ -385,7 +386,7 @@ def simulate_trial(
         duration = RUN_SHIP_LENGTHS[kind] * tl if duration is None else duration
         k_exec, n = _whole(T_EXECUTE, dt), _whole(T_EXECUTE + duration, dt)
         order = np.zeros(n)
-        if kind in ("turn", "zigzag"):
+        if kind in ("turning_circle", "zigzag"):
             order[k_exec:] = a
         elif kind == "pull_out":
             k_off = min(n, k_exec + _whole(hold, dt))
@@ -399,7 +400,7 @@ def simulate_trial(
                 f"zigzag {abs(angle_deg):g}/{check_deg:g}, first to {'port' if angle_deg > 0 else 'starboard'}, "
                 f"reversed at {check_deg:g} deg of heading change (closed loop)"
             )
-        elif kind == "turn":
+        elif kind == "turning_circle":
             name, desc = _named("turn", angle_deg), f"turning circle, rudder {angle_deg:g} deg"
         elif kind == "pull_out":
             name = _named("pull_out", angle_deg)
@@ -442,6 +443,10 @@ def simulate_trial(
         f"{desc}; approach {speed:.4g} m/s, {rpm:.4g} rpm, execute at {T_EXECUTE:g} s; rudder rate {rate}; dt {dt:g} s"
     )
     return Trial(track, name, desc, float(speed), float(rpm), params)
+
+
+#: The kinds as words in messages.
+_WORDS = {"turning_circle": "turning circle", "pull_out": "pull-out"}
 
 
 def _whole(seconds: float, dt: float) -> int:
