@@ -246,6 +246,9 @@ def test_sample_tracks_spends_its_budget_on_the_whole_sampling_and_records_the_c
     assert res.importance["draws"].shape[0] == imp["done"] and res.draws.shape[0] == 2000  # resampled
     assert mc["cut"] and mc["done"] == 0, mc  # what was left could not pay for 20 MCMC steps
     assert res.method == "importance" and not res.verdict["converged"]
+    # the mode and its covariance as a fit gives them: arrays in the order of the names
+    assert res.p.shape == (len(res.names),) and np.array_equal(res.p, res.mode["p"])
+    assert res.cov.shape == (len(res.names),) * 2
     assert "ended the importance stage" in res.verdict["text"] and "MCMC was not run" in res.verdict["text"]
     # every stage said what it would cost before it ran
     assert any(m.startswith("posterior mode and Laplace covariance: up to 30") for m in said), said

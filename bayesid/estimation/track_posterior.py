@@ -1542,6 +1542,18 @@ class TrackPosteriorResult:
     between_runs: dict
     budget: dict = dataclasses.field(default_factory=dict)
 
+    @property
+    def p(self) -> np.ndarray:
+        """The posterior mode, shape (P,), in the order of :attr:`names`: the same convention as
+        a fit's :attr:`bayesid.estimation.fit.FitResult.p` (``mode["p"]``)."""
+        return np.asarray(self.mode["p"], float)
+
+    @property
+    def cov(self) -> np.ndarray:
+        """The Laplace covariance at the mode, shape (P, P) (``mode["cov"]``); the draws'
+        spread is ``np.cov(draws, rowvar=False)``."""
+        return np.asarray(self.mode["cov"], float)
+
 
 #: Share of the budget left after the mode that the importance stage may use under
 #: ``method="auto"`` unless its draws already pass the verdict (the MCMC refinement gets the rest).
