@@ -31,6 +31,10 @@ model compared on a track set and for its noise floor:
 
 ``"auto"`` picks ``"fitted"`` when a track does not log all of u, v, r and its positions are too
 noisy for a 1 s slope estimate of the velocity (:func:`resolve_start`), else ``"measured"``.
+
+The scores are a :class:`Scores`, a :class:`Record`: the package's one record base, a frozen
+dataclass that reads as the JSON dict it writes (the gap diagnosis's records,
+:mod:`bayesid.analysis.gap.records`, are Records too).
 """
 
 from __future__ import annotations
@@ -38,10 +42,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 
 from .data.track import STATE_NAMES, Track
+from .tasks import record_fields
 
 #: Channels scored by the protocol, in this order, when the track measures them.
 CHANNELS = ("x", "y", "psi", "u", "v", "r")
@@ -499,8 +505,120 @@ def _unwrap_finite(y):
     return out
 
 
+#: The strings strict JSON writes for non-finite floats (:func:`bayesid.tasks.jsonable`).
+_NON_FINITE = ("nan", "inf", "-inf")
+
+
+class Record(Mapping):
+    """The package's record base: a dataclass that reads as the JSON dict it writes (the protocol's
+    :class:`Scores`, and the gap diagnosis's records, :mod:`bayesid.analysis.gap.records`).
+
+    A subclass is a ``@dataclass(frozen=True, eq=False)`` (``eq=False`` keeps the mapping's
+    equality, so a record equals the dict it writes). Its JSON object has a key per field, in
+    field order, but the fields of ``_OPTIONAL`` while they are None; ``_ALIASES`` (``{alias:
+    field}``) are written right after their field, with its value.
+    """
+
+    #: Fields left out of the JSON (and of the mapping) while None.
+    _OPTIONAL: ClassVar[tuple] = ()
+    #: ``{alias: field}``: keys written after their field, with its value.
+    _ALIASES: ClassVar[dict] = {}
+    #: The record's name in messages.
+    _WHAT: ClassVar[str] = "record"
+
+    def _keys(self) -> tuple:
+        out = []
+        for f in fields(self):
+            if f.name in self._OPTIONAL and getattr(self, f.name) is None:
+                continue
+            out.append(f.name)
+            out += [a for a, n in self._ALIASES.items() if n == f.name]
+        return tuple(out)
+
+    def to_dict(self) -> dict:
+        """The record as its JSON object (dicts and lists copied, one level).
+
+        Returns
+        -------
+        dict
+            ``{key: value}`` in the order the diagnosis has always written them.
+        """
+        return {k: _copy(self._value(k)) for k in self._keys()}
+
+    @classmethod
+    def from_dict(cls, d: Mapping):
+        """The record of a JSON object :meth:`to_dict` wrote (``"nan"``, ``"inf"``, ``"-inf"``
+        in a float field read as floats).
+
+        Parameters
+        ----------
+        d : Mapping
+            The JSON object.
+
+        Returns
+        -------
+        Record
+            The record; ``cls.from_dict(x).to_dict() == x``.
+
+        Raises
+        ------
+        ValueError
+            A key the record does not have, or a required one missing (named).
+        """
+        args = record_fields(cls, d, cls._WHAT, extra=tuple(cls._ALIASES))
+        kinds = {f.name: str(f.type) for f in fields(cls)}
+        return cls(**{k: read_float(v) if kinds[k].startswith("float") else v for k, v in args.items()})
+
+    @classmethod
+    def read(cls, d: Mapping):
+        """The record of a JSON object of the record's current shape, else the object as read: a
+        row of an older file (written before a field existed) or a hand-made one stays a dict, so
+        that writing it again gives it back key for key.
+
+        Parameters
+        ----------
+        d : Mapping
+            The JSON object.
+
+        Returns
+        -------
+        Record or dict
+            ``cls.from_dict(d)`` when that writes ``d``'s keys in ``d``'s order, else ``dict(d)``.
+        """
+        try:
+            rec = cls.from_dict(d)
+        except ValueError:
+            return dict(d)
+        return rec if list(rec) == list(d) else dict(d)
+
+    def _value(self, key: str):
+        return getattr(self, self._ALIASES.get(key, key))
+
+    def __getitem__(self, key: str):
+        if key in self._keys():
+            return self._value(key)
+        raise KeyError(key)
+
+    def __iter__(self):
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        return len(self._keys())
+
+
+def _copy(v):
+    return dict(v) if isinstance(v, dict) else list(v) if isinstance(v, list) else v
+
+
+def read_float(v):
+    """A JSON value with the strings strict JSON writes for non-finite floats (``"nan"``,
+    ``"inf"``, ``"-inf"``, :func:`bayesid.tasks.jsonable`) read back as floats; any other value as
+    it is."""
+    return float(v) if isinstance(v, str) and v in _NON_FINITE else v
+
+
 @dataclass(frozen=True, eq=False)
-class Scores(Mapping):
+class Scores(Record):
     """The protocol's scores of a model on a set of tracks: a frozen record that also reads as the
     JSON dict it writes (``scores["rms_position_m"]``, ``dict(scores)``), as scipy's
     ``OptimizeResult`` does.
@@ -538,16 +656,8 @@ class Scores(Mapping):
     per_track_rms_position_m: dict | None = None
     log_likelihood: float | None = None
 
-    def to_dict(self) -> dict:
-        """The scores as JSON-able dict, in the field order (None optional fields left out).
-
-        Returns
-        -------
-        dict
-            ``rms``, ``rms_position_m``, ``max_position_m``, ``rms_heading_deg``,
-            ``n_samples`` [, ``per_track_rms_position_m``][, ``log_likelihood``].
-        """
-        return {k: (dict(v) if isinstance(v, dict) else v) for k, v in self._items()}
+    _OPTIONAL: ClassVar[tuple] = ("per_track_rms_position_m", "log_likelihood")
+    _WHAT: ClassVar[str] = "scores"
 
     @classmethod
     def from_dict(cls, d: Mapping) -> Scores:
@@ -577,28 +687,8 @@ class Scores(Mapping):
             raise ValueError(f"scores: missing key(s) {missing}")
         return cls(**{k: _number(v) for k, v in d.items()})
 
-    def _items(self):
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if v is not None or f.default is MISSING:
-                yield f.name, v
-
-    def __getitem__(self, key: str):
-        if key in self._keys():
-            return getattr(self, key)
-        raise KeyError(key)
-
-    def _keys(self) -> tuple:
-        return tuple(k for k, _ in self._items())
-
-    def __iter__(self):
-        return iter(self._keys())
-
-    def __len__(self) -> int:
-        return len(self._keys())
-
     def __repr__(self) -> str:
-        return f"Scores({', '.join(f'{k}={v!r}' for k, v in self._items())})"
+        return f"Scores({', '.join(f'{k}={v!r}' for k, v in self.items())})"
 
 
 def _number(v):
@@ -661,6 +751,8 @@ __all__ = [
     "resolve_start",
     "start_settings",
     "LEADIN_SAMPLES",
+    "Record",
+    "read_float",
     "Scores",
     "pooled_scores",
 ]

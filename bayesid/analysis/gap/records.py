@@ -3,21 +3,20 @@ candidate effect (:class:`CandidateRow`), what the rounds leave (:class:`Remaind
 check (:class:`BaseCheck`), a refitted term of structure discovery (:class:`TermRow`) and a run of
 the design (:class:`DesignedRun`, with the run test's outlook, :class:`RunTestOutlook`).
 
-Each is a frozen dataclass that also reads as the JSON dict it writes (``row["heldout_rms_m"]``,
-``dict(row)``, ``row.get(...)``), as :class:`bayesid.protocol.Scores` does: :meth:`Record.to_dict`
-gives the ``diagnosis.json`` object key for key and in order, :meth:`Record.from_dict` reads it
-back.
+Each is a :class:`bayesid.protocol.Record` (the package's one record base, which
+:class:`bayesid.protocol.Scores` is too): a frozen dataclass that also reads as the JSON dict it
+writes (``row["heldout_rms_m"]``, ``dict(row)``, ``row.get(...)``); :meth:`Record.to_dict` gives the
+``diagnosis.json`` object key for key and in order, :meth:`Record.from_dict` reads it back.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 from ...models.runs import other_speed_note, with_rpm_scaled
-from ...protocol import Scores
-from ...tasks import record_fields
+from ...protocol import Record, Scores, read_float
 
 __all__ = [
     "Record",
@@ -36,113 +35,6 @@ __all__ = [
     "pair_label",
     "pair_of",
 ]
-
-#: The strings strict JSON writes for non-finite floats (:func:`bayesid.tasks.jsonable`).
-_NON_FINITE = ("nan", "inf", "-inf")
-
-
-class Record(Mapping):
-    """Base of the records: a dataclass that reads as the JSON dict it writes.
-
-    A subclass is a ``@dataclass(frozen=True, eq=False)`` (``eq=False`` keeps the mapping's
-    equality, so a record equals the dict it writes). Its JSON object has a key per field, in
-    field order, but the fields of ``_OPTIONAL`` while they are None; ``_ALIASES`` (``{alias:
-    field}``) are written right after their field, with its value.
-    """
-
-    #: Fields left out of the JSON (and of the mapping) while None.
-    _OPTIONAL: ClassVar[tuple] = ()
-    #: ``{alias: field}``: keys written after their field, with its value.
-    _ALIASES: ClassVar[dict] = {}
-    #: The record's name in messages.
-    _WHAT: ClassVar[str] = "record"
-
-    def _keys(self) -> tuple:
-        out = []
-        for f in fields(self):
-            if f.name in self._OPTIONAL and getattr(self, f.name) is None:
-                continue
-            out.append(f.name)
-            out += [a for a, n in self._ALIASES.items() if n == f.name]
-        return tuple(out)
-
-    def to_dict(self) -> dict:
-        """The record as its JSON object (dicts and lists copied, one level).
-
-        Returns
-        -------
-        dict
-            ``{key: value}`` in the order the diagnosis has always written them.
-        """
-        return {k: _copy(self._value(k)) for k in self._keys()}
-
-    @classmethod
-    def from_dict(cls, d: Mapping):
-        """The record of a JSON object :meth:`to_dict` wrote (``"nan"``, ``"inf"``, ``"-inf"``
-        in a float field read as floats).
-
-        Parameters
-        ----------
-        d : Mapping
-            The JSON object.
-
-        Returns
-        -------
-        Record
-            The record; ``cls.from_dict(x).to_dict() == x``.
-
-        Raises
-        ------
-        ValueError
-            A key the record does not have, or a required one missing (named).
-        """
-        args = record_fields(cls, d, cls._WHAT, extra=tuple(cls._ALIASES))
-        kinds = {f.name: str(f.type) for f in fields(cls)}
-        return cls(**{k: _float(v) if kinds[k].startswith("float") else v for k, v in args.items()})
-
-    @classmethod
-    def read(cls, d: Mapping):
-        """The record of a JSON object of the record's current shape, else the object as read: a
-        row of an older file (written before a field existed) or a hand-made one stays a dict, so
-        that writing it again gives it back key for key.
-
-        Parameters
-        ----------
-        d : Mapping
-            The JSON object.
-
-        Returns
-        -------
-        Record or dict
-            ``cls.from_dict(d)`` when that writes ``d``'s keys in ``d``'s order, else ``dict(d)``.
-        """
-        try:
-            rec = cls.from_dict(d)
-        except ValueError:
-            return dict(d)
-        return rec if list(rec) == list(d) else dict(d)
-
-    def _value(self, key: str):
-        return getattr(self, self._ALIASES.get(key, key))
-
-    def __getitem__(self, key: str):
-        if key in self._keys():
-            return self._value(key)
-        raise KeyError(key)
-
-    def __iter__(self):
-        return iter(self._keys())
-
-    def __len__(self) -> int:
-        return len(self._keys())
-
-
-def _copy(v):
-    return dict(v) if isinstance(v, dict) else list(v) if isinstance(v, list) else v
-
-
-def _float(v):
-    return float(v) if isinstance(v, str) and v in _NON_FINITE else v
 
 
 @dataclass(frozen=True, eq=False)
@@ -972,7 +864,7 @@ class DesignedRun(Record):
         if "worst_pair" in d:
             d["worst_pair"] = pair_of(d["worst_pair"])
         if "pairs" in d:
-            d["pairs"] = _pairs_read(d["pairs"], _float)
+            d["pairs"] = _pairs_read(d["pairs"], read_float)
         if "run_test" in d:
             d["run_test"] = RunTestOutlook.from_dict(d["run_test"])
         if d.get("menu_inseparable") is not None:
