@@ -131,6 +131,89 @@ def test_the_diagnosis_reports_held_out_runs_at_another_point(kv):
     assert any("another propulsion point" in m for m in said)
 
 
+def test_heldout_propeller_approach_judges_the_held_out_runs_at_their_own_point(kv):
+    """The same two runs from another point, diagnosed with ``heldout_propeller="approach"``: the
+    diagnosis is made again with their rpm matched, and the gap, all of it the point's, is gone."""
+    import warnings
+
+    import bayesid
+    from bayesid.tasks import Runner
+
+    home, _ = _runs(kv, "home")
+    away = [Track(t.t, dict(t.data, n=1.08 * np.asarray(t["n"])), name=t.name.replace("home", "away")) for t in home]
+    got, said = {}, []
+    for propeller in ("logged", "approach"):
+        opts = bayesid.DiagnoseOptions(
+            candidates=(), window_s=20.0, fit_window_s=20.0, max_nfev=5, start="measured", heldout_propeller=propeller
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            got[propeller] = bayesid.diagnose(
+                kv,
+                ["Xuu", "Yv", "Nr"],
+                home,
+                away,
+                opts,
+                rng=np.random.default_rng(0),
+                runner=Runner(progress=said.append),
+            )
+    logged, matched = got["logged"], got["approach"]
+    assert logged.significant_gap and logged.verdict != "none"
+    # the held-out runs, twins of the training runs but for the rpm log, are predicted as well as
+    # the training runs once their rpm is matched (0.006 m against 0.17 m with the logged rpm)
+    before, after = logged.gap_before["heldout_rms_m"], matched.gap_before["heldout_rms_m"]
+    assert after < 0.1 * before and after == pytest.approx(matched.gap_before["train_rms_m"], rel=0.1)
+    ap = ApproachCheck.from_dict(matched.where["approach"])
+    assert ap.rediagnosed and ap.off_runs == ["away_zigzag", "away_turn"] and ap.share_of_excess > 0.9
+    assert "judged with those runs at the matched rpm" in ap.sentence()
+    assert (
+        "--heldout-propeller approach (DiagnoseOptions" in ApproachCheck.from_dict(logged.where["approach"]).sentence()
+    )
+    assert matched.settings["heldout_propeller"] == "approach" and "heldout_propeller" not in logged.settings
+    assert any("diagnosed again with their rpm matched" in m for m in said)
+
+
+def test_heldout_propeller_approach_needs_a_propeller_model(tmp_path, capsys):
+    import bayesid
+    from bayesid import cli
+
+    runs = [Track([0.0, 1.0], {"x": [0.0, 1.0]}, name=n) for n in ("a", "b")]
+    with pytest.raises(ValueError, match="no propeller model"):
+        bayesid.diagnose(
+            bayesid.load_any_vehicle("nps_auv2"),
+            None,
+            runs[:1],
+            runs[1:],
+            bayesid.DiagnoseOptions(heldout_propeller="approach"),
+        )
+    with pytest.raises(ValueError, match="heldout_propeller must be one of logged, approach"):
+        bayesid.DiagnoseOptions(heldout_propeller="matched")
+    csv = tmp_path / "z.csv"
+    assert (
+        cli.main(
+            [
+                "-q",
+                "simulate",
+                "--vehicle",
+                "nps_auv2",
+                "--manoeuvre",
+                "zigzag",
+                "--angle",
+                "10",
+                "--duration",
+                "30",
+                "--out",
+                str(csv),
+                "--no-figure",
+            ]
+        )
+        == 0
+    )
+    args = ["diagnose", "--vehicle", "nps_auv2", "--train", str(csv), "--heldout", str(csv), "--heldout-propeller"]
+    assert cli.main([*args, "approach", "--out", str(tmp_path / "d")]) == 2
+    assert "--heldout-propeller approach: nps_auv2 has no propeller model" in capsys.readouterr().err
+
+
 def test_predict_warns_about_a_run_at_another_propulsion_point(kv, tmp_path, capsys):
     import json
 

@@ -79,6 +79,15 @@ def add_parser(sub) -> None:
         "tracks' kinematics, or auto (held when the base-fit check finds the fitted ones inconsistent and "
         "the held ones predict the training tracks better)",
     )
+    d.add_argument(
+        "--heldout-propeller",
+        choices=("logged", "approach"),
+        default="logged",
+        help="a ship's held-out runs' propeller speed: the logged rpm (default), or approach: when Where finds "
+        "held-out runs at another propulsion point than the training runs (another basin, model, propeller or rpm "
+        "control), the diagnosis is made again with their rpm scaled to what the base model needs for their own "
+        "approach speed, so that the candidates are judged without the point's difference",
+    )
     opt.add_discovery(d, default_on=True)
     opt.add_jobs(d)
     opt.add_out(d, "output folder")
@@ -104,6 +113,11 @@ def run(args) -> int:
     check_outputs(args)
     vehicle = load_any_vehicle(args.vehicle)
     family = model_class(vehicle)
+    if args.heldout_propeller == "approach" and getattr(family, "steady_speed", None) is None:
+        raise ValueError(
+            f"--heldout-propeller approach: {args.vehicle} has no propeller model to match (only a ship's model has "
+            "one); leave the option out"
+        )
     free = free_list(vehicle, args.free)
     got = read_tracks([("--train", args.train), ("--heldout", args.heldout)], vehicle)
     train, held = got["--train"], got["--heldout"]
@@ -126,6 +140,7 @@ def run(args) -> int:
             design=None if args.no_discover else design,
             inputs=args.inputs,
             rudder_rate_deg_s=args.rudder_rate,
+            heldout_propeller=args.heldout_propeller,
         )
         run_and_write(args, vehicle, free, got, options)
     return 0

@@ -884,9 +884,15 @@ def _another_point_lines(check) -> list:
         if sh >= 0
         else "; matching their rpm to their approach makes the held-out error worse"
     )
+    judged = (
+        " The verdict and every candidate were judged with their rpm matched (--heldout-propeller approach)."
+        if ap.rediagnosed
+        else " To judge the candidates with their rpm matched: --heldout-propeller approach."
+    )
     return [
         f"**Also: held-out run(s) {', '.join(ap.off_runs)} at another propulsion point** than the training runs' "
-        f"(the model at their logged rpm settles {ap.heldout_error:+.1%} off their approach speed{share}; see Where).",
+        f"(the model at their logged rpm settles {ap.heldout_error:+.1%} off their approach speed{share}; see Where)."
+        + judged,
         "",
     ]
 

@@ -357,6 +357,8 @@ def worse_on_other_kinds(
 
 #: How the training fits of a diagnosis get their window starts (:class:`DiagnoseOptions`).
 TRAIN_STARTS = ("fitted", "kinematic", "auto")
+#: The propeller speed the held-out runs are driven with (:attr:`DiagnoseOptions.heldout_propeller`).
+HELDOUT_PROPELLERS = ("logged", "approach")
 
 
 @dataclass(frozen=True)
@@ -424,12 +426,21 @@ class DiagnoseOptions:
     rudder_rate_deg_s : float, optional
         The gear's rate of ``inputs="rate"``, deg/s; None: the vehicle file's
         (``[service] rudder_rate_deg_s``).
+    heldout_propeller : {"logged", "approach"}, default "logged"
+        The propeller speed of the held-out runs. ``"approach"`` (a model with a propeller
+        model: a ship's): when *Where*'s propulsion-point check finds held-out runs at another
+        point than the training runs (:func:`~bayesid.analysis.gap.where.approach_check`: another
+        basin, model, propeller or rpm control), the diagnosis is made again with each such run's
+        logged rpm scaled to what the fitted base model needs for the run's own approach speed,
+        so that every candidate is judged on the held-out runs without the point's difference
+        (``where["approach"]`` keeps the check, with ``rediagnosed`` true). The same matching as
+        ``bayesid predict --propeller approach``.
 
     Raises
     ------
     ValueError
-        ``train_starts`` or ``inputs`` not among the choices; ``rudder_rate_deg_s`` not positive,
-        or given with another reading than ``"rate"``.
+        ``train_starts``, ``inputs`` or ``heldout_propeller`` not among the choices;
+        ``rudder_rate_deg_s`` not positive, or given with another reading than ``"rate"``.
     """
 
     candidates: tuple | None = None
@@ -449,10 +460,15 @@ class DiagnoseOptions:
     design: object = None
     inputs: str = "hold"
     rudder_rate_deg_s: float | None = None
+    heldout_propeller: str = "logged"
 
     def __post_init__(self):
         if self.train_starts not in TRAIN_STARTS:
             raise ValueError(f"train_starts must be one of {', '.join(TRAIN_STARTS)}, not {self.train_starts!r}")
+        if self.heldout_propeller not in HELDOUT_PROPELLERS:
+            raise ValueError(
+                f"heldout_propeller must be one of {', '.join(HELDOUT_PROPELLERS)}, not {self.heldout_propeller!r}"
+            )
         if self.inputs not in INPUT_RECONSTRUCTIONS:
             raise ValueError(f"inputs must be one of {', '.join(INPUT_RECONSTRUCTIONS)}, not {self.inputs!r}")
         r = self.rudder_rate_deg_s
@@ -591,6 +607,11 @@ def diagnose(
     t_start = time.perf_counter()
     opt, th = options, thresholds
     rng = np.random.default_rng(0) if rng is None else rng
+    if opt.heldout_propeller == "approach" and getattr(model_class(vehicle), "steady_speed", None) is None:
+        raise ValueError(
+            "heldout_propeller='approach': the model has no propeller model to match the held-out runs' rpm to "
+            "(only a ship's model has one)"
+        )
     family, setup, cand_effects, sd = _diagnosis_setup(vehicle, free, train, heldout, opt, runner)
     free = setup.free
     names_t, names_h, dt = [t.name for t in train], [t.name for t in heldout], setup.dt
@@ -624,6 +645,9 @@ def diagnose(
             ctx_m = contexts(base, approach.matched(heldout), setup.window_s, setup.rule, leadin_s=setup.leadin_s)
             matched = evaluate(base, bfit.p, ctx_m).scores(sd_fit)
             approach = approach.with_scores(b_held["rms_position_m"], matched["rms_position_m"], floor.heldout_rms_m)
+        if opt.heldout_propeller == "approach" and approach.another_point and not base.n_nuisance:
+            first = (b_held["rms_position_m"], floor.heldout_rms_m)
+            return _rediagnosed(approach, first, vehicle, free, train, heldout, opt, thresholds, rng, runner, t_start)
         w["approach"] = approach.to_dict()
         if approach.another_point:
             say(approach.sentence().replace("**", ""))
@@ -718,6 +742,34 @@ def diagnose(
         setup=setup,
         discovered_terms=discovered_terms(found, names_h, kinds, th),
     )
+
+
+def _rediagnosed(approach, first, vehicle, free, train, heldout, opt, thresholds, rng, runner, t_start) -> Diagnosis:
+    """``heldout_propeller="approach"`` with held-out runs at another propulsion point: the
+    diagnosis made again on the held-out runs with their rpm matched to their approach
+    (:meth:`~bayesid.analysis.gap.records.ApproachCheck.matched`), its ``where["approach"]`` the
+    check that found them (``rediagnosed`` true; scored with ``first``, the base model's held-out
+    RMS and floor with the logged rpm, against the matched diagnosis's base held-out RMS), its
+    settings and time this call's."""
+    off = approach.off_runs
+    runner.say(
+        f"held-out run(s) {', '.join(off)} at another propulsion point: diagnosed again with their rpm matched to "
+        "their approach (heldout_propeller approach)"
+    )
+    again = diagnose(
+        vehicle,
+        free,
+        train,
+        approach.matched(heldout),
+        replace(opt, heldout_propeller="logged"),
+        thresholds,
+        rng=rng,
+        runner=runner,
+    )
+    scored = approach.with_scores(first[0], again.gap_before["heldout_rms_m"], first[1])
+    where = dict(again.where, approach=replace(scored, rediagnosed=True).to_dict())
+    settings = dict(again.settings, heldout_propeller="approach")
+    return replace(again, where=where, settings=settings, seconds=time.perf_counter() - t_start)
 
 
 def _diagnosis_setup(vehicle, free, train: list, heldout: list, opt: DiagnoseOptions, runner: Runner) -> tuple:
@@ -980,6 +1032,7 @@ def _settings(opt: DiagnoseOptions, setup: Setup, cand_effects, weighting: str) 
         **({"rudder_rate_deg_s": opt.rudder_rate_deg_s} if opt.rudder_rate_deg_s is not None else {}),
         # the base fit's extra starts, when asked for (issue 69: what was passed is recorded)
         **({"base_starts": int(opt.base_starts)} if opt.base_starts else {}),
+        **({"heldout_propeller": opt.heldout_propeller} if opt.heldout_propeller != "logged" else {}),
     }
 
 

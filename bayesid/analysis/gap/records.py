@@ -277,6 +277,9 @@ class ApproachCheck(Record):
     share_of_excess : float, optional
         ``(heldout - matched) / (heldout - floor)``: the share of the held-out excess the other
         propulsion point carries.
+    rediagnosed : bool, optional
+        True when the diagnosis was made again with those runs' rpm matched
+        (``DiagnoseOptions.heldout_propeller="approach"``): every candidate was judged on them.
     """
 
     runs: list
@@ -287,8 +290,15 @@ class ApproachCheck(Record):
     matched_heldout_rms_m: float | None = None
     floor_rms_m: float | None = None
     share_of_excess: float | None = None
+    rediagnosed: bool | None = None
 
-    _OPTIONAL: ClassVar[tuple] = ("heldout_rms_m", "matched_heldout_rms_m", "floor_rms_m", "share_of_excess")
+    _OPTIONAL: ClassVar[tuple] = (
+        "heldout_rms_m",
+        "matched_heldout_rms_m",
+        "floor_rms_m",
+        "share_of_excess",
+        "rediagnosed",
+    )
     _WHAT: ClassVar[str] = "approach check"
 
     @property
@@ -390,6 +400,17 @@ class ApproachCheck(Record):
                 f"{'its' if len(off) == 1 else 'their'} own approach speed, the base model's held-out RMS goes from "
                 f"{self.heldout_rms_m:.3g} m to {self.matched_heldout_rms_m:.3g} m (floor {self.floor_rms_m:.3g} m)"
                 f"{reading}"
+            )
+        if self.rediagnosed:
+            text += (
+                f" Every candidate below was judged with {'that run' if len(off) == 1 else 'those runs'} at the "
+                "matched rpm (--heldout-propeller approach): the verdict is about what the model misses once the "
+                "propulsion point is set aside."
+            )
+        else:
+            text += (
+                " To judge the candidates with the held-out runs at their own point, diagnose again with "
+                '--heldout-propeller approach (DiagnoseOptions(heldout_propeller="approach") in the Python API).'
             )
         return text
 
