@@ -21,7 +21,8 @@ terms are freed in the file (what ``--write-vehicle`` writes), the chosen effect
 refitted on the training runs, and both turns predicted. Last, loop 1 with the turns from
 "another basin": the world's hull with the packaged file's 0.204 m propeller in place of 0.216 m, at
 its own self-propulsion point (more rpm for the same approach), where Where's approach check should
-say the held-out runs are at another propulsion point. Loop 2: ``identify`` on the 13 zigzags, alone and with the
+say the held-out runs are at another propulsion point, once as ``diagnose`` runs by default and once
+with ``--heldout-propeller approach`` (the diagnosis made again with those runs' rpm matched). Loop 2: ``identify`` on the 13 zigzags, alone and with the
 starboard turn, with the file's free set, then also with ``coupling_speed`` (``--effects``) and
 with ``Xvvvv`` free; each fit's open-loop prediction of both turns against the world's
 (:func:`bayesid.estimation.prediction.turning_band`).
@@ -164,10 +165,11 @@ def loop_fit(kv, runs: dict, label: str, names: list, args, say, effects=(), ext
     return {"label": label, "errors": errs}
 
 
-def loop_diagnose(kv, runs: dict, args, say, train_turns: tuple = ()) -> None:
+def loop_diagnose(kv, runs: dict, args, say, train_turns: tuple = (), heldout_propeller: str = "logged") -> None:
     """Loop 1: the diagnosis of the validation split with the turns held out (``train_turns``: these
-    turns train instead), then, as ``--write-vehicle`` and ``bayesid fit`` would, the file with the
-    discovered terms refitted on the training runs and both turns predicted."""
+    turns train instead; ``heldout_propeller``: ``bayesid diagnose --heldout-propeller``), then, as
+    ``--write-vehicle`` and ``bayesid fit`` would, the file with the discovered terms refitted on the
+    training runs and both turns predicted."""
     from bayesid.analysis.gap import DiagnoseOptions, diagnose
     from bayesid.analysis.gap.diagnose import catalogue_candidates
     from bayesid.analysis.gap.discovery import DiscoveryOptions
@@ -194,6 +196,7 @@ def loop_diagnose(kv, runs: dict, args, say, train_turns: tuple = ()) -> None:
                 start="measured",
                 discover=DiscoveryOptions(max_nfev=args.max_nfev, n_alternatives=2),
                 design=None,
+                heldout_propeller=heldout_propeller,
             ),
             rng=np.random.default_rng(args.seed),
             runner=Runner(args.jobs),
@@ -203,7 +206,8 @@ def loop_diagnose(kv, runs: dict, args, say, train_turns: tuple = ()) -> None:
     before = D["gap_before"]["heldout_rms_m"]
     after = (D.get("gap_discovered") or {}).get("heldout_rms_m") or D["gap_after"]["heldout_rms_m"]
     say(
-        f"\nloop 1, diagnose: train {len(train)} runs ({len(train_turns)} turns), held out {', '.join(held_names)}; "
+        f"\nloop 1, diagnose: train {len(train)} runs ({len(train_turns)} turns), held out {', '.join(held_names)}"
+        f"{'' if heldout_propeller == 'logged' else f', --heldout-propeller {heldout_propeller}'}; "
         f"{time.perf_counter() - t0:.0f} s"
     )
     say(f"  verdict {D['verdict']}; effects added {D['effects_added']}; cause {D.get('cause')}")
@@ -279,6 +283,7 @@ def main() -> int:
             f"self-propulsion point ({turn_rpms(other)} rpm against {rpm:.1f} for the same approach)"
         )
         loop_diagnose(kv, other, args, say)
+        loop_diagnose(kv, other, args, say, heldout_propeller="approach")
     if not args.quick:
         Path(args.out).write_text("\n".join(lines) + "\n")
     return 0
