@@ -611,9 +611,19 @@ def _copy(v):
 
 
 def read_float(v):
-    """A JSON value with the strings strict JSON writes for non-finite floats (``"nan"``,
-    ``"inf"``, ``"-inf"``, :func:`bayesid.tasks.jsonable`) read back as floats; any other value as
-    it is."""
+    """A JSON value with the strings strict JSON writes for non-finite floats read back as floats.
+
+    Parameters
+    ----------
+    v : object
+        A value read from JSON (``"nan"``, ``"inf"`` and ``"-inf"`` are what
+        :func:`bayesid.tasks.jsonable` writes for non-finite floats).
+
+    Returns
+    -------
+    object
+        The float for one of those strings; any other value as it is.
+    """
     return float(v) if isinstance(v, str) and v in _NON_FINITE else v
 
 
