@@ -171,6 +171,11 @@ def test_heldout_propeller_approach_judges_the_held_out_runs_at_their_own_point(
     )
     assert matched.settings["heldout_propeller"] == "approach" and "heldout_propeller" not in logged.settings
     assert any("diagnosed again with their rpm matched" in m for m in said)
+    # the second diagnosis (on the matched runs) says nothing more of their point, nor advises the option again
+    assert not any(
+        "--heldout-propeller approach (DiagnoseOptions" in m
+        for m in said[said.index(next(m for m in said if "diagnosed again" in m)) :]
+    )
 
 
 def test_heldout_propeller_approach_needs_a_propeller_model(tmp_path, capsys):
@@ -186,8 +191,8 @@ def test_heldout_propeller_approach_needs_a_propeller_model(tmp_path, capsys):
             runs[1:],
             bayesid.DiagnoseOptions(heldout_propeller="approach"),
         )
-    with pytest.raises(ValueError, match="heldout_propeller must be one of logged, approach"):
-        bayesid.DiagnoseOptions(heldout_propeller="matched")
+    with pytest.raises(ValueError, match="heldout_propeller must be one of logged, approach, matched"):
+        bayesid.DiagnoseOptions(heldout_propeller="rated")
     csv = tmp_path / "z.csv"
     assert (
         cli.main(

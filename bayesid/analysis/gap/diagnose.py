@@ -358,7 +358,7 @@ def worse_on_other_kinds(
 #: How the training fits of a diagnosis get their window starts (:class:`DiagnoseOptions`).
 TRAIN_STARTS = ("fitted", "kinematic", "auto")
 #: The propeller speed the held-out runs are driven with (:attr:`DiagnoseOptions.heldout_propeller`).
-HELDOUT_PROPELLERS = ("logged", "approach")
+HELDOUT_PROPELLERS = ("logged", "approach", "matched")
 
 
 @dataclass(frozen=True)
@@ -426,7 +426,7 @@ class DiagnoseOptions:
     rudder_rate_deg_s : float, optional
         The gear's rate of ``inputs="rate"``, deg/s; None: the vehicle file's
         (``[service] rudder_rate_deg_s``).
-    heldout_propeller : {"logged", "approach"}, default "logged"
+    heldout_propeller : {"logged", "approach", "matched"}, default "logged"
         The propeller speed of the held-out runs. ``"approach"`` (a model with a propeller
         model: a ship's): when *Where*'s propulsion-point check finds held-out runs at another
         point than the training runs (:func:`~bayesid.analysis.gap.where.approach_check`: another
@@ -434,7 +434,9 @@ class DiagnoseOptions:
         logged rpm scaled to what the fitted base model needs for the run's own approach speed,
         so that every candidate is judged on the held-out runs without the point's difference
         (``where["approach"]`` keeps the check, with ``rediagnosed`` true). The same matching as
-        ``bayesid predict --propeller approach``.
+        ``bayesid predict --propeller approach``. ``"matched"``: the held-out runs given were
+        matched so already (the second diagnosis of ``"approach"``): *Where* still reads their
+        approach, but says nothing of it.
 
     Raises
     ------
@@ -641,7 +643,8 @@ def diagnose(
     w, forces = where(b.held, bfit, heldout, sd, floor_by_channel=floor.by_channel)
     approach = approach_check(base, bfit.p, train, heldout)
     if approach is not None:
-        if approach.another_point and not base.n_nuisance:  # how much of the gap the other point carries
+        if approach.another_point and not base.n_nuisance and opt.heldout_propeller != "matched":
+            # how much of the gap the other point carries
             ctx_m = contexts(base, approach.matched(heldout), setup.window_s, setup.rule, leadin_s=setup.leadin_s)
             matched = evaluate(base, bfit.p, ctx_m).scores(sd_fit)
             approach = approach.with_scores(b_held["rms_position_m"], matched["rms_position_m"], floor.heldout_rms_m)
@@ -649,7 +652,7 @@ def diagnose(
             first = (b_held["rms_position_m"], floor.heldout_rms_m)
             return _rediagnosed(approach, first, vehicle, free, train, heldout, opt, thresholds, rng, runner, t_start)
         w["approach"] = approach.to_dict()
-        if approach.another_point:
+        if approach.another_point and opt.heldout_propeller != "matched":
             say(approach.sentence().replace("**", ""))
     if opt.discover is not None:  # Where's dominant channel decides where the search starts
         searched, why = routed(opt.discover, w, base)
@@ -761,7 +764,7 @@ def _rediagnosed(approach, first, vehicle, free, train, heldout, opt, thresholds
         free,
         train,
         approach.matched(heldout),
-        replace(opt, heldout_propeller="logged"),
+        replace(opt, heldout_propeller="matched"),
         thresholds,
         rng=rng,
         runner=runner,
