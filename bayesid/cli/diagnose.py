@@ -85,7 +85,7 @@ def add_parser(sub) -> None:
         default="logged",
         help="a ship's held-out runs' propeller speed: the logged rpm (default), or approach: when Where finds "
         "held-out runs at another propulsion point than the training runs (another basin, model, propeller or rpm "
-        "control), the diagnosis is made again with their rpm scaled to what the base model needs for their own "
+        "control), the diagnosis is made again with their rpm scaled to the training runs' point for their own "
         "approach speed, so that the candidates are judged without the point's difference",
     )
     opt.add_discovery(d, default_on=True)

@@ -431,7 +431,8 @@ class DiagnoseOptions:
         model: a ship's): when *Where*'s propulsion-point check finds held-out runs at another
         point than the training runs (:func:`~bayesid.analysis.gap.where.approach_check`: another
         basin, model, propeller or rpm control), the diagnosis is made again with each such run's
-        logged rpm scaled to what the fitted base model needs for the run's own approach speed,
+        logged rpm scaled to put it at the training runs' point (the fitted base model missing its
+        approach speed as it misses theirs),
         so that every candidate is judged on the held-out runs without the point's difference
         (``where["approach"]`` keeps the check, with ``rediagnosed`` true). The same matching as
         ``bayesid predict --propeller approach``. ``"matched"``: the held-out runs given were

@@ -258,7 +258,8 @@ class ApproachCheck(Record):
         ``rpm``, ``accel_m_s2``, ``rudder_moved`` (:func:`bayesid.models.runs.run_approach`),
         ``model_speed_m_s``, ``speed_error`` (model / measured - 1) and ``steady`` (the speed
         changes by at most :data:`~bayesid.models.runs.APPROACH_UNSTEADY` over the samples read). Held-out rows also
-        ``matched_rpm`` (the rpm the model needs for the run's approach speed) and ``off`` (a
+        ``matched_rpm`` (the rpm the model needs for the run's approach speed; for a run at another
+        point, the rpm that puts it at the training runs' point, its ``speed_error`` theirs) and ``off`` (a
         steady approach more than :data:`~bayesid.models.runs.APPROACH_TOLERANCE` from the training runs' median
         ``speed_error`` and outside their range: another propulsion point).
     training_error : float or None
@@ -396,8 +397,8 @@ class ApproachCheck(Record):
                     "propeller's loading, and the rudder's inflow with it, differ too)."
                 )
             text += (
-                f" With the rpm of {'that run' if len(off) == 1 else 'those runs'} set to what the model needs for "
-                f"{'its' if len(off) == 1 else 'their'} own approach speed, the base model's held-out RMS goes from "
+                f" With the rpm of {'that run' if len(off) == 1 else 'those runs'} set to the training runs' point "
+                f"for {'its' if len(off) == 1 else 'their'} own approach speed, the base model's held-out RMS goes from "
                 f"{self.heldout_rms_m:.3g} m to {self.matched_heldout_rms_m:.3g} m (floor {self.floor_rms_m:.3g} m)"
                 f"{reading}"
             )

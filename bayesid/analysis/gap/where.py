@@ -368,8 +368,10 @@ def approach_check(model, p, train, held) -> ApproachCheck | None:
     settles at with the rpm the run logs there (``model.steady_speed``), against the run's
     measured approach speed; a held-out run whose error is more than
     :data:`~bayesid.models.runs.APPROACH_TOLERANCE` from the training runs' median and
-    outside their range is at another propulsion point, and gets the rpm the model needs for its
-    approach speed (``model.self_propulsion_rpm``).
+    outside their range is at another propulsion point, and gets the rpm that puts it at the
+    training runs' point: where the model's steady speed misses the run's approach speed by the
+    training runs' median miss (``model.self_propulsion_rpm`` at that speed; at the run's own
+    speed when the model holds the training runs' point exactly).
 
     Parameters
     ----------
@@ -405,6 +407,11 @@ def approach_check(model, p, train, held) -> ApproachCheck | None:
                 and abs(r["speed_error"] - tr_err) > APPROACH_TOLERANCE
                 and not min(errs["training"]) <= r["speed_error"] <= max(errs["training"])
             )
+        if r.get("off"):  # matched to the training runs' point: where the model misses them as it misses those
+            try:
+                r["matched_rpm"] = float(model.self_propulsion_rpm(p, r["speed_m_s"] * (1.0 + tr_err)))
+            except ValueError:
+                r["matched_rpm"] = None
     off = [r["speed_error"] for r in rows if r.get("off")]
     h_err = float(np.median(off if off else errs["held-out"]))
     other = bool(off)
