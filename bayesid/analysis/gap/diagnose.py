@@ -434,8 +434,9 @@ class DiagnoseOptions:
         logged rpm scaled to put it at the training runs' point (the fitted base model missing its
         approach speed as it misses theirs),
         so that every candidate is judged on the held-out runs without the point's difference
-        (``where["approach"]`` keeps the check, with ``rediagnosed`` true). The same matching as
-        ``bayesid predict --propeller approach``. ``"matched"``: the held-out runs given were
+        (``where["approach"]`` keeps the check, with ``rediagnosed`` true). ``bayesid predict
+        --propeller approach`` matches the same way to the model's own point (it has no training
+        runs). ``"matched"``: the held-out runs given were
         matched so already (the second diagnosis of ``"approach"``): *Where* still reads their
         approach, but says nothing of it.
 
