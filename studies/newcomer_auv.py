@@ -3,7 +3,7 @@ user brings them -- a compass heading, 5 Hz, no velocity log -- and what each st
 
 Method
 ------
-- Vehicle: REMUS 100 as the docs give it (``docs/examples/remus100.toml``, Prestero 2001); the
+- Vehicle: REMUS 100 as packaged (``bayesid/vehicles/remus100.toml``, Prestero 2001); the
   user's file has ``Nv`` x 1.25, ``Ndr`` x 0.75 and ``Yr`` x 1.30 (the fit's job), and the world a
   constant current of 0.19 m/s towards 30 deg (the diagnosis's job).
 - Logs: a 15 deg zigzag and a 15 deg turn to train, a 10 deg zigzag the other way and a -12 deg
@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 ROOT = Path(__file__).resolve().parents[1]
-REMUS = ROOT / "docs" / "examples" / "remus100.toml"
+REMUS = ROOT / "bayesid" / "vehicles" / "remus100.toml"
 #: The user's file: the docs' coefficients times these (the fit's job)
 USER_ERRORS = {"Nv": 1.25, "Ndr": 0.75, "Yr": 1.30}
 #: The world's current (the diagnosis's job): speed m/s, direction towards, deg from north
@@ -92,7 +92,7 @@ def write_logs(folder: Path, seed: int) -> dict:
 
 
 def user_vehicle():
-    """The user's file: the docs' REMUS 100 with :data:`USER_ERRORS`."""
+    """The user's file: the packaged REMUS 100 with :data:`USER_ERRORS`."""
     truth = load_truth()
     return truth.with_coefficients({k: truth.coefficients[k] * f for k, f in USER_ERRORS.items()})
 
@@ -271,7 +271,7 @@ def actuator_neutral_gap(tracks) -> dict:
 
 
 def load_truth():
-    """The docs' REMUS 100 file: the world's vehicle."""
+    """The packaged REMUS 100 file: the world's vehicle."""
     from bayesid.models import load_any_vehicle
 
     return load_any_vehicle(str(REMUS))

@@ -9,18 +9,19 @@ products fail with the closest names.
 import pickle
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bayesid.data import terms
-from bayesid.data.vehicle import load_vehicle
+from bayesid.data.vehicle import load_vehicle, packaged_vehicles
 from bayesid.models import manoeuvres as mv
 from bayesid.models.simulate import Simulator
 
 ROOT = Path(__file__).resolve().parents[1]
-REMUS = ROOT / "docs" / "examples" / "remus100.toml"
+REMUS = ROOT / "bayesid" / "vehicles" / "remus100.toml"
 
 # The listed table as it was before products were read from names (name, group, factors, accel,
 # multiplicity, power of L, category, horizontal), written out so that a change shows here.
@@ -318,10 +319,10 @@ def test_a_pickled_vehicle_keeps_its_new_products_in_a_fresh_process(nps):
     assert out.stdout.decode().strip() == "True"
 
 
-@pytest.mark.parametrize("vid", ["remus100", "REMUS100", "kvlcc2_7m_mmg"])
+@pytest.mark.parametrize("vid", ["kvlcc2_7m_mmg", "KVLCC2_7m_MMG"])
 def test_a_docs_example_asked_for_by_id_is_refused_naming_its_file(vid, tmp_path, capsys):
-    """Issue 69: REMUS 100 is a file of the docs, not a packaged vehicle. Asked for by its id, the
-    error says so and names the file, which exists (exit code 2 from the command)."""
+    """A vehicle file of the docs that is not packaged (the MMG-2015 KVLCC2), asked for by its id:
+    the error says so and names the file, which exists (exit code 2 from the command)."""
     from bayesid.cli import main
     from bayesid.data.vehicle import DOCS_EXAMPLES
     from bayesid.models.ship import load_ship
@@ -335,10 +336,14 @@ def test_a_docs_example_asked_for_by_id_is_refused_naming_its_file(vid, tmp_path
     assert path in capsys.readouterr().err
 
 
-def test_remus100_docs_example_loads_and_simulates():
-    """The worked example of the docs (Prestero 2001 converted to prime form) loads, has the
-    converted values, and turns in a short horizontal-plane run in both kernels."""
-    v = load_vehicle(REMUS)
+def test_remus100_is_packaged_loads_by_id_and_simulates():
+    """Issue 69: REMUS 100 (Prestero 2001 converted to prime form by the docs' example) is packaged:
+    it loads by its id, as the file the docs' example checks, has the converted values and its
+    source, and turns in a short horizontal-plane run in both kernels."""
+    assert "remus100" in packaged_vehicles()
+    v = load_vehicle("remus100")
+    assert v.coefficients == load_vehicle(REMUS).coefficients
+    assert "Prestero" in tomllib.loads(REMUS.read_text())["source"]["citation"][0]
     assert (v.id, v.L, v.rho, v.mass) == ("remus100", 1.33, 1030.0, 30.48)
     half = 0.5 * 1030.0
     # Prestero's dimensional values over 0.5 rho L^k (Nuv -> Nv, Yur -> Yr, Nuudr -> Ndr, Mrp -> Mpr)

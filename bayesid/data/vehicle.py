@@ -430,7 +430,7 @@ class _KnownTerms:
 
 #: Vehicle files the docs work with that are not packaged (id -> path in the source tree): a user who
 #: read the docs and gives the id is told where the file is
-DOCS_EXAMPLES = {"remus100": "docs/examples/remus100.toml", "kvlcc2_7m_mmg": "docs/vessels/kvlcc2_7m_mmg.toml"}
+DOCS_EXAMPLES = {"kvlcc2_7m_mmg": "docs/vessels/kvlcc2_7m_mmg.toml"}
 
 
 def docs_example_hint(path_or_id) -> str:
@@ -445,7 +445,7 @@ def docs_example_hint(path_or_id) -> str:
     Returns
     -------
     str
-        ``"; remus100 is a worked example of the docs, ..."`` or ``""``.
+        ``"; kvlcc2_7m_mmg is a worked example of the docs, ..."`` or ``""``.
     """
     path = DOCS_EXAMPLES.get(str(path_or_id).lower())
     if path is None:

@@ -9,9 +9,10 @@ reads coefficients in *prime* form: each one divided by ``0.5 * rho * L**k``, wh
 force, plus one per rate factor p, q, r, plus one for a moment; 3 for a linear and 4 for an
 angular acceleration, plus one for a moment).
 
-This example does the conversion in the open, checks that its output is the file
-``docs/examples/remus100.toml`` shipped with these docs, then loads that file and flies turning
-circles and a zigzag with it. Run it with ``--write`` to regenerate the file.
+This example does the conversion in the open, checks that its output is the packaged file
+``bayesid/vehicles/remus100.toml`` (``--vehicle remus100``, ``load_vehicle("remus100")``), then loads
+that file and flies turning circles and a zigzag with it. Run it with ``--write`` in a source
+checkout to regenerate the file.
 
 Source of the numbers: T. Prestero (2001), *Verification of a six-degree of freedom simulation
 model for the REMUS autonomous underwater vehicle*, MSc thesis, MIT/WHOI, as transcribed in
@@ -33,6 +34,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+import bayesid
 from bayesid.data import terms
 from bayesid.data.vehicle import load_vehicle
 from bayesid.models import manoeuvres as mv
@@ -202,8 +204,7 @@ def vehicle_toml() -> str:
     return "\n".join(lines) + "\n"
 
 
-here = Path(__file__).parent if "__file__" in globals() else Path.cwd()
-path = here / "remus100.toml"
+path = Path(bayesid.__file__).parent / "vehicles" / "remus100.toml"  # the packaged file
 text = vehicle_toml()
 if "--write" in sys.argv[1:]:
     path.write_text(text)

@@ -4,8 +4,8 @@ Your own vessel, executed: REMUS 100 from tracks to a diagnosis
 
 The walkthrough of :doc:`../vessel` ("From tracks to a model, a prediction and a diagnosis"), run
 at every build of these pages: each command below is the one on that page, and each output is
-what it printed on this build. The vehicle file is ``docs/examples/remus100.toml`` (Prestero 2001,
-converted in :doc:`plot_remus100`), whose ``Yvabsv`` is the thesis' printed value divided by ten.
+what it printed on this build. The vehicle file is the packaged ``remus100``
+(``bayesid/vehicles/remus100.toml``: Prestero 2001, converted in :doc:`plot_remus100`), whose ``Yvabsv`` is the thesis' printed value divided by ten.
 The stand-in tracks are simulated with the *printed* value, so the file is wrong by a factor of
 ten in one coefficient, and noise is added to what a navigation suite would log
 (``docs/walkthrough/make_logs.py``).
@@ -34,7 +34,7 @@ import bayesid
 
 here = Path(__file__).resolve().parent if "__file__" in globals() else Path.cwd()  # the gallery runs in docs/examples
 work = Path(tempfile.mkdtemp(prefix="bayesid_walkthrough_"))  # a fresh folder: the commands run in it
-shutil.copy(here / "remus100.toml", work)
+shutil.copy(Path(bayesid.__file__).parent / "vehicles" / "remus100.toml", work)  # the packaged file
 shutil.copy(here.parent / "walkthrough" / "make_logs.py", work)
 
 package_root = str(Path(bayesid.__file__).parents[1])  # the commands run the bayesid these pages document
