@@ -19,7 +19,7 @@ from bayesid.models import manoeuvres as mv
 from bayesid.models.ship import load_ship
 from bayesid.models.world import LogOptions, world_track
 
-REMUS = Path(__file__).resolve().parents[1] / "docs" / "examples" / "remus100.toml"
+REMUS = Path(__file__).resolve().parents[1] / "bayesid" / "vehicles" / "remus100.toml"
 FREE = ["Yv", "Yr", "Nv", "Nr", "Ydr", "Ndr"]
 
 

@@ -115,7 +115,7 @@ def test_a_fast_zigzag_logged_at_10_hz_turns_with_its_course():
     from bayesid.models import manoeuvres as mv
     from bayesid.models.world import LogOptions, world_track
 
-    veh = load_any_vehicle(str(Path(__file__).resolve().parents[1] / "docs" / "examples" / "remus100.toml"))
+    veh = load_any_vehicle("remus100")
     noise = {"x": 0.02, "y": 0.02, "psi": math.radians(0.2)}
     tr = world_track(
         veh, mv.zigzag(veh, 10.0, dt=0.1, duration=120.0), {}, np.random.default_rng(1), LogOptions(noise=noise)

@@ -75,7 +75,7 @@ def test_a_fine_log_keeps_the_second_differences_to_the_bit(nps_zigzag):
 def test_the_newcomers_auv_at_5_hz_reads_its_heading_noise_within_2_x():
     # issue 69's case: a REMUS-like AUV, 5 Hz, 0.5 m of position and 0.5 deg of heading noise, a
     # zigzag and a turn of 90 s; the noise floor read 19.4 deg of heading from the 0.5 deg sensor
-    remus = load_any_vehicle(str(ROOT / "docs" / "examples" / "remus100.toml"))
+    remus = load_any_vehicle("remus100")
     noise = {"x": 0.5, "y": 0.5, "psi": math.radians(0.5)}
     for i, m in enumerate(
         (mv.zigzag(remus, 15.0, dt=0.05, duration=90.0), mv.turning_circle(remus, 15.0, dt=0.05, duration=90.0))
