@@ -341,8 +341,8 @@ def render(R: dict) -> str:
             f"{d['current_rank']} of {len(d['ranking'])}.",
             f"- Held-out RMS {fmt(gb['heldout_rms_m'])} m (training {fmt(gb['train_rms_m'])} m) against a noise floor "
             f"of {fmt(fl['heldout_rms_m'])} m; the floor's heading RMS {fmt(fl['heading_rms_deg'])} deg from a "
-            f"{fmt(math.degrees(NOISE['psi']))} deg sensor: what a perfect model scores on these windows, started "
-            "from noisy positions.",
+            f"{fmt(math.degrees(NOISE['psi']))} deg sensor: what a model of the right form scores on these windows, "
+            "started from noisy positions, its coefficients known as well as the training runs tell them.",
             f"- Candidates that contain the base model and fitted the training runs worse than it: "
             f"{', '.join(d['failed_fits']) or 'none'}.",
             f"- Report: `{d['report']}/report.md`; {fmt(d['seconds'])} s.",

@@ -25,7 +25,7 @@ RECORDS = [NoiseFloor, CandidateRow, Remainder, BaseCheck, TermRow]
 
 #: the keys, in order, that diagnosis.json had before the records (reports/ written by then)
 KEYS = {
-    NoiseFloor: ("heldout_rms_m", "heading_rms_deg", "by_channel"),
+    NoiseFloor: ("heldout_rms_m", "heading_rms_deg", "by_channel", "coefficient_draws", "diverged_share"),  # issue 67, appended
     Remainder: ("heldout_rms_m", "fraction_of_excess", "significant"),
     CandidateRow: (
         "effect", "heldout_rms_m", "train_rms_m", "delta_bic", "excess_removed", "share_of_excess",

@@ -109,7 +109,6 @@ def test_a_fast_zigzag_logged_at_10_hz_turns_with_its_course():
     """REMUS 100's 10/10 zigzag (a 7 s period) with 2 cm position noise: a 5-s chord lags its
     heading so far that the turns read reversed (the docs walkthrough's fit was refused); the
     chords are as short as the noise allows, the heading averaged along them."""
-    from pathlib import Path
 
     from bayesid.models import load_any_vehicle
     from bayesid.models import manoeuvres as mv

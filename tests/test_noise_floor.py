@@ -101,9 +101,14 @@ def test_a_verdict_the_noise_floor_decides_says_so():
         "gap_ratio": 1.35,
         "thresholds": Thresholds(),
         "ranking": [r.to_dict() for r in rows],
+        "noise_floor": {"heldout_rms_m": 0.74, "heading_rms_deg": 1.2, "by_channel": {}},
     }
     text = "\n".join(_floor_decides_lines(diagnosis_view(**res)))
     assert "The noise floor, not the model, decides this verdict" in text and "gap ratio 1.35" in text
+    assert "A perfect model scores the floor" in text
+    drawn = {**res, "noise_floor": {**res["noise_floor"], "coefficient_draws": 4, "diverged_share": 0.0}}
+    text = "\n".join(_floor_decides_lines(diagnosis_view(**drawn)))
+    assert "A model of the right form, its coefficients known as well as the training runs tell them (4 draws)" in text
     assert "current (window test p = 0.0073" in text and "delay" not in text and "actuator" not in text
     assert (
         _floor_decides_lines(diagnosis_view(**{**res, "significant_gap": True})) == []

@@ -49,7 +49,9 @@ def add_parser(sub) -> None:
         The subparsers of the ``bayesid`` parser.
     """
     s = opt.add_subcommand(sub, "simulate", "simulate a manoeuvre, print its ITTC indices and write a Track CSV")
-    opt.add_vehicle(s, "packaged id (nps_auv2, remus100, kvlcc2_7m, esso_osaka_3m) or a vehicle TOML", default="nps_auv2")
+    opt.add_vehicle(
+        s, "packaged id (nps_auv2, remus100, kvlcc2_7m, esso_osaka_3m) or a vehicle TOML", default="nps_auv2"
+    )
     s.add_argument(
         "--manoeuvre",
         choices=MANOEUVRES + tuple(a for a, k in KIND_ALIASES.items() if k in MANOEUVRES),

@@ -944,7 +944,7 @@ def _how_far_lines(diag) -> list:
         "before/after comparison on the same samples, not a calibrated likelihood).",
         "",
         f"Held-out shrinkage {fmt(diag.heldout_shrinkage)} (fraction of the base model's held-out RMS removed); "
-        f"noise floor (perfect model at the estimated noise) {fmt(_record(NoiseFloor, diag.noise_floor).heldout_rms_m)} m; gap ratio "
+        f"noise floor ({_floor_what(diag)}) {fmt(_record(NoiseFloor, diag.noise_floor).heldout_rms_m)} m; gap ratio "
         f"{fmt(diag.gap_ratio)} (held-out RMS / noise floor, dimensionless; significant above "
         f"{diag.thresholds.none_ratio}).",
         "",
@@ -997,11 +997,25 @@ def _floor_decides_lines(diag) -> list:
         "",
         f"**The noise floor, not the model, decides this verdict.** The held-out error is within "
         f"{th.none_ratio:g} x the noise floor (gap ratio {fmt(diag.gap_ratio)}), so no effect is named; yet "
-        f"{said} improves the held-out windows significantly. A perfect model scores the floor on these windows "
-        "from start states read off noisy logs: these logs cannot separate that effect from the floor's own error. "
-        "A velocity log, more precise positions, more held-out runs or windows over which the effect outgrows the "
-        "start-state error would.",
+        f"{said} improves the held-out windows significantly. {_floor_what(diag, sentence=True)} scores the floor "
+        "on these windows from start states read off noisy logs: these logs cannot separate that effect from the "
+        "floor's own error. A velocity log, more precise positions, more held-out runs, training runs that determine "
+        "the coefficients better, or windows over which the effect outgrows the start-state error would.",
     ]
+
+
+def _floor_what(diag, sentence: bool = False) -> str:
+    """What the diagnosis's noise floor is: a perfect model's error at the estimated noise, or that
+    of a model of the right form with coefficients drawn from the base fit's uncertainty
+    (``NoiseFloor.coefficient_draws``)."""
+    n = _record(NoiseFloor, diag.noise_floor).coefficient_draws
+    if sentence:
+        if n is None:
+            return "A perfect model"
+        return f"A model of the right form, its coefficients known as well as the training runs tell them ({n} draws),"
+    if n is None:
+        return "perfect model at the estimated noise"
+    return f"a model of the right form at the estimated noise, {n} coefficient draws from the base fit's Fisher information"
 
 
 def _undetermined_lines(diag) -> list:

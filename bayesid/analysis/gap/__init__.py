@@ -52,11 +52,14 @@ of the training fits as nuisance parameters). One rule serves every model compar
 Verdict rules (stated in the report):
 
 * the gap is *significant* when the held-out RMS position error exceeds ``none_ratio`` (1.5)
-  times the **noise floor**: the error a perfect model would show at the measured noise level,
-  estimated by simulating a model (the fitted base model and the nominal one; the smaller
-  result counts) on the held-out inputs, adding noise of the sd estimated from the data
+  times the **noise floor**: the error a model of the right form would show at the measured
+  noise level, its coefficients known as well as the training runs tell them, estimated by
+  simulating a model (the fitted base model and the nominal one; the smaller result counts) on
+  the held-out inputs, adding noise of the sd estimated from the data
   (:func:`bayesid.protocol.estimate_noise`, without the lower bound that the fit weights use),
-  and scoring that with the same model and start rule;
+  and scoring that with the same start rule and coefficients drawn from the base fit's inverse
+  Fisher information (:func:`~bayesid.analysis.gap.verdict.coefficient_draws`; with
+  ``DiagnoseOptions(floor="noise")`` the model's own coefficients: a perfect model's error);
 * an effect is *the cause* when, added with all coefficients re-identified, the held-out error
   falls into the floor band (at most ``none_ratio`` x the floor), it removes at least
   ``explain_fraction`` (0.5) of the excess over the floor, ``(rms_ref - rms_effect) /

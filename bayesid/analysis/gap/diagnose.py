@@ -47,6 +47,7 @@ from .verdict import (
     DivergedSimulation,
     Thresholds,
     assign_roles,
+    coefficient_draws,
     contribution,
     gap_summary,
     is_cause,
@@ -357,6 +358,8 @@ def worse_on_other_kinds(
 
 #: How the training fits of a diagnosis get their window starts (:class:`DiagnoseOptions`).
 TRAIN_STARTS = ("fitted", "kinematic", "auto")
+#: What the noise floor holds (:attr:`DiagnoseOptions.floor`).
+FLOORS = ("noise", "coefficients")
 #: The propeller speed the held-out runs are driven with (:attr:`DiagnoseOptions.heldout_propeller`).
 HELDOUT_PROPELLERS = ("logged", "approach", "matched")
 
@@ -439,11 +442,21 @@ class DiagnoseOptions:
         runs). ``"matched"``: the held-out runs given were
         matched so already (the second diagnosis of ``"approach"``): *Where* still reads their
         approach, but says nothing of it.
+    floor : {"coefficients", "noise"}, default "coefficients"
+        What the noise floor holds (:func:`~bayesid.analysis.gap.verdict.noise_floor`). ``"noise"``:
+        the fitted model's error on its own simulations of the held-out runs at the measured
+        noise (a perfect model's). ``"coefficients"``: the same simulations scored with
+        coefficients drawn from the base fit's inverse Fisher information at the noise
+        (:func:`~bayesid.analysis.gap.verdict.coefficient_draws`):
+        the error of a model of the right form known only as well as the training runs tell it,
+        so that a held-out run the training runs do not determine (a turn after zigzags) is not
+        read as a missing effect. Every test against the floor (the gap's significance, a
+        cause's band, the shares of the excess) uses it.
 
     Raises
     ------
     ValueError
-        ``train_starts``, ``inputs`` or ``heldout_propeller`` not among the choices;
+        ``train_starts``, ``inputs``, ``heldout_propeller`` or ``floor`` not among the choices;
         ``rudder_rate_deg_s`` not positive, or given with another reading than ``"rate"``.
     """
 
@@ -465,8 +478,11 @@ class DiagnoseOptions:
     inputs: str = "hold"
     rudder_rate_deg_s: float | None = None
     heldout_propeller: str = "logged"
+    floor: str = "coefficients"
 
     def __post_init__(self):
+        if self.floor not in FLOORS:
+            raise ValueError(f"floor must be one of {', '.join(FLOORS)}, not {self.floor!r}")
         if self.train_starts not in TRAIN_STARTS:
             raise ValueError(f"train_starts must be one of {', '.join(TRAIN_STARTS)}, not {self.train_starts!r}")
         if self.heldout_propeller not in HELDOUT_PROPELLERS:
@@ -633,9 +649,13 @@ def diagnose(
     # the noise itself, not the weights' lower bound (a 1 mm carriage track is not 1 cm noise)
     sd_raw = pooled_noise_sd(train + heldout, floor=False)
     floors, diverged = [], None
+    dev = None
+    if opt.floor == "coefficients":  # the fit's coefficient uncertainty, around either model
+        dev = coefficient_draws(bfit) - bfit.p[None]
     for f in (bfit, nominal):
         try:
-            floors.append(noise_floor(base, f, cho, heldout, sd_raw, rng))
+            draws = None if dev is None else np.clip(f.p[None] + dev, *base.bounds())
+            floors.append(noise_floor(base, f, cho, heldout, sd_raw, rng, draws=draws))
         except DivergedSimulation as exc:  # the other one may hold (a base fit bent far off)
             say(str(exc))
             diverged = exc
@@ -1038,6 +1058,7 @@ def _settings(opt: DiagnoseOptions, setup: Setup, cand_effects, weighting: str) 
         # the base fit's extra starts, when asked for (issue 69: what was passed is recorded)
         **({"base_starts": int(opt.base_starts)} if opt.base_starts else {}),
         **({"heldout_propeller": opt.heldout_propeller} if opt.heldout_propeller != "logged" else {}),
+        "floor": opt.floor,
     }
 
 

@@ -39,8 +39,9 @@ __all__ = [
 
 @dataclass(frozen=True, eq=False)
 class NoiseFloor(Record):
-    """The noise floor: the protocol's error of a perfect model at the measured noise level
-    (:func:`bayesid.analysis.gap.verdict.noise_floor`; ``Diagnosis.noise_floor``).
+    """The noise floor: the protocol's error of a model of the right form at the measured noise
+    level, scored with the fitted coefficients (a perfect model) or with draws from their
+    uncertainty (:func:`bayesid.analysis.gap.verdict.noise_floor`; ``Diagnosis.noise_floor``).
 
     Parameters
     ----------
@@ -50,13 +51,23 @@ class NoiseFloor(Record):
         Heading RMS, deg.
     by_channel : dict
         ``{channel: RMS error}``, SI (``x``, ``y`` m, ``psi`` rad, ``u``, ``v`` m/s, ``r`` rad/s).
+    coefficient_draws : int, optional
+        With ``DiagnoseOptions(floor="coefficients")``: the number of coefficient vectors drawn
+        from the base fit's Laplace covariance each noisy copy was scored with; None: the fitted
+        coefficients alone (the noise alone).
+    diverged_share : float, optional
+        With ``coefficient_draws``: the share of the draws' windows whose simulation diverged
+        (left out of the RMS).
     """
 
     heldout_rms_m: float
     heading_rms_deg: float
     by_channel: dict
+    coefficient_draws: int | None = None
+    diverged_share: float | None = None
 
     _WHAT: ClassVar[str] = "noise_floor"
+    _OPTIONAL: ClassVar[tuple] = ("coefficient_draws", "diverged_share")
 
     @classmethod
     def of(cls, scores: Scores) -> NoiseFloor:

@@ -1,8 +1,8 @@
 """The *verdict* of the gap diagnosis: is the gap significant, which effect is the cause, which
 ones contribute, what remains (the rules are stated in :mod:`bayesid.analysis.gap`).
 
-Noise floor: the error a perfect model shows at the measured noise level under the same
-protocol. Cause and contributor tests: held-out error against the floor band, share of the excess
+Noise floor: the error a model of the right form shows at the measured noise level under the
+same protocol, its coefficients the fitted ones or draws from their uncertainty. Cause and contributor tests: held-out error against the floor band, share of the excess
 removed, a one-sided Wilcoxon signed-rank test of the paired per-window errors (Wilcoxon 1945,
 Biometrics Bulletin 1(6)), and the training BIC difference (<= -10: strong evidence, Kass &
 Raftery 1995, JASA 90(430)).
@@ -25,6 +25,8 @@ __all__ = [
     "Thresholds",
     "DivergedSimulation",
     "noise_floor",
+    "coefficient_draws",
+    "FLOOR_DRAWS",
     "paired_window_test",
     "run_separation_test",
     "gap_summary",
@@ -106,11 +108,14 @@ class DivergedSimulation(ValueError):
     fixed-step integration diverged, a step too coarse for the vehicle or a fit far off."""
 
 
-def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFloor:
+def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2, draws=None) -> NoiseFloor:
     """The protocol's error for a perfect model at the measured noise level: simulate the fitted
     model on each held-out track's inputs from its first measured state (as the start rule
     estimates it), add Gaussian noise to every channel, ``n_rep`` times, and re-run the
-    protocol with the same model.
+    protocol with the same model; with ``draws``, score each noisy copy with every row of
+    ``draws`` instead (coefficients drawn from the fit's uncertainty,
+    :func:`coefficient_draws`): the error of a model of the right form whose coefficients are
+    known only as well as the training runs tell them.
 
     Parameters
     ----------
@@ -128,19 +133,24 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFl
         Draws the noise.
     n_rep : int, default 2
         Noisy copies per track.
+    draws : ndarray, shape (n_draws, n_params), optional
+        Parameter vectors each copy is scored with; None: ``fitres.p`` alone (the noise alone).
 
     Returns
     -------
     NoiseFloor
         Position RMS, heading RMS and RMS by channel of the pooled scores
-        (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks.
+        (:func:`bayesid.protocol.pooled_scores`) of the synthetic tracks; with ``draws``, also
+        their number and the share of the draws' windows whose simulation diverged (left out
+        of the RMS).
 
     Raises
     ------
     DivergedSimulation
         A whole-track simulation with non-finite states (naming the track, the time and the step).
     """
-    errs = []
+    errs, rows = [], fitres.p[None] if draws is None else np.asarray(draws, float)
+    n_windows = n_lost = 0
     for ctx, tr in zip(ctxs, tracks):
         s_first = ctx.s_meas[0].copy()
         if ctx.start == "fitted":  # the first segment's start as the rule estimates it
@@ -163,8 +173,74 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2) -> NoiseFl
                     data[k] = wrap(vals) if k == "psi" else vals
             syn = Track(tr.t, data, name=tr.name)
             c2 = model.context(syn, ctx.window_s, start=ctx.start, leadin_s=ctx.leadin_s)
-            errs.append(evaluate(model, fitres.p, [c2]).errors[0])
-    return NoiseFloor.of(pooled_scores(errs))
+            for q in rows:
+                e = evaluate(model, q, [c2]).errors[0]
+                n_windows += c2.W
+                n_lost += int(np.sum([~np.isfinite(e["x"][c2.win == w]).all() for w in range(c2.W)])) if "x" in e else 0
+                errs.append(e)
+    floor = NoiseFloor.of(pooled_scores(errs))
+    if draws is None:
+        return floor
+    return replace(floor, coefficient_draws=len(rows), diverged_share=n_lost / max(n_windows, 1))
+
+
+#: Coefficient draws of the noise floor with ``DiagnoseOptions(floor="coefficients")``
+#: (:func:`coefficient_draws`), each scored on every noisy copy of every held-out track
+FLOOR_DRAWS = 4
+#: Seed of those draws: their own stream, so that the diagnosis's other random numbers are those of
+#: the noise floor alone
+FLOOR_DRAW_SEED = 20261129
+
+
+def coefficient_draws(fitres, n: int = FLOOR_DRAWS, seed: int = FLOOR_DRAW_SEED) -> np.ndarray:
+    """Parameter vectors drawn from the coefficient uncertainty a fit of the right model form has
+    at the measured noise, for the noise floor (:func:`noise_floor`'s ``draws``).
+
+    The covariance is the inverse Fisher information ``(J^T J)^+`` of the fit's residuals, each
+    divided by its channel's noise sd (the Cramér-Rao bound; the Laplace covariance with residual
+    variance 1, :func:`bayesid.estimation.laplace.gauss_newton_covariance`), over every fitted
+    variable (window start offsets and nuisances too) and marginal over them: the block of the
+    model's parameters. It is the residual variance the fit would have *if the model were right*,
+    the floor's hypothesis: the fit's own residual variance would grow with the very gap the floor
+    is to judge. Draws are antithetic pairs ``p +- L z`` (``L L^T`` the covariance, ``z``
+    standard normal), so that their mean is the fit's; each is clipped into the model's bounds.
+
+    Parameters
+    ----------
+    fitres : FitResult
+        The fit (its ``p``, shape (n_params,), and Jacobian ``jac``, shape (n_res, n_params +
+        n_other), of residuals divided by their noise sds).
+    n : int, default FLOOR_DRAWS
+        Number of draws (rounded up to even).
+    seed : int, default FLOOR_DRAW_SEED
+        Seed of the standard normal draws.
+
+    Returns
+    -------
+    ndarray, shape (n, n_params)
+        The draws.
+
+    Raises
+    ------
+    ValueError
+        A fit without a finite Jacobian (no covariance to draw from).
+    """
+    from ...estimation.laplace import gauss_newton_covariance
+
+    if fitres.jac is None:
+        raise ValueError("the fit has no Jacobian: no covariance to draw the floor's coefficients from")
+    J = fitres.jac.toarray() if hasattr(fitres.jac, "toarray") else np.asarray(fitres.jac, float)
+    if not np.isfinite(J).all():
+        raise ValueError("the fit's Jacobian is not finite: no coefficient draws for the floor")
+    k = fitres.p.size
+    cov = gauss_newton_covariance(J)[:k, :k]
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    L = V * np.sqrt(np.clip(w, 0.0, None))
+    z = np.random.default_rng(seed).standard_normal((-(-n // 2), k))
+    dev = z @ L.T
+    rows = fitres.p[None] + np.concatenate([dev, -dev])
+    lo, hi = fitres.model.bounds()
+    return np.clip(rows, lo, hi)
 
 
 def paired_window_test(before: np.ndarray, after: np.ndarray) -> float:
