@@ -53,8 +53,9 @@ class NoiseFloor(Record):
         ``{channel: RMS error}``, SI (``x``, ``y`` m, ``psi`` rad, ``u``, ``v`` m/s, ``r`` rad/s).
     coefficient_draws : int, optional
         With ``DiagnoseOptions(floor="coefficients")``: the number of coefficient vectors drawn
-        from the base fit's Laplace covariance each noisy copy was scored with; None: the fitted
-        coefficients alone (the noise alone).
+        from the base fit's inverse Fisher information at the noise
+        (:func:`~bayesid.analysis.gap.verdict.coefficient_draws`) each noisy copy was scored
+        with; None: the fitted coefficients alone (the noise alone).
     diverged_share : float, optional
         With ``coefficient_draws``: the share of the draws' windows whose simulation diverged
         (left out of the RMS).

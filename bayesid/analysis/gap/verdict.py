@@ -2,10 +2,11 @@
 ones contribute, what remains (the rules are stated in :mod:`bayesid.analysis.gap`).
 
 Noise floor: the error a model of the right form shows at the measured noise level under the
-same protocol, its coefficients the fitted ones or draws from their uncertainty. Cause and contributor tests: held-out error against the floor band, share of the excess
-removed, a one-sided Wilcoxon signed-rank test of the paired per-window errors (Wilcoxon 1945,
-Biometrics Bulletin 1(6)), and the training BIC difference (<= -10: strong evidence, Kass &
-Raftery 1995, JASA 90(430)).
+same protocol, its coefficients the fitted ones or draws from their uncertainty. Cause and
+contributor tests: held-out error against the floor band, share of the excess removed, a
+one-sided Wilcoxon signed-rank test of the paired per-window errors (Wilcoxon 1945, Biometrics
+Bulletin 1(6)), and the training BIC difference (<= -10: strong evidence, Kass & Raftery 1995,
+JASA 90(430)).
 """
 
 from __future__ import annotations
