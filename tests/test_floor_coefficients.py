@@ -89,3 +89,16 @@ def test_a_control_whose_turn_the_zigzags_do_not_determine_is_clean_only_with_th
     assert noise.significant_gap and noise.verdict != "none"
     assert not coef.significant_gap and coef.verdict == "none"
     assert coef.settings["floor"] == "coefficients" and noise.settings["floor"] == "noise"
+
+
+@pytest.mark.parametrize("command", ["diagnose", "discover", "design"])
+def test_the_commands_that_diagnose_take_the_floor_option(command):
+    from bayesid.cli import build_parser
+    from bayesid.cli.diagnose import diagnose_options
+
+    base = ["--train", "a.csv", "--heldout", "b.csv", "--out", "o"]
+    base += ["--vehicle", "kvlcc2_7m"] if command == "diagnose" else ["--model", "m.json"]
+    args = build_parser().parse_args([command, *base])
+    assert args.floor == "coefficients" and diagnose_options(args).floor == "coefficients"
+    args = build_parser().parse_args([command, *base, "--floor", "noise"])
+    assert diagnose_options(args).floor == "noise"

@@ -88,15 +88,7 @@ def add_parser(sub) -> None:
         "control), the diagnosis is made again with their rpm scaled to the training runs' point for their own "
         "approach speed, so that the candidates are judged without the point's difference",
     )
-    d.add_argument(
-        "--floor",
-        choices=("noise", "coefficients"),
-        default="coefficients",
-        help="what the noise floor holds: coefficients (default): the measured noise and the base fit's coefficient "
-        "uncertainty at it (draws from the inverse Fisher information), so that held-out runs the training runs do "
-        "not determine (turns after zigzags) are not read as a missing effect; noise: the measured noise alone (a "
-        "perfect model's error, the rule before issue 67's controls)",
-    )
+    opt.add_floor(d)
     opt.add_discovery(d, default_on=True)
     opt.add_jobs(d)
     opt.add_out(d, "output folder")
@@ -150,7 +142,6 @@ def run(args) -> int:
             inputs=args.inputs,
             rudder_rate_deg_s=args.rudder_rate,
             heldout_propeller=args.heldout_propeller,
-            floor=args.floor,
         )
         run_and_write(args, vehicle, free, got, options)
     return 0
@@ -172,7 +163,7 @@ def check_outputs(args) -> None:
 
 def diagnose_options(args, **fields):
     """The diagnosis' options from the options ``diagnose`` and ``discover`` share (window, start
-    rule, lead-in, iterations), and ``fields``.
+    rule, lead-in, iterations, floor), and ``fields``.
 
     Parameters
     ----------
@@ -193,6 +184,7 @@ def diagnose_options(args, **fields):
         max_nfev=args.max_nfev,
         start=args.start,
         leadin_s=args.leadin if args.leadin > 0 else None,
+        floor=args.floor,
         **fields,
     )
 

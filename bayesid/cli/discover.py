@@ -35,6 +35,7 @@ def add_options(d) -> None:
     opt.add_start(d)
     opt.add_leadin(d)
     opt.add_max_nfev(d, "least-squares iterations per fit")
+    opt.add_floor(d)
     opt.add_seed(d, "random seed (noise floor, bootstrap of the sparse regression)")
     opt.add_discovery(d, default_on=False)
     opt.add_jobs(d)

@@ -316,6 +316,27 @@ def add_score_window(parser) -> None:
     _add_alias(parser, "--window", "--score-window", "window")
 
 
+def add_floor(parser) -> None:
+    """``--floor``: what the noise floor of a diagnosis holds (``DiagnoseOptions.floor``):
+    ``coefficients`` (default), the measured noise and the base fit's coefficient uncertainty, or
+    ``noise``, a perfect model's error.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
+    parser.add_argument(
+        "--floor",
+        choices=("coefficients", "noise"),
+        default="coefficients",
+        help="what the noise floor holds: coefficients (default): the measured noise and the base fit's coefficient "
+        "uncertainty at it (draws from the inverse Fisher information), so that held-out runs the training runs do "
+        "not determine (turns after zigzags) are not read as a missing effect; noise: the measured noise alone (a "
+        "perfect model's error, the rule before issue 67's controls)",
+    )
+
+
 def add_fit_window(parser, *checks, default, help: str, dest: str = "fit_window", alias: bool = False) -> None:
     """``--fit-window``: the window of the training fits (multiple shooting), s.
 
