@@ -104,8 +104,9 @@ def tracks(hidden: dict, velocity_log: bool, seed: int, duration: float, folder:
     return out
 
 
-def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool, floor: str = "noise") -> dict:
-    """One diagnosis (``bayesid diagnose --floor floor``) and its scores."""
+def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool, floor: str | None = None) -> dict:
+    """One diagnosis (``bayesid diagnose``, with ``--floor floor`` when given, else its default
+    floor) and its scores."""
     from bayesid import cli
 
     t0 = time.perf_counter()
@@ -117,7 +118,7 @@ def run_case(structure: dict, velocity_log: bool, seed: int, quick: bool, floor:
         held = [str(p) for n, p in paths.items() if n.endswith("_held")]
         argv = ["-q", "diagnose", "--vehicle", "kvlcc2_7m", "--train", *train, "--heldout", *held]
         argv += ["--score-window", "60", "--max-nfev", "10" if quick else "30", "--no-design"]
-        argv += ["--out", str(Path(d) / "diag")] + (["--floor", floor] if floor != "noise" else [])
+        argv += ["--out", str(Path(d) / "diag")] + (["--floor", floor] if floor else [])
         rc = cli.main(argv)
         if rc != 0:
             raise RuntimeError(f"bayesid diagnose failed (exit {rc}) on {structure['name']}")

@@ -177,7 +177,7 @@ def noise_floor(model, fitres, ctxs, tracks, sd, rng, n_rep: int = 2, draws=None
             for q in rows:
                 e = evaluate(model, q, [c2]).errors[0]
                 n_windows += c2.W
-                n_lost += int(np.sum([~np.isfinite(e["x"][c2.win == w]).all() for w in range(c2.W)])) if "x" in e else 0
+                n_lost += np.unique(c2.win[~np.isfinite(e["x"])]).size if "x" in e else 0
                 errs.append(e)
     floor = NoiseFloor.of(pooled_scores(errs))
     if draws is None:
