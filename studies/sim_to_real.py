@@ -45,6 +45,7 @@ Method
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -611,6 +612,32 @@ def summarise(results: list[dict]) -> dict:
     }
 
 
+def previous_seconds(path: Path) -> dict:
+    """``{case id: seconds}`` of the cases a previous run's journal at ``path`` finished (empty
+    when there is none or a line does not read: the order is only a hint)."""
+    took = {}
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()[1:]
+    except OSError:
+        return took
+    for line in lines:
+        try:
+            rec = json.loads(line)
+            took[rec["key"]] = float(rec["seconds"])
+        except (ValueError, KeyError, TypeError):
+            continue
+    return took
+
+
+def longest_first(tasks: list, took: dict) -> list:
+    """The tasks in the order the workers take them: cases without a previous time first (in their
+    order), then the longest previous times first (the longest-processing-time rule: a long case
+    started last leaves one worker idle while it runs; in the run at 820bedc the longest case took 859 s of
+    2371 s with ``--jobs 2``). The results are sorted back into the cases' order, so the order
+    changes no output."""
+    return sorted(tasks, key=lambda t: (t.key in took, -took.get(t.key, 0.0)))
+
+
 def main():
     import matplotlib
 
@@ -624,12 +651,13 @@ def main():
     if args.quick:
         settings["quick_version"] = QUICK_VERSION
     journal_path = out / "journal.jsonl"
+    took = previous_seconds(journal_path)  # read before --fresh removes it
     if args.fresh and journal_path.exists():
         journal_path.unlink()
         print(f"--fresh: removed {journal_path}")
     journal = Journal(journal_path, settings)
     cases = case_list(args.quick)
-    tasks = [Task(c["id"], c, (c, args.seed, args.quick)) for c in cases]
+    tasks = longest_first([Task(c["id"], c, (c, args.seed, args.quick)) for c in cases], took)
     n_done = sum(journal.get(t) is not None for t in tasks)
     print(
         f"{n_done} case(s) resumed from {journal_path}, {len(tasks) - n_done} to run on "
