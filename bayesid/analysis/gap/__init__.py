@@ -63,7 +63,7 @@ Verdict rules (stated in the report):
 * an effect is *the cause* when, added with all coefficients re-identified, the held-out error
   falls into the floor band (at most ``none_ratio`` x the floor), it removes at least
   ``explain_fraction`` (0.5) of the excess over the floor, ``(rms_ref - rms_effect) /
-  (rms_ref - floor)``, and its ΔBIC on the training tracks is at most ``-10`` (strong evidence,
+  (rms_ref - floor)``, and its ΔBIC on the training tracks is at most ``-10`` (very strong evidence,
   Kass & Raftery 1995);
 * an effect is a *contributor* when it improves the held-out windows without closing the gap:
   one-sided Wilcoxon signed-rank test of the paired per-window RMS position errors,

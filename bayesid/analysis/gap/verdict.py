@@ -5,7 +5,7 @@ Noise floor: the error a model of the right form shows at the measured noise lev
 same protocol, its coefficients the fitted ones or draws from their uncertainty. Cause and
 contributor tests: held-out error against the floor band, share of the excess removed, a
 one-sided Wilcoxon signed-rank test of the paired per-window errors (Wilcoxon 1945, Biometrics
-Bulletin 1(6)), and the training BIC difference (<= -10: strong evidence, Kass & Raftery 1995,
+Bulletin 1(6)), and the training BIC difference (<= -10: very strong evidence, Kass & Raftery 1995,
 JASA 90(430)).
 """
 
