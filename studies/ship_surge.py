@@ -312,8 +312,8 @@ def _probe_lines(alarms: list) -> list:
             f"; {what}"
             for what, holds in (
                 (
-                    "it leaves out the error of reading the rudder between the samples (the truth with the rudder held against "
-                    "read at the gear's rate)",
+                    "it leaves out the error of reading the rudder between the samples (the truth with the rudder held, "
+                    "against the truth with the rudder at the gear's rate)",
                     med[names[0]] > med[names[1]] + 0.1,
                 ),
                 (
@@ -483,6 +483,15 @@ def write_report(out: Path, rows: list, summary: dict, args, calib: list = ()) -
         f"- Median held-out excess shrink of the {summary['cases_with_a_kept_term_or_effect']} hidden cases where a "
         f"term was kept or an effect named: {fmt(summary['median_excess_shrink'])} (the issue's target: 0.5 on the "
         "turns; where nothing was kept it is 0).",
+        *(
+            [
+                f"- The floor band held (verdict none) on the nothing-hidden control at further seeds in "
+                f"{summary['calibration_band_held']} of {summary['calibration_diagnoses']} diagnoses (*The floor band "
+                "on controls* below: what the false alarms are made of)."
+            ]
+            if summary.get("calibration_diagnoses")
+            else []
+        ),
         "",
         *reading(rows),
         *calibration_lines(list(calib)),
