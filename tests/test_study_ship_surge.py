@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from conftest import load_study
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -37,15 +39,6 @@ def test_ship_surge_quick(tmp_path):
     assert json.loads((out / "manifest.json").read_text())["quick"] is True
 
 
-def _study():
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("ship_surge_study", ROOT / "studies" / "ship_surge.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_the_calibration_reports_the_floor_bands_coverage_and_each_false_alarm():
     rows = [
         {"velocity_log": log, "seed": 1000 + k, "verdict": v, "heldout_rms_m": 0.3 * x, "floor_m": 0.3, "ratio": x}
@@ -53,9 +46,9 @@ def test_the_calibration_reports_the_floor_bands_coverage_and_each_false_alarm()
         for k, (v, x) in enumerate([("none", 0.9), ("none", 1.2), ("unexplained", 1.7), ("none", 1.1)])
     ]
     rows[-1] = {**rows[-1], "verdict": "current", "ratio": 2.0, "heldout_rms_m": 0.6}
-    text = "\n".join(_study().calibration_lines(rows))
+    text = "\n".join(load_study("ship_surge").calibration_lines(rows))
     assert "The band held in 5 of 8 (62.5 %)" in text
     assert text.count("- False alarm, seed") == 3
     assert "seed 1003 (no velocity log): current" in text
     assert "| velocity log | 4 | 3 |" in text and "| no velocity log | 4 | 2 |" in text
-    assert _study().calibration_lines([]) == []
+    assert load_study("ship_surge").calibration_lines([]) == []

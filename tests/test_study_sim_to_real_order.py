@@ -1,24 +1,15 @@
 """studies/sim_to_real.py hands its cases to the workers longest first, by a previous run's journal
 (the longest-processing-time rule), and reads a journal it cannot use as no hint at all."""
 
-import importlib.util
 import json
-from pathlib import Path
+
+from conftest import load_study
 
 from bayesid.tasks import Task
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _study():
-    spec = importlib.util.spec_from_file_location("sim_to_real_study", ROOT / "studies" / "sim_to_real.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
 
 def test_cases_without_a_previous_time_first_then_the_longest(tmp_path):
-    study = _study()
+    study = load_study("sim_to_real")
     path = tmp_path / "journal.jsonl"
     lines = [{"journal": "bayesid", "version": 1, "identity": {}}]
     lines += [{"key": k, "params": {}, "result": {}, "seconds": s} for k, s in (("a", 5.0), ("b", 80.0), ("c", 20.0))]
